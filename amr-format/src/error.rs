@@ -1,0 +1,98 @@
+//! The one error type of this crate: what went wrong, and where in the file.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong while writing, opening or verifying an `.amrk` file.
+///
+/// Variants say which part of the file is at fault; callers add the file name
+/// (see [`FormatError::in_file`]).
+#[derive(Debug, thiserror::Error)]
+pub enum FormatError {
+    /// The bytes do not start with the `.amrk` magic: this is not an `.amrk` file.
+    #[error("not an .amrk file (wrong magic bytes at {at})")]
+    BadMagic {
+        /// Where the magic was expected ("header" or "footer").
+        at: &'static str,
+    },
+    /// The file was written with a layout this reader does not know.
+    #[error("layout version {got} is not supported (this build reads version {expected}); upgrade amr-render or re-convert")]
+    Version {
+        /// The version this build reads.
+        expected: u32,
+        /// The version the file declares.
+        got: u32,
+    },
+    /// The file is shorter than its own tables say: it was truncated or is not finished.
+    #[error("file is truncated or incomplete: {0}")]
+    Truncated(String),
+    /// A stored checksum does not match the bytes it covers.
+    #[error("checksum mismatch in {what}: stored {stored:#010x}, computed {computed:#010x} (the file is corrupt)")]
+    Checksum {
+        /// Which part of the file (metadata, or a brick of a field).
+        what: String,
+        /// The checksum stored in the file.
+        stored: u32,
+        /// The checksum of the bytes as they are.
+        computed: u32,
+    },
+    /// A count, offset or value in the file is impossible.
+    #[error("corrupt file: {0}")]
+    Corrupt(String),
+    /// The input handed to the writer is inconsistent (overlapping bricks, a bad ratio, ...).
+    #[error("invalid hierarchy: {0}")]
+    InvalidHierarchy(String),
+    /// A brick value is NaN, infinite or out of the f32 range.
+    #[error("non-finite value {value} in field '{field}', level {level}, brick {brick} (cells {lo:?}..{hi:?})")]
+    NonFinite {
+        /// The field's name.
+        field: String,
+        /// The brick's level.
+        level: u32,
+        /// The brick's index in the brick table.
+        brick: usize,
+        /// The brick's lower cell corner.
+        lo: [i64; 3],
+        /// The brick's upper (exclusive) cell corner.
+        hi: [i64; 3],
+        /// The offending value.
+        value: f64,
+    },
+    /// A caller misused the writer (a brick written twice, a missing brick at finish, ...).
+    #[error("writer misuse: {0}")]
+    Usage(String),
+    /// An operating-system error.
+    #[error("{context}: {source}")]
+    Io {
+        /// What was being done.
+        context: String,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// An error about a named file.
+    #[error("{}: {source}", path.display())]
+    InFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        #[source]
+        source: Box<FormatError>,
+    },
+}
+
+impl FormatError {
+    /// Wraps the error with the name of the file it concerns.
+    pub fn in_file(self, path: impl Into<PathBuf>) -> Self {
+        match self {
+            e @ FormatError::InFile { .. } => e,
+            e => FormatError::InFile { path: path.into(), source: Box::new(e) },
+        }
+    }
+
+    pub(crate) fn io(context: impl Into<String>, source: std::io::Error) -> Self {
+        FormatError::Io { context: context.into(), source }
+    }
+}
+
+/// Result with [`FormatError`].
+pub type Result<T, E = FormatError> = std::result::Result<T, E>;

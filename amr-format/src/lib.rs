@@ -1,0 +1,25 @@
+//! The `.amrk` file: block-structured AMR bricks, one region per field, and an AMR-KDTree built
+//! in integer finest-level coordinates, laid out to be memory-mapped and read in place.
+//!
+//! - [`raw`]: the on-disk structs, nothing else.
+//! - [`AmrkWriter`]: streams bricks into a new file and writes the tables and tree last.
+//! - [`AmrkFile`]: opens a file from any bytes (`Vec<u8>`, a memory map) in O(metadata),
+//!   validating every count and offset; [`AmrkFile::verify`] checks everything else.
+#![deny(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod compress;
+pub mod error;
+pub mod geometry;
+pub mod hierarchy;
+pub mod kdtree;
+pub mod raw;
+pub mod reader;
+pub mod verify;
+pub mod writer;
+
+pub use error::{FormatError, Result};
+pub use geometry::{copy_subbox, IBox};
+pub use hierarchy::{BrickSpec, HierarchySpec, LevelSpec};
+pub use reader::{AmrkFile, BrickInfo, FieldInfo, LeafInfo, LevelInfo};
+pub use writer::{AmrkWriter, Compression, WriteSummary, WriterOptions};

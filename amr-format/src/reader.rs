@@ -1,0 +1,544 @@
+//! Opening an `.amrk` file in place: every count and offset is checked once, at open, so that
+//! every accessor afterwards is a bounds-safe slice of the caller's bytes.
+
+use std::borrow::Cow;
+
+use zerocopy::little_endian::U32;
+use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout};
+
+use crate::compress::decode_into;
+use crate::error::{FormatError, Result};
+use crate::geometry::IBox;
+use crate::hierarchy::{MAX_BRICK_CELLS, MAX_BRICK_EXTENT, MAX_FINEST_EXTENT, MAX_LEVELS};
+use crate::kdtree::TreeView;
+use crate::raw::{
+    self, BrickData, BrickRecord, FieldRecord, Footer, Header, KdLeaf, KdNode, LeafRange, LevelRecord, Section, KD_LEAF,
+};
+
+/// One level of an open file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelInfo {
+    /// Physical cell size per axis.
+    pub cell_size: [f64; 3],
+    /// Physical position of the lower corner of cell (0, 0, 0).
+    pub origin: [f64; 3],
+    /// Refinement ratio to the next finer level (1 on the finest level).
+    pub ratio_to_next: [u32; 3],
+    /// The level's index domain.
+    pub domain: IBox,
+    /// Width of one cell of this level in finest-level cells.
+    pub finest_scale: [i64; 3],
+}
+
+/// One field of an open file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FieldInfo {
+    /// The field's name.
+    pub name: String,
+    /// Smallest value over all bricks.
+    pub min: f32,
+    /// Largest value over all bricks.
+    pub max: f32,
+    /// The field's data region.
+    pub data: (u64, u64),
+    /// True when some brick of the field is compressed.
+    pub compressed: bool,
+}
+
+/// One brick of an open file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BrickInfo {
+    /// Refinement level.
+    pub level: u32,
+    /// Cells in the level's index space.
+    pub cells: IBox,
+}
+
+/// One kd-tree leaf of an open file.
+#[derive(Clone, Copy, Debug)]
+pub struct LeafInfo<'a> {
+    /// The leaf's cells, in finest-level cells relative to the domain's lower corner.
+    pub bounds: IBox,
+    /// The finest brick covering the leaf first, then the coarser bricks under it.
+    pub bricks: &'a [U32],
+}
+
+/// An open `.amrk` file over bytes `D` (a `Vec<u8>`, a memory map, ...).
+pub struct AmrkFile<D> {
+    data: D,
+    footer: Footer,
+    levels: Vec<LevelInfo>,
+    fields: Vec<FieldInfo>,
+    finest_domain: IBox,
+}
+
+impl<D: AsRef<[u8]>> AmrkFile<D> {
+    /// Opens a file: checks the header, the footer, the metadata checksum and every count,
+    /// offset and index in the tables. Reads no brick data; costs O(metadata).
+    pub fn open(data: D) -> Result<Self> {
+        let bytes = data.as_ref();
+        let len = bytes.len() as u64;
+        let min_len = (size_of::<Header>() + size_of::<Footer>()) as u64;
+        if len < min_len {
+            if len >= 8 && bytes[..8] != raw::MAGIC {
+                return Err(FormatError::BadMagic { at: "header" });
+            }
+            return Err(FormatError::Truncated(format!("{len} bytes, less than the {min_len} of a header and footer")));
+        }
+        let header = Header::read_from_prefix(bytes).map_err(|_| FormatError::Truncated("no header".into()))?.0;
+        if header.magic != raw::MAGIC {
+            return Err(FormatError::BadMagic { at: "header" });
+        }
+        check_version(header.layout_version.get())?;
+        let footer_bytes = &bytes[bytes.len() - size_of::<Footer>()..];
+        let footer = Footer::read_from_bytes(footer_bytes).map_err(|_| FormatError::Truncated("no footer".into()))?;
+        if footer.magic != raw::MAGIC {
+            return Err(FormatError::Truncated(
+                "no footer at the end of the file (the file was cut short or never finished)".into(),
+            ));
+        }
+        check_version(footer.layout_version.get())?;
+        let crc = crc32fast::hash(&footer_bytes[..footer_bytes.len() - 4]);
+        if crc != footer.footer_crc.get() {
+            return Err(FormatError::Checksum { what: "footer".into(), stored: footer.footer_crc.get(), computed: crc });
+        }
+        let footer_at = len - size_of::<Footer>() as u64;
+        let meta = footer.metadata;
+        let meta_end = end_of(&meta, "metadata")?;
+        if meta.offset.get() < size_of::<Header>() as u64 || meta_end != footer_at {
+            return Err(FormatError::Corrupt(format!(
+                "metadata region {}..{} does not end at the footer ({footer_at})",
+                meta.offset.get(),
+                meta_end
+            )));
+        }
+        let meta_bytes = &bytes[meta.offset.get() as usize..meta_end as usize];
+        let crc = crc32fast::hash(meta_bytes);
+        if crc != footer.metadata_crc.get() {
+            return Err(FormatError::Checksum { what: "metadata".into(), stored: footer.metadata_crc.get(), computed: crc });
+        }
+
+        let mut file = Self { data, footer, levels: Vec::new(), fields: Vec::new(), finest_domain: IBox::default() };
+        file.check_sections()?;
+        file.levels = file.read_levels()?;
+        file.finest_domain = file.levels.last().map(|l| l.domain).unwrap_or_default();
+        file.fields = file.read_fields()?;
+        file.check_bricks()?;
+        file.check_tree()?;
+        Ok(file)
+    }
+
+    /// The underlying bytes.
+    pub fn bytes(&self) -> &[u8] {
+        self.data.as_ref()
+    }
+
+    /// The footer as stored.
+    pub fn footer(&self) -> &Footer {
+        &self.footer
+    }
+
+    /// Levels, coarsest first.
+    pub fn levels(&self) -> &[LevelInfo] {
+        &self.levels
+    }
+
+    /// Fields, in file order.
+    pub fn fields(&self) -> &[FieldInfo] {
+        &self.fields
+    }
+
+    /// The index of the field called `name`.
+    pub fn field_index(&self, name: &str) -> Option<usize> {
+        self.fields.iter().position(|f| f.name == name)
+    }
+
+    /// Number of bricks.
+    pub fn num_bricks(&self) -> usize {
+        self.footer.num_bricks.get() as usize
+    }
+
+    /// Brick `i`. Panics if `i >= num_bricks()`.
+    pub fn brick(&self, i: usize) -> BrickInfo {
+        let r = &self.brick_records()[i];
+        BrickInfo {
+            level: r.level.get(),
+            cells: IBox::new(r.lo.map(|v| v.get()), r.hi.map(|v| v.get())),
+        }
+    }
+
+    /// Where field `field`'s values of brick `brick` are stored, and their range.
+    pub fn brick_data(&self, field: usize, brick: usize) -> &BrickData {
+        &self.field_brick_records(field)[brick]
+    }
+
+    /// The value range of field `field` in brick `brick`.
+    pub fn brick_range(&self, field: usize, brick: usize) -> (f32, f32) {
+        let d = self.brick_data(field, brick);
+        (d.min.get(), d.max.get())
+    }
+
+    /// The stored bytes of one brick of one field (compressed or raw).
+    pub fn brick_bytes(&self, field: usize, brick: usize) -> &[u8] {
+        let d = self.brick_data(field, brick);
+        let start = d.offset.get() as usize;
+        &self.bytes()[start..start + d.len.get() as usize]
+    }
+
+    /// The values of one brick of one field, x fastest: borrowed from the bytes when stored raw
+    /// on a little-endian host and 4-byte aligned, decoded otherwise.
+    pub fn brick_values(&self, field: usize, brick: usize) -> Result<Cow<'_, [f32]>> {
+        let d = self.brick_data(field, brick);
+        let bytes = self.brick_bytes(field, brick);
+        if d.encoding.get() == raw::ENCODING_RAW && cfg!(target_endian = "little") {
+            if let Ok(values) = <[f32]>::ref_from_bytes(bytes) {
+                return Ok(Cow::Borrowed(values));
+            }
+        }
+        let mut out = Vec::new();
+        self.brick_values_into(field, brick, &mut out)?;
+        Ok(Cow::Owned(out))
+    }
+
+    /// Decodes one brick of one field into `out` (replacing its contents).
+    pub fn brick_values_into(&self, field: usize, brick: usize, out: &mut Vec<f32>) -> Result<()> {
+        let d = self.brick_data(field, brick);
+        let cells = self.brick(brick).cells.num_cells().unwrap_or(0) as usize;
+        decode_into(d.encoding.get(), self.brick_bytes(field, brick), cells, out).map_err(|e| match e {
+            FormatError::Corrupt(m) => {
+                FormatError::Corrupt(format!("field '{}', brick {brick}: {m}", self.fields[field].name))
+            }
+            e => e,
+        })
+    }
+
+    /// The kd-tree, ready to walk.
+    pub fn tree(&self) -> TreeView<'_> {
+        TreeView {
+            nodes: self.slice(&self.footer.nodes),
+            leaves: self.slice(&self.footer.leaves),
+            domain: IBox::new([0; 3], self.finest_domain.extent()),
+        }
+    }
+
+    /// Number of kd-tree leaves.
+    pub fn num_leaves(&self) -> usize {
+        self.footer.num_leaves.get() as usize
+    }
+
+    /// Leaf `leaf`: its box and its bricks. Panics if out of range.
+    pub fn leaf(&self, leaf: u32) -> LeafInfo<'_> {
+        let l: &KdLeaf = &self.slice::<KdLeaf>(&self.footer.leaves)[leaf as usize];
+        let list: &[U32] = self.slice(&self.footer.brick_list);
+        let start = l.brick_start.get() as usize;
+        LeafInfo {
+            bounds: IBox::new(l.lo.map(|v| i64::from(v.get())), l.hi.map(|v| i64::from(v.get()))),
+            bricks: &list[start..start + l.brick_count.get() as usize],
+        }
+    }
+
+    /// The conservative value range of field `field` inside leaf `leaf` (`(+inf, -inf)` for a
+    /// leaf without bricks).
+    pub fn leaf_range(&self, field: usize, leaf: u32) -> (f32, f32) {
+        let r: &LeafRange = &self.slice::<LeafRange>(&self.fields_raw()[field].leaf_ranges)[leaf as usize];
+        (r.min.get(), r.max.get())
+    }
+
+    /// The finest level's index domain (absolute finest-level cell indices).
+    pub fn finest_domain(&self) -> IBox {
+        self.finest_domain
+    }
+
+    /// Raw sections, for `info`: (name, bytes).
+    pub fn section_sizes(&self) -> Vec<(String, u64)> {
+        let f = &self.footer;
+        let mut out = vec![("header".to_string(), size_of::<Header>() as u64)];
+        for (field, raw) in self.fields.iter().zip(self.fields_raw()) {
+            out.push((format!("data '{}'", field.name), raw.data.len.get()));
+        }
+        for (name, s) in [
+            ("levels", &f.levels),
+            ("fields", &f.fields),
+            ("bricks", &f.bricks),
+            ("kd nodes", &f.nodes),
+            ("kd leaves", &f.leaves),
+            ("brick list", &f.brick_list),
+            ("names", &f.strings),
+        ] {
+            out.push((name.to_string(), s.len.get()));
+        }
+        let per_field: u64 =
+            self.fields_raw().iter().map(|r| r.brick_data.len.get() + r.leaf_ranges.len.get()).sum();
+        out.push(("per-field brick and leaf tables".to_string(), per_field));
+        out.push(("footer".to_string(), size_of::<Footer>() as u64));
+        out
+    }
+
+    fn brick_records(&self) -> &[BrickRecord] {
+        self.slice(&self.footer.bricks)
+    }
+
+    pub(crate) fn field_brick_records(&self, field: usize) -> &[BrickData] {
+        self.slice(&self.fields_raw()[field].brick_data)
+    }
+
+    pub(crate) fn fields_raw(&self) -> &[FieldRecord] {
+        self.slice(&self.footer.fields)
+    }
+
+    /// A typed view of a section checked at open.
+    fn slice<T: FromBytes + KnownLayout + Immutable>(&self, s: &Section) -> &[T] {
+        let start = s.offset.get() as usize;
+        let bytes = &self.bytes()[start..start + s.len.get() as usize];
+        <[T]>::ref_from_bytes(bytes).expect("section sizes are checked at open")
+    }
+
+    fn check_sections(&self) -> Result<()> {
+        let f = &self.footer;
+        let nl = f.num_levels.get() as usize;
+        if nl == 0 || nl > MAX_LEVELS {
+            return Err(FormatError::Corrupt(format!("{nl} levels (1 to {MAX_LEVELS} allowed)")));
+        }
+        if f.num_fields.get() == 0 {
+            return Err(FormatError::Corrupt("no fields".into()));
+        }
+        let meta = &f.metadata;
+        for (name, s, count, size) in [
+            ("levels", &f.levels, f.num_levels.get(), size_of::<LevelRecord>()),
+            ("fields", &f.fields, f.num_fields.get(), size_of::<FieldRecord>()),
+            ("bricks", &f.bricks, f.num_bricks.get(), size_of::<BrickRecord>()),
+            ("kd nodes", &f.nodes, f.num_nodes.get(), size_of::<KdNode>()),
+            ("kd leaves", &f.leaves, f.num_leaves.get(), size_of::<KdLeaf>()),
+            ("brick list", &f.brick_list, f.brick_list_len.get(), 4),
+        ] {
+            check_table(name, s, meta, count, size)?;
+        }
+        check_within("names", &f.strings, meta)?;
+        if f.num_nodes.get() == 0 || f.num_leaves.get() == 0 {
+            return Err(FormatError::Corrupt("the kd-tree is empty".into()));
+        }
+        Ok(())
+    }
+
+    fn read_levels(&self) -> Result<Vec<LevelInfo>> {
+        let recs: &[LevelRecord] = self.slice(&self.footer.levels);
+        let nl = recs.len();
+        let mut levels: Vec<LevelInfo> = Vec::with_capacity(nl);
+        for (l, r) in recs.iter().enumerate() {
+            let bad = |m: String| Err(FormatError::Corrupt(format!("level {l}: {m}")));
+            let level = LevelInfo {
+                cell_size: r.cell_size.map(|v| v.get()),
+                origin: r.origin.map(|v| v.get()),
+                ratio_to_next: r.ratio_to_next.map(|v| v.get()),
+                domain: IBox::new(r.domain_lo.map(|v| v.get()), r.domain_hi.map(|v| v.get())),
+                finest_scale: [1; 3],
+            };
+            if level.cell_size.iter().any(|&d| !(d.is_finite() && d > 0.0)) || level.origin.iter().any(|o| !o.is_finite())
+            {
+                return bad(format!("cell size {:?} / origin {:?} invalid", level.cell_size, level.origin));
+            }
+            if level.domain.is_empty() {
+                return bad(format!("empty domain {:?}", level.domain));
+            }
+            let last = l + 1 == nl;
+            if level.ratio_to_next.iter().any(|&q| if last { q != 1 } else { !(2..=1 << 16).contains(&q) }) {
+                return bad(format!("refinement ratio {:?}", level.ratio_to_next));
+            }
+            if let Some(prev) = levels.last() {
+                let r = prev.ratio_to_next.map(i64::from);
+                if prev.domain.refine(r) != Some(level.domain) {
+                    return bad(format!("domain {:?} is not the previous domain refined by {r:?}", level.domain));
+                }
+            }
+            levels.push(level);
+        }
+        let ext = levels[nl - 1].domain.extent();
+        if ext.iter().any(|&e| e > MAX_FINEST_EXTENT) {
+            return Err(FormatError::Corrupt(format!("finest domain extent {ext:?} exceeds {MAX_FINEST_EXTENT}")));
+        }
+        for l in (0..nl.saturating_sub(1)).rev() {
+            let r = levels[l].ratio_to_next;
+            let s = levels[l + 1].finest_scale;
+            // Cannot overflow: the product is at most the finest extent, checked above.
+            levels[l].finest_scale = [0, 1, 2].map(|a| s[a] * i64::from(r[a]));
+        }
+        Ok(levels)
+    }
+
+    fn read_fields(&self) -> Result<Vec<FieldInfo>> {
+        let f = &self.footer;
+        let strings: &[u8] = self.slice(&f.strings);
+        let data_limit = f.metadata.offset.get();
+        let nb = f.num_bricks.get();
+        let nleaves = f.num_leaves.get();
+        let mut out: Vec<FieldInfo> = Vec::new();
+        let mut regions: Vec<(u64, u64)> = Vec::new();
+        for (i, r) in self.fields_raw().iter().enumerate() {
+            let bad = |m: String| Err(FormatError::Corrupt(format!("field {i}: {m}")));
+            let (no, nlen) = (r.name_offset.get() as usize, r.name_len.get() as usize);
+            let Some(name_bytes) = no.checked_add(nlen).and_then(|end| strings.get(no..end)) else {
+                return bad("name lies outside the names section".into());
+            };
+            let Ok(name) = std::str::from_utf8(name_bytes) else {
+                return bad("name is not UTF-8".into());
+            };
+            let data_end = end_of(&r.data, "field data")?;
+            if r.data.offset.get() < size_of::<Header>() as u64 || data_end > data_limit {
+                return bad(format!("data region {}..{data_end} outside the data area", r.data.offset.get()));
+            }
+            check_table("per-field brick table", &r.brick_data, &f.metadata, nb, size_of::<BrickData>())?;
+            check_table("per-field leaf ranges", &r.leaf_ranges, &f.metadata, nleaves, size_of::<LeafRange>())?;
+            let (min, max) = (r.min.get(), r.max.get());
+            if !(min <= max) {
+                return bad(format!("range {min}..{max}"));
+            }
+            regions.push((r.data.offset.get(), data_end));
+            out.push(FieldInfo {
+                name: name.to_string(),
+                min,
+                max,
+                data: (r.data.offset.get(), r.data.len.get()),
+                compressed: false,
+            });
+        }
+        regions.sort_unstable();
+        if regions.windows(2).any(|w| w[0].1 > w[1].0) {
+            return Err(FormatError::Corrupt("two fields' data regions overlap".into()));
+        }
+        Ok(out)
+    }
+
+    fn check_bricks(&mut self) -> Result<()> {
+        let nl = self.levels.len();
+        for (i, b) in self.brick_records().iter().enumerate() {
+            let level = b.level.get() as usize;
+            let cells = IBox::new(b.lo.map(|v| v.get()), b.hi.map(|v| v.get()));
+            let bad = |m: String| Err(FormatError::Corrupt(format!("brick {i}: {m}")));
+            if level >= nl {
+                return bad(format!("level {level} but the file has {nl} levels"));
+            }
+            if cells.is_empty() || !self.levels[level].domain.contains_box(&cells) {
+                return bad(format!("cells {cells:?} empty or outside level {level}'s domain"));
+            }
+            if cells.extent().iter().any(|&e| e > MAX_BRICK_EXTENT)
+                || cells.num_cells().is_none_or(|n| n > MAX_BRICK_CELLS)
+            {
+                return bad(format!("cells {cells:?} exceed the brick size limits"));
+            }
+        }
+        for field in 0..self.fields.len() {
+            let (start, len) = self.fields[field].data;
+            let end = start + len;
+            let mut compressed = false;
+            for (i, d) in self.field_brick_records(field).iter().enumerate() {
+                let cells = self.brick(i).cells.num_cells().unwrap_or(0);
+                let bad = |m: String| {
+                    Err(FormatError::Corrupt(format!("field '{}', brick {i}: {m}", self.fields[field].name)))
+                };
+                let (off, n) = (d.offset.get(), d.len.get());
+                if off < start || off.checked_add(n).is_none_or(|e| e > end) {
+                    return bad(format!("data {off}+{n} outside the field's region {start}..{end}"));
+                }
+                match d.encoding.get() {
+                    raw::ENCODING_RAW if n != cells * 4 => return bad(format!("raw length {n} for {cells} cells")),
+                    raw::ENCODING_RAW => {}
+                    raw::ENCODING_ZSTD_SHUFFLED => compressed = true,
+                    e => return bad(format!("unknown encoding {e}")),
+                }
+                let (lo, hi) = (d.min.get(), d.max.get());
+                if !(lo <= hi) || !lo.is_finite() || !hi.is_finite() {
+                    return bad(format!("value range {lo}..{hi}"));
+                }
+            }
+            self.fields[field].compressed = compressed;
+        }
+        Ok(())
+    }
+
+    fn check_tree(&self) -> Result<()> {
+        let nodes: &[KdNode] = self.slice(&self.footer.nodes);
+        let leaves: &[KdLeaf] = self.slice(&self.footer.leaves);
+        let n = nodes.len();
+        for (i, node) in nodes.iter().enumerate() {
+            let kind = node.b.get() & 3;
+            if kind == KD_LEAF {
+                if node.a.get() as usize >= leaves.len() {
+                    return Err(FormatError::Corrupt(format!("kd node {i} names leaf {} of {}", node.a.get(), leaves.len())));
+                }
+            } else {
+                let second = (node.b.get() >> 2) as usize;
+                if i + 1 >= n || second <= i + 1 || second >= n {
+                    return Err(FormatError::Corrupt(format!("kd node {i} has children {} and {second} of {n}", i + 1)));
+                }
+            }
+        }
+        let list_len = self.footer.brick_list_len.get() as u64;
+        let ext = self.finest_domain.extent();
+        for (i, l) in leaves.iter().enumerate() {
+            let (start, count) = (l.brick_start.get() as u64, l.brick_count.get() as u64);
+            if start + count > list_len {
+                return Err(FormatError::Corrupt(format!("kd leaf {i}: brick list {start}+{count} past {list_len}")));
+            }
+            for a in 0..3 {
+                let (lo, hi) = (i64::from(l.lo[a].get()), i64::from(l.hi[a].get()));
+                if lo >= hi || hi > ext[a] {
+                    return Err(FormatError::Corrupt(format!("kd leaf {i}: bounds outside the domain")));
+                }
+            }
+        }
+        let list: &[U32] = self.slice(&self.footer.brick_list);
+        let nb = self.num_bricks() as u32;
+        if let Some(bad) = list.iter().position(|b| b.get() >= nb) {
+            return Err(FormatError::Corrupt(format!("brick list entry {bad} names a brick past {nb}")));
+        }
+        for (field, r) in self.fields_raw().iter().enumerate() {
+            let ranges: &[LeafRange] = self.slice(&r.leaf_ranges);
+            for (i, (range, leaf)) in ranges.iter().zip(leaves).enumerate() {
+                let (lo, hi) = (range.min.get(), range.max.get());
+                if leaf.brick_count.get() > 0 && !(lo <= hi) {
+                    return Err(FormatError::Corrupt(format!(
+                        "field '{}', kd leaf {i}: value range {lo}..{hi}",
+                        self.fields[field].name
+                    )));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn check_version(got: u32) -> Result<()> {
+    if got != raw::LAYOUT_VERSION {
+        return Err(FormatError::Version { expected: raw::LAYOUT_VERSION, got });
+    }
+    Ok(())
+}
+
+fn end_of(s: &Section, what: &str) -> Result<u64> {
+    s.offset
+        .get()
+        .checked_add(s.len.get())
+        .ok_or_else(|| FormatError::Corrupt(format!("{what} section offset overflows")))
+}
+
+fn check_within(name: &str, s: &Section, meta: &Section) -> Result<()> {
+    let end = end_of(s, name)?;
+    if s.offset.get() < meta.offset.get() || end > meta.offset.get() + meta.len.get() {
+        return Err(FormatError::Corrupt(format!("{name} section {}..{end} lies outside the metadata", s.offset.get())));
+    }
+    Ok(())
+}
+
+fn check_table(name: &str, s: &Section, meta: &Section, count: u32, size: usize) -> Result<()> {
+    check_within(name, s, meta)?;
+    let want = u64::from(count) * size as u64;
+    if s.len.get() != want {
+        return Err(FormatError::Corrupt(format!("{name} section holds {} bytes, {count} entries need {want}", s.len.get())));
+    }
+    Ok(())
+}
+
+/// Raw-struct byte view, used by tests that corrupt files on purpose.
+pub fn footer_bytes(footer: &Footer) -> &[u8] {
+    footer.as_bytes()
+}

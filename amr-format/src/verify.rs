@@ -1,0 +1,213 @@
+//! Full verification: data checksums and ranges, the tree's tiling, brick lists and value ranges.
+
+use std::fmt;
+
+use crate::error::{FormatError, Result};
+use crate::geometry::IBox;
+use crate::kdtree::leaf_ranges;
+use crate::raw::KD_LEAF;
+use crate::reader::AmrkFile;
+
+/// What [`AmrkFile::verify`] checked.
+#[derive(Clone, Debug, Default)]
+pub struct VerifyReport {
+    /// (field, brick) pairs whose data was decoded and checksummed.
+    pub bricks_checked: u64,
+    /// Bytes of brick data read.
+    pub data_bytes: u64,
+    /// Leaves checked.
+    pub leaves: u64,
+    /// Depth of the deepest leaf (the root is depth 0).
+    pub max_depth: u32,
+    /// Finest-level cells covered by leaves (equals the domain's cell count).
+    pub covered_cells: u128,
+}
+
+impl fmt::Display for VerifyReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} brick-fields ({} bytes) checksummed; {} leaves tile {} finest cells; tree depth {}",
+            self.bricks_checked, self.data_bytes, self.leaves, self.covered_cells, self.max_depth
+        )
+    }
+}
+
+impl<D: AsRef<[u8]>> AmrkFile<D> {
+    /// Reads everything and checks it: every brick's checksum, values and stored range; that the
+    /// leaves tile the domain with no gap or overlap; that each leaf lists exactly the bricks
+    /// overlapping it, the unique finest covering one first; that every leaf range contains the
+    /// conservative range recomputed from the data.
+    pub fn verify(&self) -> Result<VerifyReport> {
+        let mut report = VerifyReport::default();
+        let nb = self.num_bricks();
+        let mut actual: Vec<Vec<(f32, f32)>> = Vec::with_capacity(self.fields().len());
+        let mut values = Vec::new();
+        for (f, field) in self.fields().iter().enumerate() {
+            let mut ranges = Vec::with_capacity(nb);
+            let (mut fmin, mut fmax) = (f32::INFINITY, f32::NEG_INFINITY);
+            for b in 0..nb {
+                let d = self.brick_data(f, b);
+                let bytes = self.brick_bytes(f, b);
+                let crc = crc32fast::hash(bytes);
+                if crc != d.crc.get() {
+                    return Err(FormatError::Checksum {
+                        what: format!("field '{}', brick {b}", field.name),
+                        stored: d.crc.get(),
+                        computed: crc,
+                    });
+                }
+                self.brick_values_into(f, b, &mut values)?;
+                let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+                for &v in &values {
+                    if !v.is_finite() {
+                        return Err(FormatError::Corrupt(format!("field '{}', brick {b}: value {v}", field.name)));
+                    }
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+                if (lo, hi) != self.brick_range(f, b) {
+                    return Err(FormatError::Corrupt(format!(
+                        "field '{}', brick {b}: stored range {:?}, data range {:?}",
+                        field.name,
+                        self.brick_range(f, b),
+                        (lo, hi)
+                    )));
+                }
+                fmin = fmin.min(lo);
+                fmax = fmax.max(hi);
+                ranges.push((lo, hi));
+                report.bricks_checked += 1;
+                report.data_bytes += bytes.len() as u64;
+            }
+            if (fmin, fmax) != (field.min, field.max) {
+                return Err(FormatError::Corrupt(format!(
+                    "field '{}': stored range {}..{}, data range {fmin}..{fmax}",
+                    field.name, field.min, field.max
+                )));
+            }
+            actual.push(ranges);
+        }
+        self.verify_tiling(&mut report)?;
+        self.verify_brick_lists()?;
+        self.verify_ranges(&actual)?;
+        Ok(report)
+    }
+
+    /// Walks the tree from the root: splits lie strictly inside their node, every stored leaf
+    /// box equals the region the walk reaches it with, and every leaf is reached exactly once.
+    fn verify_tiling(&self, report: &mut VerifyReport) -> Result<()> {
+        let tree = self.tree();
+        let mut seen = vec![false; self.num_leaves()];
+        let mut reached = 0usize;
+        let mut stack = vec![(0usize, tree.domain, 0u32)];
+        while let Some((i, region, depth)) = stack.pop() {
+            reached += 1;
+            let n = &tree.nodes[i];
+            let kind = n.b.get() & 3;
+            if kind == KD_LEAF {
+                let leaf = n.a.get() as usize;
+                if std::mem::replace(&mut seen[leaf], true) {
+                    return Err(FormatError::Corrupt(format!("kd leaf {leaf} is reached twice")));
+                }
+                if tree.leaf_box(leaf as u32) != region {
+                    return Err(FormatError::Corrupt(format!(
+                        "kd leaf {leaf} stores {:?} but covers {region:?}",
+                        tree.leaf_box(leaf as u32)
+                    )));
+                }
+                report.leaves += 1;
+                report.max_depth = report.max_depth.max(depth);
+                report.covered_cells += region.num_cells().unwrap_or(0) as u128;
+                continue;
+            }
+            let (axis, at) = (kind as usize, i64::from(n.a.get()));
+            if at <= region.lo[axis] || at >= region.hi[axis] {
+                return Err(FormatError::Corrupt(format!("kd node {i} splits {region:?} at {at} on axis {axis}")));
+            }
+            let (mut left, mut right) = (region, region);
+            left.hi[axis] = at;
+            right.lo[axis] = at;
+            stack.push(((n.b.get() >> 2) as usize, right, depth + 1));
+            stack.push((i + 1, left, depth + 1));
+        }
+        if reached != tree.nodes.len() || seen.iter().any(|s| !s) {
+            return Err(FormatError::Corrupt("the kd-tree has unreachable nodes or leaves".into()));
+        }
+        let domain_cells = tree.domain.num_cells().unwrap_or(0) as u128;
+        if report.covered_cells != domain_cells {
+            return Err(FormatError::Corrupt(format!(
+                "leaves cover {} cells, the domain has {domain_cells}",
+                report.covered_cells
+            )));
+        }
+        Ok(())
+    }
+
+    /// Each leaf's brick list is exactly the set of bricks overlapping it; the first is the only
+    /// brick of the finest level there and covers the leaf; the rest go from fine to coarse.
+    fn verify_brick_lists(&self) -> Result<()> {
+        let tree = self.tree();
+        let origin = self.finest_domain().lo;
+        let mut expected: Vec<Vec<u32>> = vec![Vec::new(); self.num_leaves()];
+        for b in 0..self.num_bricks() {
+            let bounds = self.brick_finest_bounds(b, origin);
+            tree.for_each_leaf_touching(&bounds, |leaf| {
+                if tree.leaf_box(leaf).overlaps(&bounds) {
+                    expected[leaf as usize].push(b as u32);
+                }
+            });
+        }
+        for (leaf, want) in expected.iter_mut().enumerate() {
+            let info = self.leaf(leaf as u32);
+            let mut got: Vec<u32> = info.bricks.iter().map(|b| b.get()).collect();
+            let bad = |m: String| Err(FormatError::Corrupt(format!("kd leaf {leaf}: {m}")));
+            if let Some(&first) = got.first() {
+                let level = self.brick(first as usize).level;
+                if !self.brick_finest_bounds(first as usize, origin).contains_box(&info.bounds) {
+                    return bad(format!("first brick {first} does not cover the leaf"));
+                }
+                let levels: Vec<u32> = got.iter().map(|&b| self.brick(b as usize).level).collect();
+                if levels[1..].iter().any(|&l| l >= level) || levels.windows(2).any(|w| w[1] > w[0]) {
+                    return bad(format!("bricks are not finest-unique then coarser: levels {levels:?}"));
+                }
+            }
+            got.sort_unstable();
+            want.sort_unstable();
+            if got != *want {
+                return bad(format!("lists bricks {got:?}, but {want:?} overlap it"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Every stored leaf range contains the conservative range recomputed from the data.
+    fn verify_ranges(&self, actual: &[Vec<(f32, f32)>]) -> Result<()> {
+        let tree = self.tree();
+        let leaf_level: Vec<Option<u32>> = (0..self.num_leaves() as u32)
+            .map(|l| self.leaf(l).bricks.first().map(|b| self.brick(b.get() as usize).level))
+            .collect();
+        let scales: Vec<[i64; 3]> = self.levels().iter().map(|l| l.finest_scale).collect();
+        for (f, ranges) in actual.iter().enumerate() {
+            let want = leaf_ranges(&tree, &leaf_level, |l| ranges[self.leaf(l).bricks[0].get() as usize], &scales);
+            for (leaf, &(lo, hi)) in want.iter().enumerate() {
+                let (slo, shi) = self.leaf_range(f, leaf as u32);
+                if leaf_level[leaf].is_some() && !(slo <= lo && hi <= shi) {
+                    return Err(FormatError::Corrupt(format!(
+                        "field '{}', kd leaf {leaf}: stored range {slo}..{shi} does not contain {lo}..{hi}",
+                        self.fields()[f].name
+                    )));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Brick `b`'s cells in finest-level cells relative to the domain's lower corner.
+    pub fn brick_finest_bounds(&self, b: usize, origin: [i64; 3]) -> IBox {
+        let info = self.brick(b);
+        let s = self.levels()[info.level as usize].finest_scale;
+        let f = info.cells.refine(s).expect("brick boxes lie inside the checked domain");
+        IBox::new([0, 1, 2].map(|a| f.lo[a] - origin[a]), [0, 1, 2].map(|a| f.hi[a] - origin[a]))
+    }
+}

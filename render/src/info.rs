@@ -1,0 +1,65 @@
+//! `amr-render info`: what a file holds, as plain integers a script can read.
+
+use std::fmt::Write;
+
+use amr_format::AmrkFile;
+
+/// A human-readable description of an open file: levels, bricks, cells, fields and their
+/// ranges, tree depth and leaves, and bytes by section.
+pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
+    let mut out = String::new();
+    let nl = file.levels().len();
+    let mut bricks = vec![0u64; nl];
+    let mut cells = vec![0u64; nl];
+    for b in 0..file.num_bricks() {
+        let info = file.brick(b);
+        bricks[info.level as usize] += 1;
+        cells[info.level as usize] += info.cells.num_cells().unwrap_or(0);
+    }
+    let _ = writeln!(out, "file bytes: {}", file.bytes().len());
+    let _ = writeln!(out, "levels: {nl}");
+    for (l, lev) in file.levels().iter().enumerate() {
+        let _ = writeln!(
+            out,
+            "  level {l}: bricks {} cells {} domain {:?}..{:?} cell size {:?} origin {:?} ratio to next {:?}",
+            bricks[l], cells[l], lev.domain.lo, lev.domain.hi, lev.cell_size, lev.origin, lev.ratio_to_next
+        );
+    }
+    let _ = writeln!(out, "bricks: {}", file.num_bricks());
+    let _ = writeln!(out, "cells: {}", cells.iter().sum::<u64>());
+    let _ = writeln!(out, "fields: {}", file.fields().len());
+    for f in file.fields() {
+        let _ = writeln!(
+            out,
+            "  {}: min {} max {}{}",
+            f.name,
+            f.min,
+            f.max,
+            if f.compressed { " (zstd)" } else { "" }
+        );
+    }
+    let tree = file.tree();
+    let _ = writeln!(out, "kd nodes: {}", tree.nodes.len());
+    let _ = writeln!(out, "kd leaves: {}", file.num_leaves());
+    let _ = writeln!(out, "kd depth: {}", tree_depth(&tree));
+    let _ = writeln!(out, "sections (bytes):");
+    for (name, bytes) in file.section_sizes() {
+        let _ = writeln!(out, "  {name}: {bytes}");
+    }
+    out
+}
+
+fn tree_depth(tree: &amr_format::kdtree::TreeView<'_>) -> u32 {
+    let mut max = 0;
+    let mut stack = vec![(0usize, 0u32)];
+    while let Some((i, d)) = stack.pop() {
+        let n = &tree.nodes[i];
+        if n.b.get() & 3 == amr_format::raw::KD_LEAF {
+            max = max.max(d);
+        } else {
+            stack.push((i + 1, d + 1));
+            stack.push(((n.b.get() >> 2) as usize, d + 1));
+        }
+    }
+    max
+}

@@ -1,0 +1,5 @@
+//! Rendering isosurfaces of `.amrk` files: mapping, reconstruction, extraction, tracing, output.
+#![warn(missing_docs)]
+
+pub mod info;
+pub mod mapping;

@@ -1,0 +1,126 @@
+//! The converter on real plotfiles written by PeleLM (shared data, not in the repository):
+//! every stored value is checked against an independent reading, and the four damaged
+//! plotfiles must fail with a clear message and leave nothing behind.
+
+mod amrex_support;
+
+use amr_convert::convert_cmd::run_convert;
+use amr_format::Compression;
+use amrex_support::check::{check_against, check_conversion};
+use amrex_support::source::read_plotfile;
+use amrex_support::{assert_fails, convert, shared_amrex};
+
+#[test]
+fn example_plt_3d_converts_exactly() {
+    let Some(data) = shared_amrex("example_plt_3d_converts_exactly") else {
+        return;
+    };
+    let input = data.join("example_plt_3d");
+    let src = read_plotfile(&input);
+    let out = tempfile::tempdir().unwrap();
+    for brick in [32, 3] {
+        let target = out.path().join(format!("b{brick}.amrk"));
+        let s = convert(&input, &target, &[], brick).unwrap();
+        assert_eq!(s.cells, 8 * 8 * 8 * (1 + 8 + 64));
+        let c = check_against(&src, &target, &[]);
+        assert_eq!(c.values, s.cells * 38);
+        assert_eq!(c.min_max, 73 * 38, "every box's Cell_H min and max");
+    }
+}
+
+#[test]
+fn example_plt_3d_compressed_keeps_values() {
+    let Some(data) = shared_amrex("example_plt_3d_compressed_keeps_values") else {
+        return;
+    };
+    let input = data.join("example_plt_3d");
+    let out = tempfile::tempdir().unwrap();
+    let target = out.path().join("z.amrk");
+    let fields = ["temp".to_string(), "Y(CH2(S))".to_string()];
+    run_convert(&input, &target, &fields, 8, Compression::Zstd { level: 3 }).unwrap();
+    check_conversion(&input, &target, &["temp", "Y(CH2(S))"]);
+}
+
+#[test]
+fn plt1_y_converts_with_bracketed_names() {
+    let Some(data) = shared_amrex("plt1_y_converts_with_bracketed_names") else {
+        return;
+    };
+    let input = data.join("plt1_Y");
+    let out = tempfile::tempdir().unwrap();
+    let all = out.path().join("all.amrk");
+    convert(&input, &all, &[], 32).unwrap();
+    let c = check_conversion(&input, &all, &[]);
+    assert_eq!(c.values, 37376 * 4);
+    let some = out.path().join("some.amrk");
+    convert(&input, &some, &["Y(O2)", "Y(H)"], 5).unwrap();
+    check_conversion(&input, &some, &["Y(O2)", "Y(H)"]);
+}
+
+#[test]
+fn unknown_field_lists_the_available_ones() {
+    let Some(data) = shared_amrex("unknown_field_lists_the_available_ones") else {
+        return;
+    };
+    assert_fails(
+        &data.join("plt1_Y"),
+        &["Y(N2)"],
+        &["no field named 'Y(N2)'", "Y(H), Y(H2), Y(H2O), Y(O2)"],
+    );
+}
+
+#[test]
+fn bad_binary_shape_is_refused() {
+    let Some(data) = shared_amrex("bad_binary_shape_is_refused") else {
+        return;
+    };
+    let input = data.join("bad_plotfiles/plt_3d_badbinaryshape");
+    assert_fails(
+        &input,
+        &[],
+        &[
+            "Level_2/Cell_D_00001",
+            "has 35 components",
+            "Cell_H says 38",
+        ],
+    );
+}
+
+#[test]
+fn bad_index_is_refused() {
+    let Some(data) = shared_amrex("bad_index_is_refused") else {
+        return;
+    };
+    let input = data.join("bad_plotfiles/plt_3d_badindexes");
+    assert_fails(
+        &input,
+        &[],
+        &[
+            "Level_1/Cell_D_00001",
+            "covers (8,0,0)..=(15,7,7)",
+            "as (9,0,0)..=(15,7,7)",
+        ],
+    );
+}
+
+#[test]
+fn missing_binary_data_is_refused() {
+    let Some(data) = shared_amrex("missing_binary_data_is_refused") else {
+        return;
+    };
+    let input = data.join("bad_plotfiles/plt_3d_missingbindata");
+    assert_fails(
+        &input,
+        &[],
+        &["Level_0/Cell_D_00000", "truncated", "155659 bytes long"],
+    );
+}
+
+#[test]
+fn missing_index_is_refused() {
+    let Some(data) = shared_amrex("missing_index_is_refused") else {
+        return;
+    };
+    let input = data.join("bad_plotfiles/plt_3d_missingindexes");
+    assert_fails(&input, &[], &["Level_2/Cell_H", "line 69", "box 63 of 64"]);
+}

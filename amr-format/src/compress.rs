@@ -43,8 +43,9 @@ pub fn decode_into(encoding: u32, bytes: &[u8], cells: usize, out: &mut Vec<f32>
             );
         }
         ENCODING_ZSTD_SHUFFLED => {
-            let planes = zstd::bulk::decompress(bytes, want)
-                .map_err(|e| FormatError::Corrupt(format!("zstd brick does not decompress: {e}")))?;
+            let planes = zstd::bulk::decompress(bytes, want).map_err(|e| {
+                FormatError::Corrupt(format!("zstd brick does not decompress: {e}"))
+            })?;
             if planes.len() != want {
                 return Err(FormatError::Corrupt(format!(
                     "zstd brick decompresses to {} bytes, expected {want}",
@@ -61,7 +62,9 @@ pub fn decode_into(encoding: u32, bytes: &[u8], cells: usize, out: &mut Vec<f32>
             }));
         }
         other => {
-            return Err(FormatError::Corrupt(format!("unknown brick encoding {other}")));
+            return Err(FormatError::Corrupt(format!(
+                "unknown brick encoding {other}"
+            )));
         }
     }
     Ok(())

@@ -85,12 +85,18 @@ impl FormatError {
     pub fn in_file(self, path: impl Into<PathBuf>) -> Self {
         match self {
             e @ FormatError::InFile { .. } => e,
-            e => FormatError::InFile { path: path.into(), source: Box::new(e) },
+            e => FormatError::InFile {
+                path: path.into(),
+                source: Box::new(e),
+            },
         }
     }
 
     pub(crate) fn io(context: impl Into<String>, source: std::io::Error) -> Self {
-        FormatError::Io { context: context.into(), source }
+        FormatError::Io {
+            context: context.into(),
+            source,
+        }
     }
 }
 

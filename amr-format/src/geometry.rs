@@ -31,7 +31,9 @@ impl IBox {
     /// Number of cells, or `None` on overflow.
     pub fn num_cells(&self) -> Option<u64> {
         let e = self.extent();
-        (e[0] as u64).checked_mul(e[1] as u64)?.checked_mul(e[2] as u64)
+        (e[0] as u64)
+            .checked_mul(e[1] as u64)?
+            .checked_mul(e[2] as u64)
     }
 
     /// The common part of two boxes (possibly empty).

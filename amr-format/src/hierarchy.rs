@@ -53,7 +53,10 @@ impl HierarchySpec {
 
     /// Total number of cells over all bricks.
     pub fn total_cells(&self) -> u64 {
-        self.bricks.iter().map(|b| b.cells.num_cells().unwrap_or(0)).sum()
+        self.bricks
+            .iter()
+            .map(|b| b.cells.num_cells().unwrap_or(0))
+            .sum()
     }
 
     /// Checks what the writer relies on; same-level overlap is found later, while the tree is built.
@@ -63,7 +66,10 @@ impl HierarchySpec {
             return bad("no levels".into());
         }
         if self.levels.len() > MAX_LEVELS {
-            return bad(format!("{} levels (at most {MAX_LEVELS})", self.levels.len()));
+            return bad(format!(
+                "{} levels (at most {MAX_LEVELS})",
+                self.levels.len()
+            ));
         }
         if self.fields.is_empty() {
             return bad("no fields".into());
@@ -79,7 +85,10 @@ impl HierarchySpec {
         let nl = self.levels.len();
         for (l, lev) in self.levels.iter().enumerate() {
             if lev.cell_size.iter().any(|&d| !(d.is_finite() && d > 0.0)) {
-                return bad(format!("level {l}: cell size {:?} is not positive and finite", lev.cell_size));
+                return bad(format!(
+                    "level {l}: cell size {:?} is not positive and finite",
+                    lev.cell_size
+                ));
             }
             if lev.origin.iter().any(|o| !o.is_finite()) {
                 return bad(format!("level {l}: origin {:?} is not finite", lev.origin));
@@ -89,7 +98,10 @@ impl HierarchySpec {
             }
             if l + 1 < nl {
                 if lev.ratio_to_next.iter().any(|&r| r < 2) {
-                    return bad(format!("level {l}: refinement ratio {:?} (must be >= 2)", lev.ratio_to_next));
+                    return bad(format!(
+                        "level {l}: refinement ratio {:?} (must be >= 2)",
+                        lev.ratio_to_next
+                    ));
                 }
                 let r = lev.ratio_to_next.map(i64::from);
                 let next = &self.levels[l + 1].domain;
@@ -108,16 +120,24 @@ impl HierarchySpec {
         for a in 0..3 {
             let e = finest.hi[a].checked_sub(finest.lo[a]);
             if e.is_none_or(|e| e > MAX_FINEST_EXTENT) {
-                return bad(format!("the finest level spans more than {MAX_FINEST_EXTENT} cells on axis {a}"));
+                return bad(format!(
+                    "the finest level spans more than {MAX_FINEST_EXTENT} cells on axis {a}"
+                ));
             }
         }
         if self.bricks.len() >= u32::MAX as usize {
-            return bad(format!("{} bricks (at most {})", self.bricks.len(), u32::MAX - 1));
+            return bad(format!(
+                "{} bricks (at most {})",
+                self.bricks.len(),
+                u32::MAX - 1
+            ));
         }
         for (i, b) in self.bricks.iter().enumerate() {
             let l = b.level as usize;
             if l >= nl {
-                return bad(format!("brick {i} is on level {l}, but there are {nl} levels"));
+                return bad(format!(
+                    "brick {i} is on level {l}, but there are {nl} levels"
+                ));
             }
             if b.cells.is_empty() {
                 return bad(format!("brick {i} (level {l}) is empty: {:?}", b.cells));
@@ -129,7 +149,9 @@ impl HierarchySpec {
                 ));
             }
             let e = b.cells.extent();
-            if e.iter().any(|&x| x > MAX_BRICK_EXTENT) || b.cells.num_cells().unwrap_or(u64::MAX) > MAX_BRICK_CELLS {
+            if e.iter().any(|&x| x > MAX_BRICK_EXTENT)
+                || b.cells.num_cells().unwrap_or(u64::MAX) > MAX_BRICK_CELLS
+            {
                 return bad(format!(
                     "brick {i} (level {l}) has extent {e:?}: at most {MAX_BRICK_EXTENT} per axis and {MAX_BRICK_CELLS} cells; split it with --brick"
                 ));
@@ -143,7 +165,11 @@ impl HierarchySpec {
 pub(crate) fn finest_scale(ratios: impl Iterator<Item = [u32; 3]>, level: usize) -> [i64; 3] {
     let ratios: Vec<[u32; 3]> = ratios.collect();
     let mut s = [1i64; 3];
-    for r in ratios.iter().take(ratios.len().saturating_sub(1)).skip(level) {
+    for r in ratios
+        .iter()
+        .take(ratios.len().saturating_sub(1))
+        .skip(level)
+    {
         for a in 0..3 {
             s[a] = s[a].saturating_mul(r[a] as i64);
         }

@@ -12,7 +12,8 @@ use crate::geometry::IBox;
 use crate::hierarchy::{MAX_BRICK_CELLS, MAX_BRICK_EXTENT, MAX_FINEST_EXTENT, MAX_LEVELS};
 use crate::kdtree::TreeView;
 use crate::raw::{
-    self, BrickData, BrickRecord, FieldRecord, Footer, Header, KdLeaf, KdNode, LeafRange, LevelRecord, Section, KD_LEAF,
+    self, BrickData, BrickRecord, FieldRecord, Footer, Header, KdLeaf, KdNode, LeafRange,
+    LevelRecord, Section, KD_LEAF,
 };
 
 /// One level of an open file.
@@ -83,24 +84,34 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             if len >= 8 && bytes[..8] != raw::MAGIC {
                 return Err(FormatError::BadMagic { at: "header" });
             }
-            return Err(FormatError::Truncated(format!("{len} bytes, less than the {min_len} of a header and footer")));
+            return Err(FormatError::Truncated(format!(
+                "{len} bytes, less than the {min_len} of a header and footer"
+            )));
         }
-        let header = Header::read_from_prefix(bytes).map_err(|_| FormatError::Truncated("no header".into()))?.0;
+        let header = Header::read_from_prefix(bytes)
+            .map_err(|_| FormatError::Truncated("no header".into()))?
+            .0;
         if header.magic != raw::MAGIC {
             return Err(FormatError::BadMagic { at: "header" });
         }
         check_version(header.layout_version.get())?;
         let footer_bytes = &bytes[bytes.len() - size_of::<Footer>()..];
-        let footer = Footer::read_from_bytes(footer_bytes).map_err(|_| FormatError::Truncated("no footer".into()))?;
+        let footer = Footer::read_from_bytes(footer_bytes)
+            .map_err(|_| FormatError::Truncated("no footer".into()))?;
         if footer.magic != raw::MAGIC {
             return Err(FormatError::Truncated(
-                "no footer at the end of the file (the file was cut short or never finished)".into(),
+                "no footer at the end of the file (the file was cut short or never finished)"
+                    .into(),
             ));
         }
         check_version(footer.layout_version.get())?;
         let crc = crc32fast::hash(&footer_bytes[..footer_bytes.len() - 4]);
         if crc != footer.footer_crc.get() {
-            return Err(FormatError::Checksum { what: "footer".into(), stored: footer.footer_crc.get(), computed: crc });
+            return Err(FormatError::Checksum {
+                what: "footer".into(),
+                stored: footer.footer_crc.get(),
+                computed: crc,
+            });
         }
         let footer_at = len - size_of::<Footer>() as u64;
         let meta = footer.metadata;
@@ -115,10 +126,20 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         let meta_bytes = &bytes[meta.offset.get() as usize..meta_end as usize];
         let crc = crc32fast::hash(meta_bytes);
         if crc != footer.metadata_crc.get() {
-            return Err(FormatError::Checksum { what: "metadata".into(), stored: footer.metadata_crc.get(), computed: crc });
+            return Err(FormatError::Checksum {
+                what: "metadata".into(),
+                stored: footer.metadata_crc.get(),
+                computed: crc,
+            });
         }
 
-        let mut file = Self { data, footer, levels: Vec::new(), fields: Vec::new(), finest_domain: IBox::default() };
+        let mut file = Self {
+            data,
+            footer,
+            levels: Vec::new(),
+            fields: Vec::new(),
+            finest_domain: IBox::default(),
+        };
         file.check_sections()?;
         file.levels = file.read_levels()?;
         file.finest_domain = file.levels.last().map(|l| l.domain).unwrap_or_default();
@@ -204,11 +225,14 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
     pub fn brick_values_into(&self, field: usize, brick: usize, out: &mut Vec<f32>) -> Result<()> {
         let d = self.brick_data(field, brick);
         let cells = self.brick(brick).cells.num_cells().unwrap_or(0) as usize;
-        decode_into(d.encoding.get(), self.brick_bytes(field, brick), cells, out).map_err(|e| match e {
-            FormatError::Corrupt(m) => {
-                FormatError::Corrupt(format!("field '{}', brick {brick}: {m}", self.fields[field].name))
+        decode_into(d.encoding.get(), self.brick_bytes(field, brick), cells, out).map_err(|e| {
+            match e {
+                FormatError::Corrupt(m) => FormatError::Corrupt(format!(
+                    "field '{}', brick {brick}: {m}",
+                    self.fields[field].name
+                )),
+                e => e,
             }
-            e => e,
         })
     }
 
@@ -232,7 +256,10 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         let list: &[U32] = self.slice(&self.footer.brick_list);
         let start = l.brick_start.get() as usize;
         LeafInfo {
-            bounds: IBox::new(l.lo.map(|v| i64::from(v.get())), l.hi.map(|v| i64::from(v.get()))),
+            bounds: IBox::new(
+                l.lo.map(|v| i64::from(v.get())),
+                l.hi.map(|v| i64::from(v.get())),
+            ),
             bricks: &list[start..start + l.brick_count.get() as usize],
         }
     }
@@ -240,7 +267,8 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
     /// The conservative value range of field `field` inside leaf `leaf` (`(+inf, -inf)` for a
     /// leaf without bricks).
     pub fn leaf_range(&self, field: usize, leaf: u32) -> (f32, f32) {
-        let r: &LeafRange = &self.slice::<LeafRange>(&self.fields_raw()[field].leaf_ranges)[leaf as usize];
+        let r: &LeafRange =
+            &self.slice::<LeafRange>(&self.fields_raw()[field].leaf_ranges)[leaf as usize];
         (r.min.get(), r.max.get())
     }
 
@@ -267,8 +295,11 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         ] {
             out.push((name.to_string(), s.len.get()));
         }
-        let per_field: u64 =
-            self.fields_raw().iter().map(|r| r.brick_data.len.get() + r.leaf_ranges.len.get()).sum();
+        let per_field: u64 = self
+            .fields_raw()
+            .iter()
+            .map(|r| r.brick_data.len.get() + r.leaf_ranges.len.get())
+            .sum();
         out.push(("per-field brick and leaf tables".to_string(), per_field));
         out.push(("footer".to_string(), size_of::<Footer>() as u64));
         out
@@ -297,18 +328,40 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         let f = &self.footer;
         let nl = f.num_levels.get() as usize;
         if nl == 0 || nl > MAX_LEVELS {
-            return Err(FormatError::Corrupt(format!("{nl} levels (1 to {MAX_LEVELS} allowed)")));
+            return Err(FormatError::Corrupt(format!(
+                "{nl} levels (1 to {MAX_LEVELS} allowed)"
+            )));
         }
         if f.num_fields.get() == 0 {
             return Err(FormatError::Corrupt("no fields".into()));
         }
         let meta = &f.metadata;
         for (name, s, count, size) in [
-            ("levels", &f.levels, f.num_levels.get(), size_of::<LevelRecord>()),
-            ("fields", &f.fields, f.num_fields.get(), size_of::<FieldRecord>()),
-            ("bricks", &f.bricks, f.num_bricks.get(), size_of::<BrickRecord>()),
+            (
+                "levels",
+                &f.levels,
+                f.num_levels.get(),
+                size_of::<LevelRecord>(),
+            ),
+            (
+                "fields",
+                &f.fields,
+                f.num_fields.get(),
+                size_of::<FieldRecord>(),
+            ),
+            (
+                "bricks",
+                &f.bricks,
+                f.num_bricks.get(),
+                size_of::<BrickRecord>(),
+            ),
             ("kd nodes", &f.nodes, f.num_nodes.get(), size_of::<KdNode>()),
-            ("kd leaves", &f.leaves, f.num_leaves.get(), size_of::<KdLeaf>()),
+            (
+                "kd leaves",
+                &f.leaves,
+                f.num_leaves.get(),
+                size_of::<KdLeaf>(),
+            ),
             ("brick list", &f.brick_list, f.brick_list_len.get(), 4),
         ] {
             check_table(name, s, meta, count, size)?;
@@ -333,28 +386,43 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
                 domain: IBox::new(r.domain_lo.map(|v| v.get()), r.domain_hi.map(|v| v.get())),
                 finest_scale: [1; 3],
             };
-            if level.cell_size.iter().any(|&d| !(d.is_finite() && d > 0.0)) || level.origin.iter().any(|o| !o.is_finite())
+            if level.cell_size.iter().any(|&d| !(d.is_finite() && d > 0.0))
+                || level.origin.iter().any(|o| !o.is_finite())
             {
-                return bad(format!("cell size {:?} / origin {:?} invalid", level.cell_size, level.origin));
+                return bad(format!(
+                    "cell size {:?} / origin {:?} invalid",
+                    level.cell_size, level.origin
+                ));
             }
             if level.domain.is_empty() {
                 return bad(format!("empty domain {:?}", level.domain));
             }
             let last = l + 1 == nl;
-            if level.ratio_to_next.iter().any(|&q| if last { q != 1 } else { !(2..=1 << 16).contains(&q) }) {
+            if level.ratio_to_next.iter().any(|&q| {
+                if last {
+                    q != 1
+                } else {
+                    !(2..=1 << 16).contains(&q)
+                }
+            }) {
                 return bad(format!("refinement ratio {:?}", level.ratio_to_next));
             }
             if let Some(prev) = levels.last() {
                 let r = prev.ratio_to_next.map(i64::from);
                 if prev.domain.refine(r) != Some(level.domain) {
-                    return bad(format!("domain {:?} is not the previous domain refined by {r:?}", level.domain));
+                    return bad(format!(
+                        "domain {:?} is not the previous domain refined by {r:?}",
+                        level.domain
+                    ));
                 }
             }
             levels.push(level);
         }
         let ext = levels[nl - 1].domain.extent();
         if ext.iter().any(|&e| e > MAX_FINEST_EXTENT) {
-            return Err(FormatError::Corrupt(format!("finest domain extent {ext:?} exceeds {MAX_FINEST_EXTENT}")));
+            return Err(FormatError::Corrupt(format!(
+                "finest domain extent {ext:?} exceeds {MAX_FINEST_EXTENT}"
+            )));
         }
         for l in (0..nl.saturating_sub(1)).rev() {
             let r = levels[l].ratio_to_next;
@@ -384,10 +452,25 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             };
             let data_end = end_of(&r.data, "field data")?;
             if r.data.offset.get() < size_of::<Header>() as u64 || data_end > data_limit {
-                return bad(format!("data region {}..{data_end} outside the data area", r.data.offset.get()));
+                return bad(format!(
+                    "data region {}..{data_end} outside the data area",
+                    r.data.offset.get()
+                ));
             }
-            check_table("per-field brick table", &r.brick_data, &f.metadata, nb, size_of::<BrickData>())?;
-            check_table("per-field leaf ranges", &r.leaf_ranges, &f.metadata, nleaves, size_of::<LeafRange>())?;
+            check_table(
+                "per-field brick table",
+                &r.brick_data,
+                &f.metadata,
+                nb,
+                size_of::<BrickData>(),
+            )?;
+            check_table(
+                "per-field leaf ranges",
+                &r.leaf_ranges,
+                &f.metadata,
+                nleaves,
+                size_of::<LeafRange>(),
+            )?;
             let (min, max) = (r.min.get(), r.max.get());
             if !(min <= max) {
                 return bad(format!("range {min}..{max}"));
@@ -403,7 +486,9 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         }
         regions.sort_unstable();
         if regions.windows(2).any(|w| w[0].1 > w[1].0) {
-            return Err(FormatError::Corrupt("two fields' data regions overlap".into()));
+            return Err(FormatError::Corrupt(
+                "two fields' data regions overlap".into(),
+            ));
         }
         Ok(out)
     }
@@ -418,7 +503,9 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
                 return bad(format!("level {level} but the file has {nl} levels"));
             }
             if cells.is_empty() || !self.levels[level].domain.contains_box(&cells) {
-                return bad(format!("cells {cells:?} empty or outside level {level}'s domain"));
+                return bad(format!(
+                    "cells {cells:?} empty or outside level {level}'s domain"
+                ));
             }
             if cells.extent().iter().any(|&e| e > MAX_BRICK_EXTENT)
                 || cells.num_cells().is_none_or(|n| n > MAX_BRICK_CELLS)
@@ -433,14 +520,21 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             for (i, d) in self.field_brick_records(field).iter().enumerate() {
                 let cells = self.brick(i).cells.num_cells().unwrap_or(0);
                 let bad = |m: String| {
-                    Err(FormatError::Corrupt(format!("field '{}', brick {i}: {m}", self.fields[field].name)))
+                    Err(FormatError::Corrupt(format!(
+                        "field '{}', brick {i}: {m}",
+                        self.fields[field].name
+                    )))
                 };
                 let (off, n) = (d.offset.get(), d.len.get());
                 if off < start || off.checked_add(n).is_none_or(|e| e > end) {
-                    return bad(format!("data {off}+{n} outside the field's region {start}..{end}"));
+                    return bad(format!(
+                        "data {off}+{n} outside the field's region {start}..{end}"
+                    ));
                 }
                 match d.encoding.get() {
-                    raw::ENCODING_RAW if n != cells * 4 => return bad(format!("raw length {n} for {cells} cells")),
+                    raw::ENCODING_RAW if n != cells * 4 => {
+                        return bad(format!("raw length {n} for {cells} cells"))
+                    }
                     raw::ENCODING_RAW => {}
                     raw::ENCODING_ZSTD_SHUFFLED => compressed = true,
                     e => return bad(format!("unknown encoding {e}")),
@@ -463,12 +557,19 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             let kind = node.b.get() & 3;
             if kind == KD_LEAF {
                 if node.a.get() as usize >= leaves.len() {
-                    return Err(FormatError::Corrupt(format!("kd node {i} names leaf {} of {}", node.a.get(), leaves.len())));
+                    return Err(FormatError::Corrupt(format!(
+                        "kd node {i} names leaf {} of {}",
+                        node.a.get(),
+                        leaves.len()
+                    )));
                 }
             } else {
                 let second = (node.b.get() >> 2) as usize;
                 if i + 1 >= n || second <= i + 1 || second >= n {
-                    return Err(FormatError::Corrupt(format!("kd node {i} has children {} and {second} of {n}", i + 1)));
+                    return Err(FormatError::Corrupt(format!(
+                        "kd node {i} has children {} and {second} of {n}",
+                        i + 1
+                    )));
                 }
             }
         }
@@ -477,19 +578,25 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         for (i, l) in leaves.iter().enumerate() {
             let (start, count) = (l.brick_start.get() as u64, l.brick_count.get() as u64);
             if start + count > list_len {
-                return Err(FormatError::Corrupt(format!("kd leaf {i}: brick list {start}+{count} past {list_len}")));
+                return Err(FormatError::Corrupt(format!(
+                    "kd leaf {i}: brick list {start}+{count} past {list_len}"
+                )));
             }
             for a in 0..3 {
                 let (lo, hi) = (i64::from(l.lo[a].get()), i64::from(l.hi[a].get()));
                 if lo >= hi || hi > ext[a] {
-                    return Err(FormatError::Corrupt(format!("kd leaf {i}: bounds outside the domain")));
+                    return Err(FormatError::Corrupt(format!(
+                        "kd leaf {i}: bounds outside the domain"
+                    )));
                 }
             }
         }
         let list: &[U32] = self.slice(&self.footer.brick_list);
         let nb = self.num_bricks() as u32;
         if let Some(bad) = list.iter().position(|b| b.get() >= nb) {
-            return Err(FormatError::Corrupt(format!("brick list entry {bad} names a brick past {nb}")));
+            return Err(FormatError::Corrupt(format!(
+                "brick list entry {bad} names a brick past {nb}"
+            )));
         }
         for (field, r) in self.fields_raw().iter().enumerate() {
             let ranges: &[LeafRange] = self.slice(&r.leaf_ranges);
@@ -509,7 +616,10 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
 
 fn check_version(got: u32) -> Result<()> {
     if got != raw::LAYOUT_VERSION {
-        return Err(FormatError::Version { expected: raw::LAYOUT_VERSION, got });
+        return Err(FormatError::Version {
+            expected: raw::LAYOUT_VERSION,
+            got,
+        });
     }
     Ok(())
 }
@@ -524,7 +634,10 @@ fn end_of(s: &Section, what: &str) -> Result<u64> {
 fn check_within(name: &str, s: &Section, meta: &Section) -> Result<()> {
     let end = end_of(s, name)?;
     if s.offset.get() < meta.offset.get() || end > meta.offset.get() + meta.len.get() {
-        return Err(FormatError::Corrupt(format!("{name} section {}..{end} lies outside the metadata", s.offset.get())));
+        return Err(FormatError::Corrupt(format!(
+            "{name} section {}..{end} lies outside the metadata",
+            s.offset.get()
+        )));
     }
     Ok(())
 }
@@ -533,7 +646,10 @@ fn check_table(name: &str, s: &Section, meta: &Section, count: u32, size: usize)
     check_within(name, s, meta)?;
     let want = u64::from(count) * size as u64;
     if s.len.get() != want {
-        return Err(FormatError::Corrupt(format!("{name} section holds {} bytes, {count} entries need {want}", s.len.get())));
+        return Err(FormatError::Corrupt(format!(
+            "{name} section holds {} bytes, {count} entries need {want}",
+            s.len.get()
+        )));
     }
     Ok(())
 }

@@ -61,7 +61,10 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
                 let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
                 for &v in &values {
                     if !v.is_finite() {
-                        return Err(FormatError::Corrupt(format!("field '{}', brick {b}: value {v}", field.name)));
+                        return Err(FormatError::Corrupt(format!(
+                            "field '{}', brick {b}: value {v}",
+                            field.name
+                        )));
                     }
                     lo = lo.min(v);
                     hi = hi.max(v);
@@ -108,7 +111,9 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             if kind == KD_LEAF {
                 let leaf = n.a.get() as usize;
                 if std::mem::replace(&mut seen[leaf], true) {
-                    return Err(FormatError::Corrupt(format!("kd leaf {leaf} is reached twice")));
+                    return Err(FormatError::Corrupt(format!(
+                        "kd leaf {leaf} is reached twice"
+                    )));
                 }
                 if tree.leaf_box(leaf as u32) != region {
                     return Err(FormatError::Corrupt(format!(
@@ -123,7 +128,9 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             }
             let (axis, at) = (kind as usize, i64::from(n.a.get()));
             if at <= region.lo[axis] || at >= region.hi[axis] {
-                return Err(FormatError::Corrupt(format!("kd node {i} splits {region:?} at {at} on axis {axis}")));
+                return Err(FormatError::Corrupt(format!(
+                    "kd node {i} splits {region:?} at {at} on axis {axis}"
+                )));
             }
             let (mut left, mut right) = (region, region);
             left.hi[axis] = at;
@@ -132,7 +139,9 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             stack.push((i + 1, left, depth + 1));
         }
         if reached != tree.nodes.len() || seen.iter().any(|s| !s) {
-            return Err(FormatError::Corrupt("the kd-tree has unreachable nodes or leaves".into()));
+            return Err(FormatError::Corrupt(
+                "the kd-tree has unreachable nodes or leaves".into(),
+            ));
         }
         let domain_cells = tree.domain.num_cells().unwrap_or(0) as u128;
         if report.covered_cells != domain_cells {
@@ -164,12 +173,18 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             let bad = |m: String| Err(FormatError::Corrupt(format!("kd leaf {leaf}: {m}")));
             if let Some(&first) = got.first() {
                 let level = self.brick(first as usize).level;
-                if !self.brick_finest_bounds(first as usize, origin).contains_box(&info.bounds) {
+                if !self
+                    .brick_finest_bounds(first as usize, origin)
+                    .contains_box(&info.bounds)
+                {
                     return bad(format!("first brick {first} does not cover the leaf"));
                 }
                 let levels: Vec<u32> = got.iter().map(|&b| self.brick(b as usize).level).collect();
-                if levels[1..].iter().any(|&l| l >= level) || levels.windows(2).any(|w| w[1] > w[0]) {
-                    return bad(format!("bricks are not finest-unique then coarser: levels {levels:?}"));
+                if levels[1..].iter().any(|&l| l >= level) || levels.windows(2).any(|w| w[1] > w[0])
+                {
+                    return bad(format!(
+                        "bricks are not finest-unique then coarser: levels {levels:?}"
+                    ));
                 }
             }
             got.sort_unstable();
@@ -185,11 +200,21 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
     fn verify_ranges(&self, actual: &[Vec<(f32, f32)>]) -> Result<()> {
         let tree = self.tree();
         let leaf_level: Vec<Option<u32>> = (0..self.num_leaves() as u32)
-            .map(|l| self.leaf(l).bricks.first().map(|b| self.brick(b.get() as usize).level))
+            .map(|l| {
+                self.leaf(l)
+                    .bricks
+                    .first()
+                    .map(|b| self.brick(b.get() as usize).level)
+            })
             .collect();
         let scales: Vec<[i64; 3]> = self.levels().iter().map(|l| l.finest_scale).collect();
         for (f, ranges) in actual.iter().enumerate() {
-            let want = leaf_ranges(&tree, &leaf_level, |l| ranges[self.leaf(l).bricks[0].get() as usize], &scales);
+            let want = leaf_ranges(
+                &tree,
+                &leaf_level,
+                |l| ranges[self.leaf(l).bricks[0].get() as usize],
+                &scales,
+            );
             for (leaf, &(lo, hi)) in want.iter().enumerate() {
                 let (slo, shi) = self.leaf_range(f, leaf as u32);
                 if leaf_level[leaf].is_some() && !(slo <= lo && hi <= shi) {
@@ -207,7 +232,13 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
     pub fn brick_finest_bounds(&self, b: usize, origin: [i64; 3]) -> IBox {
         let info = self.brick(b);
         let s = self.levels()[info.level as usize].finest_scale;
-        let f = info.cells.refine(s).expect("brick boxes lie inside the checked domain");
-        IBox::new([0, 1, 2].map(|a| f.lo[a] - origin[a]), [0, 1, 2].map(|a| f.hi[a] - origin[a]))
+        let f = info
+            .cells
+            .refine(s)
+            .expect("brick boxes lie inside the checked domain");
+        IBox::new(
+            [0, 1, 2].map(|a| f.lo[a] - origin[a]),
+            [0, 1, 2].map(|a| f.hi[a] - origin[a]),
+        )
     }
 }

@@ -20,7 +20,10 @@ use crate::error::{FormatError, Result};
 use crate::geometry::IBox;
 use crate::hierarchy::HierarchySpec;
 use crate::kdtree::{self, TreeBrick, TreeView};
-use crate::raw::{self, align_up, BrickData, BrickRecord, FieldRecord, Footer, Header, LeafRange, LevelRecord, Section};
+use crate::raw::{
+    self, align_up, BrickData, BrickRecord, FieldRecord, Footer, Header, LeafRange, LevelRecord,
+    Section,
+};
 
 /// How brick data is stored.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -86,13 +89,21 @@ impl AmrkWriter {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
         let temp = |what: &str| {
+            // The finished file is renamed into place: give it the permissions of an ordinary
+            // new file rather than a temporary file's owner-only ones.
             tempfile::Builder::new()
                 .prefix(&format!(".{name}."))
                 .suffix(what)
+                .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644))
                 .tempfile_in(&dir)
-                .map_err(|e| FormatError::io(format!("creating a temporary file in {}", dir.display()), e))
+                .map_err(|e| {
+                    FormatError::io(format!("creating a temporary file in {}", dir.display()), e)
+                })
         };
         let file = temp(".tmp")?;
         let header = Header {
@@ -101,7 +112,9 @@ impl AmrkWriter {
             header_size: (size_of::<Header>() as u32).into(),
             reserved: [0; 48],
         };
-        file.as_file().write_all_at(header.as_bytes(), 0).map_err(|e| FormatError::io("writing the header", e))?;
+        file.as_file()
+            .write_all_at(header.as_bytes(), 0)
+            .map_err(|e| FormatError::io("writing the header", e))?;
         let nb = spec.bricks.len();
         let mut written = vec![vec![None; nb]; spec.fields.len()];
         let mut data_end = align_up(size_of::<Header>() as u64);
@@ -126,12 +139,25 @@ impl AmrkWriter {
             }
             Compression::Zstd { .. } => {
                 let spills = (0..spec.fields.len())
-                    .map(|_| Ok(Spill { file: temp(".spill")?, len: 0 }))
+                    .map(|_| {
+                        Ok(Spill {
+                            file: temp(".spill")?,
+                            len: 0,
+                        })
+                    })
                     .collect::<Result<Vec<_>>>()?;
                 Some(spills)
             }
         };
-        Ok(Self { target: path.to_path_buf(), file, spec, written, spill, compression: opts.compression, data_end })
+        Ok(Self {
+            target: path.to_path_buf(),
+            file,
+            spec,
+            written,
+            spill,
+            compression: opts.compression,
+            data_end,
+        })
     }
 
     /// The hierarchy this writer was created with.
@@ -142,7 +168,10 @@ impl AmrkWriter {
     /// Writes one field's values of one brick, x fastest; each (brick, field) exactly once.
     pub fn write_brick(&mut self, brick: usize, field: usize, values: &[f32]) -> Result<()> {
         let spec = self.spec.bricks.get(brick).ok_or_else(|| {
-            FormatError::Usage(format!("brick {brick} does not exist ({} bricks)", self.spec.bricks.len()))
+            FormatError::Usage(format!(
+                "brick {brick} does not exist ({} bricks)",
+                self.spec.bricks.len()
+            ))
         })?;
         let field_name = self
             .spec
@@ -177,7 +206,9 @@ impl AmrkWriter {
             None => false,
         };
         if already {
-            return Err(FormatError::Usage(format!("brick {brick} of field '{field_name}' was written twice")));
+            return Err(FormatError::Usage(format!(
+                "brick {brick} of field '{field_name}' was written twice"
+            )));
         }
         let raw_bytes = values.as_bytes();
         let record = match (&mut self.spill, self.compression) {
@@ -188,7 +219,10 @@ impl AmrkWriter {
                     None => (le_bytes(values, raw_bytes), raw::ENCODING_RAW),
                 };
                 let offset = s.len;
-                s.file.as_file().write_all_at(&bytes, offset).map_err(|e| FormatError::io("writing a spill file", e))?;
+                s.file
+                    .as_file()
+                    .write_all_at(&bytes, offset)
+                    .map_err(|e| FormatError::io("writing a spill file", e))?;
                 s.len = align_up(offset + bytes.len() as u64);
                 BrickData {
                     offset: offset.into(),
@@ -221,15 +255,21 @@ impl AmrkWriter {
     /// place. On error nothing is left at the target path.
     pub fn finish(mut self) -> Result<WriteSummary> {
         for (f, slots) in self.written.iter().enumerate() {
-            if let Some(b) = slots.iter().position(|d| d.is_none_or(|d| d.encoding.get() == u32::MAX)) {
+            if let Some(b) = slots
+                .iter()
+                .position(|d| d.is_none_or(|d| d.encoding.get() == u32::MAX))
+            {
                 return Err(FormatError::Usage(format!(
                     "brick {b} of field '{}' was never written",
                     self.spec.fields[f]
                 )));
             }
         }
-        let records: Vec<Vec<BrickData>> =
-            self.written.iter().map(|s| s.iter().map(|d| d.expect("checked above")).collect()).collect();
+        let records: Vec<Vec<BrickData>> = self
+            .written
+            .iter()
+            .map(|s| s.iter().map(|d| d.expect("checked above")).collect())
+            .collect();
         let (records, data_sections) = self.place_data(records)?;
         let raw_data_bytes = 4 * self.spec.total_cells() * self.spec.fields.len() as u64;
         let data_bytes: u64 = records.iter().flatten().map(|d| d.len.get()).sum();
@@ -244,23 +284,37 @@ impl AmrkWriter {
             .bricks
             .iter()
             .map(|b| {
-                let f = b.cells.refine(scales[b.level as usize]).expect("validated extents");
+                let f = b
+                    .cells
+                    .refine(scales[b.level as usize])
+                    .expect("validated extents");
                 TreeBrick {
-                    bounds: IBox::new([0, 1, 2].map(|a| f.lo[a] - origin[a]), [0, 1, 2].map(|a| f.hi[a] - origin[a])),
+                    bounds: IBox::new(
+                        [0, 1, 2].map(|a| f.lo[a] - origin[a]),
+                        [0, 1, 2].map(|a| f.hi[a] - origin[a]),
+                    ),
                     level: b.level,
                 }
             })
             .collect();
         let tree = kdtree::build(&tree_bricks, rel_domain)?;
-        let view = TreeView { nodes: &tree.nodes, leaves: &tree.leaves, domain: rel_domain };
+        let view = TreeView {
+            nodes: &tree.nodes,
+            leaves: &tree.leaves,
+            domain: rel_domain,
+        };
         let leaf_level: Vec<Option<u32>> = tree
             .leaves
             .iter()
             .map(|l| {
-                (l.brick_count.get() > 0).then(|| self.spec.bricks[tree.brick_list[l.brick_start.get() as usize] as usize].level)
+                (l.brick_count.get() > 0).then(|| {
+                    self.spec.bricks[tree.brick_list[l.brick_start.get() as usize] as usize].level
+                })
             })
             .collect();
-        let first_brick = |leaf: u32| tree.brick_list[tree.leaves[leaf as usize].brick_start.get() as usize] as usize;
+        let first_brick = |leaf: u32| {
+            tree.brick_list[tree.leaves[leaf as usize].brick_start.get() as usize] as usize
+        };
 
         // Metadata: every section 64-byte aligned, in the order of the footer.
         let mut meta = MetaBuilder::new(self.data_end);
@@ -274,7 +328,11 @@ impl AmrkWriter {
                 origin: lev.origin.map(Into::into),
                 domain_lo: lev.domain.lo.map(Into::into),
                 domain_hi: lev.domain.hi.map(Into::into),
-                ratio_to_next: if l + 1 < nl { lev.ratio_to_next.map(Into::into) } else { [1u32.into(); 3] },
+                ratio_to_next: if l + 1 < nl {
+                    lev.ratio_to_next.map(Into::into)
+                } else {
+                    [1u32.into(); 3]
+                },
                 reserved: [0; 20],
             })
             .collect();
@@ -308,12 +366,23 @@ impl AmrkWriter {
                 },
                 &scales,
             );
-            let ranges: Vec<LeafRange> =
-                ranges.iter().map(|&(lo, hi)| LeafRange { min: lo.into(), max: hi.into() }).collect();
+            let ranges: Vec<LeafRange> = ranges
+                .iter()
+                .map(|&(lo, hi)| LeafRange {
+                    min: lo.into(),
+                    max: hi.into(),
+                })
+                .collect();
             let brick_data = meta.push(recs.as_bytes());
             let leaf_ranges = meta.push(ranges.as_bytes());
-            let min = recs.iter().map(|d| d.min.get()).fold(f32::INFINITY, f32::min);
-            let max = recs.iter().map(|d| d.max.get()).fold(f32::NEG_INFINITY, f32::max);
+            let min = recs
+                .iter()
+                .map(|d| d.min.get())
+                .fold(f32::INFINITY, f32::min);
+            let max = recs
+                .iter()
+                .map(|d| d.max.get())
+                .fold(f32::NEG_INFINITY, f32::max);
             fields.push(FieldRecord {
                 name_offset: (strings.len() as u32).into(),
                 name_len: (name.len() as u32).into(),
@@ -326,7 +395,10 @@ impl AmrkWriter {
             strings.extend_from_slice(name.as_bytes());
         }
         meta.fill(fields_at, fields.as_bytes());
-        let fields_sec = Section { offset: fields_at.into(), len: (fields.as_bytes().len() as u64).into() };
+        let fields_sec = Section {
+            offset: fields_at.into(),
+            len: (fields.as_bytes().len() as u64).into(),
+        };
         let strings_sec = meta.push(&strings);
         let (metadata, meta_bytes) = meta.finish();
 
@@ -357,16 +429,23 @@ impl AmrkWriter {
         footer.footer_crc = crc32fast::hash(&fb[..fb.len() - 4]).into();
 
         let file = self.file.as_file();
-        file.write_all_at(&meta_bytes, metadata.offset.get()).map_err(|e| FormatError::io("writing metadata", e))?;
+        file.write_all_at(&meta_bytes, metadata.offset.get())
+            .map_err(|e| FormatError::io("writing metadata", e))?;
         let footer_at = metadata.offset.get() + metadata.len.get();
-        file.write_all_at(footer.as_bytes(), footer_at).map_err(|e| FormatError::io("writing the footer", e))?;
+        file.write_all_at(footer.as_bytes(), footer_at)
+            .map_err(|e| FormatError::io("writing the footer", e))?;
         let file_bytes = footer_at + size_of::<Footer>() as u64;
-        file.set_len(file_bytes).map_err(|e| FormatError::io("setting the file length", e))?;
-        file.sync_all().map_err(|e| FormatError::io("syncing the file", e))?;
+        file.set_len(file_bytes)
+            .map_err(|e| FormatError::io("setting the file length", e))?;
+        file.sync_all()
+            .map_err(|e| FormatError::io("syncing the file", e))?;
         let target = self.target.clone();
-        self.file
-            .persist(&target)
-            .map_err(|e| FormatError::io(format!("renaming the finished file to {}", target.display()), e.error))?;
+        self.file.persist(&target).map_err(|e| {
+            FormatError::io(
+                format!("renaming the finished file to {}", target.display()),
+                e.error,
+            )
+        })?;
         if let Some(dir) = target.parent().filter(|p| !p.as_os_str().is_empty()) {
             // Make the rename itself durable; a failure here loses nothing already written.
             let _ = File::open(dir).and_then(|d| d.sync_all());
@@ -384,32 +463,50 @@ impl AmrkWriter {
 
     /// Gives each field its data region: raw bricks are already in place; compressed ones are
     /// copied from their spill file now and their offsets made absolute.
-    fn place_data(&mut self, mut records: Vec<Vec<BrickData>>) -> Result<(Vec<Vec<BrickData>>, Vec<Section>)> {
+    fn place_data(
+        &mut self,
+        mut records: Vec<Vec<BrickData>>,
+    ) -> Result<(Vec<Vec<BrickData>>, Vec<Section>)> {
         let mut sections = Vec::with_capacity(records.len());
         match self.spill.take() {
             None => {
                 for recs in &records {
-                    let start = recs.first().map(|d| d.offset.get()).unwrap_or(self.data_end);
-                    let end = recs.last().map(|d| align_up(d.offset.get() + d.len.get())).unwrap_or(start);
-                    sections.push(Section { offset: start.into(), len: (end - start).into() });
+                    let start = recs
+                        .first()
+                        .map(|d| d.offset.get())
+                        .unwrap_or(self.data_end);
+                    let end = recs
+                        .last()
+                        .map(|d| align_up(d.offset.get() + d.len.get()))
+                        .unwrap_or(start);
+                    sections.push(Section {
+                        offset: start.into(),
+                        len: (end - start).into(),
+                    });
                 }
             }
             Some(spills) => {
                 let mut at = self.data_end;
                 let out = self.file.as_file_mut();
                 for (recs, mut spill) in records.iter_mut().zip(spills) {
-                    out.seek(SeekFrom::Start(at)).map_err(|e| FormatError::io("seeking the output", e))?;
+                    out.seek(SeekFrom::Start(at))
+                        .map_err(|e| FormatError::io("seeking the output", e))?;
                     let src = spill.file.as_file_mut();
-                    src.seek(SeekFrom::Start(0)).map_err(|e| FormatError::io("rewinding a spill file", e))?;
+                    src.seek(SeekFrom::Start(0))
+                        .map_err(|e| FormatError::io("rewinding a spill file", e))?;
                     std::io::copy(&mut std::io::Read::take(src, spill.len), out)
                         .map_err(|e| FormatError::io("copying compressed bricks into place", e))?;
                     for d in recs.iter_mut() {
                         d.offset = (d.offset.get() + at).into();
                     }
-                    sections.push(Section { offset: at.into(), len: spill.len.into() });
+                    sections.push(Section {
+                        offset: at.into(),
+                        len: spill.len.into(),
+                    });
                     at = align_up(at + spill.len);
                 }
-                out.flush().map_err(|e| FormatError::io("flushing the output", e))?;
+                out.flush()
+                    .map_err(|e| FormatError::io("flushing the output", e))?;
                 self.data_end = at;
             }
         }
@@ -434,7 +531,10 @@ struct MetaBuilder {
 
 impl MetaBuilder {
     fn new(start: u64) -> Self {
-        Self { start: align_up(start), bytes: Vec::new() }
+        Self {
+            start: align_up(start),
+            bytes: Vec::new(),
+        }
     }
 
     fn reserve(&mut self, len: u64) -> u64 {
@@ -451,12 +551,21 @@ impl MetaBuilder {
     fn push(&mut self, data: &[u8]) -> Section {
         let at = self.reserve(data.len() as u64);
         self.fill(at, data);
-        Section { offset: at.into(), len: (data.len() as u64).into() }
+        Section {
+            offset: at.into(),
+            len: (data.len() as u64).into(),
+        }
     }
 
     fn finish(mut self) -> (Section, Vec<u8>) {
         let len = align_up(self.bytes.len() as u64);
         self.bytes.resize(len as usize, 0);
-        (Section { offset: self.start.into(), len: len.into() }, self.bytes)
+        (
+            Section {
+                offset: self.start.into(),
+                len: len.into(),
+            },
+            self.bytes,
+        )
     }
 }

@@ -23,7 +23,10 @@ fn footer_of(bytes: &[u8]) -> Footer {
 /// Rewrites the footer and both checksums, so that structural checks, not checksums, must
 /// catch the damage.
 fn reseal(bytes: &mut [u8], mut footer: Footer) {
-    let (start, len) = (footer.metadata.offset.get() as usize, footer.metadata.len.get() as usize);
+    let (start, len) = (
+        footer.metadata.offset.get() as usize,
+        footer.metadata.len.get() as usize,
+    );
     if start.checked_add(len).is_some_and(|e| e <= bytes.len()) {
         footer.metadata_crc = crc32fast::hash(&bytes[start..start + len]).into();
     }
@@ -66,7 +69,10 @@ fn newer_layout_version() {
     reseal(&mut b, f);
     b[8..12].copy_from_slice(&(LAYOUT_VERSION + 1).to_le_bytes());
     let e = AmrkFile::open(b).err().unwrap();
-    assert!(matches!(e, FormatError::Version { got, .. } if got == LAYOUT_VERSION + 1), "{e}");
+    assert!(
+        matches!(e, FormatError::Version { got, .. } if got == LAYOUT_VERSION + 1),
+        "{e}"
+    );
 }
 
 #[test]
@@ -74,7 +80,10 @@ fn truncated_anywhere() {
     let b = valid_file(3);
     for cut in [b.len() - 1, b.len() - 100, b.len() / 2, 300, 64] {
         let e = open_err(b[..cut].to_vec());
-        assert!(e.contains("truncated") || e.contains("corrupt") || e.contains("checksum"), "cut {cut}: {e}");
+        assert!(
+            e.contains("truncated") || e.contains("corrupt") || e.contains("checksum"),
+            "cut {cut}: {e}"
+        );
     }
 }
 
@@ -128,7 +137,9 @@ fn brick_data_offset_outside_field_region() {
     let mut b = valid_file(8);
     let f = footer_of(&b);
     let field: amr_format::raw::FieldRecord =
-        amr_format::raw::FieldRecord::read_from_prefix(&b[f.fields.offset.get() as usize..]).unwrap().0;
+        amr_format::raw::FieldRecord::read_from_prefix(&b[f.fields.offset.get() as usize..])
+            .unwrap()
+            .0;
     let at = field.brick_data.offset.get() as usize;
     b[at..at + 8].copy_from_slice(&(u64::MAX - 3).to_le_bytes());
     reseal_metadata(&mut b);
@@ -164,7 +175,8 @@ fn seeded_mutations_never_panic() {
                 }
                 2 => {
                     let i = meta_start + rng.below((b.len() - meta_start) as u64) as usize;
-                    let v = [0u32, 1, u32::MAX, u32::MAX / 2, rng.next() as u32][rng.below(5) as usize];
+                    let v =
+                        [0u32, 1, u32::MAX, u32::MAX / 2, rng.next() as u32][rng.below(5) as usize];
                     let end = (i + 4).min(b.len());
                     b[i..end].copy_from_slice(&v.to_le_bytes()[..end - i]);
                 }

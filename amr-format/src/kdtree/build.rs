@@ -33,7 +33,11 @@ pub fn build(bricks: &[TreeBrick], domain: IBox) -> Result<KdTree> {
     let all: Vec<u32> = (0..bricks.len() as u32)
         .filter(|&i| bricks[i as usize].bounds.overlaps(&domain))
         .collect();
-    let mut stack = vec![Task { region: domain, bricks: all, parent: None }];
+    let mut stack = vec![Task {
+        region: domain,
+        bricks: all,
+        parent: None,
+    }];
     while let Some(task) = stack.pop() {
         let index = tree.nodes.len();
         if let Some(parent) = task.parent {
@@ -41,13 +45,16 @@ pub fn build(bricks: &[TreeBrick], domain: IBox) -> Result<KdTree> {
             node.b = (node.b.get() | ((index as u32) << 2)).into();
         }
         if index >= (u32::MAX >> 2) as usize {
-            return Err(FormatError::InvalidHierarchy("kd-tree has too many nodes".into()));
+            return Err(FormatError::InvalidHierarchy(
+                "kd-tree has too many nodes".into(),
+            ));
         }
         match decide(bricks, &task)? {
             Decision::Leaf(list) => {
                 let leaf = tree.leaves.len() as u32;
-                let start = u32::try_from(tree.brick_list.len())
-                    .map_err(|_| FormatError::InvalidHierarchy("kd-tree brick list too long".into()))?;
+                let start = u32::try_from(tree.brick_list.len()).map_err(|_| {
+                    FormatError::InvalidHierarchy("kd-tree brick list too long".into())
+                })?;
                 tree.brick_list.extend_from_slice(&list);
                 tree.leaves.push(KdLeaf {
                     lo: task.region.lo.map(|v| (v as u32).into()),
@@ -55,21 +62,39 @@ pub fn build(bricks: &[TreeBrick], domain: IBox) -> Result<KdTree> {
                     brick_start: start.into(),
                     brick_count: (list.len() as u32).into(),
                 });
-                tree.nodes.push(KdNode { a: leaf.into(), b: KD_LEAF.into() });
+                tree.nodes.push(KdNode {
+                    a: leaf.into(),
+                    b: KD_LEAF.into(),
+                });
             }
             Decision::Split { axis, at } => {
-                tree.nodes.push(KdNode { a: (at as u32).into(), b: (axis as u32).into() });
+                tree.nodes.push(KdNode {
+                    a: (at as u32).into(),
+                    b: (axis as u32).into(),
+                });
                 let (mut left, mut right) = (task.region, task.region);
                 left.hi[axis] = at;
                 right.lo[axis] = at;
                 let side = |r: &IBox| -> Vec<u32> {
-                    task.bricks.iter().copied().filter(|&b| bricks[b as usize].bounds.overlaps(r)).collect()
+                    task.bricks
+                        .iter()
+                        .copied()
+                        .filter(|&b| bricks[b as usize].bounds.overlaps(r))
+                        .collect()
                 };
                 let (lb, rb) = (side(&left), side(&right));
                 // The second child is pushed first so that the first child is built next,
                 // directly after its parent: depth-first order with an implicit first child.
-                stack.push(Task { region: right, bricks: rb, parent: Some(index) });
-                stack.push(Task { region: left, bricks: lb, parent: None });
+                stack.push(Task {
+                    region: right,
+                    bricks: rb,
+                    parent: Some(index),
+                });
+                stack.push(Task {
+                    region: left,
+                    bricks: lb,
+                    parent: None,
+                });
             }
         }
     }
@@ -92,8 +117,15 @@ fn decide(bricks: &[TreeBrick], task: &Task) -> Result<Decision> {
     let Some(finest) = task.bricks.iter().map(|&b| bricks[b as usize].level).max() else {
         return Ok(Decision::Leaf(Vec::new()));
     };
-    let top: Vec<u32> = task.bricks.iter().copied().filter(|&b| bricks[b as usize].level == finest).collect();
-    let covering = top.iter().find(|&&b| bricks[b as usize].bounds.contains_box(&task.region));
+    let top: Vec<u32> = task
+        .bricks
+        .iter()
+        .copied()
+        .filter(|&b| bricks[b as usize].level == finest)
+        .collect();
+    let covering = top
+        .iter()
+        .find(|&&b| bricks[b as usize].bounds.contains_box(&task.region));
     if let Some(&cover) = covering {
         if let Some(&other) = top.iter().find(|&&b| b != cover) {
             return Err(overlap(bricks, cover, other));
@@ -115,7 +147,12 @@ fn decide(bricks: &[TreeBrick], task: &Task) -> Result<Decision> {
                 }
                 let extent = r.hi[axis] - r.lo[axis];
                 let off = (2 * at - r.lo[axis] - r.hi[axis]).unsigned_abs() as u128;
-                let key = ((off << 32) / extent as u128, std::cmp::Reverse(extent), axis, at);
+                let key = (
+                    (off << 32) / extent as u128,
+                    std::cmp::Reverse(extent),
+                    axis,
+                    at,
+                );
                 if best.as_ref().is_none_or(|(k, _, _)| key < *k) {
                     best = Some((key, axis, at));
                 }

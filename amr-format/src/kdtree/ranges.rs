@@ -32,7 +32,11 @@ pub fn leaf_ranges(
             let region = own.grow(cell_scale[coarsest as usize].map(|s| 2 * s));
             touching.clear();
             tree.for_each_leaf_touching(&region, |l| touching.push(l));
-            let met = touching.iter().filter_map(|&l| leaf_level[l as usize]).min().unwrap_or(coarsest);
+            let met = touching
+                .iter()
+                .filter_map(|&l| leaf_level[l as usize])
+                .min()
+                .unwrap_or(coarsest);
             if met >= coarsest {
                 break;
             }

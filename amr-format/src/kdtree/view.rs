@@ -30,7 +30,11 @@ impl<'a> TreeView<'a> {
             if kind == KD_LEAF {
                 return Some(n.a.get());
             }
-            i = if p[kind as usize] < i64::from(n.a.get()) { i + 1 } else { (n.b.get() >> 2) as usize };
+            i = if p[kind as usize] < i64::from(n.a.get()) {
+                i + 1
+            } else {
+                (n.b.get() >> 2) as usize
+            };
         }
     }
 
@@ -65,6 +69,9 @@ impl<'a> TreeView<'a> {
     /// The box of leaf `leaf` in finest-level cells relative to the domain.
     pub fn leaf_box(&self, leaf: u32) -> IBox {
         let l = &self.leaves[leaf as usize];
-        IBox::new(l.lo.map(|v| i64::from(v.get())), l.hi.map(|v| i64::from(v.get())))
+        IBox::new(
+            l.lo.map(|v| i64::from(v.get())),
+            l.hi.map(|v| i64::from(v.get())),
+        )
     }
 }

@@ -37,8 +37,11 @@ pub fn random_hierarchy(rng: &mut Rng, levels: usize, ratio: u32, brick: i64) ->
     let origin = [rng.unit() * 1e3, -rng.unit(), 0.0];
     let mut specs = Vec::new();
     let mut domain = IBox::new(off, [0, 1, 2].map(|a| off[a] + base[a]));
-    let mut bricks: Vec<BrickSpec> =
-        domain.split([brick; 3]).into_iter().map(|c| BrickSpec { level: 0, cells: c }).collect();
+    let mut bricks: Vec<BrickSpec> = domain
+        .split([brick; 3])
+        .into_iter()
+        .map(|c| BrickSpec { level: 0, cells: c })
+        .collect();
     let mut dx = dx0;
     for l in 0..levels {
         specs.push(LevelSpec {
@@ -51,7 +54,11 @@ pub fn random_hierarchy(rng: &mut Rng, levels: usize, ratio: u32, brick: i64) ->
             break;
         }
         let r = [ratio as i64; 3];
-        let parents: Vec<IBox> = bricks.iter().filter(|b| b.level as usize == l).map(|b| b.cells).collect();
+        let parents: Vec<IBox> = bricks
+            .iter()
+            .filter(|b| b.level as usize == l)
+            .map(|b| b.cells)
+            .collect();
         let mut chosen: Vec<IBox> = Vec::new();
         for _ in 0..rng.range(1, 4) {
             let p = parents[rng.below(parents.len() as u64) as usize];
@@ -65,13 +72,20 @@ pub fn random_hierarchy(rng: &mut Rng, levels: usize, ratio: u32, brick: i64) ->
         }
         for c in &chosen {
             for piece in c.split([brick; 3]) {
-                bricks.push(BrickSpec { level: l as u32 + 1, cells: piece });
+                bricks.push(BrickSpec {
+                    level: l as u32 + 1,
+                    cells: piece,
+                });
             }
         }
         domain = domain.refine(r).unwrap();
         dx /= ratio as f64;
     }
-    HierarchySpec { levels: specs, fields: vec!["f".into(), "g".into()], bricks }
+    HierarchySpec {
+        levels: specs,
+        fields: vec!["f".into(), "g".into()],
+        bricks,
+    }
 }
 
 /// Value of the test fields at cell `p` of `level`: a smooth function of the cell centre.
@@ -79,7 +93,11 @@ pub fn field_value(spec: &HierarchySpec, field: usize, level: usize, p: [i64; 3]
     let lev = &spec.levels[level];
     let x = [0, 1, 2].map(|a| lev.origin[a] + (p[a] as f64 + 0.5) * lev.cell_size[a]);
     let s = (x[0] * 1.3).sin() + (x[1] * 0.7).cos() * 2.0 + x[2] * 0.1;
-    if field == 0 { s as f32 } else { (s * s - 1.0) as f32 }
+    if field == 0 {
+        s as f32
+    } else {
+        (s * s - 1.0) as f32
+    }
 }
 
 /// Values of one brick of one field.
@@ -98,7 +116,11 @@ pub fn brick_values(spec: &HierarchySpec, field: usize, b: &BrickSpec) -> Vec<f3
 
 /// Writes `spec` with the test fields to `path`, bricks in reverse order to exercise
 /// positioned writes.
-pub fn write_file(spec: &HierarchySpec, path: &Path, opts: WriterOptions) -> amr_format::WriteSummary {
+pub fn write_file(
+    spec: &HierarchySpec,
+    path: &Path,
+    opts: WriterOptions,
+) -> amr_format::WriteSummary {
     let mut w = AmrkWriter::create(path, spec.clone(), opts).unwrap();
     for (i, b) in spec.bricks.iter().enumerate().rev() {
         for f in 0..spec.fields.len() {

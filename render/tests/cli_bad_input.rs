@@ -1,0 +1,68 @@
+//! `amr-render info` and `verify` on bad files: exit code 1 and a message naming the file.
+
+use std::path::Path;
+use std::process::Command;
+
+fn run(args: &[&str]) -> (i32, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_amr-render")).args(args).output().unwrap();
+    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+fn expect_error(path: &Path, needle: &str) {
+    for cmd in ["info", "verify"] {
+        let (code, err) = run(&[cmd, path.to_str().unwrap()]);
+        assert_eq!(code, 1, "{cmd} {}: exit {code}, stderr: {err}", path.display());
+        assert!(err.contains(&path.display().to_string()), "{cmd}: error does not name the file: {err}");
+        assert!(err.contains(needle), "{cmd}: expected '{needle}' in: {err}");
+    }
+}
+
+#[test]
+fn bad_files_give_exit_code_1_and_name_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let empty = dir.path().join("empty.amrk");
+    std::fs::write(&empty, b"").unwrap();
+    expect_error(&empty, "empty");
+    expect_error(dir.path(), "directory");
+    let text = dir.path().join("text.amrk");
+    std::fs::write(&text, vec![b'x'; 4096]).unwrap();
+    expect_error(&text, "not an .amrk file");
+    expect_error(&dir.path().join("missing.amrk"), "cannot open");
+}
+
+#[test]
+fn truncated_and_flipped_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.amrk");
+    write_small_file(&good);
+    let bytes = std::fs::read(&good).unwrap();
+    let cut = dir.path().join("cut.amrk");
+    std::fs::write(&cut, &bytes[..bytes.len() - 10]).unwrap();
+    expect_error(&cut, "truncated");
+    let mut flipped = bytes.clone();
+    flipped[64 + 3] ^= 0x40;
+    let data_flip = dir.path().join("flip.amrk");
+    std::fs::write(&data_flip, &flipped).unwrap();
+    let (code, _) = run(&["info", data_flip.to_str().unwrap()]);
+    assert_eq!(code, 0, "damaged brick data does not stop info");
+    let (code, err) = run(&["verify", data_flip.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(err.contains("checksum mismatch") && err.contains("flip.amrk"), "{err}");
+    assert_eq!(run(&["verify", good.to_str().unwrap()]).0, 0);
+}
+
+fn write_small_file(path: &Path) {
+    use amr_format::{AmrkWriter, BrickSpec, HierarchySpec, IBox, LevelSpec, WriterOptions};
+    let domain = IBox::new([0; 3], [8; 3]);
+    let spec = HierarchySpec {
+        levels: vec![LevelSpec { cell_size: [0.125; 3], origin: [0.0; 3], ratio_to_next: [1; 3], domain }],
+        fields: vec!["f".into()],
+        bricks: domain.split([4; 3]).into_iter().map(|c| BrickSpec { level: 0, cells: c }).collect(),
+    };
+    let mut w = AmrkWriter::create(path, spec.clone(), WriterOptions::default()).unwrap();
+    for (i, b) in spec.bricks.iter().enumerate() {
+        let n = b.cells.num_cells().unwrap() as usize;
+        w.write_brick(i, 0, &(0..n).map(|k| k as f32 + i as f32).collect::<Vec<_>>()).unwrap();
+    }
+    w.finish().unwrap();
+}

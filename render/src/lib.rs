@@ -2,5 +2,10 @@
 #![warn(missing_docs)]
 
 pub mod bench;
+pub mod bvh;
+pub mod camera;
 pub mod info;
 pub mod mapping;
+pub mod output;
+pub mod shade;
+pub mod trace;

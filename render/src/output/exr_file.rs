@@ -1,0 +1,103 @@
+//! OpenEXR output: channels R, G, B, A, Z, N.X/Y/Z, P.X/Y/Z and `level` as 32-bit floats, with
+//! the camera, isovalues, timings and the origin of `P` in the header. Written to a temporary file
+//! beside the target and renamed, so a reader never sees half a frame.
+
+use std::path::{Path, PathBuf};
+
+use exr::prelude::*;
+
+use crate::output::frame::FrameBuffer;
+
+/// Header attribute names holding the world origin that `P.X`, `P.Y`, `P.Z` are relative to.
+pub const P_ORIGIN_ATTRS: [&str; 3] = ["P_origin_x", "P_origin_y", "P_origin_z"];
+
+/// Writes `frame` to `path` with `meta` (name, text) pairs as text attributes.
+pub fn write_exr(
+    path: &Path,
+    frame: &FrameBuffer,
+    meta: &[(String, String)],
+) -> anyhow::Result<()> {
+    let size = (frame.width as usize, frame.height as usize);
+    let ch = |name: &str, data: &Vec<f32>| AnyChannel::new(name, FlatSamples::F32(data.clone()));
+    let channels = vec![
+        ch("R", &frame.rgb[0]),
+        ch("G", &frame.rgb[1]),
+        ch("B", &frame.rgb[2]),
+        ch("A", &frame.alpha),
+        ch("Z", &frame.z),
+        ch("N.X", &frame.n[0]),
+        ch("N.Y", &frame.n[1]),
+        ch("N.Z", &frame.n[2]),
+        ch("P.X", &frame.p[0]),
+        ch("P.Y", &frame.p[1]),
+        ch("P.Z", &frame.p[2]),
+        ch("level", &frame.level),
+    ];
+    let mut attrs = LayerAttributes::named("");
+    attrs.layer_name = None;
+    attrs.software_name = Some(text("amr-render"));
+    for (k, v) in meta {
+        attrs.other.insert(text(k), AttributeValue::Text(text(v)));
+    }
+    for (a, name) in P_ORIGIN_ATTRS.iter().enumerate() {
+        attrs
+            .other
+            .insert(text(name), AttributeValue::F64(frame.p_origin[a]));
+    }
+    let layer = Layer::new(
+        size,
+        attrs,
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(channels.into()),
+    );
+    let image = Image::from_layer(layer);
+    let tmp = temp_path(path);
+    image
+        .write()
+        .to_file(&tmp)
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", tmp.display()))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        anyhow::anyhow!("cannot rename {} to {}: {e}", tmp.display(), path.display())
+    })
+}
+
+/// A temporary file name beside `path`.
+pub fn temp_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".into());
+    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+}
+
+fn text(s: &str) -> Text {
+    Text::new_or_none(s).unwrap_or_else(|| {
+        let ascii: String = s
+            .chars()
+            .map(|c| if (c as u32) < 256 { c } else { '?' })
+            .collect();
+        Text::new_or_panic(ascii)
+    })
+}
+
+/// One channel of an EXR file read back: width, height, values (for tests and tools).
+pub fn read_channel(path: &Path, name: &str) -> anyhow::Result<(u32, u32, Vec<f32>)> {
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
+    let layer = &image.layer_data;
+    let ch = layer
+        .channel_data
+        .list
+        .iter()
+        .find(|c| c.name.to_string() == name)
+        .ok_or_else(|| anyhow::anyhow!("no channel {name}"))?;
+    let v: Vec<f32> = ch.sample_data.values_as_f32().collect();
+    Ok((layer.size.0 as u32, layer.size.1 as u32, v))
+}

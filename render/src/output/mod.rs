@@ -1,0 +1,7 @@
+//! Writing frames: OpenEXR with every channel and the render's metadata, and a PNG preview.
+
+pub mod exr_file;
+pub mod frame;
+pub mod png_preview;
+
+pub use frame::{FrameBuffer, PixelSample};

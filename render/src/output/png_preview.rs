@@ -1,0 +1,59 @@
+//! A tone-mapped 8-bit sRGB PNG of a frame, composited over a neutral background.
+
+use std::io::BufWriter;
+use std::path::Path;
+
+use crate::output::exr_file::temp_path;
+use crate::output::frame::FrameBuffer;
+
+/// Background grey (linear) behind uncovered pixels.
+const BACKGROUND: f32 = 0.18;
+
+/// The preview's RGB8 bytes, row-major from the top-left.
+pub fn preview_rgb8(frame: &FrameBuffer) -> Vec<u8> {
+    let mut out = Vec::with_capacity(frame.len() * 3);
+    for i in 0..frame.len() {
+        let a = frame.alpha[i];
+        for c in 0..3 {
+            let v = frame.rgb[c][i] + BACKGROUND * (1.0 - a);
+            out.push(to_srgb8(v / (1.0 + 0.25 * v)));
+        }
+    }
+    out
+}
+
+fn to_srgb8(v: f32) -> u8 {
+    let v = v.clamp(0.0, 1.0);
+    let s = if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0 + 0.5) as u8
+}
+
+/// Writes `rgb8` (`width x height` RGB8) as a PNG, through a temporary file.
+pub fn write_png(path: &Path, width: u32, height: u32, rgb8: &[u8]) -> anyhow::Result<()> {
+    let tmp = temp_path(path);
+    let result = (|| -> anyhow::Result<()> {
+        let file = std::fs::File::create(&tmp)?;
+        let mut enc = png::Encoder::new(BufWriter::new(file), width, height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc.write_header()?;
+        w.write_image_data(rgb8)?;
+        w.finish()?;
+        Ok(())
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e.context(format!("cannot write {}", path.display())));
+    }
+    std::fs::rename(&tmp, path)
+        .map_err(|e| anyhow::anyhow!("cannot rename to {}: {e}", path.display()))
+}
+
+/// Writes the preview of `frame` to `path`.
+pub fn write_preview(path: &Path, frame: &FrameBuffer) -> anyhow::Result<()> {
+    write_png(path, frame.width, frame.height, &preview_rgb8(frame))
+}

@@ -1,0 +1,180 @@
+//! One primary ray: its hits with every isosurface in depth order, each shaded and composited.
+
+use crate::camera::{dot, normalize, Camera};
+use crate::output::frame::PixelSample;
+use crate::shade::sampling::{cosine_hemisphere, Rng};
+use crate::trace::ray::GridRay;
+use crate::trace::tracer::{SurfaceHit, Tracer};
+
+/// Most surfaces composited along one ray.
+const MAX_LAYERS: usize = 32;
+/// Stop compositing once less than this much light gets through.
+const MIN_TRANSMITTANCE: f32 = 1e-3;
+
+/// Light and material settings for a frame.
+#[derive(Clone, Debug)]
+pub struct Lighting {
+    /// Colour per surface (linear RGB).
+    pub colors: Vec<[f32; 3]>,
+    /// Opacity per surface.
+    pub opacity: Vec<f32>,
+    /// Unit direction towards the key light, world coordinates.
+    pub key_dir: [f64; 3],
+    /// Cast shadow rays towards the key light.
+    pub shadows: bool,
+    /// Ambient-occlusion rays per hit (0 disables).
+    pub ao_rays: u32,
+    /// Length of ambient-occlusion rays, world units.
+    pub ao_distance: f64,
+}
+
+impl Lighting {
+    /// Default lighting for `camera`: the key light comes from above the camera's left shoulder.
+    pub fn for_camera(
+        camera: &Camera,
+        colors: Vec<[f32; 3]>,
+        opacity: Vec<f32>,
+        ao_distance: f64,
+    ) -> Lighting {
+        let f = camera.forward();
+        let (r, u) = camera.basis();
+        let key = [0, 1, 2].map(|a| -0.55 * f[a] - 0.45 * r[a] + 0.7 * u[a]);
+        Lighting {
+            colors,
+            opacity,
+            key_dir: normalize(key).unwrap_or(u),
+            shadows: true,
+            ao_rays: 0,
+            ao_distance,
+        }
+    }
+}
+
+/// Shades the world ray `origin + t dir` (`dir` unit length).
+pub fn shade_ray<T: Tracer + ?Sized>(
+    tracer: &T,
+    light: &Lighting,
+    origin: [f64; 3],
+    dir: [f64; 3],
+    rng: &mut Rng,
+) -> PixelSample {
+    let frame = tracer.frame();
+    let ray = GridRay::from_world(&frame, origin, dir);
+    let n = tracer.num_surfaces();
+    let mut next: Vec<Option<SurfaceHit>> = (0..n)
+        .map(|i| tracer.next_hit(i, &ray, 0.0, f64::INFINITY))
+        .collect();
+    let mut out = PixelSample::MISS;
+    let mut transmittance = 1.0f32;
+    let mut rgb = [0.0f32; 3];
+    for layer in 0..MAX_LAYERS {
+        let Some((i, hit)) = next
+            .iter()
+            .enumerate()
+            .filter_map(|(i, h)| h.map(|h| (i, h)))
+            .min_by(|a, b| a.1.t.total_cmp(&b.1.t))
+        else {
+            break;
+        };
+        let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dir.map(|x| -x));
+        let colour = shade_hit(tracer, light, i, &hit, normal, dir, rng);
+        let alpha = light.opacity[i];
+        for c in 0..3 {
+            rgb[c] += transmittance * alpha * colour[c];
+        }
+        if layer == 0 {
+            let p = frame.to_world(hit.pos);
+            out.z = hit.t as f32;
+            out.n = normal.map(|x| x as f32);
+            out.p = [0, 1, 2].map(|a| (p[a] - frame.origin[a]) as f32);
+            out.level = hit.level as f32;
+        }
+        transmittance *= 1.0 - alpha;
+        if transmittance < MIN_TRANSMITTANCE {
+            break;
+        }
+        let step = 1e-4 * hit.size / grid_len(ray.d);
+        next[i] = tracer.next_hit(i, &ray, hit.t + step, f64::INFINITY);
+    }
+    out.rgb = rgb;
+    out.alpha = 1.0 - transmittance;
+    out
+}
+
+/// The unit world-space normal for a grid-space gradient.
+fn world_normal(unit: &[f64; 3], grad: [f64; 3]) -> Option<[f64; 3]> {
+    normalize([0, 1, 2].map(|a| grad[a] / unit[a]))
+}
+
+fn grid_len(d: [f64; 3]) -> f64 {
+    dot(d, d).sqrt().max(f64::MIN_POSITIVE)
+}
+
+/// The colour of surface `i` at `hit`, seen along `dir`.
+fn shade_hit<T: Tracer + ?Sized>(
+    tracer: &T,
+    light: &Lighting,
+    i: usize,
+    hit: &SurfaceHit,
+    normal: [f64; 3],
+    dir: [f64; 3],
+    rng: &mut Rng,
+) -> [f32; 3] {
+    let view = dir.map(|x| -x);
+    let nf = if dot(normal, view) < 0.0 {
+        normal.map(|x| -x)
+    } else {
+        normal
+    };
+    let head = dot(nf, view).max(0.0);
+    let spec = head.powi(48);
+    let mut key = dot(nf, light.key_dir).max(0.0);
+    if key > 0.0 && light.shadows {
+        key *= transmittance_towards(tracer, light, hit, nf, light.key_dir, f64::INFINITY);
+    }
+    let ao = if light.ao_rays > 0 {
+        let mut open = 0.0;
+        for _ in 0..light.ao_rays {
+            let d = cosine_hemisphere(nf, rng.next_f64(), rng.next_f64());
+            open += transmittance_towards(tracer, light, hit, nf, d, light.ao_distance);
+        }
+        open / f64::from(light.ao_rays)
+    } else {
+        1.0
+    };
+    let base = light.colors[i];
+    let diffuse = 0.22 * ao + 0.55 * key + 0.35 * head * (0.5 + 0.5 * ao);
+    base.map(|c| (f64::from(c) * diffuse + 0.25 * spec) as f32)
+}
+
+/// Fraction of light reaching `hit` from direction `d` (world, unit) within `max_t`: the
+/// product of `1 - opacity` over the surfaces in the way.
+fn transmittance_towards<T: Tracer + ?Sized>(
+    tracer: &T,
+    light: &Lighting,
+    hit: &SurfaceHit,
+    nf: [f64; 3],
+    d: [f64; 3],
+    max_t: f64,
+) -> f64 {
+    let frame = tracer.frame();
+    let offset = 1e-3 * hit.size;
+    let n_grid = [0, 1, 2].map(|a| nf[a] / frame.unit[a]);
+    let n_len = grid_len(n_grid);
+    let o = [0, 1, 2].map(|a| hit.pos[a] + n_grid[a] / n_len * offset);
+    let ray = GridRay {
+        o,
+        d: [0, 1, 2].map(|a| d[a] / frame.unit[a]),
+    };
+    let tmin = 1e-3 * hit.size / grid_len(ray.d);
+    let mut t = 1.0;
+    for s in 0..tracer.num_surfaces() {
+        if tracer.occluded(s, &ray, tmin, max_t) {
+            t *= 1.0 - f64::from(light.opacity[s]);
+            if t == 0.0 {
+                break;
+            }
+        }
+    }
+    t
+}

@@ -1,0 +1,137 @@
+//! Isosurface specifications from the command line: `V[:COLOR[:OPACITY]]`.
+
+use std::str::FromStr;
+
+/// One isosurface to render: isovalue, colour and opacity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IsoSpec {
+    /// The isovalue.
+    pub value: f32,
+    /// Linear RGB colour, or `None` for the palette's colour at the surface's position.
+    pub color: Option<[f32; 3]>,
+    /// Opacity in `[0, 1]`; 1 is opaque.
+    pub opacity: f32,
+}
+
+/// Colours given to isosurfaces without one, in order.
+pub const PALETTE: [[f32; 3]; 6] = [
+    [0.85, 0.62, 0.35],
+    [0.35, 0.55, 0.85],
+    [0.45, 0.75, 0.40],
+    [0.80, 0.35, 0.40],
+    [0.65, 0.50, 0.80],
+    [0.80, 0.80, 0.80],
+];
+
+const NAMED: [(&str, [f32; 3]); 12] = [
+    ("white", [1.0, 1.0, 1.0]),
+    ("grey", [0.5, 0.5, 0.5]),
+    ("gray", [0.5, 0.5, 0.5]),
+    ("black", [0.02, 0.02, 0.02]),
+    ("red", [0.85, 0.15, 0.12]),
+    ("green", [0.2, 0.7, 0.25]),
+    ("blue", [0.15, 0.3, 0.85]),
+    ("yellow", [0.9, 0.8, 0.2]),
+    ("orange", [0.95, 0.5, 0.1]),
+    ("cyan", [0.2, 0.75, 0.8]),
+    ("magenta", [0.8, 0.2, 0.7]),
+    ("gold", [0.85, 0.65, 0.25]),
+];
+
+impl IsoSpec {
+    /// The colour to shade with: the given one, or the palette's `index`-th.
+    pub fn color_or_palette(&self, index: usize) -> [f32; 3] {
+        self.color.unwrap_or(PALETTE[index % PALETTE.len()])
+    }
+}
+
+/// Parses a colour name (`red`, `gold`, ...) or hex `#rrggbb` / `rrggbb` (sRGB, returned linear).
+pub fn parse_color(s: &str) -> Result<[f32; 3], String> {
+    let lower = s.to_ascii_lowercase();
+    if let Some((_, c)) = NAMED.iter().find(|(n, _)| *n == lower) {
+        return Ok(*c);
+    }
+    let hex = lower.strip_prefix('#').unwrap_or(&lower);
+    if hex.len() == 6 && hex.chars().all(|c| c.is_ascii_hexdigit()) {
+        let byte = |i: usize| {
+            u8::from_str_radix(&hex[i..i + 2], 16).map(|b| srgb_to_linear(f32::from(b) / 255.0))
+        };
+        if let (Ok(r), Ok(g), Ok(b)) = (byte(0), byte(2), byte(4)) {
+            return Ok([r, g, b]);
+        }
+    }
+    let names: Vec<&str> = NAMED.iter().map(|(n, _)| *n).collect();
+    Err(format!(
+        "unknown colour '{s}': use #rrggbb or one of {}",
+        names.join(", ")
+    ))
+}
+
+fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+impl FromStr for IsoSpec {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let mut parts = s.splitn(3, ':');
+        let v = parts.next().unwrap_or("");
+        let value: f32 = v
+            .trim()
+            .parse()
+            .map_err(|_| format!("isovalue '{v}' in '{s}' is not a number"))?;
+        if !value.is_finite() {
+            return Err(format!("isovalue '{v}' is not finite"));
+        }
+        let color = match parts.next() {
+            Some(c) if !c.is_empty() => Some(parse_color(c)?),
+            _ => None,
+        };
+        let opacity = match parts.next() {
+            Some(o) => o
+                .trim()
+                .parse::<f32>()
+                .map_err(|_| format!("opacity '{o}' in '{s}' is not a number"))?,
+            None => 1.0,
+        };
+        if !(0.0..=1.0).contains(&opacity) {
+            return Err(format!("opacity {opacity} in '{s}' is outside [0, 1]"));
+        }
+        Ok(IsoSpec {
+            value,
+            color,
+            opacity,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_iso_specs() {
+        assert_eq!(
+            "0.5".parse::<IsoSpec>().unwrap(),
+            IsoSpec {
+                value: 0.5,
+                color: None,
+                opacity: 1.0
+            }
+        );
+        let s: IsoSpec = "-2:red:0.3".parse().unwrap();
+        assert_eq!((s.value, s.opacity), (-2.0, 0.3));
+        assert_eq!(s.color, Some([0.85, 0.15, 0.12]));
+        let s: IsoSpec = "1e3:#ffffff".parse().unwrap();
+        assert!((s.color.unwrap()[0] - 1.0).abs() < 1e-6);
+        assert!("x".parse::<IsoSpec>().is_err());
+        assert!("1:nocolour".parse::<IsoSpec>().is_err());
+        assert!("1:red:2".parse::<IsoSpec>().is_err());
+        assert!("nan".parse::<IsoSpec>().is_err());
+    }
+}

@@ -1,0 +1,12 @@
+//! Shading like a scientific-visualization renderer: headlight diffuse and specular, a key
+//! light with hard shadows, ambient occlusion, per-isosurface colour and opacity, and
+//! transparent surfaces composited front to back.
+
+pub mod integrate;
+pub mod material;
+pub mod render_loop;
+pub mod sampling;
+
+pub use integrate::{shade_ray, Lighting};
+pub use material::IsoSpec;
+pub use render_loop::{render_frame, RenderSettings};

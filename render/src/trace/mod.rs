@@ -1,0 +1,15 @@
+//! Ray tracing implicit isosurfaces: rays in grid coordinates, exact ray-voxel intersection,
+//! and closest-hit and any-hit traversal of a BVH over active voxels.
+
+pub mod cubic;
+pub mod octant;
+pub mod ray;
+pub mod source;
+pub mod synthetic;
+pub mod tracer;
+pub mod traverse;
+
+pub use ray::GridRay;
+pub use source::{GridFrame, Voxel, VoxelSource};
+pub use tracer::{HybridTracer, SurfaceHit, Tracer};
+pub use traverse::{Hit, Surface};

@@ -1,0 +1,165 @@
+//! Exact intersection of a ray with the isosurface of one trilinear voxel.
+//!
+//! Along the ray the trilinear interpolant is a cubic in the ray parameter. The segment inside
+//! the voxel is mapped to `s in [0, 1]` in the voxel's local coordinates (so tiny voxels far from
+//! the origin behave like the unit cube), the cubic's coefficients are built by multiplying the
+//! three linear factors, and [`Cubic::first_root`] isolates the first root with the derivative's
+//! roots and refines it.
+
+use crate::trace::cubic::Cubic;
+use crate::trace::ray::GridRay;
+use crate::trace::source::Voxel;
+
+/// Relative widening of each segment at both ends, so that a ray passing exactly through a shared
+/// face, edge or corner is covered by the voxels on both sides despite round-off.
+const SEGMENT_WIDEN: f64 = 1e-9;
+/// Values within this fraction of the voxel's value span around the isovalue count as on the
+/// surface (round-off of the `f64` evaluation is ~1e-16 of that span).
+const SPAN_TOL: f64 = 1e-9;
+/// Values within this many `f32` ulps of the isovalue's magnitude count as on the surface, so that
+/// vertex values that two voxels computed separately and rounded to `f32` leave no crack.
+const ULP_TOL: f64 = 4.0 * f32::EPSILON as f64;
+
+/// Where a ray meets the isosurface inside a voxel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VoxelHit {
+    /// Ray parameter of the hit.
+    pub t: f64,
+    /// Voxel-local coordinates of the hit (within `[0, 1]^3` up to the segment widening).
+    pub local: [f64; 3],
+}
+
+/// A linear polynomial `a + b s`.
+#[derive(Clone, Copy)]
+struct Lin(f64, f64);
+
+/// The first hit of `ray` with the surface `value == iso` of `voxel` with `t` in `[tmin, tmax]`.
+#[inline]
+pub fn intersect_voxel(
+    voxel: &Voxel,
+    iso: f32,
+    ray: &GridRay,
+    tmin: f64,
+    tmax: f64,
+) -> Option<VoxelHit> {
+    let (vmin, vmax) = voxel.range();
+    if vmin > iso || vmax < iso {
+        return None;
+    }
+    let (t_in, t_out) = ray.clip(voxel.lo, voxel.hi, tmin, tmax)?;
+    let widen = SEGMENT_WIDEN * (t_out - t_in) + 8.0 * f64::EPSILON * t_in.abs().max(t_out.abs());
+    let ta = (t_in - widen).max(tmin);
+    let tb = (t_out + widen).min(tmax);
+    let w = [0, 1, 2].map(|a| voxel.hi[a] - voxel.lo[a]);
+    let local = |t: f64| [0, 1, 2].map(|a| ((ray.o[a] - voxel.lo[a]) + t * ray.d[a]) / w[a]);
+    let p0 = local(ta);
+    let p1 = local(tb);
+    let q = [0, 1, 2].map(|a| p1[a] - p0[a]);
+    let iso = f64::from(iso);
+    let c = voxel.values.map(|v| f64::from(v) - iso);
+    let span = c.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let magnitude = voxel
+        .values
+        .iter()
+        .fold(iso.abs(), |m, v| m.max(f64::from(v.abs())));
+    let tol = (SPAN_TOL * span).max(ULP_TOL * magnitude).min(0.5 * span);
+    let cubic = along_segment(&c, p0, q);
+    let s = cubic.first_root(0.0, 1.0, tol)?;
+    Some(VoxelHit {
+        t: ta + s * (tb - ta),
+        local: [0, 1, 2].map(|a| p0[a] + s * q[a]),
+    })
+}
+
+/// The trilinear interpolant of corner values `c` along `u(s) = p0 + s q`, as a cubic in `s`.
+pub fn along_segment(c: &[f64; 8], p0: [f64; 3], q: [f64; 3]) -> Cubic {
+    let ux = Lin(p0[0], q[0]);
+    let edge = |i: usize| {
+        let d = c[i + 1] - c[i];
+        Lin(c[i] + d * ux.0, d * ux.1)
+    };
+    let (e00, e10, e01, e11) = (edge(0), edge(2), edge(4), edge(6));
+    let face = |a: Lin, b: Lin| lerp_lin(a, b, Lin(p0[1], q[1]));
+    let (f0, f1) = (face(e00, e10), face(e01, e11));
+    let uz = [p0[2], q[2]];
+    let d = [f1[0] - f0[0], f1[1] - f0[1], f1[2] - f0[2]];
+    Cubic {
+        c: [
+            f0[0] + d[0] * uz[0],
+            f0[1] + d[1] * uz[0] + d[0] * uz[1],
+            f0[2] + d[2] * uz[0] + d[1] * uz[1],
+            d[2] * uz[1],
+        ],
+    }
+}
+
+/// `a + (b - a) t` for linear `a`, `b`, `t`: a quadratic, constant term first.
+fn lerp_lin(a: Lin, b: Lin, t: Lin) -> [f64; 3] {
+    let d = Lin(b.0 - a.0, b.1 - a.1);
+    [a.0 + d.0 * t.0, a.1 + d.1 * t.0 + d.0 * t.1, d.1 * t.1]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn voxel(values: [f32; 8]) -> Voxel {
+        Voxel {
+            lo: [0.0; 3],
+            hi: [1.0; 3],
+            values,
+            level: 0,
+        }
+    }
+
+    #[test]
+    fn cubic_matches_the_trilinear_along_the_segment() {
+        let v = voxel([0.1, -0.7, 0.3, 0.9, -0.2, 0.4, 0.8, -0.5]);
+        let c = v.values.map(f64::from);
+        let (p0, q) = ([0.1, 0.9, 0.3], [0.7, -0.8, 0.5]);
+        let cubic = along_segment(&c, p0, q);
+        for i in 0..=10 {
+            let s = i as f64 / 10.0;
+            let u = [0, 1, 2].map(|a| p0[a] + s * q[a]);
+            assert!((cubic.eval(s) - v.eval_local(u)).abs() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn axis_parallel_and_degenerate_rays() {
+        let v = voxel([0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0]);
+        let ray = GridRay {
+            o: [-1.0, 0.5, 0.5],
+            d: [1.0, 0.0, 0.0],
+        };
+        let h = intersect_voxel(&v, 0.25, &ray, 0.0, f64::INFINITY).unwrap();
+        assert!((h.t - 1.25).abs() < 1e-12);
+        // Parallel to the surface x = 0.25: never crosses.
+        let ray = GridRay {
+            o: [0.5, -1.0, 0.5],
+            d: [0.0, 1.0, 0.0],
+        };
+        assert!(intersect_voxel(&v, 0.25, &ray, 0.0, f64::INFINITY).is_none());
+        // Lying in the surface: hits where it enters.
+        let ray = GridRay {
+            o: [0.25, -1.0, 0.5],
+            d: [0.0, 1.0, 0.0],
+        };
+        let h = intersect_voxel(&v, 0.25, &ray, 0.0, f64::INFINITY).unwrap();
+        assert!((h.t - 1.0).abs() < 1e-6);
+        // Origin inside the voxel.
+        let ray = GridRay {
+            o: [0.9, 0.5, 0.5],
+            d: [-1.0, 0.0, 0.0],
+        };
+        let h = intersect_voxel(&v, 0.25, &ray, 0.0, f64::INFINITY).unwrap();
+        assert!((h.t - 0.65).abs() < 1e-12);
+        // Touching only the corner (1, 1, 1), where the value equals the isovalue.
+        let ray = GridRay {
+            o: [2.0, 2.0, 0.0],
+            d: [-1.0, -1.0, 1.0],
+        };
+        let h = intersect_voxel(&v, 1.0, &ray, 0.0, f64::INFINITY).unwrap();
+        assert!((h.t - 1.0).abs() < 1e-6);
+    }
+}

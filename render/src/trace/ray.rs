@@ -1,0 +1,75 @@
+//! Rays in grid coordinates: the exact `f64` ray the intersections use, and the `f32` ray the
+//! BVH is traversed with, re-based at the domain's entry point so that it stays precise.
+
+use glam::Vec3A;
+use obvhs::ray::Ray;
+
+use crate::trace::source::GridFrame;
+
+/// A ray `o + t d` in grid coordinates. When `d` is a unit world direction mapped to the grid,
+/// `t` is the distance in world units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridRay {
+    /// Origin, grid coordinates.
+    pub o: [f64; 3],
+    /// Direction, grid units per unit of `t`.
+    pub d: [f64; 3],
+}
+
+impl GridRay {
+    /// The grid-space ray for a world-space ray `origin + t dir`.
+    pub fn from_world(frame: &GridFrame, origin: [f64; 3], dir: [f64; 3]) -> GridRay {
+        GridRay {
+            o: frame.to_grid(origin),
+            d: [0, 1, 2].map(|a| dir[a] / frame.unit[a]),
+        }
+    }
+
+    /// Point at parameter `t`.
+    pub fn at(&self, t: f64) -> [f64; 3] {
+        [0, 1, 2].map(|a| self.o[a] + t * self.d[a])
+    }
+
+    /// The parameter interval where the ray lies in the closed box `[lo, hi]`, clipped to
+    /// `[tmin, tmax]`; `None` when empty. A zero-length interval (a ray touching an edge or a
+    /// corner) is kept.
+    #[inline]
+    pub fn clip(&self, lo: [f64; 3], hi: [f64; 3], tmin: f64, tmax: f64) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = (tmin, tmax);
+        for a in 0..3 {
+            if self.d[a] == 0.0 {
+                if self.o[a] < lo[a] || self.o[a] > hi[a] {
+                    return None;
+                }
+            } else {
+                let inv = 1.0 / self.d[a];
+                let (mut ta, mut tb) = ((lo[a] - self.o[a]) * inv, (hi[a] - self.o[a]) * inv);
+                if ta > tb {
+                    std::mem::swap(&mut ta, &mut tb);
+                }
+                t0 = t0.max(ta);
+                t1 = t1.min(tb);
+            }
+        }
+        (t0 <= t1).then_some((t0, t1))
+    }
+
+    /// The `f32` ray for BVH traversal over `[tmin, tmax]`, re-based at the point where the ray
+    /// enters the domain grown by `pad`, and the parameter offset `t_off` to add to its `t`;
+    /// `None` if the ray misses the domain.
+    pub fn bvh_ray(&self, frame: &GridFrame, pad: f64, tmin: f64, tmax: f64) -> Option<(Ray, f64)> {
+        let lo = [-pad; 3];
+        let hi = frame.extent.map(|e| e + pad);
+        let (t0, t1) = self.clip(lo, hi, tmin, tmax)?;
+        let p = self.at(t0);
+        let v = |x: [f64; 3]| Vec3A::new(x[0] as f32, x[1] as f32, x[2] as f32);
+        let span = ((t1 - t0) * (1.0 + 1e-6)) as f32;
+        let ray = Ray::new(
+            v(p),
+            v(self.d),
+            0.0,
+            if span.is_finite() { span } else { f32::MAX },
+        );
+        Some((ray, t0))
+    }
+}

@@ -1,0 +1,112 @@
+//! The interface the shader traces through, and its exact ("hybrid") implementation: a BVH per
+//! isosurface and the implicit ray-voxel intersection.
+
+use crate::trace::ray::GridRay;
+use crate::trace::source::{GridFrame, VoxelSource};
+use crate::trace::traverse::Surface;
+
+/// A hit as the shader sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceHit {
+    /// Ray parameter (world distance for a unit world direction).
+    pub t: f64,
+    /// Hit position, grid coordinates.
+    pub pos: [f64; 3],
+    /// Field gradient per grid unit (not normalized; may be zero).
+    pub grad: [f64; 3],
+    /// AMR level of the voxel hit.
+    pub level: u32,
+    /// Size of the voxel hit (grid units), the scale for offsets that leave the surface.
+    pub size: f64,
+    /// Ref of the voxel hit (`u64::MAX` when not traced through voxels).
+    pub r: u64,
+}
+
+/// Finds hits with a set of isosurfaces.
+pub trait Tracer {
+    /// The grid-to-world map.
+    fn frame(&self) -> GridFrame;
+
+    /// Number of isosurfaces.
+    fn num_surfaces(&self) -> usize;
+
+    /// The first hit with surface `i` with `t` in `[tmin, tmax]`.
+    fn next_hit(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> Option<SurfaceHit>;
+
+    /// True when surface `i` is hit with `t` in `[tmin, tmax]`.
+    fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
+        self.next_hit(i, ray, tmin, tmax).is_some()
+    }
+}
+
+/// Exact tracing through BVHs over active voxels.
+pub struct HybridTracer<'a, S: VoxelSource + ?Sized> {
+    /// The voxel source.
+    pub src: &'a S,
+    /// One surface per isovalue.
+    pub surfaces: &'a [Surface],
+    /// Normals from central differences of the reconstruction (one voxel size apart), which are
+    /// continuous across voxel faces, instead of the hit voxel's trilinear gradient.
+    pub smooth_normals: bool,
+}
+
+impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
+    fn frame(&self) -> GridFrame {
+        self.src.frame()
+    }
+
+    fn num_surfaces(&self) -> usize {
+        self.surfaces.len()
+    }
+
+    fn next_hit(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> Option<SurfaceHit> {
+        let h = self.surfaces[i].closest_hit(self.src, ray, tmin, tmax)?;
+        let pos = h.grid_pos();
+        let size = (0..3)
+            .map(|a| h.voxel.hi[a] - h.voxel.lo[a])
+            .fold(f64::INFINITY, f64::min);
+        let mut grad = h.grid_gradient();
+        if self.smooth_normals {
+            if let Some(g) = central_difference(self.src, pos, size) {
+                grad = g;
+            }
+        }
+        Some(SurfaceHit {
+            t: h.t,
+            pos,
+            grad,
+            level: h.voxel.level,
+            size,
+            r: h.r,
+        })
+    }
+
+    fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
+        self.surfaces[i].any_hit(self.src, ray, tmin, tmax)
+    }
+}
+
+/// The gradient of the reconstruction at `p` by central differences `h` apart (one-sided at
+/// the domain's edge); `None` if no neighbour can be sampled on some axis.
+pub fn central_difference<S: VoxelSource + ?Sized>(
+    src: &S,
+    p: [f64; 3],
+    h: f64,
+) -> Option<[f64; 3]> {
+    let mut g = [0.0; 3];
+    let centre = src.sample(p).map(|s| f64::from(s.0));
+    for (a, ga) in g.iter_mut().enumerate() {
+        let at = |d: f64| {
+            let mut q = p;
+            q[a] += d;
+            src.sample(q).map(|s| f64::from(s.0))
+        };
+        *ga = match (at(h), at(-h), centre) {
+            (Some(f1), Some(f0), _) => (f1 - f0) / (2.0 * h),
+            (Some(f1), None, Some(c)) => (f1 - c) / h,
+            (None, Some(f0), Some(c)) => (c - f0) / h,
+            _ => return None,
+        };
+    }
+    Some(g)
+}

@@ -1,0 +1,141 @@
+//! Closest-hit and any-hit queries of one isosurface: the `f32` BVH finds candidate voxels,
+//! the exact `f64` intersection decides.
+
+use crate::bvh::{BvhBuilder, OctantBvh};
+use crate::trace::octant::intersect_voxel;
+use crate::trace::ray::GridRay;
+use crate::trace::source::{GridFrame, Voxel, VoxelSource};
+
+/// One isosurface ready to trace: its isovalue and the BVH over its active voxels.
+#[derive(Clone, Debug, Default)]
+pub struct Surface {
+    /// The isovalue.
+    pub iso: f32,
+    /// BVH over the voxels whose corner range contains `iso`.
+    pub bvh: OctantBvh,
+}
+
+/// A ray's hit with an isosurface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Ray parameter.
+    pub t: f64,
+    /// The ref of the voxel hit.
+    pub r: u64,
+    /// The voxel hit.
+    pub voxel: Voxel,
+    /// Voxel-local coordinates of the hit.
+    pub local: [f64; 3],
+}
+
+impl Hit {
+    /// Grid position of the hit, from the voxel-local coordinates.
+    pub fn grid_pos(&self) -> [f64; 3] {
+        let v = &self.voxel;
+        [0, 1, 2].map(|a| v.lo[a] + self.local[a] * (v.hi[a] - v.lo[a]))
+    }
+
+    /// Gradient of the voxel's trilinear interpolant at the hit, per grid unit.
+    pub fn grid_gradient(&self) -> [f64; 3] {
+        let g = self.voxel.grad_local(self.local);
+        [0, 1, 2].map(|a| g[a] / (self.voxel.hi[a] - self.voxel.lo[a]))
+    }
+}
+
+/// The padding (grid units) by which voxel boxes are grown in the `f32` BVH: a few thousand `f32`
+/// ulps of the largest grid coordinate, far below any voxel's size.
+pub fn bvh_pad(frame: &GridFrame) -> f64 {
+    1e-5 * frame.extent.iter().fold(1.0f64, |m, &e| m.max(e))
+}
+
+impl Surface {
+    /// Builds the surface for `iso` from its active refs, reusing `builder`'s scratch.
+    pub fn build<S: VoxelSource + ?Sized>(
+        src: &S,
+        iso: f32,
+        refs: &[u64],
+        builder: &mut BvhBuilder,
+    ) -> Surface {
+        let mut s = Surface {
+            iso,
+            bvh: OctantBvh::default(),
+        };
+        s.rebuild(src, iso, refs, builder);
+        s
+    }
+
+    /// Replaces the surface with the one for a new isovalue, reusing buffers.
+    pub fn rebuild<S: VoxelSource + ?Sized>(
+        &mut self,
+        src: &S,
+        iso: f32,
+        refs: &[u64],
+        builder: &mut BvhBuilder,
+    ) {
+        self.iso = iso;
+        let pad = bvh_pad(&src.frame());
+        builder.build_into(&mut self.bvh, refs, pad, |r| {
+            let v = src.voxel(r);
+            (v.lo, v.hi)
+        });
+    }
+
+    /// The first hit with `t` in `[tmin, tmax]`.
+    pub fn closest_hit<S: VoxelSource + ?Sized>(
+        &self,
+        src: &S,
+        ray: &GridRay,
+        tmin: f64,
+        tmax: f64,
+    ) -> Option<Hit> {
+        let frame = src.frame();
+        let pad = bvh_pad(&frame);
+        let (fray, t_off) = ray.bvh_ray(&frame, pad, tmin, tmax)?;
+        let slack = 4.0 * pad / len(ray.d);
+        let mut best: Option<Hit> = None;
+        let mut best_t = tmax;
+        self.bvh.traverse(fray, |r, tmax32| {
+            let voxel = src.voxel(r);
+            if let Some(h) = intersect_voxel(&voxel, self.iso, ray, tmin, best_t) {
+                if h.t < best_t || best.is_none() {
+                    best_t = h.t;
+                    best = Some(Hit {
+                        t: h.t,
+                        r,
+                        voxel,
+                        local: h.local,
+                    });
+                    *tmax32 = (h.t - t_off + slack) as f32;
+                }
+            }
+            false
+        });
+        best
+    }
+
+    /// True when the surface is hit anywhere with `t` in `[tmin, tmax]`.
+    pub fn any_hit<S: VoxelSource + ?Sized>(
+        &self,
+        src: &S,
+        ray: &GridRay,
+        tmin: f64,
+        tmax: f64,
+    ) -> bool {
+        let frame = src.frame();
+        let Some((fray, _)) = ray.bvh_ray(&frame, bvh_pad(&frame), tmin, tmax) else {
+            return false;
+        };
+        let mut hit = false;
+        self.bvh.traverse(fray, |r, _| {
+            hit = intersect_voxel(&src.voxel(r), self.iso, ray, tmin, tmax).is_some();
+            hit
+        });
+        hit
+    }
+}
+
+fn len(d: [f64; 3]) -> f64 {
+    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        .sqrt()
+        .max(f64::MIN_POSITIVE)
+}

@@ -87,7 +87,7 @@ pub(crate) fn parse_cell_header<R: BufRead>(mut r: TextReader<R>) -> Result<Cell
     let real_format = if version == 1 {
         None
     } else {
-        let line = r.next("the real descriptor of the data")?;
+        let line = content_line(&mut r, "the real descriptor of the data")?;
         let mut s = Scan::new(&line);
         let f = RealFormat::scan(&mut s).map_err(|e| r.error(e))?;
         Some(f.map_err(|e| AmrexError::unsupported(r.path(), e))?)
@@ -225,7 +225,7 @@ fn min_max_table<R: BufRead>(
 }
 
 fn min_max_row<R: BufRead>(r: &mut TextReader<R>, what: &str, ncomp: usize) -> Result<()> {
-    let line = r.next(what)?;
+    let line = content_line(r, what)?;
     let n = line.trim().trim_end_matches(',').split(',').count();
     if n != ncomp {
         return Err(r.error(format!("{what}: {n} values for {ncomp} components")));
@@ -256,7 +256,7 @@ FabOnDisk: Cell_D_00000 0\nFabOnDisk: Cell_D_00001 5000000000\n\n2,2\n1,2,\n3,4,
     #[test]
     fn version_2_with_ghost_vector_and_descriptor() {
         let h = parse(
-            "2\n1\n1\n(1,1,2)\n(1 0\n((0,0,0) (3,3,3) (0,0,0))\n)\n1\nFabOnDisk: Cell_D_00000 0\n\
+            "2\n1\n1\n(1,1,2)\n(1 0\n((0,0,0) (3,3,3) (0,0,0))\n)\n1\nFabOnDisk: Cell_D_00000 0\n\n\
 ((4, (32 8 23 0 1 9 0 127)),(4, (1 2 3 4)))\n",
         )
         .unwrap();

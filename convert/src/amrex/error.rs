@@ -54,8 +54,9 @@ pub enum AmrexError {
     },
     /// A cell value cannot be stored as a finite `f32`.
     #[error(
-        "{}: level {level}, box {index} (cells {lo:?}..={hi:?}), field '{field}': value {value} is {why}; .amrk stores finite f32 values",
-        path.display()
+        "{}: level {level}, box {index} {}, field '{field}': {why} ({value}); .amrk stores finite f32 values",
+        path.display(),
+        corners(lo, hi)
     )]
     BadValue {
         /// The data file holding the value.
@@ -72,7 +73,7 @@ pub enum AmrexError {
         field: String,
         /// The offending value.
         value: f64,
-        /// "NaN", "infinite" or "outside the f32 range".
+        /// "a NaN", "an infinite value" or "a value outside the f32 range".
         why: &'static str,
     },
     /// A requested field is not in the plotfile.
@@ -94,6 +95,13 @@ pub enum AmrexError {
         #[source]
         source: FormatError,
     },
+}
+
+fn corners(lo: &[i64; 3], hi: &[i64; 3]) -> String {
+    format!(
+        "({},{},{})..=({},{},{})",
+        lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+    )
 }
 
 /// Result with [`AmrexError`].

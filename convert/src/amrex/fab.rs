@@ -114,11 +114,11 @@ pub fn in_f32_range(v: f64) -> bool {
 /// Why `v` cannot be stored, for error messages.
 pub fn why_not_f32(v: f64) -> &'static str {
     if v.is_nan() {
-        "NaN"
+        "a NaN"
     } else if v.is_infinite() {
-        "infinite"
+        "an infinite value"
     } else {
-        "outside the f32 range"
+        "a value outside the f32 range"
     }
 }
 

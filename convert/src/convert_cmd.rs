@@ -119,7 +119,19 @@ pub fn run_convert(
                 .with_context(|| format!("converting AMReX plotfile {}", input.display()))?
         }
         InputFormat::ChomboHdf5 => {
-            bail!("{}: Chombo HDF5 support is not built yet", input.display())
+            let opts = crate::chombo::ConvertOptions {
+                fields: fields.to_vec(),
+                brick,
+                compression,
+            };
+            let bar = Bar::bytes("converting");
+            let s = crate::chombo::convert(input, output, &opts, &bar)
+                .with_context(|| format!("converting Chombo plotfile {}", input.display()))?;
+            amrex::ConvertStats {
+                bytes_read: s.bytes_read,
+                cells: s.cells,
+                bricks: s.bricks,
+            }
         }
     };
     let output_bytes = std::fs::metadata(output).map(|m| m.len()).unwrap_or(0);

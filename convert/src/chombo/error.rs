@@ -1,0 +1,126 @@
+//! The error type of the Chombo reader: every variant names the file and what is wrong with it.
+
+use std::path::PathBuf;
+
+use amr_format::FormatError;
+
+/// Everything that can go wrong while reading a Chombo plotfile or converting it.
+#[derive(Debug, thiserror::Error)]
+pub enum ChomboError {
+    /// The HDF5 library refused an operation (the file is not HDF5, is unreadable, or an object
+    /// has a type that cannot be read as asked).
+    #[error("{}: {what}", path.display())]
+    Hdf5 {
+        /// The HDF5 file.
+        path: PathBuf,
+        /// What was being read.
+        what: String,
+        /// The library's error.
+        #[source]
+        source: hdf5_metno::Error,
+    },
+    /// The file is HDF5 but not a consistent Chombo plotfile: a missing attribute or dataset,
+    /// offsets beyond the data, a box outside the domain, ...
+    #[error("{}: not a valid Chombo plotfile: {msg}", path.display())]
+    Invalid {
+        /// The HDF5 file.
+        path: PathBuf,
+        /// What is missing or disagrees, and where (`level_N/...`).
+        msg: String,
+    },
+    /// The file is a Chombo checkpoint (restart) file, which this converter does not read.
+    #[error(
+        "{}: this is a Chombo checkpoint, not a plotfile ({why}); convert a plotfile instead \
+         (GRChombo writes them every plot_interval steps)",
+        path.display()
+    )]
+    Checkpoint {
+        /// The HDF5 file.
+        path: PathBuf,
+        /// What gave it away.
+        why: String,
+    },
+    /// A valid plotfile uses a feature this reader does not support (2D, integer data, ...).
+    #[error("{}: not supported: {msg}", path.display())]
+    Unsupported {
+        /// The HDF5 file.
+        path: PathBuf,
+        /// The feature, and why it is not supported.
+        msg: String,
+    },
+    /// A cell value cannot be stored as a finite `f32`.
+    #[error(
+        "{}: level {level}, box {index} (cells {lo:?}..={hi:?}), field '{field}': value {value} at cell {cell:?} is {why}; .amrk stores finite f32 values",
+        path.display()
+    )]
+    BadValue {
+        /// The HDF5 file.
+        path: PathBuf,
+        /// The box's level.
+        level: usize,
+        /// The box's index in its level's `boxes` dataset.
+        index: usize,
+        /// Lower corner of the box (inclusive, as Chombo writes it).
+        lo: [i64; 3],
+        /// Upper corner of the box (inclusive, as Chombo writes it).
+        hi: [i64; 3],
+        /// The cell holding the value.
+        cell: [i64; 3],
+        /// The field's name.
+        field: String,
+        /// The offending value.
+        value: f64,
+        /// "NaN", "infinite" or "outside the f32 range".
+        why: &'static str,
+    },
+    /// A requested field is not in the plotfile.
+    #[error("{}: no field named '{name}'; the plotfile has: {available}", path.display())]
+    UnknownField {
+        /// The HDF5 file.
+        path: PathBuf,
+        /// The requested name.
+        name: String,
+        /// The plotfile's component names, comma-separated.
+        available: String,
+    },
+    /// The `.amrk` writer refused the data or failed to write.
+    #[error("writing {}", path.display())]
+    Output {
+        /// The output file.
+        path: PathBuf,
+        /// The writer's error.
+        #[source]
+        source: FormatError,
+    },
+}
+
+/// Result with [`ChomboError`].
+pub type Result<T, E = ChomboError> = std::result::Result<T, E>;
+
+impl ChomboError {
+    pub(crate) fn hdf5(
+        path: impl Into<PathBuf>,
+        what: impl Into<String>,
+        source: hdf5_metno::Error,
+    ) -> Self {
+        ChomboError::Hdf5 {
+            path: path.into(),
+            what: what.into(),
+            source,
+        }
+    }
+
+    pub(crate) fn invalid(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
+        ChomboError::Invalid {
+            path: path.into(),
+            msg: msg.into(),
+        }
+    }
+
+    pub(crate) fn unsupported(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
+        ChomboError::Unsupported {
+            path: path.into(),
+            msg: msg.into(),
+        }
+    }
+}

@@ -1,0 +1,446 @@
+//! Opening a Chombo plotfile: the root attributes, every level's geometry, boxes and offsets,
+//! all validated before any cell data is read.
+
+use std::path::{Path, PathBuf};
+
+use amr_format::hierarchy::MAX_LEVELS;
+use amr_format::{IBox, LevelSpec};
+use hdf5_metno::types::{FloatSize, TypeDescriptor};
+use hdf5_metno::{Dataset, File};
+
+use super::error::{ChomboError, Result};
+use super::props::{check_members, Props};
+use super::raw::{self, RawBox, RawIntVect, RawRealVect};
+
+/// Most components accepted (a sanity bound on a count read from the file).
+const MAX_COMPONENTS: i64 = 4096;
+
+/// How the cell values are stored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Precision {
+    /// IEEE single precision.
+    F32,
+    /// IEEE double precision (rounded to nearest `f32` on conversion).
+    F64,
+}
+
+impl Precision {
+    /// Bytes per value.
+    pub fn bytes(self) -> u64 {
+        match self {
+            Precision::F32 => 4,
+            Precision::F64 => 8,
+        }
+    }
+}
+
+/// One level of a plotfile, validated.
+#[derive(Debug)]
+pub struct Level {
+    /// Cell size on each axis.
+    pub dx: [f64; 3],
+    /// Refinement ratio to the next finer level (`[1, 1, 1]` on the finest).
+    pub ref_ratio: [u32; 3],
+    /// The problem domain in this level's index space (half-open).
+    pub domain: IBox,
+    /// Ghost layers stored around every box (`outputGhost`).
+    pub ghost: [i64; 3],
+    /// The boxes' valid cells (half-open), in file order.
+    pub boxes: Vec<IBox>,
+    /// Where each box's data starts in the level's data, in values; `boxes.len() + 1` entries.
+    pub offsets: Vec<u64>,
+    /// How the values are stored.
+    pub precision: Precision,
+    /// The level's `data:datatype=0` (absent only when the level has no boxes).
+    pub(crate) data: Option<Dataset>,
+}
+
+impl Level {
+    /// The box `i` with its ghost layers: the cells its data covers.
+    pub fn stored_box(&self, i: usize) -> IBox {
+        self.boxes[i].grow(self.ghost)
+    }
+}
+
+/// An open Chombo plotfile: its fields and levels, checked for consistency.
+#[derive(Debug)]
+pub struct Plotfile {
+    /// The HDF5 file.
+    pub path: PathBuf,
+    /// Component (field) names, in file order.
+    pub fields: Vec<String>,
+    /// Levels, coarsest first.
+    pub levels: Vec<Level>,
+    _file: File,
+}
+
+impl Plotfile {
+    /// Opens and validates the plotfile at `path`; reads metadata only.
+    pub fn open(path: &Path) -> Result<Self> {
+        let file = File::open(path)
+            .map_err(|e| ChomboError::hdf5(path, "cannot open as an HDF5 file", e))?;
+        let root = Props::new(path, (*file).clone(), "/")?;
+        reject_checkpoint(path, &root)?;
+        let global = root.child(raw::GLOBAL_GROUP)?;
+        let dim = global.int(raw::SPACE_DIM)?;
+        if dim != 3 {
+            return Err(ChomboError::unsupported(
+                path,
+                format!("a {dim}D file (Chombo_global/SpaceDim = {dim}); only 3D plotfiles can be converted"),
+            ));
+        }
+        let nl = root.int(raw::NUM_LEVELS)?;
+        if !(1..=MAX_LEVELS as i64).contains(&nl) {
+            return Err(root.invalid(format!("num_levels = {nl}, expected 1 to {MAX_LEVELS}")));
+        }
+        let nc = root.int(raw::NUM_COMPONENTS)?;
+        if !(1..=MAX_COMPONENTS).contains(&nc) {
+            return Err(root.invalid(format!(
+                "num_components = {nc}, expected 1 to {MAX_COMPONENTS}"
+            )));
+        }
+        let mut fields: Vec<String> = Vec::with_capacity(nc as usize);
+        for c in 0..nc as usize {
+            let name = root.string(&raw::component(c))?;
+            if name.is_empty() {
+                return Err(root.invalid(format!("component_{c} is an empty name")));
+            }
+            if let Some(d) = fields.iter().position(|f| *f == name) {
+                return Err(root.invalid(format!(
+                    "component_{d} and component_{c} are both named '{name}'"
+                )));
+            }
+            fields.push(name);
+        }
+        let mut levels: Vec<Level> = Vec::with_capacity(nl as usize);
+        for l in 0..nl as usize {
+            let g = root.child(&raw::level(l))?;
+            let level = read_level(&g, l + 1 == nl as usize, fields.len())?;
+            if let Some(prev) = levels.last() {
+                check_refinement(&g, l, prev, &level)?;
+            }
+            levels.push(level);
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            fields,
+            levels,
+            _file: file,
+        })
+    }
+
+    /// Indices of the components named in `names`, in that order; all components when empty.
+    pub fn select_fields(&self, names: &[String]) -> Result<Vec<usize>> {
+        if names.is_empty() {
+            return Ok((0..self.fields.len()).collect());
+        }
+        names
+            .iter()
+            .map(|n| {
+                self.fields
+                    .iter()
+                    .position(|f| f == n)
+                    .ok_or_else(|| ChomboError::UnknownField {
+                        path: self.path.clone(),
+                        name: n.clone(),
+                        available: self.fields.join(", "),
+                    })
+            })
+            .collect()
+    }
+
+    /// The levels as the `.amrk` writer wants them. Chombo puts the lower corner of cell index
+    /// 0 at physical position 0, so every level's origin is zero and the domain's lower corner
+    /// lands at `dx * prob_domain.lo`.
+    pub fn level_specs(&self) -> Vec<LevelSpec> {
+        self.levels
+            .iter()
+            .map(|l| LevelSpec {
+                cell_size: l.dx,
+                origin: [0.0; 3],
+                ratio_to_next: l.ref_ratio,
+                domain: l.domain,
+            })
+            .collect()
+    }
+
+    /// Valid cells over all levels and boxes.
+    pub fn total_cells(&self) -> u64 {
+        self.levels
+            .iter()
+            .flat_map(|l| &l.boxes)
+            .map(|b| b.num_cells().unwrap_or(0))
+            .sum()
+    }
+}
+
+/// Fails with [`ChomboError::Checkpoint`] when the file looks like a Chombo checkpoint.
+fn reject_checkpoint(path: &Path, root: &Props) -> Result<()> {
+    let checkpoint = |why: String| {
+        Err(ChomboError::Checkpoint {
+            path: path.to_path_buf(),
+            why,
+        })
+    };
+    if root.has(raw::CHECKPOINT_MARKER) {
+        return checkpoint(format!(
+            "the root has attribute '{}', which only AMR::writeCheckpointFile writes",
+            raw::CHECKPOINT_MARKER
+        ));
+    }
+    let l0 = raw::level(0);
+    if !root.has_member(&l0) {
+        return Ok(());
+    }
+    let level = root.child(&l0)?;
+    let per_variable: Vec<String> = level
+        .member_names()?
+        .into_iter()
+        .filter(|m| m.ends_with(raw::DATATYPE_SUFFIX) && m != raw::DATA)
+        .collect();
+    if !per_variable.is_empty() && !level.has_member(raw::DATA) {
+        return checkpoint(format!(
+            "level_0 holds one dataset per variable ({}) instead of '{}'",
+            per_variable.join(", "),
+            raw::DATA
+        ));
+    }
+    if !root.has(raw::NUM_COMPONENTS) && !per_variable.is_empty() {
+        return checkpoint(format!(
+            "the root has no num_components and level_0 holds per-variable datasets ({})",
+            per_variable.join(", ")
+        ));
+    }
+    Ok(())
+}
+
+/// Reads and checks one `level_N` group.
+fn read_level(g: &Props, finest: bool, ncomp: usize) -> Result<Level> {
+    let dx = if g.has(raw::DX) {
+        [g.float(raw::DX)?; 3]
+    } else if g.has(raw::VEC_DX) {
+        let v: RawRealVect = g.compound(raw::VEC_DX, &raw::REALVECT_MEMBERS)?;
+        [v.x, v.y, v.z]
+    } else {
+        return Err(g.invalid(format!("missing attribute '{}'", raw::DX)));
+    };
+    if dx.iter().any(|d| !(d.is_finite() && *d > 0.0)) {
+        return Err(g.invalid(format!("cell size dx = {dx:?} is not positive and finite")));
+    }
+    let ref_ratio = if finest && !g.has(raw::REF_RATIO) {
+        [1; 3]
+    } else {
+        let r = match g.descriptor(raw::REF_RATIO)? {
+            TypeDescriptor::Compound(_) => {
+                let v: RawIntVect = g.compound(raw::REF_RATIO, &raw::INTVECT_MEMBERS)?;
+                [v.intvecti, v.intvectj, v.intvectk].map(i64::from)
+            }
+            _ => [g.int(raw::REF_RATIO)?; 3],
+        };
+        if finest {
+            [1; 3]
+        } else if r.iter().any(|&x| !(2..=1024).contains(&x)) {
+            return Err(g.invalid(format!(
+                "ref_ratio = {r:?}, expected 2 to 1024 below the finest level"
+            )));
+        } else {
+            r.map(|x| x as u32)
+        }
+    };
+    let domain = to_ibox(g.compound::<RawBox>(raw::PROB_DOMAIN, &raw::BOX_MEMBERS)?);
+    if domain.is_empty() {
+        return Err(g.invalid(format!("empty prob_domain {}", show(&domain))));
+    }
+    let ghost = {
+        let da = g.child(raw::DATA_ATTRIBUTES)?;
+        let v: RawIntVect = da.compound(raw::OUTPUT_GHOST, &raw::INTVECT_MEMBERS)?;
+        let gh = [v.intvecti, v.intvectj, v.intvectk].map(i64::from);
+        if gh.iter().any(|&x| !(0..=1024).contains(&x)) {
+            return Err(da.invalid(format!("outputGhost = {gh:?}, expected 0 to 1024")));
+        }
+        if da.has("comps") {
+            let c = da.int("comps")?;
+            if c != ncomp as i64 {
+                return Err(da.invalid(format!(
+                    "comps = {c}, but the root says num_components = {ncomp}"
+                )));
+            }
+        }
+        gh
+    };
+    let boxes = read_boxes(g, &domain)?;
+    let mut level = Level {
+        dx,
+        ref_ratio,
+        domain,
+        ghost,
+        boxes,
+        offsets: Vec::new(),
+        precision: Precision::F64,
+        data: None,
+    };
+    if level.boxes.is_empty() && !g.has_member(raw::DATA) {
+        level.offsets = vec![0];
+        return Ok(level);
+    }
+    let data = g.dataset(raw::DATA)?;
+    level.precision = match data.dtype().and_then(|t| t.to_descriptor()) {
+        Ok(TypeDescriptor::Float(FloatSize::U4)) => Precision::F32,
+        Ok(TypeDescriptor::Float(FloatSize::U8)) => Precision::F64,
+        Ok(d) => {
+            return Err(g.unsupported(format!(
+                "{}: values of type {d}; only 32- and 64-bit floats are supported",
+                raw::DATA
+            )))
+        }
+        Err(e) => return Err(g.hdf5(format!("reading the type of {}/{}", g.name(), raw::DATA), e)),
+    };
+    let shape = data.shape();
+    if shape.len() != 1 {
+        return Err(g.invalid(format!(
+            "{} has shape {shape:?}, expected one dimension",
+            raw::DATA
+        )));
+    }
+    let len = shape[0] as u64;
+    level.offsets = read_offsets(g, &level, ncomp, len)?;
+    level.data = Some(data);
+    Ok(level)
+}
+
+/// Reads `boxes`, checking each is non-empty and inside the domain.
+fn read_boxes(g: &Props, domain: &IBox) -> Result<Vec<IBox>> {
+    let ds = g.dataset(raw::BOXES)?;
+    let what = || format!("reading {}/{}", g.name(), raw::BOXES);
+    let desc = ds
+        .dtype()
+        .and_then(|t| t.to_descriptor())
+        .map_err(|e| g.hdf5(what(), e))?;
+    check_members(&desc, &raw::BOX_MEMBERS)
+        .map_err(|m| g.invalid(format!("{}: {m}", raw::BOXES)))?;
+    if ds.ndim() > 1 {
+        return Err(g.invalid(format!(
+            "{} has shape {:?}, expected one dimension",
+            raw::BOXES,
+            ds.shape()
+        )));
+    }
+    let raw_boxes = ds.read_raw::<RawBox>().map_err(|e| g.hdf5(what(), e))?;
+    raw_boxes
+        .into_iter()
+        .enumerate()
+        .map(|(i, rb)| {
+            let b = to_ibox(rb);
+            if b.is_empty() {
+                return Err(g.invalid(format!("box {i} {} is empty", show(&b))));
+            }
+            if !domain.contains_box(&b) {
+                return Err(g.invalid(format!(
+                    "box {i} {} lies outside the problem domain {}",
+                    show(&b),
+                    show(domain)
+                )));
+            }
+            Ok(b)
+        })
+        .collect()
+}
+
+/// Reads `data:offsets=0` and checks it against the boxes and the data's length `len`.
+fn read_offsets(g: &Props, level: &Level, ncomp: usize, len: u64) -> Result<Vec<u64>> {
+    let ds = g.dataset(raw::OFFSETS)?;
+    let what = || format!("reading {}/{}", g.name(), raw::OFFSETS);
+    let desc = ds
+        .dtype()
+        .and_then(|t| t.to_descriptor())
+        .map_err(|e| g.hdf5(what(), e))?;
+    if !matches!(
+        desc,
+        TypeDescriptor::Integer(_) | TypeDescriptor::Unsigned(_)
+    ) {
+        return Err(g.invalid(format!(
+            "{} has type {desc}, expected integers",
+            raw::OFFSETS
+        )));
+    }
+    let offsets = ds.read_raw::<i64>().map_err(|e| g.hdf5(what(), e))?;
+    let nb = level.boxes.len();
+    if offsets.len() != nb + 1 {
+        return Err(g.invalid(format!(
+            "{} has {} entries, expected {} (boxes + 1)",
+            raw::OFFSETS,
+            offsets.len(),
+            nb + 1
+        )));
+    }
+    let mut out = Vec::with_capacity(nb + 1);
+    for (i, w) in offsets.windows(2).enumerate() {
+        let stored = level.stored_box(i);
+        let need = stored
+            .num_cells()
+            .and_then(|c| c.checked_mul(ncomp as u64))
+            .ok_or_else(|| g.invalid(format!("box {i} {} is too large", show(&level.boxes[i]))))?;
+        if w[0] < 0 || w[1] < w[0] || (w[1] - w[0]) as u64 != need {
+            return Err(g.invalid(format!(
+                "{} gives box {i} {} the values {}..{}, but {ncomp} components of {} cells (ghost layers {:?} included) need {need}",
+                raw::OFFSETS,
+                show(&level.boxes[i]),
+                w[0],
+                w[1],
+                stored.num_cells().unwrap_or(0),
+                level.ghost
+            )));
+        }
+        out.push(w[0] as u64);
+    }
+    let last = offsets[nb];
+    if last < 0 || last as u64 > len {
+        return Err(g.invalid(format!(
+            "{} reaches value {last}, beyond the end of {} ({len} values)",
+            raw::OFFSETS,
+            raw::DATA
+        )));
+    }
+    out.push(last as u64);
+    Ok(out)
+}
+
+/// Checks that level `l` refines level `l - 1` as its ratio and cell size say.
+fn check_refinement(g: &Props, l: usize, coarse: &Level, fine: &Level) -> Result<()> {
+    let r = coarse.ref_ratio.map(i64::from);
+    if coarse.domain.refine(r) != Some(fine.domain) {
+        return Err(g.invalid(format!(
+            "prob_domain {} is not level_{} prob_domain {} refined by ref_ratio {:?}",
+            show(&fine.domain),
+            l - 1,
+            show(&coarse.domain),
+            coarse.ref_ratio
+        )));
+    }
+    for a in 0..3 {
+        let expect = coarse.dx[a] / r[a] as f64;
+        if ((fine.dx[a] - expect) / expect).abs() > 1e-6 {
+            return Err(g.invalid(format!(
+                "dx = {:?} is not level_{} dx {:?} divided by ref_ratio {:?}",
+                fine.dx,
+                l - 1,
+                coarse.dx,
+                coarse.ref_ratio
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// A Chombo box (inclusive corners) as a half-open [`IBox`].
+fn to_ibox(b: RawBox) -> IBox {
+    IBox::new(
+        [b.lo_i, b.lo_j, b.lo_k].map(i64::from),
+        [b.hi_i, b.hi_j, b.hi_k].map(|h| i64::from(h) + 1),
+    )
+}
+
+/// A half-open box in Chombo's inclusive notation, for messages.
+pub(crate) fn show(b: &IBox) -> String {
+    format!("{:?}..={:?}", b.lo, b.hi.map(|h| h - 1))
+}

@@ -1,0 +1,100 @@
+//! The on-disk compound types of a Chombo file and the names of its objects, nothing else.
+//!
+//! Chombo stores boxes and integer vectors as HDF5 compounds whose on-disk size may include
+//! padding (a `Box` carries its index type). HDF5 converts compounds member by member, by
+//! name, so these structs read any such layout as long as the named members exist;
+//! [`crate::chombo::props`] checks that they do before reading.
+
+use hdf5_metno::H5Type;
+
+/// A 3D box as Chombo writes it (`prob_domain`, `boxes`): inclusive corners.
+#[derive(H5Type, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(C)]
+pub struct RawBox {
+    /// Lower corner, x.
+    pub lo_i: i32,
+    /// Lower corner, y.
+    pub lo_j: i32,
+    /// Lower corner, z.
+    pub lo_k: i32,
+    /// Upper corner (inclusive), x.
+    pub hi_i: i32,
+    /// Upper corner (inclusive), y.
+    pub hi_j: i32,
+    /// Upper corner (inclusive), z.
+    pub hi_k: i32,
+}
+
+/// The members of [`RawBox`], as they must appear in the file.
+pub const BOX_MEMBERS: [&str; 6] = ["lo_i", "lo_j", "lo_k", "hi_i", "hi_j", "hi_k"];
+
+/// A 3D integer vector as Chombo writes it (`outputGhost`, an anisotropic `ref_ratio`).
+#[derive(H5Type, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(C)]
+pub struct RawIntVect {
+    /// x component.
+    pub intvecti: i32,
+    /// y component.
+    pub intvectj: i32,
+    /// z component.
+    pub intvectk: i32,
+}
+
+/// The members of [`RawIntVect`].
+pub const INTVECT_MEMBERS: [&str; 3] = ["intvecti", "intvectj", "intvectk"];
+
+/// A 3D real vector as Chombo writes it (`vec_dx` of anisotropic files).
+#[derive(H5Type, Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+pub struct RawRealVect {
+    /// x component.
+    pub x: f64,
+    /// y component.
+    pub y: f64,
+    /// z component.
+    pub z: f64,
+}
+
+/// The members of [`RawRealVect`].
+pub const REALVECT_MEMBERS: [&str; 3] = ["x", "y", "z"];
+
+/// Root attribute: number of levels.
+pub const NUM_LEVELS: &str = "num_levels";
+/// Root attribute: number of components (fields).
+pub const NUM_COMPONENTS: &str = "num_components";
+/// Group holding `SpaceDim`.
+pub const GLOBAL_GROUP: &str = "Chombo_global";
+/// Attribute of [`GLOBAL_GROUP`]: the dimension Chombo was built for.
+pub const SPACE_DIM: &str = "SpaceDim";
+/// Level attribute: cell size (isotropic).
+pub const DX: &str = "dx";
+/// Level attribute: cell size per axis (anisotropic files).
+pub const VEC_DX: &str = "vec_dx";
+/// Level attribute: refinement ratio to the next finer level.
+pub const REF_RATIO: &str = "ref_ratio";
+/// Level attribute: the level's problem domain.
+pub const PROB_DOMAIN: &str = "prob_domain";
+/// Level dataset: the boxes.
+pub const BOXES: &str = "boxes";
+/// Level dataset: all boxes' data, box after box, component after component.
+pub const DATA: &str = "data:datatype=0";
+/// Level dataset: where each box's data starts in [`DATA`] (`nboxes + 1` entries).
+pub const OFFSETS: &str = "data:offsets=0";
+/// Level group holding the data's attributes.
+pub const DATA_ATTRIBUTES: &str = "data_attributes";
+/// Attribute of [`DATA_ATTRIBUTES`]: ghost layers written around every box.
+pub const OUTPUT_GHOST: &str = "outputGhost";
+/// Root attribute that only Chombo's `AMR::writeCheckpointFile` writes.
+pub const CHECKPOINT_MARKER: &str = "regrid_interval_0";
+/// Suffix of every LevelData dataset (`NAME:datatype=0`).
+pub const DATATYPE_SUFFIX: &str = ":datatype=0";
+
+/// The name of component `i`'s root attribute.
+pub fn component(i: usize) -> String {
+    format!("component_{i}")
+}
+
+/// The name of level `l`'s group.
+pub fn level(l: usize) -> String {
+    format!("level_{l}")
+}

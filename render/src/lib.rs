@@ -4,8 +4,11 @@
 pub mod bench;
 pub mod bvh;
 pub mod camera;
+pub mod extract;
+pub mod extract_cmd;
 pub mod info;
 pub mod mapping;
 pub mod output;
+pub mod reconstruct;
 pub mod shade;
 pub mod trace;

@@ -274,5 +274,5 @@ fn unrecognised_inputs_are_named() {
     assert_fails(dir.path(), &[], &["unrecognised input", "'hello'"]);
     let h5 = dir.path().join("run.hdf5");
     std::fs::write(&h5, b"\x89HDF").unwrap();
-    assert_fails(&h5, &[], &["Chombo HDF5 support is not built yet"]);
+    assert_fails(&h5, &[], &["run.hdf5"]);
 }

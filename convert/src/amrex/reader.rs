@@ -1,12 +1,15 @@
 //! Streams a plotfile's cell data: every data file is opened once and read front to back,
 //! boxes in offset order, handing out one z-slab of one component of one box at a time.
 //!
-//! Memory is one slab (the box's x-y extent times `slab_z` planes) plus the metadata.
+//! A reading thread reads and decodes while the caller's thread consumes slabs; memory is a
+//! few slabs (a box's x-y extent times `slab_z` planes each) plus the metadata.
 
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{channel, sync_channel, Receiver, SyncSender};
 
 use amr_format::IBox;
 
@@ -17,6 +20,8 @@ use crate::progress::Progress;
 
 /// Read buffer per data file.
 const READ_BUFFER: usize = 4 << 20;
+/// Decoded slabs queued between the reading thread and the consumer.
+const IN_FLIGHT: usize = 4;
 
 /// One z-slab of one selected component of one box, trimmed to the valid box.
 #[derive(Debug)]
@@ -83,34 +88,70 @@ pub fn stream(
         sizes.push(meta.len());
     }
     progress.set_total(sizes.iter().sum());
-    let mut st = FileStreamer {
-        pf,
-        selected: &selected,
-        slab_z: slab_z.max(1),
-        raw: Vec::new(),
-        vals: Vec::new(),
-    };
-    let mut stats = StreamStats::default();
-    for ((path, mut jobs), len) in files.into_iter().zip(sizes) {
-        jobs.sort_by_key(|j| j.offset);
-        let file =
-            File::open(&path).map_err(|e| AmrexError::io(&path, "cannot open data file", e))?;
-        let mut f = DataFile {
-            r: BufReader::with_capacity(READ_BUFFER, file),
-            path: &path,
-            pos: 0,
-            len,
-            read: 0,
-            progress,
-        };
-        for job in &jobs {
-            st.read_box(&mut f, job, &mut sink)?;
+    let advanced = AtomicU64::new(0);
+    let (tx, rx) = sync_channel::<OwnedSlab>(IN_FLIGHT);
+    let (back_tx, back_rx) = channel::<Vec<f32>>();
+    let files: Vec<(PathBuf, Vec<Job>, u64)> = files
+        .into_iter()
+        .zip(sizes)
+        .map(|((p, j), n)| (p, j, n))
+        .collect();
+    std::thread::scope(|scope| {
+        let reader = scope.spawn(|| {
+            let mut st = FileStreamer {
+                pf,
+                selected: &selected,
+                slab_z: slab_z.max(1),
+                raw: Vec::new(),
+                tx,
+                spare: back_rx,
+            };
+            st.read_files(files, &advanced)
+        });
+        let mut reported = 0;
+        let mut consumed = Ok(());
+        for slab in rx.iter() {
+            let now = advanced.load(Ordering::Relaxed);
+            progress.advance(now - reported);
+            reported = now;
+            consumed = sink(slab.borrow());
+            if consumed.is_err() {
+                break;
+            }
+            let _ = back_tx.send(slab.values);
         }
-        progress.advance(len.saturating_sub(f.pos));
-        stats.bytes_read += f.read;
-        stats.bytes_covered += len;
+        drop(rx);
+        let read = reader
+            .join()
+            .unwrap_or_else(|_| Err(AmrexError::invalid(&pf.dir, "the reading thread panicked")));
+        consumed?;
+        let stats = read?;
+        progress.advance(advanced.load(Ordering::Relaxed) - reported);
+        Ok(stats)
+    })
+}
+
+/// A [`Slab`] that owns its values, on its way from the reading thread to the consumer.
+struct OwnedSlab {
+    level: usize,
+    index: usize,
+    valid: IBox,
+    field: usize,
+    cells: IBox,
+    values: Vec<f32>,
+}
+
+impl OwnedSlab {
+    fn borrow(&self) -> Slab<'_> {
+        Slab {
+            level: self.level,
+            index: self.index,
+            valid: self.valid,
+            field: self.field,
+            cells: self.cells,
+            values: &self.values,
+        }
     }
-    Ok(stats)
 }
 
 /// One data file being read front to back.
@@ -120,7 +161,7 @@ struct DataFile<'a> {
     pos: u64,
     len: u64,
     read: u64,
-    progress: &'a dyn Progress,
+    advanced: &'a AtomicU64,
 }
 
 impl DataFile<'_> {
@@ -134,7 +175,7 @@ impl DataFile<'_> {
             AmrexError::io(self.path, format!("seeking to byte {}", self.pos + n), e)
         })?;
         self.pos += n;
-        self.progress.advance(n);
+        self.advanced.fetch_add(n, Ordering::Relaxed);
         Ok(())
     }
 
@@ -155,7 +196,7 @@ impl DataFile<'_> {
         })?;
         self.pos += buf.len() as u64;
         self.read += buf.len() as u64;
-        self.progress.advance(buf.len() as u64);
+        self.advanced.fetch_add(buf.len() as u64, Ordering::Relaxed);
         Ok(())
     }
 
@@ -178,29 +219,60 @@ impl DataFile<'_> {
         }
         self.pos += n as u64;
         self.read += n as u64;
-        self.progress.advance(n as u64);
+        self.advanced.fetch_add(n as u64, Ordering::Relaxed);
         line.pop();
         String::from_utf8(line)
             .map_err(|_| AmrexError::invalid(self.path, format!("{} is not text", what())))
     }
 }
 
-/// The per-call state of [`stream`]: the selection and the reused buffers.
+/// The reading thread's state: the selection, the reused read buffer, and the channels.
 struct FileStreamer<'a> {
     pf: &'a Plotfile,
     selected: &'a [Option<usize>],
     slab_z: i64,
     raw: Vec<u8>,
-    vals: Vec<f32>,
+    tx: SyncSender<OwnedSlab>,
+    spare: Receiver<Vec<f32>>,
 }
 
+/// The consumer stopped (after an error of its own): the reading thread ends quietly.
+struct Stopped;
+
 impl FileStreamer<'_> {
-    fn read_box(
+    fn read_files(
         &mut self,
-        f: &mut DataFile,
-        job: &Job,
-        sink: &mut impl FnMut(Slab) -> Result<()>,
-    ) -> Result<()> {
+        files: Vec<(PathBuf, Vec<Job>, u64)>,
+        advanced: &AtomicU64,
+    ) -> Result<StreamStats> {
+        let mut stats = StreamStats::default();
+        for (path, mut jobs, len) in files {
+            jobs.sort_by_key(|j| j.offset);
+            let file =
+                File::open(&path).map_err(|e| AmrexError::io(&path, "cannot open data file", e))?;
+            let mut f = DataFile {
+                r: BufReader::with_capacity(READ_BUFFER, file),
+                path: &path,
+                pos: 0,
+                len,
+                read: 0,
+                advanced,
+            };
+            for job in &jobs {
+                match self.read_box(&mut f, job) {
+                    Ok(Ok(())) => {}
+                    Ok(Err(Stopped)) => return Ok(stats),
+                    Err(e) => return Err(e),
+                }
+            }
+            advanced.fetch_add(len.saturating_sub(f.pos), Ordering::Relaxed);
+            stats.bytes_read += f.read;
+            stats.bytes_covered += len;
+        }
+        Ok(stats)
+    }
+
+    fn read_box(&mut self, f: &mut DataFile, job: &Job) -> Result<Result<(), Stopped>> {
         let pl = &self.pf.levels[job.level];
         let valid = pl.cells.boxes[job.index];
         let (l, i) = (job.level, job.index);
@@ -297,14 +369,18 @@ impl FileStreamer<'_> {
         }
         for c in 0..pl.cells.ncomp {
             match self.selected[c] {
-                Some(p) => self.read_component(f, job, format, &data_box, p, c, sink)?,
+                Some(p) => {
+                    if let Err(Stopped) = self.read_component(f, job, format, &data_box, p, c)? {
+                        return Ok(Err(Stopped));
+                    }
+                }
                 None => f.skip(comp_bytes)?,
             }
         }
-        Ok(())
+        Ok(Ok(()))
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// Reads one component of one box in slabs and sends each to the consumer.
     fn read_component(
         &mut self,
         f: &mut DataFile,
@@ -313,8 +389,7 @@ impl FileStreamer<'_> {
         data: &IBox,
         field: usize,
         comp: usize,
-        sink: &mut impl FnMut(Slab) -> Result<()>,
-    ) -> Result<()> {
+    ) -> Result<Result<(), Stopped>> {
         let valid = self.pf.levels[job.level].cells.boxes[job.index];
         let de = data.extent();
         let ve = valid.extent();
@@ -340,11 +415,12 @@ impl FileStreamer<'_> {
                 format!("level {l}, box {i}, component {comp}")
             })?;
             let ncells = ve[0] as usize * ve[1] as usize * nz;
-            self.vals.resize(ncells, 0.0);
+            let mut vals = self.spare.try_recv().unwrap_or_default();
+            vals.resize(ncells, 0.0);
             let result = if trimmed_xy {
                 let mut r = Ok(());
                 let row = ve[0] as usize;
-                for (k, out_row) in self.vals.chunks_exact_mut(row).enumerate() {
+                for (k, out_row) in vals.chunks_exact_mut(row).enumerate() {
                     let (y, z) = (k % ve[1] as usize, k / ve[1] as usize);
                     let start = ((z * de[1] as usize + y + y0) * de[0] as usize + x0) * size;
                     r = format
@@ -356,7 +432,7 @@ impl FileStreamer<'_> {
                 }
                 r
             } else {
-                format.decode(&self.raw, &mut self.vals).map_err(|(_, v)| v)
+                format.decode(&self.raw, &mut vals).map_err(|(_, v)| v)
             };
             if let Err(value) = result {
                 return Err(AmrexError::BadValue {
@@ -374,17 +450,20 @@ impl FileStreamer<'_> {
                 [valid.lo[0], valid.lo[1], z0],
                 [valid.hi[0], valid.hi[1], z1],
             );
-            sink(Slab {
+            let slab = OwnedSlab {
                 level: job.level,
                 index: job.index,
                 valid,
                 field,
                 cells,
-                values: &self.vals,
-            })?;
+                values: vals,
+            };
+            if self.tx.send(slab).is_err() {
+                return Ok(Err(Stopped));
+            }
             z0 = z1;
         }
         f.skip((data.hi[2] - valid.hi[2]) as u64 * plane_bytes)?;
-        Ok(())
+        Ok(Ok(()))
     }
 }

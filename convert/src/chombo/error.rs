@@ -50,7 +50,7 @@ pub enum ChomboError {
     },
     /// A cell value cannot be stored as a finite `f32`.
     #[error(
-        "{}: level {level}, box {index} (cells {lo:?}..={hi:?}), field '{field}': value {value} at cell {cell:?} is {why}; .amrk stores finite f32 values",
+        "{}: level {level}, box {index} (cells {lo:?}..={hi:?}), field '{field}': value {value:e} at cell {cell:?} is {why}; .amrk stores finite f32 values",
         path.display()
     )]
     BadValue {

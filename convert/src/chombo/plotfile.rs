@@ -9,7 +9,7 @@ use hdf5_metno::types::{FloatSize, TypeDescriptor};
 use hdf5_metno::{Dataset, File};
 
 use super::error::{ChomboError, Result};
-use super::props::{check_members, Props};
+use super::props::{check_members, Props, ROOT};
 use super::raw::{self, RawBox, RawIntVect, RawRealVect};
 
 /// Most components accepted (a sanity bound on a count read from the file).
@@ -79,7 +79,7 @@ impl Plotfile {
     pub fn open(path: &Path) -> Result<Self> {
         let file = File::open(path)
             .map_err(|e| ChomboError::hdf5(path, "cannot open as an HDF5 file", e))?;
-        let root = Props::new(path, (*file).clone(), "/")?;
+        let root = Props::new(path, (*file).clone(), ROOT)?;
         reject_checkpoint(path, &root)?;
         let global = root.child(raw::GLOBAL_GROUP)?;
         let dim = global.int(raw::SPACE_DIM)?;

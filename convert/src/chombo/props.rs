@@ -8,6 +8,9 @@ use hdf5_metno::{Attribute, Dataset, Group, H5Type};
 
 use super::error::{ChomboError, Result};
 
+/// The name [`Props`] gives the file's root group in messages.
+pub(crate) const ROOT: &str = "root";
+
 /// Longest string attribute read (component names are short).
 const MAX_STRING: usize = 1024;
 
@@ -15,7 +18,7 @@ const MAX_STRING: usize = 1024;
 pub(crate) struct Props<'a> {
     path: &'a Path,
     group: Group,
-    /// Where the group is, for messages: `/`, `level_2`, `level_2/data_attributes`.
+    /// Where the group is, for messages: `root`, `level_2`, `level_2/data_attributes`.
     name: String,
     attrs: Vec<String>,
 }
@@ -77,7 +80,7 @@ impl<'a> Props<'a> {
         if !self.has_member(name) {
             return Err(self.invalid(format!("missing group '{name}'")));
         }
-        let full = if self.name == "/" {
+        let full = if self.name == ROOT {
             name.to_string()
         } else {
             format!("{}/{name}", self.name)

@@ -122,7 +122,8 @@ impl BlockGrid {
             f(p) as f32
         } else {
             let w = 1.0 / k;
-            let lo = p.map(|x| (x * k).floor() * w);
+            let top = self.n as f64 * k - 1.0;
+            let lo = p.map(|x| (x * k).floor().min(top) * w);
             let mut c = [0f32; 8];
             for (i, v) in c.iter_mut().enumerate() {
                 let q = [0, 1, 2].map(|a| if i >> a & 1 == 1 { lo[a] + w } else { lo[a] });

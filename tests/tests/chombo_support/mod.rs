@@ -40,6 +40,8 @@ pub struct Desc {
     pub poison: Option<(usize, usize, usize, [i64; 3], f64)>,
     /// Write a checkpoint-style file: one dataset per variable, no `num_components` at the root.
     pub checkpoint: bool,
+    /// Add the root attribute `regrid_interval_0`, which only Chombo's checkpoint writer writes.
+    pub checkpoint_marker: bool,
 }
 
 impl Desc {
@@ -75,6 +77,7 @@ impl Desc {
             truncate_data: None,
             poison: None,
             checkpoint: false,
+            checkpoint_marker: false,
         }
     }
 }

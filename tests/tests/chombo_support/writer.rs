@@ -99,6 +99,9 @@ pub fn write(path: &Path, d: &Desc) -> hdf5_metno::Result<()> {
         }
     }
     attr(root, "time", &1.25f64)?;
+    if d.checkpoint_marker {
+        attr(root, "regrid_interval_0", &2i32)?;
+    }
     attr_str(root, "filetype", "VanillaAMRFileType")?;
     if !d.checkpoint {
         for (c, name) in d.comps.iter().enumerate() {

@@ -47,7 +47,7 @@ pub fn intersect_voxel(
         return None;
     }
     let (t_in, t_out) = ray.clip(voxel.lo, voxel.hi, tmin, tmax)?;
-    let widen = 0.0 * SEGMENT_WIDEN * (t_out - t_in) + 8.0 * f64::EPSILON * t_in.abs().max(t_out.abs());
+    let widen = SEGMENT_WIDEN * (t_out - t_in) + 8.0 * f64::EPSILON * t_in.abs().max(t_out.abs());
     let ta = (t_in - widen).max(tmin);
     let tb = (t_out + widen).min(tmax);
     let w = [0, 1, 2].map(|a| voxel.hi[a] - voxel.lo[a]);
@@ -62,7 +62,7 @@ pub fn intersect_voxel(
         .values
         .iter()
         .fold(iso.abs(), |m, v| m.max(f64::from(v.abs())));
-    let tol = 0.0 * (SPAN_TOL * span).max(ULP_TOL * magnitude).min(0.5 * span);
+    let tol = (SPAN_TOL * span).max(ULP_TOL * magnitude).min(0.5 * span);
     let cubic = along_segment(&c, p0, q);
     let s = cubic.first_root(0.0, 1.0, tol)?;
     Some(VoxelHit {

@@ -49,30 +49,8 @@ pub enum ChomboError {
         msg: String,
     },
     /// A cell value cannot be stored as a finite `f32`.
-    #[error(
-        "{}: level {level}, box {index} (cells {lo:?}..={hi:?}), field '{field}': value {value:e} at cell {cell:?} is {why}; .amrk stores finite f32 values",
-        path.display()
-    )]
-    BadValue {
-        /// The HDF5 file.
-        path: PathBuf,
-        /// The box's level.
-        level: usize,
-        /// The box's index in its level's `boxes` dataset.
-        index: usize,
-        /// Lower corner of the box (inclusive, as Chombo writes it).
-        lo: [i64; 3],
-        /// Upper corner of the box (inclusive, as Chombo writes it).
-        hi: [i64; 3],
-        /// The cell holding the value.
-        cell: [i64; 3],
-        /// The field's name.
-        field: String,
-        /// The offending value.
-        value: f64,
-        /// "NaN", "infinite" or "outside the f32 range".
-        why: &'static str,
-    },
+    #[error(transparent)]
+    BadValue(Box<BadValue>),
     /// A requested field is not in the plotfile.
     #[error("{}: no field named '{name}'; the plotfile has: {available}", path.display())]
     UnknownField {
@@ -92,6 +70,33 @@ pub enum ChomboError {
         #[source]
         source: FormatError,
     },
+}
+
+/// A cell value that cannot be stored as a finite `f32`, and where it is.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "{}: level {level}, box {index} (cells {lo:?}..={hi:?}), field '{field}': value {value:e} at cell {cell:?} is {why}; .amrk stores finite f32 values",
+    path.display()
+)]
+pub struct BadValue {
+    /// The HDF5 file.
+    pub path: PathBuf,
+    /// The box's level.
+    pub level: usize,
+    /// The box's index in its level's `boxes` dataset.
+    pub index: usize,
+    /// Lower corner of the box (inclusive, as Chombo writes it).
+    pub lo: [i64; 3],
+    /// Upper corner of the box (inclusive, as Chombo writes it).
+    pub hi: [i64; 3],
+    /// The cell holding the value.
+    pub cell: [i64; 3],
+    /// The field's name.
+    pub field: String,
+    /// The offending value.
+    pub value: f64,
+    /// "NaN", "infinite" or "outside the f32 range".
+    pub why: &'static str,
 }
 
 /// Result with [`ChomboError`].

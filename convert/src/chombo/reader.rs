@@ -10,7 +10,7 @@
 use amr_format::IBox;
 use hdf5_metno::{Dataset, H5Type, Hyperslab, Selection, SliceOrIndex};
 
-use super::error::{ChomboError, Result};
+use super::error::{BadValue, ChomboError, Result};
 use super::plotfile::{Level, Plotfile, Precision};
 use crate::progress::Progress;
 
@@ -216,7 +216,7 @@ fn read_convert<T: Value>(data: &Dataset, r: &Read, at: &Where, out: &mut Vec<f3
                     let e = at.cells.extent();
                     let (y, z) = (row as i64 % e[1], row as i64 / e[1]);
                     let valid = level.boxes[at.index];
-                    return Err(ChomboError::BadValue {
+                    return Err(ChomboError::BadValue(Box::new(BadValue {
                         path: at.pf.path.clone(),
                         level: at.level,
                         index: at.index,
@@ -230,7 +230,7 @@ fn read_convert<T: Value>(data: &Dataset, r: &Read, at: &Where, out: &mut Vec<f3
                         field: at.pf.fields[at.field].clone(),
                         value,
                         why,
-                    });
+                    })));
                 }
             }
         }

@@ -76,7 +76,7 @@ fn attr<T: H5Type>(loc: &Location, name: &str, v: &T) -> hdf5_metno::Result<()> 
 fn attr_str(loc: &Location, name: &str, v: &str) -> hdf5_metno::Result<()> {
     let a = loc
         .new_attr_builder()
-        .empty_as(&TypeDescriptor::FixedAscii(v.len()))
+        .empty_as(TypeDescriptor::FixedAscii(v.len()))
         .create(name)?;
     a.write_scalar(&FixedAscii::<256>::from_ascii(v).map_err(|e| e.to_string())?)
 }
@@ -153,7 +153,7 @@ pub fn write(path: &Path, d: &Desc) -> hdf5_metno::Result<()> {
             } else {
                 let a = grp
                     .new_attr_builder()
-                    .empty_as(&padded_box_type())
+                    .empty_as(padded_box_type())
                     .create("prob_domain")?;
                 a.write_scalar(&raw_box(lev.domain))?;
             }
@@ -162,7 +162,7 @@ pub fn write(path: &Path, d: &Desc) -> hdf5_metno::Result<()> {
         if !omit("boxes") {
             let ds = grp
                 .new_dataset_builder()
-                .empty_as(&padded_box_type())
+                .empty_as(padded_box_type())
                 .shape(boxes.len())
                 .create("boxes")?;
             ds.write_raw(&boxes)?;
@@ -198,7 +198,7 @@ pub fn write(path: &Path, d: &Desc) -> hdf5_metno::Result<()> {
         for (bi, b) in lev.boxes.iter().enumerate() {
             let lo = [b[0], b[1], b[2]].map(i64::from);
             let hi = [b[3], b[4], b[5]].map(i64::from);
-            for c in 0..nc {
+            for (c, var) in per_var.iter_mut().enumerate() {
                 for z in lo[2] - g[2]..=hi[2] + g[2] {
                     for y in lo[1] - g[1]..=hi[1] + g[1] {
                         for x in lo[0] - g[0]..=hi[0] + g[0] {
@@ -215,7 +215,7 @@ pub fn write(path: &Path, d: &Desc) -> hdf5_metno::Result<()> {
                                 }
                             }
                             data.push(v);
-                            per_var[c].push(v);
+                            var.push(v);
                         }
                     }
                 }

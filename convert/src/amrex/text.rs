@@ -9,6 +9,8 @@ use amr_format::IBox;
 
 use super::error::{AmrexError, Result};
 
+/// Largest magnitude of a cell index accepted (far beyond any real domain, far below overflow).
+const MAX_INDEX: i64 = 1 << 40;
 /// Longest header line accepted (a `Cell_H` min/max row of a few thousand components fits).
 const MAX_LINE: u64 = 16 << 20;
 
@@ -140,6 +142,12 @@ pub(crate) struct AmrexBox {
 impl AmrexBox {
     /// The same cells as a half-open [`IBox`], or an error for an inverted or overflowing box.
     pub(crate) fn to_ibox(self) -> std::result::Result<IBox, String> {
+        if self.lo.iter().chain(&self.hi).any(|c| c.abs() > MAX_INDEX) {
+            return Err(format!(
+                "box {:?}..={:?} has an index beyond +-{MAX_INDEX}",
+                self.lo, self.hi
+            ));
+        }
         let mut hi = [0i64; 3];
         for a in 0..3 {
             hi[a] = self.hi[a].checked_add(1).ok_or("box corner overflows")?;
@@ -308,6 +316,10 @@ mod tests {
         assert_eq!(b.to_ibox().unwrap(), IBox::new([0, -8, 0], [8, 16, 8]));
         assert_eq!(s.ivect().unwrap(), [2, 2, 1]);
         assert!(s.at_end());
+        let huge = Scan::new("((-9000000000000000000,0,0) (9000000000000000000,1,1) (0,0,0))")
+            .amrex_box()
+            .unwrap();
+        assert!(huge.to_ibox().unwrap_err().contains("beyond"));
         assert!(Scan::new("((0,0) (7,7) (0,0))")
             .amrex_box()
             .unwrap_err()

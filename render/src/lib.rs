@@ -10,5 +10,7 @@ pub mod info;
 pub mod mapping;
 pub mod output;
 pub mod reconstruct;
+pub mod render_cmd;
+pub mod sample_mode;
 pub mod shade;
 pub mod trace;

@@ -1,6 +1,7 @@
 //! Ray tracing implicit isosurfaces: rays in grid coordinates, exact ray-voxel intersection,
 //! and closest-hit and any-hit traversal of a BVH over active voxels.
 
+pub mod amr_source;
 pub mod cubic;
 pub mod octant;
 pub mod ray;

@@ -6,6 +6,21 @@ use obvhs::ray::Ray;
 
 use crate::trace::source::GridFrame;
 
+/// Grid units by which the `f32` BVH ray starts before the domain.
+pub const BVH_LEAD: f64 = 1.0;
+
+/// The `f32` ray a BVH is traversed with, and the map from its parameter to the exact ray's:
+/// `t = t_off + t32 / scale`.
+#[derive(Clone, Copy, Debug)]
+pub struct BvhRay {
+    /// The `f32` ray (unit grid-space direction).
+    pub ray: Ray,
+    /// Exact-ray parameter at `t32 = 0`.
+    pub t_off: f64,
+    /// Grid length of the exact ray's direction.
+    pub scale: f64,
+}
+
 /// A ray `o + t d` in grid coordinates. When `d` is a unit world direction mapped to the grid,
 /// `t` is the distance in world units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,22 +69,33 @@ impl GridRay {
         (t0 <= t1).then_some((t0, t1))
     }
 
-    /// The `f32` ray for BVH traversal over `[tmin, tmax]`, re-based at the point where the ray
-    /// enters the domain grown by `pad`, and the parameter offset `t_off` to add to its `t`;
+    /// The `f32` ray for BVH traversal over `[tmin, tmax]`, and the map back to this ray's `t`.
+    ///
+    /// The `f32` ray has a unit grid-space direction and starts [`BVH_LEAD`] grid units before
+    /// the point where this ray enters the domain grown by `pad`: its parameter is then in grid
+    /// units and at least `BVH_LEAD` inside the domain, far above the absolute epsilon obvhs
+    /// clips near-hits with, whatever the world scale. `t = t_off + t32 / scale`.
     /// `None` if the ray misses the domain.
-    pub fn bvh_ray(&self, frame: &GridFrame, pad: f64, tmin: f64, tmax: f64) -> Option<(Ray, f64)> {
+    pub fn bvh_ray(&self, frame: &GridFrame, pad: f64, tmin: f64, tmax: f64) -> Option<BvhRay> {
         let lo = [-pad; 3];
         let hi = frame.extent.map(|e| e + pad);
         let (t0, t1) = self.clip(lo, hi, tmin, tmax)?;
+        let scale = (self.d[0] * self.d[0] + self.d[1] * self.d[1] + self.d[2] * self.d[2]).sqrt();
+        if !(scale > 0.0 && scale.is_finite()) {
+            return None;
+        }
+        let t_off = t0 - BVH_LEAD / scale;
         let p = self.at(t0);
+        let o = [0, 1, 2].map(|a| p[a] - self.d[a] / scale * BVH_LEAD);
         let v = |x: [f64; 3]| Vec3A::new(x[0] as f32, x[1] as f32, x[2] as f32);
-        let span = ((t1 - t0) * (1.0 + 1e-6)) as f32;
+        let span = ((t1 - t_off) * scale * (1.0 + 1e-6)) as f32;
+        let dir = self.d.map(|x| x / scale);
         let ray = Ray::new(
-            v(p),
-            v(self.d),
+            v(o),
+            v(dir),
             0.0,
             if span.is_finite() { span } else { f32::MAX },
         );
-        Some((ray, t0))
+        Some(BvhRay { ray, t_off, scale })
     }
 }

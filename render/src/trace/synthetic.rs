@@ -185,3 +185,9 @@ impl VoxelSource for BlockGrid {
         Some((v.eval_local(v.to_local(p)) as f32, v.level))
     }
 }
+
+impl crate::render_cmd::ActiveSource for BlockGrid {
+    fn extract(&self, iso: f32) -> anyhow::Result<Vec<u64>> {
+        Ok(self.active(iso))
+    }
+}

@@ -90,11 +90,11 @@ impl Surface {
     ) -> Option<Hit> {
         let frame = src.frame();
         let pad = bvh_pad(&frame);
-        let (fray, t_off) = ray.bvh_ray(&frame, pad, tmin, tmax)?;
-        let slack = 4.0 * pad / len(ray.d);
+        let b = ray.bvh_ray(&frame, pad, tmin, tmax)?;
+        let slack = 4.0 * pad;
         let mut best: Option<Hit> = None;
         let mut best_t = tmax;
-        self.bvh.traverse(fray, |r, tmax32| {
+        self.bvh.traverse(b.ray, |r, tmax32| {
             let voxel = src.voxel(r);
             if let Some(h) = intersect_voxel(&voxel, self.iso, ray, tmin, best_t) {
                 if h.t < best_t || best.is_none() {
@@ -105,7 +105,7 @@ impl Surface {
                         voxel,
                         local: h.local,
                     });
-                    *tmax32 = (h.t - t_off + slack) as f32;
+                    *tmax32 = ((h.t - b.t_off) * b.scale + slack) as f32;
                 }
             }
             false
@@ -122,11 +122,11 @@ impl Surface {
         tmax: f64,
     ) -> bool {
         let frame = src.frame();
-        let Some((fray, _)) = ray.bvh_ray(&frame, bvh_pad(&frame), tmin, tmax) else {
+        let Some(b) = ray.bvh_ray(&frame, bvh_pad(&frame), tmin, tmax) else {
             return false;
         };
         let mut hit = false;
-        self.bvh.traverse(fray, |r, _| {
+        self.bvh.traverse(b.ray, |r, _| {
             hit = intersect_voxel(&src.voxel(r), self.iso, ray, tmin, tmax).is_some();
             hit
         });

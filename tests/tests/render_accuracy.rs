@@ -1,0 +1,133 @@
+//! Accuracy of the hybrid method: a thin feature the sample method misses at a coarse step, and
+//! a domain far from the origin with tiny cells rendering like the unit cube.
+
+mod render_support;
+
+use amr_render::render_cmd::{render_source, Method, RenderConfig};
+use amr_render::sample_mode::SampleTracer;
+use amr_render::shade::IsoSpec;
+use amr_render::trace::synthetic::BlockGrid;
+use amr_render::trace::{GridRay, HybridTracer, Tracer};
+use render_support::{sphere_grid, surfaces, Rng};
+
+fn hit_fraction(tracer: &dyn Tracer, rays: &[GridRay]) -> f64 {
+    let hits = rays
+        .iter()
+        .filter(|r| tracer.next_hit(0, r, 0.0, f64::INFINITY).is_some())
+        .count();
+    hits as f64 / rays.len() as f64
+}
+
+#[test]
+fn thin_sheet_missed_by_coarse_marching_is_found_exactly() {
+    let seed = 7;
+    // |x - 2.03| on voxels 0.25 wide: the region below 0.05 is a sheet ~0.046 thick.
+    let grid = BlockGrid::new(4, 4, |_| 1, |p| (p[0] - 2.03).abs(), [0.0; 3], 1.0);
+    let iso = 0.05;
+    let surf = surfaces(&grid, &[iso]);
+    let mut rng = Rng(seed);
+    let rays: Vec<GridRay> = (0..2000)
+        .map(|_| {
+            let o = [
+                0.05 + 0.2 * rng.f64(),
+                0.5 + 3.0 * rng.f64(),
+                0.5 + 3.0 * rng.f64(),
+            ];
+            let d = [1.0, 0.2 * rng.f64() - 0.1, 0.2 * rng.f64() - 0.1];
+            let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            GridRay {
+                o,
+                d: d.map(|x| x / l),
+            }
+        })
+        .collect();
+    let hybrid = HybridTracer {
+        src: &grid,
+        surfaces: &surf,
+        smooth_normals: false,
+    };
+    let coarse = SampleTracer {
+        src: &grid,
+        isos: vec![iso],
+        step: 0.2,
+    };
+    let fine = SampleTracer {
+        src: &grid,
+        isos: vec![iso],
+        step: 0.01,
+    };
+    let (h, c, f) = (
+        hit_fraction(&hybrid, &rays),
+        hit_fraction(&coarse, &rays),
+        hit_fraction(&fine, &rays),
+    );
+    eprintln!("seed {seed}: hit fractions: hybrid {h}, sample step 0.2 {c}, sample step 0.01 {f}");
+    assert_eq!(h, 1.0, "seed {seed}: the hybrid method missed the sheet");
+    assert!(
+        c < 0.5,
+        "seed {seed}: coarse marching found the sheet {c} of the time"
+    );
+    assert_eq!(f, 1.0, "seed {seed}: fine marching missed the sheet");
+    for r in &rays[..200] {
+        let a = hybrid.next_hit(0, r, 0.0, f64::INFINITY).unwrap();
+        let b = fine.next_hit(0, r, 0.0, f64::INFINITY).unwrap();
+        assert!(
+            (a.t - b.t).abs() < 0.01,
+            "seed {seed}: hybrid t {} vs fine marching t {}",
+            a.t,
+            b.t
+        );
+    }
+}
+
+fn config() -> RenderConfig {
+    RenderConfig {
+        isos: vec!["0".parse::<IsoSpec>().unwrap()],
+        size: (64, 48),
+        camera: None,
+        fov: 40.0,
+        method: Method::Hybrid,
+        step: None,
+        spp: 1,
+        shadows: true,
+        ao: 2,
+        smooth_normals: true,
+    }
+}
+
+#[test]
+fn far_from_the_origin_with_tiny_cells_renders_like_the_unit_cube() {
+    let seed = 21;
+    let unit = sphere_grid(seed, 3, 2, 1.3, [0.0; 3], 1.0);
+    let far = sphere_grid(seed, 3, 2, 1.3, [1e6, -2e6, 5e5], 1e-6);
+    let a = render_source(&unit, &config(), &|_| {}).unwrap().frame;
+    let b = render_source(&far, &config(), &|_| {}).unwrap().frame;
+    assert!(
+        a.covered() > a.len() / 20,
+        "seed {seed}: the sphere covers only {} pixels",
+        a.covered()
+    );
+    let mut bad = 0;
+    for i in 0..a.len() {
+        let d = (0..3)
+            .map(|c| (a.rgb[c][i] - b.rgb[c][i]).abs())
+            .fold(0.0f32, f32::max);
+        if d > 0.02 || (a.alpha[i] - b.alpha[i]).abs() > 0.02 {
+            bad += 1;
+        }
+        if a.alpha[i] > 0.0 && b.alpha[i] > 0.0 {
+            let rel = (a.z[i] - b.z[i] * 1e6).abs() / a.z[i];
+            assert!(
+                rel < 1e-4,
+                "seed {seed}: pixel {i}: depth {} vs {} (scaled)",
+                a.z[i],
+                b.z[i] * 1e6
+            );
+        }
+    }
+    assert!(
+        bad <= a.len() / 200,
+        "seed {seed}: {bad} of {} pixels differ",
+        a.len()
+    );
+}

@@ -54,9 +54,8 @@ pub enum AmrexError {
     },
     /// A cell value cannot be stored as a finite `f32`.
     #[error(
-        "{}: level {level}, box {index} {}, field '{field}': {why} ({value}); .amrk stores finite f32 values",
-        path.display(),
-        corners(lo, hi)
+        "{}: level {level}, box {index} {cells}, field '{field}': {why} ({value}); .amrk stores finite f32 values",
+        path.display()
     )]
     BadValue {
         /// The data file holding the value.
@@ -65,10 +64,8 @@ pub enum AmrexError {
         level: usize,
         /// The box's index in its level's `Cell_H`.
         index: usize,
-        /// Lower corner of the box (inclusive, as AMReX writes it).
-        lo: [i64; 3],
-        /// Upper corner of the box (inclusive, as AMReX writes it).
-        hi: [i64; 3],
+        /// The box's cells, with inclusive corners as AMReX writes them.
+        cells: String,
         /// The field's name.
         field: String,
         /// The offending value.
@@ -93,15 +90,8 @@ pub enum AmrexError {
         path: PathBuf,
         /// The writer's error.
         #[source]
-        source: FormatError,
+        source: Box<FormatError>,
     },
-}
-
-fn corners(lo: &[i64; 3], hi: &[i64; 3]) -> String {
-    format!(
-        "({},{},{})..=({},{},{})",
-        lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
-    )
 }
 
 /// Result with [`AmrexError`].

@@ -80,7 +80,7 @@ pub fn convert(
     };
     let out_err = |source| AmrexError::Output {
         path: output.to_path_buf(),
-        source,
+        source: Box::new(source),
     };
     let mut writer = AmrkWriter::create(
         output,

@@ -126,7 +126,7 @@ pub fn run_convert(
             };
             let bar = Bar::bytes("converting");
             let s = crate::chombo::convert(input, output, &opts, &bar)
-                .with_context(|| format!("converting Chombo plotfile {}", input.display()))?;
+                .context("converting Chombo plotfile")?;
             amrex::ConvertStats {
                 bytes_read: s.bytes_read,
                 cells: s.cells,

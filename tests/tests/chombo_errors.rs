@@ -213,6 +213,21 @@ fn a_file_that_is_not_hdf5() {
 }
 
 #[test]
+fn a_missing_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("nothing.hdf5");
+    let opts = ConvertOptions {
+        fields: vec![],
+        brick: 8,
+        compression: Compression::None,
+    };
+    let err =
+        chombo::convert(&input, &dir.path().join("out.amrk"), &opts, &NoProgress).unwrap_err();
+    let msg = format!("{err}: {}", std::error::Error::source(&err).unwrap());
+    assert_has(&msg, &["cannot open", "nothing.hdf5", "No such file"]);
+}
+
+#[test]
 fn run_convert_reports_the_chombo_error_with_context() {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("chk.3d.hdf5");

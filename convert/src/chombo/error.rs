@@ -7,6 +7,15 @@ use amr_format::FormatError;
 /// Everything that can go wrong while reading a Chombo plotfile or converting it.
 #[derive(Debug, thiserror::Error)]
 pub enum ChomboError {
+    /// The file cannot be opened at all (missing, unreadable).
+    #[error("cannot open {}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
     /// The HDF5 library refused an operation (the file is not HDF5, is unreadable, or an object
     /// has a type that cannot be read as asked).
     #[error("{}: {what}", path.display())]

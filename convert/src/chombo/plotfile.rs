@@ -77,6 +77,10 @@ pub struct Plotfile {
 impl Plotfile {
     /// Opens and validates the plotfile at `path`; reads metadata only.
     pub fn open(path: &Path) -> Result<Self> {
+        std::fs::File::open(path).map_err(|source| ChomboError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
         let file = File::open(path)
             .map_err(|e| ChomboError::hdf5(path, "cannot open as an HDF5 file", e))?;
         let root = Props::new(path, (*file).clone(), ROOT)?;

@@ -128,6 +128,13 @@ fn offsets_beyond_the_data() {
 }
 
 #[test]
+fn a_huge_box_count_is_refused_before_allocating() {
+    let mut d = Desc::three_levels(true);
+    d.huge_boxes = Some(1);
+    assert_has(&fails(&d), &["level_1", "claims 8589934592 boxes"]);
+}
+
+#[test]
 fn a_box_outside_the_domain() {
     let mut d = Desc::three_levels(false);
     d.levels[1].boxes[1] = [14, 6, 2, 21, 13, 16];

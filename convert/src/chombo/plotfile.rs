@@ -77,10 +77,14 @@ pub struct Plotfile {
 impl Plotfile {
     /// Opens and validates the plotfile at `path`; reads metadata only.
     pub fn open(path: &Path) -> Result<Self> {
-        std::fs::File::open(path).map_err(|source| ChomboError::Io {
+        let io = |source| ChomboError::Io {
             path: path.to_path_buf(),
             source,
-        })?;
+        };
+        let file_len = std::fs::File::open(path)
+            .and_then(|f| f.metadata())
+            .map_err(io)?
+            .len();
         let file = File::open(path)
             .map_err(|e| ChomboError::hdf5(path, "cannot open as an HDF5 file", e))?;
         let root = Props::new(path, (*file).clone(), ROOT)?;
@@ -119,7 +123,7 @@ impl Plotfile {
         let mut levels: Vec<Level> = Vec::with_capacity(nl as usize);
         for l in 0..nl as usize {
             let g = root.child(&raw::level(l))?;
-            let level = read_level(&g, l + 1 == nl as usize, fields.len())?;
+            let level = read_level(&g, l + 1 == nl as usize, fields.len(), file_len)?;
             if let Some(prev) = levels.last() {
                 check_refinement(&g, l, prev, &level)?;
             }
@@ -218,8 +222,8 @@ fn reject_checkpoint(path: &Path, root: &Props) -> Result<()> {
     Ok(())
 }
 
-/// Reads and checks one `level_N` group.
-fn read_level(g: &Props, finest: bool, ncomp: usize) -> Result<Level> {
+/// Reads and checks one `level_N` group of a file of `file_len` bytes.
+fn read_level(g: &Props, finest: bool, ncomp: usize, file_len: u64) -> Result<Level> {
     let dx = if g.has(raw::DX) {
         [g.float(raw::DX)?; 3]
     } else if g.has(raw::VEC_DX) {
@@ -272,7 +276,7 @@ fn read_level(g: &Props, finest: bool, ncomp: usize) -> Result<Level> {
         }
         gh
     };
-    let boxes = read_boxes(g, &domain)?;
+    let boxes = read_boxes(g, &domain, file_len)?;
     let mut level = Level {
         dx,
         ref_ratio,
@@ -312,9 +316,17 @@ fn read_level(g: &Props, finest: bool, ncomp: usize) -> Result<Level> {
     Ok(level)
 }
 
-/// Reads `boxes`, checking each is non-empty and inside the domain.
-fn read_boxes(g: &Props, domain: &IBox) -> Result<Vec<IBox>> {
+/// Reads `boxes`, checking each is non-empty and inside the domain. A box takes at least a
+/// byte of the file, which bounds what a corrupt count can make us allocate.
+fn read_boxes(g: &Props, domain: &IBox, file_len: u64) -> Result<Vec<IBox>> {
     let ds = g.dataset(raw::BOXES)?;
+    if ds.size() as u64 > file_len {
+        return Err(g.invalid(format!(
+            "{} claims {} boxes, more than the file has bytes ({file_len})",
+            raw::BOXES,
+            ds.size()
+        )));
+    }
     let what = || format!("reading {}/{}", g.name(), raw::BOXES);
     let desc = ds
         .dtype()
@@ -367,8 +379,16 @@ fn read_offsets(g: &Props, level: &Level, ncomp: usize, len: u64) -> Result<Vec<
             raw::OFFSETS
         )));
     }
-    let offsets = ds.read_raw::<i64>().map_err(|e| g.hdf5(what(), e))?;
     let nb = level.boxes.len();
+    if ds.size() != nb + 1 {
+        return Err(g.invalid(format!(
+            "{} has {} entries, expected {} (boxes + 1)",
+            raw::OFFSETS,
+            ds.size(),
+            nb + 1
+        )));
+    }
+    let offsets = ds.read_raw::<i64>().map_err(|e| g.hdf5(what(), e))?;
     if offsets.len() != nb + 1 {
         return Err(g.invalid(format!(
             "{} has {} entries, expected {} (boxes + 1)",

@@ -40,6 +40,8 @@ pub struct Desc {
     pub poison: Option<(usize, usize, usize, [i64; 3], f64)>,
     /// Write a checkpoint-style file: one dataset per variable, no `num_components` at the root.
     pub checkpoint: bool,
+    /// Declare this level's `boxes` with 2³³ entries and write none (HDF5 allocates lazily).
+    pub huge_boxes: Option<usize>,
     /// Add the root attribute `regrid_interval_0`, which only Chombo's checkpoint writer writes.
     pub checkpoint_marker: bool,
 }
@@ -78,6 +80,7 @@ impl Desc {
             poison: None,
             checkpoint: false,
             checkpoint_marker: false,
+            huge_boxes: None,
         }
     }
 }

@@ -159,7 +159,12 @@ pub fn write(path: &Path, d: &Desc) -> hdf5_metno::Result<()> {
             }
         }
         let boxes: Vec<RawBox> = lev.boxes.iter().map(|&b| raw_box(b)).collect();
-        if !omit("boxes") {
+        if d.huge_boxes == Some(l) {
+            grp.new_dataset_builder()
+                .empty_as(padded_box_type())
+                .shape(1usize << 33)
+                .create("boxes")?;
+        } else if !omit("boxes") {
             let ds = grp
                 .new_dataset_builder()
                 .empty_as(padded_box_type())

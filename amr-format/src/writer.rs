@@ -19,7 +19,7 @@ use crate::compress::encode_zstd_shuffled;
 use crate::error::{FormatError, Result};
 use crate::geometry::IBox;
 use crate::hierarchy::HierarchySpec;
-use crate::kdtree::{self, TreeBrick, TreeView};
+use crate::kdtree::{self, KdTree, TreeBrick, TreeView};
 use crate::raw::{
     self, align_up, BrickData, BrickRecord, FieldRecord, Footer, Header, LeafRange, LevelRecord,
     Section,
@@ -73,6 +73,7 @@ pub struct AmrkWriter {
     spill: Option<Vec<Spill>>,
     compression: Compression,
     data_end: u64,
+    tree: KdTree,
 }
 
 struct Spill {
@@ -85,6 +86,7 @@ impl AmrkWriter {
     /// [`finish`](Self::finish) succeeds.
     pub fn create(path: &Path, spec: HierarchySpec, opts: WriterOptions) -> Result<Self> {
         spec.validate()?;
+        let tree = build_tree(&spec)?;
         let dir = match path.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
@@ -157,6 +159,7 @@ impl AmrkWriter {
             spill,
             compression: opts.compression,
             data_end,
+            tree,
         })
     }
 
@@ -185,21 +188,21 @@ impl AmrkWriter {
                 values.len()
             )));
         }
-        let (mut min, mut max) = (f32::INFINITY, f32::NEG_INFINITY);
-        for &v in values {
-            if !v.is_finite() {
-                return Err(FormatError::NonFinite {
-                    field: field_name.clone(),
-                    level: spec.level,
-                    brick,
-                    lo: spec.cells.lo,
-                    hi: spec.cells.hi,
-                    value: v as f64,
-                });
-            }
-            min = min.min(v);
-            max = max.max(v);
-        }
+        let Some((min, max)) = finite_range(values) else {
+            let value = values
+                .iter()
+                .find(|v| !v.is_finite())
+                .copied()
+                .unwrap_or(f32::NAN);
+            return Err(FormatError::NonFinite {
+                field: field_name.clone(),
+                level: spec.level,
+                brick,
+                lo: spec.cells.lo,
+                hi: spec.cells.hi,
+                value: value as f64,
+            });
+        };
         let slot = &mut self.written[field][brick];
         let already = match slot {
             Some(d) => d.encoding.get() != u32::MAX,
@@ -276,28 +279,9 @@ impl AmrkWriter {
 
         let nl = self.spec.levels.len();
         let domain = self.spec.levels[nl - 1].domain;
-        let origin = domain.lo;
         let rel_domain = IBox::new([0; 3], domain.extent());
         let scales: Vec<[i64; 3]> = (0..nl).map(|l| self.spec.finest_scale(l)).collect();
-        let tree_bricks: Vec<TreeBrick> = self
-            .spec
-            .bricks
-            .iter()
-            .map(|b| {
-                let f = b
-                    .cells
-                    .refine(scales[b.level as usize])
-                    .expect("validated extents");
-                TreeBrick {
-                    bounds: IBox::new(
-                        [0, 1, 2].map(|a| f.lo[a] - origin[a]),
-                        [0, 1, 2].map(|a| f.hi[a] - origin[a]),
-                    ),
-                    level: b.level,
-                }
-            })
-            .collect();
-        let tree = kdtree::build(&tree_bricks, rel_domain)?;
+        let tree = std::mem::take(&mut self.tree);
         let view = TreeView {
             nodes: &tree.nodes,
             leaves: &tree.leaves,
@@ -514,6 +498,66 @@ impl AmrkWriter {
     }
 }
 
+/// Builds the kd-tree from the brick boxes alone, before any data arrives, so that an
+/// inconsistent hierarchy (overlapping bricks) fails before the input is read.
+fn build_tree(spec: &HierarchySpec) -> Result<KdTree> {
+    let nl = spec.levels.len();
+    let domain = spec.levels[nl - 1].domain;
+    let origin = domain.lo;
+    let scales: Vec<[i64; 3]> = (0..nl).map(|l| spec.finest_scale(l)).collect();
+    let tree_bricks: Vec<TreeBrick> = spec
+        .bricks
+        .iter()
+        .map(|b| {
+            let f = b
+                .cells
+                .refine(scales[b.level as usize])
+                .expect("validated extents");
+            TreeBrick {
+                bounds: IBox::new(
+                    [0, 1, 2].map(|a| f.lo[a] - origin[a]),
+                    [0, 1, 2].map(|a| f.hi[a] - origin[a]),
+                ),
+                level: b.level,
+            }
+        })
+        .collect();
+    kdtree::build(&tree_bricks, IBox::new([0; 3], domain.extent()))
+}
+
+/// The range of `values`, or `None` if one is NaN or infinite.
+///
+/// Branch-free over lanes of 16 so that it vectorizes: it runs on every value converted.
+fn finite_range(values: &[f32]) -> Option<(f32, f32)> {
+    const LANES: usize = 16;
+    const EXP: u32 = 0x7f80_0000;
+    let mut lo = [f32::INFINITY; LANES];
+    let mut hi = [f32::NEG_INFINITY; LANES];
+    let mut bad = [0u32; LANES];
+    let chunks = values.chunks_exact(LANES);
+    let tail = chunks.remainder();
+    for c in chunks {
+        for i in 0..LANES {
+            let v = c[i];
+            bad[i] |= u32::from(v.to_bits() & EXP == EXP);
+            lo[i] = lo[i].min(v);
+            hi[i] = hi[i].max(v);
+        }
+    }
+    for &v in tail {
+        bad[0] |= u32::from(v.to_bits() & EXP == EXP);
+        lo[0] = lo[0].min(v);
+        hi[0] = hi[0].max(v);
+    }
+    if bad.iter().any(|&b| b != 0) {
+        return None;
+    }
+    Some((
+        lo.iter().copied().fold(f32::INFINITY, f32::min),
+        hi.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+    ))
+}
+
 /// The little-endian bytes of `values`: borrowed on little-endian hosts.
 fn le_bytes<'a>(values: &[f32], native: &'a [u8]) -> std::borrow::Cow<'a, [u8]> {
     if cfg!(target_endian = "little") {
@@ -567,5 +611,25 @@ impl MetaBuilder {
             },
             self.bytes,
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::finite_range;
+
+    #[test]
+    fn finite_range_finds_extremes_and_non_finite_values_anywhere() {
+        for n in [1usize, 15, 16, 17, 100] {
+            let v: Vec<f32> = (0..n).map(|i| i as f32 - 3.0).collect();
+            assert_eq!(finite_range(&v), Some((-3.0, n as f32 - 4.0)));
+            for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+                for at in [0, n / 2, n - 1] {
+                    let mut w = v.clone();
+                    w[at] = bad;
+                    assert_eq!(finite_range(&w), None, "n {n}, {bad} at {at}");
+                }
+            }
+        }
     }
 }

@@ -135,6 +135,16 @@ fn a_huge_box_count_is_refused_before_allocating() {
 }
 
 #[test]
+fn data_declared_but_never_written() {
+    let mut d = Desc::three_levels(true);
+    d.unwritten_data = Some(2);
+    assert_has(
+        &fails(&d),
+        &["level_2", "data:datatype=0 stores 0 bytes", "never written"],
+    );
+}
+
+#[test]
 fn a_box_outside_the_domain() {
     let mut d = Desc::three_levels(false);
     d.levels[1].boxes[1] = [14, 6, 2, 21, 13, 16];

@@ -312,6 +312,17 @@ fn read_level(g: &Props, finest: bool, ncomp: usize, file_len: u64) -> Result<Le
     }
     let len = shape[0] as u64;
     level.offsets = read_offsets(g, &level, ncomp, len)?;
+    // A dataset's declared length costs nothing on disk; its stored bytes do. Unfiltered data
+    // must be stored in full, which bounds everything sized from the boxes by the file's size.
+    let need = level.offsets[level.boxes.len()].saturating_mul(level.precision.bytes());
+    let stored = data.storage_size();
+    if data.filters().is_empty() && stored < need {
+        return Err(g.invalid(format!(
+            "{} stores {stored} bytes, but its offsets need {need}: the data was never written \
+             or the file is damaged",
+            raw::DATA
+        )));
+    }
     level.data = Some(data);
     Ok(level)
 }

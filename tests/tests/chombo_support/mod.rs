@@ -42,6 +42,8 @@ pub struct Desc {
     pub checkpoint: bool,
     /// Declare this level's `boxes` with 2³³ entries and write none (HDF5 allocates lazily).
     pub huge_boxes: Option<usize>,
+    /// Declare this level's data at its full length but write none of it.
+    pub unwritten_data: Option<usize>,
     /// Add the root attribute `regrid_interval_0`, which only Chombo's checkpoint writer writes.
     pub checkpoint_marker: bool,
 }
@@ -81,6 +83,7 @@ impl Desc {
             checkpoint: false,
             checkpoint_marker: false,
             huge_boxes: None,
+            unwritten_data: None,
         }
     }
 }

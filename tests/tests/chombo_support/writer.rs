@@ -246,7 +246,11 @@ pub fn write(path: &Path, d: &Desc) -> hdf5_metno::Result<()> {
                 .with_data(&offsets)
                 .create("data:offsets=0")?;
         }
-        if !omit("data:datatype=0") {
+        if d.unwritten_data == Some(l) {
+            grp.new_dataset::<f64>()
+                .shape(data.len())
+                .create("data:datatype=0")?;
+        } else if !omit("data:datatype=0") {
             if d.f64 {
                 grp.new_dataset_builder()
                     .with_data(&data)

@@ -1,0 +1,182 @@
+//! Active-voxel extraction for one field and one isovalue (Wang et al., section 4.2).
+//!
+//! - [`refs`]: the 64-bit references (`leaf << 32 | id`) and decoded [`Voxel`]s.
+//! - [`local`]: the classified level-`L` neighbourhood of a leaf.
+//! - [`leaf`]: the voxels one leaf owns: merged dual cells and boundary octants.
+//! - [`stats`]: what an extraction did.
+//!
+//! An [`Extractor`] is made once per open file and field; each [`Extractor::extract`] call runs
+//! one isovalue. Leaves whose conservative range cannot hold the isovalue are skipped without
+//! touching their bricks. The result holds 8 bytes per active voxel, in leaf order and sorted
+//! within each leaf, the same on every run and any number of threads.
+
+pub mod leaf;
+pub mod local;
+pub mod refs;
+pub mod stats;
+
+use std::time::Instant;
+
+use amr_format::{AmrkFile, FormatError, Result};
+use rayon::prelude::*;
+
+use crate::reconstruct::interp::straddles;
+use crate::reconstruct::{Octant, Sampler};
+use leaf::{extract_leaf, LeafFrame};
+use local::Neighbourhood;
+pub use refs::{make_ref, split_ref, LocalVoxel, Voxel, DUAL_BASE};
+pub use stats::ExtractStats;
+
+/// Leaves handed to the thread pool at a time; bounds the memory held beside the result.
+const CHUNK: usize = 4096;
+
+/// The active voxels of one isovalue and what finding them took.
+#[derive(Clone, Debug, Default)]
+pub struct Extraction {
+    /// References, in leaf order, sorted within each leaf.
+    pub refs: Vec<u64>,
+    /// Statistics.
+    pub stats: ExtractStats,
+}
+
+/// Extracts and decodes active voxels of one field of an open file.
+pub struct Extractor<'f, D> {
+    sampler: Sampler<'f, D>,
+    file_cells: u64,
+}
+
+impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
+    /// An extractor for field `field` of `file`, decoding compressed bricks through a shared
+    /// cache of about `cache_bytes`.
+    pub fn new(file: &'f AmrkFile<D>, field: usize, cache_bytes: usize) -> Result<Self> {
+        let sampler = Sampler::new(file, field, cache_bytes)?;
+        let file_cells = (0..file.num_bricks())
+            .map(|b| file.brick(b).cells.num_cells().unwrap_or(0))
+            .sum();
+        Ok(Self {
+            sampler,
+            file_cells,
+        })
+    }
+
+    /// The sampler underneath.
+    pub fn sampler(&self) -> &Sampler<'f, D> {
+        &self.sampler
+    }
+
+    /// The active voxels for `iso`: those whose corner values `v` satisfy
+    /// `min v < iso <= max v`.
+    pub fn extract(&self, iso: f32) -> Result<Extraction> {
+        let start = Instant::now();
+        let file = self.sampler.file();
+        let field = self.sampler.field();
+        let decodes = self.sampler.decodes();
+        let leaves: Vec<u32> = (0..file.num_leaves() as u32)
+            .filter(|&l| {
+                let (lo, hi) = file.leaf_range(field, l);
+                straddles(lo, hi, iso)
+            })
+            .collect();
+        let mut refs = Vec::new();
+        let mut evaluated = 0u64;
+        for chunk in leaves.chunks(CHUNK) {
+            let parts: Vec<Result<(Vec<u64>, u64)>> = chunk
+                .par_iter()
+                .map_init(Neighbourhood::default, |hood, &leaf| {
+                    let mut out = Vec::new();
+                    let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
+                        return Ok((out, 0));
+                    };
+                    let counts = extract_leaf(&self.sampler, &frame, iso, hood, &mut out)?;
+                    Ok((out, counts.evaluated))
+                })
+                .collect();
+            for part in parts {
+                let (part, n) = part?;
+                refs.extend_from_slice(&part);
+                evaluated += n;
+            }
+        }
+        refs.shrink_to_fit();
+        let active_duals = refs.iter().filter(|&&r| r as u32 >= DUAL_BASE).count() as u64;
+        let stats = ExtractStats {
+            field: file.fields()[field].name.clone(),
+            iso,
+            active: refs.len() as u64,
+            active_duals,
+            leaves_visited: leaves.len() as u64,
+            leaves_total: file.num_leaves() as u64,
+            evaluated,
+            file_cells: self.file_cells,
+            seconds: start.elapsed().as_secs_f64(),
+            threads: rayon::current_num_threads(),
+            decompressions: self.sampler.decodes() - decodes,
+            resident_bytes: None,
+            file_bytes: file.bytes().len() as u64,
+        };
+        Ok(Extraction { refs, stats })
+    }
+
+    /// The voxel reference `r` names: its box and its eight corner values, recomputed from the
+    /// file. An error when `r` names no voxel of this file.
+    pub fn decode(&self, r: u64) -> Result<Voxel> {
+        let (leaf, local) = split_ref(r);
+        let bad = |m: &str| FormatError::Usage(format!("voxel reference {r:#018x}: {m}"));
+        if leaf as usize >= self.sampler.file().num_leaves() {
+            return Err(bad("no such leaf"));
+        }
+        let frame =
+            LeafFrame::new(&self.sampler, leaf).ok_or_else(|| bad("the leaf holds no brick"))?;
+        let grid = self.sampler.grid();
+        let level = frame.level;
+        let cell_at = |i: u32| -> Option<[i64; 3]> {
+            let e = frame.cells.extent();
+            let i = i64::from(i);
+            (i < e[0] * e[1] * e[2])
+                .then(|| [i % e[0], i / e[0] % e[1], i / (e[0] * e[1])])
+                .map(|d| [0, 1, 2].map(|a| frame.cells.lo[a] + d[a]))
+        };
+        let (lo, hi, values, dual) = match local {
+            LocalVoxel::Octant { cell, octant } => {
+                let cell = cell_at(cell).ok_or_else(|| bad("cell index past the leaf"))?;
+                let o = Octant {
+                    level,
+                    cell,
+                    octant,
+                };
+                let values = self
+                    .sampler
+                    .octant_values(&o)?
+                    .ok_or_else(|| bad("no values there"))?;
+                let (lo, hi) = self.sampler.octant_box(&o);
+                (lo, hi, values, false)
+            }
+            LocalVoxel::Dual { cell } => {
+                let c0 = cell_at(cell).ok_or_else(|| bad("cell index past the leaf"))?;
+                let mut values = [0f32; 8];
+                for (n, v) in values.iter_mut().enumerate() {
+                    let c = [0, 1, 2].map(|a| c0[a] + (n >> a & 1) as i64);
+                    let at = grid.finest_cell(grid.centre(level, c), 7);
+                    match self.sampler.locate(at)? {
+                        Some(leaf_cell) if leaf_cell.level == level && leaf_cell.cell == c => {
+                            *v = leaf_cell.value
+                        }
+                        _ => return Err(bad("not a merged dual cell")),
+                    }
+                }
+                let lo = grid.centre(level, c0);
+                let s = grid.scale(level);
+                (lo, [0, 1, 2].map(|a| lo[a] + 2 * s[a]), values, true)
+            }
+        };
+        Ok(Voxel {
+            lo: grid.to_world(lo.map(|v| v as f64)),
+            hi: grid.to_world(hi.map(|v| v as f64)),
+            lo_doubled: lo,
+            hi_doubled: hi,
+            values,
+            level,
+            dual,
+        })
+    }
+}

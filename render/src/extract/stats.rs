@@ -1,0 +1,116 @@
+//! What one extraction did: counts, time, decompressions and touched pages.
+
+use std::fmt;
+
+/// Statistics of one extraction.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ExtractStats {
+    /// The field's name.
+    pub field: String,
+    /// The isovalue.
+    pub iso: f32,
+    /// Active voxels emitted (merged dual cells and single octants).
+    pub active: u64,
+    /// Active voxels that are merged dual cells.
+    pub active_duals: u64,
+    /// Leaves whose conservative range holds the isovalue, which were therefore visited.
+    pub leaves_visited: u64,
+    /// Leaves in the tree.
+    pub leaves_total: u64,
+    /// Voxels whose eight corners were evaluated.
+    pub evaluated: u64,
+    /// Cells in the file (all bricks, all levels).
+    pub file_cells: u64,
+    /// Wall-clock seconds of the extraction.
+    pub seconds: f64,
+    /// Threads the extraction ran on.
+    pub threads: usize,
+    /// Bricks decompressed during this extraction.
+    pub decompressions: u64,
+    /// Bytes of the file mapping this process has touched, after the extraction, when known.
+    pub resident_bytes: Option<u64>,
+    /// Size of the file in bytes.
+    pub file_bytes: u64,
+}
+
+impl ExtractStats {
+    /// File cells per core-second: `file_cells / (seconds * threads)`.
+    pub fn cells_per_core_second(&self) -> f64 {
+        self.file_cells as f64 / (self.seconds * self.threads.max(1) as f64)
+    }
+
+    /// Emitted voxels per second.
+    pub fn active_per_second(&self) -> f64 {
+        self.active as f64 / self.seconds
+    }
+
+    /// The statistics as one JSON object.
+    pub fn to_json(&self) -> String {
+        let resident = self
+            .resident_bytes
+            .map_or("null".to_string(), |b| b.to_string());
+        format!(
+            concat!(
+                "{{\"field\":{:?},\"iso\":{},\"active\":{},\"active_duals\":{},\"leaves_visited\":{},",
+                "\"leaves_total\":{},\"evaluated\":{},\"file_cells\":{},\"seconds\":{},\"threads\":{},",
+                "\"decompressions\":{},\"resident_bytes\":{},\"file_bytes\":{},",
+                "\"cells_per_core_second\":{},\"active_per_second\":{}}}"
+            ),
+            self.field,
+            json_f64(f64::from(self.iso)),
+            self.active,
+            self.active_duals,
+            self.leaves_visited,
+            self.leaves_total,
+            self.evaluated,
+            self.file_cells,
+            json_f64(self.seconds),
+            self.threads,
+            self.decompressions,
+            resident,
+            self.file_bytes,
+            json_f64(self.cells_per_core_second()),
+            json_f64(self.active_per_second()),
+        )
+    }
+}
+
+fn json_f64(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x}")
+    } else {
+        "null".to_string()
+    }
+}
+
+impl fmt::Display for ExtractStats {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "field '{}' iso {}: {} active voxels ({} merged dual cells), {} of {} leaves visited, \
+             {} voxels evaluated, {:.3} s on {} threads ({:.1} M file cells per core-second, \
+             {:.1} M voxels per second), {} bricks decompressed",
+            self.field,
+            self.iso,
+            self.active,
+            self.active_duals,
+            self.leaves_visited,
+            self.leaves_total,
+            self.evaluated,
+            self.seconds,
+            self.threads,
+            self.cells_per_core_second() / 1e6,
+            self.active_per_second() / 1e6,
+            self.decompressions,
+        )?;
+        if let Some(r) = self.resident_bytes {
+            write!(
+                f,
+                ", {:.1} MiB of the {:.1} MiB map resident",
+                r as f64 / 1048576.0,
+                self.file_bytes as f64 / 1048576.0
+            )?;
+        }
+        Ok(())
+    }
+}

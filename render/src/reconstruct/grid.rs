@@ -1,0 +1,130 @@
+//! Doubled finest-level coordinates: the integer space every location is computed in.
+//!
+//! A point's doubled coordinate on an axis is twice its position in finest-level cells,
+//! relative to the finest domain's lower corner. Every cell face, cell centre and octant vertex
+//! of every level is then an integer, whatever the refinement ratios, so locating a point on a
+//! boundary is an exact integer rule: a point nudged toward `+` on an axis lies in the cell whose
+//! half-open box contains it from the `+` side. World coordinates enter only in
+//! [`Grid::to_doubled`] and [`Grid::to_world`].
+
+use amr_format::{AmrkFile, IBox};
+
+/// The geometry of a file's levels in doubled finest-level coordinates.
+#[derive(Clone, Debug)]
+pub struct Grid {
+    /// Per level: the width of one cell in finest-level cells.
+    scale: Vec<[i64; 3]>,
+    /// Per level: the index domain.
+    domains: Vec<IBox>,
+    /// The finest domain's lower corner in absolute finest-level indices.
+    offset: [i64; 3],
+    /// The finest domain's extent in finest-level cells.
+    extent: [i64; 3],
+    world_origin: [f64; 3],
+    world_cell: [f64; 3],
+}
+
+impl Grid {
+    /// The geometry of `file`.
+    pub fn new<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> Self {
+        let levels = file.levels();
+        let finest = levels.last().expect("an open file has at least one level");
+        let domain = file.finest_domain();
+        Self {
+            scale: levels.iter().map(|l| l.finest_scale).collect(),
+            domains: levels.iter().map(|l| l.domain).collect(),
+            offset: domain.lo,
+            extent: domain.extent(),
+            world_origin: finest.origin,
+            world_cell: finest.cell_size,
+        }
+    }
+
+    /// Number of levels.
+    pub fn num_levels(&self) -> usize {
+        self.scale.len()
+    }
+
+    /// Width of one cell of `level` in finest-level cells.
+    pub fn scale(&self, level: u32) -> [i64; 3] {
+        self.scale[level as usize]
+    }
+
+    /// The index domain of `level`.
+    pub fn domain(&self, level: u32) -> IBox {
+        self.domains[level as usize]
+    }
+
+    /// The finest domain's extent in finest-level cells.
+    pub fn extent(&self) -> [i64; 3] {
+        self.extent
+    }
+
+    /// The finest domain's lower corner in absolute finest-level indices.
+    pub fn offset(&self) -> [i64; 3] {
+        self.offset
+    }
+
+    /// The doubled coordinate of the centre of cell `cell` (absolute index) of `level`.
+    pub fn centre(&self, level: u32, cell: [i64; 3]) -> [i64; 3] {
+        let s = self.scale(level);
+        [0, 1, 2].map(|a| 2 * (cell[a] * s[a] - self.offset[a]) + s[a])
+    }
+
+    /// The cell of `level` (absolute index) holding finest-level cell `finest` (relative).
+    pub fn cell_of(&self, level: u32, finest: [i64; 3]) -> [i64; 3] {
+        let s = self.scale(level);
+        [0, 1, 2].map(|a| (finest[a] + self.offset[a]).div_euclid(s[a]))
+    }
+
+    /// The finest-level cells (relative) of cell `cell` of `level`.
+    pub fn finest_box(&self, level: u32, cell: [i64; 3]) -> IBox {
+        let s = self.scale(level);
+        IBox::new(
+            [0, 1, 2].map(|a| cell[a] * s[a] - self.offset[a]),
+            [0, 1, 2].map(|a| (cell[a] + 1) * s[a] - self.offset[a]),
+        )
+    }
+
+    /// The cells of `level` (absolute) overlapping the finest-level box `finest` (relative).
+    pub fn level_box(&self, level: u32, finest: &IBox) -> IBox {
+        let s = self.scale(level);
+        let shifted = IBox::new(
+            [0, 1, 2].map(|a| finest.lo[a] + self.offset[a]),
+            [0, 1, 2].map(|a| finest.hi[a] + self.offset[a]),
+        );
+        shifted.coarsen(s)
+    }
+
+    /// The finest-level cell (relative) holding doubled point `p` nudged toward `dir`
+    /// (bit `a` set: toward `+` on axis `a`), clamped into the domain.
+    pub fn finest_cell(&self, p: [i64; 3], dir: u8) -> [i64; 3] {
+        [0, 1, 2].map(|a| {
+            let f = if dir >> a & 1 == 1 {
+                p[a].div_euclid(2)
+            } else {
+                (p[a] - 1).div_euclid(2)
+            };
+            f.clamp(0, self.extent[a] - 1)
+        })
+    }
+
+    /// True when the doubled point `p` lies in the closed domain.
+    pub fn contains_point(&self, p: [i64; 3]) -> bool {
+        (0..3).all(|a| 0 <= p[a] && p[a] <= 2 * self.extent[a])
+    }
+
+    /// World position of a doubled point.
+    pub fn to_world(&self, p: [f64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|a| {
+            self.world_origin[a] + self.world_cell[a] * (0.5 * p[a] + self.offset[a] as f64)
+        })
+    }
+
+    /// Doubled coordinates of a world position.
+    pub fn to_doubled(&self, x: [f64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|a| {
+            2.0 * ((x[a] - self.world_origin[a]) / self.world_cell[a] - self.offset[a] as f64)
+        })
+    }
+}

@@ -1,0 +1,19 @@
+//! Reconstructing a continuous field from cell-centred AMR bricks.
+//!
+//! - [`grid`]: doubled finest-level integer coordinates, where every location is exact.
+//! - [`interp`]: trilinear interpolation and averages in one fixed evaluation order.
+//! - [`cache`]: a bounded cache of decoded (decompressed) bricks.
+//! - [`sampler`]: leaf-cell location and the octant method's vertex values.
+//! - [`methods`]: point sampling with `nearest`, `current`, `finest` and `octant`.
+//!
+//! `docs/reconstruction.md` gives the rules and the reasons for them.
+
+pub mod cache;
+pub mod grid;
+pub mod interp;
+pub mod methods;
+pub mod sampler;
+
+pub use grid::Grid;
+pub use methods::Method;
+pub use sampler::{LeafCell, Octant, Sampler, Slab};

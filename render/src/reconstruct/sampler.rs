@@ -1,0 +1,313 @@
+//! The sampler: locating leaf cells and evaluating the octant method's vertex values.
+//!
+//! All location is integer arithmetic in doubled finest-level coordinates ([`Grid`]). The value
+//! of an octant vertex is a function of the vertex's position alone (and of whether the asking
+//! octant's level is finer than the coarsest leaf cell touching it), computed by the same
+//! operations in the same order whichever octant asks, so octants sharing a vertex get
+//! bit-identical values there. The rules are in `docs/reconstruction.md`.
+
+use std::borrow::Cow;
+use std::ops::Deref;
+use std::sync::Arc;
+
+use amr_format::{AmrkFile, FormatError, IBox, Result};
+
+use super::cache::BrickCache;
+use super::grid::Grid;
+use super::interp::{avg8, trilinear};
+
+/// The leaf cell at a point: the finest cell any brick holds there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LeafCell {
+    /// The kd-tree leaf the point lies in.
+    pub leaf: u32,
+    /// The brick holding the cell.
+    pub brick: u32,
+    /// The cell's level.
+    pub level: u32,
+    /// The cell's index in its level's index space.
+    pub cell: [i64; 3],
+    /// The cell's value.
+    pub value: f32,
+}
+
+/// One octant of one cell: the eighth of the cell between its centre and corner `octant`
+/// (bit `a` set: the upper side of axis `a`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Octant {
+    /// The cell's level.
+    pub level: u32,
+    /// The cell's index in its level's index space.
+    pub cell: [i64; 3],
+    /// Which octant, 0 to 7.
+    pub octant: u8,
+}
+
+/// A brick's values: borrowed from the file when stored raw, shared from the cache otherwise.
+pub enum Slab<'f> {
+    /// Read in place.
+    Borrowed(&'f [f32]),
+    /// Decoded into the cache.
+    Shared(Arc<[f32]>),
+}
+
+impl Deref for Slab<'_> {
+    type Target = [f32];
+    fn deref(&self) -> &[f32] {
+        match self {
+            Slab::Borrowed(s) => s,
+            Slab::Shared(s) => s,
+        }
+    }
+}
+
+/// Reconstructs one field of an open file.
+pub struct Sampler<'f, D> {
+    file: &'f AmrkFile<D>,
+    field: usize,
+    grid: Grid,
+    /// Per leaf: its finest brick and that brick's level, `None` where no brick covers it.
+    leaf_top: Vec<Option<(u32, u32)>>,
+    /// Per brick: its cells in its level's index space.
+    brick_cells: Vec<IBox>,
+    cache: BrickCache,
+}
+
+impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
+    /// A sampler of field `field` of `file`, decoding compressed bricks through a cache of about
+    /// `cache_bytes`.
+    pub fn new(file: &'f AmrkFile<D>, field: usize, cache_bytes: usize) -> Result<Self> {
+        if field >= file.fields().len() {
+            return Err(FormatError::Usage(format!(
+                "field {field} does not exist ({} fields)",
+                file.fields().len()
+            )));
+        }
+        let leaf_top = (0..file.num_leaves() as u32)
+            .map(|l| {
+                file.leaf(l).bricks.first().map(|b| {
+                    let b = b.get();
+                    (b, file.brick(b as usize).level)
+                })
+            })
+            .collect();
+        let brick_cells = (0..file.num_bricks())
+            .map(|b| file.brick(b).cells)
+            .collect();
+        Ok(Self {
+            file,
+            field,
+            grid: Grid::new(file),
+            leaf_top,
+            brick_cells,
+            cache: BrickCache::new(cache_bytes),
+        })
+    }
+
+    /// The file.
+    pub fn file(&self) -> &'f AmrkFile<D> {
+        self.file
+    }
+
+    /// The field sampled.
+    pub fn field(&self) -> usize {
+        self.field
+    }
+
+    /// The file's geometry.
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    /// Leaf `leaf`'s finest brick and its level, `None` for a leaf no brick covers.
+    pub fn leaf_top(&self, leaf: u32) -> Option<(u32, u32)> {
+        self.leaf_top[leaf as usize]
+    }
+
+    /// Brick `brick`'s cells in its level's index space.
+    pub fn brick_cells(&self, brick: u32) -> IBox {
+        self.brick_cells[brick as usize]
+    }
+
+    /// Number of bricks decoded into the cache so far.
+    pub fn decodes(&self) -> u64 {
+        self.cache.decodes()
+    }
+
+    /// Brick `brick`'s values of the sampled field.
+    pub fn values(&self, brick: u32) -> Result<Slab<'f>> {
+        let file: &'f AmrkFile<D> = self.file;
+        if file.brick_data(self.field, brick as usize).encoding.get()
+            == amr_format::raw::ENCODING_RAW
+        {
+            if let Cow::Borrowed(v) = file.brick_values(self.field, brick as usize)? {
+                return Ok(Slab::Borrowed(v));
+            }
+        }
+        let cells = self.brick_cells[brick as usize].num_cells().unwrap_or(0) as usize;
+        let shared = self.cache.get(brick, cells, || {
+            let mut out = Vec::with_capacity(cells);
+            file.brick_values_into(self.field, brick as usize, &mut out)?;
+            Ok(out)
+        })?;
+        Ok(Slab::Shared(shared))
+    }
+
+    /// The leaf cell holding finest-level cell `finest` (relative to the domain), `None` outside
+    /// the domain or where no brick covers it.
+    pub fn locate(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
+        let Some(leaf) = self.file.tree().find_leaf(finest) else {
+            return Ok(None);
+        };
+        let Some((brick, level)) = self.leaf_top[leaf as usize] else {
+            return Ok(None);
+        };
+        let cell = self.grid.cell_of(level, finest);
+        let cells = &self.brick_cells[brick as usize];
+        let value = self.values(brick)?[cells.linear_index(cell)];
+        Ok(Some(LeafCell {
+            leaf,
+            brick,
+            level,
+            cell,
+            value,
+        }))
+    }
+
+    /// The leaf cells touching doubled point `v` from its eight sides (side `n`: nudged toward
+    /// `+` on axis `a` when bit `a` of `n` is set), clamped into the domain.
+    pub fn around(&self, v: [i64; 3]) -> Result<Option<[LeafCell; 8]>> {
+        let mut finest = [[0i64; 3]; 8];
+        let mut out = [None::<LeafCell>; 8];
+        for n in 0..8 {
+            finest[n] = self.grid.finest_cell(v, n as u8);
+            out[n] = match (0..n).find(|&m| finest[m] == finest[n]) {
+                Some(m) => out[m],
+                None => match self.locate(finest[n])? {
+                    Some(c) => Some(c),
+                    None => return Ok(None),
+                },
+            };
+        }
+        Ok(Some(out.map(|c| c.expect("every side was located"))))
+    }
+
+    /// The value at octant vertex `v` as seen by an octant of level `level`.
+    ///
+    /// Where a leaf cell coarser than `level` touches `v` (the fine side of a level boundary),
+    /// the value is the coarse side's interpolant at `v` ([`Self::coarse_value`]); everywhere
+    /// else it is the mean of the eight leaf cells touching `v` ([`avg8`]), which is the mean of
+    /// the dual cell's corners away from boundaries and the finest-level lerp on a boundary's
+    /// coarse side. `None` where a cell touching `v` is not covered by any brick.
+    pub fn vertex_value(&self, v: [i64; 3], level: u32) -> Result<Option<f32>> {
+        let Some(cells) = self.around(v)? else {
+            return Ok(None);
+        };
+        self.vertex_value_from(v, level, &cells)
+    }
+
+    /// [`Self::vertex_value`] given the leaf cells around `v` (as [`Self::around`] finds them).
+    pub fn vertex_value_from(
+        &self,
+        v: [i64; 3],
+        level: u32,
+        cells: &[LeafCell; 8],
+    ) -> Result<Option<f32>> {
+        let coarsest = cells.iter().map(|c| c.level).min().unwrap_or(level);
+        if coarsest < level {
+            return self.coarse_value(v, cells, coarsest);
+        }
+        Ok(Some(avg8(&cells.map(|c| c.value))))
+    }
+
+    /// The interpolant of the coarsest leaf cell touching `v` (level `coarsest`), evaluated at
+    /// `v`. The cell is the first of the eight sides of `v` holding that level, so the choice
+    /// depends on `v` only, never on who asks.
+    pub fn coarse_value(
+        &self,
+        v: [i64; 3],
+        cells: &[LeafCell; 8],
+        coarsest: u32,
+    ) -> Result<Option<f32>> {
+        let side = cells
+            .iter()
+            .position(|c| c.level == coarsest)
+            .expect("the coarsest level is present");
+        let q = cells[side];
+        let centre = self.grid.centre(q.level, q.cell);
+        let mut octant = 0u8;
+        for a in 0..3 {
+            if v[a] > centre[a] || (v[a] == centre[a] && side >> a & 1 == 1) {
+                octant |= 1 << a;
+            }
+        }
+        let Some(corners) = self.corners(q.level, q.cell, q.value, octant)? else {
+            return Ok(None);
+        };
+        let (lo, _) = self.octant_box(&Octant {
+            level: q.level,
+            cell: q.cell,
+            octant,
+        });
+        let s = self.grid.scale(q.level);
+        let t = [0, 1, 2].map(|a| ((v[a] - lo[a]) as f64 / s[a] as f64) as f32);
+        Ok(Some(trilinear(&corners, t)))
+    }
+
+    /// The box of an octant in doubled coordinates: `(lo, hi)`.
+    pub fn octant_box(&self, o: &Octant) -> ([i64; 3], [i64; 3]) {
+        let c = self.grid.centre(o.level, o.cell);
+        let s = self.grid.scale(o.level);
+        let lo = [0, 1, 2].map(|a| {
+            if o.octant >> a & 1 == 1 {
+                c[a]
+            } else {
+                c[a] - s[a]
+            }
+        });
+        (lo, [0, 1, 2].map(|a| lo[a] + s[a]))
+    }
+
+    /// The corner values of octant `octant` of leaf cell `cell` of `level`, whose value is `value`.
+    pub fn corners(
+        &self,
+        level: u32,
+        cell: [i64; 3],
+        value: f32,
+        octant: u8,
+    ) -> Result<Option<[f32; 8]>> {
+        let (lo, _) = self.octant_box(&Octant {
+            level,
+            cell,
+            octant,
+        });
+        let s = self.grid.scale(level);
+        let mut out = [0f32; 8];
+        for (n, slot) in out.iter_mut().enumerate() {
+            // The corner at the cell centre carries the cell's value.
+            if (0..3).all(|a| ((n >> a) & 1) as u8 == ((octant >> a) & 1) ^ 1) {
+                *slot = value;
+                continue;
+            }
+            let v = [0, 1, 2].map(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
+            match self.vertex_value(v, level)? {
+                Some(x) => *slot = x,
+                None => return Ok(None),
+            }
+        }
+        Ok(Some(out))
+    }
+
+    /// The corner values of an octant of a leaf cell; `None` when the cell is not a leaf cell or
+    /// a cell touching the octant is not covered by any brick.
+    pub fn octant_values(&self, o: &Octant) -> Result<Option<[f32; 8]>> {
+        let centre = self.grid.centre(o.level, o.cell);
+        let Some(c) = self.locate(self.grid.finest_cell(centre, 7))? else {
+            return Ok(None);
+        };
+        if c.level != o.level || c.cell != o.cell {
+            return Ok(None);
+        }
+        self.corners(o.level, o.cell, c.value, o.octant)
+    }
+}

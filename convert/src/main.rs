@@ -8,13 +8,13 @@ use amr_convert::synth_cmd::{run_synth, SynthArgs};
 use amr_format::Compression;
 use clap::{Parser, Subcommand};
 
-/// Streams AMR simulation dumps (AMReX plotfiles) into one memory-mappable .amrk file.
+/// Streams AMR simulation dumps (AMReX plotfiles, Chombo HDF5 plotfiles) into one memory-mappable .amrk file.
 #[derive(Parser, Debug)]
 #[command(version, args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
-    /// The dump to convert: an AMReX plotfile directory.
+    /// The dump to convert: an AMReX plotfile directory or a Chombo HDF5 plotfile (.h5, .hdf5).
     #[arg(required = true)]
     input: Option<PathBuf>,
     /// The .amrk file to write (written to a temporary file, renamed when complete).

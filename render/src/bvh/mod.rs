@@ -90,6 +90,10 @@ impl BvhBuilder {
         let mut perm = std::mem::take(&mut out.bvh.primitive_indices);
         gather_in_place(&mut out.refs, &mut perm);
         out.refs.shrink_to_fit();
+        out.bvh.nodes.shrink_to_fit();
+        out.bvh.primitive_indices = perm;
+        out.bvh.primitive_indices.clear();
+        out.bvh.primitive_indices.shrink_to_fit();
         self.last_scratch_bytes = self.boxes.capacity() * size_of::<Aabb>()
             + (self.ploc.current_nodes.capacity()
                 + self.ploc.next_nodes.capacity()

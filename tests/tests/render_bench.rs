@@ -1,0 +1,142 @@
+//! Measurements for docs/benchmarks-render.md (ignored by default; run with
+//! `cargo test --release -p amr-tests --test render_bench -- --ignored --nocapture`).
+
+mod render_support;
+
+use std::time::Instant;
+
+use amr_render::bvh::BvhBuilder;
+use amr_render::render_cmd::{peak_rss_bytes, render_source, Method, RenderConfig};
+use amr_render::shade::IsoSpec;
+use render_support::sphere_grid;
+
+fn config(method: Method, step: Option<f64>, ao: u32) -> RenderConfig {
+    RenderConfig {
+        isos: vec![
+            "0:gold".parse::<IsoSpec>().unwrap(),
+            "0.45:#4080ff:0.35".parse::<IsoSpec>().unwrap(),
+        ],
+        size: (1024, 768),
+        camera: Some(([9.0, -5.0, 6.5], Some([2.0, 2.0, 2.0]), None)),
+        fov: 30.0,
+        method,
+        step,
+        spp: 1,
+        shadows: true,
+        ao,
+        smooth_normals: true,
+    }
+}
+
+#[test]
+#[ignore]
+fn frame_times_and_memory() {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let t = Instant::now();
+    let grid = sphere_grid(5, 3, 4, 1.3, [0.0; 3], 1.0);
+    eprintln!(
+        "grid: {} voxels, built in {:.2} s",
+        grid.voxels().len(),
+        t.elapsed().as_secs_f64()
+    );
+    let hybrid = render_source(&grid, &config(Method::Hybrid, None, 0), &|_| {}).unwrap();
+    let r = &hybrid;
+    let per = (r.refs_bytes + r.bvh_bytes) as f64 / r.active_octants as f64;
+    eprintln!(
+        "hybrid 1024x768 shadows: {:.1} ms, {} ray queries, {:.2} M rays/s/core, {} active voxels, \
+         refs {} B + bvh {} B = {per:.2} B/voxel, build scratch {} B ({:.1} B/voxel), bvh {:.2} ms",
+        r.render.as_secs_f64() * 1e3,
+        r.rays,
+        r.rays as f64 / r.render.as_secs_f64() / threads as f64 / 1e6,
+        r.active_octants,
+        r.refs_bytes,
+        r.bvh_bytes,
+        r.build_scratch_bytes,
+        r.build_scratch_bytes as f64 / r.active_octants as f64,
+        r.bvh.as_secs_f64() * 1e3
+    );
+    let ao = render_source(&grid, &config(Method::Hybrid, None, 4), &|_| {}).unwrap();
+    eprintln!(
+        "hybrid 1024x768 shadows + 4 AO rays: {:.1} ms, {} ray queries",
+        ao.render.as_secs_f64() * 1e3,
+        ao.rays
+    );
+    for step in [0.1, 0.05, 0.02, 0.01, 0.005, 0.002] {
+        let s = render_source(&grid, &config(Method::Sample, Some(step), 0), &|_| {}).unwrap();
+        let (a, b) = (&hybrid.frame, &s.frame);
+        let mut coverage = 0;
+        let mut zerr = 0.0f64;
+        let mut n = 0;
+        let mut worst = 0.0f64;
+        for i in 0..a.len() {
+            if (a.alpha[i] > 0.0) != (b.alpha[i] > 0.0) {
+                coverage += 1;
+            } else if a.alpha[i] > 0.0 {
+                let e = f64::from((a.z[i] - b.z[i]).abs());
+                zerr += e;
+                worst = worst.max(e);
+                n += 1;
+            }
+        }
+        eprintln!(
+            "sample step {step} (finest voxel 1/16 = 0.0625): {:.1} ms, coverage mismatches {coverage}, \
+             mean |dZ| {:.2e}, max |dZ| {:.2e}",
+            s.render.as_secs_f64() * 1e3,
+            zerr / n.max(1) as f64,
+            worst
+        );
+    }
+    eprintln!("peak RSS {:?} B", peak_rss_bytes());
+}
+
+#[test]
+#[ignore]
+fn bvh_build_rate() {
+    // Active voxels of sin(kx)sin(ky)sin(kz) = 0.3 on a 192^3 grid: refs are voxel indices.
+    let n = 192u64;
+    let k = 4.0 * std::f64::consts::PI / n as f64;
+    let f =
+        |i: u64, j: u64, l: u64| (k * i as f64).sin() * (k * j as f64).sin() * (k * l as f64).sin();
+    let mut refs = Vec::new();
+    for l in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let mut lo = f64::INFINITY;
+                let mut hi = f64::NEG_INFINITY;
+                for c in 0..8 {
+                    let v = f(i + (c & 1), j + (c >> 1 & 1), l + (c >> 2));
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+                if lo <= 0.3 && 0.3 <= hi {
+                    refs.push(i + n * (j + n * l));
+                }
+            }
+        }
+    }
+    let bounds = move |r: u64| {
+        let p = [r % n, (r / n) % n, r / (n * n)].map(|x| x as f64);
+        (p, p.map(|x| x + 1.0))
+    };
+    let mut builder = BvhBuilder::new();
+    for round in 0..3 {
+        let rss0 = peak_rss_bytes();
+        let t = Instant::now();
+        let bvh = builder.build(&refs, 1e-3, bounds);
+        let s = t.elapsed().as_secs_f64();
+        eprintln!(
+            "round {round}: {} voxels in {:.1} ms: {:.2} M voxels/s on {} threads; resident {:.2} B/voxel \
+             (refs {} + nodes {}); scratch {:.1} B/voxel; peak RSS {:?} -> {:?}",
+            refs.len(),
+            s * 1e3,
+            refs.len() as f64 / s / 1e6,
+            std::thread::available_parallelism().map_or(1, |n| n.get()),
+            (bvh.refs_bytes() + bvh.bvh_bytes()) as f64 / refs.len() as f64,
+            bvh.refs_bytes(),
+            bvh.bvh_bytes(),
+            builder.last_scratch_bytes as f64 / refs.len() as f64,
+            rss0,
+            peak_rss_bytes()
+        );
+    }
+}

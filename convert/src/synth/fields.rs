@@ -22,6 +22,12 @@ pub trait AnalyticField {
         None
     }
 
+    /// A lower bound on the distance from `p` to the isosurface `value == iso` (0 when nothing
+    /// better is known), from a Lipschitz bound on the field or on a function of it.
+    fn distance_lower_bound(&self, _p: [f64; 3], _iso: f64) -> f64 {
+        0.0
+    }
+
     /// The distance from `p` to the isosurface `value == iso`: exact where known, otherwise the
     /// first-order estimate `|f - iso| / |grad f|` (infinite where the gradient vanishes away from `iso`).
     fn distance_estimate(&self, p: [f64; 3], iso: f64) -> f64 {
@@ -173,6 +179,18 @@ impl AnalyticField for Case {
         }
     }
 
+    /// The sphere is a distance field; for the blobs `1/f = r1 r2 / (r1 + r2)` has a gradient of
+    /// length at most 1; the ripple's squared gradient over `k^2` is multilinear in the squared
+    /// sines, so its maximum, 1, sits at a corner of `[0,1]^3`.
+    fn distance_lower_bound(&self, p: [f64; 3], iso: f64) -> f64 {
+        match self {
+            Case::Sphere => (self.value(p) - iso).abs(),
+            Case::Blobs if iso > 0.0 => (1.0 / self.value(p) - 1.0 / iso).abs(),
+            Case::Blobs => 0.0,
+            Case::Ripple => (self.value(p) - iso).abs() / RIPPLE_K,
+        }
+    }
+
     /// For the blobs, the first-order estimate of `1/f`, which is exact for one blob and stays
     /// well-behaved near the centres, where `f`'s own estimate collapses.
     fn distance_estimate(&self, p: [f64; 3], iso: f64) -> f64 {
@@ -232,6 +250,14 @@ impl<F: AnalyticField> AnalyticField for Placed<F> {
         self.field
             .distance_to_surface(self.to_unit(p), iso)
             .map(|d| d * self.size)
+    }
+
+    fn distance_estimate(&self, p: [f64; 3], iso: f64) -> f64 {
+        self.field.distance_estimate(self.to_unit(p), iso) * self.size
+    }
+
+    fn distance_lower_bound(&self, p: [f64; 3], iso: f64) -> f64 {
+        self.field.distance_lower_bound(self.to_unit(p), iso) * self.size
     }
 }
 
@@ -301,6 +327,24 @@ mod tests {
                 }
             }
             assert!(crossed, "{case} has no surface");
+        }
+    }
+
+    #[test]
+    fn lower_bounds_never_exceed_the_distance_to_a_crossing() {
+        for case in Case::ALL {
+            let iso = case.default_iso();
+            for p in points() {
+                let lb = case.distance_lower_bound(p, iso);
+                let above = case.value(p) > iso;
+                for q in points() {
+                    let d = norm(sub(p, q));
+                    if d < lb {
+                        let msg = format!("{case}: {p:?} has bound {lb}, but {q:?} at {d} crosses");
+                        assert_eq!(case.value(q) > iso, above, "{msg}");
+                    }
+                }
+            }
         }
     }
 

@@ -83,12 +83,19 @@ where
 ///
 /// The field is sampled on a `5^3` grid over the block grown by one parent cell; the block is
 /// near the surface when the samples straddle `iso` or one of them lies within the sampling
-/// radius of it, by the field's [`AnalyticField::distance_estimate`].
+/// radius of it, by the field's [`AnalyticField::distance_estimate`]. A block that the field's
+/// [`AnalyticField::distance_lower_bound`] at its centre puts beyond that reach is rejected after
+/// one evaluation.
 pub fn near_surface<F: AnalyticField + ?Sized>(field: &F, iso: f64, block: &Block) -> bool {
     let lo = block.lo.map(|x| x - block.parent_cell);
     let hi = block.hi.map(|x| x + block.parent_cell);
     let step = [0, 1, 2].map(|a| (hi[a] - lo[a]) / (SAMPLES - 1) as f64);
-    let radius = SAFETY * 0.5 * (step[0] * step[0] + step[1] * step[1] + step[2] * step[2]).sqrt();
+    let radius = SAFETY * 0.5 * length(step);
+    let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
+    let half_diagonal = 0.5 * length([0, 1, 2].map(|a| hi[a] - lo[a]));
+    if field.distance_lower_bound(centre, iso) > half_diagonal + radius {
+        return false;
+    }
     let mut side = None;
     for k in 0..SAMPLES {
         for j in 0..SAMPLES {
@@ -107,6 +114,10 @@ pub fn near_surface<F: AnalyticField + ?Sized>(field: &F, iso: f64, block: &Bloc
         }
     }
     false
+}
+
+fn length(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
 /// Builds the levels in turn, handing each level's brick boxes to `visit`; stops when a level
@@ -181,8 +192,16 @@ mod tests {
         let mut by_level: Vec<HashMap<[i64; 3], IBox>> = vec![HashMap::new(); nl];
         for b in &spec.bricks {
             let c = b.cells;
-            assert!(c.lo.iter().all(|x| x % brick == 0) && c.extent().iter().all(|&e| e <= brick), "unaligned {c:?}");
-            assert!(by_level[b.level as usize].insert(c.lo, c).is_none(), "level {}: two bricks at {:?}", b.level, c.lo);
+            assert!(
+                c.lo.iter().all(|x| x % brick == 0) && c.extent().iter().all(|&e| e <= brick),
+                "unaligned {c:?}"
+            );
+            assert!(
+                by_level[b.level as usize].insert(c.lo, c).is_none(),
+                "level {}: two bricks at {:?}",
+                b.level,
+                c.lo
+            );
         }
         let level0: u64 = by_level[0].values().map(|b| b.num_cells().unwrap()).sum();
         assert_eq!(level0, spec.levels[0].domain.num_cells().unwrap());
@@ -205,7 +224,13 @@ mod tests {
     #[test]
     fn nested_without_overlap_for_ratios_2_and_4() {
         for case in Case::ALL {
-            for (levels, ratio, base, brick) in [(3, 2, 32, 8), (4, 4, 8, 8), (3, 4, 12, 6), (3, 3, 20, 7), (2, 2, 16, 16)] {
+            for (levels, ratio, base, brick) in [
+                (3, 2, 32, 8),
+                (4, 4, 8, 8),
+                (3, 4, 12, 6),
+                (3, 3, 20, 7),
+                (2, 2, 16, 16),
+            ] {
                 let p = params(levels, ratio, base, brick);
                 let spec = build_hierarchy(&case, case.name(), &p).unwrap();
                 assert_eq!(spec.levels.len(), levels as usize, "{case} {p:?}");
@@ -222,7 +247,9 @@ mod tests {
         let target = [0.3, 0.7, 0.41];
         for ratio in [2, 3, 4] {
             let spec = build_hierarchy_by(&params(9, ratio, 8, 4), vec!["v".into()], |b| {
-                (0..3).all(|a| b.lo[a] - b.parent_cell <= target[a] && target[a] <= b.hi[a] + b.parent_cell)
+                (0..3).all(|a| {
+                    b.lo[a] - b.parent_cell <= target[a] && target[a] <= b.hi[a] + b.parent_cell
+                })
             })
             .unwrap();
             assert_eq!(spec.levels.len(), 9);
@@ -239,15 +266,23 @@ mod tests {
             for b in spec.bricks.iter().filter(|b| b.level > 0) {
                 let n = spec.levels[b.level as usize].domain.hi[0] as f64;
                 let reach = (b.cells.extent()[0] + 2) as f64 / n;
-                let (lo, hi) = (b.cells.lo.map(|x| x as f64 / n - reach), b.cells.hi.map(|x| x as f64 / n + reach));
+                let (lo, hi) = (
+                    b.cells.lo.map(|x| x as f64 / n - reach),
+                    b.cells.hi.map(|x| x as f64 / n + reach),
+                );
                 let m = 8;
                 let side = |i: usize, j: usize, k: usize| {
                     let t = [i, j, k].map(|x| x as f64 / m as f64);
                     case.value([0, 1, 2].map(|a| lo[a] + t[a] * (hi[a] - lo[a]))) > iso
                 };
                 let first = side(0, 0, 0);
-                let crosses = (0..=m).any(|i| (0..=m).any(|j| (0..=m).any(|k| side(i, j, k) != first)));
-                assert!(crosses, "{case}: level {} brick {:?} is far from the surface", b.level, b.cells);
+                let crosses =
+                    (0..=m).any(|i| (0..=m).any(|j| (0..=m).any(|k| side(i, j, k) != first)));
+                assert!(
+                    crosses,
+                    "{case}: level {} brick {:?} is far from the surface",
+                    b.level, b.cells
+                );
             }
             let finest = spec.levels.len() - 1;
             let fine_cells: u64 = spec
@@ -304,7 +339,12 @@ mod tests {
         for seed in 0..20u64 {
             let ratio = 2 + (seed % 3) as u32;
             let brick = 4 + (seed % 2) as u32 * 4;
-            let p = params(2 + (seed % 6) as u32, ratio, 8 + 4 * (seed % 3) as u32, brick);
+            let p = params(
+                2 + (seed % 6) as u32,
+                ratio,
+                8 + 4 * (seed % 3) as u32,
+                brick,
+            );
             let spec = build_hierarchy_by(&p, vec!["v".into()], |b| {
                 let h = (b.cells.lo[0] as u64 * 73856093)
                     ^ (b.cells.lo[1] as u64 * 19349663)

@@ -81,11 +81,18 @@ where
 /// The best multiple of `params.brick` as `base`: doubling the multiple until the total reaches
 /// the target, then bisecting. Growing from below keeps every count cheap: a level is only
 /// refined while the levels above it hold fewer cells than the target.
-fn fit_base<F>(field: &F, params: &SynthParams, target: u64) -> Result<(SynthParams, u64), FormatError>
+fn fit_base<F>(
+    field: &F,
+    params: &SynthParams,
+    target: u64,
+) -> Result<(SynthParams, u64), FormatError>
 where
     F: AnalyticField + Sync,
 {
-    let with = |k: u64| SynthParams { base: (k * u64::from(params.brick)).min(u64::from(u32::MAX)) as u32, ..params.clone() };
+    let with = |k: u64| SynthParams {
+        base: (k * u64::from(params.brick)).min(u64::from(u32::MAX)) as u32,
+        ..params.clone()
+    };
     let total = |k: u64, limit: u64| count_cells(field, &with(k), limit);
     with(1).validate()?;
     let (mut lo, mut hi) = (0, 1);
@@ -108,7 +115,11 @@ where
         return Ok((with(hi), above));
     }
     let below = total(lo, u64::MAX)?;
-    Ok(if misfit(below, target) < misfit(above, target) { (with(lo), below) } else { (with(hi), above) })
+    Ok(if misfit(below, target) < misfit(above, target) {
+        (with(lo), below)
+    } else {
+        (with(hi), above)
+    })
 }
 
 /// How far `total` is from `target`, as the absolute log of their ratio.
@@ -142,7 +153,11 @@ mod tests {
     #[test]
     fn fits_targets_from_1e5_to_1e8_within_a_factor_2() {
         for case in Case::ALL {
-            for (target, ratios) in [(100_000u64, &[2][..]), (1_000_000, &[2, 4]), (100_000_000, &[2, 4])] {
+            for (target, ratios) in [
+                (100_000u64, &[2][..]),
+                (1_000_000, &[2, 4]),
+                (100_000_000, &[2, 4]),
+            ] {
                 for &ratio in ratios {
                     let p = SynthParams {
                         ratio,

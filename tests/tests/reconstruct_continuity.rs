@@ -6,7 +6,7 @@ mod support;
 use std::collections::{HashMap, HashSet};
 
 use amr_format::AmrkFile;
-use amr_render::reconstruct::{Method, Octant, Sampler};
+use amr_render::reconstruct::{Method, Octant, Sampler, VertexMemo};
 use support::{build, standard_cases, Case, Rng};
 
 /// Every leaf cell of the file, once, with its value.
@@ -45,6 +45,7 @@ fn shared_vertices_are_bit_identical() {
         let (_, file) = build(&case);
         for field in 0..2 {
             let s = sampler(&case, &file, field);
+            let mut memo = VertexMemo::default();
             let mut seen: HashMap<[i64; 3], (f32, u32, Octant)> = HashMap::new();
             for (level, cell, _) in leaf_cells(&s) {
                 for octant in 0..8u8 {
@@ -54,7 +55,7 @@ fn shared_vertices_are_bit_identical() {
                         octant,
                     };
                     let v = s
-                        .octant_values(&o)
+                        .octant_values_memo(&o, &mut memo)
                         .unwrap()
                         .expect("level 0 covers the domain");
                     let (lo, hi) = s.octant_box(&o);

@@ -133,7 +133,9 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                             continue;
                         }
                         counts.evaluated += 1;
-                        let Some(v) = sampler.corners(level, cell, hood.value(i), octant)? else {
+                        let Some(v) =
+                            sampler.corners(level, cell, hood.value(i), octant, &mut hood.memo)?
+                        else {
                             continue;
                         };
                         let (vlo, vhi) = min_max(&v);

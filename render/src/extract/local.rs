@@ -7,7 +7,7 @@
 
 use amr_format::{IBox, Result};
 
-use crate::reconstruct::Sampler;
+use crate::reconstruct::{Sampler, VertexMemo};
 
 /// A leaf cell of the leaf's own level.
 pub const LEAF: u8 = 0;
@@ -32,6 +32,8 @@ pub struct Neighbourhood {
     /// True when every cell is [`LEAF`].
     pub all_leaf: bool,
     touching: Vec<u32>,
+    /// Vertex values of this leaf's boundary octants.
+    pub memo: VertexMemo,
 }
 
 impl Neighbourhood {

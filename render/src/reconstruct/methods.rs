@@ -4,7 +4,7 @@
 use amr_format::Result;
 
 use super::interp::trilinear;
-use super::sampler::{LeafCell, Sampler};
+use super::sampler::{LeafCell, Sampler, VertexMemo};
 
 /// A reconstruction method.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -57,7 +57,8 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 octant |= 1 << a;
             }
         }
-        let Some(corners) = self.corners(c.level, c.cell, c.value, octant)? else {
+        let mut memo = VertexMemo::default();
+        let Some(corners) = self.corners(c.level, c.cell, c.value, octant, &mut memo)? else {
             return Ok(None);
         };
         let t = [0, 1, 2].map(|a| {

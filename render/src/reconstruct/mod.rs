@@ -16,4 +16,4 @@ pub mod sampler;
 
 pub use grid::Grid;
 pub use methods::Method;
-pub use sampler::{LeafCell, Octant, Sampler, Slab};
+pub use sampler::{LeafCell, Octant, Sampler, Slab, VertexMemo};

@@ -7,6 +7,8 @@
 //! bit-identical values there. The rules are in `docs/reconstruction.md`.
 
 use std::borrow::Cow;
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 use std::ops::Deref;
 use std::sync::Arc;
 
@@ -58,6 +60,57 @@ impl Deref for Slab<'_> {
             Slab::Borrowed(s) => s,
             Slab::Shared(s) => s,
         }
+    }
+}
+
+/// Vertex values already computed, keyed by position and asking level: a per-thread scratch
+/// that saves recomputing the vertices octants share. Values are pure functions of the key, so
+/// a memo never changes a result. It forgets everything when it reaches its capacity.
+pub struct VertexMemo {
+    map: HashMap<([i64; 3], u32), Option<f32>, BuildHasherDefault<VertexHasher>>,
+    capacity: usize,
+}
+
+impl Default for VertexMemo {
+    fn default() -> Self {
+        Self {
+            map: HashMap::default(),
+            capacity: 1 << 16,
+        }
+    }
+}
+
+impl VertexMemo {
+    /// Forgets every value.
+    pub fn clear(&mut self) {
+        self.map.clear();
+    }
+}
+
+/// A multiply-rotate hasher for small integer keys.
+#[derive(Default)]
+struct VertexHasher(u64);
+
+impl Hasher for VertexHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+    fn write_u64(&mut self, x: u64) {
+        self.0 = (self.0.rotate_left(5) ^ x).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    fn write_i64(&mut self, x: i64) {
+        self.write_u64(x as u64);
+    }
+    fn write_u32(&mut self, x: u32) {
+        self.write_u64(u64::from(x));
+    }
+    fn write_usize(&mut self, x: usize) {
+        self.write_u64(x as u64);
     }
 }
 
@@ -199,11 +252,24 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// else it is the mean of the eight leaf cells touching `v` ([`avg8`]), which is the mean of
     /// the dual cell's corners away from boundaries and the finest-level lerp on a boundary's
     /// coarse side. `None` where a cell touching `v` is not covered by any brick.
-    pub fn vertex_value(&self, v: [i64; 3], level: u32) -> Result<Option<f32>> {
-        let Some(cells) = self.around(v)? else {
-            return Ok(None);
+    pub fn vertex_value(
+        &self,
+        v: [i64; 3],
+        level: u32,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<f32>> {
+        if let Some(&known) = memo.map.get(&(v, level)) {
+            return Ok(known);
+        }
+        let value = match self.around(v)? {
+            Some(cells) => self.vertex_value_from(v, level, &cells, memo)?,
+            None => None,
         };
-        self.vertex_value_from(v, level, &cells)
+        if memo.map.len() >= memo.capacity {
+            memo.map.clear();
+        }
+        memo.map.insert((v, level), value);
+        Ok(value)
     }
 
     /// [`Self::vertex_value`] given the leaf cells around `v` (as [`Self::around`] finds them).
@@ -212,10 +278,11 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         v: [i64; 3],
         level: u32,
         cells: &[LeafCell; 8],
+        memo: &mut VertexMemo,
     ) -> Result<Option<f32>> {
         let coarsest = cells.iter().map(|c| c.level).min().unwrap_or(level);
         if coarsest < level {
-            return self.coarse_value(v, cells, coarsest);
+            return self.coarse_value(v, cells, coarsest, memo);
         }
         Ok(Some(avg8(&cells.map(|c| c.value))))
     }
@@ -228,6 +295,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         v: [i64; 3],
         cells: &[LeafCell; 8],
         coarsest: u32,
+        memo: &mut VertexMemo,
     ) -> Result<Option<f32>> {
         let side = cells
             .iter()
@@ -241,7 +309,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 octant |= 1 << a;
             }
         }
-        let Some(corners) = self.corners(q.level, q.cell, q.value, octant)? else {
+        let Some(corners) = self.corners(q.level, q.cell, q.value, octant, memo)? else {
             return Ok(None);
         };
         let (lo, _) = self.octant_box(&Octant {
@@ -275,6 +343,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         cell: [i64; 3],
         value: f32,
         octant: u8,
+        memo: &mut VertexMemo,
     ) -> Result<Option<[f32; 8]>> {
         let (lo, _) = self.octant_box(&Octant {
             level,
@@ -290,7 +359,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 continue;
             }
             let v = [0, 1, 2].map(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
-            match self.vertex_value(v, level)? {
+            match self.vertex_value(v, level, memo)? {
                 Some(x) => *slot = x,
                 None => return Ok(None),
             }
@@ -308,6 +377,28 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         if c.level != o.level || c.cell != o.cell {
             return Ok(None);
         }
-        self.corners(o.level, o.cell, c.value, o.octant)
+        self.corners(
+            o.level,
+            o.cell,
+            c.value,
+            o.octant,
+            &mut VertexMemo::default(),
+        )
+    }
+
+    /// [`Self::octant_values`] remembering vertex values in `memo` for the next calls.
+    pub fn octant_values_memo(
+        &self,
+        o: &Octant,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<[f32; 8]>> {
+        let centre = self.grid.centre(o.level, o.cell);
+        let Some(c) = self.locate(self.grid.finest_cell(centre, 7))? else {
+            return Ok(None);
+        };
+        if c.level != o.level || c.cell != o.cell {
+            return Ok(None);
+        }
+        self.corners(o.level, o.cell, c.value, o.octant, memo)
     }
 }

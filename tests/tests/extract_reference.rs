@@ -1,0 +1,277 @@
+//! Extraction equals a brute-force reference that evaluates every octant of every leaf; every
+//! active voxel's corners lie in its leaf's stored range; the result does not depend on the run
+//! or the number of threads; compressed files decode each brick once. Failures name their seed.
+
+mod support;
+
+use std::collections::{HashMap, HashSet};
+
+use amr_format::AmrkFile;
+use amr_render::extract::{split_ref, Extractor};
+use amr_render::reconstruct::{Octant, Sampler, VertexMemo};
+use support::{build, standard_cases, Case, Rng};
+
+/// Every octant of every leaf, once (owned by the leaf holding its lowest finest cell), with its
+/// corner values.
+fn all_octants(s: &Sampler<'_, Vec<u8>>) -> HashMap<Octant, [f32; 8]> {
+    let file = s.file();
+    let mut out = HashMap::new();
+    let mut memo = VertexMemo::default();
+    for leaf in 0..file.num_leaves() as u32 {
+        let Some((_, level)) = s.leaf_top(leaf) else {
+            continue;
+        };
+        let lb = file.tree().leaf_box(leaf);
+        let cells = s.grid().level_box(level, &lb);
+        for z in cells.lo[2]..cells.hi[2] {
+            for y in cells.lo[1]..cells.hi[1] {
+                for x in cells.lo[0]..cells.hi[0] {
+                    for octant in 0..8u8 {
+                        let o = Octant {
+                            level,
+                            cell: [x, y, z],
+                            octant,
+                        };
+                        let (lo, _) = s.octant_box(&o);
+                        if !lb.contains_cell(lo.map(|v| v.div_euclid(2))) {
+                            continue;
+                        }
+                        let v = s
+                            .octant_values_memo(&o, &mut memo)
+                            .unwrap()
+                            .expect("level 0 covers the domain");
+                        assert!(out.insert(o, v).is_none(), "octant {o:?} owned twice");
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+fn straddles(v: &[f32; 8], iso: f32) -> bool {
+    let lo = v.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = v.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    lo < iso && iso <= hi
+}
+
+/// Isovalues: random ones in the field's range, and values of random cells.
+fn isovalues(
+    rng: &mut Rng,
+    octants: &HashMap<Octant, [f32; 8]>,
+    file: &AmrkFile<Vec<u8>>,
+    field: usize,
+) -> Vec<f32> {
+    let info = &file.fields()[field];
+    let values: Vec<f32> = octants.values().map(|v| v[0]).collect();
+    let mut out = vec![];
+    for _ in 0..3 {
+        out.push(info.min + (info.max - info.min) * rng.unit() as f32);
+        out.push(values[rng.below(values.len() as u64) as usize]);
+    }
+    out.push(info.min);
+    out.push(info.max);
+    out
+}
+
+fn check_case(case: &Case) {
+    let (_, file) = build(case);
+    let mut rng = Rng(case.seed ^ 0x1234);
+    let nb = file.num_bricks() as u64;
+    for field in 0..2 {
+        let ex = Extractor::new(&file, field, 64 << 20).unwrap();
+        let s = ex.sampler();
+        let octants = all_octants(s);
+        for iso in isovalues(&mut rng, &octants, &file, field) {
+            let ctx = format!("seed {} ({case:?}) field {field} iso {iso}", case.seed);
+            let result = ex.extract(iso).unwrap_or_else(|e| panic!("{ctx}: {e}"));
+            let refs = &result.refs;
+            let want: HashSet<Octant> = octants
+                .iter()
+                .filter(|(_, v)| straddles(v, iso))
+                .map(|(o, _)| *o)
+                .collect();
+            let mut covered: HashSet<Octant> = HashSet::new();
+            let mut last: Option<u64> = None;
+            for &r in refs {
+                assert!(
+                    last.is_none_or(|l| l < r),
+                    "{ctx}: refs not strictly increasing at {r:#x}"
+                );
+                last = Some(r);
+                let (leaf, _) = split_ref(r);
+                let vox = ex.decode(r).unwrap_or_else(|e| panic!("{ctx}: {e}"));
+                assert!(
+                    straddles(&vox.values, iso),
+                    "{ctx}: ref {r:#x} decodes to inactive {vox:?}"
+                );
+                let (rlo, rhi) = file.leaf_range(field, leaf);
+                for v in vox.values {
+                    assert!(
+                        rlo <= v && v <= rhi,
+                        "{ctx}: ref {r:#x} (leaf {leaf}) has corner value {v} outside the stored leaf range \
+                         {rlo}..{rhi}: amr-format/src/kdtree/ranges.rs is not conservative"
+                    );
+                }
+                let s_l = s.grid().scale(vox.level);
+                let parts: Vec<(Octant, f32)> = if vox.dual {
+                    (0..8)
+                        .map(|j| {
+                            let centre = [0, 1, 2].map(|a| {
+                                vox.lo_doubled[a] + if j >> a & 1 == 1 { 2 * s_l[a] } else { 0 }
+                            });
+                            let cell = s
+                                .locate(s.grid().finest_cell(centre, 7))
+                                .unwrap()
+                                .unwrap()
+                                .cell;
+                            (
+                                Octant {
+                                    level: vox.level,
+                                    cell,
+                                    octant: 7 - j as u8,
+                                },
+                                vox.values[j],
+                            )
+                        })
+                        .collect()
+                } else {
+                    let cell_centre = [0, 1, 2].map(|a| {
+                        if vox.lo_doubled[a] % (2 * s_l[a]) == 0 {
+                            0
+                        } else {
+                            0
+                        }
+                    });
+                    let _ = cell_centre;
+                    let at = s.grid().finest_cell(
+                        [0, 1, 2].map(|a| {
+                            vox.lo_doubled[a] + s_l[a].min(1) - 1
+                                + (vox.hi_doubled[a] - vox.lo_doubled[a]) / 2
+                        }),
+                        7,
+                    );
+                    let c = s.locate(at).unwrap().unwrap();
+                    let centre = s.grid().centre(c.level, c.cell);
+                    let octant = (0..3)
+                        .map(|a| u8::from(vox.lo_doubled[a] == centre[a]) << a)
+                        .sum();
+                    let o = Octant {
+                        level: c.level,
+                        cell: c.cell,
+                        octant,
+                    };
+                    assert_eq!(
+                        octants.get(&o),
+                        Some(&vox.values),
+                        "{ctx}: ref {r:#x} values differ from the reference"
+                    );
+                    assert!(
+                        want.contains(&o),
+                        "{ctx}: ref {r:#x} is {o:?}, inactive in the reference"
+                    );
+                    vec![(o, vox.values[0])]
+                };
+                if vox.dual {
+                    assert!(
+                        parts.iter().any(|(o, _)| want.contains(o)),
+                        "{ctx}: dual {r:#x} has no active octant"
+                    );
+                    for (o, centre_value) in &parts {
+                        let v = octants
+                            .get(o)
+                            .unwrap_or_else(|| panic!("{ctx}: dual {r:#x} names unknown {o:?}"));
+                        assert_eq!(
+                            v[7 - o.octant as usize],
+                            *centre_value,
+                            "{ctx}: dual {r:#x} corner of {o:?}"
+                        );
+                    }
+                }
+                for (o, _) in parts {
+                    assert!(covered.insert(o), "{ctx}: octant {o:?} emitted twice");
+                }
+            }
+            let missing: Vec<&Octant> = want.iter().filter(|o| !covered.contains(o)).collect();
+            assert!(
+                missing.is_empty(),
+                "{ctx}: {} active octants not emitted, e.g. {:?}",
+                missing.len(),
+                missing[0]
+            );
+            assert_eq!(result.stats.active, refs.len() as u64);
+            assert!(result.stats.decompressions <= nb);
+        }
+    }
+}
+
+#[test]
+fn extraction_equals_brute_force() {
+    for case in standard_cases(3) {
+        check_case(&case);
+    }
+}
+
+#[test]
+fn extraction_equals_brute_force_compressed() {
+    for mut case in standard_cases(1) {
+        case.zstd = true;
+        check_case(&case);
+    }
+}
+
+#[test]
+fn extraction_is_deterministic_across_runs_and_threads() {
+    for case in standard_cases(2) {
+        let (_, file) = build(&case);
+        let ex = Extractor::new(&file, 1, 64 << 20).unwrap();
+        for iso in [0.0f32, 0.125, -0.3, 0.7] {
+            let a = ex.extract(iso).unwrap().refs;
+            let b = ex.extract(iso).unwrap().refs;
+            let one = rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .build()
+                .unwrap();
+            let c = one.install(|| ex.extract(iso).unwrap().refs);
+            let many = rayon::ThreadPoolBuilder::new()
+                .num_threads(5)
+                .build()
+                .unwrap();
+            let d = many.install(|| ex.extract(iso).unwrap().refs);
+            assert!(
+                a == b && a == c && a == d,
+                "seed {} ({case:?}) iso {iso}: results differ",
+                case.seed
+            );
+        }
+    }
+}
+
+#[test]
+fn compressed_bricks_are_decoded_once_per_extraction() {
+    let mut case = Case::new(77, 3, 2);
+    case.zstd = true;
+    case.brick = 8;
+    let (_, file) = build(&case);
+    assert!(
+        file.fields()[1].compressed,
+        "seed 77: the file holds no compressed brick"
+    );
+    let ex = Extractor::new(&file, 1, 1 << 30).unwrap();
+    let first = ex.extract(0.3).unwrap();
+    assert!(
+        first.stats.decompressions > 0 && first.stats.decompressions <= file.num_bricks() as u64
+    );
+    let again = ex.extract(0.3).unwrap();
+    assert_eq!(
+        again.stats.decompressions, 0,
+        "a second extraction finds every brick in the cache"
+    );
+    assert_eq!(first.refs, again.refs);
+    let tiny = Extractor::new(&file, 1, 0).unwrap();
+    assert_eq!(
+        tiny.extract(0.3).unwrap().refs,
+        first.refs,
+        "a cache too small for one brick still works"
+    );
+}

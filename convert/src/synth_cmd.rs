@@ -72,10 +72,20 @@ impl SynthArgs {
 /// Runs `amr-convert synth` and prints a one-line summary to stderr.
 pub fn run_synth(args: &SynthArgs) -> anyhow::Result<()> {
     let (case, params) = args.to_params()?;
-    let compression = if args.compress { Compression::Zstd { level: ZSTD_LEVEL } } else { Compression::None };
+    let compression = if args.compress {
+        Compression::Zstd { level: ZSTD_LEVEL }
+    } else {
+        Compression::None
+    };
     let bar = Bar::bytes(&format!("synth {case}"));
-    let s = write_synth(&args.output, case, &params, WriterOptions { compression }, &bar)
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    let s = write_synth(
+        &args.output,
+        case,
+        &params,
+        WriterOptions { compression },
+        &bar,
+    )
+    .with_context(|| format!("writing {}", args.output.display()))?;
     let per_level: Vec<String> = s.cells_per_level.iter().map(u64::to_string).collect();
     eprintln!(
         "{}: {case}, base {} brick {} ratio {}, cells per level [{}] = {} cells, {} bricks, {} bytes, {:.2} s",
@@ -109,7 +119,9 @@ fn parse_point(s: &str) -> Result<[f64; 3], String> {
     let coords: Vec<f64> = parts.iter().filter_map(|p| p.parse().ok()).collect();
     match coords[..] {
         [x, y, z] if parts.len() == 3 && coords.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
-        _ => Err(format!("'{s}' is not a point X,Y,Z of three finite numbers")),
+        _ => Err(format!(
+            "'{s}' is not a point X,Y,Z of three finite numbers"
+        )),
     }
 }
 
@@ -127,7 +139,18 @@ mod tests {
     #[test]
     fn arguments_parse() {
         Cli::command().debug_assert();
-        let cli = Cli::parse_from(["x", "sphere", "-o", "a.amrk", "--cells", "2.2e9", "--origin", "-1e6,2,3.5", "--ratio", "4"]);
+        let cli = Cli::parse_from([
+            "x",
+            "sphere",
+            "-o",
+            "a.amrk",
+            "--cells",
+            "2.2e9",
+            "--origin",
+            "-1e6,2,3.5",
+            "--ratio",
+            "4",
+        ]);
         assert_eq!(cli.synth.cells, Some(2_200_000_000));
         assert_eq!(cli.synth.origin, [-1e6, 2.0, 3.5]);
         assert_eq!(cli.synth.brick, None);
@@ -136,10 +159,35 @@ mod tests {
     }
 
     #[test]
+    fn writes_a_file_close_to_the_requested_cell_count() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("s.amrk");
+        let args = "x ripple -o OUT --cells 2e5 --ratio 3 --compress".split(' ');
+        let args = args.map(|a| if a == "OUT" { out.to_str().unwrap() } else { a });
+        run_synth(&Cli::parse_from(args).synth).unwrap();
+        let file = amr_format::AmrkFile::open(std::fs::read(&out).unwrap()).unwrap();
+        file.verify().unwrap();
+        let cells: u64 = (0..file.num_bricks())
+            .map(|b| file.brick(b).cells.num_cells().unwrap())
+            .sum();
+        assert!((100_000..400_000).contains(&cells), "{cells} cells");
+    }
+
+    #[test]
     fn bad_case_and_parameters_are_reported() {
         let cli = Cli::parse_from(["x", "cube", "-o", "a.amrk"]);
-        assert!(cli.synth.to_params().unwrap_err().to_string().contains("blobs"));
+        assert!(cli
+            .synth
+            .to_params()
+            .unwrap_err()
+            .to_string()
+            .contains("blobs"));
         let cli = Cli::parse_from(["x", "blobs", "-o", "a.amrk", "--ratio", "1"]);
-        assert!(cli.synth.to_params().unwrap_err().to_string().contains("--ratio"));
+        assert!(cli
+            .synth
+            .to_params()
+            .unwrap_err()
+            .to_string()
+            .contains("--ratio"));
     }
 }

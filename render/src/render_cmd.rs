@@ -343,14 +343,16 @@ pub fn write_outputs(
     meta: &[(String, String)],
     output: &Path,
     preview: Option<&Path>,
-    stats: Option<&[(String, String)]>,
+    stats: &[(String, String)],
+    print_stats: bool,
     stats_json: Option<&Path>,
 ) -> anyhow::Result<()> {
     write_exr(output, &report.frame, meta)?;
     if let Some(p) = preview {
         write_preview(p, &report.frame)?;
     }
-    if let Some(rows) = stats {
+    if print_stats {
+        let rows = stats;
         let width = rows.iter().map(|r| r.0.len()).max().unwrap_or(0);
         for (k, v) in rows {
             eprintln!("{k:<width$}  {v}");
@@ -358,7 +360,6 @@ pub fn write_outputs(
     }
     if let Some(p) = stats_json {
         let body: Vec<String> = stats
-            .unwrap_or(&[])
             .iter()
             .map(|(k, v)| format!("  \"{k}\": {v}"))
             .collect();

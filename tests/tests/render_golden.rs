@@ -80,7 +80,8 @@ fn nested_spheres_match_the_golden_image() {
         &header_meta(&cfg, &report, &[]),
         &exr,
         None,
-        None,
+        &[],
+        false,
         None,
     )
     .unwrap();

@@ -133,9 +133,3 @@ impl Surface {
         hit
     }
 }
-
-fn len(d: [f64; 3]) -> f64 {
-    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-        .sqrt()
-        .max(f64::MIN_POSITIVE)
-}

@@ -1,23 +1,37 @@
-//! `amr-render`: renders isosurfaces of `.amrk` files; `info` and `verify` inspect them.
+//! `amr-render`: renders isosurfaces of `.amrk` files; `demo`, `extract`, `info`, `verify` and
+//! `bench` are subcommands.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use amr_render::extract_cmd::{run_extract, ExtractArgs};
 use amr_render::info::describe;
 use amr_render::mapping::open_mapped;
+use amr_render::render_cmd::{run_demo, run_render, RenderArgs};
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 
 /// Ray traces isosurfaces of block-structured AMR data stored in .amrk files.
 #[derive(Parser, Debug)]
-#[command(version)]
+#[command(version, args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 struct Cli {
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
+    /// Renders FILE.amrk to an EXR frame (the default command).
+    #[command(flatten)]
+    render: Option<RenderArgs>,
 }
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Synthesizes a small multi-level dataset, converts it and renders it.
+    Demo {
+        /// The EXR frame to write (a PNG preview is written beside it).
+        #[arg(short, long, default_value = "demo.exr")]
+        output: PathBuf,
+    },
+    /// Extracts the active octants for one or more isovalues and reports statistics.
+    Extract(ExtractArgs),
     /// Prints what a file holds: levels, bricks, cells, fields, tree, bytes by section.
     Info {
         /// The .amrk file.
@@ -83,7 +97,13 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
-    match cli.command {
+    let Some(command) = cli.command else {
+        let args = cli.render.expect("clap requires the render arguments without a subcommand");
+        return run_render(&args);
+    };
+    match command {
+        Command::Demo { output } => run_demo(&output)?,
+        Command::Extract(args) => run_extract(&args)?,
         Command::Info { file } => {
             let f = open_mapped(&file)?;
             print!("{}", describe(&f));

@@ -10,8 +10,20 @@ use amr_format::{IBox, Result};
 
 use super::local::{Neighbourhood, LEAF};
 use super::refs::{make_ref, LocalVoxel};
-use crate::reconstruct::interp::{min_max, straddles};
-use crate::reconstruct::Sampler;
+use super::vertices::LeafVertices;
+use crate::reconstruct::interp::{avg8, min_max, straddles};
+use crate::reconstruct::{Sampler, VertexMemo};
+
+/// Per-thread scratch of [`extract_leaf`].
+#[derive(Default)]
+pub struct Scratch {
+    /// The leaf's classified neighbourhood.
+    pub hood: Neighbourhood,
+    /// Vertex values met while stitching to coarser levels.
+    pub memo: VertexMemo,
+    /// The leaf's boundary vertex values.
+    pub verts: LeafVertices,
+}
 
 /// Counts one leaf contributes to the statistics.
 #[derive(Clone, Copy, Debug, Default)]
@@ -66,9 +78,10 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     frame: &LeafFrame,
     iso: f32,
-    hood: &mut Neighbourhood,
+    scratch: &mut Scratch,
     out: &mut Vec<u64>,
 ) -> Result<LeafCounts> {
+    let Scratch { hood, memo, verts } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();
     let level = frame.level;
@@ -104,6 +117,8 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
 
     // Octants that touch a level boundary, the domain boundary or an uncovered region.
     if !hood.all_leaf {
+        let lowest = grid.centre(level, frame.cells.lo);
+        verts.start(&frame.cells, [0, 1, 2].map(|a| lowest[a] - s[a]), s);
         let c = &frame.cells;
         for z in c.lo[2]..c.hi[2] {
             for y in c.lo[1]..c.hi[1] {
@@ -134,7 +149,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                         }
                         counts.evaluated += 1;
                         let Some(v) =
-                            sampler.corners(level, cell, hood.value(i), octant, &mut hood.memo)?
+                            boundary_corners(sampler, hood, (memo, verts), level, i, lo, octant)?
                         else {
                             continue;
                         };
@@ -156,4 +171,68 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     }
     out[start..].sort_unstable();
     Ok(counts)
+}
+
+/// The corner values of octant `octant` of the leaf-cell at neighbourhood index `i`, whose
+/// lower corner is doubled point `lo`: [`Sampler::corners`], reading the eight cells around a
+/// vertex from the neighbourhood when they are all leaf cells of the octant's level (the same
+/// values in the same order), and asking the sampler otherwise.
+fn boundary_corners<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    hood: &Neighbourhood,
+    (memo, verts): (&mut VertexMemo, &mut LeafVertices),
+    level: u32,
+    i: usize,
+    lo: [i64; 3],
+    octant: u8,
+) -> Result<Option<[f32; 8]>> {
+    let e = hood.cells.extent();
+    let step = [1isize, e[0] as isize, (e[0] * e[1]) as isize];
+    let s = sampler.grid().scale(level);
+    let mut out = [0f32; 8];
+    for (n, slot) in out.iter_mut().enumerate() {
+        let mut below = [0isize; 3];
+        let mut above = [0isize; 3];
+        let mut at_centre = true;
+        for a in 0..3 {
+            let up = octant >> a & 1 == 1;
+            if (n >> a & 1 == 1) != up {
+                continue;
+            }
+            at_centre = false;
+            if up {
+                above[a] = step[a];
+            } else {
+                below[a] = -step[a];
+            }
+        }
+        if at_centre {
+            *slot = hood.value(i);
+            continue;
+        }
+        let around: [usize; 8] = std::array::from_fn(|m| {
+            let d: isize = (0..3)
+                .map(|a| if m >> a & 1 == 1 { above[a] } else { below[a] })
+                .sum();
+            (i as isize + d) as usize
+        });
+        if around.iter().all(|&j| hood.kind(j) == LEAF) {
+            *slot = avg8(&around.map(|j| hood.value(j)));
+            continue;
+        }
+        let v = [0, 1, 2].map(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
+        let value = match verts.get(v) {
+            Some(known) => known,
+            None => {
+                let value = sampler.vertex_value(v, level, memo)?;
+                verts.put(v, value);
+                value
+            }
+        };
+        match value {
+            Some(x) => *slot = x,
+            None => return Ok(None),
+        }
+    }
+    Ok(Some(out))
 }

@@ -7,7 +7,7 @@
 
 use amr_format::{IBox, Result};
 
-use crate::reconstruct::{Sampler, VertexMemo};
+use crate::reconstruct::Sampler;
 
 /// A leaf cell of the leaf's own level.
 pub const LEAF: u8 = 0;
@@ -32,8 +32,6 @@ pub struct Neighbourhood {
     /// True when every cell is [`LEAF`].
     pub all_leaf: bool,
     touching: Vec<u32>,
-    /// Vertex values of this leaf's boundary octants.
-    pub memo: VertexMemo,
 }
 
 impl Neighbourhood {

@@ -3,6 +3,7 @@
 //! - [`refs`]: the 64-bit references (`leaf << 32 | id`) and decoded [`Voxel`]s.
 //! - [`local`]: the classified level-`L` neighbourhood of a leaf.
 //! - [`leaf`]: the voxels one leaf owns: merged dual cells and boundary octants.
+//! - [`vertices`]: a leaf's boundary vertex values, computed once each.
 //! - [`stats`]: what an extraction did.
 //!
 //! An [`Extractor`] is made once per open file and field; each [`Extractor::extract`] call runs
@@ -14,6 +15,7 @@ pub mod leaf;
 pub mod local;
 pub mod refs;
 pub mod stats;
+pub mod vertices;
 
 use std::time::Instant;
 
@@ -22,8 +24,7 @@ use rayon::prelude::*;
 
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::{Octant, Sampler};
-use leaf::{extract_leaf, LeafFrame};
-use local::Neighbourhood;
+use leaf::{extract_leaf, LeafFrame, Scratch};
 pub use refs::{make_ref, split_ref, LocalVoxel, Voxel, DUAL_BASE};
 pub use stats::ExtractStats;
 
@@ -82,12 +83,12 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         for chunk in leaves.chunks(CHUNK) {
             let parts: Vec<Result<(Vec<u64>, u64)>> = chunk
                 .par_iter()
-                .map_init(Neighbourhood::default, |hood, &leaf| {
+                .map_init(Scratch::default, |scratch, &leaf| {
                     let mut out = Vec::new();
                     let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
                         return Ok((out, 0));
                     };
-                    let counts = extract_leaf(&self.sampler, &frame, iso, hood, &mut out)?;
+                    let counts = extract_leaf(&self.sampler, &frame, iso, scratch, &mut out)?;
                     Ok((out, counts.evaluated))
                 })
                 .collect();

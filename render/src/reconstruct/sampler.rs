@@ -8,10 +8,11 @@
 
 use std::borrow::Cow;
 use std::collections::HashMap;
-use std::hash::{BuildHasherDefault, Hasher};
+use std::hash::{BuildHasherDefault, Hash, Hasher};
 use std::ops::Deref;
 use std::sync::Arc;
 
+use amr_format::kdtree::TreeView;
 use amr_format::{AmrkFile, FormatError, IBox, Result};
 
 use super::cache::BrickCache;
@@ -67,7 +68,7 @@ impl Deref for Slab<'_> {
 /// that saves recomputing the vertices octants share. Values are pure functions of the key, so
 /// a memo never changes a result. It forgets everything when it reaches its capacity.
 pub struct VertexMemo {
-    map: HashMap<([i64; 3], u32), Option<f32>, BuildHasherDefault<VertexHasher>>,
+    map: HashMap<VertexKey, Option<f32>, BuildHasherDefault<VertexHasher>>,
     capacity: usize,
 }
 
@@ -87,30 +88,41 @@ impl VertexMemo {
     }
 }
 
-/// A multiply-rotate hasher for small integer keys.
+/// A vertex and the level asking for its value.
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct VertexKey([i64; 3], u32);
+
+impl Hash for VertexKey {
+    fn hash<H: Hasher>(&self, state: &mut H) {
+        let v = self.0;
+        let h = (v[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ (v[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+            ^ (v[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
+            ^ u64::from(self.1).wrapping_mul(0x27D4_EB2F_1656_67C5);
+        state.write_u64(h);
+    }
+}
+
+/// Finishes a [`VertexKey`]'s premixed word with the MurmurHash3 finaliser.
 #[derive(Default)]
 struct VertexHasher(u64);
 
 impl Hasher for VertexHasher {
     fn finish(&self) -> u64 {
-        self.0
+        let mut h = self.0;
+        h ^= h >> 33;
+        h = h.wrapping_mul(0xff51_afd7_ed55_8ccd);
+        h ^= h >> 33;
+        h = h.wrapping_mul(0xc4ce_b9fe_1a85_ec53);
+        h ^ (h >> 33)
     }
     fn write(&mut self, bytes: &[u8]) {
         for &b in bytes {
-            self.write_u64(u64::from(b));
+            self.0 = (self.0 ^ u64::from(b)).wrapping_mul(0x100_0000_01b3);
         }
     }
     fn write_u64(&mut self, x: u64) {
-        self.0 = (self.0.rotate_left(5) ^ x).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
-    }
-    fn write_i64(&mut self, x: i64) {
-        self.write_u64(x as u64);
-    }
-    fn write_u32(&mut self, x: u32) {
-        self.write_u64(u64::from(x));
-    }
-    fn write_usize(&mut self, x: usize) {
-        self.write_u64(x as u64);
+        self.0 ^= x;
     }
 }
 
@@ -123,6 +135,9 @@ pub struct Sampler<'f, D> {
     leaf_top: Vec<Option<(u32, u32)>>,
     /// Per brick: its cells in its level's index space.
     brick_cells: Vec<IBox>,
+    /// Per brick: its values when they can be read in place.
+    in_place: Vec<Option<&'f [f32]>>,
+    tree: TreeView<'f>,
     cache: BrickCache,
 }
 
@@ -147,7 +162,18 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         let brick_cells = (0..file.num_bricks())
             .map(|b| file.brick(b).cells)
             .collect();
+        let in_place = (0..file.num_bricks())
+            .map(|b| {
+                let raw = file.brick_data(field, b).encoding.get() == amr_format::raw::ENCODING_RAW;
+                match file.brick_values(field, b) {
+                    Ok(Cow::Borrowed(v)) if raw => Some(v),
+                    _ => None,
+                }
+            })
+            .collect();
         Ok(Self {
+            in_place,
+            tree: file.tree(),
             file,
             field,
             grid: Grid::new(file),
@@ -190,12 +216,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// Brick `brick`'s values of the sampled field.
     pub fn values(&self, brick: u32) -> Result<Slab<'f>> {
         let file: &'f AmrkFile<D> = self.file;
-        if file.brick_data(self.field, brick as usize).encoding.get()
-            == amr_format::raw::ENCODING_RAW
-        {
-            if let Cow::Borrowed(v) = file.brick_values(self.field, brick as usize)? {
-                return Ok(Slab::Borrowed(v));
-            }
+        if let Some(v) = self.in_place[brick as usize] {
+            return Ok(Slab::Borrowed(v));
         }
         let cells = self.brick_cells[brick as usize].num_cells().unwrap_or(0) as usize;
         let shared = self.cache.get(brick, cells, || {
@@ -209,7 +231,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// The leaf cell holding finest-level cell `finest` (relative to the domain), `None` outside
     /// the domain or where no brick covers it.
     pub fn locate(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
-        let Some(leaf) = self.file.tree().find_leaf(finest) else {
+        let Some(leaf) = self.tree.find_leaf(finest) else {
             return Ok(None);
         };
         let Some((brick, level)) = self.leaf_top[leaf as usize] else {
@@ -258,7 +280,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         level: u32,
         memo: &mut VertexMemo,
     ) -> Result<Option<f32>> {
-        if let Some(&known) = memo.map.get(&(v, level)) {
+        if let Some(&known) = memo.map.get(&VertexKey(v, level)) {
             return Ok(known);
         }
         let value = match self.around(v)? {
@@ -268,7 +290,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         if memo.map.len() >= memo.capacity {
             memo.map.clear();
         }
-        memo.map.insert((v, level), value);
+        memo.map.insert(VertexKey(v, level), value);
         Ok(value)
     }
 

@@ -165,8 +165,9 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         let in_place = (0..file.num_bricks())
             .map(|b| {
                 let raw = file.brick_data(field, b).encoding.get() == amr_format::raw::ENCODING_RAW;
-                match file.brick_values(field, b) {
-                    Ok(Cow::Borrowed(v)) if raw => Some(v),
+                // Only raw bricks are asked for: reading a compressed one here would decode it.
+                match raw.then(|| file.brick_values(field, b)) {
+                    Some(Ok(Cow::Borrowed(v))) => Some(v),
                     _ => None,
                 }
             })

@@ -65,6 +65,18 @@ enum BenchCommand {
         #[arg(long, default_value_t = 0)]
         field: usize,
     },
+    /// Regenerates docs/benchmarks-suite.md and its plots (docs/img/*.png) end to end.
+    Suite {
+        /// Directory for benchmarks-suite.md and img/.
+        #[arg(long, default_value = "docs")]
+        out: PathBuf,
+        /// Small sizes and few runs (about a minute), for smoke tests.
+        #[arg(long)]
+        quick: bool,
+        /// Leave out the scale section (which writes the largest files).
+        #[arg(long)]
+        skip_scale: bool,
+    },
 }
 
 fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
@@ -91,6 +103,11 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
                 );
                 std::hint::black_box(r.checksum);
             }
+        }
+        BenchCommand::Suite { out, quick, skip_scale } => {
+            let cfg = amr_render::bench::suite::SuiteConfig { out, quick, skip_scale };
+            let path = amr_render::bench::suite::run_suite(cfg)?;
+            println!("wrote {}", path.display());
         }
     }
     Ok(())

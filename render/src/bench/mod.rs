@@ -5,6 +5,7 @@
 
 pub mod open;
 pub mod read;
+pub mod suite;
 
 use std::time::Duration;
 

@@ -1,0 +1,149 @@
+//! `amr-render bench suite`: regenerates `docs/benchmarks-suite.md` and its plots in one run.
+//!
+//! Every section is measured in this one process on this one machine, seeded, so that numbers
+//! quoted side by side are comparable and a rerun reproduces everything but the timings.
+//!
+//! - [`figure8`]: the paper's Figure 8, isocontours of the four reconstructions.
+//! - [`recon`]: reconstruction error against the analytic field, and leaks through a closed surface.
+//! - [`tradeoff`]: run time against hit and image error, hybrid against sample mode.
+//! - [`stress`]: random hierarchies, placements, scales and cameras.
+//! - [`scale`]: synthesis, open, extraction, BVH and frame cost against cell count.
+
+pub mod common;
+pub mod figure8;
+pub mod plot;
+pub mod recon;
+pub mod scale;
+pub mod stress;
+pub mod tradeoff;
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+
+pub use common::Machine;
+
+/// What `bench suite` is asked to do, validated.
+#[derive(Clone, Debug)]
+pub struct SuiteConfig {
+    /// Directory that receives `benchmarks-suite.md` and `img/*.png`.
+    pub out: PathBuf,
+    /// Small sizes and few repetitions (about a minute), for smoke tests.
+    pub quick: bool,
+    /// Skip the scale section (which writes the largest files).
+    pub skip_scale: bool,
+}
+
+impl SuiteConfig {
+    /// The command line that reproduces this run, as the document quotes it.
+    pub fn command(&self) -> String {
+        let mut c = format!("amr-render bench suite --out {}", self.out.display());
+        if self.quick {
+            c.push_str(" --quick");
+        }
+        if self.skip_scale {
+            c.push_str(" --skip-scale");
+        }
+        c
+    }
+}
+
+/// Context shared by every section.
+pub struct Ctx {
+    /// The configuration.
+    pub cfg: SuiteConfig,
+    /// The machine the numbers come from.
+    pub machine: Machine,
+    /// Where PNGs go.
+    pub img: PathBuf,
+    /// Scratch directory for datasets, removed at the end.
+    pub scratch: PathBuf,
+}
+
+impl Ctx {
+    /// The two lines every table is preceded by: command and machine.
+    pub fn provenance(&self) -> String {
+        format!(
+            "Command: `{}` (release build). Machine: {}.\n",
+            self.cfg.command(),
+            self.machine
+        )
+    }
+}
+
+/// Runs every section and writes the document; prints progress to stderr.
+pub fn run_suite(cfg: SuiteConfig) -> anyhow::Result<PathBuf> {
+    let img = cfg.out.join("img");
+    std::fs::create_dir_all(&img).with_context(|| format!("cannot create {}", img.display()))?;
+    let scratch = std::env::temp_dir().join(format!("amr-bench-suite-{}", std::process::id()));
+    std::fs::create_dir_all(&scratch)?;
+    let ctx = Ctx {
+        cfg,
+        machine: Machine::read(),
+        img,
+        scratch,
+    };
+    let result = run_sections(&ctx);
+    let _ = std::fs::remove_dir_all(&ctx.scratch);
+    let body = result?;
+    let path = ctx.cfg.out.join("benchmarks-suite.md");
+    std::fs::write(&path, body).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(path)
+}
+
+fn run_sections(ctx: &Ctx) -> anyhow::Result<String> {
+    let start = Instant::now();
+    let mut doc = String::new();
+    writeln!(
+        doc,
+        "# Benchmark suite: accuracy, run time against error, stability, scale\n"
+    )?;
+    writeln!(
+        doc,
+        "Regenerated end to end by `{}`{}. Machine: {}. Every comparison below was measured side \
+         by side in that one run; times are medians of the stated number of runs. Datasets, \
+         hierarchies and cameras are seeded, so a rerun changes only the timings.\n",
+        ctx.cfg.command(),
+        if ctx.cfg.quick {
+            " (the quick, smoke-test sizes: numbers are indicative only)"
+        } else {
+            ""
+        },
+        ctx.machine
+    )?;
+    type Section = fn(&Ctx) -> anyhow::Result<String>;
+    let mut sections: Vec<(&str, Section)> = vec![
+        ("figure 8", figure8::run),
+        ("reconstruction error and leaks", recon::run),
+        ("run time against error", tradeoff::run),
+        ("stability stress", stress::run),
+    ];
+    if !ctx.cfg.skip_scale {
+        sections.push(("scale", scale::run));
+    }
+    for (name, f) in sections {
+        let t = Instant::now();
+        eprintln!("bench suite: {name} ...");
+        let s = f(ctx).with_context(|| format!("section '{name}' failed"))?;
+        eprintln!(
+            "bench suite: {name} done in {:.1} s",
+            t.elapsed().as_secs_f64()
+        );
+        doc.push_str(&s);
+        doc.push('\n');
+    }
+    writeln!(
+        doc,
+        "_Whole suite: {:.0} s._",
+        start.elapsed().as_secs_f64()
+    )?;
+    Ok(doc)
+}
+
+/// `path` relative to the document's directory, for image links.
+pub fn img_link(ctx: &Ctx, name: &str) -> String {
+    let _ = Path::new(&ctx.img);
+    format!("img/{name}")
+}

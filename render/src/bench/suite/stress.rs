@@ -1,0 +1,8 @@
+//! Suite section `stress` (not yet written).
+
+use super::Ctx;
+
+/// Runs the section and returns its markdown.
+pub fn run(_ctx: &Ctx) -> anyhow::Result<String> {
+    Ok(String::new())
+}

@@ -210,3 +210,10 @@ pub const METHODS: [Method; 4] = [
     Method::Finest,
     Method::Octant,
 ];
+
+/// Total cells in all bricks of `file`.
+pub fn total_cells<D: AsRef<[u8]>>(file: &amr_format::AmrkFile<D>) -> u64 {
+    (0..file.num_bricks())
+        .map(|i| file.brick(i).cells.num_cells().unwrap_or(0))
+        .sum()
+}

@@ -1,8 +1,372 @@
-//! Suite section `tradeoff` (not yet written).
+//! Run time against error on the `sphere` case, whose true surface is known exactly: the hybrid
+//! tracer (octant voxels) against sample mode on the same octant reconstruction with steps from
+//! one finest cell down to 1/64 of one.
+//!
+//! Per setting: primary-ray frame time (median of several runs), hit-position error (distance
+//! of the hit to the true sphere, in finest-cell widths), tracing error (distance along the ray to
+//! the exact hit of the same reconstruction, the hybrid's) and image error of a Lambert-shaded
+//! frame against the analytic frame (ray-sphere intersection, exact normals).
 
-use super::Ctx;
+use std::fmt::Write as _;
+use std::time::Instant;
 
-/// Runs the section and returns its markdown.
-pub fn run(_ctx: &Ctx) -> anyhow::Result<String> {
-    Ok(String::new())
+use amr_convert::synth::fields::{SPHERE_CENTRE, SPHERE_RADIUS};
+use amr_convert::synth::{build_hierarchy, Case, SynthParams};
+use rayon::prelude::*;
+
+use super::common::{quantile, write_dataset};
+use super::plot::{loglog, Series};
+use super::{img_link, Ctx};
+use crate::bvh::BvhBuilder;
+use crate::camera::Camera;
+use crate::mapping::open_mapped;
+use crate::render_cmd::{ActiveSource, Reconstruction};
+use crate::sample_mode::SampleTracer;
+use crate::trace::amr_source::AmrSource;
+use crate::trace::{GridFrame, GridRay, HybridTracer, Surface, SurfaceHit, Tracer};
+
+/// Light direction (towards the light) for the shaded frames.
+const LIGHT: [f64; 3] = [0.41, -0.57, 0.71];
+
+/// One traced frame: per pixel the hit (world position, world normal), and the time taken.
+struct Frame {
+    hits: Vec<Option<([f64; 3], [f64; 3], f64)>>,
+    secs: f64,
+}
+
+fn trace_frame<T: Tracer + Sync>(t: &T, frame: &GridFrame, cam: &Camera, n: u32) -> Frame {
+    let start = Instant::now();
+    let hits = (0..n * n)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % n, i / n);
+            let d = cam.ray_dir(f64::from(x) + 0.5, f64::from(y) + 0.5, n, n);
+            let ray = GridRay::from_world(frame, cam.pos, d);
+            t.next_hit(0, &ray, 0.0, f64::INFINITY)
+                .map(|h: SurfaceHit| {
+                    let g = [0, 1, 2].map(|a| h.grad[a] / frame.unit[a]);
+                    (frame.to_world(h.pos), normalize(g), h.t)
+                })
+        })
+        .collect();
+    Frame {
+        hits,
+        secs: start.elapsed().as_secs_f64(),
+    }
+}
+
+fn normalize(v: [f64; 3]) -> [f64; 3] {
+    let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    if l > 0.0 {
+        v.map(|x| x / l)
+    } else {
+        [0.0; 3]
+    }
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The analytic frame: the first intersection with the true sphere and its normal.
+fn analytic(cam: &Camera, n: u32) -> Vec<Option<f64>> {
+    let l = normalize(LIGHT);
+    (0..n * n)
+        .map(|i| {
+            let d = cam.ray_dir(f64::from(i % n) + 0.5, f64::from(i / n) + 0.5, n, n);
+            let oc = [0, 1, 2].map(|a| cam.pos[a] - SPHERE_CENTRE[a]);
+            let b = dot(oc, d);
+            let c = dot(oc, oc) - SPHERE_RADIUS * SPHERE_RADIUS;
+            let disc = b * b - c;
+            (disc >= 0.0).then(|| {
+                let t = -b - disc.sqrt();
+                let p = [0, 1, 2].map(|a| cam.pos[a] + t * d[a] - SPHERE_CENTRE[a]);
+                dot(normalize(p), l).max(0.0)
+            })
+        })
+        .collect()
+}
+
+/// A row of the table.
+struct Row {
+    label: String,
+    step: Option<f64>,
+    runs: usize,
+    secs: f64,
+    hit_med: f64,
+    hit_p99: f64,
+    hit_max: f64,
+    trace_max: f64,
+    image_rms: f64,
+    hits: usize,
+}
+
+/// Runs the section.
+pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
+    let quick = ctx.cfg.quick;
+    let p = SynthParams {
+        levels: 3,
+        ratio: 2,
+        base: if quick { 16 } else { 32 },
+        brick: 16,
+        origin: [0.0; 3],
+        size: 1.0,
+    };
+    let path = ctx.scratch.join("sphere.amrk");
+    let field = Case::Sphere;
+    write_dataset(&path, build_hierarchy(&field, "sphere", &p)?, &field)?;
+    let file = open_mapped(&path)?;
+    let nlev = file.levels().len() as u32;
+    let finest = 1.0 / p.cells_per_axis(nlev - 1).unwrap_or(1) as f64;
+    let n: u32 = if quick { 32 } else { 96 };
+    let steps: Vec<u32> = if quick {
+        vec![1, 4, 16]
+    } else {
+        vec![1, 2, 4, 8, 16, 32, 64]
+    };
+    // The camera frames the sphere tightly, so nearly every ray hits it.
+    let cam = Camera::new(
+        [
+            SPHERE_CENTRE[0] + 0.62,
+            SPHERE_CENTRE[1] - 0.85,
+            SPHERE_CENTRE[2] + 0.5,
+        ],
+        SPHERE_CENTRE,
+        [0.0, 0.0, 1.0],
+        36.0,
+    )?;
+    let reference = analytic(&cam, n);
+
+    let src = AmrSource::new(&file, 0, Reconstruction::Octant)?;
+    let frame = crate::trace::VoxelSource::frame(&src);
+    let t = Instant::now();
+    let refs = src.extract(0.0)?;
+    let t_extract = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let mut b = BvhBuilder::new();
+    let surf = [Surface::build(&src, 0.0, &refs, &mut b)];
+    let t_bvh = t.elapsed().as_secs_f64();
+    // Normals continuous across voxels, as the renderer's default.
+    let hybrid = HybridTracer {
+        src: &src,
+        surfaces: &surf,
+        smooth_normals: true,
+    };
+    let runs_fast = if quick { 3 } else { 7 };
+    let mut best: Option<Frame> = None;
+    let mut times = Vec::new();
+    for _ in 0..runs_fast {
+        let f = trace_frame(&hybrid, &frame, &cam, n);
+        times.push(f.secs);
+        best = Some(f);
+    }
+    let exact = best.expect("at least one run");
+    let mut rows = vec![row(
+        "hybrid (octant)",
+        None,
+        &exact,
+        &mut times,
+        &exact,
+        &reference,
+        finest,
+    )];
+    for &k in &steps {
+        let step = finest / f64::from(k);
+        let tracer = SampleTracer {
+            src: &src,
+            isos: vec![0.0],
+            step,
+        };
+        // Fine steps are slow: fewer runs for them.
+        let runs = if quick {
+            1
+        } else if k <= 8 {
+            5
+        } else if k <= 16 {
+            3
+        } else {
+            1
+        };
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..runs {
+            let f = trace_frame(&tracer, &frame, &cam, n);
+            times.push(f.secs);
+            last = Some(f);
+        }
+        let f = last.expect("at least one run");
+        rows.push(row(
+            &format!("sample, step 1/{k}"),
+            Some(step),
+            &f,
+            &mut times,
+            &exact,
+            &reference,
+            finest,
+        ));
+    }
+
+    let png = "tradeoff.png";
+    let series = vec![
+        Series {
+            label: "hybrid (octant): hit error p99".into(),
+            points: vec![(rows[0].secs * 1e3, rows[0].hit_p99)],
+        },
+        Series {
+            label: "sample mode (octant), step 1..1/64: hit error p99".into(),
+            points: rows[1..]
+                .iter()
+                .map(|r| (r.secs * 1e3, r.hit_p99))
+                .collect(),
+        },
+        Series {
+            label: "hybrid: image RMS error".into(),
+            points: vec![(rows[0].secs * 1e3, rows[0].image_rms)],
+        },
+        Series {
+            label: "sample mode: image RMS error".into(),
+            points: rows[1..]
+                .iter()
+                .map(|r| (r.secs * 1e3, r.image_rms))
+                .collect(),
+        },
+    ];
+    loglog(
+        &ctx.img.join(png),
+        &format!("sphere, {n}x{n} primary rays: error against frame time"),
+        "frame time (ms, median)",
+        "error (finest cells / shade units)",
+        &series,
+    )?;
+
+    let mut s = String::new();
+    writeln!(s, "## Run time against error\n")?;
+    s.push_str(&ctx.provenance());
+    writeln!(
+        s,
+        "\nDataset: the `sphere` case, {nlev} levels, base {}, ratio 2, bricks of 16, refined \
+         around the surface ({} cells; finest cell {finest:.3e}). {n}x{n} primary rays from a \
+         camera framing the sphere; threads: {}. Hybrid: extraction {:.1} ms and BVH build {:.1} ms \
+         ({} active octants), not in the frame time. Sample mode marches the same octant \
+         reconstruction with the given step (in finest cells) and bisects the first sign change. \
+         *Hit error*: distance from the hit to the true sphere in finest-cell widths, over the \
+         pixels that hit. *Trace error*: largest distance along the ray from the exact hit of the \
+         same reconstruction (the hybrid's), finest cells; a pixel that hits in one and not the \
+         other is not counted here but is in the image error. *Image error*: RMS over pixels of \
+         the Lambert shade against the analytic frame (a pixel that hits in only one counts 1).\n",
+        p.base,
+        super::common::total_cells(&file),
+        rayon::current_num_threads(),
+        t_extract * 1e3,
+        t_bvh * 1e3,
+        refs.len()
+    )?;
+    writeln!(
+        s,
+        "| tracer | runs | frame ms (median) | hits | hit err median | hit err p99 | hit err max | trace err max | image RMS |"
+    )?;
+    writeln!(s, "|---|---|---|---|---|---|---|---|---|")?;
+    for r in &rows {
+        let _ = r.step;
+        writeln!(
+            s,
+            "| {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {:.2e} | {:.4} |",
+            r.label,
+            r.runs,
+            r.secs * 1e3,
+            r.hits,
+            r.hit_med,
+            r.hit_p99,
+            r.hit_max,
+            r.trace_max,
+            r.image_rms
+        )?;
+    }
+    let h = &rows[0];
+    let best_sample = rows[1..]
+        .iter()
+        .min_by(|a, b| a.hit_p99.total_cmp(&b.hit_p99))
+        .expect("steps");
+    let cheaper_and_better: Vec<&Row> = rows[1..]
+        .iter()
+        .filter(|r| r.hit_p99 <= h.hit_p99 && r.image_rms <= h.image_rms)
+        .collect();
+    writeln!(
+        s,
+        "\nGoal (hybrid reaches lower error than the best sample setting in at least ten times \
+         less time): the best sample setting by p99 hit error is `{}` ({:.4} finest cells, image \
+         RMS {:.4}, {:.1} ms); the hybrid has {:.4} and {:.4} in {:.2} ms, {:.1}x less time. \
+         Goal {}. Sample settings at least as accurate as the hybrid on both measures: {}.\n",
+        best_sample.label,
+        best_sample.hit_p99,
+        best_sample.image_rms,
+        best_sample.secs * 1e3,
+        h.hit_p99,
+        h.image_rms,
+        h.secs * 1e3,
+        best_sample.secs / h.secs,
+        if h.hit_p99 <= best_sample.hit_p99 && best_sample.secs >= 10.0 * h.secs {
+            "met"
+        } else {
+            "NOT met"
+        },
+        if cheaper_and_better.is_empty() {
+            "none".to_owned()
+        } else {
+            cheaper_and_better
+                .iter()
+                .map(|r| r.label.clone())
+                .collect::<Vec<_>>()
+                .join(", ")
+        }
+    )?;
+    writeln!(s, "![error against time]({})\n", img_link(ctx, png))?;
+    Ok(s)
+}
+
+fn row(
+    label: &str,
+    step: Option<f64>,
+    f: &Frame,
+    times: &mut [f64],
+    exact: &Frame,
+    reference: &[Option<f64>],
+    finest: f64,
+) -> Row {
+    let l = normalize(LIGHT);
+    let mut hit_err = Vec::new();
+    let mut trace_max = 0.0f64;
+    let mut sq = 0.0;
+    for (i, h) in f.hits.iter().enumerate() {
+        if let Some((x, nrm, t)) = h {
+            let r = (0..3)
+                .map(|a| (x[a] - SPHERE_CENTRE[a]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            hit_err.push((r - SPHERE_RADIUS).abs() / finest);
+            if let Some((_, _, te)) = exact.hits[i] {
+                trace_max = trace_max.max((t - te).abs() / finest);
+            }
+            let shade = dot(*nrm, l).max(0.0);
+            sq += match reference[i] {
+                Some(r) => (shade - r).powi(2),
+                None => 1.0,
+            };
+        } else if reference[i].is_some() {
+            sq += 1.0;
+        }
+    }
+    let hits = hit_err.len();
+    Row {
+        label: label.to_owned(),
+        step,
+        runs: times.len(),
+        secs: quantile(times, 0.5),
+        hit_med: quantile(&mut hit_err, 0.5),
+        hit_p99: quantile(&mut hit_err, 0.99),
+        hit_max: hit_err.iter().copied().fold(0.0, f64::max),
+        trace_max,
+        image_rms: (sq / reference.len() as f64).sqrt(),
+        hits,
+    }
 }

@@ -10,6 +10,7 @@ use amr_format::Compression;
 use anyhow::{bail, Context};
 
 use crate::amrex;
+use crate::bricking::ConvertOptions;
 use crate::progress::Bar;
 
 /// What a conversion read and wrote.
@@ -107,32 +108,17 @@ pub fn run_convert(
         bail!("--brick {brick}: the brick size must be 1 to {MAX_BRICK_EXTENT}");
     }
     let start = Instant::now();
+    let opts = ConvertOptions {
+        fields: fields.to_vec(),
+        brick,
+        compression,
+    };
+    let bar = Bar::bytes("converting");
     let stats = match detect(input)? {
-        InputFormat::Amrex => {
-            let opts = amrex::ConvertOptions {
-                fields: fields.to_vec(),
-                brick,
-                compression,
-            };
-            let bar = Bar::bytes("converting");
-            amrex::convert(input, output, &opts, &bar)
-                .with_context(|| format!("converting AMReX plotfile {}", input.display()))?
-        }
-        InputFormat::ChomboHdf5 => {
-            let opts = crate::chombo::ConvertOptions {
-                fields: fields.to_vec(),
-                brick,
-                compression,
-            };
-            let bar = Bar::bytes("converting");
-            let s = crate::chombo::convert(input, output, &opts, &bar)
-                .context("converting Chombo plotfile")?;
-            amrex::ConvertStats {
-                bytes_read: s.bytes_read,
-                cells: s.cells,
-                bricks: s.bricks,
-            }
-        }
+        InputFormat::Amrex => amrex::convert(input, output, &opts, &bar)
+            .with_context(|| format!("converting AMReX plotfile {}", input.display()))?,
+        InputFormat::ChomboHdf5 => crate::chombo::convert(input, output, &opts, &bar)
+            .context("converting Chombo plotfile")?,
     };
     let output_bytes = std::fs::metadata(output).map(|m| m.len()).unwrap_or(0);
     Ok(ConvertSummary {

@@ -13,7 +13,8 @@ pub mod reader;
 mod text;
 pub mod to_amrk;
 
+pub use crate::bricking::{ConvertOptions, ConvertStats};
 pub use error::{AmrexError, Result};
 pub use header::looks_like_version;
 pub use plotfile::Plotfile;
-pub use to_amrk::{convert, ConvertOptions, ConvertStats};
+pub use to_amrk::convert;

@@ -12,6 +12,7 @@ pub mod raw;
 pub mod reader;
 pub mod to_amrk;
 
+pub use crate::bricking::{ConvertOptions, ConvertStats};
 pub use error::{ChomboError, Result};
 pub use plotfile::{Level, Plotfile, Precision};
-pub use to_amrk::{convert, ConvertOptions, ConvertStats};
+pub use to_amrk::convert;

@@ -268,10 +268,9 @@ impl AmrkWriter {
                 )));
             }
         }
-        let records: Vec<Vec<BrickData>> = self
-            .written
-            .iter()
-            .map(|s| s.iter().map(|d| d.expect("checked above")).collect())
+        let records: Vec<Vec<BrickData>> = std::mem::take(&mut self.written)
+            .into_iter()
+            .map(|s| s.into_iter().map(|d| d.expect("checked above")).collect())
             .collect();
         let (records, data_sections) = self.place_data(records)?;
         let raw_data_bytes = 4 * self.spec.total_cells() * self.spec.fields.len() as u64;
@@ -300,8 +299,9 @@ impl AmrkWriter {
             tree.brick_list[tree.leaves[leaf as usize].brick_start.get() as usize] as usize
         };
 
-        // Metadata: every section 64-byte aligned, in the order of the footer.
-        let mut meta = MetaBuilder::new(self.data_end);
+        // Metadata, streamed to the file section after section (64-byte aligned) with a running
+        // checksum, so that it is never held in memory whole.
+        let mut meta = MetaWriter::new(self.file.as_file(), self.data_end);
         let levels: Vec<LevelRecord> = self
             .spec
             .levels
@@ -320,8 +320,7 @@ impl AmrkWriter {
                 reserved: [0; 20],
             })
             .collect();
-        let levels_sec = meta.push(levels.as_bytes());
-        let fields_at = meta.reserve((self.spec.fields.len() * size_of::<FieldRecord>()) as u64);
+        let levels_sec = meta.push(levels.as_bytes())?;
         let bricks: Vec<BrickRecord> = self
             .spec
             .bricks
@@ -333,10 +332,11 @@ impl AmrkWriter {
                 reserved: 0.into(),
             })
             .collect();
-        let bricks_sec = meta.push(bricks.as_bytes());
-        let nodes_sec = meta.push(tree.nodes.as_bytes());
-        let leaves_sec = meta.push(tree.leaves.as_bytes());
-        let list_sec = meta.push(tree.brick_list.as_bytes());
+        let bricks_sec = meta.push(bricks.as_bytes())?;
+        drop(bricks);
+        let nodes_sec = meta.push(tree.nodes.as_bytes())?;
+        let leaves_sec = meta.push(tree.leaves.as_bytes())?;
+        let list_sec = meta.push(tree.brick_list.as_bytes())?;
         let mut strings = Vec::new();
         let mut fields = Vec::new();
         for (f, name) in self.spec.fields.iter().enumerate() {
@@ -357,8 +357,8 @@ impl AmrkWriter {
                     max: hi.into(),
                 })
                 .collect();
-            let brick_data = meta.push(recs.as_bytes());
-            let leaf_ranges = meta.push(ranges.as_bytes());
+            let brick_data = meta.push(recs.as_bytes())?;
+            let leaf_ranges = meta.push(ranges.as_bytes())?;
             let min = recs
                 .iter()
                 .map(|d| d.min.get())
@@ -378,13 +378,9 @@ impl AmrkWriter {
             });
             strings.extend_from_slice(name.as_bytes());
         }
-        meta.fill(fields_at, fields.as_bytes());
-        let fields_sec = Section {
-            offset: fields_at.into(),
-            len: (fields.as_bytes().len() as u64).into(),
-        };
-        let strings_sec = meta.push(&strings);
-        let (metadata, meta_bytes) = meta.finish();
+        let fields_sec = meta.push(fields.as_bytes())?;
+        let strings_sec = meta.push(&strings)?;
+        let (metadata, metadata_crc) = meta.finish()?;
 
         let mut footer = Footer {
             magic: raw::MAGIC,
@@ -406,15 +402,13 @@ impl AmrkWriter {
             brick_list: list_sec,
             strings: strings_sec,
             reserved1: [0; 72],
-            metadata_crc: crc32fast::hash(&meta_bytes).into(),
+            metadata_crc: metadata_crc.into(),
             footer_crc: 0.into(),
         };
         let fb = footer.as_bytes();
         footer.footer_crc = crc32fast::hash(&fb[..fb.len() - 4]).into();
 
         let file = self.file.as_file();
-        file.write_all_at(&meta_bytes, metadata.offset.get())
-            .map_err(|e| FormatError::io("writing metadata", e))?;
         let footer_at = metadata.offset.get() + metadata.len.get();
         file.write_all_at(footer.as_bytes(), footer_at)
             .map_err(|e| FormatError::io("writing the footer", e))?;
@@ -567,50 +561,60 @@ fn le_bytes<'a>(values: &[f32], native: &'a [u8]) -> std::borrow::Cow<'a, [u8]> 
     }
 }
 
-/// Lays out the metadata region in memory: sections appended at 64-byte boundaries.
-struct MetaBuilder {
+/// Writes the metadata region: sections appended at 64-byte boundaries, zero padding between
+/// them, every byte fed to the region's checksum in file order.
+struct MetaWriter<'a> {
+    file: &'a File,
     start: u64,
-    bytes: Vec<u8>,
+    pos: u64,
+    crc: crc32fast::Hasher,
 }
 
-impl MetaBuilder {
-    fn new(start: u64) -> Self {
+impl<'a> MetaWriter<'a> {
+    fn new(file: &'a File, start: u64) -> Self {
+        let start = align_up(start);
         Self {
-            start: align_up(start),
-            bytes: Vec::new(),
+            file,
+            start,
+            pos: start,
+            crc: crc32fast::Hasher::new(),
         }
     }
 
-    fn reserve(&mut self, len: u64) -> u64 {
-        let at = align_up(self.bytes.len() as u64);
-        self.bytes.resize((at + len) as usize, 0);
-        self.start + at
+    fn write(&mut self, data: &[u8]) -> Result<()> {
+        self.file
+            .write_all_at(data, self.pos)
+            .map_err(|e| FormatError::io("writing metadata", e))?;
+        self.crc.update(data);
+        self.pos += data.len() as u64;
+        Ok(())
     }
 
-    fn fill(&mut self, at: u64, data: &[u8]) {
-        let rel = (at - self.start) as usize;
-        self.bytes[rel..rel + data.len()].copy_from_slice(data);
+    fn pad(&mut self) -> Result<()> {
+        let pad = (align_up(self.pos) - self.pos) as usize;
+        self.write(&[0u8; raw::ALIGN as usize][..pad])
     }
 
-    fn push(&mut self, data: &[u8]) -> Section {
-        let at = self.reserve(data.len() as u64);
-        self.fill(at, data);
-        Section {
+    fn push(&mut self, data: &[u8]) -> Result<Section> {
+        self.pad()?;
+        let at = self.pos;
+        self.write(data)?;
+        Ok(Section {
             offset: at.into(),
             len: (data.len() as u64).into(),
-        }
+        })
     }
 
-    fn finish(mut self) -> (Section, Vec<u8>) {
-        let len = align_up(self.bytes.len() as u64);
-        self.bytes.resize(len as usize, 0);
-        (
+    fn finish(mut self) -> Result<(Section, u32)> {
+        self.pad()?;
+        let len = self.pos - self.start;
+        Ok((
             Section {
                 offset: self.start.into(),
                 len: len.into(),
             },
-            self.bytes,
-        )
+            self.crc.finalize(),
+        ))
     }
 }
 

@@ -105,7 +105,8 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
             }
         }
         BenchCommand::Suite { out, quick, skip_scale } => {
-            let cfg = amr_render::bench::suite::SuiteConfig { out, quick, skip_scale };
+            let render_exe = std::env::current_exe().ok();
+            let cfg = amr_render::bench::suite::SuiteConfig { out, quick, skip_scale, render_exe };
             let path = amr_render::bench::suite::run_suite(cfg)?;
             println!("wrote {}", path.display());
         }

@@ -34,6 +34,9 @@ pub struct SuiteConfig {
     pub quick: bool,
     /// Skip the scale section (which writes the largest files).
     pub skip_scale: bool,
+    /// The `amr-render` executable the scale section renders with, in a child process so that
+    /// peak RSS is the render's own; `None` renders in this process.
+    pub render_exe: Option<PathBuf>,
 }
 
 impl SuiteConfig {

@@ -12,17 +12,30 @@ use super::local::{Neighbourhood, LEAF};
 use super::refs::{make_ref, LocalVoxel};
 use super::vertices::LeafVertices;
 use crate::reconstruct::interp::{avg8, min_max, straddles};
-use crate::reconstruct::{Sampler, VertexMemo};
+use crate::reconstruct::{LocalLocator, Sampler, VertexMemo};
 
 /// Per-thread scratch of [`extract_leaf`].
-#[derive(Default)]
-pub struct Scratch {
+pub struct Scratch<'s, 'f, D> {
     /// The leaf's classified neighbourhood.
     pub hood: Neighbourhood,
     /// Vertex values met while stitching to coarser levels.
     pub memo: VertexMemo,
     /// The leaf's boundary vertex values.
     pub verts: LeafVertices,
+    /// Leaf cells around the leaf, located without tree walks.
+    pub loc: LocalLocator<'s, 'f, D>,
+}
+
+impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
+    /// Empty scratch for extracting from `sampler`.
+    pub fn new(sampler: &'s Sampler<'f, D>) -> Self {
+        Self {
+            hood: Neighbourhood::default(),
+            memo: VertexMemo::default(),
+            verts: LeafVertices::default(),
+            loc: LocalLocator::new(sampler),
+        }
+    }
 }
 
 /// Counts one leaf contributes to the statistics.
@@ -78,10 +91,15 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     frame: &LeafFrame,
     iso: f32,
-    scratch: &mut Scratch,
+    scratch: &mut Scratch<'_, '_, D>,
     out: &mut Vec<u64>,
 ) -> Result<LeafCounts> {
-    let Scratch { hood, memo, verts } = scratch;
+    let Scratch {
+        hood,
+        memo,
+        verts,
+        loc,
+    } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();
     let level = frame.level;
@@ -117,6 +135,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
 
     // Octants that touch a level boundary, the domain boundary or an uncovered region.
     if !hood.all_leaf {
+        loc.start(level, &frame.finest)?;
         let lowest = grid.centre(level, frame.cells.lo);
         verts.start(&frame.cells, [0, 1, 2].map(|a| lowest[a] - s[a]), s);
         let c = &frame.cells;
@@ -148,8 +167,16 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                             continue;
                         }
                         counts.evaluated += 1;
-                        let Some(v) =
-                            boundary_corners(sampler, hood, (memo, verts), level, i, lo, octant)?
+                        let Some(v) = boundary_corners(
+                            sampler,
+                            hood,
+                            (memo, verts, loc),
+                            level,
+                            i,
+                            [0, 1, 2].map(|a| (cell[a] - c.lo[a]) as usize),
+                            lo,
+                            octant,
+                        )?
                         else {
                             continue;
                         };
@@ -169,20 +196,24 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
             }
         }
     }
+    loc.finish();
     out[start..].sort_unstable();
     Ok(counts)
 }
 
-/// The corner values of octant `octant` of the leaf-cell at neighbourhood index `i`, whose
-/// lower corner is doubled point `lo`: [`Sampler::corners`], reading the eight cells around a
-/// vertex from the neighbourhood when they are all leaf cells of the octant's level (the same
-/// values in the same order), and asking the sampler otherwise.
+/// The corner values of octant `octant` of the leaf-cell at neighbourhood index `i` (local
+/// cell position `local` in the leaf's box), whose lower corner is doubled point `lo`:
+/// [`Sampler::corners`], reading the eight cells around a vertex from the neighbourhood when
+/// they are all leaf cells of the octant's level (the same values in the same order), and asking
+/// the sampler otherwise. Every vertex is computed once per leaf.
+#[allow(clippy::too_many_arguments)]
 fn boundary_corners<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     hood: &Neighbourhood,
-    (memo, verts): (&mut VertexMemo, &mut LeafVertices),
+    (memo, verts, loc): (&mut VertexMemo, &mut LeafVertices, &LocalLocator<'_, '_, D>),
     level: u32,
     i: usize,
+    local: [usize; 3],
     lo: [i64; 3],
     octant: u8,
 ) -> Result<Option<[f32; 8]>> {
@@ -210,22 +241,24 @@ fn boundary_corners<D: AsRef<[u8]>>(
             *slot = hood.value(i);
             continue;
         }
-        let around: [usize; 8] = std::array::from_fn(|m| {
-            let d: isize = (0..3)
-                .map(|a| if m >> a & 1 == 1 { above[a] } else { below[a] })
-                .sum();
-            (i as isize + d) as usize
-        });
-        if around.iter().all(|&j| hood.kind(j) == LEAF) {
-            *slot = avg8(&around.map(|j| hood.value(j)));
-            continue;
-        }
-        let v = [0, 1, 2].map(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
-        let value = match verts.get(v) {
+        let k = [0, 1, 2].map(|a| 2 * local[a] + (octant as usize >> a & 1) + (n >> a & 1));
+        let vi = verts.slot_at(k);
+        let value = match verts.get_slot(vi) {
             Some(known) => known,
             None => {
-                let value = sampler.vertex_value(v, level, memo)?;
-                verts.put(v, value);
+                let around: [usize; 8] = std::array::from_fn(|m| {
+                    let d: isize = (0..3)
+                        .map(|a| if m >> a & 1 == 1 { above[a] } else { below[a] })
+                        .sum();
+                    (i as isize + d) as usize
+                });
+                let value = if around.iter().all(|&j| hood.kind(j) == LEAF) {
+                    Some(avg8(&around.map(|j| hood.value(j))))
+                } else {
+                    let v = [0, 1, 2].map(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
+                    sampler.vertex_value_unmemoized_in(loc, v, level, memo)?
+                };
+                verts.put_slot(vi, value);
                 value
             }
         };

@@ -83,14 +83,17 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         for chunk in leaves.chunks(CHUNK) {
             let parts: Vec<Result<(Vec<u64>, u64)>> = chunk
                 .par_iter()
-                .map_init(Scratch::default, |scratch, &leaf| {
-                    let mut out = Vec::new();
-                    let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
-                        return Ok((out, 0));
-                    };
-                    let counts = extract_leaf(&self.sampler, &frame, iso, scratch, &mut out)?;
-                    Ok((out, counts.evaluated))
-                })
+                .map_init(
+                    || Scratch::new(&self.sampler),
+                    |scratch, &leaf| {
+                        let mut out = Vec::new();
+                        let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
+                            return Ok((out, 0));
+                        };
+                        let counts = extract_leaf(&self.sampler, &frame, iso, scratch, &mut out)?;
+                        Ok((out, counts.evaluated))
+                    },
+                )
                 .collect();
             for part in parts {
                 let (part, n) = part?;

@@ -4,14 +4,18 @@
 
 use amr_format::IBox;
 
+/// Flag of a slot stamp whose value is `None`.
+const NONE: u32 = 1 << 31;
+
 /// Per-thread scratch: remembered vertex values of the leaf being processed.
 #[derive(Default)]
 pub struct LeafVertices {
     base: [i64; 3],
     scale: [i64; 3],
     dims: [usize; 3],
-    stamp: Vec<u32>,
-    value: Vec<Option<f32>>,
+    /// Per slot: the generation that wrote it (with [`NONE`] set when the value is `None`) and
+    /// the value's bits, side by side so one lookup touches one cache line.
+    slots: Vec<(u32, f32)>,
     generation: u32,
 }
 
@@ -24,11 +28,10 @@ impl LeafVertices {
         self.scale = scale;
         self.dims = [0, 1, 2].map(|a| 2 * e[a] as usize + 1);
         let n = self.dims.iter().product();
-        self.generation = self.generation.wrapping_add(1);
-        if self.generation == 0 || self.stamp.len() < n {
-            self.stamp.clear();
-            self.stamp.resize(n, 0);
-            self.value.resize(n, None);
+        self.generation += 1;
+        if self.generation >= NONE || self.slots.len() < n {
+            self.slots.clear();
+            self.slots.resize(n, (0, 0.0));
             self.generation = 1;
         }
     }
@@ -49,19 +52,47 @@ impl LeafVertices {
         Some(i)
     }
 
+    /// The slot of the vertex at half-cell lattice position `k` (`0..=2 * extent` per axis,
+    /// counted from the lowest cell's lower face).
+    #[inline]
+    pub fn slot_at(&self, k: [usize; 3]) -> usize {
+        debug_assert!((0..3).all(|a| k[a] < self.dims[a]));
+        k[0] + self.dims[0] * (k[1] + self.dims[1] * k[2])
+    }
+
+    /// The remembered value in slot `i`, if any.
+    #[inline]
+    pub fn get_slot(&self, i: usize) -> Option<Option<f32>> {
+        let (stamp, value) = self.slots[i];
+        if stamp == self.generation {
+            Some(Some(value))
+        } else if stamp == self.generation | NONE {
+            Some(None)
+        } else {
+            None
+        }
+    }
+
+    /// Remembers the value in slot `i`.
+    #[inline]
+    pub fn put_slot(&mut self, i: usize, value: Option<f32>) {
+        self.slots[i] = match value {
+            Some(x) => (self.generation, x),
+            None => (self.generation | NONE, 0.0),
+        };
+    }
+
     /// The remembered value at doubled vertex `v`, if any.
     #[inline]
     pub fn get(&self, v: [i64; 3]) -> Option<Option<f32>> {
-        let i = self.slot(v)?;
-        (self.stamp[i] == self.generation).then(|| self.value[i])
+        self.get_slot(self.slot(v)?)
     }
 
     /// Remembers the value at doubled vertex `v` (ignored outside the leaf's lattice).
     #[inline]
     pub fn put(&mut self, v: [i64; 3], value: Option<f32>) {
         if let Some(i) = self.slot(v) {
-            self.stamp[i] = self.generation;
-            self.value[i] = value;
+            self.put_slot(i, value);
         }
     }
 }

@@ -3,6 +3,7 @@
 //! - [`grid`]: doubled finest-level integer coordinates, where every location is exact.
 //! - [`interp`]: trilinear interpolation and averages in one fixed evaluation order.
 //! - [`cache`]: a bounded cache of decoded (decompressed) bricks.
+//! - [`local`]: leaf-cell location around one kd-tree leaf from a table, without tree walks.
 //! - [`sampler`]: leaf-cell location and the octant method's vertex values.
 //! - [`methods`]: point sampling with `nearest`, `current`, `finest` and `octant`.
 //!
@@ -11,9 +12,11 @@
 pub mod cache;
 pub mod grid;
 pub mod interp;
+pub mod local;
 pub mod methods;
 pub mod sampler;
 
 pub use grid::Grid;
+pub use local::LocalLocator;
 pub use methods::Method;
-pub use sampler::{LeafCell, Octant, Sampler, Slab, VertexMemo};
+pub use sampler::{LeafCell, Locate, Octant, Sampler, Slab, VertexMemo};

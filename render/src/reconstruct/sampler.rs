@@ -70,13 +70,20 @@ impl Deref for Slab<'_> {
 pub struct VertexMemo {
     map: HashMap<VertexKey, Option<f32>, BuildHasherDefault<VertexHasher>>,
     capacity: usize,
+    /// Direct-mapped corner values of coarse octants met while stitching (allocated on first
+    /// use: 1024 slots of 48 bytes).
+    octants: Vec<(Octant, Option<[f32; 8]>)>,
 }
+
+/// Slots of [`VertexMemo`]'s octant table.
+const OCTANT_SLOTS: usize = 1024;
 
 impl Default for VertexMemo {
     fn default() -> Self {
         Self {
             map: HashMap::default(),
             capacity: 1 << 16,
+            octants: Vec::new(),
         }
     }
 }
@@ -85,6 +92,35 @@ impl VertexMemo {
     /// Forgets every value.
     pub fn clear(&mut self) {
         self.map.clear();
+        self.octants.clear();
+    }
+
+    #[inline]
+    fn octant_slot(o: &Octant) -> usize {
+        let h = (o.cell[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ (o.cell[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+            ^ (o.cell[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
+            ^ (u64::from(o.level) << 3 | u64::from(o.octant)).wrapping_mul(0x27D4_EB2F_1656_67C5);
+        (h >> 54) as usize % OCTANT_SLOTS
+    }
+
+    #[inline]
+    fn octant_get(&self, o: &Octant) -> Option<Option<[f32; 8]>> {
+        let e = self.octants.get(Self::octant_slot(o))?;
+        (e.0 == *o).then_some(e.1)
+    }
+
+    #[inline]
+    fn octant_put(&mut self, o: &Octant, corners: Option<[f32; 8]>) {
+        if self.octants.is_empty() {
+            let empty = Octant {
+                level: u32::MAX,
+                cell: [0; 3],
+                octant: 0,
+            };
+            self.octants.resize(OCTANT_SLOTS, (empty, None));
+        }
+        self.octants[Self::octant_slot(o)] = (*o, corners);
     }
 }
 
@@ -123,6 +159,21 @@ impl Hasher for VertexHasher {
     }
     fn write_u64(&mut self, x: u64) {
         self.0 ^= x;
+    }
+}
+
+/// Finds the leaf cell holding a finest-level cell. The sampler answers with a kd-tree walk;
+/// [`super::local::LocalLocator`] answers from a per-leaf table and falls back to the sampler.
+/// Every implementation must give exactly [`Sampler::locate`]'s answer.
+pub trait Locate {
+    /// The leaf cell holding finest-level cell `finest` (relative to the domain, inside it).
+    fn locate_cell(&self, finest: [i64; 3]) -> Result<Option<LeafCell>>;
+}
+
+impl<D: AsRef<[u8]>> Locate for Sampler<'_, D> {
+    #[inline]
+    fn locate_cell(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
+        self.locate(finest)
     }
 }
 
@@ -253,16 +304,33 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// The leaf cells touching doubled point `v` from its eight sides (side `n`: nudged toward
     /// `+` on axis `a` when bit `a` of `n` is set), clamped into the domain.
     pub fn around(&self, v: [i64; 3]) -> Result<Option<[LeafCell; 8]>> {
-        let mut finest = [[0i64; 3]; 8];
+        self.around_in(self, v)
+    }
+
+    /// [`Self::around`], locating through `loc`.
+    #[inline]
+    pub fn around_in<L: Locate>(&self, loc: &L, v: [i64; 3]) -> Result<Option<[LeafCell; 8]>> {
+        // Per axis the two nudges' finest cells; where they coincide (odd coordinate, or
+        // clamped at the domain edge), side n repeats the side without that bit.
+        let lo = self.grid.finest_cell(v, 0);
+        let hi = self.grid.finest_cell(v, 7);
+        let mut same = 0usize;
+        for a in 0..3 {
+            if lo[a] == hi[a] {
+                same |= 1 << a;
+            }
+        }
         let mut out = [None::<LeafCell>; 8];
         for n in 0..8 {
-            finest[n] = self.grid.finest_cell(v, n as u8);
-            out[n] = match (0..n).find(|&m| finest[m] == finest[n]) {
-                Some(m) => out[m],
-                None => match self.locate(finest[n])? {
+            let m = n & !same;
+            out[n] = if m != n {
+                out[m]
+            } else {
+                let f = [0, 1, 2].map(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+                match loc.locate_cell(f)? {
                     Some(c) => Some(c),
                     None => return Ok(None),
-                },
+                }
             };
         }
         Ok(Some(out.map(|c| c.expect("every side was located"))))
@@ -281,18 +349,42 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         level: u32,
         memo: &mut VertexMemo,
     ) -> Result<Option<f32>> {
+        self.vertex_value_in(self, v, level, memo)
+    }
+
+    /// [`Self::vertex_value`], locating through `loc`.
+    pub fn vertex_value_in<L: Locate>(
+        &self,
+        loc: &L,
+        v: [i64; 3],
+        level: u32,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<f32>> {
         if let Some(&known) = memo.map.get(&VertexKey(v, level)) {
             return Ok(known);
         }
-        let value = match self.around(v)? {
-            Some(cells) => self.vertex_value_from(v, level, &cells, memo)?,
-            None => None,
-        };
+        let value = self.vertex_value_unmemoized_in(loc, v, level, memo)?;
         if memo.map.len() >= memo.capacity {
             memo.map.clear();
         }
         memo.map.insert(VertexKey(v, level), value);
         Ok(value)
+    }
+
+    /// [`Self::vertex_value_in`] without looking `v` itself up in (or adding it to) `memo`: for
+    /// callers that remember their own vertices. The same value, computed the same way.
+    #[inline]
+    pub fn vertex_value_unmemoized_in<L: Locate>(
+        &self,
+        loc: &L,
+        v: [i64; 3],
+        level: u32,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<f32>> {
+        match self.around_in(loc, v)? {
+            Some(cells) => self.vertex_value_from_in(loc, v, level, &cells, memo),
+            None => Ok(None),
+        }
     }
 
     /// [`Self::vertex_value`] given the leaf cells around `v` (as [`Self::around`] finds them).
@@ -303,9 +395,21 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         cells: &[LeafCell; 8],
         memo: &mut VertexMemo,
     ) -> Result<Option<f32>> {
+        self.vertex_value_from_in(self, v, level, cells, memo)
+    }
+
+    /// [`Self::vertex_value_from`], locating through `loc`.
+    pub fn vertex_value_from_in<L: Locate>(
+        &self,
+        loc: &L,
+        v: [i64; 3],
+        level: u32,
+        cells: &[LeafCell; 8],
+        memo: &mut VertexMemo,
+    ) -> Result<Option<f32>> {
         let coarsest = cells.iter().map(|c| c.level).min().unwrap_or(level);
         if coarsest < level {
-            return self.coarse_value(v, cells, coarsest, memo);
+            return self.coarse_value_in(loc, v, cells, coarsest, memo);
         }
         Ok(Some(avg8(&cells.map(|c| c.value))))
     }
@@ -315,6 +419,19 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// depends on `v` only, never on who asks.
     pub fn coarse_value(
         &self,
+        v: [i64; 3],
+        cells: &[LeafCell; 8],
+        coarsest: u32,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<f32>> {
+        self.coarse_value_in(self, v, cells, coarsest, memo)
+    }
+
+    /// [`Self::coarse_value`], locating through `loc`. The coarse octant's corner values are
+    /// remembered in `memo` (they are a pure function of the octant).
+    pub fn coarse_value_in<L: Locate>(
+        &self,
+        loc: &L,
         v: [i64; 3],
         cells: &[LeafCell; 8],
         coarsest: u32,
@@ -332,14 +449,23 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 octant |= 1 << a;
             }
         }
-        let Some(corners) = self.corners(q.level, q.cell, q.value, octant, memo)? else {
-            return Ok(None);
-        };
-        let (lo, _) = self.octant_box(&Octant {
+        let key = Octant {
             level: q.level,
             cell: q.cell,
             octant,
-        });
+        };
+        let corners = match memo.octant_get(&key) {
+            Some(known) => known,
+            None => {
+                let c = self.corners_in(loc, q.level, q.cell, q.value, octant, memo)?;
+                memo.octant_put(&key, c);
+                c
+            }
+        };
+        let Some(corners) = corners else {
+            return Ok(None);
+        };
+        let (lo, _) = self.octant_box(&key);
         let s = self.grid.scale(q.level);
         let t = [0, 1, 2].map(|a| ((v[a] - lo[a]) as f64 / s[a] as f64) as f32);
         Ok(Some(trilinear(&corners, t)))
@@ -368,6 +494,19 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         octant: u8,
         memo: &mut VertexMemo,
     ) -> Result<Option<[f32; 8]>> {
+        self.corners_in(self, level, cell, value, octant, memo)
+    }
+
+    /// [`Self::corners`], locating through `loc`.
+    pub fn corners_in<L: Locate>(
+        &self,
+        loc: &L,
+        level: u32,
+        cell: [i64; 3],
+        value: f32,
+        octant: u8,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<[f32; 8]>> {
         let (lo, _) = self.octant_box(&Octant {
             level,
             cell,
@@ -382,7 +521,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 continue;
             }
             let v = [0, 1, 2].map(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
-            match self.vertex_value(v, level, memo)? {
+            match self.vertex_value_in(loc, v, level, memo)? {
                 Some(x) => *slot = x,
                 None => return Ok(None),
             }

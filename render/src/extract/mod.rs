@@ -23,7 +23,7 @@ use amr_format::{AmrkFile, FormatError, Result};
 use rayon::prelude::*;
 
 use crate::reconstruct::interp::straddles;
-use crate::reconstruct::{Octant, Sampler};
+use crate::reconstruct::{Octant, Sampler, VertexMemo};
 use leaf::{extract_leaf, LeafFrame, Scratch};
 pub use refs::{make_ref, split_ref, LocalVoxel, Voxel, DUAL_BASE};
 pub use stats::ExtractStats;
@@ -124,6 +124,12 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// The voxel reference `r` names: its box and its eight corner values, recomputed from the
     /// file. An error when `r` names no voxel of this file.
     pub fn decode(&self, r: u64) -> Result<Voxel> {
+        self.decode_memo(r, &mut VertexMemo::default())
+    }
+
+    /// [`Self::decode`], remembering vertex values in `memo` for the next calls (a memo must
+    /// serve one sampler only: values are keyed by position).
+    pub fn decode_memo(&self, r: u64, memo: &mut VertexMemo) -> Result<Voxel> {
         let (leaf, local) = split_ref(r);
         let bad = |m: &str| FormatError::Usage(format!("voxel reference {r:#018x}: {m}"));
         if leaf as usize >= self.sampler.file().num_leaves() {
@@ -150,7 +156,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 };
                 let values = self
                     .sampler
-                    .octant_values(&o)?
+                    .octant_values_memo(&o, memo)?
                     .ok_or_else(|| bad("no values there"))?;
                 let (lo, hi) = self.sampler.octant_box(&o);
                 (lo, hi, values, false)

@@ -2,7 +2,9 @@
 //! their 32:32 refs, and point samples of the chosen reconstruction. Grid coordinates are the
 //! extraction's doubled finest-level coordinates.
 
+use std::cell::RefCell;
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use amr_convert::progress::NoProgress;
 use amr_convert::synth::{write_synth, AnalyticField, Case, SynthParams};
@@ -11,7 +13,7 @@ use anyhow::Context;
 
 use crate::extract::Extractor;
 use crate::mapping::{mapped_resident_bytes, open_mapped};
-use crate::reconstruct::Method as Recon;
+use crate::reconstruct::{Method as Recon, VertexMemo};
 use crate::render_cmd::{
     header_meta, progress_bar, render_source, stats_rows, write_outputs, ActiveSource, Method,
     Reconstruction, RenderArgs, RenderConfig,
@@ -22,11 +24,45 @@ use crate::trace::source::{GridFrame, Voxel, VoxelSource};
 /// Bytes of decompressed bricks the extraction may cache.
 const CACHE_BYTES: usize = 256 << 20;
 
+/// Slots of each thread's cache of decoded voxels (a power of two).
+const VOXEL_CACHE_SLOTS: usize = 4096;
+
+/// Bytes of one thread's voxel cache: the decoded voxels with their keys, plus the vertex memo
+/// (bounded by [`VertexMemo`]'s own capacity, not counted here).
+pub const VOXEL_CACHE_BYTES: usize = VOXEL_CACHE_SLOTS * std::mem::size_of::<(u64, u64, Voxel)>();
+
+/// Source ids, so that a thread's cache never answers for another source.
+static NEXT_SOURCE: AtomicU64 = AtomicU64::new(1);
+
+/// Threads that have allocated a voxel cache (for the memory statistics).
+static CACHE_THREADS: AtomicU64 = AtomicU64::new(0);
+
+/// One thread's decoded voxels: direct-mapped by ref, tagged with the source id.
+struct VoxelCache {
+    source: u64,
+    slots: Vec<(u64, u64, Voxel)>,
+    memo: VertexMemo,
+}
+
+thread_local! {
+    static VOXELS: RefCell<VoxelCache> = RefCell::new(VoxelCache {
+        source: 0,
+        slots: Vec::new(),
+        memo: VertexMemo::default(),
+    });
+}
+
+/// Bytes held by the per-thread voxel caches of this process.
+pub fn voxel_cache_bytes() -> u64 {
+    CACHE_THREADS.load(Ordering::Relaxed) * VOXEL_CACHE_BYTES as u64
+}
+
 /// One field of an open file as a [`VoxelSource`].
 pub struct AmrSource<'f, D> {
     ext: Extractor<'f, D>,
     method: Recon,
     frame: GridFrame,
+    id: u64,
 }
 
 impl<'f, D: AsRef<[u8]> + Sync> AmrSource<'f, D> {
@@ -52,6 +88,7 @@ impl<'f, D: AsRef<[u8]> + Sync> AmrSource<'f, D> {
         };
         Ok(AmrSource {
             ext,
+            id: NEXT_SOURCE.fetch_add(1, Ordering::Relaxed),
             method,
             frame: GridFrame {
                 origin,
@@ -62,13 +99,41 @@ impl<'f, D: AsRef<[u8]> + Sync> AmrSource<'f, D> {
     }
 }
 
-impl<D: AsRef<[u8]> + Sync> VoxelSource for AmrSource<'_, D> {
-    fn frame(&self) -> GridFrame {
-        self.frame
+impl<D: AsRef<[u8]> + Sync> AmrSource<'_, D> {
+    /// The voxel `r` names, from this thread's cache when it holds it.
+    fn cached_voxel(&self, r: u64) -> Voxel {
+        VOXELS.with(|cell| {
+            let mut guard = cell.borrow_mut();
+            let cache = &mut *guard;
+            if cache.slots.is_empty() {
+                CACHE_THREADS.fetch_add(1, Ordering::Relaxed);
+                let empty = (0, u64::MAX, self.decode_ref(r, &mut cache.memo));
+                cache.slots = vec![empty; VOXEL_CACHE_SLOTS];
+            }
+            if cache.source != self.id {
+                cache.source = self.id;
+                cache.memo.clear();
+                for s in &mut cache.slots {
+                    s.0 = 0;
+                }
+            }
+            // Fibonacci hashing of the ref: neighbouring refs land in different slots.
+            let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
+            let e = cache.slots[slot];
+            if e.0 == self.id && e.1 == r {
+                return e.2;
+            }
+            let v = self.decode_ref(r, &mut cache.memo);
+            cache.slots[slot] = (self.id, r, v);
+            v
+        })
     }
+}
 
-    fn voxel(&self, r: u64) -> Voxel {
-        match self.ext.decode(r) {
+impl<D: AsRef<[u8]> + Sync> AmrSource<'_, D> {
+    /// Decodes `r` (a NaN voxel when it names none).
+    fn decode_ref(&self, r: u64, memo: &mut VertexMemo) -> Voxel {
+        match self.ext.decode_memo(r, memo) {
             Ok(v) => Voxel {
                 lo: v.lo_doubled.map(|x| x as f64),
                 hi: v.hi_doubled.map(|x| x as f64),
@@ -82,6 +147,16 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for AmrSource<'_, D> {
                 level: 0,
             },
         }
+    }
+}
+
+impl<D: AsRef<[u8]> + Sync> VoxelSource for AmrSource<'_, D> {
+    fn frame(&self) -> GridFrame {
+        self.frame
+    }
+
+    fn voxel(&self, r: u64) -> Voxel {
+        self.cached_voxel(r)
     }
 
     fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)> {
@@ -129,6 +204,7 @@ pub fn render_file(args: &RenderArgs, mut cfg: RenderConfig) -> anyhow::Result<(
     let extra = [
         ("field", format!("\"{}\"", file.fields()[field].name)),
         ("file_bytes", file.bytes().len().to_string()),
+        ("voxel_cache_bytes", voxel_cache_bytes().to_string()),
         (
             "mapped_resident_bytes",
             mapped_resident_bytes(file.bytes()).map_or("null".into(), |b| b.to_string()),

@@ -10,7 +10,11 @@ use clap::{Parser, Subcommand};
 
 /// Streams AMR simulation dumps (AMReX plotfiles, Chombo HDF5 plotfiles) into one memory-mappable .amrk file.
 #[derive(Parser, Debug)]
-#[command(version, args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+#[command(
+    version,
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
@@ -45,8 +49,13 @@ fn main() -> ExitCode {
             let (Some(input), Some(output)) = (&cli.input, &cli.output) else {
                 unreachable!("clap requires INPUT and --output without a subcommand")
             };
-            let compression = if cli.compress { Compression::Zstd { level: 3 } } else { Compression::None };
-            run_convert(input, output, &cli.fields, cli.brick, compression).map(|s| eprintln!("{s}"))
+            let compression = if cli.compress {
+                Compression::Zstd { level: 3 }
+            } else {
+                Compression::None
+            };
+            run_convert(input, output, &cli.fields, cli.brick, compression)
+                .map(|s| eprintln!("{s}"))
         }
     };
     match result {

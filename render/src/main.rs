@@ -13,7 +13,11 @@ use clap::{Parser, Subcommand};
 
 /// Ray traces isosurfaces of block-structured AMR data stored in .amrk files.
 #[derive(Parser, Debug)]
-#[command(version, args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+#[command(
+    version,
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
@@ -82,10 +86,16 @@ enum BenchCommand {
 fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
     match cmd {
         BenchCommand::Open { files, runs } => {
-            println!("| file | bytes | bricks | median open (ms) over {runs} runs |\n|---|---|---|---|");
+            println!(
+                "| file | bytes | bricks | median open (ms) over {runs} runs |\n|---|---|---|---|"
+            );
             for f in files {
                 let (t, bytes, bricks) = amr_render::bench::open::open_time(&f, runs)?;
-                println!("| {} | {bytes} | {bricks} | {:.3} |", f.display(), t.as_secs_f64() * 1e3);
+                println!(
+                    "| {} | {bytes} | {bricks} | {:.3} |",
+                    f.display(),
+                    t.as_secs_f64() * 1e3
+                );
             }
         }
         BenchCommand::Read { files, field } => {
@@ -104,9 +114,18 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
                 std::hint::black_box(r.checksum);
             }
         }
-        BenchCommand::Suite { out, quick, skip_scale } => {
+        BenchCommand::Suite {
+            out,
+            quick,
+            skip_scale,
+        } => {
             let render_exe = std::env::current_exe().ok();
-            let cfg = amr_render::bench::suite::SuiteConfig { out, quick, skip_scale, render_exe };
+            let cfg = amr_render::bench::suite::SuiteConfig {
+                out,
+                quick,
+                skip_scale,
+                render_exe,
+            };
             let path = amr_render::bench::suite::run_suite(cfg)?;
             println!("wrote {}", path.display());
         }
@@ -116,7 +135,9 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     let Some(command) = cli.command else {
-        let args = cli.render.expect("clap requires the render arguments without a subcommand");
+        let args = cli
+            .render
+            .expect("clap requires the render arguments without a subcommand");
         return run_render(&args);
     };
     match command {
@@ -129,7 +150,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bench(cmd) => run_bench(cmd)?,
         Command::Verify { file } => {
             let f = open_mapped(&file)?;
-            let report = f.verify().map_err(|e| e.in_file(&file)).context("verification failed")?;
+            let report = f
+                .verify()
+                .map_err(|e| e.in_file(&file))
+                .context("verification failed")?;
             println!("{}: OK: {report}", file.display());
         }
     }

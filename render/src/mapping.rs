@@ -12,10 +12,22 @@ pub type MappedFile = AmrkFile<Mmap>;
 /// Opens and maps `path`, then validates it with [`AmrkFile::open`]. Errors name the file.
 pub fn open_mapped(path: &Path) -> Result<MappedFile> {
     let fail = |e: FormatError| e.in_file(path);
-    let file = File::open(path).map_err(|e| fail(FormatError::Io { context: "cannot open".into(), source: e }))?;
-    let meta = file.metadata().map_err(|e| fail(FormatError::Io { context: "cannot stat".into(), source: e }))?;
+    let file = File::open(path).map_err(|e| {
+        fail(FormatError::Io {
+            context: "cannot open".into(),
+            source: e,
+        })
+    })?;
+    let meta = file.metadata().map_err(|e| {
+        fail(FormatError::Io {
+            context: "cannot stat".into(),
+            source: e,
+        })
+    })?;
     if meta.is_dir() {
-        return Err(fail(FormatError::Corrupt("is a directory, not an .amrk file".into())));
+        return Err(fail(FormatError::Corrupt(
+            "is a directory, not an .amrk file".into(),
+        )));
     }
     if meta.len() == 0 {
         return Err(fail(FormatError::Truncated("the file is empty".into())));
@@ -24,8 +36,12 @@ pub fn open_mapped(path: &Path) -> Result<MappedFile> {
     // rewriting the file while it is mapped could change the bytes under us (or raise SIGBUS);
     // the converter never rewrites a finished file in place (it writes a new file and renames
     // it), which is the contract this program relies on, as every mmap-based reader does.
-    let map = unsafe { Mmap::map(&file) }
-        .map_err(|e| fail(FormatError::Io { context: "cannot memory-map".into(), source: e }))?;
+    let map = unsafe { Mmap::map(&file) }.map_err(|e| {
+        fail(FormatError::Io {
+            context: "cannot memory-map".into(),
+            source: e,
+        })
+    })?;
     AmrkFile::open(map).map_err(fail)
 }
 
@@ -38,7 +54,8 @@ pub fn mapped_resident_bytes(map: &[u8]) -> Option<u64> {
     for line in smaps.lines() {
         if let Some((range, _)) = line.split_once(' ') {
             if let Some((a, b)) = range.split_once('-') {
-                if let (Ok(a), Ok(b)) = (usize::from_str_radix(a, 16), usize::from_str_radix(b, 16)) {
+                if let (Ok(a), Ok(b)) = (usize::from_str_radix(a, 16), usize::from_str_radix(b, 16))
+                {
                     in_region = a <= start && start < b;
                     continue;
                 }

@@ -4,15 +4,29 @@ use std::path::Path;
 use std::process::Command;
 
 fn run(args: &[&str]) -> (i32, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_amr-render")).args(args).output().unwrap();
-    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stderr).into_owned())
+    let out = Command::new(env!("CARGO_BIN_EXE_amr-render"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
 }
 
 fn expect_error(path: &Path, needle: &str) {
     for cmd in ["info", "verify"] {
         let (code, err) = run(&[cmd, path.to_str().unwrap()]);
-        assert_eq!(code, 1, "{cmd} {}: exit {code}, stderr: {err}", path.display());
-        assert!(err.contains(&path.display().to_string()), "{cmd}: error does not name the file: {err}");
+        assert_eq!(
+            code,
+            1,
+            "{cmd} {}: exit {code}, stderr: {err}",
+            path.display()
+        );
+        assert!(
+            err.contains(&path.display().to_string()),
+            "{cmd}: error does not name the file: {err}"
+        );
         assert!(err.contains(needle), "{cmd}: expected '{needle}' in: {err}");
     }
 }
@@ -47,7 +61,10 @@ fn truncated_and_flipped_files() {
     assert_eq!(code, 0, "damaged brick data does not stop info");
     let (code, err) = run(&["verify", data_flip.to_str().unwrap()]);
     assert_eq!(code, 1);
-    assert!(err.contains("checksum mismatch") && err.contains("flip.amrk"), "{err}");
+    assert!(
+        err.contains("checksum mismatch") && err.contains("flip.amrk"),
+        "{err}"
+    );
     assert_eq!(run(&["verify", good.to_str().unwrap()]).0, 0);
 }
 
@@ -55,14 +72,28 @@ fn write_small_file(path: &Path) {
     use amr_format::{AmrkWriter, BrickSpec, HierarchySpec, IBox, LevelSpec, WriterOptions};
     let domain = IBox::new([0; 3], [8; 3]);
     let spec = HierarchySpec {
-        levels: vec![LevelSpec { cell_size: [0.125; 3], origin: [0.0; 3], ratio_to_next: [1; 3], domain }],
+        levels: vec![LevelSpec {
+            cell_size: [0.125; 3],
+            origin: [0.0; 3],
+            ratio_to_next: [1; 3],
+            domain,
+        }],
         fields: vec!["f".into()],
-        bricks: domain.split([4; 3]).into_iter().map(|c| BrickSpec { level: 0, cells: c }).collect(),
+        bricks: domain
+            .split([4; 3])
+            .into_iter()
+            .map(|c| BrickSpec { level: 0, cells: c })
+            .collect(),
     };
     let mut w = AmrkWriter::create(path, spec.clone(), WriterOptions::default()).unwrap();
     for (i, b) in spec.bricks.iter().enumerate() {
         let n = b.cells.num_cells().unwrap() as usize;
-        w.write_brick(i, 0, &(0..n).map(|k| k as f32 + i as f32).collect::<Vec<_>>()).unwrap();
+        w.write_brick(
+            i,
+            0,
+            &(0..n).map(|k| k as f32 + i as f32).collect::<Vec<_>>(),
+        )
+        .unwrap();
     }
     w.finish().unwrap();
 }

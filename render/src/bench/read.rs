@@ -30,5 +30,10 @@ pub fn read_all(path: &Path, field: usize) -> amr_format::Result<ReadReport> {
         stored += f.brick_data(field, b).len.get();
         sum += buf.iter().map(|&v| v as f64).sum::<f64>();
     }
-    Ok(ReadReport { time: t.elapsed(), cells, stored_bytes: stored, checksum: sum })
+    Ok(ReadReport {
+        time: t.elapsed(),
+        cells,
+        stored_bytes: stored,
+        checksum: sum,
+    })
 }

@@ -1,7 +1,12 @@
 //! What every reader shares on its way into the writer: the conversion options and statistics,
 //! and the layout that splits each input box into bricks and routes slabs of box data to them.
 
-use amr_format::{copy_subbox, AmrkWriter, BrickSpec, Compression, FormatError, IBox};
+use std::path::Path;
+
+use amr_format::{
+    copy_subbox, AmrkWriter, BrickSpec, Compression, FormatError, HierarchySpec, IBox, LevelSpec,
+    WriterOptions,
+};
 
 /// What to convert and how.
 #[derive(Clone, Debug)]
@@ -109,5 +114,65 @@ impl BrickLayout {
             }
         }
         Ok(())
+    }
+}
+
+/// A writer fed slab by slab: the brick layout, the `.amrk` writer and the copy buffer together.
+pub struct BrickSink {
+    layout: BrickLayout,
+    writer: AmrkWriter,
+    scratch: Vec<f32>,
+}
+
+impl BrickSink {
+    /// Starts `output` with `levels`, `fields` and the bricks of `layout` (nothing appears at
+    /// `output` before [`finish`](Self::finish)).
+    pub fn create(
+        output: &Path,
+        levels: Vec<LevelSpec>,
+        fields: Vec<String>,
+        layout: BrickLayout,
+        compression: Compression,
+    ) -> Result<Self, FormatError> {
+        let spec = HierarchySpec {
+            levels,
+            fields,
+            bricks: layout.bricks().to_vec(),
+        };
+        let writer = AmrkWriter::create(output, spec, WriterOptions { compression })?;
+        Ok(Self {
+            layout,
+            writer,
+            scratch: Vec::new(),
+        })
+    }
+
+    /// Writes the bricks inside `cells` of box `index` of `level`; see [`BrickLayout::write_slab`].
+    pub fn write_slab(
+        &mut self,
+        level: usize,
+        index: usize,
+        valid: &IBox,
+        cells: &IBox,
+        field: usize,
+        values: &[f32],
+    ) -> Result<(), FormatError> {
+        self.layout.write_slab(
+            &mut self.writer,
+            level,
+            index,
+            valid,
+            cells,
+            field,
+            values,
+            &mut self.scratch,
+        )
+    }
+
+    /// Finishes the file; returns the number of bricks written.
+    pub fn finish(self) -> Result<u64, FormatError> {
+        let bricks = self.layout.bricks().len() as u64;
+        self.writer.finish()?;
+        Ok(bricks)
     }
 }

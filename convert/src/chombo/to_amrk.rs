@@ -4,12 +4,10 @@
 
 use std::path::Path;
 
-use amr_format::{AmrkWriter, HierarchySpec, WriterOptions};
-
 use super::error::{ChomboError, Result};
 use super::plotfile::Plotfile;
 use super::reader::{stream, Slab};
-use crate::bricking::{BrickLayout, ConvertOptions, ConvertStats};
+use crate::bricking::{BrickLayout, BrickSink, ConvertOptions, ConvertStats};
 use crate::progress::Progress;
 
 /// Converts the Chombo plotfile `input` into the `.amrk` file `output`.
@@ -29,41 +27,19 @@ pub fn convert(
         pf.levels.iter().map(|level| level.boxes.as_slice()),
         opts.brick,
     );
-    let nbricks = layout.bricks().len() as u64;
-    let spec = HierarchySpec {
-        levels: pf.level_specs(),
-        fields: comps.iter().map(|&c| pf.fields[c].clone()).collect(),
-        bricks: layout.bricks().to_vec(),
-    };
     let out_err = |source| ChomboError::Output {
         path: output.to_path_buf(),
-        source,
+        source: source,
     };
-    let mut writer = AmrkWriter::create(
-        output,
-        spec,
-        WriterOptions {
-            compression: opts.compression,
-        },
-    )
-    .map_err(out_err)?;
-    let mut buf = Vec::new();
-    let sink = |s: Slab| -> Result<()> {
-        layout
-            .write_slab(
-                &mut writer,
-                s.level,
-                s.index,
-                &s.valid,
-                &s.cells,
-                s.field,
-                s.values,
-                &mut buf,
-            )
+    let fields = comps.iter().map(|&c| pf.fields[c].clone()).collect();
+    let mut sink = BrickSink::create(output, pf.level_specs(), fields, layout, opts.compression)
+        .map_err(out_err)?;
+    let write = |s: Slab| -> Result<()> {
+        sink.write_slab(s.level, s.index, &s.valid, &s.cells, s.field, s.values)
             .map_err(out_err)
     };
-    let stats = stream(&pf, &comps, i64::from(opts.brick.max(1)), progress, sink)?;
-    writer.finish().map_err(out_err)?;
+    let stats = stream(&pf, &comps, i64::from(opts.brick.max(1)), progress, write)?;
+    let nbricks = sink.finish().map_err(out_err)?;
     progress.finish();
     Ok(ConvertStats {
         bytes_read: stats.bytes_read,

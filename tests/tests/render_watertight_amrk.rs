@@ -112,6 +112,11 @@ fn check(seed: u64, levels: u32, ratio: u32, base: u32, random: usize) -> usize 
         .map(|d| {
             let ray = GridRay::from_world(&frame, CENTRE, *d);
             let hit = surface.closest_hit(&src, &ray, 0.0, f64::INFINITY)?;
+            // The any-hit query (shadows, ambient occlusion) must agree with closest-hit.
+            assert!(
+                surface.any_hit(&src, &ray, 0.0, f64::INFINITY),
+                "seed {seed}: closest-hit finds the surface along {d:?}, any-hit does not"
+            );
             let scale = hit
                 .voxel
                 .values

@@ -125,9 +125,14 @@ impl Surface {
         let Some(b) = ray.bvh_ray(&frame, bvh_pad(&frame), tmin, tmax) else {
             return false;
         };
+        // The traversal macro's `break` leaves only the current leaf's loop, so a hit must also
+        // stay set and empty the ray's interval, or later candidates would overwrite it.
         let mut hit = false;
-        self.bvh.traverse(b.ray, |r, _| {
-            hit = intersect_voxel(&src.voxel(r), self.iso, ray, tmin, tmax).is_some();
+        self.bvh.traverse(b.ray, |r, tmax32| {
+            if !hit && intersect_voxel(&src.voxel(r), self.iso, ray, tmin, tmax).is_some() {
+                hit = true;
+                *tmax32 = f32::NEG_INFINITY;
+            }
             hit
         });
         hit

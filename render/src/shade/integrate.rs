@@ -93,12 +93,40 @@ pub fn shade_ray<T: Tracer + ?Sized>(
         if transmittance < MIN_TRANSMITTANCE {
             break;
         }
-        let step = 1e-4 * hit.size / grid_len(ray.d);
-        next[i] = tracer.next_hit(i, &ray, hit.t + step, f64::INFINITY);
+        next[i] = next_crossing(tracer, i, &ray, &hit);
     }
     out.rgb = rgb;
     out.alpha = 1.0 - transmittance;
     out
+}
+
+/// The next hit of surface `i` along `ray` after `hit` that is a new crossing.
+///
+/// Where a ray passes through a face, edge or corner shared by two octants, both octants report
+/// the crossing (their segments are widened so that none is lost), a hair apart along the ray.
+/// Compositing such a duplicate would draw a transparent surface twice along every octant
+/// boundary. A real next crossing of a surface leaves it on the other side, so a hit that is
+/// close behind and crosses in the same direction is the same crossing, and is skipped.
+fn next_crossing<T: Tracer + ?Sized>(
+    tracer: &T,
+    i: usize,
+    ray: &GridRay,
+    hit: &SurfaceHit,
+) -> Option<SurfaceHit> {
+    let per_t = grid_len(ray.d);
+    let step = 1e-4 * hit.size / per_t;
+    let same_crossing_within = 1e-2 * hit.size / per_t;
+    let side = dot(hit.grad, ray.d) > 0.0;
+    let mut from = hit.t + step;
+    loop {
+        let next = tracer.next_hit(i, ray, from, f64::INFINITY)?;
+        let duplicate =
+            next.t - hit.t < same_crossing_within && (dot(next.grad, ray.d) > 0.0) == side;
+        if !duplicate {
+            return Some(next);
+        }
+        from = next.t + step;
+    }
 }
 
 /// The unit world-space normal for a grid-space gradient.

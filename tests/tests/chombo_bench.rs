@@ -5,56 +5,10 @@
 //! Three levels (ratio 2 then 4), 32³ boxes with 3 ghost layers (GRChombo's default), four
 //! float64 components; about 1 GB. Written box by box so the generator's memory stays small.
 
-use hdf5_metno::types::{CompoundField, CompoundType, FixedAscii, IntSize, TypeDescriptor};
-use hdf5_metno::{File, H5Type, Location};
+mod chombo_support;
 
-#[derive(H5Type, Clone, Copy, Debug)]
-#[repr(C)]
-struct RawBox {
-    lo_i: i32,
-    lo_j: i32,
-    lo_k: i32,
-    hi_i: i32,
-    hi_j: i32,
-    hi_k: i32,
-}
-
-#[derive(H5Type, Clone, Copy, Debug)]
-#[repr(C)]
-struct RawIntVect {
-    intvecti: i32,
-    intvectj: i32,
-    intvectk: i32,
-}
-
-fn padded_box_type() -> TypeDescriptor {
-    let names = ["lo_i", "lo_j", "lo_k", "hi_i", "hi_j", "hi_k"];
-    TypeDescriptor::Compound(CompoundType {
-        fields: names
-            .iter()
-            .enumerate()
-            .map(|(i, n)| CompoundField {
-                name: n.to_string(),
-                ty: TypeDescriptor::Integer(IntSize::U4),
-                offset: 4 * i,
-                index: i,
-            })
-            .collect(),
-        size: 32,
-    })
-}
-
-fn attr<T: H5Type>(loc: &Location, name: &str, v: &T) -> hdf5_metno::Result<()> {
-    loc.new_attr::<T>().create(name)?.write_scalar(v)
-}
-
-fn attr_str(loc: &Location, name: &str, v: &str) -> hdf5_metno::Result<()> {
-    let a = loc
-        .new_attr_builder()
-        .empty_as(TypeDescriptor::FixedAscii(v.len()))
-        .create(name)?;
-    a.write_scalar(&FixedAscii::<256>::from_ascii(v).map_err(|e| e.to_string())?)
-}
+use chombo_support::writer::{attr, attr_str, int_vect, padded_box_type, raw_box, RawBox};
+use hdf5_metno::File;
 
 /// 32³ boxes tiling the cube `[lo, lo + n)` of one level.
 fn tile(lo: [i32; 3], n: i32) -> Vec<[i32; 6]> {
@@ -105,40 +59,19 @@ fn write_benchmark_file() -> hdf5_metno::Result<()> {
         attr(&grp, "dt", &(dx * 0.25))?;
         attr(&grp, "time", &12.5f64)?;
         attr(&grp, "ref_ratio", ratio)?;
-        let dom = RawBox {
-            lo_i: 0,
-            lo_j: 0,
-            lo_k: 0,
-            hi_i: n - 1,
-            hi_j: n - 1,
-            hi_k: n - 1,
-        };
+        let dom = raw_box([0, 0, 0, n - 1, n - 1, n - 1]);
         grp.new_attr_builder()
             .empty_as(padded_box_type())
             .create("prob_domain")?
             .write_scalar(&dom)?;
-        let raw: Vec<RawBox> = boxes
-            .iter()
-            .map(|b| RawBox {
-                lo_i: b[0],
-                lo_j: b[1],
-                lo_k: b[2],
-                hi_i: b[3],
-                hi_j: b[4],
-                hi_k: b[5],
-            })
-            .collect();
+        let raw: Vec<RawBox> = boxes.iter().map(|&b| raw_box(b)).collect();
         grp.new_dataset_builder()
             .empty_as(padded_box_type())
             .shape(raw.len())
             .create("boxes")?
             .write_raw(&raw)?;
         let da = grp.create_group("data_attributes")?;
-        let gv = RawIntVect {
-            intvecti: 3,
-            intvectj: 3,
-            intvectk: 3,
-        };
+        let gv = int_vect([3; 3]);
         attr(&da, "outputGhost", &gv)?;
         attr(&da, "ghost", &gv)?;
         attr(&da, "comps", &(comps.len() as i32))?;

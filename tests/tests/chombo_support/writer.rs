@@ -12,7 +12,7 @@ use super::{ghost_value, value, Desc};
 /// A box as Chombo's writer has it in memory.
 #[derive(H5Type, Clone, Copy, Debug)]
 #[repr(C)]
-struct RawBox {
+pub struct RawBox {
     lo_i: i32,
     lo_j: i32,
     lo_k: i32,
@@ -33,13 +33,23 @@ struct RawBox2 {
 
 #[derive(H5Type, Clone, Copy, Debug)]
 #[repr(C)]
-struct RawIntVect {
+pub struct RawIntVect {
     intvecti: i32,
     intvectj: i32,
     intvectk: i32,
 }
 
-fn raw_box(b: [i32; 6]) -> RawBox {
+/// Chombo's IntVect compound for `v`.
+pub fn int_vect(v: [i32; 3]) -> RawIntVect {
+    RawIntVect {
+        intvecti: v[0],
+        intvectj: v[1],
+        intvectk: v[2],
+    }
+}
+
+/// Chombo's box compound for inclusive corners `[lo_i, lo_j, lo_k, hi_i, hi_j, hi_k]`.
+pub fn raw_box(b: [i32; 6]) -> RawBox {
     RawBox {
         lo_i: b[0],
         lo_j: b[1],
@@ -51,7 +61,7 @@ fn raw_box(b: [i32; 6]) -> RawBox {
 }
 
 /// Chombo's on-disk box compound: the six members, then 8 bytes of padding (the index type).
-fn padded_box_type() -> TypeDescriptor {
+pub fn padded_box_type() -> TypeDescriptor {
     let names = ["lo_i", "lo_j", "lo_k", "hi_i", "hi_j", "hi_k"];
     TypeDescriptor::Compound(CompoundType {
         fields: names
@@ -68,12 +78,12 @@ fn padded_box_type() -> TypeDescriptor {
     })
 }
 
-fn attr<T: H5Type>(loc: &Location, name: &str, v: &T) -> hdf5_metno::Result<()> {
+pub fn attr<T: H5Type>(loc: &Location, name: &str, v: &T) -> hdf5_metno::Result<()> {
     loc.new_attr::<T>().create(name)?.write_scalar(v)
 }
 
 /// A fixed-length string attribute sized to its text, as Chombo writes them.
-fn attr_str(loc: &Location, name: &str, v: &str) -> hdf5_metno::Result<()> {
+pub fn attr_str(loc: &Location, name: &str, v: &str) -> hdf5_metno::Result<()> {
     let a = loc
         .new_attr_builder()
         .empty_as(TypeDescriptor::FixedAscii(v.len()))
@@ -174,25 +184,9 @@ pub fn write(path: &Path, d: &Desc) -> hdf5_metno::Result<()> {
         }
         let da = grp.create_group("data_attributes")?;
         if !omit("outputGhost") {
-            attr(
-                &da,
-                "outputGhost",
-                &RawIntVect {
-                    intvecti: d.ghost[0],
-                    intvectj: d.ghost[1],
-                    intvectk: d.ghost[2],
-                },
-            )?;
+            attr(&da, "outputGhost", &int_vect(d.ghost))?;
         }
-        attr(
-            &da,
-            "ghost",
-            &RawIntVect {
-                intvecti: d.ghost[0],
-                intvectj: d.ghost[1],
-                intvectk: d.ghost[2],
-            },
-        )?;
+        attr(&da, "ghost", &int_vect(d.ghost))?;
         attr(&da, "comps", &(nc as i32))?;
         attr_str(&da, "objectType", "FArrayBox")?;
 

@@ -8,7 +8,8 @@
 
 use amr_format::{IBox, Result};
 
-use super::local::{Neighbourhood, LEAF};
+use super::cull::{around_offsets, cell_may_hold};
+use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};
 use super::refs::{make_ref, LocalVoxel};
 use super::vertices::LeafVertices;
 use crate::reconstruct::interp::{avg8, min_max, straddles};
@@ -24,6 +25,8 @@ pub struct Scratch<'s, 'f, D> {
     pub verts: LeafVertices,
     /// Leaf cells around the leaf, located without tree walks.
     pub loc: LocalLocator<'s, 'f, D>,
+    /// One row of merged-dual-cell codes.
+    pub rows: Vec<u8>,
 }
 
 impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
@@ -34,6 +37,7 @@ impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
             memo: VertexMemo::default(),
             verts: LeafVertices::default(),
             loc: LocalLocator::new(sampler),
+            rows: Vec::new(),
         }
     }
 }
@@ -43,6 +47,10 @@ impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
 pub struct LeafCounts {
     /// Voxels whose corners were evaluated.
     pub evaluated: u64,
+    /// Of those, boundary octants (the rest are merged dual cells).
+    pub boundary: u64,
+    /// Boundary cells skipped because their neighbourhood's bound excludes the isovalue.
+    pub culled: u64,
 }
 
 /// The level-`L` frame of a leaf: its level, finest brick, box of finest-level cells and box of
@@ -99,6 +107,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         memo,
         verts,
         loc,
+        rows,
     } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();
@@ -114,19 +123,28 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     let e = hood.cells.extent();
     let step = [1usize, e[0] as usize, (e[0] * e[1]) as usize];
     let offsets: [usize; 8] = std::array::from_fn(|n| (0..3).map(|a| (n >> a & 1) * step[a]).sum());
+    hood.classify(iso);
+    let codes = hood.codes();
+    let width = (last[0] - first[0] + 1).max(0) as usize;
+    rows.clear();
+    rows.resize(width, 0);
+    let row_masks = &mut rows[..];
     for z in first[2]..=last[2] {
         for y in first[1]..=last[1] {
             let row = hood.index([first[0], y, z]);
-            for (k, x) in (first[0]..=last[0]).enumerate() {
-                let i = row + k;
-                if !hood.all_leaf && offsets.iter().any(|&d| hood.kind(i + d) != LEAF) {
+            let corner = |n: usize| &codes[row + offsets[n]..row + offsets[n] + width];
+            let (c0, c1, c2, c3) = (corner(0), corner(1), corner(2), corner(3));
+            let (c4, c5, c6, c7) = (corner(4), corner(5), corner(6), corner(7));
+            for (k, m) in row_masks.iter_mut().enumerate() {
+                *m = c0[k] | c1[k] | c2[k] | c3[k] | c4[k] | c5[k] | c6[k] | c7[k];
+            }
+            for (k, &m) in row_masks.iter().enumerate() {
+                if m & NOT_LEAF != 0 {
                     continue;
                 }
-                let v: [f32; 8] = std::array::from_fn(|n| hood.value(i + offsets[n]));
                 counts.evaluated += 1;
-                let (lo, hi) = min_max(&v);
-                if straddles(lo, hi, iso) {
-                    let cell = frame.cells.linear_index([x, y, z]) as u32;
+                if m & (ABOVE | BELOW) == ABOVE | BELOW {
+                    let cell = frame.cells.linear_index([first[0] + k as i64, y, z]) as u32;
                     out.push(make_ref(frame.leaf, LocalVoxel::Dual { cell }));
                 }
             }
@@ -135,17 +153,29 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
 
     // Octants that touch a level boundary, the domain boundary or an uncovered region.
     if !hood.all_leaf {
-        loc.start(level, &frame.finest)?;
+        // The locator table and the vertex grid are prepared when a first cell survives culling.
+        loc.defer(level, &frame.finest);
+        let mut verts_started = false;
         let lowest = grid.centre(level, frame.cells.lo);
-        verts.start(&frame.cells, [0, 1, 2].map(|a| lowest[a] - s[a]), s);
         let c = &frame.cells;
+        let around = around_offsets(step[1], step[2]);
         for z in c.lo[2]..c.hi[2] {
             for y in c.lo[1]..c.hi[1] {
-                for x in c.lo[0]..c.hi[0] {
+                let row = hood.index([c.lo[0], y, z]);
+                for (k, x) in (c.lo[0]..c.hi[0]).enumerate() {
                     let cell = [x, y, z];
-                    let i = hood.index(cell);
+                    let i = row + k;
                     if !hood.near_boundary[i] {
                         continue;
+                    }
+                    if !cell_may_hold(sampler, hood, (loc, memo), (i, &around), iso)? {
+                        counts.culled += 1;
+                        continue;
+                    }
+                    if !verts_started {
+                        loc.ensure_started()?;
+                        verts.start(&frame.cells, [0, 1, 2].map(|a| lowest[a] - s[a]), s);
+                        verts_started = true;
                     }
                     let centre = grid.centre(level, cell);
                     for octant in 0..8u8 {
@@ -167,6 +197,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                             continue;
                         }
                         counts.evaluated += 1;
+                        counts.boundary += 1;
                         let Some(v) = boundary_corners(
                             sampler,
                             hood,

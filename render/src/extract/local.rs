@@ -3,7 +3,8 @@
 //! domain or uncovered.
 //!
 //! It is filled from the leaves touching that box, one block per leaf, so no per-cell tree walk
-//! is needed; it decides which dual cells can be merged and which octants touch a boundary.
+//! is needed; it decides which dual cells can be merged and which octants touch a boundary, and
+//! holds each cell's value bound for [`super::cull`].
 
 use amr_format::{IBox, Result};
 
@@ -20,18 +21,51 @@ pub const OUTSIDE: u8 = 3;
 /// Inside the domain, but no brick covers it.
 pub const UNCOVERED: u8 = 4;
 
+/// Code bit: the cell may hold a value `>= iso`.
+pub const ABOVE: u8 = 1;
+/// Code bit: the cell may hold a value `< iso`.
+pub const BELOW: u8 = 2;
+/// Code bit: the cell is not a [`LEAF`] cell.
+pub const NOT_LEAF: u8 = 4;
+/// Code bit: the cell lies in a coarser leaf cell whose octants are not yet in its bound.
+pub const PENDING: u8 = 8;
+
+/// [`ABOVE`] and [`BELOW`] bits of a bound `lo..=hi` for `iso`: a union of bounds straddles
+/// `iso` (`min lo < iso <= max hi`) exactly when the union of their codes has both bits.
+#[inline]
+fn code(lo: f32, hi: f32, iso: f32) -> u8 {
+    u8::from(hi >= iso) | u8::from(lo < iso) << 1
+}
+
 /// Per-thread scratch: the classified neighbourhood of the leaf being processed.
 #[derive(Default)]
 pub struct Neighbourhood {
     /// The cells held: the leaf's level-`L` box grown by one cell.
     pub cells: IBox,
+    /// The level `L`.
+    pub level: u32,
     kind: Vec<u8>,
-    value: Vec<f32>,
     /// Cells of `cells` within one cell of a cell that is not [`LEAF`].
     pub near_boundary: Vec<bool>,
     /// True when every cell is [`LEAF`].
     pub all_leaf: bool,
+    /// Per cell: the smallest and largest value of the leaf cells of level `L` or finer inside it
+    /// (`+inf` and `-inf` when it holds none); both are the value of a [`LEAF`] cell.
+    lo: Vec<f32>,
+    hi: Vec<f32>,
+    /// Per cell: inside a coarser leaf cell whose octants' corners are not yet in the bound.
+    coarse_pending: Vec<bool>,
+    /// Per cell, for the isovalue of the last [`Self::classify`]: [`ABOVE`], [`BELOW`],
+    /// [`NOT_LEAF`] and [`PENDING`] bits.
+    codes: Vec<u8>,
     touching: Vec<u32>,
+    /// Scratch list of kd-tree leaves for [`super::cull`].
+    pub scratch_leaves: Vec<u32>,
+    /// The finest-level box around the leaf within which [`Self::near_leaves`] lists every
+    /// kd-tree leaf: the leaf grown by two cells of the next coarser level.
+    pub near_region: IBox,
+    /// The kd-tree leaves touching [`Self::near_region`].
+    pub near_leaves: Vec<u32>,
 }
 
 impl Neighbourhood {
@@ -46,10 +80,15 @@ impl Neighbourhood {
         let g = own.grow([1; 3]);
         let n = g.num_cells().unwrap_or(0) as usize;
         self.cells = g;
+        self.level = level;
         self.kind.clear();
         self.kind.resize(n, UNCOVERED);
-        self.value.clear();
-        self.value.resize(n, 0.0);
+        self.lo.clear();
+        self.lo.resize(n, f32::INFINITY);
+        self.hi.clear();
+        self.hi.resize(n, f32::NEG_INFINITY);
+        self.coarse_pending.clear();
+        self.coarse_pending.resize(n, false);
         let domain = grid.domain(level);
         let s = grid.scale(level);
         let o = grid.offset();
@@ -72,8 +111,14 @@ impl Neighbourhood {
             }
             match sampler.leaf_top(l) {
                 None => self.set_block(&block, UNCOVERED),
-                Some((_, lv)) if lv < level => self.set_block(&block, COARSER),
-                Some((_, lv)) if lv > level => self.set_block(&block, FINER),
+                Some((_, lv)) if lv < level => {
+                    self.set_block(&block, COARSER);
+                    self.for_block(&block, |h, i| h.coarse_pending[i] = true);
+                }
+                Some((brick, lv)) if lv > level => {
+                    self.set_block(&block, FINER);
+                    self.bound_finer(sampler, level, &lb.intersect(&region), brick, lv)?;
+                }
                 Some((brick, _)) => {
                     let values = sampler.values(brick)?;
                     let bc = sampler.brick_cells(brick);
@@ -87,20 +132,29 @@ impl Neighbourhood {
                             let dst = g.linear_index([block.lo[0], y, z]);
                             let w = (block.hi[0] - block.lo[0]) as usize;
                             self.kind[dst..dst + w].fill(LEAF);
-                            self.value[dst..dst + w].copy_from_slice(&values[src..src + w]);
+                            self.lo[dst..dst + w].copy_from_slice(&values[src..src + w]);
+                            self.hi[dst..dst + w].copy_from_slice(&values[src..src + w]);
                         }
                     }
                 }
             }
         }
-        let outside = |c: [i64; 3]| !domain.contains_cell(c);
-        if (0..3).any(|a| g.lo[a] < domain.lo[a] || g.hi[a] > domain.hi[a]) {
+        let reach = grid.scale(level.saturating_sub(1)).map(|c| 2 * c);
+        self.near_region = region.grow(reach);
+        self.near_leaves.clear();
+        tree.for_each_leaf_touching(&self.near_region, |l| self.near_leaves.push(l));
+        if !domain.contains_box(&g) {
+            let inside = g.intersect(&domain);
             for z in g.lo[2]..g.hi[2] {
                 for y in g.lo[1]..g.hi[1] {
-                    for x in g.lo[0]..g.hi[0] {
-                        if outside([x, y, z]) {
-                            let i = g.linear_index([x, y, z]);
-                            self.kind[i] = OUTSIDE;
+                    let row = g.linear_index([g.lo[0], y, z]);
+                    let kinds = &mut self.kind[row..row + g.extent()[0] as usize];
+                    let row_inside = (inside.lo[1]..inside.hi[1]).contains(&y)
+                        && (inside.lo[2]..inside.hi[2]).contains(&z);
+                    for (k, kind) in kinds.iter_mut().enumerate() {
+                        let x = g.lo[0] + k as i64;
+                        if !row_inside || !(inside.lo[0]..inside.hi[0]).contains(&x) {
+                            *kind = OUTSIDE;
                         }
                     }
                 }
@@ -132,6 +186,62 @@ impl Neighbourhood {
         Ok(())
     }
 
+    /// Widens the bounds of the cells holding the cells of brick `brick` (level `fine`) inside
+    /// finest-level box `part`.
+    fn bound_finer<D: AsRef<[u8]>>(
+        &mut self,
+        sampler: &Sampler<'_, D>,
+        level: u32,
+        part: &IBox,
+        brick: u32,
+        fine: u32,
+    ) -> Result<()> {
+        let grid = sampler.grid();
+        let bc = sampler.brick_cells(brick);
+        let cells = grid.level_box(fine, part).intersect(&bc);
+        if cells.is_empty() {
+            return Ok(());
+        }
+        let values = sampler.values(brick)?;
+        let (sf, sl) = (grid.scale(fine), grid.scale(level));
+        let g = self.cells;
+        let e = g.extent();
+        for z in cells.lo[2]..cells.hi[2] {
+            let hz = (z * sf[2]).div_euclid(sl[2]) - g.lo[2];
+            for y in cells.lo[1]..cells.hi[1] {
+                let hy = (y * sf[1]).div_euclid(sl[1]) - g.lo[1];
+                if !(0..e[1]).contains(&hy) || !(0..e[2]).contains(&hz) {
+                    continue;
+                }
+                let src = bc.linear_index([cells.lo[0], y, z]);
+                let row = ((hz * e[1] + hy) * e[0]) as usize;
+                for (k, x) in (cells.lo[0]..cells.hi[0]).enumerate() {
+                    let hx = (x * sf[0]).div_euclid(sl[0]) - g.lo[0];
+                    if !(0..e[0]).contains(&hx) {
+                        continue;
+                    }
+                    let v = values[src + k];
+                    let i = row + hx as usize;
+                    self.lo[i] = self.lo[i].min(v);
+                    self.hi[i] = self.hi[i].max(v);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn for_block(&mut self, block: &IBox, mut f: impl FnMut(&mut Self, usize)) {
+        let g = self.cells;
+        for z in block.lo[2]..block.hi[2] {
+            for y in block.lo[1]..block.hi[1] {
+                let dst = g.linear_index([block.lo[0], y, z]);
+                for i in dst..dst + (block.hi[0] - block.lo[0]).max(0) as usize {
+                    f(self, i);
+                }
+            }
+        }
+    }
+
     fn set_block(&mut self, block: &IBox, kind: u8) {
         let g = self.cells;
         for z in block.lo[2]..block.hi[2] {
@@ -155,9 +265,53 @@ impl Neighbourhood {
         self.kind[i]
     }
 
+    /// The bound of the cell at index `i`: the smallest and largest value of the leaf cells of
+    /// level `L` or finer inside it; `(+inf, -inf)` when there are none.
+    #[inline]
+    pub fn bound(&self, i: usize) -> (f32, f32) {
+        (self.lo[i], self.hi[i])
+    }
+
+    /// Computes every cell's code for `iso` from its bound, kind and pending flag.
+    pub fn classify(&mut self, iso: f32) {
+        self.codes.clear();
+        self.codes.extend(
+            self.lo
+                .iter()
+                .zip(&self.hi)
+                .zip(self.kind.iter().zip(&self.coarse_pending))
+                .map(|((&lo, &hi), (&kind, &pending))| {
+                    code(lo, hi, iso) | u8::from(kind != LEAF) << 2 | u8::from(pending) << 3
+                }),
+        );
+    }
+
+    /// The codes of [`Self::classify`].
+    #[inline]
+    pub fn codes(&self) -> &[u8] {
+        &self.codes
+    }
+
+    /// Folds `lo..=hi` into the bound of the cell at index `i`, clears its pending flag and
+    /// updates its code for `iso`.
+    pub fn settle_coarse(&mut self, i: usize, (lo, hi): (f32, f32), iso: f32) {
+        self.lo[i] = self.lo[i].min(lo);
+        self.hi[i] = self.hi[i].max(hi);
+        self.coarse_pending[i] = false;
+        self.codes[i] = self.codes[i] & NOT_LEAF | code(self.lo[i], self.hi[i], iso);
+    }
+
+    /// The cell (absolute level index) at index `i`.
+    pub fn cell_at(&self, i: usize) -> [i64; 3] {
+        let e = self.cells.extent();
+        let i = i as i64;
+        let d = [i % e[0], i / e[0] % e[1], i / (e[0] * e[1])];
+        [0, 1, 2].map(|a| self.cells.lo[a] + d[a])
+    }
+
     /// The value of the cell at index `i` (meaningful for [`LEAF`] cells).
     #[inline]
     pub fn value(&self, i: usize) -> f32 {
-        self.value[i]
+        self.lo[i]
     }
 }

@@ -3,6 +3,7 @@
 //! - [`refs`]: the 64-bit references (`leaf << 32 | id`) and decoded [`Voxel`]s.
 //! - [`local`]: the classified level-`L` neighbourhood of a leaf.
 //! - [`leaf`]: the voxels one leaf owns: merged dual cells and boundary octants.
+//! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue.
 //! - [`vertices`]: a leaf's boundary vertex values, computed once each.
 //! - [`stats`]: what an extraction did.
 //!
@@ -11,6 +12,7 @@
 //! touching their bricks. The result holds 8 bytes per active voxel, in leaf order and sorted
 //! within each leaf, the same on every run and any number of threads.
 
+pub mod cull;
 pub mod leaf;
 pub mod local;
 pub mod refs;
@@ -24,7 +26,7 @@ use rayon::prelude::*;
 
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::{Octant, Sampler, VertexMemo};
-use leaf::{extract_leaf, LeafFrame, Scratch};
+use leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
 pub use refs::{make_ref, split_ref, LocalVoxel, Voxel, DUAL_BASE};
 pub use stats::ExtractStats;
 
@@ -80,25 +82,29 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             .collect();
         let mut refs = Vec::new();
         let mut evaluated = 0u64;
+        let mut culled_cells = 0u64;
+        let mut boundary_evaluated = 0u64;
         for chunk in leaves.chunks(CHUNK) {
-            let parts: Vec<Result<(Vec<u64>, u64)>> = chunk
+            let parts: Vec<Result<(Vec<u64>, LeafCounts)>> = chunk
                 .par_iter()
                 .map_init(
                     || Scratch::new(&self.sampler),
                     |scratch, &leaf| {
                         let mut out = Vec::new();
                         let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
-                            return Ok((out, 0));
+                            return Ok((out, LeafCounts::default()));
                         };
                         let counts = extract_leaf(&self.sampler, &frame, iso, scratch, &mut out)?;
-                        Ok((out, counts.evaluated))
+                        Ok((out, counts))
                     },
                 )
                 .collect();
             for part in parts {
                 let (part, n) = part?;
                 refs.extend_from_slice(&part);
-                evaluated += n;
+                evaluated += n.evaluated;
+                culled_cells += n.culled;
+                boundary_evaluated += n.boundary;
             }
         }
         refs.shrink_to_fit();
@@ -111,6 +117,8 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             leaves_visited: leaves.len() as u64,
             leaves_total: file.num_leaves() as u64,
             evaluated,
+            boundary_evaluated,
+            culled_cells,
             file_cells: self.file_cells,
             seconds: start.elapsed().as_secs_f64(),
             threads: rayon::current_num_threads(),

@@ -19,6 +19,11 @@ pub struct ExtractStats {
     pub leaves_total: u64,
     /// Voxels whose eight corners were evaluated.
     pub evaluated: u64,
+    /// Of those, single octants next to a level boundary (the rest are merged dual cells).
+    pub boundary_evaluated: u64,
+    /// Cells next to a level boundary whose octants were skipped unevaluated, because the value
+    /// bound of their neighbourhood excludes the isovalue.
+    pub culled_cells: u64,
     /// Cells in the file (all bricks, all levels).
     pub file_cells: u64,
     /// Wall-clock seconds of the extraction.
@@ -52,7 +57,7 @@ impl ExtractStats {
         format!(
             concat!(
                 "{{\"field\":{:?},\"iso\":{},\"active\":{},\"active_duals\":{},\"leaves_visited\":{},",
-                "\"leaves_total\":{},\"evaluated\":{},\"file_cells\":{},\"seconds\":{},\"threads\":{},",
+                "\"leaves_total\":{},\"evaluated\":{},\"boundary_evaluated\":{},\"culled_cells\":{},\"file_cells\":{},\"seconds\":{},\"threads\":{},",
                 "\"decompressions\":{},\"resident_bytes\":{},\"file_bytes\":{},",
                 "\"cells_per_core_second\":{},\"active_per_second\":{}}}"
             ),
@@ -63,6 +68,8 @@ impl ExtractStats {
             self.leaves_visited,
             self.leaves_total,
             self.evaluated,
+            self.boundary_evaluated,
+            self.culled_cells,
             self.file_cells,
             json_f64(self.seconds),
             self.threads,
@@ -88,7 +95,7 @@ impl fmt::Display for ExtractStats {
         write!(
             f,
             "field '{}' iso {}: {} active voxels ({} merged dual cells), {} of {} leaves visited, \
-             {} voxels evaluated, {:.3} s on {} threads ({:.1} M file cells per core-second, \
+             {} voxels evaluated ({} boundary octants; {} boundary cells culled), {:.3} s on {} threads ({:.1} M file cells per core-second, \
              {:.1} M voxels per second), {} bricks decompressed",
             self.field,
             self.iso,
@@ -97,6 +104,8 @@ impl fmt::Display for ExtractStats {
             self.leaves_visited,
             self.leaves_total,
             self.evaluated,
+            self.boundary_evaluated,
+            self.culled_cells,
             self.seconds,
             self.threads,
             self.cells_per_core_second() / 1e6,

@@ -40,6 +40,8 @@ pub struct LocalLocator<'s, 'f, D> {
     table: Vec<u32>,
     parts: Vec<Part<'f>>,
     touching: Vec<u32>,
+    /// The leaf given to [`Self::defer`] and not yet prepared.
+    deferred: Option<(u32, IBox)>,
 }
 
 impl<'s, 'f, D: AsRef<[u8]>> LocalLocator<'s, 'f, D> {
@@ -54,6 +56,7 @@ impl<'s, 'f, D: AsRef<[u8]>> LocalLocator<'s, 'f, D> {
             table: Vec::new(),
             parts: Vec::new(),
             touching: Vec::new(),
+            deferred: None,
         }
     }
 
@@ -126,9 +129,27 @@ impl<'s, 'f, D: AsRef<[u8]>> LocalLocator<'s, 'f, D> {
         Ok(())
     }
 
-    /// Drops the references to bricks held since the last [`Self::start`].
+    /// Drops the references to bricks held since the last [`Self::start`]; until the next
+    /// start every query goes to the tree.
     pub fn finish(&mut self) {
         self.parts.clear();
+        self.cells = IBox::new([0; 3], [0; 3]);
+        self.deferred = None;
+    }
+
+    /// Remembers the leaf [`Self::start`] would prepare, without preparing it: queries go to the
+    /// tree (the same answers, slower) until [`Self::ensure_started`].
+    pub fn defer(&mut self, level: u32, finest: &IBox) {
+        self.finish();
+        self.deferred = Some((level, *finest));
+    }
+
+    /// Prepares the table for the leaf given to [`Self::defer`], if not yet done.
+    pub fn ensure_started(&mut self) -> Result<()> {
+        match self.deferred.take() {
+            Some((level, finest)) => self.start(level, &finest),
+            None => Ok(()),
+        }
     }
 }
 

@@ -449,26 +449,40 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 octant |= 1 << a;
             }
         }
+        let Some(corners) = self.leaf_octant_corners_in(loc, &q, octant, memo)? else {
+            return Ok(None);
+        };
         let key = Octant {
             level: q.level,
             cell: q.cell,
             octant,
         };
-        let corners = match memo.octant_get(&key) {
-            Some(known) => known,
-            None => {
-                let c = self.corners_in(loc, q.level, q.cell, q.value, octant, memo)?;
-                memo.octant_put(&key, c);
-                c
-            }
-        };
-        let Some(corners) = corners else {
-            return Ok(None);
-        };
         let (lo, _) = self.octant_box(&key);
         let s = self.grid.scale(q.level);
         let t = [0, 1, 2].map(|a| ((v[a] - lo[a]) as f64 / s[a] as f64) as f32);
         Ok(Some(trilinear(&corners, t)))
+    }
+
+    /// [`Self::corners_in`] for octant `octant` of leaf cell `q`, remembered in `memo`'s octant
+    /// table (the corners are a pure function of the octant).
+    pub fn leaf_octant_corners_in<L: Locate>(
+        &self,
+        loc: &L,
+        q: &LeafCell,
+        octant: u8,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<[f32; 8]>> {
+        let key = Octant {
+            level: q.level,
+            cell: q.cell,
+            octant,
+        };
+        if let Some(known) = memo.octant_get(&key) {
+            return Ok(known);
+        }
+        let c = self.corners_in(loc, q.level, q.cell, q.value, octant, memo)?;
+        memo.octant_put(&key, c);
+        Ok(c)
     }
 
     /// The box of an octant in doubled coordinates: `(lo, hi)`.

@@ -1,0 +1,192 @@
+//! Conservative culling of a leaf's boundary cells: a cell none of whose octants can hold the
+//! surface is skipped before any of its octant corners is evaluated.
+//!
+//! Every octant vertex value is either the mean of the leaf cells around the vertex or the
+//! trilinear interpolant of a coarser leaf cell's octant at the vertex (`docs/reconstruction.md`).
+//! The vertices of the octants of a level-`L` cell `C` lie on `C`'s closure, so the leaf cells
+//! around them lie in the 27 level-`L` neighbourhood cells around `C`, and so does a finest cell
+//! of the coarse octant that gives a fine-side value (the nudge that chose it). Hence every corner
+//! of every octant of `C` lies in the union of those cells' bounds, where a cell's bound covers the
+//! leaf cells of level `L` or finer inside it and the corners of the coarse octants overlapping it.
+//! Means never leave the range of their inputs (rounding is monotone and halving exact); a
+//! trilinear interpolation can by a few ulps, so coarse contributions are widened.
+
+use amr_format::{IBox, Result};
+
+use super::local::{Neighbourhood, ABOVE, BELOW, COARSER, PENDING};
+use crate::reconstruct::sampler::Locate;
+use crate::reconstruct::{LocalLocator, Sampler, VertexMemo};
+
+/// The neighbourhood-index offsets of the 27 cells around a cell, in a neighbourhood whose
+/// rows hold `row` cells and whose slabs hold `slab` cells, relative to the lowest of them.
+pub fn around_offsets(row: usize, slab: usize) -> [usize; 27] {
+    std::array::from_fn(|k| k % 3 + k / 3 % 3 * row + k / 9 * slab)
+}
+
+/// True unless the octants of the cell at neighbourhood index `i` certainly do not straddle
+/// `iso` ([`Neighbourhood::classify`] must have run for `iso`). `around` comes from
+/// [`around_offsets`]. Bounds of coarser neighbours are computed on first need and kept in `hood`.
+pub fn cell_may_hold<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    hood: &mut Neighbourhood,
+    (loc, memo): (&mut LocalLocator<'_, '_, D>, &mut VertexMemo),
+    (i, around): (usize, &[usize; 27]),
+    iso: f32,
+) -> Result<bool> {
+    let e = hood.cells.extent();
+    let base = i - 1 - e[0] as usize - (e[0] * e[1]) as usize;
+    let codes = hood.codes();
+    let union = around.iter().fold(0u8, |u, &d| u | codes[base + d]);
+    if union & (ABOVE | BELOW) == ABOVE | BELOW {
+        return Ok(true);
+    }
+    if union & PENDING == 0 {
+        return Ok(false);
+    }
+    let mut union = union & !PENDING;
+    for &d in around {
+        let j = base + d;
+        if hood.codes()[j] & PENDING != 0 {
+            settle_coarse(sampler, hood, (loc, memo), j, iso)?;
+        }
+        union |= hood.codes()[j];
+    }
+    Ok(union & (ABOVE | BELOW) == ABOVE | BELOW)
+}
+
+/// Computes the bound of coarser neighbourhood cell `j` and of every pending cell sharing its
+/// coarse leaf cell `Q`: the range of the leaf cells within one cell of `Q` at `Q`'s level
+/// (which holds every corner of `Q`'s octants when none of them is coarser than `Q`), or else
+/// the exact corners of the octants of `Q` overlapping cell `j`.
+fn settle_coarse<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    hood: &mut Neighbourhood,
+    (loc, memo): (&mut LocalLocator<'_, '_, D>, &mut VertexMemo),
+    j: usize,
+    iso: f32,
+) -> Result<()> {
+    debug_assert_eq!(hood.kind(j), COARSER);
+    let grid = sampler.grid();
+    let level = hood.level;
+    let s = grid.scale(level);
+    let o = grid.offset();
+    let x = hood.cell_at(j);
+    let lower = [0, 1, 2].map(|a| x[a] * s[a] - o[a]);
+    let Some(q) = (*loc).locate_cell(lower)? else {
+        hood.settle_coarse(j, (f32::INFINITY, f32::NEG_INFINITY), iso);
+        return Ok(());
+    };
+    if q.level >= level {
+        // Not a properly nested hierarchy here: never cull next to it.
+        hood.settle_coarse(j, (f32::NEG_INFINITY, f32::INFINITY), iso);
+        return Ok(());
+    }
+    let q_box = grid.finest_box(q.level, q.cell);
+    if let Some(range) = range_around(sampler, hood, &q_box, q.level)? {
+        let bound = widen(range);
+        let inside = grid.level_box(level, &q_box).intersect(&hood.cells);
+        for z in inside.lo[2]..inside.hi[2] {
+            for y in inside.lo[1]..inside.hi[1] {
+                let row = hood.index([inside.lo[0], y, z]);
+                for i in row..row + inside.extent()[0] as usize {
+                    if hood.codes()[i] & PENDING != 0 {
+                        hood.settle_coarse(i, bound, iso);
+                    }
+                }
+            }
+        }
+        return Ok(());
+    }
+    loc.ensure_started()?;
+    let loc = &*loc;
+    let c = grid.centre(q.level, q.cell);
+    let (x0, x1) = (
+        lower.map(|v| 2 * v),
+        [0, 1, 2].map(|a| 2 * (lower[a] + s[a])),
+    );
+    let mut lo = f32::INFINITY;
+    let mut hi = f32::NEG_INFINITY;
+    for octant in 0..8u8 {
+        let overlaps = (0..3).all(|a| {
+            if octant >> a & 1 == 1 {
+                x1[a] > c[a]
+            } else {
+                x0[a] < c[a]
+            }
+        });
+        if !overlaps {
+            continue;
+        }
+        if let Some(corners) = sampler.leaf_octant_corners_in(loc, &q, octant, memo)? {
+            for v in corners {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+    }
+    hood.settle_coarse(j, widen((lo, hi)), iso);
+    Ok(())
+}
+
+/// The range of the leaf cells within one level-`level` cell of finest-level box `q_box`, or
+/// `None` when a leaf cell coarser than `level` lies there (then the octants of the cell at
+/// `q_box` may take values from farther away).
+fn range_around<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    hood: &mut Neighbourhood,
+    q_box: &IBox,
+    level: u32,
+) -> Result<Option<(f32, f32)>> {
+    let grid = sampler.grid();
+    let region = q_box
+        .grow(grid.scale(level))
+        .intersect(&IBox::new([0; 3], grid.extent()));
+    let tree = sampler.file().tree();
+    let leaves = if hood.near_region.contains_box(&region) {
+        &hood.near_leaves
+    } else {
+        hood.scratch_leaves.clear();
+        tree.for_each_leaf_touching(&region, |l| hood.scratch_leaves.push(l));
+        &hood.scratch_leaves
+    };
+    let mut lo = f32::INFINITY;
+    let mut hi = f32::NEG_INFINITY;
+    for &l in leaves.iter() {
+        let part = tree.leaf_box(l).intersect(&region);
+        if part.is_empty() {
+            continue;
+        }
+        let Some((brick, lv)) = sampler.leaf_top(l) else {
+            continue;
+        };
+        if lv < level {
+            return Ok(None);
+        }
+        let bc = sampler.brick_cells(brick);
+        let cells = grid.level_box(lv, &part).intersect(&bc);
+        if cells.is_empty() {
+            continue;
+        }
+        let values = sampler.values(brick)?;
+        let w = cells.extent()[0] as usize;
+        for z in cells.lo[2]..cells.hi[2] {
+            for y in cells.lo[1]..cells.hi[1] {
+                let src = bc.linear_index([cells.lo[0], y, z]);
+                for &v in &values[src..src + w] {
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+            }
+        }
+    }
+    Ok(Some((lo, hi)))
+}
+
+/// Widens a range of corner values by the round-off a trilinear interpolation of them can add.
+fn widen((lo, hi): (f32, f32)) -> (f32, f32) {
+    if lo > hi {
+        return (lo, hi);
+    }
+    let slack = lo.abs().max(hi.abs()) * 4.0e-6 + f32::from_bits(64);
+    (lo - slack, hi + slack)
+}

@@ -77,9 +77,11 @@ fn isovalues(
     out
 }
 
-/// Checks every isovalue of `case`; returns how many boundary cells extraction culled.
-fn check_case(case: &Case) -> u64 {
+/// Checks every isovalue of `case`; returns how many boundary cells extraction culled and how
+/// many leaves it skipped by their tight range.
+fn check_case(case: &Case) -> (u64, u64) {
     let mut culled = 0;
+    let mut skipped = 0;
     let (_, file) = build(case);
     let mut rng = Rng(case.seed ^ 0x1234);
     let nb = file.num_bricks() as u64;
@@ -91,6 +93,7 @@ fn check_case(case: &Case) -> u64 {
             let ctx = format!("seed {} ({case:?}) field {field} iso {iso}", case.seed);
             let result = ex.extract(iso).unwrap_or_else(|e| panic!("{ctx}: {e}"));
             culled += result.stats.culled_cells;
+            skipped += result.stats.leaves_skipped;
             let refs = &result.refs;
             let want: HashSet<Octant> = octants
                 .iter()
@@ -209,16 +212,25 @@ fn check_case(case: &Case) -> u64 {
             assert!(result.stats.decompressions <= nb);
         }
     }
-    culled
+    (culled, skipped)
 }
 
 #[test]
 fn extraction_equals_brute_force() {
-    let mut culled = 0;
+    let (mut culled, mut skipped) = (0, 0);
     for case in standard_cases(3) {
-        culled += check_case(&case);
+        let (c, s) = check_case(&case);
+        culled += c;
+        skipped += s;
     }
-    assert!(culled > 0, "no boundary cell was culled: the test does not exercise culling");
+    assert!(
+        culled > 0,
+        "no boundary cell was culled: the test does not exercise culling"
+    );
+    assert!(
+        skipped > 0,
+        "no leaf was skipped by its tight range: the test does not exercise it"
+    );
 }
 
 #[test]

@@ -27,6 +27,8 @@ pub struct Scratch<'s, 'f, D> {
     pub loc: LocalLocator<'s, 'f, D>,
     /// One row of merged-dual-cell codes.
     pub rows: Vec<u8>,
+    /// Kd-tree leaves met while computing a tight range.
+    pub touching: Vec<u32>,
 }
 
 impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
@@ -38,6 +40,7 @@ impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
             verts: LeafVertices::default(),
             loc: LocalLocator::new(sampler),
             rows: Vec::new(),
+            touching: Vec::new(),
         }
     }
 }
@@ -47,6 +50,8 @@ impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
 pub struct LeafCounts {
     /// Voxels whose corners were evaluated.
     pub evaluated: u64,
+    /// 1 when the leaf's tight range excluded the isovalue, so nothing was evaluated.
+    pub skipped: u64,
     /// Of those, boundary octants (the rest are merged dual cells).
     pub boundary: u64,
     /// Boundary cells skipped because their neighbourhood's bound excludes the isovalue.
@@ -108,6 +113,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         verts,
         loc,
         rows,
+        ..
     } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();

@@ -5,6 +5,8 @@
 //! - [`leaf`]: the voxels one leaf owns: merged dual cells and boundary octants.
 //! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue.
 //! - [`vertices`]: a leaf's boundary vertex values, computed once each.
+//! - [`tight`]: per-leaf ranges from cell values, computed once, skipping leaves the file's
+//!   looser stored ranges let through.
 //! - [`stats`]: what an extraction did.
 //!
 //! An [`Extractor`] is made once per open file and field; each [`Extractor::extract`] call runs
@@ -17,6 +19,7 @@ pub mod leaf;
 pub mod local;
 pub mod refs;
 pub mod stats;
+pub mod tight;
 pub mod vertices;
 
 use std::time::Instant;
@@ -29,6 +32,7 @@ use crate::reconstruct::{Octant, Sampler, VertexMemo};
 use leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
 pub use refs::{make_ref, split_ref, LocalVoxel, Voxel, DUAL_BASE};
 pub use stats::ExtractStats;
+use tight::TightRanges;
 
 /// Leaves handed to the thread pool at a time; bounds the memory held beside the result.
 const CHUNK: usize = 4096;
@@ -46,6 +50,7 @@ pub struct Extraction {
 pub struct Extractor<'f, D> {
     sampler: Sampler<'f, D>,
     file_cells: u64,
+    tight: TightRanges,
 }
 
 impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
@@ -57,6 +62,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             .map(|b| file.brick(b).cells.num_cells().unwrap_or(0))
             .sum();
         Ok(Self {
+            tight: TightRanges::new(file.num_leaves()),
             sampler,
             file_cells,
         })
@@ -84,6 +90,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let mut evaluated = 0u64;
         let mut culled_cells = 0u64;
         let mut boundary_evaluated = 0u64;
+        let mut leaves_skipped = 0u64;
         for chunk in leaves.chunks(CHUNK) {
             let parts: Vec<Result<(Vec<u64>, LeafCounts)>> = chunk
                 .par_iter()
@@ -91,6 +98,15 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     || Scratch::new(&self.sampler),
                     |scratch, &leaf| {
                         let mut out = Vec::new();
+                        let (lo, hi) =
+                            self.tight.get(&self.sampler, leaf, &mut scratch.touching)?;
+                        if !straddles(lo, hi, iso) {
+                            let skipped = LeafCounts {
+                                skipped: 1,
+                                ..LeafCounts::default()
+                            };
+                            return Ok((out, skipped));
+                        }
                         let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
                             return Ok((out, LeafCounts::default()));
                         };
@@ -105,6 +121,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 evaluated += n.evaluated;
                 culled_cells += n.culled;
                 boundary_evaluated += n.boundary;
+                leaves_skipped += n.skipped;
             }
         }
         refs.shrink_to_fit();
@@ -115,6 +132,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             active: refs.len() as u64,
             active_duals,
             leaves_visited: leaves.len() as u64,
+            leaves_skipped,
             leaves_total: file.num_leaves() as u64,
             evaluated,
             boundary_evaluated,

@@ -15,6 +15,9 @@ pub struct ExtractStats {
     pub active_duals: u64,
     /// Leaves whose conservative range holds the isovalue, which were therefore visited.
     pub leaves_visited: u64,
+    /// Of those, leaves skipped because their tight range (from cell values, computed once per
+    /// leaf and kept) excludes the isovalue.
+    pub leaves_skipped: u64,
     /// Leaves in the tree.
     pub leaves_total: u64,
     /// Voxels whose eight corners were evaluated.
@@ -56,7 +59,7 @@ impl ExtractStats {
             .map_or("null".to_string(), |b| b.to_string());
         format!(
             concat!(
-                "{{\"field\":{:?},\"iso\":{},\"active\":{},\"active_duals\":{},\"leaves_visited\":{},",
+                "{{\"field\":{:?},\"iso\":{},\"active\":{},\"active_duals\":{},\"leaves_visited\":{},\"leaves_skipped\":{},",
                 "\"leaves_total\":{},\"evaluated\":{},\"boundary_evaluated\":{},\"culled_cells\":{},\"file_cells\":{},\"seconds\":{},\"threads\":{},",
                 "\"decompressions\":{},\"resident_bytes\":{},\"file_bytes\":{},",
                 "\"cells_per_core_second\":{},\"active_per_second\":{}}}"
@@ -66,6 +69,7 @@ impl ExtractStats {
             self.active,
             self.active_duals,
             self.leaves_visited,
+            self.leaves_skipped,
             self.leaves_total,
             self.evaluated,
             self.boundary_evaluated,
@@ -94,7 +98,7 @@ impl fmt::Display for ExtractStats {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "field '{}' iso {}: {} active voxels ({} merged dual cells), {} of {} leaves visited, \
+            "field '{}' iso {}: {} active voxels ({} merged dual cells), {} of {} leaves visited ({} skipped by tight range), \
              {} voxels evaluated ({} boundary octants; {} boundary cells culled), {:.3} s on {} threads ({:.1} M file cells per core-second, \
              {:.1} M voxels per second), {} bricks decompressed",
             self.field,
@@ -103,6 +107,7 @@ impl fmt::Display for ExtractStats {
             self.active_duals,
             self.leaves_visited,
             self.leaves_total,
+            self.leaves_skipped,
             self.evaluated,
             self.boundary_evaluated,
             self.culled_cells,

@@ -1,0 +1,123 @@
+//! Tight per-leaf value ranges, computed from cell values the first time a leaf is visited and
+//! kept for later isovalues.
+//!
+//! The file's stored leaf ranges are unions of whole-brick ranges (the writer never re-reads
+//! data), so a leaf far from the surface is often visited because some other part of a
+//! neighbouring brick straddles the isovalue. The tight range applies the same reach rule
+//! (`amr-format/src/kdtree/ranges.rs`: the leaf grown by two cells of the coarsest level met,
+//! until that level stops changing) to the cells themselves rather than to whole bricks, with
+//! one more level-`L` cell of margin, and the same widening for round-off. A leaf whose tight range
+//! does not hold the isovalue has no active voxel and is skipped before its neighbourhood is built.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use amr_format::kdtree::widen_range;
+use amr_format::Result;
+
+use crate::reconstruct::Sampler;
+
+/// Not computed yet (the bits of two NaNs, which no computed range holds).
+const UNKNOWN: u64 = u64::MAX;
+
+/// Per-leaf tight ranges of one field, filled on demand from any thread.
+pub struct TightRanges {
+    bits: Vec<AtomicU64>,
+}
+
+impl TightRanges {
+    /// Unknown ranges for `leaves` leaves.
+    pub fn new(leaves: usize) -> Self {
+        Self {
+            bits: (0..leaves).map(|_| AtomicU64::new(UNKNOWN)).collect(),
+        }
+    }
+
+    /// The tight range of `leaf`, computed (with `touching` as scratch) on first need.
+    pub fn get<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        leaf: u32,
+        touching: &mut Vec<u32>,
+    ) -> Result<(f32, f32)> {
+        let slot = &self.bits[leaf as usize];
+        let known = slot.load(Ordering::Relaxed);
+        if known != UNKNOWN {
+            return Ok(unpack(known));
+        }
+        let range = compute(sampler, leaf, touching)?;
+        slot.store(pack(range), Ordering::Relaxed);
+        Ok(range)
+    }
+}
+
+fn pack((lo, hi): (f32, f32)) -> u64 {
+    u64::from(lo.to_bits()) << 32 | u64::from(hi.to_bits())
+}
+
+fn unpack(bits: u64) -> (f32, f32) {
+    (
+        f32::from_bits((bits >> 32) as u32),
+        f32::from_bits(bits as u32),
+    )
+}
+
+/// The range of the leaf cells within reach of `leaf`, widened for round-off.
+fn compute<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    leaf: u32,
+    touching: &mut Vec<u32>,
+) -> Result<(f32, f32)> {
+    let empty = (f32::INFINITY, f32::NEG_INFINITY);
+    let Some((_, level)) = sampler.leaf_top(leaf) else {
+        return Ok(empty);
+    };
+    let grid = sampler.grid();
+    let tree = sampler.file().tree();
+    let own = tree.leaf_box(leaf);
+    let margin = grid.scale(level);
+    let mut coarsest = level;
+    let region = loop {
+        let region = own.grow([0, 1, 2].map(|a| 2 * grid.scale(coarsest)[a] + margin[a]));
+        touching.clear();
+        tree.for_each_leaf_touching(&region, |l| touching.push(l));
+        let met = touching
+            .iter()
+            .filter_map(|&l| sampler.leaf_top(l).map(|(_, lv)| lv))
+            .min()
+            .unwrap_or(coarsest);
+        if met >= coarsest {
+            break region;
+        }
+        coarsest = met;
+    };
+    let (mut lo, mut hi) = empty;
+    for &l in touching.iter() {
+        let Some((brick, lv)) = sampler.leaf_top(l) else {
+            continue;
+        };
+        let part = tree.leaf_box(l).intersect(&region);
+        if part.is_empty() {
+            continue;
+        }
+        let bc = sampler.brick_cells(brick);
+        let cells = grid.level_box(lv, &part).intersect(&bc);
+        if cells.is_empty() {
+            continue;
+        }
+        let values = sampler.values(brick)?;
+        let w = cells.extent()[0] as usize;
+        for z in cells.lo[2]..cells.hi[2] {
+            for y in cells.lo[1]..cells.hi[1] {
+                let src = bc.linear_index([cells.lo[0], y, z]);
+                for &v in &values[src..src + w] {
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+            }
+        }
+    }
+    if lo > hi {
+        return Ok(empty);
+    }
+    Ok(widen_range(lo, hi))
+}

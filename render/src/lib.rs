@@ -8,6 +8,7 @@ pub mod extract;
 pub mod extract_cmd;
 pub mod info;
 pub mod mapping;
+pub mod mpi;
 pub mod output;
 pub mod reconstruct;
 pub mod render_cmd;

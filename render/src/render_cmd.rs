@@ -17,7 +17,7 @@ use crate::output::frame::FrameBuffer;
 use crate::output::png_preview::write_preview;
 use crate::sample_mode::SampleTracer;
 use crate::shade::{render_frame, IsoSpec, Lighting, RenderSettings};
-use crate::trace::{HybridTracer, Surface, VoxelSource};
+use crate::trace::{GridFrame, HybridTracer, Surface, VoxelSource};
 
 /// How cell values are reconstructed between cell centres.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -107,6 +107,11 @@ pub struct RenderArgs {
     /// Shade with each voxel's own trilinear gradient instead of normals continuous across voxels.
     #[arg(long)]
     pub flat_normals: bool,
+    /// Under `mpirun` (a build with the `mpi` feature): every rank holds the whole scene and
+    /// renders tiles (replicated, the default), or each holds a part of it and the frames are
+    /// composited (partitioned; no shadows or ambient occlusion).
+    #[arg(long, value_enum, value_name = "MODE")]
+    pub mpi_mode: Option<crate::mpi::MpiMode>,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -204,12 +209,11 @@ pub struct RenderReport {
     pub rays: u64,
 }
 
-/// Renders `src` as `cfg` asks; `progress(rows)` is called as rows finish.
-pub fn render_source<S: ActiveSource + ?Sized>(
+/// The camera and lighting of a render of `src`.
+pub fn scene_setup<S: ActiveSource + ?Sized>(
     src: &S,
     cfg: &RenderConfig,
-    progress: &(dyn Fn(u64) + Sync),
-) -> anyhow::Result<RenderReport> {
+) -> anyhow::Result<(Camera, Lighting)> {
     let frame = src.frame();
     let (lo, hi) = frame.world_bounds();
     let (w, h) = cfg.size;
@@ -229,10 +233,61 @@ pub fn render_source<S: ActiveSource + ?Sized>(
     let mut light = Lighting::for_camera(&camera, colors, opacity, 0.08 * diag);
     light.shadows = cfg.shadows;
     light.ao_rays = cfg.ao;
+    Ok((camera, light))
+}
+
+/// Builds one surface per isovalue of `cfg` from the refs `refs(iso)` returns, adding the
+/// extraction and build times and sizes to `report`.
+pub fn build_surfaces<S: VoxelSource + ?Sized>(
+    src: &S,
+    cfg: &RenderConfig,
+    mut refs: impl FnMut(f32) -> anyhow::Result<Vec<u64>>,
+    report: &mut RenderReport,
+) -> anyhow::Result<Vec<Surface>> {
+    let mut builder = BvhBuilder::new();
+    let mut surfaces = Vec::with_capacity(cfg.isos.len());
+    for spec in &cfg.isos {
+        let t = Instant::now();
+        let refs = refs(spec.value)?;
+        report.extract += t.elapsed();
+        let t = Instant::now();
+        let s = Surface::build(src, spec.value, &refs, &mut builder);
+        report.bvh += t.elapsed();
+        report.build_scratch_bytes = report
+            .build_scratch_bytes
+            .max(builder.last_scratch_bytes as u64);
+        report.active_octants += s.bvh.len() as u64;
+        report.refs_bytes += s.bvh.refs_bytes() as u64;
+        report.bvh_bytes += s.bvh.bvh_bytes() as u64;
+        report.bvh_nodes += s.bvh.num_nodes() as u64;
+        surfaces.push(s);
+    }
+    builder.release();
+    Ok(surfaces)
+}
+
+/// The step of the sample method: `cfg.step`, or half the finest grid unit.
+pub fn sample_step(frame: &GridFrame, cfg: &RenderConfig) -> anyhow::Result<f64> {
+    let unit = frame.unit.iter().fold(f64::INFINITY, |m, &u| m.min(u));
+    let step = cfg.step.unwrap_or(0.5 * unit);
+    if !(step > 0.0 && step.is_finite()) {
+        bail!("--step {step} must be positive and finite");
+    }
+    Ok(step)
+}
+
+/// Renders `src` as `cfg` asks; `progress(rows)` is called as rows finish.
+pub fn render_source<S: ActiveSource + ?Sized>(
+    src: &S,
+    cfg: &RenderConfig,
+    progress: &(dyn Fn(u64) + Sync),
+) -> anyhow::Result<RenderReport> {
+    let (camera, light) = scene_setup(src, cfg)?;
     let mut report = RenderReport {
         camera: Some(camera),
         ..Default::default()
     };
+    let (w, h) = cfg.size;
     let settings = RenderSettings {
         width: w,
         height: h,
@@ -240,25 +295,7 @@ pub fn render_source<S: ActiveSource + ?Sized>(
     };
     let (fb, rays) = match cfg.method {
         Method::Hybrid => {
-            let mut builder = BvhBuilder::new();
-            let mut surfaces = Vec::with_capacity(cfg.isos.len());
-            for spec in &cfg.isos {
-                let t = Instant::now();
-                let refs = src.extract(spec.value)?;
-                report.extract += t.elapsed();
-                let t = Instant::now();
-                let s = Surface::build(src, spec.value, &refs, &mut builder);
-                report.bvh += t.elapsed();
-                report.build_scratch_bytes = report
-                    .build_scratch_bytes
-                    .max(builder.last_scratch_bytes as u64);
-                report.active_octants += s.bvh.len() as u64;
-                report.refs_bytes += s.bvh.refs_bytes() as u64;
-                report.bvh_bytes += s.bvh.bvh_bytes() as u64;
-                report.bvh_nodes += s.bvh.num_nodes() as u64;
-                surfaces.push(s);
-            }
-            builder.release();
+            let surfaces = build_surfaces(src, cfg, |iso| src.extract(iso), &mut report)?;
             let tracer = HybridTracer {
                 src,
                 surfaces: &surfaces,
@@ -270,15 +307,10 @@ pub fn render_source<S: ActiveSource + ?Sized>(
             out
         }
         Method::Sample => {
-            let unit = frame.unit.iter().fold(f64::INFINITY, |m, &u| m.min(u));
-            let step = cfg.step.unwrap_or(0.5 * unit);
-            if !(step > 0.0 && step.is_finite()) {
-                bail!("--step {step} must be positive and finite");
-            }
             let tracer = SampleTracer {
                 src,
                 isos: cfg.isos.iter().map(|s| s.value).collect(),
-                step,
+                step: sample_step(&src.frame(), cfg)?,
             };
             let t = Instant::now();
             let out = render_frame(&tracer, &camera, &light, settings, progress);
@@ -510,7 +542,10 @@ impl RenderArgs {
 /// Runs `amr-render FILE.amrk ...`.
 pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
     let cfg = args.config()?;
-    let run = || crate::trace::amr_source::render_file(args, cfg.clone());
+    let run = || match crate::mpi::use_mpi(args)? {
+        true => crate::mpi::render_file(args, cfg.clone()),
+        false => crate::trace::amr_source::render_file(args, cfg.clone()),
+    };
     match args.threads {
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)

@@ -79,6 +79,35 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
     )
 }
 
+/// Renders the rectangle of `settings`' frame with lower corner `(x0, y0)` and size `w x h` (rows
+/// in parallel); returns its pixels row-major, each equal to the same pixel of [`render_frame`],
+/// and the number of ray queries.
+pub fn render_rect<T: Tracer + Sync + ?Sized>(
+    tracer: &T,
+    camera: &Camera,
+    light: &Lighting,
+    settings: RenderSettings,
+    (x0, y0, w, h): (u32, u32, u32, u32),
+) -> (Vec<PixelSample>, u64) {
+    let (fw, fh) = (settings.width, settings.height);
+    let spp = settings.spp.max(1);
+    let rows: Vec<(Vec<PixelSample>, u64)> = (y0..y0 + h)
+        .into_par_iter()
+        .map(|y| {
+            let counting = Counting {
+                inner: tracer,
+                rays: Cell::new(0),
+            };
+            let row = (x0..x0 + w)
+                .map(|x| pixel(&counting, camera, light, x, y, fw, fh, spp))
+                .collect();
+            (row, counting.rays.get())
+        })
+        .collect();
+    let rays = rows.iter().map(|r| r.1).sum();
+    (rows.into_iter().flat_map(|r| r.0).collect(), rays)
+}
+
 #[allow(clippy::too_many_arguments)]
 fn pixel<T: Tracer + ?Sized>(
     tracer: &T,

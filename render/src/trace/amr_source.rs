@@ -99,6 +99,13 @@ impl<'f, D: AsRef<[u8]> + Sync> AmrSource<'f, D> {
     }
 }
 
+impl<'f, D: AsRef<[u8]> + Sync> AmrSource<'f, D> {
+    /// The extractor underneath.
+    pub fn extractor(&self) -> &Extractor<'f, D> {
+        &self.ext
+    }
+}
+
 impl<D: AsRef<[u8]> + Sync> AmrSource<'_, D> {
     /// The voxel `r` names, from this thread's cache when it holds it.
     fn cached_voxel(&self, r: u64) -> Voxel {
@@ -175,9 +182,13 @@ impl<D: AsRef<[u8]> + Sync> ActiveSource for AmrSource<'_, D> {
     }
 }
 
-/// Renders the file named in `args` with the validated `cfg`.
-pub fn render_file(args: &RenderArgs, mut cfg: RenderConfig) -> anyhow::Result<()> {
-    let file = open_mapped(&args.file)?;
+/// The index of the field `args` names (the first by default), and the middle of its range as the
+/// isovalue when `cfg` has none.
+pub fn resolve_field<D: AsRef<[u8]>>(
+    file: &AmrkFile<D>,
+    args: &RenderArgs,
+    cfg: &mut RenderConfig,
+) -> anyhow::Result<usize> {
     let field = match &args.field {
         Some(name) => file.field_index(name).with_context(|| {
             let names: Vec<&str> = file.fields().iter().map(|f| f.name.as_str()).collect();
@@ -197,6 +208,13 @@ pub fn render_file(args: &RenderArgs, mut cfg: RenderConfig) -> anyhow::Result<(
             opacity: 1.0,
         });
     }
+    Ok(field)
+}
+
+/// Renders the file named in `args` with the validated `cfg`.
+pub fn render_file(args: &RenderArgs, mut cfg: RenderConfig) -> anyhow::Result<()> {
+    let file = open_mapped(&args.file)?;
+    let field = resolve_field(&file, args, &mut cfg)?;
     let src = AmrSource::new(&file, field, args.reconstruction)?;
     let (bar, progress) = progress_bar(u64::from(cfg.size.1));
     let report = render_source(&src, &cfg, &progress)?;
@@ -277,6 +295,7 @@ pub fn demo(out: &Path) -> anyhow::Result<()> {
         ao: 4,
         no_shadows: false,
         flat_normals: false,
+        mpi_mode: None,
     };
     let result = crate::render_cmd::run_render(&args);
     let _ = std::fs::remove_dir_all(&dir);

@@ -1,0 +1,186 @@
+//! The partitioned mode's frame: each rank holds the active octants of one run of kd-tree leaves
+//! ([`super::partition`]) and their BVH, renders the whole frame of its part, and the partial
+//! frames are composited ([`super::composite`]).
+//!
+//! The extraction is shared out first by leaf count (rank `r` extracts the `r`-th slice of the
+//! leaves that may hold the isovalue), the per-leaf counts are summed on every rank, the leaves
+//! are cut into runs balanced by count, and the refs are sent to the ranks that own them.
+//!
+//! Shadows and ambient occlusion need the whole scene (an occluder may be in any part), so this
+//! mode renders without them.
+
+use std::time::Instant;
+
+use ::mpi::collective::SystemOperation;
+use ::mpi::datatype::{Partition, PartitionMut};
+use ::mpi::topology::SimpleCommunicator;
+use ::mpi::traits::*;
+use rayon::prelude::*;
+
+use super::composite::direct_send;
+use super::partition::{balanced_runs, visibility_order};
+use super::pixels::offsets;
+use super::stats::RankStats;
+use crate::camera::Camera;
+use crate::extract::leaf::{extract_leaf, LeafFrame, Scratch};
+use crate::extract::{split_ref, Extractor};
+use crate::output::frame::FrameBuffer;
+use crate::reconstruct::interp::straddles;
+use crate::render_cmd::{build_surfaces, RenderConfig, RenderReport};
+use crate::shade::{render_frame, Lighting, RenderSettings};
+use crate::trace::amr_source::AmrSource;
+use crate::trace::{HybridTracer, VoxelSource};
+
+/// Leaves handed to the thread pool at a time.
+const CHUNK: usize = 4096;
+
+/// Renders this rank's part and composites the frame on rank 0 (`None` elsewhere). `light`
+/// must already be without shadows and ambient occlusion. Fills in `report` (this rank's part)
+/// and `stats`.
+#[allow(clippy::too_many_arguments)]
+pub fn render<D: AsRef<[u8]> + Sync>(
+    world: &SimpleCommunicator,
+    src: &AmrSource<'_, D>,
+    cfg: &RenderConfig,
+    camera: &Camera,
+    light: &Lighting,
+    report: &mut RenderReport,
+    stats: &mut RankStats,
+    progress: &(dyn Fn(u64) + Sync),
+) -> anyhow::Result<Option<FrameBuffer>> {
+    let ext = src.extractor();
+    let file = ext.sampler().file();
+    let field = ext.sampler().field();
+    let n = world.size() as usize;
+    let me = world.rank() as usize;
+    let mut bytes = 0u64;
+
+    let t = Instant::now();
+    let mut local = Vec::with_capacity(cfg.isos.len());
+    let mut counts = vec![0u64; file.num_leaves()];
+    for spec in &cfg.isos {
+        let candidates: Vec<u32> = (0..file.num_leaves() as u32)
+            .filter(|&l| {
+                let (lo, hi) = file.leaf_range(field, l);
+                straddles(lo, hi, spec.value)
+            })
+            .collect();
+        let c = candidates.len();
+        let refs = extract_leaves(ext, spec.value, &candidates[me * c / n..(me + 1) * c / n])?;
+        for &r in &refs {
+            counts[split_ref(r).0 as usize] += 1;
+        }
+        local.push(refs);
+    }
+    let mut total = vec![0u64; counts.len()];
+    world.all_reduce_into(&counts[..], &mut total[..], SystemOperation::sum());
+    bytes += 8 * counts.len() as u64;
+    drop(counts);
+    let frame = src.frame();
+    let eye = [0, 1, 2].map(|a| 0.5 * (camera.pos[a] - frame.origin[a]) / frame.unit[a]);
+    let order = visibility_order(&file.tree(), eye);
+    let owner = balanced_runs(&order, &total, n);
+    drop((order, total));
+    let extracted = t.elapsed();
+
+    let t = Instant::now();
+    let mut parts = Vec::with_capacity(local.len());
+    for refs in local {
+        let (part, sent) = redistribute(world, refs, &owner);
+        bytes += sent;
+        parts.push(part);
+    }
+    let redistributed = t.elapsed();
+    stats.redistribute = redistributed.as_secs_f64();
+    stats.work = owner.iter().filter(|&&o| o as usize == me).count() as f64;
+    drop(owner);
+
+    let mut parts = parts.into_iter();
+    let surfaces = build_surfaces(src, cfg, |_| Ok(parts.next().unwrap_or_default()), report)?;
+    report.extract += extracted + redistributed;
+    let tracer = HybridTracer {
+        src,
+        surfaces: &surfaces,
+        smooth_normals: cfg.smooth_normals,
+    };
+    let settings = RenderSettings {
+        width: cfg.size.0,
+        height: cfg.size.1,
+        spp: cfg.spp,
+    };
+    let t = Instant::now();
+    let (fb, rays) = render_frame(&tracer, camera, light, settings, progress);
+    report.render = t.elapsed();
+    report.rays = rays;
+    drop(surfaces);
+
+    let t = Instant::now();
+    let (frame, sent) = direct_send(world, &fb)?;
+    stats.composite = t.elapsed().as_secs_f64();
+    bytes += sent;
+    stats.bytes_sent = bytes as f64;
+    Ok(frame)
+}
+
+/// The active voxels of the `leaves` for `iso`, in the order of `leaves`, sorted within each.
+pub fn extract_leaves<D: AsRef<[u8]> + Sync>(
+    ext: &Extractor<'_, D>,
+    iso: f32,
+    leaves: &[u32],
+) -> anyhow::Result<Vec<u64>> {
+    let sampler = ext.sampler();
+    let mut refs = Vec::new();
+    for chunk in leaves.chunks(CHUNK) {
+        let parts: Vec<amr_format::Result<Vec<u64>>> = chunk
+            .par_iter()
+            .map_init(
+                || Scratch::new(sampler),
+                |scratch, &leaf| {
+                    let mut out = Vec::new();
+                    if let Some(frame) = LeafFrame::new(sampler, leaf) {
+                        extract_leaf(sampler, &frame, iso, scratch, &mut out)?;
+                    }
+                    Ok(out)
+                },
+            )
+            .collect();
+        for part in parts {
+            refs.extend_from_slice(&part?);
+        }
+    }
+    refs.shrink_to_fit();
+    Ok(refs)
+}
+
+/// Sends each of `refs` to the rank that owns its leaf; returns the refs this rank owns (in leaf
+/// order) and the bytes sent to other ranks.
+fn redistribute(world: &SimpleCommunicator, refs: Vec<u64>, owner: &[u32]) -> (Vec<u64>, u64) {
+    let n = world.size() as usize;
+    let me = world.rank() as usize;
+    let dest = |r: u64| owner[split_ref(r).0 as usize] as usize;
+    let mut send_counts = vec![0i32; n];
+    for &r in &refs {
+        send_counts[dest(r)] += 1;
+    }
+    let send_displs = offsets(&send_counts);
+    let mut send = vec![0u64; refs.len()];
+    let mut at: Vec<usize> = send_displs.iter().map(|&d| d as usize).collect();
+    for &r in &refs {
+        let d = dest(r);
+        send[at[d]] = r;
+        at[d] += 1;
+    }
+    drop(refs);
+    let mut recv_counts = vec![0i32; n];
+    world.all_to_all_into(&send_counts[..], &mut recv_counts[..]);
+    let recv_displs = offsets(&recv_counts);
+    let mut recv = vec![0u64; recv_counts.iter().map(|&c| c as usize).sum()];
+    world.all_to_all_varcount_into(
+        &Partition::new(&send[..], &send_counts[..], &send_displs[..]),
+        &mut PartitionMut::new(&mut recv[..], &recv_counts[..], &recv_displs[..]),
+    );
+    let sent = 4 * n as u64 + 8 * (send.len() - send_counts[me] as usize) as u64;
+    drop(send);
+    recv.sort_unstable();
+    (recv, sent)
+}

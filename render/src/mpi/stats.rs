@@ -1,0 +1,141 @@
+//! What each rank did and what it cost, gathered on rank 0 for `--stats` and `--stats-json`.
+
+use ::mpi::topology::SimpleCommunicator;
+use ::mpi::traits::*;
+
+/// One rank's statistics.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RankStats {
+    /// Extraction of its active octants, seconds (in partitioned mode: its share of the leaves,
+    /// plus the exchange of refs, see `redistribute`).
+    pub extract: f64,
+    /// Sending the refs to the ranks that own them (partitioned mode), seconds.
+    pub redistribute: f64,
+    /// BVH builds, seconds.
+    pub bvh: f64,
+    /// Its tiles or its frame, seconds.
+    pub render: f64,
+    /// Gathering and compositing the frame (its part of it), seconds.
+    pub composite: f64,
+    /// Bytes it sent in MPI messages (refs, pixels, tile requests, counts).
+    pub bytes_sent: f64,
+    /// Its peak resident set, bytes.
+    pub peak_rss: f64,
+    /// Active octants it holds, over all isosurfaces.
+    pub active_octants: f64,
+    /// Resident bytes of its refs.
+    pub refs_bytes: f64,
+    /// Resident bytes of its BVH nodes.
+    pub bvh_bytes: f64,
+    /// Ray queries it made.
+    pub rays: f64,
+    /// Tiles it rendered (replicated) or kd-tree leaves it owns (partitioned).
+    pub work: f64,
+}
+
+const FIELDS: usize = 12;
+
+impl RankStats {
+    fn to_array(self) -> [f64; FIELDS] {
+        [
+            self.extract,
+            self.redistribute,
+            self.bvh,
+            self.render,
+            self.composite,
+            self.bytes_sent,
+            self.peak_rss,
+            self.active_octants,
+            self.refs_bytes,
+            self.bvh_bytes,
+            self.rays,
+            self.work,
+        ]
+    }
+
+    fn from_array(a: &[f64]) -> RankStats {
+        RankStats {
+            extract: a[0],
+            redistribute: a[1],
+            bvh: a[2],
+            render: a[3],
+            composite: a[4],
+            bytes_sent: a[5],
+            peak_rss: a[6],
+            active_octants: a[7],
+            refs_bytes: a[8],
+            bvh_bytes: a[9],
+            rays: a[10],
+            work: a[11],
+        }
+    }
+
+    /// Every rank's statistics on rank 0 (rank order), `None` elsewhere.
+    pub fn gather(self, world: &SimpleCommunicator) -> Option<Vec<RankStats>> {
+        let mine = self.to_array();
+        let root = world.process_at_rank(0);
+        if world.rank() == 0 {
+            let mut all = vec![0.0f64; FIELDS * world.size() as usize];
+            root.gather_into_root(&mine[..], &mut all[..]);
+            Some(all.chunks(FIELDS).map(RankStats::from_array).collect())
+        } else {
+            root.gather_into(&mine[..]);
+            None
+        }
+    }
+
+    /// The statistics as a JSON object.
+    pub fn json(&self, rank: usize) -> String {
+        format!(
+            "{{\"rank\": {rank}, \"extract_ms\": {:.3}, \"redistribute_ms\": {:.3}, \
+             \"bvh_ms\": {:.3}, \"render_ms\": {:.3}, \"composite_ms\": {:.3}, \
+             \"bytes_sent\": {}, \"peak_rss_bytes\": {}, \"active_octants\": {}, \
+             \"refs_bytes\": {}, \"bvh_bytes\": {}, \"rays\": {}, \"work\": {}}}",
+            self.extract * 1e3,
+            self.redistribute * 1e3,
+            self.bvh * 1e3,
+            self.render * 1e3,
+            self.composite * 1e3,
+            self.bytes_sent,
+            self.peak_rss,
+            self.active_octants,
+            self.refs_bytes,
+            self.bvh_bytes,
+            self.rays,
+            self.work
+        )
+    }
+}
+
+/// A table of the ranks' statistics for a terminal.
+pub fn table(ranks: &[RankStats], work: &str) -> String {
+    let mut s = format!(
+        "{:>4} {:>10} {:>10} {:>9} {:>10} {:>12} {:>12} {:>11} {:>13} {:>13} {work:>6}\n",
+        "rank",
+        "extract_ms",
+        "redist_ms",
+        "bvh_ms",
+        "render_ms",
+        "composite_ms",
+        "bytes_sent",
+        "peak_rss_MB",
+        "octants",
+        "refs+bvh_MB"
+    );
+    for (r, st) in ranks.iter().enumerate() {
+        s += &format!(
+            "{r:>4} {:>10.1} {:>10.1} {:>9.1} {:>10.1} {:>12.1} {:>12} {:>11.1} {:>13} {:>13.2} {:>6}\n",
+            st.extract * 1e3,
+            st.redistribute * 1e3,
+            st.bvh * 1e3,
+            st.render * 1e3,
+            st.composite * 1e3,
+            st.bytes_sent,
+            st.peak_rss / 1e6,
+            st.active_octants,
+            (st.refs_bytes + st.bvh_bytes) / 1e6,
+            st.work
+        );
+    }
+    s
+}

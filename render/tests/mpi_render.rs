@@ -1,0 +1,260 @@
+//! `mpirun -n 2` and `-n 4` (oversubscribed) against the single-process frame: the replicated mode
+//! gives the same pixels bit for bit; the partitioned mode the same first hits (Z, P, N, level,
+//! coverage) and, without shadows and ambient occlusion, nearly the same colour.
+//!
+//! Runs with the `mpi` feature only, and fails, naming what is missing, when `mpirun` is absent.
+#![cfg(feature = "mpi")]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use amr_convert::progress::NoProgress;
+use amr_convert::synth::{write_synth, Case, SynthParams};
+use amr_format::WriterOptions;
+use amr_render::output::exr_file::read_channel;
+
+const CHANNELS: [&str; 12] = [
+    "R", "G", "B", "A", "Z", "N.X", "N.Y", "N.Z", "P.X", "P.Y", "P.Z", "level",
+];
+const FIRST_HIT: [&str; 9] = ["A", "Z", "N.X", "N.Y", "N.Z", "P.X", "P.Y", "P.Z", "level"];
+
+/// `$MPIRUN`, or `mpirun` or `mpiexec` on `PATH`.
+fn mpirun() -> PathBuf {
+    if let Some(p) = std::env::var_os("MPIRUN") {
+        return PathBuf::from(p);
+    }
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    for dir in std::env::split_paths(&path) {
+        for name in ["mpirun", "mpiexec"] {
+            let p = dir.join(name);
+            if p.is_file() {
+                return p;
+            }
+        }
+    }
+    panic!(
+        "the `mpi` feature is on but neither mpirun nor mpiexec is on PATH: install Open MPI \
+         (openmpi-bin, see .ci/install-deps) or set MPIRUN=/path/to/mpirun"
+    );
+}
+
+/// A small three-level file of two blobs, with leaves enough to share among four ranks.
+fn dataset(dir: &Path) -> PathBuf {
+    let path = dir.join("blobs.amrk");
+    let params = SynthParams {
+        levels: 3,
+        ratio: 2,
+        base: 16,
+        brick: 8,
+        origin: [0.0; 3],
+        size: 1.0,
+    };
+    write_synth(
+        &path,
+        Case::Blobs,
+        &params,
+        WriterOptions::default(),
+        &NoProgress,
+    )
+    .unwrap();
+    path
+}
+
+fn render_args(file: &Path, out: &Path, extra: &[&str]) -> Vec<String> {
+    let mut a: Vec<String> = [
+        file.to_str().unwrap(),
+        "--iso",
+        "10:orange:1",
+        "--iso",
+        "5:#3070ff:0.4",
+        "--size",
+        "96x72",
+        "-o",
+        out.to_str().unwrap(),
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    a.extend(extra.iter().map(|s| s.to_string()));
+    a
+}
+
+fn check(out: std::process::Output, what: &str) {
+    assert!(
+        out.status.success(),
+        "{what} failed ({}):\n{}{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn single(file: &Path, out: &Path, extra: &[&str]) {
+    let o = Command::new(env!("CARGO_BIN_EXE_amr-render"))
+        .args(render_args(file, out, extra))
+        .output()
+        .unwrap();
+    check(o, "single-process render");
+}
+
+fn mpi(n: usize, file: &Path, out: &Path, extra: &[&str]) -> String {
+    let o = Command::new(mpirun())
+        .args(["--oversubscribe", "--bind-to", "none", "-n", &n.to_string()])
+        .arg(env!("CARGO_BIN_EXE_amr-render"))
+        .args(render_args(file, out, extra))
+        // Open MPI refuses root (as in CI containers) without these.
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    check(o, &format!("mpirun -n {n} {extra:?}"));
+    err
+}
+
+fn channel(path: &Path, name: &str) -> Vec<u32> {
+    let (_, _, v) = read_channel(path, name).unwrap();
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+#[test]
+fn replicated_frames_equal_the_single_process_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dataset(dir.path());
+    let reference = dir.path().join("single.exr");
+    single(&file, &reference, &[]);
+    assert!(channel(&reference, "A")
+        .iter()
+        .any(|&a| f32::from_bits(a) > 0.0));
+    for n in [2, 4] {
+        let out = dir.path().join(format!("replicated{n}.exr"));
+        let json = dir.path().join(format!("replicated{n}.json"));
+        mpi(n, &file, &out, &["--stats-json", json.to_str().unwrap()]);
+        for c in CHANNELS {
+            assert!(
+                channel(&out, c) == channel(&reference, c),
+                "-n {n}: channel {c} differs from the single-process frame"
+            );
+        }
+        let stats = std::fs::read_to_string(&json).unwrap();
+        assert!(stats.contains(&format!("\"mpi_ranks\": {n}")), "{stats}");
+        assert_eq!(stats.matches("\"rank\":").count(), n, "{stats}");
+    }
+}
+
+#[test]
+fn partitioned_frames_have_the_single_process_first_hits() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dataset(dir.path());
+    let reference = dir.path().join("single.exr");
+    let flat = ["--no-shadows", "--ao", "0"];
+    single(&file, &reference, &flat);
+    for n in [2, 4] {
+        let out = dir.path().join(format!("partitioned{n}.exr"));
+        let json = dir.path().join(format!("partitioned{n}.json"));
+        let mut extra = vec![
+            "--mpi-mode",
+            "partitioned",
+            "--stats-json",
+            json.to_str().unwrap(),
+        ];
+        extra.extend(flat);
+        mpi(n, &file, &out, &extra);
+        for c in FIRST_HIT {
+            assert!(
+                channel(&out, c) == channel(&reference, c),
+                "-n {n}: channel {c} differs from the single-process frame"
+            );
+        }
+        // Colour: the same up to the order of floating-point sums, except where a transparent
+        // surface crosses a part boundary (docs/mpi.md).
+        let mut off = 0;
+        let mut total = 0;
+        for c in ["R", "G", "B"] {
+            let (_, _, a) = read_channel(&out, c).unwrap();
+            let (_, _, b) = read_channel(&reference, c).unwrap();
+            total += a.len();
+            off += a
+                .iter()
+                .zip(&b)
+                .filter(|(x, y)| (*x - *y).abs() > 1e-5)
+                .count();
+        }
+        eprintln!("-n {n}: {off} of {total} colour values differ by more than 1e-5");
+        assert!(
+            off * 100 <= total,
+            "-n {n}: {off} of {total} colour values differ"
+        );
+        let stats = std::fs::read_to_string(&json).unwrap();
+        assert!(stats.contains("\"mpi_mode\": \"partitioned\""), "{stats}");
+        // Each rank holds only its part of the octants.
+        let single_json = dir.path().join("single.json");
+        single(
+            &file,
+            &dir.path().join("s.exr"),
+            &["--stats-json", single_json.to_str().unwrap()],
+        );
+        let total_octants = |s: &str| -> u64 {
+            let line = s
+                .lines()
+                .find(|l| l.contains("\"active_octants\""))
+                .unwrap();
+            line.split(':')
+                .nth(1)
+                .unwrap()
+                .trim()
+                .trim_end_matches(',')
+                .parse()
+                .unwrap()
+        };
+        let all = total_octants(&std::fs::read_to_string(&single_json).unwrap());
+        assert_eq!(total_octants(&stats), all, "{stats}");
+        let per_rank: Vec<u64> = stats
+            .split("\"active_octants\": ")
+            .skip(2)
+            .map(|s| s.split(',').next().unwrap().trim().parse().unwrap())
+            .collect();
+        assert_eq!(per_rank.len(), n, "{stats}");
+        assert_eq!(per_rank.iter().sum::<u64>(), all);
+        assert!(
+            per_rank.iter().all(|&k| k * n as u64 <= 2 * all),
+            "{per_rank:?} of {all}"
+        );
+    }
+}
+
+#[test]
+fn mpi_options_without_mpirun_are_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dataset(dir.path());
+    let o = Command::new(env!("CARGO_BIN_EXE_amr-render"))
+        .args(render_args(
+            &file,
+            &dir.path().join("x.exr"),
+            &["--mpi-mode", "partitioned"],
+        ))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("mpirun"));
+}
+
+#[test]
+fn a_bad_file_under_mpirun_is_one_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing.amrk");
+    let out = dir.path().join("x.exr");
+    let o = Command::new(mpirun())
+        .args(["--oversubscribe", "--bind-to", "none", "-n", "2"])
+        .arg(env!("CARGO_BIN_EXE_amr-render"))
+        .args(render_args(&missing, &out, &[]))
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert_eq!(err.matches("missing.amrk").count(), 1, "{err}");
+}

@@ -115,6 +115,9 @@ pub fn render<D: AsRef<[u8]> + Sync>(
     drop(surfaces);
 
     let t = Instant::now();
+    world.barrier();
+    stats.wait = t.elapsed().as_secs_f64();
+    let t = Instant::now();
     let (frame, sent) = direct_send(world, &fb)?;
     stats.composite = t.elapsed().as_secs_f64();
     bytes += sent;

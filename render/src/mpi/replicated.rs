@@ -102,7 +102,7 @@ pub struct Job<'a, T: ?Sized> {
 
 /// Renders this rank's share of `job` and gathers the frame on rank 0 (`None` elsewhere);
 /// `progress(1)` is called on rank 0 as each tile is handed out. Fills in `stats`' render,
-/// composite, bytes sent, rays and tiles.
+/// wait, composite, bytes sent, rays and tiles.
 pub fn render<T: Tracer + Sync + ?Sized>(
     world: &SimpleCommunicator,
     job: &Job<'_, T>,
@@ -153,6 +153,9 @@ pub fn render<T: Tracer + Sync + ?Sized>(
     stats.render = t0.elapsed().as_secs_f64();
     stats.rays = mine.rays as f64;
     stats.work = mine.ids.len() as f64;
+    let t1 = Instant::now();
+    world.barrier();
+    stats.wait = t1.elapsed().as_secs_f64();
     let t1 = Instant::now();
     let frame = gather(world, &job.tiles, &mine, w, h, p_origin, &mut bytes);
     stats.composite = t1.elapsed().as_secs_f64();

@@ -174,6 +174,7 @@ fn run_rank(
     stats.active_octants = report.active_octants as f64;
     stats.refs_bytes = report.refs_bytes as f64;
     stats.bvh_bytes = report.bvh_bytes as f64;
+    stats.build_scratch = report.build_scratch_bytes as f64;
     stats.peak_rss = peak_rss_bytes().unwrap_or(0) as f64;
     let Some(ranks) = stats.gather(world) else {
         return Ok(());
@@ -209,6 +210,7 @@ fn write_rank0<D: AsRef<[u8]>>(
         report.active_octants = sum(|r| r.active_octants) as u64;
         report.refs_bytes = sum(|r| r.refs_bytes) as u64;
         report.bvh_bytes = sum(|r| r.bvh_bytes) as u64;
+        report.build_scratch_bytes = max(|r| r.build_scratch) as u64;
     }
     let per_rank: Vec<String> = ranks.iter().enumerate().map(|(k, r)| r.json(k)).collect();
     let extra = [
@@ -217,6 +219,7 @@ fn write_rank0<D: AsRef<[u8]>>(
         ("mpi_mode", format!("\"{}\"", mode.name())),
         ("mpi_ranks", ranks.len().to_string()),
         ("frame_ms", format!("{:.3}", frame_time.as_secs_f64() * 1e3)),
+        ("wait_ms", format!("{:.3}", max(|r| r.wait) * 1e3)),
         ("composite_ms", format!("{:.3}", max(|r| r.composite) * 1e3)),
         (
             "redistribute_ms",

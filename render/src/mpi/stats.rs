@@ -15,7 +15,9 @@ pub struct RankStats {
     pub bvh: f64,
     /// Its tiles or its frame, seconds.
     pub render: f64,
-    /// Gathering and compositing the frame (its part of it), seconds.
+    /// Waiting at the barrier before compositing for the slowest rank, seconds.
+    pub wait: f64,
+    /// Gathering and compositing the frame (its part of it), after the barrier, seconds.
     pub composite: f64,
     /// Bytes it sent in MPI messages (refs, pixels, tile requests, counts).
     pub bytes_sent: f64,
@@ -27,13 +29,15 @@ pub struct RankStats {
     pub refs_bytes: f64,
     /// Resident bytes of its BVH nodes.
     pub bvh_bytes: f64,
+    /// Largest BVH build scratch it held at once (freed before rendering).
+    pub build_scratch: f64,
     /// Ray queries it made.
     pub rays: f64,
     /// Tiles it rendered (replicated) or kd-tree leaves it owns (partitioned).
     pub work: f64,
 }
 
-const FIELDS: usize = 12;
+const FIELDS: usize = 14;
 
 impl RankStats {
     fn to_array(self) -> [f64; FIELDS] {
@@ -42,12 +46,14 @@ impl RankStats {
             self.redistribute,
             self.bvh,
             self.render,
+            self.wait,
             self.composite,
             self.bytes_sent,
             self.peak_rss,
             self.active_octants,
             self.refs_bytes,
             self.bvh_bytes,
+            self.build_scratch,
             self.rays,
             self.work,
         ]
@@ -59,14 +65,16 @@ impl RankStats {
             redistribute: a[1],
             bvh: a[2],
             render: a[3],
-            composite: a[4],
-            bytes_sent: a[5],
-            peak_rss: a[6],
-            active_octants: a[7],
-            refs_bytes: a[8],
-            bvh_bytes: a[9],
-            rays: a[10],
-            work: a[11],
+            wait: a[4],
+            composite: a[5],
+            bytes_sent: a[6],
+            peak_rss: a[7],
+            active_octants: a[8],
+            refs_bytes: a[9],
+            bvh_bytes: a[10],
+            build_scratch: a[11],
+            rays: a[12],
+            work: a[13],
         }
     }
 
@@ -88,19 +96,23 @@ impl RankStats {
     pub fn json(&self, rank: usize) -> String {
         format!(
             "{{\"rank\": {rank}, \"extract_ms\": {:.3}, \"redistribute_ms\": {:.3}, \
-             \"bvh_ms\": {:.3}, \"render_ms\": {:.3}, \"composite_ms\": {:.3}, \
+             \"bvh_ms\": {:.3}, \"render_ms\": {:.3}, \"wait_ms\": {:.3}, \
+             \"composite_ms\": {:.3}, \
              \"bytes_sent\": {}, \"peak_rss_bytes\": {}, \"active_octants\": {}, \
-             \"refs_bytes\": {}, \"bvh_bytes\": {}, \"rays\": {}, \"work\": {}}}",
+             \"refs_bytes\": {}, \"bvh_bytes\": {}, \"build_scratch_bytes\": {}, \
+             \"rays\": {}, \"work\": {}}}",
             self.extract * 1e3,
             self.redistribute * 1e3,
             self.bvh * 1e3,
             self.render * 1e3,
+            self.wait * 1e3,
             self.composite * 1e3,
             self.bytes_sent,
             self.peak_rss,
             self.active_octants,
             self.refs_bytes,
             self.bvh_bytes,
+            self.build_scratch,
             self.rays,
             self.work
         )
@@ -110,30 +122,34 @@ impl RankStats {
 /// A table of the ranks' statistics for a terminal.
 pub fn table(ranks: &[RankStats], work: &str) -> String {
     let mut s = format!(
-        "{:>4} {:>10} {:>10} {:>9} {:>10} {:>12} {:>12} {:>11} {:>13} {:>13} {work:>6}\n",
+        "{:>4} {:>10} {:>10} {:>9} {:>10} {:>8} {:>12} {:>12} {:>11} {:>10} {:>11} {:>10} {work:>6}\n",
         "rank",
         "extract_ms",
         "redist_ms",
         "bvh_ms",
         "render_ms",
+        "wait_ms",
         "composite_ms",
         "bytes_sent",
         "peak_rss_MB",
         "octants",
-        "refs+bvh_MB"
+        "refs+bvh_MB",
+        "scratch_MB"
     );
     for (r, st) in ranks.iter().enumerate() {
         s += &format!(
-            "{r:>4} {:>10.1} {:>10.1} {:>9.1} {:>10.1} {:>12.1} {:>12} {:>11.1} {:>13} {:>13.2} {:>6}\n",
+            "{r:>4} {:>10.1} {:>10.1} {:>9.1} {:>10.1} {:>8.1} {:>12.1} {:>12} {:>11.1} {:>10} {:>11.2} {:>10.2} {:>6}\n",
             st.extract * 1e3,
             st.redistribute * 1e3,
             st.bvh * 1e3,
             st.render * 1e3,
+            st.wait * 1e3,
             st.composite * 1e3,
             st.bytes_sent,
             st.peak_rss / 1e6,
             st.active_octants,
             (st.refs_bytes + st.bvh_bytes) / 1e6,
+            st.build_scratch / 1e6,
             st.work
         );
     }

@@ -2,7 +2,8 @@
 # Frame time and per-rank memory of MPI renders against rank count (docs/benchmarks-mpi.md).
 # Usage: scripts/bench-mpi.sh OUTDIR [CELLS] [RUNS]
 # Every configuration runs once per round, rounds repeated RUNS times (medians reported), one
-# thread per rank so that rank counts compare core for core. Needs Open MPI (.ci/install-deps).
+# thread per rank so that rank counts compare core for core; processor times (all ranks) measure
+# the compute on a machine shared with other work. Needs Open MPI (.ci/install-deps).
 set -euo pipefail
 out=${1:?usage: bench-mpi.sh OUTDIR [CELLS] [RUNS]}
 cells=${2:-3e7}
@@ -58,15 +59,18 @@ sent() { if grep -q '"bytes_sent"' "$1"; then key "$1" bytes_sent | awk '{printf
 scene() { awk -v a="$(rank_max "$1" refs_bytes refs_bytes)" -v b="$(rank_max "$1" bvh_bytes bvh_bytes)" \
   -v c="$(rank_max "$1" build_scratch_bytes build_scratch_bytes)" \
   'BEGIN {printf "%.1f / %.1f\n", (a + b) / 2^20, c / 2^20}'; }
+cpu() { if grep -q "\"$2\"" "$1"; then key "$1" "$2"; else echo "—"; fi; }
+cpu_scene() { cpu "$1" cpu_scene_s; }
+cpu_render() { cpu "$1" cpu_render_s; }
 rss() { rank_max "$1" peak_rss_bytes peak_rss_bytes | awk '{printf "%.0f\n", $1 / 2^20}'; }
 octs() { rank_max "$1" active_octants active_octants; }
 echo "file: $(basename "$file"), $("$bin/amr-render" info "$file" | grep -m1 '^cells'), median of $runs"
 echo
-echo "| run | ranks | wall s | frame s | extract s | BVH s | render s | wait s | composite s | MB sent | octants, max rank | refs+BVH / build scratch MiB, max rank | peak RSS MiB, max rank |"
-echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+echo "| run | ranks | wall s | frame s | extract s | BVH s | render s | wait s | composite s | CPU s scene, all ranks | CPU s render, all ranks | MB sent | octants, max rank | refs+BVH / build scratch MiB, max rank | peak RSS MiB, max rank |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 for c in "${configs[@]}"; do
   case $c in single) n=1; name="single process";; rep*) n=${c#rep}; name=replicated;;
     part*) n=${c#part}; name=partitioned;; esac
   wall=$(for r in $(seq 1 "$runs"); do cat "$out/$c-$r.wall"; done | median)
-  echo "| $name | $n | $wall | $(stat "$c" frame) | $(stat "$c" ext) | $(stat "$c" bvh) | $(stat "$c" ren) | $(stat "$c" wait_) | $(stat "$c" comp) | $(stat "$c" sent) | $(octs "$out/$c-1.json") | $(scene "$out/$c-1.json") | $(stat "$c" rss) |"
+  echo "| $name | $n | $wall | $(stat "$c" frame) | $(stat "$c" ext) | $(stat "$c" bvh) | $(stat "$c" ren) | $(stat "$c" wait_) | $(stat "$c" comp) | $(stat "$c" cpu_scene) | $(stat "$c" cpu_render) | $(stat "$c" sent) | $(octs "$out/$c-1.json") | $(scene "$out/$c-1.json") | $(stat "$c" rss) |"
 done

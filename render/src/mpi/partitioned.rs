@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use super::composite::direct_send;
 use super::partition::{balanced_runs, visibility_order};
 use super::pixels::offsets;
-use super::stats::RankStats;
+use super::stats::{cpu_seconds, RankStats};
 use crate::camera::Camera;
 use crate::extract::leaf::{extract_leaf, LeafFrame, Scratch};
 use crate::extract::{split_ref, Extractor};
@@ -36,7 +36,7 @@ const CHUNK: usize = 4096;
 
 /// Renders this rank's part and composites the frame on rank 0 (`None` elsewhere). `light`
 /// must already be without shadows and ambient occlusion. Fills in `report` (this rank's part)
-/// and `stats`.
+/// and `stats` (`cpu_scene` with the processor time at the start of rendering).
 #[allow(clippy::too_many_arguments)]
 pub fn render<D: AsRef<[u8]> + Sync>(
     world: &SimpleCommunicator,
@@ -109,8 +109,10 @@ pub fn render<D: AsRef<[u8]> + Sync>(
         spp: cfg.spp,
     };
     let t = Instant::now();
+    stats.cpu_scene = cpu_seconds();
     let (fb, rays) = render_frame(&tracer, camera, light, settings, progress);
     report.render = t.elapsed();
+    stats.cpu_render = cpu_seconds() - stats.cpu_scene;
     report.rays = rays;
     drop(surfaces);
 

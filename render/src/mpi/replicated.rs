@@ -15,7 +15,7 @@ use ::mpi::traits::*;
 use anyhow::bail;
 
 use super::pixels::{self, offsets, RECORD};
-use super::stats::RankStats;
+use super::stats::{cpu_seconds, RankStats};
 use crate::camera::Camera;
 use crate::output::frame::{FrameBuffer, PixelSample};
 use crate::shade::render_loop::render_rect;
@@ -102,7 +102,7 @@ pub struct Job<'a, T: ?Sized> {
 
 /// Renders this rank's share of `job` and gathers the frame on rank 0 (`None` elsewhere);
 /// `progress(1)` is called on rank 0 as each tile is handed out. Fills in `stats`' render,
-/// wait, composite, bytes sent, rays and tiles.
+/// processor time, wait, composite, bytes sent, rays and tiles.
 pub fn render<T: Tracer + Sync + ?Sized>(
     world: &SimpleCommunicator,
     job: &Job<'_, T>,
@@ -115,6 +115,7 @@ pub fn render<T: Tracer + Sync + ?Sized>(
         bail!("a {w}x{h} frame is too large for one MPI message (at most 2^31 values)");
     }
     let t0 = Instant::now();
+    let cpu0 = cpu_seconds();
     let mut bytes = 0u64;
     let mut mine = Rendered::default();
     let n = job.tiles.count();
@@ -151,6 +152,7 @@ pub fn render<T: Tracer + Sync + ?Sized>(
         }
     }
     stats.render = t0.elapsed().as_secs_f64();
+    stats.cpu_render = cpu_seconds() - cpu0;
     stats.rays = mine.rays as f64;
     stats.work = mine.ids.len() as f64;
     let t1 = Instant::now();

@@ -9,7 +9,7 @@ use ::mpi::traits::*;
 use ::mpi::Threading;
 use anyhow::{anyhow, bail};
 
-use super::stats::{table, RankStats};
+use super::stats::{cpu_seconds, table, RankStats};
 use super::{partitioned, replicated, MpiMode};
 use crate::mapping::open_mapped;
 use crate::render_cmd::{
@@ -120,6 +120,7 @@ fn run_rank(
     let quiet = |_: u64| {};
     let progress: &(dyn Fn(u64) + Sync) = if rank == 0 { &progress } else { &quiet };
     let origin = src.frame().origin;
+    let cpu0 = cpu_seconds();
     let frame = match (mode, cfg.method) {
         (MpiMode::Partitioned, _) => partitioned::render(
             world,
@@ -133,6 +134,7 @@ fn run_rank(
         )?,
         (MpiMode::Replicated, Method::Hybrid) => {
             let surfaces = build_surfaces(&src, &cfg, |iso| src.extract(iso), &mut report)?;
+            stats.cpu_scene = cpu_seconds();
             let tracer = HybridTracer {
                 src: &src,
                 surfaces: &surfaces,
@@ -148,6 +150,7 @@ fn run_rank(
             replicated::render(world, &job, origin, &mut stats, progress)?
         }
         (MpiMode::Replicated, Method::Sample) => {
+            stats.cpu_scene = cpu_seconds();
             let tracer = SampleTracer {
                 src: &src,
                 isos: cfg.isos.iter().map(|s| s.value).collect(),
@@ -165,6 +168,8 @@ fn run_rank(
     };
     bar.finish_and_clear();
     let frame_time = start.elapsed();
+    // The modes left the processor time at the start of rendering.
+    stats.cpu_scene -= cpu0;
     if mode == MpiMode::Partitioned {
         stats.rays = report.rays as f64;
         stats.render = report.render.as_secs_f64();
@@ -226,6 +231,8 @@ fn write_rank0<D: AsRef<[u8]>>(
             format!("{:.3}", max(|r| r.redistribute) * 1e3),
         ),
         ("bytes_sent", format!("{}", sum(|r| r.bytes_sent))),
+        ("cpu_scene_s", format!("{:.2}", sum(|r| r.cpu_scene))),
+        ("cpu_render_s", format!("{:.2}", sum(|r| r.cpu_render))),
         (
             "peak_rss_bytes_max_rank",
             format!("{}", max(|r| r.peak_rss)),

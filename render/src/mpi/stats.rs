@@ -35,9 +35,35 @@ pub struct RankStats {
     pub rays: f64,
     /// Tiles it rendered (replicated) or kd-tree leaves it owns (partitioned).
     pub work: f64,
+    /// Processor time of the process (all threads) from the end of the set-up to the start of
+    /// rendering: extraction, exchange and BVH builds, seconds.
+    pub cpu_scene: f64,
+    /// Processor time of the process while rendering, seconds.
+    pub cpu_render: f64,
 }
 
-const FIELDS: usize = 14;
+/// Processor time this process has used in all its threads (user and system, from
+/// `/proc/self/stat` in clock ticks of 1/100 s, Linux's `USER_HZ`), seconds; 0 where unknown.
+pub fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // Fields after the command name (which may hold spaces), from field 3 on.
+    let Some((_, rest)) = stat.rsplit_once(')') else {
+        return 0.0;
+    };
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |i: usize| {
+        fields
+            .get(i)
+            .and_then(|f| f.parse::<u64>().ok())
+            .unwrap_or(0)
+    };
+    // utime and stime are fields 14 and 15, at 11 and 12 here.
+    (ticks(11) + ticks(12)) as f64 / 100.0
+}
+
+const FIELDS: usize = 16;
 
 impl RankStats {
     fn to_array(self) -> [f64; FIELDS] {
@@ -56,6 +82,8 @@ impl RankStats {
             self.build_scratch,
             self.rays,
             self.work,
+            self.cpu_scene,
+            self.cpu_render,
         ]
     }
 
@@ -75,6 +103,8 @@ impl RankStats {
             build_scratch: a[11],
             rays: a[12],
             work: a[13],
+            cpu_scene: a[14],
+            cpu_render: a[15],
         }
     }
 
@@ -100,7 +130,7 @@ impl RankStats {
              \"composite_ms\": {:.3}, \
              \"bytes_sent\": {}, \"peak_rss_bytes\": {}, \"active_octants\": {}, \
              \"refs_bytes\": {}, \"bvh_bytes\": {}, \"build_scratch_bytes\": {}, \
-             \"rays\": {}, \"work\": {}}}",
+             \"rays\": {}, \"work\": {}, \"cpu_scene_s\": {:.2}, \"cpu_render_s\": {:.2}}}",
             self.extract * 1e3,
             self.redistribute * 1e3,
             self.bvh * 1e3,
@@ -114,7 +144,9 @@ impl RankStats {
             self.bvh_bytes,
             self.build_scratch,
             self.rays,
-            self.work
+            self.work,
+            self.cpu_scene,
+            self.cpu_render
         )
     }
 }

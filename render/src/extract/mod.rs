@@ -76,16 +76,28 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// The active voxels for `iso`: those whose corner values `v` satisfy
     /// `min v < iso <= max v`.
     pub fn extract(&self, iso: f32) -> Result<Extraction> {
-        let start = Instant::now();
+        self.extract_leaves(iso, &self.candidate_leaves(iso))
+    }
+
+    /// The leaves whose stored value range may hold `iso`, in leaf order.
+    pub fn candidate_leaves(&self, iso: f32) -> Vec<u32> {
         let file = self.sampler.file();
         let field = self.sampler.field();
-        let decodes = self.sampler.decodes();
-        let leaves: Vec<u32> = (0..file.num_leaves() as u32)
+        (0..file.num_leaves() as u32)
             .filter(|&l| {
                 let (lo, hi) = file.leaf_range(field, l);
                 straddles(lo, hi, iso)
             })
-            .collect();
+            .collect()
+    }
+
+    /// [`Self::extract`] over the given `leaves` only (a subset of the candidates, as when MPI
+    /// ranks share the extraction): their active voxels, in the order of `leaves`.
+    pub fn extract_leaves(&self, iso: f32, leaves: &[u32]) -> Result<Extraction> {
+        let start = Instant::now();
+        let file = self.sampler.file();
+        let field = self.sampler.field();
+        let decodes = self.sampler.decodes();
         let mut refs = Vec::new();
         let mut evaluated = 0u64;
         let mut culled_cells = 0u64;

@@ -15,24 +15,18 @@ use ::mpi::collective::SystemOperation;
 use ::mpi::datatype::{Partition, PartitionMut};
 use ::mpi::topology::SimpleCommunicator;
 use ::mpi::traits::*;
-use rayon::prelude::*;
 
 use super::composite::direct_send;
 use super::partition::{balanced_runs, visibility_order};
 use super::pixels::offsets;
 use super::stats::{cpu_seconds, RankStats};
 use crate::camera::Camera;
-use crate::extract::leaf::{extract_leaf, LeafFrame, Scratch};
-use crate::extract::{split_ref, Extractor};
+use crate::extract::split_ref;
 use crate::output::frame::FrameBuffer;
-use crate::reconstruct::interp::straddles;
 use crate::render_cmd::{build_surfaces, RenderConfig, RenderReport};
 use crate::shade::{render_frame, Lighting, RenderSettings};
 use crate::trace::amr_source::AmrSource;
 use crate::trace::{HybridTracer, VoxelSource};
-
-/// Leaves handed to the thread pool at a time.
-const CHUNK: usize = 4096;
 
 /// Renders this rank's part and composites the frame on rank 0 (`None` elsewhere). `light`
 /// must already be without shadows and ambient occlusion. Fills in `report` (this rank's part)
@@ -50,7 +44,6 @@ pub fn render<D: AsRef<[u8]> + Sync>(
 ) -> anyhow::Result<Option<FrameBuffer>> {
     let ext = src.extractor();
     let file = ext.sampler().file();
-    let field = ext.sampler().field();
     let n = world.size() as usize;
     let me = world.rank() as usize;
     let mut bytes = 0u64;
@@ -59,14 +52,10 @@ pub fn render<D: AsRef<[u8]> + Sync>(
     let mut local = Vec::with_capacity(cfg.isos.len());
     let mut counts = vec![0u64; file.num_leaves()];
     for spec in &cfg.isos {
-        let candidates: Vec<u32> = (0..file.num_leaves() as u32)
-            .filter(|&l| {
-                let (lo, hi) = file.leaf_range(field, l);
-                straddles(lo, hi, spec.value)
-            })
-            .collect();
+        let candidates = ext.candidate_leaves(spec.value);
         let c = candidates.len();
-        let refs = extract_leaves(ext, spec.value, &candidates[me * c / n..(me + 1) * c / n])?;
+        let slice = &candidates[me * c / n..(me + 1) * c / n];
+        let refs = ext.extract_leaves(spec.value, slice)?.refs;
         for &r in &refs {
             counts[split_ref(r).0 as usize] += 1;
         }
@@ -125,36 +114,6 @@ pub fn render<D: AsRef<[u8]> + Sync>(
     bytes += sent;
     stats.bytes_sent = bytes as f64;
     Ok(frame)
-}
-
-/// The active voxels of the `leaves` for `iso`, in the order of `leaves`, sorted within each.
-pub fn extract_leaves<D: AsRef<[u8]> + Sync>(
-    ext: &Extractor<'_, D>,
-    iso: f32,
-    leaves: &[u32],
-) -> anyhow::Result<Vec<u64>> {
-    let sampler = ext.sampler();
-    let mut refs = Vec::new();
-    for chunk in leaves.chunks(CHUNK) {
-        let parts: Vec<amr_format::Result<Vec<u64>>> = chunk
-            .par_iter()
-            .map_init(
-                || Scratch::new(sampler),
-                |scratch, &leaf| {
-                    let mut out = Vec::new();
-                    if let Some(frame) = LeafFrame::new(sampler, leaf) {
-                        extract_leaf(sampler, &frame, iso, scratch, &mut out)?;
-                    }
-                    Ok(out)
-                },
-            )
-            .collect();
-        for part in parts {
-            refs.extend_from_slice(&part?);
-        }
-    }
-    refs.shrink_to_fit();
-    Ok(refs)
 }
 
 /// Sends each of `refs` to the rank that owns its leaf; returns the refs this rank owns (in leaf

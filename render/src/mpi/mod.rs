@@ -83,6 +83,11 @@ pub fn use_mpi(args: &RenderArgs) -> anyhow::Result<bool> {
         }
         return Ok(false);
     }
+    let (w, h) = args.size;
+    // Pixel messages count 12 `f32` per pixel in a C `int`.
+    if u64::from(w) * u64::from(h) * 12 > i32::MAX as u64 {
+        bail!("--size {w}x{h} is too large for MPI messages (at most 178 M pixels)");
+    }
     if args.mpi_mode == Some(MpiMode::Partitioned) && args.method != Method::Hybrid {
         bail!("--mpi-mode partitioned needs --method hybrid (it partitions the active octants)");
     }

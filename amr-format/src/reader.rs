@@ -154,6 +154,11 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         self.data.as_ref()
     }
 
+    /// The storage the file was opened from (a memory map, for instance).
+    pub fn data(&self) -> &D {
+        &self.data
+    }
+
     /// The footer as stored.
     pub fn footer(&self) -> &Footer {
         &self.footer

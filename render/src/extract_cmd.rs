@@ -6,7 +6,7 @@ use anyhow::{bail, Context};
 use clap::Args;
 
 use crate::extract::{ExtractStats, Extractor};
-use crate::mapping::{mapped_resident_bytes, open_mapped};
+use crate::mapping::{open_mapped, PageRelease};
 
 /// Arguments of `amr-render extract`.
 #[derive(Args, Debug, Clone)]
@@ -52,15 +52,16 @@ pub fn run_extract(args: &ExtractArgs) -> anyhow::Result<()> {
     if let Some(bad) = args.iso.iter().find(|v| !v.is_finite()) {
         bail!("isovalue {bad} is not a finite number");
     }
-    let extractor = Extractor::new(&file, field, args.cache_mib << 20)
+    let pages = PageRelease::new(&file);
+    let mut extractor = Extractor::new(&file, field, args.cache_mib << 20)
         .with_context(|| format!("preparing {}", args.file.display()))?;
+    extractor.set_page_release(&pages);
     let mut all: Vec<ExtractStats> = Vec::new();
     for &iso in &args.iso {
         for _ in 0..args.runs.max(1) {
-            let mut result = extractor
+            let result = extractor
                 .extract(iso)
                 .with_context(|| format!("extracting iso {iso} from {}", args.file.display()))?;
-            result.stats.resident_bytes = mapped_resident_bytes(file.bytes());
             println!("{}", result.stats);
             all.push(result.stats);
         }

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use amr_render::extract_cmd::{run_extract, ExtractArgs};
 use amr_render::info::describe;
 use amr_render::mapping::open_mapped;
-use amr_render::render_cmd::{run_demo, run_render, RenderArgs};
+use amr_render::render_cmd::{parse_size, run_demo, run_render, RenderArgs};
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 
@@ -69,6 +69,29 @@ enum BenchCommand {
         #[arg(long, default_value_t = 0)]
         field: usize,
     },
+    /// BVH built in chunks against one BVH, side by side: build time, scratch, frame time.
+    Bvh {
+        /// The .amrk file (its first field is used).
+        file: PathBuf,
+        /// The isovalue.
+        #[arg(long, allow_negative_numbers = true)]
+        iso: f32,
+        /// Refs per chunk of each variant, comma-separated; 0 is one BVH over all refs.
+        #[arg(long, value_delimiter = ',', default_value = "0,65536")]
+        chunks: Vec<usize>,
+        /// Frames per variant (the variants take turns).
+        #[arg(long, default_value_t = 5)]
+        runs: usize,
+        /// Image size.
+        #[arg(long, value_name = "WxH", default_value = "512x512", value_parser = parse_size)]
+        size: (u32, u32),
+        /// Cast shadow rays.
+        #[arg(long)]
+        shadows: bool,
+        /// Ambient-occlusion rays per hit.
+        #[arg(long, default_value_t = 0)]
+        ao: u32,
+    },
     /// Regenerates docs/benchmarks-suite.md and its plots (docs/img/*.png) end to end.
     Suite {
         /// Directory for benchmarks-suite.md and img/.
@@ -78,9 +101,31 @@ enum BenchCommand {
         #[arg(long)]
         quick: bool,
         /// Leave out the scale section (which writes the largest files).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "scale_only")]
         skip_scale: bool,
+        /// Run only the scale section and replace it in the existing benchmarks-suite.md.
+        #[arg(long)]
+        scale_only: bool,
+        /// Largest cell count of the scale section (e.g. 8e9 adds a file larger than 24 GiB of
+        /// memory, about 4 bytes per cell of disk in the scratch directory).
+        #[arg(long, value_name = "N", value_parser = parse_cells)]
+        max_cells: Option<u64>,
+        /// Directory for the datasets (default: the system's temporary directory).
+        #[arg(long, value_name = "DIR")]
+        scratch: Option<PathBuf>,
     },
+}
+
+/// A cell count such as `8e9` or `8000000000`: at least 1000.
+fn parse_cells(s: &str) -> Result<u64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a cell count"))?;
+    if !(1e3..=1e13).contains(&v) {
+        return Err(format!("cell count {s} must be between 1e3 and 1e13"));
+    }
+    Ok(v.round() as u64)
 }
 
 fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
@@ -114,16 +159,47 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
                 std::hint::black_box(r.checksum);
             }
         }
+        BenchCommand::Bvh {
+            file,
+            iso,
+            chunks,
+            runs,
+            size,
+            shadows,
+            ao,
+        } => {
+            if !iso.is_finite() {
+                anyhow::bail!("isovalue {iso} is not a finite number");
+            }
+            let cfg = amr_render::bench::bvh::BvhBenchConfig {
+                chunks: chunks
+                    .iter()
+                    .map(|&c| if c == 0 { usize::MAX } else { c })
+                    .collect(),
+                runs,
+                size,
+                shadows,
+                ao,
+            };
+            let (active, variants) = amr_render::bench::bvh::compare(&file, iso, &cfg)?;
+            print!("{}", amr_render::bench::bvh::table(active, &variants));
+        }
         BenchCommand::Suite {
             out,
             quick,
             skip_scale,
+            scale_only,
+            max_cells,
+            scratch,
         } => {
             let render_exe = std::env::current_exe().ok();
             let cfg = amr_render::bench::suite::SuiteConfig {
                 out,
                 quick,
                 skip_scale,
+                scale_only,
+                max_cells,
+                scratch,
                 render_exe,
             };
             let path = amr_render::bench::suite::run_suite(cfg)?;

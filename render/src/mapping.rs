@@ -1,10 +1,12 @@
-//! Memory-mapping an `.amrk` file: the one place this crate calls `Mmap::map`.
+//! Memory-mapping an `.amrk` file: the one place this crate calls `Mmap::map` and drops mapped
+//! pages from the resident set ([`PageRelease`]).
 
 use std::fs::File;
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use amr_format::{AmrkFile, FormatError, Result};
-use memmap2::Mmap;
+use memmap2::{Mmap, UncheckedAdvice};
 
 /// An `.amrk` file opened from a read-only memory map.
 pub type MappedFile = AmrkFile<Mmap>;
@@ -69,4 +71,96 @@ pub fn mapped_resident_bytes(map: &[u8]) -> Option<u64> {
         }
     }
     None
+}
+
+/// Drops the pages of a file's map from this process's resident set on request, so that the
+/// map's share of the peak RSS is what one stage touches between two requests, not the file.
+///
+/// The pages stay in the kernel's page cache while memory allows: touching them again costs a
+/// minor fault, not a read. Each request first measures the map's resident bytes
+/// ([`mapped_resident_bytes`]); the largest measurement is kept as [`PageRelease::peak_bytes`].
+pub struct PageRelease<'f> {
+    file: &'f MappedFile,
+    peak: AtomicU64,
+}
+
+impl<'f> PageRelease<'f> {
+    /// Releases pages of `file`'s map.
+    pub fn new(file: &'f MappedFile) -> Self {
+        Self {
+            file,
+            peak: AtomicU64::new(0),
+        }
+    }
+
+    /// Drops every page of the map from the resident set; returns the bytes that were resident
+    /// just before, when `/proc/self/smaps` tells.
+    pub fn release(&self) -> Option<u64> {
+        let resident = mapped_resident_bytes(self.file.bytes());
+        if let Some(b) = resident {
+            self.peak.fetch_max(b, Ordering::Relaxed);
+        }
+        // SAFETY: memmap2 calls MADV_DONTNEED unsafe because on a private writable map it throws
+        // away what was written. This map is read-only and shared with the page cache (that is
+        // how `Mmap::map` maps), so nothing was written through it: the kernel only unmaps the
+        // pages, and the next access through any slice borrowed from the map faults in the same
+        // file bytes again. Those bytes stay the same under the contract `open_mapped` states (no
+        // one rewrites a finished file in place).
+        let dropped = unsafe { self.file.data().unchecked_advise(UncheckedAdvice::DontNeed) };
+        // A refused hint leaves the pages resident, which costs memory but changes no result.
+        drop(dropped);
+        resident
+    }
+
+    /// The most map bytes measured resident at once: the largest of the measurements taken by
+    /// [`PageRelease::release`] and one taken now.
+    pub fn peak_bytes(&self) -> u64 {
+        let now = mapped_resident_bytes(self.file.bytes()).unwrap_or(0);
+        self.peak.load(Ordering::Relaxed).max(now)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use amr_convert::progress::NoProgress;
+    use amr_convert::synth::{write_synth, Case, SynthParams};
+    use amr_format::WriterOptions;
+
+    #[test]
+    fn released_pages_read_back_the_same_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("blobs.amrk");
+        let params = SynthParams {
+            levels: 2,
+            ratio: 2,
+            base: 32,
+            brick: 16,
+            origin: [0.0; 3],
+            size: 1.0,
+        };
+        let opts = WriterOptions::default();
+        write_synth(&path, Case::Blobs, &params, opts, &NoProgress).unwrap();
+        let file = open_mapped(&path).unwrap();
+        let before = weighted_sum(file.bytes());
+        let pages = PageRelease::new(&file);
+        let touched = pages.release();
+        let after = mapped_resident_bytes(file.bytes());
+        if let (Some(touched), Some(after)) = (touched, after) {
+            assert!(
+                touched >= file.bytes().len() as u64 / 2,
+                "{touched} bytes resident"
+            );
+            assert_eq!(after, 0, "pages still resident after the release");
+        }
+        assert_eq!(weighted_sum(file.bytes()), before);
+        assert!(pages.peak_bytes() >= touched.unwrap_or(0));
+    }
+
+    /// A position-weighted byte sum, enough to see bytes change.
+    fn weighted_sum(b: &[u8]) -> u64 {
+        b.iter().enumerate().fold(0u64, |s, (i, &x)| {
+            s.wrapping_add((i as u64 + 1).wrapping_mul(u64::from(x)))
+        })
+    }
 }

@@ -114,7 +114,8 @@ pub struct RenderArgs {
     pub mpi_mode: Option<crate::mpi::MpiMode>,
 }
 
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
+/// Parses an image size `WxH` (at least 1x1, at most 2^28 pixels).
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s
         .split_once(['x', 'X'])
         .ok_or_else(|| format!("size '{s}' is not WxH"))?;
@@ -250,8 +251,9 @@ pub fn build_surfaces<S: VoxelSource + ?Sized>(
         let t = Instant::now();
         let refs = refs(spec.value)?;
         report.extract += t.elapsed();
+        src.release_pages();
         let t = Instant::now();
-        let s = Surface::build(src, spec.value, &refs, &mut builder);
+        let s = Surface::build_owned(src, spec.value, refs, &mut builder);
         report.bvh += t.elapsed();
         report.build_scratch_bytes = report
             .build_scratch_bytes
@@ -263,6 +265,7 @@ pub fn build_surfaces<S: VoxelSource + ?Sized>(
         surfaces.push(s);
     }
     builder.release();
+    src.release_pages();
     Ok(surfaces)
 }
 

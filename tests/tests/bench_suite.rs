@@ -19,6 +19,9 @@ fn quick_suite_writes_markdown_and_pngs() {
         out: dir.path().to_path_buf(),
         quick: true,
         skip_scale: false,
+        scale_only: false,
+        max_cells: None,
+        scratch: None,
         render_exe: None,
     };
     let md_path = run_suite(cfg).unwrap();

@@ -3,6 +3,7 @@
 //! Each measurement repeats its work and reports the median, so that numbers quoted side by
 //! side come from one run on one machine.
 
+pub mod bvh;
 pub mod open;
 pub mod read;
 pub mod suite;

@@ -1,10 +1,15 @@
-//! A compressed wide BVH (obvhs's CWBVH8) over active voxel refs.
+//! A two-level BVH of compressed wide BVHs (obvhs's CWBVH8) over active voxel refs.
 //!
 //! Only the refs and the BVH nodes stay resident: a voxel's box is decoded from its ref while
-//! building, and its corner values while tracing. After the build the refs are put in the BVH's
-//! leaf order, so the BVH's own primitive index array is dropped and a leaf's primitive `i` is
-//! simply `refs[i]`. [`BvhBuilder`] keeps the build scratch (boxes, PLOC buffers, the binary BVH)
-//! so that a new isovalue rebuilds without reallocating.
+//! building, and its corner values while tracing. The refs are split into chunks of
+//! [`BvhBuilder::chunk_refs`] consecutive refs (the extraction emits them in kd-leaf order, so a
+//! chunk is spatially compact); each chunk gets its own BVH, built one after the other, and a
+//! top-level BVH is built over the chunks' boxes. The build scratch (boxes, PLOC buffers, the
+//! binary BVH: about 270 bytes per primitive) is therefore bounded by the chunk size, not by the
+//! number of refs. After a chunk's build its refs are put in its BVH's leaf order, so obvhs's
+//! primitive index array is dropped and a chunk's primitive `i` is simply its `i`-th ref; the
+//! chunks are likewise put in the top-level BVH's leaf order. [`BvhBuilder`] keeps the scratch so
+//! that a new isovalue rebuilds without reallocating.
 
 use glam::{UVec2, Vec3A};
 use obvhs::aabb::Aabb;
@@ -21,56 +26,148 @@ use rayon::prelude::*;
 /// Bytes of one CWBVH node (obvhs: "repr(C), Pod, 80 bytes").
 pub const NODE_BYTES: usize = 80;
 
+/// Default refs per chunk: the build scratch stays near 18 MB per chunk, and the top level
+/// stays small (about 100 chunks for 7.6 M refs).
+pub const CHUNK_REFS: usize = 1 << 16;
+
 /// A BVH over active voxels, each named by a 64-bit ref.
 #[derive(Clone, Default, Debug)]
 pub struct OctantBvh {
     refs: Vec<u64>,
+    /// The chunks, in the top-level BVH's leaf order.
+    chunks: Vec<Chunk>,
+    /// Over the chunks' boxes; its primitive `c` is `chunks[c]`. Empty when there is one chunk.
+    top: CwBvh,
+}
+
+/// One chunk: its BVH, whose primitive `i` is `refs[first + i]`.
+#[derive(Clone, Default, Debug)]
+struct Chunk {
+    first: usize,
+    len: usize,
     bvh: CwBvh,
 }
 
 /// Build scratch kept between builds.
-#[derive(Default)]
 pub struct BvhBuilder {
     boxes: Vec<Aabb>,
     ploc: PlocBuilder,
     bvh2: Bvh2,
     reinsertion: ReinsertionOptimizer,
+    /// Refs per chunk (at least 1); `usize::MAX` builds one BVH over all refs.
+    pub chunk_refs: usize,
     /// Bytes of scratch held at the end of the last build (boxes, PLOC buffers, binary BVH).
     pub last_scratch_bytes: usize,
 }
 
+impl Default for BvhBuilder {
+    fn default() -> Self {
+        Self {
+            boxes: Vec::new(),
+            ploc: PlocBuilder::default(),
+            bvh2: Bvh2::default(),
+            reinsertion: ReinsertionOptimizer::default(),
+            chunk_refs: CHUNK_REFS,
+            last_scratch_bytes: 0,
+        }
+    }
+}
+
 impl BvhBuilder {
-    /// A builder with no scratch allocated yet.
+    /// A builder with no scratch allocated yet and chunks of [`CHUNK_REFS`].
     pub fn new() -> Self {
         Self::default()
     }
 
     /// Builds a BVH over `refs`, whose boxes `bounds(r)` gives in grid coordinates; every box
     /// is grown by `pad` (grid units) so that `f32` traversal never misses a voxel the exact
-    /// `f64` intersection would hit. Reuses the scratch and `out`'s buffers.
+    /// `f64` intersection would hit. `between_chunks` is called after each chunk (to release
+    /// what decoding the boxes touched). Reuses the scratch and `out`'s buffers.
     pub fn build_into(
         &mut self,
         out: &mut OctantBvh,
         refs: &[u64],
         pad: f64,
         bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
+        between_chunks: impl Fn(),
     ) {
         out.refs.clear();
         out.refs.extend_from_slice(refs);
-        self.boxes.clear();
-        self.boxes.par_extend(refs.par_iter().map(|&r| {
+        self.build_refs(out, pad, bounds, between_chunks);
+    }
+
+    /// [`BvhBuilder::build_into`] taking the refs by value, which saves a copy of them.
+    pub fn build_owned(
+        &mut self,
+        out: &mut OctantBvh,
+        refs: Vec<u64>,
+        pad: f64,
+        bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
+        between_chunks: impl Fn(),
+    ) {
+        out.refs = refs;
+        self.build_refs(out, pad, bounds, between_chunks);
+    }
+
+    /// Builds the BVH over `out.refs`.
+    fn build_refs(
+        &mut self,
+        out: &mut OctantBvh,
+        pad: f64,
+        bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
+        between_chunks: impl Fn(),
+    ) {
+        out.chunks.clear();
+        out.top = CwBvh::default();
+        out.refs.shrink_to_fit();
+        let grown = |r: u64| {
             let (lo, hi) = bounds(r);
             let v = |p: [f64; 3], s: f64| {
                 Vec3A::new((p[0] + s) as f32, (p[1] + s) as f32, (p[2] + s) as f32)
             };
             Aabb::new(v(lo, -pad), v(hi, pad))
-        }));
-        if refs.is_empty() {
-            out.bvh = CwBvh::default();
-            return;
+        };
+        let size = self.chunk_refs.max(1);
+        let mut boxes = Vec::new();
+        let mut first = 0;
+        for part in out.refs.chunks_mut(size) {
+            self.boxes.clear();
+            self.boxes.par_extend(part.par_iter().map(|&r| grown(r)));
+            let bvh = self.build_level(part);
+            boxes.push(bvh.total_aabb);
+            out.chunks.push(Chunk {
+                first,
+                len: part.len(),
+                bvh,
+            });
+            first += part.len();
+            between_chunks();
         }
+        if out.chunks.len() > 1 {
+            self.boxes.clear();
+            self.boxes.extend_from_slice(&boxes);
+            let mut order: Vec<u64> = (0..out.chunks.len() as u64).collect();
+            out.top = self.build_level(&mut order);
+            let mut chunks = std::mem::take(&mut out.chunks);
+            out.chunks = order
+                .iter()
+                .map(|&c| std::mem::take(&mut chunks[c as usize]))
+                .collect();
+        }
+        self.last_scratch_bytes = self.boxes.capacity() * size_of::<Aabb>()
+            + (self.ploc.current_nodes.capacity()
+                + self.ploc.next_nodes.capacity()
+                + self.bvh2.nodes.capacity())
+                * size_of::<Bvh2Node>()
+            + self.ploc.mortons.capacity() * 32
+            + self.bvh2.primitive_indices.capacity() * 4;
+    }
+
+    /// A CWBVH over `self.boxes`, whose primitive `i` is `items[i]` (the items are permuted into
+    /// the BVH's leaf order and its primitive index array is dropped).
+    fn build_level(&mut self, items: &mut [u64]) -> CwBvh {
         let params = BvhBuildParams::fast_build();
-        let indices: Vec<u32> = (0..refs.len() as u32).collect();
+        let indices: Vec<u32> = (0..items.len() as u32).collect();
         self.ploc.build_with_bvh(
             &mut self.bvh2,
             params.ploc_search_distance,
@@ -81,26 +178,16 @@ impl BvhBuilder {
         );
         self.reinsertion
             .run(&mut self.bvh2, params.reinsertion_batch_ratio, None);
-        out.bvh = bvh2_to_cwbvh(
+        let mut bvh = bvh2_to_cwbvh(
             &self.bvh2,
             params.max_prims_per_leaf.clamp(1, 3),
             true,
             false,
         );
-        let mut perm = std::mem::take(&mut out.bvh.primitive_indices);
-        gather_in_place(&mut out.refs, &mut perm);
-        out.refs.shrink_to_fit();
-        out.bvh.nodes.shrink_to_fit();
-        out.bvh.primitive_indices = perm;
-        out.bvh.primitive_indices.clear();
-        out.bvh.primitive_indices.shrink_to_fit();
-        self.last_scratch_bytes = self.boxes.capacity() * size_of::<Aabb>()
-            + (self.ploc.current_nodes.capacity()
-                + self.ploc.next_nodes.capacity()
-                + self.bvh2.nodes.capacity())
-                * size_of::<Bvh2Node>()
-            + self.ploc.mortons.capacity() * 32
-            + self.bvh2.primitive_indices.capacity() * 4;
+        let mut perm = std::mem::take(&mut bvh.primitive_indices);
+        gather_in_place(items, &mut perm);
+        bvh.nodes.shrink_to_fit();
+        bvh
     }
 
     /// Builds a new BVH (see [`BvhBuilder::build_into`]).
@@ -111,13 +198,16 @@ impl BvhBuilder {
         bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
     ) -> OctantBvh {
         let mut out = OctantBvh::default();
-        self.build_into(&mut out, refs, pad, bounds);
+        self.build_into(&mut out, refs, pad, bounds, || {});
         out
     }
 
-    /// Frees the scratch.
+    /// Frees the scratch (the chunk size is kept).
     pub fn release(&mut self) {
-        *self = Self::default();
+        *self = Self {
+            chunk_refs: self.chunk_refs,
+            ..Self::default()
+        };
     }
 }
 
@@ -144,7 +234,7 @@ fn gather_in_place(values: &mut [u64], perm: &mut [u32]) {
 }
 
 impl OctantBvh {
-    /// The refs, in BVH leaf order.
+    /// The refs, chunk after chunk, each chunk in its BVH's leaf order.
     pub fn refs(&self) -> &[u64] {
         &self.refs
     }
@@ -159,44 +249,84 @@ impl OctantBvh {
         self.refs.is_empty()
     }
 
+    /// Number of chunks, each with its own BVH under the top level.
+    pub fn num_chunks(&self) -> usize {
+        self.chunks.len()
+    }
+
     /// Resident bytes of the refs.
     pub fn refs_bytes(&self) -> usize {
         self.refs.capacity() * 8
     }
 
-    /// Resident bytes of the BVH nodes (and of obvhs's index array, empty after the build).
+    /// Resident bytes of the BVH nodes (top level and chunks, and of the chunk list).
     pub fn bvh_bytes(&self) -> usize {
-        self.bvh.nodes.capacity() * NODE_BYTES + self.bvh.primitive_indices.capacity() * 4
+        let nodes: usize = self.chunks.iter().map(|c| c.bvh.nodes.capacity()).sum();
+        (nodes + self.top.nodes.capacity()) * NODE_BYTES
+            + self.chunks.capacity() * size_of::<Chunk>()
     }
 
-    /// Number of BVH nodes.
+    /// Number of BVH nodes (top level and chunks).
     pub fn num_nodes(&self) -> usize {
-        self.bvh.nodes.len()
+        self.top.nodes.len() + self.chunks.iter().map(|c| c.bvh.nodes.len()).sum::<usize>()
     }
 
     /// Calls `visit(r, &mut tmax)` for the refs of every leaf the `f32` ray reaches before its
-    /// `tmax`, nearest leaves first; `visit` may lower `tmax` (closest-hit search) and returns
-    /// `true` to stop (any-hit search).
+    /// `tmax`, nearer leaves roughly first; `visit` may lower `tmax` (closest-hit search) and
+    /// returns `true` to stop (any-hit search).
     #[inline]
     pub fn traverse(&self, mut ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
-        if self.refs.is_empty() || self.bvh.nodes.is_empty() {
+        if let [chunk] = self.chunks.as_slice() {
+            self.traverse_chunk(chunk, &mut ray, &mut visit);
             return;
         }
-        let bvh = &self.bvh;
-        let mut state = bvh.new_traversal(ray.direction);
+        if self.top.nodes.is_empty() {
+            return;
+        }
+        let top = &self.top;
+        let mut state = top.new_traversal(ray.direction);
         let mut node;
         obvhs::traverse!(
-            bvh,
+            top,
             node,
             state,
             node.intersect_ray(&ray, state.oct_inv4),
             {
-                let r = self.refs[state.primitive_id as usize];
-                if visit(r, &mut ray.tmax) {
+                let chunk = &self.chunks[state.primitive_id as usize];
+                if self.traverse_chunk(chunk, &mut ray, &mut visit) {
+                    state.stack.clear();
+                    state.current_group = UVec2::ZERO;
                     break;
                 }
             }
         );
+    }
+
+    /// [`OctantBvh::traverse`] in one chunk; true when `visit` asked to stop.
+    #[inline]
+    fn traverse_chunk(
+        &self,
+        chunk: &Chunk,
+        ray: &mut Ray,
+        visit: &mut impl FnMut(u64, &mut f32) -> bool,
+    ) -> bool {
+        let bvh = &chunk.bvh;
+        if bvh.nodes.is_empty() {
+            return false;
+        }
+        let refs = &self.refs[chunk.first..chunk.first + chunk.len];
+        let mut state = bvh.new_traversal(ray.direction);
+        let mut node;
+        let mut stopped = false;
+        obvhs::traverse!(bvh, node, state, node.intersect_ray(ray, state.oct_inv4), {
+            if visit(refs[state.primitive_id as usize], &mut ray.tmax) {
+                stopped = true;
+                state.stack.clear();
+                state.current_group = UVec2::ZERO;
+                break;
+            }
+        });
+        stopped
     }
 }
 
@@ -210,6 +340,88 @@ mod tests {
         let mut p: Vec<u32> = vec![3, 0, 4, 1, 2];
         gather_in_place(&mut v, &mut p);
         assert_eq!(v, vec![13, 10, 14, 11, 12]);
+    }
+
+    fn grid_boxes(r: u64) -> ([f64; 3], [f64; 3]) {
+        let (x, y, z) = ((r % 10) as f64, ((r / 10) % 10) as f64, (r / 100) as f64);
+        ([x, y, z], [x + 1.0, y + 1.0, z + 1.0])
+    }
+
+    /// Every ref visited by a ray, sorted.
+    fn visited(bvh: &OctantBvh, ray: Ray) -> Vec<u64> {
+        let mut seen = Vec::new();
+        bvh.traverse(ray, |r, _| {
+            seen.push(r);
+            false
+        });
+        seen.sort();
+        seen
+    }
+
+    /// Refs whose box, shrunk by a margin, the ray crosses (slab test).
+    fn clearly_hit(refs: &[u64], origin: Vec3A, dir: Vec3A) -> Vec<u64> {
+        refs.iter()
+            .copied()
+            .filter(|&r| {
+                let (lo, hi) = grid_boxes(r);
+                let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+                for a in 0..3 {
+                    let (o, d) = (f64::from(origin[a]), f64::from(dir[a]));
+                    let (l, h) = (lo[a] + 1e-3, hi[a] - 1e-3);
+                    if d == 0.0 {
+                        if o <= l || o >= h {
+                            return false;
+                        }
+                        continue;
+                    }
+                    let (ta, tb) = ((l - o) / d, (h - o) / d);
+                    t0 = t0.max(ta.min(tb));
+                    t1 = t1.min(ta.max(tb));
+                }
+                t0 < t1
+            })
+            .collect()
+    }
+
+    #[test]
+    fn chunks_visit_every_box_a_ray_crosses_and_stop_when_asked() {
+        let refs: Vec<u64> = (0..1000).collect();
+        let one = BvhBuilder::new().build(&refs, 1e-4, grid_boxes);
+        let mut builder = BvhBuilder::new();
+        builder.chunk_refs = 64;
+        let chunked = builder.build(&refs, 1e-4, grid_boxes);
+        assert_eq!(one.num_chunks(), 1);
+        assert_eq!(chunked.num_chunks(), 16);
+        let mut sorted = chunked.refs().to_vec();
+        sorted.sort();
+        assert_eq!(sorted, refs);
+        let mut crossed = 0;
+        for k in 0..50 {
+            let a = k as f32 * 0.37;
+            let origin = Vec3A::new(-2.0, 5.0 + 3.0 * a.sin(), 5.0 + 3.0 * a.cos());
+            let dir = Vec3A::new(1.0, 0.2 * a.cos(), -0.3 * a.sin()).normalize();
+            let ray = Ray::new(origin, dir, 0.0, f32::INFINITY);
+            let seen = visited(&chunked, ray);
+            let hit = clearly_hit(&refs, origin, dir);
+            crossed += hit.len();
+            for r in &hit {
+                assert!(seen.contains(r), "ray {k}: chunked BVH missed {r}");
+                assert!(
+                    visited(&one, ray).contains(r),
+                    "ray {k}: one BVH missed {r}"
+                );
+            }
+            if seen.is_empty() {
+                continue;
+            }
+            let mut calls = 0;
+            chunked.traverse(ray, |_, _| {
+                calls += 1;
+                true
+            });
+            assert_eq!(calls, 1, "ray {k}: the traversal went on after a stop");
+        }
+        assert!(crossed > 200, "the rays cross only {crossed} boxes");
     }
 
     #[test]

@@ -27,6 +27,7 @@ use std::time::Instant;
 use amr_format::{AmrkFile, FormatError, Result};
 use rayon::prelude::*;
 
+use crate::mapping::PageRelease;
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::{Octant, Sampler, VertexMemo};
 use leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
@@ -51,6 +52,7 @@ pub struct Extractor<'f, D> {
     sampler: Sampler<'f, D>,
     file_cells: u64,
     tight: TightRanges,
+    pages: Option<&'f PageRelease<'f>>,
 }
 
 impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
@@ -65,7 +67,21 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             tight: TightRanges::new(file.num_leaves()),
             sampler,
             file_cells,
+            pages: None,
         })
+    }
+
+    /// Releases `pages` after each chunk of leaves, so that the map's resident bytes stay
+    /// bounded by what one chunk touches; the statistics' `resident_bytes` becomes the sum over
+    /// chunks of the map bytes resident at the end of each chunk.
+    pub fn set_page_release(&mut self, pages: &'f PageRelease<'f>) {
+        self.pages = Some(pages);
+    }
+
+    /// Drops the map's pages from the resident set when a [`PageRelease`] is set; returns the
+    /// bytes that were resident.
+    pub fn release_pages(&self) -> Option<u64> {
+        self.pages.and_then(PageRelease::release)
     }
 
     /// The sampler underneath.
@@ -103,6 +119,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let mut culled_cells = 0u64;
         let mut boundary_evaluated = 0u64;
         let mut leaves_skipped = 0u64;
+        let mut touched: Option<u64> = None;
         for chunk in leaves.chunks(CHUNK) {
             let parts: Vec<Result<(Vec<u64>, LeafCounts)>> = chunk
                 .par_iter()
@@ -135,6 +152,9 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 boundary_evaluated += n.boundary;
                 leaves_skipped += n.skipped;
             }
+            if let Some(b) = self.release_pages() {
+                touched = Some(touched.unwrap_or(0) + b);
+            }
         }
         refs.shrink_to_fit();
         let active_duals = refs.iter().filter(|&&r| r as u32 >= DUAL_BASE).count() as u64;
@@ -153,7 +173,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             seconds: start.elapsed().as_secs_f64(),
             threads: rayon::current_num_threads(),
             decompressions: self.sampler.decodes() - decodes,
-            resident_bytes: None,
+            resident_bytes: touched,
             file_bytes: file.bytes().len() as u64,
         };
         Ok(Extraction { refs, stats })

@@ -35,7 +35,9 @@ pub struct ExtractStats {
     pub threads: usize,
     /// Bricks decompressed during this extraction.
     pub decompressions: u64,
-    /// Bytes of the file mapping this process has touched, after the extraction, when known.
+    /// Bytes of the file mapping this process has touched, when known: with pages released after
+    /// each chunk of leaves, the sum over chunks of the bytes resident at the chunk's end (a page
+    /// two chunks touch counts twice); otherwise the bytes resident after the extraction.
     pub resident_bytes: Option<u64>,
     /// Size of the file in bytes.
     pub file_bytes: u64,
@@ -120,7 +122,7 @@ impl fmt::Display for ExtractStats {
         if let Some(r) = self.resident_bytes {
             write!(
                 f,
-                ", {:.1} MiB of the {:.1} MiB map resident",
+                ", {:.1} MiB of the {:.1} MiB map touched",
                 r as f64 / 1048576.0,
                 self.file_bytes as f64 / 1048576.0
             )?;

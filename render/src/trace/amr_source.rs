@@ -12,7 +12,7 @@ use amr_format::{AmrkFile, WriterOptions};
 use anyhow::Context;
 
 use crate::extract::Extractor;
-use crate::mapping::{mapped_resident_bytes, open_mapped};
+use crate::mapping::{mapped_resident_bytes, open_mapped, PageRelease};
 use crate::reconstruct::{Method as Recon, VertexMemo};
 use crate::render_cmd::{
     header_meta, progress_bar, render_source, stats_rows, write_outputs, ActiveSource, Method,
@@ -104,6 +104,12 @@ impl<'f, D: AsRef<[u8]> + Sync> AmrSource<'f, D> {
     pub fn extractor(&self) -> &Extractor<'f, D> {
         &self.ext
     }
+
+    /// Releases `pages` (the map of this source's file) after each chunk of the extraction and
+    /// between the stages of a render.
+    pub fn set_page_release(&mut self, pages: &'f PageRelease<'f>) {
+        self.ext.set_page_release(pages);
+    }
 }
 
 impl<D: AsRef<[u8]> + Sync> AmrSource<'_, D> {
@@ -174,6 +180,10 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for AmrSource<'_, D> {
         let level = s.locate(finest).ok().flatten().map_or(0, |c| c.level);
         Some((v, level))
     }
+
+    fn release_pages(&self) {
+        self.ext.release_pages();
+    }
 }
 
 impl<D: AsRef<[u8]> + Sync> ActiveSource for AmrSource<'_, D> {
@@ -215,7 +225,9 @@ pub fn resolve_field<D: AsRef<[u8]>>(
 pub fn render_file(args: &RenderArgs, mut cfg: RenderConfig) -> anyhow::Result<()> {
     let file = open_mapped(&args.file)?;
     let field = resolve_field(&file, args, &mut cfg)?;
-    let src = AmrSource::new(&file, field, args.reconstruction)?;
+    let pages = PageRelease::new(&file);
+    let mut src = AmrSource::new(&file, field, args.reconstruction)?;
+    src.set_page_release(&pages);
     let (bar, progress) = progress_bar(u64::from(cfg.size.1));
     let report = render_source(&src, &cfg, &progress)?;
     bar.finish_and_clear();
@@ -227,6 +239,7 @@ pub fn render_file(args: &RenderArgs, mut cfg: RenderConfig) -> anyhow::Result<(
             "mapped_resident_bytes",
             mapped_resident_bytes(file.bytes()).map_or("null".into(), |b| b.to_string()),
         ),
+        ("mapped_resident_peak_bytes", pages.peak_bytes().to_string()),
     ];
     let meta = header_meta(&cfg, &report, &[("file", args.file.display().to_string())]);
     let rows = stats_rows(&report, &extra);

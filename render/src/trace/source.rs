@@ -98,4 +98,8 @@ pub trait VoxelSource: Sync {
 
     /// The reconstructed field and the AMR level at grid point `p`, or `None` outside the data.
     fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)>;
+
+    /// Drops pages of the underlying file from the resident set, between stages that touch it;
+    /// a no-op for sources that hold no file.
+    fn release_pages(&self) {}
 }

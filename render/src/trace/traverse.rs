@@ -48,6 +48,14 @@ pub fn bvh_pad(frame: &GridFrame) -> f64 {
     1e-5 * frame.extent.iter().fold(1.0f64, |m, &e| m.max(e))
 }
 
+/// The grid box of a voxel, from its ref.
+fn voxel_box<S: VoxelSource + ?Sized>(src: &S) -> impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync + '_ {
+    |r| {
+        let v = src.voxel(r);
+        (v.lo, v.hi)
+    }
+}
+
 impl Surface {
     /// Builds the surface for `iso` from its active refs, reusing `builder`'s scratch.
     pub fn build<S: VoxelSource + ?Sized>(
@@ -74,10 +82,27 @@ impl Surface {
     ) {
         self.iso = iso;
         let pad = bvh_pad(&src.frame());
-        builder.build_into(&mut self.bvh, refs, pad, |r| {
-            let v = src.voxel(r);
-            (v.lo, v.hi)
+        builder.build_into(&mut self.bvh, refs, pad, voxel_box(src), || {
+            src.release_pages()
         });
+    }
+
+    /// [`Surface::build`] taking the refs by value, which saves a copy of them.
+    pub fn build_owned<S: VoxelSource + ?Sized>(
+        src: &S,
+        iso: f32,
+        refs: Vec<u64>,
+        builder: &mut BvhBuilder,
+    ) -> Surface {
+        let mut s = Surface {
+            iso,
+            bvh: OctantBvh::default(),
+        };
+        let pad = bvh_pad(&src.frame());
+        builder.build_owned(&mut s.bvh, refs, pad, voxel_box(src), || {
+            src.release_pages()
+        });
+        s
     }
 
     /// The first hit with `t` in `[tmin, tmax]`.

@@ -34,6 +34,14 @@ pub struct SuiteConfig {
     pub quick: bool,
     /// Skip the scale section (which writes the largest files).
     pub skip_scale: bool,
+    /// Run only the scale section and replace it in the existing `benchmarks-suite.md`.
+    pub scale_only: bool,
+    /// Largest cell count of the scale section: sizes above it are left out, and a larger value
+    /// is added as one more size (the file larger than memory is about 8e9 cells).
+    pub max_cells: Option<u64>,
+    /// Directory for the datasets (default: the system's temporary directory); the scale
+    /// section's largest file needs about 4 bytes per cell of free space there.
+    pub scratch: Option<PathBuf>,
     /// The `amr-render` executable the scale section renders with, in a child process so that
     /// peak RSS is the render's own; `None` renders in this process.
     pub render_exe: Option<PathBuf>,
@@ -48,6 +56,15 @@ impl SuiteConfig {
         }
         if self.skip_scale {
             c.push_str(" --skip-scale");
+        }
+        if self.scale_only {
+            c.push_str(" --scale-only");
+        }
+        if let Some(n) = self.max_cells {
+            c.push_str(&format!(" --max-cells {n:e}"));
+        }
+        if self.scratch.is_some() {
+            c.push_str(" --scratch DIR");
         }
         c
     }
@@ -80,18 +97,34 @@ impl Ctx {
 pub fn run_suite(cfg: SuiteConfig) -> anyhow::Result<PathBuf> {
     let img = cfg.out.join("img");
     std::fs::create_dir_all(&img).with_context(|| format!("cannot create {}", img.display()))?;
-    let scratch = std::env::temp_dir().join(format!("amr-bench-suite-{}", std::process::id()));
-    std::fs::create_dir_all(&scratch)?;
+    let scratch = cfg
+        .scratch
+        .clone()
+        .unwrap_or_else(std::env::temp_dir)
+        .join(format!("amr-bench-suite-{}", std::process::id()));
+    std::fs::create_dir_all(&scratch)
+        .with_context(|| format!("cannot create {}", scratch.display()))?;
+    let path = cfg.out.join("benchmarks-suite.md");
+    let previous =
+        if cfg.scale_only {
+            Some(std::fs::read_to_string(&path).with_context(|| {
+                format!("--scale-only updates {}: cannot read it", path.display())
+            })?)
+        } else {
+            None
+        };
     let ctx = Ctx {
         cfg,
         machine: Machine::read(),
         img,
         scratch,
     };
-    let result = run_sections(&ctx);
+    let result = match &previous {
+        Some(doc) => run_scale_only(&ctx, doc),
+        None => run_sections(&ctx),
+    };
     let _ = std::fs::remove_dir_all(&ctx.scratch);
     let body = result?;
-    let path = ctx.cfg.out.join("benchmarks-suite.md");
     std::fs::write(&path, body).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(path)
 }
@@ -145,8 +178,52 @@ fn run_sections(ctx: &Ctx) -> anyhow::Result<String> {
     Ok(doc)
 }
 
+/// Runs the scale section and puts it in place of the one in `doc`.
+fn run_scale_only(ctx: &Ctx, doc: &str) -> anyhow::Result<String> {
+    let (start, end) = scale_span(doc).context(
+        "the existing benchmarks-suite.md has no '## Scale' section to replace; run the whole suite",
+    )?;
+    let t = Instant::now();
+    eprintln!("bench suite: scale ...");
+    let section = scale::run(ctx).context("section 'scale' failed")?;
+    eprintln!(
+        "bench suite: scale done in {:.1} s",
+        t.elapsed().as_secs_f64()
+    );
+    Ok(format!("{}{}\n{}", &doc[..start], section, &doc[end..]))
+}
+
+/// Byte range of the `## Scale` section in `doc`: up to the next `## ` heading or the closing
+/// `_Whole suite` line.
+fn scale_span(doc: &str) -> Option<(usize, usize)> {
+    let start = doc.find("## Scale\n")?;
+    let rest = &doc[start + 1..];
+    let end = [rest.find("\n## "), rest.find("\n_Whole suite")]
+        .into_iter()
+        .flatten()
+        .min()
+        .map_or(doc.len(), |e| start + 1 + e + 1);
+    Some((start, end))
+}
+
 /// `path` relative to the document's directory, for image links.
 pub fn img_link(ctx: &Ctx, name: &str) -> String {
     let _ = Path::new(&ctx.img);
     format!("img/{name}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::scale_span;
+
+    #[test]
+    fn the_scale_section_is_found_between_headings() {
+        let doc = "# T\n\n## Stress\n\nx\n\n## Scale\n\nold\n\n_Whole suite: 1 s._\n";
+        let (a, b) = scale_span(doc).unwrap();
+        assert_eq!(&doc[a..b], "## Scale\n\nold\n\n");
+        let doc = "## Scale\n\nold\n## Next\n";
+        let (a, b) = scale_span(doc).unwrap();
+        assert_eq!(&doc[a..b], "## Scale\n\nold\n");
+        assert!(scale_span("## Stress\n").is_none());
+    }
 }

@@ -2,10 +2,13 @@
 //! and frame time, peak RSS and the resident bytes of the map, against cell count.
 //!
 //! Each file is rendered by a child `amr-render` process (this executable), so that its peak RSS
-//! (`VmHWM`) belongs to that render alone; the numbers come from its `--stats-json`.
+//! (`VmHWM`) belongs to that render alone; the numbers come from its `--stats-json`. At the 1e8
+//! size (the largest, with `--quick`) the BVH built in chunks is also compared with one BVH over
+//! all refs ([`crate::bench::bvh`]).
 
 use std::fmt::Write as _;
 use std::process::Command;
+use std::time::Instant;
 
 use amr_convert::progress::NoProgress;
 use amr_convert::synth::{fit_cells, write_synth, Case, SynthParams};
@@ -14,11 +17,16 @@ use anyhow::{bail, Context};
 
 use super::plot::{loglog, Series};
 use super::{img_link, Ctx};
+use crate::bench::bvh::{compare, table, BvhBenchConfig};
 use crate::bench::open::open_time;
-use crate::mapping::mapped_resident_bytes;
+use crate::bvh::CHUNK_REFS;
+use crate::mapping::{mapped_resident_bytes, PageRelease};
 use crate::render_cmd::{peak_rss_bytes, render_source, Method, Reconstruction, RenderConfig};
 use crate::shade::IsoSpec;
 use crate::trace::amr_source::AmrSource;
+
+/// The isovalue rendered at every size.
+const ISO: f32 = 10.0;
 
 /// One measured size.
 struct Point {
@@ -62,7 +70,7 @@ fn child_render(
         .arg(ctx.scratch.join("scale.exr"))
         .args([
             "--iso",
-            "10",
+            &ISO.to_string(),
             "--size",
             "256x256",
             "--ao",
@@ -86,9 +94,14 @@ fn child_render(
 /// as in the test suite); the peak RSS is then this whole process's.
 fn in_process_render(path: &std::path::Path) -> anyhow::Result<Vec<(String, f64)>> {
     let file = crate::mapping::open_mapped(path)?;
-    let src = AmrSource::new(&file, 0, Reconstruction::Octant)?;
+    let pages = PageRelease::new(&file);
+    let mut src = AmrSource::new(&file, 0, Reconstruction::Octant)?;
+    src.set_page_release(&pages);
     let cfg = RenderConfig {
-        isos: vec!["10".parse::<IsoSpec>().map_err(anyhow::Error::msg)?],
+        isos: vec![ISO
+            .to_string()
+            .parse::<IsoSpec>()
+            .map_err(anyhow::Error::msg)?],
         size: (256, 256),
         camera: None,
         fov: 40.0,
@@ -111,17 +124,48 @@ fn in_process_render(path: &std::path::Path) -> anyhow::Result<Vec<(String, f64)
         ("bvh_bytes".into(), r.bvh_bytes as f64),
         ("peak_rss_bytes".into(), rss),
         ("mapped_resident_bytes".into(), map),
+        (
+            "mapped_resident_peak_bytes".into(),
+            pages.peak_bytes() as f64,
+        ),
     ])
 }
 
-/// Runs the section.
-pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
-    let targets: Vec<u64> = if ctx.cfg.quick {
+/// The cell counts measured: the default sizes up to `max_cells`, plus `max_cells` itself when
+/// it is larger than all of them.
+fn targets(quick: bool, max_cells: Option<u64>) -> Vec<u64> {
+    let mut t: Vec<u64> = if quick {
         vec![300_000, 1_000_000]
     } else {
         vec![1_000_000, 10_000_000, 100_000_000, 1_000_000_000]
     };
+    if let Some(max) = max_cells {
+        t.retain(|&c| c <= max);
+        if t.last().is_none_or(|&c| c < max) {
+            t.push(max);
+        }
+    }
+    t
+}
+
+/// Runs the section.
+pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
+    let start = Instant::now();
+    let targets = targets(ctx.cfg.quick, ctx.cfg.max_cells);
+    let compare_at = if ctx.cfg.quick {
+        targets.last().copied()
+    } else {
+        targets.iter().copied().find(|&c| c == 100_000_000)
+    };
+    let bvh_cfg = BvhBenchConfig {
+        chunks: vec![usize::MAX, CHUNK_REFS],
+        runs: if ctx.cfg.quick { 3 } else { 7 },
+        size: (256, 256),
+        shadows: true,
+        ao: 2,
+    };
     let mut points = Vec::new();
+    let mut bvh_table = None;
     for &target in &targets {
         let base = SynthParams::default();
         let (params, _) = fit_cells(&Case::Blobs, &base, target, true)?;
@@ -136,10 +180,16 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
         )
         .map_err(|e| e.in_file(&path))?;
         let (open, _, _) = open_time(&path, 5)?;
+        eprintln!("bench suite: scale: rendering {target} cells");
         let stats = match &ctx.cfg.render_exe {
             Some(exe) => child_render(ctx, exe, &path)?,
             None => in_process_render(&path)?,
         };
+        if compare_at == Some(target) {
+            eprintln!("bench suite: scale: BVH in chunks against one BVH at {target} cells");
+            let (active, variants) = compare(&path, ISO, &bvh_cfg)?;
+            bvh_table = Some((sum.write.cells, table(active, &variants)));
+        }
         points.push(Point {
             cells: sum.write.cells,
             file_bytes: sum.write.file_bytes,
@@ -149,6 +199,10 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
         });
         let _ = std::fs::remove_file(&path);
     }
+    // What the peak RSS holds beside the refs and the BVH, at the smallest size: the model's
+    // constant.
+    let rest = |p: &Point| p.get("peak_rss_bytes") - p.get("refs_bytes") - p.get("bvh_bytes");
+    let constant = points.first().map_or(f64::NAN, rest);
 
     let xs = |f: &dyn Fn(&Point) -> f64| -> Vec<(f64, f64)> {
         points.iter().map(|p| (p.cells as f64, f(p))).collect()
@@ -196,8 +250,12 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
                 points: xs(&|p| p.get("peak_rss_bytes")),
             },
             Series {
-                label: "resident bytes of the map".into(),
-                points: xs(&|p| p.get("mapped_resident_bytes")),
+                label: "8 B/octant + BVH + constant (smallest size)".into(),
+                points: xs(&|p| p.get("refs_bytes") + p.get("bvh_bytes") + constant),
+            },
+            Series {
+                label: "peak resident bytes of the map".into(),
+                points: xs(&|p| p.get("mapped_resident_peak_bytes")),
             },
             Series {
                 label: "refs + BVH".into(),
@@ -212,20 +270,31 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
     writeln!(
         s,
         "\nThe `blobs` case fitted to each cell count (`amr-convert synth blobs --cells N`, 3 \
-         levels, uncompressed), written to a temporary directory, opened 5 times (median), then \
-         rendered once at 256x256 (no AO, no shadows) by a child `amr-render FILE -o OUT.exr --iso 10 \
-         --size 256x256 --ao 0 --no-shadows --stats-json S` whose statistics fill the table. \
+         levels, uncompressed), written to a scratch directory, opened 5 times (median), then \
+         rendered once at 256x256 (no AO, no shadows) by a child `amr-render FILE -o OUT.exr --iso \
+         {ISO} --size 256x256 --ao 0 --no-shadows --stats-json S` whose statistics fill the table. \
          Extraction, BVH and frame times are single runs.\n"
     )?;
     writeln!(
         s,
-        "| cells | file bytes | synth s | open ms | extract s | BVH s | frame s | active octants | refs+BVH bytes | peak RSS | map resident |"
+        "Peak RSS is the child's `VmHWM`: its anonymous memory plus the pages of the map it has \
+         resident. The renderer drops the map's pages from its resident set \
+         (`madvise(MADV_DONTNEED)`; they stay in the page cache) after each chunk of 4096 kd \
+         leaves in the extraction, after each chunk of {CHUNK_REFS} refs in the BVH build (one BVH \
+         per chunk under a top-level BVH, which bounds the build scratch), and before the frame. \
+         *Map peak* is the most map bytes measured resident at one of those points \
+         (`/proc/self/smaps`), *map after frame* what the frame touched. *Rest* is peak RSS minus \
+         refs and BVH; the plot's model line is refs + BVH + the rest at the smallest size.\n"
     )?;
-    writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|")?;
+    writeln!(
+        s,
+        "| cells | file bytes | synth s | open ms | extract s | BVH s | frame s | active octants | refs+BVH bytes | peak RSS | rest | map peak | map after frame |"
+    )?;
+    writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|---|")?;
     for p in &points {
         writeln!(
             s,
-            "| {} | {} | {:.2} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {} | {} | {} |",
+            "| {} | {} | {:.2} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {} | {} | {} | {} | {} |",
             p.cells,
             p.file_bytes,
             p.synth_s,
@@ -236,16 +305,37 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
             p.get("active_octants"),
             p.get("refs_bytes") + p.get("bvh_bytes"),
             p.get("peak_rss_bytes"),
+            rest(p),
+            p.get("mapped_resident_peak_bytes"),
             p.get("mapped_resident_bytes")
         )?;
     }
-    writeln!(
-        s,
-        "\nNot run in this suite: the file larger than memory, `amr-convert synth blobs -o \
-         big.amrk --cells 1e10` (about 40 GB) then `amr-render big.amrk -o big.exr --iso 10 --size 256x256 \
-         --ao 0 --no-shadows --stats-json big.json`; it needs that much free disk and about \
-         ten minutes of synthesis, and is left for a later session.\n"
-    )?;
+    let mem = ctx.machine.mem_bytes;
+    match points.last() {
+        Some(p) if mem > 0 && p.file_bytes > mem => writeln!(
+            s,
+            "\nThe largest file ({:.1} GiB) is larger than this machine's memory ({:.1} GiB).\n",
+            p.file_bytes as f64 / f64::from(1u32 << 30),
+            mem as f64 / f64::from(1u32 << 30)
+        )?,
+        _ => writeln!(
+            s,
+            "\nThe file larger than memory is left out of this run: `amr-render bench suite --out \
+             docs --scale-only --max-cells 8e9 --scratch DIR` adds it (about 32 GB in DIR and \
+             about an hour on 2 cores).\n"
+        )?,
+    }
+    if let Some((cells, t)) = bvh_table {
+        writeln!(
+            s,
+            "BVH in chunks of {CHUNK_REFS} refs against one BVH over all refs, on the {cells}-cell \
+             file at iso {ISO}: `amr-render bench bvh FILE --iso {ISO} --chunks 0,{CHUNK_REFS} \
+             --runs {} --size 256x256 --shadows --ao 2` (one extraction; the two BVHs render in \
+             turns, median of the runs; the frames are compared bit for bit).\n",
+            bvh_cfg.runs
+        )?;
+        writeln!(s, "{t}")?;
+    }
     writeln!(
         s,
         "![time against cells]({})\n",
@@ -256,5 +346,30 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
         "![memory against cells]({})\n",
         img_link(ctx, "scale-memory.png")
     )?;
+    writeln!(
+        s,
+        "_Scale section: {:.0} s._\n",
+        start.elapsed().as_secs_f64()
+    )?;
     Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::targets;
+
+    #[test]
+    fn max_cells_trims_or_extends_the_sizes() {
+        assert_eq!(targets(false, None).len(), 4);
+        assert_eq!(
+            targets(false, Some(8_000_000_000)).last(),
+            Some(&8_000_000_000)
+        );
+        assert_eq!(targets(false, Some(8_000_000_000)).len(), 5);
+        assert_eq!(
+            targets(false, Some(10_000_000)),
+            vec![1_000_000, 10_000_000]
+        );
+        assert_eq!(targets(true, Some(500_000)), vec![300_000, 500_000]);
+    }
 }

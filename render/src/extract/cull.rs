@@ -162,24 +162,39 @@ fn range_around<D: AsRef<[u8]>>(
         if lv < level {
             return Ok(None);
         }
-        let bc = sampler.brick_cells(brick);
-        let cells = grid.level_box(lv, &part).intersect(&bc);
-        if cells.is_empty() {
-            continue;
-        }
-        let values = sampler.values(brick)?;
-        let w = cells.extent()[0] as usize;
-        for z in cells.lo[2]..cells.hi[2] {
-            for y in cells.lo[1]..cells.hi[1] {
-                let src = bc.linear_index([cells.lo[0], y, z]);
-                for &v in &values[src..src + w] {
-                    lo = lo.min(v);
-                    hi = hi.max(v);
-                }
+        let (a, b) = brick_range_in(sampler, brick, lv, &part)?;
+        lo = lo.min(a);
+        hi = hi.max(b);
+    }
+    Ok(Some((lo, hi)))
+}
+
+/// The range of the cells of brick `brick` (level `level`) overlapping finest-level box `part`;
+/// `(+inf, -inf)` when there are none.
+pub fn brick_range_in<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    brick: u32,
+    level: u32,
+    part: &IBox,
+) -> Result<(f32, f32)> {
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    let bc = sampler.brick_cells(brick);
+    let cells = sampler.grid().level_box(level, part).intersect(&bc);
+    if cells.is_empty() {
+        return Ok((lo, hi));
+    }
+    let values = sampler.values(brick)?;
+    let w = cells.extent()[0] as usize;
+    for z in cells.lo[2]..cells.hi[2] {
+        for y in cells.lo[1]..cells.hi[1] {
+            let src = bc.linear_index([cells.lo[0], y, z]);
+            for &v in &values[src..src + w] {
+                lo = lo.min(v);
+                hi = hi.max(v);
             }
         }
     }
-    Ok(Some((lo, hi)))
+    Ok((lo, hi))
 }
 
 /// Widens a range of corner values by the round-off a trilinear interpolation of them can add.

@@ -14,6 +14,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use amr_format::kdtree::widen_range;
 use amr_format::Result;
 
+use super::cull::brick_range_in;
 use crate::reconstruct::Sampler;
 
 /// Not computed yet (the bits of two NaNs, which no computed range holds).
@@ -99,22 +100,9 @@ fn compute<D: AsRef<[u8]>>(
         if part.is_empty() {
             continue;
         }
-        let bc = sampler.brick_cells(brick);
-        let cells = grid.level_box(lv, &part).intersect(&bc);
-        if cells.is_empty() {
-            continue;
-        }
-        let values = sampler.values(brick)?;
-        let w = cells.extent()[0] as usize;
-        for z in cells.lo[2]..cells.hi[2] {
-            for y in cells.lo[1]..cells.hi[1] {
-                let src = bc.linear_index([cells.lo[0], y, z]);
-                for &v in &values[src..src + w] {
-                    lo = lo.min(v);
-                    hi = hi.max(v);
-                }
-            }
-        }
+        let (a, b) = brick_range_in(sampler, brick, lv, &part)?;
+        lo = lo.min(a);
+        hi = hi.max(b);
     }
     if lo > hi {
         return Ok(empty);

@@ -6,6 +6,8 @@
 //! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue.
 //! - [`vertices`]: a leaf's boundary vertex values, computed once each.
 //! - [`stats`]: what an extraction did.
+//! - [`current`] and [`nearest`]: the active voxels of the `current` and `nearest`
+//!   reconstructions, for the hybrid tracer's comparisons.
 //!
 //! An [`Extractor`] is made once per open file and field; each [`Extractor::extract`] call runs
 //! one isovalue. Leaves whose conservative range cannot hold the isovalue are skipped without
@@ -13,8 +15,10 @@
 //! within each leaf, the same on every run and any number of threads.
 
 pub mod cull;
+pub mod current;
 pub mod leaf;
 pub mod local;
+pub mod nearest;
 pub mod refs;
 pub mod stats;
 pub mod vertices;

@@ -19,6 +19,7 @@ use crate::render_cmd::{
     Reconstruction, RenderArgs, RenderConfig,
 };
 use crate::shade::IsoSpec;
+use crate::trace::recon_source::ReconSource;
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
 
 /// Bytes of decompressed bricks the extraction may cache.
@@ -197,9 +198,19 @@ pub fn render_file(args: &RenderArgs, mut cfg: RenderConfig) -> anyhow::Result<(
             opacity: 1.0,
         });
     }
-    let src = AmrSource::new(&file, field, args.reconstruction)?;
     let (bar, progress) = progress_bar(u64::from(cfg.size.1));
-    let report = render_source(&src, &cfg, &progress)?;
+    let report = match args.reconstruction {
+        Reconstruction::Octant => {
+            let src = AmrSource::new(&file, field, args.reconstruction)?;
+            render_source(&src, &cfg, &progress)?
+        }
+        other => {
+            // A piecewise-constant field has no smooth normals: nearest shades with face normals.
+            cfg.smooth_normals &= other != Reconstruction::Nearest;
+            let src = ReconSource::new(&file, field, other)?;
+            render_source(&src, &cfg, &progress)?
+        }
+    };
     bar.finish_and_clear();
     let extra = [
         ("field", format!("\"{}\"", file.fields()[field].name)),

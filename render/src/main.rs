@@ -80,6 +80,10 @@ enum BenchCommand {
         /// Leave out the scale section (which writes the largest files).
         #[arg(long)]
         skip_scale: bool,
+        /// Run only this section (figure8, recon, tradeoff, stress, scale; repeatable) and
+        /// replace it in the existing benchmarks-suite.md.
+        #[arg(long, value_name = "SECTION")]
+        only: Vec<String>,
     },
 }
 
@@ -118,6 +122,7 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
             out,
             quick,
             skip_scale,
+            only,
         } => {
             let render_exe = std::env::current_exe().ok();
             let cfg = amr_render::bench::suite::SuiteConfig {
@@ -125,6 +130,7 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
                 quick,
                 skip_scale,
                 render_exe,
+                only,
             };
             let path = amr_render::bench::suite::run_suite(cfg)?;
             println!("wrote {}", path.display());

@@ -20,6 +20,7 @@ fn quick_suite_writes_markdown_and_pngs() {
         quick: true,
         skip_scale: false,
         render_exe: None,
+        only: Vec::new(),
     };
     let md_path = run_suite(cfg).unwrap();
     let md = std::fs::read_to_string(md_path).unwrap();

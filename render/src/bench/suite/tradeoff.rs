@@ -147,18 +147,7 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
         reference: &reference,
         finest,
     };
-    // Normals: continuous across voxels (the renderer's default) for the octant and current
-    // hybrids; face normals for nearest, whose field is piecewise constant (as `render` does).
-    let octant = AmrSource::new(&file, 0, Reconstruction::Octant)?;
-    let mut recons = vec![measure(&octant, "octant", true, &ctx_run)?];
-    drop(octant);
-    for (r, name) in [
-        (Reconstruction::Current, "current"),
-        (Reconstruction::Nearest, "nearest"),
-    ] {
-        let src = ReconSource::new(&file, 0, r)?;
-        recons.push(measure(&src, name, r != Reconstruction::Nearest, &ctx_run)?);
-    }
+    let recons = measure_all(&file, &ctx_run)?;
     let rows: Vec<&Row> = recons.iter().flat_map(|r| r.rows.iter()).collect();
 
     let png = "tradeoff.png";
@@ -232,42 +221,18 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
          the same reconstruction, finest cells; a pixel that hits in one and not the other is not \
          counted here but is in the image error. *Image error*: RMS over pixels of the Lambert \
          shade against the analytic frame (ray-sphere intersection, exact normals; a pixel that \
-         hits in only one counts 1).\n",
+         hits in only one counts 1). Where sample mode hits fewer pixels than the hybrid (the \
+         *hits* column: a coarse step skips thin parts of the surface), its hit-error quantiles \
+         are over fewer, easier pixels. Sample mode's normals are central differences half a \
+         step apart: on the piecewise-constant nearest field a coarse step smooths the faces' \
+         normals, so its image error there is lower than with the faces' own normals and rises \
+         toward the hybrid's as the step shrinks.\n",
         p.base,
         super::common::total_cells(&file),
         rayon::current_num_threads(),
-        recons
-            .iter()
-            .map(|r| format!(
-                "{} {} voxels, {:.1} ms + {:.1} ms",
-                r.name,
-                r.active,
-                r.t_extract * 1e3,
-                r.t_bvh * 1e3
-            ))
-            .collect::<Vec<_>>()
-            .join("; ")
+        build_costs(&recons)
     )?;
-    writeln!(
-        s,
-        "| tracer | runs | frame ms (median) | hits | hit err median | hit err p99 | hit err max | trace err max | image RMS |"
-    )?;
-    writeln!(s, "|---|---|---|---|---|---|---|---|---|")?;
-    for r in &rows {
-        writeln!(
-            s,
-            "| {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {:.2e} | {:.4} |",
-            r.label,
-            r.runs,
-            r.secs * 1e3,
-            r.hits,
-            r.hit_med,
-            r.hit_p99,
-            r.hit_max,
-            r.trace_max,
-            r.image_rms
-        )?;
-    }
+    table_rows(&mut s, &rows)?;
     writeln!(
         s,
         "\nGoal (hybrid reaches lower error than the best sample setting in at least ten times \
@@ -299,7 +264,105 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
         "![image error against time]({})\n",
         img_link(ctx, png_image)
     )?;
+
+    // The same camera on the partially refined sphere of the reconstruction section, where the
+    // surface crosses level boundaries: octant and current differ there.
+    let pp = super::recon::params(quick);
+    let ppath = ctx.scratch.join("tradeoff-partial.amrk");
+    super::recon::write_partial_sphere(&ppath, &pp)?;
+    let pfile = open_mapped(&ppath)?;
+    let plev = pfile.levels().len() as u32;
+    let psteps: Vec<u32> = if quick { vec![1] } else { vec![1, 4] };
+    let pctx = RunCtx {
+        steps: &psteps,
+        finest: 1.0 / pp.cells_per_axis(plev - 1).unwrap_or(1) as f64,
+        ..ctx_run
+    };
+    let partial = measure_all(&pfile, &pctx)?;
+    writeln!(s, "### Across level boundaries\n")?;
+    writeln!(
+        s,
+        "The same camera and measures on the partially refined sphere of the reconstruction \
+         section ({} levels, base {}, bricks of 8, a seeded third of the candidate bricks left \
+         unrefined, {} cells), so the surface crosses level boundaries; sample mode at steps \
+         {} (finest cells) only. Not in the plots. Extraction and BVH build: {}.\n",
+        plev,
+        pp.base,
+        super::common::total_cells(&pfile),
+        psteps
+            .iter()
+            .map(|k| format!("1/{k}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        build_costs(&partial)
+    )?;
+    let prow: Vec<&Row> = partial.iter().flat_map(|r| r.rows.iter()).collect();
+    table_rows(&mut s, &prow)?;
+    writeln!(s)?;
     Ok(s)
+}
+
+/// Extraction, BVH build and voxel count per reconstruction, for the text.
+fn build_costs(recons: &[Recon]) -> String {
+    recons
+        .iter()
+        .map(|r| {
+            format!(
+                "{} {} voxels, {:.1} ms + {:.1} ms",
+                r.name,
+                r.active,
+                r.t_extract * 1e3,
+                r.t_bvh * 1e3
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// The results table.
+fn table_rows(s: &mut String, rows: &[&Row]) -> anyhow::Result<()> {
+    writeln!(
+        s,
+        "| tracer | runs | frame ms (median) | hits | hit err median | hit err p99 | hit err max | trace err max | image RMS |"
+    )?;
+    writeln!(s, "|---|---|---|---|---|---|---|---|---|")?;
+    for r in rows {
+        writeln!(
+            s,
+            "| {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {:.2e} | {:.4} |",
+            r.label,
+            r.runs,
+            r.secs * 1e3,
+            r.hits,
+            r.hit_med,
+            r.hit_p99,
+            r.hit_max,
+            r.trace_max,
+            r.image_rms
+        )?;
+    }
+    Ok(())
+}
+
+/// The octant hybrid (and sample mode) on [`AmrSource`], then current and nearest on
+/// [`ReconSource`]. Normals: continuous across voxels (the renderer's default) for the octant
+/// and current hybrids; face normals for nearest, whose field is piecewise constant (as
+/// `render` does).
+fn measure_all<D: AsRef<[u8]> + Sync>(
+    file: &amr_format::AmrkFile<D>,
+    c: &RunCtx<'_>,
+) -> anyhow::Result<Vec<Recon>> {
+    let octant = AmrSource::new(file, 0, Reconstruction::Octant)?;
+    let mut recons = vec![measure(&octant, "octant", true, c)?];
+    drop(octant);
+    for (r, name) in [
+        (Reconstruction::Current, "current"),
+        (Reconstruction::Nearest, "nearest"),
+    ] {
+        let src = ReconSource::new(file, 0, r)?;
+        recons.push(measure(&src, name, r != Reconstruction::Nearest, c)?);
+    }
+    Ok(recons)
 }
 
 /// One reconstruction's hybrid row, then its sample-mode rows, and what building the hybrid cost.
@@ -312,6 +375,7 @@ struct Recon {
 }
 
 /// What every reconstruction is measured with.
+#[derive(Clone, Copy)]
 struct RunCtx<'a> {
     cam: &'a Camera,
     n: u32,

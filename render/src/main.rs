@@ -113,6 +113,10 @@ enum BenchCommand {
         /// Directory for the datasets (default: the system's temporary directory).
         #[arg(long, value_name = "DIR")]
         scratch: Option<PathBuf>,
+        /// Run only this section (figure8, recon, tradeoff, stress, scale; repeatable) and
+        /// replace it in the existing benchmarks-suite.md.
+        #[arg(long, value_name = "SECTION")]
+        only: Vec<String>,
     },
 }
 
@@ -191,6 +195,7 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
             scale_only,
             max_cells,
             scratch,
+            only,
         } => {
             let render_exe = std::env::current_exe().ok();
             let cfg = amr_render::bench::suite::SuiteConfig {
@@ -201,6 +206,7 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
                 max_cells,
                 scratch,
                 render_exe,
+                only,
             };
             let path = amr_render::bench::suite::run_suite(cfg)?;
             println!("wrote {}", path.display());

@@ -23,6 +23,7 @@ fn quick_suite_writes_markdown_and_pngs() {
         max_cells: None,
         scratch: None,
         render_exe: None,
+        only: Vec::new(),
     };
     let md_path = run_suite(cfg).unwrap();
     let md = std::fs::read_to_string(md_path).unwrap();

@@ -8,6 +8,8 @@
 //! - [`tight`]: per-leaf ranges from cell values, computed once, skipping leaves the file's
 //!   looser stored ranges let through.
 //! - [`stats`]: what an extraction did.
+//! - [`current`] and [`nearest`]: the active voxels of the `current` and `nearest`
+//!   reconstructions, for the hybrid tracer's comparisons.
 //!
 //! An [`Extractor`] is made once per open file and field; each [`Extractor::extract`] call runs
 //! one isovalue. Leaves whose conservative range cannot hold the isovalue are skipped without
@@ -15,8 +17,10 @@
 //! within each leaf, the same on every run and any number of threads.
 
 pub mod cull;
+pub mod current;
 pub mod leaf;
 pub mod local;
+pub mod nearest;
 pub mod refs;
 pub mod stats;
 pub mod tight;

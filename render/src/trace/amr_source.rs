@@ -19,6 +19,7 @@ use crate::render_cmd::{
     Reconstruction, RenderArgs, RenderConfig,
 };
 use crate::shade::IsoSpec;
+use crate::trace::recon_source::ReconSource;
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
 
 /// Bytes of decompressed bricks the extraction may cache.
@@ -226,10 +227,20 @@ pub fn render_file(args: &RenderArgs, mut cfg: RenderConfig) -> anyhow::Result<(
     let file = open_mapped(&args.file)?;
     let field = resolve_field(&file, args, &mut cfg)?;
     let pages = PageRelease::new(&file);
-    let mut src = AmrSource::new(&file, field, args.reconstruction)?;
-    src.set_page_release(&pages);
     let (bar, progress) = progress_bar(u64::from(cfg.size.1));
-    let report = render_source(&src, &cfg, &progress)?;
+    let report = match args.reconstruction {
+        Reconstruction::Octant => {
+            let mut src = AmrSource::new(&file, field, args.reconstruction)?;
+            src.set_page_release(&pages);
+            render_source(&src, &cfg, &progress)?
+        }
+        other => {
+            // A piecewise-constant field has no smooth normals: nearest shades with face normals.
+            cfg.smooth_normals &= other != Reconstruction::Nearest;
+            let src = ReconSource::new(&file, field, other)?;
+            render_source(&src, &cfg, &progress)?
+        }
+    };
     bar.finish_and_clear();
     let extra = [
         ("field", format!("\"{}\"", file.fields()[field].name)),

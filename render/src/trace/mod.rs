@@ -3,8 +3,10 @@
 
 pub mod amr_source;
 pub mod cubic;
+pub mod face;
 pub mod octant;
 pub mod ray;
+pub mod recon_source;
 pub mod source;
 pub mod synthetic;
 pub mod tracer;

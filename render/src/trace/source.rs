@@ -1,5 +1,8 @@
 //! What the tracer needs from a volume: active voxels decoded from 64-bit refs, and point samples.
 
+use crate::trace::octant::{intersect_voxel, VoxelHit};
+use crate::trace::ray::GridRay;
+
 /// One trilinear voxel (an octant or a merged dual cell) in grid coordinates.
 ///
 /// Corner `i` sits at `lo` on the axes whose bit of `i` is 0 and at `hi` where it is 1 (bit 0 = x,
@@ -102,4 +105,18 @@ pub trait VoxelSource: Sync {
     /// Drops pages of the underlying file from the resident set, between stages that touch it;
     /// a no-op for sources that hold no file.
     fn release_pages(&self) {}
+
+    /// The first hit of `ray` with the surface `iso` inside `voxel` with `t` in `[tmin, tmax]`:
+    /// by default the exact intersection with the voxel's trilinear interpolant.
+    #[inline]
+    fn intersect(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        tmin: f64,
+        tmax: f64,
+    ) -> Option<VoxelHit> {
+        intersect_voxel(voxel, iso, ray, tmin, tmax)
+    }
 }

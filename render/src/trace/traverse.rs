@@ -2,7 +2,6 @@
 //! the exact `f64` intersection decides.
 
 use crate::bvh::{BvhBuilder, OctantBvh};
-use crate::trace::octant::intersect_voxel;
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
 
@@ -121,7 +120,7 @@ impl Surface {
         let mut best_t = tmax;
         self.bvh.traverse(b.ray, |r, tmax32| {
             let voxel = src.voxel(r);
-            if let Some(h) = intersect_voxel(&voxel, self.iso, ray, tmin, best_t) {
+            if let Some(h) = src.intersect(&voxel, self.iso, ray, tmin, best_t) {
                 if h.t < best_t || best.is_none() {
                     best_t = h.t;
                     best = Some(Hit {
@@ -154,7 +153,11 @@ impl Surface {
         // stay set and empty the ray's interval, or later candidates would overwrite it.
         let mut hit = false;
         self.bvh.traverse(b.ray, |r, tmax32| {
-            if !hit && intersect_voxel(&src.voxel(r), self.iso, ray, tmin, tmax).is_some() {
+            if !hit
+                && src
+                    .intersect(&src.voxel(r), self.iso, ray, tmin, tmax)
+                    .is_some()
+            {
                 hit = true;
                 *tmax32 = f32::NEG_INFINITY;
             }

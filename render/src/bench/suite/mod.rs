@@ -45,7 +45,13 @@ pub struct SuiteConfig {
     /// The `amr-render` executable the scale section renders with, in a child process so that
     /// peak RSS is the render's own; `None` renders in this process.
     pub render_exe: Option<PathBuf>,
+    /// Run only these sections ([`SECTIONS`] names) and replace them in the existing document;
+    /// empty: run every section and write the document anew.
+    pub only: Vec<String>,
 }
+
+/// Section names for [`SuiteConfig::only`], in document order.
+pub const SECTIONS: [&str; 5] = ["figure8", "recon", "tradeoff", "stress", "scale"];
 
 impl SuiteConfig {
     /// The command line that reproduces this run, as the document quotes it.
@@ -65,6 +71,10 @@ impl SuiteConfig {
         }
         if self.scratch.is_some() {
             c.push_str(" --scratch DIR");
+        }
+        for name in &self.only {
+            c.push_str(" --only ");
+            c.push_str(name);
         }
         c
     }
@@ -93,8 +103,26 @@ impl Ctx {
     }
 }
 
-/// Runs every section and writes the document; prints progress to stderr.
+/// Runs every section and writes the document (or, with [`SuiteConfig::only`], runs those
+/// sections and replaces them in the existing document); prints progress to stderr.
 pub fn run_suite(cfg: SuiteConfig) -> anyhow::Result<PathBuf> {
+    if let Some(bad) = cfg.only.iter().find(|n| !SECTIONS.contains(&n.as_str())) {
+        anyhow::bail!(
+            "--only {bad}: no such section (sections: {})",
+            SECTIONS.join(", ")
+        );
+    }
+    let path = cfg.out.join("benchmarks-suite.md");
+    let existing = if cfg.only.is_empty() {
+        None
+    } else {
+        Some(std::fs::read_to_string(&path).with_context(|| {
+            format!(
+                "--only replaces sections of {}, which cannot be read",
+                path.display()
+            )
+        })?)
+    };
     let img = cfg.out.join("img");
     std::fs::create_dir_all(&img).with_context(|| format!("cannot create {}", img.display()))?;
     let scratch = cfg
@@ -119,14 +147,61 @@ pub fn run_suite(cfg: SuiteConfig) -> anyhow::Result<PathBuf> {
         img,
         scratch,
     };
-    let result = match &previous {
-        Some(doc) => run_scale_only(&ctx, doc),
-        None => run_sections(&ctx),
+    let result = match (&previous, &existing) {
+        (Some(doc), _) => run_scale_only(&ctx, doc),
+        (None, Some(doc)) => replace_sections(&ctx, doc),
+        (None, None) => run_sections(&ctx),
     };
     let _ = std::fs::remove_dir_all(&ctx.scratch);
     let body = result?;
     std::fs::write(&path, body).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(path)
+}
+
+type Section = fn(&Ctx) -> anyhow::Result<String>;
+
+/// The section called `name` in [`SECTIONS`].
+fn section(name: &str) -> (&'static str, Section) {
+    match name {
+        "figure8" => ("figure 8", figure8::run),
+        "recon" => ("reconstruction error and leaks", recon::run),
+        "tradeoff" => ("run time against error", tradeoff::run),
+        "stress" => ("stability stress", stress::run),
+        _ => ("scale", scale::run),
+    }
+}
+
+fn run_one(ctx: &Ctx, name: &str) -> anyhow::Result<String> {
+    let (title, f) = section(name);
+    let t = Instant::now();
+    eprintln!("bench suite: {title} ...");
+    let s = f(ctx).with_context(|| format!("section '{title}' failed"))?;
+    eprintln!(
+        "bench suite: {title} done in {:.1} s",
+        t.elapsed().as_secs_f64()
+    );
+    Ok(s)
+}
+
+/// `doc` with each section of `--only` replaced by a new run of it (a section spans from its
+/// `## ` heading to the next one).
+fn replace_sections(ctx: &Ctx, doc: &str) -> anyhow::Result<String> {
+    let mut doc = doc.to_owned();
+    for name in &ctx.cfg.only {
+        let new = run_one(ctx, name)?;
+        let heading = new.lines().next().unwrap_or_default().to_owned();
+        let start = doc
+            .find(&format!("{heading}\n"))
+            .with_context(|| format!("the document has no section '{heading}' to replace"))?;
+        let after = start + heading.len();
+        let end = doc[after..]
+            .find("\n## ")
+            .map(|i| after + i + 1)
+            .or_else(|| doc[after..].find("\n_Whole suite").map(|i| after + i + 1))
+            .unwrap_or(doc.len());
+        doc.replace_range(start..end, &format!("{new}\n"));
+    }
+    Ok(doc)
 }
 
 fn run_sections(ctx: &Ctx) -> anyhow::Result<String> {
@@ -149,25 +224,11 @@ fn run_sections(ctx: &Ctx) -> anyhow::Result<String> {
         },
         ctx.machine
     )?;
-    type Section = fn(&Ctx) -> anyhow::Result<String>;
-    let mut sections: Vec<(&str, Section)> = vec![
-        ("figure 8", figure8::run),
-        ("reconstruction error and leaks", recon::run),
-        ("run time against error", tradeoff::run),
-        ("stability stress", stress::run),
-    ];
-    if !ctx.cfg.skip_scale {
-        sections.push(("scale", scale::run));
-    }
-    for (name, f) in sections {
-        let t = Instant::now();
-        eprintln!("bench suite: {name} ...");
-        let s = f(ctx).with_context(|| format!("section '{name}' failed"))?;
-        eprintln!(
-            "bench suite: {name} done in {:.1} s",
-            t.elapsed().as_secs_f64()
-        );
-        doc.push_str(&s);
+    let names = SECTIONS
+        .iter()
+        .filter(|&&n| n != "scale" || !ctx.cfg.skip_scale);
+    for name in names {
+        doc.push_str(&run_one(ctx, name)?);
         doc.push('\n');
     }
     writeln!(

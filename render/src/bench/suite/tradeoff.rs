@@ -1,6 +1,6 @@
 //! Run time against error on the `sphere` case, whose true surface is known exactly: the hybrid
-//! tracer (octant voxels) against sample mode on the same octant reconstruction with steps from
-//! one finest cell down to 1/64 of one.
+//! tracer with the octant, current and nearest reconstructions, each against sample mode on the
+//! same reconstruction with steps from one finest cell down to 1/64 of one.
 //!
 //! Per setting: primary-ray frame time (median of several runs), hit-position error (distance
 //! of the hit to the true sphere, in finest-cell widths), tracing error (distance along the ray to
@@ -23,6 +23,7 @@ use crate::mapping::open_mapped;
 use crate::render_cmd::{ActiveSource, Reconstruction};
 use crate::sample_mode::SampleTracer;
 use crate::trace::amr_source::AmrSource;
+use crate::trace::recon_source::ReconSource;
 use crate::trace::{GridFrame, GridRay, HybridTracer, Surface, SurfaceHit, Tracer};
 
 /// Light direction (towards the light) for the shaded frames.
@@ -90,7 +91,6 @@ fn analytic(cam: &Camera, n: u32) -> Vec<Option<f64>> {
 /// A row of the table.
 struct Row {
     label: String,
-    step: Option<f64>,
     runs: usize,
     secs: f64,
     hit_med: f64,
@@ -137,106 +137,66 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
     )?;
     let reference = analytic(&cam, n);
 
-    let src = AmrSource::new(&file, 0, Reconstruction::Octant)?;
-    let frame = crate::trace::VoxelSource::frame(&src);
-    let t = Instant::now();
-    let refs = src.extract(0.0)?;
-    let t_extract = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let mut b = BvhBuilder::new();
-    let surf = [Surface::build(&src, 0.0, &refs, &mut b)];
-    let t_bvh = t.elapsed().as_secs_f64();
-    // Normals continuous across voxels, as the renderer's default.
-    let hybrid = HybridTracer {
-        src: &src,
-        surfaces: &surf,
-        smooth_normals: true,
-    };
     let runs_fast = if quick { 3 } else { 7 };
-    let mut best: Option<Frame> = None;
-    let mut times = Vec::new();
-    for _ in 0..runs_fast {
-        let f = trace_frame(&hybrid, &frame, &cam, n);
-        times.push(f.secs);
-        best = Some(f);
-    }
-    let exact = best.expect("at least one run");
-    let mut rows = vec![row(
-        "hybrid (octant)",
-        None,
-        &exact,
-        &mut times,
-        &exact,
-        &reference,
+    let ctx_run = RunCtx {
+        cam: &cam,
+        n,
+        steps: &steps,
+        quick,
+        runs_fast,
+        reference: &reference,
         finest,
-    )];
-    for &k in &steps {
-        let step = finest / f64::from(k);
-        let tracer = SampleTracer {
-            src: &src,
-            isos: vec![0.0],
-            step,
-        };
-        // Fine steps are slow: fewer runs for them.
-        let runs = if quick {
-            1
-        } else if k <= 8 {
-            5
-        } else if k <= 16 {
-            3
-        } else {
-            1
-        };
-        let mut times = Vec::new();
-        let mut last = None;
-        for _ in 0..runs {
-            let f = trace_frame(&tracer, &frame, &cam, n);
-            times.push(f.secs);
-            last = Some(f);
-        }
-        let f = last.expect("at least one run");
-        rows.push(row(
-            &format!("sample, step 1/{k}"),
-            Some(step),
-            &f,
-            &mut times,
-            &exact,
-            &reference,
-            finest,
-        ));
-    }
+    };
+    let recons = measure_all(&file, &ctx_run)?;
+    let rows: Vec<&Row> = recons.iter().flat_map(|r| r.rows.iter()).collect();
 
     let png = "tradeoff.png";
-    let series = vec![
-        Series {
-            label: "hybrid (octant): hit error p99".into(),
-            points: vec![(rows[0].secs * 1e3, rows[0].hit_p99)],
-        },
-        Series {
-            label: "sample mode (octant), step 1..1/64: hit error p99".into(),
-            points: rows[1..]
+    let png_image = "tradeoff-image.png";
+    let mut hit_series = Vec::new();
+    let mut image_series = Vec::new();
+    for r in &recons {
+        let (h, samples) = (&r.rows[0], &r.rows[1..]);
+        hit_series.push(Series {
+            label: format!("hybrid ({})", r.name),
+            points: vec![(h.secs * 1e3, h.hit_p99)],
+        });
+        hit_series.push(Series {
+            label: format!(
+                "sample mode ({}), step 1..1/{}",
+                r.name,
+                steps[steps.len() - 1]
+            ),
+            points: samples.iter().map(|x| (x.secs * 1e3, x.hit_p99)).collect(),
+        });
+        image_series.push(Series {
+            label: format!("hybrid ({})", r.name),
+            points: vec![(h.secs * 1e3, h.image_rms)],
+        });
+        image_series.push(Series {
+            label: format!(
+                "sample mode ({}), step 1..1/{}",
+                r.name,
+                steps[steps.len() - 1]
+            ),
+            points: samples
                 .iter()
-                .map(|r| (r.secs * 1e3, r.hit_p99))
+                .map(|x| (x.secs * 1e3, x.image_rms))
                 .collect(),
-        },
-        Series {
-            label: "hybrid: image RMS error".into(),
-            points: vec![(rows[0].secs * 1e3, rows[0].image_rms)],
-        },
-        Series {
-            label: "sample mode: image RMS error".into(),
-            points: rows[1..]
-                .iter()
-                .map(|r| (r.secs * 1e3, r.image_rms))
-                .collect(),
-        },
-    ];
+        });
+    }
     loglog(
         &ctx.img.join(png),
-        &format!("sphere, {n}x{n} primary rays: error against frame time"),
+        &format!("sphere, {n}x{n} primary rays: p99 hit error against frame time"),
         "frame time (ms, median)",
-        "error (finest cells / shade units)",
-        &series,
+        "hit error p99 (finest cells)",
+        &hit_series,
+    )?;
+    loglog(
+        &ctx.img.join(png_image),
+        &format!("sphere, {n}x{n} primary rays: image error against frame time"),
+        "frame time (ms, median)",
+        "image RMS error (shade units)",
+        &image_series,
     )?;
 
     let mut s = String::new();
@@ -246,28 +206,127 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
         s,
         "\nDataset: the `sphere` case, {nlev} levels, base {}, ratio 2, bricks of 16, refined \
          around the surface ({} cells; finest cell {finest:.3e}). {n}x{n} primary rays from a \
-         camera framing the sphere; threads: {}. Hybrid: extraction {:.1} ms and BVH build {:.1} ms \
-         ({} active octants), not in the frame time. Sample mode marches the same octant \
-         reconstruction with the given step (in finest cells) and bisects the first sign change. \
+         camera framing the sphere; threads: {}. Each reconstruction is traced by its hybrid \
+         (active voxels, BVH, exact ray-voxel intersection) and by sample mode, which marches the \
+         same reconstruction with the given step (in finest cells) and bisects the first sign \
+         change. Hybrid voxels: *octant*, the crack-free octants and merged dual cells; \
+         *current*, the level dual cells clipped to each kd-tree leaf (trilinear, cubic \
+         intersection; the field jumps at level boundaries, so the surface has cracks there); \
+         *nearest*, the cell faces between a cell below and one at or above the isovalue \
+         (`docs/rendering.md`). Extraction and BVH build are not in the frame time: {}. \
+         Normals: central differences of the reconstruction for octant and current (the \
+         renderer's default) and for every sample-mode row, face normals for the nearest hybrid. \
          *Hit error*: distance from the hit to the true sphere in finest-cell widths, over the \
-         pixels that hit. *Trace error*: largest distance along the ray from the exact hit of the \
-         same reconstruction (the hybrid's), finest cells; a pixel that hits in one and not the \
-         other is not counted here but is in the image error. *Image error*: RMS over pixels of \
-         the Lambert shade against the analytic frame (a pixel that hits in only one counts 1).\n",
+         pixels that hit. *Trace error*: largest distance along the ray from the hybrid's hit of \
+         the same reconstruction, finest cells; a pixel that hits in one and not the other is not \
+         counted here but is in the image error. *Image error*: RMS over pixels of the Lambert \
+         shade against the analytic frame (ray-sphere intersection, exact normals; a pixel that \
+         hits in only one counts 1). Where sample mode hits fewer pixels than the hybrid (the \
+         *hits* column: a coarse step skips thin parts of the surface), its hit-error quantiles \
+         are over fewer, easier pixels. Sample mode's normals are central differences half a \
+         step apart: on the piecewise-constant nearest field a coarse step smooths the faces' \
+         normals, so its image error there is lower than with the faces' own normals and rises \
+         toward the hybrid's as the step shrinks.\n",
         p.base,
         super::common::total_cells(&file),
         rayon::current_num_threads(),
-        t_extract * 1e3,
-        t_bvh * 1e3,
-        refs.len()
+        build_costs(&recons)
     )?;
+    table_rows(&mut s, &rows)?;
+    writeln!(
+        s,
+        "\nGoal (hybrid reaches lower error than the best sample setting in at least ten times \
+         less time), per reconstruction, against sample mode on the same reconstruction:\n"
+    )?;
+    for r in &recons {
+        writeln!(s, "- {}", goal_line(r))?;
+    }
+    let octant_hybrid = &recons[0].rows[0];
+    let all_samples: Vec<&Row> = recons.iter().flat_map(|r| r.rows[1..].iter()).collect();
+    let best_any = all_samples
+        .iter()
+        .min_by(|a, b| a.hit_p99.total_cmp(&b.hit_p99))
+        .expect("steps");
+    writeln!(
+        s,
+        "- Across reconstructions, the lowest p99 hit error of any sample setting is `{}` \
+         ({:.4}, {:.1} ms); the octant hybrid has {:.4} in {:.2} ms ({:.1}x less time).\n",
+        best_any.label,
+        best_any.hit_p99,
+        best_any.secs * 1e3,
+        octant_hybrid.hit_p99,
+        octant_hybrid.secs * 1e3,
+        best_any.secs / octant_hybrid.secs
+    )?;
+    writeln!(s, "![p99 hit error against time]({})\n", img_link(ctx, png))?;
+    writeln!(
+        s,
+        "![image error against time]({})\n",
+        img_link(ctx, png_image)
+    )?;
+
+    // The same camera on the partially refined sphere of the reconstruction section, where the
+    // surface crosses level boundaries: octant and current differ there.
+    let pp = super::recon::params(quick);
+    let ppath = ctx.scratch.join("tradeoff-partial.amrk");
+    super::recon::write_partial_sphere(&ppath, &pp)?;
+    let pfile = open_mapped(&ppath)?;
+    let plev = pfile.levels().len() as u32;
+    let psteps: Vec<u32> = if quick { vec![1] } else { vec![1, 4] };
+    let pctx = RunCtx {
+        steps: &psteps,
+        finest: 1.0 / pp.cells_per_axis(plev - 1).unwrap_or(1) as f64,
+        ..ctx_run
+    };
+    let partial = measure_all(&pfile, &pctx)?;
+    writeln!(s, "### Across level boundaries\n")?;
+    writeln!(
+        s,
+        "The same camera and measures on the partially refined sphere of the reconstruction \
+         section ({} levels, base {}, bricks of 8, a seeded third of the candidate bricks left \
+         unrefined, {} cells), so the surface crosses level boundaries; sample mode at steps \
+         {} (finest cells) only. Not in the plots. Extraction and BVH build: {}.\n",
+        plev,
+        pp.base,
+        super::common::total_cells(&pfile),
+        psteps
+            .iter()
+            .map(|k| format!("1/{k}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        build_costs(&partial)
+    )?;
+    let prow: Vec<&Row> = partial.iter().flat_map(|r| r.rows.iter()).collect();
+    table_rows(&mut s, &prow)?;
+    writeln!(s)?;
+    Ok(s)
+}
+
+/// Extraction, BVH build and voxel count per reconstruction, for the text.
+fn build_costs(recons: &[Recon]) -> String {
+    recons
+        .iter()
+        .map(|r| {
+            format!(
+                "{} {} voxels, {:.1} ms + {:.1} ms",
+                r.name,
+                r.active,
+                r.t_extract * 1e3,
+                r.t_bvh * 1e3
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// The results table.
+fn table_rows(s: &mut String, rows: &[&Row]) -> anyhow::Result<()> {
     writeln!(
         s,
         "| tracer | runs | frame ms (median) | hits | hit err median | hit err p99 | hit err max | trace err max | image RMS |"
     )?;
     writeln!(s, "|---|---|---|---|---|---|---|---|---|")?;
-    for r in &rows {
-        let _ = r.step;
+    for r in rows {
         writeln!(
             s,
             "| {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {:.2e} | {:.4} |",
@@ -282,51 +341,171 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
             r.image_rms
         )?;
     }
-    let h = &rows[0];
-    let best_sample = rows[1..]
+    Ok(())
+}
+
+/// The octant hybrid (and sample mode) on [`AmrSource`], then current and nearest on
+/// [`ReconSource`]. Normals: continuous across voxels (the renderer's default) for the octant
+/// and current hybrids; face normals for nearest, whose field is piecewise constant (as
+/// `render` does).
+fn measure_all<D: AsRef<[u8]> + Sync>(
+    file: &amr_format::AmrkFile<D>,
+    c: &RunCtx<'_>,
+) -> anyhow::Result<Vec<Recon>> {
+    let octant = AmrSource::new(file, 0, Reconstruction::Octant)?;
+    let mut recons = vec![measure(&octant, "octant", true, c)?];
+    drop(octant);
+    for (r, name) in [
+        (Reconstruction::Current, "current"),
+        (Reconstruction::Nearest, "nearest"),
+    ] {
+        let src = ReconSource::new(file, 0, r)?;
+        recons.push(measure(&src, name, r != Reconstruction::Nearest, c)?);
+    }
+    Ok(recons)
+}
+
+/// One reconstruction's hybrid row, then its sample-mode rows, and what building the hybrid cost.
+struct Recon {
+    name: &'static str,
+    rows: Vec<Row>,
+    active: usize,
+    t_extract: f64,
+    t_bvh: f64,
+}
+
+/// What every reconstruction is measured with.
+#[derive(Clone, Copy)]
+struct RunCtx<'a> {
+    cam: &'a Camera,
+    n: u32,
+    steps: &'a [u32],
+    quick: bool,
+    runs_fast: usize,
+    reference: &'a [Option<f64>],
+    finest: f64,
+}
+
+/// The hybrid and the sample settings of one reconstruction.
+fn measure<S: ActiveSource>(
+    src: &S,
+    name: &'static str,
+    smooth_normals: bool,
+    c: &RunCtx<'_>,
+) -> anyhow::Result<Recon> {
+    let frame = src.frame();
+    let t = Instant::now();
+    let refs = src.extract(0.0)?;
+    let t_extract = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let mut b = BvhBuilder::new();
+    let surf = [Surface::build(src, 0.0, &refs, &mut b)];
+    let t_bvh = t.elapsed().as_secs_f64();
+    let hybrid = HybridTracer {
+        src,
+        surfaces: &surf,
+        smooth_normals,
+    };
+    let mut last: Option<Frame> = None;
+    let mut times = Vec::new();
+    for _ in 0..c.runs_fast {
+        let f = trace_frame(&hybrid, &frame, c.cam, c.n);
+        times.push(f.secs);
+        last = Some(f);
+    }
+    let exact = last.expect("at least one run");
+    let mut rows = vec![row(
+        &format!("hybrid ({name})"),
+        &exact,
+        &mut times,
+        &exact,
+        c.reference,
+        c.finest,
+    )];
+    for &k in c.steps {
+        let step = c.finest / f64::from(k);
+        let tracer = SampleTracer {
+            src,
+            isos: vec![0.0],
+            step,
+        };
+        // Fine steps are slow: fewer runs for them.
+        let runs = if c.quick {
+            1
+        } else if k <= 8 {
+            5
+        } else if k <= 16 {
+            3
+        } else {
+            1
+        };
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..runs {
+            let f = trace_frame(&tracer, &frame, c.cam, c.n);
+            times.push(f.secs);
+            last = Some(f);
+        }
+        let f = last.expect("at least one run");
+        rows.push(row(
+            &format!("sample ({name}), step 1/{k}"),
+            &f,
+            &mut times,
+            &exact,
+            c.reference,
+            c.finest,
+        ));
+    }
+    Ok(Recon {
+        name,
+        rows,
+        active: refs.len(),
+        t_extract,
+        t_bvh,
+    })
+}
+
+/// The goal's verdict for one reconstruction.
+fn goal_line(r: &Recon) -> String {
+    let h = &r.rows[0];
+    let samples = &r.rows[1..];
+    let best = samples
         .iter()
         .min_by(|a, b| a.hit_p99.total_cmp(&b.hit_p99))
         .expect("steps");
-    let cheaper_and_better: Vec<&Row> = rows[1..]
+    let better: Vec<&str> = samples
         .iter()
-        .filter(|r| r.hit_p99 <= h.hit_p99 && r.image_rms <= h.image_rms)
+        .filter(|x| x.hit_p99 <= h.hit_p99 && x.image_rms <= h.image_rms)
+        .map(|x| x.label.as_str())
         .collect();
-    writeln!(
-        s,
-        "\nGoal (hybrid reaches lower error than the best sample setting in at least ten times \
-         less time): the best sample setting by p99 hit error is `{}` ({:.4} finest cells, image \
-         RMS {:.4}, {:.1} ms); the hybrid has {:.4} and {:.4} in {:.2} ms, {:.1}x less time. \
-         Goal {}. Sample settings at least as accurate as the hybrid on both measures: {}.\n",
-        best_sample.label,
-        best_sample.hit_p99,
-        best_sample.image_rms,
-        best_sample.secs * 1e3,
+    format!(
+        "{}: the best sample setting by p99 hit error is `{}` ({:.4} finest cells, image RMS \
+         {:.4}, {:.1} ms); the hybrid has {:.4} and {:.4} in {:.2} ms, {:.1}x less time. Goal {}. \
+         Sample settings at least as accurate as the hybrid on both measures: {}.",
+        r.name,
+        best.label,
+        best.hit_p99,
+        best.image_rms,
+        best.secs * 1e3,
         h.hit_p99,
         h.image_rms,
         h.secs * 1e3,
-        best_sample.secs / h.secs,
-        if h.hit_p99 <= best_sample.hit_p99 && best_sample.secs >= 10.0 * h.secs {
+        best.secs / h.secs,
+        if h.hit_p99 <= best.hit_p99 && best.secs >= 10.0 * h.secs {
             "met"
         } else {
             "NOT met"
         },
-        if cheaper_and_better.is_empty() {
+        if better.is_empty() {
             "none".to_owned()
         } else {
-            cheaper_and_better
-                .iter()
-                .map(|r| r.label.clone())
-                .collect::<Vec<_>>()
-                .join(", ")
+            better.join(", ")
         }
-    )?;
-    writeln!(s, "![error against time]({})\n", img_link(ctx, png))?;
-    Ok(s)
+    )
 }
 
 fn row(
     label: &str,
-    step: Option<f64>,
     f: &Frame,
     times: &mut [f64],
     exact: &Frame,
@@ -359,7 +538,6 @@ fn row(
     let hits = hit_err.len();
     Row {
         label: label.to_owned(),
-        step,
         runs: times.len(),
         secs: quantile(times, 0.5),
         hit_med: quantile(&mut hit_err, 0.5),

@@ -86,10 +86,13 @@ fn all_current(s: &Sampler<'_, Vec<u8>>) -> BTreeMap<(u32, [i64; 3]), [f32; 8]> 
     out
 }
 
+/// Faces by rectangle (lo, hi in finest cells) and axis: the values below and above.
+type Faces = BTreeMap<([i64; 3], [i64; 3], usize), (f32, f32)>;
+
 /// Every face between two leaf cells, once: `(face rectangle lo, hi in finest cells, axis) ->
 /// (value below, value above)`. Visits every leaf cell's six faces; a face whose far side holds
 /// finer cells (any of four probes just across its corners) is left to those cells.
-fn all_faces(s: &Sampler<'_, Vec<u8>>) -> BTreeMap<([i64; 3], [i64; 3], usize), (f32, f32)> {
+fn all_faces(s: &Sampler<'_, Vec<u8>>) -> Faces {
     let g = s.grid();
     let ext = g.extent();
     let mut out = BTreeMap::new();

@@ -19,16 +19,19 @@ impl IBox {
     }
 
     /// Number of cells along each axis (0 for an empty or inverted axis).
+    #[inline]
     pub fn extent(&self) -> [i64; 3] {
         [0, 1, 2].map(|a| (self.hi[a] - self.lo[a]).max(0))
     }
 
     /// True when the box holds no cell.
+    #[inline]
     pub fn is_empty(&self) -> bool {
         (0..3).any(|a| self.hi[a] <= self.lo[a])
     }
 
     /// Number of cells, or `None` on overflow.
+    #[inline]
     pub fn num_cells(&self) -> Option<u64> {
         let e = self.extent();
         (e[0] as u64)
@@ -37,6 +40,7 @@ impl IBox {
     }
 
     /// The common part of two boxes (possibly empty).
+    #[inline]
     pub fn intersect(&self, other: &IBox) -> IBox {
         IBox {
             lo: [0, 1, 2].map(|a| self.lo[a].max(other.lo[a])),
@@ -45,26 +49,31 @@ impl IBox {
     }
 
     /// True when the boxes share at least one cell.
+    #[inline]
     pub fn overlaps(&self, other: &IBox) -> bool {
         (0..3).all(|a| self.lo[a] < other.hi[a] && other.lo[a] < self.hi[a])
     }
 
     /// True when the closed boxes share at least a point (a shared face, edge or corner counts).
+    #[inline]
     pub fn touches(&self, other: &IBox) -> bool {
         (0..3).all(|a| self.lo[a] <= other.hi[a] && other.lo[a] <= self.hi[a])
     }
 
     /// True when `other` lies entirely inside `self`.
+    #[inline]
     pub fn contains_box(&self, other: &IBox) -> bool {
         (0..3).all(|a| self.lo[a] <= other.lo[a] && other.hi[a] <= self.hi[a])
     }
 
     /// True when the cell `p` lies inside the box.
+    #[inline]
     pub fn contains_cell(&self, p: [i64; 3]) -> bool {
         (0..3).all(|a| self.lo[a] <= p[a] && p[a] < self.hi[a])
     }
 
     /// The box grown by `by[a]` cells on both sides of each axis.
+    #[inline]
     pub fn grow(&self, by: [i64; 3]) -> IBox {
         IBox {
             lo: [0, 1, 2].map(|a| self.lo[a] - by[a]),
@@ -73,6 +82,7 @@ impl IBox {
     }
 
     /// The same cells in an index space `factor` times finer (`None` on overflow).
+    #[inline]
     pub fn refine(&self, factor: [i64; 3]) -> Option<IBox> {
         let mut out = IBox::default();
         for a in 0..3 {
@@ -83,6 +93,7 @@ impl IBox {
     }
 
     /// The coarse cells, `factor` times coarser, that cover this box.
+    #[inline]
     pub fn coarsen(&self, factor: [i64; 3]) -> IBox {
         IBox {
             lo: [0, 1, 2].map(|a| self.lo[a].div_euclid(factor[a])),
@@ -91,6 +102,7 @@ impl IBox {
     }
 
     /// Linear index of cell `p` inside this box, x fastest. `p` must lie inside.
+    #[inline]
     pub fn linear_index(&self, p: [i64; 3]) -> usize {
         let e = self.extent();
         let (x, y, z) = (p[0] - self.lo[0], p[1] - self.lo[1], p[2] - self.lo[2]);

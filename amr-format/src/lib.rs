@@ -15,6 +15,7 @@ pub mod hierarchy;
 pub mod kdtree;
 pub mod raw;
 pub mod reader;
+pub mod value_range;
 pub mod verify;
 pub mod writer;
 
@@ -22,4 +23,5 @@ pub use error::{FormatError, Result};
 pub use geometry::{copy_subbox, IBox};
 pub use hierarchy::{BrickSpec, HierarchySpec, LevelSpec};
 pub use reader::{AmrkFile, BrickInfo, FieldInfo, LeafInfo, LevelInfo};
+pub use value_range::{finite_range, value_range, RangeAccumulator};
 pub use writer::{AmrkWriter, Compression, WriteSummary, WriterOptions};

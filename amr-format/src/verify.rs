@@ -7,6 +7,7 @@ use crate::geometry::IBox;
 use crate::kdtree::leaf_ranges;
 use crate::raw::KD_LEAF;
 use crate::reader::AmrkFile;
+use crate::value_range::finite_range;
 
 /// What [`AmrkFile::verify`] checked.
 #[derive(Clone, Debug, Default)]
@@ -58,17 +59,14 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
                     });
                 }
                 self.brick_values_into(f, b, &mut values)?;
-                let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-                for &v in &values {
-                    if !v.is_finite() {
-                        return Err(FormatError::Corrupt(format!(
-                            "field '{}', brick {b}: value {v}",
-                            field.name
-                        )));
-                    }
-                    lo = lo.min(v);
-                    hi = hi.max(v);
-                }
+                let Some((lo, hi)) = finite_range(&values) else {
+                    let v = values.iter().find(|v| !v.is_finite()).copied();
+                    return Err(FormatError::Corrupt(format!(
+                        "field '{}', brick {b}: value {}",
+                        field.name,
+                        v.unwrap_or(f32::NAN)
+                    )));
+                };
                 if (lo, hi) != self.brick_range(f, b) {
                     return Err(FormatError::Corrupt(format!(
                         "field '{}', brick {b}: stored range {:?}, data range {:?}",

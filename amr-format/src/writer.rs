@@ -24,6 +24,7 @@ use crate::raw::{
     self, align_up, BrickData, BrickRecord, FieldRecord, Footer, Header, LeafRange, LevelRecord,
     Section,
 };
+use crate::value_range::finite_range;
 
 /// How brick data is stored.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -519,39 +520,6 @@ fn build_tree(spec: &HierarchySpec) -> Result<KdTree> {
     kdtree::build(&tree_bricks, IBox::new([0; 3], domain.extent()))
 }
 
-/// The range of `values`, or `None` if one is NaN or infinite.
-///
-/// Branch-free over lanes of 16 so that it vectorizes: it runs on every value converted.
-fn finite_range(values: &[f32]) -> Option<(f32, f32)> {
-    const LANES: usize = 16;
-    const EXP: u32 = 0x7f80_0000;
-    let mut lo = [f32::INFINITY; LANES];
-    let mut hi = [f32::NEG_INFINITY; LANES];
-    let mut bad = [0u32; LANES];
-    let chunks = values.chunks_exact(LANES);
-    let tail = chunks.remainder();
-    for c in chunks {
-        for i in 0..LANES {
-            let v = c[i];
-            bad[i] |= u32::from(v.to_bits() & EXP == EXP);
-            lo[i] = lo[i].min(v);
-            hi[i] = hi[i].max(v);
-        }
-    }
-    for &v in tail {
-        bad[0] |= u32::from(v.to_bits() & EXP == EXP);
-        lo[0] = lo[0].min(v);
-        hi[0] = hi[0].max(v);
-    }
-    if bad.iter().any(|&b| b != 0) {
-        return None;
-    }
-    Some((
-        lo.iter().copied().fold(f32::INFINITY, f32::min),
-        hi.iter().copied().fold(f32::NEG_INFINITY, f32::max),
-    ))
-}
-
 /// The little-endian bytes of `values`: borrowed on little-endian hosts.
 fn le_bytes<'a>(values: &[f32], native: &'a [u8]) -> std::borrow::Cow<'a, [u8]> {
     if cfg!(target_endian = "little") {
@@ -615,25 +583,5 @@ impl<'a> MetaWriter<'a> {
             },
             self.crc.finalize(),
         ))
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::finite_range;
-
-    #[test]
-    fn finite_range_finds_extremes_and_non_finite_values_anywhere() {
-        for n in [1usize, 15, 16, 17, 100] {
-            let v: Vec<f32> = (0..n).map(|i| i as f32 - 3.0).collect();
-            assert_eq!(finite_range(&v), Some((-3.0, n as f32 - 4.0)));
-            for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
-                for at in [0, n / 2, n - 1] {
-                    let mut w = v.clone();
-                    w[at] = bad;
-                    assert_eq!(finite_range(&w), None, "n {n}, {bad} at {at}");
-                }
-            }
-        }
     }
 }

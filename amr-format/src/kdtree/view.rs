@@ -67,6 +67,7 @@ impl<'a> TreeView<'a> {
     }
 
     /// The box of leaf `leaf` in finest-level cells relative to the domain.
+    #[inline]
     pub fn leaf_box(&self, leaf: u32) -> IBox {
         let l = &self.leaves[leaf as usize];
         IBox::new(

@@ -11,7 +11,7 @@
 //! Means never leave the range of their inputs (rounding is monotone and halving exact); a
 //! trilinear interpolation can by a few ulps, so coarse contributions are widened.
 
-use amr_format::{IBox, Result};
+use amr_format::{IBox, RangeAccumulator, Result};
 
 use super::local::{Neighbourhood, ABOVE, BELOW, COARSER, PENDING};
 use crate::reconstruct::sampler::Locate;
@@ -82,7 +82,13 @@ fn settle_coarse<D: AsRef<[u8]>>(
         return Ok(());
     }
     let q_box = grid.finest_box(q.level, q.cell);
-    if let Some(range) = range_around(sampler, hood, &q_box, q.level)? {
+    let band = hood.band(sampler, q.level);
+    let around = if band.covers(q.level, q.cell) {
+        band.range_around(sampler, q.cell)?
+    } else {
+        None
+    };
+    if let Some(range) = around {
         let bound = widen(range);
         let inside = grid.level_box(level, &q_box).intersect(&hood.cells);
         for z in inside.lo[2]..inside.hi[2] {
@@ -128,47 +134,6 @@ fn settle_coarse<D: AsRef<[u8]>>(
     Ok(())
 }
 
-/// The range of the leaf cells within one level-`level` cell of finest-level box `q_box`, or
-/// `None` when a leaf cell coarser than `level` lies there (then the octants of the cell at
-/// `q_box` may take values from farther away).
-fn range_around<D: AsRef<[u8]>>(
-    sampler: &Sampler<'_, D>,
-    hood: &mut Neighbourhood,
-    q_box: &IBox,
-    level: u32,
-) -> Result<Option<(f32, f32)>> {
-    let grid = sampler.grid();
-    let region = q_box
-        .grow(grid.scale(level))
-        .intersect(&IBox::new([0; 3], grid.extent()));
-    let tree = sampler.file().tree();
-    let leaves = if hood.near_region.contains_box(&region) {
-        &hood.near_leaves
-    } else {
-        hood.scratch_leaves.clear();
-        tree.for_each_leaf_touching(&region, |l| hood.scratch_leaves.push(l));
-        &hood.scratch_leaves
-    };
-    let mut lo = f32::INFINITY;
-    let mut hi = f32::NEG_INFINITY;
-    for &l in leaves.iter() {
-        let part = tree.leaf_box(l).intersect(&region);
-        if part.is_empty() {
-            continue;
-        }
-        let Some((brick, lv)) = sampler.leaf_top(l) else {
-            continue;
-        };
-        if lv < level {
-            return Ok(None);
-        }
-        let (a, b) = brick_range_in(sampler, brick, lv, &part)?;
-        lo = lo.min(a);
-        hi = hi.max(b);
-    }
-    Ok(Some((lo, hi)))
-}
-
 /// The range of the cells of brick `brick` (level `level`) overlapping finest-level box `part`;
 /// `(+inf, -inf)` when there are none.
 pub fn brick_range_in<D: AsRef<[u8]>>(
@@ -177,24 +142,31 @@ pub fn brick_range_in<D: AsRef<[u8]>>(
     level: u32,
     part: &IBox,
 ) -> Result<(f32, f32)> {
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    let mut range = RangeAccumulator::new();
     let bc = sampler.brick_cells(brick);
     let cells = sampler.grid().level_box(level, part).intersect(&bc);
     if cells.is_empty() {
-        return Ok((lo, hi));
+        return Ok(range.range());
     }
     let values = sampler.values(brick)?;
+    let e = bc.extent();
+    let (row, slab) = (e[0] as usize, (e[0] * e[1]) as usize);
     let w = cells.extent()[0] as usize;
-    for z in cells.lo[2]..cells.hi[2] {
-        for y in cells.lo[1]..cells.hi[1] {
-            let src = bc.linear_index([cells.lo[0], y, z]);
-            for &v in &values[src..src + w] {
-                lo = lo.min(v);
-                hi = hi.max(v);
+    let mut z_start = bc.linear_index(cells.lo);
+    for _ in cells.lo[2]..cells.hi[2] {
+        if w == row {
+            let rows = cells.extent()[1] as usize;
+            range.add(&values[z_start..z_start + rows * row]);
+        } else {
+            let mut src = z_start;
+            for _ in cells.lo[1]..cells.hi[1] {
+                range.add(&values[src..src + w]);
+                src += row;
             }
         }
+        z_start += slab;
     }
-    Ok((lo, hi))
+    Ok(range.range())
 }
 
 /// Widens a range of corner values by the round-off a trilinear interpolation of them can add.

@@ -8,6 +8,8 @@
 
 use amr_format::{IBox, Result};
 
+use super::band::{fold_cell_bounds, CoarseBand};
+
 use crate::reconstruct::Sampler;
 
 /// A leaf cell of the leaf's own level.
@@ -59,13 +61,11 @@ pub struct Neighbourhood {
     /// [`NOT_LEAF`] and [`PENDING`] bits.
     codes: Vec<u8>,
     touching: Vec<u32>,
-    /// Scratch list of kd-tree leaves for [`super::cull`].
-    pub scratch_leaves: Vec<u32>,
-    /// The finest-level box around the leaf within which [`Self::near_leaves`] lists every
-    /// kd-tree leaf: the leaf grown by two cells of the next coarser level.
-    pub near_region: IBox,
-    /// The kd-tree leaves touching [`Self::near_region`].
-    pub near_leaves: Vec<u32>,
+    /// The finest-level box of the [`COARSER`] cells' bounding box.
+    coarser_region: IBox,
+    /// Bounds on the grids of coarser levels, filled on first need ([`Self::band`]).
+    bands: Vec<CoarseBand>,
+    bands_filled: usize,
 }
 
 impl Neighbourhood {
@@ -97,6 +97,7 @@ impl Neighbourhood {
             [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
         );
         self.touching.clear();
+        let mut coarser = IBox::default();
         let tree = sampler.file().tree();
         tree.for_each_leaf_touching(&region, |l| self.touching.push(l));
         for i in 0..self.touching.len() {
@@ -113,6 +114,7 @@ impl Neighbourhood {
                 None => self.set_block(&block, UNCOVERED),
                 Some((_, lv)) if lv < level => {
                     self.set_block(&block, COARSER);
+                    coarser = hull(&coarser, &block);
                     self.for_block(&block, |h, i| h.coarse_pending[i] = true);
                 }
                 Some((brick, lv)) if lv > level => {
@@ -139,10 +141,11 @@ impl Neighbourhood {
                 }
             }
         }
-        let reach = grid.scale(level.saturating_sub(1)).map(|c| 2 * c);
-        self.near_region = region.grow(reach);
-        self.near_leaves.clear();
-        tree.for_each_leaf_touching(&self.near_region, |l| self.near_leaves.push(l));
+        self.coarser_region = IBox::new(
+            [0, 1, 2].map(|a| coarser.lo[a] * s[a] - o[a]),
+            [0, 1, 2].map(|a| coarser.hi[a] * s[a] - o[a]),
+        );
+        self.bands_filled = 0;
         if !domain.contains_box(&g) {
             let inside = g.intersect(&domain);
             for z in g.lo[2]..g.hi[2] {
@@ -186,6 +189,26 @@ impl Neighbourhood {
         Ok(())
     }
 
+    /// The bounds on the grid of level `level` (coarser than the neighbourhood's) around the
+    /// [`COARSER`] cells, prepared on the first call for this neighbourhood.
+    pub fn band<D: AsRef<[u8]>>(
+        &mut self,
+        sampler: &Sampler<'_, D>,
+        level: u32,
+    ) -> &mut CoarseBand {
+        let filled = &self.bands[..self.bands_filled];
+        if let Some(k) = filled.iter().position(|b| b.level == level) {
+            return &mut self.bands[k];
+        }
+        if self.bands_filled == self.bands.len() {
+            self.bands.push(CoarseBand::default());
+        }
+        let k = self.bands_filled;
+        self.bands[k].prepare(sampler, level, &self.coarser_region);
+        self.bands_filled += 1;
+        &mut self.bands[k]
+    }
+
     /// Widens the bounds of the cells holding the cells of brick `brick` (level `fine`) inside
     /// finest-level box `part`.
     fn bound_finer<D: AsRef<[u8]>>(
@@ -204,29 +227,14 @@ impl Neighbourhood {
         }
         let values = sampler.values(brick)?;
         let (sf, sl) = (grid.scale(fine), grid.scale(level));
-        let g = self.cells;
-        let e = g.extent();
-        for z in cells.lo[2]..cells.hi[2] {
-            let hz = (z * sf[2]).div_euclid(sl[2]) - g.lo[2];
-            for y in cells.lo[1]..cells.hi[1] {
-                let hy = (y * sf[1]).div_euclid(sl[1]) - g.lo[1];
-                if !(0..e[1]).contains(&hy) || !(0..e[2]).contains(&hz) {
-                    continue;
-                }
-                let src = bc.linear_index([cells.lo[0], y, z]);
-                let row = ((hz * e[1] + hy) * e[0]) as usize;
-                for (k, x) in (cells.lo[0]..cells.hi[0]).enumerate() {
-                    let hx = (x * sf[0]).div_euclid(sl[0]) - g.lo[0];
-                    if !(0..e[0]).contains(&hx) {
-                        continue;
-                    }
-                    let v = values[src + k];
-                    let i = row + hx as usize;
-                    self.lo[i] = self.lo[i].min(v);
-                    self.hi[i] = self.hi[i].max(v);
-                }
-            }
-        }
+        fold_cell_bounds(
+            &values,
+            &bc,
+            &cells,
+            [0, 1, 2].map(|a| sl[a] / sf[a]),
+            &self.cells,
+            (&mut self.lo, &mut self.hi),
+        );
         Ok(())
     }
 
@@ -314,4 +322,18 @@ impl Neighbourhood {
     pub fn value(&self, i: usize) -> f32 {
         self.lo[i]
     }
+}
+
+/// The smallest box holding `a` and `b`; an empty box holds nothing.
+fn hull(a: &IBox, b: &IBox) -> IBox {
+    if a.is_empty() {
+        return *b;
+    }
+    if b.is_empty() {
+        return *a;
+    }
+    IBox::new(
+        [0, 1, 2].map(|k| a.lo[k].min(b.lo[k])),
+        [0, 1, 2].map(|k| a.hi[k].max(b.hi[k])),
+    )
 }

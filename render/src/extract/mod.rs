@@ -16,6 +16,7 @@
 //! touching their bricks. The result holds 8 bytes per active voxel, in leaf order and sorted
 //! within each leaf, the same on every run and any number of threads.
 
+pub mod band;
 pub mod cull;
 pub mod current;
 pub mod leaf;

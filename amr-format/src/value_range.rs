@@ -38,8 +38,8 @@ impl RangeAccumulator {
         let chunks = values.chunks_exact(LANES);
         let tail = chunks.remainder();
         for chunk in chunks {
-            for i in 0..LANES {
-                self.add_one(i, chunk[i]);
+            for (i, &v) in chunk.iter().enumerate() {
+                self.add_one(i, v);
             }
         }
         for (i, &v) in tail.iter().enumerate() {

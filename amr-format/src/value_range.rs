@@ -7,13 +7,11 @@
 const LANES: usize = 16;
 const EXPONENT: u32 = 0x7f80_0000;
 
-/// A running range of `f32` values fed a slice at a time. NaNs are ignored, as by
-/// [`f32::min`]; [`RangeAccumulator::all_finite`] says whether any value was NaN or infinite.
+/// A running range of `f32` values fed a slice at a time; NaNs are ignored.
 #[derive(Clone, Debug)]
 pub struct RangeAccumulator {
     lo: [f32; LANES],
     hi: [f32; LANES],
-    not_finite: [u32; LANES],
 }
 
 impl Default for RangeAccumulator {
@@ -28,30 +26,27 @@ impl RangeAccumulator {
         Self {
             lo: [f32::INFINITY; LANES],
             hi: [f32::NEG_INFINITY; LANES],
-            not_finite: [0; LANES],
         }
     }
 
     /// Adds `values`.
     #[inline]
     pub fn add(&mut self, values: &[f32]) {
-        let chunks = values.chunks_exact(LANES);
-        let tail = chunks.remainder();
+        let (mut lo, mut hi) = (self.lo, self.hi);
+        let (chunks, tail) = values.as_chunks::<LANES>();
         for chunk in chunks {
-            for (i, &v) in chunk.iter().enumerate() {
-                self.add_one(i, v);
+            for k in 0..LANES {
+                // A select rather than `f32::min`: one instruction per lane, and a NaN
+                // compares false so it is ignored all the same.
+                lo[k] = if chunk[k] < lo[k] { chunk[k] } else { lo[k] };
+                hi[k] = if chunk[k] > hi[k] { chunk[k] } else { hi[k] };
             }
         }
-        for (i, &v) in tail.iter().enumerate() {
-            self.add_one(i, v);
+        for &v in tail {
+            lo[0] = if v < lo[0] { v } else { lo[0] };
+            hi[0] = if v > hi[0] { v } else { hi[0] };
         }
-    }
-
-    #[inline(always)]
-    fn add_one(&mut self, lane: usize, v: f32) {
-        self.not_finite[lane] |= u32::from(v.to_bits() & EXPONENT == EXPONENT);
-        self.lo[lane] = self.lo[lane].min(v);
-        self.hi[lane] = self.hi[lane].max(v);
+        (self.lo, self.hi) = (lo, hi);
     }
 
     /// The range so far: `(+inf, -inf)` when empty.
@@ -60,11 +55,6 @@ impl RangeAccumulator {
             self.lo.iter().copied().fold(f32::INFINITY, f32::min),
             self.hi.iter().copied().fold(f32::NEG_INFINITY, f32::max),
         )
-    }
-
-    /// False if a value added so far was NaN or infinite.
-    pub fn all_finite(&self) -> bool {
-        self.not_finite.iter().all(|&b| b == 0)
     }
 }
 
@@ -77,9 +67,19 @@ pub fn value_range(values: &[f32]) -> (f32, f32) {
 
 /// The range of `values`, or `None` if one is NaN or infinite.
 pub fn finite_range(values: &[f32]) -> Option<(f32, f32)> {
-    let mut acc = RangeAccumulator::new();
-    acc.add(values);
-    acc.all_finite().then(|| acc.range())
+    let mut not_finite = [0u32; LANES];
+    let chunks = values.chunks_exact(LANES);
+    let tail = chunks.remainder();
+    for chunk in chunks {
+        for (bad, &v) in not_finite.iter_mut().zip(chunk) {
+            *bad |= u32::from(v.to_bits() & EXPONENT == EXPONENT);
+        }
+    }
+    let tail_bad = tail.iter().any(|v| !v.is_finite());
+    if tail_bad || not_finite.iter().any(|&b| b != 0) {
+        return None;
+    }
+    Some(value_range(values))
 }
 
 #[cfg(test)]

@@ -138,18 +138,20 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     for z in first[2]..=last[2] {
         for y in first[1]..=last[1] {
             let row = hood.index([first[0], y, z]);
-            let corner = |n: usize| &codes[row + offsets[n]..row + offsets[n] + width];
-            let (c0, c1, c2, c3) = (corner(0), corner(1), corner(2), corner(3));
-            let (c4, c5, c6, c7) = (corner(4), corner(5), corner(6), corner(7));
-            for (k, m) in row_masks.iter_mut().enumerate() {
-                *m = c0[k] | c1[k] | c2[k] | c3[k] | c4[k] | c5[k] | c6[k] | c7[k];
-            }
-            for (k, &m) in row_masks.iter().enumerate() {
-                if m & NOT_LEAF != 0 {
-                    continue;
+            row_masks.copy_from_slice(&codes[row..row + width]);
+            for &d in &offsets[1..] {
+                for (m, &c) in row_masks.iter_mut().zip(&codes[row + d..row + d + width]) {
+                    *m |= c;
                 }
-                counts.evaluated += 1;
-                if m & (ABOVE | BELOW) == ABOVE | BELOW {
+            }
+            let leaf_duals = row_masks.iter().filter(|&&m| m & NOT_LEAF == 0).count();
+            counts.evaluated += leaf_duals as u64;
+            let active = |m: &u8| m & (NOT_LEAF | ABOVE | BELOW) == ABOVE | BELOW;
+            if leaf_duals == 0 || !row_masks.iter().any(active) {
+                continue;
+            }
+            for (k, m) in row_masks.iter().enumerate() {
+                if active(m) {
                     let cell = frame.cells.linear_index([first[0] + k as i64, y, z]) as u32;
                     out.push(make_ref(frame.leaf, LocalVoxel::Dual { cell }));
                 }
@@ -168,6 +170,10 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         for z in c.lo[2]..c.hi[2] {
             for y in c.lo[1]..c.hi[1] {
                 let row = hood.index([c.lo[0], y, z]);
+                let width = c.extent()[0] as usize;
+                if !hood.near_boundary[row..row + width].contains(&true) {
+                    continue;
+                }
                 for (k, x) in (c.lo[0]..c.hi[0]).enumerate() {
                     let cell = [x, y, z];
                     let i = row + k;

@@ -65,6 +65,8 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// cache of about `cache_bytes`.
     pub fn new(file: &'f AmrkFile<D>, field: usize, cache_bytes: usize) -> Result<Self> {
         let sampler = Sampler::new(file, field, cache_bytes)?;
+        // Start the worker threads now, with the file open, not inside the first extraction.
+        rayon::broadcast(|_| ());
         let file_cells = (0..file.num_bricks())
             .map(|b| file.brick(b).cells.num_cells().unwrap_or(0))
             .sum();

@@ -3,11 +3,18 @@
 //!
 //! The file's stored leaf ranges are unions of whole-brick ranges (the writer never re-reads
 //! data), so a leaf far from the surface is often visited because some other part of a
-//! neighbouring brick straddles the isovalue. The tight range applies the same reach rule
-//! (`amr-format/src/kdtree/ranges.rs`: the leaf grown by two cells of the coarsest level met,
-//! until that level stops changing) to the cells themselves rather than to whole bricks, with
-//! one more level-`L` cell of margin, and the same widening for round-off. A leaf whose tight range
-//! does not hold the isovalue has no active voxel and is skipped before its neighbourhood is built.
+//! neighbouring brick straddles the isovalue. The tight range is the range of the cells
+//! themselves within reach of the leaf, widened for round-off:
+//! - when no leaf coarser than the leaf's level `L` touches the leaf grown by one level-`L` cell
+//!   (its neighbourhood), that grown box: every corner of every voxel the leaf owns is then the
+//!   value of, or a mean of, leaf cells of level `L` or finer inside it (the argument of
+//!   [`super::cull`], with no coarser cell in any 27-cell neighbourhood);
+//! - otherwise the stored range's reach rule (`amr-format/src/kdtree/ranges.rs`: the leaf grown by
+//!   two cells of the coarsest level met, until that level stops changing) with one more
+//!   level-`L` cell of margin.
+//!
+//! A leaf whose tight range does not hold the isovalue has no active voxel and is skipped before
+//! its neighbourhood is built.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -76,20 +83,23 @@ fn compute<D: AsRef<[u8]>>(
     let tree = sampler.file().tree();
     let own = tree.leaf_box(leaf);
     let margin = grid.scale(level);
-    let mut coarsest = level;
-    let region = loop {
-        let region = own.grow([0, 1, 2].map(|a| 2 * grid.scale(coarsest)[a] + margin[a]));
-        touching.clear();
-        tree.for_each_leaf_touching(&region, |l| touching.push(l));
-        let met = touching
-            .iter()
-            .filter_map(|&l| sampler.leaf_top(l).map(|(_, lv)| lv))
-            .min()
-            .unwrap_or(coarsest);
-        if met >= coarsest {
-            break region;
+    let hood = own.grow(margin);
+    touching.clear();
+    tree.for_each_leaf_touching(&hood, |l| touching.push(l));
+    let mut coarsest = coarsest_level(sampler, touching).unwrap_or(level);
+    let region = if coarsest >= level {
+        hood
+    } else {
+        loop {
+            let region = own.grow([0, 1, 2].map(|a| 2 * grid.scale(coarsest)[a] + margin[a]));
+            touching.clear();
+            tree.for_each_leaf_touching(&region, |l| touching.push(l));
+            let met = coarsest_level(sampler, touching).unwrap_or(coarsest);
+            if met >= coarsest {
+                break region;
+            }
+            coarsest = met;
         }
-        coarsest = met;
     };
     let (mut lo, mut hi) = empty;
     for &l in touching.iter() {
@@ -108,4 +118,12 @@ fn compute<D: AsRef<[u8]>>(
         return Ok(empty);
     }
     Ok(widen_range(lo, hi))
+}
+
+/// The coarsest level of the leaves with data among `leaves`.
+fn coarsest_level<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>, leaves: &[u32]) -> Option<u32> {
+    leaves
+        .iter()
+        .filter_map(|&l| sampler.leaf_top(l).map(|(_, lv)| lv))
+        .min()
 }

@@ -94,18 +94,20 @@ pub fn central_difference<S: VoxelSource + ?Sized>(
     h: f64,
 ) -> Option<[f64; 3]> {
     let mut g = [0.0; 3];
-    let centre = src.sample(p).map(|s| f64::from(s.0));
+    // The value at `p` itself is needed only for a one-sided difference.
+    let mut centre: Option<Option<f64>> = None;
+    let mut centre_value = || *centre.get_or_insert_with(|| src.sample(p).map(|s| f64::from(s.0)));
     for (a, ga) in g.iter_mut().enumerate() {
         let at = |d: f64| {
             let mut q = p;
             q[a] += d;
             src.sample(q).map(|s| f64::from(s.0))
         };
-        *ga = match (at(h), at(-h), centre) {
-            (Some(f1), Some(f0), _) => (f1 - f0) / (2.0 * h),
-            (Some(f1), None, Some(c)) => (f1 - c) / h,
-            (None, Some(f0), Some(c)) => (c - f0) / h,
-            _ => return None,
+        *ga = match (at(h), at(-h)) {
+            (Some(f1), Some(f0)) => (f1 - f0) / (2.0 * h),
+            (Some(f1), None) => (f1 - centre_value()?) / h,
+            (None, Some(f0)) => (centre_value()? - f0) / h,
+            (None, None) => return None,
         };
     }
     Some(g)

@@ -19,6 +19,9 @@ use crate::sample_mode::SampleTracer;
 use crate::shade::{render_frame, IsoSpec, Lighting, RenderSettings};
 use crate::trace::{GridFrame, HybridTracer, Surface, VoxelSource};
 
+/// A camera given on the command line: position, look-at point and up vector.
+pub type CameraSpec = ([f64; 3], Option<[f64; 3]>, Option<[f64; 3]>);
+
 /// How cell values are reconstructed between cell centres.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Reconstruction {
@@ -160,7 +163,7 @@ pub struct RenderConfig {
     pub size: (u32, u32),
     /// Camera position, look-at point (default: the domain's centre) and up vector (default:
     /// z, or y when z is along the view); `None` frames the domain automatically.
-    pub camera: Option<([f64; 3], Option<[f64; 3]>, Option<[f64; 3]>)>,
+    pub camera: Option<CameraSpec>,
     /// Field of view for automatic framing.
     pub fov: f64,
     /// Intersection method.

@@ -73,7 +73,7 @@ impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {
         for _ in 0..BISECTIONS {
             let m = 0.5 * (a + b);
             match self.value(ray, m, iso) {
-                Some(f) if f == 0.0 => return m,
+                Some(0.0) => return m,
                 Some(f) if (f < 0.0) == neg_a => a = m,
                 _ => b = m,
             }

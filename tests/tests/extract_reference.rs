@@ -145,14 +145,6 @@ fn check_case(case: &Case) -> (u64, u64) {
                         })
                         .collect()
                 } else {
-                    let cell_centre = [0, 1, 2].map(|a| {
-                        if vox.lo_doubled[a] % (2 * s_l[a]) == 0 {
-                            0
-                        } else {
-                            0
-                        }
-                    });
-                    let _ = cell_centre;
                     let at = s.grid().finest_cell(
                         [0, 1, 2].map(|a| {
                             vox.lo_doubled[a] + s_l[a].min(1) - 1

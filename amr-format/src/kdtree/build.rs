@@ -137,7 +137,9 @@ fn decide(bricks: &[TreeBrick], task: &Task) -> Result<Decision> {
     let r = &task.region;
     // The plane nearest the middle of its axis wins (|2 at - lo - hi| / extent, in fixed point);
     // ties go to the longer axis, so regions stay compact.
-    let mut best: Option<((u128, std::cmp::Reverse<i64>, usize, i64), usize, i64)> = None;
+    // (distance from the middle, longer axis first, axis, plane): smallest wins.
+    type PlaneKey = (u128, std::cmp::Reverse<i64>, usize, i64);
+    let mut best: Option<(PlaneKey, usize, i64)> = None;
     for &b in &top {
         let bb = &bricks[b as usize].bounds;
         for axis in 0..3 {

@@ -29,7 +29,7 @@ pub fn convert(
     );
     let out_err = |source| ChomboError::Output {
         path: output.to_path_buf(),
-        source: source,
+        source,
     };
     let fields = comps.iter().map(|&c| pf.fields[c].clone()).collect();
     let mut sink = BrickSink::create(output, pf.level_specs(), fields, layout, opts.compression)

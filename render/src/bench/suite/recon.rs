@@ -44,7 +44,7 @@ pub fn write_partial_sphere(path: &std::path::Path, p: &SynthParams) -> anyhow::
     let spec = build_hierarchy_by(p, vec!["sphere".into()], |b| {
         let key =
             (b.cells.lo[0] as u64) << 42 ^ (b.cells.lo[1] as u64) << 21 ^ b.cells.lo[2] as u64;
-        near_surface(&field, 0.0, b) && hash2(SEED + u64::from(b.level), key) % 3 != 0
+        near_surface(&field, 0.0, b) && !hash2(SEED + u64::from(b.level), key).is_multiple_of(3)
     })?;
     write_dataset(path, spec, &field)
 }

@@ -93,7 +93,8 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
         let spec = build_hierarchy_by(&p, vec!["f".into()], |b| {
             let key =
                 (b.cells.lo[0] as u64) << 42 ^ (b.cells.lo[1] as u64) << 21 ^ b.cells.lo[2] as u64;
-            near_surface(&Case::Sphere, 0.0, b) && hash2(rseed + u64::from(b.level), key) % 4 != 0
+            near_surface(&Case::Sphere, 0.0, b)
+                && !hash2(rseed + u64::from(b.level), key).is_multiple_of(4)
         })?;
         let path = ctx.scratch.join(format!("stress-{case}.amrk"));
         write_dataset(&path, spec, &field)?;

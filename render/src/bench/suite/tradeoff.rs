@@ -29,9 +29,12 @@ use crate::trace::{GridFrame, GridRay, HybridTracer, Surface, SurfaceHit, Tracer
 /// Light direction (towards the light) for the shaded frames.
 const LIGHT: [f64; 3] = [0.41, -0.57, 0.71];
 
+/// A pixel's hit: world position, world normal and ray parameter.
+type PixelHit = ([f64; 3], [f64; 3], f64);
+
 /// One traced frame: per pixel the hit (world position, world normal), and the time taken.
 struct Frame {
-    hits: Vec<Option<([f64; 3], [f64; 3], f64)>>,
+    hits: Vec<Option<PixelHit>>,
     secs: f64,
 }
 

@@ -6,7 +6,7 @@ use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use amr_format::{AmrkFile, FormatError, Result};
-use memmap2::{Mmap, UncheckedAdvice};
+use memmap2::{Advice, Mmap, UncheckedAdvice};
 
 /// An `.amrk` file opened from a read-only memory map.
 pub type MappedFile = AmrkFile<Mmap>;
@@ -74,7 +74,8 @@ pub fn mapped_resident_bytes(map: &[u8]) -> Option<u64> {
 }
 
 /// Drops the pages of a file's map from this process's resident set on request, so that the
-/// map's share of the peak RSS is what one stage touches between two requests, not the file.
+/// map's share of the peak RSS is what one stage touches between two requests, not the file; and
+/// asks the kernel to read ahead the pages a stage is about to touch.
 ///
 /// The pages stay in the kernel's page cache while memory allows: touching them again costs a
 /// minor fault, not a read. Each request first measures the map's resident bytes
@@ -110,6 +111,23 @@ impl<'f> PageRelease<'f> {
         // A refused hint leaves the pages resident, which costs memory but changes no result.
         drop(dropped);
         resident
+    }
+
+    /// Asks the kernel to start reading the byte ranges `ranges` (offset, length) of the map
+    /// into the page cache (`madvise(MADV_WILLNEED)`) and returns without waiting for the reads,
+    /// so that a stage about to fault them in finds them read, or being read with a deep queue.
+    /// Ranges are clipped to the map.
+    pub fn read_ahead(&self, ranges: impl IntoIterator<Item = (u64, u64)>) {
+        let map = self.file.data();
+        let size = map.len() as u64;
+        for (offset, len) in ranges {
+            let end = offset.saturating_add(len).min(size);
+            if offset < end {
+                // A refused hint changes nothing but speed.
+                let _ =
+                    map.advise_range(Advice::WillNeed, offset as usize, (end - offset) as usize);
+            }
+        }
     }
 
     /// The most map bytes measured resident at once: the largest of the measurements taken by

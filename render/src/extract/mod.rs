@@ -96,6 +96,36 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         &self.sampler
     }
 
+    /// Asks for the stored bytes of the bricks under `leaves` to be read ahead, when a
+    /// [`PageRelease`] is set: a chunk's bricks are then read while the chunk before it is
+    /// extracted, and the reads of one chunk are queued together rather than one fault at a time.
+    fn read_ahead(&self, leaves: &[u32]) {
+        /// Ranges closer than this are read as one.
+        const GAP: u64 = 64 << 10;
+        let Some(pages) = self.pages else {
+            return;
+        };
+        let file = self.sampler.file();
+        let field = self.sampler.field();
+        let mut ranges: Vec<(u64, u64)> = leaves
+            .iter()
+            .flat_map(|&l| file.leaf(l).bricks.iter())
+            .map(|b| {
+                let d = file.brick_data(field, b.get() as usize);
+                (d.offset.get(), d.offset.get().saturating_add(d.len.get()))
+            })
+            .collect();
+        ranges.sort_unstable();
+        let mut merged: Vec<(u64, u64)> = Vec::new();
+        for (start, end) in ranges {
+            match merged.last_mut() {
+                Some(last) if start <= last.1.saturating_add(GAP) => last.1 = last.1.max(end),
+                _ => merged.push((start, end)),
+            }
+        }
+        pages.read_ahead(merged.into_iter().map(|(start, end)| (start, end - start)));
+    }
+
     /// The active voxels for `iso`: those whose corner values `v` satisfy
     /// `min v < iso <= max v`.
     pub fn extract(&self, iso: f32) -> Result<Extraction> {
@@ -127,7 +157,14 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let mut boundary_evaluated = 0u64;
         let mut leaves_skipped = 0u64;
         let mut touched: Option<u64> = None;
-        for chunk in leaves.chunks(CHUNK) {
+        let chunks: Vec<&[u32]> = leaves.chunks(CHUNK).collect();
+        if let Some(first) = chunks.first() {
+            self.read_ahead(first);
+        }
+        for (k, chunk) in chunks.iter().enumerate() {
+            if let Some(next) = chunks.get(k + 1) {
+                self.read_ahead(next);
+            }
             let parts: Vec<Result<(Vec<u64>, LeafCounts)>> = chunk
                 .par_iter()
                 .map_init(

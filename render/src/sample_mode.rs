@@ -62,6 +62,10 @@ impl<S: VoxelSource + ?Sized> Tracer for SampleTracer<'_, S> {
         }
         None
     }
+
+    fn release_pages(&self) {
+        self.src.release_pages();
+    }
 }
 
 impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {

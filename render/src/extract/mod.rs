@@ -40,8 +40,11 @@ pub use refs::{make_ref, split_ref, LocalVoxel, Voxel, DUAL_BASE};
 pub use stats::ExtractStats;
 use tight::TightRanges;
 
-/// Leaves handed to the thread pool at a time; bounds the memory held beside the result.
-const CHUNK: usize = 4096;
+/// Leaves handed to the thread pool at a time, at most; bounds the memory held beside the result.
+const CHUNK_LEAVES: usize = 4096;
+/// Cell bytes of the leaves of one chunk (at each leaf's own level), at most, unless one leaf
+/// holds more: bounds the map pages a chunk touches, released after it.
+const CHUNK_BYTES: u64 = 64 << 20;
 
 /// The active voxels of one isovalue and what finding them took.
 #[derive(Clone, Debug, Default)]
@@ -94,6 +97,34 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// The sampler underneath.
     pub fn sampler(&self) -> &Sampler<'f, D> {
         &self.sampler
+    }
+
+    /// `leaves` cut into runs of at most [`CHUNK_LEAVES`] leaves and about [`CHUNK_BYTES`] of
+    /// their cells.
+    fn chunks<'l>(&self, leaves: &'l [u32]) -> Vec<&'l [u32]> {
+        let grid = self.sampler.grid();
+        let tree = self.sampler.file().tree();
+        let bytes = |l: u32| -> u64 {
+            let Some((_, level)) = self.sampler.leaf_top(l) else {
+                return 0;
+            };
+            let cells = grid.level_box(level, &tree.leaf_box(l)).num_cells();
+            cells.unwrap_or(u64::MAX).saturating_mul(4)
+        };
+        let mut out = Vec::new();
+        let (mut start, mut sum) = (0, 0u64);
+        for (i, &l) in leaves.iter().enumerate() {
+            let b = bytes(l);
+            if i > start && (i - start == CHUNK_LEAVES || sum.saturating_add(b) > CHUNK_BYTES) {
+                out.push(&leaves[start..i]);
+                (start, sum) = (i, 0);
+            }
+            sum = sum.saturating_add(b);
+        }
+        if start < leaves.len() {
+            out.push(&leaves[start..]);
+        }
+        out
     }
 
     /// Asks for the stored bytes of the bricks under `leaves` to be read ahead, when a
@@ -157,7 +188,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let mut boundary_evaluated = 0u64;
         let mut leaves_skipped = 0u64;
         let mut touched: Option<u64> = None;
-        let chunks: Vec<&[u32]> = leaves.chunks(CHUNK).collect();
+        let chunks = self.chunks(leaves);
         if let Some(first) = chunks.first() {
             self.read_ahead(first);
         }

@@ -46,6 +46,10 @@ impl<T: Tracer + ?Sized> Tracer for Counting<'_, T> {
     }
 }
 
+/// Pixels of a band of rows rendered between two [`Tracer::release_pages`] calls: the map pages a
+/// frame holds resident are those one band touches, not the whole frame's.
+const BAND_PIXELS: u64 = 1 << 16;
+
 /// Renders a frame; calls `progress(rows_done)` after each row. Returns the frame and the number
 /// of ray queries (one per ray and isosurface).
 pub fn render_frame<T: Tracer + Sync + ?Sized>(
@@ -57,20 +61,26 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
 ) -> (FrameBuffer, u64) {
     let (w, h) = (settings.width, settings.height);
     let spp = settings.spp.max(1);
-    let rows: Vec<(Vec<PixelSample>, u64)> = (0..h)
-        .into_par_iter()
-        .map(|y| {
-            let counting = Counting {
-                inner: tracer,
-                rays: Cell::new(0),
-            };
-            let row = (0..w)
-                .map(|x| pixel(&counting, camera, light, x, y, w, h, spp))
-                .collect();
-            progress(1);
-            (row, counting.rays.get())
-        })
-        .collect();
+    let band = (BAND_PIXELS / (u64::from(w) * u64::from(spp)).max(1)).clamp(1, u64::from(h)) as u32;
+    let mut rows: Vec<(Vec<PixelSample>, u64)> = Vec::with_capacity(h as usize);
+    for y0 in (0..h).step_by(band.max(1) as usize) {
+        let part: Vec<(Vec<PixelSample>, u64)> = (y0..(y0 + band).min(h))
+            .into_par_iter()
+            .map(|y| {
+                let counting = Counting {
+                    inner: tracer,
+                    rays: Cell::new(0),
+                };
+                let row = (0..w)
+                    .map(|x| pixel(&counting, camera, light, x, y, w, h, spp))
+                    .collect();
+                progress(1);
+                (row, counting.rays.get())
+            })
+            .collect();
+        rows.extend(part);
+        tracer.release_pages();
+    }
     let rays = rows.iter().map(|r| r.1).sum();
     let pixels: Vec<PixelSample> = rows.into_iter().flat_map(|r| r.0).collect();
     (

@@ -33,6 +33,10 @@ pub trait Tracer {
     /// The first hit with surface `i` with `t` in `[tmin, tmax]`.
     fn next_hit(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> Option<SurfaceHit>;
 
+    /// Drops the pages of the file traced from the resident set (between bands of a frame);
+    /// a no-op unless the source holds a file.
+    fn release_pages(&self) {}
+
     /// True when surface `i` is hit with `t` in `[tmin, tmax]`.
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
         self.next_hit(i, ray, tmin, tmax).is_some()
@@ -83,6 +87,10 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
 
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
         self.surfaces[i].any_hit(self.src, ray, tmin, tmax)
+    }
+
+    fn release_pages(&self) {
+        self.src.release_pages();
     }
 }
 

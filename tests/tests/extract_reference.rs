@@ -110,6 +110,11 @@ fn check_case(case: &Case) -> (u64, u64) {
                 last = Some(r);
                 let (leaf, _) = split_ref(r);
                 let vox = ex.decode(r).unwrap_or_else(|e| panic!("{ctx}: {e}"));
+                assert_eq!(
+                    ex.voxel_box(r).unwrap_or_else(|e| panic!("{ctx}: {e}")),
+                    (vox.lo_doubled, vox.hi_doubled),
+                    "{ctx}: ref {r:#x}: the box from the reference alone differs from the decoded one"
+                );
                 assert!(
                     straddles(&vox.values, iso),
                     "{ctx}: ref {r:#x} decodes to inactive {vox:?}"

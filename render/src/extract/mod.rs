@@ -263,53 +263,34 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// [`Self::decode`], remembering vertex values in `memo` for the next calls (a memo must
     /// serve one sampler only: values are keyed by position).
     pub fn decode_memo(&self, r: u64, memo: &mut VertexMemo) -> Result<Voxel> {
-        let (leaf, local) = split_ref(r);
-        let bad = |m: &str| FormatError::Usage(format!("voxel reference {r:#018x}: {m}"));
-        if leaf as usize >= self.sampler.file().num_leaves() {
-            return Err(bad("no such leaf"));
-        }
-        let frame =
-            LeafFrame::new(&self.sampler, leaf).ok_or_else(|| bad("the leaf holds no brick"))?;
+        let (frame, cell, octant) = self.resolve(r)?;
         let grid = self.sampler.grid();
         let level = frame.level;
-        let cell_at = |i: u32| -> Option<[i64; 3]> {
-            let e = frame.cells.extent();
-            let i = i64::from(i);
-            (i < e[0] * e[1] * e[2])
-                .then(|| [i % e[0], i / e[0] % e[1], i / (e[0] * e[1])])
-                .map(|d| [0, 1, 2].map(|a| frame.cells.lo[a] + d[a]))
-        };
-        let (lo, hi, values, dual) = match local {
-            LocalVoxel::Octant { cell, octant } => {
-                let cell = cell_at(cell).ok_or_else(|| bad("cell index past the leaf"))?;
+        let (lo, hi) = self.doubled_box(level, cell, octant);
+        let values = match octant {
+            Some(octant) => {
                 let o = Octant {
                     level,
                     cell,
                     octant,
                 };
-                let values = self
-                    .sampler
+                self.sampler
                     .octant_values_memo(&o, memo)?
-                    .ok_or_else(|| bad("no values there"))?;
-                let (lo, hi) = self.sampler.octant_box(&o);
-                (lo, hi, values, false)
+                    .ok_or_else(|| bad_ref(r, "no values there"))?
             }
-            LocalVoxel::Dual { cell } => {
-                let c0 = cell_at(cell).ok_or_else(|| bad("cell index past the leaf"))?;
+            None => {
                 let mut values = [0f32; 8];
                 for (n, v) in values.iter_mut().enumerate() {
-                    let c = [0, 1, 2].map(|a| c0[a] + (n >> a & 1) as i64);
+                    let c = [0, 1, 2].map(|a| cell[a] + (n >> a & 1) as i64);
                     let at = grid.finest_cell(grid.centre(level, c), 7);
                     match self.sampler.locate(at)? {
                         Some(leaf_cell) if leaf_cell.level == level && leaf_cell.cell == c => {
                             *v = leaf_cell.value
                         }
-                        _ => return Err(bad("not a merged dual cell")),
+                        _ => return Err(bad_ref(r, "not a merged dual cell")),
                     }
                 }
-                let lo = grid.centre(level, c0);
-                let s = grid.scale(level);
-                (lo, [0, 1, 2].map(|a| lo[a] + 2 * s[a]), values, true)
+                values
             }
         };
         Ok(Voxel {
@@ -319,7 +300,59 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             hi_doubled: hi,
             values,
             level,
-            dual,
+            dual: octant.is_none(),
         })
     }
+
+    /// The box, in doubled coordinates, of the voxel `r` names, from the reference alone: no
+    /// brick data is read (the BVH build needs only boxes).
+    pub fn voxel_box(&self, r: u64) -> Result<([i64; 3], [i64; 3])> {
+        let (frame, cell, octant) = self.resolve(r)?;
+        Ok(self.doubled_box(frame.level, cell, octant))
+    }
+
+    /// The leaf of the voxel `r` names, its level-`L` cell (absolute index) and its octant, or
+    /// `None` for a merged dual cell (the cell is then the dual cell's lowest).
+    fn resolve(&self, r: u64) -> Result<(LeafFrame, [i64; 3], Option<u8>)> {
+        let (leaf, local) = split_ref(r);
+        if leaf as usize >= self.sampler.file().num_leaves() {
+            return Err(bad_ref(r, "no such leaf"));
+        }
+        let frame = LeafFrame::new(&self.sampler, leaf)
+            .ok_or_else(|| bad_ref(r, "the leaf holds no brick"))?;
+        let (index, octant) = match local {
+            LocalVoxel::Octant { cell, octant } => (cell, Some(octant)),
+            LocalVoxel::Dual { cell } => (cell, None),
+        };
+        let e = frame.cells.extent();
+        let i = i64::from(index);
+        if i >= e[0] * e[1] * e[2] {
+            return Err(bad_ref(r, "cell index past the leaf"));
+        }
+        let d = [i % e[0], i / e[0] % e[1], i / (e[0] * e[1])];
+        let cell = [0, 1, 2].map(|a| frame.cells.lo[a] + d[a]);
+        Ok((frame, cell, octant))
+    }
+
+    /// The doubled-coordinate box of octant `octant` of level-`level` cell `cell`, or of the dual
+    /// cell whose lowest cell is `cell` when `octant` is `None`.
+    fn doubled_box(&self, level: u32, cell: [i64; 3], octant: Option<u8>) -> ([i64; 3], [i64; 3]) {
+        match octant {
+            Some(octant) => self.sampler.octant_box(&Octant {
+                level,
+                cell,
+                octant,
+            }),
+            None => {
+                let lo = self.sampler.grid().centre(level, cell);
+                let s = self.sampler.grid().scale(level);
+                (lo, [0, 1, 2].map(|a| lo[a] + 2 * s[a]))
+            }
+        }
+    }
+}
+
+/// The error for a reference that names no voxel of the file.
+fn bad_ref(r: u64, what: &str) -> FormatError {
+    FormatError::Usage(format!("voxel reference {r:#018x}: {what}"))
 }

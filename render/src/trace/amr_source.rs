@@ -173,6 +173,15 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for AmrSource<'_, D> {
         self.cached_voxel(r)
     }
 
+    fn voxel_box(&self, r: u64) -> ([f64; 3], [f64; 3]) {
+        // A reference that names no voxel gets the empty box `decode_ref` gives it.
+        self.ext
+            .voxel_box(r)
+            .map_or(([0.0; 3], [0.0; 3]), |(lo, hi)| {
+                (lo.map(|x| x as f64), hi.map(|x| x as f64))
+            })
+    }
+
     fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)> {
         let s = self.ext.sampler();
         let v = s.sample(p, self.method).ok().flatten()?;

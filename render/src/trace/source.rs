@@ -99,6 +99,13 @@ pub trait VoxelSource: Sync {
     /// The voxel named by `r`; `r` must come from this source's extraction.
     fn voxel(&self, r: u64) -> Voxel;
 
+    /// The box `(lo, hi)` of the voxel named by `r`: by default [`Self::voxel`]'s; sources that
+    /// can tell it from the reference alone skip reading its values.
+    fn voxel_box(&self, r: u64) -> ([f64; 3], [f64; 3]) {
+        let v = self.voxel(r);
+        (v.lo, v.hi)
+    }
+
     /// The reconstructed field and the AMR level at grid point `p`, or `None` outside the data.
     fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)>;
 

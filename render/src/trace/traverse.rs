@@ -49,10 +49,7 @@ pub fn bvh_pad(frame: &GridFrame) -> f64 {
 
 /// The grid box of a voxel, from its ref.
 fn voxel_box<S: VoxelSource + ?Sized>(src: &S) -> impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync + '_ {
-    |r| {
-        let v = src.voxel(r);
-        (v.lo, v.hi)
-    }
+    |r| src.voxel_box(r)
 }
 
 impl Surface {

@@ -61,22 +61,30 @@ pub enum FormatError {
     #[error("writer misuse: {0}")]
     Usage(String),
     /// An operating-system error.
-    #[error("{context}: {source}")]
+    // The message includes the cause, so it is not also exposed as `source()`: printing the
+    // chain (`{:#}`) would repeat it.
+    #[error("{context}: {cause}")]
     Io {
         /// What was being done.
         context: String,
         /// The underlying error.
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// An error about a named file.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {error}", path.display())]
     InFile {
         /// The file.
         path: PathBuf,
-        /// What is wrong with it.
-        #[source]
-        source: Box<FormatError>,
+        /// What is wrong with it (its message is part of this one's).
+        error: Box<FormatError>,
+    },
+    /// An output path that would replace something it must not (an input, a device, a directory).
+    #[error("{}: {reason}", path.display())]
+    Output {
+        /// The output path as given.
+        path: PathBuf,
+        /// Why it is refused.
+        reason: String,
     },
 }
 
@@ -84,18 +92,19 @@ impl FormatError {
     /// Wraps the error with the name of the file it concerns.
     pub fn in_file(self, path: impl Into<PathBuf>) -> Self {
         match self {
-            e @ FormatError::InFile { .. } => e,
+            e @ (FormatError::InFile { .. } | FormatError::Output { .. }) => e,
             e => FormatError::InFile {
                 path: path.into(),
-                source: Box::new(e),
+                error: Box::new(e),
             },
         }
     }
 
-    pub(crate) fn io(context: impl Into<String>, source: std::io::Error) -> Self {
+    /// An operating-system error met while doing `context`.
+    pub fn io(context: impl Into<String>, cause: std::io::Error) -> Self {
         FormatError::Io {
             context: context.into(),
-            source,
+            cause,
         }
     }
 }

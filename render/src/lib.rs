@@ -14,4 +14,5 @@ pub mod reconstruct;
 pub mod render_cmd;
 pub mod sample_mode;
 pub mod shade;
+pub mod sigbus;
 pub mod trace;

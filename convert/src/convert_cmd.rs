@@ -107,6 +107,7 @@ pub fn run_convert(
     if brick == 0 || i64::from(brick) > MAX_BRICK_EXTENT {
         bail!("--brick {brick}: the brick size must be 1 to {MAX_BRICK_EXTENT}");
     }
+    amr_format::output::check_output(output, &[input])?;
     let start = Instant::now();
     let opts = ConvertOptions {
         fields: fields.to_vec(),

@@ -3,7 +3,8 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use amr_convert::convert_cmd::run_convert;
+use amr_convert::convert_cmd::{detect, run_convert, InputFormat};
+use amr_convert::isolate;
 use amr_convert::synth_cmd::{run_synth, SynthArgs};
 use amr_format::Compression;
 use clap::{Parser, Subcommand};
@@ -49,6 +50,14 @@ fn main() -> ExitCode {
             let (Some(input), Some(output)) = (&cli.input, &cli.output) else {
                 unreachable!("clap requires INPUT and --output without a subcommand")
             };
+            if matches!(detect(input), Ok(InputFormat::ChomboHdf5)) && !isolate::is_child() {
+                // HDF5 is read in a child, whose crash on a corrupt file becomes an error.
+                return match isolate::convert_in_child(input, output) {
+                    Ok(code) => ExitCode::from(code),
+                    Err(e) => fail(e),
+                };
+            }
+            isolate::crash_if_asked();
             let compression = if cli.compress {
                 Compression::Zstd { level: 3 }
             } else {
@@ -60,11 +69,13 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("Error: {e:#}");
-            ExitCode::from(1)
-        }
+        Err(e) => fail(e),
     }
+}
+
+fn fail(e: anyhow::Error) -> ExitCode {
+    eprintln!("Error: {e:#}");
+    ExitCode::from(1)
 }
 
 #[cfg(test)]

@@ -34,6 +34,7 @@ pub struct ExtractArgs {
 /// Opens the file once and extracts every isovalue in turn, printing one line of statistics
 /// per run.
 pub fn run_extract(args: &ExtractArgs) -> anyhow::Result<()> {
+    crate::output::check_outputs(&args.file, &[args.stats_json.as_deref()])?;
     let file = open_mapped(&args.file)?;
     let field = match &args.field {
         None => 0,

@@ -77,6 +77,10 @@ fn run_rank(
     let start = Instant::now();
     let rank = world.rank();
     let mut setup = || -> anyhow::Result<_> {
+        crate::output::check_outputs(
+            &args.file,
+            &[Some(&args.output), args.preview.as_deref(), args.stats_json.as_deref()],
+        )?;
         let file = open_mapped(&args.file)?;
         let field = resolve_field(&file, args, &mut cfg)?;
         Ok((file, field))

@@ -233,6 +233,10 @@ pub fn resolve_field<D: AsRef<[u8]>>(
 
 /// Renders the file named in `args` with the validated `cfg`.
 pub fn render_file(args: &RenderArgs, mut cfg: RenderConfig) -> anyhow::Result<()> {
+    crate::output::check_outputs(
+        &args.file,
+        &[Some(&args.output), args.preview.as_deref(), args.stats_json.as_deref()],
+    )?;
     let file = open_mapped(&args.file)?;
     let field = resolve_field(&file, args, &mut cfg)?;
     let pages = PageRelease::new(&file);

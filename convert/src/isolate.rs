@@ -1,0 +1,51 @@
+//! Reading HDF5 in a child process: a crash of the HDF5 library on a corrupt file becomes a
+//! clear error, not the converter's death (`docs/dependencies.md` says why).
+//!
+//! The parent re-runs this program with the same arguments and [`CHILD_ENV`] set, and waits. The
+//! child converts as usual; its output, messages and exit status pass through. When it dies of a
+//! signal, the parent removes the temporaries it left and reports the input as probably corrupt.
+
+use std::os::unix::process::ExitStatusExt;
+use std::path::Path;
+use std::process::Command;
+
+use anyhow::{bail, Context};
+
+/// Set in the child's environment: the child converts in-process.
+pub const CHILD_ENV: &str = "AMR_CONVERT_HDF5_CHILD";
+
+/// Test hook: a child with this variable set dies of SIGABRT before reading, as a crash inside
+/// the HDF5 library would kill it.
+pub const TEST_CRASH_ENV: &str = "AMR_CONVERT_TEST_CRASH_CHILD";
+
+/// True in a child started by [`convert_in_child`].
+pub fn is_child() -> bool {
+    std::env::var_os(CHILD_ENV).is_some()
+}
+
+/// In a child, the crash [`TEST_CRASH_ENV`] asks for.
+pub fn crash_if_asked() {
+    if is_child() && std::env::var_os(TEST_CRASH_ENV).is_some() {
+        std::process::abort();
+    }
+}
+
+/// Runs this program again with its own arguments as a child converting `input` to `output`,
+/// and returns the child's exit code; a child killed by a signal is an error naming `input`.
+pub fn convert_in_child(input: &Path, output: &Path) -> anyhow::Result<u8> {
+    let exe = std::env::current_exe().context("cannot find this program to run its child")?;
+    let status = Command::new(exe)
+        .args(std::env::args_os().skip(1))
+        .env(CHILD_ENV, "1")
+        .status()
+        .context("cannot start the converting child process")?;
+    if let Some(code) = status.code() {
+        return Ok(u8::try_from(code).unwrap_or(1));
+    }
+    amr_format::output::remove_stale_temporaries(output);
+    let signal = status.signal().unwrap_or(0);
+    bail!(
+        "{}: the HDF5 library crashed reading it (signal {signal}); the file is probably corrupt",
+        input.display()
+    )
+}

@@ -810,6 +810,32 @@ fn check_table(name: &str, s: &Section, meta: &Section, count: u32, size: usize)
     Ok(())
 }
 
+/// Recomputes the metadata and footer checksums of the file in `bytes` after its metadata or
+/// footer was rewritten (by tests and tools that damage files on purpose, so that structural
+/// checks rather than checksums must catch the damage). Returns false, changing nothing, when
+/// the footer does not locate a metadata region inside `bytes`.
+pub fn recompute_checksums(bytes: &mut [u8]) -> bool {
+    let Some(at) = bytes.len().checked_sub(size_of::<Footer>()) else {
+        return false;
+    };
+    let Ok(mut footer) = Footer::read_from_bytes(&bytes[at..]) else {
+        return false;
+    };
+    let (start, len) = (footer.metadata.offset.get(), footer.metadata.len.get());
+    let Some(meta) = start
+        .checked_add(len)
+        .filter(|&end| end <= at as u64)
+        .map(|end| &bytes[start as usize..end as usize])
+    else {
+        return false;
+    };
+    footer.metadata_crc = crc32fast::hash(meta).into();
+    let fb = footer.as_bytes();
+    footer.footer_crc = crc32fast::hash(&fb[..fb.len() - 4]).into();
+    bytes[at..].copy_from_slice(footer.as_bytes());
+    true
+}
+
 /// Raw-struct byte view, used by tests that corrupt files on purpose.
 pub fn footer_bytes(footer: &Footer) -> &[u8] {
     footer.as_bytes()

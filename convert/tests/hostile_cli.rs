@@ -1,0 +1,137 @@
+//! `amr-convert` on hostile input (issue 15): outputs that would replace an input, a field name
+//! that is not UTF-8, a crash of the HDF5 library, temporaries left by a killed writer. Each is
+//! exit 1 with one message and no output, never a signal death or a replaced input.
+
+#[path = "../../tests/tests/chombo_support/mod.rs"]
+mod chombo_support;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use amr_convert::isolate::TEST_CRASH_ENV;
+use chombo_support::{writer, Desc};
+
+const BIN: &str = env!("CARGO_BIN_EXE_amr-convert");
+
+/// Runs `amr-convert args` with `env`; returns (exit code, stderr).
+fn run(args: &[&Path], env: &[(&str, &str)]) -> (Option<i32>, String) {
+    let out = Command::new(BIN)
+        .args(args)
+        .envs(env.iter().copied())
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn fixture(dir: &Path) -> PathBuf {
+    let input = dir.join("plt.3d.hdf5");
+    writer::write(&input, &Desc::three_levels(true)).unwrap();
+    input
+}
+
+/// The names in `dir`, sorted.
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn an_output_that_is_the_input_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture(dir.path());
+    let before = std::fs::read(&input).unwrap();
+    let (code, err) = run(&[&input, Path::new("-o"), &input], &[]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("is the input"), "{err}");
+    assert_eq!(std::fs::read(&input).unwrap(), before);
+    assert_eq!(names(dir.path()), ["plt.3d.hdf5"]);
+}
+
+#[test]
+fn an_output_inside_a_plotfile_directory_or_a_device_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let plt = dir.path().join("plt00000");
+    std::fs::create_dir(&plt).unwrap();
+    std::fs::write(plt.join("Header"), "HyperCLaw-V1.1\n").unwrap();
+    let (code, err) = run(&[&plt, Path::new("-o"), &plt.join("Header")], &[]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("inside the input directory"), "{err}");
+    assert_eq!(std::fs::read(plt.join("Header")).unwrap(), b"HyperCLaw-V1.1\n");
+    let input = fixture(dir.path());
+    let (code, err) = run(&[&input, Path::new("-o"), Path::new("/dev/null")], &[]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("not a regular file"), "{err}");
+    let (code, err) = run(
+        &[Path::new("synth"), Path::new("sphere"), Path::new("-o"), dir.path()],
+        &[],
+    );
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("is a directory"), "{err}");
+}
+
+/// A component name whose bytes are not UTF-8 is an error at conversion, not a file that its
+/// readers then refuse.
+#[test]
+fn a_field_name_that_is_not_utf8_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture(dir.path());
+    let mut bytes = std::fs::read(&input).unwrap();
+    let at = bytes
+        .windows(7)
+        .position(|w| w == b"density")
+        .expect("the name is stored as its bytes");
+    bytes[at + 6] = 0xFF;
+    std::fs::write(&input, bytes).unwrap();
+    let out = dir.path().join("out.amrk");
+    let (code, err) = run(&[&input, Path::new("-o"), &out], &[]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("component_0") && err.contains("not UTF-8"), "{err}");
+    assert_eq!(names(dir.path()), ["plt.3d.hdf5"]);
+}
+
+/// The child reading HDF5 dies of a signal (as it does inside libhdf5 on some corrupt files):
+/// the parent says so, exits 1 and leaves nothing behind.
+#[test]
+fn a_crash_of_the_hdf5_child_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture(dir.path());
+    let out = dir.path().join("out.amrk");
+    let (code, err) = run(&[&input, Path::new("-o"), &out], &[(TEST_CRASH_ENV, "1")]);
+    assert_eq!(code, Some(1), "{err}");
+    let want = format!(
+        "{}: the HDF5 library crashed reading it (signal 6); the file is probably corrupt",
+        input.display()
+    );
+    assert!(err.contains(&want), "{err}");
+    assert_eq!(names(dir.path()), ["plt.3d.hdf5"]);
+    let (code, err) = run(&[&input, Path::new("-o"), &out], &[]);
+    assert_eq!(code, Some(0), "{err}");
+}
+
+/// Temporaries of a writer killed mid-way (its PID gone) are removed by the next conversion to
+/// the same target; another target's are left alone.
+#[test]
+fn temporaries_of_a_killed_writer_are_removed_by_the_next_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture(dir.path());
+    let out = dir.path().join("out.amrk");
+    // PIDs above the kernel's limit (2^22) never run.
+    let stale = [".out.amrk.99999999.Ab12Cd.tmp", ".out.amrk.99999999.Ef34Gh.spill"];
+    for s in stale {
+        std::fs::write(dir.path().join(s), b"left by a killed writer").unwrap();
+    }
+    std::fs::write(dir.path().join(".other.amrk.99999999.Ab12Cd.tmp"), b"x").unwrap();
+    let (code, err) = run(&[&input, Path::new("-o"), &out], &[]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(
+        names(dir.path()),
+        [".other.amrk.99999999.Ab12Cd.tmp", "out.amrk", "plt.3d.hdf5"]
+    );
+}

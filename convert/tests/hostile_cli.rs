@@ -135,3 +135,22 @@ fn temporaries_of_a_killed_writer_are_removed_by_the_next_run() {
         [".other.amrk.99999999.Ab12Cd.tmp", "out.amrk", "plt.3d.hdf5"]
     );
 }
+
+/// One-byte corruptions of the fixture that kill a converter reading it in-process (SIGSEGV in
+/// `H5Aiterate2` with the system libhdf5 1.10, found by a random search): exit 1 naming the
+/// file, nothing left behind, whichever way the library fails on them.
+#[test]
+fn one_byte_corruptions_that_crash_libhdf5_are_errors() {
+    for (at, byte) in [(2077, 34u8), (11667, 159), (13472, 155), (1325, 97)] {
+        let dir = tempfile::tempdir().unwrap();
+        let input = fixture(dir.path());
+        let mut bytes = std::fs::read(&input).unwrap();
+        bytes[at] = byte;
+        std::fs::write(&input, bytes).unwrap();
+        let out = dir.path().join("out.amrk");
+        let (code, err) = run(&[&input, Path::new("-o"), &out], &[("RUST_BACKTRACE", "0")]);
+        assert_eq!(code, Some(1), "byte {at} = {byte}: {err}");
+        assert!(err.contains(&input.display().to_string()), "byte {at}: {err}");
+        assert_eq!(names(dir.path()), ["plt.3d.hdf5"], "byte {at}: {err}");
+    }
+}

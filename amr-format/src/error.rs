@@ -78,6 +78,10 @@ pub enum FormatError {
         /// What is wrong with it (its message is part of this one's).
         error: Box<FormatError>,
     },
+    /// An error met once and shared by everyone asking for the same thing again (a brick that
+    /// does not decode, for every reader of it).
+    #[error("{0}")]
+    Shared(std::sync::Arc<FormatError>),
     /// An output path that would replace something it must not (an input, a device, a directory).
     #[error("{}: {reason}", path.display())]
     Output {
@@ -92,11 +96,20 @@ impl FormatError {
     /// Wraps the error with the name of the file it concerns.
     pub fn in_file(self, path: impl Into<PathBuf>) -> Self {
         match self {
-            e @ (FormatError::InFile { .. } | FormatError::Output { .. }) => e,
+            e if e.names_a_file() => e,
             e => FormatError::InFile {
                 path: path.into(),
                 error: Box::new(e),
             },
+        }
+    }
+
+    /// True when the message already names a file.
+    fn names_a_file(&self) -> bool {
+        match self {
+            FormatError::InFile { .. } | FormatError::Output { .. } => true,
+            FormatError::Shared(e) => e.names_a_file(),
+            _ => false,
         }
     }
 

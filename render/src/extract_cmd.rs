@@ -62,7 +62,7 @@ pub fn run_extract(args: &ExtractArgs) -> anyhow::Result<()> {
         for _ in 0..args.runs.max(1) {
             let result = extractor
                 .extract(iso)
-                .with_context(|| format!("extracting iso {iso} from {}", args.file.display()))?;
+                .with_context(|| format!("extracting iso {iso}"))?;
             println!("{}", result.stats);
             all.push(result.stats);
         }

@@ -359,3 +359,28 @@ fn truncation_under_the_map_is_an_error() {
     );
     assert!(stderr.contains(&want), "{stderr}");
 }
+
+/// A compressed brick that does not decode: the message names the file once and says the
+/// problem once, in `extract` and in a render.
+#[test]
+fn an_undecodable_brick_is_named_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, iso) = base_file(dir.path(), Case::Ripple, true);
+    let mut b = std::fs::read(&path).unwrap();
+    let data_end = footer_of(&b).metadata.offset.get() as usize;
+    for i in (64..data_end).step_by(7) {
+        b[i] ^= 0x5A;
+    }
+    std::fs::write(&path, b).unwrap();
+    let (p, iso) = (path.to_str().unwrap(), format!("--iso={iso}"));
+    let out = dir.path().join("o.exr");
+    for args in [
+        vec!["extract", p, &iso],
+        vec![p, &iso, "-o", out.to_str().unwrap(), "--size", "16x16"],
+    ] {
+        let o = run(&args);
+        assert_eq!(o.code, Some(1), "{args:?}: {o:?}");
+        assert_eq!(o.stderr.matches(p).count(), 1, "{}", o.stderr);
+        assert_eq!(o.stderr.matches("corrupt file").count(), 1, "{}", o.stderr);
+    }
+}

@@ -13,7 +13,7 @@ use amr_format::{FormatError, Result};
 
 const SHARDS: usize = 64;
 
-type Slot = Arc<OnceLock<std::result::Result<Arc<[f32]>, String>>>;
+type Slot = Arc<OnceLock<std::result::Result<Arc<[f32]>, Arc<FormatError>>>>;
 
 #[derive(Default)]
 struct Shard {
@@ -74,8 +74,8 @@ impl BrickCache {
         };
         let value = slot.get_or_init(|| {
             self.decodes.fetch_add(1, Ordering::Relaxed);
-            decode().map(Arc::from).map_err(|e| e.to_string())
+            decode().map(Arc::from).map_err(Arc::new)
         });
-        value.clone().map_err(FormatError::Corrupt)
+        value.clone().map_err(FormatError::Shared)
     }
 }

@@ -13,19 +13,6 @@ use amr_format::{
 use common::*;
 use zerocopy::{FromBytes, IntoBytes};
 
-fn valid_file(seed: u64) -> Vec<u8> {
-    let mut rng = Rng(seed);
-    let spec = random_hierarchy(&mut rng, 3, 2, 3);
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("v.amrk");
-    write_file(&spec, &path, WriterOptions::default());
-    std::fs::read(&path).unwrap()
-}
-
-fn footer_of(bytes: &[u8]) -> Footer {
-    Footer::read_from_bytes(&bytes[bytes.len() - size_of::<Footer>()..]).unwrap()
-}
-
 /// Stores `footer` and recomputes both checksums, so only structural checks can object.
 fn reseal(bytes: &mut [u8], footer: Footer) {
     let at = bytes.len() - size_of::<Footer>();
@@ -39,13 +26,6 @@ fn nodes_of(b: &[u8]) -> (usize, Vec<KdNode>) {
     let n = f.num_nodes.get() as usize;
     let nodes = <[KdNode]>::ref_from_bytes(&b[at..at + 8 * n]).unwrap().to_vec();
     (at, nodes)
-}
-
-fn open_err(bytes: Vec<u8>) -> String {
-    match AmrkFile::open(bytes) {
-        Ok(_) => panic!("a damaged file opened"),
-        Err(e) => e.to_string(),
-    }
 }
 
 /// The root's split plane moved by one cell: leaf boxes no longer match the tree (the renderer

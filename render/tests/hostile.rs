@@ -5,7 +5,8 @@
 //!
 //! The fuzzer runs `AMR_FUZZ_CASES` mutated files (default 1000, about 15 s); for a nightly run:
 //! `AMR_FUZZ_CASES=100000 cargo test --release -p amr-render --test hostile fuzz -- --nocapture`
-//! (`AMR_FUZZ_SEED` moves the seeds). Failing files are kept in `target/hostile-fuzz/`.
+//! (`AMR_FUZZ_SEED` moves the seeds; `AMR_FUZZ_BIN` runs another `amr-render` binary, such as an
+//! installed or older one). Failing files are kept in `target/hostile-fuzz/`.
 
 use std::io::Read;
 use std::os::unix::fs::FileExt;
@@ -50,7 +51,12 @@ impl Outcome {
 
 /// Runs `amr-render args`, killing it after [`TIMEOUT`].
 fn run(args: &[&str]) -> Outcome {
-    let mut child = Command::new(BIN)
+    run_bin(BIN.as_ref(), args)
+}
+
+/// Runs `bin args`, killing it after [`TIMEOUT`].
+fn run_bin(bin: &std::ffi::OsStr, args: &[&str]) -> Outcome {
+    let mut child = Command::new(bin)
         .args(args)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
@@ -109,7 +115,7 @@ fn footer_of(b: &[u8]) -> Footer {
 
 /// The three runs of the fuzzer on `path`: `info`, `extract` and a 32x32 render. Returns the
 /// first problem, naming the command.
-fn check_all(path: &Path, iso: f32, out: &Path) -> Option<String> {
+fn check_all(bin: &std::ffi::OsStr, path: &Path, iso: f32, out: &Path) -> Option<String> {
     let (p, o, iso) = (
         path.to_str().unwrap(),
         out.to_str().unwrap(),
@@ -121,7 +127,7 @@ fn check_all(path: &Path, iso: f32, out: &Path) -> Option<String> {
         &[p, &iso, "-o", o, "--size", "32x32"],
     ];
     runs.iter().find_map(|args| {
-        let outcome = run(args);
+        let outcome = run_bin(bin, args);
         outcome.problem().map(|m| {
             let tail: String = outcome.stderr.chars().take(600).collect();
             format!("amr-render {}: {m}: {tail}", args.join(" "))
@@ -199,6 +205,7 @@ fn env_u64(name: &str, default: u64) -> u64 {
 fn fuzz_mutated_files_exit_cleanly() {
     let cases = env_u64("AMR_FUZZ_CASES", 1000);
     let seed0 = env_u64("AMR_FUZZ_SEED", 0);
+    let bin = std::env::var_os("AMR_FUZZ_BIN").unwrap_or_else(|| BIN.into());
     let dir = tempfile::tempdir().unwrap();
     let bases: Vec<(Vec<u8>, f32)> = [
         (Case::Blobs, false),
@@ -224,7 +231,7 @@ fn fuzz_mutated_files_exit_cleanly() {
         if amr_format::AmrkFile::open(&b[..]).is_ok() {
             opened += 1;
         }
-        if let Some(problem) = check_all(&path, *iso, &out) {
+        if let Some(problem) = check_all(&bin, &path, *iso, &out) {
             std::fs::create_dir_all(&keep).unwrap();
             let kept = keep.join(format!("seed-{seed}.amrk"));
             std::fs::write(&kept, &b).unwrap();

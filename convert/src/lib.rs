@@ -4,5 +4,4 @@ pub mod bricking;
 pub mod chombo;
 pub mod convert_cmd;
 pub mod progress;
-pub mod synth;
 pub mod synth_cmd;

@@ -6,7 +6,7 @@ mod chombo_support;
 use std::path::Path;
 
 use amr_convert::chombo::{self, ConvertOptions, ConvertStats};
-use amr_convert::progress::NoProgress;
+use amr_format::progress::NoProgress;
 use amr_format::{AmrkFile, Compression, IBox};
 use chombo_support::{value, writer, Desc};
 

@@ -6,7 +6,7 @@ mod chombo_support;
 use std::path::Path;
 
 use amr_convert::chombo::{self, ConvertOptions};
-use amr_convert::progress::NoProgress;
+use amr_format::progress::NoProgress;
 use amr_format::Compression;
 use chombo_support::{writer, Desc};
 

@@ -4,8 +4,8 @@
 //! directions, the axes and diagonals, and rays aimed exactly at finest-cell corners near the
 //! surface, many of which lie on the level-boundary faces, edges and corners the surface crosses.
 
-use amr_convert::progress::NoProgress;
-use amr_convert::synth::{
+use amr_format::progress::NoProgress;
+use amr_synth::{
     build_hierarchy_by, near_surface, write_spec, AnalyticField, Case, SynthParams,
 };
 use amr_format::{AmrkFile, WriterOptions};

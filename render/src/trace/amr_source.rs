@@ -6,8 +6,8 @@ use std::cell::RefCell;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use amr_convert::progress::NoProgress;
-use amr_convert::synth::{write_synth, AnalyticField, Case, SynthParams};
+use amr_format::progress::NoProgress;
+use amr_synth::{write_synth, AnalyticField, Case, SynthParams};
 use amr_format::{AmrkFile, WriterOptions};
 use anyhow::Context;
 

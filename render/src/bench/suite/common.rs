@@ -4,8 +4,8 @@
 use std::fmt;
 use std::path::Path;
 
-use amr_convert::progress::NoProgress;
-use amr_convert::synth::{write_spec, AnalyticField};
+use amr_format::progress::NoProgress;
+use amr_synth::{write_spec, AnalyticField};
 use amr_format::{HierarchySpec, WriterOptions};
 
 use crate::reconstruct::{Method, Sampler};

@@ -8,8 +8,8 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use amr_convert::synth::fields::{SPHERE_CENTRE, SPHERE_RADIUS};
-use amr_convert::synth::{build_hierarchy_by, near_surface, AnalyticField, Case, SynthParams};
+use amr_synth::fields::{SPHERE_CENTRE, SPHERE_RADIUS};
+use amr_synth::{build_hierarchy_by, near_surface, AnalyticField, Case, SynthParams};
 use rayon::prelude::*;
 
 use super::common::{hash2, method_name, rms, write_dataset, Rng, SampledSource, METHODS};

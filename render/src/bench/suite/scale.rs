@@ -10,8 +10,8 @@ use std::fmt::Write as _;
 use std::process::Command;
 use std::time::Instant;
 
-use amr_convert::progress::NoProgress;
-use amr_convert::synth::{fit_cells, write_synth, Case, SynthParams};
+use amr_format::progress::NoProgress;
+use amr_synth::{fit_cells, write_synth, Case, SynthParams};
 use amr_format::WriterOptions;
 use anyhow::{bail, Context};
 

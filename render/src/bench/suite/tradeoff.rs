@@ -10,8 +10,8 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use amr_convert::synth::fields::{SPHERE_CENTRE, SPHERE_RADIUS};
-use amr_convert::synth::{build_hierarchy, Case, SynthParams};
+use amr_synth::fields::{SPHERE_CENTRE, SPHERE_RADIUS};
+use amr_synth::{build_hierarchy, Case, SynthParams};
 use rayon::prelude::*;
 
 use super::common::{quantile, write_dataset};

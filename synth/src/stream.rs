@@ -8,10 +8,10 @@ use std::time::Instant;
 use amr_format::{AmrkWriter, FormatError, HierarchySpec, IBox, WriteSummary, WriterOptions};
 use rayon::prelude::*;
 
-use super::fields::{AnalyticField, Case};
-use super::params::SynthParams;
-use super::refine::build_hierarchy;
-use crate::progress::Progress;
+use crate::fields::{AnalyticField, Case};
+use crate::params::SynthParams;
+use crate::refine::build_hierarchy;
+use amr_format::progress::Progress;
 
 /// Bricks evaluated together, per rayon thread.
 const BRICKS_PER_THREAD: usize = 2;
@@ -143,7 +143,7 @@ pub fn cells_per_level(spec: &HierarchySpec) -> Vec<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::progress::NoProgress;
+    use amr_format::progress::NoProgress;
     use amr_format::{AmrkFile, Compression};
 
     #[test]
@@ -189,7 +189,7 @@ mod tests {
             let file = AmrkFile::open(bytes).unwrap();
             file.verify().unwrap();
             let spec = build_hierarchy(&case, case.name(), &params).unwrap();
-            let placed = crate::synth::Placed {
+            let placed = crate::Placed {
                 field: case,
                 origin: params.origin,
                 size: params.size,

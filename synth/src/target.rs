@@ -6,9 +6,9 @@
 
 use amr_format::FormatError;
 
-use super::fields::AnalyticField;
-use super::params::SynthParams;
-use super::refine::{near_surface, walk_levels};
+use crate::fields::AnalyticField;
+use crate::params::SynthParams;
+use crate::refine::{near_surface, walk_levels};
 
 /// Brick sizes tried, largest first, when the caller leaves the brick size free.
 const FREE_BRICKS: [u32; 4] = [32, 16, 8, 4];
@@ -130,8 +130,8 @@ fn misfit(total: u64, target: u64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth::fields::Case;
-    use crate::synth::refine::build_hierarchy;
+    use crate::fields::Case;
+    use crate::refine::build_hierarchy;
 
     #[test]
     fn counts_match_the_built_hierarchy() {

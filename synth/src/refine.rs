@@ -10,8 +10,8 @@
 use amr_format::{BrickSpec, FormatError, HierarchySpec, IBox};
 use rayon::prelude::*;
 
-use super::fields::AnalyticField;
-use super::params::SynthParams;
+use crate::fields::AnalyticField;
+use crate::params::SynthParams;
 
 /// Sample points per axis used by [`near_surface`].
 const SAMPLES: usize = 5;
@@ -168,7 +168,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth::fields::Case;
+    use crate::fields::Case;
     use std::collections::HashMap;
 
     fn params(levels: u32, ratio: u32, base: u32, brick: u32) -> SynthParams {

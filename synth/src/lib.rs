@@ -1,4 +1,4 @@
-//! Synthetic AMR datasets: analytic fields, hierarchies refined around their isosurfaces, and
+//! Synthetic AMR datasets for tests, benchmarks and the demo: analytic fields, hierarchies refined around their isosurfaces, and
 //! their values streamed brick by brick into an `.amrk` writer.
 //!
 //! - [`fields`]: the analytic functions ([`Case`], [`AnalyticField`]), public as ground truth.
@@ -8,6 +8,8 @@
 //! - [`stream`]: evaluating bricks in parallel and writing them in order.
 //!
 //! [`LevelSpec`]: amr_format::LevelSpec
+
+#![warn(missing_docs)]
 
 pub mod fields;
 pub mod params;

@@ -26,8 +26,6 @@ pub mod error;
 pub mod extract;
 pub mod info;
 pub mod mapping;
-#[cfg(feature = "mpi")]
-pub mod mpi;
 pub mod output;
 pub mod reconstruct;
 pub mod render;

@@ -15,7 +15,7 @@ use crate::extract::Extractor;
 use crate::mapping::{open_mapped, MappedFile, PageRelease};
 use crate::reconstruct::Reconstruction;
 use crate::shade::IsoSpec;
-use crate::stats::{ms, per_octant};
+use crate::stats::per_octant;
 use crate::trace::{FieldSource, GridFrame, Surface, VoxelSource};
 
 /// The voxel source of a mapped file.
@@ -218,12 +218,41 @@ impl Scene {
     /// kept (with the new colour and opacity), the others are extracted and built. Returns what
     /// the change cost.
     pub fn set_isosurfaces(&mut self, isos: &[IsoSpec]) -> Result<&SceneStats> {
+        self.replace_surfaces(isos, None)
+    }
+
+    /// Replaces the isosurfaces with `isos`, built from the given active voxels (one list per
+    /// isosurface) instead of extracted: for a process that holds one part of a scene.
+    pub fn set_isosurfaces_from_refs(
+        &mut self,
+        isos: &[IsoSpec],
+        refs: Vec<Vec<u64>>,
+    ) -> Result<&SceneStats> {
+        if refs.len() != isos.len() {
+            return Err(RenderError::Invalid(format!(
+                "{} lists of voxels for {} isosurfaces",
+                refs.len(),
+                isos.len()
+            )));
+        }
+        self.surfaces.clear();
+        self.replace_surfaces(isos, Some(refs))
+    }
+
+    /// [`Self::set_isosurfaces`], with the active voxels of each new surface from `given` when
+    /// it is set.
+    fn replace_surfaces(
+        &mut self,
+        isos: &[IsoSpec],
+        given: Option<Vec<Vec<u64>>>,
+    ) -> Result<&SceneStats> {
         if let Some(bad) = isos.iter().find(|s| !s.value.is_finite()) {
             return Err(RenderError::Invalid(format!(
                 "isovalue {} is not a finite number",
                 bad.value
             )));
         }
+        let mut given = given.map(Vec::into_iter);
         let mut old: Vec<Option<Surface>> = self.surfaces.drain(..).map(Some).collect();
         let mut stats = SceneStats::default();
         let mut builder = BvhBuilder::new();
@@ -233,6 +262,7 @@ impl Scene {
                 .iter_mut()
                 .find(|s| s.as_ref().is_some_and(|s| s.iso.to_bits() == spec.value.to_bits()))
                 .and_then(Option::take);
+            let refs = given.as_mut().and_then(Iterator::next);
             let surface = match (kept, self.method) {
                 (Some(s), _) => s,
                 (None, TraceMethod::Sample) => Surface {
@@ -241,7 +271,7 @@ impl Scene {
                 },
                 (None, TraceMethod::Hybrid) => {
                     stats.surfaces_built += 1;
-                    self.build_surface(spec.value, &mut builder, &mut stats)?
+                    self.build_surface(spec.value, refs, &mut builder, &mut stats)?
                 }
             };
             surfaces.push(surface);
@@ -268,19 +298,21 @@ impl Scene {
         Ok(&self.stats)
     }
 
-    /// Extracts and builds the surface `iso`, adding the times and scratch to `stats`.
+    /// Builds the surface `iso` over `refs`, extracted when `None`, adding the times and
+    /// scratch to `stats`.
     fn build_surface(
         &self,
         iso: f32,
+        refs: Option<Vec<u64>>,
         builder: &mut BvhBuilder,
         stats: &mut SceneStats,
     ) -> Result<Surface> {
         let source = self.source();
         let t = Instant::now();
-        let refs = source
-            .extract(iso)
-            .map_err(|e| e.in_file(&self.path))?
-            .refs;
+        let refs = match refs {
+            Some(refs) => refs,
+            None => source.extract(iso).map_err(|e| e.in_file(&self.path))?.refs,
+        };
         stats.extract += t.elapsed();
         source.release_pages();
         let t = Instant::now();
@@ -292,10 +324,6 @@ impl Scene {
         Ok(surface)
     }
 
-    /// Milliseconds of the last change's extraction and build, for messages.
-    pub fn update_ms(&self) -> (f64, f64) {
-        (ms(self.stats.extract), ms(self.stats.bvh))
-    }
 }
 
 /// The index of the field `name` (the first when `None`).

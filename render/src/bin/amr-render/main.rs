@@ -6,7 +6,7 @@ mod demo;
 mod extract;
 mod info;
 #[cfg(feature = "mpi")]
-mod mpi_run;
+mod mpi;
 mod outputs;
 mod probe;
 mod progress;

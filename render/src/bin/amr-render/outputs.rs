@@ -121,7 +121,7 @@ pub fn write<X: Serialize>(
     if outputs.print_stats {
         if let Some(map) = json.as_object() {
             let width = map.keys().map(String::len).max().unwrap_or(0);
-            for (k, v) in map {
+            for (k, v) in map.iter().filter(|(_, v)| !v.is_array()) {
                 eprintln!("{k:<width$}  {v}");
             }
         }

@@ -24,7 +24,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let work = || -> anyhow::Result<()> {
         if launched_by_mpirun() {
             #[cfg(feature = "mpi")]
-            return crate::mpi_run::run(&request, args.mpi_mode.as_deref());
+            return crate::mpi::run::run(&request, args.mpi_mode.as_deref());
             #[cfg(not(feature = "mpi"))]
             bail!(
                 "started by mpirun, but this amr-render was built without MPI; \
@@ -57,13 +57,17 @@ pub fn render_request(request: &RenderRequest) -> anyhow::Result<()> {
     outputs::write(&request.outputs, &rendered, &header, &stats, "")
 }
 
-/// The request's scene with its isosurfaces (the middle of the field's range when none given).
-pub fn open_scene(request: &RenderRequest) -> anyhow::Result<Scene> {
+/// The request's scene with its isosurfaces.
+fn open_scene(request: &RenderRequest) -> anyhow::Result<Scene> {
     let mut scene = Scene::open(&request.file, &request.scene)?;
-    let isos = match request.isos.is_empty() {
+    scene.set_isosurfaces(&request_isos(request, &scene))?;
+    Ok(scene)
+}
+
+/// The request's isosurfaces (the middle of the field's range when none given).
+pub fn request_isos(request: &RenderRequest, scene: &Scene) -> Vec<IsoSpec> {
+    match request.isos.is_empty() {
         true => vec![IsoSpec::new(scene.default_isovalue())],
         false => request.isos.clone(),
-    };
-    scene.set_isosurfaces(&isos)?;
-    Ok(scene)
+    }
 }

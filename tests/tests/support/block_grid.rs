@@ -2,7 +2,7 @@
 //! not depend on a file: a grid of unit blocks, each refined to its own level, with vertex values
 //! on level boundaries taken from the coarser side's interpolant so the field is continuous.
 
-use crate::trace::source::{GridFrame, Voxel, VoxelSource};
+use amr_render::trace::{GridFrame, Voxel, VoxelSource};
 
 /// A multi-level voxel grid over `[0, n]^3` blocks (grid units = level-0 cells).
 ///
@@ -183,11 +183,5 @@ impl VoxelSource for BlockGrid {
     fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)> {
         let v = &self.voxels[self.locate(p)?];
         Some((v.eval_local(v.to_local(p)) as f32, v.level))
-    }
-}
-
-impl crate::render_cmd::ActiveSource for BlockGrid {
-    fn extract(&self, iso: f32) -> anyhow::Result<Vec<u64>> {
-        Ok(self.active(iso))
     }
 }

@@ -122,33 +122,51 @@ impl RankStats {
         }
     }
 
-    /// The statistics as a JSON object.
-    pub fn json(&self, rank: usize) -> String {
-        format!(
-            "{{\"rank\": {rank}, \"extract_ms\": {:.3}, \"redistribute_ms\": {:.3}, \
-             \"bvh_ms\": {:.3}, \"render_ms\": {:.3}, \"wait_ms\": {:.3}, \
-             \"composite_ms\": {:.3}, \
-             \"bytes_sent\": {}, \"peak_rss_bytes\": {}, \"active_octants\": {}, \
-             \"refs_bytes\": {}, \"bvh_bytes\": {}, \"build_scratch_bytes\": {}, \
-             \"rays\": {}, \"work\": {}, \"cpu_scene_s\": {:.2}, \"cpu_render_s\": {:.2}}}",
-            self.extract * 1e3,
-            self.redistribute * 1e3,
-            self.bvh * 1e3,
-            self.render * 1e3,
-            self.wait * 1e3,
-            self.composite * 1e3,
-            self.bytes_sent,
-            self.peak_rss,
-            self.active_octants,
-            self.refs_bytes,
-            self.bvh_bytes,
-            self.build_scratch,
-            self.rays,
-            self.work,
-            self.cpu_scene,
-            self.cpu_render
-        )
+    /// The statistics of rank `rank` as a record for `--stats-json`.
+    pub fn record(&self, rank: usize) -> RankRecord {
+        RankRecord {
+            rank,
+            extract_ms: self.extract * 1e3,
+            redistribute_ms: self.redistribute * 1e3,
+            bvh_ms: self.bvh * 1e3,
+            render_ms: self.render * 1e3,
+            wait_ms: self.wait * 1e3,
+            composite_ms: self.composite * 1e3,
+            bytes_sent: self.bytes_sent,
+            peak_rss_bytes: self.peak_rss,
+            active_octants: self.active_octants,
+            refs_bytes: self.refs_bytes,
+            bvh_bytes: self.bvh_bytes,
+            build_scratch_bytes: self.build_scratch,
+            rays: self.rays,
+            work: self.work,
+            cpu_scene_s: self.cpu_scene,
+            cpu_render_s: self.cpu_render,
+        }
     }
+}
+
+/// One rank's statistics as `--stats-json` writes them.
+#[derive(Clone, Debug, serde::Serialize)]
+#[allow(missing_docs)]
+pub struct RankRecord {
+    pub rank: usize,
+    pub extract_ms: f64,
+    pub redistribute_ms: f64,
+    pub bvh_ms: f64,
+    pub render_ms: f64,
+    pub wait_ms: f64,
+    pub composite_ms: f64,
+    pub bytes_sent: f64,
+    pub peak_rss_bytes: f64,
+    pub active_octants: f64,
+    pub refs_bytes: f64,
+    pub bvh_bytes: f64,
+    pub build_scratch_bytes: f64,
+    pub rays: f64,
+    pub work: f64,
+    pub cpu_scene_s: f64,
+    pub cpu_render_s: f64,
 }
 
 /// A table of the ranks' statistics for a terminal.

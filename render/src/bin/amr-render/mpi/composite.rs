@@ -12,7 +12,7 @@ use ::mpi::traits::*;
 use anyhow::bail;
 
 use super::pixels::{self, offsets, RECORD};
-use crate::output::frame::{FrameBuffer, PixelSample};
+use amr_render::output::frame::{FrameBuffer, PixelSample};
 
 /// One pixel from its samples in the parts, front to back.
 pub fn over(parts: impl IntoIterator<Item = PixelSample>) -> PixelSample {

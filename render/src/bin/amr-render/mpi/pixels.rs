@@ -1,7 +1,7 @@
 //! Pixel samples as flat `f32` records, the unit of every image message (bit for bit: NaN
 //! positions and infinite depths survive).
 
-use crate::output::frame::{FrameBuffer, PixelSample};
+use amr_render::output::frame::{FrameBuffer, PixelSample};
 
 /// `f32` values per pixel record: R, G, B, A, Z, N (3), P (3), level.
 pub const RECORD: usize = 12;

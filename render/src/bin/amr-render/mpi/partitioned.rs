@@ -20,38 +20,35 @@ use super::composite::direct_send;
 use super::partition::{balanced_runs, visibility_order};
 use super::pixels::offsets;
 use super::stats::{cpu_seconds, RankStats};
-use crate::camera::Camera;
-use crate::extract::split_ref;
-use crate::output::frame::FrameBuffer;
-use crate::render_cmd::{build_surfaces, RenderConfig, RenderReport};
-use crate::shade::{render_frame, Lighting, RenderSettings};
-use crate::trace::amr_source::AmrSource;
-use crate::trace::{HybridTracer, VoxelSource};
+use amr_render::extract::split_ref;
+use amr_render::output::frame::FrameBuffer;
+use amr_render::shade::IsoSpec;
+use amr_render::{render, Scene, View};
+use anyhow::anyhow;
 
-/// Renders this rank's part and composites the frame on rank 0 (`None` elsewhere). `light`
-/// must already be without shadows and ambient occlusion. Fills in `report` (this rank's part)
-/// and `stats` (`cpu_scene` with the processor time at the start of rendering).
-#[allow(clippy::too_many_arguments)]
-pub fn render<D: AsRef<[u8]> + Sync>(
+/// Builds this rank's part of `scene` for `isos`, renders it and composites the frame on rank 0
+/// (`None` elsewhere). `view` must be without shadows and ambient occlusion. Fills in `stats`
+/// (`cpu_scene` with the processor time at the start of rendering, render time and rays).
+pub fn render_part(
     world: &SimpleCommunicator,
-    src: &AmrSource<'_, D>,
-    cfg: &RenderConfig,
-    camera: &Camera,
-    light: &Lighting,
-    report: &mut RenderReport,
+    scene: &mut Scene,
+    isos: &[IsoSpec],
+    view: &View,
     stats: &mut RankStats,
     progress: &(dyn Fn(u64) + Sync),
 ) -> anyhow::Result<Option<FrameBuffer>> {
-    let ext = src.extractor();
-    let file = ext.sampler().file();
     let n = world.size() as usize;
     let me = world.rank() as usize;
     let mut bytes = 0u64;
 
     let t = Instant::now();
-    let mut local = Vec::with_capacity(cfg.isos.len());
+    let ext = scene
+        .extractor()
+        .ok_or_else(|| anyhow!("--mpi-mode partitioned needs the octant reconstruction"))?;
+    let file = scene.file();
+    let mut local = Vec::with_capacity(isos.len());
     let mut counts = vec![0u64; file.num_leaves()];
-    for spec in &cfg.isos {
+    for spec in isos {
         let candidates = ext.candidate_leaves(spec.value);
         let c = candidates.len();
         let slice = &candidates[me * c / n..(me + 1) * c / n];
@@ -65,7 +62,8 @@ pub fn render<D: AsRef<[u8]> + Sync>(
     world.all_reduce_into(&counts[..], &mut total[..], SystemOperation::sum());
     bytes += 8 * counts.len() as u64;
     drop(counts);
-    let frame = src.frame();
+    let frame = scene.grid_frame();
+    let camera = view.camera(&frame)?;
     let eye = [0, 1, 2].map(|a| 0.5 * (camera.pos[a] - frame.origin[a]) / frame.unit[a]);
     let order = visibility_order(&file.tree(), eye);
     let owner = balanced_runs(&order, &total, n);
@@ -84,32 +82,19 @@ pub fn render<D: AsRef<[u8]> + Sync>(
     stats.work = owner.iter().filter(|&&o| o as usize == me).count() as f64;
     drop(owner);
 
-    let mut parts = parts.into_iter();
-    let surfaces = build_surfaces(src, cfg, |_| Ok(parts.next().unwrap_or_default()), report)?;
-    report.extract += extracted + redistributed;
-    let tracer = HybridTracer {
-        src,
-        surfaces: &surfaces,
-        smooth_normals: cfg.smooth_normals,
-    };
-    let settings = RenderSettings {
-        width: cfg.size.0,
-        height: cfg.size.1,
-        spp: cfg.spp,
-    };
-    let t = Instant::now();
+    let scene_stats = scene.set_isosurfaces_from_refs(isos, parts)?;
+    stats.extract = (scene_stats.extract + extracted + redistributed).as_secs_f64();
     stats.cpu_scene = cpu_seconds();
-    let (fb, rays) = render_frame(&tracer, camera, light, settings, progress);
-    report.render = t.elapsed();
+    let rendered = render(scene, view, progress)?;
+    stats.render = rendered.stats.render.as_secs_f64();
     stats.cpu_render = cpu_seconds() - stats.cpu_scene;
-    report.rays = rays;
-    drop(surfaces);
+    stats.rays = rendered.stats.rays as f64;
 
     let t = Instant::now();
     world.barrier();
     stats.wait = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let (frame, sent) = direct_send(world, &fb)?;
+    let (frame, sent) = direct_send(world, &rendered.frame)?;
     stats.composite = t.elapsed().as_secs_f64();
     bytes += sent;
     stats.bytes_sent = bytes as f64;

@@ -1,36 +1,12 @@
 //! Shared fixtures of the renderer tests: seeded random numbers and analytic multi-level grids.
-#![allow(dead_code)]
 
 use amr_render::bvh::BvhBuilder;
-use amr_render::trace::synthetic::BlockGrid;
+pub use super::block_grid::BlockGrid;
+pub use super::rng::Rng;
+use amr_render::render::{render_sampled, render_surfaces};
+use amr_render::shade::IsoSpec;
 use amr_render::trace::Surface;
-
-/// SplitMix64: small, seedable, and the same everywhere.
-pub struct Rng(pub u64);
-
-impl Rng {
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`.
-    pub fn f64(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform on the unit sphere.
-    pub fn dir(&mut self) -> [f64; 3] {
-        let z = 2.0 * self.f64() - 1.0;
-        let phi = 2.0 * std::f64::consts::PI * self.f64();
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        [r * phi.cos(), r * phi.sin(), z]
-    }
-}
+use amr_render::{Rendered, View};
 
 /// Centre of the sphere fixtures, a corner shared by 8 blocks of a 4^3 grid.
 pub const CENTRE: [f64; 3] = [2.0, 2.0, 2.0];
@@ -92,6 +68,23 @@ pub fn shape_grid(
 }
 
 /// One surface per isovalue over `grid`'s active voxels.
+/// Renders `isos` of `grid` through `view` with the hybrid method, each surface built over the
+/// grid's active voxels as a scene builds them (one builder, the refs handed over).
+pub fn render_grid(grid: &BlockGrid, isos: &[IsoSpec], view: &View) -> Rendered {
+    let mut b = BvhBuilder::new();
+    let surfaces: Vec<Surface> = isos
+        .iter()
+        .map(|s| Surface::build_owned(grid, s.value, grid.active(s.value), &mut b))
+        .collect();
+    render_surfaces(grid, &surfaces, isos, view, &|_| {}).unwrap()
+}
+
+/// Renders `isos` of `grid` through `view` with the sample method.
+pub fn render_grid_sampled(grid: &BlockGrid, isos: &[IsoSpec], view: &View) -> Rendered {
+    render_sampled(grid, isos, view, &|_| {}).unwrap()
+}
+
+/// The surfaces of `isos`, built over the grid's active voxels.
 pub fn surfaces(grid: &BlockGrid, isos: &[f32]) -> Vec<Surface> {
     let mut b = BvhBuilder::new();
     isos.iter()

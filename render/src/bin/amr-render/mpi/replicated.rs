@@ -16,11 +16,8 @@ use anyhow::bail;
 
 use super::pixels::{self, offsets, RECORD};
 use super::stats::{cpu_seconds, RankStats};
-use crate::camera::Camera;
-use crate::output::frame::{FrameBuffer, PixelSample};
-use crate::shade::render_loop::render_rect;
-use crate::shade::{Lighting, RenderSettings};
-use crate::trace::Tracer;
+use amr_render::output::frame::{FrameBuffer, PixelSample};
+use amr_render::{render_region, Rect, Scene, View};
 
 /// Tile edge, pixels.
 pub const TILE: u32 = 32;
@@ -70,32 +67,33 @@ struct Rendered {
 }
 
 impl Rendered {
-    fn add<T: Tracer + Sync + ?Sized>(&mut self, t: u32, job: &Job<'_, T>) {
-        let (px, rays) = render_rect(
-            job.tracer,
-            job.camera,
-            job.light,
-            job.settings,
-            job.tiles.rect(t),
-        );
+    fn add(&mut self, t: u32, job: &Job<'_>) -> anyhow::Result<()> {
+        let (x0, y0, width, height) = job.tiles.rect(t);
+        let region = render_region(
+            job.scene,
+            job.view,
+            Rect {
+                x0,
+                y0,
+                width,
+                height,
+            },
+        )?;
         self.ids.push(t);
-        for s in &px {
+        for s in &region.pixels {
             pixels::push(&mut self.records, s);
         }
-        self.rays += rays;
+        self.rays += region.rays;
+        Ok(())
     }
 }
 
 /// A frame to render.
-pub struct Job<'a, T: ?Sized> {
-    /// The scene.
-    pub tracer: &'a T,
-    /// The camera.
-    pub camera: &'a Camera,
-    /// The lighting.
-    pub light: &'a Lighting,
-    /// Size and sampling.
-    pub settings: RenderSettings,
+pub struct Job<'a> {
+    /// The scene, with its isosurfaces.
+    pub scene: &'a Scene,
+    /// The view.
+    pub view: &'a View,
     /// Its tiles.
     pub tiles: Tiles,
 }
@@ -103,14 +101,14 @@ pub struct Job<'a, T: ?Sized> {
 /// Renders this rank's share of `job` and gathers the frame on rank 0 (`None` elsewhere);
 /// `progress(1)` is called on rank 0 as each tile is handed out. Fills in `stats`' render,
 /// processor time, wait, composite, bytes sent, rays and tiles.
-pub fn render<T: Tracer + Sync + ?Sized>(
+pub fn render(
     world: &SimpleCommunicator,
-    job: &Job<'_, T>,
+    job: &Job<'_>,
     p_origin: [f64; 3],
     stats: &mut RankStats,
     progress: &(dyn Fn(u64) + Sync),
 ) -> anyhow::Result<Option<FrameBuffer>> {
-    let (w, h) = (job.settings.width as usize, job.settings.height as usize);
+    let (w, h) = (job.view.size.0 as usize, job.view.size.1 as usize);
     if w * h * RECORD > i32::MAX as usize {
         bail!("a {w}x{h} frame is too large for one MPI message (at most 2^31 values)");
     }
@@ -122,6 +120,7 @@ pub fn render<T: Tracer + Sync + ?Sized>(
     if world.rank() == 0 {
         let next = AtomicU32::new(0);
         let workers = world.size() as usize - 1;
+        let mut failure = None;
         std::thread::scope(|s| {
             let server = (workers > 0).then(|| s.spawn(|| serve(&next, n, workers, progress)));
             loop {
@@ -130,12 +129,19 @@ pub fn render<T: Tracer + Sync + ?Sized>(
                     break;
                 }
                 progress(1);
-                mine.add(t, job);
+                if let Err(e) = mine.add(t, job) {
+                    // The server goes on handing the other tiles to the other ranks.
+                    failure = Some(e);
+                    break;
+                }
             }
             if let Some(server) = server {
                 bytes += server.join().expect("the tile server does not panic");
             }
         });
+        if let Some(e) = failure {
+            return Err(e);
+        }
     } else {
         let root = world.process_at_rank(0);
         root.send_with_tag(&0u32, TAG_REQUEST);
@@ -148,7 +154,7 @@ pub fn render<T: Tracer + Sync + ?Sized>(
             // Ask for the next tile before rendering this one, so the answer is waiting.
             root.send_with_tag(&0u32, TAG_REQUEST);
             bytes += 4;
-            mine.add(t, job);
+            mine.add(t, job)?;
         }
     }
     stats.render = t0.elapsed().as_secs_f64();

@@ -1,6 +1,5 @@
 //! Chombo plotfiles written by the tests themselves through the HDF5 library, in the layout
 //! Chombo's `WriteAMRHierarchyHDF5` produces, plus knobs that break them on purpose.
-#![allow(dead_code)]
 
 pub mod writer;
 

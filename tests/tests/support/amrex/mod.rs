@@ -1,6 +1,5 @@
 //! Shared helpers of the AMReX tests: where the shared plotfiles are, an independent reader,
 //! a plotfile writer and the cell-by-cell comparison.
-#![allow(dead_code)]
 
 pub mod check;
 pub mod source;

@@ -105,7 +105,7 @@ impl FormatError {
     }
 
     /// True when the message already names a file.
-    fn names_a_file(&self) -> bool {
+    pub fn names_a_file(&self) -> bool {
         match self {
             FormatError::InFile { .. } | FormatError::Output { .. } => true,
             FormatError::Shared(e) => e.names_a_file(),

@@ -14,6 +14,7 @@ pub mod geometry;
 pub mod hierarchy;
 pub mod kdtree;
 pub mod output;
+pub mod progress;
 pub mod raw;
 pub mod reader;
 pub mod value_range;

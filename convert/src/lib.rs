@@ -5,5 +5,4 @@ pub mod chombo;
 pub mod convert_cmd;
 pub mod isolate;
 pub mod progress;
-pub mod synth;
 pub mod synth_cmd;

@@ -2,7 +2,8 @@
 //! that is not UTF-8, a crash of the HDF5 library, temporaries left by a killed writer. Each is
 //! exit 1 with one message and no output, never a signal death or a replaced input.
 
-#[path = "../../tests/tests/chombo_support/mod.rs"]
+#[path = "../../tests/tests/support/chombo/mod.rs"]
+#[allow(dead_code)]
 mod chombo_support;
 
 use std::path::{Path, PathBuf};

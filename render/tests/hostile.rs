@@ -15,8 +15,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use amr_convert::progress::NoProgress;
-use amr_convert::synth::{write_synth, Case, SynthParams};
+use amr_format::progress::NoProgress;
+use amr_synth::{write_synth, Case, SynthParams};
 use amr_format::raw::{Footer, KdLeaf, KD_LEAF};
 use amr_format::reader::recompute_checksums;
 use amr_format::{Compression, WriterOptions};

@@ -5,9 +5,8 @@
 //! Three levels (ratio 2 then 4), 32³ boxes with 3 ghost layers (GRChombo's default), four
 //! float64 components; about 1 GB. Written box by box so the generator's memory stays small.
 
-mod chombo_support;
 
-use chombo_support::writer::{attr, attr_str, int_vect, padded_box_type, raw_box, RawBox};
+use crate::support::chombo::writer::{attr, attr_str, int_vect, padded_box_type, raw_box, RawBox};
 use hdf5_metno::File;
 
 /// 32³ boxes tiling the cube `[lo, lo + n)` of one level.

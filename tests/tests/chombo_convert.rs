@@ -1,14 +1,13 @@
 //! Chombo plotfiles written through HDF5 by the test itself, converted, and read back cell by
 //! cell: every value equals the source rounded to f32, every valid cell is covered once.
 
-mod chombo_support;
 
 use std::path::Path;
 
 use amr_convert::chombo::{self, ConvertOptions, ConvertStats};
-use amr_convert::progress::NoProgress;
+use amr_format::progress::NoProgress;
 use amr_format::{AmrkFile, Compression, IBox};
-use chombo_support::{value, writer, Desc};
+use crate::support::chombo::{value, writer, Desc};
 
 fn convert(
     input: &Path,

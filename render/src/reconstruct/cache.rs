@@ -9,7 +9,10 @@ use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
-use amr_format::{FormatError, Result};
+use amr_format::FormatError;
+
+use crate::error::RenderError;
+use crate::error::Result;
 
 const SHARDS: usize = 64;
 
@@ -74,8 +77,15 @@ impl BrickCache {
         };
         let value = slot.get_or_init(|| {
             self.decodes.fetch_add(1, Ordering::Relaxed);
-            decode().map(Arc::from).map_err(Arc::new)
+            decode().map(Arc::from).map_err(|e| {
+                Arc::new(match e {
+                    RenderError::Format(e) => e,
+                    e => FormatError::Corrupt(e.to_string()),
+                })
+            })
         });
-        value.clone().map_err(FormatError::Shared)
+        value
+            .clone()
+            .map_err(|e| RenderError::Format(FormatError::Shared(e)))
     }
 }

@@ -41,14 +41,7 @@ fn mpirun() -> PathBuf {
 /// A small three-level file of two blobs, with leaves enough to share among four ranks.
 fn dataset(dir: &Path) -> PathBuf {
     let path = dir.join("blobs.amrk");
-    let params = SynthParams {
-        levels: 3,
-        ratio: 2,
-        base: 16,
-        brick: 8,
-        origin: [0.0; 3],
-        size: 1.0,
-    };
+    let params = SynthParams::unit_cube(3, 2, 16, 8);
     write_synth(
         &path,
         Case::Blobs,

@@ -107,13 +107,10 @@ struct Row {
 /// Runs the section.
 pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
     let quick = ctx.cfg.quick;
+    // The reconstruction section's levels and sizes, with bricks of 16.
     let p = SynthParams {
-        levels: 3,
-        ratio: 2,
-        base: if quick { 16 } else { 32 },
         brick: 16,
-        origin: [0.0; 3],
-        size: 1.0,
+        ..super::recon::params(quick)
     };
     let path = ctx.scratch.join("sphere.amrk");
     let field = Case::Sphere;
@@ -155,38 +152,29 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
 
     let png = "tradeoff.png";
     let png_image = "tradeoff-image.png";
-    let mut hit_series = Vec::new();
-    let mut image_series = Vec::new();
-    for r in &recons {
-        let (h, samples) = (&r.rows[0], &r.rows[1..]);
-        hit_series.push(Series {
-            label: format!("hybrid ({})", r.name),
-            points: vec![(h.secs * 1e3, h.hit_p99)],
-        });
-        hit_series.push(Series {
-            label: format!(
-                "sample mode ({}), step 1..1/{}",
-                r.name,
-                steps[steps.len() - 1]
-            ),
-            points: samples.iter().map(|x| (x.secs * 1e3, x.hit_p99)).collect(),
-        });
-        image_series.push(Series {
-            label: format!("hybrid ({})", r.name),
-            points: vec![(h.secs * 1e3, h.image_rms)],
-        });
-        image_series.push(Series {
-            label: format!(
-                "sample mode ({}), step 1..1/{}",
-                r.name,
-                steps[steps.len() - 1]
-            ),
-            points: samples
-                .iter()
-                .map(|x| (x.secs * 1e3, x.image_rms))
-                .collect(),
-        });
-    }
+    // Per reconstruction, the hybrid's point and the sample-mode line of one error measure
+    // against frame time (ms).
+    let series_of = |error: fn(&Row) -> f64| -> Vec<Series> {
+        let point = |x: &Row| (x.secs * 1e3, error(x));
+        recons
+            .iter()
+            .flat_map(|r| {
+                let finest_step = steps[steps.len() - 1];
+                [
+                    Series {
+                        label: format!("hybrid ({})", r.name),
+                        points: vec![point(&r.rows[0])],
+                    },
+                    Series {
+                        label: format!("sample mode ({}), step 1..1/{finest_step}", r.name),
+                        points: r.rows[1..].iter().map(point).collect(),
+                    },
+                ]
+            })
+            .collect()
+    };
+    let hit_series = series_of(|x| x.hit_p99);
+    let image_series = series_of(|x| x.image_rms);
     loglog(
         &ctx.img.join(png),
         &format!("sphere, {n}x{n} primary rays: p99 hit error against frame time"),

@@ -16,7 +16,9 @@ use amr_render::bvh::BvhBuilder;
 use amr_render::mapping::open_mapped;
 use amr_render::reconstruct::Sampler;
 use amr_render::sample_mode::SampleTracer;
-use amr_render::trace::{FieldSource, GridFrame, GridRay, HybridTracer, Surface, Tracer, VoxelSource};
+use amr_render::trace::{
+    FieldSource, GridFrame, GridRay, HybridTracer, Surface, Tracer, VoxelSource,
+};
 use amr_render::Reconstruction;
 
 use super::common::{hash2, rms, write_dataset, Rng, SampledSource};
@@ -203,11 +205,7 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
     writeln!(s, "| tracer | method | rays | leaks | seconds |")?;
     writeln!(s, "|---|---|---|---|---|")?;
     for (tr, m, n, miss, secs) in &leaks {
-        writeln!(
-            s,
-            "| {tr} | {} | {n} | {miss} | {secs:.2} |",
-            m.name()
-        )?;
+        writeln!(s, "| {tr} | {} | {n} | {miss} | {secs:.2} |", m.name())?;
     }
     Ok(s)
 }

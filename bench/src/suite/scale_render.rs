@@ -9,8 +9,7 @@ use std::process::Command;
 
 use amr_render::mapping::mapped_resident_bytes;
 use amr_render::{
-    render, FrameStats, IsoSpec, Reconstruction, Scene, SceneOptions, SceneStats, TraceMethod,
-    View,
+    render, FrameStats, IsoSpec, Reconstruction, Scene, SceneOptions, SceneStats, TraceMethod, View,
 };
 use anyhow::{bail, Context};
 use serde::Serialize;

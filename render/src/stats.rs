@@ -59,9 +59,12 @@ pub fn two_decimals<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
     rounded(*v, 1e2, s)
 }
 
-/// Serializes a number rounded to a whole one.
+/// Serializes a number rounded to a whole one (`null` when not finite).
 pub fn whole<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
-    rounded(*v, 1.0, s)
+    if !v.is_finite() {
+        return s.serialize_none();
+    }
+    s.serialize_i64(v.round() as i64)
 }
 
 /// `v` rounded to `1 / scale` (non-finite values as `null`).

@@ -32,11 +32,11 @@ struct MpiTotals {
     wait_ms: f64,
     composite_ms: f64,
     redistribute_ms: f64,
-    bytes_sent: f64,
+    bytes_sent: u64,
     cpu_scene_s: f64,
     cpu_render_s: f64,
-    peak_rss_bytes_max_rank: f64,
-    resident_bytes_max_rank: f64,
+    peak_rss_bytes_max_rank: u64,
+    resident_bytes_max_rank: u64,
     per_rank: Vec<RankRecord>,
 }
 
@@ -205,11 +205,11 @@ fn write_rank0(
         wait_ms: max(|r| r.wait) * 1e3,
         composite_ms: max(|r| r.composite) * 1e3,
         redistribute_ms: max(|r| r.redistribute) * 1e3,
-        bytes_sent: sum(|r| r.bytes_sent),
+        bytes_sent: sum(|r| r.bytes_sent) as u64,
         cpu_scene_s: sum(|r| r.cpu_scene),
         cpu_render_s: sum(|r| r.cpu_render),
-        peak_rss_bytes_max_rank: max(|r| r.peak_rss),
-        resident_bytes_max_rank: max(|r| r.refs_bytes + r.bvh_bytes),
+        peak_rss_bytes_max_rank: max(|r| r.peak_rss) as u64,
+        resident_bytes_max_rank: max(|r| r.refs_bytes + r.bvh_bytes) as u64,
         per_rank: ranks
             .iter()
             .enumerate()

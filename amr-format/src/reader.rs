@@ -710,7 +710,10 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         let tree = self.tree();
         for (i, l) in leaves.iter().enumerate() {
             let (start, count) = (l.brick_start.get() as usize, l.brick_count.get() as usize);
-            let Some(bricks) = start.checked_add(count).and_then(|end| list.get(start..end)) else {
+            let Some(bricks) = start
+                .checked_add(count)
+                .and_then(|end| list.get(start..end))
+            else {
                 return Err(FormatError::Corrupt(format!(
                     "kd leaf {i}: brick list {start}+{count} past {}",
                     list.len()

@@ -24,7 +24,9 @@ fn nodes_of(b: &[u8]) -> (usize, Vec<KdNode>) {
     let f = footer_of(b);
     let at = f.nodes.offset.get() as usize;
     let n = f.num_nodes.get() as usize;
-    let nodes = <[KdNode]>::ref_from_bytes(&b[at..at + 8 * n]).unwrap().to_vec();
+    let nodes = <[KdNode]>::ref_from_bytes(&b[at..at + 8 * n])
+        .unwrap()
+        .to_vec();
     (at, nodes)
 }
 
@@ -57,7 +59,8 @@ fn first_brick_not_covering_its_leaf_is_refused() {
     .unwrap()
     .to_vec();
     let list_at = f.brick_list.offset.get() as usize;
-    let entry = |b: &[u8], i: usize| u32::from_le_bytes(b[list_at + 4 * i..][..4].try_into().unwrap());
+    let entry =
+        |b: &[u8], i: usize| u32::from_le_bytes(b[list_at + 4 * i..][..4].try_into().unwrap());
     let leaf = leaves.iter().find(|l| l.brick_count.get() > 0).unwrap();
     let i = leaf.brick_start.get() as usize;
     let first = entry(&b, i);
@@ -70,7 +73,12 @@ fn first_brick_not_covering_its_leaf_is_refused() {
         leaf.hi.map(|v| i64::from(v.get())),
     );
     let other = (0..nb)
-        .find(|&k| k != first && !file.brick_finest_bounds(k as usize, origin).contains_box(&lb))
+        .find(|&k| {
+            k != first
+                && !file
+                    .brick_finest_bounds(k as usize, origin)
+                    .contains_box(&lb)
+        })
         .unwrap();
     b[list_at + 4 * i..][..4].copy_from_slice(&other.to_le_bytes());
     let f = footer_of(&b);
@@ -105,7 +113,11 @@ fn kd_tree_dag_is_refused_quickly() {
     reseal(&mut b, f);
     let start = Instant::now();
     let e = open_err(b);
-    assert!(start.elapsed() < Duration::from_secs(1), "{:?}", start.elapsed());
+    assert!(
+        start.elapsed() < Duration::from_secs(1),
+        "{:?}",
+        start.elapsed()
+    );
     assert!(
         e.contains("reached twice") || e.contains("not inside it") || e.contains("gives it"),
         "{e}"

@@ -64,13 +64,21 @@ fn an_output_inside_a_plotfile_directory_or_a_device_is_refused() {
     let (code, err) = run(&[&plt, Path::new("-o"), &plt.join("Header")], &[]);
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("inside the input directory"), "{err}");
-    assert_eq!(std::fs::read(plt.join("Header")).unwrap(), b"HyperCLaw-V1.1\n");
+    assert_eq!(
+        std::fs::read(plt.join("Header")).unwrap(),
+        b"HyperCLaw-V1.1\n"
+    );
     let input = fixture(dir.path());
     let (code, err) = run(&[&input, Path::new("-o"), Path::new("/dev/null")], &[]);
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("not a regular file"), "{err}");
     let (code, err) = run(
-        &[Path::new("synth"), Path::new("sphere"), Path::new("-o"), dir.path()],
+        &[
+            Path::new("synth"),
+            Path::new("sphere"),
+            Path::new("-o"),
+            dir.path(),
+        ],
         &[],
     );
     assert_eq!(code, Some(1), "{err}");
@@ -93,7 +101,10 @@ fn a_field_name_that_is_not_utf8_is_refused() {
     let out = dir.path().join("out.amrk");
     let (code, err) = run(&[&input, Path::new("-o"), &out], &[]);
     assert_eq!(code, Some(1), "{err}");
-    assert!(err.contains("component_0") && err.contains("not UTF-8"), "{err}");
+    assert!(
+        err.contains("component_0") && err.contains("not UTF-8"),
+        "{err}"
+    );
     assert_eq!(names(dir.path()), ["plt.3d.hdf5"]);
 }
 
@@ -124,7 +135,10 @@ fn temporaries_of_a_killed_writer_are_removed_by_the_next_run() {
     let input = fixture(dir.path());
     let out = dir.path().join("out.amrk");
     // PIDs above the kernel's limit (2^22) never run.
-    let stale = [".out.amrk.99999999.Ab12Cd.tmp", ".out.amrk.99999999.Ef34Gh.spill"];
+    let stale = [
+        ".out.amrk.99999999.Ab12Cd.tmp",
+        ".out.amrk.99999999.Ef34Gh.spill",
+    ];
     for s in stale {
         std::fs::write(dir.path().join(s), b"left by a killed writer").unwrap();
     }
@@ -151,7 +165,10 @@ fn one_byte_corruptions_that_crash_libhdf5_are_errors() {
         let out = dir.path().join("out.amrk");
         let (code, err) = run(&[&input, Path::new("-o"), &out], &[("RUST_BACKTRACE", "0")]);
         assert_eq!(code, Some(1), "byte {at} = {byte}: {err}");
-        assert!(err.contains(&input.display().to_string()), "byte {at}: {err}");
+        assert!(
+            err.contains(&input.display().to_string()),
+            "byte {at}: {err}"
+        );
         assert_eq!(names(dir.path()), ["plt.3d.hdf5"], "byte {at}: {err}");
     }
 }

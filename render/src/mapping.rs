@@ -57,7 +57,8 @@ pub fn open_mapped(path: &Path) -> Result<MappedFile> {
     //   (checked by CRC in `verify`, decoded with bounds-checked lengths elsewhere);
     // - truncation: touching a page past the new end raises SIGBUS, which the watch below turns
     //   into an error naming the file and exit status 1.
-    let map = unsafe { Mmap::map(&file) }.map_err(|e| fail(FormatError::io("cannot memory-map", e)))?;
+    let map =
+        unsafe { Mmap::map(&file) }.map_err(|e| fail(FormatError::io("cannot memory-map", e)))?;
     let watched = WatchedMap {
         _watch: sigbus::watch(path, &map),
         map,
@@ -162,8 +163,8 @@ impl<'f> PageRelease<'f> {
 mod tests {
     use super::*;
     use amr_format::progress::NoProgress;
-    use amr_synth::{write_synth, Case, SynthParams};
     use amr_format::WriterOptions;
+    use amr_synth::{write_synth, Case, SynthParams};
 
     #[test]
     fn released_pages_read_back_the_same_bytes() {

@@ -16,11 +16,11 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use amr_format::progress::NoProgress;
-use amr_synth::{write_synth, Case, SynthParams};
 use amr_format::raw::{Footer, KdLeaf, KD_LEAF};
 use amr_format::reader::recompute_checksums;
 use amr_format::{Compression, WriterOptions};
 use amr_render::mapping::open_mapped;
+use amr_synth::{write_synth, Case, SynthParams};
 use zerocopy::FromBytes;
 
 const BIN: &str = env!("CARGO_BIN_EXE_amr-render");
@@ -89,7 +89,10 @@ fn run_bin(bin: &std::ffi::OsStr, args: &[&str]) -> Outcome {
 
 /// A small synthetic file and an isovalue crossing its field.
 fn base_file(dir: &Path, case: Case, compress: bool) -> (PathBuf, f32) {
-    let path = dir.join(format!("{case}{}.amrk", if compress { "-zstd" } else { "" }));
+    let path = dir.join(format!(
+        "{case}{}.amrk",
+        if compress { "-zstd" } else { "" }
+    ));
     let params = SynthParams {
         levels: 3,
         ratio: 2,
@@ -103,7 +106,14 @@ fn base_file(dir: &Path, case: Case, compress: bool) -> (PathBuf, f32) {
     } else {
         Compression::None
     };
-    write_synth(&path, case, &params, WriterOptions { compression }, &NoProgress).unwrap();
+    write_synth(
+        &path,
+        case,
+        &params,
+        WriterOptions { compression },
+        &NoProgress,
+    )
+    .unwrap();
     let file = open_mapped(&path).unwrap();
     let f = &file.fields()[0];
     (path, 0.5 * (f.min + f.max))
@@ -140,7 +150,13 @@ fn mutate(b: &mut Vec<u8>, rng: &mut Rng) {
     let f = footer_of(b);
     let footer_at = b.len() - size_of::<Footer>();
     let tables = [
-        f.levels, f.fields, f.bricks, f.nodes, f.leaves, f.brick_list, f.strings,
+        f.levels,
+        f.fields,
+        f.bricks,
+        f.nodes,
+        f.leaves,
+        f.brick_list,
+        f.strings,
     ];
     for _ in 0..1 + rng.below(3) {
         let (start, len) = match rng.below(8) {
@@ -285,11 +301,23 @@ fn damaged_tree_and_brick_list_are_errors_not_panics() {
         for args in [
             vec!["info", p.to_str().unwrap()],
             vec!["extract", p.to_str().unwrap(), "--iso", &iso.to_string()],
-            vec![p.to_str().unwrap(), "--iso", &iso.to_string(), "-o", out.to_str().unwrap(), "--size", "32x32"],
+            vec![
+                p.to_str().unwrap(),
+                "--iso",
+                &iso.to_string(),
+                "-o",
+                out.to_str().unwrap(),
+                "--size",
+                "32x32",
+            ],
         ] {
             let o = run(&args);
             assert_eq!(o.code, Some(1), "{args:?}: {o:?}");
-            assert!(o.stderr.contains(name) && o.stderr.contains(needle), "{args:?}: {}", o.stderr);
+            assert!(
+                o.stderr.contains(name) && o.stderr.contains(needle),
+                "{args:?}: {}",
+                o.stderr
+            );
         }
     }
 }
@@ -306,13 +334,26 @@ fn outputs_that_would_replace_the_input_or_a_device_are_refused() {
         let o = run(&[p, "--iso", &iso, "-o", out, "--size", "8x8"]);
         assert_eq!(o.code, Some(1), "{o:?}");
         assert!(o.stderr.contains(needle), "{}", o.stderr);
-        let o = run(&[p, "--iso", &iso, "-o", &format!("{p}.exr"), "--size", "8x8", "--preview", out]);
+        let o = run(&[
+            p,
+            "--iso",
+            &iso,
+            "-o",
+            &format!("{p}.exr"),
+            "--size",
+            "8x8",
+            "--preview",
+            out,
+        ]);
         assert_eq!(o.code, Some(1), "{o:?}");
     }
     let o = run(&["extract", p, "--iso", &iso, "--stats-json", p]);
     assert_eq!(o.code, Some(1), "{o:?}");
     assert_eq!(std::fs::read(&path).unwrap(), before);
-    assert!(std::fs::metadata("/dev/null").unwrap().file_type().is_file() == false);
+    assert!(!std::fs::metadata("/dev/null")
+        .unwrap()
+        .file_type()
+        .is_file());
 }
 
 /// The metadata rewritten under a live map (same length): the open file keeps reading the

@@ -4,8 +4,8 @@
 
 use amr_format::raw::Footer;
 use amr_format::{AmrkFile, AmrkWriter, BrickSpec, HierarchySpec, IBox, LevelSpec, WriterOptions};
-use zerocopy::FromBytes;
 use std::path::Path;
+use zerocopy::FromBytes;
 
 /// A small deterministic generator (SplitMix64), so every failure names its seed.
 pub struct Rng(pub u64);

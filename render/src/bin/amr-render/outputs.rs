@@ -78,7 +78,11 @@ impl ProcessMemory {
 /// Refuses outputs that would replace an input or something that is not a regular file
 /// ([`amr_format::output::check_output`]).
 pub fn check(outputs: &Outputs, inputs: &[&Path]) -> anyhow::Result<()> {
-    let paths = [Some(&outputs.exr), outputs.preview.as_ref(), outputs.stats_json.as_ref()];
+    let paths = [
+        Some(&outputs.exr),
+        outputs.preview.as_ref(),
+        outputs.stats_json.as_ref(),
+    ];
     for out in paths.into_iter().flatten() {
         amr_format::output::check_output(out, inputs)?;
     }

@@ -14,9 +14,19 @@ use anyhow::{bail, Context};
 /// Set in the child's environment: the child converts in-process.
 pub const CHILD_ENV: &str = "AMR_CONVERT_HDF5_CHILD";
 
-/// Test hook: a child with this variable set dies of SIGABRT before reading, as a crash inside
-/// the HDF5 library would kill it.
+/// Test hook: a child with this variable set dies before reading, of SIGABRT as a crash inside
+/// the HDF5 library would kill it, or of SIGKILL when the value is `kill`.
 pub const TEST_CRASH_ENV: &str = "AMR_CONVERT_TEST_CRASH_CHILD";
+
+/// Signals a crash raises (a bad access, an abort, an illegal instruction): a child dying of
+/// another one was killed from outside (Ctrl-C, `kill`), which says nothing about the file.
+const CRASH_SIGNALS: [i32; 5] = [
+    libc::SIGSEGV,
+    libc::SIGBUS,
+    libc::SIGABRT,
+    libc::SIGILL,
+    libc::SIGFPE,
+];
 
 /// True in a child started by [`convert_in_child`].
 pub fn is_child() -> bool {
@@ -25,8 +35,17 @@ pub fn is_child() -> bool {
 
 /// In a child, the crash [`TEST_CRASH_ENV`] asks for.
 pub fn crash_if_asked() {
-    if is_child() && std::env::var_os(TEST_CRASH_ENV).is_some() {
-        std::process::abort();
+    if !is_child() {
+        return;
+    }
+    match std::env::var(TEST_CRASH_ENV).as_deref() {
+        Ok("kill") => {
+            let _ = Command::new("kill")
+                .args(["-KILL", &std::process::id().to_string()])
+                .status();
+        }
+        Ok(_) => std::process::abort(),
+        Err(_) => {}
     }
 }
 
@@ -44,8 +63,14 @@ pub fn convert_in_child(input: &Path, output: &Path) -> anyhow::Result<u8> {
     }
     amr_format::output::remove_stale_temporaries(output);
     let signal = status.signal().unwrap_or(0);
+    if CRASH_SIGNALS.contains(&signal) {
+        bail!(
+            "{}: the HDF5 library crashed reading it (signal {signal}); the file is probably corrupt",
+            input.display()
+        )
+    }
     bail!(
-        "{}: the HDF5 library crashed reading it (signal {signal}); the file is probably corrupt",
+        "converting {}: the converting process was killed by signal {signal}",
         input.display()
     )
 }

@@ -172,3 +172,21 @@ fn one_byte_corruptions_that_crash_libhdf5_are_errors() {
         assert_eq!(names(dir.path()), ["plt.3d.hdf5"], "byte {at}: {err}");
     }
 }
+
+/// A child killed from outside (not a crash) is not blamed on the file.
+#[test]
+fn a_child_killed_from_outside_is_not_called_a_crash() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture(dir.path());
+    let out = dir.path().join("out.amrk");
+    let (code, err) = run(
+        &[&input, Path::new("-o"), &out],
+        &[(TEST_CRASH_ENV, "kill")],
+    );
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("killed by signal 9") && !err.contains("crashed"),
+        "{err}"
+    );
+    assert_eq!(names(dir.path()), ["plt.3d.hdf5"]);
+}

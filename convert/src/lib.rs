@@ -3,6 +3,7 @@ pub mod amrex;
 pub mod bricking;
 pub mod chombo;
 pub mod convert_cmd;
+pub mod hierarchy_to_amrk;
 pub mod progress;
 pub mod synth;
 pub mod synth_cmd;

@@ -4,13 +4,16 @@
 use std::path::{Path, PathBuf};
 
 use amr_format::hierarchy::MAX_LEVELS;
-use amr_format::{IBox, LevelSpec};
+use amr_format::{FormatError, IBox, LevelSpec};
 use hdf5_metno::types::{FloatSize, TypeDescriptor};
 use hdf5_metno::{Dataset, File};
 
 use super::error::{ChomboError, Result};
 use super::props::{check_members, Props, ROOT};
 use super::raw::{self, RawBox, RawIntVect, RawRealVect};
+use super::reader::stream;
+use crate::hierarchy_to_amrk::{AmrSource, Slab};
+use crate::progress::Progress;
 
 /// Most components accepted (a sanity bound on a count read from the file).
 const MAX_COMPONENTS: i64 = 4096;
@@ -137,26 +140,6 @@ impl Plotfile {
         })
     }
 
-    /// Indices of the components named in `names`, in that order; all components when empty.
-    pub fn select_fields(&self, names: &[String]) -> Result<Vec<usize>> {
-        if names.is_empty() {
-            return Ok((0..self.fields.len()).collect());
-        }
-        names
-            .iter()
-            .map(|n| {
-                self.fields
-                    .iter()
-                    .position(|f| f == n)
-                    .ok_or_else(|| ChomboError::UnknownField {
-                        path: self.path.clone(),
-                        name: n.clone(),
-                        available: self.fields.join(", "),
-                    })
-            })
-            .collect()
-    }
-
     /// The levels as the `.amrk` writer wants them. Chombo puts the lower corner of cell index
     /// 0 at physical position 0, so every level's origin is zero and the domain's lower corner
     /// lands at `dx * prob_domain.lo`.
@@ -171,14 +154,46 @@ impl Plotfile {
             })
             .collect()
     }
+}
 
-    /// Valid cells over all levels and boxes.
-    pub fn total_cells(&self) -> u64 {
-        self.levels
-            .iter()
-            .flat_map(|l| &l.boxes)
-            .map(|b| b.num_cells().unwrap_or(0))
-            .sum()
+impl AmrSource for Plotfile {
+    type Error = ChomboError;
+
+    fn fields(&self) -> &[String] {
+        &self.fields
+    }
+
+    fn level_specs(&self) -> Vec<LevelSpec> {
+        Plotfile::level_specs(self)
+    }
+
+    fn boxes(&self) -> Vec<&[IBox]> {
+        self.levels.iter().map(|l| l.boxes.as_slice()).collect()
+    }
+
+    fn stream(
+        &self,
+        comps: &[usize],
+        chunk: i64,
+        progress: &dyn Progress,
+        sink: &mut dyn FnMut(Slab) -> Result<()>,
+    ) -> Result<u64> {
+        Ok(stream(self, comps, chunk, progress, sink)?.bytes_read)
+    }
+
+    fn unknown_field(&self, name: &str) -> ChomboError {
+        ChomboError::UnknownField {
+            path: self.path.clone(),
+            name: name.to_string(),
+            available: self.fields.join(", "),
+        }
+    }
+
+    fn output_error(&self, output: &Path, source: FormatError) -> ChomboError {
+        ChomboError::Output {
+            path: output.to_path_buf(),
+            source,
+        }
     }
 }
 

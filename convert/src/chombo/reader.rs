@@ -12,24 +12,8 @@ use hdf5_metno::{Dataset, H5Type, Hyperslab, Selection, SliceOrIndex};
 
 use super::error::{BadValue, ChomboError, Result};
 use super::plotfile::{Level, Plotfile, Precision};
+use crate::hierarchy_to_amrk::Slab;
 use crate::progress::Progress;
-
-/// One slab of one field of one box, ghost cells removed, ready to be cut into bricks.
-#[derive(Debug)]
-pub struct Slab<'a> {
-    /// The box's level.
-    pub level: usize,
-    /// The box's index in its level.
-    pub index: usize,
-    /// The field's position in the selection handed to [`stream`].
-    pub field: usize,
-    /// The box's valid cells.
-    pub valid: IBox,
-    /// The cells this slab covers: the box's full x range, some rows and layers.
-    pub cells: IBox,
-    /// The values of `cells`, x fastest.
-    pub values: &'a [f32],
-}
 
 /// What [`stream`] read.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -60,6 +60,25 @@ pub trait AmrSource {
     fn output_error(&self, output: &Path, source: FormatError) -> Self::Error;
 }
 
+/// The slabs of box `valid` with at most `chunk` rows and layers each, the whole x range:
+/// `(y0, y1, z0, z1)`, z outermost, aligned to the box's lower corner.
+pub fn slab_ranges(valid: &IBox, chunk: i64) -> impl Iterator<Item = (i64, i64, i64, i64)> + '_ {
+    let chunk = chunk.max(1);
+    let step = chunk as usize;
+    (valid.lo[2]..valid.hi[2])
+        .step_by(step)
+        .flat_map(move |z0| {
+            (valid.lo[1]..valid.hi[1]).step_by(step).map(move |y0| {
+                (
+                    y0,
+                    (y0 + chunk).min(valid.hi[1]),
+                    z0,
+                    (z0 + chunk).min(valid.hi[2]),
+                )
+            })
+        })
+}
+
 /// Indices of the fields named in `names`, in that order, repeats counted once; all fields
 /// when `names` is empty.
 pub fn select_fields<S: AmrSource + ?Sized>(

@@ -12,7 +12,8 @@ use hdf5_metno::{Dataset, H5Type, Hyperslab, Selection, SliceOrIndex};
 
 use super::error::{BadValue, ChomboError, Result};
 use super::plotfile::{Level, Plotfile, Precision};
-use crate::hierarchy_to_amrk::Slab;
+use crate::finite::ToFiniteF32;
+use crate::hierarchy_to_amrk::{slab_ranges, Slab};
 use crate::progress::Progress;
 
 /// What [`stream`] read.
@@ -20,23 +21,6 @@ use crate::progress::Progress;
 pub struct StreamStats {
     /// Bytes of cell data read from the file (ghost rows and layers skipped, ghost columns read).
     pub bytes_read: u64,
-}
-
-/// The slabs of box `valid` for at most `chunk` rows and layers each: `(y0, y1, z0, z1)`.
-fn slabs(valid: &IBox, chunk: i64) -> impl Iterator<Item = (i64, i64, i64, i64)> + '_ {
-    let step = chunk.max(1) as usize;
-    (valid.lo[2]..valid.hi[2])
-        .step_by(step)
-        .flat_map(move |z0| {
-            (valid.lo[1]..valid.hi[1]).step_by(step).map(move |y0| {
-                (
-                    y0,
-                    (y0 + chunk).min(valid.hi[1]),
-                    z0,
-                    (z0 + chunk).min(valid.hi[2]),
-                )
-            })
-        })
 }
 
 /// Bytes [`stream`] will read for the components `comps`.
@@ -72,7 +56,7 @@ pub fn stream(
             let cells_per_comp = g[0] * g[1] * g[2];
             for (f, &c) in comps.iter().enumerate() {
                 let base = level.offsets[i] + c as u64 * cells_per_comp;
-                for (y0, y1, z0, z1) in slabs(valid, chunk) {
+                for (y0, y1, z0, z1) in slab_ranges(valid, chunk) {
                     let start = base
                         + (z0 - stored.lo[2]) as u64 * g[0] * g[1]
                         + (y0 - stored.lo[1]) as u64 * g[0];
@@ -133,38 +117,13 @@ struct Where<'a> {
     cells: IBox,
 }
 
-/// A stored value type that converts to a finite `f32` or says why it cannot.
-trait Value: H5Type + Copy {
-    fn to_f32(self) -> std::result::Result<f32, (&'static str, f64)>;
-}
-
-impl Value for f32 {
-    fn to_f32(self) -> std::result::Result<f32, (&'static str, f64)> {
-        if self.is_finite() {
-            Ok(self)
-        } else {
-            Err((if self.is_nan() { "NaN" } else { "infinite" }, self as f64))
-        }
-    }
-}
-
-impl Value for f64 {
-    fn to_f32(self) -> std::result::Result<f32, (&'static str, f64)> {
-        let v = self as f32;
-        if v.is_finite() {
-            Ok(v)
-        } else if self.is_nan() {
-            Err(("NaN", self))
-        } else if self.is_infinite() {
-            Err(("infinite", self))
-        } else {
-            Err(("outside the f32 range", self))
-        }
-    }
-}
-
 /// Reads `r` from `data` as `T` and converts the valid columns into `out`.
-fn read_convert<T: Value>(data: &Dataset, r: &Read, at: &Where, out: &mut Vec<f32>) -> Result<()> {
+fn read_convert<T: ToFiniteF32 + H5Type>(
+    data: &Dataset,
+    r: &Read,
+    at: &Where,
+    out: &mut Vec<f32>,
+) -> Result<()> {
     let sel = Selection::Hyperslab(Hyperslab::new(SliceOrIndex::SliceCount {
         start: r.start as usize,
         step: r.step.max(r.block) as usize,
@@ -194,7 +153,7 @@ fn read_convert<T: Value>(data: &Dataset, r: &Read, at: &Where, out: &mut Vec<f3
     out.clear();
     for (row, values) in raw.chunks_exact(gx).enumerate() {
         for (x, &v) in values[skip..skip + nx].iter().enumerate() {
-            match v.to_f32() {
+            match v.to_finite_f32() {
                 Ok(f) => out.push(f),
                 Err((why, value)) => {
                     let e = at.cells.extent();

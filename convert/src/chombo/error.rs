@@ -30,23 +30,19 @@ pub enum ChomboError {
     },
     /// The file is HDF5 but not a consistent Chombo plotfile: a missing attribute or dataset,
     /// offsets beyond the data, a box outside the domain, ...
-    #[error("{}: not a valid Chombo plotfile: {msg}", path.display())]
+    #[error("{}: not a valid Chombo file: {msg}", path.display())]
     Invalid {
         /// The HDF5 file.
         path: PathBuf,
         /// What is missing or disagrees, and where (`level_N/...`).
         msg: String,
     },
-    /// The file is a Chombo checkpoint (restart) file, which this converter does not read.
-    #[error(
-        "{}: this is a Chombo checkpoint, not a plotfile ({why}); convert a plotfile instead \
-         (GRChombo writes them every plot_interval steps)",
-        path.display()
-    )]
-    Checkpoint {
+    /// The file holds no cell data at all (boxes only, as Chombo's mesh tests write).
+    #[error("{}: no data to convert: {why}", path.display())]
+    NoData {
         /// The HDF5 file.
         path: PathBuf,
-        /// What gave it away.
+        /// What is missing.
         why: String,
     },
     /// A valid plotfile uses a feature this reader does not support (2D, integer data, ...).

@@ -27,10 +27,13 @@ pub struct StreamStats {
 pub fn bytes_to_read(pf: &Plotfile, comps: &[usize]) -> u64 {
     let mut total = 0u64;
     for level in &pf.levels {
-        for (i, v) in level.boxes.iter().enumerate() {
-            let gx = level.stored_box(i).extent()[0] as u64;
-            let e = v.extent();
-            total += gx * e[1] as u64 * e[2] as u64 * level.precision.bytes() * comps.len() as u64;
+        for v in &level.boxes {
+            for &c in comps {
+                let var = &level.vars[pf.sources[c].var];
+                let gx = var.stored_box(v).extent()[0] as u64;
+                let e = v.extent();
+                total += gx * e[1] as u64 * e[2] as u64 * var.precision.bytes();
+            }
         }
     }
     total
@@ -49,13 +52,15 @@ pub fn stream(
     let mut stats = StreamStats::default();
     let mut out = Vec::new();
     for (l, level) in pf.levels.iter().enumerate() {
-        let Some(data) = &level.data else { continue };
         for (i, valid) in level.boxes.iter().enumerate() {
-            let stored = level.stored_box(i);
-            let g = stored.extent().map(|e| e as u64);
-            let cells_per_comp = g[0] * g[1] * g[2];
             for (f, &c) in comps.iter().enumerate() {
-                let base = level.offsets[i] + c as u64 * cells_per_comp;
+                let src = pf.sources[c];
+                let var = &level.vars[src.var];
+                let Some(data) = &var.data else { continue };
+                let stored = var.stored_box(valid);
+                let g = stored.extent().map(|e| e as u64);
+                let cells_per_comp = g[0] * g[1] * g[2];
+                let base = var.offsets[i] + src.comp as u64 * cells_per_comp;
                 for (y0, y1, z0, z1) in slab_ranges(valid, chunk) {
                     let start = base
                         + (z0 - stored.lo[2]) as u64 * g[0] * g[1]
@@ -75,11 +80,11 @@ pub fn stream(
                         stored,
                         cells,
                     };
-                    match level.precision {
+                    match var.precision {
                         Precision::F32 => read_convert::<f32>(data, &read, &ctx, &mut out)?,
                         Precision::F64 => read_convert::<f64>(data, &read, &ctx, &mut out)?,
                     }
-                    let bytes = read.count * read.block * level.precision.bytes();
+                    let bytes = read.count * read.block * var.precision.bytes();
                     stats.bytes_read += bytes;
                     progress.advance(bytes);
                     sink(Slab {

@@ -2,7 +2,7 @@
 //! fields) and streams its boxes' values slab by slab; this module declares every brick to the
 //! `.amrk` writer up front and routes each slab into its bricks.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use amr_format::{FormatError, IBox, LevelSpec};
 
@@ -28,10 +28,37 @@ pub struct Slab<'a> {
     pub values: &'a [f32],
 }
 
+/// What can go wrong in the conversion every reader shares; each reader's error type wraps it.
+#[derive(Debug, thiserror::Error)]
+pub enum ConvertError {
+    /// A requested field is not in the dump.
+    #[error("{}: no field named '{name}'; the file has: {available}", path.display())]
+    UnknownField {
+        /// The dump's main file (the one [`AmrSource::path`] names).
+        path: PathBuf,
+        /// The requested name.
+        name: String,
+        /// The dump's field names, comma-separated.
+        available: String,
+    },
+    /// The `.amrk` writer refused the data or failed to write.
+    #[error("writing {}: {source}", path.display())]
+    Output {
+        /// The output file.
+        path: PathBuf,
+        /// The writer's error.
+        #[source]
+        source: FormatError,
+    },
+}
+
 /// An opened dump that can be converted: what a reader implements.
 pub trait AmrSource {
     /// The reader's error type.
-    type Error;
+    type Error: From<ConvertError>;
+
+    /// The dump's main file, named in errors about the dump as a whole.
+    fn path(&self) -> &Path;
 
     /// Every field name, in the dump's order.
     fn fields(&self) -> &[String];
@@ -52,12 +79,14 @@ pub trait AmrSource {
         progress: &dyn Progress,
         sink: &mut dyn FnMut(Slab) -> Result<(), Self::Error>,
     ) -> Result<u64, Self::Error>;
+}
 
-    /// The error for a requested field the dump does not have.
-    fn unknown_field(&self, name: &str) -> Self::Error;
-
-    /// The error for a failure of the `.amrk` writer on `output`.
-    fn output_error(&self, output: &Path, source: FormatError) -> Self::Error;
+/// The error for a failure of the `.amrk` writer on `output`.
+fn output_error<E: From<ConvertError>>(output: &Path, source: FormatError) -> E {
+    E::from(ConvertError::Output {
+        path: output.to_path_buf(),
+        source,
+    })
 }
 
 /// The slabs of box `valid` with at most `chunk` rows and layers each, the whole x range:
@@ -91,10 +120,15 @@ pub fn select_fields<S: AmrSource + ?Sized>(
     }
     let mut out: Vec<usize> = Vec::with_capacity(names.len());
     for name in names {
-        let c = fields
-            .iter()
-            .position(|f| f == name)
-            .ok_or_else(|| src.unknown_field(name))?;
+        let c =
+            fields
+                .iter()
+                .position(|f| f == name)
+                .ok_or_else(|| ConvertError::UnknownField {
+                    path: src.path().to_path_buf(),
+                    name: name.clone(),
+                    available: fields.join(", "),
+                })?;
         if !out.contains(&c) {
             out.push(c);
         }
@@ -128,13 +162,13 @@ pub fn convert<S: AmrSource + ?Sized>(
     let layout = BrickLayout::new(boxes.iter().copied(), opts.brick);
     let fields = comps.iter().map(|&c| src.fields()[c].clone()).collect();
     let mut sink = BrickSink::create(output, src.level_specs(), fields, layout, opts.compression)
-        .map_err(|e| src.output_error(output, e))?;
+        .map_err(|e| output_error(output, e))?;
     let mut write = |s: Slab| {
         sink.write_slab(s.level, s.index, &s.valid, &s.cells, s.field, s.values)
-            .map_err(|e| src.output_error(output, e))
+            .map_err(|e| output_error(output, e))
     };
     let bytes_read = src.stream(&comps, i64::from(opts.brick.max(1)), progress, &mut write)?;
-    let bricks = sink.finish().map_err(|e| src.output_error(output, e))?;
+    let bricks = sink.finish().map_err(|e| output_error(output, e))?;
     progress.finish();
     Ok(ConvertStats {
         bytes_read,

@@ -25,10 +25,13 @@ const FAB_F32_BE: &str =
 const FAB_F64_LE: &str =
     "FAB ((8, (64 11 52 0 1 12 0 1023)),(8, (8 7 6 5 4 3 2 1)))((0,0,0) (1,1,1) (0,0,0)) 1\n";
 
+/// How a case encodes one value.
+type Encode = dyn Fn(f32) -> Vec<u8>;
+
 /// The eight cell values, x fastest.
 const VALUES: [f32; 8] = [1.5, -2.25, 3.0e-7, 4.0e20, 5.0, 6.125, -7.0, 8.0];
 
-fn plotfile(dir: &std::path::Path, fab_header: &str, bytes: &dyn Fn(f32) -> Vec<u8>) {
+fn plotfile(dir: &std::path::Path, fab_header: &str, bytes: &Encode) {
     std::fs::create_dir_all(dir.join("Level_0")).unwrap();
     std::fs::write(dir.join("Header"), HEADER).unwrap();
     std::fs::write(dir.join("Level_0/Cell_H"), CELL_H).unwrap();
@@ -48,7 +51,7 @@ fn converted_values(input: &std::path::Path, out: &std::path::Path) -> Vec<f32> 
 #[test]
 fn float32_fab_headers_as_amrex_prints_them_convert() {
     let tmp = tempfile::tempdir().unwrap();
-    let cases: [(&str, &str, &dyn Fn(f32) -> Vec<u8>); 3] = [
+    let cases: [(&str, &str, &Encode); 3] = [
         ("le", FAB_F32_LE, &|v: f32| v.to_le_bytes().to_vec()),
         ("be", FAB_F32_BE, &|v: f32| v.to_be_bytes().to_vec()),
         ("d", FAB_F64_LE, &|v: f32| {

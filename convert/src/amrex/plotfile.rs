@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use amr_format::{FormatError, IBox, LevelSpec};
+use amr_format::{IBox, LevelSpec};
 
 use super::cell_header::{read_cell_header, CellHeader};
 use super::error::{AmrexError, Result};
@@ -115,6 +115,10 @@ impl Plotfile {
 impl AmrSource for Plotfile {
     type Error = AmrexError;
 
+    fn path(&self) -> &Path {
+        &self.dir
+    }
+
     fn fields(&self) -> &[String] {
         &self.header.fields
     }
@@ -138,21 +142,6 @@ impl AmrSource for Plotfile {
         sink: &mut dyn FnMut(Slab) -> Result<()>,
     ) -> Result<u64> {
         Ok(stream(self, comps, chunk, progress, sink)?.bytes_read)
-    }
-
-    fn unknown_field(&self, name: &str) -> AmrexError {
-        AmrexError::UnknownField {
-            path: self.header_path(),
-            name: name.to_string(),
-            available: self.header.fields.join(", "),
-        }
-    }
-
-    fn output_error(&self, output: &Path, source: FormatError) -> AmrexError {
-        AmrexError::Output {
-            path: output.to_path_buf(),
-            source: Box::new(source),
-        }
     }
 }
 

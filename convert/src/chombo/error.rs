@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use amr_format::FormatError;
+use crate::hierarchy_to_amrk::ConvertError;
 
 /// Everything that can go wrong while reading a Chombo plotfile or converting it.
 #[derive(Debug, thiserror::Error)]
@@ -56,25 +56,9 @@ pub enum ChomboError {
     /// A cell value cannot be stored as a finite `f32`.
     #[error(transparent)]
     BadValue(Box<BadValue>),
-    /// A requested field is not in the plotfile.
-    #[error("{}: no field named '{name}'; the plotfile has: {available}", path.display())]
-    UnknownField {
-        /// The HDF5 file.
-        path: PathBuf,
-        /// The requested name.
-        name: String,
-        /// The plotfile's component names, comma-separated.
-        available: String,
-    },
-    /// The `.amrk` writer refused the data or failed to write.
-    #[error("writing {}", path.display())]
-    Output {
-        /// The output file.
-        path: PathBuf,
-        /// The writer's error.
-        #[source]
-        source: FormatError,
-    },
+    /// The shared conversion failed: an unknown field, or the `.amrk` writer.
+    #[error(transparent)]
+    Convert(#[from] ConvertError),
 }
 
 /// A cell value that cannot be stored as a finite `f32`, and where it is.

@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use amr_format::hierarchy::MAX_LEVELS;
-use amr_format::{FormatError, IBox, LevelSpec};
+use amr_format::{IBox, LevelSpec};
 use hdf5_metno::types::{FloatSize, TypeDescriptor};
 use hdf5_metno::{Dataset, File};
 
@@ -174,6 +174,10 @@ impl Plotfile {
 impl AmrSource for Plotfile {
     type Error = ChomboError;
 
+    fn path(&self) -> &Path {
+        &self.path
+    }
+
     fn fields(&self) -> &[String] {
         &self.fields
     }
@@ -194,21 +198,6 @@ impl AmrSource for Plotfile {
         sink: &mut dyn FnMut(Slab) -> Result<()>,
     ) -> Result<u64> {
         Ok(stream(self, comps, chunk, progress, sink)?.bytes_read)
-    }
-
-    fn unknown_field(&self, name: &str) -> ChomboError {
-        ChomboError::UnknownField {
-            path: self.path.clone(),
-            name: name.to_string(),
-            available: self.fields.join(", "),
-        }
-    }
-
-    fn output_error(&self, output: &Path, source: FormatError) -> ChomboError {
-        ChomboError::Output {
-            path: output.to_path_buf(),
-            source,
-        }
     }
 }
 

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use amr_format::hierarchy::MAX_LEVELS;
-use amr_format::{FormatError, IBox, LevelSpec};
+use amr_format::{IBox, LevelSpec};
 use hdf5_metno::types::{FloatSize, TypeDescriptor};
 use hdf5_metno::{File, Group};
 
@@ -311,6 +311,10 @@ fn read_fields(grid: &Grid) -> Result<(Vec<String>, u64)> {
 impl AmrSource for Dataset {
     type Error = EnzoError;
 
+    fn path(&self) -> &Path {
+        &self.hierarchy
+    }
+
     fn fields(&self) -> &[String] {
         &self.fields
     }
@@ -349,20 +353,5 @@ impl AmrSource for Dataset {
         sink: &mut dyn FnMut(Slab) -> Result<()>,
     ) -> Result<u64> {
         stream(self, comps, chunk, progress, sink)
-    }
-
-    fn unknown_field(&self, name: &str) -> EnzoError {
-        EnzoError::UnknownField {
-            path: self.hierarchy.clone(),
-            name: name.to_string(),
-            available: self.fields.join(", "),
-        }
-    }
-
-    fn output_error(&self, output: &Path, source: FormatError) -> EnzoError {
-        EnzoError::Output {
-            path: output.to_path_buf(),
-            source,
-        }
     }
 }

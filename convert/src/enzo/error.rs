@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use amr_format::FormatError;
+use crate::hierarchy_to_amrk::ConvertError;
 
 /// Everything that can go wrong while reading an Enzo dataset or converting it.
 #[derive(Debug, thiserror::Error)]
@@ -77,25 +77,9 @@ pub enum EnzoError {
         /// "NaN", "infinite" or "outside the f32 range".
         why: &'static str,
     },
-    /// A requested field is not in the dataset.
-    #[error("{}: no field named '{name}'; the dataset has: {available}", path.display())]
-    UnknownField {
-        /// The hierarchy file.
-        path: PathBuf,
-        /// The requested name.
-        name: String,
-        /// The dataset's field names, comma-separated.
-        available: String,
-    },
-    /// The `.amrk` writer refused the data or failed to write.
-    #[error("writing {}: {source}", path.display())]
-    Output {
-        /// The output file.
-        path: PathBuf,
-        /// The writer's error.
-        #[source]
-        source: FormatError,
-    },
+    /// The shared conversion failed: an unknown field, or the `.amrk` writer.
+    #[error(transparent)]
+    Convert(#[from] ConvertError),
 }
 
 /// Result with [`EnzoError`].

@@ -127,7 +127,8 @@ pub fn run_convert(
     };
     let bar = Bar::bytes("converting");
     let stats = match detect(input)? {
-        InputFormat::Amrex => amrex::convert(input, output, &opts, &bar)
+        InputFormat::Amrex => amrex::Plotfile::open(input)
+            .and_then(|pf| crate::hierarchy_to_amrk::convert(&pf, output, &opts, &bar))
             .with_context(|| format!("converting AMReX plotfile {}", input.display()))?,
         InputFormat::ChomboHdf5 => {
             crate::chombo::convert(input, output, &opts, &bar).context("converting Chombo file")?

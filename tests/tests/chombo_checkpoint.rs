@@ -4,6 +4,7 @@
 //! variables named `xNAME`, `yNAME`, `zNAME` at the root. Ghost layers are stripped; a
 //! single-level checkpoint is a valid input.
 
+mod amrex_support;
 mod chombo_support;
 
 use amr_format::Compression;

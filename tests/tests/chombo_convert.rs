@@ -1,6 +1,7 @@
 //! Chombo plotfiles written through HDF5 by the test itself, converted, and read back cell by
 //! cell: every value equals the source rounded to f32, every valid cell is covered once.
 
+mod amrex_support;
 mod chombo_support;
 
 use amr_format::Compression;

@@ -1,6 +1,7 @@
 //! Bad Chombo files: each gives an error that says what is wrong and where, never a panic,
 //! and never an output file (nor a temporary left beside it).
 
+mod amrex_support;
 mod chombo_support;
 
 use std::path::Path;

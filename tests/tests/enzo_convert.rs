@@ -9,9 +9,10 @@ mod enzo_support;
 use std::path::Path;
 
 use amr_format::AmrkFile;
-use amrex_support::{assert_fails, convert};
+use amrex_support::check::check_cells;
+use amrex_support::{assert_fails, convert, shared_data};
+use enzo_support::value;
 use enzo_support::writer::{self, Desc, GridDesc};
-use enzo_support::{check_cells, shared_enzo, value};
 
 /// yt 4.4.3 on DD0010 (`docs/enzo.md`): per field, the minimum and maximum over every grid's
 /// active cells, `g[("enzo", field)]`.
@@ -27,7 +28,8 @@ const YT_RANGES: [(&str, f64, f64); 7] = [
 
 #[test]
 fn dd0010_matches_yt() {
-    let Some(dir) = shared_enzo("dd0010_matches_yt") else {
+    let Some(dir) = shared_data("dd0010_matches_yt", "enzo/DD0010", "moving7_0010.hierarchy")
+    else {
         return;
     };
     let tmp = tempfile::tempdir().unwrap();

@@ -16,18 +16,3 @@ pub use crate::bricking::{ConvertOptions, ConvertStats};
 pub use error::{AmrexError, Result};
 pub use header::looks_like_version;
 pub use plotfile::Plotfile;
-
-use std::path::Path;
-
-use crate::progress::Progress;
-
-/// Converts the plotfile directory `input` into the `.amrk` file `output`
-/// (see [`crate::hierarchy_to_amrk::convert`]).
-pub fn convert(
-    input: &Path,
-    output: &Path,
-    opts: &ConvertOptions,
-    progress: &dyn Progress,
-) -> Result<ConvertStats> {
-    crate::hierarchy_to_amrk::convert(&Plotfile::open(input)?, output, opts, progress)
-}

@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use super::error::{EnzoError, Result};
-use super::text::{key_value, read_text, three};
+use super::text::{integer, key_value, read_text, three};
 
 /// One grid's block, as written (nothing checked but the syntax).
 #[derive(Clone, Debug, PartialEq)]
@@ -91,18 +91,14 @@ pub fn read_hierarchy(path: &Path) -> Result<Vec<GridEntry>> {
             continue;
         };
         let field = |msg: String| syntax(format!("grid {}, {key}: {msg}", g.id));
-        let int = |v: &str| {
-            v.parse::<i64>()
-                .map_err(|_| format!("'{v}' is not an integer"))
-        };
         match key {
-            "GridRank" => g.rank = Some(int(value).map_err(field)?),
+            "GridRank" => g.rank = Some(integer(value).map_err(field)?),
             "GridDimension" => g.dims = Some(three(value).map_err(field)?),
             "GridStartIndex" => g.start = Some(three(value).map_err(field)?),
             "GridEndIndex" => g.end = Some(three(value).map_err(field)?),
             "GridLeftEdge" => g.left = Some(three(value).map_err(field)?),
             "GridRightEdge" => g.right = Some(three(value).map_err(field)?),
-            "NumberOfBaryonFields" => g.nfields = Some(int(value).map_err(field)?),
+            "NumberOfBaryonFields" => g.nfields = Some(integer(value).map_err(field)?),
             "BaryonFileName" => g.file = Some(value.to_string()),
             _ => {}
         }

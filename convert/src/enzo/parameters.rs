@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use super::error::{EnzoError, Result};
-use super::text::{key_value, read_text, three};
+use super::text::{integer, key_value, read_text, three};
 
 /// Largest `TopGridDimensions` entry accepted.
 pub const MAX_TOP_DIM: i64 = 1 << 31;
@@ -42,21 +42,9 @@ pub fn read_parameters(path: &Path) -> Result<Parameters> {
             msg: format!("{key}: {msg}"),
         };
         match key {
-            "TopGridRank" => {
-                rank = Some(
-                    value
-                        .parse::<i64>()
-                        .map_err(|_| syntax(format!("'{value}' is not an integer")))?,
-                )
-            }
+            "TopGridRank" => rank = Some(integer(value).map_err(syntax)?),
             "TopGridDimensions" => top_dims = Some(three::<i64>(value).map_err(syntax)?),
-            "RefineBy" => {
-                refine_by = Some(
-                    value
-                        .parse::<i64>()
-                        .map_err(|_| syntax(format!("'{value}' is not an integer")))?,
-                )
-            }
+            "RefineBy" => refine_by = Some(integer(value).map_err(syntax)?),
             "DomainLeftEdge" => left = Some(three::<f64>(value).map_err(syntax)?),
             "DomainRightEdge" => right = Some(three::<f64>(value).map_err(syntax)?),
             _ => {}

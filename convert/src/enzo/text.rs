@@ -38,6 +38,13 @@ pub fn key_value(line: &str) -> Option<(&str, &str)> {
     Some((k.trim(), v.trim()))
 }
 
+/// One integer.
+pub fn integer(value: &str) -> std::result::Result<i64, String> {
+    value
+        .parse()
+        .map_err(|_| format!("'{value}' is not an integer"))
+}
+
 /// Exactly `n` whitespace-separated numbers.
 pub fn numbers<T: FromStr>(value: &str, n: usize) -> std::result::Result<Vec<T>, String> {
     let v: Vec<T> = value

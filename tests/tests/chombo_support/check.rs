@@ -8,6 +8,7 @@ use amr_convert::progress::NoProgress;
 use amr_format::{AmrkFile, Compression, IBox};
 
 use super::{value, writer, Desc};
+use crate::amrex_support::check::check_cells;
 
 /// Converts `input` with the Chombo reader, panicking with the error chain on failure.
 pub fn convert(
@@ -88,31 +89,11 @@ pub fn check(out: &Path, d: &Desc, fields: &[&str], brick: i64) {
             .sum();
         assert_eq!(cells[l], want, "level {l} cell count");
     }
-    for name in fields {
-        let f = file.field_index(name).unwrap();
-        let comp = d.comps.iter().position(|c| c == name).unwrap();
-        for i in 0..file.num_bricks() {
-            let b = file.brick(i);
-            let values = file.brick_values(f, i).unwrap();
-            let mut k = 0;
-            for z in b.cells.lo[2]..b.cells.hi[2] {
-                for y in b.cells.lo[1]..b.cells.hi[1] {
-                    for x in b.cells.lo[0]..b.cells.hi[0] {
-                        let want = value(b.level as usize, comp, [x, y, z]) as f32;
-                        assert_eq!(
-                            values[k].to_bits(),
-                            want.to_bits(),
-                            "field {name}, level {}, cell {:?}: got {}, want {want}",
-                            b.level,
-                            [x, y, z],
-                            values[k]
-                        );
-                        k += 1;
-                    }
-                }
-            }
-        }
-    }
+    let comp: Vec<usize> = fields
+        .iter()
+        .map(|name| d.comps.iter().position(|c| c == name).unwrap())
+        .collect();
+    check_cells(out, &|l, f, p| value(l, comp[f], p) as f32);
 }
 
 /// Writes `d`, converts `fields` of it (all when empty), and checks the output.

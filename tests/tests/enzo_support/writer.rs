@@ -268,20 +268,14 @@ impl Writer<'_> {
             }
             let shape = [ext[2] as usize, ext[1] as usize, ext[0] as usize];
             if d.f64 {
-                let a = ndarray::Array3::from_shape_vec(shape, vals).unwrap();
-                group
-                    .new_dataset_builder()
-                    .with_data(&a)
-                    .create(name.as_str())
-                    .unwrap();
+                dataset(&group, name, shape, vals);
             } else {
-                let v: Vec<f32> = vals.iter().map(|&v| v as f32).collect();
-                let a = ndarray::Array3::from_shape_vec(shape, v).unwrap();
-                group
-                    .new_dataset_builder()
-                    .with_data(&a)
-                    .create(name.as_str())
-                    .unwrap();
+                dataset(
+                    &group,
+                    name,
+                    shape,
+                    vals.iter().map(|&v| v as f32).collect(),
+                );
             }
         }
         group
@@ -290,4 +284,19 @@ impl Writer<'_> {
             .create("particle_position_x")
             .unwrap();
     }
+}
+
+/// Writes `vals` as the 3-D dataset `name` of shape `shape` (z, y, x) in `group`.
+fn dataset<T: hdf5_metno::H5Type>(
+    group: &hdf5_metno::Group,
+    name: &str,
+    shape: [usize; 3],
+    vals: Vec<T>,
+) {
+    let a = ndarray::Array3::from_shape_vec(shape, vals).unwrap();
+    group
+        .new_dataset_builder()
+        .with_data(&a)
+        .create(name)
+        .unwrap();
 }

@@ -13,6 +13,7 @@ pub mod error;
 pub mod geometry;
 pub mod hierarchy;
 pub mod kdtree;
+pub mod progress;
 pub mod raw;
 pub mod reader;
 pub mod value_range;

@@ -7,5 +7,4 @@ pub mod enzo;
 pub mod finite;
 pub mod hierarchy_to_amrk;
 pub mod progress;
-pub mod synth;
 pub mod synth_cmd;

@@ -1,28 +1,10 @@
-//! Progress reporting: the library calls a [`Progress`]; the binary decides how to show it.
+//! Progress reporting: the [`Progress`] trait (from `amr-format`) and a terminal bar for it.
 
 use std::io::IsTerminal;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-/// Receives progress from a long-running library call.
-pub trait Progress {
-    /// Sets the amount of work (for conversions: input bytes) the call will do.
-    fn set_total(&self, n: u64);
-    /// Records `n` more units of work done.
-    fn advance(&self, n: u64);
-    /// Marks the work as complete.
-    fn finish(&self);
-}
-
-/// Discards all progress reports.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct NoProgress;
-
-impl Progress for NoProgress {
-    fn set_total(&self, _n: u64) {}
-    fn advance(&self, _n: u64) {}
-    fn finish(&self) {}
-}
+pub use amr_format::progress::{NoProgress, Progress};
 
 /// A terminal progress bar on stderr counting bytes, with rate and ETA; hidden when stderr is
 /// not a terminal.

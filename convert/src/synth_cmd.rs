@@ -6,7 +6,7 @@ use amr_format::{Compression, WriterOptions};
 use anyhow::Context;
 
 use crate::progress::Bar;
-use crate::synth::{fit_cells, write_synth, Case, SynthParams};
+use amr_synth::{fit_cells, write_synth, Case, SynthParams};
 
 /// zstd level used by `--compress`.
 const ZSTD_LEVEL: i32 = 3;

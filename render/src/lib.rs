@@ -1,17 +1,46 @@
-//! Rendering isosurfaces of `.amrk` files: mapping, reconstruction, extraction, tracing, output.
+//! Ray tracing isosurfaces of block-structured AMR data stored in `.amrk` files, as a library.
+//!
+//! Open a [`Scene`] (a mapped file, one field, a reconstruction), give it isosurfaces with
+//! [`Scene::set_isosurfaces`] (only the ones that changed are extracted and built), and
+//! [`render()`] it through any number of [`View`]s: a camera change costs one frame.
+//!
+//! ```no_run
+//! use amr_render::{render, Scene, SceneOptions, View, IsoSpec};
+//! # fn main() -> amr_render::Result<()> {
+//! let mut scene = Scene::open("blobs.amrk".as_ref(), &SceneOptions::default())?;
+//! scene.set_isosurfaces(&[IsoSpec::new(10.0)])?;
+//! let frame = render(&scene, &View::default(), &|_rows| {})?;
+//! amr_render::output::exr_file::write_exr("blobs.exr".as_ref(), &frame.frame, &[])?;
+//! # Ok(())
+//! # }
+//! ```
+//!
+//! The layers underneath: [`mapping`] (the one memory map), [`reconstruct`] (the octant
+//! method and the others), [`extract`] (active voxels), [`bvh`], [`trace`] (rays and exact
+//! intersection), [`shade`] (lighting and the frame loop), [`output`] (EXR and PNG).
 #![warn(missing_docs)]
 
-pub mod bench;
 pub mod bvh;
 pub mod camera;
+pub mod error;
 pub mod extract;
-pub mod extract_cmd;
 pub mod info;
 pub mod mapping;
-pub mod mpi;
 pub mod output;
 pub mod reconstruct;
-pub mod render_cmd;
+pub mod render;
 pub mod sample_mode;
+pub mod scene;
 pub mod shade;
+pub mod stats;
 pub mod trace;
+pub mod view;
+pub mod voxel;
+
+pub use error::{RenderError, Result};
+pub use reconstruct::Reconstruction;
+pub use render::{render, render_region, Rect, RegionPixels, Rendered};
+pub use scene::{Scene, SceneOptions, SceneStats, TraceMethod};
+pub use shade::IsoSpec;
+pub use stats::FrameStats;
+pub use view::{CameraPlacement, View};

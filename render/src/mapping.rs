@@ -141,8 +141,8 @@ impl<'f> PageRelease<'f> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use amr_convert::progress::NoProgress;
-    use amr_convert::synth::{write_synth, Case, SynthParams};
+    use amr_format::progress::NoProgress;
+    use amr_synth::{write_synth, Case, SynthParams};
     use amr_format::WriterOptions;
 
     #[test]

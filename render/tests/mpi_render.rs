@@ -8,8 +8,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use amr_convert::progress::NoProgress;
-use amr_convert::synth::{write_synth, Case, SynthParams};
+use amr_format::progress::NoProgress;
+use amr_synth::{write_synth, Case, SynthParams};
 use amr_format::WriterOptions;
 use amr_render::output::exr_file::read_channel;
 

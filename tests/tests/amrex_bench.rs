@@ -2,11 +2,10 @@
 //! Ignored by default; run with
 //! `AMR_BENCH_OUT=DIR AMR_BENCH_MB=1000 cargo test --release -p amr-tests --test amrex_bench -- --ignored`.
 
-mod amrex_support;
 
 use std::path::PathBuf;
 
-use amrex_support::writer::{write_plotfile, PlotSpec};
+use crate::support::amrex::writer::{write_plotfile, PlotSpec};
 
 /// Box edge in cells; a box holds 4 float64 fields, 8 MiB.
 const EDGE: i64 = 64;

@@ -3,10 +3,8 @@
 //! `operator<<(ostream&, RealDescriptor)` and `putarray` in AMReX_FabConv.cpp print each array as
 //! `(number of entries, (entries))`), not produced by the reader or by the tests' writer.
 
-mod amrex_support;
-
+use crate::support::amrex::writer::Real;
 use amr_format::AmrkFile;
-use amrex_support::writer::Real;
 
 /// The `Header` of a one-level plotfile: one field `rho`, domain `(0,0,0)..(1,1,1)` on `[0,1]^3`.
 const HEADER: &str = "HyperCLaw-V1.1\n1\nrho\n3\n0\n0\n0 0 0\n1 1 1\n\n\
@@ -43,7 +41,7 @@ fn plotfile(dir: &std::path::Path, fab_header: &str, bytes: &Encode) {
 }
 
 fn converted_values(input: &std::path::Path, out: &std::path::Path) -> Vec<f32> {
-    amrex_support::convert(input, out, &[], 32).unwrap();
+    crate::support::amrex::convert(input, out, &[], 32).unwrap();
     let f = AmrkFile::open(std::fs::read(out).unwrap()).unwrap();
     f.brick_values(0, 0).unwrap().to_vec()
 }
@@ -80,7 +78,7 @@ fn the_old_byte_count_form_is_refused() {
     let dir = tmp.path().join("old");
     let old = "FAB ((4, (32 8 23 0 1 9 0 127)),(4, (4 3 2 1)))((0,0,0) (1,1,1) (0,0,0)) 1\n";
     plotfile(&dir, old, &|v: f32| v.to_le_bytes().to_vec());
-    amrex_support::assert_fails(
+    crate::support::amrex::assert_fails(
         &dir,
         &[],
         &["Cell_D_00000", "more than the 4 entries it announces"],

@@ -1,10 +1,8 @@
 //! A refinement ratio of 1 on an axis (quasi-2D runs refine `2 2 1`) is refused with a message
 //! that says why and where to read more (`docs/format.md`), leaving nothing behind.
 
-mod amrex_support;
-
-use amrex_support::assert_fails;
-use amrex_support::writer::{write_plotfile, PlotSpec};
+use crate::support::amrex::assert_fails;
+use crate::support::amrex::writer::{write_plotfile, PlotSpec};
 
 #[test]
 fn ratio_one_on_an_axis_is_refused_with_the_reason() {

@@ -2,13 +2,12 @@
 //! every stored value is checked against an independent reading, and the four damaged
 //! plotfiles must fail with a clear message and leave nothing behind.
 
-mod amrex_support;
 
 use amr_convert::convert_cmd::run_convert;
 use amr_format::Compression;
-use amrex_support::check::{check_against, check_conversion};
-use amrex_support::source::read_plotfile;
-use amrex_support::{assert_fails, convert, shared_amrex};
+use crate::support::amrex::check::{check_against, check_conversion};
+use crate::support::amrex::source::read_plotfile;
+use crate::support::amrex::{assert_fails, convert, shared_amrex};
 
 #[test]
 fn example_plt_3d_converts_exactly() {

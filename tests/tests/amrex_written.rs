@@ -2,14 +2,13 @@
 //! float32, big-endian, partial refinement, ratio 4 and anisotropic ratios, negative origin and
 //! indices, ghost cells, `Cell_H` versions 2 to 4, offsets above 4 GiB, 2D, bad values.
 
-mod amrex_support;
 
 use std::path::Path;
 
 use amr_format::AmrkFile;
-use amrex_support::check::check_conversion;
-use amrex_support::writer::{write_plotfile, Bx, PlotSpec, Real};
-use amrex_support::{assert_fails, convert};
+use crate::support::amrex::check::check_conversion;
+use crate::support::amrex::writer::{write_plotfile, Bx, PlotSpec, Real};
+use crate::support::amrex::{assert_fails, convert};
 
 /// A smooth field that differs per level and component and is not exactly representable.
 fn analytic(level: usize, comp: usize, p: [i64; 3]) -> f64 {

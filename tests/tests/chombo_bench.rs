@@ -6,10 +6,7 @@
 //! float64 components: 930 MB; `CHOMBO_BENCH_COMPS=5` adds a fifth component for 1.16 GB.
 //! Written box by box so the generator's memory stays small.
 
-mod amrex_support;
-mod chombo_support;
-
-use chombo_support::writer::{attr, attr_str, int_vect, padded_box_type, raw_box, RawBox};
+use crate::support::chombo::writer::{attr, attr_str, int_vect, padded_box_type, raw_box, RawBox};
 use hdf5_metno::File;
 
 /// 32³ boxes tiling the cube `[lo, lo + n)` of one level.

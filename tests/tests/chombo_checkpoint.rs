@@ -4,12 +4,9 @@
 //! variables named `xNAME`, `yNAME`, `zNAME` at the root. Ghost layers are stripped; a
 //! single-level checkpoint is a valid input.
 
-mod amrex_support;
-mod chombo_support;
-
+use crate::support::chombo::check::roundtrip;
+use crate::support::chombo::{writer, Desc};
 use amr_format::Compression;
-use chombo_support::check::roundtrip;
-use chombo_support::{writer, Desc};
 
 #[test]
 fn one_data_for_every_component() {

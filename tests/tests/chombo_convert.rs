@@ -1,12 +1,9 @@
 //! Chombo plotfiles written through HDF5 by the test itself, converted, and read back cell by
 //! cell: every value equals the source rounded to f32, every valid cell is covered once.
 
-mod amrex_support;
-mod chombo_support;
-
+use crate::support::chombo::check::{check, roundtrip};
+use crate::support::chombo::{writer, Desc};
 use amr_format::Compression;
-use chombo_support::check::{check, roundtrip};
-use chombo_support::{writer, Desc};
 
 #[test]
 fn float64_three_levels_every_value_is_the_source_rounded_to_f32() {

@@ -1,15 +1,12 @@
 //! Bad Chombo files: each gives an error that says what is wrong and where, never a panic,
 //! and never an output file (nor a temporary left beside it).
 
-mod amrex_support;
-mod chombo_support;
-
 use std::path::Path;
 
+use crate::support::chombo::{writer, Desc};
 use amr_convert::chombo::{self, ConvertOptions};
-use amr_convert::progress::NoProgress;
+use amr_format::progress::NoProgress;
 use amr_format::Compression;
-use chombo_support::{writer, Desc};
 
 /// Writes `d`, converts it, and returns the error's full chain; checks nothing was written.
 fn fails(d: &Desc) -> String {

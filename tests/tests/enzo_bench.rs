@@ -1,14 +1,12 @@
 //! Writes a large Enzo dataset for `docs/benchmarks-convert.md` (ignored by default):
 //!
-//! `ENZO_BENCH_DIR=/path/DD0001 cargo test --release -p amr-tests --test enzo_bench -- --ignored`
+//! `ENZO_BENCH_DIR=/path/DD0001 cargo test --release -p amr-tests --test tests enzo_bench -- --ignored`
 //!
-//! Packed HDF5 in Enzo's layout (`tests/tests/enzo_support/writer.rs`): a 256³ root split into
+//! Packed HDF5 in Enzo's layout (`tests/tests/support/enzo/writer.rs`): a 256³ root split into
 //! eight 128³ grids, each refined (`RefineBy` 2) over its central 64³ cells by one 128³ grid;
 //! four float64 fields, active cells only; 33.6 M cells, 1.07 GB of cell data.
 
-mod enzo_support;
-
-use enzo_support::writer::{write, Desc, GridDesc};
+use crate::support::enzo::writer::{write, Desc, GridDesc};
 
 #[test]
 #[ignore = "writes about 1.1 GB; run by hand for the benchmark"]

@@ -3,16 +3,13 @@
 //! Enzo's layouts (packed and one file per grid, ghost zones, doubles), cell by cell; broken
 //! ones must fail with a message naming the file and the grid, leaving nothing behind.
 
-mod amrex_support;
-mod enzo_support;
-
 use std::path::Path;
 
+use crate::support::amrex::check::check_cells;
+use crate::support::amrex::{assert_fails, convert, shared_data};
+use crate::support::enzo::value;
+use crate::support::enzo::writer::{self, Desc, GridDesc};
 use amr_format::AmrkFile;
-use amrex_support::check::check_cells;
-use amrex_support::{assert_fails, convert, shared_data};
-use enzo_support::value;
-use enzo_support::writer::{self, Desc, GridDesc};
 
 /// yt 4.4.3 on DD0010 (`docs/enzo.md`): per field, the minimum and maximum over every grid's
 /// active cells, `g[("enzo", field)]`.

@@ -2,14 +2,13 @@
 //! active voxel's corners lie in its leaf's stored range; the result does not depend on the run
 //! or the number of threads; compressed files decode each brick once. Failures name their seed.
 
-mod support;
 
 use std::collections::{HashMap, HashSet};
 
 use amr_format::AmrkFile;
-use amr_render::extract::{split_ref, Extractor};
+use amr_render::extract::{split_ref, Extractor, LocalVoxel};
 use amr_render::reconstruct::{Octant, Sampler, VertexMemo};
-use support::{build, standard_cases, Case, Rng};
+use crate::support::hierarchy::{build, standard_cases, Case, Rng};
 
 /// Every octant of every leaf, once (owned by the leaf holding its lowest finest cell), with its
 /// corner values.
@@ -67,7 +66,7 @@ fn isovalues(
     let values: Vec<[f32; 8]> = octants.values().copied().collect();
     let mut out = vec![];
     for _ in 0..3 {
-        out.push(info.min + (info.max - info.min) * rng.unit() as f32);
+        out.push(info.min + (info.max - info.min) * rng.f64() as f32);
         // A corner value: the edge of some voxel's range, where culling bounds are tightest.
         let v = values[rng.below(values.len() as u64) as usize];
         out.push(v[rng.below(8) as usize]);
@@ -108,11 +107,12 @@ fn check_case(case: &Case) -> (u64, u64) {
                     "{ctx}: refs not strictly increasing at {r:#x}"
                 );
                 last = Some(r);
-                let (leaf, _) = split_ref(r);
+                let (leaf, local) = split_ref(r);
+                let dual = matches!(local, LocalVoxel::Dual { .. });
                 let vox = ex.decode(r).unwrap_or_else(|e| panic!("{ctx}: {e}"));
                 assert_eq!(
                     ex.voxel_box(r).unwrap_or_else(|e| panic!("{ctx}: {e}")),
-                    (vox.lo_doubled, vox.hi_doubled),
+                    (vox.lo_doubled(), vox.hi_doubled()),
                     "{ctx}: ref {r:#x}: the box from the reference alone differs from the decoded one"
                 );
                 assert!(
@@ -128,11 +128,11 @@ fn check_case(case: &Case) -> (u64, u64) {
                     );
                 }
                 let s_l = s.grid().scale(vox.level);
-                let parts: Vec<(Octant, f32)> = if vox.dual {
+                let parts: Vec<(Octant, f32)> = if dual {
                     (0..8)
                         .map(|j| {
                             let centre = [0, 1, 2].map(|a| {
-                                vox.lo_doubled[a] + if j >> a & 1 == 1 { 2 * s_l[a] } else { 0 }
+                                vox.lo_doubled()[a] + if j >> a & 1 == 1 { 2 * s_l[a] } else { 0 }
                             });
                             let cell = s
                                 .locate(s.grid().finest_cell(centre, 7))
@@ -152,15 +152,15 @@ fn check_case(case: &Case) -> (u64, u64) {
                 } else {
                     let at = s.grid().finest_cell(
                         [0, 1, 2].map(|a| {
-                            vox.lo_doubled[a] + s_l[a].min(1) - 1
-                                + (vox.hi_doubled[a] - vox.lo_doubled[a]) / 2
+                            vox.lo_doubled()[a] + s_l[a].min(1) - 1
+                                + (vox.hi_doubled()[a] - vox.lo_doubled()[a]) / 2
                         }),
                         7,
                     );
                     let c = s.locate(at).unwrap().unwrap();
                     let centre = s.grid().centre(c.level, c.cell);
                     let octant = (0..3)
-                        .map(|a| u8::from(vox.lo_doubled[a] == centre[a]) << a)
+                        .map(|a| u8::from(vox.lo_doubled()[a] == centre[a]) << a)
                         .sum();
                     let o = Octant {
                         level: c.level,
@@ -178,7 +178,7 @@ fn check_case(case: &Case) -> (u64, u64) {
                     );
                     vec![(o, vox.values[0])]
                 };
-                if vox.dual {
+                if dual {
                     assert!(
                         parts.iter().any(|(o, _)| want.contains(o)),
                         "{ctx}: dual {r:#x} has no active octant"

@@ -4,7 +4,7 @@
 //! - the extractions equal a brute-force reference that visits every dual cell (current) or
 //!   every face (nearest) of every kd-tree leaf, without the leaf ranges or neighbour tables;
 //! - decoded voxels carry the sampler's field: the trilinear interpolant of a current voxel
-//!   equals `Sampler::sample(p, Method::Current)` inside it, a nearest face slab has the two
+//!   equals `Sampler::sample(p, Reconstruction::Current)` inside it, a nearest face slab has the two
 //!   cells' values on its two sides;
 //! - along random rays the hybrid's first hit is a real change of side of the sampler's field,
 //!   and comes no later than the first change a fine march finds (for `current`, a march bracket
@@ -12,7 +12,6 @@
 //!
 //! Failures name their seed.
 
-mod support;
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -20,12 +19,11 @@ use amr_format::AmrkFile;
 use amr_render::bvh::BvhBuilder;
 use amr_render::extract::current::CurrentVoxels;
 use amr_render::extract::nearest::NearestFaces;
-use amr_render::reconstruct::{Method, Sampler};
-use amr_render::render_cmd::{ActiveSource, Reconstruction};
-use amr_render::trace::recon_source::ReconSource;
+use amr_render::reconstruct::{Reconstruction, Sampler};
+use amr_render::trace::FieldSource;
 use amr_render::trace::traverse::Surface;
 use amr_render::trace::{GridRay, HybridTracer, Tracer, VoxelSource};
-use support::{build, standard_cases, Rng};
+use crate::support::hierarchy::{build, standard_cases, Rng};
 
 fn lerp(a: f64, b: f64, t: f64) -> f64 {
     a * (1.0 - t) + b * t
@@ -182,7 +180,7 @@ fn check_current(file: &AmrkFile<Vec<u8>>, field: usize, isos: &[f32], ctx: &str
             // The dual index from the box: the unclipped lower corner is the centre of level
             // cell `i`, `2 (i s - o) + s`, and the clipped one lies less than `2 s` above it.
             let o = s.grid().offset();
-            let i = [0, 1, 2].map(|a| (v.lo_doubled[a] + 2 * o[a] - sc[a]).div_euclid(2 * sc[a]));
+            let i = [0, 1, 2].map(|a| (v.lo_doubled()[a] + 2 * o[a] - sc[a]).div_euclid(2 * sc[a]));
             let key = (leaf, i);
             let vals = all.get(&key).unwrap_or_else(|| {
                 panic!("{ctx} iso {iso}: ref {r:#x} {v:?} not in the reference")
@@ -195,10 +193,10 @@ fn check_current(file: &AmrkFile<Vec<u8>>, field: usize, isos: &[f32], ctx: &str
             assert!(got.insert(key), "{ctx} iso {iso}: {key:?} emitted twice");
             // The interpolant equals the sampler's `current` field inside the voxel.
             for _ in 0..4 {
-                let u = [0, 1, 2].map(|_| 0.02 + 0.96 * rng.unit());
+                let u = [0, 1, 2].map(|_| 0.02 + 0.96 * rng.f64());
                 let p =
-                    [0, 1, 2].map(|a| lerp(v.lo_doubled[a] as f64, v.hi_doubled[a] as f64, u[a]));
-                let f = s.sample(p, Method::Current).unwrap().unwrap();
+                    [0, 1, 2].map(|a| lerp(v.lo_doubled()[a] as f64, v.hi_doubled()[a] as f64, u[a]));
+                let f = s.sample(p, Reconstruction::Current).unwrap().unwrap();
                 let mine = trilinear(&v.values, u);
                 let scale = v
                     .values
@@ -238,9 +236,9 @@ fn check_nearest(file: &AmrkFile<Vec<u8>>, field: usize, isos: &[f32], ctx: &str
                 .find(|&a| v.values[0] != v.values[1 << a])
                 .unwrap_or_else(|| panic!("{ctx} iso {iso}: ref {r:#x} has one value"));
             // The slab's face, in finest cells.
-            let mut lo = [0, 1, 2].map(|b| v.lo_doubled[b] / 2);
-            let mut hi = [0, 1, 2].map(|b| v.hi_doubled[b] / 2);
-            let plane = (v.lo_doubled[a] + v.hi_doubled[a]) / 4;
+            let mut lo = [0, 1, 2].map(|b| v.lo_doubled()[b] / 2);
+            let mut hi = [0, 1, 2].map(|b| v.hi_doubled()[b] / 2);
+            let plane = (v.lo_doubled()[a] + v.hi_doubled()[a]) / 4;
             lo[a] = plane;
             hi[a] = plane;
             let key = (lo, hi, a);
@@ -269,7 +267,7 @@ fn isovalues(rng: &mut Rng, file: &AmrkFile<Vec<u8>>, field: usize) -> Vec<f32> 
     let f = &file.fields()[field];
     let mut out = vec![0.0, 0.125, -0.375];
     for _ in 0..2 {
-        out.push(f.min + (f.max - f.min) * rng.unit() as f32);
+        out.push(f.min + (f.max - f.min) * rng.f64() as f32);
     }
     out
 }
@@ -310,7 +308,7 @@ fn nearest_extraction_equals_brute_force() {
 
 /// Which side of `iso` the sampler's field is on at `p`, the kd-tree leaf there and the width of
 /// its cells (doubled units, smallest axis).
-fn side(s: &Sampler<'_, Vec<u8>>, m: Method, p: [f64; 3], iso: f32) -> (bool, u32, f64) {
+fn side(s: &Sampler<'_, Vec<u8>>, m: Reconstruction, p: [f64; 3], iso: f32) -> (bool, u32, f64) {
     let v = s.sample(p, m).unwrap().unwrap();
     let ext = s.grid().extent();
     let f = [0, 1, 2].map(|a| ((p[a] * 0.5).floor() as i64).clamp(0, ext[a] - 1));
@@ -331,27 +329,24 @@ fn check_rays(
     seed: u64,
     ctx: &str,
 ) -> usize {
-    let src = ReconSource::new(file, field, recon).unwrap();
-    let refs = src.extract(iso).unwrap();
+    let src = FieldSource::new(file, field, recon).unwrap();
+    let refs = src.extract(iso).unwrap().refs;
     let surf = [Surface::build(&src, iso, &refs, &mut BvhBuilder::new())];
     let tracer = HybridTracer {
         src: &src,
         surfaces: &surf,
         smooth_normals: false,
     };
-    let m = match recon {
-        Reconstruction::Current => Method::Current,
-        _ => Method::Nearest,
-    };
+    let m = recon;
     let s = src.sampler();
     let ext = src.frame().extent;
     let mut rng = Rng(seed);
     let mut hits = 0;
     for k in 0..60 {
         // From outside the domain to a random point inside; unit direction in grid units.
-        let target = ext.map(|e| e * (0.05 + 0.9 * rng.unit()));
+        let target = ext.map(|e| e * (0.05 + 0.9 * rng.f64()));
         let dir = {
-            let d = [0, 1, 2].map(|_| rng.unit() - 0.5);
+            let d = [0, 1, 2].map(|_| rng.f64() - 0.5);
             let n = d.iter().map(|x| x * x).sum::<f64>().sqrt();
             d.map(|x| x / n)
         };
@@ -371,7 +366,7 @@ fn check_rays(
         while t < t1 - 1e-9 {
             let tn = (t + prev.2 / 16.0).min(t1 - 1e-9);
             let cur = side(s, m, inside(tn), iso);
-            if cur.0 != prev.0 && (m == Method::Nearest || cur.1 == prev.1) {
+            if cur.0 != prev.0 && (m == Reconstruction::Nearest || cur.1 == prev.1) {
                 first = Some((t, tn));
                 break;
             }
@@ -386,7 +381,7 @@ fn check_rays(
                 side(s, m, ray.at(h.t - d), iso).0,
                 side(s, m, ray.at(h.t + d), iso).0,
             );
-            if m == Method::Nearest {
+            if m == Reconstruction::Nearest {
                 assert!(
                     a != b,
                     "{ctx} ray {k}: nearest hit at t {} is no face crossing",

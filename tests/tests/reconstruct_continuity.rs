@@ -1,13 +1,12 @@
 //! The octant reconstruction is continuous across level boundaries, bit-identical at shared
 //! octant vertices, and interpolating at cell centres; every failure names its seed.
 
-mod support;
 
 use std::collections::{HashMap, HashSet};
 
 use amr_format::AmrkFile;
-use amr_render::reconstruct::{Method, Octant, Sampler, VertexMemo};
-use support::{build, standard_cases, Case, Rng};
+use amr_render::reconstruct::{Octant, Reconstruction, Sampler, VertexMemo};
+use crate::support::hierarchy::{build, standard_cases, Case, Rng};
 
 /// Every leaf cell of the file, once, with its value.
 fn leaf_cells(s: &Sampler<'_, Vec<u8>>) -> Vec<(u32, [i64; 3], f32)> {
@@ -140,14 +139,14 @@ fn continuous_across_level_boundary_faces_edges_and_corners() {
                         match rng.below(3) {
                             0 => lo[b] as f64,
                             1 => hi[b] as f64,
-                            _ => lo[b] as f64 + rng.unit() * sc[b] as f64,
+                            _ => lo[b] as f64 + rng.f64() * sc[b] as f64,
                         }
                     };
                 }
                 let mut vals = Vec::new();
                 for d in 0..8 {
                     let q = [0, 1, 2].map(|b| p[b] + if d >> b & 1 == 1 { delta } else { -delta });
-                    if let Some(v) = s.sample(q, Method::Octant).unwrap() {
+                    if let Some(v) = s.sample(q, Reconstruction::Octant).unwrap() {
                         vals.push(v as f64);
                     }
                 }
@@ -191,7 +190,7 @@ fn octant_interpolates_at_cell_centres_away_from_boundaries() {
                 continue;
             }
             let p = s.grid().centre(level, cell).map(|v| v as f64);
-            for m in [Method::Octant, Method::Nearest, Method::Current] {
+            for m in [Reconstruction::Octant, Reconstruction::Nearest, Reconstruction::Current] {
                 let got = s.sample(p, m).unwrap().unwrap();
                 assert_eq!(
                     got, value,
@@ -213,7 +212,7 @@ fn world_coordinates_round_trip_far_from_the_origin() {
         let mut rng = Rng(case.seed);
         let ext = s.grid().extent();
         for _ in 0..200 {
-            let p = [0, 1, 2].map(|a| rng.unit() * 2.0 * ext[a] as f64);
+            let p = [0, 1, 2].map(|a| rng.f64() * 2.0 * ext[a] as f64);
             let back = s.grid().to_doubled(s.grid().to_world(p));
             let err = (0..3).map(|a| (back[a] - p[a]).abs()).fold(0.0, f64::max);
             assert!(
@@ -222,7 +221,7 @@ fn world_coordinates_round_trip_far_from_the_origin() {
                 case.seed
             );
             let a = s
-                .sample_world(s.grid().to_world(p), Method::Octant)
+                .sample_world(s.grid().to_world(p), Reconstruction::Octant)
                 .unwrap();
             assert!(a.is_some() || (0..3).any(|a| back[a] < 0.0 || back[a] > 2.0 * ext[a] as f64));
         }

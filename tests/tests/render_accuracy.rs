@@ -1,14 +1,13 @@
 //! Accuracy of the hybrid method: a thin feature the sample method misses at a coarse step, and
 //! a domain far from the origin with tiny cells rendering like the unit cube.
 
-mod render_support;
 
-use amr_render::render_cmd::{render_source, Method, RenderConfig};
+use amr_render::View;
 use amr_render::sample_mode::SampleTracer;
 use amr_render::shade::IsoSpec;
-use amr_render::trace::synthetic::BlockGrid;
+use crate::support::block_grid::BlockGrid;
 use amr_render::trace::{GridRay, HybridTracer, Tracer};
-use render_support::{sphere_grid, surfaces, Rng};
+use crate::support::render::{render_grid, sphere_grid, surfaces, Rng};
 
 fn hit_fraction(tracer: &dyn Tracer, rays: &[GridRay]) -> f64 {
     let hits = rays
@@ -80,18 +79,11 @@ fn thin_sheet_missed_by_coarse_marching_is_found_exactly() {
     }
 }
 
-fn config() -> RenderConfig {
-    RenderConfig {
-        isos: vec!["0".parse::<IsoSpec>().unwrap()],
+fn view() -> View {
+    View {
         size: (64, 48),
-        camera: None,
-        fov: 40.0,
-        method: Method::Hybrid,
-        step: None,
-        spp: 1,
-        shadows: true,
-        ao: 2,
-        smooth_normals: true,
+        ao_rays: 2,
+        ..View::default()
     }
 }
 
@@ -100,8 +92,9 @@ fn far_from_the_origin_with_tiny_cells_renders_like_the_unit_cube() {
     let seed = 21;
     let unit = sphere_grid(seed, 3, 2, 1.3, [0.0; 3], 1.0);
     let far = sphere_grid(seed, 3, 2, 1.3, [1e6, -2e6, 5e5], 1e-6);
-    let a = render_source(&unit, &config(), &|_| {}).unwrap().frame;
-    let b = render_source(&far, &config(), &|_| {}).unwrap().frame;
+    let isos = ["0".parse::<IsoSpec>().unwrap()];
+    let a = render_grid(&unit, &isos, &view()).frame;
+    let b = render_grid(&far, &isos, &view()).frame;
     assert!(
         a.covered() > a.len() / 20,
         "seed {seed}: the sphere covers only {} pixels",

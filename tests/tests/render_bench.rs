@@ -1,31 +1,42 @@
 //! Measurements for docs/benchmarks-render.md (ignored by default; run with
 //! `cargo test --release -p amr-tests --test render_bench -- --ignored --nocapture`).
 
-mod render_support;
 
 use std::time::Instant;
 
 use amr_render::bvh::BvhBuilder;
-use amr_render::render_cmd::{peak_rss_bytes, render_source, Method, RenderConfig};
+use amr_render::render::render_surfaces;
+use amr_render::trace::Surface;
+use amr_render::{CameraPlacement, View};
 use amr_render::shade::IsoSpec;
-use render_support::sphere_grid;
+use crate::support::render::{render_grid_sampled, sphere_grid};
 
-fn config(method: Method, step: Option<f64>, ao: u32) -> RenderConfig {
-    RenderConfig {
-        isos: vec![
-            "0:gold".parse::<IsoSpec>().unwrap(),
-            "0.45:#4080ff:0.35".parse::<IsoSpec>().unwrap(),
-        ],
+fn isos() -> Vec<IsoSpec> {
+    vec![
+        "0:gold".parse::<IsoSpec>().unwrap(),
+        "0.45:#4080ff:0.35".parse::<IsoSpec>().unwrap(),
+    ]
+}
+
+fn view(step: Option<f64>, ao_rays: u32) -> View {
+    View {
+        camera: Some(CameraPlacement {
+            pos: [9.0, -5.0, 6.5],
+            look_at: Some([2.0, 2.0, 2.0]),
+            up: None,
+        }),
+        fov_deg: 30.0,
         size: (1024, 768),
-        camera: Some(([9.0, -5.0, 6.5], Some([2.0, 2.0, 2.0]), None)),
-        fov: 30.0,
-        method,
-        step,
-        spp: 1,
-        shadows: true,
-        ao,
-        smooth_normals: true,
+        ao_rays,
+        sample_step: step,
+        ..View::default()
     }
+}
+
+/// Peak resident set of this process (`VmHWM`), kB as `/proc/self/status` gives it.
+fn peak_rss() -> Option<String> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    Some(s.lines().find(|l| l.starts_with("VmHWM:"))?.to_string())
 }
 
 #[test]
@@ -39,30 +50,37 @@ fn frame_times_and_memory() {
         grid.voxels().len(),
         t.elapsed().as_secs_f64()
     );
-    let hybrid = render_source(&grid, &config(Method::Hybrid, None, 0), &|_| {}).unwrap();
-    let r = &hybrid;
-    let per = (r.refs_bytes + r.bvh_bytes) as f64 / r.active_octants as f64;
+    let t = Instant::now();
+    let mut builder = BvhBuilder::new();
+    let surfaces: Vec<Surface> = isos()
+        .iter()
+        .map(|s| Surface::build_owned(&grid, s.value, grid.active(s.value), &mut builder))
+        .collect();
+    let bvh_time = t.elapsed();
+    let active: u64 = surfaces.iter().map(|s| s.bvh.len() as u64).sum();
+    let refs_bytes: u64 = surfaces.iter().map(|s| s.bvh.refs_bytes() as u64).sum();
+    let bvh_bytes: u64 = surfaces.iter().map(|s| s.bvh.bvh_bytes() as u64).sum();
+    let hybrid = render_surfaces(&grid, &surfaces, &isos(), &view(None, 0), &|_| {}).unwrap();
+    let r = &hybrid.stats;
+    let per = (refs_bytes + bvh_bytes) as f64 / active as f64;
     eprintln!(
-        "hybrid 1024x768 shadows: {:.1} ms, {} ray queries, {:.2} M rays/s/core, {} active voxels, \
-         refs {} B + bvh {} B = {per:.2} B/voxel, build scratch {} B ({:.1} B/voxel), bvh {:.2} ms",
+        "hybrid 1024x768 shadows: {:.1} ms, {} ray queries, {:.2} M rays/s/core, {active} active voxels, \
+         refs {refs_bytes} B + bvh {bvh_bytes} B = {per:.2} B/voxel, build scratch {} B ({:.1} B/voxel), bvh {:.2} ms",
         r.render.as_secs_f64() * 1e3,
         r.rays,
         r.rays as f64 / r.render.as_secs_f64() / threads as f64 / 1e6,
-        r.active_octants,
-        r.refs_bytes,
-        r.bvh_bytes,
-        r.build_scratch_bytes,
-        r.build_scratch_bytes as f64 / r.active_octants as f64,
-        r.bvh.as_secs_f64() * 1e3
+        builder.last_scratch_bytes,
+        builder.last_scratch_bytes as f64 / active as f64,
+        bvh_time.as_secs_f64() * 1e3
     );
-    let ao = render_source(&grid, &config(Method::Hybrid, None, 4), &|_| {}).unwrap();
+    let ao = render_surfaces(&grid, &surfaces, &isos(), &view(None, 4), &|_| {}).unwrap();
     eprintln!(
         "hybrid 1024x768 shadows + 4 AO rays: {:.1} ms, {} ray queries",
-        ao.render.as_secs_f64() * 1e3,
-        ao.rays
+        ao.stats.render.as_secs_f64() * 1e3,
+        ao.stats.rays
     );
     for step in [0.1, 0.05, 0.02, 0.01, 0.005, 0.002] {
-        let s = render_source(&grid, &config(Method::Sample, Some(step), 0), &|_| {}).unwrap();
+        let s = render_grid_sampled(&grid, &isos(), &view(Some(step), 0));
         let (a, b) = (&hybrid.frame, &s.frame);
         let mut coverage = 0;
         let mut zerr = 0.0f64;
@@ -81,12 +99,12 @@ fn frame_times_and_memory() {
         eprintln!(
             "sample step {step} (finest voxel 1/16 = 0.0625): {:.1} ms, coverage mismatches {coverage}, \
              mean |dZ| {:.2e}, max |dZ| {:.2e}",
-            s.render.as_secs_f64() * 1e3,
+            s.stats.render.as_secs_f64() * 1e3,
             zerr / n.max(1) as f64,
             worst
         );
     }
-    eprintln!("peak RSS {:?} B", peak_rss_bytes());
+    eprintln!("peak RSS {:?}", peak_rss());
 }
 
 #[test]
@@ -120,7 +138,7 @@ fn bvh_build_rate() {
     };
     let mut builder = BvhBuilder::new();
     for round in 0..3 {
-        let rss0 = peak_rss_bytes();
+        let rss0 = peak_rss();
         let t = Instant::now();
         let bvh = builder.build(&refs, 1e-3, bounds);
         let s = t.elapsed().as_secs_f64();
@@ -136,7 +154,7 @@ fn bvh_build_rate() {
             bvh.bvh_bytes(),
             builder.last_scratch_bytes as f64 / refs.len() as f64,
             rss0,
-            peak_rss_bytes()
+            peak_rss()
         );
     }
 }

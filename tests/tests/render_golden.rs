@@ -3,15 +3,15 @@
 //! images are written. `AMR_RENDER_BLESS=1` rewrites the golden image. Also checks the EXR
 //! channels: `A = 0` exactly where `Z = +inf`.
 
-mod render_support;
 
 use std::path::{Path, PathBuf};
 
 use amr_render::output::exr_file::read_channel;
 use amr_render::output::png_preview::{preview_rgb8, write_png};
-use amr_render::render_cmd::{header_meta, render_source, write_outputs, Method, RenderConfig};
+use amr_render::output::exr_file::write_exr;
+use amr_render::{CameraPlacement, View};
 use amr_render::shade::IsoSpec;
-use render_support::sphere_grid;
+use crate::support::render::{render_grid, sphere_grid};
 
 /// Largest per-channel difference (of 255) a pixel may have.
 const PIXEL_TOL: i32 = 6;
@@ -22,21 +22,27 @@ fn golden_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/render_golden/nested_spheres.ppm")
 }
 
-fn config() -> RenderConfig {
-    RenderConfig {
-        isos: vec![
-            "0:gold".parse::<IsoSpec>().unwrap(),
-            "0.45:#4080ff:0.35".parse::<IsoSpec>().unwrap(),
-        ],
+fn isos() -> Vec<IsoSpec> {
+    vec![
+        "0:gold".parse::<IsoSpec>().unwrap(),
+        "0.45:#4080ff:0.35".parse::<IsoSpec>().unwrap(),
+    ]
+}
+
+fn view() -> View {
+    View {
+        camera: Some(CameraPlacement {
+            pos: [9.0, -5.0, 6.5],
+            look_at: Some([2.0, 2.0, 2.0]),
+            up: None,
+        }),
+        fov_deg: 35.0,
         size: (128, 96),
-        camera: Some(([9.0, -5.0, 6.5], Some([2.0, 2.0, 2.0]), None)),
-        fov: 35.0,
-        method: Method::Hybrid,
-        step: None,
         spp: 1,
         shadows: true,
-        ao: 4,
+        ao_rays: 4,
         smooth_normals: true,
+        sample_step: None,
     }
 }
 
@@ -68,23 +74,13 @@ fn read_ppm(path: &Path) -> Option<(u32, u32, Vec<u8>)> {
 fn nested_spheres_match_the_golden_image() {
     let seed = 5;
     let grid = sphere_grid(seed, 3, 2, 1.3, [0.0; 3], 1.0);
-    let cfg = config();
-    let report = render_source(&grid, &cfg, &|_| {}).unwrap();
+    let report = render_grid(&grid, &isos(), &view());
     let (w, h) = (report.frame.width, report.frame.height);
     let actual = preview_rgb8(&report.frame);
 
     let dir = tempfile::tempdir().unwrap();
     let exr = dir.path().join("frame.exr");
-    write_outputs(
-        &report,
-        &header_meta(&cfg, &report, &[]),
-        &exr,
-        None,
-        &[],
-        false,
-        None,
-    )
-    .unwrap();
+    write_exr(&exr, &report.frame, &[]).unwrap();
     let (_, _, a) = read_channel(&exr, "A").unwrap();
     let (_, _, z) = read_channel(&exr, "Z").unwrap();
     let (_, _, level) = read_channel(&exr, "level").unwrap();

@@ -2,10 +2,9 @@
 //! including rays aimed exactly at voxel faces, edges and corners and rays along the axes; every
 //! hit lies on the reconstructed surface.
 
-mod render_support;
 
 use amr_render::trace::{GridRay, Surface, VoxelSource};
-use render_support::{shape_grid, surfaces, Rng, Shape, CENTRE};
+use crate::support::render::{shape_grid, surfaces, Rng, Shape, CENTRE};
 
 /// Rays of one configuration: random directions from several origins, directions to lattice
 /// points near the surface, and axis and diagonal directions.
@@ -64,7 +63,7 @@ fn rays(
 fn check(seed: u64, levels: u8, ratio: u32, shape: Shape, radius: f64, random: usize) -> usize {
     let grid = shape_grid(seed, levels, ratio, shape, radius, [0.0; 3], 1.0);
     let surface: Vec<Surface> = surfaces(&grid, &[0.0]);
-    let field = render_support::shape_field(shape, radius);
+    let field = crate::support::render::shape_field(shape, radius);
     let rays = rays(seed, ratio, levels, random, &field);
     let mut worst: f64 = 0.0;
     for (i, ray) in rays.iter().enumerate() {

@@ -4,40 +4,19 @@
 //! directions, the axes and diagonals, and rays aimed exactly at finest-cell corners near the
 //! surface, many of which lie on the level-boundary faces, edges and corners the surface crosses.
 
-use amr_convert::progress::NoProgress;
-use amr_convert::synth::{
+use amr_format::progress::NoProgress;
+use amr_synth::{
     build_hierarchy_by, near_surface, write_spec, AnalyticField, Case, SynthParams,
 };
 use amr_format::{AmrkFile, WriterOptions};
 use amr_render::bvh::BvhBuilder;
-use amr_render::render_cmd::Reconstruction;
-use amr_render::trace::amr_source::AmrSource;
+use amr_render::trace::FieldSource;
+use amr_render::Reconstruction;
 use amr_render::trace::traverse::Surface;
 use amr_render::trace::{GridRay, VoxelSource};
 use rayon::prelude::*;
 
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn f64(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn dir(&mut self) -> [f64; 3] {
-        loop {
-            let d = [0, 1, 2].map(|_| 2.0 * self.f64() - 1.0);
-            let n = d.iter().map(|x| x * x).sum::<f64>();
-            if n > 1e-6 && n <= 1.0 {
-                return d;
-            }
-        }
-    }
-}
+use crate::support::rng::Rng;
 
 const CENTRE: [f64; 3] = [0.47, 0.52, 0.5];
 const RADIUS: f64 = 0.31;
@@ -70,8 +49,8 @@ fn check(seed: u64, levels: u32, ratio: u32, base: u32, random: usize) -> usize 
         levels,
         "seed {seed}: levels dropped"
     );
-    let src = AmrSource::new(&file, 0, Reconstruction::Octant).unwrap();
-    let refs = amr_render::render_cmd::ActiveSource::extract(&src, 0.0).unwrap();
+    let src = FieldSource::new(&file, 0, Reconstruction::Octant).unwrap();
+    let refs = src.extract(0.0).unwrap().refs;
     let surface = Surface::build(&src, 0.0, &refs, &mut BvhBuilder::new());
     let frame = src.frame();
 

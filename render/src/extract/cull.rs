@@ -11,7 +11,8 @@
 //! Means never leave the range of their inputs (rounding is monotone and halving exact); a
 //! trilinear interpolation can by a few ulps, so coarse contributions are widened.
 
-use amr_format::{IBox, RangeAccumulator, Result};
+use amr_format::{IBox, RangeAccumulator};
+use crate::error::Result;
 
 use super::local::{Neighbourhood, ABOVE, BELOW, COARSER, PENDING};
 use crate::reconstruct::sampler::Locate;

@@ -8,15 +8,17 @@
 //! the range runs from one before the leaf's first overlapping cell to its last. A clipped voxel's
 //! corner values are the dual cell's trilinear interpolant at the clipped corners (the restriction
 //! of a trilinear function to a sub-box is the trilinear function of those values), so the
-//! exact cubic intersector sees the same field as [`Sampler::sample`] with [`Method::Current`],
+//! exact cubic intersector sees the same field as [`Sampler::sample`] with [`Reconstruction::Current`],
 //! up to `f32` rounding of the clipped corners.
 //!
-//! [`Method::Current`]: crate::reconstruct::Method::Current
+//! [`Reconstruction::Current`]: crate::reconstruct::Reconstruction::Current
 
-use amr_format::{FormatError, IBox, Result};
+use amr_format::IBox;
+
+use crate::error::{RenderError, Result};
 use rayon::prelude::*;
 
-use super::refs::Voxel;
+use crate::voxel::Voxel;
 use crate::reconstruct::interp::{min_max, straddles};
 use crate::reconstruct::Sampler;
 
@@ -169,7 +171,10 @@ impl<'f, D: AsRef<[u8]> + Sync> CurrentVoxels<'f, D> {
     /// when `r` names no voxel of this file. `dual` is true when the box is a whole dual cell.
     pub fn decode(&self, r: u64) -> Result<Voxel> {
         let (leaf, id) = ((r >> 32) as u32, r as u32);
-        let bad = |m: &str| FormatError::Usage(format!("current voxel {r:#018x}: {m}"));
+        let bad = |m: &str| RenderError::BadVoxelRef {
+            r,
+            what: format!("current voxel: {m}"),
+        };
         if leaf as usize >= self.sampler.file().num_leaves() {
             return Err(bad("no such leaf"));
         }
@@ -191,17 +196,11 @@ impl<'f, D: AsRef<[u8]> + Sync> CurrentVoxels<'f, D> {
         let (lo, hi, values) = self
             .clip(&f, i, &dual)
             .ok_or_else(|| bad("outside the leaf"))?;
-        let g = self.sampler.grid();
-        let s = g.scale(f.level);
-        let base = g.centre(f.level, i);
         Ok(Voxel {
-            lo: g.to_world(lo.map(|v| v as f64)),
-            hi: g.to_world(hi.map(|v| v as f64)),
-            lo_doubled: lo,
-            hi_doubled: hi,
+            lo: lo.map(|v| v as f64),
+            hi: hi.map(|v| v as f64),
             values,
             level: f.level,
-            dual: (0..3).all(|a| lo[a] == base[a] && hi[a] == base[a] + 2 * s[a]),
         })
     }
 }
@@ -210,7 +209,7 @@ impl<'f, D: AsRef<[u8]> + Sync> CurrentVoxels<'f, D> {
 fn check_ids(f: &DualFrame, leaf: u32) -> Result<()> {
     let e = f.duals.extent();
     if (e[0] as u128) * (e[1] as u128) * (e[2] as u128) > u128::from(u32::MAX) {
-        return Err(FormatError::Usage(format!(
+        return Err(RenderError::Unsupported(format!(
             "leaf {leaf}: {e:?} dual cells do not fit 32-bit voxel ids"
         )));
     }

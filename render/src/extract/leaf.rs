@@ -6,7 +6,8 @@
 //! cells are all leaf cells of level `L`; every other octant of the leaf's cells is a voxel of
 //! its own, with corners from [`Sampler::corners`].
 
-use amr_format::{IBox, Result};
+use amr_format::IBox;
+use crate::error::Result;
 
 use super::cull::{around_offsets, cell_may_hold};
 use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};

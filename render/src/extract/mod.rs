@@ -1,6 +1,6 @@
 //! Active-voxel extraction for one field and one isovalue (Wang et al., section 4.2).
 //!
-//! - [`refs`]: the 64-bit references (`leaf << 32 | id`) and decoded [`Voxel`]s.
+//! - [`refs`]: the 64-bit references (`leaf << 32 | id`).
 //! - [`local`]: the classified level-`L` neighbourhood of a leaf.
 //! - [`leaf`]: the voxels one leaf owns: merged dual cells and boundary octants.
 //! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue.
@@ -29,14 +29,17 @@ pub mod vertices;
 
 use std::time::Instant;
 
-use amr_format::{AmrkFile, FormatError, Result};
+use amr_format::AmrkFile;
+
+use crate::error::{RenderError, Result};
 use rayon::prelude::*;
 
 use crate::mapping::PageRelease;
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::{Octant, Sampler, VertexMemo};
 use leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
-pub use refs::{make_ref, split_ref, LocalVoxel, Voxel, DUAL_BASE};
+pub use refs::{make_ref, split_ref, LocalVoxel, DUAL_BASE};
+pub use crate::voxel::Voxel;
 pub use stats::ExtractStats;
 use tight::TightRanges;
 
@@ -60,7 +63,7 @@ pub struct Extractor<'f, D> {
     sampler: Sampler<'f, D>,
     file_cells: u64,
     tight: TightRanges,
-    pages: Option<&'f PageRelease<'f>>,
+    pages: Option<PageRelease<'f>>,
 }
 
 impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
@@ -84,14 +87,19 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// Releases `pages` after each chunk of leaves, so that the map's resident bytes stay
     /// bounded by what one chunk touches; the statistics' `resident_bytes` becomes the sum over
     /// chunks of the map bytes resident at the end of each chunk.
-    pub fn set_page_release(&mut self, pages: &'f PageRelease<'f>) {
+    pub fn set_page_release(&mut self, pages: PageRelease<'f>) {
         self.pages = Some(pages);
+    }
+
+    /// The page release set with [`Self::set_page_release`].
+    pub fn page_release(&self) -> Option<&PageRelease<'f>> {
+        self.pages.as_ref()
     }
 
     /// Drops the map's pages from the resident set when a [`PageRelease`] is set; returns the
     /// bytes that were resident.
     pub fn release_pages(&self) -> Option<u64> {
-        self.pages.and_then(PageRelease::release)
+        self.pages.as_ref().and_then(PageRelease::release)
     }
 
     /// The sampler underneath.
@@ -133,7 +141,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     fn read_ahead(&self, leaves: &[u32]) {
         /// Ranges closer than this are read as one.
         const GAP: u64 = 64 << 10;
-        let Some(pages) = self.pages else {
+        let Some(pages) = &self.pages else {
             return;
         };
         let file = self.sampler.file();
@@ -294,13 +302,10 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             }
         };
         Ok(Voxel {
-            lo: grid.to_world(lo.map(|v| v as f64)),
-            hi: grid.to_world(hi.map(|v| v as f64)),
-            lo_doubled: lo,
-            hi_doubled: hi,
+            lo: lo.map(|v| v as f64),
+            hi: hi.map(|v| v as f64),
             values,
             level,
-            dual: octant.is_none(),
         })
     }
 
@@ -353,6 +358,9 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
 }
 
 /// The error for a reference that names no voxel of the file.
-fn bad_ref(r: u64, what: &str) -> FormatError {
-    FormatError::Usage(format!("voxel reference {r:#018x}: {what}"))
+fn bad_ref(r: u64, what: &str) -> RenderError {
+    RenderError::BadVoxelRef {
+        r,
+        what: what.into(),
+    }
 }

@@ -15,10 +15,12 @@
 //! on the upper side. Its corner range straddles the isovalue exactly when the face does; the
 //! nearest source intersects it at the face plane (`trace/nearest_source.rs`).
 
-use amr_format::{FormatError, IBox, Result};
+use amr_format::IBox;
+
+use crate::error::{RenderError, Result};
 use rayon::prelude::*;
 
-use super::refs::Voxel;
+use crate::voxel::Voxel;
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::{LeafCell, Sampler};
 
@@ -107,7 +109,7 @@ impl<'f, D: AsRef<[u8]> + Sync> NearestFaces<'f, D> {
         };
         let ce = f.cells.extent();
         if (ce[0] as u128) * (ce[1] as u128) * (ce[2] as u128) * 8 > u128::from(u32::MAX) {
-            return Err(FormatError::Usage(format!(
+            return Err(RenderError::Unsupported(format!(
                 "leaf {leaf}: {ce:?} cells do not fit 32-bit face ids"
             )));
         }
@@ -161,7 +163,10 @@ impl<'f, D: AsRef<[u8]> + Sync> NearestFaces<'f, D> {
     /// above). An error when `r` names no face of this file.
     pub fn decode(&self, r: u64) -> Result<Voxel> {
         let (leaf, id) = ((r >> 32) as u32, r as u32);
-        let bad = |m: &str| FormatError::Usage(format!("nearest face {r:#018x}: {m}"));
+        let bad = |m: &str| RenderError::BadVoxelRef {
+            r,
+            what: format!("nearest face: {m}"),
+        };
         if leaf as usize >= self.sampler.file().num_leaves() {
             return Err(bad("no such leaf"));
         }
@@ -199,13 +204,10 @@ impl<'f, D: AsRef<[u8]> + Sync> NearestFaces<'f, D> {
         };
         let values = std::array::from_fn(|k| if k >> a & 1 == 1 { above } else { below });
         Ok(Voxel {
-            lo: g.to_world(lo.map(|v| v as f64)),
-            hi: g.to_world(hi.map(|v| v as f64)),
-            lo_doubled: lo,
-            hi_doubled: hi,
+            lo: lo.map(|v| v as f64),
+            hi: hi.map(|v| v as f64),
             values,
             level: f.level,
-            dual: false,
         })
     }
 }

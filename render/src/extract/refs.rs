@@ -58,22 +58,3 @@ pub fn make_ref(leaf: u32, v: LocalVoxel) -> u64 {
 pub fn split_ref(r: u64) -> (u32, LocalVoxel) {
     ((r >> 32) as u32, LocalVoxel::from_id(r as u32))
 }
-
-/// A decoded voxel: a box with trilinearly interpolated corner values.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Voxel {
-    /// Lower corner, world coordinates.
-    pub lo: [f64; 3],
-    /// Upper corner, world coordinates.
-    pub hi: [f64; 3],
-    /// Lower corner, doubled finest-level coordinates.
-    pub lo_doubled: [i64; 3],
-    /// Upper corner, doubled finest-level coordinates.
-    pub hi_doubled: [i64; 3],
-    /// Corner values; corner `n` is on the upper side of axis `a` when bit `a` of `n` is set.
-    pub values: [f32; 8],
-    /// The level of the cells the voxel belongs to.
-    pub level: u32,
-    /// True for a merged dual cell (corners at 8 cell centres), false for a single octant.
-    pub dual: bool,
-}

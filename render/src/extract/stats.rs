@@ -3,7 +3,7 @@
 use std::fmt;
 
 /// Statistics of one extraction.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct ExtractStats {
     /// The field's name.
     pub field: String,
@@ -52,47 +52,6 @@ impl ExtractStats {
     /// Emitted voxels per second.
     pub fn active_per_second(&self) -> f64 {
         self.active as f64 / self.seconds
-    }
-
-    /// The statistics as one JSON object.
-    pub fn to_json(&self) -> String {
-        let resident = self
-            .resident_bytes
-            .map_or("null".to_string(), |b| b.to_string());
-        format!(
-            concat!(
-                "{{\"field\":{:?},\"iso\":{},\"active\":{},\"active_duals\":{},\"leaves_visited\":{},\"leaves_skipped\":{},",
-                "\"leaves_total\":{},\"evaluated\":{},\"boundary_evaluated\":{},\"culled_cells\":{},\"file_cells\":{},\"seconds\":{},\"threads\":{},",
-                "\"decompressions\":{},\"resident_bytes\":{},\"file_bytes\":{},",
-                "\"cells_per_core_second\":{},\"active_per_second\":{}}}"
-            ),
-            self.field,
-            json_f64(f64::from(self.iso)),
-            self.active,
-            self.active_duals,
-            self.leaves_visited,
-            self.leaves_skipped,
-            self.leaves_total,
-            self.evaluated,
-            self.boundary_evaluated,
-            self.culled_cells,
-            self.file_cells,
-            json_f64(self.seconds),
-            self.threads,
-            self.decompressions,
-            resident,
-            self.file_bytes,
-            json_f64(self.cells_per_core_second()),
-            json_f64(self.active_per_second()),
-        )
-    }
-}
-
-fn json_f64(x: f64) -> String {
-    if x.is_finite() {
-        format!("{x}")
-    } else {
-        "null".to_string()
     }
 }
 

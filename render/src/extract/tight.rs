@@ -19,7 +19,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use amr_format::kdtree::widen_range;
-use amr_format::Result;
+use crate::error::Result;
 
 use super::cull::brick_range_in;
 use crate::reconstruct::Sampler;

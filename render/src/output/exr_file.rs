@@ -6,6 +6,8 @@ use std::path::{Path, PathBuf};
 
 use exr::prelude::*;
 
+use crate::error::{RenderError, Result};
+
 use crate::output::frame::FrameBuffer;
 
 /// Header attribute names holding the world origin that `P.X`, `P.Y`, `P.Z` are relative to.
@@ -16,7 +18,7 @@ pub fn write_exr(
     path: &Path,
     frame: &FrameBuffer,
     meta: &[(String, String)],
-) -> anyhow::Result<()> {
+) -> Result<()> {
     let size = (frame.width as usize, frame.height as usize);
     let ch = |name: &str, data: &Vec<f32>| AnyChannel::new(name, FlatSamples::F32(data.clone()));
     let channels = vec![
@@ -55,10 +57,13 @@ pub fn write_exr(
     image
         .write()
         .to_file(&tmp)
-        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", tmp.display()))?;
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            RenderError::output(path, e)
+        })?;
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
-        anyhow::anyhow!("cannot rename {} to {}: {e}", tmp.display(), path.display())
+        RenderError::output(path, e)
     })
 }
 
@@ -82,7 +87,7 @@ fn text(s: &str) -> Text {
 }
 
 /// One channel of an EXR file read back: width, height, values (for tests and tools).
-pub fn read_channel(path: &Path, name: &str) -> anyhow::Result<(u32, u32, Vec<f32>)> {
+pub fn read_channel(path: &Path, name: &str) -> Result<(u32, u32, Vec<f32>)> {
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -90,14 +95,14 @@ pub fn read_channel(path: &Path, name: &str) -> anyhow::Result<(u32, u32, Vec<f3
         .first_valid_layer()
         .all_attributes()
         .from_file(path)
-        .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
+        .map_err(|e| RenderError::Invalid(format!("cannot read {}: {e}", path.display())))?;
     let layer = &image.layer_data;
     let ch = layer
         .channel_data
         .list
         .iter()
         .find(|c| c.name.to_string() == name)
-        .ok_or_else(|| anyhow::anyhow!("no channel {name}"))?;
+        .ok_or_else(|| RenderError::Invalid(format!("{}: no channel {name}", path.display())))?;
     let v: Vec<f32> = ch.sample_data.values_as_f32().collect();
     Ok((layer.size.0 as u32, layer.size.1 as u32, v))
 }

@@ -2,6 +2,7 @@
 
 pub mod exr_file;
 pub mod frame;
+pub mod header;
 pub mod png_preview;
 
 pub use frame::{FrameBuffer, PixelSample};

@@ -3,6 +3,8 @@
 use std::io::BufWriter;
 use std::path::Path;
 
+use crate::error::{RenderError, Result};
+
 use crate::output::exr_file::temp_path;
 use crate::output::frame::FrameBuffer;
 
@@ -33,27 +35,29 @@ fn to_srgb8(v: f32) -> u8 {
 }
 
 /// Writes `rgb8` (`width x height` RGB8) as a PNG, through a temporary file.
-pub fn write_png(path: &Path, width: u32, height: u32, rgb8: &[u8]) -> anyhow::Result<()> {
+pub fn write_png(path: &Path, width: u32, height: u32, rgb8: &[u8]) -> Result<()> {
     let tmp = temp_path(path);
-    let result = (|| -> anyhow::Result<()> {
-        let file = std::fs::File::create(&tmp)?;
+    let result = (|| -> std::result::Result<(), String> {
+        let file = std::fs::File::create(&tmp).map_err(|e| e.to_string())?;
         let mut enc = png::Encoder::new(BufWriter::new(file), width, height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
-        let mut w = enc.write_header()?;
-        w.write_image_data(rgb8)?;
-        w.finish()?;
+        let mut w = enc.write_header().map_err(|e| e.to_string())?;
+        w.write_image_data(rgb8).map_err(|e| e.to_string())?;
+        w.finish().map_err(|e| e.to_string())?;
         Ok(())
     })();
     if let Err(e) = result {
         let _ = std::fs::remove_file(&tmp);
-        return Err(e.context(format!("cannot write {}", path.display())));
+        return Err(RenderError::output(path, e));
     }
-    std::fs::rename(&tmp, path)
-        .map_err(|e| anyhow::anyhow!("cannot rename to {}: {e}", path.display()))
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        RenderError::output(path, e)
+    })
 }
 
 /// Writes the preview of `frame` to `path`.
-pub fn write_preview(path: &Path, frame: &FrameBuffer) -> anyhow::Result<()> {
+pub fn write_preview(path: &Path, frame: &FrameBuffer) -> Result<()> {
     write_png(path, frame.width, frame.height, &preview_rgb8(frame))
 }

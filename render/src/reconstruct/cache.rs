@@ -9,7 +9,10 @@ use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
-use amr_format::{FormatError, Result};
+use amr_format::FormatError;
+
+use crate::error::RenderError;
+use crate::error::Result;
 
 const SHARDS: usize = 64;
 
@@ -76,6 +79,6 @@ impl BrickCache {
             self.decodes.fetch_add(1, Ordering::Relaxed);
             decode().map(Arc::from).map_err(|e| e.to_string())
         });
-        value.clone().map_err(FormatError::Corrupt)
+        value.clone().map_err(|e| RenderError::Format(FormatError::Corrupt(e)))
     }
 }

@@ -1,14 +1,15 @@
 //! Point sampling with the four reconstructions: `nearest`, `current` and `finest` (Wald et al.
 //! 2017) and `octant` (Wang et al., section 3.2).
 
-use amr_format::Result;
+use crate::error::Result as RenderResult;
 
 use super::interp::trilinear;
 use super::sampler::{LeafCell, Sampler, VertexMemo};
 
-/// A reconstruction method.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Method {
+/// How cell values are reconstructed between cell centres: the one reconstruction type of the
+/// renderer, for sampling, extraction and tracing alike.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum Reconstruction {
     /// The value of the leaf cell holding the point.
     Nearest,
     /// Trilinear on the dual cell of the leaf cell's level; each corner takes the value of the
@@ -23,10 +24,53 @@ pub enum Method {
     Octant,
 }
 
+impl Reconstruction {
+    /// Every reconstruction, coarse to fine in quality.
+    pub const ALL: [Reconstruction; 4] = [
+        Reconstruction::Nearest,
+        Reconstruction::Current,
+        Reconstruction::Finest,
+        Reconstruction::Octant,
+    ];
+
+    /// The name used on command lines, in statistics and in file headers.
+    pub fn name(self) -> &'static str {
+        match self {
+            Reconstruction::Nearest => "nearest",
+            Reconstruction::Current => "current",
+            Reconstruction::Finest => "finest",
+            Reconstruction::Octant => "octant",
+        }
+    }
+
+    /// True when its active voxels can be extracted and traced exactly (all but `finest`, which
+    /// is for point sampling).
+    pub fn is_traceable(self) -> bool {
+        self != Reconstruction::Finest
+    }
+}
+
+impl std::fmt::Display for Reconstruction {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Reconstruction {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        Reconstruction::ALL
+            .into_iter()
+            .find(|r| r.name().eq_ignore_ascii_case(s.trim()))
+            .ok_or_else(|| format!("unknown reconstruction '{s}' (octant, current, nearest, finest)"))
+    }
+}
+
 impl<D: AsRef<[u8]>> Sampler<'_, D> {
     /// The reconstruction at doubled point `p`; on an exact boundary the point is nudged toward
     /// `+`. `None` outside the domain or where no brick covers the cells involved.
-    pub fn sample(&self, p: [f64; 3], method: Method) -> Result<Option<f32>> {
+    pub fn sample(&self, p: [f64; 3], method: Reconstruction) -> RenderResult<Option<f32>> {
         let ext = self.grid().extent();
         if (0..3).any(|a| !(p[a] >= 0.0 && p[a] <= 2.0 * ext[a] as f64)) {
             return Ok(None);
@@ -36,19 +80,19 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             return Ok(None);
         };
         match method {
-            Method::Nearest => Ok(Some(c.value)),
-            Method::Octant => self.sample_octant(p, &c),
-            Method::Current => self.sample_dual(p, c.level),
-            Method::Finest => self.sample_dual(p, self.grid().num_levels() as u32 - 1),
+            Reconstruction::Nearest => Ok(Some(c.value)),
+            Reconstruction::Octant => self.sample_octant(p, &c),
+            Reconstruction::Current => self.sample_dual(p, c.level),
+            Reconstruction::Finest => self.sample_dual(p, self.grid().num_levels() as u32 - 1),
         }
     }
 
     /// [`Self::sample`] at a world position.
-    pub fn sample_world(&self, x: [f64; 3], method: Method) -> Result<Option<f32>> {
+    pub fn sample_world(&self, x: [f64; 3], method: Reconstruction) -> RenderResult<Option<f32>> {
         self.sample(self.grid().to_doubled(x), method)
     }
 
-    fn sample_octant(&self, p: [f64; 3], c: &LeafCell) -> Result<Option<f32>> {
+    fn sample_octant(&self, p: [f64; 3], c: &LeafCell) -> RenderResult<Option<f32>> {
         let centre = self.grid().centre(c.level, c.cell);
         let s = self.grid().scale(c.level);
         let mut octant = 0u8;
@@ -72,7 +116,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         Ok(Some(trilinear(&corners, t)))
     }
 
-    fn sample_dual(&self, p: [f64; 3], level: u32) -> Result<Option<f32>> {
+    fn sample_dual(&self, p: [f64; 3], level: u32) -> RenderResult<Option<f32>> {
         let s = self.grid().scale(level);
         let o = self.grid().offset();
         let first = [0, 1, 2]

@@ -18,5 +18,5 @@ pub mod sampler;
 
 pub use grid::Grid;
 pub use local::LocalLocator;
-pub use methods::Method;
+pub use methods::Reconstruction;
 pub use sampler::{LeafCell, Locate, Octant, Sampler, Slab, VertexMemo};

@@ -13,7 +13,10 @@ use std::ops::Deref;
 use std::sync::Arc;
 
 use amr_format::kdtree::TreeView;
-use amr_format::{AmrkFile, FormatError, IBox, Result};
+use amr_format::{AmrkFile, IBox};
+
+use crate::error::RenderError;
+use crate::error::Result;
 
 use super::cache::BrickCache;
 use super::grid::Grid;
@@ -197,7 +200,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// `cache_bytes`.
     pub fn new(file: &'f AmrkFile<D>, field: usize, cache_bytes: usize) -> Result<Self> {
         if field >= file.fields().len() {
-            return Err(FormatError::Usage(format!(
+            return Err(RenderError::Invalid(format!(
                 "field {field} does not exist ({} fields)",
                 file.fields().len()
             )));

@@ -39,6 +39,15 @@ const NAMED: [(&str, [f32; 3]); 12] = [
 ];
 
 impl IsoSpec {
+    /// An opaque isosurface at `value` with the palette's colour.
+    pub fn new(value: f32) -> IsoSpec {
+        IsoSpec {
+            value,
+            color: None,
+            opacity: 1.0,
+        }
+    }
+
     /// The colour to shade with: the given one, or the palette's `index`-th.
     pub fn color_or_palette(&self, index: usize) -> [f32; 3] {
         self.color.unwrap_or(PALETTE[index % PALETTE.len()])

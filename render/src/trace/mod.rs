@@ -1,17 +1,16 @@
 //! Ray tracing implicit isosurfaces: rays in grid coordinates, exact ray-voxel intersection,
 //! and closest-hit and any-hit traversal of a BVH over active voxels.
 
-pub mod amr_source;
 pub mod cubic;
 pub mod face;
+pub mod field_source;
 pub mod octant;
 pub mod ray;
-pub mod recon_source;
 pub mod source;
-pub mod synthetic;
 pub mod tracer;
 pub mod traverse;
 
+pub use field_source::FieldSource;
 pub use ray::GridRay;
 pub use source::{GridFrame, Voxel, VoxelSource};
 pub use tracer::{HybridTracer, SurfaceHit, Tracer};

@@ -1,0 +1,85 @@
+//! `amr-render`: renders isosurfaces of `.amrk` files; `demo`, `extract`, `info` and `verify` are
+//! subcommands. Each command's arguments become a validated request for the `amr_render` library
+//! in its own file; this one only dispatches.
+
+mod demo;
+mod extract;
+mod info;
+#[cfg(feature = "mpi")]
+mod mpi;
+mod outputs;
+mod probe;
+mod progress;
+mod render;
+mod render_args;
+mod verify;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Ray traces isosurfaces of block-structured AMR data stored in .amrk files.
+#[derive(Parser, Debug)]
+#[command(
+    version,
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+    /// Renders FILE.amrk to an EXR frame (the default command).
+    #[command(flatten)]
+    render: Option<render_args::RenderArgs>,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Synthesizes a small multi-level dataset, converts it and renders it.
+    Demo(demo::DemoArgs),
+    /// Extracts the active octants for one or more isovalues and reports statistics.
+    Extract(extract::ExtractArgs),
+    /// Prints what a file holds: levels, bricks, cells, fields, tree, bytes by section.
+    Info(info::InfoArgs),
+    /// Reads the whole file and checks data checksums, the tree's tiling, brick lists and ranges.
+    Verify(verify::VerifyArgs),
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match (cli.command, cli.render) {
+        (Some(Command::Demo(args)), _) => demo::run(&args),
+        (Some(Command::Extract(args)), _) => extract::run(&args),
+        (Some(Command::Info(args)), _) => info::run(&args),
+        (Some(Command::Verify(args)), _) => verify::run(&args),
+        (None, Some(args)) => render::run(&args),
+        (None, None) => anyhow::bail!("nothing to do: give FILE.amrk or a subcommand (see --help)"),
+    }
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("Error: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+/// True when `e` is a write to a closed pipe (`amr-render info F | head`): not a failure.
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn cli_is_consistent() {
+        use clap::CommandFactory;
+        super::Cli::command().debug_assert();
+    }
+}

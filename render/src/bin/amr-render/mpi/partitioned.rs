@@ -1,0 +1,135 @@
+//! The partitioned mode's frame: each rank holds the active octants of one run of kd-tree leaves
+//! ([`super::partition`]) and their BVH, renders the whole frame of its part, and the partial
+//! frames are composited ([`super::composite`]).
+//!
+//! The extraction is shared out first by leaf count (rank `r` extracts the `r`-th slice of the
+//! leaves that may hold the isovalue), the per-leaf counts are summed on every rank, the leaves
+//! are cut into runs balanced by count, and the refs are sent to the ranks that own them.
+//!
+//! Shadows and ambient occlusion need the whole scene (an occluder may be in any part), so this
+//! mode renders without them.
+
+use std::time::Instant;
+
+use ::mpi::collective::SystemOperation;
+use ::mpi::datatype::{Partition, PartitionMut};
+use ::mpi::topology::SimpleCommunicator;
+use ::mpi::traits::*;
+
+use super::composite::direct_send;
+use super::partition::{balanced_runs, visibility_order};
+use super::pixels::offsets;
+use super::stats::{cpu_seconds, RankStats};
+use amr_render::extract::split_ref;
+use amr_render::output::frame::FrameBuffer;
+use amr_render::shade::IsoSpec;
+use amr_render::{render, Scene, View};
+use anyhow::anyhow;
+
+/// Builds this rank's part of `scene` for `isos`, renders it and composites the frame on rank 0
+/// (`None` elsewhere). `view` must be without shadows and ambient occlusion. Fills in `stats`
+/// (`cpu_scene` with the processor time at the start of rendering, render time and rays).
+pub fn render_part(
+    world: &SimpleCommunicator,
+    scene: &mut Scene,
+    isos: &[IsoSpec],
+    view: &View,
+    stats: &mut RankStats,
+    progress: &(dyn Fn(u64) + Sync),
+) -> anyhow::Result<Option<FrameBuffer>> {
+    let n = world.size() as usize;
+    let me = world.rank() as usize;
+    let mut bytes = 0u64;
+
+    let t = Instant::now();
+    let ext = scene
+        .extractor()
+        .ok_or_else(|| anyhow!("--mpi-mode partitioned needs the octant reconstruction"))?;
+    let file = scene.file();
+    let mut local = Vec::with_capacity(isos.len());
+    let mut counts = vec![0u64; file.num_leaves()];
+    for spec in isos {
+        let candidates = ext.candidate_leaves(spec.value);
+        let c = candidates.len();
+        let slice = &candidates[me * c / n..(me + 1) * c / n];
+        let refs = ext.extract_leaves(spec.value, slice)?.refs;
+        for &r in &refs {
+            counts[split_ref(r).0 as usize] += 1;
+        }
+        local.push(refs);
+    }
+    let mut total = vec![0u64; counts.len()];
+    world.all_reduce_into(&counts[..], &mut total[..], SystemOperation::sum());
+    bytes += 8 * counts.len() as u64;
+    drop(counts);
+    let frame = scene.grid_frame();
+    let camera = view.camera(&frame)?;
+    let eye = [0, 1, 2].map(|a| 0.5 * (camera.pos[a] - frame.origin[a]) / frame.unit[a]);
+    let order = visibility_order(&file.tree(), eye);
+    let owner = balanced_runs(&order, &total, n);
+    drop((order, total));
+    let extracted = t.elapsed();
+
+    let t = Instant::now();
+    let mut parts = Vec::with_capacity(local.len());
+    for refs in local {
+        let (part, sent) = redistribute(world, refs, &owner);
+        bytes += sent;
+        parts.push(part);
+    }
+    let redistributed = t.elapsed();
+    stats.redistribute = redistributed.as_secs_f64();
+    stats.work = owner.iter().filter(|&&o| o as usize == me).count() as f64;
+    drop(owner);
+
+    let scene_stats = scene.set_isosurfaces_from_refs(isos, parts)?;
+    stats.extract = (scene_stats.extract + extracted + redistributed).as_secs_f64();
+    stats.cpu_scene = cpu_seconds();
+    let rendered = render(scene, view, progress)?;
+    stats.render = rendered.stats.render.as_secs_f64();
+    stats.cpu_render = cpu_seconds() - stats.cpu_scene;
+    stats.rays = rendered.stats.rays as f64;
+
+    let t = Instant::now();
+    world.barrier();
+    stats.wait = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let (frame, sent) = direct_send(world, &rendered.frame)?;
+    stats.composite = t.elapsed().as_secs_f64();
+    bytes += sent;
+    stats.bytes_sent = bytes as f64;
+    Ok(frame)
+}
+
+/// Sends each of `refs` to the rank that owns its leaf; returns the refs this rank owns (in leaf
+/// order) and the bytes sent to other ranks.
+fn redistribute(world: &SimpleCommunicator, refs: Vec<u64>, owner: &[u32]) -> (Vec<u64>, u64) {
+    let n = world.size() as usize;
+    let me = world.rank() as usize;
+    let dest = |r: u64| owner[split_ref(r).0 as usize] as usize;
+    let mut send_counts = vec![0i32; n];
+    for &r in &refs {
+        send_counts[dest(r)] += 1;
+    }
+    let send_displs = offsets(&send_counts);
+    let mut send = vec![0u64; refs.len()];
+    let mut at: Vec<usize> = send_displs.iter().map(|&d| d as usize).collect();
+    for &r in &refs {
+        let d = dest(r);
+        send[at[d]] = r;
+        at[d] += 1;
+    }
+    drop(refs);
+    let mut recv_counts = vec![0i32; n];
+    world.all_to_all_into(&send_counts[..], &mut recv_counts[..]);
+    let recv_displs = offsets(&recv_counts);
+    let mut recv = vec![0u64; recv_counts.iter().map(|&c| c as usize).sum()];
+    world.all_to_all_varcount_into(
+        &Partition::new(&send[..], &send_counts[..], &send_displs[..]),
+        &mut PartitionMut::new(&mut recv[..], &recv_counts[..], &recv_displs[..]),
+    );
+    let sent = 4 * n as u64 + 8 * (send.len() - send_counts[me] as usize) as u64;
+    drop(send);
+    recv.sort_unstable();
+    (recv, sent)
+}

@@ -1,0 +1,73 @@
+//! `amr-render FILE.amrk ...`: one frame of one file, in this process or with MPI ranks.
+
+use amr_render::output::header::frame_header;
+use amr_render::shade::IsoSpec;
+use amr_render::{render, Scene};
+use anyhow::bail;
+
+use crate::outputs::{self, ProcessMemory, RunStats};
+use crate::progress;
+use crate::render_args::{RenderArgs, RenderRequest};
+
+/// Environment variables that MPI launchers set in every process they start (Open MPI, PMI as in
+/// MPICH's Hydra, PMIx).
+const LAUNCHER_VARS: [&str; 3] = ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"];
+
+/// True when this process was started by `mpirun` (or another MPI launcher).
+pub fn launched_by_mpirun() -> bool {
+    LAUNCHER_VARS.iter().any(|v| std::env::var_os(v).is_some())
+}
+
+/// Runs the render command.
+pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
+    let request = args.request()?;
+    let work = || -> anyhow::Result<()> {
+        if launched_by_mpirun() {
+            #[cfg(feature = "mpi")]
+            return crate::mpi::run::run(&request, args.mpi_mode.as_deref());
+            #[cfg(not(feature = "mpi"))]
+            bail!(
+                "started by mpirun, but this amr-render was built without MPI; \
+                 rebuild with `cargo build --release -p amr-render --features mpi`"
+            );
+        }
+        if args.mpi_mode.is_some() {
+            bail!("--mpi-mode needs a start with mpirun (mpirun -n N amr-render ...)");
+        }
+        render_request(&request)
+    };
+    match request.threads {
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()?
+            .install(work),
+        None => work(),
+    }
+}
+
+/// Opens the scene, renders the frame and writes what the request asks.
+pub fn render_request(request: &RenderRequest) -> anyhow::Result<()> {
+    outputs::check(&request.outputs, &[&request.file])?;
+    let scene = open_scene(request)?;
+    let (bar, progress) = progress::bar(u64::from(request.view.size.1), "rows");
+    let rendered = render(&scene, &request.view, &progress)?;
+    bar.finish_and_clear();
+    let stats = RunStats::new(&scene, rendered.stats.clone(), ProcessMemory::of(&scene));
+    let header = frame_header(&scene, &rendered, &[]);
+    outputs::write(&request.outputs, &rendered, &header, &stats, "")
+}
+
+/// The request's scene with its isosurfaces.
+fn open_scene(request: &RenderRequest) -> anyhow::Result<Scene> {
+    let mut scene = Scene::open(&request.file, &request.scene)?;
+    scene.set_isosurfaces(&request_isos(request, &scene))?;
+    Ok(scene)
+}
+
+/// The request's isosurfaces (the middle of the field's range when none given).
+pub fn request_isos(request: &RenderRequest, scene: &Scene) -> Vec<IsoSpec> {
+    match request.isos.is_empty() {
+        true => vec![IsoSpec::new(scene.default_isovalue())],
+        false => request.isos.clone(),
+    }
+}

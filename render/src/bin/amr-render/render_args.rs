@@ -1,0 +1,198 @@
+//! The render command's arguments and their validation into a library request before any work
+//! starts.
+
+use std::path::PathBuf;
+
+use amr_render::shade::IsoSpec;
+use amr_render::{CameraPlacement, Reconstruction, SceneOptions, TraceMethod, View};
+use anyhow::bail;
+use clap::Args;
+
+/// Most worker threads `--threads` may ask for.
+pub const MAX_THREADS: usize = 256;
+
+/// Arguments of the render command.
+#[derive(Args, Debug, Clone)]
+pub struct RenderArgs {
+    /// The .amrk file.
+    pub file: PathBuf,
+    /// Field to render (default: the file's first field).
+    #[arg(long)]
+    pub field: Option<String>,
+    /// An isosurface: value, optional colour (name or #rrggbb) and opacity; repeat for several
+    /// (default: the middle of the field's range). Negative values as typed: --iso -60:red.
+    #[arg(long = "iso", value_name = "V[:COLOR[:OPACITY]]", allow_hyphen_values = true)]
+    pub iso: Vec<IsoSpec>,
+    /// Output OpenEXR file.
+    #[arg(short = 'o', long = "output", value_name = "OUT.exr")]
+    pub output: PathBuf,
+    /// Image size.
+    #[arg(long, value_name = "WxH", default_value = "1024x768", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Camera position, world coordinates (default: framed automatically).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub camera_pos: Option<[f64; 3]>,
+    /// Point the camera looks at (default: the domain's centre).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub look_at: Option<[f64; 3]>,
+    /// Camera up vector.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub up: Option<[f64; 3]>,
+    /// Vertical field of view, degrees.
+    #[arg(long, value_name = "DEG", default_value_t = 40.0, allow_hyphen_values = true)]
+    pub fov: f64,
+    /// Reconstruction method: octant, current or nearest.
+    #[arg(long, default_value_t = Reconstruction::Octant)]
+    pub reconstruction: Reconstruction,
+    /// Intersection method: hybrid (BVH and exact intersection) or sample (ray marching).
+    #[arg(long, default_value_t = TraceMethod::Hybrid)]
+    pub method: TraceMethod,
+    /// Step of the sample method, world units (default: half the finest cell).
+    #[arg(long, value_name = "S", allow_hyphen_values = true)]
+    pub step: Option<f64>,
+    /// Samples per pixel.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub spp: u32,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// Also write a tone-mapped PNG preview.
+    #[arg(long, value_name = "OUT.png")]
+    pub preview: Option<PathBuf>,
+    /// Print statistics to stderr.
+    #[arg(long)]
+    pub stats: bool,
+    /// Write statistics as JSON.
+    #[arg(long, value_name = "PATH")]
+    pub stats_json: Option<PathBuf>,
+    /// Ambient-occlusion rays per hit (0 disables).
+    #[arg(long, value_name = "N", default_value_t = 4)]
+    pub ao: u32,
+    /// Do not cast shadow rays.
+    #[arg(long)]
+    pub no_shadows: bool,
+    /// Shade with each voxel's own trilinear gradient instead of normals continuous across voxels.
+    #[arg(long)]
+    pub flat_normals: bool,
+    /// Under `mpirun` (a build with the `mpi` feature): every rank holds the whole scene and
+    /// renders tiles (replicated, the default), or each holds a part of it and the frames are
+    /// composited (partitioned; no shadows or ambient occlusion).
+    #[arg(long, value_name = "MODE")]
+    pub mpi_mode: Option<String>,
+}
+
+/// A validated render request: what the library needs and where the results go.
+#[derive(Clone, Debug)]
+pub struct RenderRequest {
+    /// The file.
+    pub file: PathBuf,
+    /// The scene's field, reconstruction and method.
+    pub scene: SceneOptions,
+    /// Isosurfaces (empty: the middle of the field's range).
+    pub isos: Vec<IsoSpec>,
+    /// Camera, size, sampling and lighting.
+    pub view: View,
+    /// Output files and reports.
+    pub outputs: Outputs,
+    /// Worker threads.
+    pub threads: Option<usize>,
+}
+
+/// Where a frame and its statistics go.
+#[derive(Clone, Debug)]
+pub struct Outputs {
+    /// The EXR frame.
+    pub exr: PathBuf,
+    /// A PNG preview.
+    pub preview: Option<PathBuf>,
+    /// Print statistics to stderr.
+    pub print_stats: bool,
+    /// Statistics as JSON.
+    pub stats_json: Option<PathBuf>,
+}
+
+impl RenderArgs {
+    /// Checks everything that can be checked before opening the file.
+    pub fn request(&self) -> anyhow::Result<RenderRequest> {
+        let camera = match (self.camera_pos, self.look_at) {
+            (Some(pos), look_at) => Some(CameraPlacement {
+                pos,
+                look_at,
+                up: self.up,
+            }),
+            (None, Some(_)) => bail!("--look-at needs --camera-pos"),
+            (None, None) if self.up.is_some() => bail!("--up needs --camera-pos"),
+            (None, None) => None,
+        };
+        match self.threads {
+            Some(n) if n == 0 || n > MAX_THREADS => {
+                bail!("--threads {n} must be between 1 and {MAX_THREADS}")
+            }
+            _ => {}
+        }
+        if self.mpi_mode.is_some() && !cfg!(feature = "mpi") {
+            bail!("--mpi-mode needs a build with `--features mpi` and a start with mpirun");
+        }
+        let view = View {
+            camera,
+            fov_deg: self.fov,
+            size: self.size,
+            spp: self.spp,
+            shadows: !self.no_shadows,
+            ao_rays: self.ao,
+            smooth_normals: !self.flat_normals,
+            sample_step: self.step,
+        };
+        view.validate()?;
+        Ok(RenderRequest {
+            file: self.file.clone(),
+            scene: SceneOptions {
+                field: self.field.clone(),
+                reconstruction: self.reconstruction,
+                method: self.method,
+                release_pages: true,
+            },
+            isos: self.iso.clone(),
+            view,
+            outputs: Outputs {
+                exr: self.output.clone(),
+                preview: self.preview.clone(),
+                print_stats: self.stats,
+                stats_json: self.stats_json.clone(),
+            },
+            threads: self.threads,
+        })
+    }
+}
+
+/// Parses an image size `WxH`.
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("size '{s}' is not WxH"))?;
+    let p = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("size '{s}' is not WxH"))
+    };
+    Ok((p(w)?, p(h)?))
+}
+
+/// Parses a vector `X,Y,Z` of finite numbers.
+fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<&str> = s.split(',').collect();
+    if v.len() != 3 {
+        return Err(format!("'{s}' is not X,Y,Z"));
+    }
+    let mut out = [0.0f64; 3];
+    for (o, x) in out.iter_mut().zip(v) {
+        *o = x
+            .trim()
+            .parse::<f64>()
+            .map_err(|_| format!("'{x}' in '{s}' is not a number"))?;
+        if !o.is_finite() {
+            return Err(format!("'{x}' in '{s}' is not finite"));
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,183 @@
+//! Rendering a frame of a [`Scene`] seen through a [`View`]: the whole frame, or a rectangle of
+//! it (tiles for several processes), pixel for pixel the same. Nothing here extracts or builds.
+
+use std::time::Instant;
+
+use crate::camera::Camera;
+use crate::error::{RenderError, Result};
+use crate::output::frame::{FrameBuffer, PixelSample};
+use crate::reconstruct::Reconstruction;
+use crate::sample_mode::SampleTracer;
+use crate::scene::{Scene, TraceMethod};
+use crate::shade::{render_frame, render_rect, IsoSpec, Lighting, RenderSettings};
+use crate::stats::FrameStats;
+use crate::trace::{HybridTracer, Surface, Tracer, VoxelSource};
+use crate::view::View;
+
+/// A rendered frame.
+#[derive(Clone, Debug)]
+pub struct Rendered {
+    /// The image and its per-pixel channels.
+    pub frame: FrameBuffer,
+    /// The camera it was seen from.
+    pub camera: Camera,
+    /// What it cost.
+    pub stats: FrameStats,
+}
+
+/// A rectangle of a frame: lower corner `x0, y0` (pixels from the top left) and size.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Rect {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// Columns.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+}
+
+/// The pixels of a rectangle of a frame and the ray queries they took.
+#[derive(Clone, Debug)]
+pub struct RegionPixels {
+    /// Row-major pixels, each equal to the same pixel of the whole frame.
+    pub pixels: Vec<PixelSample>,
+    /// Ray queries.
+    pub rays: u64,
+}
+
+/// Renders `scene` as `view` asks; `progress(rows)` is called as rows finish.
+pub fn render(scene: &Scene, view: &View, progress: &(dyn Fn(u64) + Sync)) -> Result<Rendered> {
+    let rendered = with_tracer(scene, view, |tracer, camera, light| {
+        trace_frame(tracer, *camera, light, view, progress)
+    })?;
+    check_source(scene)?;
+    Ok(rendered)
+}
+
+/// Renders the rectangle `rect` of the frame [`render`] would give.
+pub fn render_region(scene: &Scene, view: &View, rect: Rect) -> Result<RegionPixels> {
+    let (w, h) = view.size;
+    if rect.x0.checked_add(rect.width).is_none_or(|x| x > w)
+        || rect.y0.checked_add(rect.height).is_none_or(|y| y > h)
+    {
+        return Err(RenderError::Invalid(format!(
+            "region {rect:?} is outside the {w}x{h} frame"
+        )));
+    }
+    let region = with_tracer(scene, view, |tracer, camera, light| {
+        let (pixels, rays) = render_rect(
+            tracer,
+            camera,
+            light,
+            view.settings(),
+            (rect.x0, rect.y0, rect.width, rect.height),
+        );
+        RegionPixels { pixels, rays }
+    })?;
+    check_source(scene)?;
+    Ok(region)
+}
+
+/// Renders the surfaces `surfaces` of `src` (one per entry of `isos`) with the hybrid method:
+/// for sources that are not a scene's, such as in-memory test fields or one part of a scene.
+pub fn render_surfaces<S: VoxelSource + ?Sized>(
+    src: &S,
+    surfaces: &[Surface],
+    isos: &[IsoSpec],
+    view: &View,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Rendered> {
+    view.validate()?;
+    let frame = src.frame();
+    let camera = view.camera(&frame)?;
+    let light = view.lighting(&camera, &frame, isos);
+    let tracer = HybridTracer {
+        src,
+        surfaces,
+        smooth_normals: view.smooth_normals,
+    };
+    Ok(trace_frame(&tracer, camera, &light, view, progress))
+}
+
+/// [`render_surfaces`] with the sample method: isovalues `isos`, no surfaces.
+pub fn render_sampled<S: VoxelSource + ?Sized>(
+    src: &S,
+    isos: &[IsoSpec],
+    view: &View,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Rendered> {
+    view.validate()?;
+    let frame = src.frame();
+    let camera = view.camera(&frame)?;
+    let light = view.lighting(&camera, &frame, isos);
+    let tracer = SampleTracer {
+        src,
+        isos: isos.iter().map(|s| s.value).collect(),
+        step: view.sample_step(&frame)?,
+    };
+    Ok(trace_frame(&tracer, camera, &light, view, progress))
+}
+
+/// The camera, lighting and tracer of a frame of `scene`, handed to `run`.
+fn with_tracer<R>(
+    scene: &Scene,
+    view: &View,
+    run: impl FnOnce(&(dyn Tracer + Sync), &Camera, &Lighting) -> R,
+) -> Result<R> {
+    view.validate()?;
+    let src = scene.source();
+    let frame = src.frame();
+    let camera = view.camera(&frame)?;
+    let isos = scene.isosurfaces();
+    let light = view.lighting(&camera, &frame, isos);
+    Ok(match scene.method() {
+        TraceMethod::Hybrid => {
+            let tracer = HybridTracer {
+                src,
+                surfaces: scene.surfaces(),
+                // A piecewise-constant field has no smooth normals: nearest shades with the
+                // faces' normals.
+                smooth_normals: view.smooth_normals
+                    && scene.reconstruction() != Reconstruction::Nearest,
+            };
+            run(&tracer, &camera, &light)
+        }
+        TraceMethod::Sample => {
+            let tracer = SampleTracer {
+                src,
+                isos: isos.iter().map(|s| s.value).collect(),
+                step: view.sample_step(&frame)?,
+            };
+            run(&tracer, &camera, &light)
+        }
+    })
+}
+
+/// Traces a whole frame through `tracer`.
+fn trace_frame<T: Tracer + Sync + ?Sized>(
+    tracer: &T,
+    camera: Camera,
+    light: &Lighting,
+    view: &View,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Rendered {
+    let settings: RenderSettings = view.settings();
+    let t = Instant::now();
+    let (frame, rays) = render_frame(tracer, &camera, light, settings, progress);
+    let stats = FrameStats::new(t.elapsed(), rays, view.size, frame.covered() as u64);
+    Rendered {
+        frame,
+        camera,
+        stats,
+    }
+}
+
+/// The first error the scene's source met while the frame was traced.
+fn check_source(scene: &Scene) -> Result<()> {
+    match scene.source().take_failure() {
+        Some(e) => Err(e.in_file(scene.path())),
+        None => Ok(()),
+    }
+}

@@ -1,0 +1,283 @@
+//! One field of an open file as the tracer's voxel source, for every reconstruction: the one
+//! place that picks octant voxels (the extraction of issue 4), clipped dual cells (`current`) or
+//! cell faces (`nearest`), decodes them from their 32:32 refs through a per-thread cache that
+//! this source owns, samples the same reconstruction at points, and keeps the first decode error
+//! met while tracing so that a frame reports it instead of drawing a hole.
+//!
+//! Grid coordinates are the extraction's doubled finest-level coordinates.
+
+use std::cell::RefCell;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Mutex;
+
+use amr_format::AmrkFile;
+use thread_local::ThreadLocal;
+
+use crate::error::{RenderError, Result};
+use crate::extract::current::CurrentVoxels;
+use crate::extract::nearest::NearestFaces;
+use crate::extract::{ExtractStats, Extraction, Extractor};
+use crate::mapping::PageRelease;
+use crate::reconstruct::{Reconstruction, Sampler, VertexMemo};
+use crate::trace::face::intersect_face;
+use crate::trace::octant::{intersect_voxel, VoxelHit};
+use crate::trace::ray::GridRay;
+use crate::trace::source::{GridFrame, Voxel, VoxelSource};
+
+/// Bytes of decompressed bricks the sampler may cache.
+pub const BRICK_CACHE_BYTES: usize = 256 << 20;
+
+/// Slots of each thread's cache of decoded voxels (a power of two).
+const VOXEL_CACHE_SLOTS: usize = 4096;
+
+/// Bytes of one thread's voxel cache: the decoded voxels with their refs, plus the vertex memo
+/// (bounded by [`VertexMemo`]'s own capacity, not counted here).
+pub const VOXEL_CACHE_BYTES: usize = VOXEL_CACHE_SLOTS * std::mem::size_of::<(u64, Voxel)>();
+
+/// The voxels of one reconstruction.
+enum Voxels<'f, D> {
+    /// Octants and merged dual cells of the octant method.
+    Octant(Extractor<'f, D>),
+    /// Dual cells of each level, clipped to the level's cells.
+    Current(CurrentVoxels<'f, D>),
+    /// Cell faces between cells of different values.
+    Nearest(NearestFaces<'f, D>),
+}
+
+/// One thread's decoded voxels, direct-mapped by ref.
+struct VoxelCache {
+    slots: Vec<(u64, Voxel)>,
+    memo: VertexMemo,
+}
+
+/// One field of an open file, reconstructed one way, as a [`VoxelSource`].
+pub struct FieldSource<'f, D> {
+    voxels: Voxels<'f, D>,
+    reconstruction: Reconstruction,
+    frame: GridFrame,
+    caches: ThreadLocal<RefCell<VoxelCache>>,
+    cache_threads: AtomicU64,
+    failed: AtomicBool,
+    failure: Mutex<Option<RenderError>>,
+}
+
+impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
+    /// The source for field `field` of `file` with `reconstruction` (any but `finest`, which
+    /// has no voxels to trace).
+    pub fn new(file: &'f AmrkFile<D>, field: usize, reconstruction: Reconstruction) -> Result<Self> {
+        let voxels = match reconstruction {
+            Reconstruction::Octant => Voxels::Octant(Extractor::new(file, field, BRICK_CACHE_BYTES)?),
+            Reconstruction::Current => {
+                Voxels::Current(CurrentVoxels::new(Sampler::new(file, field, BRICK_CACHE_BYTES)?))
+            }
+            Reconstruction::Nearest => {
+                Voxels::Nearest(NearestFaces::new(Sampler::new(file, field, BRICK_CACHE_BYTES)?))
+            }
+            Reconstruction::Finest => {
+                return Err(RenderError::Unsupported(
+                    "the finest reconstruction is for point sampling; its voxels are not traced"
+                        .into(),
+                ))
+            }
+        };
+        let mut source = FieldSource {
+            voxels,
+            reconstruction,
+            frame: GridFrame::default(),
+            caches: ThreadLocal::new(),
+            cache_threads: AtomicU64::new(0),
+            failed: AtomicBool::new(false),
+            failure: Mutex::new(None),
+        };
+        source.frame = GridFrame::of_grid(source.sampler().grid());
+        Ok(source)
+    }
+}
+
+impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
+    /// The reconstruction.
+    pub fn reconstruction(&self) -> Reconstruction {
+        self.reconstruction
+    }
+
+    /// The sampler underneath.
+    pub fn sampler(&self) -> &Sampler<'f, D> {
+        match &self.voxels {
+            Voxels::Octant(e) => e.sampler(),
+            Voxels::Current(v) => v.sampler(),
+            Voxels::Nearest(v) => v.sampler(),
+        }
+    }
+
+    /// The octant method's extractor, `None` for the other reconstructions.
+    pub fn extractor(&self) -> Option<&Extractor<'f, D>> {
+        match &self.voxels {
+            Voxels::Octant(e) => Some(e),
+            _ => None,
+        }
+    }
+
+    /// Releases `pages` (the map of this source's file) after each chunk of the octant
+    /// extraction and between the stages of a render.
+    pub fn set_page_release(&mut self, pages: PageRelease<'f>) {
+        if let Voxels::Octant(e) = &mut self.voxels {
+            e.set_page_release(pages);
+        }
+    }
+
+    /// The most map bytes measured resident at once, when pages are released.
+    pub fn mapped_resident_peak_bytes(&self) -> Option<u64> {
+        self.extractor()
+            .and_then(Extractor::page_release)
+            .map(PageRelease::peak_bytes)
+    }
+
+    /// The active voxels for `iso` and what finding them took.
+    pub fn extract(&self, iso: f32) -> Result<Extraction> {
+        match &self.voxels {
+            Voxels::Octant(e) => e.extract(iso),
+            Voxels::Current(v) => self.timed(iso, || v.extract(iso)),
+            Voxels::Nearest(v) => self.timed(iso, || v.extract(iso)),
+        }
+    }
+
+    /// An extraction of the `current` or `nearest` voxels, with the statistics these report.
+    fn timed(&self, iso: f32, run: impl FnOnce() -> Result<Vec<u64>>) -> Result<Extraction> {
+        let start = std::time::Instant::now();
+        let refs = run()?;
+        let file = self.sampler().file();
+        let stats = ExtractStats {
+            field: file.fields()[self.sampler().field()].name.clone(),
+            iso,
+            active: refs.len() as u64,
+            seconds: start.elapsed().as_secs_f64(),
+            threads: rayon::current_num_threads(),
+            leaves_total: file.num_leaves() as u64,
+            file_bytes: file.bytes().len() as u64,
+            ..ExtractStats::default()
+        };
+        Ok(Extraction { refs, stats })
+    }
+
+    /// Bytes held by the per-thread voxel caches.
+    pub fn voxel_cache_bytes(&self) -> u64 {
+        self.cache_threads.load(Ordering::Relaxed) * VOXEL_CACHE_BYTES as u64
+    }
+
+    /// The first error met while decoding voxels or sampling since the last call, if any:
+    /// tracing cannot stop at an error, so it records it and treats the voxel as missing.
+    pub fn take_failure(&self) -> Option<RenderError> {
+        if !self.failed.load(Ordering::Acquire) {
+            return None;
+        }
+        let mut slot = self.failure.lock().unwrap_or_else(|p| p.into_inner());
+        self.failed.store(false, Ordering::Release);
+        slot.take()
+    }
+
+    /// Keeps `e` unless an earlier error is kept.
+    fn record(&self, e: RenderError) {
+        let mut slot = self.failure.lock().unwrap_or_else(|p| p.into_inner());
+        if slot.is_none() {
+            *slot = Some(e);
+        }
+        self.failed.store(true, Ordering::Release);
+    }
+
+    /// Decodes `r`.
+    fn decode(&self, r: u64, memo: &mut VertexMemo) -> Result<Voxel> {
+        match &self.voxels {
+            Voxels::Octant(e) => e.decode_memo(r, memo),
+            Voxels::Current(v) => v.decode(r),
+            Voxels::Nearest(v) => v.decode(r),
+        }
+    }
+
+    /// The voxel `r` names, from this thread's cache when it holds it.
+    fn cached_voxel(&self, r: u64) -> Voxel {
+        let cell = self.caches.get_or(|| {
+            self.cache_threads.fetch_add(1, Ordering::Relaxed);
+            RefCell::new(VoxelCache {
+                slots: vec![(u64::MAX, Voxel::EMPTY); VOXEL_CACHE_SLOTS],
+                memo: VertexMemo::default(),
+            })
+        });
+        let mut guard = cell.borrow_mut();
+        let cache = &mut *guard;
+        // Fibonacci hashing of the ref: neighbouring refs land in different slots.
+        let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
+        let (key, v) = cache.slots[slot];
+        if key == r && r != u64::MAX {
+            return v;
+        }
+        let v = match self.decode(r, &mut cache.memo) {
+            Ok(v) => v,
+            Err(e) => {
+                self.record(e);
+                return Voxel::EMPTY;
+            }
+        };
+        cache.slots[slot] = (r, v);
+        v
+    }
+}
+
+impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
+    fn frame(&self) -> GridFrame {
+        self.frame
+    }
+
+    fn voxel(&self, r: u64) -> Voxel {
+        self.cached_voxel(r)
+    }
+
+    fn voxel_box(&self, r: u64) -> ([f64; 3], [f64; 3]) {
+        let Voxels::Octant(e) = &self.voxels else {
+            let v = self.voxel(r);
+            return (v.lo, v.hi);
+        };
+        match e.voxel_box(r) {
+            Ok((lo, hi)) => (lo.map(|x| x as f64), hi.map(|x| x as f64)),
+            Err(err) => {
+                self.record(err);
+                (Voxel::EMPTY.lo, Voxel::EMPTY.hi)
+            }
+        }
+    }
+
+    fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)> {
+        let s = self.sampler();
+        let value = match s.sample(p, self.reconstruction) {
+            Ok(v) => v?,
+            Err(e) => {
+                self.record(e);
+                return None;
+            }
+        };
+        let ext = s.grid().extent();
+        let finest = [0, 1, 2].map(|a| ((p[a] * 0.5).floor() as i64).clamp(0, ext[a] - 1));
+        let level = s.locate(finest).ok().flatten().map_or(0, |c| c.level);
+        Some((value, level))
+    }
+
+    fn release_pages(&self) {
+        if let Voxels::Octant(e) = &self.voxels {
+            e.release_pages();
+        }
+    }
+
+    #[inline]
+    fn intersect(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        tmin: f64,
+        tmax: f64,
+    ) -> Option<VoxelHit> {
+        match self.voxels {
+            Voxels::Nearest(_) => intersect_face(voxel, iso, ray, tmin, tmax),
+            _ => intersect_voxel(voxel, iso, ray, tmin, tmax),
+        }
+    }
+}

@@ -1,0 +1,181 @@
+//! How a scene is looked at: the camera, the image size and sampling, the lighting and the
+//! normals. A [`View`] holds no data of the scene: changing it costs one frame, no extraction.
+
+use crate::camera::{Camera, CameraError};
+use crate::error::{RenderError, Result};
+use crate::shade::{IsoSpec, Lighting, RenderSettings};
+use crate::trace::GridFrame;
+
+/// Most samples per pixel a view may ask for.
+pub const MAX_SPP: u32 = 4096;
+/// Most pixels of an image.
+pub const MAX_PIXELS: u64 = 1 << 28;
+/// Most steps per domain diagonal the sample method may take per ray.
+pub const MAX_STEPS_PER_DIAGONAL: f64 = 1e6;
+
+/// A camera placed by the user: position, and optionally the point looked at (default: the
+/// domain's centre) and the up vector (default: z, or y when the view is along z).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraPlacement {
+    /// Camera position, world coordinates.
+    pub pos: [f64; 3],
+    /// Point looked at, world coordinates.
+    pub look_at: Option<[f64; 3]>,
+    /// Up vector.
+    pub up: Option<[f64; 3]>,
+}
+
+/// Everything a frame needs besides the scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct View {
+    /// The camera; `None` frames the domain automatically.
+    pub camera: Option<CameraPlacement>,
+    /// Vertical field of view, degrees.
+    pub fov_deg: f64,
+    /// Width and height in pixels.
+    pub size: (u32, u32),
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Cast shadow rays from the key light.
+    pub shadows: bool,
+    /// Ambient-occlusion rays per hit (0 disables).
+    pub ao_rays: u32,
+    /// Normals continuous across voxels (central differences of the reconstruction) instead of
+    /// each voxel's own trilinear gradient.
+    pub smooth_normals: bool,
+    /// Step of the sample method along rays, world units; `None` is half the finest cell.
+    pub sample_step: Option<f64>,
+}
+
+impl Default for View {
+    fn default() -> View {
+        View {
+            camera: None,
+            fov_deg: 40.0,
+            size: (1024, 768),
+            spp: 1,
+            shadows: true,
+            ao_rays: 4,
+            smooth_normals: true,
+            sample_step: None,
+        }
+    }
+}
+
+impl View {
+    /// Checks everything that can be checked without a scene.
+    pub fn validate(&self) -> Result<()> {
+        let (w, h) = self.size;
+        if w == 0 || h == 0 || u64::from(w) * u64::from(h) > MAX_PIXELS {
+            return Err(RenderError::Invalid(format!(
+                "image size {w}x{h} must be at least 1x1 and at most 2^28 pixels"
+            )));
+        }
+        if !(self.fov_deg > 0.0 && self.fov_deg < 180.0) {
+            return Err(CameraError::BadFov(self.fov_deg).into());
+        }
+        if !(1..=MAX_SPP).contains(&self.spp) {
+            return Err(RenderError::Invalid(format!(
+                "samples per pixel {} must be between 1 and {MAX_SPP}",
+                self.spp
+            )));
+        }
+        if self.ao_rays > MAX_SPP {
+            return Err(RenderError::Invalid(format!(
+                "ambient-occlusion rays {} must be at most {MAX_SPP}",
+                self.ao_rays
+            )));
+        }
+        if let Some(s) = self.sample_step {
+            if !(s > 0.0 && s.is_finite()) {
+                return Err(RenderError::Invalid(format!(
+                    "sample step {s} must be positive and finite"
+                )));
+            }
+        }
+        if let Some(CameraPlacement {
+            pos,
+            look_at: Some(look),
+            up,
+        }) = self.camera
+        {
+            placed_camera(pos, look, up, self.fov_deg)?;
+        }
+        Ok(())
+    }
+
+    /// The camera for a domain with grid frame `frame`.
+    pub fn camera(&self, frame: &GridFrame) -> Result<Camera> {
+        let (lo, hi) = frame.world_bounds();
+        let (w, h) = self.size;
+        let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
+        Ok(match self.camera {
+            Some(c) => placed_camera(c.pos, c.look_at.unwrap_or(centre), c.up, self.fov_deg)?,
+            None => Camera::framing(lo, hi, self.fov_deg, f64::from(w) / f64::from(h))?,
+        })
+    }
+
+    /// The lighting of `isos` seen by `camera` in a domain with grid frame `frame`.
+    pub fn lighting(&self, camera: &Camera, frame: &GridFrame, isos: &[IsoSpec]) -> Lighting {
+        let (lo, hi) = frame.world_bounds();
+        let diag = (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
+        let colors = isos
+            .iter()
+            .enumerate()
+            .map(|(i, s)| s.color_or_palette(i))
+            .collect();
+        let opacity = isos.iter().map(|s| s.opacity).collect();
+        let mut light = Lighting::for_camera(camera, colors, opacity, 0.08 * diag);
+        light.shadows = self.shadows;
+        light.ao_rays = self.ao_rays;
+        light
+    }
+
+    /// Image size and sampling.
+    pub fn settings(&self) -> RenderSettings {
+        RenderSettings {
+            width: self.size.0,
+            height: self.size.1,
+            spp: self.spp,
+        }
+    }
+
+    /// The step of the sample method in a domain with grid frame `frame`: the view's, or half
+    /// the finest grid unit; a step given in the view is refused when a ray would take more than
+    /// [`MAX_STEPS_PER_DIAGONAL`] steps across the domain.
+    pub fn sample_step(&self, frame: &GridFrame) -> Result<f64> {
+        let unit = frame.unit.iter().fold(f64::INFINITY, |m, &u| m.min(u));
+        let step = self.sample_step.unwrap_or(0.5 * unit);
+        let (lo, hi) = frame.world_bounds();
+        let diag = (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
+        if !(step > 0.0 && step.is_finite()) {
+            return Err(RenderError::Invalid(format!(
+                "sample step {step} must be positive and finite"
+            )));
+        }
+        if self.sample_step.is_some() && diag / step > MAX_STEPS_PER_DIAGONAL {
+            return Err(RenderError::Invalid(format!(
+                "sample step {step} would take {:.3e} steps across the domain (diagonal {diag:.6e}); \
+                 the limit is {MAX_STEPS_PER_DIAGONAL:.0e}",
+                diag / step
+            )));
+        }
+        Ok(step)
+    }
+}
+
+/// A camera from user input: `up` defaults to z, or y when the view is along z.
+fn placed_camera(
+    pos: [f64; 3],
+    look: [f64; 3],
+    up: Option<[f64; 3]>,
+    fov: f64,
+) -> Result<Camera, CameraError> {
+    match up {
+        Some(up) => Camera::new(pos, look, up, fov),
+        None => Camera::new(pos, look, [0.0, 0.0, 1.0], fov).or_else(|e| match e {
+            CameraError::BadUp(_) => Camera::new(pos, look, [0.0, 1.0, 0.0], fov),
+            e => Err(e),
+        }),
+    }
+}

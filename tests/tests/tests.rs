@@ -1,0 +1,47 @@
+//! The integration tests, one binary; this file is their table of contents.
+//!
+//! Readers, on real files (`../shared/data`) and on files written after each code's own writer:
+//! - [`amrex_real`]: PeleLM plotfiles and the bad plotfiles beside them.
+//! - [`amrex_written`]: plotfiles this suite writes (float32 and float64, ghost cells, layouts).
+//! - [`amrex_float32`]: FAB headers typed out from AMReX's own writer (float32 and float64).
+//! - [`amrex_ratio_one`]: a ratio of 1 on an axis is refused with the reason.
+//! - [`chombo_convert`] and [`chombo_errors`]: Chombo HDF5 files, good and bad.
+//! - [`chombo_checkpoint`]: Chombo checkpoints in both layouts.
+//! - [`enzo_convert`]: the real Enzo dataset against yt, written Enzo datasets, bad ones.
+//! - [`amrex_bench`], [`chombo_bench`] and [`enzo_bench`]: large inputs for the conversion
+//!   benchmarks (ignored).
+//!
+//! Reconstruction and extraction, on seeded random hierarchies:
+//! - [`reconstruct_continuity`]: the octant method is continuous across level boundaries.
+//! - [`extract_reference`]: extraction equals a brute-force reference.
+//! - [`hybrid_current_nearest`]: the `current` and `nearest` voxels.
+//!
+//! Rendering:
+//! - [`render_watertight`] and [`render_watertight_amrk`]: no ray leaks through a closed surface.
+//! - [`render_accuracy`]: the hybrid method against the sample method.
+//! - [`render_golden`]: a golden image.
+//! - [`scene_api`]: the library's scene, views and isovalue changes.
+//! - [`render_bench`]: measurements for docs/benchmarks-render.md (ignored).
+
+mod support;
+
+mod amrex_bench;
+mod amrex_float32;
+mod amrex_ratio_one;
+mod amrex_real;
+mod amrex_written;
+mod chombo_bench;
+mod chombo_checkpoint;
+mod chombo_convert;
+mod chombo_errors;
+mod enzo_bench;
+mod enzo_convert;
+mod extract_reference;
+mod hybrid_current_nearest;
+mod reconstruct_continuity;
+mod render_accuracy;
+mod render_bench;
+mod render_golden;
+mod render_watertight;
+mod render_watertight_amrk;
+mod scene_api;

@@ -169,6 +169,17 @@ fn misaligned_and_badly_nested_grids_are_refused() {
     );
     assert_fails(&p, &[], &["not supported", "2D dataset"]);
 
+    let unwritten = Desc {
+        unwritten: Some(4),
+        ..Desc::three_levels()
+    };
+    let p = writer::write(&tmp.path().join("f"), "DD0003", &unwritten);
+    assert_fails(
+        &p,
+        &[],
+        &["DD0003.cpu0000", "grid 4's 'Density' stores 0 bytes"],
+    );
+
     let p = writer::write(&tmp.path().join("e"), "DD0003", &Desc::three_levels());
     assert_fails(
         &p,

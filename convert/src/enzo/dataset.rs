@@ -12,7 +12,7 @@ use hdf5_metno::{File, Group};
 use super::error::{EnzoError, Result};
 use super::hierarchy::{read_hierarchy, GridEntry};
 use super::parameters::{read_parameters, Parameters};
-use super::reader::stream;
+use super::reader::{field_dataset, stream, OpenFile};
 use crate::hierarchy_to_amrk::{AmrSource, Slab};
 use crate::progress::Progress;
 
@@ -122,6 +122,7 @@ impl Dataset {
             }
         }
         let (fields, value_bytes) = read_fields(&grids[0])?;
+        check_stored(&grids, &fields[0])?;
         let level_dims = (0..nlevels)
             .map(|l| level_dims(&params, l).unwrap_or([1; 3]))
             .collect();
@@ -273,9 +274,8 @@ fn check_nesting(params: &Parameters, hierarchy: &Path, parent: &Grid, child: &G
 /// bytes per value of the first.
 fn read_fields(grid: &Grid) -> Result<(Vec<String>, u64)> {
     let path = &grid.file;
-    let file =
-        File::open(path).map_err(|e| EnzoError::hdf5(path, "cannot open as an HDF5 file", e))?;
-    let group = grid.group(&file)?;
+    let mut files = OpenFile::default();
+    let group = grid.group(files.get(path)?)?;
     let names = group.member_names().map_err(|e| {
         EnzoError::hdf5(path, format!("listing the datasets of grid {}", grid.id), e)
     })?;
@@ -306,6 +306,43 @@ fn read_fields(grid: &Grid) -> Result<(Vec<String>, u64)> {
             ),
         )),
     }
+}
+
+/// How much smaller than its values a compressed dataset may be (deflate's best ratio is about
+/// 1000:1).
+const MAX_COMPRESSION: u64 = 1100;
+
+/// Checks, before anything is sized from the hierarchy, that every grid's `field` dataset has
+/// the grid's shape and that its stored bytes can hold the values the hierarchy promises: a
+/// declared dataset costs nothing on disk, so this is what bounds the bricks and slabs sized
+/// from a grid's dimensions by the files' real size.
+fn check_stored(grids: &[Grid], field: &str) -> Result<()> {
+    let mut files = OpenFile::default();
+    for grid in grids {
+        let (data, stored) = field_dataset(grid, files.get(&grid.file)?, field)?;
+        let need = stored
+            .num_cells()
+            .and_then(|c| c.checked_mul(data.dtype().map(|t| t.size() as u64).unwrap_or(1)))
+            .unwrap_or(u64::MAX);
+        let have = data.storage_size();
+        let room = if data.filters().is_empty() {
+            have
+        } else {
+            have.saturating_mul(MAX_COMPRESSION)
+        };
+        if room < need {
+            return Err(EnzoError::invalid(
+                &grid.file,
+                format!(
+                    "grid {}'s '{field}' stores {have} bytes, but its {} cells need {need}: the \
+                     data was never written or the file is damaged",
+                    grid.id,
+                    stored.num_cells().unwrap_or(u64::MAX)
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 impl AmrSource for Dataset {

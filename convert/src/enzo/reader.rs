@@ -34,36 +34,14 @@ pub fn stream(
     progress.set_total(cells * comps.len() as u64 * ds.value_bytes);
     let mut order: Vec<&Grid> = ds.grids.iter().collect();
     order.sort_by(|a, b| a.file.cmp(&b.file).then(a.id.cmp(&b.id)));
-    let mut open: Option<(&std::path::Path, File)> = None;
+    let mut files = OpenFile::default();
     let mut out = Vec::new();
     let mut bytes_read = 0u64;
     for grid in order {
-        if open.as_ref().is_none_or(|(p, _)| *p != grid.file.as_path()) {
-            let f = File::open(&grid.file)
-                .map_err(|e| EnzoError::hdf5(&grid.file, "cannot open as an HDF5 file", e))?;
-            open = Some((grid.file.as_path(), f));
-        }
-        let Some((_, file)) = &open else { continue };
-        let group = grid.group(file)?;
+        let file = files.get(&grid.file)?;
         for (f, &c) in comps.iter().enumerate() {
             let name = &ds.fields[c];
-            if !group.link_exists(name) {
-                return Err(EnzoError::invalid(
-                    &grid.file,
-                    format!(
-                        "grid {} has no dataset '{name}' (the first grid has)",
-                        grid.id
-                    ),
-                ));
-            }
-            let data = group.dataset(name).map_err(|e| {
-                EnzoError::hdf5(
-                    &grid.file,
-                    format!("opening grid {}'s '{name}'", grid.id),
-                    e,
-                )
-            })?;
-            let stored = stored_box(grid, &data, name)?;
+            let (data, stored) = field_dataset(grid, file, name)?;
             let wide = match data.dtype().and_then(|t| t.to_descriptor()) {
                 Ok(TypeDescriptor::Float(FloatSize::U4)) => false,
                 Ok(TypeDescriptor::Float(FloatSize::U8)) => true,
@@ -112,6 +90,50 @@ pub fn stream(
         }
     }
     Ok(bytes_read)
+}
+
+/// The data file opened last, kept open while consecutive grids live in it.
+#[derive(Default)]
+pub(crate) struct OpenFile {
+    current: Option<(std::path::PathBuf, File)>,
+}
+
+impl OpenFile {
+    /// The HDF5 file `path`, opened unless it is the current one.
+    pub(crate) fn get(&mut self, path: &std::path::Path) -> Result<&File> {
+        if self.current.as_ref().is_none_or(|(p, _)| p != path) {
+            let f = File::open(path)
+                .map_err(|e| EnzoError::hdf5(path, "cannot open as an HDF5 file", e))?;
+            self.current = Some((path.to_path_buf(), f));
+        }
+        match &self.current {
+            Some((_, f)) => Ok(f),
+            None => Err(EnzoError::invalid(path, "no HDF5 file open")),
+        }
+    }
+}
+
+/// Grid `grid`'s dataset `name` in `file`, and the cells it covers.
+pub(crate) fn field_dataset(grid: &Grid, file: &File, name: &str) -> Result<(H5Dataset, IBox)> {
+    let group = grid.group(file)?;
+    if !group.link_exists(name) {
+        return Err(EnzoError::invalid(
+            &grid.file,
+            format!(
+                "grid {} has no dataset '{name}' (the first grid has)",
+                grid.id
+            ),
+        ));
+    }
+    let data = group.dataset(name).map_err(|e| {
+        EnzoError::hdf5(
+            &grid.file,
+            format!("opening grid {}'s '{name}'", grid.id),
+            e,
+        )
+    })?;
+    let stored = stored_box(grid, &data, name)?;
+    Ok((data, stored))
 }
 
 /// The cells a field's dataset covers: the active cells, or the whole `GridDimension` with

@@ -55,6 +55,9 @@ pub struct Desc {
     pub shift: Option<(usize, f64)>,
     /// Leave `RefineBy` out of the parameter file.
     pub omit_refine_by: bool,
+    /// Declare this grid's (numbered from 1) datasets at full size but write no data (HDF5
+    /// allocates lazily, so the file stays small).
+    pub unwritten: Option<usize>,
 }
 
 impl Desc {
@@ -94,6 +97,7 @@ impl Desc {
             }],
             shift: None,
             omit_refine_by: false,
+            unwritten: None,
         }
     }
 }
@@ -267,7 +271,13 @@ impl Writer<'_> {
                 }
             }
             let shape = [ext[2] as usize, ext[1] as usize, ext[0] as usize];
-            if d.f64 {
+            if d.unwritten == Some(id) {
+                group
+                    .new_dataset::<f64>()
+                    .shape(shape)
+                    .create(name.as_str())
+                    .unwrap();
+            } else if d.f64 {
                 dataset(&group, name, shape, vals);
             } else {
                 dataset(

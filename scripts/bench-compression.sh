@@ -7,7 +7,7 @@ out=${1:?usage: bench-compression.sh OUTDIR [CELLS] [PLOTFILE]}
 cells=${2:-1e8}
 plotfile=${3:-}
 root=$(cd "$(dirname "$0")/.." && pwd)
-cargo build --release -q --manifest-path "$root/Cargo.toml" -p amr-convert -p amr-render
+cargo build --release -q --manifest-path "$root/Cargo.toml" -p amr-convert -p amr-bench
 bin="$root/target/release"
 mkdir -p "$out"
 pairs=()
@@ -34,7 +34,7 @@ for p in "${pairs[@]}"; do
       runs=()
       for _ in 1 2 3 4 5; do
         [ "$mode" = cold ] && drop "$f"
-        runs+=("$("$bin/amr-render" bench read "$f" | tail -1 | awk -F'|' '{print $5}')")
+        runs+=("$("$bin/amr-bench" read "$f" | tail -1 | awk -F'|' '{print $5}')")
       done
       t[$mode,$f]=$(printf '%s\n' "${runs[@]}" | median)
     done

@@ -149,14 +149,7 @@ mod tests {
     fn released_pages_read_back_the_same_bytes() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("blobs.amrk");
-        let params = SynthParams {
-            levels: 2,
-            ratio: 2,
-            base: 32,
-            brick: 16,
-            origin: [0.0; 3],
-            size: 1.0,
-        };
+        let params = SynthParams::unit_cube(2, 2, 32, 16);
         let opts = WriterOptions::default();
         write_synth(&path, Case::Blobs, &params, opts, &NoProgress).unwrap();
         let file = open_mapped(&path).unwrap();

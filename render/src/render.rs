@@ -49,7 +49,7 @@ pub struct RegionPixels {
 
 /// Renders `scene` as `view` asks; `progress(rows)` is called as rows finish.
 pub fn render(scene: &Scene, view: &View, progress: &(dyn Fn(u64) + Sync)) -> Result<Rendered> {
-    let rendered = with_tracer(scene, view, |tracer, camera, light| {
+    let rendered = with_scene_tracer(scene, view, |tracer, camera, light| {
         trace_frame(tracer, *camera, light, view, progress)
     })?;
     check_source(scene)?;
@@ -66,7 +66,7 @@ pub fn render_region(scene: &Scene, view: &View, rect: Rect) -> Result<RegionPix
             "region {rect:?} is outside the {w}x{h} frame"
         )));
     }
-    let region = with_tracer(scene, view, |tracer, camera, light| {
+    let region = with_scene_tracer(scene, view, |tracer, camera, light| {
         let (pixels, rays) = render_rect(
             tracer,
             camera,
@@ -89,16 +89,10 @@ pub fn render_surfaces<S: VoxelSource + ?Sized>(
     view: &View,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Rendered> {
-    view.validate()?;
-    let frame = src.frame();
-    let camera = view.camera(&frame)?;
-    let light = view.lighting(&camera, &frame, isos);
-    let tracer = HybridTracer {
-        src,
-        surfaces,
-        smooth_normals: view.smooth_normals,
-    };
-    Ok(trace_frame(&tracer, camera, &light, view, progress))
+    let method = (TraceMethod::Hybrid, view.smooth_normals);
+    with_tracer(src, surfaces, isos, method, view, |tracer, camera, light| {
+        trace_frame(tracer, *camera, light, view, progress)
+    })
 }
 
 /// [`render_surfaces`] with the sample method: isovalues `isos`, no surfaces.
@@ -108,39 +102,44 @@ pub fn render_sampled<S: VoxelSource + ?Sized>(
     view: &View,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Rendered> {
-    view.validate()?;
-    let frame = src.frame();
-    let camera = view.camera(&frame)?;
-    let light = view.lighting(&camera, &frame, isos);
-    let tracer = SampleTracer {
-        src,
-        isos: isos.iter().map(|s| s.value).collect(),
-        step: view.sample_step(&frame)?,
-    };
-    Ok(trace_frame(&tracer, camera, &light, view, progress))
+    let method = (TraceMethod::Sample, view.smooth_normals);
+    with_tracer(src, &[], isos, method, view, |tracer, camera, light| {
+        trace_frame(tracer, *camera, light, view, progress)
+    })
 }
 
-/// The camera, lighting and tracer of a frame of `scene`, handed to `run`.
-fn with_tracer<R>(
+/// [`with_tracer`] for a scene.
+fn with_scene_tracer<R>(
     scene: &Scene,
     view: &View,
     run: impl FnOnce(&(dyn Tracer + Sync), &Camera, &Lighting) -> R,
 ) -> Result<R> {
+    // A piecewise-constant field has no smooth normals: nearest shades with the faces' normals.
+    let smooth = view.smooth_normals && scene.reconstruction() != Reconstruction::Nearest;
+    let method = (scene.method(), smooth);
+    with_tracer(scene.source(), scene.surfaces(), scene.isosurfaces(), method, view, run)
+}
+
+/// The camera, lighting and tracer of a frame of `src` (surfaces `surfaces` of `isos`, traced
+/// with `method.0`, smooth normals when `method.1`), handed to `run`.
+fn with_tracer<S: VoxelSource + ?Sized, R>(
+    src: &S,
+    surfaces: &[Surface],
+    isos: &[IsoSpec],
+    (method, smooth_normals): (TraceMethod, bool),
+    view: &View,
+    run: impl FnOnce(&(dyn Tracer + Sync), &Camera, &Lighting) -> R,
+) -> Result<R> {
     view.validate()?;
-    let src = scene.source();
     let frame = src.frame();
     let camera = view.camera(&frame)?;
-    let isos = scene.isosurfaces();
     let light = view.lighting(&camera, &frame, isos);
-    Ok(match scene.method() {
+    Ok(match method {
         TraceMethod::Hybrid => {
             let tracer = HybridTracer {
                 src,
-                surfaces: scene.surfaces(),
-                // A piecewise-constant field has no smooth normals: nearest shades with the
-                // faces' normals.
-                smooth_normals: view.smooth_normals
-                    && scene.reconstruction() != Reconstruction::Nearest,
+                surfaces,
+                smooth_normals,
             };
             run(&tracer, &camera, &light)
         }

@@ -34,6 +34,19 @@ impl Default for SynthParams {
 }
 
 impl SynthParams {
+    /// A unit cube at the origin with `levels` levels of refinement `ratio`, `base` cells per
+    /// axis on level 0 and bricks of `brick` cells.
+    pub fn unit_cube(levels: u32, ratio: u32, base: u32, brick: u32) -> Self {
+        SynthParams {
+            levels,
+            ratio,
+            base,
+            brick,
+            origin: [0.0; 3],
+            size: 1.0,
+        }
+    }
+
     /// Cells per axis of level `level`, or `None` if it overflows.
     pub fn cells_per_axis(&self, level: u32) -> Option<i64> {
         let r = i64::from(self.ratio);

@@ -151,8 +151,9 @@ fn all_faces(s: &Sampler<'_, Vec<u8>>) -> Faces {
 }
 
 fn check_current(file: &AmrkFile<Vec<u8>>, field: usize, isos: &[f32], ctx: &str) {
-    let cv = CurrentVoxels::new(Sampler::new(file, field, 64 << 20).unwrap());
-    let s = cv.sampler();
+    let sampler = Sampler::new(file, field, 64 << 20).unwrap();
+    let cv = CurrentVoxels::new(&sampler);
+    let s = &sampler;
     let all = all_current(s);
     let mut rng = Rng(0xC0FFEE);
     for &iso in isos {
@@ -213,8 +214,9 @@ fn check_current(file: &AmrkFile<Vec<u8>>, field: usize, isos: &[f32], ctx: &str
 }
 
 fn check_nearest(file: &AmrkFile<Vec<u8>>, field: usize, isos: &[f32], ctx: &str) {
-    let nf = NearestFaces::new(Sampler::new(file, field, 64 << 20).unwrap());
-    let s = nf.sampler();
+    let sampler = Sampler::new(file, field, 64 << 20).unwrap();
+    let nf = NearestFaces::new(&sampler);
+    let s = &sampler;
     let all = all_faces(s);
     for &iso in isos {
         let want: BTreeSet<_> = all

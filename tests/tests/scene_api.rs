@@ -10,14 +10,7 @@ use amr_synth::{write_synth, Case, SynthParams};
 /// A two-level blobs file in `dir`.
 fn blobs(dir: &std::path::Path) -> std::path::PathBuf {
     let path = dir.join("blobs.amrk");
-    let params = SynthParams {
-        levels: 2,
-        ratio: 2,
-        base: 16,
-        brick: 8,
-        origin: [0.0; 3],
-        size: 1.0,
-    };
+    let params = SynthParams::unit_cube(2, 2, 16, 8);
     write_synth(&path, Case::Blobs, &params, WriterOptions::default(), &NoProgress).unwrap();
     path
 }

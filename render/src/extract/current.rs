@@ -16,11 +16,11 @@
 use amr_format::IBox;
 
 use crate::error::{RenderError, Result};
-use rayon::prelude::*;
 
 use crate::voxel::Voxel;
 use crate::reconstruct::interp::{min_max, straddles};
 use crate::reconstruct::Sampler;
+use super::over_candidate_leaves;
 
 /// A kd-tree leaf seen at its level: level, box of finest cells, dual range.
 #[derive(Clone, Copy, Debug)]
@@ -47,46 +47,25 @@ impl DualFrame {
 }
 
 /// Extracts and decodes the `current` reconstruction's active voxels of one field.
-pub struct CurrentVoxels<'f, D> {
-    sampler: Sampler<'f, D>,
+pub struct CurrentVoxels<'s, 'f, D> {
+    sampler: &'s Sampler<'f, D>,
 }
 
-impl<'f, D: AsRef<[u8]> + Sync> CurrentVoxels<'f, D> {
+impl<'s, 'f, D: AsRef<[u8]> + Sync> CurrentVoxels<'s, 'f, D> {
     /// The voxels of `sampler`'s field.
-    pub fn new(sampler: Sampler<'f, D>) -> Self {
+    pub fn new(sampler: &'s Sampler<'f, D>) -> Self {
         Self { sampler }
-    }
-
-    /// The sampler underneath.
-    pub fn sampler(&self) -> &Sampler<'f, D> {
-        &self.sampler
     }
 
     /// Refs of the voxels whose corner values `v` satisfy `min v < iso <= max v`, in leaf order
     /// and sorted within each leaf.
     pub fn extract(&self, iso: f32) -> Result<Vec<u64>> {
-        let file = self.sampler.file();
-        let field = self.sampler.field();
-        let leaves: Vec<u32> = (0..file.num_leaves() as u32)
-            .filter(|&l| {
-                let (lo, hi) = file.leaf_range(field, l);
-                straddles(lo, hi, iso)
-            })
-            .collect();
-        let parts: Vec<Result<Vec<u64>>> = leaves
-            .par_iter()
-            .map(|&leaf| self.extract_leaf(leaf, iso))
-            .collect();
-        let mut refs = Vec::new();
-        for p in parts {
-            refs.extend_from_slice(&p?);
-        }
-        Ok(refs)
+        over_candidate_leaves(self.sampler, iso, |leaf| self.extract_leaf(leaf, iso))
     }
 
     fn extract_leaf(&self, leaf: u32, iso: f32) -> Result<Vec<u64>> {
         let mut out = Vec::new();
-        let Some(f) = DualFrame::new(&self.sampler, leaf) else {
+        let Some(f) = DualFrame::new(self.sampler, leaf) else {
             return Ok(out);
         };
         check_ids(&f, leaf)?;
@@ -178,7 +157,7 @@ impl<'f, D: AsRef<[u8]> + Sync> CurrentVoxels<'f, D> {
         if leaf as usize >= self.sampler.file().num_leaves() {
             return Err(bad("no such leaf"));
         }
-        let f = DualFrame::new(&self.sampler, leaf).ok_or_else(|| bad("no brick there"))?;
+        let f = DualFrame::new(self.sampler, leaf).ok_or_else(|| bad("no brick there"))?;
         let e = f.duals.extent();
         let id = i64::from(id);
         if id >= e[0] * e[1] * e[2] {

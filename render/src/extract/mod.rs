@@ -173,14 +173,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
 
     /// The leaves whose stored value range may hold `iso`, in leaf order.
     pub fn candidate_leaves(&self, iso: f32) -> Vec<u32> {
-        let file = self.sampler.file();
-        let field = self.sampler.field();
-        (0..file.num_leaves() as u32)
-            .filter(|&l| {
-                let (lo, hi) = file.leaf_range(field, l);
-                straddles(lo, hi, iso)
-            })
-            .collect()
+        candidate_leaves(&self.sampler, iso)
     }
 
     /// [`Self::extract`] over the given `leaves` only (a subset of the candidates, as when MPI
@@ -355,6 +348,37 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             }
         }
     }
+}
+
+/// The leaves of `sampler`'s file whose stored value range of its field may hold `iso`, in leaf
+/// order.
+pub fn candidate_leaves<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>, iso: f32) -> Vec<u32> {
+    let file = sampler.file();
+    let field = sampler.field();
+    (0..file.num_leaves() as u32)
+        .filter(|&l| {
+            let (lo, hi) = file.leaf_range(field, l);
+            straddles(lo, hi, iso)
+        })
+        .collect()
+}
+
+/// The refs `per_leaf` gives for each candidate leaf of `iso` ([`candidate_leaves`]), leaves in
+/// parallel, concatenated in leaf order; the first error stops it.
+pub fn over_candidate_leaves<D: AsRef<[u8]> + Sync>(
+    sampler: &Sampler<'_, D>,
+    iso: f32,
+    per_leaf: impl Fn(u32) -> Result<Vec<u64>> + Sync,
+) -> Result<Vec<u64>> {
+    let parts: Vec<Result<Vec<u64>>> = candidate_leaves(sampler, iso)
+        .par_iter()
+        .map(|&leaf| per_leaf(leaf))
+        .collect();
+    let mut refs = Vec::new();
+    for p in parts {
+        refs.extend_from_slice(&p?);
+    }
+    Ok(refs)
 }
 
 /// The error for a reference that names no voxel of the file.

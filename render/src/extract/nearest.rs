@@ -18,15 +18,15 @@
 use amr_format::IBox;
 
 use crate::error::{RenderError, Result};
-use rayon::prelude::*;
 
 use crate::voxel::Voxel;
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::{LeafCell, Sampler};
+use super::over_candidate_leaves;
 
 /// Extracts and decodes the `nearest` reconstruction's active faces of one field.
-pub struct NearestFaces<'f, D> {
-    sampler: Sampler<'f, D>,
+pub struct NearestFaces<'s, 'f, D> {
+    sampler: &'s Sampler<'f, D>,
 }
 
 /// A kd-tree leaf at its level: the level, its box of finest cells and the level cells overlapping it.
@@ -56,37 +56,16 @@ fn owns_face(level: u32, side: usize, across: &LeafCell) -> bool {
     across.level < level || (across.level == level && side == 1)
 }
 
-impl<'f, D: AsRef<[u8]> + Sync> NearestFaces<'f, D> {
+impl<'s, 'f, D: AsRef<[u8]> + Sync> NearestFaces<'s, 'f, D> {
     /// The faces of `sampler`'s field.
-    pub fn new(sampler: Sampler<'f, D>) -> Self {
+    pub fn new(sampler: &'s Sampler<'f, D>) -> Self {
         Self { sampler }
-    }
-
-    /// The sampler underneath.
-    pub fn sampler(&self) -> &Sampler<'f, D> {
-        &self.sampler
     }
 
     /// Refs of the faces between a cell below `iso` and one at or above it (`min < iso <= max`
     /// of the two values), in leaf order and sorted within each leaf.
     pub fn extract(&self, iso: f32) -> Result<Vec<u64>> {
-        let file = self.sampler.file();
-        let field = self.sampler.field();
-        let leaves: Vec<u32> = (0..file.num_leaves() as u32)
-            .filter(|&l| {
-                let (lo, hi) = file.leaf_range(field, l);
-                straddles(lo, hi, iso)
-            })
-            .collect();
-        let parts: Vec<Result<Vec<u64>>> = leaves
-            .par_iter()
-            .map(|&leaf| self.extract_leaf(leaf, iso))
-            .collect();
-        let mut refs = Vec::new();
-        for p in parts {
-            refs.extend_from_slice(&p?);
-        }
-        Ok(refs)
+        over_candidate_leaves(self.sampler, iso, |leaf| self.extract_leaf(leaf, iso))
     }
 
     /// The leaf cell holding level-`level` cell `cell`'s lowest finest cell; `None` outside the
@@ -104,7 +83,7 @@ impl<'f, D: AsRef<[u8]> + Sync> NearestFaces<'f, D> {
 
     fn extract_leaf(&self, leaf: u32, iso: f32) -> Result<Vec<u64>> {
         let mut out = Vec::new();
-        let Some(f) = CellFrame::new(&self.sampler, leaf) else {
+        let Some(f) = CellFrame::new(self.sampler, leaf) else {
             return Ok(out);
         };
         let ce = f.cells.extent();
@@ -170,7 +149,7 @@ impl<'f, D: AsRef<[u8]> + Sync> NearestFaces<'f, D> {
         if leaf as usize >= self.sampler.file().num_leaves() {
             return Err(bad("no such leaf"));
         }
-        let f = CellFrame::new(&self.sampler, leaf).ok_or_else(|| bad("no brick there"))?;
+        let f = CellFrame::new(self.sampler, leaf).ok_or_else(|| bad("no brick there"))?;
         let (cell, face) = (i64::from(id / 8), id % 8);
         let e = f.cells.extent();
         if cell >= e[0] * e[1] * e[2] || face >= 6 {

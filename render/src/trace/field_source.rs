@@ -38,10 +38,10 @@ pub const VOXEL_CACHE_BYTES: usize = VOXEL_CACHE_SLOTS * std::mem::size_of::<(u6
 enum Voxels<'f, D> {
     /// Octants and merged dual cells of the octant method.
     Octant(Extractor<'f, D>),
-    /// Dual cells of each level, clipped to the level's cells.
-    Current(CurrentVoxels<'f, D>),
-    /// Cell faces between cells of different values.
-    Nearest(NearestFaces<'f, D>),
+    /// Dual cells of each level, clipped to the level's cells ([`CurrentVoxels`]).
+    Current(Sampler<'f, D>),
+    /// Cell faces between cells of different values ([`NearestFaces`]).
+    Nearest(Sampler<'f, D>),
 }
 
 /// One thread's decoded voxels, direct-mapped by ref.
@@ -68,10 +68,10 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         let voxels = match reconstruction {
             Reconstruction::Octant => Voxels::Octant(Extractor::new(file, field, BRICK_CACHE_BYTES)?),
             Reconstruction::Current => {
-                Voxels::Current(CurrentVoxels::new(Sampler::new(file, field, BRICK_CACHE_BYTES)?))
+                Voxels::Current(Sampler::new(file, field, BRICK_CACHE_BYTES)?)
             }
             Reconstruction::Nearest => {
-                Voxels::Nearest(NearestFaces::new(Sampler::new(file, field, BRICK_CACHE_BYTES)?))
+                Voxels::Nearest(Sampler::new(file, field, BRICK_CACHE_BYTES)?)
             }
             Reconstruction::Finest => {
                 return Err(RenderError::Unsupported(
@@ -104,8 +104,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     pub fn sampler(&self) -> &Sampler<'f, D> {
         match &self.voxels {
             Voxels::Octant(e) => e.sampler(),
-            Voxels::Current(v) => v.sampler(),
-            Voxels::Nearest(v) => v.sampler(),
+            Voxels::Current(s) | Voxels::Nearest(s) => s,
         }
     }
 
@@ -136,8 +135,8 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     pub fn extract(&self, iso: f32) -> Result<Extraction> {
         match &self.voxels {
             Voxels::Octant(e) => e.extract(iso),
-            Voxels::Current(v) => self.timed(iso, || v.extract(iso)),
-            Voxels::Nearest(v) => self.timed(iso, || v.extract(iso)),
+            Voxels::Current(s) => self.timed(iso, || CurrentVoxels::new(s).extract(iso)),
+            Voxels::Nearest(s) => self.timed(iso, || NearestFaces::new(s).extract(iso)),
         }
     }
 
@@ -188,8 +187,8 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     fn decode(&self, r: u64, memo: &mut VertexMemo) -> Result<Voxel> {
         match &self.voxels {
             Voxels::Octant(e) => e.decode_memo(r, memo),
-            Voxels::Current(v) => v.decode(r),
-            Voxels::Nearest(v) => v.decode(r),
+            Voxels::Current(s) => CurrentVoxels::new(s).decode(r),
+            Voxels::Nearest(s) => NearestFaces::new(s).decode(r),
         }
     }
 

@@ -29,14 +29,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         .tempdir()
         .context("cannot create a temporary directory")?;
     let path = dir.path().join("demo.amrk");
-    let params = SynthParams {
-        levels: 3,
-        ratio: 2,
-        base: 32,
-        brick: 16,
-        origin: [0.0; 3],
-        size: 1.0,
-    };
+    let params = SynthParams::unit_cube(3, 2, 32, 16);
     write_synth(&path, Case::Blobs, &params, WriterOptions::default(), &NoProgress)
         .with_context(|| format!("cannot write {}", path.display()))?;
     let iso = Case::Blobs.default_iso() as f32;

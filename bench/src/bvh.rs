@@ -1,0 +1,158 @@
+//! BVH in chunks against one BVH over all refs, side by side on one file and one isovalue:
+//! build time, build scratch, resident bytes and frame time, and whether the frames agree.
+
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+
+use amr_render::bvh::BvhBuilder;
+use amr_render::camera::Camera;
+use amr_render::mapping::{open_mapped, PageRelease};
+use amr_render::shade::{render_frame, Lighting, RenderSettings};
+use amr_render::trace::{FieldSource, HybridTracer, Surface, VoxelSource};
+use amr_render::Reconstruction;
+
+/// What `amr-bench bvh` measures.
+#[derive(Clone, Debug)]
+pub struct BvhBenchConfig {
+    /// Refs per chunk of each variant; `usize::MAX` is one BVH over all refs.
+    pub chunks: Vec<usize>,
+    /// Frames rendered per variant (the variants take turns, so each run is side by side).
+    pub runs: usize,
+    /// Image width and height.
+    pub size: (u32, u32),
+    /// Shadow rays (any-hit queries).
+    pub shadows: bool,
+    /// Ambient-occlusion rays per hit (any-hit queries).
+    pub ao: u32,
+}
+
+/// One variant's measurements.
+#[derive(Clone, Debug)]
+pub struct BvhVariant {
+    /// Refs per chunk (`usize::MAX`: one BVH).
+    pub chunk_refs: usize,
+    /// Chunks built.
+    pub chunks: usize,
+    /// Build time (boxes decoded from the file, PLOC, CWBVH conversion).
+    pub build: Duration,
+    /// Build scratch held at the end of the build.
+    pub scratch_bytes: usize,
+    /// Resident bytes of the BVH nodes.
+    pub bvh_bytes: usize,
+    /// Median frame time.
+    pub frame: Duration,
+    /// Time of the variant's first frame, which starts with the map's pages released, as in a
+    /// render (the frame faults the pages it reads back in from the page cache).
+    pub first_frame: Duration,
+    /// Pixels whose colour, alpha or depth differ from the first variant's frame.
+    pub differing_pixels: usize,
+}
+
+/// Extracts `iso` from `path` once, builds one BVH per variant and renders each `runs` times
+/// (the median is over all runs, the first included). Returns the number of active voxels and the variants.
+pub fn compare(
+    path: &std::path::Path,
+    iso: f32,
+    cfg: &BvhBenchConfig,
+) -> anyhow::Result<(usize, Vec<BvhVariant>)> {
+    let file = open_mapped(path)?;
+    let mut src = FieldSource::new(&file, 0, Reconstruction::Octant)?;
+    src.set_page_release(PageRelease::new(&file));
+    let refs = src
+        .extract(iso)
+        .with_context(|| format!("extracting iso {iso} from {}", path.display()))?
+        .refs;
+    let mut surfaces = Vec::new();
+    let mut out = Vec::new();
+    for &chunk_refs in &cfg.chunks {
+        let mut builder = BvhBuilder::new();
+        builder.chunk_refs = chunk_refs;
+        let t = Instant::now();
+        let s = Surface::build(&src, iso, &refs, &mut builder);
+        let build = t.elapsed();
+        out.push(BvhVariant {
+            chunk_refs,
+            chunks: s.bvh.num_chunks(),
+            build,
+            scratch_bytes: builder.last_scratch_bytes,
+            bvh_bytes: s.bvh.bvh_bytes(),
+            frame: Duration::ZERO,
+            first_frame: Duration::ZERO,
+            differing_pixels: 0,
+        });
+        surfaces.push([s]);
+    }
+    let (lo, hi) = src.frame().world_bounds();
+    let (w, h) = cfg.size;
+    let camera = Camera::framing(lo, hi, 40.0, f64::from(w) / f64::from(h))?;
+    let diag = (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
+    let mut light = Lighting::for_camera(&camera, vec![[0.8, 0.8, 0.8]], vec![1.0], 0.08 * diag);
+    light.shadows = cfg.shadows;
+    light.ao_rays = cfg.ao;
+    let settings = RenderSettings {
+        width: w,
+        height: h,
+        spp: 1,
+    };
+    let mut times = vec![Vec::new(); surfaces.len()];
+    let mut first = None;
+    for run in 0..cfg.runs.max(1) {
+        for (i, surface) in surfaces.iter().enumerate() {
+            if run == 0 {
+                src.release_pages();
+            }
+            let tracer = HybridTracer {
+                src: &src,
+                surfaces: surface,
+                smooth_normals: true,
+            };
+            let t = Instant::now();
+            let (fb, _) = render_frame(&tracer, &camera, &light, settings, &|_| {});
+            times[i].push(t.elapsed());
+            if run == 0 {
+                out[i].first_frame = t.elapsed();
+            }
+            let reference = first.get_or_insert_with(|| fb.clone());
+            let differ = (0..fb.len())
+                .filter(|&p| {
+                    (0..3).any(|c| fb.rgb[c][p].to_bits() != reference.rgb[c][p].to_bits())
+                        || fb.alpha[p].to_bits() != reference.alpha[p].to_bits()
+                        || fb.z[p].to_bits() != reference.z[p].to_bits()
+                })
+                .count();
+            out[i].differing_pixels = out[i].differing_pixels.max(differ);
+        }
+    }
+    for (v, t) in out.iter_mut().zip(&mut times) {
+        v.frame = crate::median(t);
+    }
+    Ok((refs.len(), out))
+}
+
+/// The variants as a Markdown table.
+pub fn table(active: usize, variants: &[BvhVariant]) -> String {
+    let mut s = format!(
+        "{active} active voxels.\n\n| BVH | chunks | build s | build scratch bytes | BVH bytes | \
+         first frame s | frame s (median) | pixels differing from the first row |\n\
+         |---|---|---|---|---|---|---|---|\n"
+    );
+    for v in variants {
+        let name = if v.chunk_refs == usize::MAX {
+            "one BVH over all refs".to_string()
+        } else {
+            format!("chunks of {} refs", v.chunk_refs)
+        };
+        s.push_str(&format!(
+            "| {name} | {} | {:.3} | {} | {} | {:.4} | {:.4} | {} |\n",
+            v.chunks,
+            v.build.as_secs_f64(),
+            v.scratch_bytes,
+            v.bvh_bytes,
+            v.first_frame.as_secs_f64(),
+            v.frame.as_secs_f64(),
+            v.differing_pixels
+        ));
+    }
+    s
+}

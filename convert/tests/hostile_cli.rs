@@ -2,15 +2,16 @@
 //! that is not UTF-8, a crash of the HDF5 library, temporaries left by a killed writer. Each is
 //! exit 1 with one message and no output, never a signal death or a replaced input.
 
-#[path = "../../tests/tests/support/chombo/mod.rs"]
+// The integration tests' fixture writers (tests/tests/support), for a Chombo file.
+#[path = "../../tests/tests/support/mod.rs"]
 #[allow(dead_code)]
-mod chombo_support;
+mod support;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use amr_convert::isolate::TEST_CRASH_ENV;
-use chombo_support::{writer, Desc};
+use support::chombo::{writer, Desc};
 
 const BIN: &str = env!("CARGO_BIN_EXE_amr-convert");
 

@@ -315,7 +315,11 @@ fn ratio<R: BufRead>(
         if q < 2 {
             return Err(AmrexError::unsupported(
                 r.path(),
-                format!("refinement ratio {q} on axis {a} from level {l} to {} (.amrk needs at least 2 on every axis)", l + 1),
+                format!(
+                    "refinement ratio {q} on axis {a} from level {l} to {} (a quasi-2D ratio such as 2 2 1): \
+                     .amrk needs a ratio of at least 2 on every axis (docs/format.md, \"Why every ratio is at least 2\")",
+                    l + 1
+                ),
             ));
         }
         out[a] = u32::try_from(q).map_err(|_| {

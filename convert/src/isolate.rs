@@ -1,5 +1,5 @@
-//! Reading HDF5 in a child process: a crash of the HDF5 library on a corrupt file becomes a
-//! clear error, not the converter's death (`docs/dependencies.md` says why).
+//! Reading HDF5 (Chombo, Enzo) in a child process: a crash of the HDF5 library on a corrupt
+//! file becomes a clear error, not the converter's death (`docs/dependencies.md` says why).
 //!
 //! The parent re-runs this program with the same arguments and [`CHILD_ENV`] set, and waits. The
 //! child converts as usual; its output, messages and exit status pass through. When it dies of a

@@ -51,7 +51,11 @@ fn main() -> ExitCode {
             let (Some(input), Some(output)) = (&cli.input, &cli.output) else {
                 unreachable!("clap requires INPUT and --output without a subcommand")
             };
-            if matches!(detect(input), Ok(InputFormat::ChomboHdf5)) && !isolate::is_child() {
+            let hdf5 = matches!(
+                detect(input),
+                Ok(InputFormat::ChomboHdf5 | InputFormat::Enzo { .. })
+            );
+            if hdf5 && !isolate::is_child() {
                 // HDF5 is read in a child, whose crash on a corrupt file becomes an error.
                 return match isolate::convert_in_child(input, output) {
                     Ok(code) => ExitCode::from(code),

@@ -66,6 +66,11 @@ pub trait AmrSource {
     /// The levels as the `.amrk` writer wants them, coarsest first.
     fn level_specs(&self) -> Vec<LevelSpec>;
 
+    /// When in the simulation the dump was written, `(time, step)`, as far as the dump says.
+    fn simulation(&self) -> (Option<f64>, Option<i64>) {
+        (None, None)
+    }
+
     /// Each level's valid boxes, in the order [`Slab::index`] counts them.
     fn boxes(&self) -> Vec<&[IBox]>;
 
@@ -162,6 +167,10 @@ pub fn convert<S: AmrSource + ?Sized>(
     let layout = BrickLayout::new(boxes.iter().copied(), opts.brick);
     let fields = comps.iter().map(|&c| src.fields()[c].clone()).collect();
     let mut sink = BrickSink::create(output, src.level_specs(), fields, layout, opts.compression)
+        .map_err(|e| output_error(output, e))?;
+    let (time, step) = src.simulation();
+    // A time the dump gives as NaN or infinite is not recorded rather than refused.
+    sink.set_simulation(time.filter(|t| t.is_finite()), step)
         .map_err(|e| output_error(output, e))?;
     let mut write = |s: Slab| {
         sink.write_slab(s.level, s.index, &s.valid, &s.cells, s.field, s.values)

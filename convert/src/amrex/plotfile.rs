@@ -123,6 +123,10 @@ impl AmrSource for Plotfile {
         &self.header.fields
     }
 
+    fn simulation(&self) -> (Option<f64>, Option<i64>) {
+        (Some(self.header.time), self.header.step)
+    }
+
     fn level_specs(&self) -> Vec<LevelSpec> {
         Plotfile::level_specs(self)
     }

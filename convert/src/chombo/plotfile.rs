@@ -101,6 +101,8 @@ pub struct Plotfile {
     pub vars: Vec<String>,
     /// Levels, coarsest first.
     pub levels: Vec<Level>,
+    /// The simulation time (level 0's `time` attribute, which Chombo's writers set), if any.
+    pub time: Option<f64>,
     _file: File,
 }
 
@@ -135,6 +137,13 @@ impl Plotfile {
         if !(1..=MAX_LEVELS as i64).contains(&nl) {
             return Err(root.invalid(format!("num_levels = {nl}, expected 1 to {MAX_LEVELS}")));
         }
+        // A label only: a missing or unreadable time leaves the output unlabelled.
+        let time = root
+            .child(&raw::level(0))
+            .ok()
+            .filter(|g| g.has("time"))
+            .and_then(|g| g.float("time").ok())
+            .filter(|t| t.is_finite());
         let mut levels: Vec<Level> = Vec::with_capacity(nl as usize);
         for l in 0..nl as usize {
             let g = root.child(&raw::level(l))?;
@@ -151,6 +160,7 @@ impl Plotfile {
             sources,
             vars,
             levels,
+            time,
             _file: file,
         })
     }
@@ -180,6 +190,10 @@ impl AmrSource for Plotfile {
 
     fn fields(&self) -> &[String] {
         &self.fields
+    }
+
+    fn simulation(&self) -> (Option<f64>, Option<i64>) {
+        (self.time, None)
     }
 
     fn level_specs(&self) -> Vec<LevelSpec> {

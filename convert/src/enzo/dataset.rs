@@ -356,6 +356,10 @@ impl AmrSource for Dataset {
         &self.fields
     }
 
+    fn simulation(&self) -> (Option<f64>, Option<i64>) {
+        (self.params.time, self.params.cycle)
+    }
+
     /// Cell 0 of every level sits at `DomainLeftEdge`; level `l` has `TopGridDimensions ×
     /// RefineBy^l` cells over the domain.
     fn level_specs(&self) -> Vec<LevelSpec> {

@@ -22,6 +22,10 @@ pub struct Parameters {
     pub left: [f64; 3],
     /// `DomainRightEdge`.
     pub right: [f64; 3],
+    /// `InitialTime`: the simulation time of the output, when it parses.
+    pub time: Option<f64>,
+    /// `InitialCycleNumber`: the cycle of the output, when it parses.
+    pub cycle: Option<i64>,
 }
 
 /// Reads and checks the parameter file `path`.
@@ -32,6 +36,7 @@ pub fn read_parameters(path: &Path) -> Result<Parameters> {
     let mut refine_by = None;
     let mut left = None;
     let mut right = None;
+    let (mut time, mut cycle) = (None, None);
     for (i, line) in text.lines().enumerate() {
         let Some((key, value)) = key_value(line) else {
             continue;
@@ -47,6 +52,9 @@ pub fn read_parameters(path: &Path) -> Result<Parameters> {
             "RefineBy" => refine_by = Some(integer(value).map_err(syntax)?),
             "DomainLeftEdge" => left = Some(three::<f64>(value).map_err(syntax)?),
             "DomainRightEdge" => right = Some(three::<f64>(value).map_err(syntax)?),
+            // Labels only: a value that does not parse leaves the output unlabelled.
+            "InitialTime" => time = value.trim().parse::<f64>().ok().filter(|t| t.is_finite()),
+            "InitialCycleNumber" => cycle = value.trim().parse::<i64>().ok(),
             _ => {}
         }
     }
@@ -91,6 +99,8 @@ pub fn read_parameters(path: &Path) -> Result<Parameters> {
         refine_by,
         left,
         right,
+        time,
+        cycle,
     })
 }
 

@@ -8,20 +8,34 @@
 mod support;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Stdio};
+use std::sync::Mutex;
 
 use amr_convert::isolate::TEST_CRASH_ENV;
 use support::chombo::{writer, Desc};
 
 const BIN: &str = env!("CARGO_BIN_EXE_amr-convert");
 
+/// Held while a fixture is written and while a child is started: libhdf5 opens files without
+/// close-on-exec and locks them, so a child forked while another test's fixture is open would
+/// inherit that lock and make the other test's converter fail with "unable to lock file".
+static NO_FORK_WHILE_HDF5_OPEN: Mutex<()> = Mutex::new(());
+
 /// Runs `amr-convert args` with `env`; returns (exit code, stderr).
 fn run(args: &[&Path], env: &[(&str, &str)]) -> (Option<i32>, String) {
-    let out = Command::new(BIN)
-        .args(args)
-        .envs(env.iter().copied())
-        .output()
-        .unwrap();
+    let child = {
+        let _guard = NO_FORK_WHILE_HDF5_OPEN
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        Command::new(BIN)
+            .args(args)
+            .envs(env.iter().copied())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let out = child.wait_with_output().unwrap();
     (
         out.status.code(),
         String::from_utf8_lossy(&out.stderr).into_owned(),
@@ -30,6 +44,9 @@ fn run(args: &[&Path], env: &[(&str, &str)]) -> (Option<i32>, String) {
 
 fn fixture(dir: &Path) -> PathBuf {
     let input = dir.join("plt.3d.hdf5");
+    let _guard = NO_FORK_WHILE_HDF5_OPEN
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
     writer::write(&input, &Desc::three_levels(true)).unwrap();
     input
 }

@@ -1,6 +1,8 @@
 //! `amr-convert`: turns simulation dumps, or synthetic cases, into `.amrk` files.
 
-use std::path::PathBuf;
+mod series;
+
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use amr_convert::convert_cmd::run_convert;
@@ -20,9 +22,11 @@ struct Cli {
     command: Option<Command>,
     /// The dump to convert: an AMReX plotfile directory, a Chombo HDF5 plotfile or checkpoint
     /// (.h5, .hdf5), or an Enzo dataset (its parameter file, its .hierarchy, or its directory).
-    #[arg(required = true)]
-    input: Option<PathBuf>,
-    /// The .amrk file to write (written to a temporary file, renamed when complete).
+    /// Several dumps (a time series) go to one directory, one NAME.amrk each.
+    #[arg(required = true, num_args = 1.., value_name = "INPUT")]
+    inputs: Vec<PathBuf>,
+    /// The .amrk file to write (written to a temporary file, renamed when complete); for several
+    /// inputs, or a path ending in '/', the directory to write them to (created if needed).
     #[arg(short, long, required = true)]
     output: Option<PathBuf>,
     /// A field to convert (repeat for several; all fields by default).
@@ -42,21 +46,30 @@ enum Command {
     Synth(SynthArgs),
 }
 
+/// Converts one dump as `cli` asks.
+fn convert_one(cli: &Cli, input: &Path, output: &Path) -> anyhow::Result<()> {
+    let compression = if cli.compress {
+        Compression::Zstd { level: 3 }
+    } else {
+        Compression::None
+    };
+    let summary = run_convert(input, output, &cli.fields, cli.brick, compression)?;
+    eprintln!("{}: {summary}", output.display());
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Some(Command::Synth(args)) => run_synth(args),
         None => {
-            let (Some(input), Some(output)) = (&cli.input, &cli.output) else {
-                unreachable!("clap requires INPUT and --output without a subcommand")
+            let Some(output) = &cli.output else {
+                unreachable!("clap requires --output without a subcommand")
             };
-            let compression = if cli.compress {
-                Compression::Zstd { level: 3 }
-            } else {
-                Compression::None
-            };
-            run_convert(input, output, &cli.fields, cli.brick, compression)
-                .map(|s| eprintln!("{s}"))
+            series::outputs(&cli.inputs, output).and_then(|jobs| {
+                jobs.iter()
+                    .try_for_each(|(input, output)| convert_one(&cli, input, output))
+            })
         }
     };
     match result {

@@ -1,8 +1,9 @@
 //! Reading HDF5 (Chombo, Enzo) in a child process: a crash of the HDF5 library on a corrupt
 //! file becomes a clear error, not the converter's death (`docs/dependencies.md` says why).
 //!
-//! The parent re-runs this program with the same arguments and [`CHILD_ENV`] set, and waits. The
-//! child converts as usual; its output, messages and exit status pass through. When it dies of a
+//! For each HDF5 input the parent runs this program again on that input alone, with the same
+//! options and [`CHILD_ENV`] set, and waits. The child converts as usual; its output, messages
+//! and failure pass through. When it dies of a
 //! signal, the parent removes the temporaries it left and reports the input as probably corrupt.
 
 use std::os::unix::process::ExitStatusExt;
@@ -49,17 +50,28 @@ pub fn crash_if_asked() {
     }
 }
 
-/// Runs this program again with its own arguments as a child converting `input` to `output`,
-/// and returns the child's exit code; a child killed by a signal is an error naming `input`.
-pub fn convert_in_child(input: &Path, output: &Path) -> anyhow::Result<u8> {
+/// The child failed and reported why itself (its exit status was not 0).
+#[derive(Debug, thiserror::Error)]
+#[error("the converting child process exited with status {0}")]
+pub struct ChildFailed(pub i32);
+
+/// Runs this program again as a child converting `input` to `output` with `options` (the
+/// command line's other options) and waits; a child killed by a signal is an error naming
+/// `input`, a child that failed is [`ChildFailed`].
+pub fn convert_in_child(input: &Path, output: &Path, options: &[String]) -> anyhow::Result<()> {
     let exe = std::env::current_exe().context("cannot find this program to run its child")?;
     let status = Command::new(exe)
-        .args(std::env::args_os().skip(1))
+        .arg(input)
+        .arg("-o")
+        .arg(output)
+        .args(options)
         .env(CHILD_ENV, "1")
         .status()
         .context("cannot start the converting child process")?;
-    if let Some(code) = status.code() {
-        return Ok(u8::try_from(code).unwrap_or(1));
+    match status.code() {
+        Some(0) => return Ok(()),
+        Some(code) => return Err(ChildFailed(code).into()),
+        None => {}
     }
     amr_format::output::remove_stale_temporaries(output);
     let signal = status.signal().unwrap_or(0);

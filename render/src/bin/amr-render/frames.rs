@@ -10,6 +10,7 @@ use amr_render::output::header::frame_header;
 use amr_render::{render, Scene, View};
 use serde::Serialize;
 
+use crate::heap;
 use crate::movie;
 use crate::outputs::{self, FrameFiles, ProcessMemory, RunStats};
 use crate::progress;
@@ -55,7 +56,9 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         let index = if anim.series { k as usize } else { 0 };
         if scene.as_ref().is_none_or(|(i, _)| *i != index) {
             // The previous file's map and surfaces go before the next file is opened.
-            drop(scene.take());
+            if scene.take().is_some() {
+                heap::return_freed();
+            }
             scene = Some((index, Scene::open(&request.files[index], &request.scene)?));
         }
         let Some((_, scene)) = scene.as_mut() else {

@@ -4,7 +4,10 @@
 use std::path::{Path, PathBuf};
 
 use amr_render::mapping::mapped_resident_bytes;
-use amr_render::output::exr_file::{temp_path, write_exr};
+use std::io::Write;
+
+use amr_format::output::temporary_for;
+use amr_render::output::exr_file::write_exr;
 use amr_render::output::png_preview::write_preview;
 use amr_render::{FrameStats, Rendered, Scene, SceneStats};
 use anyhow::Context;
@@ -172,11 +175,10 @@ pub fn report(outputs: &Outputs, stats: &impl Serialize, print_also: &str) -> an
 
 /// Writes `value` as pretty JSON to `path` through a temporary file.
 pub fn write_json(path: &Path, value: &impl Serialize) -> anyhow::Result<()> {
-    let tmp = temp_path(path);
+    let fail = || format!("cannot write {}", path.display());
+    let mut tmp = temporary_for(path, ".tmp").with_context(fail)?;
     let body = serde_json::to_string_pretty(value)? + "\n";
-    if let Err(e) = std::fs::write(&tmp, body) {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e).with_context(|| format!("cannot write {}", path.display()));
-    }
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+    tmp.write_all(body.as_bytes()).with_context(fail)?;
+    tmp.persist(path).map_err(|e| e.error).with_context(fail)?;
+    Ok(())
 }

@@ -7,8 +7,8 @@
 //! `Q`-cell of `Q`, [`super::cull`]) is the union of 27 entries, each shared by the coarse cells
 //! next to it, instead of a scan of every brick near `Q`.
 
-use amr_format::IBox;
 use crate::error::Result;
+use amr_format::IBox;
 
 use super::blocks::BlockRanges;
 use crate::reconstruct::Sampler;

@@ -1,8 +1,8 @@
 //! Per-brick tables of the value ranges of blocks of `4^3` cells, each built the first time its
 //! brick is asked for, so that the range of a box of a brick's cells costs one entry per block
 //! inside it and a scan of the cells around those blocks, not a scan of all its cells. A table
-//! takes 8 bytes per 64 cells (1/8 byte per cell, 3 % of the brick's f32 data), and only bricks
-//! near the leaves visited get one.
+//! takes 8 bytes per 64 cells (1/8 byte per cell, 3 % of the brick's f32 data), and only small
+//! bricks (at most `16^3` cells) near the leaves visited get one.
 
 use std::sync::OnceLock;
 
@@ -16,6 +16,9 @@ pub const BLOCK: i64 = 4;
 /// A brick gets a table when a box asks for blocks holding at least 1/`SHARE` of its cells
 /// (a smaller box is scanned: the table would read the whole brick for a small part of it).
 const SHARE: i64 = 2;
+/// Only bricks of at most this many cells get a table: small bricks are where a leaf's region
+/// spans many bricks; larger ones are scanned as before, keeping the tables' memory small.
+const MAX_TABLE_CELLS: u64 = 16 * 16 * 16;
 
 /// The block range tables of every brick of one field, built on demand from any thread.
 pub struct BlockRanges {
@@ -60,9 +63,12 @@ impl BlockRanges {
         // scanned: the range is exact, and costs a table entry per block inside.
         let inner_lo = [0, 1, 2].map(|a| (cells.lo[a] - bc.lo[a] + BLOCK - 1) / BLOCK);
         let inner_hi = [0, 1, 2].map(|a| (cells.hi[a] - bc.lo[a]) / BLOCK);
-        let inner_cells: i64 = (0..3).map(|a| (inner_hi[a] - inner_lo[a]).max(0) * BLOCK).product();
+        let inner_cells: i64 = (0..3)
+            .map(|a| (inner_hi[a] - inner_lo[a]).max(0) * BLOCK)
+            .product();
+        let brick_cells = bc.num_cells().unwrap_or(u64::MAX);
         let worth_a_table = self.tables[brick as usize].get().is_some()
-            || inner_cells * SHARE >= bc.num_cells().unwrap_or(0) as i64;
+            || (brick_cells <= MAX_TABLE_CELLS && inner_cells * SHARE >= brick_cells as i64);
         if (0..3).any(|a| inner_lo[a] >= inner_hi[a]) || !worth_a_table {
             return Ok(exact_range(&sampler.values(brick)?, &bc, &cells));
         }
@@ -73,10 +79,7 @@ impl BlockRanges {
         );
         let mut rest = cells;
         for a in (0..3).rev() {
-            for slab in [
-                (rest.lo[a], inner.lo[a]),
-                (inner.hi[a], rest.hi[a]),
-            ] {
+            for slab in [(rest.lo[a], inner.lo[a]), (inner.hi[a], rest.hi[a])] {
                 if slab.0 < slab.1 {
                     let mut part = rest;
                     (part.lo[a], part.hi[a]) = slab;
@@ -102,11 +105,7 @@ impl BlockRanges {
     }
 
     /// The table of brick `brick`, built on first need (NaNs are left out of the ranges).
-    fn table<D: AsRef<[u8]>>(
-        &self,
-        sampler: &Sampler<'_, D>,
-        brick: u32,
-    ) -> Result<&[(f32, f32)]> {
+    fn table<D: AsRef<[u8]>>(&self, sampler: &Sampler<'_, D>, brick: u32) -> Result<&[(f32, f32)]> {
         let slot = &self.tables[brick as usize];
         if let Some(t) = slot.get() {
             return Ok(t);

@@ -6,8 +6,8 @@
 //! cells are all leaf cells of level `L`; every other octant of the leaf's cells is a voxel of
 //! its own, with corners from [`Sampler::corners`].
 
-use amr_format::IBox;
 use crate::error::Result;
+use amr_format::IBox;
 
 use super::blocks::BlockRanges;
 use super::cull::{around_offsets, cell_may_hold};

@@ -41,12 +41,12 @@ use rayon::prelude::*;
 use crate::mapping::PageRelease;
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::{Octant, Sampler, VertexMemo};
-use leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
-pub use refs::{make_ref, split_ref, LocalVoxel, DUAL_BASE};
 pub use crate::voxel::Voxel;
-pub use stats::ExtractStats;
 use blocks::BlockRanges;
+use leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
 use leaf_tree::LeafTree;
+pub use refs::{make_ref, split_ref, LocalVoxel, DUAL_BASE};
+pub use stats::ExtractStats;
 use tight::TightRanges;
 
 /// Leaves handed to the thread pool at a time, at most; bounds the memory held beside the result.
@@ -214,7 +214,8 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     |scratch, &leaf| {
                         let mut out = Vec::new();
                         let (lo, hi) =
-                            self.tight.get(&self.sampler, (&self.blocks, &self.leaves), leaf)?;
+                            self.tight
+                                .get(&self.sampler, (&self.blocks, &self.leaves), leaf)?;
                         if !straddles(lo, hi, iso) {
                             let skipped = LeafCounts {
                                 skipped: 1,

@@ -19,8 +19,8 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use amr_format::kdtree::widen_range;
 use crate::error::Result;
+use amr_format::kdtree::widen_range;
 
 use super::blocks::BlockRanges;
 use super::leaf_tree::LeafTree;

@@ -48,8 +48,14 @@ pub fn run(args: &BoxesArgs) -> anyhow::Result<()> {
     let per_level = cells_per_level(&spec);
     let finest = spec.levels.len() as u32 - 1;
     let finest_boxes = spec.bricks.iter().filter(|b| b.level == finest).count();
-    let s = write_spec(&args.output, spec, &case, WriterOptions::default(), &NoProgress)
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    let s = write_spec(
+        &args.output,
+        spec,
+        &case,
+        WriterOptions::default(),
+        &NoProgress,
+    )
+    .with_context(|| format!("writing {}", args.output.display()))?;
     println!(
         "{}: {case}, cells per level {per_level:?} = {} cells, {} boxes ({finest_boxes} on the finest level), {} kd leaves",
         args.output.display(),

@@ -182,7 +182,7 @@ impl CoarseBand {
     }
 
     /// A range holding the leaf cells within one cell of level-`q` cell `c` (absolute index),
-    /// from the `blocks` they lie in; `None` when a leaf cell coarser than `q` lies there. `c`
+    /// read through `blocks`; `None` when a leaf cell coarser than `q` lies there. `c`
     /// must be [`Self::covers`]ed.
     pub fn range_around<D: AsRef<[u8]>>(
         &mut self,

@@ -3,8 +3,8 @@
 //!
 //! The file's stored leaf ranges are unions of whole-brick ranges (the writer never re-reads
 //! data), so a leaf far from the surface is often visited because some other part of a
-//! neighbouring brick straddles the isovalue. The tight range is the range of the `4^3`-cell
-//! blocks ([`super::blocks`]) holding the cells within reach of the leaf, widened for round-off:
+//! neighbouring brick straddles the isovalue. The tight range is the range of the cells
+//! within reach of the leaf (read through [`super::blocks`]), widened for round-off:
 //! - when no leaf coarser than the leaf's level `L` touches the leaf grown by one level-`L` cell
 //!   (its neighbourhood), that grown box: every corner of every voxel the leaf owns is then the
 //!   value of, or a mean of, leaf cells of level `L` or finer inside it (the argument of
@@ -74,7 +74,7 @@ pub(super) fn unpack(bits: u64) -> (f32, f32) {
     )
 }
 
-/// A range holding the leaf cells within reach of `leaf` (the blocks they lie in), widened for
+/// A range holding the leaf cells within reach of `leaf`, widened for
 /// round-off.
 fn compute<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,

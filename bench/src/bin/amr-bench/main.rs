@@ -1,6 +1,7 @@
-//! `amr-bench`: measurements of the renderer for `docs/benchmarks*.md`; `open`, `read`, `bvh`
-//! and `suite` are subcommands.
+//! `amr-bench`: measurements of the renderer for `docs/benchmarks*.md`; `open`, `read`, `bvh`,
+//! `boxes` and `suite` are subcommands.
 
+mod boxes;
 mod bvh;
 mod open;
 mod read;
@@ -27,6 +28,8 @@ enum Command {
     Read(read::ReadArgs),
     /// BVH built in chunks against one BVH, side by side: build time, scratch, frame time.
     Bvh(bvh::BvhArgs),
+    /// Writes a hierarchy of many small irregular boxes with mixed ratios (extraction stress).
+    Boxes(boxes::BoxesArgs),
     /// Regenerates docs/benchmarks-suite.md and its plots (docs/img/*.png) end to end.
     Suite(suite::SuiteArgs),
     /// The suite's scale render of one file, statistics as JSON on stdout (run by `suite`).
@@ -39,6 +42,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Open(args) => open::run(&args),
         Command::Read(args) => read::run(&args),
         Command::Bvh(args) => bvh::run(&args),
+        Command::Boxes(args) => boxes::run(&args),
         Command::Suite(args) => suite::run(args),
         Command::RenderStats(args) => render_stats::run(&args),
     }

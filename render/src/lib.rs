@@ -22,22 +22,32 @@
 
 pub mod bvh;
 pub mod camera;
+pub mod coloring;
+pub mod colormap;
 pub mod error;
 pub mod extract;
+pub mod field_stats;
 pub mod info;
 pub mod mapping;
+pub mod outline;
 pub mod output;
+pub mod paint;
 pub mod reconstruct;
 pub mod render;
 pub mod sample_mode;
 pub mod scene;
 pub mod shade;
+pub mod slice;
 pub mod stats;
 pub mod trace;
 pub mod view;
 pub mod voxel;
 
+pub use coloring::{ColorBy, ColorScale};
+pub use colormap::Colormap;
 pub use error::{RenderError, Result};
+pub use outline::Outline;
+pub use slice::Slice;
 pub use reconstruct::Reconstruction;
 pub use render::{render, render_region, Rect, RegionPixels, Rendered};
 pub use scene::{Scene, SceneOptions, SceneStats, TraceMethod};

@@ -3,6 +3,7 @@
 
 use crate::render::Rendered;
 use crate::scene::Scene;
+use crate::shade::material::css_hex;
 use crate::stats::ms;
 
 /// The header attributes of `rendered`, a frame of `scene`, followed by `extra`.
@@ -15,7 +16,19 @@ pub fn frame_header(
     let isos: Vec<String> = scene
         .isosurfaces()
         .iter()
-        .map(|s| format!("{}:{:?}:{}", s.value, s.color, s.opacity))
+        .enumerate()
+        .map(|(i, s)| {
+            let paint = match scene.color_by().get(i).cloned().flatten() {
+                Some(by) => format!(" color_by={by}"),
+                None => String::new(),
+            };
+            format!(
+                "{} color={} opacity={}{paint}",
+                s.value,
+                css_hex(s.color_or_palette(i)),
+                s.opacity
+            )
+        })
         .collect();
     let stats = scene.stats();
     let mut m: Vec<(String, String)> = vec![
@@ -26,7 +39,8 @@ pub fn frame_header(
                 c.pos, c.look_at, c.up, c.fov_deg
             ),
         ),
-        ("isovalues".into(), isos.join(" ")),
+        ("field".into(), scene.field_name().to_string()),
+        ("isovalues".into(), isos.join("; ")),
         ("method".into(), scene.method().name().into()),
         (
             "timings_ms".into(),
@@ -43,6 +57,22 @@ pub fn frame_header(
         ),
         ("file".into(), scene.path().display().to_string()),
     ];
+    if let Some((lo, hi)) = rendered.color_range {
+        m.push(("color_range".into(), format!("{lo} {hi}")));
+    }
+    if !scene.slices().is_empty() {
+        let slices: Vec<String> = scene
+            .slices()
+            .iter()
+            .map(|(s, by)| {
+                format!(
+                    "point={:?} normal={:?} opacity={} color_by={by}",
+                    s.point, s.normal, s.opacity
+                )
+            })
+            .collect();
+        m.push(("slices".into(), slices.join("; ")));
+    }
     m.extend(extra.iter().map(|(k, v)| ((*k).to_string(), v.clone())));
     m
 }

@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 
 use amr_render::mapping::mapped_resident_bytes;
 use amr_render::output::exr_file::{temp_path, write_exr};
-use amr_render::output::png_preview::write_preview;
+use amr_render::output::legend::Legend;
+use amr_render::output::png_preview::{preview_rgb8, write_png};
 use amr_render::{FrameStats, Rendered, Scene, SceneStats};
 use anyhow::{bail, Context};
 use serde::Serialize;
@@ -112,10 +113,15 @@ pub fn write<X: Serialize>(
     header: &[(String, String)],
     stats: &RunStats<X>,
     print_also: &str,
+    legend: &Legend,
 ) -> anyhow::Result<()> {
-    write_exr(&outputs.exr, &rendered.frame, header)?;
+    if is_png(&outputs.exr) {
+        write_picture(&outputs.exr, rendered, legend)?;
+    } else {
+        write_exr(&outputs.exr, &rendered.frame, header)?;
+    }
     if let Some(p) = &outputs.preview {
-        write_preview(p, &rendered.frame)?;
+        write_picture(p, rendered, legend)?;
     }
     let json = serde_json::to_value(stats)?;
     if outputs.print_stats {
@@ -130,6 +136,20 @@ pub fn write<X: Serialize>(
     if let Some(p) = &outputs.stats_json {
         write_json(p, &json)?;
     }
+    Ok(())
+}
+
+/// True when `path` names a PNG file.
+pub fn is_png(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"))
+}
+
+/// Writes the tone-mapped picture of `rendered` with `legend` drawn on it as a PNG.
+fn write_picture(path: &Path, rendered: &Rendered, legend: &Legend) -> anyhow::Result<()> {
+    let frame = &rendered.frame;
+    let mut rgb = preview_rgb8(frame);
+    legend.draw(&mut rgb, frame.width, frame.height);
+    write_png(path, frame.width, frame.height, &rgb)?;
     Ok(())
 }
 

@@ -240,5 +240,6 @@ fn write_rank0(
         &header,
         &stats,
         &table(ranks, work),
+        &amr_render::output::legend::Legend::of_frame(scene, &request.view, &rendered),
     )
 }

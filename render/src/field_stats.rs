@@ -8,7 +8,7 @@ use crate::error::{RenderError, Result};
 /// Most cell values a distribution is computed from.
 pub const MAX_SAMPLES: usize = 1 << 20;
 
-/// The percentiles [`FieldPercentiles::TABLE`] lists.
+/// The quantiles `amr-render info` lists for each field.
 pub const TABLE: [f64; 7] = [0.0, 0.01, 0.25, 0.5, 0.75, 0.99, 1.0];
 
 /// The sorted finite cell values of a field (every cell, or every `stride`-th of each brick).

@@ -267,14 +267,12 @@ pub fn ticks((lo, hi): (f64, f64), log: bool) -> Vec<f64> {
         .map(|m| m * mag)
         .find(|s| *s >= raw)
         .unwrap_or(10.0 * mag);
-    let first = (lo / step).ceil() * step;
-    let mut out = Vec::new();
-    let mut v = first;
-    while v <= hi + 1e-9 * step && out.len() < 12 {
-        out.push(if v.abs() < 1e-12 * step { 0.0 } else { v });
-        v += step;
-    }
-    out
+    let first = (lo / step).ceil() as i64;
+    (first..)
+        .map(|k| k as f64 * step)
+        .take_while(|v| *v <= hi + 1e-9 * step)
+        .take(12)
+        .collect()
 }
 
 /// The world axes as the camera sees them, at the bottom left: x red, y green, z blue.
@@ -299,7 +297,11 @@ mod tests {
 
     #[test]
     fn ticks_are_round_and_inside() {
-        assert_eq!(ticks((0.0, 1.0), false), vec![0.0, 0.25, 0.5, 0.75, 1.0]);
+        let t = ticks((0.0, 1.0), false);
+        assert_eq!(t.len(), 6);
+        assert!(t.iter().zip([0.0, 0.2, 0.4, 0.6, 0.8, 1.0]).all(|(a, b)| (a - b).abs() < 1e-12));
+        let t = ticks((-0.35, 0.8), false);
+        assert_eq!(t, vec![-0.25, 0.0, 0.25, 0.5, 0.75]);
         let t = ticks((298.0, 1580.0), false);
         assert!(t.iter().all(|v| (298.0..=1580.0).contains(v)) && t.len() >= 3, "{t:?}");
         assert_eq!(ticks((1.0, 1000.0), true), vec![1.0, 10.0, 100.0, 1000.0]);

@@ -57,7 +57,11 @@ impl ColorScale {
     /// Where `value` falls on the colormap for the range `(lo, hi)`: `0` at `lo`, `1` at `hi`.
     pub fn position(&self, value: f64, (lo, hi): (f64, f64)) -> f64 {
         let (v, lo, hi) = match self.log {
-            true => (log_or_low(value, lo), log_or_low(lo, lo), log_or_low(hi, lo)),
+            true => (
+                log_or_low(value, lo),
+                log_or_low(lo, lo),
+                log_or_low(hi, lo),
+            ),
             false => (value, lo, hi),
         };
         if hi > lo {
@@ -76,10 +80,14 @@ impl ColorScale {
     pub fn validate(&self) -> Result<(), String> {
         if let Some((lo, hi)) = self.range {
             if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-                return Err(format!("colour range {lo}:{hi} must be finite with LO < HI"));
+                return Err(format!(
+                    "colour range {lo}:{hi} must be finite with LO < HI"
+                ));
             }
             if self.log && lo <= 0.0 {
-                return Err(format!("a log colour scale needs a positive range, not {lo}:{hi}"));
+                return Err(format!(
+                    "a log colour scale needs a positive range, not {lo}:{hi}"
+                ));
             }
         }
         Ok(())
@@ -151,12 +159,19 @@ mod tests {
         v[0] = -1e30;
         v[999] = f32::NAN;
         let (lo, hi) = robust_range(&mut v, false).unwrap();
-        assert!((9.0..=11.0).contains(&lo) && (987.0..=989.0).contains(&hi), "{lo} {hi}");
+        assert!(
+            (9.0..=11.0).contains(&lo) && (987.0..=989.0).contains(&hi),
+            "{lo} {hi}"
+        );
         assert_eq!(robust_range(&mut [f32::NAN], false), None);
         let (lo, hi) = robust_range(&mut [3.0, 3.0], false).unwrap();
         assert!(lo < 3.0 && hi > 3.0);
-        assert!(ColorScale { range: Some((0.0, 1.0)), log: true, ..ColorScale::default() }
-            .validate()
-            .is_err());
+        assert!(ColorScale {
+            range: Some((0.0, 1.0)),
+            log: true,
+            ..ColorScale::default()
+        }
+        .validate()
+        .is_err());
     }
 }

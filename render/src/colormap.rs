@@ -110,7 +110,11 @@ impl FromStr for Colormap {
 
     fn from_str(s: &str) -> Result<Self, String> {
         let lower = s.trim().to_ascii_lowercase();
-        let lower = if lower == "gray" { "grey".to_string() } else { lower };
+        let lower = if lower == "gray" {
+            "grey".to_string()
+        } else {
+            lower
+        };
         Colormap::ALL
             .into_iter()
             .find(|c| c.name() == lower)
@@ -131,7 +135,10 @@ mod tests {
         assert_eq!(Colormap::Grey.srgb8(1.0), [255, 255, 255]);
         let lo = Colormap::Coolwarm.srgb8(0.0);
         let hi = Colormap::Coolwarm.srgb8(1.0);
-        assert!(lo[2] > lo[0] && hi[0] > hi[2], "coolwarm is blue to red: {lo:?} {hi:?}");
+        assert!(
+            lo[2] > lo[0] && hi[0] > hi[2],
+            "coolwarm is blue to red: {lo:?} {hi:?}"
+        );
         assert_eq!(Colormap::Viridis.srgb8(-1.0), Colormap::Viridis.srgb8(0.0));
         for c in Colormap::ALL {
             assert_eq!(c.name().parse::<Colormap>(), Ok(c));

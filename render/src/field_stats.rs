@@ -34,7 +34,13 @@ impl FieldPercentiles {
         let mut values = Vec::new();
         for b in 0..file.num_bricks() {
             file.brick_values_into(field, b, &mut values)?;
-            sorted.extend(values.iter().step_by(stride).copied().filter(|v| v.is_finite()));
+            sorted.extend(
+                values
+                    .iter()
+                    .step_by(stride)
+                    .copied()
+                    .filter(|v| v.is_finite()),
+            );
         }
         sorted.sort_unstable_by(f32::total_cmp);
         Ok(FieldPercentiles { sorted, cells })

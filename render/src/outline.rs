@@ -52,11 +52,13 @@ pub struct Segment {
 pub fn box_edges(lo: [f64; 3], hi: [f64; 3], color: [f32; 3]) -> impl Iterator<Item = Segment> {
     let corner = move |i: usize| [0, 1, 2].map(|a| if i >> a & 1 == 1 { hi[a] } else { lo[a] });
     (0..8usize).flat_map(move |i| {
-        (0..3).filter(move |a| i >> a & 1 == 0).map(move |a| Segment {
-            a: corner(i),
-            b: corner(i | 1 << a),
-            color,
-        })
+        (0..3)
+            .filter(move |a| i >> a & 1 == 0)
+            .map(move |a| Segment {
+                a: corner(i),
+                b: corner(i | 1 << a),
+                color,
+            })
     })
 }
 
@@ -79,8 +81,13 @@ pub fn segments<D: AsRef<[u8]>>(
             let Some(level) = file.levels().get(info.level as usize) else {
                 continue;
             };
-            let at = |i: [i64; 3]| [0, 1, 2].map(|a| level.origin[a] + i[a] as f64 * level.cell_size[a]);
-            out.extend(box_edges(at(info.cells.lo), at(info.cells.hi), level_linear(info.level)));
+            let at =
+                |i: [i64; 3]| [0, 1, 2].map(|a| level.origin[a] + i[a] as f64 * level.cell_size[a]);
+            out.extend(box_edges(
+                at(info.cells.lo),
+                at(info.cells.hi),
+                level_linear(info.level),
+            ));
         }
     }
     out.extend(box_edges(lo, hi, DOMAIN_COLOR));
@@ -106,7 +113,11 @@ pub fn draw(frame: &mut FrameBuffer, camera: &Camera, segments: &[Segment], widt
         let sx = dot(v, right) / depth / (tan * aspect);
         let sy = dot(v, up) / depth / tan;
         let dist = dot(v, v).sqrt();
-        Some(((sx + 1.0) * 0.5 * f64::from(w), (1.0 - sy) * 0.5 * f64::from(h), dist))
+        Some((
+            (sx + 1.0) * 0.5 * f64::from(w),
+            (1.0 - sy) * 0.5 * f64::from(h),
+            dist,
+        ))
     };
     let width = i64::from(width.max(1));
     let (lo, hi) = (-(width - 1) / 2, width / 2);

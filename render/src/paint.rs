@@ -78,7 +78,13 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
     }
 
     /// The hit of slice `s` with `ray` with `t` in `[tmin, tmax]`, inside the data.
-    fn slice_hit(&self, s: &GridSlice<'_>, ray: &GridRay, tmin: f64, tmax: f64) -> Option<SurfaceHit> {
+    fn slice_hit(
+        &self,
+        s: &GridSlice<'_>,
+        ray: &GridRay,
+        tmin: f64,
+        tmax: f64,
+    ) -> Option<SurfaceHit> {
         let den: f64 = (0..3).map(|a| s.normal[a] * ray.d[a]).sum();
         if den == 0.0 || !den.is_finite() {
             return None;
@@ -107,7 +113,12 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
     /// The robust range of the values painted by fields that the primary rays of `camera`
     /// (every [`RANGE_STRIDE`]-th pixel of a `w x h` frame) meet before an opaque layer, with
     /// `opacity` per surface and slice; `None` when no such value is seen.
-    pub fn visible_range(&self, camera: &Camera, (w, h): (u32, u32), opacity: &[f32]) -> Option<(f64, f64)> {
+    pub fn visible_range(
+        &self,
+        camera: &Camera,
+        (w, h): (u32, u32),
+        opacity: &[f32],
+    ) -> Option<(f64, f64)> {
         let frame = self.inner.frame();
         let rows: Vec<u32> = (0..h).step_by(RANGE_STRIDE as usize).collect();
         let mut values: Vec<f32> = rows
@@ -128,7 +139,10 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
     /// Appends to `out` the field values painted along `ray` in front of its first opaque layer.
     fn visible_values(&self, ray: &GridRay, opacity: &[f32], out: &mut Vec<f32>) {
         let mut layers: Vec<(f64, usize, SurfaceHit)> = (0..self.num_surfaces())
-            .filter_map(|i| self.next_hit(i, ray, 0.0, f64::INFINITY).map(|h| (h.t, i, h)))
+            .filter_map(|i| {
+                self.next_hit(i, ray, 0.0, f64::INFINITY)
+                    .map(|h| (h.t, i, h))
+            })
             .collect();
         layers.sort_by(|a, b| a.0.total_cmp(&b.0));
         for (_, i, hit) in layers {

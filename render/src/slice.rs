@@ -77,7 +77,9 @@ impl Slice {
         if den.abs() < 1e-300 {
             return None;
         }
-        let num: f64 = (0..3).map(|a| self.normal[a] * (self.point[a] - o[a])).sum();
+        let num: f64 = (0..3)
+            .map(|a| self.normal[a] * (self.point[a] - o[a]))
+            .sum();
         Some(num / den)
     }
 }
@@ -92,7 +94,9 @@ fn split_opacity(s: &str) -> Result<(&str, f32), String> {
         .parse()
         .map_err(|_| format!("slice opacity '{o}' in '{s}' is not a number"))?;
     if !(0.0..=1.0).contains(&opacity) {
-        return Err(format!("slice opacity {opacity} in '{s}' is outside [0, 1]"));
+        return Err(format!(
+            "slice opacity {opacity} in '{s}' is outside [0, 1]"
+        ));
     }
     Ok((plane, opacity))
 }
@@ -104,7 +108,10 @@ mod tests {
     #[test]
     fn parses_slices() {
         let s = Slice::parse_axis("z=0.25").unwrap();
-        assert_eq!((s.point, s.normal, s.opacity), ([0.0, 0.0, 0.25], [0.0, 0.0, 1.0], 1.0));
+        assert_eq!(
+            (s.point, s.normal, s.opacity),
+            ([0.0, 0.0, 0.25], [0.0, 0.0, 1.0], 1.0)
+        );
         let s = Slice::parse_axis("X=-1:0.5").unwrap();
         assert_eq!((s.point[0], s.normal[0], s.opacity), (-1.0, 1.0, 0.5));
         let s = Slice::parse_plane("0,0,0,0,3,4").unwrap();

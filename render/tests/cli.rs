@@ -180,7 +180,7 @@ fn the_exr_header_says_what_was_drawn_in_plain_text() {
     let out = dir.path().join("h.exr");
     let o = amr_render(&[
         f, "--iso", "10:steelblue", "--iso", "6::0.3", "--color-by", "none", "--color-by", "blobs",
-        "--slice", "z=0.5", "--size", "48x36", "-o", out.to_str().unwrap(),
+        "--slice", "z=0.5", "--slice-field", "blobs", "--size", "48x36", "-o", out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let bytes = std::fs::read(&out).unwrap();

@@ -63,12 +63,7 @@ where
 {
     let bytes_per_cell = 4 * spec.fields.len() as u64;
     progress.set_total(bytes_per_cell * spec.total_cells());
-    let domains: Vec<IBox> = spec.levels.iter().map(|l| l.domain).collect();
-    let jobs: Vec<(IBox, IBox)> = spec
-        .bricks
-        .iter()
-        .map(|b| (domains[b.level as usize], b.cells))
-        .collect();
+    let jobs = brick_jobs(&spec);
     let nfields = spec.fields.len();
     let mut writer = AmrkWriter::create(path, spec, options).map_err(|e| e.in_file(path))?;
     let chunk = BRICKS_PER_THREAD * rayon::current_num_threads().max(1);
@@ -107,6 +102,15 @@ where
     Ok(summary)
 }
 
+/// Each brick's level index domain and cells, in the order of `spec.bricks`.
+fn brick_jobs(spec: &HierarchySpec) -> Vec<(IBox, IBox)> {
+    let domains: Vec<IBox> = spec.levels.iter().map(|l| l.domain).collect();
+    spec.bricks
+        .iter()
+        .map(|b| (domains[b.level as usize], b.cells))
+        .collect()
+}
+
 /// A field given as a function on the unit cube.
 pub type FieldFn<'a> = &'a (dyn Fn([f64; 3]) -> f64 + Sync);
 
@@ -126,12 +130,7 @@ pub fn write_fields(
             spec.fields.len()
         )));
     }
-    let domains: Vec<IBox> = spec.levels.iter().map(|l| l.domain).collect();
-    let jobs: Vec<(IBox, IBox)> = spec
-        .bricks
-        .iter()
-        .map(|b| (domains[b.level as usize], b.cells))
-        .collect();
+    let jobs = brick_jobs(&spec);
     let mut writer = AmrkWriter::create(path, spec, options).map_err(|e| e.in_file(path))?;
     for (b, (domain, cells)) in jobs.iter().enumerate() {
         for (f, field) in fields.iter().enumerate() {

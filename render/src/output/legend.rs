@@ -72,7 +72,14 @@ impl Canvas<'_> {
         for k in 0..=n {
             let u = k as f64 / n as f64;
             let (x, y) = (a.0 + u * (b.0 - a.0), a.1 + u * (b.1 - a.1));
-            self.rect(x as i64 - width / 2, y as i64 - width / 2, width, width, c, 1.0);
+            self.rect(
+                x as i64 - width / 2,
+                y as i64 - width / 2,
+                width,
+                width,
+                c,
+                1.0,
+            );
         }
     }
 }
@@ -111,7 +118,12 @@ impl Text {
             if let Some(o) = self.font.outline_glyph(glyph) {
                 let b = o.px_bounds();
                 o.draw(|gx, gy, cov| {
-                    canvas.blend(b.min.x as i64 + i64::from(gx), b.min.y as i64 + i64::from(gy), c, cov)
+                    canvas.blend(
+                        b.min.x as i64 + i64::from(gx),
+                        b.min.y as i64 + i64::from(gy),
+                        c,
+                        cov,
+                    )
                 });
             }
         }
@@ -130,7 +142,13 @@ impl Legend {
                 false => String::new(),
             };
             let (label, swatch) = match painted {
-                Some(by) => (format!("{field} = {}, coloured by {by}{opacity}", format_value(f64::from(s.value))), None),
+                Some(by) => (
+                    format!(
+                        "{field} = {}, coloured by {by}{opacity}",
+                        format_value(f64::from(s.value))
+                    ),
+                    None,
+                ),
                 None => (
                     format!("{field} = {}{opacity}", format_value(f64::from(s.value))),
                     Some(srgb8(s.color_or_palette(i))),
@@ -140,7 +158,13 @@ impl Legend {
         }
         for (s, by) in scene.slices() {
             let p = s.point.map(format_value);
-            entries.push((format!("slice through ({}, {}, {}) coloured by {by}", p[0], p[1], p[2]), None));
+            entries.push((
+                format!(
+                    "slice through ({}, {}, {}) coloured by {by}",
+                    p[0], p[1], p[2]
+                ),
+                None,
+            ));
         }
         if view.outline == Outline::Boxes {
             for l in 0..scene.file().levels().len() as u32 {
@@ -192,7 +216,14 @@ impl Legend {
             let mut x = m;
             if let Some(c) = swatch {
                 let side = (0.8 * px) as i64;
-                canvas.rect(x as i64 - 1, y as i64 + 1, side + 2, side + 2, [0, 0, 0], 1.0);
+                canvas.rect(
+                    x as i64 - 1,
+                    y as i64 + 1,
+                    side + 2,
+                    side + 2,
+                    [0, 0, 0],
+                    1.0,
+                );
                 canvas.rect(x as i64, y as i64 + 2, side, side, *c, 1.0);
                 x += px * 1.2;
             }
@@ -207,7 +238,14 @@ impl Legend {
             for (l, s) in labels.iter().enumerate() {
                 let y = m + l as f32 * line;
                 let side = (0.8 * px) as i64;
-                canvas.rect(x as i64, y as i64 + 2, side, side, level_srgb8(l as u32), 1.0);
+                canvas.rect(
+                    x as i64,
+                    y as i64 + 2,
+                    side,
+                    side,
+                    level_srgb8(l as u32),
+                    1.0,
+                );
                 text.draw(&mut canvas, s, x + px * 1.2, y);
             }
         }
@@ -230,21 +268,42 @@ impl Legend {
         let right = w - px;
         let x0 = (right - label_w - px * 0.5 - bar_w).min(right - text.width(&title));
         let (y0, y1) = (h * 0.2, h * 0.8);
-        text.draw(canvas, &title, x0.min(right - text.width(&title)), y0 - px * 1.6);
-        let position = |v: f64| crate::coloring::ColorScale {
-            colormap: bar.colormap,
-            range: None,
-            log: bar.log,
-        }
-        .position(v, bar.range);
-        canvas.rect(x0 as i64 - 1, y0 as i64 - 1, bar_w as i64 + 2, (y1 - y0) as i64 + 2, [0, 0, 0], 1.0);
+        text.draw(
+            canvas,
+            &title,
+            x0.min(right - text.width(&title)),
+            y0 - px * 1.6,
+        );
+        let position = |v: f64| {
+            crate::coloring::ColorScale {
+                colormap: bar.colormap,
+                range: None,
+                log: bar.log,
+            }
+            .position(v, bar.range)
+        };
+        canvas.rect(
+            x0 as i64 - 1,
+            y0 as i64 - 1,
+            bar_w as i64 + 2,
+            (y1 - y0) as i64 + 2,
+            [0, 0, 0],
+            1.0,
+        );
         for y in y0 as i64..y1 as i64 {
             let t = f64::from((y1 - y as f32) / (y1 - y0));
             canvas.rect(x0 as i64, y, bar_w as i64, 1, bar.colormap.srgb8(t), 1.0);
         }
         for (v, s) in labels {
             let y = y1 - position(v) as f32 * (y1 - y0);
-            canvas.rect((x0 + bar_w) as i64, y as i64, (px * 0.3) as i64, 1, [240, 240, 240], 1.0);
+            canvas.rect(
+                (x0 + bar_w) as i64,
+                y as i64,
+                (px * 0.3) as i64,
+                1,
+                [240, 240, 240],
+                1.0,
+            );
             text.draw(canvas, &s, x0 + bar_w + px * 0.5, y - px * 0.6);
         }
     }
@@ -258,7 +317,10 @@ pub fn ticks((lo, hi): (f64, f64), log: bool) -> Vec<f64> {
     if log && lo > 0.0 && hi / lo >= 10.0 {
         let (a, b) = (lo.log10().ceil() as i32, hi.log10().floor() as i32);
         let step = ((b - a) / 6 + 1).max(1);
-        return (a..=b).step_by(step as usize).map(|e| 10f64.powi(e)).collect();
+        return (a..=b)
+            .step_by(step as usize)
+            .map(|e| 10f64.powi(e))
+            .collect();
     }
     let raw = (hi - lo) / 5.0;
     let mag = 10f64.powf(raw.log10().floor());
@@ -279,7 +341,10 @@ pub fn ticks((lo, hi): (f64, f64), log: bool) -> Vec<f64> {
 fn draw_triad(canvas: &mut Canvas<'_>, text: &Text, camera: &Camera, m: f32) {
     let (right, up) = camera.basis();
     let len = f64::from(canvas.h).min(f64::from(canvas.w)) / 14.0;
-    let o = (f64::from(m) + len + 4.0, f64::from(canvas.h) - f64::from(m) - len - 4.0);
+    let o = (
+        f64::from(m) + len + 4.0,
+        f64::from(canvas.h) - f64::from(m) - len - 4.0,
+    );
     let colors = [[230, 80, 70], [90, 200, 90], [90, 140, 240]];
     let width = ((len / 25.0) as i64).max(2);
     for (a, name) in ["x", "y", "z"].iter().enumerate() {
@@ -299,11 +364,17 @@ mod tests {
     fn ticks_are_round_and_inside() {
         let t = ticks((0.0, 1.0), false);
         assert_eq!(t.len(), 6);
-        assert!(t.iter().zip([0.0, 0.2, 0.4, 0.6, 0.8, 1.0]).all(|(a, b)| (a - b).abs() < 1e-12));
+        assert!(t
+            .iter()
+            .zip([0.0, 0.2, 0.4, 0.6, 0.8, 1.0])
+            .all(|(a, b)| (a - b).abs() < 1e-12));
         let t = ticks((-0.35, 0.8), false);
         assert_eq!(t, vec![-0.25, 0.0, 0.25, 0.5, 0.75]);
         let t = ticks((298.0, 1580.0), false);
-        assert!(t.iter().all(|v| (298.0..=1580.0).contains(v)) && t.len() >= 3, "{t:?}");
+        assert!(
+            t.iter().all(|v| (298.0..=1580.0).contains(v)) && t.len() >= 3,
+            "{t:?}"
+        );
         assert_eq!(ticks((1.0, 1000.0), true), vec![1.0, 10.0, 100.0, 1000.0]);
     }
 }

@@ -50,8 +50,8 @@ pub struct RenderArgs {
     #[arg(long, value_name = "PX,PY,PZ,NX,NY,NZ[:OPACITY]", value_parser = Slice::parse_plane, allow_hyphen_values = true)]
     pub slice_plane: Vec<Slice>,
     /// The field that paints slices (default: the first --color-by field, else the rendered one).
-    #[arg(long, value_name = "FIELD|level", value_parser = parse_color_by)]
-    pub slice_field: Option<Option<ColorBy>>,
+    #[arg(long, value_name = "FIELD|level")]
+    pub slice_field: Option<ColorBy>,
     /// Lines drawn for context: none, domain (its bounding box) or boxes (every level's boxes).
     #[arg(long, value_name = "WHAT", default_value = "domain")]
     pub outline: Outline,
@@ -217,7 +217,7 @@ impl RenderArgs {
             threads: self.threads,
             color_by: self.color_by.clone(),
             slices: self.slice.iter().chain(&self.slice_plane).copied().collect(),
-            slice_field: self.slice_field.clone().flatten(),
+            slice_field: self.slice_field.clone(),
         })
     }
 }

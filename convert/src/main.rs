@@ -8,7 +8,7 @@ use amr_convert::synth_cmd::{run_synth, SynthArgs};
 use amr_format::Compression;
 use clap::{Parser, Subcommand};
 
-/// Streams AMR simulation dumps (AMReX plotfiles, Chombo HDF5 plotfiles) into one memory-mappable .amrk file.
+/// Streams AMR simulation dumps (AMReX plotfiles, Chombo HDF5 plotfiles and checkpoints, Enzo datasets) into one memory-mappable .amrk file.
 #[derive(Parser, Debug)]
 #[command(
     version,
@@ -18,7 +18,8 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
-    /// The dump to convert: an AMReX plotfile directory or a Chombo HDF5 plotfile (.h5, .hdf5).
+    /// The dump to convert: an AMReX plotfile directory, a Chombo HDF5 plotfile or checkpoint
+    /// (.h5, .hdf5), or an Enzo dataset (its parameter file, its .hierarchy, or its directory).
     #[arg(required = true)]
     input: Option<PathBuf>,
     /// The .amrk file to write (written to a temporary file, renamed when complete).

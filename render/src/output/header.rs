@@ -3,7 +3,7 @@
 
 use crate::render::Rendered;
 use crate::scene::Scene;
-use crate::shade::material::css_hex;
+use crate::shade::IsoSpec;
 use crate::stats::ms;
 
 /// The header attributes of `rendered`, a frame of `scene`, followed by `extra`.
@@ -13,21 +13,17 @@ pub fn frame_header(
     extra: &[(&str, String)],
 ) -> Vec<(String, String)> {
     let c = &rendered.camera;
+    // `V:#rrggbb[:OPACITY]` as `--iso` reads it, with the colour the surface was drawn in.
     let isos: Vec<String> = scene
         .isosurfaces()
         .iter()
         .enumerate()
         .map(|(i, s)| {
-            let paint = match scene.color_by().get(i).cloned().flatten() {
-                Some(by) => format!(" color_by={by}"),
-                None => String::new(),
+            let drawn = IsoSpec {
+                color: Some(s.color_or_palette(i)),
+                ..*s
             };
-            format!(
-                "{} color={} opacity={}{paint}",
-                s.value,
-                css_hex(s.color_or_palette(i)),
-                s.opacity
-            )
+            drawn.to_string()
         })
         .collect();
     let stats = scene.stats();
@@ -40,7 +36,7 @@ pub fn frame_header(
             ),
         ),
         ("field".into(), scene.field_name().to_string()),
-        ("isovalues".into(), isos.join("; ")),
+        ("isovalues".into(), isos.join(" ")),
         ("method".into(), scene.method().name().into()),
         (
             "timings_ms".into(),
@@ -57,6 +53,15 @@ pub fn frame_header(
         ),
         ("file".into(), scene.path().display().to_string()),
     ];
+    if scene.color_by().iter().any(Option::is_some) {
+        let by: Vec<String> = (0..scene.isosurfaces().len())
+            .map(|i| match scene.color_by().get(i).cloned().flatten() {
+                Some(by) => by.to_string(),
+                None => "-".into(),
+            })
+            .collect();
+        m.push(("color_by".into(), by.join(" ")));
+    }
     if let Some((lo, hi)) = rendered.color_range {
         m.push(("color_range".into(), format!("{lo} {hi}")));
     }

@@ -54,6 +54,25 @@ impl IsoSpec {
     }
 }
 
+impl std::fmt::Display for IsoSpec {
+    /// The form `FromStr` reads back: `V`, `V:#rrggbb` or `V:#rrggbb:OPACITY` (sRGB hex of the
+    /// linear colour, so a named colour reads back within 1/255).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.value)?;
+        if let Some(c) = self.color {
+            let hex = c.map(|v| (linear_to_srgb(v) * 255.0).round().clamp(0.0, 255.0) as u8);
+            write!(f, ":#{:02x}{:02x}{:02x}", hex[0], hex[1], hex[2])?;
+        }
+        if self.opacity != 1.0 {
+            if self.color.is_none() {
+                f.write_str(":")?;
+            }
+            write!(f, ":{}", self.opacity)?;
+        }
+        Ok(())
+    }
+}
+
 /// Parses a colour (returned linear): one of the muted shading colours above by name (`red`,
 /// `gold`, ...), else any CSS colour (`steelblue`, `#4080ff`, `#48f`, `rgb(64,128,255)`,
 /// `hsl(...)`) or bare hex `rrggbb`.
@@ -75,15 +94,18 @@ pub fn parse_color(s: &str) -> Result<[f32; 3], String> {
     }
 }
 
-/// The colour of linear RGB `c` as CSS hex (`#d99e5a`), for headers and legends.
-pub fn css_hex(c: [f32; 3]) -> String {
-    csscolorparser::Color::from_linear_rgba(c[0], c[1], c[2], 1.0).to_css_hex()
-}
-
 /// The 8-bit sRGB of linear RGB `c`.
 pub fn srgb8(c: [f32; 3]) -> [u8; 3] {
     let [r, g, b, _] = csscolorparser::Color::from_linear_rgba(c[0], c[1], c[2], 1.0).to_rgba8();
     [r, g, b]
+}
+
+fn linear_to_srgb(c: f32) -> f32 {
+    if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
 }
 
 impl FromStr for IsoSpec {
@@ -126,6 +148,19 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_text_form_reads_back() {
+        for text in ["-60", "0.5:#3070ff", "10:#d99e59:0.3", "2::0.5"] {
+            let spec: IsoSpec = text.parse().unwrap();
+            let again: IsoSpec = spec.to_string().parse().unwrap();
+            assert_eq!(again.value, spec.value, "{text}");
+            assert_eq!(again.opacity, spec.opacity, "{text}");
+            for (a, b) in again.color.unwrap_or_default().iter().zip(spec.color.unwrap_or_default()) {
+                assert!((a - b).abs() < 1e-3, "{text}: {again:?} {spec:?}");
+            }
+        }
+    }
+
+    #[test]
     fn parses_iso_specs() {
         assert_eq!(
             "0.5".parse::<IsoSpec>().unwrap(),
@@ -143,7 +178,7 @@ mod tests {
         assert!("x".parse::<IsoSpec>().is_err());
         assert!("1:nocolour".parse::<IsoSpec>().is_err());
         let s: IsoSpec = "-60:steelblue".parse().unwrap();
-        assert_eq!(css_hex(s.color.unwrap()), "#4682b4");
+        assert_eq!(s.to_string(), "-60:#4682b4");
         assert_eq!(parse_color("rgb(255, 0, 0)").unwrap(), [1.0, 0.0, 0.0]);
         assert!("1:red:2".parse::<IsoSpec>().is_err());
         assert!("nan".parse::<IsoSpec>().is_err());

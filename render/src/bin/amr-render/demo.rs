@@ -11,7 +11,8 @@ use amr_render::{ColorBy, Outline, Reconstruction, SceneOptions, TraceMethod, Vi
 use amr_synth::{build_hierarchy, write_fields, AnalyticField, Case, SynthParams};
 use anyhow::Context;
 
-use crate::render::render_request;
+use crate::animation::Animation;
+use crate::frames::render_all;
 use crate::render_args::{Outputs, RenderRequest};
 
 /// Arguments of `amr-render demo`.
@@ -39,7 +40,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let iso = Case::Blobs.default_iso() as f32;
     let preview = args.output.with_extension("png");
     let request = RenderRequest {
-        file: path,
+        files: vec![path],
         scene: SceneOptions {
             field: Some("blobs".into()),
             reconstruction: Reconstruction::Octant,
@@ -70,13 +71,15 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             print_stats: false,
             stats_json: None,
             summary: true,
+            movie: None,
         },
         threads: None,
+        animation: Animation::new(1, None, None, Vec::new())?,
         color_by: vec![Some(ColorBy::Field("swirl".into())), None],
         slices: Vec::new(),
         slice_field: None,
     };
-    render_request(&request)
+    render_all(&request)
 }
 
 /// The demo's second field: a flow swirling about the z axis through the domain's centre, faster

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use amr_render::camera_path::CameraKey;
 use amr_render::shade::IsoSpec;
 use amr_render::{
     CameraPlacement, ColorBy, ColorScale, Colormap, Outline, Reconstruction, SceneOptions, Slice,
@@ -11,14 +12,18 @@ use amr_render::{
 use anyhow::bail;
 use clap::Args;
 
+use crate::animation::{Animation, IsoSweep};
+
 /// Most worker threads `--threads` may ask for.
 pub const MAX_THREADS: usize = 256;
 
 /// Arguments of the render command.
 #[derive(Args, Debug, Clone)]
 pub struct RenderArgs {
-    /// The .amrk file.
-    pub file: PathBuf,
+    /// The .amrk file; several render a time series, one frame per file in the order given.
+    /// A `.toml` scene file (see --write-scene) stands for the arguments it holds.
+    #[arg(required = true, num_args = 1.., value_name = "FILE.amrk")]
+    pub files: Vec<PathBuf>,
     /// Field to render (default: the file's first field).
     #[arg(long)]
     pub field: Option<String>,
@@ -27,7 +32,7 @@ pub struct RenderArgs {
     #[arg(long = "iso", value_name = "V[:COLOR[:OPACITY]]", allow_hyphen_values = true)]
     pub iso: Vec<IsoSpec>,
     /// Output file: OpenEXR with every channel, or a PNG picture with its legend when the name
-    /// ends in .png.
+    /// ends in .png; with several frames, OUT_0000.exr, OUT_0001.exr, ...
     #[arg(short = 'o', long = "output", value_name = "OUT.exr|OUT.png")]
     pub output: PathBuf,
     /// Paint isosurfaces by a field of the file (sampled at each hit) or by `level`; repeat to
@@ -58,6 +63,30 @@ pub struct RenderArgs {
     /// Print nothing but errors and warnings.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Frames on a circle around the point looked at (about the up vector), starting at the
+    /// given or automatic camera.
+    #[arg(long, value_name = "N")]
+    pub orbit: Option<u32>,
+    /// Degrees the orbit turns in all.
+    #[arg(long, value_name = "D", default_value_t = 360.0, allow_hyphen_values = true)]
+    pub orbit_degrees: f64,
+    /// N frames with one more isosurface whose value goes from A to B (colour and opacity as
+    /// for --iso).
+    #[arg(long, value_name = "A:B:N[:COLOR[:OPACITY]]", allow_hyphen_values = true)]
+    pub iso_sweep: Option<IsoSweep>,
+    /// A camera at one frame of an animation, the cameras between keyframes interpolated;
+    /// repeat for several.
+    #[arg(long, value_name = "FRAME:X,Y,Z:LX,LY,LZ[:UX,UY,UZ]", allow_hyphen_values = true, value_parser = parse_keyframe)]
+    pub keyframe: Vec<CameraKey>,
+    /// Encodes the frames' PNG previews into a movie with ffmpeg (when it is installed).
+    #[arg(long, value_name = "OUT.mp4")]
+    pub movie: Option<PathBuf>,
+    /// Frames per second of --movie.
+    #[arg(long, value_name = "N", default_value_t = 24)]
+    pub fps: u32,
+    /// Writes these arguments as a TOML scene file that `amr-render FILE.toml` renders again.
+    #[arg(long, value_name = "SCENE.toml")]
+    pub write_scene: Option<PathBuf>,
     /// Image size.
     #[arg(long, value_name = "WxH", default_value = "1024x768", value_parser = parse_size)]
     pub size: (u32, u32),
@@ -116,8 +145,8 @@ pub struct RenderArgs {
 /// A validated render request: what the library needs and where the results go.
 #[derive(Clone, Debug)]
 pub struct RenderRequest {
-    /// The file.
-    pub file: PathBuf,
+    /// The files, one per frame of a time series.
+    pub files: Vec<PathBuf>,
     /// The scene's field, reconstruction and method.
     pub scene: SceneOptions,
     /// Isosurfaces (empty: the middle of the field's range).
@@ -134,6 +163,8 @@ pub struct RenderRequest {
     pub slices: Vec<Slice>,
     /// What paints the slices (`None`: the default).
     pub slice_field: Option<ColorBy>,
+    /// Frames after the first: a camera path, an isovalue sweep, a time series.
+    pub animation: Animation,
 }
 
 /// Where a frame and its statistics go.
@@ -149,6 +180,8 @@ pub struct Outputs {
     pub stats_json: Option<PathBuf>,
     /// Print the one-line summary.
     pub summary: bool,
+    /// A movie of the frames' previews, and its frame rate.
+    pub movie: Option<(PathBuf, u32)>,
 }
 
 impl RenderArgs {
@@ -197,8 +230,17 @@ impl RenderArgs {
             );
         }
         view.validate()?;
+        if self.fps == 0 || self.fps > 240 {
+            bail!("--fps {} must be between 1 and 240", self.fps);
+        }
+        let animation = Animation::new(
+            self.files.len(),
+            self.orbit.map(|n| (n, self.orbit_degrees)),
+            self.iso_sweep,
+            self.keyframe.clone(),
+        )?;
         Ok(RenderRequest {
-            file: self.file.clone(),
+            files: self.files.clone(),
             scene: SceneOptions {
                 field: self.field.clone(),
                 reconstruction: self.reconstruction,
@@ -213,8 +255,10 @@ impl RenderArgs {
                 print_stats: self.stats,
                 stats_json: self.stats_json.clone(),
                 summary: !self.quiet,
+                movie: self.movie.clone().map(|m| (m, self.fps)),
             },
             threads: self.threads,
+            animation,
             color_by: self.color_by.clone(),
             slices: self.slice.iter().chain(&self.slice_plane).copied().collect(),
             slice_field: self.slice_field.clone(),
@@ -260,6 +304,27 @@ fn parse_range(s: &str) -> Result<(f64, f64), String> {
         return Err(format!("range '{s}' needs LO < HI"));
     }
     Ok((lo, hi))
+}
+
+/// Parses a keyframe `FRAME:X,Y,Z:LX,LY,LZ[:UX,UY,UZ]`.
+fn parse_keyframe(s: &str) -> Result<CameraKey, String> {
+    let parts: Vec<&str> = s.split(':').collect();
+    if !(3..=4).contains(&parts.len()) {
+        return Err(format!("keyframe '{s}' is not FRAME:X,Y,Z:LX,LY,LZ[:UX,UY,UZ]"));
+    }
+    let frame = parts[0]
+        .trim()
+        .parse::<u32>()
+        .map_err(|_| format!("frame '{}' in '{s}' is not a frame number", parts[0]))?;
+    Ok(CameraKey {
+        frame,
+        pos: parse_vec3(parts[1])?,
+        look_at: parse_vec3(parts[2])?,
+        up: match parts.get(3) {
+            Some(u) => parse_vec3(u)?,
+            None => [0.0, 0.0, 1.0],
+        },
+    })
 }
 
 /// Parses a vector `X,Y,Z` of finite numbers.

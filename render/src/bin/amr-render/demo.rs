@@ -78,6 +78,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         color_by: vec![Some(ColorBy::Field("swirl".into())), None],
         slices: Vec::new(),
         slice_field: None,
+        frame_domain: false,
     };
     render_all(&request)
 }

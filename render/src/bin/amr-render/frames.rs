@@ -67,7 +67,11 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         scene.set_isosurfaces(&isos)?;
         scene.set_color_by(&painting(request, isos.len()))?;
         if cameras.is_empty() {
-            cameras = anim.cameras(&framed_view(&request.view, scene)?.camera(&scene.grid_frame())?)?;
+            let view = match request.frame_domain {
+                true => request.view.clone(),
+                false => framed_view(&request.view, scene)?,
+            };
+            cameras = anim.cameras(&view.camera(&scene.grid_frame())?)?;
         }
         let view = View {
             camera: Some(cameras[k as usize]),

@@ -60,6 +60,10 @@ pub struct RenderArgs {
     /// Lines drawn for context: none, domain (its bounding box) or boxes (every level's boxes).
     #[arg(long, value_name = "WHAT", default_value = "domain")]
     pub outline: Outline,
+    /// Frame the whole domain instead of the isosurfaces when no camera is given (mpirun
+    /// always frames the domain).
+    #[arg(long)]
+    pub frame_domain: bool,
     /// Print nothing but errors and warnings.
     #[arg(short, long)]
     pub quiet: bool,
@@ -163,6 +167,8 @@ pub struct RenderRequest {
     pub slices: Vec<Slice>,
     /// What paints the slices (`None`: the default).
     pub slice_field: Option<ColorBy>,
+    /// The automatic camera frames the domain, not the isosurfaces.
+    pub frame_domain: bool,
     /// Frames after the first: a camera path, an isovalue sweep, a time series.
     pub animation: Animation,
 }
@@ -262,6 +268,7 @@ impl RenderArgs {
             color_by: self.color_by.clone(),
             slices: self.slice.iter().chain(&self.slice_plane).copied().collect(),
             slice_field: self.slice_field.clone(),
+            frame_domain: self.frame_domain,
         })
     }
 }

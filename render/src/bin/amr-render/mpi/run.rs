@@ -5,6 +5,7 @@
 use std::time::Instant;
 
 use ::mpi::collective::SystemOperation;
+use amr_render::outline;
 use ::mpi::topology::SimpleCommunicator;
 use ::mpi::traits::*;
 use ::mpi::Threading;
@@ -173,7 +174,9 @@ fn run_rank(
     let Some(ranks) = stats.gather(world) else {
         return Ok(());
     };
-    let frame = frame.ok_or_else(|| anyhow!("rank 0 holds no frame"))?;
+    let mut frame = frame.ok_or_else(|| anyhow!("rank 0 holds no frame"))?;
+    let segments = outline::segments(view.outline, scene.file(), scene.grid_frame().world_bounds());
+    outline::draw(&mut frame, &camera, &segments, outline::line_width(view.size.0, view.size.1));
     write_rank0(request, &scene, mode, frame, camera, &ranks, frame_time)?;
     Ok(())
 }

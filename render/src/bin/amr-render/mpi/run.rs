@@ -131,6 +131,9 @@ fn run_rank(
         view.shadows = false;
         view.ao_rays = 0;
     }
+    if rank == 0 && (!request.color_by.is_empty() || !request.slices.is_empty()) {
+        eprintln!("note: --color-by and slices are not drawn under mpirun yet");
+    }
     let camera = view.camera(&scene.grid_frame())?;
     let mut stats = RankStats::default();
     let tiles = replicated::Tiles::new(view.size.0, view.size.1);

@@ -3,7 +3,8 @@
 
 usage: scripts/bench-frames.py OUTDIR [CELLS] [ORBIT_FRAMES] [SWEEP_FRAMES] [SERIES_STEPS]
 
-Builds amr-render and amr-convert (release), writes a blobs file of CELLS cells (default 1e8)
+Builds amr-render and amr-convert (release; or takes the binaries AMR_RENDER and AMR_CONVERT
+name), writes a blobs file of CELLS cells (default 1e8)
 into OUTDIR, and measures, with the file in the page cache:
 - an orbit of ORBIT_FRAMES (36) frames in one run, against one run per frame with the same
   cameras (read back from the orbit's EXR headers);
@@ -19,8 +20,9 @@ import sys
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-RENDER = os.path.join(ROOT, "target", "release", "amr-render")
-CONVERT = os.path.join(ROOT, "target", "release", "amr-convert")
+# AMR_RENDER and AMR_CONVERT name other binaries (then nothing is built).
+RENDER = os.environ.get("AMR_RENDER", os.path.join(ROOT, "target", "release", "amr-render"))
+CONVERT = os.environ.get("AMR_CONVERT", os.path.join(ROOT, "target", "release", "amr-convert"))
 COMMON = ["--size", "512x384", "--ao", "1"]
 
 
@@ -56,8 +58,9 @@ def main():
     n_sweep = int(sys.argv[4]) if len(sys.argv) > 4 else 20
     n_series = int(sys.argv[5]) if len(sys.argv) > 5 else 50
     os.makedirs(out, exist_ok=True)
-    subprocess.run(["cargo", "build", "--release", "-p", "amr-render", "-p", "amr-convert"],
-                   cwd=ROOT, check=True)
+    if "AMR_RENDER" not in os.environ:
+        subprocess.run(["cargo", "build", "--release", "-p", "amr-render", "-p", "amr-convert"],
+                       cwd=ROOT, check=True)
     big = os.path.join(out, f"blobs-{cells}.amrk")
     if not os.path.exists(big):
         subprocess.run([CONVERT, "synth", "blobs", "-o", big, "--cells", cells], check=True)

@@ -38,6 +38,7 @@ pub mod render;
 pub mod sample_mode;
 pub mod scene;
 pub mod shade;
+pub mod sigbus;
 pub mod slice;
 pub mod stats;
 pub mod trace;

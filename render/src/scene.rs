@@ -6,7 +6,6 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use memmap2::Mmap;
 use serde::Serialize;
 
 use crate::bvh::BvhBuilder;
@@ -14,7 +13,7 @@ use crate::coloring::ColorBy;
 use crate::slice::Slice;
 use crate::error::{RenderError, Result};
 use crate::extract::Extractor;
-use crate::mapping::{open_mapped, MappedFile, PageRelease};
+use crate::mapping::{open_mapped, MappedFile, PageRelease, WatchedMap};
 use crate::reconstruct::Reconstruction;
 use crate::shade::IsoSpec;
 use crate::stats::per_octant;
@@ -24,7 +23,7 @@ use crate::trace::{FieldSource, GridFrame, Surface, VoxelSource};
 pub const DEGENERATE_WIDTH: f64 = 1e-12;
 
 /// The voxel source of a mapped file.
-pub type MappedSource<'f> = FieldSource<'f, Mmap>;
+pub type MappedSource<'f> = FieldSource<'f, WatchedMap>;
 
 /// The voxel sources of a scene: the rendered field's, and those of the fields that paint
 /// surfaces and slices.
@@ -193,7 +192,7 @@ impl Scene {
     }
 
     /// The octant method's extractor (`None` for the other reconstructions).
-    pub fn extractor(&self) -> Option<&Extractor<'_, Mmap>> {
+    pub fn extractor(&self) -> Option<&Extractor<'_, WatchedMap>> {
         self.source().extractor()
     }
 

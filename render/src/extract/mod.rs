@@ -151,7 +151,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             .flat_map(|&l| file.leaf(l).bricks.iter())
             .map(|b| {
                 let d = file.brick_data(field, b.get() as usize);
-                (d.offset.get(), d.offset.get().saturating_add(d.len.get()))
+                (d.offset, d.offset.saturating_add(d.len))
             })
             .collect();
         ranges.sort_unstable();

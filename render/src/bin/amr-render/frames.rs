@@ -12,6 +12,7 @@ use amr_render::output::legend::Legend;
 use amr_render::{render, ColorBy, Scene, View};
 use serde::Serialize;
 
+use crate::heap;
 use crate::movie;
 use crate::outputs::{self, FrameFiles, ProcessMemory, RunStats};
 use crate::progress;
@@ -57,7 +58,9 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         let index = if anim.series { k as usize } else { 0 };
         if scene.as_ref().is_none_or(|(i, _)| *i != index) {
             // The previous file's map and surfaces go before the next file is opened.
-            drop(scene.take());
+            if scene.take().is_some() {
+                heap::return_freed();
+            }
             scene = Some((index, open_scene(request, index)?));
         }
         let Some((_, scene)) = scene.as_mut() else {

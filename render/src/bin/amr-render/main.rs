@@ -6,6 +6,7 @@ mod animation;
 mod demo;
 mod extract;
 mod frames;
+mod heap;
 mod info;
 mod movie;
 #[cfg(feature = "mpi")]
@@ -74,6 +75,7 @@ fn parse() -> anyhow::Result<Cli> {
 }
 
 fn main() -> ExitCode {
+    heap::keep_large_blocks_mapped();
     match parse().and_then(run) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,

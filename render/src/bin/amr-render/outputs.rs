@@ -8,7 +8,7 @@ use amr_render::output::exr_file::{temp_path, write_exr};
 use amr_render::output::legend::Legend;
 use amr_render::output::png_preview::{preview_rgb8, write_png};
 use amr_render::{FrameStats, Rendered, Scene, SceneStats};
-use anyhow::{bail, Context};
+use anyhow::Context;
 use serde::Serialize;
 
 use crate::probe::peak_rss_bytes;
@@ -118,31 +118,17 @@ pub fn numbered(path: &Path, k: u32, n: u32) -> PathBuf {
 }
 
 /// Refuses the files of a frame, and the statistics file, when one would replace an input or
-/// something that is not a regular file.
+/// something that is not a regular file ([`amr_format::output::check_output`]).
 pub fn check_frame(files: &FrameFiles, outputs: &Outputs, inputs: &[&Path]) -> anyhow::Result<()> {
-    let paths = [Some(&files.exr), files.preview.as_ref(), outputs.stats_json.as_ref()];
+    let paths = [
+        Some(&files.exr),
+        files.preview.as_ref(),
+        outputs.stats_json.as_ref(),
+    ];
     for out in paths.into_iter().flatten() {
-        if let Ok(meta) = std::fs::metadata(out) {
-            if !meta.is_file() {
-                bail!("{}: the output exists and is not a regular file; refusing to replace it", out.display());
-            }
-            for input in inputs {
-                if same_file(out, input) {
-                    bail!("{}: the output is the input {}; refusing to replace it", out.display(), input.display());
-                }
-            }
-        }
+        amr_format::output::check_output(out, inputs)?;
     }
     Ok(())
-}
-
-/// True when `a` and `b` name the same file.
-fn same_file(a: &Path, b: &Path) -> bool {
-    use std::os::unix::fs::MetadataExt;
-    match (std::fs::metadata(a), std::fs::metadata(b)) {
-        (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
-        _ => false,
-    }
 }
 
 /// Writes a frame's EXR and its preview.

@@ -1,8 +1,11 @@
-//! `amr-render info`: what a file holds, as plain integers a script can read.
+//! `amr-render info`: what a file holds: counts as plain integers a script can read, extents
+//! and values with readable numbers, and each field's percentiles.
 
 use std::fmt::Write;
 
 use amr_format::AmrkFile;
+
+use crate::field_stats::{format_value, FieldPercentiles, TABLE};
 
 /// A human-readable description of an open file: levels, bricks, cells, fields and their
 /// ranges, tree depth and leaves, and bytes by section.
@@ -33,22 +36,45 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
     for (l, lev) in file.levels().iter().enumerate() {
         let _ = writeln!(
             out,
-            "  level {l}: bricks {} cells {} domain {:?}..{:?} cell size {:?} origin {:?} ratio to next {:?}",
-            bricks[l], cells[l], lev.domain.lo, lev.domain.hi, lev.cell_size, lev.origin, lev.ratio_to_next
+            "  level {l}: bricks {} cells {} domain {:?}..{:?} cell size {} origin {} ratio to next {:?}",
+            bricks[l],
+            cells[l],
+            lev.domain.lo,
+            lev.domain.hi,
+            vec3(lev.cell_size),
+            vec3(lev.origin),
+            lev.ratio_to_next
         );
+        let (lo, hi) = level_extent(file, l);
+        let _ = writeln!(out, "           extent {} .. {}", vec3(lo), vec3(hi));
+    }
+    if !file.levels().is_empty() {
+        let (lo, hi) = level_extent(file, 0);
+        let _ = writeln!(out, "domain extent: {} .. {}", vec3(lo), vec3(hi));
     }
     let _ = writeln!(out, "bricks: {}", file.num_bricks());
     let _ = writeln!(out, "cells: {}", cells.iter().sum::<u64>());
     let _ = writeln!(out, "fields: {}", file.fields().len());
+    let width = file.fields().iter().map(|f| f.name.len()).max().unwrap_or(0);
     for f in file.fields() {
         let _ = writeln!(
             out,
-            "  {}: min {} max {}{}",
+            "  {:<width$}  min {:>11}  max {:>11}{}",
             f.name,
-            f.min,
-            f.max,
+            format_value(f64::from(f.min)),
+            format_value(f64::from(f.max)),
             if f.compressed { " (zstd)" } else { "" }
         );
+    }
+    let _ = writeln!(out, "field percentiles (over every cell of every level):");
+    let head: Vec<String> = TABLE.iter().map(|q| format!("{:>11}", format!("p{}", q * 100.0))).collect();
+    let _ = writeln!(out, "  {:<width$} {}", "", head.join(" "));
+    for (i, f) in file.fields().iter().enumerate() {
+        let row: Vec<String> = match FieldPercentiles::of(file, i) {
+            Ok(p) => TABLE.iter().map(|&q| format!("{:>11}", format_value(p.at(q)))).collect(),
+            Err(e) => vec![format!("unreadable: {e}")],
+        };
+        let _ = writeln!(out, "  {:<width$} {}", f.name, row.join(" "));
     }
     let _ = writeln!(out, "kd nodes: {}", file.tree().num_nodes());
     let _ = writeln!(out, "kd leaves: {}", file.num_leaves());
@@ -58,4 +84,16 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
         let _ = writeln!(out, "  {name}: {bytes}");
     }
     out
+}
+
+/// World corners of level `l`'s index domain.
+fn level_extent<D: AsRef<[u8]>>(file: &AmrkFile<D>, l: usize) -> ([f64; 3], [f64; 3]) {
+    let lev = &file.levels()[l];
+    let at = |i: [i64; 3]| [0, 1, 2].map(|a| lev.origin[a] + i[a] as f64 * lev.cell_size[a]);
+    (at(lev.domain.lo), at(lev.domain.hi))
+}
+
+/// `(x, y, z)` with readable numbers.
+fn vec3(v: [f64; 3]) -> String {
+    format!("({}, {}, {})", format_value(v[0]), format_value(v[1]), format_value(v[2]))
 }

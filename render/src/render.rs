@@ -4,6 +4,9 @@
 use std::time::Instant;
 
 use crate::camera::Camera;
+use crate::coloring::ColorBy;
+use crate::outline;
+use crate::paint::{GridSlice, PaintedTracer, Painter};
 use crate::error::{RenderError, Result};
 use crate::output::frame::{FrameBuffer, PixelSample};
 use crate::reconstruct::Reconstruction;
@@ -23,6 +26,8 @@ pub struct Rendered {
     pub camera: Camera,
     /// What it cost.
     pub stats: FrameStats,
+    /// The values at the colormap's ends, when surfaces or slices were painted by a field.
+    pub color_range: Option<(f64, f64)>,
 }
 
 /// A rectangle of a frame: lower corner `x0, y0` (pixels from the top left) and size.
@@ -49,10 +54,14 @@ pub struct RegionPixels {
 
 /// Renders `scene` as `view` asks; `progress(rows)` is called as rows finish.
 pub fn render(scene: &Scene, view: &View, progress: &(dyn Fn(u64) + Sync)) -> Result<Rendered> {
-    let rendered = with_scene_tracer(scene, view, |tracer, camera, light| {
+    let (mut rendered, color_range) = with_scene_tracer(scene, view, |tracer, camera, light| {
         trace_frame(tracer, *camera, light, view, progress)
     })?;
     check_source(scene)?;
+    rendered.color_range = color_range;
+    let segments = outline::segments(view.outline, scene.file(), scene.grid_frame().world_bounds());
+    let width = outline::line_width(view.size.0, view.size.1);
+    outline::draw(&mut rendered.frame, &rendered.camera, &segments, width);
     Ok(rendered)
 }
 
@@ -66,7 +75,7 @@ pub fn render_region(scene: &Scene, view: &View, rect: Rect) -> Result<RegionPix
             "region {rect:?} is outside the {w}x{h} frame"
         )));
     }
-    let region = with_scene_tracer(scene, view, |tracer, camera, light| {
+    let (region, _) = with_scene_tracer(scene, view, |tracer, camera, light| {
         let (pixels, rays) = render_rect(
             tracer,
             camera,
@@ -108,16 +117,62 @@ pub fn render_sampled<S: VoxelSource + ?Sized>(
     })
 }
 
-/// [`with_tracer`] for a scene.
+/// [`with_tracer`] for a scene, with its surfaces painted and its slices added when it has
+/// any; also returns the colour range painted with.
 fn with_scene_tracer<R>(
     scene: &Scene,
     view: &View,
     run: impl FnOnce(&(dyn Tracer + Sync), &Camera, &Lighting) -> R,
-) -> Result<R> {
+) -> Result<(R, Option<(f64, f64)>)> {
     // A piecewise-constant field has no smooth normals: nearest shades with the faces' normals.
     let smooth = view.smooth_normals && scene.reconstruction() != Reconstruction::Nearest;
     let method = (scene.method(), smooth);
-    with_tracer(scene.source(), scene.surfaces(), scene.isosurfaces(), method, view, run)
+    let isos = scene.isosurfaces();
+    with_tracer(scene.source(), scene.surfaces(), isos, method, view, |tracer, camera, light| {
+        if scene.color_by().iter().all(Option::is_none) && scene.slices().is_empty() {
+            return Ok((run(tracer, camera, light), None));
+        }
+        let fields: Vec<&ColorBy> = scene
+            .color_by()
+            .iter()
+            .flatten()
+            .chain(scene.slices().iter().map(|s| &s.1))
+            .filter(|b| matches!(b, ColorBy::Field(_)))
+            .collect();
+        if let Some(other) = fields.iter().find(|b| **b != fields[0]) {
+            return Err(RenderError::Invalid(format!(
+                "a frame has one colour scale: it cannot paint by both {} and {other}",
+                fields[0]
+            )));
+        }
+        let painter = |by: &ColorBy| match scene.color_field(by).and_then(|f| scene.color_source(f)) {
+            Some(src) => Painter::Field(src as &dyn VoxelSource),
+            None => Painter::Level,
+        };
+        let frame = tracer.frame();
+        let mut painted = PaintedTracer {
+            inner: tracer,
+            surfaces: (0..isos.len())
+                .map(|i| scene.color_by().get(i).cloned().flatten().map(|b| painter(&b)))
+                .collect(),
+            slices: scene
+                .slices()
+                .iter()
+                .map(|(s, by)| GridSlice::new(s, &frame, painter(by)))
+                .collect(),
+            levels: scene.source(),
+            scale: view.color_scale,
+            range: (0.0, 1.0),
+        };
+        let mut light = light.clone();
+        for (s, _) in scene.slices() {
+            light.colors.push([1.0; 3]);
+            light.opacity.push(s.opacity);
+        }
+        let range = painted.visible_range(camera, view.size, &light.opacity);
+        painted.range = range.unwrap_or((0.0, 1.0));
+        Ok((run(&painted, camera, &light), range))
+    })?
 }
 
 /// The camera, lighting and tracer of a frame of `src` (surfaces `surfaces` of `isos`, traced
@@ -170,13 +225,14 @@ fn trace_frame<T: Tracer + Sync + ?Sized>(
         frame,
         camera,
         stats,
+        color_range: None,
     }
 }
 
-/// The first error the scene's source met while the frame was traced.
+/// The first error the scene's sources met while the frame was traced.
 fn check_source(scene: &Scene) -> Result<()> {
-    match scene.source().take_failure() {
-        Some(e) => Err(e.in_file(scene.path())),
+    match scene.take_failure() {
+        Some(e) => Err(e),
         None => Ok(()),
     }
 }

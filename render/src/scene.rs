@@ -9,6 +9,8 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 use crate::bvh::BvhBuilder;
+use crate::coloring::ColorBy;
+use crate::slice::Slice;
 use crate::error::{RenderError, Result};
 use crate::extract::Extractor;
 use crate::mapping::{open_mapped, MappedFile, PageRelease, WatchedMap};
@@ -17,15 +19,26 @@ use crate::shade::IsoSpec;
 use crate::stats::per_octant;
 use crate::trace::{FieldSource, GridFrame, Surface, VoxelSource};
 
+/// Ranges narrower than this are round-off, not data, when choosing the default field.
+pub const DEGENERATE_WIDTH: f64 = 1e-12;
+
 /// The voxel source of a mapped file.
 pub type MappedSource<'f> = FieldSource<'f, WatchedMap>;
 
+/// The voxel sources of a scene: the rendered field's, and those of the fields that paint
+/// surfaces and slices.
+pub struct SceneSources<'f> {
+    main: MappedSource<'f>,
+    /// `(field index, source)`, one per field that paints.
+    colors: Vec<(usize, MappedSource<'f>)>,
+}
+
 self_cell::self_cell!(
-    /// A mapped file and the voxel source that reads it.
+    /// A mapped file and the voxel sources that read it.
     struct SourceCell {
         owner: MappedFile,
         #[covariant]
-        dependent: MappedSource,
+        dependent: SceneSources,
     }
 );
 
@@ -120,6 +133,10 @@ pub struct Scene {
     /// One per isosurface: the BVH over its active voxels (empty for the sample method).
     surfaces: Vec<Surface>,
     stats: SceneStats,
+    /// What paints each isosurface, in order (shorter than `isos`: the rest are not painted).
+    color_by: Vec<Option<ColorBy>>,
+    /// Slices and what paints them.
+    slices: Vec<(Slice, ColorBy)>,
 }
 
 impl Scene {
@@ -128,12 +145,15 @@ impl Scene {
     pub fn open(path: &Path, options: &SceneOptions) -> Result<Scene> {
         let file = open_mapped(path).map_err(|e| RenderError::from(e).in_file(path))?;
         let field = resolve_field(&file, options.field.as_deref()).map_err(|e| e.in_file(path))?;
-        let cell = SourceCell::try_new(file, |file| -> Result<MappedSource<'_>> {
+        let cell = SourceCell::try_new(file, |file| -> Result<SceneSources<'_>> {
             let mut source = FieldSource::new(file, field, options.reconstruction)?;
             if options.release_pages {
                 source.set_page_release(PageRelease::new(file));
             }
-            Ok(source)
+            Ok(SceneSources {
+                main: source,
+                colors: Vec::new(),
+            })
         })
         .map_err(|e| e.in_file(path))?;
         Ok(Scene {
@@ -144,6 +164,8 @@ impl Scene {
             isos: Vec::new(),
             surfaces: Vec::new(),
             stats: SceneStats::default(),
+            color_by: Vec::new(),
+            slices: Vec::new(),
         })
     }
 
@@ -159,7 +181,14 @@ impl Scene {
 
     /// The voxel source of the field.
     pub fn source(&self) -> &MappedSource<'_> {
-        self.cell.borrow_dependent()
+        &self.cell.borrow_dependent().main
+    }
+
+    /// The voxel source of field `field` opened by [`Self::set_color_by`] or
+    /// [`Self::set_slices`].
+    pub fn color_source(&self, field: usize) -> Option<&MappedSource<'_>> {
+        let sources = self.cell.borrow_dependent();
+        sources.colors.iter().find(|(f, _)| *f == field).map(|(_, s)| s)
     }
 
     /// The octant method's extractor (`None` for the other reconstructions).
@@ -207,10 +236,113 @@ impl Scene {
         &self.stats
     }
 
-    /// The middle of the field's range: the isovalue used when none is given.
+    /// The isovalue used when none is given: the median of the field's cell values, or the
+    /// middle of its range when the median is at an end of the range (a field that is mostly
+    /// one value).
     pub fn default_isovalue(&self) -> f32 {
         let f = &self.file().fields()[self.field];
-        0.5 * (f.min + f.max)
+        let mid = 0.5 * (f.min + f.max);
+        let Ok(p) = crate::field_stats::FieldPercentiles::of(self.file(), self.field) else {
+            return mid;
+        };
+        let median = p.at(0.5) as f32;
+        let margin = 1e-3 * (f.max - f.min);
+        if median > f.min + margin && median < f.max - margin {
+            median
+        } else {
+            mid
+        }
+    }
+
+    /// What paints each isosurface, in the order given.
+    pub fn color_by(&self) -> &[Option<ColorBy>] {
+        &self.color_by
+    }
+
+    /// The slices and what paints them.
+    pub fn slices(&self) -> &[(Slice, ColorBy)] {
+        &self.slices
+    }
+
+    /// Paints the isosurfaces by data: `per_surface[i]` paints the `i`-th (`None` keeps its
+    /// colour; surfaces past the list keep theirs). Opens a source for each field named.
+    pub fn set_color_by(&mut self, per_surface: &[Option<ColorBy>]) -> Result<()> {
+        for by in per_surface.iter().flatten() {
+            self.open_color_source(by)?;
+        }
+        self.color_by = per_surface.to_vec();
+        Ok(())
+    }
+
+    /// Replaces the slices, each painted by `by` (default: the first field that paints a
+    /// surface, else the rendered field).
+    pub fn set_slices(&mut self, slices: &[Slice], by: Option<ColorBy>) -> Result<()> {
+        let by = by.unwrap_or_else(|| {
+            self.color_by
+                .iter()
+                .flatten()
+                .find(|b| matches!(b, ColorBy::Field(_)))
+                .cloned()
+                .unwrap_or_else(|| ColorBy::Field(self.field_name().to_string()))
+        });
+        self.open_color_source(&by)?;
+        self.slices = slices.iter().map(|s| (*s, by.clone())).collect();
+        Ok(())
+    }
+
+    /// The index of the field that `by` names, with its source opened (`None` for the level).
+    pub fn color_field(&self, by: &ColorBy) -> Option<usize> {
+        match by {
+            ColorBy::Level => None,
+            ColorBy::Field(name) => self.file().field_index(name),
+        }
+    }
+
+    /// Opens the source of the field `by` names unless it is open.
+    fn open_color_source(&mut self, by: &ColorBy) -> Result<()> {
+        let ColorBy::Field(name) = by else {
+            return Ok(());
+        };
+        let field = resolve_field(self.file(), Some(name)).map_err(|e| e.in_file(&self.path))?;
+        if self.color_source(field).is_some() {
+            return Ok(());
+        }
+        let reconstruction = self.reconstruction();
+        let path = self.path.clone();
+        self.cell.with_dependent_mut(|file, sources| -> Result<()> {
+            let source = FieldSource::new(file, field, reconstruction).map_err(|e| e.in_file(&path))?;
+            sources.colors.push((field, source));
+            Ok(())
+        })
+    }
+
+    /// The first error met by any source since the last call.
+    pub fn take_failure(&self) -> Option<RenderError> {
+        let sources = self.cell.borrow_dependent();
+        std::iter::once(&sources.main)
+            .chain(sources.colors.iter().map(|(_, s)| s))
+            .find_map(|s| s.take_failure())
+            .map(|e| e.in_file(&self.path))
+    }
+
+    /// The world box of the isosurfaces' active voxels, `None` without any (or with the
+    /// sample method, which extracts none).
+    pub fn surface_bounds(&self) -> Option<([f64; 3], [f64; 3])> {
+        let source = self.source();
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for r in self.surfaces.iter().flat_map(|s| s.bvh.refs()) {
+            let (a, b) = source.voxel_box(*r);
+            for k in 0..3 {
+                lo[k] = lo[k].min(a[k]);
+                hi[k] = hi[k].max(b[k]);
+            }
+        }
+        if !(0..3).all(|k| lo[k] <= hi[k]) {
+            return None;
+        }
+        let frame = self.grid_frame();
+        Some((frame.to_world(lo), frame.to_world(hi)))
     }
 
     /// Replaces the isosurfaces with `isos`: a surface whose isovalue is already in the scene is
@@ -325,10 +457,17 @@ impl Scene {
 
 }
 
-/// The index of the field `name` (the first when `None`).
+/// The index of the field `name`; when `None`, the first field whose range is not degenerate
+/// (constant, or round-off around zero, like a velocity component that is zero everywhere), or the
+/// first field when all are.
 fn resolve_field(file: &MappedFile, name: Option<&str>) -> Result<usize> {
     let Some(name) = name else {
-        return Ok(0);
+        let spread = |f: &amr_format::FieldInfo| {
+            let width = f64::from(f.max) - f64::from(f.min);
+            let size = f64::from(f.max.abs().max(f.min.abs()));
+            width > DEGENERATE_WIDTH && width > 1e-6 * size
+        };
+        return Ok(file.fields().iter().position(spread).unwrap_or(0));
     };
     file.field_index(name).ok_or_else(|| RenderError::NoField {
         name: name.to_string(),

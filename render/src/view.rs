@@ -2,6 +2,8 @@
 //! normals. A [`View`] holds no data of the scene: changing it costs one frame, no extraction.
 
 use crate::camera::{Camera, CameraError};
+use crate::coloring::ColorScale;
+use crate::outline::Outline;
 use crate::error::{RenderError, Result};
 use crate::shade::{IsoSpec, Lighting, RenderSettings};
 use crate::trace::GridFrame;
@@ -45,6 +47,10 @@ pub struct View {
     pub smooth_normals: bool,
     /// Step of the sample method along rays, world units; `None` is half the finest cell.
     pub sample_step: Option<f64>,
+    /// How the values that paint surfaces and slices become colours.
+    pub color_scale: ColorScale,
+    /// The boxes drawn as lines (scene frames only).
+    pub outline: Outline,
 }
 
 impl Default for View {
@@ -58,6 +64,8 @@ impl Default for View {
             ao_rays: 4,
             smooth_normals: true,
             sample_step: None,
+            color_scale: ColorScale::default(),
+            outline: Outline::None,
         }
     }
 }
@@ -93,6 +101,7 @@ impl View {
                 )));
             }
         }
+        self.color_scale.validate().map_err(RenderError::Invalid)?;
         if let Some(CameraPlacement {
             pos,
             look_at: Some(look),
@@ -112,6 +121,18 @@ impl View {
         Ok(match self.camera {
             Some(c) => placed_camera(c.pos, c.look_at.unwrap_or(centre), c.up, self.fov_deg)?,
             None => Camera::framing(lo, hi, self.fov_deg, f64::from(w) / f64::from(h))?,
+        })
+    }
+
+    /// A camera placement that frames the world box `[lo, hi]` as the automatic camera frames
+    /// the domain: for a view of the surfaces rather than of the whole domain.
+    pub fn framing(&self, (lo, hi): ([f64; 3], [f64; 3])) -> Result<CameraPlacement> {
+        let (w, h) = self.size;
+        let c = Camera::framing(lo, hi, self.fov_deg, f64::from(w) / f64::from(h))?;
+        Ok(CameraPlacement {
+            pos: c.pos,
+            look_at: Some(c.look_at),
+            up: Some(c.up),
         })
     }
 

@@ -253,3 +253,63 @@ fn animation_counts_must_agree() {
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("frame counts must agree"), "{}", stderr(&o));
 }
+
+#[test]
+fn png_output_summary_quiet_and_an_empty_frame_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let f = file.to_str().unwrap();
+    let png = dir.path().join("blobs.png");
+    let o = amr_render(&[f, "--iso", "10", "--color-by", "level", "--size", "64x48", "-o", png.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let data = std::fs::read(&png).unwrap();
+    assert_eq!(&data[..8], b"\x89PNG\r\n\x1a\n", "-o .png writes a PNG");
+    let line = stderr(&o);
+    for part in ["field blobs", "iso 10 (coloured by level)", "active voxels", "blobs.png"] {
+        assert!(line.contains(part), "summary lacks '{part}': {line}");
+    }
+    let o = amr_render(&[f, "--iso", "10", "--quiet", "--size", "16x12", "-o", png.to_str().unwrap()]);
+    assert!(o.status.success() && stderr(&o).is_empty(), "--quiet printed: {}", stderr(&o));
+    let o = amr_render(&[f, "--iso", "1e9", "--quiet", "--size", "16x12", "-o", png.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("the frame shows no surface: blobs ranges over"), "{}", stderr(&o));
+}
+
+#[test]
+fn painting_by_a_missing_field_names_the_file_and_the_fields() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let f = file.to_str().unwrap();
+    let out = dir.path().join("x.exr");
+    let o = amr_render(&[f, "--color-by", "nosuch", "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("blobs.amrk") && e.contains("nosuch") && e.contains("blobs"), "{e}");
+    let o = amr_render(&[f, "--color-range", "5:1", "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "clap refuses an inverted range: {}", stderr(&o));
+    assert!(stderr(&o).contains("needs LO < HI"), "{}", stderr(&o));
+    let o = amr_render(&[f, "--colormap", "jet", "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "clap refuses an unknown colormap: {}", stderr(&o));
+    assert!(stderr(&o).contains("viridis"), "{}", stderr(&o));
+}
+
+#[test]
+fn the_exr_header_says_what_was_drawn_in_plain_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let f = file.to_str().unwrap();
+    let out = dir.path().join("h.exr");
+    let o = amr_render(&[
+        f, "--iso", "10:steelblue", "--iso", "6::0.3", "--color-by", "none", "--color-by", "blobs",
+        "--slice", "z=0.5", "--slice-field", "blobs", "--size", "48x36", "-o", out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let isos = attribute(&out, "isovalues");
+    assert!(isos.starts_with("10:#4682b4 6:#") && isos.ends_with(":0.3"), "{isos}");
+    assert_eq!(attribute(&out, "field"), "blobs");
+    assert_eq!(attribute(&out, "color_by"), "- blobs");
+    assert!(attribute(&out, "slices").contains("color_by=blobs"));
+    assert!(!isos.contains("Some("), "no Rust debug output in the header");
+    let (_, _, v) = read_channel(&out, "color_value").unwrap();
+    assert!(v.iter().any(|x| x.is_finite()), "the painted values are a channel");
+}

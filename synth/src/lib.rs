@@ -23,5 +23,5 @@ pub use boxes::{build_box_hierarchy, BoxParams};
 pub use fields::{AnalyticField, Case, Placed};
 pub use params::SynthParams;
 pub use refine::{build_hierarchy, build_hierarchy_by, near_surface, Block};
-pub use stream::{eval_brick, write_spec, write_synth, SynthSummary};
+pub use stream::{eval_brick, write_fields, write_spec, write_synth, FieldFn, SynthSummary};
 pub use target::{count_cells, fit_cells};

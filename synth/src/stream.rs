@@ -63,12 +63,7 @@ where
 {
     let bytes_per_cell = 4 * spec.fields.len() as u64;
     progress.set_total(bytes_per_cell * spec.total_cells());
-    let domains: Vec<IBox> = spec.levels.iter().map(|l| l.domain).collect();
-    let jobs: Vec<(IBox, IBox)> = spec
-        .bricks
-        .iter()
-        .map(|b| (domains[b.level as usize], b.cells))
-        .collect();
+    let jobs = brick_jobs(&spec);
     let nfields = spec.fields.len();
     let mut writer = AmrkWriter::create(path, spec, options).map_err(|e| e.in_file(path))?;
     let chunk = BRICKS_PER_THREAD * rayon::current_num_threads().max(1);
@@ -105,6 +100,61 @@ where
     let summary = writer.finish().map_err(|e| e.in_file(path))?;
     progress.finish();
     Ok(summary)
+}
+
+/// Each brick's level index domain and cells, in the order of `spec.bricks`.
+fn brick_jobs(spec: &HierarchySpec) -> Vec<(IBox, IBox)> {
+    let domains: Vec<IBox> = spec.levels.iter().map(|l| l.domain).collect();
+    spec.bricks
+        .iter()
+        .map(|b| (domains[b.level as usize], b.cells))
+        .collect()
+}
+
+/// A field given as a function on the unit cube.
+pub type FieldFn<'a> = &'a (dyn Fn([f64; 3]) -> f64 + Sync);
+
+/// Writes `spec` with one function per field of `spec.fields` (in order), each on the unit cube
+/// that each level's index domain is mapped onto: a file whose fields differ, for colouring one
+/// field's surface by another. Holds one brick's values per field at a time.
+pub fn write_fields(
+    path: &Path,
+    spec: HierarchySpec,
+    fields: &[FieldFn<'_>],
+    options: WriterOptions,
+) -> Result<WriteSummary, FormatError> {
+    if fields.len() != spec.fields.len() {
+        return Err(FormatError::InvalidHierarchy(format!(
+            "{} functions for {} fields",
+            fields.len(),
+            spec.fields.len()
+        )));
+    }
+    let jobs = brick_jobs(&spec);
+    let mut writer = AmrkWriter::create(path, spec, options).map_err(|e| e.in_file(path))?;
+    for (b, (domain, cells)) in jobs.iter().enumerate() {
+        for (f, field) in fields.iter().enumerate() {
+            let mut values = Vec::new();
+            eval_brick(&FnField(*field), domain, cells, &mut values);
+            writer.write_brick(b, f, &values).map_err(|e| e.in_file(path))?;
+        }
+    }
+    writer.finish().map_err(|e| e.in_file(path))
+}
+
+/// A function seen as an [`AnalyticField`] for [`eval_brick`].
+struct FnField<'a>(FieldFn<'a>);
+
+impl AnalyticField for FnField<'_> {
+    fn value(&self, p: [f64; 3]) -> f64 {
+        (self.0)(p)
+    }
+    fn gradient(&self, _p: [f64; 3]) -> [f64; 3] {
+        [0.0; 3]
+    }
+    fn default_iso(&self) -> f64 {
+        0.0
+    }
 }
 
 /// Fills `out` with `field` at the centres of the cells of `cells`, x fastest, where the level's

@@ -43,6 +43,7 @@ fn view() -> View {
         ao_rays: 4,
         smooth_normals: true,
         sample_step: None,
+        ..View::default()
     }
 }
 

@@ -21,6 +21,8 @@
 //! - [`render_accuracy`]: the hybrid method against the sample method.
 //! - [`render_golden`]: a golden image.
 //! - [`scene_api`]: the library's scene, views and isovalue changes.
+//! - [`pictures`]: surfaces painted by a second field, slices, outlines, default field and
+//!   isovalue, against the analytic fields.
 //! - [`render_bench`]: measurements for docs/benchmarks-render.md (ignored).
 
 mod support;
@@ -38,6 +40,7 @@ mod enzo_bench;
 mod enzo_convert;
 mod extract_reference;
 mod hybrid_current_nearest;
+mod pictures;
 mod reconstruct_continuity;
 mod render_accuracy;
 mod render_bench;

@@ -1,4 +1,5 @@
-//! OpenEXR output: channels R, G, B, A, Z, N.X/Y/Z, P.X/Y/Z and `level` as 32-bit floats, with
+//! OpenEXR output: channels R, G, B, A, Z, N.X/Y/Z, P.X/Y/Z, `level` (and `color_value` when the
+//! frame is painted by data) as 32-bit floats, with
 //! the camera, isovalues, timings and the origin of `P` in the header. Written to a temporary file
 //! beside the target and renamed, so a reader never sees half a frame.
 
@@ -11,6 +12,10 @@ use amr_format::output::temporary_for;
 use crate::error::{RenderError, Result};
 
 use crate::output::frame::FrameBuffer;
+
+/// The channel of the values that painted surfaces and slices, written when a frame has any: a
+/// user can recolour the frame with another colormap or range.
+pub const COLOR_VALUE_CHANNEL: &str = "color_value";
 
 /// Header attribute names holding the world origin that `P.X`, `P.Y`, `P.Z` are relative to.
 pub const P_ORIGIN_ATTRS: [&str; 3] = ["P_origin_x", "P_origin_y", "P_origin_z"];
@@ -37,6 +42,10 @@ pub fn write_exr(
         ch("P.Z", &frame.p[2]),
         ch("level", &frame.level),
     ];
+    let mut channels = channels;
+    if frame.color_value.iter().any(|v| !v.is_nan()) {
+        channels.push(ch(COLOR_VALUE_CHANNEL, &frame.color_value));
+    }
     let mut attrs = LayerAttributes::named("");
     attrs.layer_name = None;
     attrs.software_name = Some(text("amr-render"));

@@ -15,6 +15,8 @@ pub struct PixelSample {
     pub p: [f32; 3],
     /// AMR level of the first hit (`-1` on a miss).
     pub level: f32,
+    /// The value painted at the first hit painted by data (NaN where none is).
+    pub color_value: f32,
 }
 
 impl PixelSample {
@@ -26,6 +28,7 @@ impl PixelSample {
         n: [0.0; 3],
         p: [f32::NAN; 3],
         level: -1.0,
+        color_value: f32::NAN,
     };
 }
 
@@ -48,6 +51,8 @@ pub struct FrameBuffer {
     pub p: [Vec<f32>; 3],
     /// AMR level of the first hit, `-1` on a miss.
     pub level: Vec<f32>,
+    /// The value painted at the first hit painted by data, NaN where none is.
+    pub color_value: Vec<f32>,
     /// World point that `p` is relative to (the domain's lower corner), kept in `f64` so that
     /// positions in a domain far from the origin keep their precision.
     pub p_origin: [f64; 3],
@@ -75,6 +80,7 @@ impl FrameBuffer {
             n: [plane(&|s| s.n[0]), plane(&|s| s.n[1]), plane(&|s| s.n[2])],
             p: [plane(&|s| s.p[0]), plane(&|s| s.p[1]), plane(&|s| s.p[2])],
             level: plane(&|s| s.level),
+            color_value: plane(&|s| s.color_value),
             p_origin,
         }
     }

@@ -3,6 +3,7 @@
 
 use crate::render::Rendered;
 use crate::scene::Scene;
+use crate::shade::IsoSpec;
 use crate::stats::ms;
 
 /// The header attributes of `rendered`, a frame of `scene`, followed by `extra`.
@@ -12,10 +13,18 @@ pub fn frame_header(
     extra: &[(&str, String)],
 ) -> Vec<(String, String)> {
     let c = &rendered.camera;
+    // `V:#rrggbb[:OPACITY]` as `--iso` reads it, with the colour the surface was drawn in.
     let isos: Vec<String> = scene
         .isosurfaces()
         .iter()
-        .map(|s| format!("{}:{:?}:{}", s.value, s.color, s.opacity))
+        .enumerate()
+        .map(|(i, s)| {
+            let drawn = IsoSpec {
+                color: Some(s.color_or_palette(i)),
+                ..*s
+            };
+            drawn.to_string()
+        })
         .collect();
     let stats = scene.stats();
     let mut m: Vec<(String, String)> = vec![
@@ -26,6 +35,7 @@ pub fn frame_header(
                 c.pos, c.look_at, c.up, c.fov_deg
             ),
         ),
+        ("field".into(), scene.field_name().to_string()),
         ("isovalues".into(), isos.join(" ")),
         ("method".into(), scene.method().name().into()),
         (
@@ -43,6 +53,31 @@ pub fn frame_header(
         ),
         ("file".into(), scene.path().display().to_string()),
     ];
+    if scene.color_by().iter().any(Option::is_some) {
+        let by: Vec<String> = (0..scene.isosurfaces().len())
+            .map(|i| match scene.color_by().get(i).cloned().flatten() {
+                Some(by) => by.to_string(),
+                None => "-".into(),
+            })
+            .collect();
+        m.push(("color_by".into(), by.join(" ")));
+    }
+    if let Some((lo, hi)) = rendered.color_range {
+        m.push(("color_range".into(), format!("{lo} {hi}")));
+    }
+    if !scene.slices().is_empty() {
+        let slices: Vec<String> = scene
+            .slices()
+            .iter()
+            .map(|(s, by)| {
+                format!(
+                    "point={:?} normal={:?} opacity={} color_by={by}",
+                    s.point, s.normal, s.opacity
+                )
+            })
+            .collect();
+        m.push(("slices".into(), slices.join("; ")));
+    }
     m.extend(extra.iter().map(|(k, v)| ((*k).to_string(), v.clone())));
     m
 }

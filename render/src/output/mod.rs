@@ -3,6 +3,7 @@
 pub mod exr_file;
 pub mod frame;
 pub mod header;
+pub mod legend;
 pub mod png_preview;
 
 pub use frame::{FrameBuffer, PixelSample};

@@ -77,7 +77,17 @@ pub fn shade_ray<T: Tracer + ?Sized>(
             break;
         };
         let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dir.map(|x| -x));
-        let colour = shade_hit(tracer, light, i, &hit, normal, dir, rng);
+        let paint = tracer.paint(i, &hit);
+        let colour = match paint {
+            Some(p) if !p.lit => p.rgb,
+            _ => {
+                let base = paint.map_or(light.colors[i], |p| p.rgb);
+                shade_hit(tracer, light, base, &hit, normal, dir, rng)
+            }
+        };
+        if let (Some(p), true) = (paint, out.color_value.is_nan()) {
+            out.color_value = p.value;
+        }
         let alpha = light.opacity[i];
         for c in 0..3 {
             rgb[c] += transmittance * alpha * colour[c];
@@ -138,11 +148,11 @@ fn grid_len(d: [f64; 3]) -> f64 {
     dot(d, d).sqrt().max(f64::MIN_POSITIVE)
 }
 
-/// The colour of surface `i` at `hit`, seen along `dir`.
+/// The colour of a surface of colour `base` at `hit`, seen along `dir`.
 fn shade_hit<T: Tracer + ?Sized>(
     tracer: &T,
     light: &Lighting,
-    i: usize,
+    base: [f32; 3],
     hit: &SurfaceHit,
     normal: [f64; 3],
     dir: [f64; 3],
@@ -170,7 +180,6 @@ fn shade_hit<T: Tracer + ?Sized>(
     } else {
         1.0
     };
-    let base = light.colors[i];
     let diffuse = 0.22 * ao + 0.55 * key + 0.35 * head * (0.5 + 0.5 * ao);
     base.map(|c| (f64::from(c) * diffuse + 0.25 * spec) as f32)
 }

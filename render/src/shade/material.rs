@@ -73,26 +73,31 @@ impl std::fmt::Display for IsoSpec {
     }
 }
 
-/// Parses a colour name (`red`, `gold`, ...) or hex `#rrggbb` / `rrggbb` (sRGB, returned linear).
+/// Parses a colour (returned linear): one of the muted shading colours above by name (`red`,
+/// `gold`, ...), else any CSS colour (`steelblue`, `#4080ff`, `#48f`, `rgb(64,128,255)`,
+/// `hsl(...)`) or bare hex `rrggbb`.
 pub fn parse_color(s: &str) -> Result<[f32; 3], String> {
-    let lower = s.to_ascii_lowercase();
+    let lower = s.trim().to_ascii_lowercase();
     if let Some((_, c)) = NAMED.iter().find(|(n, _)| *n == lower) {
         return Ok(*c);
     }
-    let hex = lower.strip_prefix('#').unwrap_or(&lower);
-    if hex.len() == 6 && hex.chars().all(|c| c.is_ascii_hexdigit()) {
-        let byte = |i: usize| {
-            u8::from_str_radix(&hex[i..i + 2], 16).map(|b| srgb_to_linear(f32::from(b) / 255.0))
-        };
-        if let (Ok(r), Ok(g), Ok(b)) = (byte(0), byte(2), byte(4)) {
-            return Ok([r, g, b]);
+    let bare_hex = lower.len() == 6 && lower.chars().all(|c| c.is_ascii_hexdigit());
+    let css = if bare_hex { format!("#{lower}") } else { lower };
+    match csscolorparser::parse(&css) {
+        Ok(c) => {
+            let [r, g, b, _] = c.to_linear_rgba();
+            Ok([r, g, b])
         }
+        Err(e) => Err(format!(
+            "unknown colour '{s}' ({e}): use a CSS colour name, #rrggbb or rgb(r,g,b)"
+        )),
     }
-    let names: Vec<&str> = NAMED.iter().map(|(n, _)| *n).collect();
-    Err(format!(
-        "unknown colour '{s}': use #rrggbb or one of {}",
-        names.join(", ")
-    ))
+}
+
+/// The 8-bit sRGB of linear RGB `c`.
+pub fn srgb8(c: [f32; 3]) -> [u8; 3] {
+    let [r, g, b, _] = csscolorparser::Color::from_linear_rgba(c[0], c[1], c[2], 1.0).to_rgba8();
+    [r, g, b]
 }
 
 fn linear_to_srgb(c: f32) -> f32 {
@@ -100,14 +105,6 @@ fn linear_to_srgb(c: f32) -> f32 {
         12.92 * c
     } else {
         1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
     }
 }
 
@@ -180,6 +177,9 @@ mod tests {
         assert!((s.color.unwrap()[0] - 1.0).abs() < 1e-6);
         assert!("x".parse::<IsoSpec>().is_err());
         assert!("1:nocolour".parse::<IsoSpec>().is_err());
+        let s: IsoSpec = "-60:steelblue".parse().unwrap();
+        assert_eq!(s.to_string(), "-60:#4682b4");
+        assert_eq!(parse_color("rgb(255, 0, 0)").unwrap(), [1.0, 0.0, 0.0]);
         assert!("1:red:2".parse::<IsoSpec>().is_err());
         assert!("nan".parse::<IsoSpec>().is_err());
     }

@@ -10,7 +10,7 @@ use crate::shade::integrate::{shade_ray, Lighting};
 use crate::shade::sampling::Rng;
 use crate::trace::ray::GridRay;
 use crate::trace::source::GridFrame;
-use crate::trace::tracer::{SurfaceHit, Tracer};
+use crate::trace::tracer::{Paint, SurfaceHit, Tracer};
 
 /// Image size and sampling.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,6 +43,9 @@ impl<T: Tracer + ?Sized> Tracer for Counting<'_, T> {
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
         self.rays.set(self.rays.get() + 1);
         self.inner.occluded(i, ray, tmin, tmax)
+    }
+    fn paint(&self, i: usize, hit: &SurfaceHit) -> Option<Paint> {
+        self.inner.paint(i, hit)
     }
 }
 

@@ -13,5 +13,5 @@ pub mod traverse;
 pub use field_source::FieldSource;
 pub use ray::GridRay;
 pub use source::{GridFrame, Voxel, VoxelSource};
-pub use tracer::{HybridTracer, SurfaceHit, Tracer};
+pub use tracer::{HybridTracer, Paint, SurfaceHit, Tracer};
 pub use traverse::{Hit, Surface};

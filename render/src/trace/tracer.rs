@@ -22,6 +22,17 @@ pub struct SurfaceHit {
     pub r: u64,
 }
 
+/// The colour data gives a hit (see [`crate::paint`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Paint {
+    /// Linear RGB.
+    pub rgb: [f32; 3],
+    /// The value painted (a field's value, or the level).
+    pub value: f32,
+    /// Shaded by the lights like a surface; `false` shows the colour as it is (slices).
+    pub lit: bool,
+}
+
 /// Finds hits with a set of isosurfaces.
 pub trait Tracer {
     /// The grid-to-world map.
@@ -40,6 +51,11 @@ pub trait Tracer {
     /// True when surface `i` is hit with `t` in `[tmin, tmax]`.
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
         self.next_hit(i, ray, tmin, tmax).is_some()
+    }
+
+    /// The colour data gives surface `i` at `hit`; `None` (the default) keeps the surface's own.
+    fn paint(&self, _i: usize, _hit: &SurfaceHit) -> Option<Paint> {
+        None
     }
 }
 

@@ -1,14 +1,14 @@
 //! `amr-render demo`: synthesizes a small multi-level dataset (two merging blobs on three
-//! levels), converts it to a temporary `.amrk` file and renders two isosurfaces of it, one
-//! transparent, with a PNG preview beside the EXR frame.
+//! levels, and a second field `swirl`), writes it to a temporary `.amrk` file and renders what
+//! the tool does: the blobs' surface coloured by `swirl`, a transparent outer surface, the AMR
+//! boxes of every level, and a PNG preview with its legend beside the EXR frame.
 
 use std::path::PathBuf;
 
-use amr_format::progress::NoProgress;
 use amr_format::WriterOptions;
 use amr_render::shade::IsoSpec;
-use amr_render::{Reconstruction, SceneOptions, TraceMethod, View};
-use amr_synth::{write_synth, AnalyticField, Case, SynthParams};
+use amr_render::{ColorBy, Outline, Reconstruction, SceneOptions, TraceMethod, View};
+use amr_synth::{build_hierarchy, write_fields, AnalyticField, Case, SynthParams};
 use anyhow::Context;
 
 use crate::animation::Animation;
@@ -31,14 +31,18 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         .context("cannot create a temporary directory")?;
     let path = dir.path().join("demo.amrk");
     let params = SynthParams::unit_cube(3, 2, 32, 16);
-    write_synth(&path, Case::Blobs, &params, WriterOptions::default(), &NoProgress)
+    let mut spec = build_hierarchy(&Case::Blobs, "blobs", &params)?;
+    spec.fields = vec!["blobs".into(), "swirl".into()];
+    let blobs = |p: [f64; 3]| Case::Blobs.value(p);
+    let swirl = |p: [f64; 3]| swirl(p);
+    write_fields(&path, spec, &[&blobs, &swirl], WriterOptions::default())
         .with_context(|| format!("cannot write {}", path.display()))?;
     let iso = Case::Blobs.default_iso() as f32;
     let preview = args.output.with_extension("png");
     let request = RenderRequest {
         files: vec![path],
         scene: SceneOptions {
-            field: None,
+            field: Some("blobs".into()),
             reconstruction: Reconstruction::Octant,
             method: TraceMethod::Hybrid,
             release_pages: true,
@@ -58,19 +62,30 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         view: View {
             fov_deg: 35.0,
             size: (800, 600),
+            outline: Outline::Boxes,
             ..View::default()
         },
         outputs: Outputs {
             exr: args.output.clone(),
             preview: Some(preview.clone()),
-            print_stats: true,
+            print_stats: false,
             stats_json: None,
+            summary: true,
             movie: None,
         },
         threads: None,
         animation: Animation::new(1, None, None, Vec::new())?,
+        color_by: vec![Some(ColorBy::Field("swirl".into())), None],
+        slices: Vec::new(),
+        slice_field: None,
+        frame_domain: false,
     };
-    render_all(&request)?;
-    eprintln!("wrote {} and {}", args.output.display(), preview.display());
-    Ok(())
+    render_all(&request)
+}
+
+/// The demo's second field: a flow swirling about the z axis through the domain's centre, faster
+/// away from the axis and upwards.
+fn swirl(p: [f64; 3]) -> f64 {
+    let (x, y) = (p[0] - 0.5, p[1] - 0.5);
+    (x * x + y * y).sqrt() * (1.0 + 2.0 * p[2]) * (1.0 + 0.3 * (6.0 * y.atan2(x)).sin())
 }

@@ -4,10 +4,12 @@
 //! outputs, one progress bar over all frames and, when asked, a movie.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
+use amr_render::field_stats::format_value;
 use amr_render::output::header::frame_header;
-use amr_render::{render, Scene, View};
+use amr_render::output::legend::Legend;
+use amr_render::{render, ColorBy, Scene, View};
 use serde::Serialize;
 
 use crate::heap;
@@ -59,20 +61,29 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             if scene.take().is_some() {
                 heap::return_freed();
             }
-            scene = Some((index, Scene::open(&request.files[index], &request.scene)?));
+            scene = Some((index, open_scene(request, index)?));
         }
         let Some((_, scene)) = scene.as_mut() else {
             unreachable!("a scene was opened above");
         };
+        let isos = anim.isos(&request_isos(request, scene), k);
+        scene.set_isosurfaces(&isos)?;
+        scene.set_color_by(&painting(request, isos.len()))?;
         if cameras.is_empty() {
-            cameras = anim.cameras(&request.view.camera(&scene.grid_frame())?)?;
+            let view = match request.frame_domain {
+                true => request.view.clone(),
+                false => framed_view(&request.view, scene)?,
+            };
+            cameras = anim.cameras(&view.camera(&scene.grid_frame())?)?;
         }
-        scene.set_isosurfaces(&anim.isos(&request_isos(request, scene), k))?;
         let view = View {
             camera: Some(cameras[k as usize]),
             ..request.view.clone()
         };
         let rendered = render(scene, &view, rows)?;
+        if rendered.stats.covered_pixels == 0 {
+            warn_empty(scene);
+        }
         let file = scene.file();
         let (time, step) = (file.simulation_time(), file.simulation_step());
         let mut extra = vec![];
@@ -85,8 +96,16 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         if let Some(s) = step {
             extra.push(("simulation_step", s.to_string()));
         }
+        if rendered.color_range.is_some() {
+            let c = &view.color_scale;
+            extra.push(("colormap", format!("{}{}", c.colormap, if c.log { " log" } else { "" })));
+        }
         let header = frame_header(scene, &rendered, &extra);
-        outputs::write_frame(&files[k as usize], &rendered, &header)?;
+        let legend = Legend::of_frame(scene, &view, &rendered);
+        outputs::write_frame(&files[k as usize], &rendered, &header, &legend)?;
+        if n == 1 && request.outputs.summary {
+            eprintln!("{}", summary(&request.files[index], scene, &files[0], start.elapsed()));
+        }
         records.push(FrameRecord {
             frame: k,
             file: request.files[index].clone(),
@@ -109,10 +128,92 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             seconds / f64::from(n)
         );
         outputs::report(&request.outputs, &records, &per_frame)?;
+        if request.outputs.summary {
+            eprintln!(
+                "wrote {n} frames, {} to {}, in {seconds:.2} s",
+                files[0].exr.display(),
+                files[n as usize - 1].exr.display()
+            );
+        }
     }
     if let Some((path, fps)) = &request.outputs.movie {
         let pngs: Vec<&Path> = files.iter().filter_map(|f| f.preview.as_deref()).collect();
         movie::encode(&pngs, *fps, path)?;
     }
     Ok(())
+}
+
+/// The scene of the request's `index`-th file, with its slices.
+fn open_scene(request: &RenderRequest, index: usize) -> anyhow::Result<Scene> {
+    let mut scene = Scene::open(&request.files[index], &request.scene)?;
+    if !request.slices.is_empty() {
+        scene.set_slices(&request.slices, request.slice_field.clone())?;
+    }
+    Ok(scene)
+}
+
+/// What paints each of `n` isosurfaces: one `--color-by` paints all, several pair in order.
+fn painting(request: &RenderRequest, n: usize) -> Vec<Option<ColorBy>> {
+    match request.color_by.as_slice() {
+        [one] => vec![one.clone(); n],
+        many => many.to_vec(),
+    }
+}
+
+/// `view`, with a camera that frames the scene's isosurfaces when it has none and the frame has
+/// no slices (which span the domain).
+fn framed_view(view: &View, scene: &Scene) -> anyhow::Result<View> {
+    let mut view = view.clone();
+    if view.camera.is_none() && scene.slices().is_empty() {
+        if let Some(bounds) = scene.surface_bounds() {
+            view.camera = Some(view.framing(bounds)?);
+        }
+    }
+    Ok(view)
+}
+
+/// The one line that says what a single-frame render did.
+fn summary(file: &Path, scene: &Scene, files: &FrameFiles, took: Duration) -> String {
+    let isos: Vec<String> = scene
+        .isosurfaces()
+        .iter()
+        .enumerate()
+        .map(|(i, s)| match scene.color_by().get(i).cloned().flatten() {
+            Some(by) => format!("{} (coloured by {by})", format_value(f64::from(s.value))),
+            None => format_value(f64::from(s.value)),
+        })
+        .collect();
+    let mut out = format!(
+        "{}: field {}, iso {}, {} active voxels",
+        file.display(),
+        scene.field_name(),
+        isos.join(", "),
+        scene.stats().active_octants
+    );
+    if !scene.slices().is_empty() {
+        out += &format!(", {} slices", scene.slices().len());
+    }
+    let mut written = vec![files.exr.display().to_string()];
+    written.extend(files.preview.iter().map(|p| p.display().to_string()));
+    out += &format!(": wrote {} in {:.2} s", written.join(" and "), took.as_secs_f64());
+    out
+}
+
+/// Warns that a frame shows no surface, with the field's range.
+fn warn_empty(scene: &Scene) {
+    let f = &scene.file().fields()[scene.field()];
+    let isos: Vec<String> = scene
+        .isosurfaces()
+        .iter()
+        .map(|s| format_value(f64::from(s.value)))
+        .collect();
+    eprintln!(
+        "warning: {}: the frame shows no surface: {} ranges over [{}, {}] and the isovalues are {} ({} active voxels)",
+        scene.path().display(),
+        f.name,
+        format_value(f64::from(f.min)),
+        format_value(f64::from(f.max)),
+        isos.join(", "),
+        scene.stats().active_octants
+    );
 }

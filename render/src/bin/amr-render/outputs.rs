@@ -8,7 +8,8 @@ use std::io::Write;
 
 use amr_format::output::temporary_for;
 use amr_render::output::exr_file::write_exr;
-use amr_render::output::png_preview::write_preview;
+use amr_render::output::legend::Legend;
+use amr_render::output::png_preview::{preview_rgb8, write_png};
 use amr_render::{FrameStats, Rendered, Scene, SceneStats};
 use anyhow::Context;
 use serde::Serialize;
@@ -138,10 +139,15 @@ pub fn write_frame(
     files: &FrameFiles,
     rendered: &Rendered,
     header: &[(String, String)],
+    legend: &Legend,
 ) -> anyhow::Result<()> {
-    write_exr(&files.exr, &rendered.frame, header)?;
+    if is_png(&files.exr) {
+        write_picture(&files.exr, rendered, legend)?;
+    } else {
+        write_exr(&files.exr, &rendered.frame, header)?;
+    }
     if let Some(p) = &files.preview {
-        write_preview(p, &rendered.frame)?;
+        write_picture(p, rendered, legend)?;
     }
     Ok(())
 }
@@ -170,6 +176,20 @@ pub fn report(outputs: &Outputs, stats: &impl Serialize, print_also: &str) -> an
     if let Some(p) = &outputs.stats_json {
         write_json(p, &json)?;
     }
+    Ok(())
+}
+
+/// True when `path` names a PNG file.
+pub fn is_png(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"))
+}
+
+/// Writes the tone-mapped picture of `rendered` with `legend` drawn on it as a PNG.
+fn write_picture(path: &Path, rendered: &Rendered, legend: &Legend) -> anyhow::Result<()> {
+    let frame = &rendered.frame;
+    let mut rgb = preview_rgb8(frame);
+    legend.draw(&mut rgb, frame.width, frame.height);
+    write_png(path, frame.width, frame.height, &rgb)?;
     Ok(())
 }
 

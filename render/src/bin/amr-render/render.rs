@@ -43,7 +43,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     }
 }
 
-/// The request's isosurfaces (the middle of the field's range when none given).
+/// The request's isosurfaces (the median of the field's values when none given).
 pub fn request_isos(request: &RenderRequest, scene: &Scene) -> Vec<IsoSpec> {
     match request.isos.is_empty() && request.animation.sweep.is_none() {
         true => vec![IsoSpec::new(scene.default_isovalue())],

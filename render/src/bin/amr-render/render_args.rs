@@ -5,7 +5,10 @@ use std::path::PathBuf;
 
 use amr_render::camera_path::CameraKey;
 use amr_render::shade::IsoSpec;
-use amr_render::{CameraPlacement, Reconstruction, SceneOptions, TraceMethod, View};
+use amr_render::{
+    CameraPlacement, ColorBy, ColorScale, Colormap, Outline, Reconstruction, SceneOptions, Slice,
+    TraceMethod, View,
+};
 use anyhow::bail;
 use clap::Args;
 
@@ -28,9 +31,42 @@ pub struct RenderArgs {
     /// (default: the middle of the field's range). Negative values as typed: --iso -60:red.
     #[arg(long = "iso", value_name = "V[:COLOR[:OPACITY]]", allow_hyphen_values = true)]
     pub iso: Vec<IsoSpec>,
-    /// Output OpenEXR file; with several frames, OUT_0000.exr, OUT_0001.exr, ...
-    #[arg(short = 'o', long = "output", value_name = "OUT.exr")]
+    /// Output file: OpenEXR with every channel, or a PNG picture with its legend when the name
+    /// ends in .png; with several frames, OUT_0000.exr, OUT_0001.exr, ...
+    #[arg(short = 'o', long = "output", value_name = "OUT.exr|OUT.png")]
     pub output: PathBuf,
+    /// Paint isosurfaces by a field of the file (sampled at each hit) or by `level`; repeat to
+    /// pair with the --iso values in order (`none` leaves one unpainted); one value paints all.
+    #[arg(long = "color-by", value_name = "FIELD|level|none", value_parser = parse_color_by)]
+    pub color_by: Vec<Option<ColorBy>>,
+    /// Colormap of painted surfaces and slices.
+    #[arg(long, value_name = "NAME", default_value_t = Colormap::Viridis)]
+    pub colormap: Colormap,
+    /// Values at the colormap's ends (default: 1st..99th percentile of the values in view).
+    #[arg(long, value_name = "LO:HI", value_parser = parse_range, allow_hyphen_values = true)]
+    pub color_range: Option<(f64, f64)>,
+    /// Map the logarithm of the values.
+    #[arg(long)]
+    pub color_log: bool,
+    /// A slice across an axis: x=0.5, with an optional opacity (z=0.008:0.6); repeatable.
+    #[arg(long, value_name = "AXIS=VALUE[:OPACITY]", value_parser = Slice::parse_axis, allow_hyphen_values = true)]
+    pub slice: Vec<Slice>,
+    /// A slice through point P with normal N; repeatable.
+    #[arg(long, value_name = "PX,PY,PZ,NX,NY,NZ[:OPACITY]", value_parser = Slice::parse_plane, allow_hyphen_values = true)]
+    pub slice_plane: Vec<Slice>,
+    /// The field that paints slices (default: the first --color-by field, else the rendered one).
+    #[arg(long, value_name = "FIELD|level")]
+    pub slice_field: Option<ColorBy>,
+    /// Lines drawn for context: none, domain (its bounding box) or boxes (every level's boxes).
+    #[arg(long, value_name = "WHAT", default_value = "domain")]
+    pub outline: Outline,
+    /// Frame the whole domain instead of the isosurfaces when no camera is given (mpirun
+    /// always frames the domain).
+    #[arg(long)]
+    pub frame_domain: bool,
+    /// Print nothing but errors and warnings.
+    #[arg(short, long)]
+    pub quiet: bool,
     /// Frames on a circle around the point looked at (about the up vector), starting at the
     /// given or automatic camera.
     #[arg(long, value_name = "N")]
@@ -85,7 +121,7 @@ pub struct RenderArgs {
     /// Worker threads (default: all cores).
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
-    /// Also write a tone-mapped PNG preview.
+    /// Also write a tone-mapped PNG preview with its legend.
     #[arg(long, value_name = "OUT.png")]
     pub preview: Option<PathBuf>,
     /// Print statistics to stderr.
@@ -125,6 +161,14 @@ pub struct RenderRequest {
     pub outputs: Outputs,
     /// Worker threads.
     pub threads: Option<usize>,
+    /// What paints each isosurface (one entry paints all).
+    pub color_by: Vec<Option<ColorBy>>,
+    /// Slices.
+    pub slices: Vec<Slice>,
+    /// What paints the slices (`None`: the default).
+    pub slice_field: Option<ColorBy>,
+    /// The automatic camera frames the domain, not the isosurfaces.
+    pub frame_domain: bool,
     /// Frames after the first: a camera path, an isovalue sweep, a time series.
     pub animation: Animation,
 }
@@ -140,6 +184,8 @@ pub struct Outputs {
     pub print_stats: bool,
     /// Statistics as JSON.
     pub stats_json: Option<PathBuf>,
+    /// Print the one-line summary.
+    pub summary: bool,
     /// A movie of the frames' previews, and its frame rate.
     pub movie: Option<(PathBuf, u32)>,
 }
@@ -175,7 +221,20 @@ impl RenderArgs {
             ao_rays: self.ao,
             smooth_normals: !self.flat_normals,
             sample_step: self.step,
+            color_scale: ColorScale {
+                colormap: self.colormap,
+                range: self.color_range,
+                log: self.color_log,
+            },
+            outline: self.outline,
         };
+        if self.color_by.len() > 1 && self.color_by.len() > self.iso.len() {
+            bail!(
+                "{} --color-by values for {} --iso values: give one (for all) or one per isosurface",
+                self.color_by.len(),
+                self.iso.len()
+            );
+        }
         view.validate()?;
         if self.fps == 0 || self.fps > 240 {
             bail!("--fps {} must be between 1 and 240", self.fps);
@@ -201,10 +260,15 @@ impl RenderArgs {
                 preview: self.preview.clone(),
                 print_stats: self.stats,
                 stats_json: self.stats_json.clone(),
+                summary: !self.quiet,
                 movie: self.movie.clone().map(|m| (m, self.fps)),
             },
             threads: self.threads,
             animation,
+            color_by: self.color_by.clone(),
+            slices: self.slice.iter().chain(&self.slice_plane).copied().collect(),
+            slice_field: self.slice_field.clone(),
+            frame_domain: self.frame_domain,
         })
     }
 }
@@ -220,6 +284,33 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
             .map_err(|_| format!("size '{s}' is not WxH"))
     };
     Ok((p(w)?, p(h)?))
+}
+
+/// Parses what paints a surface: a field name, `level`, or `none`.
+fn parse_color_by(s: &str) -> Result<Option<ColorBy>, String> {
+    match s.trim() {
+        "none" => Ok(None),
+        other => other.parse().map(Some),
+    }
+}
+
+/// Parses a range `LO:HI` of finite numbers with `LO < HI`.
+fn parse_range(s: &str) -> Result<(f64, f64), String> {
+    let (lo, hi) = s
+        .split_once(':')
+        .ok_or_else(|| format!("range '{s}' is not LO:HI"))?;
+    let p = |v: &str| {
+        v.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("'{v}' in range '{s}' is not a finite number"))
+    };
+    let (lo, hi) = (p(lo)?, p(hi)?);
+    if !(lo < hi) {
+        return Err(format!("range '{s}' needs LO < HI"));
+    }
+    Ok((lo, hi))
 }
 
 /// Parses a keyframe `FRAME:X,Y,Z:LX,LY,LZ[:UX,UY,UZ]`.

@@ -113,6 +113,7 @@ mod tests {
             n: [0.0, 0.0, 1.0],
             p: [z; 3],
             level: 1.0,
+            color_value: f32::NAN,
         }
     }
 

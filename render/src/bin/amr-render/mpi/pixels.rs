@@ -25,6 +25,7 @@ pub fn read(r: &[f32]) -> PixelSample {
         n: [r[5], r[6], r[7]],
         p: [r[8], r[9], r[10]],
         level: r[11],
+        color_value: f32::NAN,
     }
 }
 
@@ -37,6 +38,7 @@ pub fn at(fb: &FrameBuffer, i: usize) -> PixelSample {
         n: [fb.n[0][i], fb.n[1][i], fb.n[2][i]],
         p: [fb.p[0][i], fb.p[1][i], fb.p[2][i]],
         level: fb.level[i],
+        color_value: fb.color_value[i],
     }
 }
 
@@ -65,6 +67,7 @@ mod tests {
             n: [0.0, 1.0, -0.0],
             p: [1.0, 2.0, 3.0],
             level: 2.0,
+            color_value: f32::NAN,
         };
         for s in [s, PixelSample::MISS] {
             let mut v = Vec::new();

@@ -5,6 +5,7 @@
 use std::time::Instant;
 
 use ::mpi::collective::SystemOperation;
+use amr_render::outline;
 use ::mpi::topology::SimpleCommunicator;
 use ::mpi::traits::*;
 use ::mpi::Threading;
@@ -130,6 +131,9 @@ fn run_rank(
         view.shadows = false;
         view.ao_rays = 0;
     }
+    if rank == 0 && (!request.color_by.is_empty() || !request.slices.is_empty()) {
+        eprintln!("note: --color-by and slices are not drawn under mpirun yet");
+    }
     let camera = view.camera(&scene.grid_frame())?;
     let mut stats = RankStats::default();
     let tiles = replicated::Tiles::new(view.size.0, view.size.1);
@@ -173,7 +177,9 @@ fn run_rank(
     let Some(ranks) = stats.gather(world) else {
         return Ok(());
     };
-    let frame = frame.ok_or_else(|| anyhow!("rank 0 holds no frame"))?;
+    let mut frame = frame.ok_or_else(|| anyhow!("rank 0 holds no frame"))?;
+    let segments = outline::segments(view.outline, scene.file(), scene.grid_frame().world_bounds());
+    outline::draw(&mut frame, &camera, &segments, outline::line_width(view.size.0, view.size.1));
     write_rank0(request, &scene, mode, frame, camera, &ranks, frame_time)?;
     Ok(())
 }
@@ -197,10 +203,12 @@ fn write_rank0(
         (frame.width, frame.height),
         frame.covered() as u64,
     );
+    // Painting by data is not gathered across ranks: no colour range, no colour bar.
     let rendered = Rendered {
         frame,
         camera,
         stats: frame_stats.clone(),
+        color_range: None,
     };
     let totals = MpiTotals {
         mpi_mode: mode.name(),
@@ -239,6 +247,7 @@ fn write_rank0(
         MpiMode::Partitioned => "leaves",
     };
     let files = FrameFiles::numbered(&request.outputs, 0, 1, false);
-    outputs::write_frame(&files, &rendered, &header)?;
+    let legend = amr_render::output::legend::Legend::of_frame(scene, &request.view, &rendered);
+    outputs::write_frame(&files, &rendered, &header, &legend)?;
     outputs::report(&request.outputs, &stats, &table(ranks, work))
 }

@@ -1,0 +1,109 @@
+//! The distribution of a field's cell values (percentiles over every cell of every level, from an
+//! even subsample when the file is large), and numbers formatted for people.
+
+use amr_format::AmrkFile;
+
+use crate::error::{RenderError, Result};
+
+/// Most cell values a distribution is computed from.
+pub const MAX_SAMPLES: usize = 1 << 20;
+
+/// The quantiles `amr-render info` lists for each field.
+pub const TABLE: [f64; 7] = [0.0, 0.01, 0.25, 0.5, 0.75, 0.99, 1.0];
+
+/// The sorted finite cell values of a field (every cell, or every `stride`-th of each brick).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FieldPercentiles {
+    sorted: Vec<f32>,
+    /// Cells counted in the file.
+    pub cells: u64,
+}
+
+impl FieldPercentiles {
+    /// The distribution of field `field` of `file`, from at most [`MAX_SAMPLES`] cells taken
+    /// evenly from every brick.
+    pub fn of<D: AsRef<[u8]>>(file: &AmrkFile<D>, field: usize) -> Result<Self> {
+        if field >= file.fields().len() {
+            return Err(RenderError::Invalid(format!("no field {field}")));
+        }
+        let cells: u64 = (0..file.num_bricks())
+            .map(|b| file.brick(b).cells.num_cells().unwrap_or(0))
+            .sum();
+        let stride = (cells as usize).div_ceil(MAX_SAMPLES).max(1);
+        let mut sorted = Vec::with_capacity((cells as usize / stride).min(MAX_SAMPLES) + 1);
+        let mut values = Vec::new();
+        for b in 0..file.num_bricks() {
+            file.brick_values_into(field, b, &mut values)?;
+            sorted.extend(
+                values
+                    .iter()
+                    .step_by(stride)
+                    .copied()
+                    .filter(|v| v.is_finite()),
+            );
+        }
+        sorted.sort_unstable_by(f32::total_cmp);
+        Ok(FieldPercentiles { sorted, cells })
+    }
+
+    /// The value at quantile `q` in `[0, 1]` (nearest rank; NaN without values).
+    pub fn at(&self, q: f64) -> f64 {
+        if self.sorted.is_empty() {
+            return f64::NAN;
+        }
+        let i = ((self.sorted.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
+        f64::from(self.sorted[i])
+    }
+
+    /// Values the distribution was computed from.
+    pub fn samples(&self) -> usize {
+        self.sorted.len()
+    }
+}
+
+/// `v` with about 5 significant digits: plain between 1e-3 and 1e6, scientific otherwise
+/// (`-6.6796e-33`, not 40 digits of zeros).
+pub fn format_value(v: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    if !v.is_finite() {
+        return format!("{v}");
+    }
+    let a = v.abs();
+    if (1e-3..1e6).contains(&a) {
+        let digits = (4 - a.log10().floor() as i32).max(0) as usize;
+        let s = format!("{v:.digits$}");
+        match s.contains('.') {
+            true => s.trim_end_matches('0').trim_end_matches('.').to_string(),
+            false => s,
+        }
+    } else {
+        let s = format!("{v:.4e}");
+        let (m, e) = s.split_once('e').unwrap_or((&s, "0"));
+        let m = match m.contains('.') {
+            true => m.trim_end_matches('0').trim_end_matches('.'),
+            false => m,
+        };
+        format!("{m}e{e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_read_as_people_write_them() {
+        assert_eq!(format_value(-6.679641e-33), "-6.6796e-33");
+        assert_eq!(format_value(298.0), "298");
+        assert_eq!(format_value(1579.8536), "1579.9");
+        assert_eq!(format_value(0.016), "0.016");
+        assert_eq!(format_value(-126103.875), "-126104");
+        assert_eq!(format_value(101325.0), "101325");
+        assert_eq!(format_value(1.5e-13), "1.5e-13");
+        assert_eq!(format_value(855399.2), "855399");
+        assert_eq!(format_value(2.5e7), "2.5e7");
+        assert_eq!(format_value(0.0), "0");
+    }
+}

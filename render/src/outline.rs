@@ -1,0 +1,181 @@
+//! Context lines: the domain's bounding box and the AMR boxes of each level, drawn into a frame as
+//! thin lines that surfaces in front of them hide (tested against the frame's depth).
+
+use std::str::FromStr;
+
+use amr_format::AmrkFile;
+
+use crate::camera::{dot, sub, Camera};
+use crate::colormap::level_linear;
+use crate::output::frame::FrameBuffer;
+
+/// Which boxes a frame outlines.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Outline {
+    /// None.
+    #[default]
+    None,
+    /// The domain's bounding box.
+    Domain,
+    /// The domain and the boxes (bricks) of every level, coloured by level.
+    Boxes,
+}
+
+impl FromStr for Outline {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "none" => Ok(Outline::None),
+            "domain" => Ok(Outline::Domain),
+            "boxes" => Ok(Outline::Boxes),
+            _ => Err(format!("unknown outline '{s}' (none, domain, boxes)")),
+        }
+    }
+}
+
+/// Linear grey of the domain's box.
+pub const DOMAIN_COLOR: [f32; 3] = [0.75, 0.75, 0.75];
+
+/// A world-space segment and its linear colour.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Segment {
+    /// One end.
+    pub a: [f64; 3],
+    /// The other end.
+    pub b: [f64; 3],
+    /// Linear RGB.
+    pub color: [f32; 3],
+}
+
+/// The 12 edges of the box `[lo, hi]`.
+pub fn box_edges(lo: [f64; 3], hi: [f64; 3], color: [f32; 3]) -> impl Iterator<Item = Segment> {
+    let corner = move |i: usize| [0, 1, 2].map(|a| if i >> a & 1 == 1 { hi[a] } else { lo[a] });
+    (0..8usize).flat_map(move |i| {
+        (0..3)
+            .filter(move |a| i >> a & 1 == 0)
+            .map(move |a| Segment {
+                a: corner(i),
+                b: corner(i | 1 << a),
+                color,
+            })
+    })
+}
+
+/// The segments `outline` asks for in `file` whose domain is `[lo, hi]` (world): brick edges
+/// finest level last, so that they draw over the coarser ones they share.
+pub fn segments<D: AsRef<[u8]>>(
+    outline: Outline,
+    file: &AmrkFile<D>,
+    (lo, hi): ([f64; 3], [f64; 3]),
+) -> Vec<Segment> {
+    let mut out = Vec::new();
+    if outline == Outline::None {
+        return out;
+    }
+    if outline == Outline::Boxes {
+        let mut bricks: Vec<usize> = (0..file.num_bricks()).collect();
+        bricks.sort_by_key(|&b| file.brick(b).level);
+        for b in bricks {
+            let info = file.brick(b);
+            let Some(level) = file.levels().get(info.level as usize) else {
+                continue;
+            };
+            let at =
+                |i: [i64; 3]| [0, 1, 2].map(|a| level.origin[a] + i[a] as f64 * level.cell_size[a]);
+            out.extend(box_edges(
+                at(info.cells.lo),
+                at(info.cells.hi),
+                level_linear(info.level),
+            ));
+        }
+    }
+    out.extend(box_edges(lo, hi, DOMAIN_COLOR));
+    out
+}
+
+/// Draws `segments` into `frame` seen by `camera`, `width` pixels wide: where nothing in the
+/// frame is nearer the line's colour replaces the pixel's; behind the first surface it is blended
+/// in by the light the surfaces let through (`1 - alpha`), so that lines show through transparent
+/// surfaces and not through opaque ones.
+pub fn draw(frame: &mut FrameBuffer, camera: &Camera, segments: &[Segment], width: u32) {
+    let (w, h) = (frame.width, frame.height);
+    let f = camera.forward();
+    let (right, up) = camera.basis();
+    let tan = (0.5 * camera.fov_deg).to_radians().tan();
+    let aspect = f64::from(w) / f64::from(h);
+    let project = |p: [f64; 3]| -> Option<(f64, f64, f64)> {
+        let v = sub(p, camera.pos);
+        let depth = dot(v, f);
+        if depth <= 1e-12 {
+            return None;
+        }
+        let sx = dot(v, right) / depth / (tan * aspect);
+        let sy = dot(v, up) / depth / tan;
+        let dist = dot(v, v).sqrt();
+        Some((
+            (sx + 1.0) * 0.5 * f64::from(w),
+            (1.0 - sy) * 0.5 * f64::from(h),
+            dist,
+        ))
+    };
+    let width = i64::from(width.max(1));
+    let (lo, hi) = (-(width - 1) / 2, width / 2);
+    for s in segments {
+        let (Some(pa), Some(pb)) = (project(s.a), project(s.b)) else {
+            continue;
+        };
+        let pixels = (pb.0 - pa.0).abs().max((pb.1 - pa.1).abs());
+        let steps = (2.0 * pixels).ceil().clamp(1.0, 1e5) as usize;
+        for k in 0..=steps {
+            let u = k as f64 / steps as f64;
+            let p = [0, 1, 2].map(|a| s.a[a] + u * (s.b[a] - s.a[a]));
+            let Some((x, y, dist)) = project(p) else {
+                continue;
+            };
+            for dy in lo..=hi {
+                for dx in lo..=hi {
+                    let (px, py) = (x.floor() as i64 + dx, y.floor() as i64 + dy);
+                    if px < 0 || py < 0 || px >= i64::from(w) || py >= i64::from(h) {
+                        continue;
+                    }
+                    let i = py as usize * w as usize + px as usize;
+                    // Behind the first hit, a line shows through what the surfaces let through.
+                    let seen = match f64::from(frame.z[i]) * (1.0 + 1e-5) < dist {
+                        true => 1.0 - frame.alpha[i],
+                        false => 1.0,
+                    };
+                    if seen <= 0.0 {
+                        continue;
+                    }
+                    for c in 0..3 {
+                        let v = &mut frame.rgb[c][i];
+                        *v += (s.color[c] - *v) * seen;
+                    }
+                    frame.alpha[i] += (1.0 - frame.alpha[i]) * seen;
+                }
+            }
+        }
+    }
+}
+
+/// The line width for a `w x h` frame: one pixel up to 1000 pixels, wider above.
+pub fn line_width(w: u32, h: u32) -> u32 {
+    (w.max(h) / 1000).max(1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_box_has_twelve_edges_of_its_sides() {
+        let e: Vec<Segment> = box_edges([0.0; 3], [1.0, 2.0, 3.0], [1.0; 3]).collect();
+        assert_eq!(e.len(), 12);
+        let total: f64 = e
+            .iter()
+            .map(|s| (0..3).map(|a| (s.b[a] - s.a[a]).abs()).sum::<f64>())
+            .sum();
+        assert_eq!(total, 4.0 * (1.0 + 2.0 + 3.0));
+    }
+}

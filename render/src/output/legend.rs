@@ -1,0 +1,380 @@
+//! The preview's legend, drawn into its 8-bit sRGB pixels: the colour bar with tick labels and
+//! the painting field's name (or the level palette), the isovalues with their colours, and an
+//! axis triad. Text is DejaVu Sans, embedded from the `dejavu` crate, rasterized by `ab_glyph`.
+
+use ab_glyph::{point, Font, FontRef, PxScale, ScaleFont};
+
+use crate::camera::Camera;
+use crate::coloring::ColorBy;
+use crate::colormap::{level_srgb8, Colormap};
+use crate::field_stats::format_value;
+use crate::outline::Outline;
+use crate::render::Rendered;
+use crate::scene::Scene;
+use crate::shade::material::srgb8;
+use crate::view::View;
+
+/// A colour bar: the colormap over a range, titled by what it shows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ColorBar {
+    /// What the colours show (a field's name).
+    pub title: String,
+    /// The colormap.
+    pub colormap: Colormap,
+    /// The values at its ends.
+    pub range: (f64, f64),
+    /// Logarithmic.
+    pub log: bool,
+}
+
+/// Everything a legend shows; absent parts are left out.
+#[derive(Clone, Debug, Default)]
+pub struct Legend {
+    /// Lines at the top left, each with its colour swatch (`None`: no swatch).
+    pub entries: Vec<(String, Option<[u8; 3]>)>,
+    /// The colour bar of the field that paints.
+    pub color_bar: Option<ColorBar>,
+    /// The level palette's swatches, for this many levels.
+    pub levels: Option<u32>,
+    /// The camera, for the axis triad.
+    pub camera: Option<Camera>,
+}
+
+/// An RGB8 image being drawn on.
+struct Canvas<'a> {
+    rgb: &'a mut [u8],
+    w: u32,
+    h: u32,
+}
+
+impl Canvas<'_> {
+    fn blend(&mut self, x: i64, y: i64, c: [u8; 3], a: f32) {
+        if x < 0 || y < 0 || x >= i64::from(self.w) || y >= i64::from(self.h) || a <= 0.0 {
+            return;
+        }
+        let i = 3 * (y as usize * self.w as usize + x as usize);
+        for k in 0..3 {
+            let old = f32::from(self.rgb[i + k]);
+            self.rgb[i + k] = (old + (f32::from(c[k]) - old) * a.min(1.0)).round() as u8;
+        }
+    }
+
+    fn rect(&mut self, x0: i64, y0: i64, w: i64, h: i64, c: [u8; 3], a: f32) {
+        for y in y0..y0 + h {
+            for x in x0..x0 + w {
+                self.blend(x, y, c, a);
+            }
+        }
+    }
+
+    fn line(&mut self, a: (f64, f64), b: (f64, f64), c: [u8; 3], width: i64) {
+        let n = ((b.0 - a.0).abs().max((b.1 - a.1).abs()).ceil() as usize).max(1);
+        for k in 0..=n {
+            let u = k as f64 / n as f64;
+            let (x, y) = (a.0 + u * (b.0 - a.0), a.1 + u * (b.1 - a.1));
+            self.rect(
+                x as i64 - width / 2,
+                y as i64 - width / 2,
+                width,
+                width,
+                c,
+                1.0,
+            );
+        }
+    }
+}
+
+/// Draws text with DejaVu Sans.
+struct Text {
+    font: FontRef<'static>,
+    px: f32,
+}
+
+impl Text {
+    fn new(px: f32) -> Option<Text> {
+        let font = FontRef::try_from_slice(dejavu::sans::regular()).ok()?;
+        Some(Text { font, px })
+    }
+
+    fn width(&self, s: &str) -> f32 {
+        let f = self.font.as_scaled(PxScale::from(self.px));
+        s.chars().map(|c| f.h_advance(f.glyph_id(c))).sum()
+    }
+
+    /// Draws `s` with its top left at `(x, y)`, light with a dark shadow so that it reads on
+    /// any background.
+    fn draw(&self, canvas: &mut Canvas<'_>, s: &str, x: f32, y: f32) {
+        self.draw_in(canvas, s, x + 1.0, y + 1.0, [0, 0, 0]);
+        self.draw_in(canvas, s, x, y, [240, 240, 240]);
+    }
+
+    fn draw_in(&self, canvas: &mut Canvas<'_>, s: &str, x: f32, y: f32, c: [u8; 3]) {
+        let f = self.font.as_scaled(PxScale::from(self.px));
+        let mut pen = x;
+        for ch in s.chars() {
+            let id = f.glyph_id(ch);
+            let glyph = id.with_scale_and_position(self.px, point(pen, y + f.ascent()));
+            pen += f.h_advance(id);
+            if let Some(o) = self.font.outline_glyph(glyph) {
+                let b = o.px_bounds();
+                o.draw(|gx, gy, cov| {
+                    canvas.blend(
+                        b.min.x as i64 + i64::from(gx),
+                        b.min.y as i64 + i64::from(gy),
+                        c,
+                        cov,
+                    )
+                });
+            }
+        }
+    }
+}
+
+impl Legend {
+    /// The legend of `rendered`, a frame of `scene` seen through `view`.
+    pub fn of_frame(scene: &Scene, view: &View, rendered: &Rendered) -> Legend {
+        let field = scene.field_name();
+        let mut entries = Vec::new();
+        for (i, s) in scene.isosurfaces().iter().enumerate() {
+            let painted = scene.color_by().get(i).cloned().flatten();
+            let opacity = match s.opacity < 1.0 {
+                true => format!(" (opacity {})", s.opacity),
+                false => String::new(),
+            };
+            let (label, swatch) = match painted {
+                Some(by) => (
+                    format!(
+                        "{field} = {}, coloured by {by}{opacity}",
+                        format_value(f64::from(s.value))
+                    ),
+                    None,
+                ),
+                None => (
+                    format!("{field} = {}{opacity}", format_value(f64::from(s.value))),
+                    Some(srgb8(s.color_or_palette(i))),
+                ),
+            };
+            entries.push((label, swatch));
+        }
+        for (s, by) in scene.slices() {
+            let p = s.point.map(format_value);
+            entries.push((
+                format!(
+                    "slice through ({}, {}, {}) coloured by {by}",
+                    p[0], p[1], p[2]
+                ),
+                None,
+            ));
+        }
+        if view.outline == Outline::Boxes {
+            for l in 0..scene.file().levels().len() as u32 {
+                entries.push((format!("level {l} boxes"), Some(level_srgb8(l))));
+            }
+        }
+        let painters: Vec<&ColorBy> = scene
+            .color_by()
+            .iter()
+            .flatten()
+            .chain(scene.slices().iter().map(|s| &s.1))
+            .collect();
+        let field_painter = painters.iter().find_map(|b| match b {
+            ColorBy::Field(name) => Some(name.clone()),
+            ColorBy::Level => None,
+        });
+        let color_bar = match (field_painter, rendered.color_range) {
+            (Some(title), Some(range)) => Some(ColorBar {
+                title,
+                colormap: view.color_scale.colormap,
+                range,
+                log: view.color_scale.log,
+            }),
+            _ => None,
+        };
+        let levels = painters
+            .iter()
+            .any(|b| **b == ColorBy::Level)
+            .then_some(scene.file().levels().len() as u32);
+        Legend {
+            entries,
+            color_bar,
+            levels,
+            camera: Some(rendered.camera),
+        }
+    }
+
+    /// Draws the legend into `rgb` (`w x h` RGB8, row-major).
+    pub fn draw(&self, rgb: &mut [u8], w: u32, h: u32) {
+        let px = (h as f32 / 40.0).clamp(10.0, 28.0);
+        let Some(text) = Text::new(px) else {
+            return;
+        };
+        let mut canvas = Canvas { rgb, w, h };
+        let m = px;
+        let line = px * 1.3;
+        for (k, (s, swatch)) in self.entries.iter().enumerate() {
+            let y = m + k as f32 * line;
+            let mut x = m;
+            if let Some(c) = swatch {
+                let side = (0.8 * px) as i64;
+                canvas.rect(
+                    x as i64 - 1,
+                    y as i64 + 1,
+                    side + 2,
+                    side + 2,
+                    [0, 0, 0],
+                    1.0,
+                );
+                canvas.rect(x as i64, y as i64 + 2, side, side, *c, 1.0);
+                x += px * 1.2;
+            }
+            text.draw(&mut canvas, s, x, y);
+        }
+        if let Some(bar) = &self.color_bar {
+            self.draw_bar(&mut canvas, &text, bar);
+        } else if let Some(n) = self.levels {
+            let labels: Vec<String> = (0..n).map(|l| format!("level {l}")).collect();
+            let tw = labels.iter().map(|s| text.width(s)).fold(0.0, f32::max);
+            let x = w as f32 - m - tw - px * 1.2;
+            for (l, s) in labels.iter().enumerate() {
+                let y = m + l as f32 * line;
+                let side = (0.8 * px) as i64;
+                canvas.rect(
+                    x as i64,
+                    y as i64 + 2,
+                    side,
+                    side,
+                    level_srgb8(l as u32),
+                    1.0,
+                );
+                text.draw(&mut canvas, s, x + px * 1.2, y);
+            }
+        }
+        if let Some(camera) = &self.camera {
+            draw_triad(&mut canvas, &text, camera, m);
+        }
+    }
+
+    fn draw_bar(&self, canvas: &mut Canvas<'_>, text: &Text, bar: &ColorBar) {
+        let (w, h) = (canvas.w as f32, canvas.h as f32);
+        let px = text.px;
+        let ticks = ticks(bar.range, bar.log);
+        let labels: Vec<(f64, String)> = ticks.iter().map(|&v| (v, format_value(v))).collect();
+        let label_w = labels.iter().map(|l| text.width(&l.1)).fold(0.0, f32::max);
+        let bar_w = (w / 60.0).max(10.0);
+        let title = match bar.log {
+            true => format!("{} (log)", bar.title),
+            false => bar.title.clone(),
+        };
+        let right = w - px;
+        let x0 = (right - label_w - px * 0.5 - bar_w).min(right - text.width(&title));
+        let (y0, y1) = (h * 0.2, h * 0.8);
+        text.draw(
+            canvas,
+            &title,
+            x0.min(right - text.width(&title)),
+            y0 - px * 1.6,
+        );
+        let position = |v: f64| {
+            crate::coloring::ColorScale {
+                colormap: bar.colormap,
+                range: None,
+                log: bar.log,
+            }
+            .position(v, bar.range)
+        };
+        canvas.rect(
+            x0 as i64 - 1,
+            y0 as i64 - 1,
+            bar_w as i64 + 2,
+            (y1 - y0) as i64 + 2,
+            [0, 0, 0],
+            1.0,
+        );
+        for y in y0 as i64..y1 as i64 {
+            let t = f64::from((y1 - y as f32) / (y1 - y0));
+            canvas.rect(x0 as i64, y, bar_w as i64, 1, bar.colormap.srgb8(t), 1.0);
+        }
+        for (v, s) in labels {
+            let y = y1 - position(v) as f32 * (y1 - y0);
+            canvas.rect(
+                (x0 + bar_w) as i64,
+                y as i64,
+                (px * 0.3) as i64,
+                1,
+                [240, 240, 240],
+                1.0,
+            );
+            text.draw(canvas, &s, x0 + bar_w + px * 0.5, y - px * 0.6);
+        }
+    }
+}
+
+/// About five round tick values in `range` (powers of ten for a log scale spanning decades).
+pub fn ticks((lo, hi): (f64, f64), log: bool) -> Vec<f64> {
+    if !(hi > lo) || !lo.is_finite() || !hi.is_finite() {
+        return vec![lo];
+    }
+    if log && lo > 0.0 && hi / lo >= 10.0 {
+        let (a, b) = (lo.log10().ceil() as i32, hi.log10().floor() as i32);
+        let step = ((b - a) / 6 + 1).max(1);
+        return (a..=b)
+            .step_by(step as usize)
+            .map(|e| 10f64.powi(e))
+            .collect();
+    }
+    let raw = (hi - lo) / 5.0;
+    let mag = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 2.5, 5.0, 10.0]
+        .iter()
+        .map(|m| m * mag)
+        .find(|s| *s >= raw)
+        .unwrap_or(10.0 * mag);
+    let first = (lo / step).ceil() as i64;
+    (first..)
+        .map(|k| k as f64 * step)
+        .take_while(|v| *v <= hi + 1e-9 * step)
+        .take(12)
+        .collect()
+}
+
+/// The world axes as the camera sees them, at the bottom left: x red, y green, z blue.
+fn draw_triad(canvas: &mut Canvas<'_>, text: &Text, camera: &Camera, m: f32) {
+    let (right, up) = camera.basis();
+    let len = f64::from(canvas.h).min(f64::from(canvas.w)) / 14.0;
+    let o = (
+        f64::from(m) + len + 4.0,
+        f64::from(canvas.h) - f64::from(m) - len - 4.0,
+    );
+    let colors = [[230, 80, 70], [90, 200, 90], [90, 140, 240]];
+    let width = ((len / 25.0) as i64).max(2);
+    for (a, name) in ["x", "y", "z"].iter().enumerate() {
+        let tip = (o.0 + len * right[a], o.1 - len * up[a]);
+        canvas.line(o, tip, colors[a], width);
+        let lx = o.0 + 1.25 * len * right[a] - f64::from(text.px) * 0.3;
+        let ly = o.1 - 1.25 * len * up[a] - f64::from(text.px) * 0.6;
+        text.draw(canvas, name, lx as f32, ly as f32);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_are_round_and_inside() {
+        let t = ticks((0.0, 1.0), false);
+        assert_eq!(t.len(), 6);
+        assert!(t
+            .iter()
+            .zip([0.0, 0.2, 0.4, 0.6, 0.8, 1.0])
+            .all(|(a, b)| (a - b).abs() < 1e-12));
+        let t = ticks((-0.35, 0.8), false);
+        assert_eq!(t, vec![-0.25, 0.0, 0.25, 0.5, 0.75]);
+        let t = ticks((298.0, 1580.0), false);
+        assert!(
+            t.iter().all(|v| (298.0..=1580.0).contains(v)) && t.len() >= 3,
+            "{t:?}"
+        );
+        assert_eq!(ticks((1.0, 1000.0), true), vec![1.0, 10.0, 100.0, 1000.0]);
+    }
+}

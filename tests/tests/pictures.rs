@@ -1,0 +1,294 @@
+//! Pictures (issue 18) checked against the analytic fields they show, on a two-field file
+//! (`sphere`: the signed distance to a sphere; `ramp = x + 2y`, linear, so that every
+//! reconstruction reproduces it exactly): a surface painted by a second field has that field's
+//! colour at each hit, a slice shows the field at each of its points, outlines are drawn where the
+//! domain's edges project and nowhere else, and the default field skips round-off.
+
+use std::path::{Path, PathBuf};
+
+use amr_format::WriterOptions;
+use amr_render::camera::Camera;
+use amr_render::outline::DOMAIN_COLOR;
+use amr_render::shade::IsoSpec;
+use amr_render::{
+    render, CameraPlacement, ColorBy, ColorScale, Colormap, Outline, Rendered, Scene, SceneOptions,
+    Slice, View,
+};
+use amr_synth::{build_hierarchy, write_fields, AnalyticField, Case, SynthParams};
+
+/// Size of a coarse cell of the fixture.
+const COARSE: f64 = 1.0 / 16.0;
+
+fn ramp(p: [f64; 3]) -> f64 {
+    p[0] + 2.0 * p[1]
+}
+
+/// A two-level file with fields `names`, `sphere` refined around the sphere.
+fn two_fields(dir: &Path, names: [&str; 2], second: &(dyn Fn([f64; 3]) -> f64 + Sync)) -> PathBuf {
+    let path = dir.join("two.amrk");
+    let mut spec = build_hierarchy(
+        &Case::Sphere,
+        "sphere",
+        &SynthParams::unit_cube(2, 2, 16, 8),
+    )
+    .unwrap();
+    spec.fields = names.iter().map(|s| s.to_string()).collect();
+    let sphere = |p: [f64; 3]| Case::Sphere.value(p);
+    write_fields(&path, spec, &[&sphere, second], WriterOptions::default()).unwrap();
+    path
+}
+
+fn scene(path: &Path) -> Scene {
+    let options = SceneOptions {
+        field: Some("sphere".into()),
+        ..SceneOptions::default()
+    };
+    Scene::open(path, &options).unwrap()
+}
+
+fn view() -> View {
+    View {
+        size: (96, 72),
+        ao_rays: 0,
+        shadows: false,
+        color_scale: ColorScale {
+            colormap: Colormap::Viridis,
+            range: Some((0.0, 3.0)),
+            log: false,
+        },
+        ..View::default()
+    }
+}
+
+/// World position of pixel `i`'s first hit.
+fn hit(r: &Rendered, i: usize) -> [f64; 3] {
+    [0, 1, 2].map(|a| f64::from(r.frame.p[a][i]) + r.frame.p_origin[a])
+}
+
+fn rgb(r: &Rendered, i: usize) -> [f64; 3] {
+    [0, 1, 2].map(|c| f64::from(r.frame.rgb[c][i]))
+}
+
+#[test]
+fn a_surface_painted_by_a_second_field_has_its_colormap_colour_at_each_hit() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let mut scene = scene(&path);
+    // Black: the unpainted frame is the specular highlight alone, the same in both frames.
+    let black = IsoSpec {
+        color: Some([0.0; 3]),
+        ..IsoSpec::new(0.0)
+    };
+    scene.set_isosurfaces(&[black]).unwrap();
+    let plain = render(&scene, &view(), &|_| {}).unwrap();
+    scene
+        .set_color_by(&[Some(ColorBy::Field("ramp".into()))])
+        .unwrap();
+    let painted = render(&scene, &view(), &|_| {}).unwrap();
+    assert_eq!(painted.color_range, Some((0.0, 3.0)));
+    let scale = view().color_scale;
+    let mut checked = 0;
+    for i in 0..painted.frame.len() {
+        if painted.frame.alpha[i] == 0.0 {
+            assert!(painted.frame.color_value[i].is_nan());
+            continue;
+        }
+        let p = hit(&painted, i);
+        let value = f64::from(painted.frame.color_value[i]);
+        assert!(
+            (value - ramp(p)).abs() < 2e-3,
+            "pixel {i} at {p:?}: value {value}, ramp {}",
+            ramp(p)
+        );
+        // painted = base * diffuse + specular, plain = specular: the difference is the
+        // colormap's colour at the hit times one shading factor.
+        let (a, b) = (rgb(&painted, i), rgb(&plain, i));
+        let diff = [0, 1, 2].map(|c| a[c] - b[c]);
+        let want = scale.linear(ramp(p), (0.0, 3.0)).map(f64::from);
+        let d = (0..3).map(|c| diff[c] * want[c]).sum::<f64>()
+            / (0..3).map(|c| want[c] * want[c]).sum::<f64>();
+        if d < 0.05 {
+            continue; // too dark to tell colours apart
+        }
+        for c in 0..3 {
+            assert!(
+                (diff[c] - d * want[c]).abs() < 0.01 * d + 1e-3,
+                "pixel {i}: painted - plain {diff:?} is not {d} x colormap {want:?}"
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked > 200, "only {checked} pixels checked");
+}
+
+#[test]
+fn a_slice_shows_the_field_at_each_of_its_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let mut scene = scene(&path);
+    scene.set_isosurfaces(&[]).unwrap();
+    let slice = Slice::parse_axis("z=0.4").unwrap();
+    scene
+        .set_slices(&[slice], Some(ColorBy::Field("ramp".into())))
+        .unwrap();
+    let v = View {
+        camera: Some(CameraPlacement {
+            pos: [0.3, 0.2, 3.0],
+            look_at: Some([0.5, 0.5, 0.4]),
+            up: Some([0.0, 1.0, 0.0]),
+        }),
+        ..view()
+    };
+    let r = render(&scene, &v, &|_| {}).unwrap();
+    let mut covered = 0;
+    for i in 0..r.frame.len() {
+        if r.frame.alpha[i] == 0.0 {
+            continue;
+        }
+        covered += 1;
+        let p = hit(&r, i);
+        assert!(
+            (p[2] - 0.4).abs() < 1e-6,
+            "pixel {i} hit {p:?} off the plane"
+        );
+        // Within half a cell of the domain's faces the reconstruction holds the nearest cell
+        // centres' values: the ramp is reproduced from a coarse cell inwards.
+        if p.iter().any(|&x| !(COARSE..=1.0 - COARSE).contains(&x)) {
+            continue;
+        }
+        assert!(
+            (f64::from(r.frame.color_value[i]) - ramp(p)).abs() < 2e-3,
+            "pixel {i} at {p:?}"
+        );
+        // Slices are unlit: the pixel is the colormap's colour of the value there.
+        let want = v
+            .color_scale
+            .linear(f64::from(r.frame.color_value[i]), (0.0, 3.0));
+        for c in 0..3 {
+            assert!(
+                (r.frame.rgb[c][i] - want[c]).abs() < 1e-6,
+                "pixel {i}: {:?} vs {want:?}",
+                rgb(&r, i)
+            );
+        }
+    }
+    assert!(
+        covered > r.frame.len() / 8,
+        "the slice covers {covered} pixels"
+    );
+}
+
+#[test]
+fn level_painting_shows_each_hit_s_level() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let mut scene = scene(&path);
+    scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
+    scene.set_color_by(&[Some(ColorBy::Level)]).unwrap();
+    let r = render(&scene, &view(), &|_| {}).unwrap();
+    let covered: Vec<usize> = (0..r.frame.len())
+        .filter(|&i| r.frame.alpha[i] > 0.0)
+        .collect();
+    assert!(!covered.is_empty());
+    for i in covered {
+        assert_eq!(r.frame.color_value[i], r.frame.level[i], "pixel {i}");
+    }
+}
+
+/// Pixel coordinates of world point `p` seen by `c` in a `w x h` frame.
+fn project(c: &Camera, p: [f64; 3], (w, h): (u32, u32)) -> (f64, f64) {
+    let v = [0, 1, 2].map(|a| p[a] - c.pos[a]);
+    let f = c.forward();
+    let (right, up) = c.basis();
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let depth = dot(v, f);
+    let tan = (0.5 * c.fov_deg).to_radians().tan();
+    let sx = dot(v, right) / depth / (tan * f64::from(w) / f64::from(h));
+    let sy = dot(v, up) / depth / tan;
+    (
+        (sx + 1.0) * 0.5 * f64::from(w),
+        (1.0 - sy) * 0.5 * f64::from(h),
+    )
+}
+
+/// Distance from point `q` to the segment `a`-`b` in the image plane.
+fn to_segment(q: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let len2 = (dx * dx + dy * dy).max(1e-12);
+    let t = (((q.0 - a.0) * dx + (q.1 - a.1) * dy) / len2).clamp(0.0, 1.0);
+    ((q.0 - a.0 - t * dx).powi(2) + (q.1 - a.1 - t * dy).powi(2)).sqrt()
+}
+
+#[test]
+fn the_domain_outline_is_drawn_where_its_edges_project_and_nowhere_else() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let mut scene = scene(&path);
+    scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
+    let plain = render(&scene, &view(), &|_| {}).unwrap();
+    let lined = render(
+        &scene,
+        &View {
+            outline: Outline::Domain,
+            ..view()
+        },
+        &|_| {},
+    )
+    .unwrap();
+    let size = view().size;
+    let edges: Vec<((f64, f64), (f64, f64))> =
+        amr_render::outline::box_edges([0.0; 3], [1.0; 3], DOMAIN_COLOR)
+            .map(|s| {
+                (
+                    project(&lined.camera, s.a, size),
+                    project(&lined.camera, s.b, size),
+                )
+            })
+            .collect();
+    let mut on_line = 0;
+    for y in 0..size.1 {
+        for x in 0..size.0 {
+            let i = (y * size.0 + x) as usize;
+            let centre = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+            let near = edges
+                .iter()
+                .map(|&(a, b)| to_segment(centre, a, b))
+                .fold(f64::INFINITY, f64::min);
+            let changed = (0..3).any(|c| plain.frame.rgb[c][i] != lined.frame.rgb[c][i]);
+            if near > 1.5 {
+                assert!(
+                    !changed,
+                    "pixel ({x}, {y}) is {near:.1} px from every edge but changed"
+                );
+            }
+            if near < 0.3 && plain.frame.alpha[i] == 0.0 {
+                let want = DOMAIN_COLOR;
+                assert_eq!(
+                    [0, 1, 2].map(|c| lined.frame.rgb[c][i]),
+                    want,
+                    "pixel ({x}, {y}) on an edge"
+                );
+                on_line += 1;
+            }
+        }
+    }
+    assert!(on_line > 100, "only {on_line} pixels on the edges checked");
+}
+
+#[test]
+fn the_default_field_skips_round_off_and_the_default_isovalue_is_the_median() {
+    let dir = tempfile::tempdir().unwrap();
+    let roundoff = |p: [f64; 3]| 1e-14 * (p[0] - 0.5);
+    let path2 = dir.path().join("second.amrk");
+    let mut spec =
+        build_hierarchy(&Case::Sphere, "x", &SynthParams::unit_cube(2, 2, 16, 8)).unwrap();
+    spec.fields = vec!["x_velocity".into(), "temp".into()];
+    let temp = |p: [f64; 3]| 300.0 + 1000.0 * p[2] * p[2];
+    write_fields(&path2, spec, &[&roundoff, &temp], WriterOptions::default()).unwrap();
+    let scene = Scene::open(&path2, &SceneOptions::default()).unwrap();
+    assert_eq!(scene.field_name(), "temp");
+    // temp = 300 + 1000 z^2 over cells in z: its median over the cells is near 300 + 1000 / 4,
+    // far from the middle of its range (800).
+    let iso = scene.default_isovalue();
+    assert!((iso - 550.0).abs() < 60.0, "default isovalue {iso}");
+}

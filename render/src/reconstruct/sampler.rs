@@ -193,6 +193,8 @@ pub struct Sampler<'f, D> {
     in_place: Vec<Option<&'f [f32]>>,
     tree: TreeView<'f>,
     cache: BrickCache,
+    /// This sampler's identity, which scratch memory serving it remembers.
+    id: u64,
 }
 
 impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
@@ -235,6 +237,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             leaf_top,
             brick_cells,
             cache: BrickCache::new(cache_bytes),
+            id: super::recent::next_sampler_id(),
         })
     }
 
@@ -253,6 +256,16 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         &self.grid
     }
 
+    /// This sampler's identity, unique in the process (scratch memory is keyed by it).
+    pub fn id(&self) -> u64 {
+        self.id
+    }
+
+    /// Kd-tree leaf `leaf`'s box in finest-level cells relative to the domain.
+    pub fn leaf_box(&self, leaf: u32) -> IBox {
+        self.tree.leaf_box(leaf)
+    }
+
     /// Leaf `leaf`'s finest brick and its level, `None` for a leaf no brick covers.
     pub fn leaf_top(&self, leaf: u32) -> Option<(u32, u32)> {
         self.leaf_top[leaf as usize]
@@ -266,6 +279,12 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// Number of bricks decoded into the cache so far.
     pub fn decodes(&self) -> u64 {
         self.cache.decodes()
+    }
+
+    /// Brick `brick`'s values when they are read in place (stored raw), else `None`.
+    #[inline]
+    pub fn values_in_place(&self, brick: u32) -> Option<&'f [f32]> {
+        self.in_place[brick as usize]
     }
 
     /// Brick `brick`'s values of the sampled field.
@@ -571,13 +590,24 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         o: &Octant,
         memo: &mut VertexMemo,
     ) -> Result<Option<[f32; 8]>> {
+        self.octant_values_in(self, o, memo)
+    }
+
+    /// [`Self::octant_values_memo`], locating through `loc` and remembering the octant's
+    /// corners in `memo`'s octant table.
+    pub fn octant_values_in<L: Locate>(
+        &self,
+        loc: &L,
+        o: &Octant,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<[f32; 8]>> {
         let centre = self.grid.centre(o.level, o.cell);
-        let Some(c) = self.locate(self.grid.finest_cell(centre, 7))? else {
+        let Some(c) = loc.locate_cell(self.grid.finest_cell(centre, 7))? else {
             return Ok(None);
         };
         if c.level != o.level || c.cell != o.cell {
             return Ok(None);
         }
-        self.corners(o.level, o.cell, c.value, o.octant, memo)
+        self.leaf_octant_corners_in(loc, &c, o.octant, memo)
     }
 }

@@ -7,7 +7,7 @@
 //! Leaves tile the domain and a leaf's finest brick holds every cell of it, so both ways give
 //! [`Sampler::locate`]'s answer: the scratch changes how fast a sample is, never its value.
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
@@ -36,16 +36,17 @@ struct RecentLeaf {
     decoded: Option<Arc<[f32]>>,
 }
 
-/// The kd-tree leaves located last, most recent first.
+/// The kd-tree leaves located last, replaced in turn, and the one that answered last.
 #[derive(Default)]
 struct RecentLeaves {
     leaves: RefCell<Vec<RecentLeaf>>,
+    last: Cell<usize>,
+    next: Cell<usize>,
 }
 
 /// A sampler's per-thread scratch for [`Sampler::sample_with`] and for decoding voxels: pure
 /// caches, so a scratch never changes a result. It serves one sampler at a time and forgets
 /// everything when handed to another.
-#[derive(Default)]
 pub struct SampleScratch {
     /// The sampler served, by [`Sampler::id`] (0: none yet).
     owner: u64,
@@ -53,6 +54,20 @@ pub struct SampleScratch {
     /// Vertex values and octant corners computed so far.
     pub memo: VertexMemo,
 }
+
+impl Default for SampleScratch {
+    fn default() -> Self {
+        Self {
+            owner: 0,
+            leaves: RecentLeaves::default(),
+            memo: VertexMemo::with_octant_bits(SCRATCH_OCTANT_BITS),
+        }
+    }
+}
+
+/// log2 of the octants a scratch remembers: 16384 (768 KiB per thread); the default 1024
+/// thrashes on the octants that smooth normals of neighbouring rows share.
+const SCRATCH_OCTANT_BITS: u32 = 14;
 
 /// Locates through a scratch's remembered leaves, then through the sampler's kd-tree.
 pub struct RecentLocator<'a, 's, 'f, D> {
@@ -77,7 +92,7 @@ impl SampleScratch {
     ) -> (RecentLocator<'a, 's, 'f, D>, &'a mut VertexMemo) {
         if self.owner != sampler.id() {
             self.owner = sampler.id();
-            self.leaves.leaves.get_mut().clear();
+            self.leaves = RecentLeaves::default();
             self.memo.clear();
         }
         (
@@ -95,8 +110,13 @@ impl<D: AsRef<[u8]>> Locate for RecentLocator<'_, '_, '_, D> {
     fn locate_cell(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
         let offset = self.sampler.grid().offset();
         {
-            let mut leaves = self.leaves.leaves.borrow_mut();
-            if let Some(i) = leaves.iter().position(|l| l.finest.contains_cell(finest)) {
+            let leaves = self.leaves.leaves.borrow();
+            let last = self.leaves.last.get();
+            let hit = match leaves.get(last) {
+                Some(l) if l.finest.contains_cell(finest) => Some(last),
+                _ => leaves.iter().position(|l| l.finest.contains_cell(finest)),
+            };
+            if let Some(i) = hit {
                 let l = &leaves[i];
                 let abs = [0, 1, 2].map(|a| finest[a] + offset[a]);
                 let cell = match l.shift {
@@ -120,9 +140,7 @@ impl<D: AsRef<[u8]>> Locate for RecentLocator<'_, '_, '_, D> {
                         cell,
                         value,
                     };
-                    if i > 0 {
-                        leaves[..=i].rotate_right(1);
-                    }
+                    self.leaves.last.set(i);
                     return Ok(Some(found));
                 }
             }
@@ -142,11 +160,45 @@ impl<D: AsRef<[u8]>> Locate for RecentLocator<'_, '_, '_, D> {
                 },
             };
             let mut leaves = self.leaves.leaves.borrow_mut();
-            if leaves.len() == RECENT_LEAVES {
-                leaves.pop();
-            }
-            leaves.insert(0, recent);
+            let slot = if leaves.len() < RECENT_LEAVES {
+                leaves.push(recent);
+                leaves.len() - 1
+            } else {
+                let slot = self.leaves.next.get();
+                self.leaves.next.set((slot + 1) % RECENT_LEAVES);
+                leaves[slot] = recent;
+                slot
+            };
+            self.leaves.last.set(slot);
         }
         Ok(found)
+    }
+
+    #[inline]
+    fn block_of_level(&self, lo: [i64; 3], hi: [i64; 3], level: u32) -> Option<[f32; 8]> {
+        let leaves = self.leaves.leaves.borrow();
+        let l = leaves.get(self.leaves.last.get())?;
+        if l.level != level || !l.finest.contains_cell(lo) || !l.finest.contains_cell(hi) {
+            return None;
+        }
+        let offset = self.sampler.grid().offset();
+        let cell_of = |f: [i64; 3]| match l.shift {
+            Some(sh) => [0, 1, 2].map(|a| (f[a] + offset[a]) >> sh[a]),
+            None => self.sampler.grid().cell_of(level, f),
+        };
+        let (clo, chi) = (cell_of(lo), cell_of(hi));
+        if !l.cells.contains_cell(clo) || !l.cells.contains_cell(chi) {
+            return None;
+        }
+        let values: &[f32] = match &l.decoded {
+            Some(v) => v,
+            None => self.sampler.values_in_place(l.brick)?,
+        };
+        let mut out = [0f32; 8];
+        for (n, slot) in out.iter_mut().enumerate() {
+            let c = [0, 1, 2].map(|a| if n >> a & 1 == 1 { chi[a] } else { clo[a] });
+            *slot = *values.get(l.cells.linear_index(c))?;
+        }
+        Some(out)
     }
 }

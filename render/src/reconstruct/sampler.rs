@@ -73,13 +73,15 @@ impl Deref for Slab<'_> {
 pub struct VertexMemo {
     map: HashMap<VertexKey, Option<f32>, BuildHasherDefault<VertexHasher>>,
     capacity: usize,
-    /// Direct-mapped corner values of coarse octants met while stitching (allocated on first
-    /// use: 1024 slots of 48 bytes).
+    /// Direct-mapped corner values of octants (allocated on first use: `octant_slots` slots of
+    /// 48 bytes).
     octants: Vec<(Octant, Option<[f32; 8]>)>,
+    /// log2 of the octant table's slots.
+    octant_bits: u32,
 }
 
-/// Slots of [`VertexMemo`]'s octant table.
-const OCTANT_SLOTS: usize = 1024;
+/// log2 of the slots of [`VertexMemo`]'s octant table by default.
+const OCTANT_BITS: u32 = 10;
 
 impl Default for VertexMemo {
     fn default() -> Self {
@@ -87,6 +89,7 @@ impl Default for VertexMemo {
             map: HashMap::default(),
             capacity: 1 << 16,
             octants: Vec::new(),
+            octant_bits: OCTANT_BITS,
         }
     }
 }
@@ -98,18 +101,26 @@ impl VertexMemo {
         self.octants.clear();
     }
 
+    /// A memo whose octant table holds `2^bits` octants (1024 by default).
+    pub fn with_octant_bits(bits: u32) -> Self {
+        Self {
+            octant_bits: bits.clamp(1, 24),
+            ..Self::default()
+        }
+    }
+
     #[inline]
-    fn octant_slot(o: &Octant) -> usize {
+    fn octant_slot(&self, o: &Octant) -> usize {
         let h = (o.cell[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
             ^ (o.cell[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
             ^ (o.cell[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
             ^ (u64::from(o.level) << 3 | u64::from(o.octant)).wrapping_mul(0x27D4_EB2F_1656_67C5);
-        (h >> 54) as usize % OCTANT_SLOTS
+        (h >> (64 - self.octant_bits)) as usize
     }
 
     #[inline]
     fn octant_get(&self, o: &Octant) -> Option<Option<[f32; 8]>> {
-        let e = self.octants.get(Self::octant_slot(o))?;
+        let e = self.octants.get(self.octant_slot(o))?;
         (e.0 == *o).then_some(e.1)
     }
 
@@ -121,9 +132,10 @@ impl VertexMemo {
                 cell: [0; 3],
                 octant: 0,
             };
-            self.octants.resize(OCTANT_SLOTS, (empty, None));
+            self.octants.resize(1 << self.octant_bits, (empty, None));
         }
-        self.octants[Self::octant_slot(o)] = (*o, corners);
+        let slot = self.octant_slot(o);
+        self.octants[slot] = (*o, corners);
     }
 }
 
@@ -171,6 +183,14 @@ impl Hasher for VertexHasher {
 pub trait Locate {
     /// The leaf cell holding finest-level cell `finest` (relative to the domain, inside it).
     fn locate_cell(&self, finest: [i64; 3]) -> Result<Option<LeafCell>>;
+
+    /// The values of the eight finest cells `lo`/`hi` per axis (side `n` takes `hi` on axis `a`
+    /// when bit `a` of `n` is set) when a cheap check shows that all eight are leaf cells of
+    /// `level`; `None` leaves the caller to locate them one by one.
+    #[inline]
+    fn block_of_level(&self, _lo: [i64; 3], _hi: [i64; 3], _level: u32) -> Option<[f32; 8]> {
+        None
+    }
 }
 
 impl<D: AsRef<[u8]>> Locate for Sampler<'_, D> {
@@ -543,6 +563,9 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         octant: u8,
         memo: &mut VertexMemo,
     ) -> Result<Option<[f32; 8]>> {
+        if let Some(out) = self.corners_one_level(loc, level, cell, value, octant)? {
+            return Ok(Some(out));
+        }
         let (lo, _) = self.octant_box(&Octant {
             level,
             cell,
@@ -563,6 +586,75 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             }
         }
         Ok(Some(out))
+    }
+
+    /// [`Self::corners_in`] where the eight leaf cells around the octant's outer corner (the
+    /// cell's corner on the octant's side) are all of `level`: then no vertex is stitched, every
+    /// vertex's eight cells are among those eight, and each value is their [`avg8`] in
+    /// [`Self::vertex_value_from_in`]'s order, from 8 locates instead of one [`Self::around_in`]
+    /// per vertex. `None` when a cell there is of another level or not covered (the general
+    /// rule then decides).
+    #[inline]
+    fn corners_one_level<L: Locate>(
+        &self,
+        loc: &L,
+        level: u32,
+        cell: [i64; 3],
+        value: f32,
+        octant: u8,
+    ) -> Result<Option<[f32; 8]>> {
+        let centre = self.grid.centre(level, cell);
+        let s = self.grid.scale(level);
+        let up = [0, 1, 2].map(|a| octant >> a & 1 == 1);
+        let outer = [0, 1, 2].map(|a| if up[a] { centre[a] + s[a] } else { centre[a] - s[a] });
+        let lo = self.grid.finest_cell(outer, 0);
+        let hi = self.grid.finest_cell(outer, 7);
+        // Side n of the outer corner; where both nudges meet one finest cell (the domain's
+        // edge), side n repeats the side without that bit, as in `around_in`.
+        let mut same = 0usize;
+        for a in 0..3 {
+            if lo[a] == hi[a] {
+                same |= 1 << a;
+            }
+        }
+        if let Some(block) = loc.block_of_level(lo, hi, level) {
+            return Ok(Some(self.corners_from_block(&block, value, up)));
+        }
+        let mut block = [0f32; 8];
+        for n in 0..8 {
+            let m = n & !same;
+            if m != n {
+                block[n] = block[m];
+                continue;
+            }
+            let f = [0, 1, 2].map(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+            match loc.locate_cell(f)? {
+                Some(c) if c.level == level => block[n] = c.value,
+                _ => return Ok(None),
+            }
+        }
+        Ok(Some(self.corners_from_block(&block, value, up)))
+    }
+
+    /// The corners of an octant on the `up` side of a leaf cell of value `value`, from the
+    /// values `block` of the eight leaf cells around the octant's outer corner, all of the
+    /// cell's level ([`Self::corners_one_level`]).
+    #[inline]
+    fn corners_from_block(&self, block: &[f32; 8], value: f32, up: [bool; 3]) -> [f32; 8] {
+        // The side of the outer corner the cell itself lies on.
+        let own = (0..3).fold(0usize, |k, a| k | usize::from(!up[a]) << a);
+        let mut out = [0f32; 8];
+        for (n, slot) in out.iter_mut().enumerate() {
+            // Axes on which corner n lies on the outer face rather than at the cell's centre.
+            let face = (0..3).fold(0usize, |k, a| k | usize::from((n >> a & 1 == 1) == up[a]) << a);
+            if face == 0 {
+                *slot = value;
+                continue;
+            }
+            let cells = std::array::from_fn(|m| block[(m & face) | (own & !face)]);
+            *slot = avg8(&cells);
+        }
+        out
     }
 
     /// The corner values of an octant of a leaf cell; `None` when the cell is not a leaf cell or

@@ -23,6 +23,7 @@ use crate::trace::face::intersect_face;
 use crate::trace::octant::{intersect_voxel, VoxelHit};
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
+use crate::trace::tracer::central_difference_of;
 
 /// Bytes of decompressed bricks the sampler may cache.
 pub const BRICK_CACHE_BYTES: usize = 256 << 20;
@@ -260,6 +261,22 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
                 None
             }
         }
+    }
+
+    fn gradient(&self, p: [f64; 3], h: f64) -> Option<[f64; 3]> {
+        let mut cache = self.thread_cache().borrow_mut();
+        let sampler = self.sampler();
+        central_difference_of(
+            |q| match sampler.sample_with(q, self.reconstruction, &mut cache.scratch) {
+                Ok(v) => v.map(|s| s.0),
+                Err(e) => {
+                    self.record(e);
+                    None
+                }
+            },
+            p,
+            h,
+        )
     }
 
     fn release_pages(&self) {

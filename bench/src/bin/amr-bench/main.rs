@@ -1,10 +1,11 @@
 //! `amr-bench`: measurements of the renderer for `docs/benchmarks*.md`; `open`, `read`, `bvh`
-//! and `suite` are subcommands.
+//! `sample` and `suite` are subcommands.
 
 mod bvh;
 mod open;
 mod read;
 mod render_stats;
+mod sample;
 mod suite;
 
 use std::process::ExitCode;
@@ -27,6 +28,8 @@ enum Command {
     Read(read::ReadArgs),
     /// BVH built in chunks against one BVH, side by side: build time, scratch, frame time.
     Bvh(bvh::BvhArgs),
+    /// Nanoseconds per point sample of each reconstruction, near level boundaries and away.
+    Sample(sample::SampleArgs),
     /// Regenerates docs/benchmarks-suite.md and its plots (docs/img/*.png) end to end.
     Suite(suite::SuiteArgs),
     /// The suite's scale render of one file, statistics as JSON on stdout (run by `suite`).
@@ -39,6 +42,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Open(args) => open::run(&args),
         Command::Read(args) => read::run(&args),
         Command::Bvh(args) => bvh::run(&args),
+        Command::Sample(args) => sample::run(&args),
         Command::Suite(args) => suite::run(args),
         Command::RenderStats(args) => render_stats::run(&args),
     }

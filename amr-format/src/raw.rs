@@ -22,6 +22,27 @@ pub const ENCODING_ZSTD_SHUFFLED: u32 = 1;
 /// Kind tag of a [`KdNode`] that is a leaf (kinds 0, 1, 2 are inner nodes split on x, y, z).
 pub const KD_LEAF: u32 = 3;
 
+/// Bit of [`SimulationStamp::flags`]: `time` holds the simulation time.
+pub const STAMP_HAS_TIME: u32 = 1;
+/// Bit of [`SimulationStamp::flags`]: `step` holds the simulation step.
+pub const STAMP_HAS_STEP: u32 = 2;
+
+/// When in a simulation a file's data was written (24 bytes, in the footer). All zero (no flag)
+/// in files that do not say, such as every file written before it existed: the bytes were
+/// reserved and zero, so the layout version did not change.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+pub struct SimulationStamp {
+    /// Simulation time, finite, when [`STAMP_HAS_TIME`] is set.
+    pub time: F64,
+    /// Simulation step (cycle), when [`STAMP_HAS_STEP`] is set.
+    pub step: I64,
+    /// [`STAMP_HAS_TIME`] | [`STAMP_HAS_STEP`].
+    pub flags: U32,
+    /// Zero.
+    pub reserved: U32,
+}
+
 /// File header at offset 0 (64 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
@@ -87,7 +108,9 @@ pub struct Footer {
     /// UTF-8 field names.
     pub strings: Section,
     /// Zero.
-    pub reserved1: [u8; 72],
+    pub reserved1: [u8; 48],
+    /// When in the simulation the data was written, where the input said.
+    pub simulation: SimulationStamp,
     /// CRC-32 of the metadata region.
     pub metadata_crc: U32,
     /// CRC-32 of the footer's bytes before this field.
@@ -205,6 +228,7 @@ pub struct LeafRange {
 const _: () = assert!(size_of::<Header>() == 64);
 const _: () = assert!(size_of::<Section>() == 16);
 const _: () = assert!(size_of::<Footer>() == 256);
+const _: () = assert!(size_of::<SimulationStamp>() == 24);
 const _: () = assert!(size_of::<LevelRecord>() == 128);
 const _: () = assert!(size_of::<FieldRecord>() == 64);
 const _: () = assert!(size_of::<BrickRecord>() == 56);

@@ -164,6 +164,19 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         &self.footer
     }
 
+    /// The simulation time the data was written at, when the file records it.
+    pub fn simulation_time(&self) -> Option<f64> {
+        let s = &self.footer.simulation;
+        let t = s.time.get();
+        (s.flags.get() & crate::raw::STAMP_HAS_TIME != 0 && t.is_finite()).then_some(t)
+    }
+
+    /// The simulation step (cycle) the data was written at, when the file records it.
+    pub fn simulation_step(&self) -> Option<i64> {
+        let s = &self.footer.simulation;
+        (s.flags.get() & crate::raw::STAMP_HAS_STEP != 0).then(|| s.step.get())
+    }
+
     /// Levels, coarsest first.
     pub fn levels(&self) -> &[LevelInfo] {
         &self.levels

@@ -75,6 +75,7 @@ pub struct AmrkWriter {
     compression: Compression,
     data_end: u64,
     tree: KdTree,
+    simulation: raw::SimulationStamp,
 }
 
 struct Spill {
@@ -161,7 +162,27 @@ impl AmrkWriter {
             compression: opts.compression,
             data_end,
             tree,
+            simulation: raw::SimulationStamp::default(),
         })
+    }
+
+    /// Records when in the simulation the data was written (`None`: not known), for frames to
+    /// be labelled and ordered. A time must be finite.
+    pub fn set_simulation(&mut self, time: Option<f64>, step: Option<i64>) -> Result<()> {
+        let mut stamp = raw::SimulationStamp::default();
+        if let Some(t) = time {
+            if !t.is_finite() {
+                return Err(FormatError::Usage(format!("simulation time {t} is not finite")));
+            }
+            stamp.time = t.into();
+            stamp.flags = (stamp.flags.get() | raw::STAMP_HAS_TIME).into();
+        }
+        if let Some(n) = step {
+            stamp.step = n.into();
+            stamp.flags = (stamp.flags.get() | raw::STAMP_HAS_STEP).into();
+        }
+        self.simulation = stamp;
+        Ok(())
     }
 
     /// The hierarchy this writer was created with.
@@ -402,7 +423,8 @@ impl AmrkWriter {
             leaves: leaves_sec,
             brick_list: list_sec,
             strings: strings_sec,
-            reserved1: [0; 72],
+            reserved1: [0; 48],
+            simulation: self.simulation,
             metadata_crc: metadata_crc.into(),
             footer_crc: 0.into(),
         };

@@ -2,7 +2,7 @@
 
 use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use amr_format::hierarchy::MAX_BRICK_EXTENT;
@@ -50,16 +50,26 @@ impl std::fmt::Display for ConvertSummary {
 }
 
 /// An input format `amr-convert` recognises.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub enum InputFormat {
     /// An AMReX plotfile directory.
     Amrex,
-    /// A Chombo HDF5 file.
+    /// A Chombo HDF5 file (plotfile or checkpoint).
     ChomboHdf5,
+    /// An Enzo dataset: its parameter file and hierarchy file.
+    Enzo {
+        /// The parameter file.
+        params: PathBuf,
+        /// The `.hierarchy` file.
+        hierarchy: PathBuf,
+    },
 }
 
 /// Works out what `input` is, or says why it is not recognised.
 pub fn detect(input: &Path) -> anyhow::Result<InputFormat> {
+    if let Some((params, hierarchy)) = crate::enzo::locate(input) {
+        return Ok(InputFormat::Enzo { params, hierarchy });
+    }
     if input.is_dir() {
         let header = input.join("Header");
         if header.is_file() {
@@ -74,7 +84,8 @@ pub fn detect(input: &Path) -> anyhow::Result<InputFormat> {
             );
         }
         bail!(
-            "unrecognised input {}: a directory without a Header file (not an AMReX plotfile)",
+            "unrecognised input {}: a directory without a Header file (not an AMReX plotfile) \
+             and without exactly one .hierarchy file (not an Enzo dataset)",
             input.display()
         );
     }
@@ -89,7 +100,8 @@ pub fn detect(input: &Path) -> anyhow::Result<InputFormat> {
         bail!("input {} does not exist", input.display());
     }
     bail!(
-        "unrecognised input {}: expected an AMReX plotfile directory or a Chombo .h5/.hdf5 file",
+        "unrecognised input {}: expected an AMReX plotfile directory, a Chombo .h5/.hdf5 file, \
+         or an Enzo parameter file with its .hierarchy beside it",
         input.display()
     )
 }
@@ -115,10 +127,16 @@ pub fn run_convert(
     };
     let bar = Bar::bytes("converting");
     let stats = match detect(input)? {
-        InputFormat::Amrex => amrex::convert(input, output, &opts, &bar)
+        InputFormat::Amrex => amrex::Plotfile::open(input)
+            .and_then(|pf| crate::hierarchy_to_amrk::convert(&pf, output, &opts, &bar))
             .with_context(|| format!("converting AMReX plotfile {}", input.display()))?,
-        InputFormat::ChomboHdf5 => crate::chombo::convert(input, output, &opts, &bar)
-            .context("converting Chombo plotfile")?,
+        InputFormat::ChomboHdf5 => {
+            crate::chombo::convert(input, output, &opts, &bar).context("converting Chombo file")?
+        }
+        InputFormat::Enzo { params, hierarchy } => {
+            crate::enzo::convert(&params, &hierarchy, output, &opts, &bar)
+                .with_context(|| format!("converting Enzo dataset {}", params.display()))?
+        }
     };
     let output_bytes = std::fs::metadata(output).map(|m| m.len()).unwrap_or(0);
     Ok(ConvertSummary {

@@ -1,6 +1,8 @@
 //! `amr-convert`: turns simulation dumps, or synthetic cases, into `.amrk` files.
 
-use std::path::PathBuf;
+mod series;
+
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use amr_convert::convert_cmd::run_convert;
@@ -8,7 +10,7 @@ use amr_convert::synth_cmd::{run_synth, SynthArgs};
 use amr_format::Compression;
 use clap::{Parser, Subcommand};
 
-/// Streams AMR simulation dumps (AMReX plotfiles, Chombo HDF5 plotfiles) into one memory-mappable .amrk file.
+/// Streams AMR simulation dumps (AMReX plotfiles, Chombo HDF5 plotfiles and checkpoints, Enzo datasets) into one memory-mappable .amrk file.
 #[derive(Parser, Debug)]
 #[command(
     version,
@@ -18,10 +20,13 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
-    /// The dump to convert: an AMReX plotfile directory or a Chombo HDF5 plotfile (.h5, .hdf5).
-    #[arg(required = true)]
-    input: Option<PathBuf>,
-    /// The .amrk file to write (written to a temporary file, renamed when complete).
+    /// The dump to convert: an AMReX plotfile directory, a Chombo HDF5 plotfile or checkpoint
+    /// (.h5, .hdf5), or an Enzo dataset (its parameter file, its .hierarchy, or its directory).
+    /// Several dumps (a time series) go to one directory, one NAME.amrk each.
+    #[arg(required = true, num_args = 1.., value_name = "INPUT")]
+    inputs: Vec<PathBuf>,
+    /// The .amrk file to write (written to a temporary file, renamed when complete); for several
+    /// inputs, or a path ending in '/', the directory to write them to (created if needed).
     #[arg(short, long, required = true)]
     output: Option<PathBuf>,
     /// A field to convert (repeat for several; all fields by default).
@@ -41,21 +46,30 @@ enum Command {
     Synth(SynthArgs),
 }
 
+/// Converts one dump as `cli` asks.
+fn convert_one(cli: &Cli, input: &Path, output: &Path) -> anyhow::Result<()> {
+    let compression = if cli.compress {
+        Compression::Zstd { level: 3 }
+    } else {
+        Compression::None
+    };
+    let summary = run_convert(input, output, &cli.fields, cli.brick, compression)?;
+    eprintln!("{}: {summary}", output.display());
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Some(Command::Synth(args)) => run_synth(args),
         None => {
-            let (Some(input), Some(output)) = (&cli.input, &cli.output) else {
-                unreachable!("clap requires INPUT and --output without a subcommand")
+            let Some(output) = &cli.output else {
+                unreachable!("clap requires --output without a subcommand")
             };
-            let compression = if cli.compress {
-                Compression::Zstd { level: 3 }
-            } else {
-                Compression::None
-            };
-            run_convert(input, output, &cli.fields, cli.brick, compression)
-                .map(|s| eprintln!("{s}"))
+            series::outputs(&cli.inputs, output).and_then(|jobs| {
+                jobs.iter()
+                    .try_for_each(|(input, output)| convert_one(&cli, input, output))
+            })
         }
     };
     match result {

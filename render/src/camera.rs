@@ -22,6 +22,14 @@ pub enum CameraError {
     /// The field of view is outside `(0, 180)` degrees.
     #[error("--fov {0} is outside (0, 180) degrees")]
     BadFov(f64),
+    /// Automatic framing of a domain failed: its size overflows the camera's arithmetic.
+    #[error("the domain {lo:?}..{hi:?} is too large to frame automatically; place the camera with --camera-pos")]
+    Unframeable {
+        /// Lower corner.
+        lo: [f64; 3],
+        /// Upper corner.
+        hi: [f64; 3],
+    },
     /// The image has no pixels.
     #[error("image size {0}x{1} has no pixels")]
     EmptyImage(u32, u32),
@@ -92,6 +100,9 @@ impl Camera {
         let dist = radius / half_h.sin() * 1.02;
         let dir = normalize([1.0, -1.6, 0.9]).unwrap_or([1.0, 0.0, 0.0]);
         let pos = [0, 1, 2].map(|a| centre[a] + dir[a] * dist);
+        if pos.iter().chain(&centre).any(|x| !x.is_finite()) {
+            return Err(CameraError::Unframeable { lo, hi });
+        }
         Camera::new(pos, centre, [0.0, 0.0, 1.0], fov_deg)
     }
 
@@ -135,10 +146,21 @@ pub(crate) fn length(a: [f64; 3]) -> f64 {
     dot(a, a).sqrt()
 }
 
-/// `a / |a|`, or `None` for a zero or non-finite vector.
+/// `a / |a|`, or `None` for a zero or non-finite vector. The vector is scaled by its largest
+/// component first, so that vectors near the ends of the `f64` range (whose squared length
+/// overflows or underflows) still have a direction.
 pub(crate) fn normalize(a: [f64; 3]) -> Option<[f64; 3]> {
     let l = length(a);
-    (l > 0.0 && l.is_finite()).then(|| a.map(|x| x / l))
+    if l.is_normal() {
+        return Some(a.map(|x| x / l));
+    }
+    let m = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if !(m > 0.0 && m.is_finite()) {
+        return None;
+    }
+    let b = a.map(|x| x / m);
+    let l = length(b);
+    Some(b.map(|x| x / l))
 }
 
 #[cfg(test)]
@@ -177,6 +199,16 @@ mod tests {
             Camera::new([f64::NAN, 0.0, 0.0], x, [0.0, 0.0, 1.0], 40.0),
             Err(CameraError::NotFinite { .. })
         ));
+    }
+
+    #[test]
+    fn extreme_but_finite_cameras_have_a_direction() {
+        let far = Camera::new([1e308, 0.0, 0.0], [0.5; 3], [0.0, 0.0, 1.0], 40.0).unwrap();
+        assert!((far.forward()[0] + 1.0).abs() < 1e-12);
+        let near = Camera::new([1e-300, 0.0, 0.0], [0.0; 3], [0.0, 0.0, 1.0], 40.0).unwrap();
+        assert!((near.forward()[0] + 1.0).abs() < 1e-12);
+        let huge = Camera::framing([0.0; 3], [1e308; 3], 40.0, 1.0);
+        assert!(matches!(huge, Err(CameraError::Unframeable { .. })), "{huge:?}");
     }
 
     #[test]

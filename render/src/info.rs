@@ -17,6 +17,18 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
         cells[info.level as usize] += info.cells.num_cells().unwrap_or(0);
     }
     let _ = writeln!(out, "file bytes: {}", file.bytes().len());
+    match (file.simulation_time(), file.simulation_step()) {
+        (None, None) => {}
+        (time, step) => {
+            let show = |v: Option<String>| v.unwrap_or_else(|| "not recorded".into());
+            let _ = writeln!(
+                out,
+                "simulation: time {} step {}",
+                show(time.map(|t| t.to_string())),
+                show(step.map(|n| n.to_string()))
+            );
+        }
+    }
     let _ = writeln!(out, "levels: {nl}");
     for (l, lev) in file.levels().iter().enumerate() {
         let _ = writeln!(

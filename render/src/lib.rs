@@ -22,6 +22,7 @@
 
 pub mod bvh;
 pub mod camera;
+pub mod camera_path;
 pub mod error;
 pub mod extract;
 pub mod info;

@@ -132,3 +132,124 @@ fn stats_json_has_the_documented_keys() {
     }
     assert!(text.contains("\"field\": \"blobs\""), "{text}");
 }
+
+/// The text attribute `key` of an EXR file.
+fn attribute(path: &Path, key: &str) -> String {
+    let attrs = amr_render::output::exr_file::read_text_attributes(path).unwrap();
+    attrs
+        .into_iter()
+        .find(|(k, _)| k == key)
+        .unwrap_or_else(|| panic!("{}: no attribute {key}", path.display()))
+        .1
+}
+
+/// Bit patterns of a channel.
+fn bits(path: &Path, channel: &str) -> Vec<u32> {
+    let (_, _, v) = read_channel(path, channel).unwrap();
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+#[test]
+fn an_orbit_writes_numbered_frames_from_one_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let (f, d) = (file.to_str().unwrap(), dir.path());
+    let out = d.join("orbit.exr");
+    let json = d.join("orbit.json");
+    let o = amr_render(&[
+        f, "--iso", "10", "--size", "32x24", "--ao", "1", "--orbit", "4", "-o",
+        out.to_str().unwrap(), "--stats-json", json.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for k in 0..4 {
+        let frame = d.join(format!("orbit_{k:04}.exr"));
+        assert_eq!(attribute(&frame, "frame"), format!("{k} of 4"));
+    }
+    assert!(!d.join("orbit_0004.exr").exists() && !out.exists());
+    // One extraction: the frames after the first rebuild nothing.
+    let stats: Vec<serde_json::Value> = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(stats.len(), 4);
+    assert!(stats[1..].iter().all(|s| s["extract_ms"] == 0.0 && s["bvh_ms"] == 0.0), "{stats:?}");
+    // The first frame is the single frame from the same camera; the others differ.
+    let single = d.join("single.exr");
+    let o = amr_render(&[f, "--iso", "10", "--size", "32x24", "--ao", "1", "-o", single.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(bits(&single, "R"), bits(&d.join("orbit_0000.exr"), "R"));
+    assert_ne!(bits(&single, "Z"), bits(&d.join("orbit_0001.exr"), "Z"));
+}
+
+#[test]
+fn a_sweep_records_its_isovalues_and_a_series_equals_separate_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let (f, d) = (file.to_str().unwrap(), dir.path());
+    let sweep = d.join("sweep.exr");
+    let o = amr_render(&[f, "--iso-sweep", "6:12:3:red", "--size", "24x18", "-o", sweep.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (k, iso) in ["6", "9", "12"].iter().enumerate() {
+        let isos = attribute(&d.join(format!("sweep_{k:04}.exr")), "isovalues");
+        assert!(isos.starts_with(&format!("{iso}:")), "frame {k}: {isos}");
+    }
+
+    // A second file of the series: another field's range, so its frame differs.
+    let other = d.join("other.amrk");
+    let params = SynthParams::unit_cube(2, 2, 16, 8);
+    write_synth(&other, Case::Sphere, &params, WriterOptions::default(), &NoProgress).unwrap();
+    let o_ = other.to_str().unwrap();
+    let series = d.join("series.exr");
+    let cam = ["--camera-pos", "2,-1.5,1.5", "--look-at", "0.5,0.5,0.5"];
+    let mut args = vec![f, o_, f, "--iso", "0.1", "--size", "24x18", "-o", series.to_str().unwrap()];
+    args.extend(cam);
+    let o = amr_render(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (k, input) in [f, o_, f].iter().enumerate() {
+        let alone = d.join(format!("alone{k}.exr"));
+        let mut args = vec![*input, "--iso", "0.1", "--size", "24x18", "-o", alone.to_str().unwrap()];
+        args.extend(cam);
+        let o = amr_render(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let framed = d.join(format!("series_{k:04}.exr"));
+        for c in ["R", "G", "B", "A", "Z"] {
+            assert_eq!(bits(&alone, c), bits(&framed, c), "frame {k}, channel {c}");
+        }
+    }
+}
+
+#[test]
+fn a_scene_file_renders_what_its_command_line_did() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let d = dir.path();
+    let first = d.join("first.exr");
+    let scene = d.join("scene.toml");
+    let o = amr_render(&[
+        file.to_str().unwrap(), "--iso", "-5:#3070ff:0.5", "--iso", "10:gold", "--size", "24x18",
+        "--no-shadows", "--camera-pos", "2,-1,1", "-o", first.to_str().unwrap(),
+        "--write-scene", scene.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&scene).unwrap();
+    assert!(text.contains("no-shadows = true") && text.contains("iso = ["), "{text}");
+    let again = d.join("again.exr");
+    let o = amr_render(&[scene.to_str().unwrap(), "-o", again.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for c in ["R", "G", "B", "A", "Z"] {
+        assert_eq!(bits(&first, c), bits(&again, c), "channel {c}");
+    }
+    let bad = d.join("bad.toml");
+    std::fs::write(&bad, "size = \"24x18\"\n").unwrap();
+    let o = amr_render(&[bad.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("no `files`"), "{}", stderr(&o));
+}
+
+#[test]
+fn animation_counts_must_agree() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let f = file.to_str().unwrap();
+    let out = dir.path().join("x.exr");
+    let o = amr_render(&[f, f, "--orbit", "3", "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("frame counts must agree"), "{}", stderr(&o));
+}

@@ -3,8 +3,8 @@
 //! `CHOMBO_BENCH_FILE=/path/big.3d.hdf5 cargo test --release -p amr-tests --test chombo_bench -- --ignored`
 //!
 //! Three levels (ratio 2 then 4), 32³ boxes with 3 ghost layers (GRChombo's default), four
-//! float64 components; about 1 GB. Written box by box so the generator's memory stays small.
-
+//! float64 components: 930 MB; `CHOMBO_BENCH_COMPS=5` adds a fifth component for 1.16 GB.
+//! Written box by box so the generator's memory stays small.
 
 use crate::support::chombo::writer::{attr, attr_str, int_vect, padded_box_type, raw_box, RawBox};
 use hdf5_metno::File;
@@ -29,7 +29,12 @@ fn write_benchmark_file() -> hdf5_metno::Result<()> {
         eprintln!("set CHOMBO_BENCH_FILE to the file to write");
         return Ok(());
     };
-    let comps = ["chi", "phi", "Ham", "lapse"];
+    let ncomps: usize = std::env::var("CHOMBO_BENCH_COMPS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(4)
+        .clamp(1, 6);
+    let comps = &["chi", "phi", "Ham", "lapse", "K", "shift1"][..ncomps];
     let ghost = 3i64;
     // Level 0: 128³, all 64 boxes. Level 1 (x2): a 192³ region around the centre (216 boxes).
     // Level 2 (x4 from level 1): two 160³ regions around two punctures (250 boxes).

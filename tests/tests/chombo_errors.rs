@@ -1,13 +1,12 @@
 //! Bad Chombo files: each gives an error that says what is wrong and where, never a panic,
 //! and never an output file (nor a temporary left beside it).
 
-
 use std::path::Path;
 
+use crate::support::chombo::{writer, Desc};
 use amr_convert::chombo::{self, ConvertOptions};
 use amr_format::progress::NoProgress;
 use amr_format::Compression;
-use crate::support::chombo::{writer, Desc};
 
 /// Writes `d`, converts it, and returns the error's full chain; checks nothing was written.
 fn fails(d: &Desc) -> String {
@@ -49,16 +48,16 @@ fn assert_has(msg: &str, parts: &[&str]) {
 }
 
 #[test]
-fn a_checkpoint_is_named_as_such() {
+fn a_file_of_boxes_only_says_it_has_no_data() {
     let mut d = Desc::three_levels(true);
-    d.checkpoint = true;
-    let msg = fails(&d);
+    d.boxes_only = true;
     assert_has(
-        &msg,
+        &fails(&d),
         &[
             "plt.3d.hdf5",
-            "this is a Chombo checkpoint, not a plotfile",
-            "density:datatype=0",
+            "no data to convert",
+            "no num_levels",
+            "meshRefineTest",
         ],
     );
 }
@@ -247,15 +246,19 @@ fn a_missing_file() {
 fn run_convert_reports_the_chombo_error_with_context() {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("chk.3d.hdf5");
-    let mut d = Desc::three_levels(true);
-    d.checkpoint = true;
+    let mut d = Desc::per_variable_checkpoint();
+    d.omit_level = vec![(1, "mom:offsets=0".into())];
     writer::write(&input, &d).unwrap();
     let out = dir.path().join("out.amrk");
     let err =
         amr_convert::convert_cmd::run_convert(&input, &out, &[], 8, Compression::None).unwrap_err();
     assert_has(
         &format!("{err:#}"),
-        &["converting Chombo plotfile", "checkpoint, not a plotfile"],
+        &[
+            "converting Chombo file",
+            "chk.3d.hdf5",
+            "level_1: missing dataset 'mom:offsets=0'",
+        ],
     );
     assert!(!out.exists());
 }

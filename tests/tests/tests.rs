@@ -3,8 +3,13 @@
 //! Readers, on real files (`../shared/data`) and on files written after each code's own writer:
 //! - [`amrex_real`]: PeleLM plotfiles and the bad plotfiles beside them.
 //! - [`amrex_written`]: plotfiles this suite writes (float32 and float64, ghost cells, layouts).
+//! - [`amrex_float32`]: FAB headers typed out from AMReX's own writer (float32 and float64).
+//! - [`amrex_ratio_one`]: a ratio of 1 on an axis is refused with the reason.
 //! - [`chombo_convert`] and [`chombo_errors`]: Chombo HDF5 files, good and bad.
-//! - [`amrex_bench`] and [`chombo_bench`]: large inputs for the conversion benchmarks (ignored).
+//! - [`chombo_checkpoint`]: Chombo checkpoints in both layouts.
+//! - [`enzo_convert`]: the real Enzo dataset against yt, written Enzo datasets, bad ones.
+//! - [`amrex_bench`], [`chombo_bench`] and [`enzo_bench`]: large inputs for the conversion
+//!   benchmarks (ignored).
 //!
 //! Reconstruction and extraction, on seeded random hierarchies:
 //! - [`reconstruct_continuity`]: the octant method is continuous across level boundaries.
@@ -22,11 +27,16 @@
 mod support;
 
 mod amrex_bench;
+mod amrex_float32;
+mod amrex_ratio_one;
 mod amrex_real;
 mod amrex_written;
 mod chombo_bench;
+mod chombo_checkpoint;
 mod chombo_convert;
 mod chombo_errors;
+mod enzo_bench;
+mod enzo_convert;
 mod extract_reference;
 mod hybrid_current_nearest;
 mod reconstruct_continuity;

@@ -257,7 +257,7 @@ FabOnDisk: Cell_D_00000 0\nFabOnDisk: Cell_D_00001 5000000000\n\n2,2\n1,2,\n3,4,
     fn version_2_with_ghost_vector_and_descriptor() {
         let h = parse(
             "2\n1\n1\n(1,1,2)\n(1 0\n((0,0,0) (3,3,3) (0,0,0))\n)\n1\nFabOnDisk: Cell_D_00000 0\n\n\
-((4, (32 8 23 0 1 9 0 127)),(4, (1 2 3 4)))\n",
+((8, (32 8 23 0 1 9 0 127)),(4, (1 2 3 4)))\n",
         )
         .unwrap();
         assert_eq!(h.nghost, [1, 1, 2]);

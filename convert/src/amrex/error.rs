@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use amr_format::FormatError;
+use crate::hierarchy_to_amrk::ConvertError;
 
 /// Everything that can go wrong while reading an AMReX plotfile or converting it.
 #[derive(Debug, thiserror::Error)]
@@ -73,25 +73,9 @@ pub enum AmrexError {
         /// "a NaN", "an infinite value" or "a value outside the f32 range".
         why: &'static str,
     },
-    /// A requested field is not in the plotfile.
-    #[error("{}: no field named '{name}'; the plotfile has: {available}", path.display())]
-    UnknownField {
-        /// The plotfile's `Header`.
-        path: PathBuf,
-        /// The requested name.
-        name: String,
-        /// The plotfile's field names, comma-separated.
-        available: String,
-    },
-    /// The `.amrk` writer refused the data or failed to write.
-    #[error("writing {}: {source}", path.display())]
-    Output {
-        /// The output file.
-        path: PathBuf,
-        /// The writer's error.
-        #[source]
-        source: Box<FormatError>,
-    },
+    /// The shared conversion failed: an unknown field, or the `.amrk` writer.
+    #[error(transparent)]
+    Convert(#[from] ConvertError),
 }
 
 /// Result with [`AmrexError`].

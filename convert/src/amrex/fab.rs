@@ -2,8 +2,11 @@
 //! precedes version-1 data, and decoding raw numbers to checked `f32`.
 //!
 //! A header reads `FAB ((8, (64 11 52 0 1 12 0 1023)),(8, (8 7 6 5 4 3 2 1)))((lo) (hi) (t)) n`:
-//! the float layout (bits, exponent bits, mantissa bits, ..., bias), the byte order (which byte
-//! of the number is stored first), the box the data covers and the component count.
+//! two arrays, each printed as `(number of entries, (entries))`: the float layout (always 8
+//! entries: bits, exponent bits, mantissa bits, ..., bias) and the byte order (one entry per
+//! byte: which byte of the number is stored first), then the box the data covers and the
+//! component count. A float32 little-endian header reads
+//! `FAB ((8, (32 8 23 0 1 9 0 127)),(4, (4 3 2 1)))...`. `docs/amrex.md` cites AMReX's writer.
 
 use amr_format::IBox;
 
@@ -37,35 +40,27 @@ impl RealFormat {
         }
     }
 
-    /// Scans a real descriptor. The outer error is a syntax error; the inner one a valid
-    /// descriptor of a format this reader does not decode.
+    /// Scans a real descriptor: `(` format array `,` order array `)`, each array written by
+    /// AMReX's `putarray` as `(N, (e1 ... eN))` with `N` the number of entries. The outer error
+    /// is a syntax error; the inner one a valid descriptor of a format this reader does not
+    /// decode.
     pub(crate) fn scan(s: &mut Scan) -> Result<Result<RealFormat, String>, String> {
         s.expect('(')?;
-        s.expect('(')?;
-        let nbytes = s.int()?;
+        let layout = counted_list(s, "format")?;
         s.expect(',')?;
-        let layout = int_list(s)?;
+        let order = counted_list(s, "byte order")?;
         s.expect(')')?;
-        s.expect(',')?;
-        s.expect('(')?;
-        let obytes = s.int()?;
-        s.expect(',')?;
-        let order = int_list(s)?;
-        s.expect(')')?;
-        s.expect(')')?;
-        let seq = |n: i64| (1..=n).collect::<Vec<i64>>();
-        let (le, be) = (
-            seq(obytes).into_iter().rev().collect::<Vec<_>>(),
-            seq(obytes),
-        );
-        let f = match (nbytes, layout.as_slice(), obytes) {
-            (8, l, 8) if l == IEEE64 && order == le => RealFormat::F64Le,
-            (8, l, 8) if l == IEEE64 && order == be => RealFormat::F64Be,
-            (4, l, 4) if l == IEEE32 && order == le => RealFormat::F32Le,
-            (4, l, 4) if l == IEEE32 && order == be => RealFormat::F32Be,
+        let n = order.len() as i64;
+        let le: Vec<i64> = (1..=n).rev().collect();
+        let be: Vec<i64> = (1..=n).collect();
+        let f = match (layout.as_slice(), n) {
+            (l, 8) if l == IEEE64 && order == le => RealFormat::F64Le,
+            (l, 8) if l == IEEE64 && order == be => RealFormat::F64Be,
+            (l, 4) if l == IEEE32 && order == le => RealFormat::F32Le,
+            (l, 4) if l == IEEE32 && order == be => RealFormat::F32Be,
             _ => {
                 return Ok(Err(format!(
-                    "number format ({nbytes}, {layout:?}) with byte order {order:?}: only IEEE float32 and float64, little- or big-endian, are read"
+                    "number format {layout:?} with byte order {order:?}: only IEEE float32 and float64, little- or big-endian, are read"
                 )))
             }
         };
@@ -142,15 +137,31 @@ fn decode64(bytes: &[u8], out: &mut [f32], from: fn([u8; 8]) -> f64, ok: &mut bo
     *ok = all;
 }
 
-fn int_list(s: &mut Scan) -> Result<Vec<i64>, String> {
+/// One array as AMReX's `putarray` writes it: `(N, (e1 e2 ... eN))`.
+fn counted_list(s: &mut Scan, what: &str) -> Result<Vec<i64>, String> {
     s.expect('(')?;
-    let mut v = Vec::new();
+    let n = s.int()?;
+    if !(1..=64).contains(&n) {
+        return Err(format!("{what} array of {n} entries"));
+    }
+    s.expect(',')?;
+    s.expect('(')?;
+    let mut v = Vec::with_capacity(n as usize);
     while !s.eat(')') {
-        if v.len() >= 64 {
-            return Err("descriptor list is too long".into());
+        if v.len() as i64 == n {
+            return Err(format!(
+                "{what} array has more than the {n} entries it announces"
+            ));
         }
         v.push(s.int()?);
     }
+    if v.len() as i64 != n {
+        return Err(format!(
+            "{what} array announces {n} entries but holds {}",
+            v.len()
+        ));
+    }
+    s.expect(')')?;
     Ok(v)
 }
 
@@ -210,7 +221,7 @@ mod tests {
         assert_eq!(h.data_box, IBox::new([0, 8, 8], [8, 16, 16]));
         assert_eq!(h.ncomp, 38);
         let h = FabHeader::parse(
-            "FAB ((4, (32 8 23 0 1 9 0 127)),(4, (1 2 3 4)))((-1,0,0) (3,3,3) (0,0,0)) 1",
+            "FAB ((8, (32 8 23 0 1 9 0 127)),(4, (1 2 3 4)))((-1,0,0) (3,3,3) (0,0,0)) 1",
         )
         .unwrap()
         .unwrap();
@@ -221,6 +232,25 @@ mod tests {
         .unwrap()
         .is_err());
         assert!(FabHeader::parse("FAB 8BIT").is_err());
+    }
+
+    #[test]
+    fn float32_headers_as_amrex_prints_them() {
+        let h = FabHeader::parse(
+            "FAB ((8, (32 8 23 0 1 9 0 127)),(4, (4 3 2 1)))((0,0,0) (1,1,1) (0,0,0)) 2",
+        )
+        .unwrap()
+        .unwrap();
+        assert_eq!(h.format, RealFormat::F32Le);
+        assert_eq!(h.ncomp, 2);
+        for wrong in [
+            "FAB ((4, (32 8 23 0 1 9 0 127)),(4, (4 3 2 1)))((0,0,0) (1,1,1) (0,0,0)) 2",
+            "FAB ((8, (32 8 23 0 1 9 0)),(4, (4 3 2 1)))((0,0,0) (1,1,1) (0,0,0)) 2",
+            "FAB ((8, (32 8 23 0 1 9 0 127)),(5, (4 3 2 1)))((0,0,0) (1,1,1) (0,0,0)) 2",
+        ] {
+            let e = FabHeader::parse(wrong).unwrap_err();
+            assert!(e.contains("entries"), "{wrong}: {e}");
+        }
     }
 
     #[test]

@@ -46,6 +46,8 @@ pub struct PlotHeader {
     pub fields: Vec<String>,
     /// Simulation time.
     pub time: f64,
+    /// Level 0's step, when the level-steps line holds one.
+    pub step: Option<i64>,
     /// Physical lower corner of the problem domain.
     pub prob_lo: [f64; 3],
     /// Physical upper corner of the problem domain.
@@ -130,7 +132,12 @@ pub(crate) fn parse_header<R: BufRead>(mut r: TextReader<R>) -> Result<PlotHeade
     }
     let ratio_items = ratio_line(&mut r, finest)?;
     let domains = domain_line(&mut r, nlev)?;
-    r.next("the level steps")?;
+    // AMReX writes each level's step; level 0's is the run's step.
+    let step = r
+        .next("the level steps")?
+        .split_whitespace()
+        .next()
+        .and_then(|s| s.parse::<i64>().ok());
     let mut cell_sizes = Vec::with_capacity(nlev);
     for l in 0..nlev {
         cell_sizes.push(vec3(&mut r, &format!("the cell size of level {l}"))?);
@@ -164,6 +171,7 @@ pub(crate) fn parse_header<R: BufRead>(mut r: TextReader<R>) -> Result<PlotHeade
         version,
         fields,
         time,
+        step,
         prob_lo,
         prob_hi,
         levels,
@@ -315,7 +323,11 @@ fn ratio<R: BufRead>(
         if q < 2 {
             return Err(AmrexError::unsupported(
                 r.path(),
-                format!("refinement ratio {q} on axis {a} from level {l} to {} (.amrk needs at least 2 on every axis)", l + 1),
+                format!(
+                    "refinement ratio {q} on axis {a} from level {l} to {} (a quasi-2D ratio such as 2 2 1): \
+                     .amrk needs a ratio of at least 2 on every axis (docs/format.md, \"Why every ratio is at least 2\")",
+                    l + 1
+                ),
             ));
         }
         out[a] = u32::try_from(q).map_err(|_| {

@@ -11,10 +11,8 @@ pub mod header;
 pub mod plotfile;
 pub mod reader;
 mod text;
-pub mod to_amrk;
 
 pub use crate::bricking::{ConvertOptions, ConvertStats};
 pub use error::{AmrexError, Result};
 pub use header::looks_like_version;
 pub use plotfile::Plotfile;
-pub use to_amrk::convert;

@@ -8,6 +8,9 @@ use amr_format::{IBox, LevelSpec};
 use super::cell_header::{read_cell_header, CellHeader};
 use super::error::{AmrexError, Result};
 use super::header::{read_header, PlotHeader};
+use super::reader::stream;
+use crate::hierarchy_to_amrk::{AmrSource, Slab};
+use crate::progress::Progress;
 
 /// One level: its `Cell_H` and the directory its data files are in.
 #[derive(Clone, Debug)]
@@ -107,37 +110,42 @@ impl Plotfile {
             })
             .collect()
     }
+}
 
-    /// Component indices of the named fields, in the order given; all fields when `names` is
-    /// empty. Repeated names count once.
-    pub fn select_fields(&self, names: &[String]) -> Result<Vec<usize>> {
-        let fields = &self.header.fields;
-        if names.is_empty() {
-            return Ok((0..fields.len()).collect());
-        }
-        let mut out: Vec<usize> = Vec::with_capacity(names.len());
-        for name in names {
-            let Some(c) = fields.iter().position(|f| f == name) else {
-                return Err(AmrexError::UnknownField {
-                    path: self.header_path(),
-                    name: name.clone(),
-                    available: fields.join(", "),
-                });
-            };
-            if !out.contains(&c) {
-                out.push(c);
-            }
-        }
-        Ok(out)
+impl AmrSource for Plotfile {
+    type Error = AmrexError;
+
+    fn path(&self) -> &Path {
+        &self.dir
     }
 
-    /// Number of cells over the valid boxes of all levels.
-    pub fn total_cells(&self) -> u64 {
+    fn fields(&self) -> &[String] {
+        &self.header.fields
+    }
+
+    fn simulation(&self) -> (Option<f64>, Option<i64>) {
+        (Some(self.header.time), self.header.step)
+    }
+
+    fn level_specs(&self) -> Vec<LevelSpec> {
+        Plotfile::level_specs(self)
+    }
+
+    fn boxes(&self) -> Vec<&[IBox]> {
         self.levels
             .iter()
-            .flat_map(|l| &l.cells.boxes)
-            .map(|b| b.num_cells().unwrap_or(0))
-            .sum()
+            .map(|l| l.cells.boxes.as_slice())
+            .collect()
+    }
+
+    fn stream(
+        &self,
+        comps: &[usize],
+        chunk: i64,
+        progress: &dyn Progress,
+        sink: &mut dyn FnMut(Slab) -> Result<()>,
+    ) -> Result<u64> {
+        Ok(stream(self, comps, chunk, progress, sink)?.bytes_read)
     }
 }
 

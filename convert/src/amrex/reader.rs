@@ -16,29 +16,13 @@ use amr_format::IBox;
 use super::error::{AmrexError, Result};
 use super::fab::{why_not_f32, FabHeader, RealFormat, MAX_FAB_HEADER};
 use super::plotfile::{show, Plotfile};
+use crate::hierarchy_to_amrk::Slab;
 use crate::progress::Progress;
 
 /// Read buffer per data file.
 const READ_BUFFER: usize = 4 << 20;
 /// Decoded slabs queued between the reading thread and the consumer.
 const IN_FLIGHT: usize = 4;
-
-/// One z-slab of one selected component of one box, trimmed to the valid box.
-#[derive(Debug)]
-pub struct Slab<'a> {
-    /// The box's level.
-    pub level: usize,
-    /// The box's index in its level's `Cell_H`.
-    pub index: usize,
-    /// The box's valid cells.
-    pub valid: IBox,
-    /// Position of the component in the selection passed to [`stream`].
-    pub field: usize,
-    /// The cells of this slab: the valid box's x-y extent, some of its z planes.
-    pub cells: IBox,
-    /// The values of `cells`, x fastest.
-    pub values: &'a [f32],
-}
 
 /// What [`stream`] read.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use amr_format::FormatError;
+use crate::hierarchy_to_amrk::ConvertError;
 
 /// Everything that can go wrong while reading a Chombo plotfile or converting it.
 #[derive(Debug, thiserror::Error)]
@@ -30,23 +30,19 @@ pub enum ChomboError {
     },
     /// The file is HDF5 but not a consistent Chombo plotfile: a missing attribute or dataset,
     /// offsets beyond the data, a box outside the domain, ...
-    #[error("{}: not a valid Chombo plotfile: {msg}", path.display())]
+    #[error("{}: not a valid Chombo file: {msg}", path.display())]
     Invalid {
         /// The HDF5 file.
         path: PathBuf,
         /// What is missing or disagrees, and where (`level_N/...`).
         msg: String,
     },
-    /// The file is a Chombo checkpoint (restart) file, which this converter does not read.
-    #[error(
-        "{}: this is a Chombo checkpoint, not a plotfile ({why}); convert a plotfile instead \
-         (GRChombo writes them every plot_interval steps)",
-        path.display()
-    )]
-    Checkpoint {
+    /// The file holds no cell data at all (boxes only, as Chombo's mesh tests write).
+    #[error("{}: no data to convert: {why}", path.display())]
+    NoData {
         /// The HDF5 file.
         path: PathBuf,
-        /// What gave it away.
+        /// What is missing.
         why: String,
     },
     /// A valid plotfile uses a feature this reader does not support (2D, integer data, ...).
@@ -60,25 +56,9 @@ pub enum ChomboError {
     /// A cell value cannot be stored as a finite `f32`.
     #[error(transparent)]
     BadValue(Box<BadValue>),
-    /// A requested field is not in the plotfile.
-    #[error("{}: no field named '{name}'; the plotfile has: {available}", path.display())]
-    UnknownField {
-        /// The HDF5 file.
-        path: PathBuf,
-        /// The requested name.
-        name: String,
-        /// The plotfile's component names, comma-separated.
-        available: String,
-    },
-    /// The `.amrk` writer refused the data or failed to write.
-    #[error("writing {}", path.display())]
-    Output {
-        /// The output file.
-        path: PathBuf,
-        /// The writer's error.
-        #[source]
-        source: FormatError,
-    },
+    /// The shared conversion failed: an unknown field, or the `.amrk` writer.
+    #[error(transparent)]
+    Convert(#[from] ConvertError),
 }
 
 /// A cell value that cannot be stored as a finite `f32`, and where it is.

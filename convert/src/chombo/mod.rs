@@ -10,9 +10,22 @@ pub mod plotfile;
 mod props;
 pub mod raw;
 pub mod reader;
-pub mod to_amrk;
 
 pub use crate::bricking::{ConvertOptions, ConvertStats};
 pub use error::{ChomboError, Result};
 pub use plotfile::{Level, Plotfile, Precision};
-pub use to_amrk::convert;
+
+use std::path::Path;
+
+use crate::progress::Progress;
+
+/// Converts the Chombo file `input` into the `.amrk` file `output`
+/// (see [`crate::hierarchy_to_amrk::convert`]).
+pub fn convert(
+    input: &Path,
+    output: &Path,
+    opts: &ConvertOptions,
+    progress: &dyn Progress,
+) -> Result<ConvertStats> {
+    crate::hierarchy_to_amrk::convert(&Plotfile::open(input)?, output, opts, progress)
+}

@@ -1,5 +1,10 @@
-//! Opening a Chombo plotfile: the root attributes, every level's geometry, boxes and offsets,
-//! all validated before any cell data is read.
+//! Opening a Chombo file (plotfile or checkpoint): the root attributes, every level's geometry,
+//! boxes and offsets, all validated before any cell data is read.
+//!
+//! A level's data is one or more `LevelData` written by `CH_HDF5`'s `write(handle, data, NAME,
+//! outputGhost)`: `NAME:datatype=0`, `NAME:offsets=0` and the group `NAME_attributes`.
+//! Plotfiles and most checkpoints (GRChombo's, Chombo's example `AMRLevel`s) write one, `data`,
+//! holding every component named at the root; other checkpoints write one per variable.
 
 use std::path::{Path, PathBuf};
 
@@ -11,6 +16,9 @@ use hdf5_metno::{Dataset, File};
 use super::error::{ChomboError, Result};
 use super::props::{check_members, Props, ROOT};
 use super::raw::{self, RawBox, RawIntVect, RawRealVect};
+use super::reader::stream;
+use crate::hierarchy_to_amrk::{AmrSource, Slab};
+use crate::progress::Progress;
 
 /// Most components accepted (a sanity bound on a count read from the file).
 const MAX_COMPONENTS: i64 = 4096;
@@ -34,7 +42,29 @@ impl Precision {
     }
 }
 
-/// One level of a plotfile, validated.
+/// One `LevelData` of a level: a dataset of every box's values and where each box starts.
+#[derive(Debug)]
+pub struct LevelVar {
+    /// Components stored per box.
+    pub ncomp: usize,
+    /// Ghost layers stored around every box (`outputGhost`).
+    pub ghost: [i64; 3],
+    /// Where each box's data starts in the dataset, in values; `boxes.len() + 1` entries.
+    pub offsets: Vec<u64>,
+    /// How the values are stored.
+    pub precision: Precision,
+    /// The `NAME:datatype=0` dataset (absent only when the level has no boxes).
+    pub(crate) data: Option<Dataset>,
+}
+
+impl LevelVar {
+    /// The box `valid` with this data's ghost layers: the cells its data covers.
+    pub fn stored_box(&self, valid: &IBox) -> IBox {
+        valid.grow(self.ghost)
+    }
+}
+
+/// One level of a file, validated.
 #[derive(Debug)]
 pub struct Level {
     /// Cell size on each axis.
@@ -43,34 +73,36 @@ pub struct Level {
     pub ref_ratio: [u32; 3],
     /// The problem domain in this level's index space (half-open).
     pub domain: IBox,
-    /// Ghost layers stored around every box (`outputGhost`).
-    pub ghost: [i64; 3],
     /// The boxes' valid cells (half-open), in file order.
     pub boxes: Vec<IBox>,
-    /// Where each box's data starts in the level's data, in values; `boxes.len() + 1` entries.
-    pub offsets: Vec<u64>,
-    /// How the values are stored.
-    pub precision: Precision,
-    /// The level's `data:datatype=0` (absent only when the level has no boxes).
-    pub(crate) data: Option<Dataset>,
+    /// The level's data, one entry per name of [`Plotfile::vars`].
+    pub vars: Vec<LevelVar>,
 }
 
-impl Level {
-    /// The box `i` with its ghost layers: the cells its data covers.
-    pub fn stored_box(&self, i: usize) -> IBox {
-        self.boxes[i].grow(self.ghost)
-    }
+/// Where a field's values are: which `LevelData` and which of its components.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FieldSource {
+    /// Index into [`Plotfile::vars`].
+    pub var: usize,
+    /// Component within that data.
+    pub comp: usize,
 }
 
-/// An open Chombo plotfile: its fields and levels, checked for consistency.
+/// An open Chombo file: its fields and levels, checked for consistency.
 #[derive(Debug)]
 pub struct Plotfile {
     /// The HDF5 file.
     pub path: PathBuf,
-    /// Component (field) names, in file order.
+    /// Field names, in file order.
     pub fields: Vec<String>,
+    /// Where each field's values are.
+    pub sources: Vec<FieldSource>,
+    /// The names of each level's `LevelData` (`data` in plotfiles).
+    pub vars: Vec<String>,
     /// Levels, coarsest first.
     pub levels: Vec<Level>,
+    /// The simulation time (level 0's `time` attribute, which Chombo's writers set), if any.
+    pub time: Option<f64>,
     _file: File,
 }
 
@@ -88,73 +120,49 @@ impl Plotfile {
         let file = File::open(path)
             .map_err(|e| ChomboError::hdf5(path, "cannot open as an HDF5 file", e))?;
         let root = Props::new(path, (*file).clone(), ROOT)?;
-        reject_checkpoint(path, &root)?;
         let global = root.child(raw::GLOBAL_GROUP)?;
         let dim = global.int(raw::SPACE_DIM)?;
         if dim != 3 {
             return Err(ChomboError::unsupported(
                 path,
-                format!("a {dim}D file (Chombo_global/SpaceDim = {dim}); only 3D plotfiles can be converted"),
+                format!("a {dim}D file (Chombo_global/SpaceDim = {dim}); only 3D files can be converted"),
             ));
         }
+        let Layout {
+            vars,
+            fields,
+            sources,
+        } = read_layout(path, &root)?;
         let nl = root.int(raw::NUM_LEVELS)?;
         if !(1..=MAX_LEVELS as i64).contains(&nl) {
             return Err(root.invalid(format!("num_levels = {nl}, expected 1 to {MAX_LEVELS}")));
         }
-        let nc = root.int(raw::NUM_COMPONENTS)?;
-        if !(1..=MAX_COMPONENTS).contains(&nc) {
-            return Err(root.invalid(format!(
-                "num_components = {nc}, expected 1 to {MAX_COMPONENTS}"
-            )));
-        }
-        let mut fields: Vec<String> = Vec::with_capacity(nc as usize);
-        for c in 0..nc as usize {
-            let name = root.string(&raw::component(c))?;
-            if name.is_empty() {
-                return Err(root.invalid(format!("component_{c} is an empty name")));
-            }
-            if let Some(d) = fields.iter().position(|f| *f == name) {
-                return Err(root.invalid(format!(
-                    "component_{d} and component_{c} are both named '{name}'"
-                )));
-            }
-            fields.push(name);
-        }
+        // A label only: a missing or unreadable time leaves the output unlabelled.
+        let time = root
+            .child(&raw::level(0))
+            .ok()
+            .filter(|g| g.has("time"))
+            .and_then(|g| g.float("time").ok())
+            .filter(|t| t.is_finite());
         let mut levels: Vec<Level> = Vec::with_capacity(nl as usize);
         for l in 0..nl as usize {
             let g = root.child(&raw::level(l))?;
-            let level = read_level(&g, l + 1 == nl as usize, fields.len(), file_len)?;
+            let level = read_level(&g, l + 1 == nl as usize, &vars, file_len)?;
             if let Some(prev) = levels.last() {
                 check_refinement(&g, l, prev, &level)?;
             }
             levels.push(level);
         }
+        let vars = vars.into_iter().map(|(name, _)| name).collect();
         Ok(Self {
             path: path.to_path_buf(),
             fields,
+            sources,
+            vars,
             levels,
+            time,
             _file: file,
         })
-    }
-
-    /// Indices of the components named in `names`, in that order; all components when empty.
-    pub fn select_fields(&self, names: &[String]) -> Result<Vec<usize>> {
-        if names.is_empty() {
-            return Ok((0..self.fields.len()).collect());
-        }
-        names
-            .iter()
-            .map(|n| {
-                self.fields
-                    .iter()
-                    .position(|f| f == n)
-                    .ok_or_else(|| ChomboError::UnknownField {
-                        path: self.path.clone(),
-                        name: n.clone(),
-                        available: self.fields.join(", "),
-                    })
-            })
-            .collect()
     }
 
     /// The levels as the `.amrk` writer wants them. Chombo puts the lower corner of cell index
@@ -171,59 +179,185 @@ impl Plotfile {
             })
             .collect()
     }
+}
 
-    /// Valid cells over all levels and boxes.
-    pub fn total_cells(&self) -> u64 {
-        self.levels
-            .iter()
-            .flat_map(|l| &l.boxes)
-            .map(|b| b.num_cells().unwrap_or(0))
-            .sum()
+impl AmrSource for Plotfile {
+    type Error = ChomboError;
+
+    fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn fields(&self) -> &[String] {
+        &self.fields
+    }
+
+    fn simulation(&self) -> (Option<f64>, Option<i64>) {
+        (self.time, None)
+    }
+
+    fn level_specs(&self) -> Vec<LevelSpec> {
+        Plotfile::level_specs(self)
+    }
+
+    fn boxes(&self) -> Vec<&[IBox]> {
+        self.levels.iter().map(|l| l.boxes.as_slice()).collect()
+    }
+
+    fn stream(
+        &self,
+        comps: &[usize],
+        chunk: i64,
+        progress: &dyn Progress,
+        sink: &mut dyn FnMut(Slab) -> Result<()>,
+    ) -> Result<u64> {
+        Ok(stream(self, comps, chunk, progress, sink)?.bytes_read)
     }
 }
 
-/// Fails with [`ChomboError::Checkpoint`] when the file looks like a Chombo checkpoint.
-fn reject_checkpoint(path: &Path, root: &Props) -> Result<()> {
-    let checkpoint = |why: String| {
-        Err(ChomboError::Checkpoint {
-            path: path.to_path_buf(),
-            why,
-        })
-    };
-    if root.has(raw::CHECKPOINT_MARKER) {
-        return checkpoint(format!(
-            "the root has attribute '{}', which only AMR::writeCheckpointFile writes",
-            raw::CHECKPOINT_MARKER
-        ));
-    }
+/// The file's `LevelData` names with their component counts, its field names, and where each
+/// field is. With `data:datatype=0` in `level_0` (plotfiles, GRChombo checkpoints) the fields
+/// are the root's `component_N`, all in `data`. Otherwise every `NAME:datatype=0` of `level_0`
+/// is a variable of `NAME_attributes/comps` components, named `NAME` when it has one, `xNAME`,
+/// `yNAME`, `zNAME` when the root's `component_N` list names them so, else `NAME_0`, `NAME_1`,
+/// ...; fields follow the root list's order where there is one.
+fn read_layout(path: &Path, root: &Props) -> Result<Layout> {
     let l0 = raw::level(0);
-    if !root.has_member(&l0) {
-        return Ok(());
+    let level0 = if root.has_member(&l0) {
+        Some(root.child(&l0)?)
+    } else {
+        None
+    };
+    let datasets: Vec<String> = match &level0 {
+        Some(g) => g
+            .member_names()?
+            .into_iter()
+            .filter_map(|m| m.strip_suffix(raw::DATATYPE_SUFFIX).map(str::to_string))
+            .collect(),
+        None => Vec::new(),
+    };
+    if !root.has(raw::NUM_LEVELS) && datasets.is_empty() {
+        return Err(ChomboError::NoData {
+            path: path.to_path_buf(),
+            why: match level0 {
+                Some(_) => {
+                    "the root has no num_levels and level_0 holds no NAME:datatype=0 dataset \
+                            (a file of boxes only, such as Chombo's meshRefineTest writes)"
+                        .into()
+                }
+                None => "the root has no num_levels and there is no level_0 group".into(),
+            },
+        });
     }
-    let level = root.child(&l0)?;
-    let per_variable: Vec<String> = level
-        .member_names()?
-        .into_iter()
-        .filter(|m| m.ends_with(raw::DATATYPE_SUFFIX) && m != raw::DATA)
+    let listed = component_list(root)?;
+    let g = match level0 {
+        Some(g) if !datasets.iter().any(|d| d == raw::DATA_NAME) => g,
+        _ => {
+            let Some(fields) = listed else {
+                return Err(root.invalid(format!("missing attribute '{}'", raw::NUM_COMPONENTS)));
+            };
+            return Ok(Layout {
+                vars: vec![(raw::DATA_NAME.to_string(), fields.len())],
+                sources: (0..fields.len())
+                    .map(|comp| FieldSource { var: 0, comp })
+                    .collect(),
+                fields,
+            });
+        }
+    };
+    let mut vars = Vec::with_capacity(datasets.len());
+    let mut candidates: Vec<(String, FieldSource)> = Vec::new();
+    for (v, name) in datasets.iter().enumerate() {
+        let attrs = g.child(&format!("{name}{}", raw::ATTRIBUTES_SUFFIX))?;
+        let comps = attrs.int(raw::COMPS)?;
+        if !(1..=MAX_COMPONENTS).contains(&comps) {
+            return Err(attrs.invalid(format!("comps = {comps}, expected 1 to {MAX_COMPONENTS}")));
+        }
+        let comps = comps as usize;
+        let axes: Vec<String> = ["x", "y", "z"]
+            .iter()
+            .map(|a| format!("{a}{name}"))
+            .collect();
+        let named_by_axis = comps <= 3
+            && comps > 1
+            && listed
+                .as_ref()
+                .is_some_and(|l| axes[..comps].iter().all(|a| l.contains(a)));
+        for comp in 0..comps {
+            let field = if comps == 1 {
+                name.clone()
+            } else if named_by_axis {
+                axes[comp].clone()
+            } else {
+                format!("{name}_{comp}")
+            };
+            candidates.push((field, FieldSource { var: v, comp }));
+        }
+        vars.push((name.clone(), comps));
+    }
+    let mut order: Vec<usize> = Vec::with_capacity(candidates.len());
+    if let Some(list) = &listed {
+        for (c, name) in list.iter().enumerate() {
+            let Some(i) = candidates.iter().position(|(f, _)| f == name) else {
+                return Err(root.invalid(format!(
+                    "component_{c} is '{name}', but level_0 holds no dataset for it (its datasets: {})",
+                    datasets.join(", ")
+                )));
+            };
+            order.push(i);
+        }
+    }
+    let unlisted: Vec<usize> = (0..candidates.len())
+        .filter(|i| !order.contains(i))
         .collect();
-    if !per_variable.is_empty() && !level.has_member(raw::DATA) {
-        return checkpoint(format!(
-            "level_0 holds one dataset per variable ({}) instead of '{}'",
-            per_variable.join(", "),
-            raw::DATA
-        ));
+    order.extend(unlisted);
+    let (fields, sources) = order.into_iter().map(|i| candidates[i].clone()).unzip();
+    Ok(Layout {
+        vars,
+        fields,
+        sources,
+    })
+}
+
+/// How a file's fields are stored: what [`read_layout`] finds.
+struct Layout {
+    /// Each `LevelData`'s name and component count.
+    vars: Vec<(String, usize)>,
+    /// Field names, in order.
+    fields: Vec<String>,
+    /// Where each field is.
+    sources: Vec<FieldSource>,
+}
+
+/// The root's `component_N` names when it has `num_components`, checked: non-empty, distinct.
+fn component_list(root: &Props) -> Result<Option<Vec<String>>> {
+    if !root.has(raw::NUM_COMPONENTS) {
+        return Ok(None);
     }
-    if !root.has(raw::NUM_COMPONENTS) && !per_variable.is_empty() {
-        return checkpoint(format!(
-            "the root has no num_components and level_0 holds per-variable datasets ({})",
-            per_variable.join(", ")
-        ));
+    let nc = root.int(raw::NUM_COMPONENTS)?;
+    if !(1..=MAX_COMPONENTS).contains(&nc) {
+        return Err(root.invalid(format!(
+            "num_components = {nc}, expected 1 to {MAX_COMPONENTS}"
+        )));
     }
-    Ok(())
+    let mut fields: Vec<String> = Vec::with_capacity(nc as usize);
+    for c in 0..nc as usize {
+        let name = root.string(&raw::component(c))?;
+        if name.is_empty() {
+            return Err(root.invalid(format!("component_{c} is an empty name")));
+        }
+        if let Some(d) = fields.iter().position(|f| *f == name) {
+            return Err(root.invalid(format!(
+                "component_{d} and component_{c} are both named '{name}'"
+            )));
+        }
+        fields.push(name);
+    }
+    Ok(Some(fields))
 }
 
 /// Reads and checks one `level_N` group of a file of `file_len` bytes.
-fn read_level(g: &Props, finest: bool, ncomp: usize, file_len: u64) -> Result<Level> {
+fn read_level(g: &Props, finest: bool, vars: &[(String, usize)], file_len: u64) -> Result<Level> {
     let dx = if g.has(raw::DX) {
         [g.float(raw::DX)?; 3]
     } else if g.has(raw::VEC_DX) {
@@ -259,72 +393,83 @@ fn read_level(g: &Props, finest: bool, ncomp: usize, file_len: u64) -> Result<Le
     if domain.is_empty() {
         return Err(g.invalid(format!("empty prob_domain {}", show(&domain))));
     }
+    let boxes = read_boxes(g, &domain, file_len)?;
+    let vars = vars
+        .iter()
+        .map(|(name, ncomp)| read_var(g, name, *ncomp, &boxes))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Level {
+        dx,
+        ref_ratio,
+        domain,
+        boxes,
+        vars,
+    })
+}
+
+/// Reads the `LevelData` `name` of level group `g` (`name:datatype=0`, `name:offsets=0`,
+/// `name_attributes`) holding `ncomp` components of every box of `boxes`.
+fn read_var(g: &Props, name: &str, ncomp: usize, boxes: &[IBox]) -> Result<LevelVar> {
+    let data_name = format!("{name}{}", raw::DATATYPE_SUFFIX);
     let ghost = {
-        let da = g.child(raw::DATA_ATTRIBUTES)?;
+        let da = g.child(&format!("{name}{}", raw::ATTRIBUTES_SUFFIX))?;
         let v: RawIntVect = da.compound(raw::OUTPUT_GHOST, &raw::INTVECT_MEMBERS)?;
         let gh = [v.intvecti, v.intvectj, v.intvectk].map(i64::from);
         if gh.iter().any(|&x| !(0..=1024).contains(&x)) {
             return Err(da.invalid(format!("outputGhost = {gh:?}, expected 0 to 1024")));
         }
-        if da.has("comps") {
-            let c = da.int("comps")?;
+        if da.has(raw::COMPS) {
+            let c = da.int(raw::COMPS)?;
             if c != ncomp as i64 {
                 return Err(da.invalid(format!(
-                    "comps = {c}, but the root says num_components = {ncomp}"
+                    "comps = {c}, but {ncomp} components are expected (num_components at the \
+                     root, or level_0's comps)"
                 )));
             }
         }
         gh
     };
-    let boxes = read_boxes(g, &domain, file_len)?;
-    let mut level = Level {
-        dx,
-        ref_ratio,
-        domain,
+    let mut var = LevelVar {
+        ncomp,
         ghost,
-        boxes,
-        offsets: Vec::new(),
+        offsets: vec![0],
         precision: Precision::F64,
         data: None,
     };
-    if level.boxes.is_empty() && !g.has_member(raw::DATA) {
-        level.offsets = vec![0];
-        return Ok(level);
+    if boxes.is_empty() && !g.has_member(&data_name) {
+        return Ok(var);
     }
-    let data = g.dataset(raw::DATA)?;
-    level.precision = match data.dtype().and_then(|t| t.to_descriptor()) {
+    let data = g.dataset(&data_name)?;
+    var.precision = match data.dtype().and_then(|t| t.to_descriptor()) {
         Ok(TypeDescriptor::Float(FloatSize::U4)) => Precision::F32,
         Ok(TypeDescriptor::Float(FloatSize::U8)) => Precision::F64,
         Ok(d) => {
             return Err(g.unsupported(format!(
-                "{}: values of type {d}; only 32- and 64-bit floats are supported",
-                raw::DATA
+                "{data_name}: values of type {d}; only 32- and 64-bit floats are supported"
             )))
         }
-        Err(e) => return Err(g.hdf5(format!("reading the type of {}/{}", g.name(), raw::DATA), e)),
+        Err(e) => return Err(g.hdf5(format!("reading the type of {}/{data_name}", g.name()), e)),
     };
     let shape = data.shape();
     if shape.len() != 1 {
         return Err(g.invalid(format!(
-            "{} has shape {shape:?}, expected one dimension",
-            raw::DATA
+            "{data_name} has shape {shape:?}, expected one dimension"
         )));
     }
     let len = shape[0] as u64;
-    level.offsets = read_offsets(g, &level, ncomp, len)?;
+    var.offsets = read_offsets(g, name, &var, boxes, len)?;
     // A dataset's declared length costs nothing on disk; its stored bytes do. Unfiltered data
     // must be stored in full, which bounds everything sized from the boxes by the file's size.
-    let need = level.offsets[level.boxes.len()].saturating_mul(level.precision.bytes());
+    let need = var.offsets[boxes.len()].saturating_mul(var.precision.bytes());
     let stored = data.storage_size();
     if data.filters().is_empty() && stored < need {
         return Err(g.invalid(format!(
-            "{} stores {stored} bytes, but its offsets need {need}: the data was never written \
-             or the file is damaged",
-            raw::DATA
+            "{data_name} stores {stored} bytes, but its offsets need {need}: the data was never \
+             written or the file is damaged"
         )));
     }
-    level.data = Some(data);
-    Ok(level)
+    var.data = Some(data);
+    Ok(var)
 }
 
 /// Reads `boxes`, checking each is non-empty and inside the domain. A box takes at least a
@@ -373,10 +518,19 @@ fn read_boxes(g: &Props, domain: &IBox, file_len: u64) -> Result<Vec<IBox>> {
         .collect()
 }
 
-/// Reads `data:offsets=0` and checks it against the boxes and the data's length `len`.
-fn read_offsets(g: &Props, level: &Level, ncomp: usize, len: u64) -> Result<Vec<u64>> {
-    let ds = g.dataset(raw::OFFSETS)?;
-    let what = || format!("reading {}/{}", g.name(), raw::OFFSETS);
+/// Reads `name:offsets=0` and checks it against the boxes and the data's length `len`.
+fn read_offsets(
+    g: &Props,
+    name: &str,
+    var: &LevelVar,
+    boxes: &[IBox],
+    len: u64,
+) -> Result<Vec<u64>> {
+    let offsets_name = format!("{name}{}", raw::OFFSETS_SUFFIX);
+    let data_name = format!("{name}{}", raw::DATATYPE_SUFFIX);
+    let ncomp = var.ncomp;
+    let ds = g.dataset(&offsets_name)?;
+    let what = || format!("reading {}/{offsets_name}", g.name());
     let desc = ds
         .dtype()
         .and_then(|t| t.to_descriptor())
@@ -387,14 +541,14 @@ fn read_offsets(g: &Props, level: &Level, ncomp: usize, len: u64) -> Result<Vec<
     ) {
         return Err(g.invalid(format!(
             "{} has type {desc}, expected integers",
-            raw::OFFSETS
+            offsets_name
         )));
     }
-    let nb = level.boxes.len();
+    let nb = boxes.len();
     if ds.size() != nb + 1 {
         return Err(g.invalid(format!(
             "{} has {} entries, expected {} (boxes + 1)",
-            raw::OFFSETS,
+            offsets_name,
             ds.size(),
             nb + 1
         )));
@@ -403,27 +557,27 @@ fn read_offsets(g: &Props, level: &Level, ncomp: usize, len: u64) -> Result<Vec<
     if offsets.len() != nb + 1 {
         return Err(g.invalid(format!(
             "{} has {} entries, expected {} (boxes + 1)",
-            raw::OFFSETS,
+            offsets_name,
             offsets.len(),
             nb + 1
         )));
     }
     let mut out = Vec::with_capacity(nb + 1);
     for (i, w) in offsets.windows(2).enumerate() {
-        let stored = level.stored_box(i);
+        let stored = var.stored_box(&boxes[i]);
         let need = stored
             .num_cells()
             .and_then(|c| c.checked_mul(ncomp as u64))
-            .ok_or_else(|| g.invalid(format!("box {i} {} is too large", show(&level.boxes[i]))))?;
+            .ok_or_else(|| g.invalid(format!("box {i} {} is too large", show(&boxes[i]))))?;
         if w[0] < 0 || w[1] < w[0] || (w[1] - w[0]) as u64 != need {
             return Err(g.invalid(format!(
                 "{} gives box {i} {} the values {}..{}, but {ncomp} components of {} cells (ghost layers {:?} included) need {need}",
-                raw::OFFSETS,
-                show(&level.boxes[i]),
+                offsets_name,
+                show(&boxes[i]),
                 w[0],
                 w[1],
                 stored.num_cells().unwrap_or(0),
-                level.ghost
+                var.ghost
             )));
         }
         out.push(w[0] as u64);
@@ -432,8 +586,7 @@ fn read_offsets(g: &Props, level: &Level, ncomp: usize, len: u64) -> Result<Vec<
     if last < 0 || last as u64 > len {
         return Err(g.invalid(format!(
             "{} reaches value {last}, beyond the end of {} ({len} values)",
-            raw::OFFSETS,
-            raw::DATA
+            offsets_name, data_name
         )));
     }
     out.push(last as u64);

@@ -76,16 +76,17 @@ pub const REF_RATIO: &str = "ref_ratio";
 pub const PROB_DOMAIN: &str = "prob_domain";
 /// Level dataset: the boxes.
 pub const BOXES: &str = "boxes";
-/// Level dataset: all boxes' data, box after box, component after component.
-pub const DATA: &str = "data:datatype=0";
-/// Level dataset: where each box's data starts in [`DATA`] (`nboxes + 1` entries).
-pub const OFFSETS: &str = "data:offsets=0";
-/// Level group holding the data's attributes.
-pub const DATA_ATTRIBUTES: &str = "data_attributes";
-/// Attribute of [`DATA_ATTRIBUTES`]: ghost layers written around every box.
+/// The `LevelData` name plotfiles (and GRChombo's checkpoints) store every component under:
+/// `data:datatype=0` holds all boxes' data, box after box, component after component.
+pub const DATA_NAME: &str = "data";
+/// Suffix of a `LevelData`'s offsets dataset (`NAME:offsets=0`, `nboxes + 1` entries).
+pub const OFFSETS_SUFFIX: &str = ":offsets=0";
+/// Suffix of the group holding a `LevelData`'s attributes (`NAME_attributes`).
+pub const ATTRIBUTES_SUFFIX: &str = "_attributes";
+/// Attribute of a `NAME_attributes` group: components per box.
+pub const COMPS: &str = "comps";
+/// Attribute of a `NAME_attributes` group: ghost layers stored around every box.
 pub const OUTPUT_GHOST: &str = "outputGhost";
-/// Root attribute that only Chombo's `AMR::writeCheckpointFile` writes.
-pub const CHECKPOINT_MARKER: &str = "regrid_interval_0";
 /// Suffix of every LevelData dataset (`NAME:datatype=0`).
 pub const DATATYPE_SUFFIX: &str = ":datatype=0";
 

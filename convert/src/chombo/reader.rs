@@ -12,24 +12,9 @@ use hdf5_metno::{Dataset, H5Type, Hyperslab, Selection, SliceOrIndex};
 
 use super::error::{BadValue, ChomboError, Result};
 use super::plotfile::{Level, Plotfile, Precision};
+use crate::finite::ToFiniteF32;
+use crate::hierarchy_to_amrk::{slab_ranges, Slab};
 use crate::progress::Progress;
-
-/// One slab of one field of one box, ghost cells removed, ready to be cut into bricks.
-#[derive(Debug)]
-pub struct Slab<'a> {
-    /// The box's level.
-    pub level: usize,
-    /// The box's index in its level.
-    pub index: usize,
-    /// The field's position in the selection handed to [`stream`].
-    pub field: usize,
-    /// The box's valid cells.
-    pub valid: IBox,
-    /// The cells this slab covers: the box's full x range, some rows and layers.
-    pub cells: IBox,
-    /// The values of `cells`, x fastest.
-    pub values: &'a [f32],
-}
 
 /// What [`stream`] read.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -38,31 +23,17 @@ pub struct StreamStats {
     pub bytes_read: u64,
 }
 
-/// The slabs of box `valid` for at most `chunk` rows and layers each: `(y0, y1, z0, z1)`.
-fn slabs(valid: &IBox, chunk: i64) -> impl Iterator<Item = (i64, i64, i64, i64)> + '_ {
-    let step = chunk.max(1) as usize;
-    (valid.lo[2]..valid.hi[2])
-        .step_by(step)
-        .flat_map(move |z0| {
-            (valid.lo[1]..valid.hi[1]).step_by(step).map(move |y0| {
-                (
-                    y0,
-                    (y0 + chunk).min(valid.hi[1]),
-                    z0,
-                    (z0 + chunk).min(valid.hi[2]),
-                )
-            })
-        })
-}
-
 /// Bytes [`stream`] will read for the components `comps`.
 pub fn bytes_to_read(pf: &Plotfile, comps: &[usize]) -> u64 {
     let mut total = 0u64;
     for level in &pf.levels {
-        for (i, v) in level.boxes.iter().enumerate() {
-            let gx = level.stored_box(i).extent()[0] as u64;
-            let e = v.extent();
-            total += gx * e[1] as u64 * e[2] as u64 * level.precision.bytes() * comps.len() as u64;
+        for v in &level.boxes {
+            for &c in comps {
+                let var = &level.vars[pf.sources[c].var];
+                let gx = var.stored_box(v).extent()[0] as u64;
+                let e = v.extent();
+                total += gx * e[1] as u64 * e[2] as u64 * var.precision.bytes();
+            }
         }
     }
     total
@@ -81,14 +52,16 @@ pub fn stream(
     let mut stats = StreamStats::default();
     let mut out = Vec::new();
     for (l, level) in pf.levels.iter().enumerate() {
-        let Some(data) = &level.data else { continue };
         for (i, valid) in level.boxes.iter().enumerate() {
-            let stored = level.stored_box(i);
-            let g = stored.extent().map(|e| e as u64);
-            let cells_per_comp = g[0] * g[1] * g[2];
             for (f, &c) in comps.iter().enumerate() {
-                let base = level.offsets[i] + c as u64 * cells_per_comp;
-                for (y0, y1, z0, z1) in slabs(valid, chunk) {
+                let src = pf.sources[c];
+                let var = &level.vars[src.var];
+                let Some(data) = &var.data else { continue };
+                let stored = var.stored_box(valid);
+                let g = stored.extent().map(|e| e as u64);
+                let cells_per_comp = g[0] * g[1] * g[2];
+                let base = var.offsets[i] + src.comp as u64 * cells_per_comp;
+                for (y0, y1, z0, z1) in slab_ranges(valid, chunk) {
                     let start = base
                         + (z0 - stored.lo[2]) as u64 * g[0] * g[1]
                         + (y0 - stored.lo[1]) as u64 * g[0];
@@ -107,11 +80,11 @@ pub fn stream(
                         stored,
                         cells,
                     };
-                    match level.precision {
+                    match var.precision {
                         Precision::F32 => read_convert::<f32>(data, &read, &ctx, &mut out)?,
                         Precision::F64 => read_convert::<f64>(data, &read, &ctx, &mut out)?,
                     }
-                    let bytes = read.count * read.block * level.precision.bytes();
+                    let bytes = read.count * read.block * var.precision.bytes();
                     stats.bytes_read += bytes;
                     progress.advance(bytes);
                     sink(Slab {
@@ -149,38 +122,13 @@ struct Where<'a> {
     cells: IBox,
 }
 
-/// A stored value type that converts to a finite `f32` or says why it cannot.
-trait Value: H5Type + Copy {
-    fn to_f32(self) -> std::result::Result<f32, (&'static str, f64)>;
-}
-
-impl Value for f32 {
-    fn to_f32(self) -> std::result::Result<f32, (&'static str, f64)> {
-        if self.is_finite() {
-            Ok(self)
-        } else {
-            Err((if self.is_nan() { "NaN" } else { "infinite" }, self as f64))
-        }
-    }
-}
-
-impl Value for f64 {
-    fn to_f32(self) -> std::result::Result<f32, (&'static str, f64)> {
-        let v = self as f32;
-        if v.is_finite() {
-            Ok(v)
-        } else if self.is_nan() {
-            Err(("NaN", self))
-        } else if self.is_infinite() {
-            Err(("infinite", self))
-        } else {
-            Err(("outside the f32 range", self))
-        }
-    }
-}
-
 /// Reads `r` from `data` as `T` and converts the valid columns into `out`.
-fn read_convert<T: Value>(data: &Dataset, r: &Read, at: &Where, out: &mut Vec<f32>) -> Result<()> {
+fn read_convert<T: ToFiniteF32 + H5Type>(
+    data: &Dataset,
+    r: &Read,
+    at: &Where,
+    out: &mut Vec<f32>,
+) -> Result<()> {
     let sel = Selection::Hyperslab(Hyperslab::new(SliceOrIndex::SliceCount {
         start: r.start as usize,
         step: r.step.max(r.block) as usize,
@@ -210,7 +158,7 @@ fn read_convert<T: Value>(data: &Dataset, r: &Read, at: &Where, out: &mut Vec<f3
     out.clear();
     for (row, values) in raw.chunks_exact(gx).enumerate() {
         for (x, &v) in values[skip..skip + nx].iter().enumerate() {
-            match v.to_f32() {
+            match v.to_finite_f32() {
                 Ok(f) => out.push(f),
                 Err((why, value)) => {
                     let e = at.cells.extent();

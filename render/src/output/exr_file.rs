@@ -106,3 +106,22 @@ pub fn read_channel(path: &Path, name: &str) -> Result<(u32, u32, Vec<f32>)> {
     let v: Vec<f32> = ch.sample_data.values_as_f32().collect();
     Ok((layer.size.0 as u32, layer.size.1 as u32, v))
 }
+
+/// The text attributes of an EXR file's first layer, as `write_exr` wrote them (for tests and
+/// tools).
+pub fn read_text_attributes(path: &Path) -> Result<Vec<(String, String)>> {
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| RenderError::Invalid(format!("cannot read {}: {e}", path.display())))?;
+    let Some(header) = meta.headers.first() else {
+        return Ok(Vec::new());
+    };
+    Ok(header
+        .own_attributes
+        .other
+        .iter()
+        .filter_map(|(k, v)| match v {
+            AttributeValue::Text(t) => Some((k.to_string(), t.to_string())),
+            _ => None,
+        })
+        .collect())
+}

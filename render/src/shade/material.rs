@@ -54,6 +54,25 @@ impl IsoSpec {
     }
 }
 
+impl std::fmt::Display for IsoSpec {
+    /// The form `FromStr` reads back: `V`, `V:#rrggbb` or `V:#rrggbb:OPACITY` (sRGB hex of the
+    /// linear colour, so a named colour reads back within 1/255).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.value)?;
+        if let Some(c) = self.color {
+            let hex = c.map(|v| (linear_to_srgb(v) * 255.0).round().clamp(0.0, 255.0) as u8);
+            write!(f, ":#{:02x}{:02x}{:02x}", hex[0], hex[1], hex[2])?;
+        }
+        if self.opacity != 1.0 {
+            if self.color.is_none() {
+                f.write_str(":")?;
+            }
+            write!(f, ":{}", self.opacity)?;
+        }
+        Ok(())
+    }
+}
+
 /// Parses a colour name (`red`, `gold`, ...) or hex `#rrggbb` / `rrggbb` (sRGB, returned linear).
 pub fn parse_color(s: &str) -> Result<[f32; 3], String> {
     let lower = s.to_ascii_lowercase();
@@ -74,6 +93,14 @@ pub fn parse_color(s: &str) -> Result<[f32; 3], String> {
         "unknown colour '{s}': use #rrggbb or one of {}",
         names.join(", ")
     ))
+}
+
+fn linear_to_srgb(c: f32) -> f32 {
+    if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
 }
 
 fn srgb_to_linear(c: f32) -> f32 {
@@ -122,6 +149,19 @@ impl FromStr for IsoSpec {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_text_form_reads_back() {
+        for text in ["-60", "0.5:#3070ff", "10:#d99e59:0.3", "2::0.5"] {
+            let spec: IsoSpec = text.parse().unwrap();
+            let again: IsoSpec = spec.to_string().parse().unwrap();
+            assert_eq!(again.value, spec.value, "{text}");
+            assert_eq!(again.opacity, spec.opacity, "{text}");
+            for (a, b) in again.color.unwrap_or_default().iter().zip(spec.color.unwrap_or_default()) {
+                assert!((a - b).abs() < 1e-3, "{text}: {again:?} {spec:?}");
+            }
+        }
+    }
 
     #[test]
     fn parses_iso_specs() {

@@ -11,7 +11,8 @@ use amr_render::{Reconstruction, SceneOptions, TraceMethod, View};
 use amr_synth::{write_synth, AnalyticField, Case, SynthParams};
 use anyhow::Context;
 
-use crate::render::render_request;
+use crate::animation::Animation;
+use crate::frames::render_all;
 use crate::render_args::{Outputs, RenderRequest};
 
 /// Arguments of `amr-render demo`.
@@ -35,7 +36,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let iso = Case::Blobs.default_iso() as f32;
     let preview = args.output.with_extension("png");
     let request = RenderRequest {
-        file: path,
+        files: vec![path],
         scene: SceneOptions {
             field: None,
             reconstruction: Reconstruction::Octant,
@@ -64,10 +65,12 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             preview: Some(preview.clone()),
             print_stats: true,
             stats_json: None,
+            movie: None,
         },
         threads: None,
+        animation: Animation::new(1, None, None, Vec::new())?,
     };
-    render_request(&request)?;
+    render_all(&request)?;
     eprintln!("wrote {} and {}", args.output.display(), preview.display());
     Ok(())
 }

@@ -2,9 +2,13 @@
 //! subcommands. Each command's arguments become a validated request for the `amr_render` library
 //! in its own file; this one only dispatches.
 
+mod animation;
 mod demo;
 mod extract;
+mod frames;
+mod heap;
 mod info;
+mod movie;
 #[cfg(feature = "mpi")]
 mod mpi;
 mod outputs;
@@ -12,18 +16,20 @@ mod probe;
 mod progress;
 mod render;
 mod render_args;
+mod scene_file;
 mod verify;
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 /// Ray traces isosurfaces of block-structured AMR data stored in .amrk files.
 #[derive(Parser, Debug)]
 #[command(
     version,
     args_conflicts_with_subcommands = true,
-    subcommand_negates_reqs = true
+    subcommand_negates_reqs = true,
+    args_override_self = true
 )]
 struct Cli {
     #[command(subcommand)]
@@ -56,8 +62,21 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
+/// The command line, a scene file in first position expanded, parsed; `--write-scene` saved.
+fn parse() -> anyhow::Result<Cli> {
+    let argv = scene_file::expand(std::env::args_os().collect())?;
+    let cmd = Cli::command();
+    let matches = cmd.clone().get_matches_from(argv);
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    if let Some(path) = cli.render.as_ref().and_then(|r| r.write_scene.as_ref()) {
+        scene_file::write(path, &cmd, &matches)?;
+    }
+    Ok(cli)
+}
+
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
+    heap::keep_large_blocks_mapped();
+    match parse().and_then(run) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {

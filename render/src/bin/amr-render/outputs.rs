@@ -75,13 +75,52 @@ impl ProcessMemory {
     }
 }
 
-/// Refuses outputs that would replace an input or something that is not a regular file.
-pub fn check(outputs: &Outputs, inputs: &[&Path]) -> anyhow::Result<()> {
-    let paths: Vec<&PathBuf> = [Some(&outputs.exr), outputs.preview.as_ref(), outputs.stats_json.as_ref()]
-        .into_iter()
-        .flatten()
-        .collect();
-    for out in paths {
+/// The files of one frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameFiles {
+    /// The EXR frame.
+    pub exr: PathBuf,
+    /// Its PNG preview.
+    pub preview: Option<PathBuf>,
+}
+
+impl FrameFiles {
+    /// The files of frame `k` of `n`: the names given for one frame; `NAME_0000.ext`,
+    /// `NAME_0001.ext`, ... for several. A preview is made beside the EXR when `want_png` asks
+    /// for one and none is named.
+    pub fn numbered(outputs: &Outputs, k: u32, n: u32, want_png: bool) -> FrameFiles {
+        let preview = match &outputs.preview {
+            Some(p) => Some(p.clone()),
+            None if want_png => Some(outputs.exr.with_extension("png")),
+            None => None,
+        };
+        FrameFiles {
+            exr: numbered(&outputs.exr, k, n),
+            preview: preview.map(|p| numbered(&p, k, n)),
+        }
+    }
+}
+
+/// `path` itself for a single frame, else `path` with `_{k}` (four digits at least) before its
+/// extension.
+pub fn numbered(path: &Path, k: u32, n: u32) -> PathBuf {
+    if n <= 1 {
+        return path.to_path_buf();
+    }
+    let width = (n - 1).to_string().len().max(4);
+    let stem = path.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}_{k:0width$}.{}", ext.to_string_lossy()),
+        None => format!("{stem}_{k:0width$}"),
+    };
+    path.with_file_name(name)
+}
+
+/// Refuses the files of a frame, and the statistics file, when one would replace an input or
+/// something that is not a regular file.
+pub fn check_frame(files: &FrameFiles, outputs: &Outputs, inputs: &[&Path]) -> anyhow::Result<()> {
+    let paths = [Some(&files.exr), files.preview.as_ref(), outputs.stats_json.as_ref()];
+    for out in paths.into_iter().flatten() {
         if let Ok(meta) = std::fs::metadata(out) {
             if !meta.is_file() {
                 bail!("{}: the output exists and is not a regular file; refusing to replace it", out.display());
@@ -105,25 +144,37 @@ fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// Writes the frame, the preview and the statistics as `outputs` asks.
-pub fn write<X: Serialize>(
-    outputs: &Outputs,
+/// Writes a frame's EXR and its preview.
+pub fn write_frame(
+    files: &FrameFiles,
     rendered: &Rendered,
     header: &[(String, String)],
-    stats: &RunStats<X>,
-    print_also: &str,
 ) -> anyhow::Result<()> {
-    write_exr(&outputs.exr, &rendered.frame, header)?;
-    if let Some(p) = &outputs.preview {
+    write_exr(&files.exr, &rendered.frame, header)?;
+    if let Some(p) = &files.preview {
         write_preview(p, &rendered.frame)?;
     }
+    Ok(())
+}
+
+/// Prints the statistics (`--stats`: one row per key of an object, one line per element of a
+/// list) followed by `print_also`, and writes them as JSON (`--stats-json`).
+pub fn report(outputs: &Outputs, stats: &impl Serialize, print_also: &str) -> anyhow::Result<()> {
     let json = serde_json::to_value(stats)?;
     if outputs.print_stats {
-        if let Some(map) = json.as_object() {
-            let width = map.keys().map(String::len).max().unwrap_or(0);
-            for (k, v) in map.iter().filter(|(_, v)| !v.is_array()) {
-                eprintln!("{k:<width$}  {v}");
+        match &json {
+            serde_json::Value::Object(map) => {
+                let width = map.keys().map(String::len).max().unwrap_or(0);
+                for (k, v) in map.iter().filter(|(_, v)| !v.is_array()) {
+                    eprintln!("{k:<width$}  {v}");
+                }
             }
+            serde_json::Value::Array(items) => {
+                for item in items {
+                    eprintln!("{item}");
+                }
+            }
+            other => eprintln!("{other}"),
         }
         eprint!("{print_also}");
     }

@@ -1,12 +1,10 @@
-//! `amr-render FILE.amrk ...`: one frame of one file, in this process or with MPI ranks.
+//! `amr-render FILE.amrk ...`: the frames of a request, in this process or with MPI ranks.
 
-use amr_render::output::header::frame_header;
 use amr_render::shade::IsoSpec;
-use amr_render::{render, Scene};
+use amr_render::Scene;
 use anyhow::bail;
 
-use crate::outputs::{self, ProcessMemory, RunStats};
-use crate::progress;
+use crate::frames;
 use crate::render_args::{RenderArgs, RenderRequest};
 
 /// Environment variables that MPI launchers set in every process they start (Open MPI, PMI as in
@@ -34,7 +32,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         if args.mpi_mode.is_some() {
             bail!("--mpi-mode needs a start with mpirun (mpirun -n N amr-render ...)");
         }
-        render_request(&request)
+        frames::render_all(&request)
     };
     match request.threads {
         Some(n) => rayon::ThreadPoolBuilder::new()
@@ -45,28 +43,9 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     }
 }
 
-/// Opens the scene, renders the frame and writes what the request asks.
-pub fn render_request(request: &RenderRequest) -> anyhow::Result<()> {
-    outputs::check(&request.outputs, &[&request.file])?;
-    let scene = open_scene(request)?;
-    let (bar, progress) = progress::bar(u64::from(request.view.size.1), "rows");
-    let rendered = render(&scene, &request.view, &progress)?;
-    bar.finish_and_clear();
-    let stats = RunStats::new(&scene, rendered.stats.clone(), ProcessMemory::of(&scene));
-    let header = frame_header(&scene, &rendered, &[]);
-    outputs::write(&request.outputs, &rendered, &header, &stats, "")
-}
-
-/// The request's scene with its isosurfaces.
-fn open_scene(request: &RenderRequest) -> anyhow::Result<Scene> {
-    let mut scene = Scene::open(&request.file, &request.scene)?;
-    scene.set_isosurfaces(&request_isos(request, &scene))?;
-    Ok(scene)
-}
-
 /// The request's isosurfaces (the middle of the field's range when none given).
 pub fn request_isos(request: &RenderRequest, scene: &Scene) -> Vec<IsoSpec> {
-    match request.isos.is_empty() {
+    match request.isos.is_empty() && request.animation.sweep.is_none() {
         true => vec![IsoSpec::new(scene.default_isovalue())],
         false => request.isos.clone(),
     }

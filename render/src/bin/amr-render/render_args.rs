@@ -3,10 +3,13 @@
 
 use std::path::PathBuf;
 
+use amr_render::camera_path::CameraKey;
 use amr_render::shade::IsoSpec;
 use amr_render::{CameraPlacement, Reconstruction, SceneOptions, TraceMethod, View};
 use anyhow::bail;
 use clap::Args;
+
+use crate::animation::{Animation, IsoSweep};
 
 /// Most worker threads `--threads` may ask for.
 pub const MAX_THREADS: usize = 256;
@@ -14,8 +17,10 @@ pub const MAX_THREADS: usize = 256;
 /// Arguments of the render command.
 #[derive(Args, Debug, Clone)]
 pub struct RenderArgs {
-    /// The .amrk file.
-    pub file: PathBuf,
+    /// The .amrk file; several render a time series, one frame per file in the order given.
+    /// A `.toml` scene file (see --write-scene) stands for the arguments it holds.
+    #[arg(required = true, num_args = 1.., value_name = "FILE.amrk")]
+    pub files: Vec<PathBuf>,
     /// Field to render (default: the file's first field).
     #[arg(long)]
     pub field: Option<String>,
@@ -23,9 +28,33 @@ pub struct RenderArgs {
     /// (default: the middle of the field's range). Negative values as typed: --iso -60:red.
     #[arg(long = "iso", value_name = "V[:COLOR[:OPACITY]]", allow_hyphen_values = true)]
     pub iso: Vec<IsoSpec>,
-    /// Output OpenEXR file.
+    /// Output OpenEXR file; with several frames, OUT_0000.exr, OUT_0001.exr, ...
     #[arg(short = 'o', long = "output", value_name = "OUT.exr")]
     pub output: PathBuf,
+    /// Frames on a circle around the point looked at (about the up vector), starting at the
+    /// given or automatic camera.
+    #[arg(long, value_name = "N")]
+    pub orbit: Option<u32>,
+    /// Degrees the orbit turns in all.
+    #[arg(long, value_name = "D", default_value_t = 360.0, allow_hyphen_values = true)]
+    pub orbit_degrees: f64,
+    /// N frames with one more isosurface whose value goes from A to B (colour and opacity as
+    /// for --iso).
+    #[arg(long, value_name = "A:B:N[:COLOR[:OPACITY]]", allow_hyphen_values = true)]
+    pub iso_sweep: Option<IsoSweep>,
+    /// A camera at one frame of an animation, the cameras between keyframes interpolated;
+    /// repeat for several.
+    #[arg(long, value_name = "FRAME:X,Y,Z:LX,LY,LZ[:UX,UY,UZ]", allow_hyphen_values = true, value_parser = parse_keyframe)]
+    pub keyframe: Vec<CameraKey>,
+    /// Encodes the frames' PNG previews into a movie with ffmpeg (when it is installed).
+    #[arg(long, value_name = "OUT.mp4")]
+    pub movie: Option<PathBuf>,
+    /// Frames per second of --movie.
+    #[arg(long, value_name = "N", default_value_t = 24)]
+    pub fps: u32,
+    /// Writes these arguments as a TOML scene file that `amr-render FILE.toml` renders again.
+    #[arg(long, value_name = "SCENE.toml")]
+    pub write_scene: Option<PathBuf>,
     /// Image size.
     #[arg(long, value_name = "WxH", default_value = "1024x768", value_parser = parse_size)]
     pub size: (u32, u32),
@@ -84,8 +113,8 @@ pub struct RenderArgs {
 /// A validated render request: what the library needs and where the results go.
 #[derive(Clone, Debug)]
 pub struct RenderRequest {
-    /// The file.
-    pub file: PathBuf,
+    /// The files, one per frame of a time series.
+    pub files: Vec<PathBuf>,
     /// The scene's field, reconstruction and method.
     pub scene: SceneOptions,
     /// Isosurfaces (empty: the middle of the field's range).
@@ -96,6 +125,8 @@ pub struct RenderRequest {
     pub outputs: Outputs,
     /// Worker threads.
     pub threads: Option<usize>,
+    /// Frames after the first: a camera path, an isovalue sweep, a time series.
+    pub animation: Animation,
 }
 
 /// Where a frame and its statistics go.
@@ -109,6 +140,8 @@ pub struct Outputs {
     pub print_stats: bool,
     /// Statistics as JSON.
     pub stats_json: Option<PathBuf>,
+    /// A movie of the frames' previews, and its frame rate.
+    pub movie: Option<(PathBuf, u32)>,
 }
 
 impl RenderArgs {
@@ -144,8 +177,17 @@ impl RenderArgs {
             sample_step: self.step,
         };
         view.validate()?;
+        if self.fps == 0 || self.fps > 240 {
+            bail!("--fps {} must be between 1 and 240", self.fps);
+        }
+        let animation = Animation::new(
+            self.files.len(),
+            self.orbit.map(|n| (n, self.orbit_degrees)),
+            self.iso_sweep,
+            self.keyframe.clone(),
+        )?;
         Ok(RenderRequest {
-            file: self.file.clone(),
+            files: self.files.clone(),
             scene: SceneOptions {
                 field: self.field.clone(),
                 reconstruction: self.reconstruction,
@@ -159,8 +201,10 @@ impl RenderArgs {
                 preview: self.preview.clone(),
                 print_stats: self.stats,
                 stats_json: self.stats_json.clone(),
+                movie: self.movie.clone().map(|m| (m, self.fps)),
             },
             threads: self.threads,
+            animation,
         })
     }
 }
@@ -176,6 +220,27 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
             .map_err(|_| format!("size '{s}' is not WxH"))
     };
     Ok((p(w)?, p(h)?))
+}
+
+/// Parses a keyframe `FRAME:X,Y,Z:LX,LY,LZ[:UX,UY,UZ]`.
+fn parse_keyframe(s: &str) -> Result<CameraKey, String> {
+    let parts: Vec<&str> = s.split(':').collect();
+    if !(3..=4).contains(&parts.len()) {
+        return Err(format!("keyframe '{s}' is not FRAME:X,Y,Z:LX,LY,LZ[:UX,UY,UZ]"));
+    }
+    let frame = parts[0]
+        .trim()
+        .parse::<u32>()
+        .map_err(|_| format!("frame '{}' in '{s}' is not a frame number", parts[0]))?;
+    Ok(CameraKey {
+        frame,
+        pos: parse_vec3(parts[1])?,
+        look_at: parse_vec3(parts[2])?,
+        up: match parts.get(3) {
+            Some(u) => parse_vec3(u)?,
+            None => [0.0, 0.0, 1.0],
+        },
+    })
 }
 
 /// Parses a vector `X,Y,Z` of finite numbers.

@@ -116,3 +116,37 @@ pub fn check_against(src: &SrcPlotfile, amrk: &Path, fields: &[&str]) -> Checked
     }
     checked
 }
+
+/// Compares every cell of every brick of `amrk` with `expected(level, field, cell)`; returns
+/// the number of values compared.
+pub fn check_cells(amrk: &Path, expected: &dyn Fn(usize, usize, [i64; 3]) -> f32) -> u64 {
+    let file = AmrkFile::open(std::fs::read(amrk).unwrap()).unwrap();
+    file.verify().unwrap();
+    let mut n = 0;
+    for f in 0..file.fields().len() {
+        for b in 0..file.num_bricks() {
+            let info = file.brick(b);
+            let vals = file.brick_values(f, b).unwrap();
+            let c = info.cells;
+            let mut i = 0;
+            for z in c.lo[2]..c.hi[2] {
+                for y in c.lo[1]..c.hi[1] {
+                    for x in c.lo[0]..c.hi[0] {
+                        let want = expected(info.level as usize, f, [x, y, z]);
+                        assert_eq!(
+                            vals[i].to_bits(),
+                            want.to_bits(),
+                            "field {f}, level {}, cell {:?}: {} != {want}",
+                            info.level,
+                            [x, y, z],
+                            vals[i]
+                        );
+                        i += 1;
+                        n += 1;
+                    }
+                }
+            }
+        }
+    }
+    n
+}

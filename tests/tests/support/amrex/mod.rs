@@ -10,23 +10,29 @@ use std::path::{Path, PathBuf};
 use amr_convert::convert_cmd::{run_convert, ConvertSummary};
 use amr_format::Compression;
 
-/// The shared AMReX plotfiles: `$AMR_TEST_DATA/amrex`, else `../shared/data/amrex` from the
-/// workspace root. `None` (after saying so on stderr) when absent, so the caller can skip.
-pub fn shared_amrex(test: &str) -> Option<PathBuf> {
+/// The shared real data folder `REL` (`$AMR_TEST_DATA/REL`, else `../shared/data/REL` from the
+/// workspace root) when it holds `probe`; `None`, after saying on stderr that `test` was
+/// skipped and why, otherwise.
+pub fn shared_data(test: &str, rel: &str, probe: &str) -> Option<PathBuf> {
     let root = match std::env::var_os("AMR_TEST_DATA") {
         Some(p) => PathBuf::from(p),
         None => Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"),
     };
-    let dir = root.join("amrex");
-    if dir.join("example_plt_3d/Header").is_file() {
+    let dir = root.join(rel);
+    if dir.join(probe).is_file() {
         Some(dir)
     } else {
         eprintln!(
-            "SKIPPED {test}: the shared AMReX plotfiles are not at {} (set AMR_TEST_DATA to the folder holding amrex/)",
+            "skipped: {test}, because {} does not hold {probe} (set AMR_TEST_DATA to the folder holding {rel})",
             dir.display()
         );
         None
     }
+}
+
+/// The shared AMReX plotfiles (`amrex/` of the shared data), or `None` after saying why.
+pub fn shared_amrex(test: &str) -> Option<PathBuf> {
+    shared_data(test, "amrex", "example_plt_3d/Header")
 }
 
 /// Converts with default settings apart from `fields` and `brick`.

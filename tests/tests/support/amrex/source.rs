@@ -153,7 +153,10 @@ fn read_level(dir: &Path, ncomp: usize) -> Vec<SrcBox> {
         } else {
             (dlo, dhi)
         };
-        let size = desc[0] as usize;
+        // `((8, (format)),(N, (order)))`: 8 format entries, then one order entry per byte.
+        assert_eq!(desc[0], 8, "the format array has 8 entries");
+        let size = desc[9] as usize;
+        assert_eq!(desc[1] as usize, 8 * size, "bits per number");
         let big = desc[10] == 1 && size > 1;
         let de = [0, 1, 2].map(|a| (dhi[a] - dlo[a] + 1) as usize);
         let ncells = de[0] * de[1] * de[2];

@@ -23,10 +23,13 @@ pub enum Real {
 }
 
 impl Real {
-    fn descriptor(self) -> &'static str {
+    /// The `RealDescriptor` as AMReX prints it (`operator<<` in AMReX_FabConv.cpp): the format
+    /// array then the byte-order array, each `putarray`ed as `(number of entries, (entries))`;
+    /// the format array always has 8 entries.
+    pub fn descriptor(self) -> &'static str {
         match self {
-            Real::F32Le => "((4, (32 8 23 0 1 9 0 127)),(4, (4 3 2 1)))",
-            Real::F32Be => "((4, (32 8 23 0 1 9 0 127)),(4, (1 2 3 4)))",
+            Real::F32Le => "((8, (32 8 23 0 1 9 0 127)),(4, (4 3 2 1)))",
+            Real::F32Be => "((8, (32 8 23 0 1 9 0 127)),(4, (1 2 3 4)))",
             Real::F64Le => "((8, (64 11 52 0 1 12 0 1023)),(8, (8 7 6 5 4 3 2 1)))",
             Real::F64Be => "((8, (64 11 52 0 1 12 0 1023)),(8, (1 2 3 4 5 6 7 8)))",
         }

@@ -1,6 +1,7 @@
 //! Chombo plotfiles written by the tests themselves through the HDF5 library, in the layout
 //! Chombo's `WriteAMRHierarchyHDF5` produces, plus knobs that break them on purpose.
 
+pub mod check;
 pub mod writer;
 
 /// One level of a fixture: boxes in Chombo's inclusive notation `[lo_i, lo_j, lo_k, hi_i, hi_j, hi_k]`.
@@ -37,13 +38,17 @@ pub struct Desc {
     pub truncate_data: Option<(usize, usize)>,
     /// Overwrite one valid cell: (level, box, component, cell, value).
     pub poison: Option<(usize, usize, usize, [i64; 3], f64)>,
-    /// Write a checkpoint-style file: one dataset per variable, no `num_components` at the root.
-    pub checkpoint: bool,
+    /// Store the components as these `LevelData` variables (name, component count; the
+    /// components of `comps` in order), as checkpoint writers that call `write(handle, data,
+    /// NAME)` once per variable do; empty stores every component in `data`.
+    pub per_variable: Vec<(String, usize)>,
+    /// Write boxes only: no `num_levels`, no data (what Chombo's `meshRefineTest` leaves).
+    pub boxes_only: bool,
     /// Declare this level's `boxes` with 2³³ entries and write none (HDF5 allocates lazily).
     pub huge_boxes: Option<usize>,
     /// Declare this level's data at its full length but write none of it.
     pub unwritten_data: Option<usize>,
-    /// Add the root attribute `regrid_interval_0`, which only Chombo's checkpoint writer writes.
+    /// Add the root attributes only `AMR::writeCheckpointFile` writes (`regrid_interval_N`).
     pub checkpoint_marker: bool,
 }
 
@@ -79,11 +84,30 @@ impl Desc {
             omit_level: Vec::new(),
             truncate_data: None,
             poison: None,
-            checkpoint: false,
+            per_variable: Vec::new(),
+            boxes_only: false,
             checkpoint_marker: false,
             huge_boxes: None,
             unwritten_data: None,
         }
+    }
+}
+
+impl Desc {
+    /// A checkpoint whose level data is one `LevelData` per variable: a scalar `density` and a
+    /// 3-component `mom` whose components the root lists as `xmom`, `ymom`, `zmom`; the root
+    /// carries `AMR::writeCheckpointFile`'s attributes.
+    pub fn per_variable_checkpoint() -> Self {
+        let mut d = Desc::three_levels(true);
+        d.comps = vec![
+            "density".into(),
+            "xmom".into(),
+            "ymom".into(),
+            "zmom".into(),
+        ];
+        d.per_variable = vec![("density".into(), 1), ("mom".into(), 3)];
+        d.checkpoint_marker = true;
+        d
     }
 }
 

@@ -1,4 +1,8 @@
-//! Writes a [`Desc`] as an HDF5 file in Chombo's plotfile layout.
+//! Writes a [`Desc`] as an HDF5 file in Chombo's layout: the root and level attributes of
+//! `WriteAMRHierarchyHDF5` (AMRIO.cpp) or of `AMR::writeCheckpointFile` (AMR.cpp) with an
+//! `AMRLevel::writeCheckpointLevel`, and each `LevelData` as `CH_HDF5`'s
+//! `write(handle, LevelData, NAME, outputGhost)` stores it: `NAME:datatype=0`,
+//! `NAME:offsets=0` and `NAME_attributes` (`comps`, `objectType`, `ghost`, `outputGhost`).
 
 use std::path::Path;
 
@@ -102,32 +106,32 @@ pub fn write(path: &Path, d: &Desc) -> hdf5_metno::Result<()> {
         ("max_level", d.levels.len() as i32 - 1),
     ];
     for (name, v) in root_attrs {
-        let skip =
-            d.omit_root.iter().any(|o| o == name) || (d.checkpoint && name == "num_components");
+        let skip = d.omit_root.iter().any(|o| o == name) || (d.boxes_only && name == "num_levels");
         if !skip {
             attr(root, name, &v)?;
         }
     }
     attr(root, "time", &1.25f64)?;
     if d.checkpoint_marker {
-        attr(root, "regrid_interval_0", &2i32)?;
+        for l in 0..d.levels.len() {
+            attr(root, &format!("regrid_interval_{l}"), &2i32)?;
+            attr(root, &format!("steps_since_regrid_{l}"), &1i32)?;
+        }
     }
     attr_str(root, "filetype", "VanillaAMRFileType")?;
-    if !d.checkpoint {
-        for (c, name) in d.comps.iter().enumerate() {
-            let key = format!("component_{c}");
-            if d.omit_root.contains(&key) {
-                continue;
-            }
-            if c == 1 {
-                // One variable-length UTF-8 string, as h5py writes a Python str.
-                let v: VarLenUnicode = name
-                    .parse()
-                    .map_err(|e: hdf5_metno::types::StringError| e.to_string())?;
-                attr(root, &key, &v)?;
-            } else {
-                attr_str(root, &key, name)?;
-            }
+    for (c, name) in d.comps.iter().enumerate() {
+        let key = format!("component_{c}");
+        if d.omit_root.contains(&key) {
+            continue;
+        }
+        if c == 1 {
+            // One variable-length UTF-8 string, as h5py writes a Python str.
+            let v: VarLenUnicode = name
+                .parse()
+                .map_err(|e: hdf5_metno::types::StringError| e.to_string())?;
+            attr(root, &key, &v)?;
+        } else {
+            attr_str(root, &key, name)?;
         }
     }
     let global = root.create_group("Chombo_global")?;
@@ -135,7 +139,6 @@ pub fn write(path: &Path, d: &Desc) -> hdf5_metno::Result<()> {
     attr(&global, "testReal", &0.0f64)?;
 
     let nc = d.comps.len();
-    let g = d.ghost.map(i64::from);
     for (l, lev) in d.levels.iter().enumerate() {
         let grp = root.create_group(&format!("level_{l}"))?;
         let omit = |n: &str| d.omit_level.iter().any(|(ol, on)| *ol == l && on == n);
@@ -182,81 +185,98 @@ pub fn write(path: &Path, d: &Desc) -> hdf5_metno::Result<()> {
                 .create("boxes")?;
             ds.write_raw(&boxes)?;
         }
-        let da = grp.create_group("data_attributes")?;
-        if !omit("outputGhost") {
-            attr(&da, "outputGhost", &int_vect(d.ghost))?;
-        }
-        attr(&da, "ghost", &int_vect(d.ghost))?;
-        attr(&da, "comps", &(nc as i32))?;
-        attr_str(&da, "objectType", "FArrayBox")?;
-
-        // The flat data: box after box, component after component, x fastest, ghosts included.
-        let mut data: Vec<f64> = Vec::new();
-        let mut per_var: Vec<Vec<f64>> = vec![Vec::new(); nc];
-        let mut offsets: Vec<i64> = vec![0];
-        for (bi, b) in lev.boxes.iter().enumerate() {
-            let lo = [b[0], b[1], b[2]].map(i64::from);
-            let hi = [b[3], b[4], b[5]].map(i64::from);
-            for (c, var) in per_var.iter_mut().enumerate() {
-                for z in lo[2] - g[2]..=hi[2] + g[2] {
-                    for y in lo[1] - g[1]..=hi[1] + g[1] {
-                        for x in lo[0] - g[0]..=hi[0] + g[0] {
-                            let p = [x, y, z];
-                            let inside = (0..3).all(|a| lo[a] <= p[a] && p[a] <= hi[a]);
-                            let mut v = if inside {
-                                value(l, c, p)
-                            } else {
-                                ghost_value(l, c, p)
-                            };
-                            if let Some((pl, pb, pc, pp, pv)) = d.poison {
-                                if (pl, pb, pc, pp) == (l, bi, c, p) {
-                                    v = pv;
-                                }
-                            }
-                            data.push(v);
-                            var.push(v);
-                        }
-                    }
-                }
-            }
-            offsets.push(data.len() as i64);
-        }
-        if let Some((tl, n)) = d.truncate_data {
-            if tl == l {
-                data.truncate(data.len().saturating_sub(n));
-            }
-        }
-        if d.checkpoint {
-            for (c, name) in d.comps.iter().enumerate() {
-                let ds = format!("{name}:datatype=0");
-                grp.new_dataset_builder()
-                    .with_data(&per_var[c])
-                    .create(ds.as_str())?;
-            }
+        if d.boxes_only {
             continue;
         }
-        if !omit("data:offsets=0") {
-            grp.new_dataset_builder()
-                .with_data(&offsets)
-                .create("data:offsets=0")?;
-        }
-        if d.unwritten_data == Some(l) {
-            grp.new_dataset::<f64>()
-                .shape(data.len())
-                .create("data:datatype=0")?;
-        } else if !omit("data:datatype=0") {
-            if d.f64 {
-                grp.new_dataset_builder()
-                    .with_data(&data)
-                    .create("data:datatype=0")?;
-            } else {
-                let f: Vec<f32> = data.iter().map(|&v| v as f32).collect();
-                grp.new_dataset_builder()
-                    .with_data(&f)
-                    .create("data:datatype=0")?;
-            }
+        let vars = if d.per_variable.is_empty() {
+            vec![("data".to_string(), nc)]
+        } else {
+            d.per_variable.clone()
+        };
+        let mut first = 0;
+        for (var, n) in vars {
+            write_var(&grp, d, l, &var, first..first + n, &omit)?;
+            first += n;
         }
     }
     file.close()?;
+    Ok(())
+}
+
+/// Writes components `comps` of level `l` as the `LevelData` `name`: box after box, component
+/// after component, x fastest, ghost layers included.
+fn write_var(
+    grp: &Group,
+    d: &Desc,
+    l: usize,
+    name: &str,
+    comps: std::ops::Range<usize>,
+    omit: &dyn Fn(&str) -> bool,
+) -> hdf5_metno::Result<()> {
+    let lev = &d.levels[l];
+    let g = d.ghost.map(i64::from);
+    let da = grp.create_group(&format!("{name}_attributes"))?;
+    if !omit("outputGhost") {
+        attr(&da, "outputGhost", &int_vect(d.ghost))?;
+    }
+    attr(&da, "ghost", &int_vect(d.ghost))?;
+    attr(&da, "comps", &(comps.len() as i32))?;
+    attr_str(&da, "objectType", "FArrayBox")?;
+
+    let mut data: Vec<f64> = Vec::new();
+    let mut offsets: Vec<i64> = vec![0];
+    for (bi, b) in lev.boxes.iter().enumerate() {
+        let lo = [b[0], b[1], b[2]].map(i64::from);
+        let hi = [b[3], b[4], b[5]].map(i64::from);
+        for c in comps.clone() {
+            for z in lo[2] - g[2]..=hi[2] + g[2] {
+                for y in lo[1] - g[1]..=hi[1] + g[1] {
+                    for x in lo[0] - g[0]..=hi[0] + g[0] {
+                        let p = [x, y, z];
+                        let inside = (0..3).all(|a| lo[a] <= p[a] && p[a] <= hi[a]);
+                        let mut v = if inside {
+                            value(l, c, p)
+                        } else {
+                            ghost_value(l, c, p)
+                        };
+                        if let Some((pl, pb, pc, pp, pv)) = d.poison {
+                            if (pl, pb, pc, pp) == (l, bi, c, p) {
+                                v = pv;
+                            }
+                        }
+                        data.push(v);
+                    }
+                }
+            }
+        }
+        offsets.push(data.len() as i64);
+    }
+    if let Some((tl, n)) = d.truncate_data {
+        if tl == l {
+            data.truncate(data.len().saturating_sub(n));
+        }
+    }
+    let (data_name, offsets_name) = (format!("{name}:datatype=0"), format!("{name}:offsets=0"));
+    if !omit(&offsets_name) {
+        grp.new_dataset_builder()
+            .with_data(&offsets)
+            .create(offsets_name.as_str())?;
+    }
+    if d.unwritten_data == Some(l) {
+        grp.new_dataset::<f64>()
+            .shape(data.len())
+            .create(data_name.as_str())?;
+    } else if !omit(&data_name) {
+        if d.f64 {
+            grp.new_dataset_builder()
+                .with_data(&data)
+                .create(data_name.as_str())?;
+        } else {
+            let f: Vec<f32> = data.iter().map(|&v| v as f32).collect();
+            grp.new_dataset_builder()
+                .with_data(&f)
+                .create(data_name.as_str())?;
+        }
+    }
     Ok(())
 }

@@ -16,7 +16,7 @@ use serde::Serialize;
 
 use super::stats::{cpu_seconds, table, RankRecord, RankStats};
 use super::{partitioned, replicated, MpiMode};
-use crate::outputs::{self, RunStats};
+use crate::outputs::{self, FrameFiles, RunStats};
 use crate::probe::peak_rss_bytes;
 use crate::progress;
 use crate::render::request_isos;
@@ -43,6 +43,9 @@ struct MpiTotals {
 /// Renders `request` with every rank of `mpirun`; rank 0 writes the outputs.
 pub fn run(request: &RenderRequest, mode: Option<&str>) -> anyhow::Result<()> {
     let mode = MpiMode::parse(mode)?;
+    if request.animation.frames > 1 || request.files.len() > 1 {
+        bail!("under mpirun amr-render renders one frame of one file; run animations in one process");
+    }
     let (w, h) = request.view.size;
     // Pixel messages count 12 `f32` per pixel in a C `int`.
     if u64::from(w) * u64::from(h) * 12 > i32::MAX as u64 {
@@ -104,14 +107,15 @@ fn run_rank(
     let rank = world.rank();
     let setup = (|| -> anyhow::Result<Scene> {
         if rank == 0 {
-            outputs::check(&request.outputs, &[&request.file])?;
+            let files = FrameFiles::numbered(&request.outputs, 0, 1, false);
+            outputs::check_frame(&files, &request.outputs, &[&request.files[0]])?;
         }
-        Ok(Scene::open(&request.file, &request.scene)?)
+        Ok(Scene::open(&request.files[0], &request.scene)?)
     })();
     if !all_ok(world, setup.is_ok()) {
         return Err(Failure::Agreed(match setup {
             Err(e) => e,
-            Ok(_) => anyhow!("another MPI rank could not open {}", request.file.display()),
+            Ok(_) => anyhow!("another MPI rank could not open {}", request.files[0].display()),
         }));
     }
     let mut scene = setup?;
@@ -234,11 +238,7 @@ fn write_rank0(
         MpiMode::Replicated => "tiles",
         MpiMode::Partitioned => "leaves",
     };
-    outputs::write(
-        &request.outputs,
-        &rendered,
-        &header,
-        &stats,
-        &table(ranks, work),
-    )
+    let files = FrameFiles::numbered(&request.outputs, 0, 1, false);
+    outputs::write_frame(&files, &rendered, &header)?;
+    outputs::report(&request.outputs, &stats, &table(ranks, work))
 }

@@ -1,0 +1,64 @@
+//! Enzo datasets (packed-HDF5 output, and the older one-file-per-grid layout): reading the
+//! parameter and hierarchy files, streaming the grids' fields, and converting to `.amrk`.
+//!
+//! A dataset `DD0010/NAME` is the parameter file `NAME`, the hierarchy `NAME.hierarchy` (one
+//! text block per grid) and data files `NAME.cpuNNNN` holding one `GridNNNNNNNN` group per grid
+//! (or `NAME.gridNNNN`, one file per grid). See `docs/enzo.md` for what is supported and why.
+
+pub mod dataset;
+pub mod error;
+pub mod hierarchy;
+pub mod parameters;
+pub mod reader;
+mod text;
+
+use std::path::{Path, PathBuf};
+
+pub use crate::bricking::{ConvertOptions, ConvertStats};
+pub use dataset::Dataset;
+pub use error::{EnzoError, Result};
+
+use crate::progress::Progress;
+
+/// The suffix of the hierarchy file beside a parameter file.
+pub const HIERARCHY_SUFFIX: &str = ".hierarchy";
+
+/// The parameter file and hierarchy of the Enzo dataset `input` names, if it names one: a
+/// parameter file with a `.hierarchy` beside it, the `.hierarchy` itself, or a directory holding
+/// exactly one `.hierarchy`.
+pub fn locate(input: &Path) -> Option<(PathBuf, PathBuf)> {
+    if input.is_dir() {
+        let mut found = std::fs::read_dir(input)
+            .ok()?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.is_file() && p.to_string_lossy().ends_with(HIERARCHY_SUFFIX));
+        let h = found.next()?;
+        if found.next().is_some() {
+            return None;
+        }
+        return Some((strip_suffix(&h)?, h));
+    }
+    let s = input.to_string_lossy();
+    if s.ends_with(HIERARCHY_SUFFIX) && input.is_file() {
+        return Some((strip_suffix(input)?, input.to_path_buf()));
+    }
+    let h = PathBuf::from(format!("{s}{HIERARCHY_SUFFIX}"));
+    (input.is_file() && h.is_file()).then(|| (input.to_path_buf(), h))
+}
+
+fn strip_suffix(h: &Path) -> Option<PathBuf> {
+    let s = h.to_string_lossy();
+    Some(PathBuf::from(s.strip_suffix(HIERARCHY_SUFFIX)?))
+}
+
+/// Converts the Enzo dataset with parameter file `params` and hierarchy `hierarchy` into the
+/// `.amrk` file `output` (see [`crate::hierarchy_to_amrk::convert`]).
+pub fn convert(
+    params: &Path,
+    hierarchy: &Path,
+    output: &Path,
+    opts: &ConvertOptions,
+    progress: &dyn Progress,
+) -> Result<ConvertStats> {
+    crate::hierarchy_to_amrk::convert(&Dataset::open(params, hierarchy)?, output, opts, progress)
+}

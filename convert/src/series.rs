@@ -1,0 +1,70 @@
+//! Where each dump of a time series goes: several inputs (or an output ending in `/`) convert
+//! into one directory, one `NAME.amrk` per dump, named after the dump (`plt00100` for an AMReX
+//! plotfile directory, `chk0010` for `chk0010.3d.hdf5`, `DD0010` for an Enzo directory or
+//! `moving7_0010` for its parameter file).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::bail;
+
+/// The `(input, output)` pairs of a conversion of `inputs` to `output`.
+pub fn outputs(inputs: &[PathBuf], output: &Path) -> anyhow::Result<Vec<(PathBuf, PathBuf)>> {
+    let to_dir = inputs.len() > 1 || output.as_os_str().to_string_lossy().ends_with('/');
+    if !to_dir {
+        return Ok(inputs.iter().map(|i| (i.clone(), output.to_path_buf())).collect());
+    }
+    if output.exists() && !output.is_dir() {
+        bail!(
+            "{}: several inputs need a directory for their .amrk files, and this is a file",
+            output.display()
+        );
+    }
+    std::fs::create_dir_all(output)
+        .map_err(|e| anyhow::anyhow!("{}: cannot create the directory: {e}", output.display()))?;
+    let mut pairs: Vec<(PathBuf, PathBuf)> = Vec::with_capacity(inputs.len());
+    for input in inputs {
+        let out = output.join(format!("{}.amrk", step_name(input)?));
+        if let Some((other, _)) = pairs.iter().find(|(_, o)| *o == out) {
+            bail!(
+                "{} and {} would both be written to {}; convert them to different directories",
+                other.display(),
+                input.display(),
+                out.display()
+            );
+        }
+        pairs.push((input.clone(), out));
+    }
+    Ok(pairs)
+}
+
+/// The name of a dump: its file or directory name without HDF5 extensions.
+fn step_name(input: &Path) -> anyhow::Result<String> {
+    let Some(name) = input.file_name().map(|n| n.to_string_lossy().into_owned()) else {
+        bail!("{}: no file name to name its .amrk after", input.display());
+    };
+    let mut stem = name.as_str();
+    for ext in [".hdf5", ".h5", ".hierarchy", ".3d", ".2d"] {
+        stem = stem.strip_suffix(ext).unwrap_or(stem);
+    }
+    Ok(stem.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_series_goes_to_a_directory_named_after_each_dump() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("series");
+        let inputs = [PathBuf::from("run/plt00100"), PathBuf::from("run/chk0010.3d.hdf5")];
+        let pairs = outputs(&inputs, &out).unwrap();
+        assert_eq!(pairs[0].1, out.join("plt00100.amrk"));
+        assert_eq!(pairs[1].1, out.join("chk0010.amrk"));
+        assert!(out.is_dir());
+        let same = [PathBuf::from("a/plt1"), PathBuf::from("b/plt1")];
+        assert!(outputs(&same, &out).is_err());
+        let single = outputs(&inputs[..1], Path::new("x.amrk")).unwrap();
+        assert_eq!(single[0].1, PathBuf::from("x.amrk"));
+    }
+}

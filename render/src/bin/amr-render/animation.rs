@@ -1,0 +1,203 @@
+//! What changes from frame to frame of one run: the file (a time series), the camera (an orbit
+//! or keyframes) and one isovalue (a sweep). Whatever is given animates in lockstep, so the
+//! counts must agree.
+
+use std::str::FromStr;
+
+use amr_render::camera::Camera;
+use amr_render::camera_path::{interpolate, orbit, CameraKey};
+use amr_render::shade::IsoSpec;
+use amr_render::CameraPlacement;
+use anyhow::bail;
+
+/// Most frames one run renders.
+pub const MAX_FRAMES: u32 = 100_000;
+
+/// An isosurface whose value goes from `from` to `to` over `frames` frames.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IsoSweep {
+    /// The first frame's isosurface (its value is `from`).
+    pub first: IsoSpec,
+    /// The last frame's isovalue.
+    pub to: f32,
+    /// Frames.
+    pub frames: u32,
+}
+
+impl IsoSweep {
+    /// The isosurface of frame `k`: values evenly spaced from `from` to `to`, both included.
+    pub fn at(&self, k: u32) -> IsoSpec {
+        let t = if self.frames > 1 {
+            f64::from(k) / f64::from(self.frames - 1)
+        } else {
+            0.0
+        };
+        let (a, b) = (f64::from(self.first.value), f64::from(self.to));
+        IsoSpec {
+            value: (a + (b - a) * t) as f32,
+            ..self.first
+        }
+    }
+}
+
+impl FromStr for IsoSweep {
+    type Err = String;
+
+    /// `A:B:N[:COLOR[:OPACITY]]`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        let parts: Vec<&str> = s.splitn(4, ':').collect();
+        if parts.len() < 3 {
+            return Err(format!("sweep '{s}' is not A:B:N[:COLOR[:OPACITY]]"));
+        }
+        let to: f32 = parts[1]
+            .trim()
+            .parse()
+            .map_err(|_| format!("'{}' in '{s}' is not a number", parts[1]))?;
+        let frames: u32 = parts[2]
+            .trim()
+            .parse()
+            .map_err(|_| format!("'{}' in '{s}' is not a frame count", parts[2]))?;
+        if !to.is_finite() {
+            return Err(format!("'{}' in '{s}' is not finite", parts[1]));
+        }
+        if !(1..=MAX_FRAMES).contains(&frames) {
+            return Err(format!("sweep of {frames} frames: give 1 to {MAX_FRAMES}"));
+        }
+        let first = match parts.get(3) {
+            Some(rest) => format!("{}:{rest}", parts[0]),
+            None => parts[0].to_string(),
+        };
+        Ok(IsoSweep {
+            first: first.parse()?,
+            to,
+            frames,
+        })
+    }
+}
+
+/// The frames of one run.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Animation {
+    /// Number of frames.
+    pub frames: u32,
+    /// Files of a time series (more than one), one per frame.
+    pub series: bool,
+    /// Frames of an orbit and the degrees it turns.
+    pub orbit: Option<(u32, f64)>,
+    /// An isovalue sweep.
+    pub sweep: Option<IsoSweep>,
+    /// Camera keyframes.
+    pub keyframes: Vec<CameraKey>,
+}
+
+impl Animation {
+    /// The frames of a run over `files` files with an optional orbit, sweep and keyframes.
+    pub fn new(
+        files: usize,
+        orbit: Option<(u32, f64)>,
+        sweep: Option<IsoSweep>,
+        mut keyframes: Vec<CameraKey>,
+    ) -> anyhow::Result<Animation> {
+        keyframes.sort_by_key(|k| k.frame);
+        if keyframes.windows(2).any(|w| w[0].frame == w[1].frame) {
+            bail!("two --keyframe options name the same frame");
+        }
+        if orbit.is_some() && !keyframes.is_empty() {
+            bail!("--orbit and --keyframe are two camera paths: give one");
+        }
+        if let Some((n, degrees)) = orbit {
+            if !(1..=MAX_FRAMES).contains(&n) || !degrees.is_finite() {
+                bail!("--orbit {n} --orbit-degrees {degrees}: give 1 to {MAX_FRAMES} frames and a finite angle");
+            }
+        }
+        let mut counts: Vec<(String, u32)> = Vec::new();
+        if files > 1 {
+            let n = u32::try_from(files).unwrap_or(u32::MAX);
+            counts.push((format!("{files} files"), n));
+        }
+        if let Some((n, _)) = orbit {
+            counts.push((format!("--orbit {n}"), n));
+        }
+        if let Some(s) = sweep {
+            counts.push((format!("--iso-sweep of {} frames", s.frames), s.frames));
+        }
+        if let Some((a, b)) = counts.iter().zip(counts.iter().skip(1)).find(|(a, b)| a.1 != b.1) {
+            bail!(
+                "{} and {}: an animation's parts run in lockstep, so their frame counts must agree",
+                a.0,
+                b.0
+            );
+        }
+        let from_keys = keyframes.last().map_or(1, |k| k.frame.saturating_add(1));
+        let frames = counts.first().map_or(from_keys, |c| c.1);
+        if frames > MAX_FRAMES {
+            bail!("{frames} frames: one run renders at most {MAX_FRAMES}");
+        }
+        Ok(Animation {
+            frames,
+            series: files > 1,
+            orbit,
+            sweep,
+            keyframes,
+        })
+    }
+
+    /// The camera of every frame: along the orbit or the keyframes, else `start` (the first
+    /// frame's camera, kept for a time series so that its frames compare).
+    pub fn cameras(&self, start: &Camera) -> anyhow::Result<Vec<CameraPlacement>> {
+        if let Some((n, degrees)) = self.orbit {
+            return Ok(orbit(start, n, degrees)?);
+        }
+        if !self.keyframes.is_empty() {
+            return (0..self.frames)
+                .map(|k| Ok(interpolate(&self.keyframes, k)?))
+                .collect();
+        }
+        let fixed = CameraPlacement {
+            pos: start.pos,
+            look_at: Some(start.look_at),
+            up: Some(start.up),
+        };
+        Ok(vec![fixed; self.frames as usize])
+    }
+
+    /// The isosurfaces of frame `k`: `isos` and the sweep's surface of that frame.
+    pub fn isos(&self, isos: &[IsoSpec], k: u32) -> Vec<IsoSpec> {
+        let mut all = isos.to_vec();
+        if let Some(s) = self.sweep {
+            all.push(s.at(k));
+        }
+        all
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sweep_includes_both_ends() {
+        let s: IsoSweep = "-1:1:5:red:0.5".parse().unwrap();
+        let v: Vec<f32> = (0..5).map(|k| s.at(k).value).collect();
+        assert_eq!(v, [-1.0, -0.5, 0.0, 0.5, 1.0]);
+        assert_eq!(s.at(2).opacity, 0.5);
+        assert!("1:2".parse::<IsoSweep>().is_err());
+        assert!("1:2:0".parse::<IsoSweep>().is_err());
+    }
+
+    #[test]
+    fn counts_must_agree() {
+        let sweep: IsoSweep = "0:1:4".parse().unwrap();
+        assert_eq!(Animation::new(4, Some((4, 360.0)), Some(sweep), vec![]).unwrap().frames, 4);
+        assert!(Animation::new(3, Some((4, 360.0)), None, vec![]).is_err());
+        assert_eq!(Animation::new(1, None, None, vec![]).unwrap().frames, 1);
+        let key = CameraKey {
+            frame: 9,
+            pos: [1.0; 3],
+            look_at: [0.0; 3],
+            up: [0.0, 0.0, 1.0],
+        };
+        assert_eq!(Animation::new(1, None, None, vec![key]).unwrap().frames, 10);
+        assert!(Animation::new(1, Some((4, 90.0)), None, vec![key]).is_err());
+    }
+}

@@ -1,0 +1,147 @@
+//! Scene files: everything a render command line says, as TOML, so that a figure or an animation
+//! can be made again with `amr-render scene.toml`. The keys are the command's long options
+//! (`size = "1024x768"`, `iso = ["10:orange", "5:#3070ff:0.4"]`, `orbit = 36`,
+//! `no-shadows = true`) and `files` for the input files; the values are read by the same parsers
+//! as the command line, so a scene file accepts exactly what the command line accepts. Options
+//! given after the scene file on the command line take precedence. Paths are taken as written,
+//! relative to the directory the command runs in.
+
+use std::ffi::OsString;
+use std::path::Path;
+
+use anyhow::{bail, Context};
+use clap::parser::ValueSource;
+use clap::{ArgMatches, Command};
+use toml::{Table, Value};
+
+/// Key of the input files.
+const FILES: &str = "files";
+
+/// `argv` with a scene file in first position replaced by the arguments it holds (the
+/// arguments after it are kept, after those, so that they take precedence).
+pub fn expand(argv: Vec<OsString>) -> anyhow::Result<Vec<OsString>> {
+    let Some(first) = argv.get(1) else {
+        return Ok(argv);
+    };
+    let path = Path::new(first);
+    if path.extension().is_none_or(|e| e != "toml") {
+        return Ok(argv);
+    }
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read the scene file {}", path.display()))?;
+    let table: Table = text
+        .parse()
+        .with_context(|| format!("{}: not a TOML scene file", path.display()))?;
+    let mut out = vec![argv[0].clone()];
+    out.extend(arguments(&table).with_context(|| format!("{}", path.display()))?);
+    out.extend(argv[2..].iter().cloned());
+    Ok(out)
+}
+
+/// The command-line arguments a scene file's table stands for.
+fn arguments(table: &Table) -> anyhow::Result<Vec<OsString>> {
+    let mut files = Vec::new();
+    let mut options = Vec::new();
+    for (key, value) in table {
+        if key == FILES {
+            match value {
+                Value::Array(items) => {
+                    for item in items {
+                        files.push(OsString::from(scalar(key, item)?));
+                    }
+                }
+                other => files.push(OsString::from(scalar(key, other)?)),
+            }
+            continue;
+        }
+        let flag = format!("--{}", key.replace('_', "-"));
+        match value {
+            Value::Boolean(true) => options.push(OsString::from(&flag)),
+            Value::Boolean(false) => {}
+            Value::Array(items) if items.iter().all(|v| v.is_integer() || v.is_float()) => {
+                let parts: Vec<String> =
+                    items.iter().map(|v| scalar(key, v)).collect::<anyhow::Result<_>>()?;
+                options.push(OsString::from(&flag));
+                options.push(OsString::from(parts.join(",")));
+            }
+            Value::Array(items) => {
+                for item in items {
+                    options.push(OsString::from(&flag));
+                    options.push(OsString::from(scalar(key, item)?));
+                }
+            }
+            other => {
+                options.push(OsString::from(&flag));
+                options.push(OsString::from(scalar(key, other)?));
+            }
+        }
+    }
+    if files.is_empty() {
+        bail!("no `files` (the .amrk files to render)");
+    }
+    files.extend(options);
+    Ok(files)
+}
+
+/// The text of a string or number.
+fn scalar(key: &str, v: &Value) -> anyhow::Result<String> {
+    match v {
+        Value::String(s) => Ok(s.clone()),
+        Value::Integer(i) => Ok(i.to_string()),
+        Value::Float(f) => Ok(f.to_string()),
+        other => bail!("`{key}`: {other} is not a string or a number"),
+    }
+}
+
+/// Writes the render arguments given in `matches` (parsed by `cmd`) as a scene file at `path`.
+pub fn write(path: &Path, cmd: &Command, matches: &ArgMatches) -> anyhow::Result<()> {
+    let mut table = Table::new();
+    for arg in cmd.get_arguments() {
+        let id = arg.get_id().as_str();
+        if id == "write_scene" || matches.value_source(id) != Some(ValueSource::CommandLine) {
+            continue;
+        }
+        let Some(long) = arg.get_long() else {
+            if id == FILES {
+                table.insert(FILES.into(), Value::Array(raw_values(matches, id)));
+            }
+            continue;
+        };
+        let value = if !arg.get_action().takes_values() {
+            Value::Boolean(true)
+        } else {
+            let mut values = raw_values(matches, id);
+            match arg.get_num_args().is_some_and(|n| n.max_values() > 1)
+                || matches!(arg.get_action(), clap::ArgAction::Append)
+            {
+                true => Value::Array(values),
+                false => values.pop().unwrap_or(Value::Boolean(true)),
+            }
+        };
+        table.insert(long.into(), value);
+    }
+    let text = toml::to_string_pretty(&table)?;
+    let header = "# amr-render scene file: `amr-render THIS.toml` renders it again.\n";
+    std::fs::write(path, format!("{header}{text}"))
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(())
+}
+
+/// The values of `id` as given, numbers as numbers.
+fn raw_values(matches: &ArgMatches, id: &str) -> Vec<Value> {
+    matches
+        .get_raw(id)
+        .into_iter()
+        .flatten()
+        .map(|raw| {
+            let s = raw.to_string_lossy();
+            match s.parse::<i64>() {
+                Ok(i) => Value::Integer(i),
+                Err(_) => match s.parse::<f64>() {
+                    Ok(f) if f.is_finite() && !s.contains(['x', 'X']) => Value::Float(f),
+                    _ => Value::String(s.into_owned()),
+                },
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,194 @@
+//! Enzo datasets in: the real `DD0010` (shared data, not in the repository) against yt's
+//! figures and an independent reading of its HDF5 file, and datasets written by the tests in
+//! Enzo's layouts (packed and one file per grid, ghost zones, doubles), cell by cell; broken
+//! ones must fail with a message naming the file and the grid, leaving nothing behind.
+
+use std::path::Path;
+
+use crate::support::amrex::check::check_cells;
+use crate::support::amrex::{assert_fails, convert, shared_data};
+use crate::support::enzo::value;
+use crate::support::enzo::writer::{self, Desc, GridDesc};
+use amr_format::AmrkFile;
+
+/// yt 4.4.3 on DD0010 (`docs/enzo.md`): per field, the minimum and maximum over every grid's
+/// active cells, `g[("enzo", field)]`.
+const YT_RANGES: [(&str, f64, f64); 7] = [
+    ("Dark_Matter_Density", 0.0, 2673962.0),
+    ("Density", 0.09875256568193436, 256954.46875),
+    ("Temperature", 1.0, 16697.09765625),
+    ("TotalEnergy", 1.190296643471811e-07, 0.0020184072200208902),
+    ("x-velocity", 0.5722823739051819, 1.020929217338562),
+    ("y-velocity", 0.11771322041749954, 0.6384459733963013),
+    ("z-velocity", 0.15302400290966034, 0.6125621199607849),
+];
+
+#[test]
+fn dd0010_matches_yt() {
+    let Some(dir) = shared_data("dd0010_matches_yt", "enzo/DD0010", "moving7_0010.hierarchy")
+    else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    for (input, brick) in [(dir.join("moving7_0010"), 32), (dir.clone(), 4)] {
+        let out = tmp.path().join(format!("b{brick}.amrk"));
+        let s = convert(&input, &out, &[], brick).unwrap();
+        assert_eq!(s.cells, 30_360);
+        let file = AmrkFile::open(std::fs::read(&out).unwrap()).unwrap();
+        file.verify().unwrap();
+        assert_eq!(file.levels().len(), 8);
+        assert!(file.levels()[..7].iter().all(|l| l.ratio_to_next == [2; 3]));
+        for ((name, lo, hi), f) in YT_RANGES.iter().zip(file.fields()) {
+            assert_eq!(f.name, *name);
+            assert_eq!((f.min, f.max), (*lo as f32, *hi as f32), "{name}");
+        }
+        let sums = independent_sums(&dir.join("moving7_0010.cpu0000"));
+        for (f, (name, want)) in sums.iter().enumerate() {
+            let got: f64 = (0..file.num_bricks())
+                .flat_map(|b| file.brick_values(f, b).unwrap().to_vec())
+                .map(f64::from)
+                .sum();
+            assert_eq!(got, *want, "sum of {name}");
+        }
+    }
+}
+
+/// Per field (in name order), the sum over every `GridNNNNNNNN` group's dataset, read straight
+/// from the HDF5 file.
+fn independent_sums(cpu: &Path) -> Vec<(String, f64)> {
+    let f = hdf5_metno::File::open(cpu).unwrap();
+    let mut sums: Vec<(String, f64)> = YT_RANGES.iter().map(|r| (r.0.to_string(), 0.0)).collect();
+    for g in f.member_names().unwrap() {
+        let group = f.group(&g).unwrap();
+        for (name, sum) in sums.iter_mut() {
+            let v: Vec<f32> = group.dataset(name).unwrap().read_raw().unwrap();
+            *sum += v.iter().map(|&x| f64::from(x)).sum::<f64>();
+        }
+    }
+    sums
+}
+
+fn expected(level: usize, field: usize, c: [i64; 3]) -> f32 {
+    value(level, field, c) as f32
+}
+
+#[test]
+fn written_datasets_convert_exactly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut cases = Vec::new();
+    let d = Desc::three_levels();
+    cases.push(("ghosts_f64_packed", d.clone()));
+    cases.push((
+        "active_f32_per_grid",
+        Desc {
+            write_ghosts: false,
+            f64: false,
+            packed: false,
+            ..d.clone()
+        },
+    ));
+    for (name, d) in cases {
+        let params = writer::write(&tmp.path().join(name), "DD0003", &d);
+        for brick in [32, 3] {
+            let out = tmp.path().join(format!("{name}{brick}.amrk"));
+            let s = convert(&params, &out, &[], brick).unwrap();
+            assert_eq!(
+                s.cells,
+                8 * 6 * 4 + 6 * 8 * 6 + 6 * 4 * 6 + 8 * 10 * 8,
+                "{name}"
+            );
+            assert_eq!(check_cells(&out, &expected), s.cells * 3, "{name}");
+            let file = AmrkFile::open(std::fs::read(&out).unwrap()).unwrap();
+            assert_eq!(
+                file.levels()[2].cell_size,
+                [2.0 / 32.0, 1.5 / 24.0, 1.0 / 16.0]
+            );
+            assert_eq!(file.levels()[0].origin, [-1.0, 0.0, 2.0]);
+        }
+    }
+    let params = writer::write(&tmp.path().join("sel"), "DD0003", &d);
+    let out = tmp.path().join("sel.amrk");
+    convert(
+        &params.with_extension("hierarchy"),
+        &out,
+        &["x-velocity"],
+        8,
+    )
+    .unwrap();
+    check_cells(&out, &|l, _, c| expected(l, 2, c));
+}
+
+#[test]
+fn misaligned_and_badly_nested_grids_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shifted = Desc {
+        shift: Some((3, 0.5)),
+        ..Desc::three_levels()
+    };
+    let p = writer::write(&tmp.path().join("a"), "DD0003", &shifted);
+    assert_fails(
+        &p,
+        &[],
+        &[
+            "DD0003.hierarchy",
+            "grid 3",
+            "cells off level 1's cell grid",
+        ],
+    );
+
+    let mut outside = Desc::three_levels();
+    outside.roots[0].children[1].children = vec![GridDesc {
+        lo: [18, 0, 4],
+        hi: [24, 4, 8],
+        children: vec![],
+    }];
+    let p = writer::write(&tmp.path().join("b"), "DD0003", &outside);
+    assert_fails(
+        &p,
+        &[],
+        &["grid 4 (level 2", "not properly nested", "parent grid 3"],
+    );
+
+    let p = writer::write(
+        &tmp.path().join("c"),
+        "DD0003",
+        &Desc {
+            omit_refine_by: true,
+            ..Desc::three_levels()
+        },
+    );
+    assert_fails(&p, &[], &["DD0003", "no 'RefineBy' parameter"]);
+
+    let p = writer::write(
+        &tmp.path().join("d"),
+        "DD0003",
+        &Desc {
+            rank: 2,
+            ..Desc::three_levels()
+        },
+    );
+    assert_fails(&p, &[], &["not supported", "2D dataset"]);
+
+    let unwritten = Desc {
+        unwritten: Some(4),
+        ..Desc::three_levels()
+    };
+    let p = writer::write(&tmp.path().join("f"), "DD0003", &unwritten);
+    assert_fails(
+        &p,
+        &[],
+        &["DD0003.cpu0000", "grid 4's 'Density' stores 0 bytes"],
+    );
+
+    let p = writer::write(&tmp.path().join("e"), "DD0003", &Desc::three_levels());
+    assert_fails(
+        &p,
+        &["Pressure"],
+        &[
+            "no field named 'Pressure'",
+            "Density, Temperature, x-velocity",
+        ],
+    );
+    std::fs::remove_file(tmp.path().join("e/DD0003.cpu0000")).unwrap();
+    assert_fails(&p, &[], &["DD0003.cpu0000", "cannot open as an HDF5 file"]);
+}

@@ -48,7 +48,8 @@ pub fn draw_points<D: AsRef<[u8]>>(
             break;
         }
         let p = [0, 1, 2].map(|a| rng.next_f64() * 2.0 * ext[a] as f64);
-        let finest = |q: [f64; 3]| [0, 1, 2].map(|a| ((q[a] * 0.5).floor() as i64).clamp(0, ext[a] - 1));
+        let finest =
+            |q: [f64; 3]| [0, 1, 2].map(|a| ((q[a] * 0.5).floor() as i64).clamp(0, ext[a] - 1));
         let Some(c) = sampler.locate(finest(p))? else {
             continue;
         };

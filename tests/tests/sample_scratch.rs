@@ -58,7 +58,11 @@ fn samples_through_a_scratch_equal_fresh_samples() {
                 );
                 if let Some((_, level)) = kept {
                     let finest = [0, 1, 2].map(|a| ((p[a] * 0.5).floor() as i64).min(ext[a] - 1));
-                    assert_eq!(level, s.locate(finest).unwrap().unwrap().level, "{case:?}: {p:?}");
+                    assert_eq!(
+                        level,
+                        s.locate(finest).unwrap().unwrap().level,
+                        "{case:?}: {p:?}"
+                    );
                 }
             }
         }
@@ -121,8 +125,14 @@ fn a_scratch_handed_to_another_sampler_forgets_the_first() {
     for (p, q) in pa.iter().zip(&pb) {
         for (s, x) in [(&sa, p), (&sb, q), (&sb, p), (&sa, q)] {
             let fresh = s.sample(*x, Reconstruction::Octant).unwrap();
-            let kept = s.sample_with(*x, Reconstruction::Octant, &mut scratch).unwrap();
-            assert_eq!(fresh.map(f32::to_bits), kept.map(|k| k.0.to_bits()), "at {x:?}");
+            let kept = s
+                .sample_with(*x, Reconstruction::Octant, &mut scratch)
+                .unwrap();
+            assert_eq!(
+                fresh.map(f32::to_bits),
+                kept.map(|k| k.0.to_bits()),
+                "at {x:?}"
+            );
         }
     }
 }
@@ -131,7 +141,11 @@ fn a_scratch_handed_to_another_sampler_forgets_the_first() {
 fn field_source_gradients_equal_central_differences_of_fresh_samples() {
     for case in cases().into_iter().take(6) {
         let (_, file) = build(&case);
-        for m in [Reconstruction::Octant, Reconstruction::Current, Reconstruction::Nearest] {
+        for m in [
+            Reconstruction::Octant,
+            Reconstruction::Current,
+            Reconstruction::Nearest,
+        ] {
             let src = FieldSource::new(&file, 0, m).unwrap();
             let s = src.sampler();
             for (i, p) in points(s, case.seed, 500).into_iter().enumerate() {

@@ -64,7 +64,9 @@ impl std::str::FromStr for Reconstruction {
         Reconstruction::ALL
             .into_iter()
             .find(|r| r.name().eq_ignore_ascii_case(s.trim()))
-            .ok_or_else(|| format!("unknown reconstruction '{s}' (octant, current, nearest, finest)"))
+            .ok_or_else(|| {
+                format!("unknown reconstruction '{s}' (octant, current, nearest, finest)")
+            })
     }
 }
 
@@ -72,7 +74,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// The reconstruction at doubled point `p`; on an exact boundary the point is nudged toward
     /// `+`. `None` outside the domain or where no brick covers the cells involved.
     pub fn sample(&self, p: [f64; 3], method: Reconstruction) -> RenderResult<Option<f32>> {
-        let mut memo = VertexMemo::default();
+        let mut memo = VertexMemo::with_octant_bits(0);
         Ok(self.sample_in(self, p, method, &mut memo)?.map(|s| s.0))
     }
 

@@ -76,7 +76,7 @@ pub struct VertexMemo {
     /// Direct-mapped corner values of octants (allocated on first use: `octant_slots` slots of
     /// 48 bytes).
     octants: Vec<(Octant, Option<[f32; 8]>)>,
-    /// log2 of the octant table's slots.
+    /// log2 of the octant table's slots; 0: no table.
     octant_bits: u32,
 }
 
@@ -101,10 +101,11 @@ impl VertexMemo {
         self.octants.clear();
     }
 
-    /// A memo whose octant table holds `2^bits` octants (1024 by default).
+    /// A memo whose octant table holds `2^bits` octants (1024 by default; none for 0, which
+    /// suits a memo used once: the table is allocated whole on first use).
     pub fn with_octant_bits(bits: u32) -> Self {
         Self {
-            octant_bits: bits.clamp(1, 24),
+            octant_bits: bits.min(24),
             ..Self::default()
         }
     }
@@ -120,12 +121,18 @@ impl VertexMemo {
 
     #[inline]
     fn octant_get(&self, o: &Octant) -> Option<Option<[f32; 8]>> {
-        let e = self.octants.get(self.octant_slot(o))?;
+        if self.octants.is_empty() {
+            return None;
+        }
+        let e = &self.octants[self.octant_slot(o)];
         (e.0 == *o).then_some(e.1)
     }
 
     #[inline]
     fn octant_put(&mut self, o: &Octant, corners: Option<[f32; 8]>) {
+        if self.octant_bits == 0 {
+            return;
+        }
         if self.octants.is_empty() {
             let empty = Octant {
                 level: u32::MAX,
@@ -349,19 +356,21 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         self.around_in(self, v)
     }
 
+    /// The finest cells holding doubled point `v` nudged toward `-` and toward `+` on every
+    /// axis, and the axes (bit `a`) on which they coincide (odd coordinate, or clamped at the
+    /// domain's edge): there side `n` of `v` repeats the side without that bit.
+    #[inline]
+    fn nudges(&self, v: [i64; 3]) -> ([i64; 3], [i64; 3], usize) {
+        let lo = self.grid.finest_cell(v, 0);
+        let hi = self.grid.finest_cell(v, 7);
+        let same = (0..3).fold(0usize, |m, a| m | usize::from(lo[a] == hi[a]) << a);
+        (lo, hi, same)
+    }
+
     /// [`Self::around`], locating through `loc`.
     #[inline]
     pub fn around_in<L: Locate>(&self, loc: &L, v: [i64; 3]) -> Result<Option<[LeafCell; 8]>> {
-        // Per axis the two nudges' finest cells; where they coincide (odd coordinate, or
-        // clamped at the domain edge), side n repeats the side without that bit.
-        let lo = self.grid.finest_cell(v, 0);
-        let hi = self.grid.finest_cell(v, 7);
-        let mut same = 0usize;
-        for a in 0..3 {
-            if lo[a] == hi[a] {
-                same |= 1 << a;
-            }
-        }
+        let (lo, hi, same) = self.nudges(v);
         let mut out = [None::<LeafCell>; 8];
         for n in 0..8 {
             let m = n & !same;
@@ -563,14 +572,15 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         octant: u8,
         memo: &mut VertexMemo,
     ) -> Result<Option<[f32; 8]>> {
-        if let Some(out) = self.corners_one_level(loc, level, cell, value, octant)? {
-            return Ok(Some(out));
-        }
-        let (lo, _) = self.octant_box(&Octant {
+        let o = Octant {
             level,
             cell,
             octant,
-        });
+        };
+        if let Some(out) = self.corners_one_level(loc, &o, value)? {
+            return Ok(Some(out));
+        }
+        let (lo, _) = self.octant_box(&o);
         let s = self.grid.scale(level);
         let mut out = [0f32; 8];
         for (n, slot) in out.iter_mut().enumerate() {
@@ -588,8 +598,9 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         Ok(Some(out))
     }
 
-    /// [`Self::corners_in`] where the eight leaf cells around the octant's outer corner (the
-    /// cell's corner on the octant's side) are all of `level`: then no vertex is stitched, every
+    /// [`Self::corners_in`] for octant `o` of a leaf cell of value `value` where the eight leaf
+    /// cells around the octant's outer corner (the cell's corner on the octant's side) are all
+    /// of the octant's level: then no vertex is stitched, every
     /// vertex's eight cells are among those eight, and each value is their [`avg8`] in
     /// [`Self::vertex_value_from_in`]'s order, from 8 locates instead of one [`Self::around_in`]
     /// per vertex. `None` when a cell there is of another level or not covered (the general
@@ -598,25 +609,25 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     fn corners_one_level<L: Locate>(
         &self,
         loc: &L,
-        level: u32,
-        cell: [i64; 3],
+        o: &Octant,
         value: f32,
-        octant: u8,
     ) -> Result<Option<[f32; 8]>> {
+        let Octant {
+            level,
+            cell,
+            octant,
+        } = *o;
         let centre = self.grid.centre(level, cell);
         let s = self.grid.scale(level);
         let up = [0, 1, 2].map(|a| octant >> a & 1 == 1);
-        let outer = [0, 1, 2].map(|a| if up[a] { centre[a] + s[a] } else { centre[a] - s[a] });
-        let lo = self.grid.finest_cell(outer, 0);
-        let hi = self.grid.finest_cell(outer, 7);
-        // Side n of the outer corner; where both nudges meet one finest cell (the domain's
-        // edge), side n repeats the side without that bit, as in `around_in`.
-        let mut same = 0usize;
-        for a in 0..3 {
-            if lo[a] == hi[a] {
-                same |= 1 << a;
+        let outer = [0, 1, 2].map(|a| {
+            if up[a] {
+                centre[a] + s[a]
+            } else {
+                centre[a] - s[a]
             }
-        }
+        });
+        let (lo, hi, same) = self.nudges(outer);
         if let Some(block) = loc.block_of_level(lo, hi, level) {
             return Ok(Some(self.corners_from_block(&block, value, up)));
         }
@@ -646,7 +657,9 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         let mut out = [0f32; 8];
         for (n, slot) in out.iter_mut().enumerate() {
             // Axes on which corner n lies on the outer face rather than at the cell's centre.
-            let face = (0..3).fold(0usize, |k, a| k | usize::from((n >> a & 1 == 1) == up[a]) << a);
+            let face = (0..3).fold(0usize, |k, a| {
+                k | usize::from((n >> a & 1 == 1) == up[a]) << a
+            });
             if face == 0 {
                 *slot = value;
                 continue;

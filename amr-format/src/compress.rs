@@ -7,6 +7,34 @@
 use crate::error::{FormatError, Result};
 use crate::raw::{ENCODING_RAW, ENCODING_ZSTD_SHUFFLED};
 
+/// How one brick's values are stored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Encoding {
+    /// Raw little-endian f32, x fastest ([`ENCODING_RAW`]).
+    Raw,
+    /// One zstd frame over the byte-shuffled f32 ([`ENCODING_ZSTD_SHUFFLED`]).
+    ZstdShuffled,
+}
+
+impl Encoding {
+    /// The encoding stored as `tag`, `None` for an unknown tag.
+    pub fn from_raw(tag: u32) -> Option<Self> {
+        match tag {
+            ENCODING_RAW => Some(Encoding::Raw),
+            ENCODING_ZSTD_SHUFFLED => Some(Encoding::ZstdShuffled),
+            _ => None,
+        }
+    }
+
+    /// The tag stored in the file.
+    pub fn raw(self) -> u32 {
+        match self {
+            Encoding::Raw => ENCODING_RAW,
+            Encoding::ZstdShuffled => ENCODING_ZSTD_SHUFFLED,
+        }
+    }
+}
+
 /// Encodes `values` with zstd at `level` after shuffling; returns `None` when that is not
 /// smaller than the raw bytes (the brick is then stored raw).
 pub fn encode_zstd_shuffled(values: &[f32], level: i32) -> Option<Vec<u8>> {

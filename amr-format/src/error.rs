@@ -61,22 +61,34 @@ pub enum FormatError {
     #[error("writer misuse: {0}")]
     Usage(String),
     /// An operating-system error.
-    #[error("{context}: {source}")]
+    // The message includes the cause, so it is not also exposed as `source()`: printing the
+    // chain (`{:#}`) would repeat it.
+    #[error("{context}: {cause}")]
     Io {
         /// What was being done.
         context: String,
         /// The underlying error.
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// An error about a named file.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {error}", path.display())]
     InFile {
         /// The file.
         path: PathBuf,
-        /// What is wrong with it.
-        #[source]
-        source: Box<FormatError>,
+        /// What is wrong with it (its message is part of this one's).
+        error: Box<FormatError>,
+    },
+    /// An error met once and shared by everyone asking for the same thing again (a brick that
+    /// does not decode, for every reader of it).
+    #[error("{0}")]
+    Shared(std::sync::Arc<FormatError>),
+    /// An output path that would replace something it must not (an input, a device, a directory).
+    #[error("{}: {reason}", path.display())]
+    Output {
+        /// The output path as given.
+        path: PathBuf,
+        /// Why it is refused.
+        reason: String,
     },
 }
 
@@ -84,18 +96,28 @@ impl FormatError {
     /// Wraps the error with the name of the file it concerns.
     pub fn in_file(self, path: impl Into<PathBuf>) -> Self {
         match self {
-            e @ FormatError::InFile { .. } => e,
+            e if e.names_a_file() => e,
             e => FormatError::InFile {
                 path: path.into(),
-                source: Box::new(e),
+                error: Box::new(e),
             },
         }
     }
 
-    pub(crate) fn io(context: impl Into<String>, source: std::io::Error) -> Self {
+    /// True when the message already names a file.
+    pub fn names_a_file(&self) -> bool {
+        match self {
+            FormatError::InFile { .. } | FormatError::Output { .. } => true,
+            FormatError::Shared(e) => e.names_a_file(),
+            _ => false,
+        }
+    }
+
+    /// An operating-system error met while doing `context`.
+    pub fn io(context: impl Into<String>, cause: std::io::Error) -> Self {
         FormatError::Io {
             context: context.into(),
-            source,
+            cause,
         }
     }
 }

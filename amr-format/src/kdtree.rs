@@ -9,4 +9,4 @@ mod view;
 
 pub use build::{build, KdTree, TreeBrick};
 pub use ranges::{leaf_ranges, widen_range};
-pub use view::TreeView;
+pub use view::{KdNode, TreeView};

@@ -1,19 +1,23 @@
 //! Opening an `.amrk` file in place: every count and offset is checked once, at open, so that
 //! every accessor afterwards is a bounds-safe slice of the caller's bytes.
+//!
+//! The metadata region is copied at open and only the copy is read afterwards: what `open`
+//! validated cannot change under the reader when the file is rewritten while it is mapped.
 
 use std::borrow::Cow;
+use std::path::{Path, PathBuf};
 
 use zerocopy::little_endian::U32;
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout};
 
-use crate::compress::decode_into;
+use crate::compress::{decode_into, Encoding};
 use crate::error::{FormatError, Result};
 use crate::geometry::IBox;
 use crate::hierarchy::{MAX_BRICK_CELLS, MAX_BRICK_EXTENT, MAX_FINEST_EXTENT, MAX_LEVELS};
-use crate::kdtree::TreeView;
+use crate::kdtree::{KdNode, TreeView};
 use crate::raw::{
-    self, BrickData, BrickRecord, FieldRecord, Footer, Header, KdLeaf, KdNode, LeafRange,
-    LevelRecord, Section, KD_LEAF,
+    self, BrickData, BrickRecord, FieldRecord, Footer, Header, KdLeaf, LeafRange, LevelRecord,
+    Section,
 };
 
 /// One level of an open file.
@@ -55,6 +59,23 @@ pub struct BrickInfo {
     pub cells: IBox,
 }
 
+/// Where one field's values of one brick are stored, and their range.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BrickLocation {
+    /// Absolute byte offset in the file.
+    pub offset: u64,
+    /// Stored length in bytes.
+    pub len: u64,
+    /// How the values are stored.
+    pub encoding: Encoding,
+    /// Smallest value in the brick.
+    pub min: f32,
+    /// Largest value in the brick.
+    pub max: f32,
+    /// CRC-32 of the stored bytes.
+    pub crc: u32,
+}
+
 /// One kd-tree leaf of an open file.
 #[derive(Clone, Copy, Debug)]
 pub struct LeafInfo<'a> {
@@ -67,15 +88,22 @@ pub struct LeafInfo<'a> {
 /// An open `.amrk` file over bytes `D` (a `Vec<u8>`, a memory map, ...).
 pub struct AmrkFile<D> {
     data: D,
+    /// A copy of the metadata region, read instead of `data` for every table.
+    meta: Vec<u8>,
     footer: Footer,
     levels: Vec<LevelInfo>,
     fields: Vec<FieldInfo>,
     finest_domain: IBox,
+    tree_depth: u32,
+    path: Option<PathBuf>,
 }
 
 impl<D: AsRef<[u8]>> AmrkFile<D> {
     /// Opens a file: checks the header, the footer, the metadata checksum and every count,
-    /// offset and index in the tables. Reads no brick data; costs O(metadata).
+    /// offset and index in the tables, and everything the tables' users index by: the kd-tree is
+    /// a tree whose split planes lie inside their node's region and whose leaf boxes are the
+    /// regions the walk reaches them with, and each leaf's first brick covers the leaf. Reads no
+    /// brick data; costs O(metadata).
     pub fn open(data: D) -> Result<Self> {
         let bytes = data.as_ref();
         let len = bytes.len() as u64;
@@ -95,6 +123,7 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             return Err(FormatError::BadMagic { at: "header" });
         }
         check_version(header.layout_version.get())?;
+        check_size("header", header.header_size.get(), size_of::<Header>())?;
         let footer_bytes = &bytes[bytes.len() - size_of::<Footer>()..];
         let footer = Footer::read_from_bytes(footer_bytes)
             .map_err(|_| FormatError::Truncated("no footer".into()))?;
@@ -105,6 +134,7 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             ));
         }
         check_version(footer.layout_version.get())?;
+        check_size("footer", footer.footer_size.get(), size_of::<Footer>())?;
         let crc = crc32fast::hash(&footer_bytes[..footer_bytes.len() - 4]);
         if crc != footer.footer_crc.get() {
             return Err(FormatError::Checksum {
@@ -123,8 +153,9 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
                 meta_end
             )));
         }
-        let meta_bytes = &bytes[meta.offset.get() as usize..meta_end as usize];
-        let crc = crc32fast::hash(meta_bytes);
+        // Copied before the checksum, so that the bytes checked are the bytes read afterwards.
+        let meta_bytes = bytes[meta.offset.get() as usize..meta_end as usize].to_vec();
+        let crc = crc32fast::hash(&meta_bytes);
         if crc != footer.metadata_crc.get() {
             return Err(FormatError::Checksum {
                 what: "metadata".into(),
@@ -135,18 +166,41 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
 
         let mut file = Self {
             data,
+            meta: meta_bytes,
             footer,
             levels: Vec::new(),
             fields: Vec::new(),
             finest_domain: IBox::default(),
+            tree_depth: 0,
+            path: None,
         };
         file.check_sections()?;
         file.levels = file.read_levels()?;
         file.finest_domain = file.levels.last().map(|l| l.domain).unwrap_or_default();
         file.fields = file.read_fields()?;
         file.check_bricks()?;
-        file.check_tree()?;
+        file.tree_depth = file.check_tree()?;
+        file.check_leaves()?;
         Ok(file)
+    }
+
+    /// Names the file: errors from reading its bricks then name it (see [`FormatError::in_file`]).
+    pub fn with_path(mut self, path: impl Into<PathBuf>) -> Self {
+        self.path = Some(path.into());
+        self
+    }
+
+    /// The file's name, when given with [`Self::with_path`].
+    pub fn path(&self) -> Option<&Path> {
+        self.path.as_deref()
+    }
+
+    /// Wraps `e` with the file's name, when it has one.
+    fn named(&self, e: FormatError) -> FormatError {
+        match &self.path {
+            Some(p) => e.in_file(p),
+            None => e,
+        }
     }
 
     /// The underlying bytes.
@@ -207,21 +261,30 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
     }
 
     /// Where field `field`'s values of brick `brick` are stored, and their range.
-    pub fn brick_data(&self, field: usize, brick: usize) -> &BrickData {
-        &self.field_brick_records(field)[brick]
+    pub fn brick_data(&self, field: usize, brick: usize) -> BrickLocation {
+        let d = &self.field_brick_records(field)[brick];
+        BrickLocation {
+            offset: d.offset.get(),
+            len: d.len.get(),
+            encoding: Encoding::from_raw(d.encoding.get())
+                .expect("encodings are checked at open and the tables are a private copy"),
+            min: d.min.get(),
+            max: d.max.get(),
+            crc: d.crc.get(),
+        }
     }
 
     /// The value range of field `field` in brick `brick`.
     pub fn brick_range(&self, field: usize, brick: usize) -> (f32, f32) {
         let d = self.brick_data(field, brick);
-        (d.min.get(), d.max.get())
+        (d.min, d.max)
     }
 
     /// The stored bytes of one brick of one field (compressed or raw).
     pub fn brick_bytes(&self, field: usize, brick: usize) -> &[u8] {
         let d = self.brick_data(field, brick);
-        let start = d.offset.get() as usize;
-        &self.bytes()[start..start + d.len.get() as usize]
+        let start = d.offset as usize;
+        &self.bytes()[start..start + d.len as usize]
     }
 
     /// The values of one brick of one field, x fastest: borrowed from the bytes when stored raw
@@ -229,7 +292,7 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
     pub fn brick_values(&self, field: usize, brick: usize) -> Result<Cow<'_, [f32]>> {
         let d = self.brick_data(field, brick);
         let bytes = self.brick_bytes(field, brick);
-        if d.encoding.get() == raw::ENCODING_RAW && cfg!(target_endian = "little") {
+        if d.encoding == Encoding::Raw && cfg!(target_endian = "little") {
             if let Ok(values) = <[f32]>::ref_from_bytes(bytes) {
                 return Ok(Cow::Borrowed(values));
             }
@@ -243,14 +306,14 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
     pub fn brick_values_into(&self, field: usize, brick: usize, out: &mut Vec<f32>) -> Result<()> {
         let d = self.brick_data(field, brick);
         let cells = self.brick(brick).cells.num_cells().unwrap_or(0) as usize;
-        decode_into(d.encoding.get(), self.brick_bytes(field, brick), cells, out).map_err(|e| {
-            match e {
+        decode_into(d.encoding.raw(), self.brick_bytes(field, brick), cells, out).map_err(|e| {
+            self.named(match e {
                 FormatError::Corrupt(m) => FormatError::Corrupt(format!(
                     "field '{}', brick {brick}: {m}",
                     self.fields[field].name
                 )),
                 e => e,
-            }
+            })
         })
     }
 
@@ -261,6 +324,11 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             leaves: self.slice(&self.footer.leaves),
             domain: IBox::new([0; 3], self.finest_domain.extent()),
         }
+    }
+
+    /// Depth of the deepest kd-tree leaf (the root is depth 0).
+    pub fn tree_depth(&self) -> u32 {
+        self.tree_depth
     }
 
     /// Number of kd-tree leaves.
@@ -335,10 +403,10 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         self.slice(&self.footer.fields)
     }
 
-    /// A typed view of a section checked at open.
+    /// A typed view of a metadata section checked at open, read from the private copy.
     fn slice<T: FromBytes + KnownLayout + Immutable>(&self, s: &Section) -> &[T] {
-        let start = s.offset.get() as usize;
-        let bytes = &self.bytes()[start..start + s.len.get() as usize];
+        let start = (s.offset.get() - self.footer.metadata.offset.get()) as usize;
+        let bytes = &self.meta[start..start + s.len.get() as usize];
         <[T]>::ref_from_bytes(bytes).expect("section sizes are checked at open")
     }
 
@@ -373,7 +441,12 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
                 f.num_bricks.get(),
                 size_of::<BrickRecord>(),
             ),
-            ("kd nodes", &f.nodes, f.num_nodes.get(), size_of::<KdNode>()),
+            (
+                "kd nodes",
+                &f.nodes,
+                f.num_nodes.get(),
+                size_of::<raw::KdNode>(),
+            ),
             (
                 "kd leaves",
                 &f.leaves,
@@ -533,6 +606,7 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         }
         for field in 0..self.fields.len() {
             let (start, len) = self.fields[field].data;
+            // Cannot overflow: the region's end was checked in `read_fields`.
             let end = start + len;
             let mut compressed = false;
             for (i, d) in self.field_brick_records(field).iter().enumerate() {
@@ -567,54 +641,108 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         Ok(())
     }
 
-    fn check_tree(&self) -> Result<()> {
-        let nodes: &[KdNode] = self.slice(&self.footer.nodes);
+    /// Walks the tree from the root, each node once: returns the depth of the deepest leaf.
+    ///
+    /// Checks that every node is reached exactly once (no cycle, no shared child, nothing
+    /// unreachable), that children come after their parent, that every split plane lies strictly
+    /// inside its node's region, and that every leaf is reached once with the region it stores.
+    /// Leaf boxes then tile the domain, which is what point location and the renderer rely on.
+    fn check_tree(&self) -> Result<u32> {
+        let tree = self.tree();
+        let (n, nleaves) = (tree.num_nodes(), tree.num_leaves());
+        let bad = |m: String| Err(FormatError::Corrupt(m));
+        let mut node_seen = vec![false; n];
+        let mut leaf_seen = vec![false; nleaves];
+        let mut depth_max = 0u32;
+        let mut stack = vec![(0usize, tree.domain, 0u32)];
+        while let Some((i, region, depth)) = stack.pop() {
+            let Some(node) = tree.node(i) else {
+                return bad(format!("kd-tree names node {i} of {n}"));
+            };
+            if std::mem::replace(&mut node_seen[i], true) {
+                return bad(format!("kd node {i} is reached twice (not a tree)"));
+            }
+            match node {
+                KdNode::Leaf { leaf } => {
+                    let Some(seen) = leaf_seen.get_mut(leaf as usize) else {
+                        return bad(format!("kd node {i} names leaf {leaf} of {nleaves}"));
+                    };
+                    if std::mem::replace(seen, true) {
+                        return bad(format!("kd leaf {leaf} is reached twice"));
+                    }
+                    let stored = tree.leaf_box(leaf);
+                    if stored != region {
+                        return bad(format!(
+                            "kd leaf {leaf} stores {stored:?} but the tree gives it {region:?}"
+                        ));
+                    }
+                    depth_max = depth_max.max(depth);
+                }
+                KdNode::Split {
+                    axis,
+                    pos,
+                    low,
+                    high,
+                } => {
+                    if pos <= region.lo[axis] || pos >= region.hi[axis] {
+                        return bad(format!(
+                            "kd node {i} splits {region:?} at {pos} on axis {axis}, not inside it"
+                        ));
+                    }
+                    if high <= low || high >= n {
+                        return bad(format!("kd node {i} has children {low} and {high} of {n}"));
+                    }
+                    let (lo_half, hi_half) = node.halves(&region).expect("a split has halves");
+                    stack.push((high, hi_half, depth + 1));
+                    stack.push((low, lo_half, depth + 1));
+                }
+            }
+        }
+        if let Some(i) = node_seen.iter().position(|s| !s) {
+            return bad(format!("kd node {i} is not reachable from the root"));
+        }
+        if let Some(l) = leaf_seen.iter().position(|s| !s) {
+            return bad(format!("kd leaf {l} is not reachable from the root"));
+        }
+        Ok(depth_max)
+    }
+
+    /// Checks each leaf's brick list and value ranges: the list lies inside the brick-list
+    /// table, names existing bricks, and its first brick (the one the renderer reads the leaf's
+    /// values from) covers the leaf.
+    fn check_leaves(&self) -> Result<()> {
         let leaves: &[KdLeaf] = self.slice(&self.footer.leaves);
-        let n = nodes.len();
-        for (i, node) in nodes.iter().enumerate() {
-            let kind = node.b.get() & 3;
-            if kind == KD_LEAF {
-                if node.a.get() as usize >= leaves.len() {
-                    return Err(FormatError::Corrupt(format!(
-                        "kd node {i} names leaf {} of {}",
-                        node.a.get(),
-                        leaves.len()
-                    )));
-                }
-            } else {
-                let second = (node.b.get() >> 2) as usize;
-                if i + 1 >= n || second <= i + 1 || second >= n {
-                    return Err(FormatError::Corrupt(format!(
-                        "kd node {i} has children {} and {second} of {n}",
-                        i + 1
-                    )));
-                }
-            }
-        }
-        let list_len = self.footer.brick_list_len.get() as u64;
-        let ext = self.finest_domain.extent();
-        for (i, l) in leaves.iter().enumerate() {
-            let (start, count) = (l.brick_start.get() as u64, l.brick_count.get() as u64);
-            if start + count > list_len {
-                return Err(FormatError::Corrupt(format!(
-                    "kd leaf {i}: brick list {start}+{count} past {list_len}"
-                )));
-            }
-            for a in 0..3 {
-                let (lo, hi) = (i64::from(l.lo[a].get()), i64::from(l.hi[a].get()));
-                if lo >= hi || hi > ext[a] {
-                    return Err(FormatError::Corrupt(format!(
-                        "kd leaf {i}: bounds outside the domain"
-                    )));
-                }
-            }
-        }
         let list: &[U32] = self.slice(&self.footer.brick_list);
         let nb = self.num_bricks() as u32;
         if let Some(bad) = list.iter().position(|b| b.get() >= nb) {
             return Err(FormatError::Corrupt(format!(
                 "brick list entry {bad} names a brick past {nb}"
             )));
+        }
+        let origin = self.finest_domain.lo;
+        let tree = self.tree();
+        for (i, l) in leaves.iter().enumerate() {
+            let (start, count) = (l.brick_start.get() as usize, l.brick_count.get() as usize);
+            let Some(bricks) = start
+                .checked_add(count)
+                .and_then(|end| list.get(start..end))
+            else {
+                return Err(FormatError::Corrupt(format!(
+                    "kd leaf {i}: brick list {start}+{count} past {}",
+                    list.len()
+                )));
+            };
+            if let Some(first) = bricks.first() {
+                let first = first.get() as usize;
+                if !self
+                    .brick_finest_bounds(first, origin)
+                    .contains_box(&tree.leaf_box(i as u32))
+                {
+                    return Err(FormatError::Corrupt(format!(
+                        "kd leaf {i}: its first brick {first} does not cover it"
+                    )));
+                }
+            }
         }
         for (field, r) in self.fields_raw().iter().enumerate() {
             let ranges: &[LeafRange] = self.slice(&r.leaf_ranges);
@@ -629,6 +757,23 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             }
         }
         Ok(())
+    }
+
+    /// Brick `b`'s cells in finest-level cells relative to `origin` (the finest domain's lower
+    /// corner).
+    pub fn brick_finest_bounds(&self, b: usize, origin: [i64; 3]) -> IBox {
+        let info = self.brick(b);
+        let s = self.levels()[info.level as usize].finest_scale;
+        // Cannot overflow: brick boxes lie inside their level's domain (checked at open), which
+        // refines into the finest domain.
+        let f = info
+            .cells
+            .refine(s)
+            .expect("brick boxes lie inside the checked domain");
+        IBox::new(
+            [0, 1, 2].map(|a| f.lo[a] - origin[a]),
+            [0, 1, 2].map(|a| f.hi[a] - origin[a]),
+        )
     }
 }
 
@@ -647,6 +792,15 @@ fn end_of(s: &Section, what: &str) -> Result<u64> {
         .get()
         .checked_add(s.len.get())
         .ok_or_else(|| FormatError::Corrupt(format!("{what} section offset overflows")))
+}
+
+fn check_size(what: &str, stored: u32, size: usize) -> Result<()> {
+    if stored as usize != size {
+        return Err(FormatError::Corrupt(format!(
+            "the {what} says it is {stored} bytes, this layout's {what} is {size}"
+        )));
+    }
+    Ok(())
 }
 
 fn check_within(name: &str, s: &Section, meta: &Section) -> Result<()> {
@@ -670,6 +824,32 @@ fn check_table(name: &str, s: &Section, meta: &Section, count: u32, size: usize)
         )));
     }
     Ok(())
+}
+
+/// Recomputes the metadata and footer checksums of the file in `bytes` after its metadata or
+/// footer was rewritten (by tests and tools that damage files on purpose, so that structural
+/// checks rather than checksums must catch the damage). Returns false, changing nothing, when
+/// the footer does not locate a metadata region inside `bytes`.
+pub fn recompute_checksums(bytes: &mut [u8]) -> bool {
+    let Some(at) = bytes.len().checked_sub(size_of::<Footer>()) else {
+        return false;
+    };
+    let Ok(mut footer) = Footer::read_from_bytes(&bytes[at..]) else {
+        return false;
+    };
+    let (start, len) = (footer.metadata.offset.get(), footer.metadata.len.get());
+    let Some(meta) = start
+        .checked_add(len)
+        .filter(|&end| end <= at as u64)
+        .map(|end| &bytes[start as usize..end as usize])
+    else {
+        return false;
+    };
+    footer.metadata_crc = crc32fast::hash(meta).into();
+    let fb = footer.as_bytes();
+    footer.footer_crc = crc32fast::hash(&fb[..fb.len() - 4]).into();
+    bytes[at..].copy_from_slice(footer.as_bytes());
+    true
 }
 
 /// Raw-struct byte view, used by tests that corrupt files on purpose.

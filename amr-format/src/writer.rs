@@ -5,7 +5,8 @@
 //! box), so each field's data sits in its own region whatever order the bricks arrive in.
 //! Compressed bricks have unknown sizes: each field's frames are appended to a spill file in
 //! the target directory and copied into the field's region at [`AmrkWriter::finish`]. Everything
-//! goes to a temporary file beside the target, renamed into place only when complete.
+//! goes to a temporary file beside the target, renamed into place only when complete; the
+//! temporaries of writers that died first are removed (see [`crate::output`]).
 
 use std::fs::File;
 use std::io::{Seek, SeekFrom, Write};
@@ -20,6 +21,7 @@ use crate::error::{FormatError, Result};
 use crate::geometry::IBox;
 use crate::hierarchy::HierarchySpec;
 use crate::kdtree::{self, KdTree, TreeBrick, TreeView};
+use crate::output;
 use crate::raw::{
     self, align_up, BrickData, BrickRecord, FieldRecord, Footer, Header, LeafRange, LevelRecord,
     Section,
@@ -89,26 +91,8 @@ impl AmrkWriter {
     pub fn create(path: &Path, spec: HierarchySpec, opts: WriterOptions) -> Result<Self> {
         spec.validate()?;
         let tree = build_tree(&spec)?;
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        let name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let temp = |what: &str| {
-            // The finished file is renamed into place: give it the permissions of an ordinary
-            // new file rather than a temporary file's owner-only ones.
-            tempfile::Builder::new()
-                .prefix(&format!(".{name}."))
-                .suffix(what)
-                .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644))
-                .tempfile_in(&dir)
-                .map_err(|e| {
-                    FormatError::io(format!("creating a temporary file in {}", dir.display()), e)
-                })
-        };
+        output::remove_stale_temporaries(path);
+        let temp = |suffix: &str| output::temporary_for(path, suffix);
         let file = temp(".tmp")?;
         let header = Header {
             magic: raw::MAGIC,

@@ -3,22 +3,9 @@
 mod common;
 
 use amr_format::raw::{Footer, LAYOUT_VERSION};
-use amr_format::{AmrkFile, FormatError, WriterOptions};
+use amr_format::{AmrkFile, FormatError};
 use common::*;
 use zerocopy::{FromBytes, IntoBytes};
-
-fn valid_file(seed: u64) -> Vec<u8> {
-    let mut rng = Rng(seed);
-    let spec = random_hierarchy(&mut rng, 3, 2, 3);
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("v.amrk");
-    write_file(&spec, &path, WriterOptions::default());
-    std::fs::read(&path).unwrap()
-}
-
-fn footer_of(bytes: &[u8]) -> Footer {
-    Footer::read_from_bytes(&bytes[bytes.len() - size_of::<Footer>()..]).unwrap()
-}
 
 /// Rewrites the footer and both checksums, so that structural checks, not checksums, must
 /// catch the damage.
@@ -39,13 +26,6 @@ fn reseal(bytes: &mut [u8], mut footer: Footer) {
 fn reseal_metadata(bytes: &mut [u8]) {
     let f = footer_of(bytes);
     reseal(bytes, f);
-}
-
-fn open_err(bytes: Vec<u8>) -> String {
-    match AmrkFile::open(bytes) {
-        Ok(_) => panic!("a damaged file opened"),
-        Err(e) => e.to_string(),
-    }
 }
 
 #[test]

@@ -11,6 +11,10 @@ use amr_render::mapping::{open_mapped, PageRelease};
 use amr_render::shade::{render_frame, Lighting, RenderSettings};
 use amr_render::trace::{FieldSource, HybridTracer, Surface, VoxelSource};
 use amr_render::Reconstruction;
+use glam::Vec3A;
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::builder::build_cwbvh;
+use obvhs::BvhBuildParams;
 
 /// What `amr-bench bvh` measures.
 #[derive(Clone, Debug)]
@@ -49,13 +53,69 @@ pub struct BvhVariant {
     pub differing_pixels: usize,
 }
 
+/// What `amr-bench bvh` measured.
+#[derive(Clone, Debug)]
+pub struct BvhComparison {
+    /// Active voxels.
+    pub active: usize,
+    /// Time to decode the boxes of all active voxels from their refs (in parallel).
+    pub decode: Duration,
+    /// The renderer's builds.
+    pub variants: Vec<BvhVariant>,
+    /// obvhs's own builds over the decoded boxes.
+    pub raw: Vec<RawBuild>,
+}
+
+/// obvhs's own build of one CWBVH over the same boxes, for comparison with the renderer's.
+#[derive(Clone, Debug)]
+pub struct RawBuild {
+    /// The obvhs preset's name.
+    pub preset: &'static str,
+    /// Build time (boxes given).
+    pub build: Duration,
+}
+
+/// The boxes of the voxels `refs` of `src` as the renderer's BVH gets them (grown by its pad);
+/// the time taken is the second value.
+fn voxel_boxes(src: &impl VoxelSource, refs: &[u64]) -> (Vec<Aabb>, Duration) {
+    use rayon::prelude::*;
+    let pad = amr_render::trace::traverse::bvh_pad(&src.frame());
+    let t = Instant::now();
+    let boxes = refs
+        .par_iter()
+        .map(|&r| {
+            let (lo, hi) = src.voxel_box(r);
+            let v = |p: [f64; 3], s: f64| {
+                Vec3A::new((p[0] + s) as f32, (p[1] + s) as f32, (p[2] + s) as f32)
+            };
+            Aabb::new(v(lo, -pad), v(hi, pad))
+        })
+        .collect();
+    (boxes, t.elapsed())
+}
+
+/// The obvhs presets timed over all boxes at once: its fastest, and the one the renderer uses.
+const RAW_PRESETS: [(&str, BvhBuildParams); 2] = [
+    ("obvhs fastest_build", BvhBuildParams::fastest_build()),
+    ("obvhs fast_build", BvhBuildParams::fast_build()),
+];
+
+/// The time of one obvhs build of a CWBVH over `boxes` with `params`.
+fn raw_build(boxes: &[Aabb], params: BvhBuildParams) -> Duration {
+    let t = Instant::now();
+    let mut core = Duration::ZERO;
+    std::hint::black_box(build_cwbvh(boxes, params, &mut core));
+    t.elapsed()
+}
+
 /// Extracts `iso` from `path` once, builds one BVH per variant and renders each `runs` times
-/// (the median is over all runs, the first included). Returns the number of active voxels and the variants.
+/// (the median is over all runs, the first included), and times obvhs's own builds over the same
+/// boxes (the variants' builds and the raw builds take turns, `runs` times).
 pub fn compare(
     path: &std::path::Path,
     iso: f32,
     cfg: &BvhBenchConfig,
-) -> anyhow::Result<(usize, Vec<BvhVariant>)> {
+) -> anyhow::Result<BvhComparison> {
     let file = open_mapped(path)?;
     let mut src = FieldSource::new(&file, 0, Reconstruction::Octant)?;
     src.set_page_release(PageRelease::new(&file));
@@ -63,14 +123,37 @@ pub fn compare(
         .extract(iso)
         .with_context(|| format!("extracting iso {iso} from {}", path.display()))?
         .refs;
+    let (boxes, decode) = voxel_boxes(&src, &refs);
+    let mut raw_times: Vec<Vec<Duration>> = vec![Vec::new(); RAW_PRESETS.len()];
+    let mut build_times: Vec<Vec<Duration>> = vec![Vec::new(); cfg.chunks.len()];
+    for _ in 0..cfg.runs.max(1) {
+        for (k, (_, params)) in RAW_PRESETS.iter().enumerate() {
+            raw_times[k].push(raw_build(&boxes, *params));
+        }
+        for (k, &chunk_refs) in cfg.chunks.iter().enumerate() {
+            let mut builder = BvhBuilder::new();
+            builder.chunk_refs = chunk_refs;
+            let t = Instant::now();
+            std::hint::black_box(Surface::build(&src, iso, &refs, &mut builder));
+            build_times[k].push(t.elapsed());
+        }
+    }
+    let raw = RAW_PRESETS
+        .iter()
+        .zip(&mut raw_times)
+        .map(|(&(preset, _), t)| RawBuild {
+            preset,
+            build: crate::median(t),
+        })
+        .collect();
+    drop(boxes);
     let mut surfaces = Vec::new();
     let mut out = Vec::new();
-    for &chunk_refs in &cfg.chunks {
+    for (k, &chunk_refs) in cfg.chunks.iter().enumerate() {
         let mut builder = BvhBuilder::new();
         builder.chunk_refs = chunk_refs;
-        let t = Instant::now();
         let s = Surface::build(&src, iso, &refs, &mut builder);
-        let build = t.elapsed();
+        let build = crate::median(&mut build_times[k]);
         out.push(BvhVariant {
             chunk_refs,
             chunks: s.bvh.num_chunks(),
@@ -127,15 +210,24 @@ pub fn compare(
     for (v, t) in out.iter_mut().zip(&mut times) {
         v.frame = crate::median(t);
     }
-    Ok((refs.len(), out))
+    Ok(BvhComparison {
+        active: refs.len(),
+        decode,
+        variants: out,
+        raw,
+    })
 }
 
-/// The variants as a Markdown table.
-pub fn table(active: usize, variants: &[BvhVariant]) -> String {
+/// The comparison as a Markdown table, the raw obvhs builds below it.
+pub fn table(c: &BvhComparison) -> String {
+    let (active, variants) = (c.active, &c.variants);
     let mut s = format!(
-        "{active} active voxels.\n\n| BVH | chunks | build s | build scratch bytes | BVH bytes | \
+        "{active} active voxels on {} threads; decoding their boxes from the refs took {:.3} s.\n\n\
+         | BVH | chunks | build s | build scratch bytes | BVH bytes | \
          first frame s | frame s (median) | pixels differing from the first row |\n\
-         |---|---|---|---|---|---|---|---|\n"
+         |---|---|---|---|---|---|---|---|\n",
+        rayon::current_num_threads(),
+        c.decode.as_secs_f64()
     );
     for v in variants {
         let name = if v.chunk_refs == usize::MAX {
@@ -152,6 +244,15 @@ pub fn table(active: usize, variants: &[BvhVariant]) -> String {
             v.first_frame.as_secs_f64(),
             v.frame.as_secs_f64(),
             v.differing_pixels
+        ));
+    }
+    s.push_str("\n| obvhs's own build of one CWBVH over the same boxes (boxes given) | build s | M boxes/s |\n|---|---|---|\n");
+    for r in &c.raw {
+        let secs = r.build.as_secs_f64();
+        s.push_str(&format!(
+            "| {} | {secs:.3} | {:.2} |\n",
+            r.preset,
+            active as f64 / secs / 1e6
         ));
     }
     s

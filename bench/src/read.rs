@@ -27,7 +27,7 @@ pub fn read_all(path: &Path, field: usize) -> amr_format::Result<ReadReport> {
     for b in 0..f.num_bricks() {
         f.brick_values_into(field, b, &mut buf)?;
         cells += buf.len() as u64;
-        stored += f.brick_data(field, b).len.get();
+        stored += f.brick_data(field, b).len;
         sum += buf.iter().map(|&v| v as f64).sum::<f64>();
     }
     Ok(ReadReport {

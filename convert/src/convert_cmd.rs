@@ -119,6 +119,12 @@ pub fn run_convert(
     if brick == 0 || i64::from(brick) > MAX_BRICK_EXTENT {
         bail!("--brick {brick}: the brick size must be 1 to {MAX_BRICK_EXTENT}");
     }
+    let format = detect(input)?;
+    let mut inputs = vec![input];
+    if let InputFormat::Enzo { params, hierarchy } = &format {
+        inputs.extend([params.as_path(), hierarchy.as_path()]);
+    }
+    amr_format::output::check_output(output, &inputs)?;
     let start = Instant::now();
     let opts = ConvertOptions {
         fields: fields.to_vec(),
@@ -126,7 +132,7 @@ pub fn run_convert(
         compression,
     };
     let bar = Bar::bytes("converting");
-    let stats = match detect(input)? {
+    let stats = match format {
         InputFormat::Amrex => amrex::Plotfile::open(input)
             .and_then(|pf| crate::hierarchy_to_amrk::convert(&pf, output, &opts, &bar))
             .with_context(|| format!("converting AMReX plotfile {}", input.display()))?,

@@ -6,5 +6,6 @@ pub mod convert_cmd;
 pub mod enzo;
 pub mod finite;
 pub mod hierarchy_to_amrk;
+pub mod isolate;
 pub mod progress;
 pub mod synth_cmd;

@@ -5,7 +5,8 @@ mod series;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use amr_convert::convert_cmd::run_convert;
+use amr_convert::convert_cmd::{detect, run_convert, InputFormat};
+use amr_convert::isolate;
 use amr_convert::synth_cmd::{run_synth, SynthArgs};
 use amr_format::Compression;
 use clap::{Parser, Subcommand};
@@ -48,6 +49,22 @@ enum Command {
 
 /// Converts one dump as `cli` asks.
 fn convert_one(cli: &Cli, input: &Path, output: &Path) -> anyhow::Result<()> {
+    let hdf5 = matches!(
+        detect(input),
+        Ok(InputFormat::ChomboHdf5 | InputFormat::Enzo { .. })
+    );
+    if hdf5 && !isolate::is_child() {
+        // HDF5 is read in a child, whose crash on a corrupt file becomes an error.
+        let mut options: Vec<String> = vec!["--brick".into(), cli.brick.to_string()];
+        for f in &cli.fields {
+            options.extend(["--field".into(), f.clone()]);
+        }
+        if cli.compress {
+            options.push("--compress".into());
+        }
+        return isolate::convert_in_child(input, output, &options);
+    }
+    isolate::crash_if_asked();
     let compression = if cli.compress {
         Compression::Zstd { level: 3 }
     } else {
@@ -74,6 +91,8 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // The child printed its own error.
+        Err(e) if e.downcast_ref::<isolate::ChildFailed>().is_some() => ExitCode::from(1),
         Err(e) => {
             eprintln!("Error: {e:#}");
             ExitCode::from(1)

@@ -72,6 +72,7 @@ impl SynthArgs {
 /// Runs `amr-convert synth` and prints a one-line summary to stderr.
 pub fn run_synth(args: &SynthArgs) -> anyhow::Result<()> {
     let (case, params) = args.to_params()?;
+    amr_format::output::check_output(&args.output, &[])?;
     let compression = if args.compress {
         Compression::Zstd { level: ZSTD_LEVEL }
     } else {

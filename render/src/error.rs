@@ -75,10 +75,11 @@ impl RenderError {
     pub fn in_file(self, path: &Path) -> RenderError {
         match self {
             e @ (RenderError::InFile { .. } | RenderError::Output { .. }) => e,
-            RenderError::Format(FormatError::InFile { path, source }) => RenderError::InFile {
+            RenderError::Format(FormatError::InFile { path, error }) => RenderError::InFile {
                 path,
-                inner: Box::new(RenderError::Format(*source)),
+                inner: Box::new(RenderError::Format(*error)),
             },
+            RenderError::Format(e) if e.names_a_file() => RenderError::Format(e),
             e => RenderError::InFile {
                 path: path.to_path_buf(),
                 inner: Box::new(e),

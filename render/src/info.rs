@@ -50,28 +50,12 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
             if f.compressed { " (zstd)" } else { "" }
         );
     }
-    let tree = file.tree();
-    let _ = writeln!(out, "kd nodes: {}", tree.nodes.len());
+    let _ = writeln!(out, "kd nodes: {}", file.tree().num_nodes());
     let _ = writeln!(out, "kd leaves: {}", file.num_leaves());
-    let _ = writeln!(out, "kd depth: {}", tree_depth(&tree));
+    let _ = writeln!(out, "kd depth: {}", file.tree_depth());
     let _ = writeln!(out, "sections (bytes):");
     for (name, bytes) in file.section_sizes() {
         let _ = writeln!(out, "  {name}: {bytes}");
     }
     out
-}
-
-fn tree_depth(tree: &amr_format::kdtree::TreeView<'_>) -> u32 {
-    let mut max = 0;
-    let mut stack = vec![(0usize, 0u32)];
-    while let Some((i, d)) = stack.pop() {
-        let n = &tree.nodes[i];
-        if n.b.get() & 3 == amr_format::raw::KD_LEAF {
-            max = max.max(d);
-        } else {
-            stack.push((i + 1, d + 1));
-            stack.push(((n.b.get() >> 2) as usize, d + 1));
-        }
-    }
-    max
 }

@@ -33,6 +33,7 @@ pub mod render;
 pub mod sample_mode;
 pub mod scene;
 pub mod shade;
+pub mod sigbus;
 pub mod stats;
 pub mod trace;
 pub mod view;

@@ -2,30 +2,46 @@
 //! pages from the resident set ([`PageRelease`]).
 
 use std::fs::File;
+use std::ops::Deref;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use amr_format::{AmrkFile, FormatError, Result};
 use memmap2::{Advice, Mmap, UncheckedAdvice};
 
+use crate::sigbus::{self, Watch};
+
 /// An `.amrk` file opened from a read-only memory map.
-pub type MappedFile = AmrkFile<Mmap>;
+pub type MappedFile = AmrkFile<WatchedMap>;
+
+/// A read-only map of a file whose SIGBUS (the file truncated under it) ends the process with
+/// an error naming the file ([`sigbus::watch`]).
+pub struct WatchedMap {
+    // Declared first so that it is dropped, and the range unwatched, before the map is unmapped.
+    _watch: Watch,
+    map: Mmap,
+}
+
+impl Deref for WatchedMap {
+    type Target = Mmap;
+    fn deref(&self) -> &Mmap {
+        &self.map
+    }
+}
+
+impl AsRef<[u8]> for WatchedMap {
+    fn as_ref(&self) -> &[u8] {
+        &self.map
+    }
+}
 
 /// Opens and maps `path`, then validates it with [`AmrkFile::open`]. Errors name the file.
 pub fn open_mapped(path: &Path) -> Result<MappedFile> {
     let fail = |e: FormatError| e.in_file(path);
-    let file = File::open(path).map_err(|e| {
-        fail(FormatError::Io {
-            context: "cannot open".into(),
-            source: e,
-        })
-    })?;
-    let meta = file.metadata().map_err(|e| {
-        fail(FormatError::Io {
-            context: "cannot stat".into(),
-            source: e,
-        })
-    })?;
+    let file = File::open(path).map_err(|e| fail(FormatError::io("cannot open", e)))?;
+    let meta = file
+        .metadata()
+        .map_err(|e| fail(FormatError::io("cannot stat", e)))?;
     if meta.is_dir() {
         return Err(fail(FormatError::Corrupt(
             "is a directory, not an .amrk file".into(),
@@ -34,17 +50,22 @@ pub fn open_mapped(path: &Path) -> Result<MappedFile> {
     if meta.len() == 0 {
         return Err(fail(FormatError::Truncated("the file is empty".into())));
     }
-    // SAFETY: the map is read-only and private to this process. Another process truncating or
-    // rewriting the file while it is mapped could change the bytes under us (or raise SIGBUS);
-    // the converter never rewrites a finished file in place (it writes a new file and renames
-    // it), which is the contract this program relies on, as every mmap-based reader does.
-    let map = unsafe { Mmap::map(&file) }.map_err(|e| {
-        fail(FormatError::Io {
-            context: "cannot memory-map".into(),
-            source: e,
-        })
-    })?;
-    AmrkFile::open(map).map_err(fail)
+    // SAFETY: the map is read-only. Another process may still truncate or rewrite the file
+    // while it is mapped (the converter never does: it writes a new file and renames it):
+    // - rewritten bytes: `AmrkFile::open` copies the metadata it validates and reads only the
+    //   copy afterwards, so indexing never sees other values; brick bytes that change are data
+    //   (checked by CRC in `verify`, decoded with bounds-checked lengths elsewhere);
+    // - truncation: touching a page past the new end raises SIGBUS, which the watch below turns
+    //   into an error naming the file and exit status 1.
+    let map =
+        unsafe { Mmap::map(&file) }.map_err(|e| fail(FormatError::io("cannot memory-map", e)))?;
+    let watched = WatchedMap {
+        _watch: sigbus::watch(path, &map),
+        map,
+    };
+    AmrkFile::open(watched)
+        .map(|f| f.with_path(path))
+        .map_err(fail)
 }
 
 /// Bytes of `map`'s pages this process has touched (its resident set in the mapping), from
@@ -142,8 +163,8 @@ impl<'f> PageRelease<'f> {
 mod tests {
     use super::*;
     use amr_format::progress::NoProgress;
-    use amr_synth::{write_synth, Case, SynthParams};
     use amr_format::WriterOptions;
+    use amr_synth::{write_synth, Case, SynthParams};
 
     #[test]
     fn released_pages_read_back_the_same_bytes() {

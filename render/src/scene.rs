@@ -6,20 +6,19 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use memmap2::Mmap;
 use serde::Serialize;
 
 use crate::bvh::BvhBuilder;
 use crate::error::{RenderError, Result};
 use crate::extract::Extractor;
-use crate::mapping::{open_mapped, MappedFile, PageRelease};
+use crate::mapping::{open_mapped, MappedFile, PageRelease, WatchedMap};
 use crate::reconstruct::Reconstruction;
 use crate::shade::IsoSpec;
 use crate::stats::per_octant;
 use crate::trace::{FieldSource, GridFrame, Surface, VoxelSource};
 
 /// The voxel source of a mapped file.
-pub type MappedSource<'f> = FieldSource<'f, Mmap>;
+pub type MappedSource<'f> = FieldSource<'f, WatchedMap>;
 
 self_cell::self_cell!(
     /// A mapped file and the voxel source that reads it.
@@ -164,7 +163,7 @@ impl Scene {
     }
 
     /// The octant method's extractor (`None` for the other reconstructions).
-    pub fn extractor(&self) -> Option<&Extractor<'_, Mmap>> {
+    pub fn extractor(&self) -> Option<&Extractor<'_, WatchedMap>> {
         self.source().extractor()
     }
 

@@ -4,6 +4,7 @@
 //! - [`fields`]: the analytic functions ([`Case`], [`AnalyticField`]), public as ground truth.
 //! - [`params`]: what a dataset is made of ([`SynthParams`]) and its [`LevelSpec`]s.
 //! - [`refine`]: the brick hierarchy, metadata only, in integer index space.
+//! - [`boxes`]: hierarchies of many small irregular boxes with mixed ratios.
 //! - [`target`]: choosing the resolution that gives a requested total number of cells.
 //! - [`stream`]: evaluating bricks in parallel and writing them in order.
 //!
@@ -11,12 +12,14 @@
 
 #![warn(missing_docs)]
 
+pub mod boxes;
 pub mod fields;
 pub mod params;
 pub mod refine;
 pub mod stream;
 pub mod target;
 
+pub use boxes::{build_box_hierarchy, BoxParams};
 pub use fields::{AnalyticField, Case, Placed};
 pub use params::SynthParams;
 pub use refine::{build_hierarchy, build_hierarchy_by, near_surface, Block};

@@ -2,13 +2,12 @@
 //! active voxel's corners lie in its leaf's stored range; the result does not depend on the run
 //! or the number of threads; compressed files decode each brick once. Failures name their seed.
 
-
 use std::collections::{HashMap, HashSet};
 
+use crate::support::hierarchy::{build, standard_cases, Case, Rng};
 use amr_format::AmrkFile;
 use amr_render::extract::{split_ref, Extractor, LocalVoxel};
 use amr_render::reconstruct::{Octant, Sampler, VertexMemo};
-use crate::support::hierarchy::{build, standard_cases, Case, Rng};
 
 /// Every octant of every leaf, once (owned by the leaf holding its lowest finest cell), with its
 /// corner values.
@@ -79,17 +78,23 @@ fn isovalues(
 /// Checks every isovalue of `case`; returns how many boundary cells extraction culled and how
 /// many leaves it skipped by their tight range.
 fn check_case(case: &Case) -> (u64, u64) {
+    let (_, file) = build(case);
+    check_file(&file, case.seed, &format!("seed {} ({case:?})", case.seed))
+}
+
+/// Checks random isovalues (from `seed`) of every field of `file`, naming it `name` in failures;
+/// returns how many boundary cells extraction culled and how many leaves it skipped.
+fn check_file(file: &AmrkFile<Vec<u8>>, seed: u64, name: &str) -> (u64, u64) {
     let mut culled = 0;
     let mut skipped = 0;
-    let (_, file) = build(case);
-    let mut rng = Rng(case.seed ^ 0x1234);
+    let mut rng = Rng(seed ^ 0x1234);
     let nb = file.num_bricks() as u64;
-    for field in 0..2 {
-        let ex = Extractor::new(&file, field, 64 << 20).unwrap();
+    for field in 0..file.fields().len() {
+        let ex = Extractor::new(file, field, 64 << 20).unwrap();
         let s = ex.sampler();
         let octants = all_octants(s);
-        for iso in isovalues(&mut rng, &octants, &file, field) {
-            let ctx = format!("seed {} ({case:?}) field {field} iso {iso}", case.seed);
+        for iso in isovalues(&mut rng, &octants, file, field) {
+            let ctx = format!("{name} field {field} iso {iso}");
             let result = ex.extract(iso).unwrap_or_else(|e| panic!("{ctx}: {e}"));
             culled += result.stats.culled_cells;
             skipped += result.stats.leaves_skipped;
@@ -227,6 +232,41 @@ fn extraction_equals_brute_force() {
     assert!(
         skipped > 0,
         "no leaf was skipped by its tight range: the test does not exercise it"
+    );
+}
+
+/// Many small irregular boxes with mixed ratios (`amr_synth::boxes`): the leaf tree, the block
+/// ranges and the coarse bands meet leaves next to much coarser ones.
+#[test]
+fn extraction_equals_brute_force_on_small_irregular_boxes() {
+    use amr_synth::{build_box_hierarchy, write_spec, BoxParams, Case as Synth};
+    let dir = tempfile::tempdir().unwrap();
+    let (mut culled, mut skipped) = (0, 0);
+    for seed in 1..=2u64 {
+        let params = BoxParams {
+            base: 6,
+            ratios: vec![2, 4],
+            sizes: (1, 5),
+            seed,
+        };
+        let spec = build_box_hierarchy(&Synth::Blobs, "blobs", &params).unwrap();
+        let path = dir.path().join(format!("boxes{seed}.amrk"));
+        write_spec(
+            &path,
+            spec,
+            &Synth::Blobs,
+            Default::default(),
+            &amr_format::progress::NoProgress,
+        )
+        .unwrap();
+        let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+        let (c, s) = check_file(&file, seed, &format!("small boxes {params:?}"));
+        culled += c;
+        skipped += s;
+    }
+    assert!(
+        culled > 0 && skipped > 0,
+        "culled {culled}, skipped {skipped}"
     );
 }
 

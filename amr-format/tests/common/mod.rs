@@ -2,8 +2,10 @@
 
 #![allow(dead_code)]
 
-use amr_format::{AmrkWriter, BrickSpec, HierarchySpec, IBox, LevelSpec, WriterOptions};
+use amr_format::raw::Footer;
+use amr_format::{AmrkFile, AmrkWriter, BrickSpec, HierarchySpec, IBox, LevelSpec, WriterOptions};
 use std::path::Path;
+use zerocopy::FromBytes;
 
 /// A small deterministic generator (SplitMix64), so every failure names its seed.
 pub struct Rng(pub u64);
@@ -128,4 +130,27 @@ pub fn write_file(
         }
     }
     w.finish().unwrap()
+}
+
+/// The bytes of a valid three-level file made from `seed`.
+pub fn valid_file(seed: u64) -> Vec<u8> {
+    let mut rng = Rng(seed);
+    let spec = random_hierarchy(&mut rng, 3, 2, 3);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("v.amrk");
+    write_file(&spec, &path, WriterOptions::default());
+    std::fs::read(&path).unwrap()
+}
+
+/// The footer of the file in `bytes`.
+pub fn footer_of(bytes: &[u8]) -> Footer {
+    Footer::read_from_bytes(&bytes[bytes.len() - size_of::<Footer>()..]).unwrap()
+}
+
+/// The message of the error opening `bytes`; panics when they open.
+pub fn open_err(bytes: Vec<u8>) -> String {
+    match AmrkFile::open(bytes) {
+        Ok(_) => panic!("a damaged file opened"),
+        Err(e) => e.to_string(),
+    }
 }

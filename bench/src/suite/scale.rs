@@ -97,8 +97,7 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
         let stats = scale_render::measure(ctx.cfg.render_exe.as_deref(), &path, ISO)?;
         if compare_at == Some(target) {
             eprintln!("bench suite: scale: BVH in chunks against one BVH at {target} cells");
-            let (active, variants) = compare(&path, ISO, &bvh_cfg)?;
-            bvh_table = Some((sum.write.cells, table(active, &variants)));
+            bvh_table = Some((sum.write.cells, table(&compare(&path, ISO, &bvh_cfg)?)));
         }
         points.push(Point {
             cells: sum.write.cells,

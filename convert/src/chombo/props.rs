@@ -154,20 +154,21 @@ impl<'a> Props<'a> {
     }
 
     /// A string attribute (fixed or variable length, ASCII or UTF-8), trailing NULs removed.
+    /// Bytes that are not UTF-8 are an error (the HDF5 types' `as_str` does not check them).
     pub fn string(&self, attr: &str) -> Result<String> {
         let (a, d) = self.attr(attr)?;
-        let s = match d {
+        let bytes = match d {
             TypeDescriptor::FixedAscii(n) if n <= MAX_STRING => self
                 .one::<FixedAscii<MAX_STRING>>(attr, &a)?
-                .as_str()
-                .to_string(),
+                .as_bytes()
+                .to_vec(),
             TypeDescriptor::FixedUnicode(n) if n <= MAX_STRING => self
                 .one::<FixedUnicode<MAX_STRING>>(attr, &a)?
-                .as_str()
-                .to_string(),
-            TypeDescriptor::VarLenAscii => self.one::<VarLenAscii>(attr, &a)?.as_str().to_string(),
+                .as_bytes()
+                .to_vec(),
+            TypeDescriptor::VarLenAscii => self.one::<VarLenAscii>(attr, &a)?.as_bytes().to_vec(),
             TypeDescriptor::VarLenUnicode => {
-                self.one::<VarLenUnicode>(attr, &a)?.as_str().to_string()
+                self.one::<VarLenUnicode>(attr, &a)?.as_bytes().to_vec()
             }
             d => {
                 return Err(self.invalid(format!(
@@ -175,6 +176,12 @@ impl<'a> Props<'a> {
             )))
             }
         };
+        let s = String::from_utf8(bytes).map_err(|e| {
+            self.invalid(format!(
+                "attribute '{attr}' is not UTF-8 text (invalid byte at {})",
+                e.utf8_error().valid_up_to()
+            ))
+        })?;
         Ok(s.trim_end_matches('\0').to_string())
     }
 

@@ -3,11 +3,12 @@
 //! Only the refs and the BVH nodes stay resident: a voxel's box is decoded from its ref while
 //! building, and its corner values while tracing. The refs are split into chunks of
 //! [`BvhBuilder::chunk_refs`] consecutive refs (the extraction emits them in kd-leaf order, so a
-//! chunk is spatially compact); each chunk gets its own BVH, built one after the other, and a
+//! chunk is spatially compact); each chunk gets its own BVH, one chunk per thread at a time, and a
 //! top-level BVH is built over the chunks' boxes. The build scratch (boxes, PLOC buffers, the
-//! binary BVH: about 270 bytes per primitive) is therefore bounded by the chunk size, not by the
-//! number of refs. After a chunk's build its refs are put in its BVH's leaf order, so obvhs's
-//! primitive index array is dropped and a chunk's primitive `i` is simply its `i`-th ref; the
+//! binary BVH: about 270 bytes per primitive) is therefore bounded by the chunk size times the
+//! threads, not by the number of refs. After a chunk's build its refs are put in its BVH's leaf
+//! order, so obvhs's primitive index array is dropped and a chunk's primitive `i` is simply its
+//! `i`-th ref; the
 //! chunks are likewise put in the top-level BVH's leaf order. [`BvhBuilder`] keeps the scratch so
 //! that a new isovalue rebuilds without reallocating.
 
@@ -48,25 +49,29 @@ struct Chunk {
     bvh: CwBvh,
 }
 
-/// Build scratch kept between builds.
+/// Build scratch kept between builds: one [`Worker`] per thread, each building one chunk at a
+/// time.
 pub struct BvhBuilder {
-    boxes: Vec<Aabb>,
-    ploc: PlocBuilder,
-    bvh2: Bvh2,
-    reinsertion: ReinsertionOptimizer,
+    workers: Vec<Worker>,
     /// Refs per chunk (at least 1); `usize::MAX` builds one BVH over all refs.
     pub chunk_refs: usize,
     /// Bytes of scratch held at the end of the last build (boxes, PLOC buffers, binary BVH).
     pub last_scratch_bytes: usize,
 }
 
+/// One thread's build scratch.
+#[derive(Default)]
+struct Worker {
+    boxes: Vec<Aabb>,
+    ploc: PlocBuilder,
+    bvh2: Bvh2,
+    reinsertion: ReinsertionOptimizer,
+}
+
 impl Default for BvhBuilder {
     fn default() -> Self {
         Self {
-            boxes: Vec::new(),
-            ploc: PlocBuilder::default(),
-            bvh2: Bvh2::default(),
-            reinsertion: ReinsertionOptimizer::default(),
+            workers: Vec::new(),
             chunk_refs: CHUNK_REFS,
             last_scratch_bytes: 0,
         }
@@ -81,8 +86,9 @@ impl BvhBuilder {
 
     /// Builds a BVH over `refs`, whose boxes `bounds(r)` gives in grid coordinates; every box
     /// is grown by `pad` (grid units) so that `f32` traversal never misses a voxel the exact
-    /// `f64` intersection would hit. `between_chunks` is called after each chunk (to release
-    /// what decoding the boxes touched). Reuses the scratch and `out`'s buffers.
+    /// `f64` intersection would hit. `between_chunks` is called after each round of chunks
+    /// (one per thread, built side by side) to release what decoding the boxes touched. Reuses
+    /// the scratch and `out`'s buffers.
     pub fn build_into(
         &mut self,
         out: &mut OctantBvh,
@@ -128,41 +134,70 @@ impl BvhBuilder {
             Aabb::new(v(lo, -pad), v(hi, pad))
         };
         let size = self.chunk_refs.max(1);
+        let threads = rayon::current_num_threads().max(1);
+        let mut parts: Vec<&mut [u64]> = out.refs.chunks_mut(size).collect();
+        self.workers
+            .resize_with(threads.min(parts.len()).max(1), Worker::default);
         let mut boxes = Vec::new();
         let mut first = 0;
-        for part in out.refs.chunks_mut(size) {
-            self.boxes.clear();
-            self.boxes.par_extend(part.par_iter().map(|&r| grown(r)));
-            let bvh = self.build_level(part);
-            boxes.push(bvh.total_aabb);
-            out.chunks.push(Chunk {
-                first,
-                len: part.len(),
-                bvh,
-            });
-            first += part.len();
+        for round in parts.chunks_mut(self.workers.len()) {
+            let bvhs: Vec<CwBvh> = round
+                .par_iter_mut()
+                .zip(self.workers.par_iter_mut())
+                .map(|(part, w)| {
+                    w.boxes.clear();
+                    w.boxes.par_extend(part.par_iter().map(|&r| grown(r)));
+                    w.build_level(part)
+                })
+                .collect();
+            for (bvh, part) in bvhs.into_iter().zip(round.iter()) {
+                boxes.push(bvh.total_aabb);
+                out.chunks.push(Chunk {
+                    first,
+                    len: part.len(),
+                    bvh,
+                });
+                first += part.len();
+            }
             between_chunks();
         }
         if out.chunks.len() > 1 {
-            self.boxes.clear();
-            self.boxes.extend_from_slice(&boxes);
+            let w = &mut self.workers[0];
+            w.boxes.clear();
+            w.boxes.extend_from_slice(&boxes);
             let mut order: Vec<u64> = (0..out.chunks.len() as u64).collect();
-            out.top = self.build_level(&mut order);
+            out.top = w.build_level(&mut order);
             let mut chunks = std::mem::take(&mut out.chunks);
             out.chunks = order
                 .iter()
                 .map(|&c| std::mem::take(&mut chunks[c as usize]))
                 .collect();
         }
-        self.last_scratch_bytes = self.boxes.capacity() * size_of::<Aabb>()
-            + (self.ploc.current_nodes.capacity()
-                + self.ploc.next_nodes.capacity()
-                + self.bvh2.nodes.capacity())
-                * size_of::<Bvh2Node>()
-            + self.ploc.mortons.capacity() * 32
-            + self.bvh2.primitive_indices.capacity() * 4;
+        self.last_scratch_bytes = self.workers.iter().map(Worker::scratch_bytes).sum();
     }
 
+    /// Builds a new BVH (see [`BvhBuilder::build_into`]).
+    pub fn build(
+        &mut self,
+        refs: &[u64],
+        pad: f64,
+        bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
+    ) -> OctantBvh {
+        let mut out = OctantBvh::default();
+        self.build_into(&mut out, refs, pad, bounds, || {});
+        out
+    }
+
+    /// Frees the scratch (the chunk size is kept).
+    pub fn release(&mut self) {
+        *self = Self {
+            chunk_refs: self.chunk_refs,
+            ..Self::default()
+        };
+    }
+}
+
+impl Worker {
     /// A CWBVH over `self.boxes`, whose primitive `i` is `items[i]` (the items are permuted into
     /// the BVH's leaf order and its primitive index array is dropped).
     fn build_level(&mut self, items: &mut [u64]) -> CwBvh {
@@ -190,24 +225,15 @@ impl BvhBuilder {
         bvh
     }
 
-    /// Builds a new BVH (see [`BvhBuilder::build_into`]).
-    pub fn build(
-        &mut self,
-        refs: &[u64],
-        pad: f64,
-        bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
-    ) -> OctantBvh {
-        let mut out = OctantBvh::default();
-        self.build_into(&mut out, refs, pad, bounds, || {});
-        out
-    }
-
-    /// Frees the scratch (the chunk size is kept).
-    pub fn release(&mut self) {
-        *self = Self {
-            chunk_refs: self.chunk_refs,
-            ..Self::default()
-        };
+    /// Bytes of scratch held (boxes, PLOC buffers, binary BVH).
+    fn scratch_bytes(&self) -> usize {
+        self.boxes.capacity() * size_of::<Aabb>()
+            + (self.ploc.current_nodes.capacity()
+                + self.ploc.next_nodes.capacity()
+                + self.bvh2.nodes.capacity())
+                * size_of::<Bvh2Node>()
+            + self.ploc.mortons.capacity() * 32
+            + self.bvh2.primitive_indices.capacity() * 4
     }
 }
 

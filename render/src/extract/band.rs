@@ -7,9 +7,10 @@
 //! `Q`-cell of `Q`, [`super::cull`]) is the union of 27 entries, each shared by the coarse cells
 //! next to it, instead of a scan of every brick near `Q`.
 
-use amr_format::IBox;
 use crate::error::Result;
+use amr_format::IBox;
 
+use super::blocks::BlockRanges;
 use crate::reconstruct::Sampler;
 
 /// Folds the values of the cells `cells` (level-`fine` indices, inside the brick's cells `bc`)
@@ -80,6 +81,8 @@ pub struct CoarseBand {
     lo: Vec<f32>,
     hi: Vec<f32>,
     known: Vec<bool>,
+    /// True once the bounds of every [`SHARED`] cell are known.
+    shared_known: bool,
     /// The leaves touching the band.
     touching: Vec<u32>,
     /// The leaves of level `q` or finer overlapping the band, with data.
@@ -111,6 +114,7 @@ impl CoarseBand {
         self.owner.resize(n, EMPTY);
         self.known.clear();
         self.known.resize(n, false);
+        self.shared_known = false;
         self.lo.resize(n, f32::INFINITY);
         self.hi.resize(n, f32::NEG_INFINITY);
         self.touching.clear();
@@ -177,11 +181,13 @@ impl CoarseBand {
         self.level == level && self.inner.contains_cell(c)
     }
 
-    /// The range of the leaf cells within one cell of level-`q` cell `c` (absolute index),
-    /// `None` when a leaf cell coarser than `q` lies there. `c` must be [`Self::covers`]ed.
+    /// A range holding the leaf cells within one cell of level-`q` cell `c` (absolute index),
+    /// read through `blocks`; `None` when a leaf cell coarser than `q` lies there. `c`
+    /// must be [`Self::covers`]ed.
     pub fn range_around<D: AsRef<[u8]>>(
         &mut self,
         sampler: &Sampler<'_, D>,
+        blocks: &BlockRanges,
         c: [i64; 3],
     ) -> Result<Option<(f32, f32)>> {
         let near = IBox::new(c.map(|v| v - 1), c.map(|v| v + 2)).intersect(&self.cells);
@@ -193,9 +199,12 @@ impl CoarseBand {
                     if self.owner[i] == COARSER {
                         return Ok(None);
                     }
+                    if self.owner[i] == SHARED && !self.shared_known {
+                        self.settle_shared(sampler, blocks)?;
+                    }
                     if !self.known[i] {
                         let cell = [near.lo[0] + k as i64, y, z];
-                        (self.lo[i], self.hi[i]) = self.compute(sampler, i, cell)?;
+                        (self.lo[i], self.hi[i]) = self.compute(sampler, blocks, i, cell)?;
                         self.known[i] = true;
                     }
                     lo = lo.min(self.lo[i]);
@@ -206,19 +215,68 @@ impl CoarseBand {
         Ok(Some((lo, hi)))
     }
 
-    /// The range of the leaf cells inside band cell `i` (cell `cell`), which no coarser leaf
+    /// Computes the bounds of every [`SHARED`] cell in one pass over the parts, each part
+    /// folding into the cells it overlaps (rather than every part visiting every shared cell).
+    fn settle_shared<D: AsRef<[u8]>>(
+        &mut self,
+        sampler: &Sampler<'_, D>,
+        blocks: &BlockRanges,
+    ) -> Result<()> {
+        let g = self.cells;
+        for i in 0..self.owner.len() {
+            if self.owner[i] == SHARED {
+                (self.lo[i], self.hi[i]) = (f32::INFINITY, f32::NEG_INFINITY);
+            }
+        }
+        for part in &self.parts {
+            let r = part.ratio;
+            let over = IBox::new(
+                [0, 1, 2].map(|a| part.cells.lo[a].div_euclid(r[a])),
+                [0, 1, 2].map(|a| (part.cells.hi[a] + r[a] - 1).div_euclid(r[a])),
+            )
+            .intersect(&g);
+            for z in over.lo[2]..over.hi[2] {
+                for y in over.lo[1]..over.hi[1] {
+                    for x in over.lo[0]..over.hi[0] {
+                        let i = g.linear_index([x, y, z]);
+                        if self.owner[i] != SHARED {
+                            continue;
+                        }
+                        let c = [x, y, z];
+                        let inside = IBox::new(
+                            [0, 1, 2].map(|a| c[a] * r[a]),
+                            [0, 1, 2].map(|a| (c[a] + 1) * r[a]),
+                        )
+                        .intersect(&part.cells);
+                        let (a, b) = blocks.range_of_cells(sampler, part.brick, &inside)?;
+                        self.lo[i] = self.lo[i].min(a);
+                        self.hi[i] = self.hi[i].max(b);
+                    }
+                }
+            }
+        }
+        for i in 0..self.owner.len() {
+            if self.owner[i] == SHARED {
+                self.known[i] = true;
+            }
+        }
+        self.shared_known = true;
+        Ok(())
+    }
+
+    /// A range holding the leaf cells inside band cell `i` (cell `cell`), which no coarser leaf
     /// cell overlaps.
     fn compute<D: AsRef<[u8]>>(
         &self,
         sampler: &Sampler<'_, D>,
+        blocks: &BlockRanges,
         i: usize,
         cell: [i64; 3],
     ) -> Result<(f32, f32)> {
-        let one = [self.owner[i] as usize];
         let parts = match self.owner[i] {
             EMPTY => return Ok((f32::INFINITY, f32::NEG_INFINITY)),
             SHARED => &self.parts[..],
-            _ => std::slice::from_ref(&self.parts[one[0]]),
+            one => std::slice::from_ref(&self.parts[one as usize]),
         };
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         for part in parts {
@@ -231,18 +289,9 @@ impl CoarseBand {
             if inside.is_empty() {
                 continue;
             }
-            let values = sampler.values(part.brick)?;
-            let bc = sampler.brick_cells(part.brick);
-            let w = inside.extent()[0] as usize;
-            for z in inside.lo[2]..inside.hi[2] {
-                for y in inside.lo[1]..inside.hi[1] {
-                    let src = bc.linear_index([inside.lo[0], y, z]);
-                    for &v in &values[src..src + w] {
-                        lo = lo.min(v);
-                        hi = hi.max(v);
-                    }
-                }
-            }
+            let (a, b) = blocks.range_of_cells(sampler, part.brick, &inside)?;
+            lo = lo.min(a);
+            hi = hi.max(b);
         }
         Ok((lo, hi))
     }

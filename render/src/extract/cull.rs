@@ -11,9 +11,9 @@
 //! Means never leave the range of their inputs (rounding is monotone and halving exact); a
 //! trilinear interpolation can by a few ulps, so coarse contributions are widened.
 
-use amr_format::{IBox, RangeAccumulator};
 use crate::error::Result;
 
+use super::blocks::BlockRanges;
 use super::local::{Neighbourhood, ABOVE, BELOW, COARSER, PENDING};
 use crate::reconstruct::sampler::Locate;
 use crate::reconstruct::{LocalLocator, Sampler, VertexMemo};
@@ -26,9 +26,10 @@ pub fn around_offsets(row: usize, slab: usize) -> [usize; 27] {
 
 /// True unless the octants of the cell at neighbourhood index `i` certainly do not straddle
 /// `iso` ([`Neighbourhood::classify`] must have run for `iso`). `around` comes from
-/// [`around_offsets`]. Bounds of coarser neighbours are computed on first need and kept in `hood`.
+/// [`around_offsets`]. Bounds of coarser neighbours are computed on first need (from `blocks`) and
+/// kept in `hood`.
 pub fn cell_may_hold<D: AsRef<[u8]>>(
-    sampler: &Sampler<'_, D>,
+    (sampler, blocks): (&Sampler<'_, D>, &BlockRanges),
     hood: &mut Neighbourhood,
     (loc, memo): (&mut LocalLocator<'_, '_, D>, &mut VertexMemo),
     (i, around): (usize, &[usize; 27]),
@@ -48,7 +49,7 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
     for &d in around {
         let j = base + d;
         if hood.codes()[j] & PENDING != 0 {
-            settle_coarse(sampler, hood, (loc, memo), j, iso)?;
+            settle_coarse((sampler, blocks), hood, (loc, memo), j, iso)?;
         }
         union |= hood.codes()[j];
     }
@@ -60,7 +61,7 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
 /// (which holds every corner of `Q`'s octants when none of them is coarser than `Q`), or else
 /// the exact corners of the octants of `Q` overlapping cell `j`.
 fn settle_coarse<D: AsRef<[u8]>>(
-    sampler: &Sampler<'_, D>,
+    (sampler, blocks): (&Sampler<'_, D>, &BlockRanges),
     hood: &mut Neighbourhood,
     (loc, memo): (&mut LocalLocator<'_, '_, D>, &mut VertexMemo),
     j: usize,
@@ -85,7 +86,7 @@ fn settle_coarse<D: AsRef<[u8]>>(
     let q_box = grid.finest_box(q.level, q.cell);
     let band = hood.band(sampler, q.level);
     let around = if band.covers(q.level, q.cell) {
-        band.range_around(sampler, q.cell)?
+        band.range_around(sampler, blocks, q.cell)?
     } else {
         None
     };
@@ -133,41 +134,6 @@ fn settle_coarse<D: AsRef<[u8]>>(
     }
     hood.settle_coarse(j, widen((lo, hi)), iso);
     Ok(())
-}
-
-/// The range of the cells of brick `brick` (level `level`) overlapping finest-level box `part`;
-/// `(+inf, -inf)` when there are none.
-pub fn brick_range_in<D: AsRef<[u8]>>(
-    sampler: &Sampler<'_, D>,
-    brick: u32,
-    level: u32,
-    part: &IBox,
-) -> Result<(f32, f32)> {
-    let mut range = RangeAccumulator::new();
-    let bc = sampler.brick_cells(brick);
-    let cells = sampler.grid().level_box(level, part).intersect(&bc);
-    if cells.is_empty() {
-        return Ok(range.range());
-    }
-    let values = sampler.values(brick)?;
-    let e = bc.extent();
-    let (row, slab) = (e[0] as usize, (e[0] * e[1]) as usize);
-    let w = cells.extent()[0] as usize;
-    let mut z_start = bc.linear_index(cells.lo);
-    for _ in cells.lo[2]..cells.hi[2] {
-        if w == row {
-            let rows = cells.extent()[1] as usize;
-            range.add(&values[z_start..z_start + rows * row]);
-        } else {
-            let mut src = z_start;
-            for _ in cells.lo[1]..cells.hi[1] {
-                range.add(&values[src..src + w]);
-                src += row;
-            }
-        }
-        z_start += slab;
-    }
-    Ok(range.range())
 }
 
 /// Widens a range of corner values by the round-off a trilinear interpolation of them can add.

@@ -6,9 +6,10 @@
 //! cells are all leaf cells of level `L`; every other octant of the leaf's cells is a voxel of
 //! its own, with corners from [`Sampler::corners`].
 
-use amr_format::IBox;
 use crate::error::Result;
+use amr_format::IBox;
 
+use super::blocks::BlockRanges;
 use super::cull::{around_offsets, cell_may_hold};
 use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};
 use super::refs::{make_ref, LocalVoxel};
@@ -28,20 +29,20 @@ pub struct Scratch<'s, 'f, D> {
     pub loc: LocalLocator<'s, 'f, D>,
     /// One row of merged-dual-cell codes.
     pub rows: Vec<u8>,
-    /// Kd-tree leaves met while computing a tight range.
-    pub touching: Vec<u32>,
+    /// The block ranges bounding coarser neighbours.
+    pub blocks: &'s BlockRanges,
 }
 
 impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
-    /// Empty scratch for extracting from `sampler`.
-    pub fn new(sampler: &'s Sampler<'f, D>) -> Self {
+    /// Empty scratch for extracting from `sampler`, bounding coarser neighbours with `blocks`.
+    pub fn new(sampler: &'s Sampler<'f, D>, blocks: &'s BlockRanges) -> Self {
         Self {
             hood: Neighbourhood::default(),
             memo: VertexMemo::default(),
             verts: LeafVertices::default(),
             loc: LocalLocator::new(sampler),
             rows: Vec::new(),
-            touching: Vec::new(),
+            blocks,
         }
     }
 }
@@ -114,7 +115,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         verts,
         loc,
         rows,
-        ..
+        blocks,
     } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();
@@ -181,7 +182,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                     if !hood.near_boundary[i] {
                         continue;
                     }
-                    if !cell_may_hold(sampler, hood, (loc, memo), (i, &around), iso)? {
+                    if !cell_may_hold((sampler, blocks), hood, (loc, memo), (i, &around), iso)? {
                         counts.culled += 1;
                         continue;
                     }

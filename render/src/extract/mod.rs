@@ -5,6 +5,8 @@
 //! - [`leaf`]: the voxels one leaf owns: merged dual cells and boundary octants.
 //! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue.
 //! - [`vertices`]: a leaf's boundary vertex values, computed once each.
+//! - [`blocks`]: per-brick ranges of `4^3`-cell blocks, for bounds that do not rescan cells.
+//! - [`leaf_tree`]: a box tree over the leaves, for region queries of ranges and levels.
 //! - [`tight`]: per-leaf ranges from cell values, computed once, skipping leaves the file's
 //!   looser stored ranges let through.
 //! - [`stats`]: what an extraction did.
@@ -17,9 +19,11 @@
 //! within each leaf, the same on every run and any number of threads.
 
 pub mod band;
+pub mod blocks;
 pub mod cull;
 pub mod current;
 pub mod leaf;
+pub mod leaf_tree;
 pub mod local;
 pub mod nearest;
 pub mod refs;
@@ -37,9 +41,11 @@ use rayon::prelude::*;
 use crate::mapping::PageRelease;
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::{Locate, Octant, SampleScratch, Sampler, VertexMemo};
-use leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
-pub use refs::{make_ref, split_ref, LocalVoxel, DUAL_BASE};
 pub use crate::voxel::Voxel;
+use blocks::BlockRanges;
+use leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
+use leaf_tree::LeafTree;
+pub use refs::{make_ref, split_ref, LocalVoxel, DUAL_BASE};
 pub use stats::ExtractStats;
 use tight::TightRanges;
 
@@ -63,6 +69,8 @@ pub struct Extractor<'f, D> {
     sampler: Sampler<'f, D>,
     file_cells: u64,
     tight: TightRanges,
+    blocks: BlockRanges,
+    leaves: LeafTree,
     pages: Option<PageRelease<'f>>,
 }
 
@@ -78,6 +86,8 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             .sum();
         Ok(Self {
             tight: TightRanges::new(file.num_leaves()),
+            blocks: BlockRanges::new(file.num_bricks()),
+            leaves: LeafTree::new(&sampler),
             sampler,
             file_cells,
             pages: None,
@@ -151,7 +161,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             .flat_map(|&l| file.leaf(l).bricks.iter())
             .map(|b| {
                 let d = file.brick_data(field, b.get() as usize);
-                (d.offset.get(), d.offset.get().saturating_add(d.len.get()))
+                (d.offset, d.offset.saturating_add(d.len))
             })
             .collect();
         ranges.sort_unstable();
@@ -200,11 +210,12 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             let parts: Vec<Result<(Vec<u64>, LeafCounts)>> = chunk
                 .par_iter()
                 .map_init(
-                    || Scratch::new(&self.sampler),
+                    || Scratch::new(&self.sampler, &self.blocks),
                     |scratch, &leaf| {
                         let mut out = Vec::new();
                         let (lo, hi) =
-                            self.tight.get(&self.sampler, leaf, &mut scratch.touching)?;
+                            self.tight
+                                .get(&self.sampler, (&self.blocks, &self.leaves), leaf)?;
                         if !straddles(lo, hi, iso) {
                             let skipped = LeafCounts {
                                 skipped: 1,

@@ -4,24 +4,26 @@
 //! The file's stored leaf ranges are unions of whole-brick ranges (the writer never re-reads
 //! data), so a leaf far from the surface is often visited because some other part of a
 //! neighbouring brick straddles the isovalue. The tight range is the range of the cells
-//! themselves within reach of the leaf, widened for round-off:
+//! within reach of the leaf (read through [`super::blocks`]), widened for round-off:
 //! - when no leaf coarser than the leaf's level `L` touches the leaf grown by one level-`L` cell
 //!   (its neighbourhood), that grown box: every corner of every voxel the leaf owns is then the
 //!   value of, or a mean of, leaf cells of level `L` or finer inside it (the argument of
 //!   [`super::cull`], with no coarser cell in any 27-cell neighbourhood);
 //! - otherwise the stored range's reach rule (`amr-format/src/kdtree/ranges.rs`: the leaf grown by
 //!   two cells of the coarsest level met, until that level stops changing) with one more
-//!   level-`L` cell of margin.
+//!   level-`L` cell of margin; nodes of the [`super::leaf_tree`] lying within that reach again
+//!   count whole, so the cost is the nodes along the region's boundary.
 //!
 //! A leaf whose tight range does not hold the isovalue has no active voxel and is skipped before
 //! its neighbourhood is built.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use amr_format::kdtree::widen_range;
 use crate::error::Result;
+use amr_format::kdtree::widen_range;
 
-use super::cull::brick_range_in;
+use super::blocks::BlockRanges;
+use super::leaf_tree::LeafTree;
 use crate::reconstruct::Sampler;
 
 /// Not computed yet (the bits of two NaNs, which no computed range holds).
@@ -40,90 +42,73 @@ impl TightRanges {
         }
     }
 
-    /// The tight range of `leaf`, computed (with `touching` as scratch) on first need.
+    /// The tight range of `leaf`, computed on first need from the block ranges and the leaf
+    /// tree.
     pub fn get<D: AsRef<[u8]>>(
         &self,
         sampler: &Sampler<'_, D>,
+        bounds: (&BlockRanges, &LeafTree),
         leaf: u32,
-        touching: &mut Vec<u32>,
     ) -> Result<(f32, f32)> {
         let slot = &self.bits[leaf as usize];
         let known = slot.load(Ordering::Relaxed);
         if known != UNKNOWN {
             return Ok(unpack(known));
         }
-        let range = compute(sampler, leaf, touching)?;
+        let range = compute(sampler, bounds, leaf)?;
         slot.store(pack(range), Ordering::Relaxed);
         Ok(range)
     }
 }
 
-fn pack((lo, hi): (f32, f32)) -> u64 {
+/// A range as the bits of its two ends.
+pub(super) fn pack((lo, hi): (f32, f32)) -> u64 {
     u64::from(lo.to_bits()) << 32 | u64::from(hi.to_bits())
 }
 
-fn unpack(bits: u64) -> (f32, f32) {
+/// The range [`pack`] stored.
+pub(super) fn unpack(bits: u64) -> (f32, f32) {
     (
         f32::from_bits((bits >> 32) as u32),
         f32::from_bits(bits as u32),
     )
 }
 
-/// The range of the leaf cells within reach of `leaf`, widened for round-off.
+/// A range holding the leaf cells within reach of `leaf`, widened for
+/// round-off.
 fn compute<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
+    (blocks, leaves): (&BlockRanges, &LeafTree),
     leaf: u32,
-    touching: &mut Vec<u32>,
 ) -> Result<(f32, f32)> {
     let empty = (f32::INFINITY, f32::NEG_INFINITY);
     let Some((_, level)) = sampler.leaf_top(leaf) else {
         return Ok(empty);
     };
     let grid = sampler.grid();
-    let tree = sampler.file().tree();
-    let own = tree.leaf_box(leaf);
+    let own = sampler.file().tree().leaf_box(leaf);
     let margin = grid.scale(level);
     let hood = own.grow(margin);
-    touching.clear();
-    tree.for_each_leaf_touching(&hood, |l| touching.push(l));
-    let mut coarsest = coarsest_level(sampler, touching).unwrap_or(level);
-    let region = if coarsest >= level {
-        hood
+    let mut coarsest = leaves.coarsest_touching(sampler, &hood).unwrap_or(level);
+    let (region, slack) = if coarsest >= level {
+        (hood, [0; 3])
     } else {
         loop {
-            let region = own.grow([0, 1, 2].map(|a| 2 * grid.scale(coarsest)[a] + margin[a]));
-            touching.clear();
-            tree.for_each_leaf_touching(&region, |l| touching.push(l));
-            let met = coarsest_level(sampler, touching).unwrap_or(coarsest);
+            let reach = [0, 1, 2].map(|a| 2 * grid.scale(coarsest)[a] + margin[a]);
+            let region = own.grow(reach);
+            let met = leaves
+                .coarsest_touching(sampler, &region)
+                .unwrap_or(coarsest);
             if met >= coarsest {
-                break region;
+                // Nodes lying within the reach again count whole.
+                break (region, reach);
             }
             coarsest = met;
         }
     };
-    let (mut lo, mut hi) = empty;
-    for &l in touching.iter() {
-        let Some((brick, lv)) = sampler.leaf_top(l) else {
-            continue;
-        };
-        let part = tree.leaf_box(l).intersect(&region);
-        if part.is_empty() {
-            continue;
-        }
-        let (a, b) = brick_range_in(sampler, brick, lv, &part)?;
-        lo = lo.min(a);
-        hi = hi.max(b);
-    }
+    let (lo, hi) = leaves.range_over(sampler, blocks, &region, slack)?;
     if lo > hi {
         return Ok(empty);
     }
     Ok(widen_range(lo, hi))
-}
-
-/// The coarsest level of the leaves with data among `leaves`.
-fn coarsest_level<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>, leaves: &[u32]) -> Option<u32> {
-    leaves
-        .iter()
-        .filter_map(|&l| sampler.leaf_top(l).map(|(_, lv)| lv))
-        .min()
 }

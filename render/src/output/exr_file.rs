@@ -2,9 +2,11 @@
 //! the camera, isovalues, timings and the origin of `P` in the header. Written to a temporary file
 //! beside the target and renamed, so a reader never sees half a frame.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use exr::prelude::*;
+
+use amr_format::output::temporary_for;
 
 use crate::error::{RenderError, Result};
 
@@ -53,27 +55,15 @@ pub fn write_exr(
         AnyChannels::sort(channels.into()),
     );
     let image = Image::from_layer(layer);
-    let tmp = temp_path(path);
+    // A temporary named after the target and this process (removed on any error, and by a
+    // later writer of the same target if this process dies), renamed into place when complete.
+    let tmp = temporary_for(path, ".tmp").map_err(|e| RenderError::output(path, e))?;
     image
         .write()
-        .to_file(&tmp)
-        .map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            RenderError::output(path, e)
-        })?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        RenderError::output(path, e)
-    })
-}
-
-/// A temporary file name beside `path`.
-pub fn temp_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+        .to_file(tmp.path())
+        .map_err(|e| RenderError::output(path, e))?;
+    tmp.persist(path).map_err(|e| RenderError::output(path, e.error))?;
+    Ok(())
 }
 
 fn text(s: &str) -> Text {

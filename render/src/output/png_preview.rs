@@ -5,7 +5,7 @@ use std::path::Path;
 
 use crate::error::{RenderError, Result};
 
-use crate::output::exr_file::temp_path;
+use amr_format::output::temporary_for;
 use crate::output::frame::FrameBuffer;
 
 /// Background grey (linear) behind uncovered pixels.
@@ -36,10 +36,9 @@ fn to_srgb8(v: f32) -> u8 {
 
 /// Writes `rgb8` (`width x height` RGB8) as a PNG, through a temporary file.
 pub fn write_png(path: &Path, width: u32, height: u32, rgb8: &[u8]) -> Result<()> {
-    let tmp = temp_path(path);
+    let tmp = temporary_for(path, ".tmp").map_err(|e| RenderError::output(path, e))?;
     let result = (|| -> std::result::Result<(), String> {
-        let file = std::fs::File::create(&tmp).map_err(|e| e.to_string())?;
-        let mut enc = png::Encoder::new(BufWriter::new(file), width, height);
+        let mut enc = png::Encoder::new(BufWriter::new(tmp.as_file()), width, height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
         let mut w = enc.write_header().map_err(|e| e.to_string())?;
@@ -47,14 +46,9 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgb8: &[u8]) -> Result<()
         w.finish().map_err(|e| e.to_string())?;
         Ok(())
     })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(RenderError::output(path, e));
-    }
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        RenderError::output(path, e)
-    })
+    result.map_err(|e| RenderError::output(path, e))?;
+    tmp.persist(path).map_err(|e| RenderError::output(path, e.error))?;
+    Ok(())
 }
 
 /// Writes the preview of `frame` to `path`.

@@ -16,7 +16,7 @@ use crate::error::Result;
 
 const SHARDS: usize = 64;
 
-type Slot = Arc<OnceLock<std::result::Result<Arc<[f32]>, String>>>;
+type Slot = Arc<OnceLock<std::result::Result<Arc<[f32]>, Arc<FormatError>>>>;
 
 #[derive(Default)]
 struct Shard {
@@ -77,8 +77,15 @@ impl BrickCache {
         };
         let value = slot.get_or_init(|| {
             self.decodes.fetch_add(1, Ordering::Relaxed);
-            decode().map(Arc::from).map_err(|e| e.to_string())
+            decode().map(Arc::from).map_err(|e| {
+                Arc::new(match e {
+                    RenderError::Format(e) => e,
+                    e => FormatError::Corrupt(e.to_string()),
+                })
+            })
         });
-        value.clone().map_err(|e| RenderError::Format(FormatError::Corrupt(e)))
+        value
+            .clone()
+            .map_err(|e| RenderError::Format(FormatError::Shared(e)))
     }
 }

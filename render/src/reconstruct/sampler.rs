@@ -247,7 +247,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             .collect();
         let in_place = (0..file.num_bricks())
             .map(|b| {
-                let raw = file.brick_data(field, b).encoding.get() == amr_format::raw::ENCODING_RAW;
+                let raw = file.brick_data(field, b).encoding == amr_format::compress::Encoding::Raw;
                 // Only raw bricks are asked for: reading a compressed one here would decode it.
                 match raw.then(|| file.brick_values(field, b)) {
                     Some(Ok(Cow::Borrowed(v))) => Some(v),

@@ -1,8 +1,8 @@
 //! Shared fixtures of the renderer tests: seeded random numbers and analytic multi-level grids.
 
-use amr_render::bvh::BvhBuilder;
 pub use super::block_grid::BlockGrid;
 pub use super::rng::Rng;
+use amr_render::bvh::BvhBuilder;
 use amr_render::render::{render_sampled, render_surfaces};
 use amr_render::shade::IsoSpec;
 use amr_render::trace::Surface;

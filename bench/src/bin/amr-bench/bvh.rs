@@ -56,7 +56,6 @@ pub fn run(args: &BvhArgs) -> anyhow::Result<()> {
         shadows: args.shadows,
         ao: args.ao,
     };
-    let (active, variants) = compare(&args.file, args.iso, &cfg)?;
-    print!("{}", table(active, &variants));
+    print!("{}", table(&compare(&args.file, args.iso, &cfg)?));
     Ok(())
 }

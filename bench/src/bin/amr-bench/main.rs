@@ -1,6 +1,7 @@
-//! `amr-bench`: measurements of the renderer for `docs/benchmarks*.md`; `open`, `read`, `bvh`
-//! `sample` and `suite` are subcommands.
+//! `amr-bench`: measurements of the renderer for `docs/benchmarks*.md`; `open`, `read`, `bvh`,
+//! `boxes`, `sample` and `suite` are subcommands.
 
+mod boxes;
 mod bvh;
 mod open;
 mod read;
@@ -30,6 +31,8 @@ enum Command {
     Bvh(bvh::BvhArgs),
     /// Nanoseconds per point sample of each reconstruction, near level boundaries and away.
     Sample(sample::SampleArgs),
+    /// Writes a hierarchy of many small irregular boxes with mixed ratios (extraction stress).
+    Boxes(boxes::BoxesArgs),
     /// Regenerates docs/benchmarks-suite.md and its plots (docs/img/*.png) end to end.
     Suite(suite::SuiteArgs),
     /// The suite's scale render of one file, statistics as JSON on stdout (run by `suite`).
@@ -43,6 +46,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Read(args) => read::run(&args),
         Command::Bvh(args) => bvh::run(&args),
         Command::Sample(args) => sample::run(&args),
+        Command::Boxes(args) => boxes::run(&args),
         Command::Suite(args) => suite::run(args),
         Command::RenderStats(args) => render_stats::run(&args),
     }

@@ -47,6 +47,9 @@ pub fn run(args: &ExtractArgs) -> anyhow::Result<()> {
     if let Some(bad) = args.iso.iter().find(|v| !v.is_finite()) {
         bail!("isovalue {bad} is not a finite number");
     }
+    if let Some(out) = &args.stats_json {
+        amr_format::output::check_output(out, &[&args.file])?;
+    }
     let file = open_mapped(&args.file)?;
     let field = match &args.field {
         None => 0,

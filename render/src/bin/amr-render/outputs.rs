@@ -4,10 +4,13 @@
 use std::path::{Path, PathBuf};
 
 use amr_render::mapping::mapped_resident_bytes;
-use amr_render::output::exr_file::{temp_path, write_exr};
+use std::io::Write;
+
+use amr_format::output::temporary_for;
+use amr_render::output::exr_file::write_exr;
 use amr_render::output::png_preview::write_preview;
 use amr_render::{FrameStats, Rendered, Scene, SceneStats};
-use anyhow::{bail, Context};
+use anyhow::Context;
 use serde::Serialize;
 
 use crate::probe::peak_rss_bytes;
@@ -117,31 +120,17 @@ pub fn numbered(path: &Path, k: u32, n: u32) -> PathBuf {
 }
 
 /// Refuses the files of a frame, and the statistics file, when one would replace an input or
-/// something that is not a regular file.
+/// something that is not a regular file ([`amr_format::output::check_output`]).
 pub fn check_frame(files: &FrameFiles, outputs: &Outputs, inputs: &[&Path]) -> anyhow::Result<()> {
-    let paths = [Some(&files.exr), files.preview.as_ref(), outputs.stats_json.as_ref()];
+    let paths = [
+        Some(&files.exr),
+        files.preview.as_ref(),
+        outputs.stats_json.as_ref(),
+    ];
     for out in paths.into_iter().flatten() {
-        if let Ok(meta) = std::fs::metadata(out) {
-            if !meta.is_file() {
-                bail!("{}: the output exists and is not a regular file; refusing to replace it", out.display());
-            }
-            for input in inputs {
-                if same_file(out, input) {
-                    bail!("{}: the output is the input {}; refusing to replace it", out.display(), input.display());
-                }
-            }
-        }
+        amr_format::output::check_output(out, inputs)?;
     }
     Ok(())
-}
-
-/// True when `a` and `b` name the same file.
-fn same_file(a: &Path, b: &Path) -> bool {
-    use std::os::unix::fs::MetadataExt;
-    match (std::fs::metadata(a), std::fs::metadata(b)) {
-        (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
-        _ => false,
-    }
 }
 
 /// Writes a frame's EXR and its preview.
@@ -186,11 +175,10 @@ pub fn report(outputs: &Outputs, stats: &impl Serialize, print_also: &str) -> an
 
 /// Writes `value` as pretty JSON to `path` through a temporary file.
 pub fn write_json(path: &Path, value: &impl Serialize) -> anyhow::Result<()> {
-    let tmp = temp_path(path);
+    let fail = || format!("cannot write {}", path.display());
+    let mut tmp = temporary_for(path, ".tmp").with_context(fail)?;
     let body = serde_json::to_string_pretty(value)? + "\n";
-    if let Err(e) = std::fs::write(&tmp, body) {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e).with_context(|| format!("cannot write {}", path.display()));
-    }
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+    tmp.write_all(body.as_bytes()).with_context(fail)?;
+    tmp.persist(path).map_err(|e| e.error).with_context(fail)?;
+    Ok(())
 }

@@ -7,27 +7,10 @@
 //! order is a union of few subtrees, so the parts are spatially compact.
 
 use amr_format::kdtree::TreeView;
-use amr_format::raw::KD_LEAF;
 
 /// The leaves of `tree` front to back as seen from `eye` (finest-level cell coordinates).
 pub fn visibility_order(tree: &TreeView<'_>, eye: [f64; 3]) -> Vec<u32> {
-    let mut order = Vec::with_capacity(tree.leaves.len());
-    let mut stack = vec![0usize];
-    while let Some(i) = stack.pop() {
-        let Some(n) = tree.nodes.get(i) else { continue };
-        let kind = n.b.get() & 3;
-        if kind == KD_LEAF {
-            order.push(n.a.get());
-            continue;
-        }
-        let (left, right) = (i + 1, (n.b.get() >> 2) as usize);
-        if eye[kind as usize] < f64::from(n.a.get()) {
-            stack.extend([right, left]);
-        } else {
-            stack.extend([left, right]);
-        }
-    }
-    order
+    tree.front_to_back(eye)
 }
 
 /// The part (`0..parts`) of each leaf, indexed by leaf: `order` cut into `parts` contiguous runs

@@ -1,0 +1,185 @@
+//! Output paths: refusing one that would replace an input or something that is not a regular
+//! file, and the temporaries written beside an output, named so that stale ones can be removed.
+//!
+//! A temporary for target `DIR/NAME` is `DIR/.NAME.PID.XXXXXX.tmp` (or `.spill`), where PID is
+//! the writing process. A writer gone without cleaning up (killed, power loss) leaves its
+//! temporaries behind; the next writer of the same target removes those whose PID is no longer
+//! a running process ([`remove_stale_temporaries`]).
+
+use std::fs;
+use std::os::unix::fs::MetadataExt;
+use std::path::{Path, PathBuf};
+
+use tempfile::NamedTempFile;
+
+use crate::error::{FormatError, Result};
+
+/// Refuses `output` when writing it would replace something it must not: an existing path that
+/// is not a regular file (a directory, a device such as `/dev/null`, a pipe), one of `inputs`
+/// (the same file, through any name), or a path inside an input directory.
+///
+/// Writers replace their output by renaming a finished temporary over it, so a device or pipe
+/// would be replaced, not written to. Symbolic links are followed for the comparison.
+pub fn check_output(output: &Path, inputs: &[&Path]) -> Result<()> {
+    let refuse = |reason: String| {
+        Err(FormatError::Output {
+            path: output.to_path_buf(),
+            reason,
+        })
+    };
+    let out_meta = fs::metadata(output).ok();
+    if let Some(m) = &out_meta {
+        if !m.file_type().is_file() {
+            let what = if m.is_dir() {
+                "a directory"
+            } else {
+                "not a regular file (a device, pipe or socket)"
+            };
+            return refuse(format!(
+                "the output is {what}; refusing to replace it (name a new or regular file)"
+            ));
+        }
+    }
+    let out_dir = output_dir(output);
+    for input in inputs {
+        let Ok(in_meta) = fs::metadata(input) else {
+            continue;
+        };
+        if let Some(m) = &out_meta {
+            if (m.dev(), m.ino()) == (in_meta.dev(), in_meta.ino()) {
+                return refuse(format!(
+                    "the output is the input {}; refusing to replace it",
+                    input.display()
+                ));
+            }
+        }
+        if in_meta.is_dir() {
+            if let (Some(dir), Ok(input_dir)) = (&out_dir, fs::canonicalize(input)) {
+                if dir.starts_with(&input_dir) {
+                    return refuse(format!(
+                        "the output lies inside the input directory {}; refusing to write there",
+                        input.display()
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The directory `output` would be written in, resolved, when it exists.
+fn output_dir(output: &Path) -> Option<PathBuf> {
+    let parent = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    fs::canonicalize(parent).ok()
+}
+
+/// A new temporary file for writing `target`, beside it and named after it and this process
+/// (see the module documentation), with the permissions of an ordinary new file (it is renamed
+/// into place when complete). `suffix` is `.tmp` for the file itself, `.spill` for scratch.
+pub fn temporary_for(target: &Path, suffix: &str) -> Result<NamedTempFile> {
+    let dir = target_dir(target);
+    tempfile::Builder::new()
+        .prefix(&format!("{}{}.", temp_prefix(target), std::process::id()))
+        .suffix(suffix)
+        .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644))
+        .tempfile_in(&dir)
+        .map_err(|e| FormatError::io(format!("creating a temporary file in {}", dir.display()), e))
+}
+
+/// Removes the temporaries of `target` (named as [`temporary_for`] names them) whose writing
+/// process is no longer running; returns how many were removed. Does nothing where running
+/// processes cannot be listed (no `/proc`). A failure to remove one is not an error.
+pub fn remove_stale_temporaries(target: &Path) -> usize {
+    if !Path::new("/proc/self").exists() {
+        return 0;
+    }
+    let prefix = temp_prefix(target);
+    let Ok(entries) = fs::read_dir(target_dir(target)) else {
+        return 0;
+    };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let Some(pid) = stale_pid(name, &prefix) else {
+            continue;
+        };
+        if !Path::new("/proc").join(pid.to_string()).exists()
+            && fs::remove_file(entry.path()).is_ok()
+        {
+            removed += 1;
+        }
+    }
+    removed
+}
+
+/// The PID in `name` when it is a temporary `{prefix}{pid}.XXXXXX{.tmp|.spill}`.
+fn stale_pid(name: &str, prefix: &str) -> Option<u32> {
+    let rest = name.strip_prefix(prefix)?;
+    if !(rest.ends_with(".tmp") || rest.ends_with(".spill")) {
+        return None;
+    }
+    let (pid, _) = rest.split_once('.')?;
+    pid.parse().ok()
+}
+
+fn temp_prefix(target: &Path) -> String {
+    let name = target
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    format!(".{name}.")
+}
+
+fn target_dir(target: &Path) -> PathBuf {
+    match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refuses_inputs_directories_devices_and_paths_inside_inputs() {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("in.amrk");
+        fs::write(&input, b"x").unwrap();
+        let link = dir.path().join("link.amrk");
+        std::os::unix::fs::symlink(&input, &link).unwrap();
+        let plot = dir.path().join("plt");
+        fs::create_dir(&plot).unwrap();
+        fs::write(plot.join("Header"), b"h").unwrap();
+        let msg = |out: &Path, inputs: &[&Path]| check_output(out, inputs).unwrap_err().to_string();
+        assert!(msg(&input, &[&input]).contains("is the input"));
+        assert!(msg(&link, &[&input]).contains("is the input"));
+        assert!(msg(&plot.join("Header"), &[&plot]).contains("inside the input directory"));
+        assert!(msg(&plot.join("new.amrk"), &[&plot]).contains("inside the input directory"));
+        assert!(msg(&plot, &[]).contains("a directory"));
+        assert!(msg(Path::new("/dev/null"), &[]).contains("not a regular file"));
+        check_output(&dir.path().join("out.amrk"), &[&input, &plot]).unwrap();
+        check_output(&input, &[&plot]).unwrap();
+    }
+
+    #[test]
+    fn stale_temporaries_of_dead_writers_are_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.amrk");
+        let live = temporary_for(&target, ".tmp").unwrap();
+        // A PID above the kernel's maximum (2^22) is never a running process.
+        let dead = dir.path().join(".out.amrk.99999999.abc123.tmp");
+        let dead_spill = dir.path().join(".out.amrk.99999999.def456.spill");
+        let other = dir.path().join(".other.amrk.99999999.abc123.tmp");
+        for p in [&dead, &dead_spill, &other] {
+            fs::write(p, b"x").unwrap();
+        }
+        assert_eq!(remove_stale_temporaries(&target), 2);
+        assert!(live.path().exists() && other.exists());
+        assert!(!dead.exists() && !dead_spill.exists());
+    }
+}

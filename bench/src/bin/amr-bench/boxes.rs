@@ -1,0 +1,67 @@
+//! `amr-bench boxes -o F.amrk`: writes a hierarchy of many small irregular boxes with mixed
+//! ratios (`amr_synth::boxes`), the extraction stress case.
+
+use std::path::PathBuf;
+
+use amr_format::progress::NoProgress;
+use amr_format::WriterOptions;
+use amr_synth::{build_box_hierarchy, stream::cells_per_level, write_spec, BoxParams, Case};
+use anyhow::Context;
+use clap::Args;
+
+/// Arguments of `amr-bench boxes`.
+#[derive(Args, Debug)]
+pub struct BoxesArgs {
+    /// Analytic case: blobs, sphere or ripple.
+    #[arg(long, default_value = "blobs")]
+    case: String,
+    /// Output .amrk file.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Cells per axis of level 0.
+    #[arg(long, default_value_t = 32)]
+    base: u32,
+    /// Refinement ratio from each level to the next, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "2,4,2")]
+    ratios: Vec<u32>,
+    /// Smallest and largest box extent along an axis, as MIN,MAX (cells of the box's level).
+    #[arg(long, value_delimiter = ',', default_value = "2,16")]
+    sizes: Vec<u32>,
+    /// Seed of the box extents.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+/// Writes the file and prints a one-line summary.
+pub fn run(args: &BoxesArgs) -> anyhow::Result<()> {
+    let case: Case = args.case.parse().map_err(anyhow::Error::msg)?;
+    let [min, max] = args.sizes[..] else {
+        anyhow::bail!("--sizes takes MIN,MAX, not {:?}", args.sizes);
+    };
+    let params = BoxParams {
+        base: args.base,
+        ratios: args.ratios.clone(),
+        sizes: (min, max),
+        seed: args.seed,
+    };
+    let spec = build_box_hierarchy(&case, case.name(), &params)?;
+    let per_level = cells_per_level(&spec);
+    let finest = spec.levels.len() as u32 - 1;
+    let finest_boxes = spec.bricks.iter().filter(|b| b.level == finest).count();
+    let s = write_spec(
+        &args.output,
+        spec,
+        &case,
+        WriterOptions::default(),
+        &NoProgress,
+    )
+    .with_context(|| format!("writing {}", args.output.display()))?;
+    println!(
+        "{}: {case}, cells per level {per_level:?} = {} cells, {} boxes ({finest_boxes} on the finest level), {} kd leaves",
+        args.output.display(),
+        s.cells,
+        s.bricks,
+        s.leaves
+    );
+    Ok(())
+}

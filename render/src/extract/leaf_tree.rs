@@ -1,0 +1,232 @@
+//! A bounding-box tree over the kd-tree's leaves, split at the median of the longest axis,
+//! holding each node's coarsest level and, once asked, a range of its cells: region queries for
+//! tight ranges cost the nodes along the region's boundary, not one visit per leaf inside it.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use amr_format::IBox;
+
+use super::blocks::BlockRanges;
+use super::tight::{pack, unpack};
+use crate::error::Result;
+use crate::reconstruct::Sampler;
+
+/// Leaves per bottom node, at most.
+const BUCKET: usize = 8;
+/// A range not computed yet (the bits of two NaNs, which no computed range holds).
+const UNKNOWN: u64 = u64::MAX;
+
+/// One node: the leaves `order[first..end]`.
+struct Node {
+    /// The union of its leaves' boxes (finest-level cells).
+    bounds: IBox,
+    /// The coarsest level of its leaves with data (`u32::MAX` when none has data).
+    coarsest: u32,
+    first: u32,
+    end: u32,
+    /// Its two children, for a node of more than [`BUCKET`] leaves.
+    children: Option<(u32, u32)>,
+}
+
+/// The tree over all leaves of one file, with lazily computed node ranges of one field.
+pub struct LeafTree {
+    nodes: Vec<Node>,
+    /// Leaf ids, each node's contiguous.
+    order: Vec<u32>,
+    ranges: Vec<AtomicU64>,
+}
+
+impl LeafTree {
+    /// The tree over every leaf of `sampler`'s file.
+    pub fn new<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>) -> Self {
+        let n = sampler.file().num_leaves() as u32;
+        let mut nodes = Vec::with_capacity(4 * n as usize / BUCKET + 1);
+        let mut order: Vec<u32> = (0..n).collect();
+        if n > 0 {
+            build(sampler, &mut order, 0, &mut nodes);
+        }
+        let ranges = (0..nodes.len()).map(|_| AtomicU64::new(UNKNOWN)).collect();
+        Self {
+            nodes,
+            order,
+            ranges,
+        }
+    }
+
+    /// The coarsest level of the leaves with data whose closed boxes touch the closed `region`.
+    pub fn coarsest_touching<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        region: &IBox,
+    ) -> Option<u32> {
+        let mut best = u32::MAX;
+        let mut stack = Vec::with_capacity(64);
+        if !self.nodes.is_empty() {
+            stack.push(0u32);
+        }
+        let tree = sampler.file().tree();
+        while let Some(i) = stack.pop() {
+            let node = &self.nodes[i as usize];
+            if node.coarsest >= best || !node.bounds.touches(region) {
+                continue;
+            }
+            if contains(region, &node.bounds) {
+                best = node.coarsest;
+                continue;
+            }
+            match node.children {
+                Some((a, b)) => stack.extend([b, a]),
+                None => {
+                    for &l in &self.order[node.first as usize..node.end as usize] {
+                        if let Some((_, lv)) = sampler.leaf_top(l) {
+                            if lv < best && tree.leaf_box(l).touches(region) {
+                                best = lv;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        (best != u32::MAX).then_some(best)
+    }
+
+    /// A range holding the cells of the leaves (each leaf's finest brick) inside `region`, from
+    /// the `blocks` they lie in; a node lying inside `region` grown by `slack` contributes its
+    /// whole range.
+    pub fn range_over<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        blocks: &BlockRanges,
+        region: &IBox,
+        slack: [i64; 3],
+    ) -> Result<(f32, f32)> {
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        let loose = region.grow(slack);
+        let tree = sampler.file().tree();
+        let mut stack = Vec::with_capacity(64);
+        if !self.nodes.is_empty() {
+            stack.push(0u32);
+        }
+        while let Some(i) = stack.pop() {
+            let node = &self.nodes[i as usize];
+            if node.bounds.intersect(region).is_empty() {
+                continue;
+            }
+            let (a, b) = if contains(&loose, &node.bounds) {
+                self.node_range(sampler, blocks, i)?
+            } else if let Some((a, b)) = node.children {
+                stack.extend([b, a]);
+                continue;
+            } else {
+                let (mut a, mut b) = (f32::INFINITY, f32::NEG_INFINITY);
+                for &l in &self.order[node.first as usize..node.end as usize] {
+                    let Some((brick, lv)) = sampler.leaf_top(l) else {
+                        continue;
+                    };
+                    let part = tree.leaf_box(l).intersect(region);
+                    if part.is_empty() {
+                        continue;
+                    }
+                    let (x, y) = blocks.range_in(sampler, brick, lv, &part)?;
+                    a = a.min(x);
+                    b = b.max(y);
+                }
+                (a, b)
+            };
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        Ok((lo, hi))
+    }
+
+    /// The range of node `i`'s cells, computed on first need.
+    fn node_range<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        blocks: &BlockRanges,
+        i: u32,
+    ) -> Result<(f32, f32)> {
+        let slot = &self.ranges[i as usize];
+        let known = slot.load(Ordering::Relaxed);
+        if known != UNKNOWN {
+            return Ok(unpack(known));
+        }
+        let node = &self.nodes[i as usize];
+        let range = match node.children {
+            Some((a, b)) => {
+                let (x0, y0) = self.node_range(sampler, blocks, a)?;
+                let (x1, y1) = self.node_range(sampler, blocks, b)?;
+                (x0.min(x1), y0.max(y1))
+            }
+            None => {
+                let tree = sampler.file().tree();
+                let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+                for &l in &self.order[node.first as usize..node.end as usize] {
+                    if let Some((brick, lv)) = sampler.leaf_top(l) {
+                        let (a, b) = blocks.range_in(sampler, brick, lv, &tree.leaf_box(l))?;
+                        lo = lo.min(a);
+                        hi = hi.max(b);
+                    }
+                }
+                (lo, hi)
+            }
+        };
+        slot.store(pack(range), Ordering::Relaxed);
+        Ok(range)
+    }
+}
+
+/// Appends the node of the leaves `leaves` (which start at `order[first]`) and its descendants to
+/// `nodes`, reordering `leaves` so that each child's are contiguous; returns the node's index.
+fn build<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    leaves: &mut [u32],
+    first: u32,
+    nodes: &mut Vec<Node>,
+) -> u32 {
+    let tree = sampler.file().tree();
+    let mut bounds = tree.leaf_box(leaves[0]);
+    let mut coarsest = u32::MAX;
+    for &l in leaves.iter() {
+        bounds = union(&bounds, &tree.leaf_box(l));
+        if let Some((_, lv)) = sampler.leaf_top(l) {
+            coarsest = coarsest.min(lv);
+        }
+    }
+    let index = nodes.len() as u32;
+    let end = first + leaves.len() as u32;
+    nodes.push(Node {
+        bounds,
+        coarsest,
+        first,
+        end,
+        children: None,
+    });
+    if leaves.len() > BUCKET {
+        let e = bounds.extent();
+        let axis = (0..3).max_by_key(|&a| e[a]).unwrap_or(0);
+        let mid = leaves.len() / 2;
+        leaves.select_nth_unstable_by_key(mid, |&l| {
+            let b = tree.leaf_box(l);
+            b.lo[axis] + b.hi[axis]
+        });
+        let (left, right) = leaves.split_at_mut(mid);
+        let a = build(sampler, left, first, nodes);
+        let b = build(sampler, right, first + mid as u32, nodes);
+        nodes[index as usize].children = Some((a, b));
+    }
+    index
+}
+
+/// The smallest box holding `a` and `b`.
+fn union(a: &IBox, b: &IBox) -> IBox {
+    IBox::new(
+        [0, 1, 2].map(|k| a.lo[k].min(b.lo[k])),
+        [0, 1, 2].map(|k| a.hi[k].max(b.hi[k])),
+    )
+}
+
+/// True when box `inner` lies inside `outer`.
+fn contains(outer: &IBox, inner: &IBox) -> bool {
+    (0..3).all(|k| outer.lo[k] <= inner.lo[k] && inner.hi[k] <= outer.hi[k])
+}

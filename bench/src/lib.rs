@@ -1,5 +1,5 @@
 //! Measurements of the `amr-iso` renderer whose numbers go into `docs/benchmarks*.md`: open and
-//! read times, the BVH in chunks against one BVH, and the suite that regenerates
+//! read times, the BVH in chunks against one BVH, the cost of a point sample, and the suite that regenerates
 //! `docs/benchmarks-suite.md` with its plots. The `amr-bench` binary is the front end.
 //!
 //! Each measurement repeats its work and reports the median, so that numbers quoted side by
@@ -9,6 +9,7 @@ pub mod bvh;
 pub mod open;
 pub mod probe;
 pub mod read;
+pub mod sample;
 pub mod suite;
 
 use std::time::Duration;

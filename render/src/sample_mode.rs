@@ -3,7 +3,7 @@
 
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, VoxelSource};
-use crate::trace::tracer::{central_difference, SurfaceHit, Tracer};
+use crate::trace::tracer::{SurfaceHit, Tracer};
 
 /// Bisection steps after a sign change is found (the bracket shrinks to `step / 2^BISECTIONS`).
 const BISECTIONS: u32 = 24;
@@ -89,7 +89,7 @@ impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {
         let pos = ray.at(t);
         let len = (ray.d[0] * ray.d[0] + ray.d[1] * ray.d[1] + ray.d[2] * ray.d[2]).sqrt();
         let size = (self.step * len).max(1e-9);
-        let grad = central_difference(self.src, pos, 0.5 * size).unwrap_or([0.0; 3]);
+        let grad = self.src.gradient(pos, 0.5 * size).unwrap_or([0.0; 3]);
         let level = self.src.sample(pos).map_or(0, |s| s.1);
         SurfaceHit {
             t,

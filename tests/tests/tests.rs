@@ -15,6 +15,7 @@
 //! - [`reconstruct_continuity`]: the octant method is continuous across level boundaries.
 //! - [`extract_reference`]: extraction equals a brute-force reference.
 //! - [`hybrid_current_nearest`]: the `current` and `nearest` voxels.
+//! - [`sample_scratch`]: point samples through a per-thread scratch equal fresh samples.
 //!
 //! Rendering:
 //! - [`render_watertight`] and [`render_watertight_amrk`]: no ray leaks through a closed surface.
@@ -47,4 +48,5 @@ mod render_bench;
 mod render_golden;
 mod render_watertight;
 mod render_watertight_amrk;
+mod sample_scratch;
 mod scene_api;

@@ -40,7 +40,7 @@ use rayon::prelude::*;
 
 use crate::mapping::PageRelease;
 use crate::reconstruct::interp::straddles;
-use crate::reconstruct::{Octant, Sampler, VertexMemo};
+use crate::reconstruct::{Locate, Octant, SampleScratch, Sampler, VertexMemo};
 pub use crate::voxel::Voxel;
 use blocks::BlockRanges;
 use leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
@@ -275,6 +275,18 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// [`Self::decode`], remembering vertex values in `memo` for the next calls (a memo must
     /// serve one sampler only: values are keyed by position).
     pub fn decode_memo(&self, r: u64, memo: &mut VertexMemo) -> Result<Voxel> {
+        self.decode_in(r, &self.sampler, memo)
+    }
+
+    /// [`Self::decode`] through a per-thread `scratch`, which remembers the leaves, vertex
+    /// values and octant corners that nearby voxels and samples share.
+    pub fn decode_with(&self, r: u64, scratch: &mut SampleScratch) -> Result<Voxel> {
+        let (loc, memo) = scratch.bind(&self.sampler);
+        self.decode_in(r, &loc, memo)
+    }
+
+    /// [`Self::decode_memo`], locating leaf cells through `loc`.
+    fn decode_in<L: Locate>(&self, r: u64, loc: &L, memo: &mut VertexMemo) -> Result<Voxel> {
         let (frame, cell, octant) = self.resolve(r)?;
         let grid = self.sampler.grid();
         let level = frame.level;
@@ -287,7 +299,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     octant,
                 };
                 self.sampler
-                    .octant_values_memo(&o, memo)?
+                    .octant_values_in(loc, &o, memo)?
                     .ok_or_else(|| bad_ref(r, "no values there"))?
             }
             None => {
@@ -295,7 +307,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 for (n, v) in values.iter_mut().enumerate() {
                     let c = [0, 1, 2].map(|a| cell[a] + (n >> a & 1) as i64);
                     let at = grid.finest_cell(grid.centre(level, c), 7);
-                    match self.sampler.locate(at)? {
+                    match loc.locate_cell(at)? {
                         Some(leaf_cell) if leaf_cell.level == level && leaf_cell.cell == c => {
                             *v = leaf_cell.value
                         }

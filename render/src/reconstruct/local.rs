@@ -188,7 +188,7 @@ impl<D: AsRef<[u8]>> Locate for LocalLocator<'_, '_, D> {
 }
 
 /// log2 of a cell width per axis, when every axis is a power of two.
-fn pow2_shift(scale: [i64; 3]) -> Option<[u32; 3]> {
+pub(super) fn pow2_shift(scale: [i64; 3]) -> Option<[u32; 3]> {
     scale
         .iter()
         .all(|s| *s > 0 && (*s as u64).is_power_of_two())

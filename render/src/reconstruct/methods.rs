@@ -4,7 +4,8 @@
 use crate::error::Result as RenderResult;
 
 use super::interp::trilinear;
-use super::sampler::{LeafCell, Sampler, VertexMemo};
+use super::recent::SampleScratch;
+use super::sampler::{LeafCell, Locate, Sampler, VertexMemo};
 
 /// How cell values are reconstructed between cell centres: the one reconstruction type of the
 /// renderer, for sampling, extraction and tracing alike.
@@ -63,28 +64,58 @@ impl std::str::FromStr for Reconstruction {
         Reconstruction::ALL
             .into_iter()
             .find(|r| r.name().eq_ignore_ascii_case(s.trim()))
-            .ok_or_else(|| format!("unknown reconstruction '{s}' (octant, current, nearest, finest)"))
+            .ok_or_else(|| {
+                format!("unknown reconstruction '{s}' (octant, current, nearest, finest)")
+            })
     }
 }
 
-impl<D: AsRef<[u8]>> Sampler<'_, D> {
+impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// The reconstruction at doubled point `p`; on an exact boundary the point is nudged toward
     /// `+`. `None` outside the domain or where no brick covers the cells involved.
     pub fn sample(&self, p: [f64; 3], method: Reconstruction) -> RenderResult<Option<f32>> {
+        let mut memo = VertexMemo::with_octant_bits(0);
+        Ok(self.sample_in(self, p, method, &mut memo)?.map(|s| s.0))
+    }
+
+    /// [`Self::sample`] and the level of the leaf cell holding `p`, through `scratch`, which
+    /// remembers what nearby samples share (the same values, computed faster).
+    pub fn sample_with(
+        &self,
+        p: [f64; 3],
+        method: Reconstruction,
+        scratch: &mut SampleScratch,
+    ) -> RenderResult<Option<(f32, u32)>> {
+        let (loc, memo) = scratch.bind(self);
+        self.sample_in(&loc, p, method, memo)
+    }
+
+    /// [`Self::sample`] and the leaf cell's level, locating through `loc` and remembering
+    /// vertex values and octant corners in `memo`.
+    pub fn sample_in<L: Locate>(
+        &self,
+        loc: &L,
+        p: [f64; 3],
+        method: Reconstruction,
+        memo: &mut VertexMemo,
+    ) -> RenderResult<Option<(f32, u32)>> {
         let ext = self.grid().extent();
         if (0..3).any(|a| !(p[a] >= 0.0 && p[a] <= 2.0 * ext[a] as f64)) {
             return Ok(None);
         }
         let finest = [0, 1, 2].map(|a| ((p[a] * 0.5).floor() as i64).min(ext[a] - 1));
-        let Some(c) = self.locate(finest)? else {
+        let Some(c) = loc.locate_cell(finest)? else {
             return Ok(None);
         };
-        match method {
-            Reconstruction::Nearest => Ok(Some(c.value)),
-            Reconstruction::Octant => self.sample_octant(p, &c),
-            Reconstruction::Current => self.sample_dual(p, c.level),
-            Reconstruction::Finest => self.sample_dual(p, self.grid().num_levels() as u32 - 1),
-        }
+        let value = match method {
+            Reconstruction::Nearest => Some(c.value),
+            Reconstruction::Octant => self.sample_octant(loc, p, &c, memo)?,
+            Reconstruction::Current => self.sample_dual(loc, p, c.level)?,
+            Reconstruction::Finest => {
+                self.sample_dual(loc, p, self.grid().num_levels() as u32 - 1)?
+            }
+        };
+        Ok(value.map(|v| (v, c.level)))
     }
 
     /// [`Self::sample`] at a world position.
@@ -92,7 +123,13 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         self.sample(self.grid().to_doubled(x), method)
     }
 
-    fn sample_octant(&self, p: [f64; 3], c: &LeafCell) -> RenderResult<Option<f32>> {
+    fn sample_octant<L: Locate>(
+        &self,
+        loc: &L,
+        p: [f64; 3],
+        c: &LeafCell,
+        memo: &mut VertexMemo,
+    ) -> RenderResult<Option<f32>> {
         let centre = self.grid().centre(c.level, c.cell);
         let s = self.grid().scale(c.level);
         let mut octant = 0u8;
@@ -101,8 +138,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 octant |= 1 << a;
             }
         }
-        let mut memo = VertexMemo::default();
-        let Some(corners) = self.corners(c.level, c.cell, c.value, octant, &mut memo)? else {
+        let Some(corners) = self.leaf_octant_corners_in(loc, c, octant, memo)? else {
             return Ok(None);
         };
         let t = [0, 1, 2].map(|a| {
@@ -116,7 +152,12 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         Ok(Some(trilinear(&corners, t)))
     }
 
-    fn sample_dual(&self, p: [f64; 3], level: u32) -> RenderResult<Option<f32>> {
+    fn sample_dual<L: Locate>(
+        &self,
+        loc: &L,
+        p: [f64; 3],
+        level: u32,
+    ) -> RenderResult<Option<f32>> {
         let s = self.grid().scale(level);
         let o = self.grid().offset();
         let first = [0, 1, 2]
@@ -126,7 +167,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         for (n, slot) in corners.iter_mut().enumerate() {
             let cell = [0, 1, 2].map(|a| first[a] + (n >> a & 1) as i64);
             let at = self.grid().finest_cell(self.grid().centre(level, cell), 7);
-            match self.locate(at)? {
+            match loc.locate_cell(at)? {
                 Some(c) => *slot = c.value,
                 None => return Ok(None),
             }

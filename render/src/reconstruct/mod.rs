@@ -4,6 +4,7 @@
 //! - [`interp`]: trilinear interpolation and averages in one fixed evaluation order.
 //! - [`cache`]: a bounded cache of decoded (decompressed) bricks.
 //! - [`local`]: leaf-cell location around one kd-tree leaf from a table, without tree walks.
+//! - [`recent`]: per-thread scratch that makes nearby point samples cheap.
 //! - [`sampler`]: leaf-cell location and the octant method's vertex values.
 //! - [`methods`]: point sampling with `nearest`, `current`, `finest` and `octant`.
 //!
@@ -14,9 +15,11 @@ pub mod grid;
 pub mod interp;
 pub mod local;
 pub mod methods;
+pub mod recent;
 pub mod sampler;
 
 pub use grid::Grid;
 pub use local::LocalLocator;
 pub use methods::Reconstruction;
+pub use recent::SampleScratch;
 pub use sampler::{LeafCell, Locate, Octant, Sampler, Slab, VertexMemo};

@@ -73,13 +73,15 @@ impl Deref for Slab<'_> {
 pub struct VertexMemo {
     map: HashMap<VertexKey, Option<f32>, BuildHasherDefault<VertexHasher>>,
     capacity: usize,
-    /// Direct-mapped corner values of coarse octants met while stitching (allocated on first
-    /// use: 1024 slots of 48 bytes).
+    /// Direct-mapped corner values of octants (allocated on first use: `octant_slots` slots of
+    /// 48 bytes).
     octants: Vec<(Octant, Option<[f32; 8]>)>,
+    /// log2 of the octant table's slots; 0: no table.
+    octant_bits: u32,
 }
 
-/// Slots of [`VertexMemo`]'s octant table.
-const OCTANT_SLOTS: usize = 1024;
+/// log2 of the slots of [`VertexMemo`]'s octant table by default.
+const OCTANT_BITS: u32 = 10;
 
 impl Default for VertexMemo {
     fn default() -> Self {
@@ -87,6 +89,7 @@ impl Default for VertexMemo {
             map: HashMap::default(),
             capacity: 1 << 16,
             octants: Vec::new(),
+            octant_bits: OCTANT_BITS,
         }
     }
 }
@@ -98,32 +101,48 @@ impl VertexMemo {
         self.octants.clear();
     }
 
+    /// A memo whose octant table holds `2^bits` octants (1024 by default; none for 0, which
+    /// suits a memo used once: the table is allocated whole on first use).
+    pub fn with_octant_bits(bits: u32) -> Self {
+        Self {
+            octant_bits: bits.min(24),
+            ..Self::default()
+        }
+    }
+
     #[inline]
-    fn octant_slot(o: &Octant) -> usize {
+    fn octant_slot(&self, o: &Octant) -> usize {
         let h = (o.cell[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
             ^ (o.cell[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
             ^ (o.cell[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
             ^ (u64::from(o.level) << 3 | u64::from(o.octant)).wrapping_mul(0x27D4_EB2F_1656_67C5);
-        (h >> 54) as usize % OCTANT_SLOTS
+        (h >> (64 - self.octant_bits)) as usize
     }
 
     #[inline]
     fn octant_get(&self, o: &Octant) -> Option<Option<[f32; 8]>> {
-        let e = self.octants.get(Self::octant_slot(o))?;
+        if self.octants.is_empty() {
+            return None;
+        }
+        let e = &self.octants[self.octant_slot(o)];
         (e.0 == *o).then_some(e.1)
     }
 
     #[inline]
     fn octant_put(&mut self, o: &Octant, corners: Option<[f32; 8]>) {
+        if self.octant_bits == 0 {
+            return;
+        }
         if self.octants.is_empty() {
             let empty = Octant {
                 level: u32::MAX,
                 cell: [0; 3],
                 octant: 0,
             };
-            self.octants.resize(OCTANT_SLOTS, (empty, None));
+            self.octants.resize(1 << self.octant_bits, (empty, None));
         }
-        self.octants[Self::octant_slot(o)] = (*o, corners);
+        let slot = self.octant_slot(o);
+        self.octants[slot] = (*o, corners);
     }
 }
 
@@ -171,6 +190,14 @@ impl Hasher for VertexHasher {
 pub trait Locate {
     /// The leaf cell holding finest-level cell `finest` (relative to the domain, inside it).
     fn locate_cell(&self, finest: [i64; 3]) -> Result<Option<LeafCell>>;
+
+    /// The values of the eight finest cells `lo`/`hi` per axis (side `n` takes `hi` on axis `a`
+    /// when bit `a` of `n` is set) when a cheap check shows that all eight are leaf cells of
+    /// `level`; `None` leaves the caller to locate them one by one.
+    #[inline]
+    fn block_of_level(&self, _lo: [i64; 3], _hi: [i64; 3], _level: u32) -> Option<[f32; 8]> {
+        None
+    }
 }
 
 impl<D: AsRef<[u8]>> Locate for Sampler<'_, D> {
@@ -193,6 +220,8 @@ pub struct Sampler<'f, D> {
     in_place: Vec<Option<&'f [f32]>>,
     tree: TreeView<'f>,
     cache: BrickCache,
+    /// This sampler's identity, which scratch memory serving it remembers.
+    id: u64,
 }
 
 impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
@@ -235,6 +264,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             leaf_top,
             brick_cells,
             cache: BrickCache::new(cache_bytes),
+            id: super::recent::next_sampler_id(),
         })
     }
 
@@ -253,6 +283,16 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         &self.grid
     }
 
+    /// This sampler's identity, unique in the process (scratch memory is keyed by it).
+    pub fn id(&self) -> u64 {
+        self.id
+    }
+
+    /// Kd-tree leaf `leaf`'s box in finest-level cells relative to the domain.
+    pub fn leaf_box(&self, leaf: u32) -> IBox {
+        self.tree.leaf_box(leaf)
+    }
+
     /// Leaf `leaf`'s finest brick and its level, `None` for a leaf no brick covers.
     pub fn leaf_top(&self, leaf: u32) -> Option<(u32, u32)> {
         self.leaf_top[leaf as usize]
@@ -266,6 +306,12 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// Number of bricks decoded into the cache so far.
     pub fn decodes(&self) -> u64 {
         self.cache.decodes()
+    }
+
+    /// Brick `brick`'s values when they are read in place (stored raw), else `None`.
+    #[inline]
+    pub fn values_in_place(&self, brick: u32) -> Option<&'f [f32]> {
+        self.in_place[brick as usize]
     }
 
     /// Brick `brick`'s values of the sampled field.
@@ -310,19 +356,21 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         self.around_in(self, v)
     }
 
+    /// The finest cells holding doubled point `v` nudged toward `-` and toward `+` on every
+    /// axis, and the axes (bit `a`) on which they coincide (odd coordinate, or clamped at the
+    /// domain's edge): there side `n` of `v` repeats the side without that bit.
+    #[inline]
+    fn nudges(&self, v: [i64; 3]) -> ([i64; 3], [i64; 3], usize) {
+        let lo = self.grid.finest_cell(v, 0);
+        let hi = self.grid.finest_cell(v, 7);
+        let same = (0..3).fold(0usize, |m, a| m | usize::from(lo[a] == hi[a]) << a);
+        (lo, hi, same)
+    }
+
     /// [`Self::around`], locating through `loc`.
     #[inline]
     pub fn around_in<L: Locate>(&self, loc: &L, v: [i64; 3]) -> Result<Option<[LeafCell; 8]>> {
-        // Per axis the two nudges' finest cells; where they coincide (odd coordinate, or
-        // clamped at the domain edge), side n repeats the side without that bit.
-        let lo = self.grid.finest_cell(v, 0);
-        let hi = self.grid.finest_cell(v, 7);
-        let mut same = 0usize;
-        for a in 0..3 {
-            if lo[a] == hi[a] {
-                same |= 1 << a;
-            }
-        }
+        let (lo, hi, same) = self.nudges(v);
         let mut out = [None::<LeafCell>; 8];
         for n in 0..8 {
             let m = n & !same;
@@ -524,11 +572,15 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         octant: u8,
         memo: &mut VertexMemo,
     ) -> Result<Option<[f32; 8]>> {
-        let (lo, _) = self.octant_box(&Octant {
+        let o = Octant {
             level,
             cell,
             octant,
-        });
+        };
+        if let Some(out) = self.corners_one_level(loc, &o, value)? {
+            return Ok(Some(out));
+        }
+        let (lo, _) = self.octant_box(&o);
         let s = self.grid.scale(level);
         let mut out = [0f32; 8];
         for (n, slot) in out.iter_mut().enumerate() {
@@ -544,6 +596,78 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             }
         }
         Ok(Some(out))
+    }
+
+    /// [`Self::corners_in`] for octant `o` of a leaf cell of value `value` where the eight leaf
+    /// cells around the octant's outer corner (the cell's corner on the octant's side) are all
+    /// of the octant's level: then no vertex is stitched, every
+    /// vertex's eight cells are among those eight, and each value is their [`avg8`] in
+    /// [`Self::vertex_value_from_in`]'s order, from 8 locates instead of one [`Self::around_in`]
+    /// per vertex. `None` when a cell there is of another level or not covered (the general
+    /// rule then decides).
+    #[inline]
+    fn corners_one_level<L: Locate>(
+        &self,
+        loc: &L,
+        o: &Octant,
+        value: f32,
+    ) -> Result<Option<[f32; 8]>> {
+        let Octant {
+            level,
+            cell,
+            octant,
+        } = *o;
+        let centre = self.grid.centre(level, cell);
+        let s = self.grid.scale(level);
+        let up = [0, 1, 2].map(|a| octant >> a & 1 == 1);
+        let outer = [0, 1, 2].map(|a| {
+            if up[a] {
+                centre[a] + s[a]
+            } else {
+                centre[a] - s[a]
+            }
+        });
+        let (lo, hi, same) = self.nudges(outer);
+        if let Some(block) = loc.block_of_level(lo, hi, level) {
+            return Ok(Some(self.corners_from_block(&block, value, up)));
+        }
+        let mut block = [0f32; 8];
+        for n in 0..8 {
+            let m = n & !same;
+            if m != n {
+                block[n] = block[m];
+                continue;
+            }
+            let f = [0, 1, 2].map(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+            match loc.locate_cell(f)? {
+                Some(c) if c.level == level => block[n] = c.value,
+                _ => return Ok(None),
+            }
+        }
+        Ok(Some(self.corners_from_block(&block, value, up)))
+    }
+
+    /// The corners of an octant on the `up` side of a leaf cell of value `value`, from the
+    /// values `block` of the eight leaf cells around the octant's outer corner, all of the
+    /// cell's level ([`Self::corners_one_level`]).
+    #[inline]
+    fn corners_from_block(&self, block: &[f32; 8], value: f32, up: [bool; 3]) -> [f32; 8] {
+        // The side of the outer corner the cell itself lies on.
+        let own = (0..3).fold(0usize, |k, a| k | usize::from(!up[a]) << a);
+        let mut out = [0f32; 8];
+        for (n, slot) in out.iter_mut().enumerate() {
+            // Axes on which corner n lies on the outer face rather than at the cell's centre.
+            let face = (0..3).fold(0usize, |k, a| {
+                k | usize::from((n >> a & 1 == 1) == up[a]) << a
+            });
+            if face == 0 {
+                *slot = value;
+                continue;
+            }
+            let cells = std::array::from_fn(|m| block[(m & face) | (own & !face)]);
+            *slot = avg8(&cells);
+        }
+        out
     }
 
     /// The corner values of an octant of a leaf cell; `None` when the cell is not a leaf cell or
@@ -571,13 +695,24 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         o: &Octant,
         memo: &mut VertexMemo,
     ) -> Result<Option<[f32; 8]>> {
+        self.octant_values_in(self, o, memo)
+    }
+
+    /// [`Self::octant_values_memo`], locating through `loc` and remembering the octant's
+    /// corners in `memo`'s octant table.
+    pub fn octant_values_in<L: Locate>(
+        &self,
+        loc: &L,
+        o: &Octant,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<[f32; 8]>> {
         let centre = self.grid.centre(o.level, o.cell);
-        let Some(c) = self.locate(self.grid.finest_cell(centre, 7))? else {
+        let Some(c) = loc.locate_cell(self.grid.finest_cell(centre, 7))? else {
             return Ok(None);
         };
         if c.level != o.level || c.cell != o.cell {
             return Ok(None);
         }
-        self.corners(o.level, o.cell, c.value, o.octant, memo)
+        self.leaf_octant_corners_in(loc, &c, o.octant, memo)
     }
 }

@@ -18,11 +18,12 @@ use crate::extract::current::CurrentVoxels;
 use crate::extract::nearest::NearestFaces;
 use crate::extract::{ExtractStats, Extraction, Extractor};
 use crate::mapping::PageRelease;
-use crate::reconstruct::{Reconstruction, Sampler, VertexMemo};
+use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
 use crate::trace::octant::{intersect_voxel, VoxelHit};
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
+use crate::trace::tracer::central_difference_of;
 
 /// Bytes of decompressed bricks the sampler may cache.
 pub const BRICK_CACHE_BYTES: usize = 256 << 20;
@@ -30,8 +31,8 @@ pub const BRICK_CACHE_BYTES: usize = 256 << 20;
 /// Slots of each thread's cache of decoded voxels (a power of two).
 const VOXEL_CACHE_SLOTS: usize = 4096;
 
-/// Bytes of one thread's voxel cache: the decoded voxels with their refs, plus the vertex memo
-/// (bounded by [`VertexMemo`]'s own capacity, not counted here).
+/// Bytes of one thread's voxel cache: the decoded voxels with their refs, plus the sampling
+/// scratch (bounded by its own capacities, not counted here).
 pub const VOXEL_CACHE_BYTES: usize = VOXEL_CACHE_SLOTS * std::mem::size_of::<(u64, Voxel)>();
 
 /// The voxels of one reconstruction.
@@ -44,10 +45,10 @@ enum Voxels<'f, D> {
     Nearest(Sampler<'f, D>),
 }
 
-/// One thread's decoded voxels, direct-mapped by ref.
+/// One thread's decoded voxels, direct-mapped by ref, and its scratch for decoding and sampling.
 struct VoxelCache {
     slots: Vec<(u64, Voxel)>,
-    memo: VertexMemo,
+    scratch: SampleScratch,
 }
 
 /// One field of an open file, reconstructed one way, as a [`VoxelSource`].
@@ -184,24 +185,28 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     }
 
     /// Decodes `r`.
-    fn decode(&self, r: u64, memo: &mut VertexMemo) -> Result<Voxel> {
+    fn decode(&self, r: u64, scratch: &mut SampleScratch) -> Result<Voxel> {
         match &self.voxels {
-            Voxels::Octant(e) => e.decode_memo(r, memo),
+            Voxels::Octant(e) => e.decode_with(r, scratch),
             Voxels::Current(s) => CurrentVoxels::new(s).decode(r),
             Voxels::Nearest(s) => NearestFaces::new(s).decode(r),
         }
     }
 
-    /// The voxel `r` names, from this thread's cache when it holds it.
-    fn cached_voxel(&self, r: u64) -> Voxel {
-        let cell = self.caches.get_or(|| {
+    /// This thread's voxel cache and scratch.
+    fn thread_cache(&self) -> &RefCell<VoxelCache> {
+        self.caches.get_or(|| {
             self.cache_threads.fetch_add(1, Ordering::Relaxed);
             RefCell::new(VoxelCache {
                 slots: vec![(u64::MAX, Voxel::EMPTY); VOXEL_CACHE_SLOTS],
-                memo: VertexMemo::default(),
+                scratch: SampleScratch::default(),
             })
-        });
-        let mut guard = cell.borrow_mut();
+        })
+    }
+
+    /// The voxel `r` names, from this thread's cache when it holds it.
+    fn cached_voxel(&self, r: u64) -> Voxel {
+        let mut guard = self.thread_cache().borrow_mut();
         let cache = &mut *guard;
         // Fibonacci hashing of the ref: neighbouring refs land in different slots.
         let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
@@ -209,7 +214,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         if key == r && r != u64::MAX {
             return v;
         }
-        let v = match self.decode(r, &mut cache.memo) {
+        let v = match self.decode(r, &mut cache.scratch) {
             Ok(v) => v,
             Err(e) => {
                 self.record(e);
@@ -245,18 +250,33 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
     }
 
     fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)> {
-        let s = self.sampler();
-        let value = match s.sample(p, self.reconstruction) {
-            Ok(v) => v?,
+        let mut cache = self.thread_cache().borrow_mut();
+        match self
+            .sampler()
+            .sample_with(p, self.reconstruction, &mut cache.scratch)
+        {
+            Ok(v) => v,
             Err(e) => {
                 self.record(e);
-                return None;
+                None
             }
-        };
-        let ext = s.grid().extent();
-        let finest = [0, 1, 2].map(|a| ((p[a] * 0.5).floor() as i64).clamp(0, ext[a] - 1));
-        let level = s.locate(finest).ok().flatten().map_or(0, |c| c.level);
-        Some((value, level))
+        }
+    }
+
+    fn gradient(&self, p: [f64; 3], h: f64) -> Option<[f64; 3]> {
+        let mut cache = self.thread_cache().borrow_mut();
+        let sampler = self.sampler();
+        central_difference_of(
+            |q| match sampler.sample_with(q, self.reconstruction, &mut cache.scratch) {
+                Ok(v) => v.map(|s| s.0),
+                Err(e) => {
+                    self.record(e);
+                    None
+                }
+            },
+            p,
+            h,
+        )
     }
 
     fn release_pages(&self) {

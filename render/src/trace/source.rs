@@ -4,6 +4,7 @@ use crate::trace::octant::{intersect_voxel, VoxelHit};
 pub use crate::voxel::Voxel;
 use crate::reconstruct::Grid;
 use crate::trace::ray::GridRay;
+use crate::trace::tracer::central_difference;
 
 /// The affine map from grid coordinates to world coordinates, and the grid's extent.
 ///
@@ -71,6 +72,12 @@ pub trait VoxelSource: Sync {
 
     /// The reconstructed field and the AMR level at grid point `p`, or `None` outside the data.
     fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)>;
+
+    /// The gradient of [`Self::sample`]'s field at `p` by central differences `h` apart
+    /// ([`central_difference`]); sources may compute the same values faster.
+    fn gradient(&self, p: [f64; 3], h: f64) -> Option<[f64; 3]> {
+        central_difference(self, p, h)
+    }
 
     /// Drops pages of the underlying file from the resident set, between stages that touch it;
     /// a no-op for sources that hold no file.

@@ -87,7 +87,7 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
             .fold(f64::INFINITY, f64::min);
         let mut grad = h.grid_gradient();
         if self.smooth_normals {
-            if let Some(g) = central_difference(self.src, pos, size) {
+            if let Some(g) = self.src.gradient(pos, size) {
                 grad = g;
             }
         }
@@ -117,17 +117,27 @@ pub fn central_difference<S: VoxelSource + ?Sized>(
     p: [f64; 3],
     h: f64,
 ) -> Option<[f64; 3]> {
+    central_difference_of(|q| src.sample(q).map(|s| s.0), p, h)
+}
+
+/// [`central_difference`] of the field `sample` gives.
+pub fn central_difference_of(
+    mut sample: impl FnMut([f64; 3]) -> Option<f32>,
+    p: [f64; 3],
+    h: f64,
+) -> Option<[f64; 3]> {
     let mut g = [0.0; 3];
     // The value at `p` itself is needed only for a one-sided difference.
     let mut centre: Option<Option<f64>> = None;
-    let mut centre_value = || *centre.get_or_insert_with(|| src.sample(p).map(|s| f64::from(s.0)));
-    for (a, ga) in g.iter_mut().enumerate() {
-        let at = |d: f64| {
+    for a in 0..3 {
+        let mut at = |d: f64| {
             let mut q = p;
             q[a] += d;
-            src.sample(q).map(|s| f64::from(s.0))
+            sample(q).map(f64::from)
         };
-        *ga = match (at(h), at(-h)) {
+        let (f1, f0) = (at(h), at(-h));
+        let mut centre_value = || *centre.get_or_insert_with(|| sample(p).map(f64::from));
+        g[a] = match (f1, f0) {
             (Some(f1), Some(f0)) => (f1 - f0) / (2.0 * h),
             (Some(f1), None) => (f1 - centre_value()?) / h,
             (None, Some(f0)) => (centre_value()? - f0) / h,

@@ -1,11 +1,12 @@
 //! `amr-bench`: measurements of the renderer for `docs/benchmarks*.md`; `open`, `read`, `bvh`,
-//! `boxes` and `suite` are subcommands.
+//! `boxes`, `sample` and `suite` are subcommands.
 
 mod boxes;
 mod bvh;
 mod open;
 mod read;
 mod render_stats;
+mod sample;
 mod suite;
 
 use std::process::ExitCode;
@@ -28,6 +29,8 @@ enum Command {
     Read(read::ReadArgs),
     /// BVH built in chunks against one BVH, side by side: build time, scratch, frame time.
     Bvh(bvh::BvhArgs),
+    /// Nanoseconds per point sample of each reconstruction, near level boundaries and away.
+    Sample(sample::SampleArgs),
     /// Writes a hierarchy of many small irregular boxes with mixed ratios (extraction stress).
     Boxes(boxes::BoxesArgs),
     /// Regenerates docs/benchmarks-suite.md and its plots (docs/img/*.png) end to end.
@@ -42,6 +45,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Open(args) => open::run(&args),
         Command::Read(args) => read::run(&args),
         Command::Bvh(args) => bvh::run(&args),
+        Command::Sample(args) => sample::run(&args),
         Command::Boxes(args) => boxes::run(&args),
         Command::Suite(args) => suite::run(args),
         Command::RenderStats(args) => render_stats::run(&args),

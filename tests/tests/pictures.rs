@@ -9,12 +9,16 @@ use std::path::{Path, PathBuf};
 use amr_format::WriterOptions;
 use amr_render::camera::Camera;
 use amr_render::outline::DOMAIN_COLOR;
+use amr_render::output::legend::Legend;
+use amr_render::output::png_preview::preview_rgb8;
 use amr_render::shade::IsoSpec;
 use amr_render::{
     render, CameraPlacement, ColorBy, ColorScale, Colormap, Outline, Rendered, Scene, SceneOptions,
     Slice, View,
 };
 use amr_synth::{build_hierarchy, write_fields, AnalyticField, Case, SynthParams};
+
+use crate::support::golden::assert_matches_golden;
 
 /// Size of a coarse cell of the fixture.
 const COARSE: f64 = 1.0 / 16.0;
@@ -291,4 +295,26 @@ fn the_default_field_skips_round_off_and_the_default_isovalue_is_the_median() {
     // far from the middle of its range (800).
     let iso = scene.default_isovalue();
     assert!((iso - 550.0).abs() < 60.0, "default isovalue {iso}");
+}
+
+#[test]
+fn a_painted_frame_with_its_legend_matches_the_golden_preview() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let mut scene = scene(&path);
+    scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
+    scene
+        .set_color_by(&[Some(ColorBy::Field("ramp".into()))])
+        .unwrap();
+    let v = View {
+        size: (240, 180),
+        outline: Outline::Domain,
+        ..view()
+    };
+    let r = render(&scene, &v, &|_| {}).unwrap();
+    let (w, h) = (r.frame.width, r.frame.height);
+    let mut rgb = preview_rgb8(&r.frame);
+    Legend::of_frame(&scene, &v, &r).draw(&mut rgb, w, h);
+    let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/render_golden/painted_legend.ppm");
+    assert_matches_golden(&golden, w, h, &rgb, "sphere painted by ramp, with legend");
 }

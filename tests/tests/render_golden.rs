@@ -7,16 +7,13 @@
 use std::path::{Path, PathBuf};
 
 use amr_render::output::exr_file::read_channel;
-use amr_render::output::png_preview::{preview_rgb8, write_png};
+use amr_render::output::png_preview::preview_rgb8;
 use amr_render::output::exr_file::write_exr;
 use amr_render::{CameraPlacement, View};
 use amr_render::shade::IsoSpec;
+use crate::support::golden::assert_matches_golden;
 use crate::support::render::{render_grid, sphere_grid};
 
-/// Largest per-channel difference (of 255) a pixel may have.
-const PIXEL_TOL: i32 = 6;
-/// Largest fraction of pixels over `PIXEL_TOL`.
-const BAD_FRACTION: f64 = 0.002;
 
 fn golden_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/render_golden/nested_spheres.ppm")
@@ -45,30 +42,6 @@ fn view() -> View {
         sample_step: None,
         ..View::default()
     }
-}
-
-fn write_ppm(path: &Path, w: u32, h: u32, rgb: &[u8]) {
-    let mut data = format!("P6\n{w} {h}\n255\n").into_bytes();
-    data.extend_from_slice(rgb);
-    std::fs::write(path, data).unwrap();
-}
-
-fn read_ppm(path: &Path) -> Option<(u32, u32, Vec<u8>)> {
-    let data = std::fs::read(path).ok()?;
-    let mut fields = Vec::new();
-    let mut i = 0;
-    while fields.len() < 4 {
-        while data.get(i)?.is_ascii_whitespace() {
-            i += 1;
-        }
-        let start = i;
-        while !data.get(i)?.is_ascii_whitespace() {
-            i += 1;
-        }
-        fields.push(String::from_utf8_lossy(&data[start..i]).into_owned());
-    }
-    let (w, h): (u32, u32) = (fields[1].parse().ok()?, fields[2].parse().ok()?);
-    Some((w, h, data[i + 1..].to_vec()))
 }
 
 #[test]
@@ -106,46 +79,5 @@ fn nested_spheres_match_the_golden_image() {
         read_channel(&exr, name).unwrap();
     }
 
-    let golden = golden_path();
-    if std::env::var_os("AMR_RENDER_BLESS").is_some() {
-        write_ppm(&golden, w, h, &actual);
-        eprintln!("wrote {}", golden.display());
-        return;
-    }
-    let (gw, gh, expected) = read_ppm(&golden).unwrap_or_else(|| {
-        panic!(
-            "no golden image {}: run with AMR_RENDER_BLESS=1",
-            golden.display()
-        )
-    });
-    assert_eq!((gw, gh), (w, h), "golden image size");
-    let mut diff = vec![0u8; actual.len()];
-    let mut bad = 0usize;
-    let mut worst = 0;
-    for p in 0..(w * h) as usize {
-        let d = (0..3)
-            .map(|c| (i32::from(actual[3 * p + c]) - i32::from(expected[3 * p + c])).abs())
-            .max()
-            .unwrap();
-        worst = worst.max(d);
-        if d > PIXEL_TOL {
-            bad += 1;
-        }
-        for c in 0..3 {
-            diff[3 * p + c] = (d * 8).min(255) as u8;
-        }
-    }
-    let allowed = (BAD_FRACTION * f64::from(w * h)) as usize;
-    if bad > allowed {
-        let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("render_golden");
-        std::fs::create_dir_all(&out).unwrap();
-        write_png(&out.join("expected.png"), w, h, &expected).unwrap();
-        write_png(&out.join("actual.png"), w, h, &actual).unwrap();
-        write_png(&out.join("diff.png"), w, h, &diff).unwrap();
-        panic!(
-            "seed {seed}: {bad} pixels differ by more than {PIXEL_TOL}/255 (allowed {allowed}, worst {worst}); \
-             expected, actual and diff images in {}",
-            out.display()
-        );
-    }
+    assert_matches_golden(&golden_path(), w, h, &actual, &format!("seed {seed}"));
 }

@@ -5,6 +5,7 @@ pub mod amrex;
 pub mod block_grid;
 pub mod chombo;
 pub mod enzo;
+pub mod golden;
 pub mod hierarchy;
 pub mod render;
 pub mod rng;

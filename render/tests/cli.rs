@@ -313,3 +313,24 @@ fn the_exr_header_says_what_was_drawn_in_plain_text() {
     let (_, _, v) = read_channel(&out, "color_value").unwrap();
     assert!(v.iter().any(|x| x.is_finite()), "the painted values are a channel");
 }
+
+#[test]
+fn auto_series_keeps_one_colour_range_over_a_series() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let a = blobs(d);
+    let b = d.join("finer.amrk");
+    let params = SynthParams::unit_cube(3, 2, 16, 8);
+    write_synth(&b, Case::Blobs, &params, WriterOptions::default(), &NoProgress).unwrap();
+    let out = d.join("s.exr");
+    let o = amr_render(&[
+        a.to_str().unwrap(), b.to_str().unwrap(), "--iso", "10", "--color-by", "blobs",
+        "--color-range", "auto-series", "--size", "24x18", "-o", out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let first = attribute(&d.join("s_0000.exr"), "color_range");
+    assert_eq!(first, attribute(&d.join("s_0001.exr"), "color_range"));
+    let o = amr_render(&[a.to_str().unwrap(), "--iso", "10", "--color-range", "auto-series", "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("needs a field to paint with"), "{}", stderr(&o));
+}

@@ -79,6 +79,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         slices: Vec::new(),
         slice_field: None,
         frame_domain: false,
+        series_color_range: false,
     };
     render_all(&request)
 }

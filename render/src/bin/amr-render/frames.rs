@@ -10,6 +10,8 @@ use amr_render::field_stats::format_value;
 use amr_render::output::header::frame_header;
 use amr_render::output::legend::Legend;
 use amr_render::{render, ColorBy, Scene, View};
+use amr_render::mapping::open_mapped;
+use anyhow::bail;
 use serde::Serialize;
 
 use crate::heap;
@@ -50,6 +52,10 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
     let (row_bar, advance_rows) = progress::bar(u64::from(request.view.size.1), "rows");
     let rows: &(dyn Fn(u64) + Sync) = if n == 1 { &advance_rows } else { &quiet };
 
+    let mut base_view = request.view.clone();
+    if request.series_color_range {
+        base_view.color_scale.range = Some(series_range(request)?);
+    }
     let mut scene: Option<(usize, Scene)> = None;
     let mut cameras = Vec::new();
     let mut records = Vec::new();
@@ -78,7 +84,7 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         }
         let view = View {
             camera: Some(cameras[k as usize]),
-            ..request.view.clone()
+            ..base_view.clone()
         };
         let rendered = render(scene, &view, rows)?;
         if rendered.stats.covered_pixels == 0 {
@@ -158,6 +164,37 @@ fn painting(request: &RenderRequest, n: usize) -> Vec<Option<ColorBy>> {
         [one] => vec![one.clone(); n],
         many => many.to_vec(),
     }
+}
+
+/// The range of the field that paints surfaces or slices, over every file of the series (from
+/// the ranges the files store, so no data is read).
+fn series_range(request: &RenderRequest) -> anyhow::Result<(f64, f64)> {
+    let painted = request
+        .color_by
+        .iter()
+        .chain(std::iter::once(&request.slice_field))
+        .find_map(|c| match c {
+            Some(ColorBy::Field(name)) => Some(name.clone()),
+            _ => None,
+        })
+        .or_else(|| request.slices.first().and(request.scene.field.clone()));
+    let Some(name) = painted else {
+        bail!("--color-range auto-series needs a field to paint with (--color-by FIELD or --slice-field FIELD)");
+    };
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for path in &request.files {
+        let file = open_mapped(path)?;
+        let Some(i) = file.field_index(&name) else {
+            bail!("{}: no field '{name}' to take the series' colour range from", path.display());
+        };
+        let f = &file.fields()[i];
+        lo = lo.min(f64::from(f.min));
+        hi = hi.max(f64::from(f.max));
+    }
+    if !(lo < hi) {
+        bail!("field '{name}' is {lo} in every file of the series: no colour range to spread");
+    }
+    Ok((lo, hi))
 }
 
 /// `view`, with a camera that frames the scene's isosurfaces when it has none and the frame has

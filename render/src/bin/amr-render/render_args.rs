@@ -42,9 +42,11 @@ pub struct RenderArgs {
     /// Colormap of painted surfaces and slices.
     #[arg(long, value_name = "NAME", default_value_t = Colormap::Viridis)]
     pub colormap: Colormap,
-    /// Values at the colormap's ends (default: 1st..99th percentile of the values in view).
-    #[arg(long, value_name = "LO:HI", value_parser = parse_range, allow_hyphen_values = true)]
-    pub color_range: Option<(f64, f64)>,
+    /// Values at the colormap's ends (default: 1st..99th percentile of the values in view);
+    /// `auto-series`: the painting field's range over every file of a time series, the same for
+    /// every frame.
+    #[arg(long, value_name = "LO:HI|auto-series", value_parser = parse_color_range, allow_hyphen_values = true)]
+    pub color_range: Option<ColorRange>,
     /// Map the logarithm of the values.
     #[arg(long)]
     pub color_log: bool,
@@ -169,6 +171,8 @@ pub struct RenderRequest {
     pub slice_field: Option<ColorBy>,
     /// The automatic camera frames the domain, not the isosurfaces.
     pub frame_domain: bool,
+    /// One colour range for a whole series: the painting field's range over its files.
+    pub series_color_range: bool,
     /// Frames after the first: a camera path, an isovalue sweep, a time series.
     pub animation: Animation,
 }
@@ -223,7 +227,10 @@ impl RenderArgs {
             sample_step: self.step,
             color_scale: ColorScale {
                 colormap: self.colormap,
-                range: self.color_range,
+                range: match self.color_range {
+                    Some(ColorRange::Fixed(lo, hi)) => Some((lo, hi)),
+                    _ => None,
+                },
                 log: self.color_log,
             },
             outline: self.outline,
@@ -268,6 +275,7 @@ impl RenderArgs {
             color_by: self.color_by.clone(),
             slices: self.slice.iter().chain(&self.slice_plane).copied().collect(),
             slice_field: self.slice_field.clone(),
+            series_color_range: self.color_range == Some(ColorRange::AutoSeries),
             frame_domain: self.frame_domain,
         })
     }
@@ -295,6 +303,23 @@ fn parse_color_by(s: &str) -> Result<Option<ColorBy>, String> {
 }
 
 /// Parses a range `LO:HI` of finite numbers with `LO < HI`.
+/// What `--color-range` asks for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ColorRange {
+    /// These values at the colormap's ends.
+    Fixed(f64, f64),
+    /// The painting field's range over every file of the series.
+    AutoSeries,
+}
+
+/// Parses `LO:HI` or `auto-series`.
+fn parse_color_range(s: &str) -> Result<ColorRange, String> {
+    if s.trim() == "auto-series" {
+        return Ok(ColorRange::AutoSeries);
+    }
+    parse_range(s).map(|(lo, hi)| ColorRange::Fixed(lo, hi))
+}
+
 fn parse_range(s: &str) -> Result<(f64, f64), String> {
     let (lo, hi) = s
         .split_once(':')

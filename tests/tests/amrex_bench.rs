@@ -1,6 +1,6 @@
 //! Generates large plotfiles for the conversion benchmarks in `docs/benchmarks-amrex.md`.
 //! Ignored by default; run with
-//! `AMR_BENCH_OUT=DIR AMR_BENCH_MB=1000 cargo test --release -p amr-tests --test amrex_bench -- --ignored`.
+//! `AMR_BENCH_OUT=DIR AMR_BENCH_MB=1000 cargo test --release -p amr-tests --test tests amrex_bench -- --ignored`.
 
 
 use std::path::PathBuf;

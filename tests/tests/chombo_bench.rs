@@ -1,6 +1,6 @@
 //! Writes a large GRChombo-like plotfile for `docs/benchmarks-chombo.md` (ignored by default):
 //!
-//! `CHOMBO_BENCH_FILE=/path/big.3d.hdf5 cargo test --release -p amr-tests --test chombo_bench -- --ignored`
+//! `CHOMBO_BENCH_FILE=/path/big.3d.hdf5 cargo test --release -p amr-tests --test tests chombo_bench -- --ignored`
 //!
 //! Three levels (ratio 2 then 4), 32³ boxes with 3 ghost layers (GRChombo's default), four
 //! float64 components: 930 MB; `CHOMBO_BENCH_COMPS=5` adds a fifth component for 1.16 GB.

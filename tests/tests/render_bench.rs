@@ -1,5 +1,5 @@
 //! Measurements for docs/benchmarks-render.md (ignored by default; run with
-//! `cargo test --release -p amr-tests --test render_bench -- --ignored --nocapture`).
+//! `cargo test --release -p amr-tests --test tests render_bench -- --ignored --nocapture`).
 
 
 use std::time::Instant;

@@ -156,7 +156,9 @@ impl AmrkWriter {
         let mut stamp = raw::SimulationStamp::default();
         if let Some(t) = time {
             if !t.is_finite() {
-                return Err(FormatError::Usage(format!("simulation time {t} is not finite")));
+                return Err(FormatError::Usage(format!(
+                    "simulation time {t} is not finite"
+                )));
             }
             stamp.time = t.into();
             stamp.flags = (stamp.flags.get() | raw::STAMP_HAS_TIME).into();

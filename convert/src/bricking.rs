@@ -171,7 +171,11 @@ impl BrickSink {
 
     /// Finishes the file; returns the number of bricks written.
     /// Records when in the simulation the data was written (see `AmrkWriter::set_simulation`).
-    pub fn set_simulation(&mut self, time: Option<f64>, step: Option<i64>) -> Result<(), FormatError> {
+    pub fn set_simulation(
+        &mut self,
+        time: Option<f64>,
+        step: Option<i64>,
+    ) -> Result<(), FormatError> {
         self.writer.set_simulation(time, step)
     }
 

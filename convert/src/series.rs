@@ -11,7 +11,10 @@ use anyhow::bail;
 pub fn outputs(inputs: &[PathBuf], output: &Path) -> anyhow::Result<Vec<(PathBuf, PathBuf)>> {
     let to_dir = inputs.len() > 1 || output.as_os_str().to_string_lossy().ends_with('/');
     if !to_dir {
-        return Ok(inputs.iter().map(|i| (i.clone(), output.to_path_buf())).collect());
+        return Ok(inputs
+            .iter()
+            .map(|i| (i.clone(), output.to_path_buf()))
+            .collect());
     }
     if output.exists() && !output.is_dir() {
         bail!(
@@ -57,7 +60,10 @@ mod tests {
     fn a_series_goes_to_a_directory_named_after_each_dump() {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("series");
-        let inputs = [PathBuf::from("run/plt00100"), PathBuf::from("run/chk0010.3d.hdf5")];
+        let inputs = [
+            PathBuf::from("run/plt00100"),
+            PathBuf::from("run/chk0010.3d.hdf5"),
+        ];
         let pairs = outputs(&inputs, &out).unwrap();
         assert_eq!(pairs[0].1, out.join("plt00100.amrk"));
         assert_eq!(pairs[1].1, out.join("chk0010.amrk"));

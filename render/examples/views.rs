@@ -20,11 +20,21 @@ use amr_render::{render, CameraPlacement, IsoSpec, Scene, SceneOptions, View};
 use amr_synth::{write_synth, Case, SynthParams};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let out = PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| "views-out".into()));
+    let out = PathBuf::from(
+        std::env::args()
+            .nth(1)
+            .unwrap_or_else(|| "views-out".into()),
+    );
     std::fs::create_dir_all(&out)?;
     let file = out.join("blobs.amrk");
     let params = SynthParams::unit_cube(3, 2, 32, 16);
-    write_synth(&file, Case::Blobs, &params, WriterOptions::default(), &NoProgress)?;
+    write_synth(
+        &file,
+        Case::Blobs,
+        &params,
+        WriterOptions::default(),
+        &NoProgress,
+    )?;
 
     // Open once; the scene owns the mapped file, the field and its reconstruction.
     let mut scene = Scene::open(&file, &SceneOptions::default())?;
@@ -71,7 +81,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
 
     // A new inner isovalue: the transparent surface is kept, the opaque one rebuilt.
-    let inner = IsoSpec { value: 14.0, ..gold };
+    let inner = IsoSpec {
+        value: 14.0,
+        ..gold
+    };
     let stats = scene.set_isosurfaces(&[inner, glass])?;
     println!(
         "isovalue 10 -> 14: {} surface(s) rebuilt, extraction {:.1} ms, BVH {:.1} ms",
@@ -87,6 +100,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let name = out.join("iso14.exr");
     write_exr(&name, &frame.frame, &frame_header(&scene, &frame, &[]))?;
     write_preview(&name.with_extension("png"), &frame.frame)?;
-    println!("iso 14: {:.1} ms -> {}", frame.stats.render.as_secs_f64() * 1e3, name.display());
+    println!(
+        "iso 14: {:.1} ms -> {}",
+        frame.stats.render.as_secs_f64() * 1e3,
+        name.display()
+    );
     Ok(())
 }

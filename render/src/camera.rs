@@ -208,7 +208,10 @@ mod tests {
         let near = Camera::new([1e-300, 0.0, 0.0], [0.0; 3], [0.0, 0.0, 1.0], 40.0).unwrap();
         assert!((near.forward()[0] + 1.0).abs() < 1e-12);
         let huge = Camera::framing([0.0; 3], [1e308; 3], 40.0, 1.0);
-        assert!(matches!(huge, Err(CameraError::Unframeable { .. })), "{huge:?}");
+        assert!(
+            matches!(huge, Err(CameraError::Unframeable { .. })),
+            "{huge:?}"
+        );
     }
 
     #[test]

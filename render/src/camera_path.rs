@@ -113,7 +113,10 @@ mod tests {
         let path = orbit(&start(), 4, 360.0).unwrap();
         let expect = [[3.0, 0.0], [0.0, 3.0], [-3.0, 0.0], [0.0, -3.0]];
         for (p, e) in path.iter().zip(expect) {
-            assert!((p.pos[0] - e[0]).abs() < 1e-12 && (p.pos[1] - e[1]).abs() < 1e-12, "{p:?}");
+            assert!(
+                (p.pos[0] - e[0]).abs() < 1e-12 && (p.pos[1] - e[1]).abs() < 1e-12,
+                "{p:?}"
+            );
             assert_eq!(p.pos[2], 1.0);
             assert_eq!(p.look_at, Some([0.0, 0.0, 1.0]));
         }
@@ -124,7 +127,10 @@ mod tests {
         let path = orbit(&start(), 3, 90.0).unwrap();
         assert_eq!(path.len(), 3);
         let end = path[2].pos;
-        assert!(end[0].abs() < 1e-12 && (end[1] - 3.0).abs() < 1e-12, "{end:?}");
+        assert!(
+            end[0].abs() < 1e-12 && (end[1] - 3.0).abs() < 1e-12,
+            "{end:?}"
+        );
         assert!(orbit(&start(), 0, 90.0).is_err());
     }
 

@@ -55,7 +55,12 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
     let _ = writeln!(out, "bricks: {}", file.num_bricks());
     let _ = writeln!(out, "cells: {}", cells.iter().sum::<u64>());
     let _ = writeln!(out, "fields: {}", file.fields().len());
-    let width = file.fields().iter().map(|f| f.name.len()).max().unwrap_or(0);
+    let width = file
+        .fields()
+        .iter()
+        .map(|f| f.name.len())
+        .max()
+        .unwrap_or(0);
     for f in file.fields() {
         let _ = writeln!(
             out,
@@ -67,11 +72,17 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
         );
     }
     let _ = writeln!(out, "field percentiles (over every cell of every level):");
-    let head: Vec<String> = TABLE.iter().map(|q| format!("{:>11}", format!("p{}", q * 100.0))).collect();
+    let head: Vec<String> = TABLE
+        .iter()
+        .map(|q| format!("{:>11}", format!("p{}", q * 100.0)))
+        .collect();
     let _ = writeln!(out, "  {:<width$} {}", "", head.join(" "));
     for (i, f) in file.fields().iter().enumerate() {
         let row: Vec<String> = match FieldPercentiles::of(file, i) {
-            Ok(p) => TABLE.iter().map(|&q| format!("{:>11}", format_value(p.at(q)))).collect(),
+            Ok(p) => TABLE
+                .iter()
+                .map(|&q| format!("{:>11}", format_value(p.at(q))))
+                .collect(),
             Err(e) => vec![format!("unreadable: {e}")],
         };
         let _ = writeln!(out, "  {:<width$} {}", f.name, row.join(" "));
@@ -95,5 +106,10 @@ fn level_extent<D: AsRef<[u8]>>(file: &AmrkFile<D>, l: usize) -> ([f64; 3], [f64
 
 /// `(x, y, z)` with readable numbers.
 fn vec3(v: [f64; 3]) -> String {
-    format!("({}, {}, {})", format_value(v[0]), format_value(v[1]), format_value(v[2]))
+    format!(
+        "({}, {}, {})",
+        format_value(v[0]),
+        format_value(v[1]),
+        format_value(v[2])
+    )
 }

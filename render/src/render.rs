@@ -5,10 +5,10 @@ use std::time::Instant;
 
 use crate::camera::Camera;
 use crate::coloring::ColorBy;
-use crate::outline;
-use crate::paint::{GridSlice, PaintedTracer, Painter};
 use crate::error::{RenderError, Result};
+use crate::outline;
 use crate::output::frame::{FrameBuffer, PixelSample};
+use crate::paint::{GridSlice, PaintedTracer, Painter};
 use crate::reconstruct::Reconstruction;
 use crate::sample_mode::SampleTracer;
 use crate::scene::{Scene, TraceMethod};
@@ -59,7 +59,11 @@ pub fn render(scene: &Scene, view: &View, progress: &(dyn Fn(u64) + Sync)) -> Re
     })?;
     check_source(scene)?;
     rendered.color_range = color_range;
-    let segments = outline::segments(view.outline, scene.file(), scene.grid_frame().world_bounds());
+    let segments = outline::segments(
+        view.outline,
+        scene.file(),
+        scene.grid_frame().world_bounds(),
+    );
     let width = outline::line_width(view.size.0, view.size.1);
     outline::draw(&mut rendered.frame, &rendered.camera, &segments, width);
     Ok(rendered)
@@ -99,9 +103,14 @@ pub fn render_surfaces<S: VoxelSource + ?Sized>(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Rendered> {
     let method = (TraceMethod::Hybrid, view.smooth_normals);
-    with_tracer(src, surfaces, isos, method, view, |tracer, camera, light| {
-        trace_frame(tracer, *camera, light, view, progress)
-    })
+    with_tracer(
+        src,
+        surfaces,
+        isos,
+        method,
+        view,
+        |tracer, camera, light| trace_frame(tracer, *camera, light, view, progress),
+    )
 }
 
 /// [`render_surfaces`] with the sample method: isovalues `isos`, no surfaces.
@@ -128,51 +137,66 @@ fn with_scene_tracer<R>(
     let smooth = view.smooth_normals && scene.reconstruction() != Reconstruction::Nearest;
     let method = (scene.method(), smooth);
     let isos = scene.isosurfaces();
-    with_tracer(scene.source(), scene.surfaces(), isos, method, view, |tracer, camera, light| {
-        if scene.color_by().iter().all(Option::is_none) && scene.slices().is_empty() {
-            return Ok((run(tracer, camera, light), None));
-        }
-        let fields: Vec<&ColorBy> = scene
-            .color_by()
-            .iter()
-            .flatten()
-            .chain(scene.slices().iter().map(|s| &s.1))
-            .filter(|b| matches!(b, ColorBy::Field(_)))
-            .collect();
-        if let Some(other) = fields.iter().find(|b| **b != fields[0]) {
-            return Err(RenderError::Invalid(format!(
-                "a frame has one colour scale: it cannot paint by both {} and {other}",
-                fields[0]
-            )));
-        }
-        let painter = |by: &ColorBy| match scene.color_field(by).and_then(|f| scene.color_source(f)) {
-            Some(src) => Painter::Field(src as &dyn VoxelSource),
-            None => Painter::Level,
-        };
-        let frame = tracer.frame();
-        let mut painted = PaintedTracer {
-            inner: tracer,
-            surfaces: (0..isos.len())
-                .map(|i| scene.color_by().get(i).cloned().flatten().map(|b| painter(&b)))
-                .collect(),
-            slices: scene
-                .slices()
+    with_tracer(
+        scene.source(),
+        scene.surfaces(),
+        isos,
+        method,
+        view,
+        |tracer, camera, light| {
+            if scene.color_by().iter().all(Option::is_none) && scene.slices().is_empty() {
+                return Ok((run(tracer, camera, light), None));
+            }
+            let fields: Vec<&ColorBy> = scene
+                .color_by()
                 .iter()
-                .map(|(s, by)| GridSlice::new(s, &frame, painter(by)))
-                .collect(),
-            levels: scene.source(),
-            scale: view.color_scale,
-            range: (0.0, 1.0),
-        };
-        let mut light = light.clone();
-        for (s, _) in scene.slices() {
-            light.colors.push([1.0; 3]);
-            light.opacity.push(s.opacity);
-        }
-        let range = painted.visible_range(camera, view.size, &light.opacity);
-        painted.range = range.unwrap_or((0.0, 1.0));
-        Ok((run(&painted, camera, &light), range))
-    })?
+                .flatten()
+                .chain(scene.slices().iter().map(|s| &s.1))
+                .filter(|b| matches!(b, ColorBy::Field(_)))
+                .collect();
+            if let Some(other) = fields.iter().find(|b| **b != fields[0]) {
+                return Err(RenderError::Invalid(format!(
+                    "a frame has one colour scale: it cannot paint by both {} and {other}",
+                    fields[0]
+                )));
+            }
+            let painter =
+                |by: &ColorBy| match scene.color_field(by).and_then(|f| scene.color_source(f)) {
+                    Some(src) => Painter::Field(src as &dyn VoxelSource),
+                    None => Painter::Level,
+                };
+            let frame = tracer.frame();
+            let mut painted = PaintedTracer {
+                inner: tracer,
+                surfaces: (0..isos.len())
+                    .map(|i| {
+                        scene
+                            .color_by()
+                            .get(i)
+                            .cloned()
+                            .flatten()
+                            .map(|b| painter(&b))
+                    })
+                    .collect(),
+                slices: scene
+                    .slices()
+                    .iter()
+                    .map(|(s, by)| GridSlice::new(s, &frame, painter(by)))
+                    .collect(),
+                levels: scene.source(),
+                scale: view.color_scale,
+                range: (0.0, 1.0),
+            };
+            let mut light = light.clone();
+            for (s, _) in scene.slices() {
+                light.colors.push([1.0; 3]);
+                light.opacity.push(s.opacity);
+            }
+            let range = painted.visible_range(camera, view.size, &light.opacity);
+            painted.range = range.unwrap_or((0.0, 1.0));
+            Ok((run(&painted, camera, &light), range))
+        },
+    )?
 }
 
 /// The camera, lighting and tracer of a frame of `src` (surfaces `surfaces` of `isos`, traced

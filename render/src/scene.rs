@@ -10,12 +10,12 @@ use serde::Serialize;
 
 use crate::bvh::BvhBuilder;
 use crate::coloring::ColorBy;
-use crate::slice::Slice;
 use crate::error::{RenderError, Result};
 use crate::extract::Extractor;
 use crate::mapping::{open_mapped, MappedFile, PageRelease, WatchedMap};
 use crate::reconstruct::Reconstruction;
 use crate::shade::IsoSpec;
+use crate::slice::Slice;
 use crate::stats::per_octant;
 use crate::trace::{FieldSource, GridFrame, Surface, VoxelSource};
 
@@ -188,7 +188,11 @@ impl Scene {
     /// [`Self::set_slices`].
     pub fn color_source(&self, field: usize) -> Option<&MappedSource<'_>> {
         let sources = self.cell.borrow_dependent();
-        sources.colors.iter().find(|(f, _)| *f == field).map(|(_, s)| s)
+        sources
+            .colors
+            .iter()
+            .find(|(f, _)| *f == field)
+            .map(|(_, s)| s)
     }
 
     /// The octant method's extractor (`None` for the other reconstructions).
@@ -310,7 +314,8 @@ impl Scene {
         let reconstruction = self.reconstruction();
         let path = self.path.clone();
         self.cell.with_dependent_mut(|file, sources| -> Result<()> {
-            let source = FieldSource::new(file, field, reconstruction).map_err(|e| e.in_file(&path))?;
+            let source =
+                FieldSource::new(file, field, reconstruction).map_err(|e| e.in_file(&path))?;
             sources.colors.push((field, source));
             Ok(())
         })
@@ -391,7 +396,10 @@ impl Scene {
         for spec in isos {
             let kept = old
                 .iter_mut()
-                .find(|s| s.as_ref().is_some_and(|s| s.iso.to_bits() == spec.value.to_bits()))
+                .find(|s| {
+                    s.as_ref()
+                        .is_some_and(|s| s.iso.to_bits() == spec.value.to_bits())
+                })
                 .and_then(Option::take);
             let refs = given.as_mut().and_then(Iterator::next);
             let surface = match (kept, self.method) {
@@ -454,7 +462,6 @@ impl Scene {
             .max(builder.last_scratch_bytes as u64);
         Ok(surface)
     }
-
 }
 
 /// The index of the field `name`; when `None`, the first field whose range is not degenerate

@@ -27,7 +27,12 @@ pub struct FrameStats {
 impl FrameStats {
     /// The statistics of a frame of `width x height` that took `render` for `rays` queries
     /// and covered `covered_pixels`.
-    pub fn new(render: Duration, rays: u64, (width, height): (u32, u32), covered_pixels: u64) -> Self {
+    pub fn new(
+        render: Duration,
+        rays: u64,
+        (width, height): (u32, u32),
+        covered_pixels: u64,
+    ) -> Self {
         FrameStats {
             render,
             rays,

@@ -3,8 +3,8 @@
 
 use crate::camera::{Camera, CameraError};
 use crate::coloring::ColorScale;
-use crate::outline::Outline;
 use crate::error::{RenderError, Result};
+use crate::outline::Outline;
 use crate::shade::{IsoSpec, Lighting, RenderSettings};
 use crate::trace::GridFrame;
 

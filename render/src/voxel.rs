@@ -73,4 +73,3 @@ impl Voxel {
         [0, 1, 2].map(|a| (p[a] - self.lo[a]) / (self.hi[a] - self.lo[a]))
     }
 }
-

@@ -24,7 +24,14 @@ fn stderr(o: &Output) -> String {
 fn blobs(dir: &Path) -> PathBuf {
     let path = dir.join("blobs.amrk");
     let params = SynthParams::unit_cube(2, 2, 16, 8);
-    write_synth(&path, Case::Blobs, &params, WriterOptions::default(), &NoProgress).unwrap();
+    write_synth(
+        &path,
+        Case::Blobs,
+        &params,
+        WriterOptions::default(),
+        &NoProgress,
+    )
+    .unwrap();
     path
 }
 
@@ -48,14 +55,34 @@ fn negative_isovalues_parse_as_typed() {
     let out = dir.path().join("neg.exr");
     let f = file.to_str().unwrap();
     for iso in ["-5", "-5:red", "-0.5:#3070ff:0.5"] {
-        let o = amr_render(&[f, "--iso", iso, "--size", "16x12", "-o", out.to_str().unwrap()]);
+        let o = amr_render(&[
+            f,
+            "--iso",
+            iso,
+            "--size",
+            "16x12",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
         assert!(o.status.success(), "--iso {iso}: {}", stderr(&o));
     }
     let o = amr_render(&["extract", f, "--iso", "-0.1"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let o = amr_render(&[f, "--method", "sample", "--step", "-1", "-o", out.to_str().unwrap()]);
+    let o = amr_render(&[
+        f,
+        "--method",
+        "sample",
+        "--step",
+        "-1",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    assert!(stderr(&o).contains("sample step -1 must be positive"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("sample step -1 must be positive"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]
@@ -67,7 +94,10 @@ fn knobs_beyond_their_limits_are_refused_with_the_limit() {
     for (args, says) in [
         (vec!["--threads", "100000"], "between 1 and 256"),
         (vec!["--spp", "100000"], "between 1 and 4096"),
-        (vec!["--method", "sample", "--step", "1e-12"], "the limit is 1e6"),
+        (
+            vec!["--method", "sample", "--step", "1e-12"],
+            "the limit is 1e6",
+        ),
         (vec!["--size", "0x10"], "at least 1x1"),
         (vec!["--fov", "200"], "outside (0, 180)"),
     ] {
@@ -89,7 +119,11 @@ fn an_output_that_is_the_input_is_refused() {
     for args in [vec![f, "-o", f], vec![f, "-o", "x.exr", "--preview", f]] {
         let o = amr_render(&args);
         assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-        assert!(stderr(&o).contains("refusing to replace it"), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("refusing to replace it"),
+            "{}",
+            stderr(&o)
+        );
     }
     assert_eq!(std::fs::read(&file).unwrap(), before, "the input changed");
 }
@@ -157,8 +191,19 @@ fn an_orbit_writes_numbered_frames_from_one_scene() {
     let out = d.join("orbit.exr");
     let json = d.join("orbit.json");
     let o = amr_render(&[
-        f, "--iso", "10", "--size", "32x24", "--ao", "1", "--orbit", "4", "-o",
-        out.to_str().unwrap(), "--stats-json", json.to_str().unwrap(),
+        f,
+        "--iso",
+        "10",
+        "--size",
+        "32x24",
+        "--ao",
+        "1",
+        "--orbit",
+        "4",
+        "-o",
+        out.to_str().unwrap(),
+        "--stats-json",
+        json.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     for k in 0..4 {
@@ -167,12 +212,28 @@ fn an_orbit_writes_numbered_frames_from_one_scene() {
     }
     assert!(!d.join("orbit_0004.exr").exists() && !out.exists());
     // One extraction: the frames after the first rebuild nothing.
-    let stats: Vec<serde_json::Value> = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let stats: Vec<serde_json::Value> =
+        serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     assert_eq!(stats.len(), 4);
-    assert!(stats[1..].iter().all(|s| s["extract_ms"] == 0.0 && s["bvh_ms"] == 0.0), "{stats:?}");
+    assert!(
+        stats[1..]
+            .iter()
+            .all(|s| s["extract_ms"] == 0.0 && s["bvh_ms"] == 0.0),
+        "{stats:?}"
+    );
     // The first frame is the single frame from the same camera; the others differ.
     let single = d.join("single.exr");
-    let o = amr_render(&[f, "--iso", "10", "--size", "32x24", "--ao", "1", "-o", single.to_str().unwrap()]);
+    let o = amr_render(&[
+        f,
+        "--iso",
+        "10",
+        "--size",
+        "32x24",
+        "--ao",
+        "1",
+        "-o",
+        single.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(bits(&single, "R"), bits(&d.join("orbit_0000.exr"), "R"));
     assert_ne!(bits(&single, "Z"), bits(&d.join("orbit_0001.exr"), "Z"));
@@ -184,7 +245,15 @@ fn a_sweep_records_its_isovalues_and_a_series_equals_separate_runs() {
     let file = blobs(dir.path());
     let (f, d) = (file.to_str().unwrap(), dir.path());
     let sweep = d.join("sweep.exr");
-    let o = amr_render(&[f, "--iso-sweep", "6:12:3:red", "--size", "24x18", "-o", sweep.to_str().unwrap()]);
+    let o = amr_render(&[
+        f,
+        "--iso-sweep",
+        "6:12:3:red",
+        "--size",
+        "24x18",
+        "-o",
+        sweep.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     for (k, iso) in ["6", "9", "12"].iter().enumerate() {
         let isos = attribute(&d.join(format!("sweep_{k:04}.exr")), "isovalues");
@@ -194,17 +263,42 @@ fn a_sweep_records_its_isovalues_and_a_series_equals_separate_runs() {
     // A second file of the series: another field's range, so its frame differs.
     let other = d.join("other.amrk");
     let params = SynthParams::unit_cube(2, 2, 16, 8);
-    write_synth(&other, Case::Sphere, &params, WriterOptions::default(), &NoProgress).unwrap();
+    write_synth(
+        &other,
+        Case::Sphere,
+        &params,
+        WriterOptions::default(),
+        &NoProgress,
+    )
+    .unwrap();
     let o_ = other.to_str().unwrap();
     let series = d.join("series.exr");
     let cam = ["--camera-pos", "2,-1.5,1.5", "--look-at", "0.5,0.5,0.5"];
-    let mut args = vec![f, o_, f, "--iso", "0.1", "--size", "24x18", "-o", series.to_str().unwrap()];
+    let mut args = vec![
+        f,
+        o_,
+        f,
+        "--iso",
+        "0.1",
+        "--size",
+        "24x18",
+        "-o",
+        series.to_str().unwrap(),
+    ];
     args.extend(cam);
     let o = amr_render(&args);
     assert!(o.status.success(), "{}", stderr(&o));
     for (k, input) in [f, o_, f].iter().enumerate() {
         let alone = d.join(format!("alone{k}.exr"));
-        let mut args = vec![*input, "--iso", "0.1", "--size", "24x18", "-o", alone.to_str().unwrap()];
+        let mut args = vec![
+            *input,
+            "--iso",
+            "0.1",
+            "--size",
+            "24x18",
+            "-o",
+            alone.to_str().unwrap(),
+        ];
         args.extend(cam);
         let o = amr_render(&args);
         assert!(o.status.success(), "{}", stderr(&o));
@@ -223,13 +317,27 @@ fn a_scene_file_renders_what_its_command_line_did() {
     let first = d.join("first.exr");
     let scene = d.join("scene.toml");
     let o = amr_render(&[
-        file.to_str().unwrap(), "--iso", "-5:#3070ff:0.5", "--iso", "10:gold", "--size", "24x18",
-        "--no-shadows", "--camera-pos", "2,-1,1", "-o", first.to_str().unwrap(),
-        "--write-scene", scene.to_str().unwrap(),
+        file.to_str().unwrap(),
+        "--iso",
+        "-5:#3070ff:0.5",
+        "--iso",
+        "10:gold",
+        "--size",
+        "24x18",
+        "--no-shadows",
+        "--camera-pos",
+        "2,-1,1",
+        "-o",
+        first.to_str().unwrap(),
+        "--write-scene",
+        scene.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&scene).unwrap();
-    assert!(text.contains("no-shadows = true") && text.contains("iso = ["), "{text}");
+    assert!(
+        text.contains("no-shadows = true") && text.contains("iso = ["),
+        "{text}"
+    );
     let again = d.join("again.exr");
     let o = amr_render(&[scene.to_str().unwrap(), "-o", again.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -251,7 +359,11 @@ fn animation_counts_must_agree() {
     let out = dir.path().join("x.exr");
     let o = amr_render(&[f, f, "--orbit", "3", "-o", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("frame counts must agree"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("frame counts must agree"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]
@@ -260,19 +372,60 @@ fn png_output_summary_quiet_and_an_empty_frame_warning() {
     let file = blobs(dir.path());
     let f = file.to_str().unwrap();
     let png = dir.path().join("blobs.png");
-    let o = amr_render(&[f, "--iso", "10", "--color-by", "level", "--size", "64x48", "-o", png.to_str().unwrap()]);
+    let o = amr_render(&[
+        f,
+        "--iso",
+        "10",
+        "--color-by",
+        "level",
+        "--size",
+        "64x48",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let data = std::fs::read(&png).unwrap();
     assert_eq!(&data[..8], b"\x89PNG\r\n\x1a\n", "-o .png writes a PNG");
     let line = stderr(&o);
-    for part in ["field blobs", "iso 10 (coloured by level)", "active voxels", "blobs.png"] {
+    for part in [
+        "field blobs",
+        "iso 10 (coloured by level)",
+        "active voxels",
+        "blobs.png",
+    ] {
         assert!(line.contains(part), "summary lacks '{part}': {line}");
     }
-    let o = amr_render(&[f, "--iso", "10", "--quiet", "--size", "16x12", "-o", png.to_str().unwrap()]);
-    assert!(o.status.success() && stderr(&o).is_empty(), "--quiet printed: {}", stderr(&o));
-    let o = amr_render(&[f, "--iso", "1e9", "--quiet", "--size", "16x12", "-o", png.to_str().unwrap()]);
+    let o = amr_render(&[
+        f,
+        "--iso",
+        "10",
+        "--quiet",
+        "--size",
+        "16x12",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(
+        o.status.success() && stderr(&o).is_empty(),
+        "--quiet printed: {}",
+        stderr(&o)
+    );
+    let o = amr_render(&[
+        f,
+        "--iso",
+        "1e9",
+        "--quiet",
+        "--size",
+        "16x12",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(stderr(&o).contains("the frame shows no surface: blobs ranges over"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("the frame shows no surface: blobs ranges over"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]
@@ -284,12 +437,25 @@ fn painting_by_a_missing_field_names_the_file_and_the_fields() {
     let o = amr_render(&[f, "--color-by", "nosuch", "-o", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let e = stderr(&o);
-    assert!(e.contains("blobs.amrk") && e.contains("nosuch") && e.contains("blobs"), "{e}");
+    assert!(
+        e.contains("blobs.amrk") && e.contains("nosuch") && e.contains("blobs"),
+        "{e}"
+    );
     let o = amr_render(&[f, "--color-range", "5:1", "-o", out.to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(2), "clap refuses an inverted range: {}", stderr(&o));
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "clap refuses an inverted range: {}",
+        stderr(&o)
+    );
     assert!(stderr(&o).contains("needs LO < HI"), "{}", stderr(&o));
     let o = amr_render(&[f, "--colormap", "jet", "-o", out.to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(2), "clap refuses an unknown colormap: {}", stderr(&o));
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "clap refuses an unknown colormap: {}",
+        stderr(&o)
+    );
     assert!(stderr(&o).contains("viridis"), "{}", stderr(&o));
 }
 
@@ -300,18 +466,42 @@ fn the_exr_header_says_what_was_drawn_in_plain_text() {
     let f = file.to_str().unwrap();
     let out = dir.path().join("h.exr");
     let o = amr_render(&[
-        f, "--iso", "10:steelblue", "--iso", "6::0.3", "--color-by", "none", "--color-by", "blobs",
-        "--slice", "z=0.5", "--slice-field", "blobs", "--size", "48x36", "-o", out.to_str().unwrap(),
+        f,
+        "--iso",
+        "10:steelblue",
+        "--iso",
+        "6::0.3",
+        "--color-by",
+        "none",
+        "--color-by",
+        "blobs",
+        "--slice",
+        "z=0.5",
+        "--slice-field",
+        "blobs",
+        "--size",
+        "48x36",
+        "-o",
+        out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let isos = attribute(&out, "isovalues");
-    assert!(isos.starts_with("10:#4682b4 6:#") && isos.ends_with(":0.3"), "{isos}");
+    assert!(
+        isos.starts_with("10:#4682b4 6:#") && isos.ends_with(":0.3"),
+        "{isos}"
+    );
     assert_eq!(attribute(&out, "field"), "blobs");
     assert_eq!(attribute(&out, "color_by"), "- blobs");
     assert!(attribute(&out, "slices").contains("color_by=blobs"));
-    assert!(!isos.contains("Some("), "no Rust debug output in the header");
+    assert!(
+        !isos.contains("Some("),
+        "no Rust debug output in the header"
+    );
     let (_, _, v) = read_channel(&out, "color_value").unwrap();
-    assert!(v.iter().any(|x| x.is_finite()), "the painted values are a channel");
+    assert!(
+        v.iter().any(|x| x.is_finite()),
+        "the painted values are a channel"
+    );
 }
 
 #[test]
@@ -321,16 +511,45 @@ fn auto_series_keeps_one_colour_range_over_a_series() {
     let a = blobs(d);
     let b = d.join("finer.amrk");
     let params = SynthParams::unit_cube(3, 2, 16, 8);
-    write_synth(&b, Case::Blobs, &params, WriterOptions::default(), &NoProgress).unwrap();
+    write_synth(
+        &b,
+        Case::Blobs,
+        &params,
+        WriterOptions::default(),
+        &NoProgress,
+    )
+    .unwrap();
     let out = d.join("s.exr");
     let o = amr_render(&[
-        a.to_str().unwrap(), b.to_str().unwrap(), "--iso", "10", "--color-by", "blobs",
-        "--color-range", "auto-series", "--size", "24x18", "-o", out.to_str().unwrap(),
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--iso",
+        "10",
+        "--color-by",
+        "blobs",
+        "--color-range",
+        "auto-series",
+        "--size",
+        "24x18",
+        "-o",
+        out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let first = attribute(&d.join("s_0000.exr"), "color_range");
     assert_eq!(first, attribute(&d.join("s_0001.exr"), "color_range"));
-    let o = amr_render(&[a.to_str().unwrap(), "--iso", "10", "--color-range", "auto-series", "-o", out.to_str().unwrap()]);
+    let o = amr_render(&[
+        a.to_str().unwrap(),
+        "--iso",
+        "10",
+        "--color-range",
+        "auto-series",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    assert!(stderr(&o).contains("needs a field to paint with"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("needs a field to paint with"),
+        "{}",
+        stderr(&o)
+    );
 }

@@ -9,9 +9,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use amr_format::progress::NoProgress;
-use amr_synth::{write_synth, Case, SynthParams};
 use amr_format::WriterOptions;
 use amr_render::output::exr_file::read_channel;
+use amr_synth::{write_synth, Case, SynthParams};
 
 const CHANNELS: [&str; 12] = [
     "R", "G", "B", "A", "Z", "N.X", "N.Y", "N.Z", "P.X", "P.Y", "P.Z", "level",

@@ -136,7 +136,9 @@ pub fn write_fields(
         for (f, field) in fields.iter().enumerate() {
             let mut values = Vec::new();
             eval_brick(&FnField(*field), domain, cells, &mut values);
-            writer.write_brick(b, f, &values).map_err(|e| e.in_file(path))?;
+            writer
+                .write_brick(b, f, &values)
+                .map_err(|e| e.in_file(path))?;
         }
     }
     writer.finish().map_err(|e| e.in_file(path))

@@ -2,7 +2,6 @@
 //! Ignored by default; run with
 //! `AMR_BENCH_OUT=DIR AMR_BENCH_MB=1000 cargo test --release -p amr-tests --test tests amrex_bench -- --ignored`.
 
-
 use std::path::PathBuf;
 
 use crate::support::amrex::writer::{write_plotfile, PlotSpec};

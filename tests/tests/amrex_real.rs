@@ -2,12 +2,11 @@
 //! every stored value is checked against an independent reading, and the four damaged
 //! plotfiles must fail with a clear message and leave nothing behind.
 
-
-use amr_convert::convert_cmd::run_convert;
-use amr_format::Compression;
 use crate::support::amrex::check::{check_against, check_conversion};
 use crate::support::amrex::source::read_plotfile;
 use crate::support::amrex::{assert_fails, convert, shared_amrex};
+use amr_convert::convert_cmd::run_convert;
+use amr_format::Compression;
 
 #[test]
 fn example_plt_3d_converts_exactly() {

@@ -2,13 +2,12 @@
 //! float32, big-endian, partial refinement, ratio 4 and anisotropic ratios, negative origin and
 //! indices, ghost cells, `Cell_H` versions 2 to 4, offsets above 4 GiB, 2D, bad values.
 
-
 use std::path::Path;
 
-use amr_format::AmrkFile;
 use crate::support::amrex::check::check_conversion;
 use crate::support::amrex::writer::{write_plotfile, Bx, PlotSpec, Real};
 use crate::support::amrex::{assert_fails, convert};
+use amr_format::AmrkFile;
 
 /// A smooth field that differs per level and component and is not exactly representable.
 fn analytic(level: usize, comp: usize, p: [i64; 3]) -> f64 {

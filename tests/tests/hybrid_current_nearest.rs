@@ -12,18 +12,17 @@
 //!
 //! Failures name their seed.
 
-
 use std::collections::{BTreeMap, BTreeSet};
 
+use crate::support::hierarchy::{build, standard_cases, Rng};
 use amr_format::AmrkFile;
 use amr_render::bvh::BvhBuilder;
 use amr_render::extract::current::CurrentVoxels;
 use amr_render::extract::nearest::NearestFaces;
 use amr_render::reconstruct::{Reconstruction, Sampler};
-use amr_render::trace::FieldSource;
 use amr_render::trace::traverse::Surface;
+use amr_render::trace::FieldSource;
 use amr_render::trace::{GridRay, HybridTracer, Tracer, VoxelSource};
-use crate::support::hierarchy::{build, standard_cases, Rng};
 
 fn lerp(a: f64, b: f64, t: f64) -> f64 {
     a * (1.0 - t) + b * t
@@ -195,8 +194,8 @@ fn check_current(file: &AmrkFile<Vec<u8>>, field: usize, isos: &[f32], ctx: &str
             // The interpolant equals the sampler's `current` field inside the voxel.
             for _ in 0..4 {
                 let u = [0, 1, 2].map(|_| 0.02 + 0.96 * rng.f64());
-                let p =
-                    [0, 1, 2].map(|a| lerp(v.lo_doubled()[a] as f64, v.hi_doubled()[a] as f64, u[a]));
+                let p = [0, 1, 2]
+                    .map(|a| lerp(v.lo_doubled()[a] as f64, v.hi_doubled()[a] as f64, u[a]));
                 let f = s.sample(p, Reconstruction::Current).unwrap().unwrap();
                 let mine = trilinear(&v.values, u);
                 let scale = v

@@ -315,6 +315,7 @@ fn a_painted_frame_with_its_legend_matches_the_golden_preview() {
     let (w, h) = (r.frame.width, r.frame.height);
     let mut rgb = preview_rgb8(&r.frame);
     Legend::of_frame(&scene, &v, &r).draw(&mut rgb, w, h);
-    let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/render_golden/painted_legend.ppm");
+    let golden =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/render_golden/painted_legend.ppm");
     assert_matches_golden(&golden, w, h, &rgb, "sphere painted by ramp, with legend");
 }

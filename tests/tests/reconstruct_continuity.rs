@@ -1,12 +1,11 @@
 //! The octant reconstruction is continuous across level boundaries, bit-identical at shared
 //! octant vertices, and interpolating at cell centres; every failure names its seed.
 
-
 use std::collections::{HashMap, HashSet};
 
+use crate::support::hierarchy::{build, standard_cases, Case, Rng};
 use amr_format::AmrkFile;
 use amr_render::reconstruct::{Octant, Reconstruction, Sampler, VertexMemo};
-use crate::support::hierarchy::{build, standard_cases, Case, Rng};
 
 /// Every leaf cell of the file, once, with its value.
 fn leaf_cells(s: &Sampler<'_, Vec<u8>>) -> Vec<(u32, [i64; 3], f32)> {
@@ -190,7 +189,11 @@ fn octant_interpolates_at_cell_centres_away_from_boundaries() {
                 continue;
             }
             let p = s.grid().centre(level, cell).map(|v| v as f64);
-            for m in [Reconstruction::Octant, Reconstruction::Nearest, Reconstruction::Current] {
+            for m in [
+                Reconstruction::Octant,
+                Reconstruction::Nearest,
+                Reconstruction::Current,
+            ] {
                 let got = s.sample(p, m).unwrap().unwrap();
                 assert_eq!(
                     got, value,

@@ -1,13 +1,12 @@
 //! Accuracy of the hybrid method: a thin feature the sample method misses at a coarse step, and
 //! a domain far from the origin with tiny cells rendering like the unit cube.
 
-
-use amr_render::View;
+use crate::support::block_grid::BlockGrid;
+use crate::support::render::{render_grid, sphere_grid, surfaces, Rng};
 use amr_render::sample_mode::SampleTracer;
 use amr_render::shade::IsoSpec;
-use crate::support::block_grid::BlockGrid;
 use amr_render::trace::{GridRay, HybridTracer, Tracer};
-use crate::support::render::{render_grid, sphere_grid, surfaces, Rng};
+use amr_render::View;
 
 fn hit_fraction(tracer: &dyn Tracer, rays: &[GridRay]) -> f64 {
     let hits = rays

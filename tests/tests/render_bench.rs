@@ -1,15 +1,14 @@
 //! Measurements for docs/benchmarks-render.md (ignored by default; run with
 //! `cargo test --release -p amr-tests --test tests render_bench -- --ignored --nocapture`).
 
-
 use std::time::Instant;
 
+use crate::support::render::{render_grid_sampled, sphere_grid};
 use amr_render::bvh::BvhBuilder;
 use amr_render::render::render_surfaces;
+use amr_render::shade::IsoSpec;
 use amr_render::trace::Surface;
 use amr_render::{CameraPlacement, View};
-use amr_render::shade::IsoSpec;
-use crate::support::render::{render_grid_sampled, sphere_grid};
 
 fn isos() -> Vec<IsoSpec> {
     vec![

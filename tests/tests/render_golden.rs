@@ -3,17 +3,15 @@
 //! images are written. `AMR_RENDER_BLESS=1` rewrites the golden image. Also checks the EXR
 //! channels: `A = 0` exactly where `Z = +inf`.
 
-
 use std::path::{Path, PathBuf};
 
-use amr_render::output::exr_file::read_channel;
-use amr_render::output::png_preview::preview_rgb8;
-use amr_render::output::exr_file::write_exr;
-use amr_render::{CameraPlacement, View};
-use amr_render::shade::IsoSpec;
 use crate::support::golden::assert_matches_golden;
 use crate::support::render::{render_grid, sphere_grid};
-
+use amr_render::output::exr_file::read_channel;
+use amr_render::output::exr_file::write_exr;
+use amr_render::output::png_preview::preview_rgb8;
+use amr_render::shade::IsoSpec;
+use amr_render::{CameraPlacement, View};
 
 fn golden_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/render_golden/nested_spheres.ppm")

@@ -2,9 +2,8 @@
 //! including rays aimed exactly at voxel faces, edges and corners and rays along the axes; every
 //! hit lies on the reconstructed surface.
 
-
-use amr_render::trace::{GridRay, Surface, VoxelSource};
 use crate::support::render::{shape_grid, surfaces, Rng, Shape, CENTRE};
+use amr_render::trace::{GridRay, Surface, VoxelSource};
 
 /// Rays of one configuration: random directions from several origins, directions to lattice
 /// points near the surface, and axis and diagonal directions.

@@ -5,15 +5,13 @@
 //! surface, many of which lie on the level-boundary faces, edges and corners the surface crosses.
 
 use amr_format::progress::NoProgress;
-use amr_synth::{
-    build_hierarchy_by, near_surface, write_spec, AnalyticField, Case, SynthParams,
-};
 use amr_format::{AmrkFile, WriterOptions};
 use amr_render::bvh::BvhBuilder;
-use amr_render::trace::FieldSource;
-use amr_render::Reconstruction;
 use amr_render::trace::traverse::Surface;
+use amr_render::trace::FieldSource;
 use amr_render::trace::{GridRay, VoxelSource};
+use amr_render::Reconstruction;
+use amr_synth::{build_hierarchy_by, near_surface, write_spec, AnalyticField, Case, SynthParams};
 use rayon::prelude::*;
 
 use crate::support::rng::Rng;

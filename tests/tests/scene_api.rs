@@ -11,7 +11,14 @@ use amr_synth::{write_synth, Case, SynthParams};
 fn blobs(dir: &std::path::Path) -> std::path::PathBuf {
     let path = dir.join("blobs.amrk");
     let params = SynthParams::unit_cube(2, 2, 16, 8);
-    write_synth(&path, Case::Blobs, &params, WriterOptions::default(), &NoProgress).unwrap();
+    write_synth(
+        &path,
+        Case::Blobs,
+        &params,
+        WriterOptions::default(),
+        &NoProgress,
+    )
+    .unwrap();
     path
 }
 
@@ -41,15 +48,28 @@ fn views_and_isovalue_changes_reuse_the_scene() {
     let first = render(&scene, &view([2.5, -1.5, 2.0]), &|_| {}).unwrap();
     let second = render(&scene, &view([-1.5, 2.5, 1.0]), &|_| {}).unwrap();
     assert!(first.frame.covered() > 0 && second.frame.covered() > 0);
-    assert_ne!(first.frame.z, second.frame.z, "a new camera gives a new frame");
-    assert_eq!(scene.stats().active_octants, active, "rendering leaves the scene alone");
+    assert_ne!(
+        first.frame.z, second.frame.z,
+        "a new camera gives a new frame"
+    );
+    assert_eq!(
+        scene.stats().active_octants,
+        active,
+        "rendering leaves the scene alone"
+    );
 
     // Recolouring keeps both surfaces; a new isovalue builds one.
     let recoloured = IsoSpec {
         color: Some([1.0, 0.0, 0.0]),
         ..a
     };
-    assert_eq!(scene.set_isosurfaces(&[recoloured, b]).unwrap().surfaces_built, 0);
+    assert_eq!(
+        scene
+            .set_isosurfaces(&[recoloured, b])
+            .unwrap()
+            .surfaces_built,
+        0
+    );
     let stats = scene.set_isosurfaces(&[a, IsoSpec::new(7.0)]).unwrap();
     assert_eq!(stats.surfaces_built, 1);
 
@@ -78,6 +98,8 @@ fn scene_errors_name_the_file_once() {
     assert!(msg.contains("no field 'nope' (fields: blobs)"), "{msg}");
 
     let mut scene = Scene::open(&path, &SceneOptions::default()).unwrap();
-    let e = scene.set_isosurfaces(&[IsoSpec::new(f32::NAN)]).unwrap_err();
+    let e = scene
+        .set_isosurfaces(&[IsoSpec::new(f32::NAN)])
+        .unwrap_err();
     assert!(e.to_string().contains("not a finite number"), "{e}");
 }

@@ -17,10 +17,10 @@ use amr_format::IBox;
 
 use crate::error::{RenderError, Result};
 
-use crate::voxel::Voxel;
+use super::over_candidate_leaves;
 use crate::reconstruct::interp::{min_max, straddles};
 use crate::reconstruct::Sampler;
-use super::over_candidate_leaves;
+use crate::voxel::Voxel;
 
 /// A kd-tree leaf seen at its level: level, box of finest cells, dual range.
 #[derive(Clone, Copy, Debug)]

@@ -6,8 +6,8 @@
 //! is needed; it decides which dual cells can be merged and which octants touch a boundary, and
 //! holds each cell's value bound for [`super::cull`].
 
-use amr_format::IBox;
 use crate::error::Result;
+use amr_format::IBox;
 
 use super::band::{fold_cell_bounds, CoarseBand};
 

@@ -19,10 +19,10 @@ use amr_format::IBox;
 
 use crate::error::{RenderError, Result};
 
-use crate::voxel::Voxel;
+use super::over_candidate_leaves;
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::{LeafCell, Sampler};
-use super::over_candidate_leaves;
+use crate::voxel::Voxel;
 
 /// Extracts and decodes the `nearest` reconstruction's active faces of one field.
 pub struct NearestFaces<'s, 'f, D> {

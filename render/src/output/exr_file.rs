@@ -21,11 +21,7 @@ pub const COLOR_VALUE_CHANNEL: &str = "color_value";
 pub const P_ORIGIN_ATTRS: [&str; 3] = ["P_origin_x", "P_origin_y", "P_origin_z"];
 
 /// Writes `frame` to `path` with `meta` (name, text) pairs as text attributes.
-pub fn write_exr(
-    path: &Path,
-    frame: &FrameBuffer,
-    meta: &[(String, String)],
-) -> Result<()> {
+pub fn write_exr(path: &Path, frame: &FrameBuffer, meta: &[(String, String)]) -> Result<()> {
     let size = (frame.width as usize, frame.height as usize);
     let ch = |name: &str, data: &Vec<f32>| AnyChannel::new(name, FlatSamples::F32(data.clone()));
     let channels = vec![
@@ -71,7 +67,8 @@ pub fn write_exr(
         .write()
         .to_file(tmp.path())
         .map_err(|e| RenderError::output(path, e))?;
-    tmp.persist(path).map_err(|e| RenderError::output(path, e.error))?;
+    tmp.persist(path)
+        .map_err(|e| RenderError::output(path, e.error))?;
     Ok(())
 }
 

@@ -5,8 +5,8 @@ use std::path::Path;
 
 use crate::error::{RenderError, Result};
 
-use amr_format::output::temporary_for;
 use crate::output::frame::FrameBuffer;
+use amr_format::output::temporary_for;
 
 /// Background grey (linear) behind uncovered pixels.
 const BACKGROUND: f32 = 0.18;
@@ -47,7 +47,8 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgb8: &[u8]) -> Result<()
         Ok(())
     })();
     result.map_err(|e| RenderError::output(path, e))?;
-    tmp.persist(path).map_err(|e| RenderError::output(path, e.error))?;
+    tmp.persist(path)
+        .map_err(|e| RenderError::output(path, e.error))?;
     Ok(())
 }
 

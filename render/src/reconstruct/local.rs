@@ -7,8 +7,8 @@
 //! read; points outside the region, or in a level-`L` cell split between kd-tree leaves, fall back
 //! to the kd-tree walk. The answers are exactly [`Sampler::locate`]'s.
 
-use amr_format::IBox;
 use crate::error::Result;
+use amr_format::IBox;
 
 use super::sampler::{LeafCell, Locate, Sampler, Slab};
 

@@ -154,7 +154,12 @@ mod tests {
             let again: IsoSpec = spec.to_string().parse().unwrap();
             assert_eq!(again.value, spec.value, "{text}");
             assert_eq!(again.opacity, spec.opacity, "{text}");
-            for (a, b) in again.color.unwrap_or_default().iter().zip(spec.color.unwrap_or_default()) {
+            for (a, b) in again
+                .color
+                .unwrap_or_default()
+                .iter()
+                .zip(spec.color.unwrap_or_default())
+            {
                 assert!((a - b).abs() < 1e-3, "{text}: {again:?} {spec:?}");
             }
         }

@@ -65,22 +65,27 @@ pub struct FieldSource<'f, D> {
 impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     /// The source for field `field` of `file` with `reconstruction` (any but `finest`, which
     /// has no voxels to trace).
-    pub fn new(file: &'f AmrkFile<D>, field: usize, reconstruction: Reconstruction) -> Result<Self> {
-        let voxels = match reconstruction {
-            Reconstruction::Octant => Voxels::Octant(Extractor::new(file, field, BRICK_CACHE_BYTES)?),
-            Reconstruction::Current => {
-                Voxels::Current(Sampler::new(file, field, BRICK_CACHE_BYTES)?)
-            }
-            Reconstruction::Nearest => {
-                Voxels::Nearest(Sampler::new(file, field, BRICK_CACHE_BYTES)?)
-            }
-            Reconstruction::Finest => {
-                return Err(RenderError::Unsupported(
+    pub fn new(
+        file: &'f AmrkFile<D>,
+        field: usize,
+        reconstruction: Reconstruction,
+    ) -> Result<Self> {
+        let voxels =
+            match reconstruction {
+                Reconstruction::Octant => {
+                    Voxels::Octant(Extractor::new(file, field, BRICK_CACHE_BYTES)?)
+                }
+                Reconstruction::Current => {
+                    Voxels::Current(Sampler::new(file, field, BRICK_CACHE_BYTES)?)
+                }
+                Reconstruction::Nearest => {
+                    Voxels::Nearest(Sampler::new(file, field, BRICK_CACHE_BYTES)?)
+                }
+                Reconstruction::Finest => return Err(RenderError::Unsupported(
                     "the finest reconstruction is for point sampling; its voxels are not traced"
                         .into(),
-                ))
-            }
-        };
+                )),
+            };
         let mut source = FieldSource {
             voxels,
             reconstruction,

@@ -1,10 +1,10 @@
 //! What the tracer needs from a volume: active voxels decoded from 64-bit refs, and point samples.
 
-use crate::trace::octant::{intersect_voxel, VoxelHit};
-pub use crate::voxel::Voxel;
 use crate::reconstruct::Grid;
+use crate::trace::octant::{intersect_voxel, VoxelHit};
 use crate::trace::ray::GridRay;
 use crate::trace::tracer::central_difference;
+pub use crate::voxel::Voxel;
 
 /// The affine map from grid coordinates to world coordinates, and the grid's extent.
 ///

@@ -20,7 +20,10 @@ pub fn assert_matches_golden(golden: &Path, w: u32, h: u32, actual: &[u8], conte
         return;
     }
     let (gw, gh, expected) = read_ppm(golden).unwrap_or_else(|| {
-        panic!("no golden image {}: run with AMR_RENDER_BLESS=1", golden.display())
+        panic!(
+            "no golden image {}: run with AMR_RENDER_BLESS=1",
+            golden.display()
+        )
     });
     assert_eq!((gw, gh), (w, h), "{context}: golden image size");
     let mut diff = vec![0u8; actual.len()];
@@ -41,7 +44,9 @@ pub fn assert_matches_golden(golden: &Path, w: u32, h: u32, actual: &[u8], conte
     }
     let allowed = (BAD_FRACTION * f64::from(w * h)) as usize;
     if bad > allowed {
-        let stem = golden.file_stem().map_or("golden".into(), |s| s.to_string_lossy().into_owned());
+        let stem = golden
+            .file_stem()
+            .map_or("golden".into(), |s| s.to_string_lossy().into_owned());
         let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(stem);
         std::fs::create_dir_all(&out).unwrap();
         write_png(&out.join("expected.png"), w, h, &expected).unwrap();

@@ -121,7 +121,11 @@ impl Animation {
         if let Some(s) = sweep {
             counts.push((format!("--iso-sweep of {} frames", s.frames), s.frames));
         }
-        if let Some((a, b)) = counts.iter().zip(counts.iter().skip(1)).find(|(a, b)| a.1 != b.1) {
+        if let Some((a, b)) = counts
+            .iter()
+            .zip(counts.iter().skip(1))
+            .find(|(a, b)| a.1 != b.1)
+        {
             bail!(
                 "{} and {}: an animation's parts run in lockstep, so their frame counts must agree",
                 a.0,
@@ -188,7 +192,12 @@ mod tests {
     #[test]
     fn counts_must_agree() {
         let sweep: IsoSweep = "0:1:4".parse().unwrap();
-        assert_eq!(Animation::new(4, Some((4, 360.0)), Some(sweep), vec![]).unwrap().frames, 4);
+        assert_eq!(
+            Animation::new(4, Some((4, 360.0)), Some(sweep), vec![])
+                .unwrap()
+                .frames,
+            4
+        );
         assert!(Animation::new(3, Some((4, 360.0)), None, vec![]).is_err());
         assert_eq!(Animation::new(1, None, None, vec![]).unwrap().frames, 1);
         let key = CameraKey {

@@ -55,11 +55,15 @@ pub fn run(args: &ExtractArgs) -> anyhow::Result<()> {
         None => 0,
         Some(name) => file.field_index(name).with_context(|| {
             let names: Vec<&str> = file.fields().iter().map(|f| f.name.as_str()).collect();
-            format!("{}: no field '{name}' (fields: {})", args.file.display(), names.join(", "))
+            format!(
+                "{}: no field '{name}' (fields: {})",
+                args.file.display(),
+                names.join(", ")
+            )
         })?,
     };
-    let mut extractor = Extractor::new(&file, field, args.cache_mib << 20)
-        .map_err(|e| e.in_file(&args.file))?;
+    let mut extractor =
+        Extractor::new(&file, field, args.cache_mib << 20).map_err(|e| e.in_file(&args.file))?;
     extractor.set_page_release(PageRelease::new(&file));
     let mut all: Vec<ExtractStats> = Vec::new();
     for &iso in &args.iso {

@@ -7,10 +7,10 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use amr_render::field_stats::format_value;
+use amr_render::mapping::open_mapped;
 use amr_render::output::header::frame_header;
 use amr_render::output::legend::Legend;
 use amr_render::{render, ColorBy, Scene, View};
-use amr_render::mapping::open_mapped;
 use anyhow::bail;
 use serde::Serialize;
 
@@ -104,13 +104,19 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         }
         if rendered.color_range.is_some() {
             let c = &view.color_scale;
-            extra.push(("colormap", format!("{}{}", c.colormap, if c.log { " log" } else { "" })));
+            extra.push((
+                "colormap",
+                format!("{}{}", c.colormap, if c.log { " log" } else { "" }),
+            ));
         }
         let header = frame_header(scene, &rendered, &extra);
         let legend = Legend::of_frame(scene, &view, &rendered);
         outputs::write_frame(&files[k as usize], &rendered, &header, &legend)?;
         if n == 1 && request.outputs.summary {
-            eprintln!("{}", summary(&request.files[index], scene, &files[0], start.elapsed()));
+            eprintln!(
+                "{}",
+                summary(&request.files[index], scene, &files[0], start.elapsed())
+            );
         }
         records.push(FrameRecord {
             frame: k,
@@ -185,7 +191,10 @@ fn series_range(request: &RenderRequest) -> anyhow::Result<(f64, f64)> {
     for path in &request.files {
         let file = open_mapped(path)?;
         let Some(i) = file.field_index(&name) else {
-            bail!("{}: no field '{name}' to take the series' colour range from", path.display());
+            bail!(
+                "{}: no field '{name}' to take the series' colour range from",
+                path.display()
+            );
         };
         let f = &file.fields()[i];
         lo = lo.min(f64::from(f.min));
@@ -232,7 +241,11 @@ fn summary(file: &Path, scene: &Scene, files: &FrameFiles, took: Duration) -> St
     }
     let mut written = vec![files.exr.display().to_string()];
     written.extend(files.preview.iter().map(|p| p.display().to_string()));
-    out += &format!(": wrote {} in {:.2} s", written.join(" and "), took.as_secs_f64());
+    out += &format!(
+        ": wrote {} in {:.2} s",
+        written.join(" and "),
+        took.as_secs_f64()
+    );
     out
 }
 

@@ -52,7 +52,9 @@ pub fn encode(pngs: &[&Path], fps: u32, movie: &Path) -> anyhow::Result<()> {
 
 /// The printf pattern (`NAME_%04d.png`) of numbered frames named like `first`.
 fn frame_pattern(first: &Path) -> String {
-    let name = first.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let name = first
+        .file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
     let (stem, ext) = name.rsplit_once('.').unwrap_or((&name, ""));
     let (prefix, digits) = stem.rsplit_once('_').unwrap_or((stem, ""));
     let file = format!("{prefix}_%0{}d.{ext}", digits.len().max(1));

@@ -112,7 +112,9 @@ pub fn numbered(path: &Path, k: u32, n: u32) -> PathBuf {
         return path.to_path_buf();
     }
     let width = (n - 1).to_string().len().max(4);
-    let stem = path.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    let stem = path
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
     let name = match path.extension() {
         Some(ext) => format!("{stem}_{k:0width$}.{}", ext.to_string_lossy()),
         None => format!("{stem}_{k:0width$}"),
@@ -181,7 +183,8 @@ pub fn report(outputs: &Outputs, stats: &impl Serialize, print_also: &str) -> an
 
 /// True when `path` names a PNG file.
 pub fn is_png(path: &Path) -> bool {
-    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
 }
 
 /// Writes the tone-mapped picture of `rendered` with `legend` drawn on it as a PNG.

@@ -29,7 +29,11 @@ pub struct RenderArgs {
     pub field: Option<String>,
     /// An isosurface: value, optional colour (name or #rrggbb) and opacity; repeat for several
     /// (default: the middle of the field's range). Negative values as typed: --iso -60:red.
-    #[arg(long = "iso", value_name = "V[:COLOR[:OPACITY]]", allow_hyphen_values = true)]
+    #[arg(
+        long = "iso",
+        value_name = "V[:COLOR[:OPACITY]]",
+        allow_hyphen_values = true
+    )]
     pub iso: Vec<IsoSpec>,
     /// Output file: OpenEXR with every channel, or a PNG picture with its legend when the name
     /// ends in .png; with several frames, OUT_0000.exr, OUT_0001.exr, ...
@@ -74,11 +78,20 @@ pub struct RenderArgs {
     #[arg(long, value_name = "N")]
     pub orbit: Option<u32>,
     /// Degrees the orbit turns in all.
-    #[arg(long, value_name = "D", default_value_t = 360.0, allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_name = "D",
+        default_value_t = 360.0,
+        allow_hyphen_values = true
+    )]
     pub orbit_degrees: f64,
     /// N frames with one more isosurface whose value goes from A to B (colour and opacity as
     /// for --iso).
-    #[arg(long, value_name = "A:B:N[:COLOR[:OPACITY]]", allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_name = "A:B:N[:COLOR[:OPACITY]]",
+        allow_hyphen_values = true
+    )]
     pub iso_sweep: Option<IsoSweep>,
     /// A camera at one frame of an animation, the cameras between keyframes interpolated;
     /// repeat for several.
@@ -106,7 +119,12 @@ pub struct RenderArgs {
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub up: Option<[f64; 3]>,
     /// Vertical field of view, degrees.
-    #[arg(long, value_name = "DEG", default_value_t = 40.0, allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 40.0,
+        allow_hyphen_values = true
+    )]
     pub fov: f64,
     /// Reconstruction method: octant, current or nearest.
     #[arg(long, default_value_t = Reconstruction::Octant)]
@@ -273,7 +291,12 @@ impl RenderArgs {
             threads: self.threads,
             animation,
             color_by: self.color_by.clone(),
-            slices: self.slice.iter().chain(&self.slice_plane).copied().collect(),
+            slices: self
+                .slice
+                .iter()
+                .chain(&self.slice_plane)
+                .copied()
+                .collect(),
             slice_field: self.slice_field.clone(),
             series_color_range: self.color_range == Some(ColorRange::AutoSeries),
             frame_domain: self.frame_domain,
@@ -342,7 +365,9 @@ fn parse_range(s: &str) -> Result<(f64, f64), String> {
 fn parse_keyframe(s: &str) -> Result<CameraKey, String> {
     let parts: Vec<&str> = s.split(':').collect();
     if !(3..=4).contains(&parts.len()) {
-        return Err(format!("keyframe '{s}' is not FRAME:X,Y,Z:LX,LY,LZ[:UX,UY,UZ]"));
+        return Err(format!(
+            "keyframe '{s}' is not FRAME:X,Y,Z:LX,LY,LZ[:UX,UY,UZ]"
+        ));
     }
     let frame = parts[0]
         .trim()

@@ -59,8 +59,10 @@ fn arguments(table: &Table) -> anyhow::Result<Vec<OsString>> {
             Value::Boolean(true) => options.push(OsString::from(&flag)),
             Value::Boolean(false) => {}
             Value::Array(items) if items.iter().all(|v| v.is_integer() || v.is_float()) => {
-                let parts: Vec<String> =
-                    items.iter().map(|v| scalar(key, v)).collect::<anyhow::Result<_>>()?;
+                let parts: Vec<String> = items
+                    .iter()
+                    .map(|v| scalar(key, v))
+                    .collect::<anyhow::Result<_>>()?;
                 options.push(OsString::from(&flag));
                 options.push(OsString::from(parts.join(",")));
             }

@@ -5,10 +5,10 @@
 use std::time::Instant;
 
 use ::mpi::collective::SystemOperation;
-use amr_render::outline;
 use ::mpi::topology::SimpleCommunicator;
 use ::mpi::traits::*;
 use ::mpi::Threading;
+use amr_render::outline;
 use amr_render::output::frame::FrameBuffer;
 use amr_render::output::header::frame_header;
 use amr_render::{FrameStats, Rendered, Scene, TraceMethod};
@@ -45,7 +45,9 @@ struct MpiTotals {
 pub fn run(request: &RenderRequest, mode: Option<&str>) -> anyhow::Result<()> {
     let mode = MpiMode::parse(mode)?;
     if request.animation.frames > 1 || request.files.len() > 1 {
-        bail!("under mpirun amr-render renders one frame of one file; run animations in one process");
+        bail!(
+            "under mpirun amr-render renders one frame of one file; run animations in one process"
+        );
     }
     let (w, h) = request.view.size;
     // Pixel messages count 12 `f32` per pixel in a C `int`.
@@ -116,7 +118,10 @@ fn run_rank(
     if !all_ok(world, setup.is_ok()) {
         return Err(Failure::Agreed(match setup {
             Err(e) => e,
-            Ok(_) => anyhow!("another MPI rank could not open {}", request.files[0].display()),
+            Ok(_) => anyhow!(
+                "another MPI rank could not open {}",
+                request.files[0].display()
+            ),
         }));
     }
     let mut scene = setup?;
@@ -178,8 +183,17 @@ fn run_rank(
         return Ok(());
     };
     let mut frame = frame.ok_or_else(|| anyhow!("rank 0 holds no frame"))?;
-    let segments = outline::segments(view.outline, scene.file(), scene.grid_frame().world_bounds());
-    outline::draw(&mut frame, &camera, &segments, outline::line_width(view.size.0, view.size.1));
+    let segments = outline::segments(
+        view.outline,
+        scene.file(),
+        scene.grid_frame().world_bounds(),
+    );
+    outline::draw(
+        &mut frame,
+        &camera,
+        &segments,
+        outline::line_width(view.size.0, view.size.1),
+    );
     write_rank0(request, &scene, mode, frame, camera, &ranks, frame_time)?;
     Ok(())
 }
@@ -222,11 +236,7 @@ fn write_rank0(
         cpu_render_s: sum(|r| r.cpu_render),
         peak_rss_bytes_max_rank: max(|r| r.peak_rss) as u64,
         resident_bytes_max_rank: max(|r| r.refs_bytes + r.bvh_bytes) as u64,
-        per_rank: ranks
-            .iter()
-            .enumerate()
-            .map(|(k, r)| r.record(k))
-            .collect(),
+        per_rank: ranks.iter().enumerate().map(|(k, r)| r.record(k)).collect(),
     };
     let mut stats = RunStats::new(scene, frame_stats, totals);
     stats.scene.extract = secs(max(|r| r.extract));

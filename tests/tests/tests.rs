@@ -50,3 +50,4 @@ mod render_watertight;
 mod render_watertight_amrk;
 mod sample_scratch;
 mod scene_api;
+mod simulation_stamp;

@@ -10,6 +10,7 @@ use amr_render::field_stats::format_value;
 use amr_render::mapping::open_mapped;
 use amr_render::output::header::frame_header;
 use amr_render::output::legend::Legend;
+use amr_render::shade::IsoSpec;
 use amr_render::{render, ColorBy, Scene, View};
 use anyhow::bail;
 use serde::Serialize;
@@ -56,23 +57,27 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
     if request.series_color_range {
         base_view.color_scale.range = Some(series_range(request)?);
     }
-    let mut scene: Option<(usize, Scene)> = None;
+    // The open file's index, its scene and its isosurfaces (a default isovalue reads the field's
+    // cells, so it is found once per file, not once per frame).
+    let mut scene: Option<(usize, Scene, Vec<IsoSpec>)> = None;
     let mut cameras = Vec::new();
     let mut records = Vec::new();
     let start = Instant::now();
     for k in 0..n {
         let index = if anim.series { k as usize } else { 0 };
-        if scene.as_ref().is_none_or(|(i, _)| *i != index) {
+        if scene.as_ref().is_none_or(|(i, _, _)| *i != index) {
             // The previous file's map and surfaces go before the next file is opened.
             if scene.take().is_some() {
                 heap::return_freed();
             }
-            scene = Some((index, open_scene(request, index)?));
+            let opened = open_scene(request, index)?;
+            let isos = request_isos(request, &opened);
+            scene = Some((index, opened, isos));
         }
-        let Some((_, scene)) = scene.as_mut() else {
+        let Some((_, scene, base_isos)) = scene.as_mut() else {
             unreachable!("a scene was opened above");
         };
-        let isos = anim.isos(&request_isos(request, scene), k);
+        let isos = anim.isos(base_isos, k);
         scene.set_isosurfaces(&isos)?;
         scene.set_color_by(&painting(request, isos.len()))?;
         if cameras.is_empty() {

@@ -163,15 +163,23 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         let first = [0, 1, 2]
             .map(|a| (((p[a] - s[a] as f64) * 0.5 + o[a] as f64) / s[a] as f64).floor() as i64);
         let base = self.grid().centre(level, first);
-        let mut corners = [0f32; 8];
-        for (n, slot) in corners.iter_mut().enumerate() {
+        let finest_of = |n: usize| {
             let cell = [0, 1, 2].map(|a| first[a] + (n >> a & 1) as i64);
-            let at = self.grid().finest_cell(self.grid().centre(level, cell), 7);
-            match loc.locate_cell(at)? {
-                Some(c) => *slot = c.value,
-                None => return Ok(None),
+            self.grid().finest_cell(self.grid().centre(level, cell), 7)
+        };
+        let corners = match loc.block_of_level(finest_of(0), finest_of(7), level) {
+            Some(block) => block,
+            None => {
+                let mut corners = [0f32; 8];
+                for (n, slot) in corners.iter_mut().enumerate() {
+                    match loc.locate_cell(finest_of(n))? {
+                        Some(c) => *slot = c.value,
+                        None => return Ok(None),
+                    }
+                }
+                corners
             }
-        }
+        };
         let t =
             [0, 1, 2].map(|a| ((p[a] - base[a] as f64) / (2 * s[a]) as f64).clamp(0.0, 1.0) as f32);
         Ok(Some(trilinear(&corners, t)))

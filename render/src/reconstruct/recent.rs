@@ -194,10 +194,18 @@ impl<D: AsRef<[u8]>> Locate for RecentLocator<'_, '_, '_, D> {
             Some(v) => v,
             None => self.sampler.values_in_place(l.brick)?,
         };
+        // The eight cells are `clo` plus, per axis, 0 or `chi - clo` (0 or 1) cells: one index
+        // and three strides.
+        let e = l.cells.extent();
+        let stride = [1, e[0], e[0] * e[1]];
+        let step: [usize; 3] = [0, 1, 2].map(|a| ((chi[a] - clo[a]) * stride[a]) as usize);
+        let first = l.cells.linear_index(clo);
+        let last = first + step[0] + step[1] + step[2];
+        let block = values.get(first..=last)?;
         let mut out = [0f32; 8];
         for (n, slot) in out.iter_mut().enumerate() {
-            let c = [0, 1, 2].map(|a| if n >> a & 1 == 1 { chi[a] } else { clo[a] });
-            *slot = *values.get(l.cells.linear_index(c))?;
+            let at = (n & 1) * step[0] + (n >> 1 & 1) * step[1] + (n >> 2 & 1) * step[2];
+            *slot = block[at];
         }
         Some(out)
     }

@@ -78,6 +78,16 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             unreachable!("a scene was opened above");
         };
         let isos = anim.isos(base_isos, k);
+        if request.extract_in_view {
+            if cameras.is_empty() {
+                cameras = anim.cameras(&request.view.camera(&scene.grid_frame())?)?;
+            }
+            let view = View {
+                camera: Some(cameras[k as usize]),
+                ..base_view.clone()
+            };
+            scene.set_extract_view(Some(&view))?;
+        }
         scene.set_isosurfaces(&isos)?;
         scene.set_color_by(&painting(request, isos.len()))?;
         if cameras.is_empty() {
@@ -163,6 +173,7 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
 /// The scene of the request's `index`-th file, with its slices.
 fn open_scene(request: &RenderRequest, index: usize) -> anyhow::Result<Scene> {
     let mut scene = Scene::open(&request.files[index], &request.scene)?;
+    scene.set_clip(request.clip)?;
     if !request.slices.is_empty() {
         scene.set_slices(&request.slices, request.slice_field.clone())?;
     }

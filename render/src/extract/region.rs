@@ -67,8 +67,9 @@ impl Region {
     }
 
     /// The grid box that holds every voxel leaf `leaf` can emit, for any reconstruction: the
-    /// leaf's box grown by one cell of its level (a dual cell or a face slab reaches half a cell
-    /// past it). `None` for a leaf no brick covers, which emits nothing.
+    /// leaf's box grown by two cells of its level (a leaf emits the voxels of the cells of its
+    /// level that overlap it, which may reach most of a cell past it, and a dual cell or a face
+    /// slab reaches half a cell further). `None` for a leaf no brick covers, which emits nothing.
     pub fn leaf_reach<D: AsRef<[u8]>>(
         sampler: &Sampler<'_, D>,
         leaf: u32,
@@ -77,8 +78,8 @@ impl Region {
         let b = sampler.file().tree().leaf_box(leaf);
         let s = sampler.grid().scale(level);
         Some((
-            [0, 1, 2].map(|a| (2 * (b.lo[a] - s[a])) as f64),
-            [0, 1, 2].map(|a| (2 * (b.hi[a] + s[a])) as f64),
+            [0, 1, 2].map(|a| (2 * (b.lo[a] - 2 * s[a])) as f64),
+            [0, 1, 2].map(|a| (2 * (b.hi[a] + 2 * s[a])) as f64),
         ))
     }
 

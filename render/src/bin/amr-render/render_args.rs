@@ -122,7 +122,7 @@ pub struct RenderArgs {
     /// only voxels that meet it are extracted, and the surfaces behind the cut show through
     /// the opening. Slices are not cut.
     #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", allow_hyphen_values = true)]
-    pub clip: Option<ClipBox>,
+    pub clip: Option<String>,
     /// Extract only the leaves the camera's view frustum may see (again for each camera of an
     /// animation). The frame is the same as the whole extraction's with --no-shadows --ao 0;
     /// otherwise surfaces out of view cast no shadows or occlusion into it. Without
@@ -276,6 +276,13 @@ impl RenderArgs {
             );
         }
         view.validate()?;
+        let clip = match &self.clip {
+            Some(text) => Some(
+                text.parse::<ClipBox>()
+                    .map_err(|e| anyhow::anyhow!("--clip: {e}"))?,
+            ),
+            None => None,
+        };
         if self.fps == 0 || self.fps > 240 {
             bail!("--fps {} must be between 1 and 240", self.fps);
         }
@@ -315,7 +322,7 @@ impl RenderArgs {
             slice_field: self.slice_field.clone(),
             series_color_range: self.color_range == Some(ColorRange::AutoSeries),
             frame_domain: self.frame_domain,
-            clip: self.clip,
+            clip,
             extract_in_view: self.extract_in_view,
         })
     }

@@ -59,7 +59,7 @@ mod tests {
         assert!(!inside([2.0 + 2.8, 2.0, 2.0]));
         assert!(inside([2.0, 2.0, 2.0 + 1.3]));
         assert!(!inside([2.0, 2.0, 2.0 + 1.4]));
-        for (x, y) in [(0.0, 0.0), (199.9, 99.9), (100.0, 0.01)] {
+        for (x, y) in [(0.01, 0.01), (199.9, 99.9), (100.0, 0.01)] {
             let d = cam.ray_dir(x, y, 200, 100);
             assert!(
                 inside([0, 1, 2].map(|a| cam.pos[a] + 7.0 * d[a])),

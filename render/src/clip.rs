@@ -51,7 +51,7 @@ impl ClipBox {
             return Ok(());
         }
         Err(RenderError::Invalid(format!(
-            "clip box {:?}..{:?} does not overlap the domain {lo:?}..{hi:?}: nothing would be left to draw",
+            "clip box {:?}..{:?} does not overlap the domain {lo:?}..{hi:?}: it would keep nothing",
             self.lo, self.hi
         )))
     }

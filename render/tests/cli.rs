@@ -733,3 +733,43 @@ fn extraction_in_view_renders_the_same_frame_with_less() {
         "{orbit:?}"
     );
 }
+
+#[test]
+fn every_exr_compression_writes_the_same_channels_and_says_which_it_used() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let mut reference: Option<Vec<Vec<u32>>> = None;
+    for (name, expected) in [
+        ("piz", exr::compression::Compression::PIZ),
+        ("zip", exr::compression::Compression::ZIP16),
+        ("rle", exr::compression::Compression::RLE),
+        ("none", exr::compression::Compression::Uncompressed),
+    ] {
+        let out = dir.path().join(format!("{name}.exr"));
+        let o = amr_render(&[
+            file.to_str().unwrap(),
+            "--iso",
+            "10",
+            "--size",
+            "64x48",
+            "--exr-compression",
+            name,
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        let meta = exr::meta::MetaData::read_from_file(&out, false).unwrap();
+        assert_eq!(meta.headers[0].compression, expected, "{name}");
+        let channels: Vec<Vec<u32>> = ["R", "A", "Z", "N.X", "P.Y", "level"]
+            .iter()
+            .map(|c| bits(&out, c))
+            .collect();
+        match &reference {
+            None => reference = Some(channels),
+            Some(r) => assert!(r == &channels, "{name}: channels differ from piz's"),
+        }
+    }
+    let o = amr_render(&[file.to_str().unwrap(), "--exr-compression", "lzw"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("piz, zip, rle, none"), "{}", stderr(&o));
+}

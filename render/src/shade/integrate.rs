@@ -172,8 +172,8 @@ fn shade_hit<T: Tracer + ?Sized>(
     }
     let ao = if light.ao_rays > 0 {
         let mut open = 0.0;
-        for _ in 0..light.ao_rays {
-            let d = cosine_hemisphere(nf, rng.next_f64(), rng.next_f64());
+        for (u1, u2) in rng.ao_pattern(light.ao_rays) {
+            let d = cosine_hemisphere(nf, u1, u2);
             open += transmittance_towards(tracer, light, hit, nf, d, light.ao_distance);
         }
         open / f64::from(light.ao_rays)

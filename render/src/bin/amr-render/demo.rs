@@ -6,6 +6,7 @@
 use std::path::PathBuf;
 
 use amr_format::WriterOptions;
+use amr_render::output::exr_file::ExrCompression;
 use amr_render::shade::IsoSpec;
 use amr_render::{ColorBy, Outline, Reconstruction, SceneOptions, TraceMethod, View};
 use amr_synth::{build_hierarchy, write_fields, AnalyticField, Case, SynthParams};
@@ -68,6 +69,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         outputs: Outputs {
             exr: args.output.clone(),
             preview: Some(preview.clone()),
+            exr_compression: ExrCompression::default(),
             print_stats: false,
             stats_json: None,
             summary: true,

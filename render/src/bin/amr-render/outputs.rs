@@ -7,7 +7,7 @@ use amr_render::mapping::mapped_resident_bytes;
 use std::io::Write;
 
 use amr_format::output::temporary_for;
-use amr_render::output::exr_file::write_exr;
+use amr_render::output::exr_file::{write_exr_with, ExrCompression};
 use amr_render::output::legend::Legend;
 use amr_render::output::png_preview::{preview_rgb8, write_png};
 use amr_render::{FrameStats, Rendered, Scene, SceneStats};
@@ -86,6 +86,8 @@ pub struct FrameFiles {
     pub exr: PathBuf,
     /// Its PNG preview.
     pub preview: Option<PathBuf>,
+    /// How the EXR is compressed.
+    pub compression: ExrCompression,
 }
 
 impl FrameFiles {
@@ -101,6 +103,7 @@ impl FrameFiles {
         FrameFiles {
             exr: numbered(&outputs.exr, k, n),
             preview: preview.map(|p| numbered(&p, k, n)),
+            compression: outputs.exr_compression,
         }
     }
 }
@@ -146,7 +149,7 @@ pub fn write_frame(
     if is_png(&files.exr) {
         write_picture(&files.exr, rendered, legend)?;
     } else {
-        write_exr(&files.exr, &rendered.frame, header)?;
+        write_exr_with(&files.exr, &rendered.frame, header, files.compression)?;
     }
     if let Some(p) = &files.preview {
         write_picture(p, rendered, legend)?;

@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use amr_render::camera_path::CameraKey;
+use amr_render::output::exr_file::ExrCompression;
 use amr_render::shade::IsoSpec;
 use amr_render::{
     CameraPlacement, ClipBox, ColorBy, ColorScale, Colormap, Outline, Reconstruction, SceneOptions,
@@ -155,6 +156,10 @@ pub struct RenderArgs {
     /// Also write a tone-mapped PNG preview with its legend.
     #[arg(long, value_name = "OUT.png")]
     pub preview: Option<PathBuf>,
+    /// Lossless compression of EXR frames: piz (default; smaller and faster than zip), zip, rle
+    /// (fastest, largest files) or none.
+    #[arg(long, value_name = "KIND", default_value_t = ExrCompression::default())]
+    pub exr_compression: ExrCompression,
     /// Print statistics to stderr.
     #[arg(long)]
     pub stats: bool,
@@ -217,6 +222,8 @@ pub struct Outputs {
     pub exr: PathBuf,
     /// A PNG preview.
     pub preview: Option<PathBuf>,
+    /// How EXR frames are compressed.
+    pub exr_compression: ExrCompression,
     /// Print statistics to stderr.
     pub print_stats: bool,
     /// Statistics as JSON.
@@ -305,6 +312,7 @@ impl RenderArgs {
             outputs: Outputs {
                 exr: self.output.clone(),
                 preview: self.preview.clone(),
+                exr_compression: self.exr_compression,
                 print_stats: self.stats,
                 stats_json: self.stats_json.clone(),
                 summary: !self.quiet,

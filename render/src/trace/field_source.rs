@@ -152,8 +152,9 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         if region.is_everything() {
             return self.extract(iso);
         }
-        let kept = |leaves_of: &dyn Fn(&[u32]) -> Result<Vec<u64>>,
-                    decode: &dyn Fn(u64) -> Result<Voxel>|
+        // The refs of the candidate leaves that may meet the region, kept by their decoded boxes.
+        let in_region = |leaves_of: &dyn Fn(&[u32]) -> Result<Vec<u64>>,
+                         decode: &dyn Fn(u64) -> Result<Voxel>|
          -> Result<Vec<u64>> {
             let s = self.sampler();
             let leaves = region.leaves(s, candidate_leaves(s, iso));
@@ -165,11 +166,11 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
             Voxels::Octant(e) => e.extract_in(iso, region),
             Voxels::Current(s) => self.timed(iso, || {
                 let v = CurrentVoxels::new(s);
-                kept(&|l| v.extract_leaves(iso, l), &|r| v.decode(r))
+                in_region(&|l| v.extract_leaves(iso, l), &|r| v.decode(r))
             }),
             Voxels::Nearest(s) => self.timed(iso, || {
                 let v = NearestFaces::new(s);
-                kept(&|l| v.extract_leaves(iso, l), &|r| v.decode(r))
+                in_region(&|l| v.extract_leaves(iso, l), &|r| v.decode(r))
             }),
         }
     }

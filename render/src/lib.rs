@@ -23,11 +23,13 @@
 pub mod bvh;
 pub mod camera;
 pub mod camera_path;
+pub mod clip;
 pub mod coloring;
 pub mod colormap;
 pub mod error;
 pub mod extract;
 pub mod field_stats;
+pub mod frustum;
 pub mod info;
 pub mod mapping;
 pub mod outline;
@@ -45,9 +47,11 @@ pub mod trace;
 pub mod view;
 pub mod voxel;
 
+pub use clip::ClipBox;
 pub use coloring::{ColorBy, ColorScale};
 pub use colormap::Colormap;
 pub use error::{RenderError, Result};
+pub use frustum::Frustum;
 pub use outline::Outline;
 pub use reconstruct::Reconstruction;
 pub use render::{render, render_region, Rect, RegionPixels, Rendered};

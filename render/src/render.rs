@@ -4,6 +4,7 @@
 use std::time::Instant;
 
 use crate::camera::Camera;
+use crate::clip::ClipBox;
 use crate::coloring::ColorBy;
 use crate::error::{RenderError, Result};
 use crate::outline;
@@ -14,7 +15,7 @@ use crate::sample_mode::SampleTracer;
 use crate::scene::{Scene, TraceMethod};
 use crate::shade::{render_frame, render_rect, IsoSpec, Lighting, RenderSettings};
 use crate::stats::FrameStats;
-use crate::trace::{HybridTracer, Surface, Tracer, VoxelSource};
+use crate::trace::{ClippedTracer, HybridTracer, Surface, Tracer, VoxelSource};
 use crate::view::View;
 
 /// A rendered frame.
@@ -108,7 +109,7 @@ pub fn render_surfaces<S: VoxelSource + ?Sized>(
         surfaces,
         isos,
         method,
-        view,
+        (view, None),
         |tracer, camera, light| trace_frame(tracer, *camera, light, view, progress),
     )
 }
@@ -121,9 +122,14 @@ pub fn render_sampled<S: VoxelSource + ?Sized>(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Rendered> {
     let method = (TraceMethod::Sample, view.smooth_normals);
-    with_tracer(src, &[], isos, method, view, |tracer, camera, light| {
-        trace_frame(tracer, *camera, light, view, progress)
-    })
+    with_tracer(
+        src,
+        &[],
+        isos,
+        method,
+        (view, None),
+        |tracer, camera, light| trace_frame(tracer, *camera, light, view, progress),
+    )
 }
 
 /// [`with_tracer`] for a scene, with its surfaces painted and its slices added when it has
@@ -137,12 +143,13 @@ fn with_scene_tracer<R>(
     let smooth = view.smooth_normals && scene.reconstruction() != Reconstruction::Nearest;
     let method = (scene.method(), smooth);
     let isos = scene.isosurfaces();
+    scene.check_view(view)?;
     with_tracer(
         scene.source(),
         scene.surfaces(),
         isos,
         method,
-        view,
+        (view, scene.clip()),
         |tracer, camera, light| {
             if scene.color_by().iter().all(Option::is_none) && scene.slices().is_empty() {
                 return Ok((run(tracer, camera, light), None));
@@ -200,36 +207,46 @@ fn with_scene_tracer<R>(
 }
 
 /// The camera, lighting and tracer of a frame of `src` (surfaces `surfaces` of `isos`, traced
-/// with `method.0`, smooth normals when `method.1`), handed to `run`.
+/// with `method.0`, smooth normals when `method.1`, cut to the clip box `view.1` when set) seen
+/// through `view.0`, handed to `run`.
 fn with_tracer<S: VoxelSource + ?Sized, R>(
     src: &S,
     surfaces: &[Surface],
     isos: &[IsoSpec],
     (method, smooth_normals): (TraceMethod, bool),
-    view: &View,
+    (view, clip): (&View, Option<ClipBox>),
     run: impl FnOnce(&(dyn Tracer + Sync), &Camera, &Lighting) -> R,
 ) -> Result<R> {
     view.validate()?;
     let frame = src.frame();
     let camera = view.camera(&frame)?;
     let light = view.lighting(&camera, &frame, isos);
+    let run_clipped = |tracer: &(dyn Tracer + Sync)| match clip {
+        Some(c) => {
+            let (lo, hi) = c.to_grid(&frame);
+            run(
+                &ClippedTracer {
+                    inner: tracer,
+                    lo,
+                    hi,
+                },
+                &camera,
+                &light,
+            )
+        }
+        None => run(tracer, &camera, &light),
+    };
     Ok(match method {
-        TraceMethod::Hybrid => {
-            let tracer = HybridTracer {
-                src,
-                surfaces,
-                smooth_normals,
-            };
-            run(&tracer, &camera, &light)
-        }
-        TraceMethod::Sample => {
-            let tracer = SampleTracer {
-                src,
-                isos: isos.iter().map(|s| s.value).collect(),
-                step: view.sample_step(&frame)?,
-            };
-            run(&tracer, &camera, &light)
-        }
+        TraceMethod::Hybrid => run_clipped(&HybridTracer {
+            src,
+            surfaces,
+            smooth_normals,
+        }),
+        TraceMethod::Sample => run_clipped(&SampleTracer {
+            src,
+            isos: isos.iter().map(|s| s.value).collect(),
+            step: view.sample_step(&frame)?,
+        }),
     })
 }
 

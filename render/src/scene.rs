@@ -9,15 +9,18 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 use crate::bvh::BvhBuilder;
+use crate::clip::ClipBox;
 use crate::coloring::ColorBy;
 use crate::error::{RenderError, Result};
-use crate::extract::Extractor;
+use crate::extract::{Extractor, Region};
+use crate::frustum::Frustum;
 use crate::mapping::{open_mapped, MappedFile, PageRelease, WatchedMap};
 use crate::reconstruct::Reconstruction;
 use crate::shade::IsoSpec;
 use crate::slice::Slice;
 use crate::stats::per_octant;
 use crate::trace::{FieldSource, GridFrame, Surface, VoxelSource};
+use crate::view::View;
 
 /// Ranges narrower than this are round-off, not data, when choosing the default field.
 pub const DEGENERATE_WIDTH: f64 = 1e-12;
@@ -112,6 +115,11 @@ pub struct SceneStats {
     pub resident_bytes_per_octant: f64,
     /// Largest build scratch held at once (boxes, PLOC buffers, binary BVH).
     pub build_scratch_bytes: u64,
+    /// Leaves visited by the extraction of the surfaces that changed (octant method).
+    pub leaves_visited: u64,
+    /// Bytes of the file's map the extraction of the surfaces that changed touched, when pages
+    /// are released (octant method; see [`crate::extract::ExtractStats::resident_bytes`]).
+    pub extract_touched_bytes: Option<u64>,
     /// Extraction time of the surfaces that changed.
     #[serde(rename = "extract_ms", serialize_with = "crate::stats::millis")]
     pub extract: Duration,
@@ -137,6 +145,10 @@ pub struct Scene {
     color_by: Vec<Option<ColorBy>>,
     /// Slices and what paints them.
     slices: Vec<(Slice, ColorBy)>,
+    /// The box the surfaces are cut to.
+    clip: Option<ClipBox>,
+    /// The frustum the extraction is limited to.
+    extract_view: Option<Frustum>,
 }
 
 impl Scene {
@@ -166,6 +178,8 @@ impl Scene {
             stats: SceneStats::default(),
             color_by: Vec::new(),
             slices: Vec::new(),
+            clip: None,
+            extract_view: None,
         })
     }
 
@@ -256,6 +270,84 @@ impl Scene {
         } else {
             mid
         }
+    }
+
+    /// The box the surfaces are cut to, if any.
+    pub fn clip(&self) -> Option<ClipBox> {
+        self.clip
+    }
+
+    /// Cuts the surfaces to `clip` (`None`: not cut): only the voxels that meet the box are
+    /// extracted, and rendering accepts surface hits only inside it, so the surfaces behind the
+    /// cut show through the opening; shadow and ambient-occlusion rays see only the cut surfaces.
+    /// Slices are not cut. The surfaces are extracted again when the box changes. An error when
+    /// the box does not overlap the domain.
+    pub fn set_clip(&mut self, clip: Option<ClipBox>) -> Result<&SceneStats> {
+        if let Some(c) = &clip {
+            c.check_overlaps(&self.grid_frame())
+                .map_err(|e| e.in_file(&self.path))?;
+        }
+        if clip == self.clip {
+            return Ok(&self.stats);
+        }
+        self.clip = clip;
+        self.extract_again()
+    }
+
+    /// The frustum the extraction is limited to, if any.
+    pub fn extract_view(&self) -> Option<&Frustum> {
+        self.extract_view.as_ref()
+    }
+
+    /// Limits the extraction to the leaves and voxels that may meet the frustum of `view`
+    /// (`None`: the whole domain), extracting the surfaces again when the frustum changes.
+    ///
+    /// The frame `view` gives is the same as with the whole extraction when it casts no shadow
+    /// or ambient-occlusion rays; with them, surfaces outside the view no longer shadow or
+    /// occlude what is in it. [`crate::render()`] refuses a view whose frustum is not this one.
+    pub fn set_extract_view(&mut self, view: Option<&View>) -> Result<&SceneStats> {
+        let frustum = match view {
+            Some(v) => Some(v.frustum(&self.grid_frame())?),
+            None => None,
+        };
+        if frustum == self.extract_view {
+            return Ok(&self.stats);
+        }
+        self.extract_view = frustum;
+        self.extract_again()
+    }
+
+    /// Fails when the extraction is limited to a frustum other than `view`'s.
+    pub fn check_view(&self, view: &View) -> Result<()> {
+        let Some(f) = &self.extract_view else {
+            return Ok(());
+        };
+        if view.frustum(&self.grid_frame())? == *f {
+            return Ok(());
+        }
+        Err(RenderError::Invalid(
+            "the surfaces were extracted for the frustum of another view; \
+             set the extraction's view to this one (Scene::set_extract_view) first"
+                .into(),
+        ))
+    }
+
+    /// What the extraction keeps: the clip box and the frustum, in grid coordinates.
+    pub fn region(&self) -> Region {
+        let frame = self.grid_frame();
+        let largest = frame.extent.iter().fold(1.0f64, |m, &e| m.max(e));
+        Region {
+            bounds: self.clip.map(|c| c.to_grid(&frame)),
+            half_spaces: self.extract_view.map_or(Vec::new(), |f| f.sides.to_vec()),
+            slack: 1e-6 * largest,
+        }
+    }
+
+    /// Extracts and builds every surface again (after the region changed).
+    fn extract_again(&mut self) -> Result<&SceneStats> {
+        let isos = self.isos.clone();
+        self.surfaces.clear();
+        self.replace_surfaces(&isos, None)
     }
 
     /// What paints each isosurface, in the order given.
@@ -447,10 +539,26 @@ impl Scene {
         stats: &mut SceneStats,
     ) -> Result<Surface> {
         let source = self.source();
+        let region = self.region();
         let t = Instant::now();
         let refs = match refs {
-            Some(refs) => refs,
-            None => source.extract(iso).map_err(|e| e.in_file(&self.path))?.refs,
+            Some(mut refs) => {
+                region
+                    .retain_refs(&mut refs, |r| Ok(source.voxel_box(r)))
+                    .map_err(|e| e.in_file(&self.path))?;
+                refs
+            }
+            None => {
+                let e = source
+                    .extract_in(iso, &region)
+                    .map_err(|e| e.in_file(&self.path))?;
+                stats.leaves_visited += e.stats.leaves_visited;
+                if let Some(b) = e.stats.resident_bytes {
+                    stats.extract_touched_bytes =
+                        Some(stats.extract_touched_bytes.unwrap_or(0) + b);
+                }
+                e.refs
+            }
         };
         stats.extract += t.elapsed();
         source.release_pages();

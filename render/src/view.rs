@@ -4,6 +4,7 @@
 use crate::camera::{Camera, CameraError};
 use crate::coloring::ColorScale;
 use crate::error::{RenderError, Result};
+use crate::frustum::Frustum;
 use crate::outline::Outline;
 use crate::shade::{IsoSpec, Lighting, RenderSettings};
 use crate::trace::GridFrame;
@@ -122,6 +123,11 @@ impl View {
             Some(c) => placed_camera(c.pos, c.look_at.unwrap_or(centre), c.up, self.fov_deg)?,
             None => Camera::framing(lo, hi, self.fov_deg, f64::from(w) / f64::from(h))?,
         })
+    }
+
+    /// The frustum of this view's primary rays in a domain with grid frame `frame`.
+    pub fn frustum(&self, frame: &GridFrame) -> Result<Frustum> {
+        Ok(Frustum::of_camera(&self.camera(frame)?, self.size, frame))
     }
 
     /// A camera placement that frames the world box `[lo, hi]` as the automatic camera frames

@@ -555,6 +555,186 @@ fn auto_series_keeps_one_colour_range_over_a_series() {
 }
 
 #[test]
+fn clip_boxes_that_cut_nothing_sensible_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let out = dir.path().join("c.exr");
+    for (clip, says) in [
+        ("0,0,0,1,1", "has 5 numbers; give six"),
+        ("0,0,0,1,1,1,1", "has 7 numbers; give six"),
+        ("0,0,0,1,nan,1", "finite"),
+        ("0,0,0,1,x,1", "'x' in clip box"),
+        (
+            "0,0.6,0,1,0.5,1",
+            "on the y axis the lower bound 0.6 is not below the upper bound 0.5",
+        ),
+        ("0,0,0.5,1,1,0.5", "on the z axis"),
+        ("2,2,2,3,3,3", "does not overlap the domain"),
+        ("-1,-1,-1,0,0,0", "does not overlap the domain"),
+    ] {
+        let o = amr_render(&[
+            file.to_str().unwrap(),
+            "--iso",
+            "10",
+            "--size",
+            "16x12",
+            "--clip",
+            clip,
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(1), "--clip {clip}: {}", stderr(&o));
+        let e = stderr(&o);
+        assert!(
+            e.contains(says) && !e.contains("panicked"),
+            "--clip {clip}: {e}"
+        );
+        if says.contains("domain") {
+            assert!(e.contains("blobs.amrk"), "the error names the file: {e}");
+        }
+        assert!(!out.exists());
+    }
+}
+
+#[test]
+fn a_clip_box_cuts_the_surfaces_and_a_scene_file_keeps_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let d = dir.path();
+    let f = file.to_str().unwrap();
+    let common = [
+        "--iso",
+        "5",
+        "--size",
+        "64x48",
+        "--fov",
+        "25",
+        "--camera-pos",
+        "2.5,0.5,0.5",
+    ];
+    let (whole, cut, scene) = (d.join("whole.exr"), d.join("cut.exr"), d.join("cut.toml"));
+    let (wj, cj) = (d.join("whole.json"), d.join("cut.json"));
+    let o = amr_render(
+        &[&[f][..], &common, &["-o", whole.to_str().unwrap()]]
+            .concat()
+            .into_iter()
+            .chain(["--stats-json", wj.to_str().unwrap()])
+            .collect::<Vec<_>>(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = amr_render(
+        &[&[f][..], &common]
+            .concat()
+            .into_iter()
+            .chain(["--clip", "-1,-1,-1,0.5,2,2", "-o", cut.to_str().unwrap()])
+            .chain(["--stats-json", cj.to_str().unwrap()])
+            .chain(["--write-scene", scene.to_str().unwrap()])
+            .collect::<Vec<_>>(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json = |p: &Path| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap()
+    };
+    let (w, c) = (json(&wj), json(&cj));
+    let active = |v: &serde_json::Value| v["active_octants"].as_u64().unwrap();
+    assert!(active(&c) < active(&w), "{c} vs {w}");
+    assert!(c["leaves_visited"].as_u64().unwrap() < w["leaves_visited"].as_u64().unwrap());
+    // The camera on the +x side sees the surface cut at x = 0.5: further away than the whole one.
+    let (zw, zc) = (
+        read_channel(&whole, "Z").unwrap().2,
+        read_channel(&cut, "Z").unwrap().2,
+    );
+    let deeper = zw
+        .iter()
+        .zip(&zc)
+        .filter(|(a, b)| a.is_finite() && b.is_finite() && **b > **a + 0.05)
+        .count();
+    let seen = zc.iter().filter(|z| z.is_finite()).count();
+    assert!(
+        deeper > seen / 2,
+        "{deeper} of {seen} pixels see through the cut"
+    );
+    assert!(seen > 200, "{seen} pixels");
+    assert!(zc
+        .iter()
+        .filter(|z| z.is_finite())
+        .all(|&z| z >= 2.0 - 1e-4));
+    let text = std::fs::read_to_string(&scene).unwrap();
+    assert!(text.contains("clip = \"-1,-1,-1,0.5,2,2\""), "{text}");
+    let again = d.join("again.exr");
+    let o = amr_render(&[scene.to_str().unwrap(), "-o", again.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(bits(&cut, "Z"), bits(&again, "Z"));
+}
+
+#[test]
+fn extraction_in_view_renders_the_same_frame_with_less() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let d = dir.path();
+    let f = file.to_str().unwrap();
+    let common = [
+        f,
+        "--iso",
+        "10",
+        "--iso",
+        "5:#3070ff:0.4",
+        "--size",
+        "40x30",
+        "--no-shadows",
+        "--ao",
+        "0",
+        "--camera-pos",
+        "0.9,-0.2,0.6",
+        "--look-at",
+        "0.45,0.45,0.45",
+        "--fov",
+        "20",
+    ];
+    let run = |name: &str, extra: &[&str]| -> serde_json::Value {
+        let out = d.join(format!("{name}.exr"));
+        let json = d.join(format!("{name}.json"));
+        let args: Vec<&str> = common
+            .iter()
+            .copied()
+            .chain(extra.iter().copied())
+            .chain([
+                "-o",
+                out.to_str().unwrap(),
+                "--stats-json",
+                json.to_str().unwrap(),
+            ])
+            .collect();
+        let o = amr_render(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap()
+    };
+    let whole = run("whole", &[]);
+    let limited = run("limited", &["--extract-in-view"]);
+    let a = |v: &serde_json::Value| v["active_octants"].as_u64().unwrap();
+    assert!(a(&limited) < a(&whole), "{limited} vs {whole}");
+    for c in ["R", "G", "B", "A", "Z"] {
+        assert_eq!(
+            bits(&d.join("whole.exr"), c),
+            bits(&d.join("limited.exr"), c),
+            "channel {c}"
+        );
+    }
+    // An orbit extracts again for each camera.
+    let orbit: Vec<serde_json::Value> = match run("orbit", &["--extract-in-view", "--orbit", "3"]) {
+        serde_json::Value::Array(v) => v,
+        other => panic!("{other}"),
+    };
+    assert_eq!(orbit.len(), 3);
+    assert!(
+        orbit
+            .iter()
+            .all(|s| s["leaves_visited"].as_u64().unwrap() > 0),
+        "{orbit:?}"
+    );
+}
+
+#[test]
 fn every_exr_compression_writes_the_same_channels_and_says_which_it_used() {
     let dir = tempfile::tempdir().unwrap();
     let file = blobs(dir.path());

@@ -283,3 +283,28 @@ fn a_bad_file_under_mpirun_is_one_clear_error() {
     assert!(!o.status.success(), "{err}");
     assert_eq!(err.matches("missing.amrk").count(), 1, "{err}");
 }
+
+#[test]
+fn a_clip_or_view_limited_extraction_under_mpirun_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dataset(dir.path());
+    let out = dir.path().join("x.exr");
+    for extra in [&["--clip", "0,0,0,0.5,1,1"][..], &["--extract-in-view"]] {
+        let o = Command::new(mpirun())
+            .args(["--oversubscribe", "--bind-to", "none", "-n", "1"])
+            .arg(env!("CARGO_BIN_EXE_amr-render"))
+            .args(render_args(&file, &out, extra))
+            .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+            .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+            .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{extra:?}: {err}");
+        assert!(
+            err.contains("not supported under mpirun"),
+            "{extra:?}: {err}"
+        );
+        assert!(!out.exists());
+    }
+}

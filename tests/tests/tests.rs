@@ -14,6 +14,8 @@
 //! Reconstruction and extraction, on seeded random hierarchies:
 //! - [`reconstruct_continuity`]: the octant method is continuous across level boundaries.
 //! - [`extract_reference`]: extraction equals a brute-force reference.
+//! - [`extract_region`]: extraction in a clip box or a view frustum equals the whole extraction
+//!   filtered.
 //! - [`hybrid_current_nearest`]: the `current` and `nearest` voxels.
 //! - [`sample_scratch`]: point samples through a per-thread scratch equal fresh samples.
 //!
@@ -21,6 +23,8 @@
 //! - [`render_watertight`] and [`render_watertight_amrk`]: no ray leaks through a closed surface.
 //! - [`render_accuracy`]: the hybrid method against the sample method.
 //! - [`render_golden`]: a golden image.
+//! - [`render_clip`]: a clip box cuts surfaces open; view-limited extraction renders the view
+//!   bit for bit.
 //! - [`scene_api`]: the library's scene, views and isovalue changes.
 //! - [`pictures`]: surfaces painted by a second field, slices, outlines, default field and
 //!   isovalue, against the analytic fields.
@@ -40,11 +44,13 @@ mod chombo_errors;
 mod enzo_bench;
 mod enzo_convert;
 mod extract_reference;
+mod extract_region;
 mod hybrid_current_nearest;
 mod pictures;
 mod reconstruct_continuity;
 mod render_accuracy;
 mod render_bench;
+mod render_clip;
 mod render_golden;
 mod render_watertight;
 mod render_watertight_amrk;

@@ -17,7 +17,7 @@ use amr_format::IBox;
 
 use crate::error::{RenderError, Result};
 
-use super::over_candidate_leaves;
+use super::{candidate_leaves, over_leaves};
 use crate::reconstruct::interp::{min_max, straddles};
 use crate::reconstruct::Sampler;
 use crate::voxel::Voxel;
@@ -60,7 +60,12 @@ impl<'s, 'f, D: AsRef<[u8]> + Sync> CurrentVoxels<'s, 'f, D> {
     /// Refs of the voxels whose corner values `v` satisfy `min v < iso <= max v`, in leaf order
     /// and sorted within each leaf.
     pub fn extract(&self, iso: f32) -> Result<Vec<u64>> {
-        over_candidate_leaves(self.sampler, iso, |leaf| self.extract_leaf(leaf, iso))
+        self.extract_leaves(iso, &candidate_leaves(self.sampler, iso))
+    }
+
+    /// [`Self::extract`] over the given `leaves` only, in the order given.
+    pub fn extract_leaves(&self, iso: f32, leaves: &[u32]) -> Result<Vec<u64>> {
+        over_leaves(leaves, |leaf| self.extract_leaf(leaf, iso))
     }
 
     fn extract_leaf(&self, leaf: u32, iso: f32) -> Result<Vec<u64>> {

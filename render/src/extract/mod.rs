@@ -9,6 +9,7 @@
 //! - [`leaf_tree`]: a box tree over the leaves, for region queries of ranges and levels.
 //! - [`tight`]: per-leaf ranges from cell values, computed once, skipping leaves the file's
 //!   looser stored ranges let through.
+//! - [`region`]: limiting an extraction to a clip box or a view frustum.
 //! - [`stats`]: what an extraction did.
 //! - [`current`] and [`nearest`]: the active voxels of the `current` and `nearest`
 //!   reconstructions, for the hybrid tracer's comparisons.
@@ -27,6 +28,7 @@ pub mod leaf_tree;
 pub mod local;
 pub mod nearest;
 pub mod refs;
+pub mod region;
 pub mod stats;
 pub mod tight;
 pub mod vertices;
@@ -46,6 +48,7 @@ use blocks::BlockRanges;
 use leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
 use leaf_tree::LeafTree;
 pub use refs::{make_ref, split_ref, LocalVoxel, DUAL_BASE};
+pub use region::Region;
 pub use stats::ExtractStats;
 use tight::TightRanges;
 
@@ -393,10 +396,16 @@ pub fn over_candidate_leaves<D: AsRef<[u8]> + Sync>(
     iso: f32,
     per_leaf: impl Fn(u32) -> Result<Vec<u64>> + Sync,
 ) -> Result<Vec<u64>> {
-    let parts: Vec<Result<Vec<u64>>> = candidate_leaves(sampler, iso)
-        .par_iter()
-        .map(|&leaf| per_leaf(leaf))
-        .collect();
+    over_leaves(&candidate_leaves(sampler, iso), per_leaf)
+}
+
+/// The refs `per_leaf` gives for each of `leaves`, in parallel, concatenated in the order given;
+/// the first error stops it.
+pub fn over_leaves(
+    leaves: &[u32],
+    per_leaf: impl Fn(u32) -> Result<Vec<u64>> + Sync,
+) -> Result<Vec<u64>> {
+    let parts: Vec<Result<Vec<u64>>> = leaves.par_iter().map(|&leaf| per_leaf(leaf)).collect();
     let mut refs = Vec::new();
     for p in parts {
         refs.extend_from_slice(&p?);

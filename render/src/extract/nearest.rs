@@ -19,7 +19,7 @@ use amr_format::IBox;
 
 use crate::error::{RenderError, Result};
 
-use super::over_candidate_leaves;
+use super::{candidate_leaves, over_leaves};
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::{LeafCell, Sampler};
 use crate::voxel::Voxel;
@@ -65,7 +65,12 @@ impl<'s, 'f, D: AsRef<[u8]> + Sync> NearestFaces<'s, 'f, D> {
     /// Refs of the faces between a cell below `iso` and one at or above it (`min < iso <= max`
     /// of the two values), in leaf order and sorted within each leaf.
     pub fn extract(&self, iso: f32) -> Result<Vec<u64>> {
-        over_candidate_leaves(self.sampler, iso, |leaf| self.extract_leaf(leaf, iso))
+        self.extract_leaves(iso, &candidate_leaves(self.sampler, iso))
+    }
+
+    /// [`Self::extract`] over the given `leaves` only, in the order given.
+    pub fn extract_leaves(&self, iso: f32, leaves: &[u32]) -> Result<Vec<u64>> {
+        over_leaves(leaves, |leaf| self.extract_leaf(leaf, iso))
     }
 
     /// The leaf cell holding level-`level` cell `cell`'s lowest finest cell; `None` outside the

@@ -16,7 +16,7 @@ use thread_local::ThreadLocal;
 use crate::error::{RenderError, Result};
 use crate::extract::current::CurrentVoxels;
 use crate::extract::nearest::NearestFaces;
-use crate::extract::{ExtractStats, Extraction, Extractor};
+use crate::extract::{candidate_leaves, ExtractStats, Extraction, Extractor, Region};
 use crate::mapping::PageRelease;
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
@@ -143,6 +143,35 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
             Voxels::Octant(e) => e.extract(iso),
             Voxels::Current(s) => self.timed(iso, || CurrentVoxels::new(s).extract(iso)),
             Voxels::Nearest(s) => self.timed(iso, || NearestFaces::new(s).extract(iso)),
+        }
+    }
+
+    /// [`Self::extract`] limited to `region` (see [`Region`]): only the leaves whose voxels may
+    /// meet it are visited, only the voxels whose box meets it are kept.
+    pub fn extract_in(&self, iso: f32, region: &Region) -> Result<Extraction> {
+        if region.is_everything() {
+            return self.extract(iso);
+        }
+        // The refs of the candidate leaves that may meet the region, kept by their decoded boxes.
+        let in_region = |leaves_of: &dyn Fn(&[u32]) -> Result<Vec<u64>>,
+                         decode: &dyn Fn(u64) -> Result<Voxel>|
+         -> Result<Vec<u64>> {
+            let s = self.sampler();
+            let leaves = region.leaves(s, candidate_leaves(s, iso));
+            let mut refs = leaves_of(&leaves)?;
+            region.retain_refs(&mut refs, |r| decode(r).map(|v| (v.lo, v.hi)))?;
+            Ok(refs)
+        };
+        match &self.voxels {
+            Voxels::Octant(e) => e.extract_in(iso, region),
+            Voxels::Current(s) => self.timed(iso, || {
+                let v = CurrentVoxels::new(s);
+                in_region(&|l| v.extract_leaves(iso, l), &|r| v.decode(r))
+            }),
+            Voxels::Nearest(s) => self.timed(iso, || {
+                let v = NearestFaces::new(s);
+                in_region(&|l| v.extract_leaves(iso, l), &|r| v.decode(r))
+            }),
         }
     }
 

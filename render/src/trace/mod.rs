@@ -1,6 +1,7 @@
 //! Ray tracing implicit isosurfaces: rays in grid coordinates, exact ray-voxel intersection,
 //! and closest-hit and any-hit traversal of a BVH over active voxels.
 
+pub mod clipped;
 pub mod cubic;
 pub mod face;
 pub mod field_source;
@@ -10,6 +11,7 @@ pub mod source;
 pub mod tracer;
 pub mod traverse;
 
+pub use clipped::ClippedTracer;
 pub use field_source::FieldSource;
 pub use ray::GridRay;
 pub use source::{GridFrame, Voxel, VoxelSource};

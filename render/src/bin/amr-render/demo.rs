@@ -82,6 +82,8 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         slice_field: None,
         frame_domain: false,
         series_color_range: false,
+        clip: None,
+        extract_in_view: false,
     };
     render_all(&request)
 }

@@ -3,8 +3,10 @@
 
 use std::path::PathBuf;
 
-use amr_render::extract::{ExtractStats, Extractor};
+use amr_render::extract::{ExtractStats, Extractor, Region};
 use amr_render::mapping::{open_mapped, PageRelease};
+use amr_render::trace::GridFrame;
+use amr_render::ClipBox;
 use anyhow::{bail, Context};
 use serde::Serialize;
 
@@ -28,6 +30,9 @@ pub struct ExtractArgs {
     /// Budget of the decompressed-brick cache in MiB (compressed files only).
     #[arg(long, default_value_t = 2048)]
     pub cache_mib: usize,
+    /// Extracts only the voxels that meet this box (world coordinates), as `--clip` of a render.
+    #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", allow_hyphen_values = true)]
+    pub clip: Option<String>,
     /// Writes the statistics of every run as a JSON array to this file.
     #[arg(long)]
     pub stats_json: Option<PathBuf>,
@@ -47,6 +52,13 @@ pub fn run(args: &ExtractArgs) -> anyhow::Result<()> {
     if let Some(bad) = args.iso.iter().find(|v| !v.is_finite()) {
         bail!("isovalue {bad} is not a finite number");
     }
+    let clip = match &args.clip {
+        Some(text) => Some(
+            text.parse::<ClipBox>()
+                .map_err(|e| anyhow::anyhow!("--clip: {e}"))?,
+        ),
+        None => None,
+    };
     if let Some(out) = &args.stats_json {
         amr_format::output::check_output(out, &[&args.file])?;
     }
@@ -65,11 +77,18 @@ pub fn run(args: &ExtractArgs) -> anyhow::Result<()> {
     let mut extractor =
         Extractor::new(&file, field, args.cache_mib << 20).map_err(|e| e.in_file(&args.file))?;
     extractor.set_page_release(PageRelease::new(&file));
+    let frame = GridFrame::of_grid(extractor.sampler().grid());
+    let mut region = Region::default();
+    if let Some(c) = clip {
+        c.check_overlaps(&frame)
+            .map_err(|e| e.in_file(&args.file))?;
+        region.bounds = Some(c.to_grid(&frame));
+    }
     let mut all: Vec<ExtractStats> = Vec::new();
     for &iso in &args.iso {
         for _ in 0..args.runs.max(1) {
             let result = extractor
-                .extract(iso)
+                .extract_in(iso, &region)
                 .map_err(|e| e.in_file(&args.file))
                 .with_context(|| format!("extracting iso {iso}"))?;
             println!("{}", result.stats);

@@ -78,7 +78,26 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             unreachable!("a scene was opened above");
         };
         let isos = anim.isos(base_isos, k);
+        // In view: the first extraction of a file is limited to its frame's view; a later frame
+        // extracts the new isovalues in the previous view, then everything again if the camera
+        // moved (the statistics then report that last extraction).
+        let in_view = match request.extract_in_view {
+            true => {
+                if cameras.is_empty() {
+                    cameras = anim.cameras(&request.view.camera(&scene.grid_frame())?)?;
+                }
+                Some(View {
+                    camera: Some(cameras[k as usize]),
+                    ..base_view.clone()
+                })
+            }
+            false => None,
+        };
+        if scene.extract_view().is_none() {
+            scene.set_extract_view(in_view.as_ref())?;
+        }
         scene.set_isosurfaces(&isos)?;
+        scene.set_extract_view(in_view.as_ref())?;
         scene.set_color_by(&painting(request, isos.len()))?;
         if cameras.is_empty() {
             let view = match request.frame_domain {
@@ -163,6 +182,7 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
 /// The scene of the request's `index`-th file, with its slices.
 fn open_scene(request: &RenderRequest, index: usize) -> anyhow::Result<Scene> {
     let mut scene = Scene::open(&request.files[index], &request.scene)?;
+    scene.set_clip(request.clip)?;
     if !request.slices.is_empty() {
         scene.set_slices(&request.slices, request.slice_field.clone())?;
     }

@@ -21,6 +21,9 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let request = args.request()?;
     let work = || -> anyhow::Result<()> {
         if launched_by_mpirun() {
+            if request.clip.is_some() || request.extract_in_view {
+                bail!("--clip and --extract-in-view are not supported under mpirun");
+            }
             #[cfg(feature = "mpi")]
             return crate::mpi::run::run(&request, args.mpi_mode.as_deref());
             #[cfg(not(feature = "mpi"))]

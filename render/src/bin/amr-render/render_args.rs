@@ -7,8 +7,8 @@ use amr_render::camera_path::CameraKey;
 use amr_render::output::exr_file::ExrCompression;
 use amr_render::shade::IsoSpec;
 use amr_render::{
-    CameraPlacement, ColorBy, ColorScale, Colormap, Outline, Reconstruction, SceneOptions, Slice,
-    TraceMethod, View,
+    CameraPlacement, ClipBox, ColorBy, ColorScale, Colormap, Outline, Reconstruction, SceneOptions,
+    Slice, TraceMethod, View,
 };
 use anyhow::bail;
 use clap::Args;
@@ -119,6 +119,17 @@ pub struct RenderArgs {
     /// Camera up vector.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub up: Option<[f64; 3]>,
+    /// Cut the isosurfaces to this box (world coordinates, like --camera-pos) for a cut-away:
+    /// only voxels that meet it are extracted, and the surfaces behind the cut show through
+    /// the opening. Slices are not cut.
+    #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", allow_hyphen_values = true)]
+    pub clip: Option<String>,
+    /// Extract only the leaves the camera's view frustum may see (again for each camera of an
+    /// animation). The frame is the same as the whole extraction's with --no-shadows --ao 0;
+    /// otherwise surfaces out of view cast no shadows or occlusion into it. Without
+    /// --camera-pos the camera frames the domain.
+    #[arg(long)]
+    pub extract_in_view: bool,
     /// Vertical field of view, degrees.
     #[arg(
         long,
@@ -198,6 +209,10 @@ pub struct RenderRequest {
     pub series_color_range: bool,
     /// Frames after the first: a camera path, an isovalue sweep, a time series.
     pub animation: Animation,
+    /// The box the surfaces are cut to.
+    pub clip: Option<ClipBox>,
+    /// Extraction limited to each frame's view frustum.
+    pub extract_in_view: bool,
 }
 
 /// Where a frame and its statistics go.
@@ -268,6 +283,13 @@ impl RenderArgs {
             );
         }
         view.validate()?;
+        let clip = match &self.clip {
+            Some(text) => Some(
+                text.parse::<ClipBox>()
+                    .map_err(|e| anyhow::anyhow!("--clip: {e}"))?,
+            ),
+            None => None,
+        };
         if self.fps == 0 || self.fps > 240 {
             bail!("--fps {} must be between 1 and 240", self.fps);
         }
@@ -308,6 +330,8 @@ impl RenderArgs {
             slice_field: self.slice_field.clone(),
             series_color_range: self.color_range == Some(ColorRange::AutoSeries),
             frame_domain: self.frame_domain,
+            clip,
+            extract_in_view: self.extract_in_view,
         })
     }
 }

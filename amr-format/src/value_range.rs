@@ -50,7 +50,6 @@ impl RangeAccumulator {
     }
 
     /// The range so far: `(+inf, -inf)` when empty.
-    #[inline]
     pub fn range(&self) -> (f32, f32) {
         (
             self.lo.iter().copied().fold(f32::INFINITY, f32::min),

@@ -219,40 +219,18 @@ fn fold_blocks(
     }
 }
 
-/// The range of the cells `cells` (inside the brick's cells `bc`) of brick data `values`:
-/// whole planes as one run, short rows (most bounds ask for a few cells) without the lanes.
+/// The range of the cells `cells` (inside the brick's cells `bc`) of brick data `values`.
 fn scan(values: &[f32], bc: &IBox, cells: &IBox) -> (f32, f32) {
+    let mut range = RangeAccumulator::new();
     let e = bc.extent();
     let (row, slab) = (e[0] as usize, (e[0] * e[1]) as usize);
     let w = cells.extent()[0] as usize;
-    let rows = cells.extent()[1] as usize;
     let mut z_start = bc.linear_index(cells.lo);
-    if w < 16 {
-        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        for _ in cells.lo[2]..cells.hi[2] {
-            let mut src = z_start;
-            for _ in 0..rows {
-                for &v in &values[src..src + w] {
-                    // Comparisons, not f32::min: a NaN compares false and is left out.
-                    lo = if v < lo { v } else { lo };
-                    hi = if v > hi { v } else { hi };
-                }
-                src += row;
-            }
-            z_start += slab;
-        }
-        return (lo, hi);
-    }
-    let mut range = RangeAccumulator::new();
     for _ in cells.lo[2]..cells.hi[2] {
-        if w == row {
-            range.add(&values[z_start..z_start + rows * row]);
-        } else {
-            let mut src = z_start;
-            for _ in 0..rows {
-                range.add(&values[src..src + w]);
-                src += row;
-            }
+        let mut src = z_start;
+        for _ in cells.lo[1]..cells.hi[1] {
+            range.add(&values[src..src + w]);
+            src += row;
         }
         z_start += slab;
     }

@@ -23,7 +23,8 @@ use super::tight::box_range;
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::Sampler;
 
-/// Cells per axis of a part (rounded up to whole stored blocks).
+/// Cells per axis of a part (rounded up to whole stored blocks): 8 took fewer instructions than
+/// 4 or 16 on the 1e7-cell `blobs` file (`docs/benchmarks-extract.md`).
 pub const PART_CELLS: i64 = 8;
 
 /// [`extract_leaf`] of `frame`, part by part when the file stores block ranges and the leaf
@@ -38,11 +39,7 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
     let Some(block) = sampler.file().block_cells().map(i64::from) else {
         return extract_leaf(sampler, frame, iso, scratch, out);
     };
-    let part: i64 = std::env::var("AMR_PART")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(PART_CELLS);
-    let k = (part + block - 1) / block * block;
+    let k = (PART_CELLS + block - 1) / block * block;
     let c = frame.cells;
     if c.extent().iter().all(|&e| e <= k) {
         return extract_leaf(sampler, frame, iso, scratch, out);

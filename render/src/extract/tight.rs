@@ -15,7 +15,8 @@
 //!   count whole, so the cost is the nodes along the region's boundary.
 //!
 //! A leaf whose tight range does not hold the isovalue has no active voxel and is skipped before
-//! its neighbourhood is built.
+//! its neighbourhood is built. The argument holds point by point, so [`box_range`] bounds a part
+//! of a leaf the same way ([`super::parts`]).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 

@@ -15,9 +15,9 @@ pub enum FormatError {
         at: &'static str,
     },
     /// The file was written with a layout this reader does not know.
-    #[error("layout version {got} is not supported (this build reads version {expected}); upgrade amr-render or re-convert")]
+    #[error("layout version {got} is not supported (this build reads versions 1 to {expected}); upgrade amr-render or re-convert")]
     Version {
-        /// The version this build reads.
+        /// The newest version this build reads.
         expected: u32,
         /// The version the file declares.
         got: u32,

@@ -2,12 +2,14 @@
 //! in integer finest-level coordinates, laid out to be memory-mapped and read in place.
 //!
 //! - [`raw`]: the on-disk structs, nothing else.
+//! - [`blocks`]: block range tables (the value range of each `4^3` block of a brick).
 //! - [`AmrkWriter`]: streams bricks into a new file and writes the tables and tree last.
 //! - [`AmrkFile`]: opens a file from any bytes (`Vec<u8>`, a memory map) in O(metadata),
 //!   validating every count and offset; [`AmrkFile::verify`] checks everything else.
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod blocks;
 pub mod compress;
 pub mod error;
 pub mod geometry;

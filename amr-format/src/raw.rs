@@ -9,8 +9,13 @@ use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 /// First eight bytes of the file and of the footer.
 pub const MAGIC: [u8; 8] = *b"\x89AMRK\r\n\x1a";
-/// Layout version: changes only when the byte layout changes.
-pub const LAYOUT_VERSION: u32 = 1;
+/// Layout version: changes only when the byte layout changes. Version 2 added the block range
+/// tables ([`Footer::block_tables`]).
+pub const LAYOUT_VERSION: u32 = 2;
+/// The oldest layout version readers still open (version 1: no block range tables).
+pub const OLDEST_LAYOUT_VERSION: u32 = 1;
+/// Cells per axis of the blocks the writer's block range tables cover.
+pub const BLOCK_CELLS: u32 = 4;
 /// Alignment of every section and of every brick's data.
 pub const ALIGN: u64 = 64;
 
@@ -107,8 +112,13 @@ pub struct Footer {
     pub brick_list: Section,
     /// UTF-8 field names.
     pub strings: Section,
+    /// Version 2: [`Section`] × num_fields, inside the metadata: where each field's
+    /// [`BlockRange`] table lies in the data area. Zero (reserved) in version 1.
+    pub block_tables: Section,
+    /// Version 2: cells per axis of a block of the block range tables. Zero in version 1.
+    pub block_cells: U32,
     /// Zero.
-    pub reserved1: [u8; 48],
+    pub reserved1: [u8; 28],
     /// When in the simulation the data was written, where the input said.
     pub simulation: SimulationStamp,
     /// CRC-32 of the metadata region.
@@ -225,6 +235,20 @@ pub struct LeafRange {
     pub max: F32,
 }
 
+/// The value range of one block of a brick's cells, for one field (8 bytes, version 2).
+///
+/// A field's table holds, brick after brick in brick order, the blocks of each brick's cells
+/// (`block_cells` per axis, the last block along an axis cut short by the brick's end), x
+/// fastest; a brick's entries start after those of every brick before it.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+pub struct BlockRange {
+    /// Smallest value of the block's cells.
+    pub min: F32,
+    /// Largest value of the block's cells.
+    pub max: F32,
+}
+
 const _: () = assert!(size_of::<Header>() == 64);
 const _: () = assert!(size_of::<Section>() == 16);
 const _: () = assert!(size_of::<Footer>() == 256);
@@ -236,6 +260,7 @@ const _: () = assert!(size_of::<BrickData>() == 32);
 const _: () = assert!(size_of::<KdNode>() == 8);
 const _: () = assert!(size_of::<KdLeaf>() == 32);
 const _: () = assert!(size_of::<LeafRange>() == 8);
+const _: () = assert!(size_of::<BlockRange>() == 8);
 
 /// Rounds `x` up to the next multiple of [`ALIGN`].
 pub const fn align_up(x: u64) -> u64 {

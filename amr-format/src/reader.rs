@@ -10,14 +10,15 @@ use std::path::{Path, PathBuf};
 use zerocopy::little_endian::U32;
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout};
 
+use crate::blocks::block_count;
 use crate::compress::{decode_into, Encoding};
 use crate::error::{FormatError, Result};
 use crate::geometry::IBox;
 use crate::hierarchy::{MAX_BRICK_CELLS, MAX_BRICK_EXTENT, MAX_FINEST_EXTENT, MAX_LEVELS};
 use crate::kdtree::{KdNode, TreeView};
 use crate::raw::{
-    self, BrickData, BrickRecord, FieldRecord, Footer, Header, KdLeaf, LeafRange, LevelRecord,
-    Section,
+    self, BlockRange, BrickData, BrickRecord, FieldRecord, Footer, Header, KdLeaf, LeafRange,
+    LevelRecord, Section,
 };
 
 /// One level of an open file.
@@ -96,6 +97,10 @@ pub struct AmrkFile<D> {
     finest_domain: IBox,
     tree_depth: u32,
     path: Option<PathBuf>,
+    /// Version 2: cells per axis of a block, and each field's block range table's offset.
+    block_tables: Option<(u32, Vec<u64>)>,
+    /// Per brick: its first entry in a field's block range table (empty without tables).
+    block_starts: Vec<u64>,
 }
 
 impl<D: AsRef<[u8]>> AmrkFile<D> {
@@ -173,12 +178,15 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             finest_domain: IBox::default(),
             tree_depth: 0,
             path: None,
+            block_tables: None,
+            block_starts: Vec::new(),
         };
         file.check_sections()?;
         file.levels = file.read_levels()?;
         file.finest_domain = file.levels.last().map(|l| l.domain).unwrap_or_default();
         file.fields = file.read_fields()?;
         file.check_bricks()?;
+        file.check_block_tables()?;
         file.tree_depth = file.check_tree()?;
         file.check_leaves()?;
         Ok(file)
@@ -387,8 +395,34 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             .map(|r| r.brick_data.len.get() + r.leaf_ranges.len.get())
             .sum();
         out.push(("per-field brick and leaf tables".to_string(), per_field));
+        if self.block_tables.is_some() {
+            let tables: &[Section] = self.slice(&f.block_tables);
+            let bytes: u64 = tables.iter().map(|s| s.len.get()).sum();
+            out.push(("block range tables".to_string(), bytes));
+        }
         out.push(("footer".to_string(), size_of::<Footer>() as u64));
         out
+    }
+
+    /// Cells per axis of the blocks of the file's block range tables; `None` for a file of
+    /// layout version 1, which has none.
+    pub fn block_cells(&self) -> Option<u32> {
+        self.block_tables.as_ref().map(|(b, _)| *b)
+    }
+
+    /// The stored block range table of brick `brick` for field `field` (blocks of
+    /// [`Self::block_cells`] cells, x fastest; see [`crate::blocks`]), read in place; `None` for
+    /// a file of layout version 1. The entries' values are not checked at open (`verify` checks
+    /// them against the data).
+    pub fn block_ranges(&self, field: usize, brick: usize) -> Option<&[BlockRange]> {
+        let (_, offsets) = self.block_tables.as_ref()?;
+        let start = self.block_starts[brick];
+        let end = self.block_starts[brick + 1];
+        let size = size_of::<BlockRange>() as u64;
+        // In bounds: every table's length was checked at open against the total.
+        let bytes = &self.data.as_ref()[(offsets[field] + start * size) as usize..]
+            [..((end - start) * size) as usize];
+        Some(<[BlockRange]>::ref_from_bytes(bytes).expect("block ranges are unaligned records"))
     }
 
     fn brick_records(&self) -> &[BrickRecord] {
@@ -641,6 +675,74 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         Ok(())
     }
 
+    /// Layout version 2: the block size, and each field's block range table lies in the data area
+    /// with exactly the bricks' block count of entries, overlapping no field's data region nor
+    /// another table.
+    fn check_block_tables(&mut self) -> Result<()> {
+        let f = self.footer;
+        if f.layout_version.get() < 2 {
+            return Ok(());
+        }
+        let block = f.block_cells.get();
+        if !(1..=MAX_BRICK_EXTENT as u32).contains(&block) {
+            return Err(FormatError::Corrupt(format!(
+                "block range tables of {block} cells per axis"
+            )));
+        }
+        check_table(
+            "block tables",
+            &f.block_tables,
+            &f.metadata,
+            f.num_fields.get(),
+            size_of::<Section>(),
+        )?;
+        let mut starts = Vec::with_capacity(self.num_bricks() + 1);
+        let mut total = 0u64;
+        for i in 0..self.num_bricks() {
+            starts.push(total);
+            // Cannot overflow: bricks hold at most MAX_BRICK_CELLS cells, checked above.
+            total += block_count(&self.brick(i).cells, i64::from(block)).unwrap_or(0);
+        }
+        starts.push(total);
+        let want = total
+            .checked_mul(size_of::<BlockRange>() as u64)
+            .ok_or_else(|| FormatError::Corrupt("block tables overflow".into()))?;
+        let sections: Vec<Section> = self.slice::<Section>(&f.block_tables).to_vec();
+        let mut regions: Vec<(u64, u64)> = self
+            .fields
+            .iter()
+            .map(|fi| (fi.data.0, fi.data.0 + fi.data.1))
+            .collect();
+        let mut offsets = Vec::with_capacity(sections.len());
+        for (i, s) in sections.iter().enumerate() {
+            let end = end_of(s, "block table")?;
+            if s.offset.get() < size_of::<Header>() as u64 || end > f.metadata.offset.get() {
+                return Err(FormatError::Corrupt(format!(
+                    "field {i}: block table {}..{end} outside the data area",
+                    s.offset.get()
+                )));
+            }
+            if s.len.get() != want {
+                return Err(FormatError::Corrupt(format!(
+                    "field {i}: block table holds {} bytes, {total} blocks need {want}",
+                    s.len.get()
+                )));
+            }
+            regions.push((s.offset.get(), end));
+            offsets.push(s.offset.get());
+        }
+        regions.retain(|r| r.0 < r.1);
+        regions.sort_unstable();
+        if regions.windows(2).any(|w| w[0].1 > w[1].0) {
+            return Err(FormatError::Corrupt(
+                "a block table overlaps brick data or another block table".into(),
+            ));
+        }
+        self.block_starts = starts;
+        self.block_tables = Some((block, offsets));
+        Ok(())
+    }
+
     /// Walks the tree from the root, each node once: returns the depth of the deepest leaf.
     ///
     /// Checks that every node is reached exactly once (no cycle, no shared child, nothing
@@ -778,7 +880,7 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
 }
 
 fn check_version(got: u32) -> Result<()> {
-    if got != raw::LAYOUT_VERSION {
+    if !(raw::OLDEST_LAYOUT_VERSION..=raw::LAYOUT_VERSION).contains(&got) {
         return Err(FormatError::Version {
             expected: raw::LAYOUT_VERSION,
             got,

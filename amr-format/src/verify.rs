@@ -2,6 +2,7 @@
 
 use std::fmt;
 
+use crate::blocks::block_ranges;
 use crate::error::{FormatError, Result};
 use crate::geometry::IBox;
 use crate::kdtree::leaf_ranges;
@@ -34,7 +35,8 @@ impl fmt::Display for VerifyReport {
 }
 
 impl<D: AsRef<[u8]>> AmrkFile<D> {
-    /// Reads everything and checks it: every brick's checksum, values and stored range; that the
+    /// Reads everything and checks it: every brick's checksum, values, stored range and block
+    /// range table (version 2); that the
     /// leaves tile the domain with no gap or overlap; that each leaf lists exactly the bricks
     /// overlapping it, the unique finest covering one first; that every leaf range contains the
     /// conservative range recomputed from the data.
@@ -73,6 +75,20 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
                         self.brick_range(f, b),
                         (lo, hi)
                     )));
+                }
+                if let (Some(block), Some(stored)) = (self.block_cells(), self.block_ranges(f, b)) {
+                    let want = block_ranges(&values, &self.brick(b).cells, i64::from(block));
+                    let differs = want.len() != stored.len()
+                        || want
+                            .iter()
+                            .zip(stored)
+                            .any(|(w, s)| w.0 != s.min.get() || w.1 != s.max.get());
+                    if differs {
+                        return Err(FormatError::Corrupt(format!(
+                            "field '{}', brick {b}: the block range table does not match the data",
+                            field.name
+                        )));
+                    }
                 }
                 fmin = fmin.min(lo);
                 fmax = fmax.max(hi);

@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 use tempfile::NamedTempFile;
 use zerocopy::IntoBytes;
 
+use crate::blocks::{block_count, block_ranges};
 use crate::compress::encode_zstd_shuffled;
 use crate::error::{FormatError, Result};
 use crate::geometry::IBox;
@@ -23,8 +24,8 @@ use crate::hierarchy::HierarchySpec;
 use crate::kdtree::{self, KdTree, TreeBrick, TreeView};
 use crate::output;
 use crate::raw::{
-    self, align_up, BrickData, BrickRecord, FieldRecord, Footer, Header, LeafRange, LevelRecord,
-    Section,
+    self, align_up, BlockRange, BrickData, BrickRecord, FieldRecord, Footer, Header, LeafRange,
+    LevelRecord, Section,
 };
 use crate::value_range::finite_range;
 
@@ -78,6 +79,10 @@ pub struct AmrkWriter {
     data_end: u64,
     tree: KdTree,
     simulation: raw::SimulationStamp,
+    /// Per field: where its block range table starts in the file.
+    block_tables: Vec<Section>,
+    /// Per brick: its first entry in a field's block range table.
+    block_starts: Vec<u64>,
 }
 
 struct Spill {
@@ -106,6 +111,26 @@ impl AmrkWriter {
         let nb = spec.bricks.len();
         let mut written = vec![vec![None; nb]; spec.fields.len()];
         let mut data_end = align_up(size_of::<Header>() as u64);
+        // The block range tables come first, at places fixed now, so that each brick's entries
+        // are written with its data (sizes follow from the brick boxes alone).
+        let block = i64::from(raw::BLOCK_CELLS);
+        let mut block_starts = Vec::with_capacity(nb);
+        let mut blocks = 0u64;
+        for b in &spec.bricks {
+            block_starts.push(blocks);
+            blocks += block_count(&b.cells, block).unwrap_or(0);
+        }
+        let table_len = blocks * size_of::<BlockRange>() as u64;
+        let block_tables: Vec<Section> = (0..spec.fields.len())
+            .map(|_| {
+                let s = Section {
+                    offset: data_end.into(),
+                    len: table_len.into(),
+                };
+                data_end = align_up(data_end + table_len);
+                s
+            })
+            .collect();
         let spill = match opts.compression {
             Compression::None => {
                 // Fix every raw brick's place now: field after field, bricks in table order.
@@ -147,6 +172,8 @@ impl AmrkWriter {
             data_end,
             tree,
             simulation: raw::SimulationStamp::default(),
+            block_tables,
+            block_starts,
         })
     }
 
@@ -221,6 +248,19 @@ impl AmrkWriter {
                 "brick {brick} of field '{field_name}' was written twice"
             )));
         }
+        let table: Vec<BlockRange> = block_ranges(values, &spec.cells, i64::from(raw::BLOCK_CELLS))
+            .into_iter()
+            .map(|(lo, hi)| BlockRange {
+                min: lo.into(),
+                max: hi.into(),
+            })
+            .collect();
+        let at = self.block_tables[field].offset.get()
+            + self.block_starts[brick] * size_of::<BlockRange>() as u64;
+        self.file
+            .as_file()
+            .write_all_at(table.as_bytes(), at)
+            .map_err(|e| FormatError::io("writing a block range table", e))?;
         let raw_bytes = values.as_bytes();
         let record = match (&mut self.spill, self.compression) {
             (Some(spills), Compression::Zstd { level }) => {
@@ -387,6 +427,7 @@ impl AmrkWriter {
             strings.extend_from_slice(name.as_bytes());
         }
         let fields_sec = meta.push(fields.as_bytes())?;
+        let tables_sec = meta.push(self.block_tables.as_bytes())?;
         let strings_sec = meta.push(&strings)?;
         let (metadata, metadata_crc) = meta.finish()?;
 
@@ -409,7 +450,9 @@ impl AmrkWriter {
             leaves: leaves_sec,
             brick_list: list_sec,
             strings: strings_sec,
-            reserved1: [0; 48],
+            block_tables: tables_sec,
+            block_cells: raw::BLOCK_CELLS.into(),
+            reserved1: [0; 28],
             simulation: self.simulation,
             metadata_crc: metadata_crc.into(),
             footer_crc: 0.into(),

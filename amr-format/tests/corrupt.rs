@@ -82,10 +82,61 @@ fn flipped_metadata_byte_fails_open() {
 #[test]
 fn flipped_data_byte_fails_verify() {
     let mut b = valid_file(5);
-    b[64 + 5] ^= 0x01;
+    let at = AmrkFile::open(b.clone()).unwrap().brick_data(0, 0).offset as usize;
+    b[at + 5] ^= 0x01;
     let file = AmrkFile::open(b).expect("data damage is found by verify, not open");
     let e = file.verify().err().unwrap().to_string();
     assert!(e.contains("checksum mismatch in field"), "{e}");
+}
+
+/// The block range tables lie outside the checksummed metadata (they are read in place): a
+/// damaged entry is found by `verify`, which recomputes every table from the data.
+#[test]
+fn flipped_block_table_byte_fails_verify() {
+    let mut b = valid_file(5);
+    let f = footer_of(&b);
+    let tables = f.block_tables.offset.get() - f.metadata.offset.get();
+    let meta = &b[f.metadata.offset.get() as usize..];
+    let first = u64::from_le_bytes(meta[tables as usize..][..8].try_into().unwrap());
+    b[first as usize + 2] ^= 0x40;
+    let file = AmrkFile::open(b).expect("table damage is found by verify, not open");
+    let e = file.verify().err().unwrap().to_string();
+    assert!(e.contains("block range table does not match"), "{e}");
+}
+
+/// Block tables of the wrong length, outside the data area, over brick data, or of blocks of
+/// no cells are refused at open (checksums recomputed, so the structural checks must catch it).
+#[test]
+fn bad_block_tables_fail_open() {
+    let b = valid_file(9);
+    let f = footer_of(&b);
+    let at = (f.block_tables.offset.get() - f.metadata.offset.get()) as usize;
+    let meta_at = f.metadata.offset.get() as usize;
+    let section = |bytes: &mut Vec<u8>, offset: u64, len: u64| {
+        bytes[meta_at + at..][..8].copy_from_slice(&offset.to_le_bytes());
+        bytes[meta_at + at + 8..][..8].copy_from_slice(&len.to_le_bytes());
+        reseal_metadata(bytes);
+    };
+    let table = u64::from_le_bytes(b[meta_at + at..][..8].try_into().unwrap());
+    let len = u64::from_le_bytes(b[meta_at + at + 8..][..8].try_into().unwrap());
+    let data = AmrkFile::open(b.clone()).unwrap().brick_data(0, 0).offset;
+    for (offset, len, want) in [
+        (table, len - 8, "block table holds"),
+        (table, len + 8, "block table holds"),
+        (f.metadata.offset.get(), len, "outside the data area"),
+        (u64::MAX - 4, len, "offset overflows"),
+        (data, len, "overlaps brick data"),
+    ] {
+        let mut c = b.clone();
+        section(&mut c, offset, len);
+        let e = open_err(c);
+        assert!(e.contains(want), "{offset}+{len}: {e}");
+    }
+    let mut c = b.clone();
+    let mut g = footer_of(&c);
+    g.block_cells = 0.into();
+    reseal(&mut c, g);
+    assert!(open_err(c).contains("block range tables of 0 cells"));
 }
 
 #[test]

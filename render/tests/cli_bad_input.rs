@@ -54,7 +54,11 @@ fn truncated_and_flipped_files() {
     std::fs::write(&cut, &bytes[..bytes.len() - 10]).unwrap();
     expect_error(&cut, "truncated");
     let mut flipped = bytes.clone();
-    flipped[64 + 3] ^= 0x40;
+    let data = amr_format::AmrkFile::open(bytes.clone())
+        .unwrap()
+        .brick_data(0, 0)
+        .offset as usize;
+    flipped[data + 3] ^= 0x40;
     let data_flip = dir.path().join("flip.amrk");
     std::fs::write(&data_flip, &flipped).unwrap();
     let (code, _) = run(&["info", data_flip.to_str().unwrap()]);
@@ -63,6 +67,17 @@ fn truncated_and_flipped_files() {
     assert_eq!(code, 1);
     assert!(
         err.contains("checksum mismatch") && err.contains("flip.amrk"),
+        "{err}"
+    );
+    // A damaged block range table (version 2; outside the checksummed metadata) is found too.
+    let mut table_flip = bytes.clone();
+    table_flip[64 + 3] ^= 0x40;
+    let table_path = dir.path().join("table.amrk");
+    std::fs::write(&table_path, &table_flip).unwrap();
+    let (code, err) = run(&["verify", table_path.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(
+        err.contains("block range table") && err.contains("table.amrk"),
         "{err}"
     );
     assert_eq!(run(&["verify", good.to_str().unwrap()]).0, 0);

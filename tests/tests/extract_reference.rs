@@ -78,13 +78,20 @@ fn isovalues(
 /// Checks every isovalue of `case`; returns how many boundary cells extraction culled and how
 /// many leaves it skipped by their tight range.
 fn check_case(case: &Case) -> (u64, u64) {
+    let (culled, skipped, _) = check_case_parts(case);
+    (culled, skipped)
+}
+
+/// [`check_case`], also returning how many parts of large leaves extraction skipped.
+fn check_case_parts(case: &Case) -> (u64, u64, u64) {
     let (_, file) = build(case);
     check_file(&file, case.seed, &format!("seed {} ({case:?})", case.seed))
 }
 
 /// Checks random isovalues (from `seed`) of every field of `file`, naming it `name` in failures;
 /// returns how many boundary cells extraction culled and how many leaves it skipped.
-fn check_file(file: &AmrkFile<Vec<u8>>, seed: u64, name: &str) -> (u64, u64) {
+fn check_file(file: &AmrkFile<Vec<u8>>, seed: u64, name: &str) -> (u64, u64, u64) {
+    let mut parts = 0;
     let mut culled = 0;
     let mut skipped = 0;
     let mut rng = Rng(seed ^ 0x1234);
@@ -98,6 +105,7 @@ fn check_file(file: &AmrkFile<Vec<u8>>, seed: u64, name: &str) -> (u64, u64) {
             let result = ex.extract(iso).unwrap_or_else(|e| panic!("{ctx}: {e}"));
             culled += result.stats.culled_cells;
             skipped += result.stats.leaves_skipped;
+            parts += result.stats.parts_skipped;
             let refs = &result.refs;
             let want: HashSet<Octant> = octants
                 .iter()
@@ -214,7 +222,7 @@ fn check_file(file: &AmrkFile<Vec<u8>>, seed: u64, name: &str) -> (u64, u64) {
             assert!(result.stats.decompressions <= nb);
         }
     }
-    (culled, skipped)
+    (culled, skipped, parts)
 }
 
 #[test]
@@ -260,13 +268,32 @@ fn extraction_equals_brute_force_on_small_irregular_boxes() {
         )
         .unwrap();
         let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
-        let (c, s) = check_file(&file, seed, &format!("small boxes {params:?}"));
+        let (c, s, _) = check_file(&file, seed, &format!("small boxes {params:?}"));
         culled += c;
         skipped += s;
     }
     assert!(
         culled > 0 && skipped > 0,
         "culled {culled}, skipped {skipped}"
+    );
+}
+
+/// Bricks of 12 and 16 cells: leaves larger than a part of [`amr_render::extract::parts`], so
+/// that parts whose stored block ranges exclude the isovalue are skipped (blocks of 4 cells cut
+/// short at 12).
+#[test]
+fn extraction_equals_brute_force_on_large_leaves() {
+    let mut parts = 0;
+    for brick in [12, 16] {
+        for mut case in standard_cases(2).into_iter().filter(|c| c.levels <= 3) {
+            case.brick = brick;
+            case.zstd = case.seed % 2 == 1;
+            parts += check_case_parts(&case).2;
+        }
+    }
+    assert!(
+        parts > 0,
+        "no part of a leaf was skipped: the test does not exercise it"
     );
 }
 

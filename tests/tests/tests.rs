@@ -11,6 +11,9 @@
 //! - [`amrex_bench`], [`chombo_bench`] and [`enzo_bench`]: large inputs for the conversion
 //!   benchmarks (ignored).
 //!
+//! The file format:
+//! - [`format_versions`]: a frozen small file of every layout version opens and renders alike.
+//!
 //! Reconstruction and extraction, on seeded random hierarchies:
 //! - [`reconstruct_continuity`]: the octant method is continuous across level boundaries.
 //! - [`extract_reference`]: extraction equals a brute-force reference.
@@ -45,6 +48,7 @@ mod enzo_bench;
 mod enzo_convert;
 mod extract_reference;
 mod extract_region;
+mod format_versions;
 mod hybrid_current_nearest;
 mod pictures;
 mod reconstruct_continuity;

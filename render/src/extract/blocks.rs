@@ -1,40 +1,76 @@
-//! Per-brick tables of the value ranges of blocks of `4^3` cells, each built the first time its
-//! brick is asked for, so that the range of a box of a brick's cells costs one entry per block
-//! inside it and a scan of the cells around those blocks, not a scan of all its cells. A table
-//! takes 8 bytes per 64 cells (1/8 byte per cell, 3 % of the brick's f32 data), and only small
-//! bricks (at most `16^3` cells) near the leaves visited get one.
+//! Per-brick tables of the value ranges of blocks of cells, so that a bound over a box of a
+//! brick's cells costs one entry per block instead of a scan of its cells.
+//!
+//! A box's range is exact: the blocks lying inside it from the table, the slabs around them
+//! scanned. Files of layout version 2 store a table per brick and field (`amr_format::blocks`,
+//! written while the converter streams), read in place; they also give a looser bound read
+//! without touching the brick's data at all ([`BlockRanges::bound_in`]: the union of the blocks
+//! a box overlaps). Files of version 1 have none: a table of `4^3` blocks is built in memory the
+//! first time a box covering at least half of a small brick (at most `16^3` cells) asks; boxes
+//! of other bricks are scanned.
 
 use std::sync::OnceLock;
 
-use amr_format::{IBox, RangeAccumulator};
+use amr_format::blocks::{block_ranges, blocks_per_axis};
+use amr_format::{AmrkFile, IBox, RangeAccumulator};
 
 use crate::error::Result;
 use crate::reconstruct::Sampler;
 
-/// Cells per axis of a block.
+/// Cells per axis of a block of the tables built in memory (files of layout version 1).
 pub const BLOCK: i64 = 4;
-/// A brick gets a table when a box asks for blocks holding at least 1/`SHARE` of its cells
-/// (a smaller box is scanned: the table would read the whole brick for a small part of it).
+/// A brick gets a built table when a box asks for blocks holding at least 1/`SHARE` of its
+/// cells (a smaller box is scanned: the table would read the whole brick for a small part).
 const SHARE: i64 = 2;
-/// Only bricks of at most this many cells get a table: small bricks are where a leaf's region
-/// spans many bricks; larger ones are scanned as before, keeping the tables' memory small.
+/// Only bricks of at most this many cells get a built table: small bricks are where a leaf's
+/// region spans many bricks; larger ones are scanned, keeping the tables' memory small.
 const MAX_TABLE_CELLS: u64 = 16 * 16 * 16;
 
-/// The block range tables of every brick of one field, built on demand from any thread.
+/// The block range tables of every brick of one field: the file's, or built on demand from
+/// any thread.
 pub struct BlockRanges {
-    tables: Vec<OnceLock<Box<[(f32, f32)]>>>,
+    /// Cells per axis of the file's stored blocks; `None` when the tables are built.
+    stored: Option<i64>,
+    /// [`Self::range_in`] gives the looser [`Self::bound_in`] (stored tables only).
+    loose: bool,
+    built: Vec<OnceLock<Box<[(f32, f32)]>>>,
 }
 
 impl BlockRanges {
-    /// No table yet, for `bricks` bricks.
-    pub fn new(bricks: usize) -> Self {
+    /// The tables of `file`: its stored ones, or none built yet when it has none.
+    pub fn new<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> Self {
+        let stored = file.block_cells().map(i64::from);
+        let bricks = if stored.is_some() {
+            0
+        } else {
+            file.num_bricks()
+        };
         Self {
-            tables: (0..bricks).map(|_| OnceLock::new()).collect(),
+            stored,
+            loose: false,
+            built: (0..bricks).map(|_| OnceLock::new()).collect(),
         }
     }
 
-    /// The range of the cells of brick `brick` (of level `level`) that overlap the finest-level
-    /// box `part`; `(+inf, -inf)` when there are none (NaNs are left out).
+    /// The stored tables of the same file whose [`Self::range_in`] is [`Self::bound_in`]: bounds
+    /// that never read brick data. Without stored tables, ranges stay exact (and no table is
+    /// built: use `self` for that).
+    pub fn loose(&self) -> Self {
+        Self {
+            stored: self.stored,
+            loose: self.stored.is_some(),
+            built: Vec::new(),
+        }
+    }
+
+    /// True when the file stores its tables (bounds never read brick data).
+    pub fn stored(&self) -> bool {
+        self.stored.is_some()
+    }
+
+    /// The exact range of the cells of brick `brick` (of level `level`) that overlap the
+    /// finest-level box `part` ([`Self::bound_in`] for [`Self::loose`] tables); `(+inf, -inf)`
+    /// when there are none (NaNs are left out).
     pub fn range_in<D: AsRef<[u8]>>(
         &self,
         sampler: &Sampler<'_, D>,
@@ -42,11 +78,49 @@ impl BlockRanges {
         level: u32,
         part: &IBox,
     ) -> Result<(f32, f32)> {
+        if self.loose {
+            if let Some(bound) = self.bound_in(sampler, brick, level, part) {
+                return Ok(bound);
+            }
+        }
         let cells = sampler.grid().level_box(level, part);
         self.range_of_cells(sampler, brick, &cells)
     }
 
-    /// [`Self::range_in`] for the cells `cells` (indices of the brick's level).
+    /// A range holding the cells of brick `brick` (of level `level`) that overlap the
+    /// finest-level box `part`, read from the stored tables alone (the union of the blocks those
+    /// cells overlap), without touching the brick's data; `None` when the file stores no tables.
+    pub fn bound_in<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        brick: u32,
+        level: u32,
+        part: &IBox,
+    ) -> Option<(f32, f32)> {
+        let block = self.stored?;
+        let bc = sampler.brick_cells(brick);
+        let cells = sampler.grid().level_box(level, part).intersect(&bc);
+        let (mut x, mut y) = (f32::INFINITY, f32::NEG_INFINITY);
+        if cells.is_empty() {
+            return Some((x, y));
+        }
+        let lo = [0, 1, 2].map(|a| (cells.lo[a] - bc.lo[a]) / block);
+        let hi = [0, 1, 2].map(|a| (cells.hi[a] - bc.lo[a] + block - 1) / block);
+        let table = sampler
+            .file()
+            .block_ranges(sampler.field(), brick as usize)
+            .unwrap_or_default();
+        fold_blocks(&blocks_per_axis(&bc, block), (lo, hi), |row| {
+            for r in table.get(row).unwrap_or_default() {
+                x = x.min(r.min.get());
+                y = y.max(r.max.get());
+            }
+        });
+        Some((x, y))
+    }
+
+    /// The exact range of the cells `cells` (indices of the brick's level) of brick `brick`;
+    /// `(+inf, -inf)` when there are none (NaNs are left out).
     pub fn range_of_cells<D: AsRef<[u8]>>(
         &self,
         sampler: &Sampler<'_, D>,
@@ -61,21 +135,32 @@ impl BlockRanges {
         }
         // The blocks lying inside `cells` come from the table, the slabs around them are
         // scanned: the range is exact, and costs a table entry per block inside.
-        let inner_lo = [0, 1, 2].map(|a| (cells.lo[a] - bc.lo[a] + BLOCK - 1) / BLOCK);
-        let inner_hi = [0, 1, 2].map(|a| (cells.hi[a] - bc.lo[a]) / BLOCK);
-        let inner_cells: i64 = (0..3)
-            .map(|a| (inner_hi[a] - inner_lo[a]).max(0) * BLOCK)
-            .product();
-        let brick_cells = bc.num_cells().unwrap_or(u64::MAX);
-        let worth_a_table = self.tables[brick as usize].get().is_some()
-            || (brick_cells <= MAX_TABLE_CELLS && inner_cells * SHARE >= brick_cells as i64);
-        if (0..3).any(|a| inner_lo[a] >= inner_hi[a]) || !worth_a_table {
-            return Ok(exact_range(&sampler.values(brick)?, &bc, &cells));
+        let block = self.stored.unwrap_or(BLOCK);
+        let inner_lo = [0, 1, 2].map(|a| (cells.lo[a] - bc.lo[a] + block - 1) / block);
+        let inner_hi = [0, 1, 2].map(|a| (cells.hi[a] - bc.lo[a]) / block);
+        if (0..3).any(|a| inner_lo[a] >= inner_hi[a]) {
+            return Ok(scan(&sampler.values(brick)?, &bc, &cells));
+        }
+        if self.stored.is_none() {
+            let brick_cells = bc.num_cells().unwrap_or(u64::MAX);
+            let inner_cells: i64 = (0..3)
+                .map(|a| (inner_hi[a] - inner_lo[a]) * BLOCK)
+                .product();
+            let worth_a_table = match self.built.get(brick as usize) {
+                None => false,
+                Some(t) if t.get().is_some() => true,
+                Some(_) => {
+                    brick_cells <= MAX_TABLE_CELLS && inner_cells * SHARE >= brick_cells as i64
+                }
+            };
+            if !worth_a_table {
+                return Ok(scan(&sampler.values(brick)?, &bc, &cells));
+            }
         }
         let values = sampler.values(brick)?;
         let inner = IBox::new(
-            [0, 1, 2].map(|a| bc.lo[a] + inner_lo[a] * BLOCK),
-            [0, 1, 2].map(|a| bc.lo[a] + inner_hi[a] * BLOCK),
+            [0, 1, 2].map(|a| bc.lo[a] + inner_lo[a] * block),
+            [0, 1, 2].map(|a| bc.lo[a] + inner_hi[a] * block),
         );
         let mut rest = cells;
         for a in (0..3).rev() {
@@ -83,42 +168,59 @@ impl BlockRanges {
                 if slab.0 < slab.1 {
                     let mut part = rest;
                     (part.lo[a], part.hi[a]) = slab;
-                    let (x, y) = exact_range(&values, &bc, &part);
+                    let (x, y) = scan(&values, &bc, &part);
                     lo = lo.min(x);
                     hi = hi.max(y);
                 }
             }
             (rest.lo[a], rest.hi[a]) = (inner.lo[a], inner.hi[a]);
         }
-        let table = self.table(sampler, brick)?;
-        let n = blocks_per_axis(&bc);
-        for z in inner_lo[2]..inner_hi[2] {
-            for y in inner_lo[1]..inner_hi[1] {
-                let row = ((z * n[1] + y) * n[0]) as usize;
-                for &(a, b) in &table[row + inner_lo[0] as usize..row + inner_hi[0] as usize] {
-                    lo = lo.min(a);
-                    hi = hi.max(b);
+        let n = blocks_per_axis(&bc, block);
+        if self.stored.is_some() {
+            let table = sampler
+                .file()
+                .block_ranges(sampler.field(), brick as usize)
+                .unwrap_or_default();
+            fold_blocks(&n, (inner_lo, inner_hi), |row| {
+                for r in table.get(row).unwrap_or_default() {
+                    lo = lo.min(r.min.get());
+                    hi = hi.max(r.max.get());
                 }
-            }
+            });
+            return Ok((lo, hi));
         }
+        let slot = &self.built[brick as usize];
+        let table = match slot.get() {
+            Some(t) => t,
+            None => slot.get_or_init(|| block_ranges(&values, &bc, BLOCK).into_boxed_slice()),
+        };
+        fold_blocks(&n, (inner_lo, inner_hi), |row| {
+            for &(a, b) in &table[row] {
+                lo = lo.min(a);
+                hi = hi.max(b);
+            }
+        });
         Ok((lo, hi))
     }
+}
 
-    /// The table of brick `brick`, built on first need (NaNs are left out of the ranges).
-    fn table<D: AsRef<[u8]>>(&self, sampler: &Sampler<'_, D>, brick: u32) -> Result<&[(f32, f32)]> {
-        let slot = &self.tables[brick as usize];
-        if let Some(t) = slot.get() {
-            return Ok(t);
+/// Calls `f` with the table index range of each x-row of the blocks `lo..hi` (block indices) of
+/// a table of `n` blocks per axis.
+fn fold_blocks(
+    n: &[i64; 3],
+    (lo, hi): ([i64; 3], [i64; 3]),
+    mut f: impl FnMut(std::ops::Range<usize>),
+) {
+    for z in lo[2]..hi[2] {
+        for y in lo[1]..hi[1] {
+            let row = ((z * n[1] + y) * n[0]) as usize;
+            f(row + lo[0] as usize..row + hi[0] as usize);
         }
-        let bc = sampler.brick_cells(brick);
-        let values = sampler.values(brick)?;
-        let table = build_table(&values, &bc);
-        Ok(slot.get_or_init(|| table))
     }
 }
 
 /// The range of the cells `cells` (inside the brick's cells `bc`) of brick data `values`.
-fn exact_range(values: &[f32], bc: &IBox, cells: &IBox) -> (f32, f32) {
+fn scan(values: &[f32], bc: &IBox, cells: &IBox) -> (f32, f32) {
     let mut range = RangeAccumulator::new();
     let e = bc.extent();
     let (row, slab) = (e[0] as usize, (e[0] * e[1]) as usize);
@@ -133,53 +235,4 @@ fn exact_range(values: &[f32], bc: &IBox, cells: &IBox) -> (f32, f32) {
         z_start += slab;
     }
     range.range()
-}
-
-/// Blocks per axis of a brick whose cells are `bc`.
-fn blocks_per_axis(bc: &IBox) -> [i64; 3] {
-    bc.extent().map(|e| (e + BLOCK - 1) / BLOCK)
-}
-
-/// The block ranges of brick data `values` (cells `bc`, x fastest), blocks x fastest.
-fn build_table(values: &[f32], bc: &IBox) -> Box<[(f32, f32)]> {
-    let e = bc.extent().map(|v| v as usize);
-    let n = blocks_per_axis(bc).map(|v| v as usize);
-    let b = BLOCK as usize;
-    let mut table = vec![(f32::INFINITY, f32::NEG_INFINITY); n[0] * n[1] * n[2]];
-    for z in 0..e[2] {
-        for y in 0..e[1] {
-            let src = &values[(z * e[1] + y) * e[0]..][..e[0]];
-            let row = &mut table[(z / b * n[1] + y / b) * n[0]..][..n[0]];
-            for (slot, run) in row.iter_mut().zip(src.chunks(b)) {
-                for &v in run {
-                    // Comparisons, not f32::min: a NaN compares false and is left out.
-                    if v < slot.0 {
-                        slot.0 = v;
-                    }
-                    if v > slot.1 {
-                        slot.1 = v;
-                    }
-                }
-            }
-        }
-    }
-    table.into_boxed_slice()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn table_holds_each_blocks_range() {
-        let bc = IBox::new([10, 0, 0], [15, 6, 1]);
-        let values: Vec<f32> = (0..30).map(|i| i as f32).collect();
-        let table = build_table(&values, &bc);
-        // Blocks are 4 wide: x 0..4 and 4..5; y 0..4 and 4..6.
-        assert_eq!(table.len(), 4);
-        assert_eq!(table[0], (0.0, 18.0));
-        assert_eq!(table[1], (4.0, 19.0));
-        assert_eq!(table[2], (20.0, 28.0));
-        assert_eq!(table[3], (24.0, 29.0));
-    }
 }

@@ -58,6 +58,9 @@ pub struct LeafCounts {
     pub boundary: u64,
     /// Boundary cells skipped because their neighbourhood's bound excludes the isovalue.
     pub culled: u64,
+    /// Parts of the leaf skipped because their block bound excludes the isovalue
+    /// ([`super::parts`]).
+    pub parts_skipped: u64,
 }
 
 /// The level-`L` frame of a leaf: its level, finest brick, box of finest-level cells and box of
@@ -72,8 +75,11 @@ pub struct LeafFrame {
     pub brick: u32,
     /// Its box in finest-level cells, relative to the domain.
     pub finest: IBox,
-    /// The level-`level` cells (absolute indices) overlapping it: local cell indices count these.
+    /// The level-`level` cells (absolute indices) overlapping it.
     pub cells: IBox,
+    /// The level-`level` cells overlapping the whole leaf: local cell indices in references
+    /// count these (equal to `cells` unless this frame is a part of the leaf).
+    pub refs: IBox,
 }
 
 impl LeafFrame {
@@ -88,7 +94,18 @@ impl LeafFrame {
             brick,
             finest,
             cells,
+            refs: cells,
         })
+    }
+
+    /// The part of this frame inside finest-level box `finest` (a box inside the leaf): it
+    /// owns the voxels of the leaf whose lower corner lies in it, referenced as the leaf's.
+    pub fn part<D: AsRef<[u8]>>(&self, sampler: &Sampler<'_, D>, finest: IBox) -> Self {
+        Self {
+            finest,
+            cells: sampler.grid().level_box(self.level, &finest),
+            ..*self
+        }
     }
 
     /// True when the leaf owns the voxel whose lower corner is doubled point `lo`.
@@ -154,7 +171,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
             }
             for (k, m) in row_masks.iter().enumerate() {
                 if active(m) {
-                    let cell = frame.cells.linear_index([first[0] + k as i64, y, z]) as u32;
+                    let cell = frame.refs.linear_index([first[0] + k as i64, y, z]) as u32;
                     out.push(make_ref(frame.leaf, LocalVoxel::Dual { cell }));
                 }
             }
@@ -227,7 +244,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                         };
                         let (vlo, vhi) = min_max(&v);
                         if straddles(vlo, vhi, iso) {
-                            let local = frame.cells.linear_index(cell) as u32;
+                            let local = frame.refs.linear_index(cell) as u32;
                             out.push(make_ref(
                                 frame.leaf,
                                 LocalVoxel::Octant {

@@ -3,9 +3,12 @@
 //! - [`refs`]: the 64-bit references (`leaf << 32 | id`).
 //! - [`local`]: the classified level-`L` neighbourhood of a leaf.
 //! - [`leaf`]: the voxels one leaf owns: merged dual cells and boundary octants.
+//! - [`parts`]: a large leaf extracted part by part, skipping parts whose stored block ranges
+//!   exclude the isovalue.
 //! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue.
 //! - [`vertices`]: a leaf's boundary vertex values, computed once each.
-//! - [`blocks`]: per-brick ranges of `4^3`-cell blocks, for bounds that do not rescan cells.
+//! - [`blocks`]: per-brick ranges of blocks of cells (stored in the file, or built), for bounds
+//!   that do not rescan cells.
 //! - [`leaf_tree`]: a box tree over the leaves, for region queries of ranges and levels.
 //! - [`tight`]: per-leaf ranges from cell values, computed once, skipping leaves the file's
 //!   looser stored ranges let through.
@@ -27,6 +30,7 @@ pub mod leaf;
 pub mod leaf_tree;
 pub mod local;
 pub mod nearest;
+pub mod parts;
 pub mod refs;
 pub mod region;
 pub mod stats;
@@ -45,8 +49,9 @@ use crate::reconstruct::interp::straddles;
 use crate::reconstruct::{Locate, Octant, SampleScratch, Sampler, VertexMemo};
 pub use crate::voxel::Voxel;
 use blocks::BlockRanges;
-use leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
+use leaf::{LeafCounts, LeafFrame, Scratch};
 use leaf_tree::LeafTree;
+use parts::extract_in_parts;
 pub use refs::{make_ref, split_ref, LocalVoxel, DUAL_BASE};
 pub use region::Region;
 pub use stats::ExtractStats;
@@ -89,7 +94,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             .sum();
         Ok(Self {
             tight: TightRanges::new(file.num_leaves()),
-            blocks: BlockRanges::new(file.num_bricks()),
+            blocks: BlockRanges::new(file),
             leaves: LeafTree::new(&sampler),
             sampler,
             file_cells,
@@ -199,6 +204,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let mut refs = Vec::new();
         let mut evaluated = 0u64;
         let mut culled_cells = 0u64;
+        let mut parts_skipped = 0u64;
         let mut boundary_evaluated = 0u64;
         let mut leaves_skipped = 0u64;
         let mut touched: Option<u64> = None;
@@ -229,7 +235,13 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                         let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
                             return Ok((out, LeafCounts::default()));
                         };
-                        let counts = extract_leaf(&self.sampler, &frame, iso, scratch, &mut out)?;
+                        let counts = extract_in_parts(
+                            &self.sampler,
+                            &frame,
+                            iso,
+                            (scratch, (&self.blocks, &self.leaves)),
+                            &mut out,
+                        )?;
                         Ok((out, counts))
                     },
                 )
@@ -239,6 +251,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 refs.extend_from_slice(&part);
                 evaluated += n.evaluated;
                 culled_cells += n.culled;
+                parts_skipped += n.parts_skipped;
                 boundary_evaluated += n.boundary;
                 leaves_skipped += n.skipped;
             }
@@ -259,6 +272,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             evaluated,
             boundary_evaluated,
             culled_cells,
+            parts_skipped,
             file_cells: self.file_cells,
             seconds: start.elapsed().as_secs_f64(),
             threads: rayon::current_num_threads(),

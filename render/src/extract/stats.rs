@@ -27,6 +27,9 @@ pub struct ExtractStats {
     /// Cells next to a level boundary whose octants were skipped unevaluated, because the value
     /// bound of their neighbourhood excludes the isovalue.
     pub culled_cells: u64,
+    /// Parts of large leaves skipped whole because the stored block ranges around them exclude
+    /// the isovalue (files with block range tables).
+    pub parts_skipped: u64,
     /// Cells in the file (all bricks, all levels).
     pub file_cells: u64,
     /// Wall-clock seconds of the extraction.
@@ -60,7 +63,7 @@ impl fmt::Display for ExtractStats {
         write!(
             f,
             "field '{}' iso {}: {} active voxels ({} merged dual cells), {} of {} leaves visited ({} skipped by tight range), \
-             {} voxels evaluated ({} boundary octants; {} boundary cells culled), {:.3} s on {} threads ({:.1} M file cells per core-second, \
+             {} voxels evaluated ({} boundary octants; {} boundary cells culled; {} leaf parts skipped), {:.3} s on {} threads ({:.1} M file cells per core-second, \
              {:.1} M voxels per second), {} bricks decompressed",
             self.field,
             self.iso,
@@ -72,6 +75,7 @@ impl fmt::Display for ExtractStats {
             self.evaluated,
             self.boundary_evaluated,
             self.culled_cells,
+            self.parts_skipped,
             self.seconds,
             self.threads,
             self.cells_per_core_second() / 1e6,

@@ -15,12 +15,14 @@
 //!   count whole, so the cost is the nodes along the region's boundary.
 //!
 //! A leaf whose tight range does not hold the isovalue has no active voxel and is skipped before
-//! its neighbourhood is built.
+//! its neighbourhood is built. The argument holds point by point, so [`box_range`] bounds a part
+//! of a leaf the same way ([`super::parts`]).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::Result;
 use amr_format::kdtree::widen_range;
+use amr_format::IBox;
 
 use super::blocks::BlockRanges;
 use super::leaf_tree::LeafTree;
@@ -78,15 +80,27 @@ pub(super) fn unpack(bits: u64) -> (f32, f32) {
 /// round-off.
 fn compute<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
-    (blocks, leaves): (&BlockRanges, &LeafTree),
+    bounds: (&BlockRanges, &LeafTree),
     leaf: u32,
 ) -> Result<(f32, f32)> {
-    let empty = (f32::INFINITY, f32::NEG_INFINITY);
     let Some((_, level)) = sampler.leaf_top(leaf) else {
-        return Ok(empty);
+        return Ok((f32::INFINITY, f32::NEG_INFINITY));
     };
-    let grid = sampler.grid();
     let own = sampler.file().tree().leaf_box(leaf);
+    box_range(sampler, bounds, &own, level)
+}
+
+/// A range holding every corner of every voxel whose lower corner lies in the finest-level box
+/// `own` (the box of a leaf of level `level`, or a part of it), widened for round-off: the
+/// module's argument, which holds point by point.
+pub fn box_range<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    (blocks, leaves): (&BlockRanges, &LeafTree),
+    own: &IBox,
+    level: u32,
+) -> Result<(f32, f32)> {
+    let empty = (f32::INFINITY, f32::NEG_INFINITY);
+    let grid = sampler.grid();
     let margin = grid.scale(level);
     let hood = own.grow(margin);
     let mut coarsest = leaves.coarsest_touching(sampler, &hood).unwrap_or(level);

@@ -34,6 +34,8 @@ pub struct LeafTree {
     /// Leaf ids, each node's contiguous.
     order: Vec<u32>,
     ranges: Vec<AtomicU64>,
+    /// Per leaf, the range of its cells once asked.
+    leaf_ranges: Vec<AtomicU64>,
 }
 
 impl LeafTree {
@@ -46,10 +48,12 @@ impl LeafTree {
             build(sampler, &mut order, 0, &mut nodes);
         }
         let ranges = (0..nodes.len()).map(|_| AtomicU64::new(UNKNOWN)).collect();
+        let leaf_ranges = (0..n).map(|_| AtomicU64::new(UNKNOWN)).collect();
         Self {
             nodes,
             order,
             ranges,
+            leaf_ranges,
         }
     }
 
@@ -90,9 +94,46 @@ impl LeafTree {
         (best != u32::MAX).then_some(best)
     }
 
+    /// True when a leaf with data of a level coarser than `level` overlaps `region` (open
+    /// boxes: sharing a face does not count).
+    pub fn any_coarser_overlapping<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        region: &IBox,
+        level: u32,
+    ) -> bool {
+        let mut stack = Vec::with_capacity(64);
+        if !self.nodes.is_empty() {
+            stack.push(0u32);
+        }
+        let tree = sampler.file().tree();
+        while let Some(i) = stack.pop() {
+            let node = &self.nodes[i as usize];
+            if node.coarsest >= level || !node.bounds.overlaps(region) {
+                continue;
+            }
+            if contains(region, &node.bounds) {
+                return true;
+            }
+            match node.children {
+                Some((a, b)) => stack.extend([b, a]),
+                None => {
+                    let leaves = &self.order[node.first as usize..node.end as usize];
+                    if leaves.iter().any(|&l| {
+                        sampler.leaf_top(l).is_some_and(|(_, lv)| lv < level)
+                            && tree.leaf_box(l).overlaps(region)
+                    }) {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    }
+
     /// A range holding the cells of the leaves (each leaf's finest brick) inside `region`, from
-    /// the `blocks` they lie in; a node lying inside `region` grown by `slack` contributes its
-    /// whole range.
+    /// the `blocks` they lie in; a node or leaf lying inside `region` grown by `slack` contributes
+    /// its whole range.
     pub fn range_over<D: AsRef<[u8]>>(
         &self,
         sampler: &Sampler<'_, D>,
@@ -120,14 +161,18 @@ impl LeafTree {
             } else {
                 let (mut a, mut b) = (f32::INFINITY, f32::NEG_INFINITY);
                 for &l in &self.order[node.first as usize..node.end as usize] {
-                    let Some((brick, lv)) = sampler.leaf_top(l) else {
-                        continue;
-                    };
-                    let part = tree.leaf_box(l).intersect(region);
+                    let leaf_box = tree.leaf_box(l);
+                    let part = leaf_box.intersect(region);
                     if part.is_empty() {
                         continue;
                     }
-                    let (x, y) = blocks.range_in(sampler, brick, lv, &part)?;
+                    let (x, y) = if contains(&loose, &leaf_box) {
+                        self.leaf_range(sampler, blocks, l)?
+                    } else if let Some((brick, lv)) = sampler.leaf_top(l) {
+                        blocks.range_in(sampler, brick, lv, &part)?
+                    } else {
+                        continue;
+                    };
                     a = a.min(x);
                     b = b.max(y);
                 }
@@ -159,17 +204,37 @@ impl LeafTree {
                 (x0.min(x1), y0.max(y1))
             }
             None => {
-                let tree = sampler.file().tree();
                 let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
                 for &l in &self.order[node.first as usize..node.end as usize] {
-                    if let Some((brick, lv)) = sampler.leaf_top(l) {
-                        let (a, b) = blocks.range_in(sampler, brick, lv, &tree.leaf_box(l))?;
-                        lo = lo.min(a);
-                        hi = hi.max(b);
-                    }
+                    let (a, b) = self.leaf_range(sampler, blocks, l)?;
+                    lo = lo.min(a);
+                    hi = hi.max(b);
                 }
                 (lo, hi)
             }
+        };
+        slot.store(pack(range), Ordering::Relaxed);
+        Ok(range)
+    }
+
+    /// The range of leaf `l`'s cells (of its finest brick), computed on first need.
+    fn leaf_range<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        blocks: &BlockRanges,
+        l: u32,
+    ) -> Result<(f32, f32)> {
+        let slot = &self.leaf_ranges[l as usize];
+        let known = slot.load(Ordering::Relaxed);
+        if known != UNKNOWN {
+            return Ok(unpack(known));
+        }
+        let range = match sampler.leaf_top(l) {
+            Some((brick, lv)) => {
+                let leaf_box = sampler.file().tree().leaf_box(l);
+                blocks.range_in(sampler, brick, lv, &leaf_box)?
+            }
+            None => (f32::INFINITY, f32::NEG_INFINITY),
         };
         slot.store(pack(range), Ordering::Relaxed);
         Ok(range)

@@ -42,6 +42,7 @@ use crate::mapping::PageRelease;
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::{Locate, Octant, SampleScratch, Sampler, VertexMemo};
 pub use crate::voxel::Voxel;
+use band::CoarseBounds;
 use blocks::BlockRanges;
 use leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
 use leaf_tree::LeafTree;
@@ -71,6 +72,7 @@ pub struct Extractor<'f, D> {
     tight: TightRanges,
     blocks: BlockRanges,
     leaves: LeafTree,
+    coarse: CoarseBounds,
     pages: Option<PageRelease<'f>>,
 }
 
@@ -88,6 +90,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             tight: TightRanges::new(file.num_leaves()),
             blocks: BlockRanges::new(file.num_bricks()),
             leaves: LeafTree::new(&sampler),
+            coarse: CoarseBounds::default(),
             sampler,
             file_cells,
             pages: None,
@@ -210,7 +213,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             let parts: Vec<Result<(Vec<u64>, LeafCounts)>> = chunk
                 .par_iter()
                 .map_init(
-                    || Scratch::new(&self.sampler, &self.blocks),
+                    || Scratch::new(&self.sampler, (&self.blocks, &self.leaves, &self.coarse)),
                     |scratch, &leaf| {
                         let mut out = Vec::new();
                         let (lo, hi) =

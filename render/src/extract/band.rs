@@ -2,19 +2,20 @@
 //! leaf cell `Q` of level `q`, the range of the leaf cells within one `Q`-cell of `Q`, or the fact
 //! that a leaf cell coarser than `q` lies there ([`super::cull`]).
 //!
-//! Each bound is answered once per file from the [`LeafTree`] (whose nodes inside the region
-//! count whole) and kept: a coarse cell next to many small leaves costs one region query, not one
-//! per leaf, and no leaf gathers the leaves around it.
+//! The bound around `Q` is the union of the bounds of the 27 level-`q` cells around it, each the
+//! range of the leaf cells of level `q` or finer inside the cell. Those are gathered a tile of
+//! `4^3` level-`q` cells at a time, each tile once per file from one pass over the leaves
+//! overlapping it (every leaf cell read once), and kept with the bounds around the cells asked
+//! for: a coarse cell next to many small leaves costs one look-up per leaf, and no leaf gathers
+//! the leaves around it.
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use crate::error::Result;
 use amr_format::IBox;
 
-use super::blocks::BlockRanges;
-use super::leaf_tree::LeafTree;
 use super::tight::{pack, unpack};
 use crate::reconstruct::Sampler;
 
@@ -65,45 +66,50 @@ pub fn fold_cell_bounds(
 /// Marks a coarse cell next to a leaf cell coarser than itself (the bits of two NaNs, which no
 /// packed range holds).
 const NEXT_TO_COARSER: u64 = u64::MAX - 1;
-/// Independently locked parts of the table, so threads rarely wait on each other.
+/// Level-`q` cells per axis of a tile.
+const TILE: i64 = 4;
+/// Independently locked parts of the tables, so threads rarely wait on each other.
 const SHARDS: usize = 64;
 
-/// The bound around each coarse leaf cell asked for so far, of one field.
+/// A table key: a level and a cell (or tile) of it.
+type Key = (u32, [i64; 3]);
+/// A table keyed by [`Key`], cut into [`SHARDS`] locked parts.
+type Table<T> = Vec<Mutex<HashMap<Key, T, BuildHasherDefault<CellHasher>>>>;
+
+/// The bounds of the coarse cells and tiles asked for so far, of one field.
 pub struct CoarseBounds {
-    shards: Vec<Mutex<HashMap<(u32, [i64; 3]), u64, BuildHasherDefault<CellHasher>>>>,
+    /// Per coarse cell asked for: the packed bound around it, or [`NEXT_TO_COARSER`].
+    around: Table<u64>,
+    /// Per tile: each cell's bound, `(NaN, NaN)` where a coarser leaf cell overlaps it.
+    tiles: Table<Arc<[(f32, f32)]>>,
 }
 
 impl Default for CoarseBounds {
     fn default() -> Self {
         Self {
-            shards: (0..SHARDS).map(|_| Mutex::default()).collect(),
+            around: new_table(),
+            tiles: new_table(),
         }
     }
 }
 
 impl CoarseBounds {
     /// A range holding the leaf cells within one cell of level-`level` cell `c` (absolute
-    /// index); `None` when a leaf cell coarser than `level` lies there. Computed on first need.
+    /// index); `None` when a leaf cell coarser than `level` lies there. Computed on first need
+    /// and kept.
     pub fn range_around<D: AsRef<[u8]>>(
         &self,
         sampler: &Sampler<'_, D>,
-        (blocks, leaves): (&BlockRanges, &LeafTree),
         level: u32,
         c: [i64; 3],
     ) -> Result<Option<(f32, f32)>> {
         let key = (level, c);
-        let shard = &self.shards[shard_of(&key)];
-        let known = shard.lock().map(|m| m.get(&key).copied()).unwrap_or(None);
+        let shard = &self.around[shard_of(&key)];
+        let known = shard.lock().ok().and_then(|m| m.get(&key).copied());
         let bits = match known {
             Some(bits) => bits,
             None => {
-                let grid = sampler.grid();
-                let region = grid.finest_box(level, c).grow(grid.scale(level));
-                let bits = if leaves.any_coarser_overlapping(sampler, &region, level) {
-                    NEXT_TO_COARSER
-                } else {
-                    pack(leaves.range_over(sampler, blocks, &region, [0; 3])?)
-                };
+                let bits = self.compute_around(sampler, level, c)?;
                 if let Ok(mut m) = shard.lock() {
                     m.insert(key, bits);
                 }
@@ -112,10 +118,144 @@ impl CoarseBounds {
         };
         Ok((bits != NEXT_TO_COARSER).then(|| unpack(bits)))
     }
+
+    /// The packed union of the bounds of the 27 cells around `c`, or [`NEXT_TO_COARSER`].
+    fn compute_around<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        level: u32,
+        c: [i64; 3],
+    ) -> Result<u64> {
+        let near = IBox::new(c.map(|v| v - 1), c.map(|v| v + 2));
+        let tiles = near.coarsen([TILE; 3]);
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for tz in tiles.lo[2]..tiles.hi[2] {
+            for ty in tiles.lo[1]..tiles.hi[1] {
+                for tx in tiles.lo[0]..tiles.hi[0] {
+                    let t = [tx, ty, tz];
+                    let bounds = self.tile(sampler, level, t)?;
+                    let tile_cells = tile_box(t);
+                    let part = near.intersect(&tile_cells);
+                    for z in part.lo[2]..part.hi[2] {
+                        for y in part.lo[1]..part.hi[1] {
+                            let row = tile_cells.linear_index([part.lo[0], y, z]);
+                            let w = part.extent()[0] as usize;
+                            for &(a, b) in &bounds[row..row + w] {
+                                if a.is_nan() {
+                                    return Ok(NEXT_TO_COARSER);
+                                }
+                                lo = lo.min(a);
+                                hi = hi.max(b);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Ok(pack((lo, hi)))
+    }
+
+    /// The cell bounds of tile `t` of level `level`, gathered on first need.
+    fn tile<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        level: u32,
+        t: [i64; 3],
+    ) -> Result<Arc<[(f32, f32)]>> {
+        let key = (level, t);
+        let shard = &self.tiles[shard_of(&key)];
+        if let Some(known) = shard.lock().ok().and_then(|m| m.get(&key).cloned()) {
+            return Ok(known);
+        }
+        let bounds: Arc<[(f32, f32)]> = gather_tile(sampler, level, &tile_box(t))?.into();
+        if let Ok(mut m) = shard.lock() {
+            m.insert(key, bounds.clone());
+        }
+        Ok(bounds)
+    }
+}
+
+/// An empty table.
+fn new_table<T>() -> Table<T> {
+    (0..SHARDS).map(|_| Mutex::default()).collect()
+}
+
+/// The level cells of tile `t`.
+fn tile_box(t: [i64; 3]) -> IBox {
+    IBox::new(t.map(|v| v * TILE), t.map(|v| (v + 1) * TILE))
+}
+
+/// Per level-`level` cell of `g` (x fastest): the range of the leaf cells of level `level` or
+/// finer inside it, `(+inf, -inf)` when there are none, `(NaN, NaN)` when a coarser leaf cell
+/// overlaps it. One pass over the leaves overlapping `g`, each of their cells inside `g` read
+/// once.
+fn gather_tile<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    level: u32,
+    g: &IBox,
+) -> Result<Vec<(f32, f32)>> {
+    let grid = sampler.grid();
+    let n = g.num_cells().unwrap_or(0) as usize;
+    let mut lo = vec![f32::INFINITY; n];
+    let mut hi = vec![f32::NEG_INFINITY; n];
+    let mut coarser = vec![false; n];
+    let s = grid.scale(level);
+    let o = grid.offset();
+    let finest = IBox::new(
+        [0, 1, 2].map(|a| g.lo[a] * s[a] - o[a]),
+        [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
+    );
+    let tree = sampler.file().tree();
+    let mut touching = Vec::new();
+    tree.for_each_leaf_touching(&finest, |l| touching.push(l));
+    for l in touching {
+        let leaf_box = tree.leaf_box(l);
+        let part = leaf_box.intersect(&finest);
+        let Some((brick, lv)) = sampler.leaf_top(l) else {
+            continue;
+        };
+        if part.is_empty() {
+            continue;
+        }
+        if lv < level {
+            let block = grid.level_box(level, &part).intersect(g);
+            for z in block.lo[2]..block.hi[2] {
+                for y in block.lo[1]..block.hi[1] {
+                    let row = g.linear_index([block.lo[0], y, z]);
+                    coarser[row..row + block.extent()[0] as usize].fill(true);
+                }
+            }
+            continue;
+        }
+        let bc = sampler.brick_cells(brick);
+        let cells = grid.level_box(lv, &part).intersect(&bc);
+        if cells.is_empty() {
+            continue;
+        }
+        let sf = grid.scale(lv);
+        let values = sampler.values(brick)?;
+        fold_cell_bounds(
+            &values,
+            &bc,
+            &cells,
+            [0, 1, 2].map(|a| s[a] / sf[a]),
+            g,
+            (&mut lo, &mut hi),
+        );
+    }
+    Ok((0..n)
+        .map(|i| {
+            if coarser[i] {
+                (f32::NAN, f32::NAN)
+            } else {
+                (lo[i], hi[i])
+            }
+        })
+        .collect())
 }
 
 /// The shard of key `k`.
-fn shard_of(k: &(u32, [i64; 3])) -> usize {
+fn shard_of(k: &Key) -> usize {
     let mut h = CellHasher::default();
     h.write_u32(k.0);
     for v in k.1 {
@@ -135,7 +275,11 @@ impl Hasher for CellHasher {
     }
 
     fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
+        let mut words = bytes.chunks_exact(8);
+        for w in &mut words {
+            self.write_u64(u64::from_le_bytes(w.try_into().unwrap_or_default()));
+        }
+        for &b in words.remainder() {
             self.write_u64(u64::from(b));
         }
     }

@@ -9,7 +9,8 @@
 use crate::error::Result;
 use amr_format::IBox;
 
-use super::cull::{around_offsets, cell_may_hold, Shared};
+use super::band::CoarseBounds;
+use super::cull::{around_offsets, cell_may_hold};
 use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};
 use super::refs::{make_ref, LocalVoxel};
 use super::vertices::LeafVertices;
@@ -29,19 +30,19 @@ pub struct Scratch<'s, 'f, D> {
     /// One row of merged-dual-cell codes.
     pub rows: Vec<u8>,
     /// The bounds of coarser neighbours.
-    pub shared: Shared<'s>,
+    pub coarse: &'s CoarseBounds,
 }
 
 impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
-    /// Empty scratch for extracting from `sampler`, bounding coarser neighbours with `shared`.
-    pub fn new(sampler: &'s Sampler<'f, D>, shared: Shared<'s>) -> Self {
+    /// Empty scratch for extracting from `sampler`, bounding coarser neighbours with `coarse`.
+    pub fn new(sampler: &'s Sampler<'f, D>, coarse: &'s CoarseBounds) -> Self {
         Self {
             hood: Neighbourhood::default(),
             memo: VertexMemo::default(),
             verts: LeafVertices::default(),
             loc: LocalLocator::new(sampler),
             rows: Vec::new(),
-            shared,
+            coarse,
         }
     }
 }
@@ -114,7 +115,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         verts,
         loc,
         rows,
-        shared,
+        coarse,
     } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();
@@ -181,7 +182,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                     if !hood.near_boundary[i] {
                         continue;
                     }
-                    if !cell_may_hold((sampler, *shared), hood, (loc, memo), (i, &around), iso)? {
+                    if !cell_may_hold((sampler, *coarse), hood, (loc, memo), (i, &around), iso)? {
                         counts.culled += 1;
                         continue;
                     }

@@ -132,8 +132,8 @@ impl LeafTree {
     }
 
     /// A range holding the cells of the leaves (each leaf's finest brick) inside `region`, from
-    /// the `blocks` they lie in; a node or leaf lying inside `region` grown by `slack` contributes
-    /// its whole range.
+    /// the `blocks` they lie in; a node lying inside `region` grown by `slack` contributes its
+    /// whole range.
     pub fn range_over<D: AsRef<[u8]>>(
         &self,
         sampler: &Sampler<'_, D>,
@@ -166,7 +166,7 @@ impl LeafTree {
                     if part.is_empty() {
                         continue;
                     }
-                    let (x, y) = if contains(&loose, &leaf_box) {
+                    let (x, y) = if contains(region, &leaf_box) {
                         self.leaf_range(sampler, blocks, l)?
                     } else if let Some((brick, lv)) = sampler.leaf_top(l) {
                         blocks.range_in(sampler, brick, lv, &part)?

@@ -44,8 +44,15 @@ impl LeafTree {
         let n = sampler.file().num_leaves() as u32;
         let mut nodes = Vec::with_capacity(4 * n as usize / BUCKET + 1);
         let mut order: Vec<u32> = (0..n).collect();
+        let tree = sampler.file().tree();
+        let leaves: Vec<(IBox, u32)> = (0..n)
+            .map(|l| {
+                let level = sampler.leaf_top(l).map_or(u32::MAX, |(_, lv)| lv);
+                (tree.leaf_box(l), level)
+            })
+            .collect();
         if n > 0 {
-            build(sampler, &mut order, 0, &mut nodes);
+            build(&leaves, &mut order, 0, &mut nodes);
         }
         let ranges = (0..nodes.len()).map(|_| AtomicU64::new(UNKNOWN)).collect();
         let leaf_ranges = (0..n).map(|_| AtomicU64::new(UNKNOWN)).collect();
@@ -243,20 +250,14 @@ impl LeafTree {
 
 /// Appends the node of the leaves `leaves` (which start at `order[first]`) and its descendants to
 /// `nodes`, reordering `leaves` so that each child's are contiguous; returns the node's index.
-fn build<D: AsRef<[u8]>>(
-    sampler: &Sampler<'_, D>,
-    leaves: &mut [u32],
-    first: u32,
-    nodes: &mut Vec<Node>,
-) -> u32 {
-    let tree = sampler.file().tree();
-    let mut bounds = tree.leaf_box(leaves[0]);
+/// `all` holds every leaf's box and level (`u32::MAX` without data).
+fn build(all: &[(IBox, u32)], leaves: &mut [u32], first: u32, nodes: &mut Vec<Node>) -> u32 {
+    let mut bounds = all[leaves[0] as usize].0;
     let mut coarsest = u32::MAX;
     for &l in leaves.iter() {
-        bounds = union(&bounds, &tree.leaf_box(l));
-        if let Some((_, lv)) = sampler.leaf_top(l) {
-            coarsest = coarsest.min(lv);
-        }
+        let (b, lv) = &all[l as usize];
+        bounds = union(&bounds, b);
+        coarsest = coarsest.min(*lv);
     }
     let index = nodes.len() as u32;
     let end = first + leaves.len() as u32;
@@ -272,12 +273,12 @@ fn build<D: AsRef<[u8]>>(
         let axis = (0..3).max_by_key(|&a| e[a]).unwrap_or(0);
         let mid = leaves.len() / 2;
         leaves.select_nth_unstable_by_key(mid, |&l| {
-            let b = tree.leaf_box(l);
+            let b = &all[l as usize].0;
             b.lo[axis] + b.hi[axis]
         });
         let (left, right) = leaves.split_at_mut(mid);
-        let a = build(sampler, left, first, nodes);
-        let b = build(sampler, right, first + mid as u32, nodes);
+        let a = build(all, left, first, nodes);
+        let b = build(all, right, first + mid as u32, nodes);
         nodes[index as usize].children = Some((a, b));
     }
     index

@@ -16,6 +16,7 @@ use std::sync::{Arc, Mutex};
 use crate::error::Result;
 use amr_format::IBox;
 
+use super::leaf_tree::LeafTree;
 use super::tight::{pack, unpack};
 use crate::reconstruct::Sampler;
 
@@ -99,7 +100,7 @@ impl CoarseBounds {
     /// and kept.
     pub fn range_around<D: AsRef<[u8]>>(
         &self,
-        sampler: &Sampler<'_, D>,
+        (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
         level: u32,
         c: [i64; 3],
     ) -> Result<Option<(f32, f32)>> {
@@ -109,7 +110,7 @@ impl CoarseBounds {
         let bits = match known {
             Some(bits) => bits,
             None => {
-                let bits = self.compute_around(sampler, level, c)?;
+                let bits = self.compute_around((sampler, leaves), level, c)?;
                 if let Ok(mut m) = shard.lock() {
                     m.insert(key, bits);
                 }
@@ -122,7 +123,7 @@ impl CoarseBounds {
     /// The packed union of the bounds of the 27 cells around `c`, or [`NEXT_TO_COARSER`].
     fn compute_around<D: AsRef<[u8]>>(
         &self,
-        sampler: &Sampler<'_, D>,
+        (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
         level: u32,
         c: [i64; 3],
     ) -> Result<u64> {
@@ -133,7 +134,7 @@ impl CoarseBounds {
             for ty in tiles.lo[1]..tiles.hi[1] {
                 for tx in tiles.lo[0]..tiles.hi[0] {
                     let t = [tx, ty, tz];
-                    let bounds = self.tile(sampler, level, t)?;
+                    let bounds = self.tile((sampler, leaves), level, t)?;
                     let tile_cells = tile_box(t);
                     let part = near.intersect(&tile_cells);
                     for z in part.lo[2]..part.hi[2] {
@@ -158,7 +159,7 @@ impl CoarseBounds {
     /// The cell bounds of tile `t` of level `level`, gathered on first need.
     fn tile<D: AsRef<[u8]>>(
         &self,
-        sampler: &Sampler<'_, D>,
+        (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
         level: u32,
         t: [i64; 3],
     ) -> Result<Arc<[(f32, f32)]>> {
@@ -167,7 +168,7 @@ impl CoarseBounds {
         if let Some(known) = shard.lock().ok().and_then(|m| m.get(&key).cloned()) {
             return Ok(known);
         }
-        let bounds: Arc<[(f32, f32)]> = gather_tile(sampler, level, &tile_box(t))?.into();
+        let bounds: Arc<[(f32, f32)]> = gather_tile((sampler, leaves), level, &tile_box(t))?.into();
         if let Ok(mut m) = shard.lock() {
             m.insert(key, bounds.clone());
         }
@@ -190,7 +191,7 @@ fn tile_box(t: [i64; 3]) -> IBox {
 /// overlaps it. One pass over the leaves overlapping `g`, each of their cells inside `g` read
 /// once.
 fn gather_tile<D: AsRef<[u8]>>(
-    sampler: &Sampler<'_, D>,
+    (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
     level: u32,
     g: &IBox,
 ) -> Result<Vec<(f32, f32)>> {
@@ -205,11 +206,10 @@ fn gather_tile<D: AsRef<[u8]>>(
         [0, 1, 2].map(|a| g.lo[a] * s[a] - o[a]),
         [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
     );
-    let tree = sampler.file().tree();
     let mut touching = Vec::new();
-    tree.for_each_leaf_touching(&finest, |l| touching.push(l));
+    leaves.for_each_leaf_touching(&finest, |l| touching.push(l));
     for l in touching {
-        let leaf_box = tree.leaf_box(l);
+        let leaf_box = leaves.leaf_box(l);
         let part = leaf_box.intersect(&finest);
         let Some((brick, lv)) = sampler.leaf_top(l) else {
             continue;

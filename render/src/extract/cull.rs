@@ -14,6 +14,7 @@
 use crate::error::Result;
 
 use super::band::CoarseBounds;
+use super::leaf_tree::LeafTree;
 use super::local::{Neighbourhood, ABOVE, BELOW, COARSER, PENDING};
 use crate::reconstruct::sampler::Locate;
 use crate::reconstruct::{LocalLocator, Sampler, VertexMemo};
@@ -27,9 +28,9 @@ pub fn around_offsets(row: usize, slab: usize) -> [usize; 27] {
 /// True unless the octants of the cell at neighbourhood index `i` certainly do not straddle
 /// `iso` ([`Neighbourhood::classify`] must have run for `iso`). `around` comes from
 /// [`around_offsets`]. Bounds of coarser neighbours are computed on first need (from `coarse`, which
-/// keeps them for every leaf) and kept in `hood`.
+/// keeps them for every leaf, gathering them from the leaves of `leaves`) and kept in `hood`.
 pub fn cell_may_hold<D: AsRef<[u8]>>(
-    (sampler, coarse): (&Sampler<'_, D>, &CoarseBounds),
+    (sampler, leaves, coarse): (&Sampler<'_, D>, &LeafTree, &CoarseBounds),
     hood: &mut Neighbourhood,
     (loc, memo): (&mut LocalLocator<'_, '_, D>, &mut VertexMemo),
     (i, around): (usize, &[usize; 27]),
@@ -49,7 +50,7 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
     for &d in around {
         let j = base + d;
         if hood.codes()[j] & PENDING != 0 {
-            settle_coarse((sampler, coarse), hood, (loc, memo), j, iso)?;
+            settle_coarse((sampler, leaves, coarse), hood, (loc, memo), j, iso)?;
         }
         union |= hood.codes()[j];
     }
@@ -61,7 +62,7 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
 /// (which holds every corner of `Q`'s octants when none of them is coarser than `Q`), or else
 /// the exact corners of the octants of `Q` overlapping cell `j`.
 fn settle_coarse<D: AsRef<[u8]>>(
-    (sampler, coarse): (&Sampler<'_, D>, &CoarseBounds),
+    (sampler, leaves, coarse): (&Sampler<'_, D>, &LeafTree, &CoarseBounds),
     hood: &mut Neighbourhood,
     (loc, memo): (&mut LocalLocator<'_, '_, D>, &mut VertexMemo),
     j: usize,
@@ -84,7 +85,7 @@ fn settle_coarse<D: AsRef<[u8]>>(
         return Ok(());
     }
     let q_box = grid.finest_box(q.level, q.cell);
-    if let Some(range) = coarse.range_around(sampler, q.level, q.cell)? {
+    if let Some(range) = coarse.range_around((sampler, leaves), q.level, q.cell)? {
         let bound = widen(range);
         let inside = grid.level_box(level, &q_box).intersect(&hood.cells);
         for z in inside.lo[2]..inside.hi[2] {

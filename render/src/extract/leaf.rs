@@ -11,6 +11,7 @@ use amr_format::IBox;
 
 use super::band::CoarseBounds;
 use super::cull::{around_offsets, cell_may_hold};
+use super::leaf_tree::LeafTree;
 use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};
 use super::refs::{make_ref, LocalVoxel};
 use super::vertices::LeafVertices;
@@ -29,19 +30,26 @@ pub struct Scratch<'s, 'f, D> {
     pub loc: LocalLocator<'s, 'f, D>,
     /// One row of merged-dual-cell codes.
     pub rows: Vec<u8>,
+    /// The leaves, for region queries.
+    pub leaves: &'s LeafTree,
     /// The bounds of coarser neighbours.
     pub coarse: &'s CoarseBounds,
 }
 
 impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
-    /// Empty scratch for extracting from `sampler`, bounding coarser neighbours with `coarse`.
-    pub fn new(sampler: &'s Sampler<'f, D>, coarse: &'s CoarseBounds) -> Self {
+    /// Empty scratch for extracting from `sampler`, finding leaves in `leaves` and
+    /// bounding coarser neighbours with `coarse`.
+    pub fn new(
+        sampler: &'s Sampler<'f, D>,
+        (leaves, coarse): (&'s LeafTree, &'s CoarseBounds),
+    ) -> Self {
         Self {
             hood: Neighbourhood::default(),
             memo: VertexMemo::default(),
             verts: LeafVertices::default(),
             loc: LocalLocator::new(sampler),
             rows: Vec::new(),
+            leaves,
             coarse,
         }
     }
@@ -115,12 +123,13 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         verts,
         loc,
         rows,
+        leaves,
         coarse,
     } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();
     let level = frame.level;
-    hood.fill(sampler, level, &frame.cells)?;
+    hood.fill((sampler, *leaves), level, &frame.cells)?;
     let grid = sampler.grid();
     let s = grid.scale(level);
     let o = grid.offset();
@@ -182,7 +191,13 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                     if !hood.near_boundary[i] {
                         continue;
                     }
-                    if !cell_may_hold((sampler, *coarse), hood, (loc, memo), (i, &around), iso)? {
+                    if !cell_may_hold(
+                        (sampler, *leaves, *coarse),
+                        hood,
+                        (loc, memo),
+                        (i, &around),
+                        iso,
+                    )? {
                         counts.culled += 1;
                         continue;
                     }

@@ -36,6 +36,8 @@ pub struct LeafTree {
     ranges: Vec<AtomicU64>,
     /// Per leaf, the range of its cells once asked.
     leaf_ranges: Vec<AtomicU64>,
+    /// Per leaf, its box.
+    boxes: Vec<IBox>,
 }
 
 impl LeafTree {
@@ -61,6 +63,7 @@ impl LeafTree {
             order,
             ranges,
             leaf_ranges,
+            boxes: leaves.into_iter().map(|(b, _)| b).collect(),
         }
     }
 
@@ -99,6 +102,40 @@ impl LeafTree {
             }
         }
         (best != u32::MAX).then_some(best)
+    }
+
+    /// Calls `f` with every leaf whose closed box touches the closed `region`.
+    pub fn for_each_leaf_touching(&self, region: &IBox, mut f: impl FnMut(u32)) {
+        let mut stack = [0u32; 64];
+        let mut top = usize::from(!self.nodes.is_empty());
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if !node.bounds.touches(region) {
+                continue;
+            }
+            match node.children {
+                // The tree is balanced: its depth stays far below the stack's size.
+                Some((a, b)) if top + 2 <= stack.len() => {
+                    stack[top] = b;
+                    stack[top + 1] = a;
+                    top += 2;
+                }
+                _ => {
+                    for &l in &self.order[node.first as usize..node.end as usize] {
+                        if self.boxes[l as usize].touches(region) {
+                            f(l);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// The box of leaf `l` (finest-level cells).
+    #[inline]
+    pub fn leaf_box(&self, l: u32) -> IBox {
+        self.boxes[l as usize]
     }
 
     /// True when a leaf with data of a level coarser than `level` overlaps `region` (open

@@ -10,6 +10,7 @@ use crate::error::Result;
 use amr_format::IBox;
 
 use super::band::fold_cell_bounds;
+use super::leaf_tree::LeafTree;
 
 use crate::reconstruct::Sampler;
 
@@ -65,10 +66,11 @@ pub struct Neighbourhood {
 }
 
 impl Neighbourhood {
-    /// Fills the neighbourhood of `leaf` (level `level`, level-`level` box `own`).
+    /// Fills the neighbourhood of `leaf` (level `level`, level-`level` box `own`), finding the
+    /// leaves around it in `leaves`.
     pub fn fill<D: AsRef<[u8]>>(
         &mut self,
-        sampler: &Sampler<'_, D>,
+        (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
         level: u32,
         own: &IBox,
     ) -> Result<()> {
@@ -93,11 +95,10 @@ impl Neighbourhood {
             [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
         );
         self.touching.clear();
-        let tree = sampler.file().tree();
-        tree.for_each_leaf_touching(&region, |l| self.touching.push(l));
+        leaves.for_each_leaf_touching(&region, |l| self.touching.push(l));
         for i in 0..self.touching.len() {
             let l = self.touching[i];
-            let lb = tree.leaf_box(l);
+            let lb = leaves.leaf_box(l);
             if !lb.overlaps(&region) {
                 continue;
             }

@@ -213,7 +213,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             let parts: Vec<Result<(Vec<u64>, LeafCounts)>> = chunk
                 .par_iter()
                 .map_init(
-                    || Scratch::new(&self.sampler, &self.coarse),
+                    || Scratch::new(&self.sampler, (&self.leaves, &self.coarse)),
                     |scratch, &leaf| {
                         let mut out = Vec::new();
                         let (lo, hi) =

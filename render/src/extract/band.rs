@@ -16,6 +16,7 @@ use std::sync::{Arc, Mutex};
 use crate::error::Result;
 use amr_format::IBox;
 
+use super::blocks::{BlockRanges, BLOCK};
 use super::leaf_tree::LeafTree;
 use super::tight::{pack, unpack};
 use crate::reconstruct::Sampler;
@@ -72,6 +73,9 @@ const TILE: i64 = 4;
 /// Independently locked parts of the tables, so threads rarely wait on each other.
 const SHARDS: usize = 64;
 
+/// The sources a tile is gathered from.
+pub type Sources<'a, 'f, D> = (&'a Sampler<'f, D>, &'a BlockRanges, &'a LeafTree);
+
 /// A table key: a level and a cell (or tile) of it.
 type Key = (u32, [i64; 3]);
 /// A table keyed by [`Key`], cut into [`SHARDS`] locked parts.
@@ -100,7 +104,7 @@ impl CoarseBounds {
     /// and kept.
     pub fn range_around<D: AsRef<[u8]>>(
         &self,
-        (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
+        sources: Sources<'_, '_, D>,
         level: u32,
         c: [i64; 3],
     ) -> Result<Option<(f32, f32)>> {
@@ -110,7 +114,7 @@ impl CoarseBounds {
         let bits = match known {
             Some(bits) => bits,
             None => {
-                let bits = self.compute_around((sampler, leaves), level, c)?;
+                let bits = self.compute_around(sources, level, c)?;
                 if let Ok(mut m) = shard.lock() {
                     m.insert(key, bits);
                 }
@@ -123,7 +127,7 @@ impl CoarseBounds {
     /// The packed union of the bounds of the 27 cells around `c`, or [`NEXT_TO_COARSER`].
     fn compute_around<D: AsRef<[u8]>>(
         &self,
-        (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
+        sources: Sources<'_, '_, D>,
         level: u32,
         c: [i64; 3],
     ) -> Result<u64> {
@@ -134,7 +138,7 @@ impl CoarseBounds {
             for ty in tiles.lo[1]..tiles.hi[1] {
                 for tx in tiles.lo[0]..tiles.hi[0] {
                     let t = [tx, ty, tz];
-                    let bounds = self.tile((sampler, leaves), level, t)?;
+                    let bounds = self.tile(sources, level, t)?;
                     let tile_cells = tile_box(t);
                     let part = near.intersect(&tile_cells);
                     for z in part.lo[2]..part.hi[2] {
@@ -159,7 +163,7 @@ impl CoarseBounds {
     /// The cell bounds of tile `t` of level `level`, gathered on first need.
     fn tile<D: AsRef<[u8]>>(
         &self,
-        (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
+        sources: Sources<'_, '_, D>,
         level: u32,
         t: [i64; 3],
     ) -> Result<Arc<[(f32, f32)]>> {
@@ -168,7 +172,7 @@ impl CoarseBounds {
         if let Some(known) = shard.lock().ok().and_then(|m| m.get(&key).cloned()) {
             return Ok(known);
         }
-        let bounds: Arc<[(f32, f32)]> = gather_tile((sampler, leaves), level, &tile_box(t))?.into();
+        let bounds: Arc<[(f32, f32)]> = gather_tile(sources, level, &tile_box(t))?.into();
         if let Ok(mut m) = shard.lock() {
             m.insert(key, bounds.clone());
         }
@@ -189,9 +193,9 @@ fn tile_box(t: [i64; 3]) -> IBox {
 /// Per level-`level` cell of `g` (x fastest): the range of the leaf cells of level `level` or
 /// finer inside it, `(+inf, -inf)` when there are none, `(NaN, NaN)` when a coarser leaf cell
 /// overlaps it. One pass over the leaves overlapping `g`, each of their cells inside `g` read
-/// once.
+/// once, or through the block ranges where a level-`level` cell holds whole blocks.
 fn gather_tile<D: AsRef<[u8]>>(
-    (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
+    (sampler, blocks, leaves): Sources<'_, '_, D>,
     level: u32,
     g: &IBox,
 ) -> Result<Vec<(f32, f32)>> {
@@ -233,15 +237,29 @@ fn gather_tile<D: AsRef<[u8]>>(
             continue;
         }
         let sf = grid.scale(lv);
+        let r = [0, 1, 2].map(|a| s[a] / sf[a]);
+        if r.iter().all(|&v| v >= BLOCK) {
+            let over = cells.coarsen(r).intersect(g);
+            for z in over.lo[2]..over.hi[2] {
+                for y in over.lo[1]..over.hi[1] {
+                    for x in over.lo[0]..over.hi[0] {
+                        let c = [x, y, z];
+                        let inside = IBox::new(
+                            [0, 1, 2].map(|a| c[a] * r[a]),
+                            [0, 1, 2].map(|a| (c[a] + 1) * r[a]),
+                        )
+                        .intersect(&cells);
+                        let (a, b) = blocks.range_of_cells(sampler, brick, &inside)?;
+                        let i = g.linear_index(c);
+                        lo[i] = lo[i].min(a);
+                        hi[i] = hi[i].max(b);
+                    }
+                }
+            }
+            continue;
+        }
         let values = sampler.values(brick)?;
-        fold_cell_bounds(
-            &values,
-            &bc,
-            &cells,
-            [0, 1, 2].map(|a| s[a] / sf[a]),
-            g,
-            (&mut lo, &mut hi),
-        );
+        fold_cell_bounds(&values, &bc, &cells, r, g, (&mut lo, &mut hi));
     }
     Ok((0..n)
         .map(|i| {

@@ -9,9 +9,7 @@
 use crate::error::Result;
 use amr_format::IBox;
 
-use super::band::CoarseBounds;
-use super::cull::{around_offsets, cell_may_hold};
-use super::leaf_tree::LeafTree;
+use super::cull::{around_offsets, cell_may_hold, Shared};
 use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};
 use super::refs::{make_ref, LocalVoxel};
 use super::vertices::LeafVertices;
@@ -30,27 +28,21 @@ pub struct Scratch<'s, 'f, D> {
     pub loc: LocalLocator<'s, 'f, D>,
     /// One row of merged-dual-cell codes.
     pub rows: Vec<u8>,
-    /// The leaves, for region queries.
-    pub leaves: &'s LeafTree,
-    /// The bounds of coarser neighbours.
-    pub coarse: &'s CoarseBounds,
+    /// The block ranges, the leaf tree (for region queries) and the bounds of coarser
+    /// neighbours.
+    pub shared: Shared<'s>,
 }
 
 impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
-    /// Empty scratch for extracting from `sampler`, finding leaves in `leaves` and
-    /// bounding coarser neighbours with `coarse`.
-    pub fn new(
-        sampler: &'s Sampler<'f, D>,
-        (leaves, coarse): (&'s LeafTree, &'s CoarseBounds),
-    ) -> Self {
+    /// Empty scratch for extracting from `sampler`, reading the tables of `shared`.
+    pub fn new(sampler: &'s Sampler<'f, D>, shared: Shared<'s>) -> Self {
         Self {
             hood: Neighbourhood::default(),
             memo: VertexMemo::default(),
             verts: LeafVertices::default(),
             loc: LocalLocator::new(sampler),
             rows: Vec::new(),
-            leaves,
-            coarse,
+            shared,
         }
     }
 }
@@ -123,13 +115,12 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         verts,
         loc,
         rows,
-        leaves,
-        coarse,
+        shared,
     } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();
     let level = frame.level;
-    hood.fill((sampler, *leaves), level, &frame.cells)?;
+    hood.fill((sampler, shared.1), level, &frame.cells)?;
     let grid = sampler.grid();
     let s = grid.scale(level);
     let o = grid.offset();
@@ -191,13 +182,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                     if !hood.near_boundary[i] {
                         continue;
                     }
-                    if !cell_may_hold(
-                        (sampler, *leaves, *coarse),
-                        hood,
-                        (loc, memo),
-                        (i, &around),
-                        iso,
-                    )? {
+                    if !cell_may_hold((sampler, *shared), hood, (loc, memo), (i, &around), iso)? {
                         counts.culled += 1;
                         continue;
                     }

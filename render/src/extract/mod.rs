@@ -4,6 +4,7 @@
 //! - [`local`]: the classified level-`L` neighbourhood of a leaf.
 //! - [`leaf`]: the voxels one leaf owns: merged dual cells and boundary octants.
 //! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue.
+//! - [`band`]: the bounds around coarse leaf cells the cull reads, kept for every leaf.
 //! - [`vertices`]: a leaf's boundary vertex values, computed once each.
 //! - [`blocks`]: per-brick ranges of `4^3`-cell blocks, for bounds that do not rescan cells.
 //! - [`leaf_tree`]: a box tree over the leaves, for region queries of ranges and levels.
@@ -213,7 +214,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             let parts: Vec<Result<(Vec<u64>, LeafCounts)>> = chunk
                 .par_iter()
                 .map_init(
-                    || Scratch::new(&self.sampler, (&self.leaves, &self.coarse)),
+                    || Scratch::new(&self.sampler, (&self.blocks, &self.leaves, &self.coarse)),
                     |scratch, &leaf| {
                         let mut out = Vec::new();
                         let (lo, hi) =

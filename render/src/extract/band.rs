@@ -4,13 +4,13 @@
 //!
 //! The bound around `Q` is the union of the bounds of the 27 level-`q` cells around it, each the
 //! range of the leaf cells of level `q` or finer inside the cell. Those are gathered a tile of
-//! `4^3` level-`q` cells at a time, each tile once per file from one pass over the leaves
+//! `2^3` level-`q` cells at a time, each tile once per file from one pass over the leaves
 //! overlapping it (every leaf cell read once), and kept with the bounds around the cells asked
 //! for: a coarse cell next to many small leaves costs one look-up per leaf, and no leaf gathers
 //! the leaves around it.
 
 use std::collections::HashMap;
-use std::hash::{BuildHasherDefault, Hasher};
+use std::hash::{BuildHasherDefault, Hash, Hasher};
 use std::sync::{Arc, Mutex};
 
 use crate::error::Result;
@@ -69,7 +69,7 @@ pub fn fold_cell_bounds(
 /// packed range holds).
 const NEXT_TO_COARSER: u64 = u64::MAX - 1;
 /// Level-`q` cells per axis of a tile.
-const TILE: i64 = 4;
+const TILE: i64 = 2;
 /// Independently locked parts of the tables, so threads rarely wait on each other.
 const SHARDS: usize = 64;
 
@@ -77,7 +77,17 @@ const SHARDS: usize = 64;
 pub type Sources<'a, 'f, D> = (&'a Sampler<'f, D>, &'a BlockRanges, &'a LeafTree);
 
 /// A table key: a level and a cell (or tile) of it.
-type Key = (u32, [i64; 3]);
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct Key(u32, [i64; 3]);
+
+impl Hash for Key {
+    fn hash<H: Hasher>(&self, h: &mut H) {
+        h.write_u32(self.0);
+        for v in self.1 {
+            h.write_i64(v);
+        }
+    }
+}
 /// A table keyed by [`Key`], cut into [`SHARDS`] locked parts.
 type Table<T> = Vec<Mutex<HashMap<Key, T, BuildHasherDefault<CellHasher>>>>;
 
@@ -108,7 +118,7 @@ impl CoarseBounds {
         level: u32,
         c: [i64; 3],
     ) -> Result<Option<(f32, f32)>> {
-        let key = (level, c);
+        let key = Key(level, c);
         let shard = &self.around[shard_of(&key)];
         let known = shard.lock().ok().and_then(|m| m.get(&key).copied());
         let bits = match known {
@@ -167,7 +177,7 @@ impl CoarseBounds {
         level: u32,
         t: [i64; 3],
     ) -> Result<Arc<[(f32, f32)]>> {
-        let key = (level, t);
+        let key = Key(level, t);
         let shard = &self.tiles[shard_of(&key)];
         if let Some(known) = shard.lock().ok().and_then(|m| m.get(&key).cloned()) {
             return Ok(known);
@@ -275,10 +285,7 @@ fn gather_tile<D: AsRef<[u8]>>(
 /// The shard of key `k`.
 fn shard_of(k: &Key) -> usize {
     let mut h = CellHasher::default();
-    h.write_u32(k.0);
-    for v in k.1 {
-        h.write_i64(v);
-    }
+    k.hash(&mut h);
     (h.finish() >> 40) as usize % SHARDS
 }
 

@@ -4,7 +4,7 @@
 //!
 //! The bound around `Q` is the union of the bounds of the 27 level-`q` cells around it, each the
 //! range of the leaf cells of level `q` or finer inside the cell. Those are gathered a tile of
-//! `2^3` level-`q` cells at a time, each tile once per file from one pass over the leaves
+//! `4^3` level-`q` cells at a time, each tile once per file from one pass over the leaves
 //! overlapping it (every leaf cell read once), and kept with the bounds around the cells asked
 //! for: a coarse cell next to many small leaves costs one look-up per leaf, and no leaf gathers
 //! the leaves around it.
@@ -33,6 +33,12 @@ pub fn fold_cell_bounds(
     (lo, hi): (&mut [f32], &mut [f32]),
 ) {
     let e = g.extent();
+    // The x-range of fine cells inside `g`'s cells.
+    let x0 = cells.lo[0].max(g.lo[0] * ratio[0]);
+    let x1 = cells.hi[0].min(g.hi[0] * ratio[0]);
+    if x0 >= x1 {
+        return;
+    }
     for z in cells.lo[2]..cells.hi[2] {
         let gz = z.div_euclid(ratio[2]) - g.lo[2];
         if !(0..e[2]).contains(&gz) {
@@ -43,22 +49,24 @@ pub fn fold_cell_bounds(
             if !(0..e[1]).contains(&gy) {
                 continue;
             }
-            let src = bc.linear_index([cells.lo[0], y, z]);
+            let src = bc.linear_index([x0, y, z]);
             let row = ((gz * e[1] + gy) * e[0]) as usize;
-            let mut x = cells.lo[0];
-            while x < cells.hi[0] {
+            let mut x = x0;
+            while x < x1 {
                 let gx = x.div_euclid(ratio[0]);
-                let end = ((gx + 1) * ratio[0]).min(cells.hi[0]);
-                let gx = gx - g.lo[0];
-                if (0..e[0]).contains(&gx) {
-                    let run = &values
-                        [src + (x - cells.lo[0]) as usize..src + (end - cells.lo[0]) as usize];
-                    let i = row + gx as usize;
-                    for &v in run {
-                        lo[i] = lo[i].min(v);
-                        hi[i] = hi[i].max(v);
+                let end = ((gx + 1) * ratio[0]).min(x1);
+                let i = row + (gx - g.lo[0]) as usize;
+                let (mut l, mut h) = (lo[i], hi[i]);
+                for &v in &values[src + (x - x0) as usize..src + (end - x0) as usize] {
+                    // Comparisons, not f32::min: a NaN compares false and is left out.
+                    if v < l {
+                        l = v;
+                    }
+                    if v > h {
+                        h = v;
                     }
                 }
+                (lo[i], hi[i]) = (l, h);
                 x = end;
             }
         }
@@ -69,7 +77,7 @@ pub fn fold_cell_bounds(
 /// packed range holds).
 const NEXT_TO_COARSER: u64 = u64::MAX - 1;
 /// Level-`q` cells per axis of a tile.
-const TILE: i64 = 2;
+const TILE: i64 = 4;
 /// Independently locked parts of the tables, so threads rarely wait on each other.
 const SHARDS: usize = 64;
 

@@ -6,8 +6,8 @@
 //! range of the leaf cells of level `q` or finer inside the cell. Those are gathered a tile of
 //! `4^3` level-`q` cells at a time, each tile once per file from one pass over the leaves
 //! overlapping it (every leaf cell read once), and kept with the bounds around the cells asked
-//! for: a coarse cell next to many small leaves costs one look-up per leaf, and no leaf gathers
-//! the leaves around it.
+//! for: a coarse cell next to many small leaves costs a few look-ups per leaf, and no leaf
+//! gathers the leaves around it.
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hash, Hasher};
@@ -99,46 +99,29 @@ impl Hash for Key {
 /// A table keyed by [`Key`], cut into [`SHARDS`] locked parts.
 type Table<T> = Vec<Mutex<HashMap<Key, T, BuildHasherDefault<CellHasher>>>>;
 
-/// The bounds of the coarse cells and tiles asked for so far, of one field.
+/// The bounds of the coarse cells of the tiles asked for so far, of one field.
 pub struct CoarseBounds {
-    /// Per coarse cell asked for: the packed bound around it, or [`NEXT_TO_COARSER`].
-    around: Table<u64>,
     /// Per tile: each cell's bound, `(NaN, NaN)` where a coarser leaf cell overlaps it.
     tiles: Table<Arc<[(f32, f32)]>>,
 }
 
 impl Default for CoarseBounds {
     fn default() -> Self {
-        Self {
-            around: new_table(),
-            tiles: new_table(),
-        }
+        Self { tiles: new_table() }
     }
 }
 
 impl CoarseBounds {
     /// A range holding the leaf cells within one cell of level-`level` cell `c` (absolute
-    /// index); `None` when a leaf cell coarser than `level` lies there. Computed on first need
-    /// and kept.
+    /// index); `None` when a leaf cell coarser than `level` lies there: the union of the 27
+    /// cells' entries, from the tiles holding them.
     pub fn range_around<D: AsRef<[u8]>>(
         &self,
         sources: Sources<'_, '_, D>,
         level: u32,
         c: [i64; 3],
     ) -> Result<Option<(f32, f32)>> {
-        let key = Key(level, c);
-        let shard = &self.around[shard_of(&key)];
-        let known = shard.lock().ok().and_then(|m| m.get(&key).copied());
-        let bits = match known {
-            Some(bits) => bits,
-            None => {
-                let bits = self.compute_around(sources, level, c)?;
-                if let Ok(mut m) = shard.lock() {
-                    m.insert(key, bits);
-                }
-                bits
-            }
-        };
+        let bits = self.compute_around(sources, level, c)?;
         Ok((bits != NEXT_TO_COARSER).then(|| unpack(bits)))
     }
 
@@ -303,8 +286,12 @@ pub struct CellHasher(u64);
 
 impl Hasher for CellHasher {
     fn finish(&self) -> u64 {
-        // The product's high bits hold all of the key: fold them into the low bits too.
-        self.0 ^ self.0 >> 29
+        // The SplitMix64 finalizer: every bit of the key reaches every bit of the hash, so
+        // neighbouring cells spread over the table's groups.
+        let mut z = self.0;
+        z = (z ^ z >> 30).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ z >> 27).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ z >> 31
     }
 
     fn write(&mut self, bytes: &[u8]) {

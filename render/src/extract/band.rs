@@ -5,9 +5,8 @@
 //! The bound around `Q` is the union of the bounds of the 27 level-`q` cells around it, each the
 //! range of the leaf cells of level `q` or finer inside the cell. Those are gathered a tile of
 //! `4^3` level-`q` cells at a time, each tile once per file from one pass over the leaves
-//! overlapping it (every leaf cell read once), and kept with the bounds around the cells asked
-//! for: a coarse cell next to many small leaves costs a few look-ups per leaf, and no leaf
-//! gathers the leaves around it.
+//! overlapping it (every leaf cell read once), and kept: a coarse cell next to many small leaves
+//! costs a few look-ups per leaf, and no leaf gathers the leaves around it.
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hash, Hasher};

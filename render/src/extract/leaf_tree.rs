@@ -138,43 +138,6 @@ impl LeafTree {
         self.boxes[l as usize]
     }
 
-    /// True when a leaf with data of a level coarser than `level` overlaps `region` (open
-    /// boxes: sharing a face does not count).
-    pub fn any_coarser_overlapping<D: AsRef<[u8]>>(
-        &self,
-        sampler: &Sampler<'_, D>,
-        region: &IBox,
-        level: u32,
-    ) -> bool {
-        let mut stack = Vec::with_capacity(64);
-        if !self.nodes.is_empty() {
-            stack.push(0u32);
-        }
-        let tree = sampler.file().tree();
-        while let Some(i) = stack.pop() {
-            let node = &self.nodes[i as usize];
-            if node.coarsest >= level || !node.bounds.overlaps(region) {
-                continue;
-            }
-            if contains(region, &node.bounds) {
-                return true;
-            }
-            match node.children {
-                Some((a, b)) => stack.extend([b, a]),
-                None => {
-                    let leaves = &self.order[node.first as usize..node.end as usize];
-                    if leaves.iter().any(|&l| {
-                        sampler.leaf_top(l).is_some_and(|(_, lv)| lv < level)
-                            && tree.leaf_box(l).overlaps(region)
-                    }) {
-                        return true;
-                    }
-                }
-            }
-        }
-        false
-    }
-
     /// A range holding the cells of the leaves (each leaf's finest brick) inside `region`, from
     /// the `blocks` they lie in; a node lying inside `region` grown by `slack` contributes its
     /// whole range.

@@ -1,16 +1,23 @@
-//! Value bounds of leaf cells gathered onto the grid of a coarser level: per cell of level `q`,
-//! the range of the leaf cells of level `q` or finer inside it, or the fact that a leaf cell
-//! coarser than `q` overlaps it.
+//! Value bounds around coarse leaf cells, shared by every leaf and isovalue of one field: for a
+//! leaf cell `Q` of level `q`, the range of the leaf cells within one `Q`-cell of `Q`, or the fact
+//! that a leaf cell coarser than `q` lies there ([`super::cull`]).
 //!
-//! [`CoarseBand`] holds them around one leaf for one coarser level, each computed on first need,
-//! so that the bound of a coarse neighbour cell `Q` (the range of the leaf cells within one
-//! `Q`-cell of `Q`, [`super::cull`]) is the union of 27 entries, each shared by the coarse cells
-//! next to it, instead of a scan of every brick near `Q`.
+//! The bound around `Q` is the union of the bounds of the 27 level-`q` cells around it, each the
+//! range of the leaf cells of level `q` or finer inside the cell. Those are gathered a tile of
+//! `4^3` level-`q` cells at a time, each tile once per file from one pass over the leaves
+//! overlapping it (every leaf cell read once), and kept: a coarse cell next to many small leaves
+//! costs a few look-ups per leaf, and no leaf gathers the leaves around it.
+
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hash, Hasher};
+use std::sync::{Arc, Mutex};
 
 use crate::error::Result;
 use amr_format::IBox;
 
-use super::blocks::BlockRanges;
+use super::blocks::{BlockRanges, BLOCK};
+use super::leaf_tree::LeafTree;
+use super::tight::{pack, unpack};
 use crate::reconstruct::Sampler;
 
 /// Folds the values of the cells `cells` (level-`fine` indices, inside the brick's cells `bc`)
@@ -25,6 +32,12 @@ pub fn fold_cell_bounds(
     (lo, hi): (&mut [f32], &mut [f32]),
 ) {
     let e = g.extent();
+    // The x-range of fine cells inside `g`'s cells.
+    let x0 = cells.lo[0].max(g.lo[0] * ratio[0]);
+    let x1 = cells.hi[0].min(g.hi[0] * ratio[0]);
+    if x0 >= x1 {
+        return;
+    }
     for z in cells.lo[2]..cells.hi[2] {
         let gz = z.div_euclid(ratio[2]) - g.lo[2];
         if !(0..e[2]).contains(&gz) {
@@ -35,264 +48,270 @@ pub fn fold_cell_bounds(
             if !(0..e[1]).contains(&gy) {
                 continue;
             }
-            let src = bc.linear_index([cells.lo[0], y, z]);
+            let src = bc.linear_index([x0, y, z]);
             let row = ((gz * e[1] + gy) * e[0]) as usize;
-            let mut x = cells.lo[0];
-            while x < cells.hi[0] {
+            let mut x = x0;
+            while x < x1 {
                 let gx = x.div_euclid(ratio[0]);
-                let end = ((gx + 1) * ratio[0]).min(cells.hi[0]);
-                let gx = gx - g.lo[0];
-                if (0..e[0]).contains(&gx) {
-                    let run = &values
-                        [src + (x - cells.lo[0]) as usize..src + (end - cells.lo[0]) as usize];
-                    let i = row + gx as usize;
-                    for &v in run {
-                        lo[i] = lo[i].min(v);
-                        hi[i] = hi[i].max(v);
+                let end = ((gx + 1) * ratio[0]).min(x1);
+                let i = row + (gx - g.lo[0]) as usize;
+                let (mut l, mut h) = (lo[i], hi[i]);
+                for &v in &values[src + (x - x0) as usize..src + (end - x0) as usize] {
+                    // Comparisons, not f32::min: a NaN compares false and is left out.
+                    if v < l {
+                        l = v;
+                    }
+                    if v > h {
+                        h = v;
                     }
                 }
+                (lo[i], hi[i]) = (l, h);
                 x = end;
             }
         }
     }
 }
 
-/// Owner of a band cell: no leaf with data overlaps it.
-const EMPTY: u32 = u32::MAX;
-/// Owner of a band cell: a leaf cell coarser than the band's level overlaps it.
-const COARSER: u32 = u32::MAX - 1;
-/// Owner of a band cell: several leaves overlap it.
-const SHARED: u32 = u32::MAX - 2;
+/// Marks a coarse cell next to a leaf cell coarser than itself (the bits of two NaNs, which no
+/// packed range holds).
+const NEXT_TO_COARSER: u64 = u64::MAX - 1;
+/// Level-`q` cells per axis of a tile.
+const TILE: i64 = 4;
+/// Independently locked parts of the tables, so threads rarely wait on each other.
+const SHARDS: usize = 64;
 
-/// The bounds of the leaf cells on the grid of one coarser level around one leaf.
-#[derive(Default)]
-pub struct CoarseBand {
-    /// The level `q` of the grid.
-    pub level: u32,
-    /// The level-`q` cells held (absolute indices): [`Self::inner`] grown by one, clipped to the
-    /// domain.
-    pub cells: IBox,
-    /// The level-`q` cells overlapping the region the band was prepared for.
-    pub inner: IBox,
-    /// Per cell: the index in [`Self::parts`] of the one leaf with data overlapping it, or
-    /// [`EMPTY`], [`COARSER`], [`SHARED`].
-    owner: Vec<u32>,
-    /// Per cell: its bound once computed.
-    lo: Vec<f32>,
-    hi: Vec<f32>,
-    known: Vec<bool>,
-    /// True once the bounds of every [`SHARED`] cell are known.
-    shared_known: bool,
-    /// The leaves touching the band.
-    touching: Vec<u32>,
-    /// The leaves of level `q` or finer overlapping the band, with data.
-    parts: Vec<BandPart>,
-}
+/// The sources a tile is gathered from.
+pub type Sources<'a, 'f, D> = (&'a Sampler<'f, D>, &'a BlockRanges, &'a LeafTree);
 
-/// A leaf of level `q` or finer overlapping a band.
-struct BandPart {
-    brick: u32,
-    /// Its level-`lv` cells that its brick holds.
-    cells: IBox,
-    /// The width of a level-`q` cell in level-`lv` cells.
-    ratio: [i64; 3],
-}
+/// A table key: a level and a cell (or tile) of it.
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct Key(u32, [i64; 3]);
 
-impl CoarseBand {
-    /// Prepares the band of level `level` holding every level-`level` cell overlapping the
-    /// finest-level box `region`, and the cells next to them: records which leaves overlap each
-    /// cell. No brick data is read until [`Self::range_around`].
-    pub fn prepare<D: AsRef<[u8]>>(&mut self, sampler: &Sampler<'_, D>, level: u32, region: &IBox) {
-        let grid = sampler.grid();
-        let inner = grid.level_box(level, region);
-        let g = inner.grow([1; 3]).intersect(&grid.domain(level));
-        let n = g.num_cells().unwrap_or(0) as usize;
-        self.level = level;
-        self.inner = inner;
-        self.cells = g;
-        self.owner.clear();
-        self.owner.resize(n, EMPTY);
-        self.known.clear();
-        self.known.resize(n, false);
-        self.shared_known = false;
-        self.lo.resize(n, f32::INFINITY);
-        self.hi.resize(n, f32::NEG_INFINITY);
-        self.touching.clear();
-        self.parts.clear();
-        if n == 0 {
-            return;
+impl Hash for Key {
+    fn hash<H: Hasher>(&self, h: &mut H) {
+        h.write_u32(self.0);
+        for v in self.1 {
+            h.write_i64(v);
         }
-        let finest = self.finest_box(sampler, &g);
-        let tree = sampler.file().tree();
-        tree.for_each_leaf_touching(&finest, |l| self.touching.push(l));
-        let s = grid.scale(level);
-        for &l in &self.touching {
-            let leaf_box = tree.leaf_box(l);
-            let part = leaf_box.intersect(&finest);
-            let Some((brick, lv)) = sampler.leaf_top(l) else {
-                continue;
-            };
-            if part.is_empty() {
-                continue;
+    }
+}
+/// A table keyed by [`Key`], cut into [`SHARDS`] locked parts.
+type Table<T> = Vec<Mutex<HashMap<Key, T, BuildHasherDefault<CellHasher>>>>;
+
+/// The bounds of the coarse cells of the tiles asked for so far, of one field.
+pub struct CoarseBounds {
+    /// Per tile: each cell's bound, `(NaN, NaN)` where a coarser leaf cell overlaps it.
+    tiles: Table<Arc<[(f32, f32)]>>,
+}
+
+impl Default for CoarseBounds {
+    fn default() -> Self {
+        Self { tiles: new_table() }
+    }
+}
+
+impl CoarseBounds {
+    /// A range holding the leaf cells within one cell of level-`level` cell `c` (absolute
+    /// index); `None` when a leaf cell coarser than `level` lies there: the union of the 27
+    /// cells' entries, from the tiles holding them.
+    pub fn range_around<D: AsRef<[u8]>>(
+        &self,
+        sources: Sources<'_, '_, D>,
+        level: u32,
+        c: [i64; 3],
+    ) -> Result<Option<(f32, f32)>> {
+        let bits = self.compute_around(sources, level, c)?;
+        Ok((bits != NEXT_TO_COARSER).then(|| unpack(bits)))
+    }
+
+    /// The packed union of the bounds of the 27 cells around `c`, or [`NEXT_TO_COARSER`].
+    fn compute_around<D: AsRef<[u8]>>(
+        &self,
+        sources: Sources<'_, '_, D>,
+        level: u32,
+        c: [i64; 3],
+    ) -> Result<u64> {
+        let near = IBox::new(c.map(|v| v - 1), c.map(|v| v + 2));
+        let tiles = near.coarsen([TILE; 3]);
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for tz in tiles.lo[2]..tiles.hi[2] {
+            for ty in tiles.lo[1]..tiles.hi[1] {
+                for tx in tiles.lo[0]..tiles.hi[0] {
+                    let t = [tx, ty, tz];
+                    let bounds = self.tile(sources, level, t)?;
+                    let tile_cells = tile_box(t);
+                    let part = near.intersect(&tile_cells);
+                    for z in part.lo[2]..part.hi[2] {
+                        for y in part.lo[1]..part.hi[1] {
+                            let row = tile_cells.linear_index([part.lo[0], y, z]);
+                            let w = part.extent()[0] as usize;
+                            for &(a, b) in &bounds[row..row + w] {
+                                if a.is_nan() {
+                                    return Ok(NEXT_TO_COARSER);
+                                }
+                                lo = lo.min(a);
+                                hi = hi.max(b);
+                            }
+                        }
+                    }
+                }
             }
-            let mark = if lv < level {
-                COARSER
-            } else {
-                let sf = grid.scale(lv);
-                self.parts.push(BandPart {
-                    brick,
-                    cells: grid
-                        .level_box(lv, &leaf_box)
-                        .intersect(&sampler.brick_cells(brick)),
-                    ratio: [0, 1, 2].map(|a| s[a] / sf[a]),
-                });
-                (self.parts.len() - 1) as u32
-            };
-            let block = grid.level_box(level, &part).intersect(&g);
+        }
+        Ok(pack((lo, hi)))
+    }
+
+    /// The cell bounds of tile `t` of level `level`, gathered on first need.
+    fn tile<D: AsRef<[u8]>>(
+        &self,
+        sources: Sources<'_, '_, D>,
+        level: u32,
+        t: [i64; 3],
+    ) -> Result<Arc<[(f32, f32)]>> {
+        let key = Key(level, t);
+        let shard = &self.tiles[shard_of(&key)];
+        if let Some(known) = shard.lock().ok().and_then(|m| m.get(&key).cloned()) {
+            return Ok(known);
+        }
+        let bounds: Arc<[(f32, f32)]> = gather_tile(sources, level, &tile_box(t))?.into();
+        if let Ok(mut m) = shard.lock() {
+            m.insert(key, bounds.clone());
+        }
+        Ok(bounds)
+    }
+}
+
+/// An empty table.
+fn new_table<T>() -> Table<T> {
+    (0..SHARDS).map(|_| Mutex::default()).collect()
+}
+
+/// The level cells of tile `t`.
+fn tile_box(t: [i64; 3]) -> IBox {
+    IBox::new(t.map(|v| v * TILE), t.map(|v| (v + 1) * TILE))
+}
+
+/// Per level-`level` cell of `g` (x fastest): the range of the leaf cells of level `level` or
+/// finer inside it, `(+inf, -inf)` when there are none, `(NaN, NaN)` when a coarser leaf cell
+/// overlaps it. One pass over the leaves overlapping `g`, each of their cells inside `g` read
+/// once, or through the block ranges where a level-`level` cell holds whole blocks.
+fn gather_tile<D: AsRef<[u8]>>(
+    (sampler, blocks, leaves): Sources<'_, '_, D>,
+    level: u32,
+    g: &IBox,
+) -> Result<Vec<(f32, f32)>> {
+    let grid = sampler.grid();
+    let n = g.num_cells().unwrap_or(0) as usize;
+    let mut lo = vec![f32::INFINITY; n];
+    let mut hi = vec![f32::NEG_INFINITY; n];
+    let mut coarser = vec![false; n];
+    let s = grid.scale(level);
+    let o = grid.offset();
+    let finest = IBox::new(
+        [0, 1, 2].map(|a| g.lo[a] * s[a] - o[a]),
+        [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
+    );
+    let mut touching = Vec::new();
+    leaves.for_each_leaf_touching(&finest, |l| touching.push(l));
+    for l in touching {
+        let leaf_box = leaves.leaf_box(l);
+        let part = leaf_box.intersect(&finest);
+        let Some((brick, lv)) = sampler.leaf_top(l) else {
+            continue;
+        };
+        if part.is_empty() {
+            continue;
+        }
+        if lv < level {
+            let block = grid.level_box(level, &part).intersect(g);
             for z in block.lo[2]..block.hi[2] {
                 for y in block.lo[1]..block.hi[1] {
                     let row = g.linear_index([block.lo[0], y, z]);
-                    for owner in &mut self.owner[row..row + block.extent()[0] as usize] {
-                        *owner = match (*owner, mark) {
-                            (_, COARSER) | (COARSER, _) => COARSER,
-                            (EMPTY, _) => mark,
-                            _ => SHARED,
-                        };
-                    }
+                    coarser[row..row + block.extent()[0] as usize].fill(true);
                 }
             }
+            continue;
         }
-    }
-
-    /// The finest-level box of level-`q` cells `cells`.
-    fn finest_box<D: AsRef<[u8]>>(&self, sampler: &Sampler<'_, D>, cells: &IBox) -> IBox {
-        let grid = sampler.grid();
-        let s = grid.scale(self.level);
-        let o = grid.offset();
-        IBox::new(
-            [0, 1, 2].map(|a| cells.lo[a] * s[a] - o[a]),
-            [0, 1, 2].map(|a| cells.hi[a] * s[a] - o[a]),
-        )
-    }
-
-    /// True when the band is of level `level` and holds cell `c` (absolute index) and, inside
-    /// the domain, the cells next to it.
-    pub fn covers(&self, level: u32, c: [i64; 3]) -> bool {
-        self.level == level && self.inner.contains_cell(c)
-    }
-
-    /// A range holding the leaf cells within one cell of level-`q` cell `c` (absolute index),
-    /// read through `blocks`; `None` when a leaf cell coarser than `q` lies there. `c`
-    /// must be [`Self::covers`]ed.
-    pub fn range_around<D: AsRef<[u8]>>(
-        &mut self,
-        sampler: &Sampler<'_, D>,
-        blocks: &BlockRanges,
-        c: [i64; 3],
-    ) -> Result<Option<(f32, f32)>> {
-        let near = IBox::new(c.map(|v| v - 1), c.map(|v| v + 2)).intersect(&self.cells);
-        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        for z in near.lo[2]..near.hi[2] {
-            for y in near.lo[1]..near.hi[1] {
-                let row = self.cells.linear_index([near.lo[0], y, z]);
-                for (k, i) in (row..row + near.extent()[0] as usize).enumerate() {
-                    if self.owner[i] == COARSER {
-                        return Ok(None);
-                    }
-                    if self.owner[i] == SHARED && !self.shared_known {
-                        self.settle_shared(sampler, blocks)?;
-                    }
-                    if !self.known[i] {
-                        let cell = [near.lo[0] + k as i64, y, z];
-                        (self.lo[i], self.hi[i]) = self.compute(sampler, blocks, i, cell)?;
-                        self.known[i] = true;
-                    }
-                    lo = lo.min(self.lo[i]);
-                    hi = hi.max(self.hi[i]);
-                }
-            }
+        let bc = sampler.brick_cells(brick);
+        let cells = grid.level_box(lv, &part).intersect(&bc);
+        if cells.is_empty() {
+            continue;
         }
-        Ok(Some((lo, hi)))
-    }
-
-    /// Computes the bounds of every [`SHARED`] cell in one pass over the parts, each part
-    /// folding into the cells it overlaps (rather than every part visiting every shared cell).
-    fn settle_shared<D: AsRef<[u8]>>(
-        &mut self,
-        sampler: &Sampler<'_, D>,
-        blocks: &BlockRanges,
-    ) -> Result<()> {
-        let g = self.cells;
-        for i in 0..self.owner.len() {
-            if self.owner[i] == SHARED {
-                (self.lo[i], self.hi[i]) = (f32::INFINITY, f32::NEG_INFINITY);
-            }
-        }
-        for part in &self.parts {
-            let r = part.ratio;
-            let over = IBox::new(
-                [0, 1, 2].map(|a| part.cells.lo[a].div_euclid(r[a])),
-                [0, 1, 2].map(|a| (part.cells.hi[a] + r[a] - 1).div_euclid(r[a])),
-            )
-            .intersect(&g);
+        let sf = grid.scale(lv);
+        let r = [0, 1, 2].map(|a| s[a] / sf[a]);
+        if r.iter().all(|&v| v >= BLOCK) {
+            let over = cells.coarsen(r).intersect(g);
             for z in over.lo[2]..over.hi[2] {
                 for y in over.lo[1]..over.hi[1] {
                     for x in over.lo[0]..over.hi[0] {
-                        let i = g.linear_index([x, y, z]);
-                        if self.owner[i] != SHARED {
-                            continue;
-                        }
                         let c = [x, y, z];
                         let inside = IBox::new(
                             [0, 1, 2].map(|a| c[a] * r[a]),
                             [0, 1, 2].map(|a| (c[a] + 1) * r[a]),
                         )
-                        .intersect(&part.cells);
-                        let (a, b) = blocks.range_of_cells(sampler, part.brick, &inside)?;
-                        self.lo[i] = self.lo[i].min(a);
-                        self.hi[i] = self.hi[i].max(b);
+                        .intersect(&cells);
+                        let (a, b) = blocks.range_of_cells(sampler, brick, &inside)?;
+                        let i = g.linear_index(c);
+                        lo[i] = lo[i].min(a);
+                        hi[i] = hi[i].max(b);
                     }
                 }
             }
+            continue;
         }
-        for i in 0..self.owner.len() {
-            if self.owner[i] == SHARED {
-                self.known[i] = true;
+        let values = sampler.values(brick)?;
+        fold_cell_bounds(&values, &bc, &cells, r, g, (&mut lo, &mut hi));
+    }
+    Ok((0..n)
+        .map(|i| {
+            if coarser[i] {
+                (f32::NAN, f32::NAN)
+            } else {
+                (lo[i], hi[i])
             }
-        }
-        self.shared_known = true;
-        Ok(())
+        })
+        .collect())
+}
+
+/// The shard of key `k`.
+fn shard_of(k: &Key) -> usize {
+    let mut h = CellHasher::default();
+    k.hash(&mut h);
+    (h.finish() >> 40) as usize % SHARDS
+}
+
+/// A multiplicative hash of cell keys (a few integers; no untrusted input reaches it).
+#[derive(Default)]
+pub struct CellHasher(u64);
+
+impl Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        // The SplitMix64 finalizer: every bit of the key reaches every bit of the hash, so
+        // neighbouring cells spread over the table's groups.
+        let mut z = self.0;
+        z = (z ^ z >> 30).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ z >> 27).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ z >> 31
     }
 
-    /// A range holding the leaf cells inside band cell `i` (cell `cell`), which no coarser leaf
-    /// cell overlaps.
-    fn compute<D: AsRef<[u8]>>(
-        &self,
-        sampler: &Sampler<'_, D>,
-        blocks: &BlockRanges,
-        i: usize,
-        cell: [i64; 3],
-    ) -> Result<(f32, f32)> {
-        let parts = match self.owner[i] {
-            EMPTY => return Ok((f32::INFINITY, f32::NEG_INFINITY)),
-            SHARED => &self.parts[..],
-            one => std::slice::from_ref(&self.parts[one as usize]),
-        };
-        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        for part in parts {
-            let r = part.ratio;
-            let inside = IBox::new(
-                [0, 1, 2].map(|a| cell[a] * r[a]),
-                [0, 1, 2].map(|a| (cell[a] + 1) * r[a]),
-            )
-            .intersect(&part.cells);
-            if inside.is_empty() {
-                continue;
-            }
-            let (a, b) = blocks.range_of_cells(sampler, part.brick, &inside)?;
-            lo = lo.min(a);
-            hi = hi.max(b);
+    fn write(&mut self, bytes: &[u8]) {
+        let mut words = bytes.chunks_exact(8);
+        for w in &mut words {
+            self.write_u64(u64::from_le_bytes(w.try_into().unwrap_or_default()));
         }
-        Ok((lo, hi))
+        for &b in words.remainder() {
+            self.write_u64(u64::from(b));
+        }
+    }
+
+    fn write_u32(&mut self, v: u32) {
+        self.write_u64(u64::from(v));
+    }
+
+    fn write_i64(&mut self, v: i64) {
+        self.write_u64(v as u64);
+    }
+
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
     }
 }

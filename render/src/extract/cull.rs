@@ -13,7 +13,9 @@
 
 use crate::error::Result;
 
+use super::band::CoarseBounds;
 use super::blocks::BlockRanges;
+use super::leaf_tree::LeafTree;
 use super::local::{Neighbourhood, ABOVE, BELOW, COARSER, PENDING};
 use crate::reconstruct::sampler::Locate;
 use crate::reconstruct::{LocalLocator, Sampler, VertexMemo};
@@ -24,12 +26,16 @@ pub fn around_offsets(row: usize, slab: usize) -> [usize; 27] {
     std::array::from_fn(|k| k % 3 + k / 3 % 3 * row + k / 9 * slab)
 }
 
+/// The tables every leaf's cull reads: block ranges, the leaf tree, the coarse bounds.
+pub type Shared<'s> = (&'s BlockRanges, &'s LeafTree, &'s CoarseBounds);
+
 /// True unless the octants of the cell at neighbourhood index `i` certainly do not straddle
 /// `iso` ([`Neighbourhood::classify`] must have run for `iso`). `around` comes from
-/// [`around_offsets`]. Bounds of coarser neighbours are computed on first need (from `blocks`) and
-/// kept in `hood`.
+/// [`around_offsets`]. Bounds of coarser neighbours are computed on first need (from `coarse`, which
+/// keeps them for every leaf, gathering them from the leaves of `leaves` through `blocks`) and kept
+/// in `hood`.
 pub fn cell_may_hold<D: AsRef<[u8]>>(
-    (sampler, blocks): (&Sampler<'_, D>, &BlockRanges),
+    (sampler, (blocks, leaves, coarse)): (&Sampler<'_, D>, Shared<'_>),
     hood: &mut Neighbourhood,
     (loc, memo): (&mut LocalLocator<'_, '_, D>, &mut VertexMemo),
     (i, around): (usize, &[usize; 27]),
@@ -49,7 +55,13 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
     for &d in around {
         let j = base + d;
         if hood.codes()[j] & PENDING != 0 {
-            settle_coarse((sampler, blocks), hood, (loc, memo), j, iso)?;
+            settle_coarse(
+                (sampler, (blocks, leaves, coarse)),
+                hood,
+                (loc, memo),
+                j,
+                iso,
+            )?;
         }
         union |= hood.codes()[j];
     }
@@ -61,7 +73,7 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
 /// (which holds every corner of `Q`'s octants when none of them is coarser than `Q`), or else
 /// the exact corners of the octants of `Q` overlapping cell `j`.
 fn settle_coarse<D: AsRef<[u8]>>(
-    (sampler, blocks): (&Sampler<'_, D>, &BlockRanges),
+    (sampler, (blocks, leaves, coarse)): (&Sampler<'_, D>, Shared<'_>),
     hood: &mut Neighbourhood,
     (loc, memo): (&mut LocalLocator<'_, '_, D>, &mut VertexMemo),
     j: usize,
@@ -84,13 +96,7 @@ fn settle_coarse<D: AsRef<[u8]>>(
         return Ok(());
     }
     let q_box = grid.finest_box(q.level, q.cell);
-    let band = hood.band(sampler, q.level);
-    let around = if band.covers(q.level, q.cell) {
-        band.range_around(sampler, blocks, q.cell)?
-    } else {
-        None
-    };
-    if let Some(range) = around {
+    if let Some(range) = coarse.range_around((sampler, blocks, leaves), q.level, q.cell)? {
         let bound = widen(range);
         let inside = grid.level_box(level, &q_box).intersect(&hood.cells);
         for z in inside.lo[2]..inside.hi[2] {

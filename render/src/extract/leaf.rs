@@ -9,8 +9,7 @@
 use crate::error::Result;
 use amr_format::IBox;
 
-use super::blocks::BlockRanges;
-use super::cull::{around_offsets, cell_may_hold};
+use super::cull::{around_offsets, cell_may_hold, Shared};
 use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};
 use super::refs::{make_ref, LocalVoxel};
 use super::vertices::LeafVertices;
@@ -29,20 +28,21 @@ pub struct Scratch<'s, 'f, D> {
     pub loc: LocalLocator<'s, 'f, D>,
     /// One row of merged-dual-cell codes.
     pub rows: Vec<u8>,
-    /// The block ranges bounding coarser neighbours.
-    pub blocks: &'s BlockRanges,
+    /// The block ranges, the leaf tree (for region queries) and the bounds of coarser
+    /// neighbours.
+    pub shared: Shared<'s>,
 }
 
 impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
-    /// Empty scratch for extracting from `sampler`, bounding coarser neighbours with `blocks`.
-    pub fn new(sampler: &'s Sampler<'f, D>, blocks: &'s BlockRanges) -> Self {
+    /// Empty scratch for extracting from `sampler`, reading the tables of `shared`.
+    pub fn new(sampler: &'s Sampler<'f, D>, shared: Shared<'s>) -> Self {
         Self {
             hood: Neighbourhood::default(),
             memo: VertexMemo::default(),
             verts: LeafVertices::default(),
             loc: LocalLocator::new(sampler),
             rows: Vec::new(),
-            blocks,
+            shared,
         }
     }
 }
@@ -132,12 +132,12 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         verts,
         loc,
         rows,
-        blocks,
+        shared,
     } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();
     let level = frame.level;
-    hood.fill(sampler, level, &frame.cells)?;
+    hood.fill((sampler, shared.1), level, &frame.cells)?;
     let grid = sampler.grid();
     let s = grid.scale(level);
     let o = grid.offset();
@@ -199,7 +199,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                     if !hood.near_boundary[i] {
                         continue;
                     }
-                    if !cell_may_hold((sampler, blocks), hood, (loc, memo), (i, &around), iso)? {
+                    if !cell_may_hold((sampler, *shared), hood, (loc, memo), (i, &around), iso)? {
                         counts.culled += 1;
                         continue;
                     }

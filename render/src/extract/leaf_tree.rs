@@ -34,6 +34,10 @@ pub struct LeafTree {
     /// Leaf ids, each node's contiguous.
     order: Vec<u32>,
     ranges: Vec<AtomicU64>,
+    /// Per leaf, the range of its cells once asked.
+    leaf_ranges: Vec<AtomicU64>,
+    /// Per leaf, its box.
+    boxes: Vec<IBox>,
 }
 
 impl LeafTree {
@@ -42,14 +46,24 @@ impl LeafTree {
         let n = sampler.file().num_leaves() as u32;
         let mut nodes = Vec::with_capacity(4 * n as usize / BUCKET + 1);
         let mut order: Vec<u32> = (0..n).collect();
+        let tree = sampler.file().tree();
+        let leaves: Vec<(IBox, u32)> = (0..n)
+            .map(|l| {
+                let level = sampler.leaf_top(l).map_or(u32::MAX, |(_, lv)| lv);
+                (tree.leaf_box(l), level)
+            })
+            .collect();
         if n > 0 {
-            build(sampler, &mut order, 0, &mut nodes);
+            build(&leaves, &mut order, 0, &mut nodes);
         }
         let ranges = (0..nodes.len()).map(|_| AtomicU64::new(UNKNOWN)).collect();
+        let leaf_ranges = (0..n).map(|_| AtomicU64::new(UNKNOWN)).collect();
         Self {
             nodes,
             order,
             ranges,
+            leaf_ranges,
+            boxes: leaves.into_iter().map(|(b, _)| b).collect(),
         }
     }
 
@@ -90,6 +104,40 @@ impl LeafTree {
         (best != u32::MAX).then_some(best)
     }
 
+    /// Calls `f` with every leaf whose closed box touches the closed `region`.
+    pub fn for_each_leaf_touching(&self, region: &IBox, mut f: impl FnMut(u32)) {
+        let mut stack = [0u32; 64];
+        let mut top = usize::from(!self.nodes.is_empty());
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if !node.bounds.touches(region) {
+                continue;
+            }
+            match node.children {
+                // The tree is balanced: its depth stays far below the stack's size.
+                Some((a, b)) if top + 2 <= stack.len() => {
+                    stack[top] = b;
+                    stack[top + 1] = a;
+                    top += 2;
+                }
+                _ => {
+                    for &l in &self.order[node.first as usize..node.end as usize] {
+                        if self.boxes[l as usize].touches(region) {
+                            f(l);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// The box of leaf `l` (finest-level cells).
+    #[inline]
+    pub fn leaf_box(&self, l: u32) -> IBox {
+        self.boxes[l as usize]
+    }
+
     /// A range holding the cells of the leaves (each leaf's finest brick) inside `region`, from
     /// the `blocks` they lie in; a node lying inside `region` grown by `slack` contributes its
     /// whole range.
@@ -120,14 +168,18 @@ impl LeafTree {
             } else {
                 let (mut a, mut b) = (f32::INFINITY, f32::NEG_INFINITY);
                 for &l in &self.order[node.first as usize..node.end as usize] {
-                    let Some((brick, lv)) = sampler.leaf_top(l) else {
-                        continue;
-                    };
-                    let part = tree.leaf_box(l).intersect(region);
+                    let leaf_box = tree.leaf_box(l);
+                    let part = leaf_box.intersect(region);
                     if part.is_empty() {
                         continue;
                     }
-                    let (x, y) = blocks.range_in(sampler, brick, lv, &part)?;
+                    let (x, y) = if contains(region, &leaf_box) {
+                        self.leaf_range(sampler, blocks, l)?
+                    } else if let Some((brick, lv)) = sampler.leaf_top(l) {
+                        blocks.range_in(sampler, brick, lv, &part)?
+                    } else {
+                        continue;
+                    };
                     a = a.min(x);
                     b = b.max(y);
                 }
@@ -159,17 +211,37 @@ impl LeafTree {
                 (x0.min(x1), y0.max(y1))
             }
             None => {
-                let tree = sampler.file().tree();
                 let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
                 for &l in &self.order[node.first as usize..node.end as usize] {
-                    if let Some((brick, lv)) = sampler.leaf_top(l) {
-                        let (a, b) = blocks.range_in(sampler, brick, lv, &tree.leaf_box(l))?;
-                        lo = lo.min(a);
-                        hi = hi.max(b);
-                    }
+                    let (a, b) = self.leaf_range(sampler, blocks, l)?;
+                    lo = lo.min(a);
+                    hi = hi.max(b);
                 }
                 (lo, hi)
             }
+        };
+        slot.store(pack(range), Ordering::Relaxed);
+        Ok(range)
+    }
+
+    /// The range of leaf `l`'s cells (of its finest brick), computed on first need.
+    fn leaf_range<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        blocks: &BlockRanges,
+        l: u32,
+    ) -> Result<(f32, f32)> {
+        let slot = &self.leaf_ranges[l as usize];
+        let known = slot.load(Ordering::Relaxed);
+        if known != UNKNOWN {
+            return Ok(unpack(known));
+        }
+        let range = match sampler.leaf_top(l) {
+            Some((brick, lv)) => {
+                let leaf_box = sampler.file().tree().leaf_box(l);
+                blocks.range_in(sampler, brick, lv, &leaf_box)?
+            }
+            None => (f32::INFINITY, f32::NEG_INFINITY),
         };
         slot.store(pack(range), Ordering::Relaxed);
         Ok(range)
@@ -178,20 +250,14 @@ impl LeafTree {
 
 /// Appends the node of the leaves `leaves` (which start at `order[first]`) and its descendants to
 /// `nodes`, reordering `leaves` so that each child's are contiguous; returns the node's index.
-fn build<D: AsRef<[u8]>>(
-    sampler: &Sampler<'_, D>,
-    leaves: &mut [u32],
-    first: u32,
-    nodes: &mut Vec<Node>,
-) -> u32 {
-    let tree = sampler.file().tree();
-    let mut bounds = tree.leaf_box(leaves[0]);
+/// `all` holds every leaf's box and level (`u32::MAX` without data).
+fn build(all: &[(IBox, u32)], leaves: &mut [u32], first: u32, nodes: &mut Vec<Node>) -> u32 {
+    let mut bounds = all[leaves[0] as usize].0;
     let mut coarsest = u32::MAX;
     for &l in leaves.iter() {
-        bounds = union(&bounds, &tree.leaf_box(l));
-        if let Some((_, lv)) = sampler.leaf_top(l) {
-            coarsest = coarsest.min(lv);
-        }
+        let (b, lv) = &all[l as usize];
+        bounds = union(&bounds, b);
+        coarsest = coarsest.min(*lv);
     }
     let index = nodes.len() as u32;
     let end = first + leaves.len() as u32;
@@ -207,12 +273,12 @@ fn build<D: AsRef<[u8]>>(
         let axis = (0..3).max_by_key(|&a| e[a]).unwrap_or(0);
         let mid = leaves.len() / 2;
         leaves.select_nth_unstable_by_key(mid, |&l| {
-            let b = tree.leaf_box(l);
+            let b = &all[l as usize].0;
             b.lo[axis] + b.hi[axis]
         });
         let (left, right) = leaves.split_at_mut(mid);
-        let a = build(sampler, left, first, nodes);
-        let b = build(sampler, right, first + mid as u32, nodes);
+        let a = build(all, left, first, nodes);
+        let b = build(all, right, first + mid as u32, nodes);
         nodes[index as usize].children = Some((a, b));
     }
     index

@@ -9,7 +9,8 @@
 use crate::error::Result;
 use amr_format::IBox;
 
-use super::band::{fold_cell_bounds, CoarseBand};
+use super::band::fold_cell_bounds;
+use super::leaf_tree::LeafTree;
 
 use crate::reconstruct::Sampler;
 
@@ -62,18 +63,14 @@ pub struct Neighbourhood {
     /// [`NOT_LEAF`] and [`PENDING`] bits.
     codes: Vec<u8>,
     touching: Vec<u32>,
-    /// The finest-level box of the [`COARSER`] cells' bounding box.
-    coarser_region: IBox,
-    /// Bounds on the grids of coarser levels, filled on first need ([`Self::band`]).
-    bands: Vec<CoarseBand>,
-    bands_filled: usize,
 }
 
 impl Neighbourhood {
-    /// Fills the neighbourhood of `leaf` (level `level`, level-`level` box `own`).
+    /// Fills the neighbourhood of `leaf` (level `level`, level-`level` box `own`), finding the
+    /// leaves around it in `leaves`.
     pub fn fill<D: AsRef<[u8]>>(
         &mut self,
-        sampler: &Sampler<'_, D>,
+        (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
         level: u32,
         own: &IBox,
     ) -> Result<()> {
@@ -98,12 +95,10 @@ impl Neighbourhood {
             [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
         );
         self.touching.clear();
-        let mut coarser = IBox::default();
-        let tree = sampler.file().tree();
-        tree.for_each_leaf_touching(&region, |l| self.touching.push(l));
+        leaves.for_each_leaf_touching(&region, |l| self.touching.push(l));
         for i in 0..self.touching.len() {
             let l = self.touching[i];
-            let lb = tree.leaf_box(l);
+            let lb = leaves.leaf_box(l);
             if !lb.overlaps(&region) {
                 continue;
             }
@@ -115,7 +110,6 @@ impl Neighbourhood {
                 None => self.set_block(&block, UNCOVERED),
                 Some((_, lv)) if lv < level => {
                     self.set_block(&block, COARSER);
-                    coarser = hull(&coarser, &block);
                     self.for_block(&block, |h, i| h.coarse_pending[i] = true);
                 }
                 Some((brick, lv)) if lv > level => {
@@ -142,11 +136,6 @@ impl Neighbourhood {
                 }
             }
         }
-        self.coarser_region = IBox::new(
-            [0, 1, 2].map(|a| coarser.lo[a] * s[a] - o[a]),
-            [0, 1, 2].map(|a| coarser.hi[a] * s[a] - o[a]),
-        );
-        self.bands_filled = 0;
         if !domain.contains_box(&g) {
             let inside = g.intersect(&domain);
             for z in g.lo[2]..g.hi[2] {
@@ -188,26 +177,6 @@ impl Neighbourhood {
             }
         }
         Ok(())
-    }
-
-    /// The bounds on the grid of level `level` (coarser than the neighbourhood's) around the
-    /// [`COARSER`] cells, prepared on the first call for this neighbourhood.
-    pub fn band<D: AsRef<[u8]>>(
-        &mut self,
-        sampler: &Sampler<'_, D>,
-        level: u32,
-    ) -> &mut CoarseBand {
-        let filled = &self.bands[..self.bands_filled];
-        if let Some(k) = filled.iter().position(|b| b.level == level) {
-            return &mut self.bands[k];
-        }
-        if self.bands_filled == self.bands.len() {
-            self.bands.push(CoarseBand::default());
-        }
-        let k = self.bands_filled;
-        self.bands[k].prepare(sampler, level, &self.coarser_region);
-        self.bands_filled += 1;
-        &mut self.bands[k]
     }
 
     /// Widens the bounds of the cells holding the cells of brick `brick` (level `fine`) inside
@@ -323,18 +292,4 @@ impl Neighbourhood {
     pub fn value(&self, i: usize) -> f32 {
         self.lo[i]
     }
-}
-
-/// The smallest box holding `a` and `b`; an empty box holds nothing.
-fn hull(a: &IBox, b: &IBox) -> IBox {
-    if a.is_empty() {
-        return *b;
-    }
-    if b.is_empty() {
-        return *a;
-    }
-    IBox::new(
-        [0, 1, 2].map(|k| a.lo[k].min(b.lo[k])),
-        [0, 1, 2].map(|k| a.hi[k].max(b.hi[k])),
-    )
 }

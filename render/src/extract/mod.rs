@@ -6,6 +6,7 @@
 //! - [`parts`]: a large leaf extracted part by part, skipping parts whose stored block ranges
 //!   exclude the isovalue.
 //! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue.
+//! - [`band`]: the bounds around coarse leaf cells the cull reads, kept for every leaf.
 //! - [`vertices`]: a leaf's boundary vertex values, computed once each.
 //! - [`blocks`]: per-brick ranges of blocks of cells (stored in the file, or built), for bounds
 //!   that do not rescan cells.
@@ -48,6 +49,7 @@ use crate::mapping::PageRelease;
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::{Locate, Octant, SampleScratch, Sampler, VertexMemo};
 pub use crate::voxel::Voxel;
+use band::CoarseBounds;
 use blocks::BlockRanges;
 use leaf::{LeafCounts, LeafFrame, Scratch};
 use leaf_tree::LeafTree;
@@ -79,6 +81,7 @@ pub struct Extractor<'f, D> {
     tight: TightRanges,
     blocks: BlockRanges,
     leaves: LeafTree,
+    coarse: CoarseBounds,
     pages: Option<PageRelease<'f>>,
 }
 
@@ -96,6 +99,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             tight: TightRanges::new(file.num_leaves()),
             blocks: BlockRanges::new(file),
             leaves: LeafTree::new(&sampler),
+            coarse: CoarseBounds::default(),
             sampler,
             file_cells,
             pages: None,
@@ -219,7 +223,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             let parts: Vec<Result<(Vec<u64>, LeafCounts)>> = chunk
                 .par_iter()
                 .map_init(
-                    || Scratch::new(&self.sampler, &self.blocks),
+                    || Scratch::new(&self.sampler, (&self.blocks, &self.leaves, &self.coarse)),
                     |scratch, &leaf| {
                         let mut out = Vec::new();
                         let (lo, hi) =

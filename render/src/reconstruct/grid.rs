@@ -87,13 +87,15 @@ impl Grid {
     }
 
     /// The cells of `level` (absolute) overlapping the finest-level box `finest` (relative).
+    #[inline]
     pub fn level_box(&self, level: u32, finest: &IBox) -> IBox {
         let s = self.scale(level);
-        let shifted = IBox::new(
-            [0, 1, 2].map(|a| finest.lo[a] + self.offset[a]),
-            [0, 1, 2].map(|a| finest.hi[a] + self.offset[a]),
-        );
-        shifted.coarsen(s)
+        let mut out = IBox::default();
+        for a in 0..3 {
+            out.lo[a] = (finest.lo[a] + self.offset[a]).div_euclid(s[a]);
+            out.hi[a] = (finest.hi[a] + self.offset[a] + s[a] - 1).div_euclid(s[a]);
+        }
+        out
     }
 
     /// The finest-level cell (relative) holding doubled point `p` nudged toward `dir`

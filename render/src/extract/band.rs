@@ -6,10 +6,13 @@
 //! range of the leaf cells of level `q` or finer inside the cell. Those are gathered a tile of
 //! `4^3` level-`q` cells at a time, each tile once per file from one pass over the leaves
 //! overlapping it (every leaf cell read once), and kept: a coarse cell next to many small leaves
-//! costs a few look-ups per leaf, and no leaf gathers the leaves around it.
+//! costs a few look-ups per leaf, and no leaf gathers the leaves around it. The tiles kept are
+//! bounded ([`MAX_TILES`]): past that, all are forgotten and gathered again when asked, so the
+//! memory stays flat on files of any size.
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hash, Hasher};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 use crate::error::Result;
@@ -79,6 +82,10 @@ const NEXT_TO_COARSER: u64 = u64::MAX - 1;
 const TILE: i64 = 4;
 /// Independently locked parts of the tables, so threads rarely wait on each other.
 const SHARDS: usize = 64;
+/// Tiles kept at most (about 600 bytes each with the table's entry: about 40 MB). Leaves are
+/// visited in kd-tree order, so the tiles in use at any time are the few around the current
+/// chunk of leaves; forgetting all of them at once costs a few tiles gathered twice.
+const MAX_TILES: usize = 1 << 16;
 
 /// The sources a tile is gathered from.
 pub type Sources<'a, 'f, D> = (&'a Sampler<'f, D>, &'a BlockRanges, &'a LeafTree);
@@ -102,11 +109,16 @@ type Table<T> = Vec<Mutex<HashMap<Key, T, BuildHasherDefault<CellHasher>>>>;
 pub struct CoarseBounds {
     /// Per tile: each cell's bound, `(NaN, NaN)` where a coarser leaf cell overlaps it.
     tiles: Table<Arc<[(f32, f32)]>>,
+    /// Tiles in [`Self::tiles`], about.
+    kept: AtomicUsize,
 }
 
 impl Default for CoarseBounds {
     fn default() -> Self {
-        Self { tiles: new_table() }
+        Self {
+            tiles: new_table(),
+            kept: AtomicUsize::new(0),
+        }
     }
 }
 
@@ -173,6 +185,15 @@ impl CoarseBounds {
             return Ok(known);
         }
         let bounds: Arc<[(f32, f32)]> = gather_tile(sources, level, &tile_box(t))?.into();
+        if self.kept.fetch_add(1, Ordering::Relaxed) >= MAX_TILES {
+            self.kept.store(0, Ordering::Relaxed);
+            for other in &self.tiles {
+                if let Ok(mut m) = other.lock() {
+                    m.clear();
+                    m.shrink_to_fit();
+                }
+            }
+        }
         if let Ok(mut m) = shard.lock() {
             m.insert(key, bounds.clone());
         }

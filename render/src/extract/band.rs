@@ -82,10 +82,10 @@ const NEXT_TO_COARSER: u64 = u64::MAX - 1;
 const TILE: i64 = 4;
 /// Independently locked parts of the tables, so threads rarely wait on each other.
 const SHARDS: usize = 64;
-/// Tiles kept at most (about 600 bytes each with the table's entry: about 40 MB). Leaves are
+/// Tiles kept at most (about 600 bytes each with the table's entry: about 10 MB). Leaves are
 /// visited in kd-tree order, so the tiles in use at any time are the few around the current
 /// chunk of leaves; forgetting all of them at once costs a few tiles gathered twice.
-const MAX_TILES: usize = 1 << 16;
+const MAX_TILES: usize = 1 << 14;
 
 /// The sources a tile is gathered from.
 pub type Sources<'a, 'f, D> = (&'a Sampler<'f, D>, &'a BlockRanges, &'a LeafTree);

@@ -12,6 +12,8 @@
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hash, Hasher};
+
+use rustc_hash::FxHasher;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -103,7 +105,7 @@ impl Hash for Key {
     }
 }
 /// A table keyed by [`Key`], cut into [`SHARDS`] locked parts.
-type Table<T> = Vec<Mutex<HashMap<Key, T, BuildHasherDefault<CellHasher>>>>;
+type Table<T> = Vec<Mutex<HashMap<Key, T, BuildHasherDefault<FxHasher>>>>;
 
 /// The bounds of the coarse cells of the tiles asked for so far, of one field.
 pub struct CoarseBounds {
@@ -295,44 +297,7 @@ fn gather_tile<D: AsRef<[u8]>>(
 
 /// The shard of key `k`.
 fn shard_of(k: &Key) -> usize {
-    let mut h = CellHasher::default();
+    let mut h = FxHasher::default();
     k.hash(&mut h);
     (h.finish() >> 40) as usize % SHARDS
-}
-
-/// A multiplicative hash of cell keys (a few integers; no untrusted input reaches it).
-#[derive(Default)]
-pub struct CellHasher(u64);
-
-impl Hasher for CellHasher {
-    fn finish(&self) -> u64 {
-        // The SplitMix64 finalizer: every bit of the key reaches every bit of the hash, so
-        // neighbouring cells spread over the table's groups.
-        let mut z = self.0;
-        z = (z ^ z >> 30).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ z >> 27).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ z >> 31
-    }
-
-    fn write(&mut self, bytes: &[u8]) {
-        let mut words = bytes.chunks_exact(8);
-        for w in &mut words {
-            self.write_u64(u64::from_le_bytes(w.try_into().unwrap_or_default()));
-        }
-        for &b in words.remainder() {
-            self.write_u64(u64::from(b));
-        }
-    }
-
-    fn write_u32(&mut self, v: u32) {
-        self.write_u64(u64::from(v));
-    }
-
-    fn write_i64(&mut self, v: i64) {
-        self.write_u64(v as u64);
-    }
-
-    fn write_u64(&mut self, v: u64) {
-        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
-    }
 }

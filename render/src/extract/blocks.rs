@@ -106,16 +106,13 @@ impl BlockRanges {
         }
         let lo = [0, 1, 2].map(|a| (cells.lo[a] - bc.lo[a]) / block);
         let hi = [0, 1, 2].map(|a| (cells.hi[a] - bc.lo[a] + block - 1) / block);
-        let table = sampler
-            .file()
-            .block_ranges(sampler.field(), brick as usize)
-            .unwrap_or_default();
-        fold_blocks(&blocks_per_axis(&bc, block), (lo, hi), |row| {
-            for r in table.get(row).unwrap_or_default() {
-                x = x.min(r.min.get());
-                y = y.max(r.max.get());
-            }
-        });
+        fold_stored(
+            sampler,
+            brick,
+            &blocks_per_axis(&bc, block),
+            (lo, hi),
+            (&mut x, &mut y),
+        );
         Some((x, y))
     }
 
@@ -177,16 +174,7 @@ impl BlockRanges {
         }
         let n = blocks_per_axis(&bc, block);
         if self.stored.is_some() {
-            let table = sampler
-                .file()
-                .block_ranges(sampler.field(), brick as usize)
-                .unwrap_or_default();
-            fold_blocks(&n, (inner_lo, inner_hi), |row| {
-                for r in table.get(row).unwrap_or_default() {
-                    lo = lo.min(r.min.get());
-                    hi = hi.max(r.max.get());
-                }
-            });
+            fold_stored(sampler, brick, &n, (inner_lo, inner_hi), (&mut lo, &mut hi));
             return Ok((lo, hi));
         }
         let slot = &self.built[brick as usize];
@@ -202,6 +190,27 @@ impl BlockRanges {
         });
         Ok((lo, hi))
     }
+}
+
+/// Folds the stored table entries of the blocks `blocks` (block indices, of `n` per axis) of
+/// brick `brick` into `lo`/`hi`.
+fn fold_stored<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    brick: u32,
+    n: &[i64; 3],
+    blocks: ([i64; 3], [i64; 3]),
+    (lo, hi): (&mut f32, &mut f32),
+) {
+    let table = sampler
+        .file()
+        .block_ranges(sampler.field(), brick as usize)
+        .unwrap_or_default();
+    fold_blocks(n, blocks, |row| {
+        for r in table.get(row).unwrap_or_default() {
+            *lo = lo.min(r.min.get());
+            *hi = hi.max(r.max.get());
+        }
+    });
 }
 
 /// Calls `f` with the table index range of each x-row of the blocks `lo..hi` (block indices) of

@@ -20,7 +20,7 @@ use crate::extract::{candidate_leaves, ExtractStats, Extraction, Extractor, Regi
 use crate::mapping::PageRelease;
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
-use crate::trace::octant::{intersect_voxel, VoxelHit};
+use crate::trace::octant::{intersect_voxel, voxel_occludes, VoxelHit};
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
 use crate::trace::tracer::central_difference_of;
@@ -331,6 +331,14 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         match self.voxels {
             Voxels::Nearest(_) => intersect_face(voxel, iso, ray, tmin, tmax),
             _ => intersect_voxel(voxel, iso, ray, tmin, tmax),
+        }
+    }
+
+    #[inline]
+    fn occludes(&self, voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
+        match self.voxels {
+            Voxels::Nearest(_) => intersect_face(voxel, iso, ray, tmin, tmax).is_some(),
+            _ => voxel_occludes(voxel, iso, ray, tmin, tmax),
         }
     }
 }

@@ -96,4 +96,11 @@ pub trait VoxelSource: Sync {
     ) -> Option<VoxelHit> {
         intersect_voxel(voxel, iso, ray, tmin, tmax)
     }
+
+    /// True when [`Self::intersect`] would find a hit: the any-hit test of shadow and occlusion
+    /// rays. Sources may answer without computing where the hit is.
+    #[inline]
+    fn occludes(&self, voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
+        self.intersect(voxel, iso, ray, tmin, tmax).is_some()
+    }
 }

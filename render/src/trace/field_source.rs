@@ -297,7 +297,13 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         }
     }
 
-    fn gradient(&self, p: [f64; 3], h: f64) -> Option<[f64; 3]> {
+    fn cell_size(&self, level: u32) -> Option<[f64; 3]> {
+        let grid = self.sampler().grid();
+        // A cell of `level` spans `scale` finest cells, two grid units each.
+        ((level as usize) < grid.num_levels()).then(|| grid.scale(level).map(|s| 2.0 * s as f64))
+    }
+
+    fn gradient(&self, p: [f64; 3], h: [f64; 3]) -> Option<[f64; 3]> {
         let mut cache = self.thread_cache().borrow_mut();
         let sampler = self.sampler();
         central_difference_of(

@@ -73,10 +73,16 @@ pub trait VoxelSource: Sync {
     /// The reconstructed field and the AMR level at grid point `p`, or `None` outside the data.
     fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)>;
 
-    /// The gradient of [`Self::sample`]'s field at `p` by central differences `h` apart
-    /// ([`central_difference`]); sources may compute the same values faster.
-    fn gradient(&self, p: [f64; 3], h: f64) -> Option<[f64; 3]> {
+    /// The gradient of [`Self::sample`]'s field at `p` by central differences `h[a]` apart on
+    /// axis `a` ([`central_difference`]); sources may compute the same values faster.
+    fn gradient(&self, p: [f64; 3], h: [f64; 3]) -> Option<[f64; 3]> {
         central_difference(self, p, h)
+    }
+
+    /// The size of a cell of AMR level `level` in grid units, per axis; `None` (the default)
+    /// when the source has no levels to tell.
+    fn cell_size(&self, _level: u32) -> Option<[f64; 3]> {
+        None
     }
 
     /// Drops pages of the underlying file from the resident set, between stages that touch it;

@@ -306,8 +306,10 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
     fn gradient(&self, p: [f64; 3], h: [f64; 3]) -> Option<[f64; 3]> {
         let mut cache = self.thread_cache().borrow_mut();
         let sampler = self.sampler();
+        // Bound once for the six samples: `sample_with` without binding each time.
+        let (loc, memo) = cache.scratch.bind(sampler);
         central_difference_of(
-            |q| match sampler.sample_with(q, self.reconstruction, &mut cache.scratch) {
+            |q| match sampler.sample_in(&loc, q, self.reconstruction, memo) {
                 Ok(v) => v.map(|s| s.0),
                 Err(e) => {
                     self.record(e);

@@ -28,6 +28,8 @@ pub struct Scratch<'s, 'f, D> {
     pub loc: LocalLocator<'s, 'f, D>,
     /// One row of merged-dual-cell codes.
     pub rows: Vec<u8>,
+    /// Cell codes of a box classified from its brick ([`super::interior`]).
+    pub codes: Vec<u8>,
     /// The block ranges, the leaf tree (for region queries) and the bounds of coarser
     /// neighbours.
     pub shared: Shared<'s>,
@@ -42,6 +44,7 @@ impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
             verts: LeafVertices::default(),
             loc: LocalLocator::new(sampler),
             rows: Vec::new(),
+            codes: Vec::new(),
             shared,
         }
     }
@@ -133,6 +136,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         loc,
         rows,
         shared,
+        ..
     } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();

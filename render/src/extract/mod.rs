@@ -5,6 +5,7 @@
 //! - [`leaf`]: the voxels one leaf owns: merged dual cells and boundary octants.
 //! - [`parts`]: a large leaf extracted part by part, skipping parts whose stored block ranges
 //!   exclude the isovalue.
+//! - [`interior`]: the merged dual cells deep inside a leaf, straight from its brick.
 //! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue.
 //! - [`band`]: the bounds around coarse leaf cells the cull reads, kept for every leaf.
 //! - [`vertices`]: a leaf's boundary vertex values, computed once each.
@@ -27,6 +28,7 @@ pub mod band;
 pub mod blocks;
 pub mod cull;
 pub mod current;
+pub mod interior;
 pub mod leaf;
 pub mod leaf_tree;
 pub mod local;
@@ -53,7 +55,7 @@ use band::CoarseBounds;
 use blocks::BlockRanges;
 use leaf::{LeafCounts, LeafFrame, Scratch};
 use leaf_tree::LeafTree;
-use parts::extract_in_parts;
+use parts::{extract_in_parts, PartRanges};
 pub use refs::{make_ref, split_ref, LocalVoxel, DUAL_BASE};
 pub use region::Region;
 pub use stats::ExtractStats;
@@ -79,6 +81,7 @@ pub struct Extractor<'f, D> {
     sampler: Sampler<'f, D>,
     file_cells: u64,
     tight: TightRanges,
+    parts: PartRanges,
     blocks: BlockRanges,
     leaves: LeafTree,
     coarse: CoarseBounds,
@@ -97,6 +100,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             .sum();
         Ok(Self {
             tight: TightRanges::new(file.num_leaves()),
+            parts: PartRanges::new(file.num_leaves()),
             blocks: BlockRanges::new(file),
             leaves: LeafTree::new(&sampler),
             coarse: CoarseBounds::default(),
@@ -243,7 +247,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                             &self.sampler,
                             &frame,
                             iso,
-                            (scratch, (&self.blocks, &self.leaves)),
+                            (scratch, (&self.blocks, &self.leaves), &self.parts),
                             &mut out,
                         )?;
                         Ok((out, counts))

@@ -10,16 +10,24 @@
 //! part's box ([`super::tight::box_range`]) over the stored blocks alone
 //! ([`BlockRanges::loose`]).
 //! Parts that are kept and adjacent along x are extracted together, so that the cells shared
-//! by their neighbourhoods are filled once.
+//! by their neighbourhoods are filled once; the cells of such a run lying one cell or more
+//! inside the leaf are classified straight from the brick ([`super::interior`]), and only the
+//! shell around them through neighbourhoods ([`extract_leaf`]).
+//!
+//! The parts' bounds do not depend on the isovalue: each leaf's are computed the first time it
+//! is extracted and kept ([`PartRanges`]), 8 bytes per part, so a later isovalue only compares.
+
+use std::sync::OnceLock;
 
 use crate::error::Result;
 use amr_format::kdtree::widen_range;
 use amr_format::IBox;
 
 use super::blocks::BlockRanges;
+use super::interior::{extract_interior, interior_cells};
 use super::leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
 use super::leaf_tree::LeafTree;
-use super::tight::box_range;
+use super::tight::{box_range, pack, unpack};
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::Sampler;
 
@@ -27,13 +35,32 @@ use crate::reconstruct::Sampler;
 /// 4 or 16 on the 1e7-cell `blobs` file (`docs/benchmarks-extract.md`).
 pub const PART_CELLS: i64 = 8;
 
+/// The bounds of the parts of every leaf extracted so far, in part order (x fastest), packed
+/// ([`pack`]); filled from any thread.
+pub struct PartRanges {
+    leaves: Vec<OnceLock<Box<[u64]>>>,
+}
+
+impl PartRanges {
+    /// No bounds yet, for `leaves` leaves.
+    pub fn new(leaves: usize) -> Self {
+        Self {
+            leaves: (0..leaves).map(|_| OnceLock::new()).collect(),
+        }
+    }
+}
+
 /// [`extract_leaf`] of `frame`, part by part when the file stores block ranges and the leaf
 /// spans more than one part; the active voxels appended to `out` are sorted by id.
 pub fn extract_in_parts<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     frame: &LeafFrame,
     iso: f32,
-    (scratch, bounds): (&mut Scratch<'_, '_, D>, (&BlockRanges, &LeafTree)),
+    (scratch, bounds, kept): (
+        &mut Scratch<'_, '_, D>,
+        (&BlockRanges, &LeafTree),
+        &PartRanges,
+    ),
     out: &mut Vec<u64>,
 ) -> Result<LeafCounts> {
     let Some(block) = sampler.file().block_cells().map(i64::from) else {
@@ -50,37 +77,68 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
     let bc = sampler.brick_cells(frame.brick);
     let first = [0, 1, 2].map(|a| (c.lo[a] - bc.lo[a]).div_euclid(k));
     let last = [0, 1, 2].map(|a| (c.hi[a] - 1 - bc.lo[a]).div_euclid(k));
+    let part_box = |p: [i64; 3]| -> IBox {
+        let cells = IBox::new(
+            [0, 1, 2].map(|a| bc.lo[a] + p[a] * k),
+            [0, 1, 2].map(|a| bc.lo[a] + (p[a] + 1) * k),
+        )
+        .intersect(&c);
+        IBox::new(
+            [0, 1, 2].map(|a| cells.lo[a] * s[a] - o[a]),
+            [0, 1, 2].map(|a| cells.hi[a] * s[a] - o[a]),
+        )
+        .intersect(&frame.finest)
+    };
+    let slot = &kept.leaves[frame.leaf as usize];
+    let ranges = match slot.get() {
+        Some(r) => r,
+        None => {
+            let mut r = Vec::new();
+            for pz in first[2]..=last[2] {
+                for py in first[1]..=last[1] {
+                    for px in first[0]..=last[0] {
+                        let finest = part_box([px, py, pz]);
+                        let range = if finest.is_empty() {
+                            (f32::INFINITY, f32::NEG_INFINITY)
+                        } else {
+                            part_range(sampler, frame, bounds, &finest)?
+                        };
+                        r.push(pack(range));
+                    }
+                }
+            }
+            slot.get_or_init(|| r.into_boxed_slice())
+        }
+    };
+    // The leaf's cells whose 26 neighbours are its own too.
+    let inside = IBox::new(
+        [0, 1, 2].map(|a| (frame.finest.lo[a] + o[a] + s[a] - 1).div_euclid(s[a])),
+        [0, 1, 2].map(|a| (frame.finest.hi[a] + o[a]).div_euclid(s[a])),
+    )
+    .intersect(&bc);
+    let inner = interior_cells(&inside);
     let mut counts = LeafCounts::default();
     let mut run = |run: &mut Option<IBox>, counts: &mut LeafCounts| -> Result<()> {
         if let Some(finest) = run.take() {
-            let part = frame.part(sampler, finest);
-            let n = extract_leaf(sampler, &part, iso, scratch, out)?;
+            let n = extract_run(sampler, frame, (&finest, &inner), iso, scratch, out)?;
             counts.evaluated += n.evaluated;
             counts.boundary += n.boundary;
             counts.culled += n.culled;
         }
         Ok(())
     };
+    let mut ranges = ranges.iter();
     for pz in first[2]..=last[2] {
         for py in first[1]..=last[1] {
             let mut kept: Option<IBox> = None;
             for px in first[0]..=last[0] {
-                let p = [px, py, pz];
-                let cells = IBox::new(
-                    [0, 1, 2].map(|a| bc.lo[a] + p[a] * k),
-                    [0, 1, 2].map(|a| bc.lo[a] + (p[a] + 1) * k),
-                )
-                .intersect(&c);
-                let finest = IBox::new(
-                    [0, 1, 2].map(|a| cells.lo[a] * s[a] - o[a]),
-                    [0, 1, 2].map(|a| cells.hi[a] * s[a] - o[a]),
-                )
-                .intersect(&frame.finest);
+                let (lo, hi) = unpack(ranges.next().copied().unwrap_or(u64::MAX));
+                let finest = part_box([px, py, pz]);
                 if finest.is_empty() {
                     run(&mut kept, &mut counts)?;
                     continue;
                 }
-                if part_may_hold(sampler, frame, bounds, &finest, iso)? {
+                if straddles(lo, hi, iso) {
                     kept = Some(match kept {
                         Some(r) => IBox::new(r.lo, finest.hi),
                         None => finest,
@@ -97,27 +155,90 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
     Ok(counts)
 }
 
-/// False when no voxel of `frame` whose lower corner lies in finest-level box `finest` can hold
-/// `iso` (see the module documentation).
-fn part_may_hold<D: AsRef<[u8]>>(
+/// The voxels of `frame` whose lower corner lies in the finest-level box `finest` (a run of
+/// parts): the cells of the run inside `inner` ([`interior_cells`] of the leaf) straight from
+/// the brick, the rest through neighbourhoods; the refs appended to `out` are not sorted.
+fn extract_run<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    frame: &LeafFrame,
+    (finest, inner): (&IBox, &IBox),
+    iso: f32,
+    scratch: &mut Scratch<'_, '_, D>,
+    out: &mut Vec<u64>,
+) -> Result<LeafCounts> {
+    let part = frame.part(sampler, *finest);
+    let fast = part.cells.intersect(inner);
+    if fast.is_empty() {
+        return extract_leaf(sampler, &part, iso, scratch, out);
+    }
+    let grid = sampler.grid();
+    let (s, o) = (grid.scale(frame.level), grid.offset());
+    let values = sampler.values(frame.brick)?;
+    let bc = sampler.brick_cells(frame.brick);
+    let mut counts = LeafCounts {
+        evaluated: extract_interior(
+            (&values, &bc),
+            &fast,
+            (frame.leaf, &frame.refs),
+            iso,
+            (&mut scratch.codes, &mut scratch.rows),
+            out,
+        ),
+        ..LeafCounts::default()
+    };
+    let fast_finest = IBox::new(
+        [0, 1, 2].map(|a| fast.lo[a] * s[a] - o[a]),
+        [0, 1, 2].map(|a| fast.hi[a] * s[a] - o[a]),
+    );
+    for piece in shell(finest, &fast_finest) {
+        let n = extract_leaf(sampler, &frame.part(sampler, piece), iso, scratch, out)?;
+        counts.evaluated += n.evaluated;
+        counts.boundary += n.boundary;
+        counts.culled += n.culled;
+    }
+    Ok(counts)
+}
+
+/// The boxes covering `outer` outside `inner` (a box inside it), at most six, disjoint.
+fn shell(outer: &IBox, inner: &IBox) -> impl Iterator<Item = IBox> {
+    let mut pieces = [IBox::default(); 6];
+    let mut rest = *outer;
+    for a in (0..3).rev() {
+        let mut below = rest;
+        below.hi[a] = inner.lo[a];
+        let mut above = rest;
+        above.lo[a] = inner.hi[a];
+        pieces[2 * a] = below;
+        pieces[2 * a + 1] = above;
+        (rest.lo[a], rest.hi[a]) = (inner.lo[a], inner.hi[a]);
+    }
+    pieces.into_iter().filter(|p| !p.is_empty())
+}
+
+/// A range holding every corner of every voxel of `frame` whose lower corner lies in
+/// finest-level box `finest` (see the module documentation); `(+inf, -inf)` when there is
+/// none.
+fn part_range<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     frame: &LeafFrame,
     (blocks, leaves): (&BlockRanges, &LeafTree),
     finest: &IBox,
-    iso: f32,
-) -> Result<bool> {
+) -> Result<(f32, f32)> {
+    let empty = (f32::INFINITY, f32::NEG_INFINITY);
     let s = sampler.grid().scale(frame.level);
-    let range = if frame.finest.contains_box(&finest.grow(s)) {
+    let (lo, hi) = if frame.finest.contains_box(&finest.grow(s)) {
         // Only merged dual cells: those whose lowest cell lies in the part, so their cells lie
         // in the part grown by one cell upwards.
         let up = IBox::new(finest.lo, [0, 1, 2].map(|a| finest.hi[a] + s[a]));
         let Some((lo, hi)) = blocks.bound_in(sampler, frame.brick, frame.level, &up) else {
-            return Ok(true);
+            return Ok((f32::NEG_INFINITY, f32::INFINITY));
         };
-        (lo <= hi).then(|| widen_range(lo, hi))
+        if lo > hi {
+            return Ok(empty);
+        }
+        widen_range(lo, hi)
     } else {
-        let (lo, hi) = box_range(sampler, (&blocks.loose(), leaves), finest, frame.level)?;
-        (lo <= hi).then_some((lo, hi))
+        box_range(sampler, (&blocks.loose(), leaves), finest, frame.level)?
     };
-    Ok(range.is_some_and(|(lo, hi)| straddles(lo, hi, iso)))
+    Ok(if lo <= hi { (lo, hi) } else { empty })
 }

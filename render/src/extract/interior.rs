@@ -62,8 +62,20 @@ pub fn extract_interior(
                 &codes[start..start + gw]
             };
             let (a, b, c, d) = (r(0, 0), r(1, 0), r(0, 1), r(1, 1));
-            for (k, m) in row.iter_mut().enumerate() {
-                *m = a[k] | a[k + 1] | b[k] | b[k + 1] | c[k] | c[k + 1] | d[k] | d[k + 1];
+            // Whole-row ORs of equal-length slices, which the compiler vectorizes.
+            row.copy_from_slice(&a[..w]);
+            for src in [
+                &a[1..],
+                &b[..w],
+                &b[1..],
+                &c[..w],
+                &c[1..],
+                &d[..w],
+                &d[1..],
+            ] {
+                for (m, &x) in row.iter_mut().zip(src) {
+                    *m |= x;
+                }
             }
             if row.iter().filter(|&&m| m == both).count() == 0 {
                 continue;

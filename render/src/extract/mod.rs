@@ -83,6 +83,8 @@ pub struct Extractor<'f, D> {
     tight: TightRanges,
     parts: PartRanges,
     blocks: BlockRanges,
+    /// The bounds tight ranges read: the stored tables alone when the file has them.
+    tight_blocks: BlockRanges,
     leaves: LeafTree,
     coarse: CoarseBounds,
     pages: Option<PageRelease<'f>>,
@@ -102,6 +104,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             tight: TightRanges::new(file.num_leaves()),
             parts: PartRanges::new(file.num_leaves()),
             blocks: BlockRanges::new(file),
+            tight_blocks: BlockRanges::new(file).loose(),
             leaves: LeafTree::new(&sampler),
             coarse: CoarseBounds::default(),
             sampler,
@@ -126,6 +129,16 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// bytes that were resident.
     pub fn release_pages(&self) -> Option<u64> {
         self.pages.as_ref().and_then(PageRelease::release)
+    }
+
+    /// The block ranges tight ranges read: the stored tables alone (no brick data is read)
+    /// when the file stores them, else exact ranges, from tables built in memory.
+    fn tight_blocks(&self) -> &BlockRanges {
+        if self.blocks.stored() {
+            &self.tight_blocks
+        } else {
+            &self.blocks
+        }
     }
 
     /// The sampler underneath.
@@ -230,9 +243,11 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     || Scratch::new(&self.sampler, (&self.blocks, &self.leaves, &self.coarse)),
                     |scratch, &leaf| {
                         let mut out = Vec::new();
-                        let (lo, hi) =
-                            self.tight
-                                .get(&self.sampler, (&self.blocks, &self.leaves), leaf)?;
+                        let (lo, hi) = self.tight.get(
+                            &self.sampler,
+                            (self.tight_blocks(), &self.leaves),
+                            leaf,
+                        )?;
                         if !straddles(lo, hi, iso) {
                             let skipped = LeafCounts {
                                 skipped: 1,

@@ -27,7 +27,7 @@ use super::blocks::BlockRanges;
 use super::interior::{extract_interior, interior_cells};
 use super::leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
 use super::leaf_tree::LeafTree;
-use super::tight::{box_range, pack, unpack};
+use super::tight::{box_range, box_range_flat, pack, unpack};
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::Sampler;
 
@@ -93,6 +93,13 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
     let ranges = match slot.get() {
         Some(r) => r,
         None => {
+            // With no coarser leaf around the leaf, none is around its parts either.
+            let grown = frame.finest.grow(s);
+            let flat = bounds
+                .1
+                .coarsest_touching(sampler, &grown)
+                .unwrap_or(frame.level)
+                >= frame.level;
             let mut r = Vec::new();
             for pz in first[2]..=last[2] {
                 for py in first[1]..=last[1] {
@@ -101,7 +108,7 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
                         let range = if finest.is_empty() {
                             (f32::INFINITY, f32::NEG_INFINITY)
                         } else {
-                            part_range(sampler, frame, bounds, &finest)?
+                            part_range(sampler, frame, (bounds, flat), &finest)?
                         };
                         r.push(pack(range));
                     }
@@ -151,7 +158,8 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
             run(&mut kept, &mut counts)?;
         }
     }
-    out[start..].sort_unstable();
+    // Runs of sorted refs, one per piece: the stable sort merges runs in linear time.
+    out[start..].sort();
     Ok(counts)
 }
 
@@ -217,11 +225,11 @@ fn shell(outer: &IBox, inner: &IBox) -> impl Iterator<Item = IBox> {
 
 /// A range holding every corner of every voxel of `frame` whose lower corner lies in
 /// finest-level box `finest` (see the module documentation); `(+inf, -inf)` when there is
-/// none.
+/// none. `flat`: no leaf coarser than the leaf touches the leaf grown by one cell.
 fn part_range<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     frame: &LeafFrame,
-    (blocks, leaves): (&BlockRanges, &LeafTree),
+    ((blocks, leaves), flat): ((&BlockRanges, &LeafTree), bool),
     finest: &IBox,
 ) -> Result<(f32, f32)> {
     let empty = (f32::INFINITY, f32::NEG_INFINITY);
@@ -238,7 +246,12 @@ fn part_range<D: AsRef<[u8]>>(
         }
         widen_range(lo, hi)
     } else {
-        box_range(sampler, (&blocks.loose(), leaves), finest, frame.level)?
+        let bounds = (&blocks.loose(), leaves);
+        if flat {
+            box_range_flat(sampler, bounds, finest, frame.level)?
+        } else {
+            box_range(sampler, bounds, finest, frame.level)?
+        }
     };
     Ok(if lo <= hi { (lo, hi) } else { empty })
 }

@@ -126,3 +126,19 @@ pub fn box_range<D: AsRef<[u8]>>(
     }
     Ok(widen_range(lo, hi))
 }
+
+/// [`box_range`] of a box `own` whose grown box no leaf coarser than `level` touches (as
+/// when it lies in a leaf of level `level` for which that holds), without asking the tree.
+pub fn box_range_flat<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    (blocks, leaves): (&BlockRanges, &LeafTree),
+    own: &IBox,
+    level: u32,
+) -> Result<(f32, f32)> {
+    let hood = own.grow(sampler.grid().scale(level));
+    let (lo, hi) = leaves.range_over(sampler, blocks, &hood, [0; 3])?;
+    if lo > hi {
+        return Ok((f32::INFINITY, f32::NEG_INFINITY));
+    }
+    Ok(widen_range(lo, hi))
+}

@@ -28,8 +28,6 @@ pub struct Scratch<'s, 'f, D> {
     pub loc: LocalLocator<'s, 'f, D>,
     /// One row of merged-dual-cell codes.
     pub rows: Vec<u8>,
-    /// Cell codes of a box classified from its brick ([`super::interior`]).
-    pub codes: Vec<u8>,
     /// The block ranges, the leaf tree (for region queries) and the bounds of coarser
     /// neighbours.
     pub shared: Shared<'s>,
@@ -44,7 +42,6 @@ impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
             verts: LeafVertices::default(),
             loc: LocalLocator::new(sampler),
             rows: Vec::new(),
-            codes: Vec::new(),
             shared,
         }
     }
@@ -136,7 +133,6 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         loc,
         rows,
         shared,
-        ..
     } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();

@@ -5,7 +5,6 @@
 //! - [`leaf`]: the voxels one leaf owns: merged dual cells and boundary octants.
 //! - [`parts`]: a large leaf extracted part by part, skipping parts whose stored block ranges
 //!   exclude the isovalue.
-//! - [`interior`]: the merged dual cells deep inside a leaf, straight from its brick.
 //! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue.
 //! - [`band`]: the bounds around coarse leaf cells the cull reads, kept for every leaf.
 //! - [`vertices`]: a leaf's boundary vertex values, computed once each.
@@ -28,7 +27,6 @@ pub mod band;
 pub mod blocks;
 pub mod cull;
 pub mod current;
-pub mod interior;
 pub mod leaf;
 pub mod leaf_tree;
 pub mod local;

@@ -10,9 +10,7 @@
 //! part's box ([`super::tight::box_range`]) over the stored blocks alone
 //! ([`BlockRanges::loose`]).
 //! Parts that are kept and adjacent along x are extracted together, so that the cells shared
-//! by their neighbourhoods are filled once; the cells of such a run lying one cell or more
-//! inside the leaf are classified straight from the brick ([`super::interior`]), and only the
-//! shell around them through neighbourhoods ([`extract_leaf`]).
+//! by their neighbourhoods are filled once.
 //!
 //! The parts' bounds do not depend on the isovalue: each leaf's are computed the first time it
 //! is extracted and kept ([`PartRanges`]), 8 bytes per part, so a later isovalue only compares.
@@ -24,7 +22,6 @@ use amr_format::kdtree::widen_range;
 use amr_format::IBox;
 
 use super::blocks::BlockRanges;
-use super::interior::{extract_interior, interior_cells};
 use super::leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
 use super::leaf_tree::LeafTree;
 use super::tight::{box_range, box_range_flat, pack, unpack};
@@ -117,17 +114,11 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
             slot.get_or_init(|| r.into_boxed_slice())
         }
     };
-    // The leaf's cells whose 26 neighbours are its own too.
-    let inside = IBox::new(
-        [0, 1, 2].map(|a| (frame.finest.lo[a] + o[a] + s[a] - 1).div_euclid(s[a])),
-        [0, 1, 2].map(|a| (frame.finest.hi[a] + o[a]).div_euclid(s[a])),
-    )
-    .intersect(&bc);
-    let inner = interior_cells(&inside);
     let mut counts = LeafCounts::default();
     let mut run = |run: &mut Option<IBox>, counts: &mut LeafCounts| -> Result<()> {
         if let Some(finest) = run.take() {
-            let n = extract_run(sampler, frame, (&finest, &inner), iso, scratch, out)?;
+            let part = frame.part(sampler, finest);
+            let n = extract_leaf(sampler, &part, iso, scratch, out)?;
             counts.evaluated += n.evaluated;
             counts.boundary += n.boundary;
             counts.culled += n.culled;
@@ -158,69 +149,9 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
             run(&mut kept, &mut counts)?;
         }
     }
-    // Runs of sorted refs, one per piece: the stable sort merges runs in linear time.
+    // Runs of sorted refs, one per run of parts: the stable sort merges them.
     out[start..].sort();
     Ok(counts)
-}
-
-/// The voxels of `frame` whose lower corner lies in the finest-level box `finest` (a run of
-/// parts): the cells of the run inside `inner` ([`interior_cells`] of the leaf) straight from
-/// the brick, the rest through neighbourhoods; the refs appended to `out` are not sorted.
-fn extract_run<D: AsRef<[u8]>>(
-    sampler: &Sampler<'_, D>,
-    frame: &LeafFrame,
-    (finest, inner): (&IBox, &IBox),
-    iso: f32,
-    scratch: &mut Scratch<'_, '_, D>,
-    out: &mut Vec<u64>,
-) -> Result<LeafCounts> {
-    let part = frame.part(sampler, *finest);
-    let fast = part.cells.intersect(inner);
-    if fast.is_empty() {
-        return extract_leaf(sampler, &part, iso, scratch, out);
-    }
-    let grid = sampler.grid();
-    let (s, o) = (grid.scale(frame.level), grid.offset());
-    let values = sampler.values(frame.brick)?;
-    let bc = sampler.brick_cells(frame.brick);
-    let mut counts = LeafCounts {
-        evaluated: extract_interior(
-            (&values, &bc),
-            &fast,
-            (frame.leaf, &frame.refs),
-            iso,
-            (&mut scratch.codes, &mut scratch.rows),
-            out,
-        ),
-        ..LeafCounts::default()
-    };
-    let fast_finest = IBox::new(
-        [0, 1, 2].map(|a| fast.lo[a] * s[a] - o[a]),
-        [0, 1, 2].map(|a| fast.hi[a] * s[a] - o[a]),
-    );
-    for piece in shell(finest, &fast_finest) {
-        let n = extract_leaf(sampler, &frame.part(sampler, piece), iso, scratch, out)?;
-        counts.evaluated += n.evaluated;
-        counts.boundary += n.boundary;
-        counts.culled += n.culled;
-    }
-    Ok(counts)
-}
-
-/// The boxes covering `outer` outside `inner` (a box inside it), at most six, disjoint.
-fn shell(outer: &IBox, inner: &IBox) -> impl Iterator<Item = IBox> {
-    let mut pieces = [IBox::default(); 6];
-    let mut rest = *outer;
-    for a in (0..3).rev() {
-        let mut below = rest;
-        below.hi[a] = inner.lo[a];
-        let mut above = rest;
-        above.lo[a] = inner.hi[a];
-        pieces[2 * a] = below;
-        pieces[2 * a + 1] = above;
-        (rest.lo[a], rest.hi[a]) = (inner.lo[a], inner.hi[a]);
-    }
-    pieces.into_iter().filter(|p| !p.is_empty())
 }
 
 /// A range holding every corner of every voxel of `frame` whose lower corner lies in

@@ -81,8 +81,6 @@ pub struct Extractor<'f, D> {
     tight: TightRanges,
     parts: PartRanges,
     blocks: BlockRanges,
-    /// The bounds tight ranges read: the stored tables alone when the file has them.
-    tight_blocks: BlockRanges,
     leaves: LeafTree,
     coarse: CoarseBounds,
     pages: Option<PageRelease<'f>>,
@@ -102,7 +100,6 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             tight: TightRanges::new(file.num_leaves()),
             parts: PartRanges::new(file.num_leaves()),
             blocks: BlockRanges::new(file),
-            tight_blocks: BlockRanges::new(file).loose(),
             leaves: LeafTree::new(&sampler),
             coarse: CoarseBounds::default(),
             sampler,
@@ -127,16 +124,6 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// bytes that were resident.
     pub fn release_pages(&self) -> Option<u64> {
         self.pages.as_ref().and_then(PageRelease::release)
-    }
-
-    /// The block ranges tight ranges read: the stored tables alone (no brick data is read)
-    /// when the file stores them, else exact ranges, from tables built in memory.
-    fn tight_blocks(&self) -> &BlockRanges {
-        if self.blocks.stored() {
-            &self.tight_blocks
-        } else {
-            &self.blocks
-        }
     }
 
     /// The sampler underneath.
@@ -227,6 +214,13 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let mut boundary_evaluated = 0u64;
         let mut leaves_skipped = 0u64;
         let mut touched: Option<u64> = None;
+        // Tight ranges read the stored tables alone (no brick data) when the file has them.
+        let loose = self.blocks.loose();
+        let tight_blocks = if self.blocks.stored() {
+            &loose
+        } else {
+            &self.blocks
+        };
         let chunks = self.chunks(leaves);
         if let Some(first) = chunks.first() {
             self.read_ahead(first);
@@ -241,11 +235,9 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     || Scratch::new(&self.sampler, (&self.blocks, &self.leaves, &self.coarse)),
                     |scratch, &leaf| {
                         let mut out = Vec::new();
-                        let (lo, hi) = self.tight.get(
-                            &self.sampler,
-                            (self.tight_blocks(), &self.leaves),
-                            leaf,
-                        )?;
+                        let (lo, hi) =
+                            self.tight
+                                .get(&self.sampler, (tight_blocks, &self.leaves), leaf)?;
                         if !straddles(lo, hi, iso) {
                             let skipped = LeafCounts {
                                 skipped: 1,

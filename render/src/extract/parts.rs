@@ -35,7 +35,7 @@ pub const PART_CELLS: i64 = 8;
 /// The bounds of the parts of every leaf extracted so far, in part order (x fastest), packed
 /// ([`pack`]); filled from any thread.
 pub struct PartRanges {
-    leaves: Vec<OnceLock<Box<[u64]>>>,
+    leaves: Box<[OnceLock<Box<[u64]>>]>,
 }
 
 impl PartRanges {

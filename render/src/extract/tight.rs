@@ -130,7 +130,8 @@ pub fn box_range<D: AsRef<[u8]>>(
 }
 
 /// [`box_range`] of a box `own` whose grown box no leaf coarser than `level` touches (as
-/// when it lies in a leaf of level `level` for which that holds), without asking the tree.
+/// when it lies in a leaf of level `level` for which that holds), without asking the tree for
+/// levels.
 pub fn box_range_flat<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     (blocks, leaves): (&BlockRanges, &LeafTree),

@@ -8,6 +8,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use amr_format::{AmrkFile, FormatError, Result};
 use memmap2::{Advice, Mmap, UncheckedAdvice};
+use rayon::prelude::*;
 
 use crate::sigbus::{self, Watch};
 
@@ -94,31 +95,58 @@ pub fn mapped_resident_bytes(map: &[u8]) -> Option<u64> {
     None
 }
 
+/// Bytes of file-backed pages (and shared memory) in this process's resident set, from
+/// `/proc/self/statm` (one counter, no page-table walk); `None` where that file is not available.
+fn file_resident_bytes() -> Option<u64> {
+    let statm = std::fs::read_to_string("/proc/self/statm").ok()?;
+    let pages: u64 = statm.split_whitespace().nth(2)?.parse().ok()?;
+    // SAFETY: sysconf has no preconditions.
+    let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
+    pages.checked_mul(u64::try_from(page).ok()?)
+}
+
 /// Drops the pages of a file's map from this process's resident set on request, so that the
 /// map's share of the peak RSS is what one stage touches between two requests, not the file; and
 /// asks the kernel to read ahead the pages a stage is about to touch.
 ///
 /// The pages stay in the kernel's page cache while memory allows: touching them again costs a
-/// minor fault, not a read. Each request first measures the map's resident bytes
-/// ([`mapped_resident_bytes`]); the largest measurement is kept as [`PageRelease::peak_bytes`].
+/// minor fault, not a read. Each request first measures the map's resident bytes; the largest
+/// measurement is kept as [`PageRelease::peak_bytes`].
+///
+/// A request runs between two stages, while the worker threads wait, so it must be cheap: the
+/// map's resident bytes are measured as the growth of the process's file-backed resident set
+/// (`/proc/self/statm`, a counter) since the last release, not by walking the map's page tables
+/// in `/proc/self/smaps`; file pages of other mappings faulted in meanwhile (program code)
+/// count too. The unmapping itself is split over the thread pool.
 pub struct PageRelease<'f> {
     file: &'f MappedFile,
     peak: AtomicU64,
+    /// File-backed resident bytes of the process outside the map, as of the last release.
+    others: AtomicU64,
 }
+
+/// Bytes of the map unmapped by one `madvise` call of a release.
+const RELEASE_PIECE: usize = 8 << 20;
 
 impl<'f> PageRelease<'f> {
     /// Releases pages of `file`'s map.
     pub fn new(file: &'f MappedFile) -> Self {
+        let in_map = mapped_resident_bytes(file.bytes()).unwrap_or(0);
+        let others = file_resident_bytes().map_or(u64::MAX, |b| b.saturating_sub(in_map));
         Self {
             file,
             peak: AtomicU64::new(0),
+            others: AtomicU64::new(others),
         }
     }
 
     /// Drops every page of the map from the resident set; returns the bytes that were resident
-    /// just before, when `/proc/self/smaps` tells.
+    /// just before, when `/proc/self/statm` tells.
     pub fn release(&self) -> Option<u64> {
-        let resident = mapped_resident_bytes(self.file.bytes());
+        let others = self.others.load(Ordering::Relaxed);
+        let resident = file_resident_bytes()
+            .filter(|_| others != u64::MAX)
+            .map(|b| b.saturating_sub(others));
         if let Some(b) = resident {
             self.peak.fetch_max(b, Ordering::Relaxed);
         }
@@ -128,9 +156,20 @@ impl<'f> PageRelease<'f> {
         // pages, and the next access through any slice borrowed from the map faults in the same
         // file bytes again. Those bytes stay the same under the contract `open_mapped` states (no
         // one rewrites a finished file in place).
-        let dropped = unsafe { self.file.data().unchecked_advise(UncheckedAdvice::DontNeed) };
-        // A refused hint leaves the pages resident, which costs memory but changes no result.
-        drop(dropped);
+        let map = self.file.data();
+        let pieces = map.len().div_ceil(RELEASE_PIECE);
+        (0..pieces).into_par_iter().for_each(|k| {
+            let start = k * RELEASE_PIECE;
+            let len = RELEASE_PIECE.min(map.len() - start);
+            // SAFETY: as above; the pieces lie inside the map.
+            let dropped =
+                unsafe { map.unchecked_advise_range(UncheckedAdvice::DontNeed, start, len) };
+            // A refused hint leaves the pages resident, which costs memory but changes no result.
+            drop(dropped);
+        });
+        if let Some(b) = file_resident_bytes() {
+            self.others.store(b, Ordering::Relaxed);
+        }
         resident
     }
 

@@ -53,7 +53,7 @@ use band::CoarseBounds;
 use blocks::BlockRanges;
 use leaf::{LeafCounts, LeafFrame, Scratch};
 use leaf_tree::LeafTree;
-use parts::extract_in_parts;
+use parts::{extract_in_parts, PartRanges};
 pub use refs::{make_ref, split_ref, LocalVoxel, DUAL_BASE};
 pub use region::Region;
 pub use stats::ExtractStats;
@@ -79,6 +79,7 @@ pub struct Extractor<'f, D> {
     sampler: Sampler<'f, D>,
     file_cells: u64,
     tight: TightRanges,
+    parts: PartRanges,
     blocks: BlockRanges,
     leaves: LeafTree,
     coarse: CoarseBounds,
@@ -97,6 +98,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             .sum();
         Ok(Self {
             tight: TightRanges::new(file.num_leaves()),
+            parts: PartRanges::new(file.num_leaves()),
             blocks: BlockRanges::new(file),
             leaves: LeafTree::new(&sampler),
             coarse: CoarseBounds::default(),
@@ -212,6 +214,13 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let mut boundary_evaluated = 0u64;
         let mut leaves_skipped = 0u64;
         let mut touched: Option<u64> = None;
+        // Tight ranges read the stored tables alone (no brick data) when the file has them.
+        let loose = self.blocks.loose();
+        let tight_blocks = if self.blocks.stored() {
+            &loose
+        } else {
+            &self.blocks
+        };
         let chunks = self.chunks(leaves);
         if let Some(first) = chunks.first() {
             self.read_ahead(first);
@@ -228,7 +237,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                         let mut out = Vec::new();
                         let (lo, hi) =
                             self.tight
-                                .get(&self.sampler, (&self.blocks, &self.leaves), leaf)?;
+                                .get(&self.sampler, (tight_blocks, &self.leaves), leaf)?;
                         if !straddles(lo, hi, iso) {
                             let skipped = LeafCounts {
                                 skipped: 1,
@@ -243,7 +252,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                             &self.sampler,
                             &frame,
                             iso,
-                            (scratch, (&self.blocks, &self.leaves)),
+                            (scratch, (&self.blocks, &self.leaves), &self.parts),
                             &mut out,
                         )?;
                         Ok((out, counts))

@@ -11,6 +11,11 @@
 //! ([`BlockRanges::loose`]).
 //! Parts that are kept and adjacent along x are extracted together, so that the cells shared
 //! by their neighbourhoods are filled once.
+//!
+//! The parts' bounds do not depend on the isovalue: each leaf's are computed the first time it
+//! is extracted and kept ([`PartRanges`]), 8 bytes per part, so a later isovalue only compares.
+
+use std::sync::OnceLock;
 
 use crate::error::Result;
 use amr_format::kdtree::widen_range;
@@ -19,7 +24,7 @@ use amr_format::IBox;
 use super::blocks::BlockRanges;
 use super::leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
 use super::leaf_tree::LeafTree;
-use super::tight::box_range;
+use super::tight::{box_range, box_range_flat, pack, unpack};
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::Sampler;
 
@@ -27,13 +32,32 @@ use crate::reconstruct::Sampler;
 /// 4 or 16 on the 1e7-cell `blobs` file (`docs/benchmarks-extract.md`).
 pub const PART_CELLS: i64 = 8;
 
+/// The bounds of the parts of every leaf extracted so far, in part order (x fastest), packed
+/// ([`pack`]); filled from any thread.
+pub struct PartRanges {
+    leaves: Box<[OnceLock<Box<[u64]>>]>,
+}
+
+impl PartRanges {
+    /// No bounds yet, for `leaves` leaves.
+    pub fn new(leaves: usize) -> Self {
+        Self {
+            leaves: (0..leaves).map(|_| OnceLock::new()).collect(),
+        }
+    }
+}
+
 /// [`extract_leaf`] of `frame`, part by part when the file stores block ranges and the leaf
 /// spans more than one part; the active voxels appended to `out` are sorted by id.
 pub fn extract_in_parts<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     frame: &LeafFrame,
     iso: f32,
-    (scratch, bounds): (&mut Scratch<'_, '_, D>, (&BlockRanges, &LeafTree)),
+    (scratch, bounds, kept): (
+        &mut Scratch<'_, '_, D>,
+        (&BlockRanges, &LeafTree),
+        &PartRanges,
+    ),
     out: &mut Vec<u64>,
 ) -> Result<LeafCounts> {
     let Some(block) = sampler.file().block_cells().map(i64::from) else {
@@ -50,6 +74,46 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
     let bc = sampler.brick_cells(frame.brick);
     let first = [0, 1, 2].map(|a| (c.lo[a] - bc.lo[a]).div_euclid(k));
     let last = [0, 1, 2].map(|a| (c.hi[a] - 1 - bc.lo[a]).div_euclid(k));
+    let part_box = |p: [i64; 3]| -> IBox {
+        let cells = IBox::new(
+            [0, 1, 2].map(|a| bc.lo[a] + p[a] * k),
+            [0, 1, 2].map(|a| bc.lo[a] + (p[a] + 1) * k),
+        )
+        .intersect(&c);
+        IBox::new(
+            [0, 1, 2].map(|a| cells.lo[a] * s[a] - o[a]),
+            [0, 1, 2].map(|a| cells.hi[a] * s[a] - o[a]),
+        )
+        .intersect(&frame.finest)
+    };
+    let slot = &kept.leaves[frame.leaf as usize];
+    let ranges = match slot.get() {
+        Some(r) => r,
+        None => {
+            // With no coarser leaf around the leaf, none is around its parts either.
+            let grown = frame.finest.grow(s);
+            let flat = bounds
+                .1
+                .coarsest_touching(sampler, &grown)
+                .unwrap_or(frame.level)
+                >= frame.level;
+            let mut r = Vec::new();
+            for pz in first[2]..=last[2] {
+                for py in first[1]..=last[1] {
+                    for px in first[0]..=last[0] {
+                        let finest = part_box([px, py, pz]);
+                        let range = if finest.is_empty() {
+                            (f32::INFINITY, f32::NEG_INFINITY)
+                        } else {
+                            part_range(sampler, frame, (bounds, flat), &finest)?
+                        };
+                        r.push(pack(range));
+                    }
+                }
+            }
+            slot.get_or_init(|| r.into_boxed_slice())
+        }
+    };
     let mut counts = LeafCounts::default();
     let mut run = |run: &mut Option<IBox>, counts: &mut LeafCounts| -> Result<()> {
         if let Some(finest) = run.take() {
@@ -61,26 +125,18 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
         }
         Ok(())
     };
+    let mut ranges = ranges.iter();
     for pz in first[2]..=last[2] {
         for py in first[1]..=last[1] {
             let mut kept: Option<IBox> = None;
             for px in first[0]..=last[0] {
-                let p = [px, py, pz];
-                let cells = IBox::new(
-                    [0, 1, 2].map(|a| bc.lo[a] + p[a] * k),
-                    [0, 1, 2].map(|a| bc.lo[a] + (p[a] + 1) * k),
-                )
-                .intersect(&c);
-                let finest = IBox::new(
-                    [0, 1, 2].map(|a| cells.lo[a] * s[a] - o[a]),
-                    [0, 1, 2].map(|a| cells.hi[a] * s[a] - o[a]),
-                )
-                .intersect(&frame.finest);
+                let (lo, hi) = unpack(ranges.next().copied().unwrap_or(u64::MAX));
+                let finest = part_box([px, py, pz]);
                 if finest.is_empty() {
                     run(&mut kept, &mut counts)?;
                     continue;
                 }
-                if part_may_hold(sampler, frame, bounds, &finest, iso)? {
+                if straddles(lo, hi, iso) {
                     kept = Some(match kept {
                         Some(r) => IBox::new(r.lo, finest.hi),
                         None => finest,
@@ -93,31 +149,40 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
             run(&mut kept, &mut counts)?;
         }
     }
-    out[start..].sort_unstable();
+    // Runs of sorted refs, one per run of parts: the stable sort merges them.
+    out[start..].sort();
     Ok(counts)
 }
 
-/// False when no voxel of `frame` whose lower corner lies in finest-level box `finest` can hold
-/// `iso` (see the module documentation).
-fn part_may_hold<D: AsRef<[u8]>>(
+/// A range holding every corner of every voxel of `frame` whose lower corner lies in
+/// finest-level box `finest` (see the module documentation); `(+inf, -inf)` when there is
+/// none. `flat`: no leaf coarser than the leaf touches the leaf grown by one cell.
+fn part_range<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     frame: &LeafFrame,
-    (blocks, leaves): (&BlockRanges, &LeafTree),
+    ((blocks, leaves), flat): ((&BlockRanges, &LeafTree), bool),
     finest: &IBox,
-    iso: f32,
-) -> Result<bool> {
+) -> Result<(f32, f32)> {
+    let empty = (f32::INFINITY, f32::NEG_INFINITY);
     let s = sampler.grid().scale(frame.level);
-    let range = if frame.finest.contains_box(&finest.grow(s)) {
+    let (lo, hi) = if frame.finest.contains_box(&finest.grow(s)) {
         // Only merged dual cells: those whose lowest cell lies in the part, so their cells lie
         // in the part grown by one cell upwards.
         let up = IBox::new(finest.lo, [0, 1, 2].map(|a| finest.hi[a] + s[a]));
         let Some((lo, hi)) = blocks.bound_in(sampler, frame.brick, frame.level, &up) else {
-            return Ok(true);
+            return Ok((f32::NEG_INFINITY, f32::INFINITY));
         };
-        (lo <= hi).then(|| widen_range(lo, hi))
+        if lo > hi {
+            return Ok(empty);
+        }
+        widen_range(lo, hi)
     } else {
-        let (lo, hi) = box_range(sampler, (&blocks.loose(), leaves), finest, frame.level)?;
-        (lo <= hi).then_some((lo, hi))
+        let bounds = (&blocks.loose(), leaves);
+        if flat {
+            box_range_flat(sampler, bounds, finest, frame.level)?
+        } else {
+            box_range(sampler, bounds, finest, frame.level)?
+        }
     };
-    Ok(range.is_some_and(|(lo, hi)| straddles(lo, hi, iso)))
+    Ok(if lo <= hi { (lo, hi) } else { empty })
 }

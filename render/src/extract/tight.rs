@@ -3,8 +3,10 @@
 //!
 //! The file's stored leaf ranges are unions of whole-brick ranges (the writer never re-reads
 //! data), so a leaf far from the surface is often visited because some other part of a
-//! neighbouring brick straddles the isovalue. The tight range is the range of the cells
-//! within reach of the leaf (read through [`super::blocks`]), widened for round-off:
+//! neighbouring brick straddles the isovalue. The tight range is a range of the cells
+//! within reach of the leaf (read through [`super::blocks`]: on files that store block tables,
+//! the union of the stored blocks the region overlaps, so that no brick data is read; else
+//! exact), widened for round-off:
 //! - when no leaf coarser than the leaf's level `L` touches the leaf grown by one level-`L` cell
 //!   (its neighbourhood), that grown box: every corner of every voxel the leaf owns is then the
 //!   value of, or a mean of, leaf cells of level `L` or finer inside it (the argument of
@@ -123,6 +125,23 @@ pub fn box_range<D: AsRef<[u8]>>(
     let (lo, hi) = leaves.range_over(sampler, blocks, &region, slack)?;
     if lo > hi {
         return Ok(empty);
+    }
+    Ok(widen_range(lo, hi))
+}
+
+/// [`box_range`] of a box `own` whose grown box no leaf coarser than `level` touches (as
+/// when it lies in a leaf of level `level` for which that holds), without asking the tree for
+/// levels.
+pub fn box_range_flat<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    (blocks, leaves): (&BlockRanges, &LeafTree),
+    own: &IBox,
+    level: u32,
+) -> Result<(f32, f32)> {
+    let hood = own.grow(sampler.grid().scale(level));
+    let (lo, hi) = leaves.range_over(sampler, blocks, &hood, [0; 3])?;
+    if lo > hi {
+        return Ok((f32::INFINITY, f32::NEG_INFINITY));
     }
     Ok(widen_range(lo, hi))
 }

@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use amr_format::progress::NoProgress;
 use amr_format::WriterOptions;
-use amr_render::bvh::CHUNK_REFS;
+use amr_render::bvh::{BuildMethod, CHUNK_REFS};
 use amr_synth::{fit_cells, write_synth, Case, SynthParams};
 
 use super::plot::{loglog, Series};
@@ -69,6 +69,7 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
     };
     let bvh_cfg = BvhBenchConfig {
         chunks: vec![usize::MAX, CHUNK_REFS],
+        methods: vec![BuildMethod::Morton, BuildMethod::Ploc],
         runs: if ctx.cfg.quick { 3 } else { 7 },
         size: (256, 256),
         shadows: true,

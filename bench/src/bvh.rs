@@ -85,16 +85,21 @@ fn voxel_boxes(src: &impl VoxelSource, refs: &[u64]) -> (Vec<Aabb>, Duration) {
     use rayon::prelude::*;
     let pad = amr_render::trace::traverse::bvh_pad(&src.frame());
     let t = Instant::now();
-    let boxes = refs
-        .par_iter()
-        .map(|&r| {
-            let (lo, hi) = src.voxel_box(r);
+    let mut boxes = vec![Aabb::empty(); refs.len()];
+    boxes
+        .par_chunks_mut(4096)
+        .zip(refs.par_chunks(4096))
+        .for_each(|(out, refs)| {
             let v = |p: [f64; 3], s: f64| {
                 Vec3A::new((p[0] + s) as f32, (p[1] + s) as f32, (p[2] + s) as f32)
             };
-            Aabb::new(v(lo, -pad), v(hi, pad))
-        })
-        .collect();
+            let mut slots = out.iter_mut();
+            src.voxel_boxes(refs, &mut |lo, hi| {
+                if let Some(slot) = slots.next() {
+                    *slot = Aabb::new(v(lo, -pad), v(hi, pad));
+                }
+            });
+        });
     (boxes, t.elapsed())
 }
 

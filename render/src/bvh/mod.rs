@@ -28,6 +28,9 @@ pub mod wide;
 
 use wide::WideBuilder;
 
+/// Refs whose boxes one task decodes (the chunk's boxes are decoded in parallel runs).
+const DECODE_RUN: usize = 4096;
+
 /// Bytes of one CWBVH node (obvhs: "repr(C), Pod, 80 bytes").
 pub const NODE_BYTES: usize = 80;
 
@@ -103,8 +106,9 @@ impl BvhBuilder {
         Self::default()
     }
 
-    /// Builds a BVH over `refs`, whose boxes `bounds(r)` gives in grid coordinates; every box
-    /// is grown by `pad` (grid units) so that `f32` traversal never misses a voxel the exact
+    /// Builds a BVH over `refs`, whose boxes `boxes(refs, out)` passes to `out` in order, in grid
+    /// coordinates (it is called on runs of consecutive refs); every box is grown by `pad` (grid
+    /// units) so that `f32` traversal never misses a voxel the exact
     /// `f64` intersection would hit. `between_chunks` is called after each round of chunks
     /// (one per thread, built side by side) to release what decoding the boxes touched. Reuses
     /// the scratch and `out`'s buffers.
@@ -113,12 +117,12 @@ impl BvhBuilder {
         out: &mut OctantBvh,
         refs: &[u64],
         pad: f64,
-        bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
+        boxes: impl Fn(&[u64], &mut dyn FnMut([f64; 3], [f64; 3])) + Sync,
         between_chunks: impl Fn(),
     ) {
         out.refs.clear();
         out.refs.extend_from_slice(refs);
-        self.build_refs(out, pad, bounds, between_chunks);
+        self.build_refs(out, pad, boxes, between_chunks);
     }
 
     /// [`BvhBuilder::build_into`] taking the refs by value, which saves a copy of them.
@@ -127,11 +131,11 @@ impl BvhBuilder {
         out: &mut OctantBvh,
         refs: Vec<u64>,
         pad: f64,
-        bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
+        boxes: impl Fn(&[u64], &mut dyn FnMut([f64; 3], [f64; 3])) + Sync,
         between_chunks: impl Fn(),
     ) {
         out.refs = refs;
-        self.build_refs(out, pad, bounds, between_chunks);
+        self.build_refs(out, pad, boxes, between_chunks);
     }
 
     /// Builds the BVH over `out.refs`.
@@ -139,18 +143,22 @@ impl BvhBuilder {
         &mut self,
         out: &mut OctantBvh,
         pad: f64,
-        bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
+        boxes: impl Fn(&[u64], &mut dyn FnMut([f64; 3], [f64; 3])) + Sync,
         between_chunks: impl Fn(),
     ) {
         out.chunks.clear();
         out.top = CwBvh::default();
         out.refs.shrink_to_fit();
-        let grown = |r: u64| {
-            let (lo, hi) = bounds(r);
+        let decode = |refs: &[u64], out: &mut [Aabb]| {
             let v = |p: [f64; 3], s: f64| {
                 Vec3A::new((p[0] + s) as f32, (p[1] + s) as f32, (p[2] + s) as f32)
             };
-            Aabb::new(v(lo, -pad), v(hi, pad))
+            let mut slots = out.iter_mut();
+            boxes(refs, &mut |lo, hi| {
+                if let Some(slot) = slots.next() {
+                    *slot = Aabb::new(v(lo, -pad), v(hi, pad));
+                }
+            });
         };
         let size = self.chunk_refs.max(1);
         let method = self.method;
@@ -166,7 +174,11 @@ impl BvhBuilder {
                 .zip(self.workers.par_iter_mut())
                 .map(|(part, w)| {
                     w.boxes.clear();
-                    w.boxes.par_extend(part.par_iter().map(|&r| grown(r)));
+                    w.boxes.resize(part.len(), Aabb::empty());
+                    w.boxes
+                        .par_chunks_mut(DECODE_RUN)
+                        .zip(part.par_chunks(DECODE_RUN))
+                        .for_each(|(out, refs)| decode(refs, out));
                     w.build_level(part, method)
                 })
                 .collect();
@@ -196,7 +208,7 @@ impl BvhBuilder {
         self.last_scratch_bytes = self.workers.iter().map(Worker::scratch_bytes).sum();
     }
 
-    /// Builds a new BVH (see [`BvhBuilder::build_into`]).
+    /// Builds a new BVH (see [`BvhBuilder::build_into`]) over boxes given one ref at a time.
     pub fn build(
         &mut self,
         refs: &[u64],
@@ -204,7 +216,13 @@ impl BvhBuilder {
         bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
     ) -> OctantBvh {
         let mut out = OctantBvh::default();
-        self.build_into(&mut out, refs, pad, bounds, || {});
+        let boxes = |refs: &[u64], out: &mut dyn FnMut([f64; 3], [f64; 3])| {
+            for &r in refs {
+                let (lo, hi) = bounds(r);
+                out(lo, hi);
+            }
+        };
+        self.build_into(&mut out, refs, pad, boxes, || {});
         out
     }
 

@@ -19,11 +19,12 @@ const LEAF_MAX: usize = 3;
 /// obvhs's traversal stack of 32 whatever the codes.
 const MORTON_DEPTH: u32 = 20;
 
-/// Build scratch: the sort keys, kept between builds.
+/// Build scratch: the sort keys and the boxes in their order, kept between builds.
 #[derive(Default)]
 pub struct WideBuilder {
     keys: Vec<u64>,
     tmp: Vec<u64>,
+    sorted: Vec<Aabb>,
 }
 
 impl WideBuilder {
@@ -38,11 +39,15 @@ impl WideBuilder {
         let index_bits = (usize::BITS - (n - 1).leading_zeros()).max(1);
         let axis_bits = ((64 - index_bits) / 3).min(21);
         self.sort(boxes, index_bits, axis_bits);
+        let index_mask = (1u64 << index_bits) - 1;
+        self.sorted.clear();
+        self.sorted
+            .extend(self.keys.iter().map(|&k| boxes[(k & index_mask) as usize]));
         let mut b = Build {
-            boxes,
+            boxes: &self.sorted,
             keys: &self.keys,
             shift: index_bits,
-            index_mask: (1u64 << index_bits) - 1,
+            index_mask,
             nodes: Vec::with_capacity(n / 4 + 1),
             prims: Vec::with_capacity(n),
         };
@@ -60,6 +65,7 @@ impl WideBuilder {
     /// Bytes of scratch held.
     pub fn scratch_bytes(&self) -> usize {
         (self.keys.capacity() + self.tmp.capacity()) * 8
+            + self.sorted.capacity() * size_of::<Aabb>()
     }
 
     /// Fills `self.keys` with `code << index_bits | index`, sorted by code (then index): the
@@ -124,8 +130,9 @@ fn radix_sort(keys: &mut Vec<u64>, tmp: &mut Vec<u64>, from: u32) {
     }
 }
 
-/// One build: the sorted keys and the nodes and primitive order written so far.
+/// One build: the sorted keys and boxes, and the nodes and primitive order written so far.
 struct Build<'a> {
+    /// The boxes in the keys' order.
     boxes: &'a [Aabb],
     keys: &'a [u64],
     shift: u32,
@@ -202,22 +209,28 @@ impl Build<'_> {
         let mut leaf_meta = [0u8; 8];
         for (i, r) in runs.iter().enumerate() {
             if r.b - r.a <= LEAF_MAX {
-                leaf_meta[i] = (self.prims.len() - prim_base) as u8 | [0, 0x20, 0x60, 0xe0][r.b - r.a];
-                let mut bx = Aabb::empty();
-                for k in r.a..r.b {
-                    let p = (self.keys[k] & self.index_mask) as usize;
-                    bx = bx.union(&self.boxes[p]);
-                    self.prims.push(p as u32);
-                }
-                child_box[i] = bx;
+                leaf_meta[i] =
+                    (self.prims.len() - prim_base) as u8 | [0, 0x20, 0x60, 0xe0][r.b - r.a];
+                child_box[i] = self.boxes[r.a + 1..r.b]
+                    .iter()
+                    .fold(self.boxes[r.a], |t, c| t.union(c));
+                self.prims.extend(
+                    self.keys[r.a..r.b]
+                        .iter()
+                        .map(|&k| (k & self.index_mask) as u32),
+                );
             }
         }
         let child_base = self.nodes.len();
-        let inner: Vec<usize> = (0..len).filter(|&i| leaf_meta[i] == 0).collect();
-        self.nodes
-            .resize(child_base + inner.len(), CwBvhNode::default());
-        for (k, &i) in inner.iter().enumerate() {
-            child_box[i] = self.node(child_base + k, runs[i].a, runs[i].b, depth + 1);
+        let mut inner_at = [0usize; 8];
+        let mut inner = 0;
+        for i in (0..len).filter(|&i| leaf_meta[i] == 0) {
+            inner_at[i] = child_base + inner;
+            inner += 1;
+        }
+        self.nodes.resize(child_base + inner, CwBvhNode::default());
+        for i in (0..len).filter(|&i| leaf_meta[i] == 0) {
+            child_box[i] = self.node(inner_at[i], runs[i].a, runs[i].b, depth + 1);
         }
 
         let total = child_box[..len]
@@ -233,10 +246,15 @@ impl Build<'_> {
         node.p = Vec3::from(p);
         node.e = e;
         let mut slot_node = [usize::MAX; 8];
+        let mut moved = [CwBvhNode::default(); 8];
         for (i, &s) in slots[..len].iter().enumerate() {
             let c = &child_box[i];
-            let qlo = ((c.min - p) * rcp).floor().clamp(Vec3A::ZERO, Vec3A::splat(255.0));
-            let qhi = ((c.max - p) * rcp).ceil().clamp(Vec3A::ZERO, Vec3A::splat(255.0));
+            let qlo = ((c.min - p) * rcp)
+                .floor()
+                .clamp(Vec3A::ZERO, Vec3A::splat(255.0));
+            let qhi = ((c.max - p) * rcp)
+                .ceil()
+                .clamp(Vec3A::ZERO, Vec3A::splat(255.0));
             node.child_min_x[s] = qlo.x as u8;
             node.child_min_y[s] = qlo.y as u8;
             node.child_min_z[s] = qlo.z as u8;
@@ -248,15 +266,15 @@ impl Build<'_> {
             } else {
                 node.imask |= 1 << s;
                 node.child_meta[s] = (24 + s as u8) | 0x20;
-                slot_node[s] = child_base + inner.iter().position(|&j| j == i).unwrap_or(0);
+                slot_node[s] = inner_at[i];
             }
         }
-        let moved: Vec<CwBvhNode> = slot_node
-            .iter()
-            .filter(|&&n| n != usize::MAX)
-            .map(|&n| self.nodes[n])
-            .collect();
-        self.nodes[child_base..child_base + moved.len()].copy_from_slice(&moved);
+        let mut k = 0;
+        for &n in slot_node.iter().filter(|&&n| n != usize::MAX) {
+            moved[k] = self.nodes[n];
+            k += 1;
+        }
+        self.nodes[child_base..child_base + k].copy_from_slice(&moved[..k]);
         self.nodes[at] = node;
         total
     }
@@ -285,6 +303,24 @@ fn quantization(total: &Aabb) -> (Vec3A, [u8; 3], Vec3A) {
 /// lies furthest against, greedily (obvhs's and Ylitie et al.'s assignment).
 fn order_children(total: &Aabb, children: &[Aabb]) -> [usize; 8] {
     let centre = total.center();
+    // Each child's cheapest slot is the octant it lies in, mirrored; when no two children share
+    // one, the greedy assignment gives each child that slot.
+    let mut slot_of = [usize::MAX; 8];
+    let mut taken = 0u8;
+    for (c, b) in children.iter().enumerate() {
+        let v = b.center() - centre;
+        let s = usize::from(v.x > 0.0) << 2 | usize::from(v.y > 0.0) << 1 | usize::from(v.z > 0.0);
+        if taken >> s & 1 == 1 || v.cmpeq(Vec3A::ZERO).any() {
+            return order_children_greedy(centre, children);
+        }
+        taken |= 1 << s;
+        slot_of[c] = s;
+    }
+    slot_of
+}
+
+/// [`order_children`] in general: the cheapest pair of an unplaced child and a free slot first.
+fn order_children_greedy(centre: Vec3A, children: &[Aabb]) -> [usize; 8] {
     let mut cost = [[0f32; 8]; 8];
     for (c, b) in children.iter().enumerate() {
         let v = b.center() - centre;
@@ -313,7 +349,9 @@ fn order_children(total: &Aabb, children: &[Aabb]) -> [usize; 8] {
         }
         if best.1 == usize::MAX {
             // NaN costs: take the first free slot.
-            let c = (0..children.len()).find(|&c| slot_of[c] == usize::MAX).unwrap_or(0);
+            let c = (0..children.len())
+                .find(|&c| slot_of[c] == usize::MAX)
+                .unwrap_or(0);
             let s = (0..8).find(|&s| !filled[s]).unwrap_or(0);
             best = (0.0, c, s);
         }
@@ -335,9 +373,7 @@ mod tests {
 
     #[test]
     fn radix_sort_sorts_by_the_high_bits_stably() {
-        let mut keys: Vec<u64> = (0..1000u64)
-            .map(|i| (i * 7919 % 613) << 10 | i)
-            .collect();
+        let mut keys: Vec<u64> = (0..1000u64).map(|i| (i * 7919 % 613) << 10 | i).collect();
         let mut want = keys.clone();
         want.sort_by_key(|k| (k >> 10, k & 1023));
         let mut tmp = vec![0; keys.len()];

@@ -288,7 +288,7 @@ fn quantization(total: &Aabb) -> (Vec3A, [u8; 3], Vec3A) {
     let mut e = [0u8; 3];
     let mut rcp = Vec3A::ZERO;
     for a in 0..3 {
-        let mut step = (extent[a] / 255.0).log2().ceil().exp2();
+        let mut step = pow2_at_least(extent[a] / 255.0);
         while p[a] + 255.0 * step < total.max[a] {
             step *= 2.0;
         }
@@ -298,65 +298,62 @@ fn quantization(total: &Aabb) -> (Vec3A, [u8; 3], Vec3A) {
     (p, e, rcp)
 }
 
-/// The slot of each child: slot `s` is visited first by rays whose direction octant is `s`
-/// (bit 2: x negative, bit 1: y, bit 0: z), so each child goes to the slot of the direction it
-/// lies furthest against, greedily (obvhs's and Ylitie et al.'s assignment).
-fn order_children(total: &Aabb, children: &[Aabb]) -> [usize; 8] {
-    let centre = total.center();
-    // Each child's cheapest slot is the octant it lies in, mirrored; when no two children share
-    // one, the greedy assignment gives each child that slot.
-    let mut slot_of = [usize::MAX; 8];
-    let mut taken = 0u8;
-    for (c, b) in children.iter().enumerate() {
-        let v = b.center() - centre;
-        let s = usize::from(v.x > 0.0) << 2 | usize::from(v.y > 0.0) << 1 | usize::from(v.z > 0.0);
-        if taken >> s & 1 == 1 || v.cmpeq(Vec3A::ZERO).any() {
-            return order_children_greedy(centre, children);
-        }
-        taken |= 1 << s;
-        slot_of[c] = s;
-    }
-    slot_of
+/// The least power of two at or above `x` (a positive normal `f32`).
+fn pow2_at_least(x: f32) -> f32 {
+    let bits = x.to_bits();
+    let exp = (bits >> 23) + u32::from(bits & 0x7f_ffff != 0);
+    f32::from_bits(exp << 23)
 }
 
-/// [`order_children`] in general: the cheapest pair of an unplaced child and a free slot first.
-fn order_children_greedy(centre: Vec3A, children: &[Aabb]) -> [usize; 8] {
-    let mut cost = [[0f32; 8]; 8];
+/// The slot of each child: slot `s` is visited first by rays whose direction octant is `s`
+/// (bit 2: x negative, bit 1: y, bit 0: z), so a child is placed in the slot of the direction it
+/// lies furthest against (the cost `d . (centre of child - centre of node)` of Ylitie et al. and
+/// obvhs): each slot goes to the cheapest child that wants it, and children left without one
+/// take, in turn, their cheapest free slot.
+fn order_children(total: &Aabb, children: &[Aabb]) -> [usize; 8] {
+    let centre = total.center();
+    let mut v = [Vec3A::ZERO; 8];
     for (c, b) in children.iter().enumerate() {
-        let v = b.center() - centre;
-        for (s, slot) in cost[c].iter_mut().enumerate() {
-            let d = Vec3A::new(
-                if s & 4 != 0 { -1.0 } else { 1.0 },
-                if s & 2 != 0 { -1.0 } else { 1.0 },
-                if s & 1 != 0 { -1.0 } else { 1.0 },
-            );
-            *slot = d.dot(v);
+        v[c] = b.center() - centre;
+    }
+    let cost = |c: usize, s: usize| {
+        let d = Vec3A::new(
+            if s & 4 != 0 { -1.0 } else { 1.0 },
+            if s & 2 != 0 { -1.0 } else { 1.0 },
+            if s & 1 != 0 { -1.0 } else { 1.0 },
+        );
+        d.dot(v[c])
+    };
+    // The cheapest slot of child c is the octant it lies in, mirrored.
+    let wanted = |c: usize| {
+        usize::from(v[c].x > 0.0) << 2 | usize::from(v[c].y > 0.0) << 1 | usize::from(v[c].z > 0.0)
+    };
+    let mut owner = [usize::MAX; 8];
+    for c in 0..children.len() {
+        let s = wanted(c);
+        if owner[s] == usize::MAX || cost(c, s) < cost(owner[s], s) {
+            owner[s] = c;
         }
     }
     let mut slot_of = [usize::MAX; 8];
-    let mut filled = [false; 8];
-    for _ in 0..children.len() {
-        let mut best = (f32::MAX, usize::MAX, usize::MAX);
-        for c in 0..children.len() {
-            if slot_of[c] != usize::MAX {
-                continue;
-            }
-            for s in 0..8 {
-                if !filled[s] && cost[c][s] < best.0 {
-                    best = (cost[c][s], c, s);
-                }
+    for (s, &c) in owner.iter().enumerate() {
+        if c != usize::MAX {
+            slot_of[c] = s;
+        }
+    }
+    for c in 0..children.len() {
+        if slot_of[c] != usize::MAX {
+            continue;
+        }
+        let mut best = (f32::INFINITY, usize::MAX);
+        for s in (0..8).filter(|&s| owner[s] == usize::MAX) {
+            let k = cost(c, s);
+            if k < best.0 || best.1 == usize::MAX {
+                best = (k, s);
             }
         }
-        if best.1 == usize::MAX {
-            // NaN costs: take the first free slot.
-            let c = (0..children.len())
-                .find(|&c| slot_of[c] == usize::MAX)
-                .unwrap_or(0);
-            let s = (0..8).find(|&s| !filled[s]).unwrap_or(0);
-            best = (0.0, c, s);
-        }
-        slot_of[best.1] = best.2;
-        filled[best.2] = true;
+        owner[best.1] = c;
+        slot_of[c] = best.1;
     }
     slot_of
 }
@@ -364,6 +361,18 @@ fn order_children_greedy(centre: Vec3A, children: &[Aabb]) -> [usize; 8] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn powers_of_two() {
+        assert_eq!(pow2_at_least(1.0), 1.0);
+        assert_eq!(pow2_at_least(1.5), 2.0);
+        assert_eq!(pow2_at_least(0.25), 0.25);
+        assert_eq!(pow2_at_least(0.3), 0.5);
+        assert_eq!(
+            pow2_at_least(1e-20 / 255.0),
+            (1e-20f32 / 255.0).log2().ceil().exp2()
+        );
+    }
 
     #[test]
     fn spread_interleaves() {
@@ -409,5 +418,66 @@ mod tests {
         let bvh = WideBuilder::default().build(&boxes);
         let r = bvh.validate(&boxes, false);
         assert!(r.max_depth < 10, "depth {}", r.max_depth);
+    }
+}
+
+#[cfg(test)]
+mod quality {
+    use super::*;
+    use obvhs::cwbvh::builder::build_cwbvh;
+    use obvhs::BvhBuildParams;
+
+    /// Node and leaf-primitive surface-area costs of `bvh` (relative to its root's area).
+    fn sah(bvh: &CwBvh) -> (usize, f64, f64) {
+        let root = f64::from(bvh.nodes[0].aabb().half_area());
+        let (mut nodes, mut prims) = (0.0, 0.0);
+        for n in &bvh.nodes {
+            nodes += f64::from(n.aabb().half_area()) / root;
+            for c in 0..8 {
+                if n.is_leaf(c) && !n.is_child_empty(c) {
+                    let (_, count) = n.child_primitives(c);
+                    prims += f64::from(n.child_aabb(c).half_area()) / root * f64::from(count);
+                }
+            }
+        }
+        (bvh.nodes.len(), nodes, prims)
+    }
+
+    /// The octant boxes of the cells of a 160^3 grid that a sphere's shell crosses.
+    fn shell() -> Vec<Aabb> {
+        let mut boxes = Vec::new();
+        let n = 160;
+        for z in 0..n {
+            for y in 0..n {
+                for x in 0..n {
+                    let c = Vec3A::new(x as f32, y as f32, z as f32) + 0.5 - n as f32 / 2.0;
+                    if (c.length() - 60.0).abs() < 0.9 {
+                        for o in 0..8 {
+                            let lo = c - 0.5
+                                + 0.5
+                                    * Vec3A::new(
+                                        (o & 1) as f32,
+                                        (o >> 1 & 1) as f32,
+                                        (o >> 2) as f32,
+                                    );
+                            boxes.push(Aabb::new(lo, lo + 0.5));
+                        }
+                    }
+                }
+            }
+        }
+        boxes
+    }
+
+    #[test]
+    #[ignore = "prints the surface-area costs of the Morton and PLOC builds"]
+    fn surface_area_costs() {
+        let boxes = shell();
+        let ours = WideBuilder::default().build(&boxes);
+        let mut t = std::time::Duration::ZERO;
+        let ploc = build_cwbvh(&boxes, BvhBuildParams::fast_build(), &mut t);
+        eprintln!("{} boxes", boxes.len());
+        eprintln!("Morton (nodes, node cost, prim cost): {:?}", sah(&ours));
+        eprintln!("PLOC   (nodes, node cost, prim cost): {:?}", sah(&ploc));
     }
 }

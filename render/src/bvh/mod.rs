@@ -31,6 +31,11 @@ use wide::WideBuilder;
 /// Refs whose boxes one task decodes (the chunk's boxes are decoded in parallel runs).
 const DECODE_RUN: usize = 4096;
 
+/// Refs whose boxes are decoded between two calls of the build's `between_chunks` (which
+/// releases the file's pages that decoding touched: leaf metadata only, and each call costs a
+/// scan of the process's page tables).
+const RELEASE_REFS: usize = 1 << 20;
+
 /// Bytes of one CWBVH node (obvhs: "repr(C), Pod, 80 bytes").
 pub const NODE_BYTES: usize = 80;
 
@@ -109,8 +114,9 @@ impl BvhBuilder {
     /// Builds a BVH over `refs`, whose boxes `boxes(refs, out)` passes to `out` in order, in grid
     /// coordinates (it is called on runs of consecutive refs); every box is grown by `pad` (grid
     /// units) so that `f32` traversal never misses a voxel the exact
-    /// `f64` intersection would hit. `between_chunks` is called after each round of chunks
-    /// (one per thread, built side by side) to release what decoding the boxes touched. Reuses
+    /// `f64` intersection would hit. `between_chunks` is called after rounds of chunks (chunks
+    /// are built one per thread, side by side), about every million refs, and after the last,
+    /// to release what decoding the boxes touched. Reuses
     /// the scratch and `out`'s buffers.
     pub fn build_into(
         &mut self,
@@ -163,11 +169,13 @@ impl BvhBuilder {
         let size = self.chunk_refs.max(1);
         let method = self.method;
         let threads = rayon::current_num_threads().max(1);
+        let total = out.refs.len();
         let mut parts: Vec<&mut [u64]> = out.refs.chunks_mut(size).collect();
         self.workers
             .resize_with(threads.min(parts.len()).max(1), Worker::default);
         let mut boxes = Vec::new();
         let mut first = 0;
+        let mut since_release = 0;
         for round in parts.chunks_mut(self.workers.len()) {
             let bvhs: Vec<CwBvh> = round
                 .par_iter_mut()
@@ -190,8 +198,12 @@ impl BvhBuilder {
                     bvh,
                 });
                 first += part.len();
+                since_release += part.len();
             }
-            between_chunks();
+            if since_release >= RELEASE_REFS || first == total {
+                between_chunks();
+                since_release = 0;
+            }
         }
         if out.chunks.len() > 1 {
             let w = &mut self.workers[0];

@@ -353,13 +353,15 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         Ok(self.doubled_box(frame.level, cell, octant))
     }
 
-    /// [`Self::voxel_box`] of each of `refs`, in order, passed to `out`; a run of refs in one
-    /// leaf (as the extraction emits them) finds the leaf's frame once.
+    /// [`Self::voxel_box`] of each of `refs`, in order, passed to `out`; the frames of the last
+    /// few leaves met are kept, so that refs of a few leaves interleaved (as a BVH orders them)
+    /// or in runs (as the extraction emits them) find each leaf's frame once.
     pub fn voxel_boxes(&self, refs: &[u64], mut out: impl FnMut(Result<([i64; 3], [i64; 3])>)) {
-        let mut last = None;
+        let mut frames = [None; 16];
         for &r in refs {
+            let slot = &mut frames[(r >> 32) as usize % 16];
             out(self
-                .resolve_in(r, &mut last)
+                .resolve_in(r, slot)
                 .map(|(frame, cell, octant)| self.doubled_box(frame.level, cell, octant)));
         }
     }

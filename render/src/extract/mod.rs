@@ -369,28 +369,30 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// The leaf of the voxel `r` names, its level-`L` cell (absolute index) and its octant, or
     /// `None` for a merged dual cell (the cell is then the dual cell's lowest).
     fn resolve(&self, r: u64) -> Result<(LeafFrame, [i64; 3], Option<u8>)> {
-        self.resolve_in(r, &mut None)
+        let mut last = None;
+        let (frame, cell, octant) = self.resolve_in(r, &mut last)?;
+        Ok((*frame, cell, octant))
     }
 
     /// [`Self::resolve`], reusing `last`, the frame of the leaf resolved last, when `r` is in the
     /// same leaf (and keeping `r`'s there).
-    fn resolve_in(
+    fn resolve_in<'l>(
         &self,
         r: u64,
-        last: &mut Option<LeafFrame>,
-    ) -> Result<(LeafFrame, [i64; 3], Option<u8>)> {
+        last: &'l mut Option<LeafFrame>,
+    ) -> Result<(&'l LeafFrame, [i64; 3], Option<u8>)> {
         let (leaf, local) = split_ref(r);
-        let frame = match *last {
-            Some(f) if f.leaf == leaf => f,
-            _ => {
-                if leaf as usize >= self.sampler.file().num_leaves() {
-                    return Err(bad_ref(r, "no such leaf"));
-                }
-                let f = LeafFrame::new(&self.sampler, leaf)
-                    .ok_or_else(|| bad_ref(r, "the leaf holds no brick"))?;
-                *last = Some(f);
-                f
+        if last.is_none_or(|f| f.leaf != leaf) {
+            if leaf as usize >= self.sampler.file().num_leaves() {
+                return Err(bad_ref(r, "no such leaf"));
             }
+            *last = Some(
+                LeafFrame::new(&self.sampler, leaf)
+                    .ok_or_else(|| bad_ref(r, "the leaf holds no brick"))?,
+            );
+        }
+        let Some(frame) = last.as_ref() else {
+            return Err(bad_ref(r, "no such leaf"));
         };
         let (index, octant) = match local {
             LocalVoxel::Octant { cell, octant } => (cell, Some(octant)),

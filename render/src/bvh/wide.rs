@@ -479,5 +479,24 @@ mod quality {
         eprintln!("{} boxes", boxes.len());
         eprintln!("Morton (nodes, node cost, prim cost): {:?}", sah(&ours));
         eprintln!("PLOC   (nodes, node cost, prim cost): {:?}", sah(&ploc));
+        for (name, b) in [("Morton", &ours), ("PLOC", &ploc)] {
+            let mut hist = [[0usize; 9]; 3];
+            for n in &b.nodes {
+                let inner = n.imask.count_ones() as usize;
+                let leaves = (0..8)
+                    .filter(|&c| n.is_leaf(c) && !n.is_child_empty(c))
+                    .count();
+                let prims: u32 = (0..8)
+                    .filter(|&c| n.is_leaf(c) && !n.is_child_empty(c))
+                    .map(|c| n.child_primitives(c).1)
+                    .sum();
+                hist[0][inner] += 1;
+                hist[1][leaves] += 1;
+                hist[2][(prims as usize / 3).min(8)] += 1;
+            }
+            eprintln!("{name}: nodes by inner children {:?}", hist[0]);
+            eprintln!("{name}: nodes by leaf children {:?}", hist[1]);
+            eprintln!("{name}: nodes by leaf prims / 3 {:?}", hist[2]);
+        }
     }
 }

@@ -255,10 +255,11 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
     if let Some((cells, t)) = bvh_table {
         writeln!(
             s,
-            "BVH in chunks of {CHUNK_REFS} refs against one BVH over all refs, on the {cells}-cell \
-             file at iso {ISO}: `amr-bench bvh FILE --iso {ISO} --chunks 0,{CHUNK_REFS} \
-             --runs {} --size 256x256 --shadows --ao 2` (one extraction; the two BVHs render in \
-             turns, median of the runs; each BVH's first frame starts with the map's pages \
+            "BVH in chunks of {CHUNK_REFS} refs against one BVH over all refs, each built in \
+             Morton order (the renderer's build) and with obvhs's PLOC and CWBVH conversion, on \
+             the {cells}-cell file at iso {ISO}: `amr-bench bvh FILE --iso {ISO} --chunks \
+             0,{CHUNK_REFS} --methods morton,ploc --runs {} --size 256x256 --shadows --ao 2` (one \
+             extraction; the four BVHs render in turns, median of the runs; each BVH's first frame starts with the map's pages \
              released, as in a render, and is also shown alone; the frames are compared bit for \
              bit).\n",
             bvh_cfg.runs

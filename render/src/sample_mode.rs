@@ -89,7 +89,7 @@ impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {
         let pos = ray.at(t);
         let len = (ray.d[0] * ray.d[0] + ray.d[1] * ray.d[1] + ray.d[2] * ray.d[2]).sqrt();
         let size = (self.step * len).max(1e-9);
-        let grad = self.src.gradient(pos, 0.5 * size).unwrap_or([0.0; 3]);
+        let grad = self.src.gradient(pos, [0.5 * size; 3]).unwrap_or([0.0; 3]);
         let level = self.src.sample(pos).map_or(0, |s| s.1);
         SurfaceHit {
             t,

@@ -149,13 +149,13 @@ fn field_source_gradients_equal_central_differences_of_fresh_samples() {
             let src = FieldSource::new(&file, 0, m).unwrap();
             let s = src.sampler();
             for (i, p) in points(s, case.seed, 500).into_iter().enumerate() {
-                let h = [0.25, 0.5, 1.0, 2.0][i % 4];
+                let h = [[0.25; 3], [0.5, 1.0, 2.0], [1.0; 3], [2.0, 0.5, 0.25]][i % 4];
                 let fresh = central_difference_of(|q| s.sample(q, m).unwrap(), p, h);
                 let got = src.gradient(p, h);
                 assert_eq!(
                     fresh.map(|g| g.map(f64::to_bits)),
                     got.map(|g| g.map(f64::to_bits)),
-                    "{case:?}: {m} at {p:?}, h {h}"
+                    "{case:?}: {m} at {p:?}, h {h:?}"
                 );
             }
             assert!(src.take_failure().is_none());

@@ -26,6 +26,7 @@
 //! - [`render_watertight`] and [`render_watertight_amrk`]: no ray leaks through a closed surface.
 //! - [`render_accuracy`]: the hybrid method against the sample method.
 //! - [`render_golden`]: a golden image.
+//! - [`render_normals`]: smooth normals turn steadily across voxel faces and level boundaries.
 //! - [`render_clip`]: a clip box cuts surfaces open; view-limited extraction renders the view
 //!   bit for bit.
 //! - [`scene_api`]: the library's scene, views and isovalue changes.
@@ -58,6 +59,7 @@ mod render_accuracy;
 mod render_bench;
 mod render_clip;
 mod render_golden;
+mod render_normals;
 mod render_watertight;
 mod render_watertight_amrk;
 mod sample_scratch;

@@ -50,6 +50,9 @@ impl Lighting {
     }
 }
 
+/// Surfaces whose next hits [`shade_ray`] keeps on the stack.
+const INLINE_SURFACES: usize = 4;
+
 /// Shades the world ray `origin + t dir` (`dir` unit length).
 pub fn shade_ray<T: Tracer + ?Sized>(
     tracer: &T,
@@ -61,9 +64,18 @@ pub fn shade_ray<T: Tracer + ?Sized>(
     let frame = tracer.frame();
     let ray = GridRay::from_world(&frame, origin, dir);
     let n = tracer.num_surfaces();
-    let mut next: Vec<Option<SurfaceHit>> = (0..n)
-        .map(|i| tracer.next_hit(i, &ray, 0.0, f64::INFINITY))
-        .collect();
+    // Each surface's next hit: on the stack for the usual few surfaces (no allocation per ray).
+    let mut inline = [None; INLINE_SURFACES];
+    let mut spilled = Vec::new();
+    let next: &mut [Option<SurfaceHit>] = if n <= INLINE_SURFACES {
+        &mut inline[..n]
+    } else {
+        spilled.resize(n, None);
+        &mut spilled
+    };
+    for (i, slot) in next.iter_mut().enumerate() {
+        *slot = tracer.next_hit(i, &ray, 0.0, f64::INFINITY);
+    }
     let mut out = PixelSample::MISS;
     let mut transmittance = 1.0f32;
     let mut rgb = [0.0f32; 3];

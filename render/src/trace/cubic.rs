@@ -1,6 +1,14 @@
 //! Cubic polynomials along a ray segment: evaluation, root isolation with the derivative's
 //! roots, and refinement of a bracketed root (Marmitt et al. 2004).
 
+/// Where a scan of a cubic found its first root: at a point, or inside a bracket.
+enum Bracket {
+    /// A point where the value is within the tolerance of zero.
+    Root(f64),
+    /// A monotonic bracket `(x0, f(x0), x1, f(x1))` with a sign change.
+    SignChange(f64, f64, f64, f64),
+}
+
 /// The polynomial `c[0] + c[1] s + c[2] s^2 + c[3] s^3`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Cubic {
@@ -63,6 +71,39 @@ impl Cubic {
     /// value with `|value| <= tol` as zero (which catches grazing rays that touch the surface at an
     /// extremum, and surfaces through segment ends where two voxels meet).
     pub fn first_root(&self, a: f64, b: f64, tol: f64) -> Option<f64> {
+        self.first_bracket(a, b, tol).map(|bracket| match bracket {
+            Bracket::Root(x) => x,
+            Bracket::SignChange(x0, f0, x1, f1) => self.refine(x0, f0, x1, f1),
+        })
+    }
+
+    /// True exactly when [`Self::first_root`] finds a root, without refining it (for any-hit
+    /// queries, which need no position).
+    pub fn has_root(&self, a: f64, b: f64, tol: f64) -> bool {
+        self.first_bracket(a, b, tol).is_some()
+    }
+
+    /// True when the cubic provably stays beyond `tol` of zero on `[0, 1]`, so that
+    /// [`Self::first_root`] on `[0, 1]` finds nothing: its Bernstein coefficients (whose hull
+    /// bounds the cubic there) all lie on one side, beyond `tol` plus a bound on the rounding of
+    /// their computation and of the evaluations `first_root` would make. A cheap test that most
+    /// candidate voxels a ray crosses without meeting the surface fail to pass.
+    #[inline]
+    pub fn clear_of_zero_on_unit(&self, tol: f64) -> bool {
+        let [c0, c1, c2, c3] = self.c;
+        let b = [
+            c0,
+            c0 + c1 / 3.0,
+            c0 + (2.0 / 3.0) * c1 + c2 / 3.0,
+            c0 + c1 + c2 + c3,
+        ];
+        let margin = tol + 64.0 * f64::EPSILON * (c0.abs() + c1.abs() + c2.abs() + c3.abs());
+        b.iter().all(|&x| x > margin) || b.iter().all(|&x| x < -margin)
+    }
+
+    /// The first point of `[a, b]` where the cubic is within `tol` of zero, or the first monotonic
+    /// bracket of a sign change, scanning the derivative's roots in order.
+    fn first_bracket(&self, a: f64, b: f64, tol: f64) -> Option<Bracket> {
         if !(a <= b) {
             return None;
         }
@@ -71,18 +112,14 @@ impl Cubic {
         let mut f0 = self.eval(a);
         for &x1 in crit[..n].iter().chain(std::iter::once(&b)) {
             if f0.abs() <= tol {
-                return Some(x0);
+                return Some(Bracket::Root(x0));
             }
             let f1 = self.eval(x1);
-            if (f0 < 0.0) != (f1 < 0.0) && f1.abs() > tol {
-                return Some(self.refine(x0, f0, x1, f1));
+            if (f0 < 0.0) != (f1 < 0.0) {
+                return Some(Bracket::SignChange(x0, f0, x1, f1));
             }
             if f1.abs() <= tol {
-                return Some(if (f0 < 0.0) != (f1 < 0.0) {
-                    self.refine(x0, f0, x1, f1)
-                } else {
-                    x1
-                });
+                return Some(Bracket::Root(x1));
             }
             x0 = x1;
             f0 = f1;
@@ -189,6 +226,39 @@ mod tests {
         assert_eq!(off.first_root(0.0, 1.0, 0.0), None);
         assert_eq!(line.first_root(0.5, 0.5, 0.0), None);
         assert_eq!(line.first_root(0.25, 0.25, 0.0), Some(0.25));
+    }
+
+    #[test]
+    fn the_bernstein_test_and_the_root_test_agree_with_first_root() {
+        // A small deterministic generator: cubics with roots in and around [0, 1], scaled over
+        // many magnitudes, some shifted to graze zero.
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut cleared = 0;
+        for i in 0..200_000 {
+            let scale = 10f64.powf(12.0 * next() - 6.0);
+            let mut p = from_roots([3.0 * next() - 1.0, 3.0 * next() - 1.0, 3.0 * next() - 1.0]);
+            p.c = p.c.map(|c| c * scale);
+            if i % 3 == 0 {
+                p.c[0] += scale * (0.2 * next() - 0.1);
+            }
+            let tol = if i % 2 == 0 { 0.0 } else { 1e-9 * scale };
+            let first = p.first_root(0.0, 1.0, tol);
+            assert_eq!(p.has_root(0.0, 1.0, tol), first.is_some(), "{p:?}");
+            if p.clear_of_zero_on_unit(tol) {
+                cleared += 1;
+                assert_eq!(first, None, "{p:?} tol {tol}");
+            }
+        }
+        assert!(
+            cleared > 10_000,
+            "the test should clear many cubics: {cleared}"
+        );
     }
 
     #[test]

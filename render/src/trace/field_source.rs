@@ -20,7 +20,7 @@ use crate::extract::{candidate_leaves, ExtractStats, Extraction, Extractor, Regi
 use crate::mapping::PageRelease;
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
-use crate::trace::octant::{intersect_voxel, VoxelHit};
+use crate::trace::octant::{intersect_voxel, voxel_occludes, VoxelHit};
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
 use crate::trace::tracer::central_difference_of;
@@ -314,11 +314,19 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         }
     }
 
-    fn gradient(&self, p: [f64; 3], h: f64) -> Option<[f64; 3]> {
+    fn cell_size(&self, level: u32) -> Option<[f64; 3]> {
+        let grid = self.sampler().grid();
+        // A cell of `level` spans `scale` finest cells, two grid units each.
+        ((level as usize) < grid.num_levels()).then(|| grid.scale(level).map(|s| 2.0 * s as f64))
+    }
+
+    fn gradient(&self, p: [f64; 3], h: [f64; 3]) -> Option<[f64; 3]> {
         let mut cache = self.thread_cache().borrow_mut();
         let sampler = self.sampler();
+        // Bound once for the six samples: `sample_with` without binding each time.
+        let (loc, memo) = cache.scratch.bind(sampler);
         central_difference_of(
-            |q| match sampler.sample_with(q, self.reconstruction, &mut cache.scratch) {
+            |q| match sampler.sample_in(&loc, q, self.reconstruction, memo) {
                 Ok(v) => v.map(|s| s.0),
                 Err(e) => {
                     self.record(e);
@@ -348,6 +356,14 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         match self.voxels {
             Voxels::Nearest(_) => intersect_face(voxel, iso, ray, tmin, tmax),
             _ => intersect_voxel(voxel, iso, ray, tmin, tmax),
+        }
+    }
+
+    #[inline]
+    fn occludes(&self, voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
+        match self.voxels {
+            Voxels::Nearest(_) => intersect_face(voxel, iso, ray, tmin, tmax).is_some(),
+            _ => voxel_occludes(voxel, iso, ray, tmin, tmax),
         }
     }
 }

@@ -42,33 +42,77 @@ pub fn intersect_voxel(
     tmin: f64,
     tmax: f64,
 ) -> Option<VoxelHit> {
-    let (vmin, vmax) = voxel.range();
-    if vmin > iso || vmax < iso {
-        return None;
-    }
-    let (t_in, t_out) = ray.clip(voxel.lo, voxel.hi, tmin, tmax)?;
-    let widen = SEGMENT_WIDEN * (t_out - t_in) + 8.0 * f64::EPSILON * t_in.abs().max(t_out.abs());
-    let ta = (t_in - widen).max(tmin);
-    let tb = (t_out + widen).min(tmax);
-    let w = [0, 1, 2].map(|a| voxel.hi[a] - voxel.lo[a]);
-    let local = |t: f64| [0, 1, 2].map(|a| ((ray.o[a] - voxel.lo[a]) + t * ray.d[a]) / w[a]);
-    let p0 = local(ta);
-    let p1 = local(tb);
-    let q = [0, 1, 2].map(|a| p1[a] - p0[a]);
-    let iso = f64::from(iso);
-    let c = voxel.values.map(|v| f64::from(v) - iso);
-    let span = c.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let magnitude = voxel
-        .values
-        .iter()
-        .fold(iso.abs(), |m, v| m.max(f64::from(v.abs())));
-    let tol = (SPAN_TOL * span).max(ULP_TOL * magnitude).min(0.5 * span);
-    let cubic = along_segment(&c, p0, q);
-    let s = cubic.first_root(0.0, 1.0, tol)?;
+    let seg = Segment::new(voxel, iso, ray, tmin, tmax)?;
+    let s = seg.cubic.first_root(0.0, 1.0, seg.tol)?;
     Some(VoxelHit {
-        t: ta + s * (tb - ta),
-        local: [0, 1, 2].map(|a| p0[a] + s * q[a]),
+        t: seg.ta + s * (seg.tb - seg.ta),
+        local: [0, 1, 2].map(|a| seg.p0[a] + s * seg.q[a]),
     })
+}
+
+/// True exactly when [`intersect_voxel`] finds a hit: the any-hit test, which skips refining
+/// where the hit is.
+#[inline]
+pub fn voxel_occludes(voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
+    Segment::new(voxel, iso, ray, tmin, tmax)
+        .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
+}
+
+/// A ray's segment inside a voxel, widened, as the cubic of the interpolant minus the isovalue
+/// in `s in [0, 1]`.
+struct Segment {
+    /// Ray parameters of the segment's ends.
+    ta: f64,
+    tb: f64,
+    /// Voxel-local coordinates of the segment's start, and its extent.
+    p0: [f64; 3],
+    q: [f64; 3],
+    /// The interpolant minus the isovalue along the segment.
+    cubic: Cubic,
+    /// Values within `tol` of zero count as on the surface.
+    tol: f64,
+}
+
+impl Segment {
+    /// The segment of `ray` in `voxel` within `[tmin, tmax]`; `None` when there is none, when
+    /// the voxel's values exclude `iso`, or when the cubic provably stays clear of zero.
+    #[inline]
+    fn new(voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f64) -> Option<Segment> {
+        let (vmin, vmax) = voxel.range();
+        if vmin > iso || vmax < iso {
+            return None;
+        }
+        let (t_in, t_out) = ray.clip(voxel.lo, voxel.hi, tmin, tmax)?;
+        let widen =
+            SEGMENT_WIDEN * (t_out - t_in) + 8.0 * f64::EPSILON * t_in.abs().max(t_out.abs());
+        let ta = (t_in - widen).max(tmin);
+        let tb = (t_out + widen).min(tmax);
+        let w = [0, 1, 2].map(|a| voxel.hi[a] - voxel.lo[a]);
+        let local = |t: f64| [0, 1, 2].map(|a| ((ray.o[a] - voxel.lo[a]) + t * ray.d[a]) / w[a]);
+        let p0 = local(ta);
+        let p1 = local(tb);
+        let q = [0, 1, 2].map(|a| p1[a] - p0[a]);
+        let iso = f64::from(iso);
+        let c = voxel.values.map(|v| f64::from(v) - iso);
+        let span = c.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let magnitude = voxel
+            .values
+            .iter()
+            .fold(iso.abs(), |m, v| m.max(f64::from(v.abs())));
+        let tol = (SPAN_TOL * span).max(ULP_TOL * magnitude).min(0.5 * span);
+        let cubic = along_segment(&c, p0, q);
+        if cubic.clear_of_zero_on_unit(tol) {
+            return None;
+        }
+        Some(Segment {
+            ta,
+            tb,
+            p0,
+            q,
+            cubic,
+            tol,
+        })
+    }
 }
 
 /// The trilinear interpolant of corner values `c` along `u(s) = p0 + s q`, as a cubic in `s`.

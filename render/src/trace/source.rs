@@ -82,10 +82,16 @@ pub trait VoxelSource: Sync {
     /// The reconstructed field and the AMR level at grid point `p`, or `None` outside the data.
     fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)>;
 
-    /// The gradient of [`Self::sample`]'s field at `p` by central differences `h` apart
-    /// ([`central_difference`]); sources may compute the same values faster.
-    fn gradient(&self, p: [f64; 3], h: f64) -> Option<[f64; 3]> {
+    /// The gradient of [`Self::sample`]'s field at `p` by central differences `h[a]` apart on
+    /// axis `a` ([`central_difference`]); sources may compute the same values faster.
+    fn gradient(&self, p: [f64; 3], h: [f64; 3]) -> Option<[f64; 3]> {
         central_difference(self, p, h)
+    }
+
+    /// The size of a cell of AMR level `level` in grid units, per axis; `None` (the default)
+    /// when the source has no levels to tell.
+    fn cell_size(&self, _level: u32) -> Option<[f64; 3]> {
+        None
     }
 
     /// Drops pages of the underlying file from the resident set, between stages that touch it;
@@ -104,5 +110,12 @@ pub trait VoxelSource: Sync {
         tmax: f64,
     ) -> Option<VoxelHit> {
         intersect_voxel(voxel, iso, ray, tmin, tmax)
+    }
+
+    /// True when [`Self::intersect`] would find a hit: the any-hit test of shadow and occlusion
+    /// rays. Sources may answer without computing where the hit is.
+    #[inline]
+    fn occludes(&self, voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
+        self.intersect(voxel, iso, ray, tmin, tmax).is_some()
     }
 }

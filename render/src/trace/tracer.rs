@@ -65,8 +65,9 @@ pub struct HybridTracer<'a, S: VoxelSource + ?Sized> {
     pub src: &'a S,
     /// One surface per isovalue.
     pub surfaces: &'a [Surface],
-    /// Normals from central differences of the reconstruction (one voxel size apart), which are
-    /// continuous across voxel faces, instead of the hit voxel's trilinear gradient.
+    /// Normals from central differences of the reconstruction one cell of the hit's level apart
+    /// on each axis ([`VoxelSource::cell_size`]), which are continuous wherever the level does
+    /// not change, instead of the hit voxel's trilinear gradient, which jumps at voxel faces.
     pub smooth_normals: bool,
 }
 
@@ -87,7 +88,10 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
             .fold(f64::INFINITY, f64::min);
         let mut grad = h.grid_gradient();
         if self.smooth_normals {
-            if let Some(g) = self.src.gradient(pos, size) {
+            // The step depends on the level alone, not on the voxel's shape (an octant or a
+            // merged dual cell), so that neighbouring hits of one level use the same step.
+            let step = self.src.cell_size(h.voxel.level).unwrap_or([size; 3]);
+            if let Some(g) = self.src.gradient(pos, step) {
                 grad = g;
             }
         }
@@ -110,12 +114,12 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
     }
 }
 
-/// The gradient of the reconstruction at `p` by central differences `h` apart (one-sided at
-/// the domain's edge); `None` if no neighbour can be sampled on some axis.
+/// The gradient of the reconstruction at `p` by central differences `h[a]` apart on axis `a`
+/// (one-sided at the domain's edge); `None` if no neighbour can be sampled on some axis.
 pub fn central_difference<S: VoxelSource + ?Sized>(
     src: &S,
     p: [f64; 3],
-    h: f64,
+    h: [f64; 3],
 ) -> Option<[f64; 3]> {
     central_difference_of(|q| src.sample(q).map(|s| s.0), p, h)
 }
@@ -124,12 +128,13 @@ pub fn central_difference<S: VoxelSource + ?Sized>(
 pub fn central_difference_of(
     mut sample: impl FnMut([f64; 3]) -> Option<f32>,
     p: [f64; 3],
-    h: f64,
+    h: [f64; 3],
 ) -> Option<[f64; 3]> {
     let mut g = [0.0; 3];
     // The value at `p` itself is needed only for a one-sided difference.
     let mut centre: Option<Option<f64>> = None;
     for a in 0..3 {
+        let h = h[a];
         let mut at = |d: f64| {
             let mut q = p;
             q[a] += d;

@@ -152,11 +152,7 @@ impl Surface {
         // stay set and empty the ray's interval, or later candidates would overwrite it.
         let mut hit = false;
         self.bvh.traverse(b.ray, |r, tmax32| {
-            if !hit
-                && src
-                    .intersect(&src.voxel(r), self.iso, ray, tmin, tmax)
-                    .is_some()
-            {
+            if !hit && src.occludes(&src.voxel(r), self.iso, ray, tmin, tmax) {
                 hit = true;
                 *tmax32 = f32::NEG_INFINITY;
             }

@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 
-use amr_render::bvh::BvhBuilder;
+use amr_render::bvh::{BuildMethod, BvhBuilder};
 use amr_render::camera::Camera;
 use amr_render::mapping::{open_mapped, PageRelease};
 use amr_render::shade::{render_frame, Lighting, RenderSettings};
@@ -21,6 +21,8 @@ use obvhs::BvhBuildParams;
 pub struct BvhBenchConfig {
     /// Refs per chunk of each variant; `usize::MAX` is one BVH over all refs.
     pub chunks: Vec<usize>,
+    /// Build methods; every chunk size is built with each.
+    pub methods: Vec<BuildMethod>,
     /// Frames rendered per variant (the variants take turns, so each run is side by side).
     pub runs: usize,
     /// Image width and height.
@@ -36,6 +38,8 @@ pub struct BvhBenchConfig {
 pub struct BvhVariant {
     /// Refs per chunk (`usize::MAX`: one BVH).
     pub chunk_refs: usize,
+    /// How the BVHs were built.
+    pub method: BuildMethod,
     /// Chunks built.
     pub chunks: usize,
     /// Build time (boxes decoded from the file, PLOC, CWBVH conversion).
@@ -81,16 +85,21 @@ fn voxel_boxes(src: &impl VoxelSource, refs: &[u64]) -> (Vec<Aabb>, Duration) {
     use rayon::prelude::*;
     let pad = amr_render::trace::traverse::bvh_pad(&src.frame());
     let t = Instant::now();
-    let boxes = refs
-        .par_iter()
-        .map(|&r| {
-            let (lo, hi) = src.voxel_box(r);
+    let mut boxes = vec![Aabb::empty(); refs.len()];
+    boxes
+        .par_chunks_mut(4096)
+        .zip(refs.par_chunks(4096))
+        .for_each(|(out, refs)| {
             let v = |p: [f64; 3], s: f64| {
                 Vec3A::new((p[0] + s) as f32, (p[1] + s) as f32, (p[2] + s) as f32)
             };
-            Aabb::new(v(lo, -pad), v(hi, pad))
-        })
-        .collect();
+            let mut slots = out.iter_mut();
+            src.voxel_boxes(refs, &mut |lo, hi| {
+                if let Some(slot) = slots.next() {
+                    *slot = Aabb::new(v(lo, -pad), v(hi, pad));
+                }
+            });
+        });
     (boxes, t.elapsed())
 }
 
@@ -125,14 +134,20 @@ pub fn compare(
         .refs;
     let (boxes, decode) = voxel_boxes(&src, &refs);
     let mut raw_times: Vec<Vec<Duration>> = vec![Vec::new(); RAW_PRESETS.len()];
-    let mut build_times: Vec<Vec<Duration>> = vec![Vec::new(); cfg.chunks.len()];
+    let variants: Vec<(usize, BuildMethod)> = cfg
+        .chunks
+        .iter()
+        .flat_map(|&c| cfg.methods.iter().map(move |&m| (c, m)))
+        .collect();
+    let mut build_times: Vec<Vec<Duration>> = vec![Vec::new(); variants.len()];
     for _ in 0..cfg.runs.max(1) {
         for (k, (_, params)) in RAW_PRESETS.iter().enumerate() {
             raw_times[k].push(raw_build(&boxes, *params));
         }
-        for (k, &chunk_refs) in cfg.chunks.iter().enumerate() {
+        for (k, &(chunk_refs, method)) in variants.iter().enumerate() {
             let mut builder = BvhBuilder::new();
             builder.chunk_refs = chunk_refs;
+            builder.method = method;
             let t = Instant::now();
             std::hint::black_box(Surface::build(&src, iso, &refs, &mut builder));
             build_times[k].push(t.elapsed());
@@ -149,13 +164,15 @@ pub fn compare(
     drop(boxes);
     let mut surfaces = Vec::new();
     let mut out = Vec::new();
-    for (k, &chunk_refs) in cfg.chunks.iter().enumerate() {
+    for (k, &(chunk_refs, method)) in variants.iter().enumerate() {
         let mut builder = BvhBuilder::new();
         builder.chunk_refs = chunk_refs;
+        builder.method = method;
         let s = Surface::build(&src, iso, &refs, &mut builder);
         let build = crate::median(&mut build_times[k]);
         out.push(BvhVariant {
             chunk_refs,
+            method,
             chunks: s.bvh.num_chunks(),
             build,
             scratch_bytes: builder.last_scratch_bytes,
@@ -230,10 +247,14 @@ pub fn table(c: &BvhComparison) -> String {
         c.decode.as_secs_f64()
     );
     for v in variants {
+        let method = match v.method {
+            BuildMethod::Morton => "Morton",
+            BuildMethod::Ploc => "PLOC",
+        };
         let name = if v.chunk_refs == usize::MAX {
-            "one BVH over all refs".to_string()
+            format!("{method}, one BVH over all refs")
         } else {
-            format!("chunks of {} refs", v.chunk_refs)
+            format!("{method}, chunks of {} refs", v.chunk_refs)
         };
         s.push_str(&format!(
             "| {name} | {} | {:.3} | {} | {} | {:.4} | {:.4} | {} |\n",

@@ -428,12 +428,13 @@ impl Scene {
         let source = self.source();
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
-        for r in self.surfaces.iter().flat_map(|s| s.bvh.refs()) {
-            let (a, b) = source.voxel_box(*r);
-            for k in 0..3 {
-                lo[k] = lo[k].min(a[k]);
-                hi[k] = hi[k].max(b[k]);
-            }
+        for s in &self.surfaces {
+            source.voxel_boxes(s.bvh.refs(), &mut |a, b| {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(a[k]);
+                    hi[k] = hi[k].max(b[k]);
+                }
+            });
         }
         if !(0..3).all(|k| lo[k] <= hi[k]) {
             return None;

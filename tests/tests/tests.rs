@@ -32,6 +32,7 @@
 //! - [`scene_api`]: the library's scene, views and isovalue changes.
 //! - [`pictures`]: surfaces painted by a second field, slices, outlines, default field and
 //!   isovalue, against the analytic fields.
+//! - [`bvh_threads`]: BVHs and frames are the same on any thread count.
 //! - [`render_bench`]: measurements for docs/benchmarks-render.md (ignored).
 
 mod support;
@@ -41,6 +42,7 @@ mod amrex_float32;
 mod amrex_ratio_one;
 mod amrex_real;
 mod amrex_written;
+mod bvh_threads;
 mod chombo_bench;
 mod chombo_checkpoint;
 mod chombo_convert;

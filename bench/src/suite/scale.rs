@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use amr_format::progress::NoProgress;
 use amr_format::WriterOptions;
-use amr_render::bvh::CHUNK_REFS;
+use amr_render::bvh::{BuildMethod, CHUNK_REFS};
 use amr_synth::{fit_cells, write_synth, Case, SynthParams};
 
 use super::plot::{loglog, Series};
@@ -69,6 +69,7 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
     };
     let bvh_cfg = BvhBenchConfig {
         chunks: vec![usize::MAX, CHUNK_REFS],
+        methods: vec![BuildMethod::Morton, BuildMethod::Ploc],
         runs: if ctx.cfg.quick { 3 } else { 7 },
         size: (256, 256),
         shadows: true,
@@ -254,10 +255,11 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
     if let Some((cells, t)) = bvh_table {
         writeln!(
             s,
-            "BVH in chunks of {CHUNK_REFS} refs against one BVH over all refs, on the {cells}-cell \
-             file at iso {ISO}: `amr-bench bvh FILE --iso {ISO} --chunks 0,{CHUNK_REFS} \
-             --runs {} --size 256x256 --shadows --ao 2` (one extraction; the two BVHs render in \
-             turns, median of the runs; each BVH's first frame starts with the map's pages \
+            "BVH in chunks of {CHUNK_REFS} refs against one BVH over all refs, each built in \
+             Morton order (the renderer's build) and with obvhs's PLOC and CWBVH conversion, on \
+             the {cells}-cell file at iso {ISO}: `amr-bench bvh FILE --iso {ISO} --chunks \
+             0,{CHUNK_REFS} --methods morton,ploc --runs {} --size 256x256 --shadows --ao 2` (one \
+             extraction; the four BVHs render in turns, median of the runs; each BVH's first frame starts with the map's pages \
              released, as in a render, and is also shown alone; the frames are compared bit for \
              bit).\n",
             bvh_cfg.runs

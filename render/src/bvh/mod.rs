@@ -1,12 +1,12 @@
-//! A two-level BVH of compressed wide BVHs (obvhs's CWBVH8) over active voxel refs.
+//! A two-level BVH of compressed wide BVHs (obvhs's CWBVH8 layout) over active voxel refs.
 //!
 //! Only the refs and the BVH nodes stay resident: a voxel's box is decoded from its ref while
 //! building, and its corner values while tracing. The refs are split into chunks of
 //! [`BvhBuilder::chunk_refs`] consecutive refs (the extraction emits them in kd-leaf order, so a
 //! chunk is spatially compact); each chunk gets its own BVH, one chunk per thread at a time, and a
-//! top-level BVH is built over the chunks' boxes. The build scratch (boxes, PLOC buffers, the
-//! binary BVH: about 270 bytes per primitive) is therefore bounded by the chunk size times the
-//! threads, not by the number of refs. After a chunk's build its refs are put in its BVH's leaf
+//! top-level BVH is built over the chunks' boxes. Each BVH is built directly in Morton order
+//! ([`wide`]) by default, or with obvhs's PLOC and CWBVH conversion ([`BuildMethod::Ploc`]). The
+//! build scratch is bounded by the chunk size times the threads, not by the number of refs. After a chunk's build its refs are put in its BVH's leaf
 //! order, so obvhs's primitive index array is dropped and a chunk's primitive `i` is simply its
 //! `i`-th ref; the
 //! chunks are likewise put in the top-level BVH's leaf order. [`BvhBuilder`] keeps the scratch so
@@ -23,6 +23,18 @@ use obvhs::ploc::PlocBuilder;
 use obvhs::ray::Ray;
 use obvhs::BvhBuildParams;
 use rayon::prelude::*;
+
+pub mod wide;
+
+use wide::WideBuilder;
+
+/// Refs whose boxes one task decodes (the chunk's boxes are decoded in parallel runs).
+const DECODE_RUN: usize = 4096;
+
+/// Refs whose boxes are decoded between two calls of the build's `between_chunks` (which
+/// releases the file's pages that decoding touched: leaf metadata only, and each call costs a
+/// scan of the process's page tables).
+const RELEASE_REFS: usize = 1 << 20;
 
 /// Bytes of one CWBVH node (obvhs: "repr(C), Pod, 80 bytes").
 pub const NODE_BYTES: usize = 80;
@@ -49,12 +61,25 @@ struct Chunk {
     bvh: CwBvh,
 }
 
+/// How each chunk's BVH (and the top level) is built.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BuildMethod {
+    /// Directly as a wide BVH from the boxes' Morton order ([`wide`]).
+    #[default]
+    Morton,
+    /// obvhs's PLOC binary BVH, reinsertion, then its SAH conversion to CWBVH (the build before
+    /// [`BuildMethod::Morton`], kept for comparison).
+    Ploc,
+}
+
 /// Build scratch kept between builds: one [`Worker`] per thread, each building one chunk at a
 /// time.
 pub struct BvhBuilder {
     workers: Vec<Worker>,
     /// Refs per chunk (at least 1); `usize::MAX` builds one BVH over all refs.
     pub chunk_refs: usize,
+    /// How the BVHs are built.
+    pub method: BuildMethod,
     /// Bytes of scratch held at the end of the last build (boxes, PLOC buffers, binary BVH).
     pub last_scratch_bytes: usize,
 }
@@ -63,6 +88,7 @@ pub struct BvhBuilder {
 #[derive(Default)]
 struct Worker {
     boxes: Vec<Aabb>,
+    wide: WideBuilder,
     ploc: PlocBuilder,
     bvh2: Bvh2,
     reinsertion: ReinsertionOptimizer,
@@ -73,6 +99,7 @@ impl Default for BvhBuilder {
         Self {
             workers: Vec::new(),
             chunk_refs: CHUNK_REFS,
+            method: BuildMethod::default(),
             last_scratch_bytes: 0,
         }
     }
@@ -84,22 +111,24 @@ impl BvhBuilder {
         Self::default()
     }
 
-    /// Builds a BVH over `refs`, whose boxes `bounds(r)` gives in grid coordinates; every box
-    /// is grown by `pad` (grid units) so that `f32` traversal never misses a voxel the exact
-    /// `f64` intersection would hit. `between_chunks` is called after each round of chunks
-    /// (one per thread, built side by side) to release what decoding the boxes touched. Reuses
+    /// Builds a BVH over `refs`, whose boxes `boxes(refs, out)` passes to `out` in order, in grid
+    /// coordinates (it is called on runs of consecutive refs); every box is grown by `pad` (grid
+    /// units) so that `f32` traversal never misses a voxel the exact
+    /// `f64` intersection would hit. `between_chunks` is called after rounds of chunks (chunks
+    /// are built one per thread, side by side), about every million refs, and after the last,
+    /// to release what decoding the boxes touched. Reuses
     /// the scratch and `out`'s buffers.
     pub fn build_into(
         &mut self,
         out: &mut OctantBvh,
         refs: &[u64],
         pad: f64,
-        bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
+        boxes: impl Fn(&[u64], &mut dyn FnMut([f64; 3], [f64; 3])) + Sync,
         between_chunks: impl Fn(),
     ) {
         out.refs.clear();
         out.refs.extend_from_slice(refs);
-        self.build_refs(out, pad, bounds, between_chunks);
+        self.build_refs(out, pad, boxes, between_chunks);
     }
 
     /// [`BvhBuilder::build_into`] taking the refs by value, which saves a copy of them.
@@ -108,11 +137,11 @@ impl BvhBuilder {
         out: &mut OctantBvh,
         refs: Vec<u64>,
         pad: f64,
-        bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
+        boxes: impl Fn(&[u64], &mut dyn FnMut([f64; 3], [f64; 3])) + Sync,
         between_chunks: impl Fn(),
     ) {
         out.refs = refs;
-        self.build_refs(out, pad, bounds, between_chunks);
+        self.build_refs(out, pad, boxes, between_chunks);
     }
 
     /// Builds the BVH over `out.refs`.
@@ -120,34 +149,45 @@ impl BvhBuilder {
         &mut self,
         out: &mut OctantBvh,
         pad: f64,
-        bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
+        boxes: impl Fn(&[u64], &mut dyn FnMut([f64; 3], [f64; 3])) + Sync,
         between_chunks: impl Fn(),
     ) {
         out.chunks.clear();
         out.top = CwBvh::default();
         out.refs.shrink_to_fit();
-        let grown = |r: u64| {
-            let (lo, hi) = bounds(r);
+        let decode = |refs: &[u64], out: &mut [Aabb]| {
             let v = |p: [f64; 3], s: f64| {
                 Vec3A::new((p[0] + s) as f32, (p[1] + s) as f32, (p[2] + s) as f32)
             };
-            Aabb::new(v(lo, -pad), v(hi, pad))
+            let mut slots = out.iter_mut();
+            boxes(refs, &mut |lo, hi| {
+                if let Some(slot) = slots.next() {
+                    *slot = Aabb::new(v(lo, -pad), v(hi, pad));
+                }
+            });
         };
         let size = self.chunk_refs.max(1);
+        let method = self.method;
         let threads = rayon::current_num_threads().max(1);
+        let total = out.refs.len();
         let mut parts: Vec<&mut [u64]> = out.refs.chunks_mut(size).collect();
         self.workers
             .resize_with(threads.min(parts.len()).max(1), Worker::default);
         let mut boxes = Vec::new();
         let mut first = 0;
+        let mut since_release = 0;
         for round in parts.chunks_mut(self.workers.len()) {
             let bvhs: Vec<CwBvh> = round
                 .par_iter_mut()
                 .zip(self.workers.par_iter_mut())
                 .map(|(part, w)| {
                     w.boxes.clear();
-                    w.boxes.par_extend(part.par_iter().map(|&r| grown(r)));
-                    w.build_level(part)
+                    w.boxes.resize(part.len(), Aabb::empty());
+                    w.boxes
+                        .par_chunks_mut(DECODE_RUN)
+                        .zip(part.par_chunks(DECODE_RUN))
+                        .for_each(|(out, refs)| decode(refs, out));
+                    w.build_level(part, method)
                 })
                 .collect();
             for (bvh, part) in bvhs.into_iter().zip(round.iter()) {
@@ -158,15 +198,19 @@ impl BvhBuilder {
                     bvh,
                 });
                 first += part.len();
+                since_release += part.len();
             }
-            between_chunks();
+            if since_release >= RELEASE_REFS || first == total {
+                between_chunks();
+                since_release = 0;
+            }
         }
         if out.chunks.len() > 1 {
             let w = &mut self.workers[0];
             w.boxes.clear();
             w.boxes.extend_from_slice(&boxes);
             let mut order: Vec<u64> = (0..out.chunks.len() as u64).collect();
-            out.top = w.build_level(&mut order);
+            out.top = w.build_level(&mut order, self.method);
             let mut chunks = std::mem::take(&mut out.chunks);
             out.chunks = order
                 .iter()
@@ -176,7 +220,7 @@ impl BvhBuilder {
         self.last_scratch_bytes = self.workers.iter().map(Worker::scratch_bytes).sum();
     }
 
-    /// Builds a new BVH (see [`BvhBuilder::build_into`]).
+    /// Builds a new BVH (see [`BvhBuilder::build_into`]) over boxes given one ref at a time.
     pub fn build(
         &mut self,
         refs: &[u64],
@@ -184,14 +228,21 @@ impl BvhBuilder {
         bounds: impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync,
     ) -> OctantBvh {
         let mut out = OctantBvh::default();
-        self.build_into(&mut out, refs, pad, bounds, || {});
+        let boxes = |refs: &[u64], out: &mut dyn FnMut([f64; 3], [f64; 3])| {
+            for &r in refs {
+                let (lo, hi) = bounds(r);
+                out(lo, hi);
+            }
+        };
+        self.build_into(&mut out, refs, pad, boxes, || {});
         out
     }
 
-    /// Frees the scratch (the chunk size is kept).
+    /// Frees the scratch (the chunk size and the method are kept).
     pub fn release(&mut self) {
         *self = Self {
             chunk_refs: self.chunk_refs,
+            method: self.method,
             ..Self::default()
         };
     }
@@ -200,9 +251,21 @@ impl BvhBuilder {
 impl Worker {
     /// A CWBVH over `self.boxes`, whose primitive `i` is `items[i]` (the items are permuted into
     /// the BVH's leaf order and its primitive index array is dropped).
-    fn build_level(&mut self, items: &mut [u64]) -> CwBvh {
+    fn build_level(&mut self, items: &mut [u64], method: BuildMethod) -> CwBvh {
+        let mut bvh = match method {
+            BuildMethod::Morton => self.wide.build(&self.boxes),
+            BuildMethod::Ploc => self.build_ploc(items.len()),
+        };
+        let mut perm = std::mem::take(&mut bvh.primitive_indices);
+        gather_in_place(items, &mut perm);
+        bvh.nodes.shrink_to_fit();
+        bvh
+    }
+
+    /// obvhs's PLOC build, reinsertion and CWBVH conversion over the `n` boxes `self.boxes`.
+    fn build_ploc(&mut self, n: usize) -> CwBvh {
         let params = BvhBuildParams::fast_build();
-        let indices: Vec<u32> = (0..items.len() as u32).collect();
+        let indices: Vec<u32> = (0..n as u32).collect();
         self.ploc.build_with_bvh(
             &mut self.bvh2,
             params.ploc_search_distance,
@@ -213,21 +276,18 @@ impl Worker {
         );
         self.reinsertion
             .run(&mut self.bvh2, params.reinsertion_batch_ratio, None);
-        let mut bvh = bvh2_to_cwbvh(
+        bvh2_to_cwbvh(
             &self.bvh2,
             params.max_prims_per_leaf.clamp(1, 3),
             true,
             false,
-        );
-        let mut perm = std::mem::take(&mut bvh.primitive_indices);
-        gather_in_place(items, &mut perm);
-        bvh.nodes.shrink_to_fit();
-        bvh
+        )
     }
 
-    /// Bytes of scratch held (boxes, PLOC buffers, binary BVH).
+    /// Bytes of scratch held (boxes, sort keys, PLOC buffers, binary BVH).
     fn scratch_bytes(&self) -> usize {
         self.boxes.capacity() * size_of::<Aabb>()
+            + self.wide.scratch_bytes()
             + (self.ploc.current_nodes.capacity()
                 + self.ploc.next_nodes.capacity()
                 + self.bvh2.nodes.capacity())

@@ -362,15 +362,47 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         Ok(self.doubled_box(frame.level, cell, octant))
     }
 
+    /// [`Self::voxel_box`] of each of `refs`, in order, passed to `out`; the frames of the last
+    /// few leaves met are kept, so that refs of a few leaves interleaved (as a BVH orders them)
+    /// or in runs (as the extraction emits them) find each leaf's frame once.
+    pub fn voxel_boxes(&self, refs: &[u64], mut out: impl FnMut(Result<([i64; 3], [i64; 3])>)) {
+        let mut frames = [None; 16];
+        for &r in refs {
+            let slot = &mut frames[(r >> 32) as usize % 16];
+            out(self
+                .resolve_in(r, slot)
+                .map(|(frame, cell, octant)| self.doubled_box(frame.level, cell, octant)));
+        }
+    }
+
     /// The leaf of the voxel `r` names, its level-`L` cell (absolute index) and its octant, or
     /// `None` for a merged dual cell (the cell is then the dual cell's lowest).
     fn resolve(&self, r: u64) -> Result<(LeafFrame, [i64; 3], Option<u8>)> {
+        let mut last = None;
+        let (frame, cell, octant) = self.resolve_in(r, &mut last)?;
+        Ok((*frame, cell, octant))
+    }
+
+    /// [`Self::resolve`], reusing `last`, the frame of the leaf resolved last, when `r` is in the
+    /// same leaf (and keeping `r`'s there).
+    fn resolve_in<'l>(
+        &self,
+        r: u64,
+        last: &'l mut Option<LeafFrame>,
+    ) -> Result<(&'l LeafFrame, [i64; 3], Option<u8>)> {
         let (leaf, local) = split_ref(r);
-        if leaf as usize >= self.sampler.file().num_leaves() {
-            return Err(bad_ref(r, "no such leaf"));
+        if last.is_none_or(|f| f.leaf != leaf) {
+            if leaf as usize >= self.sampler.file().num_leaves() {
+                return Err(bad_ref(r, "no such leaf"));
+            }
+            *last = Some(
+                LeafFrame::new(&self.sampler, leaf)
+                    .ok_or_else(|| bad_ref(r, "the leaf holds no brick"))?,
+            );
         }
-        let frame = LeafFrame::new(&self.sampler, leaf)
-            .ok_or_else(|| bad_ref(r, "the leaf holds no brick"))?;
+        let Some(frame) = last.as_ref() else {
+            return Err(bad_ref(r, "no such leaf"));
+        };
         let (index, octant) = match local {
             LocalVoxel::Octant { cell, octant } => (cell, Some(octant)),
             LocalVoxel::Dual { cell } => (cell, None),
@@ -380,7 +412,10 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         if i >= e[0] * e[1] * e[2] {
             return Err(bad_ref(r, "cell index past the leaf"));
         }
-        let d = [i % e[0], i / e[0] % e[1], i / (e[0] * e[1])];
+        let (Ok(e0), Ok(e1)) = (u32::try_from(e[0]), u32::try_from(e[1])) else {
+            return Err(bad_ref(r, "the leaf's extent is out of range"));
+        };
+        let d = [index % e0, index / e0 % e1, index / e0 / e1].map(i64::from);
         let cell = [0, 1, 2].map(|a| frame.cells.lo[a] + d[a]);
         Ok((frame, cell, octant))
     }

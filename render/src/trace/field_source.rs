@@ -283,6 +283,23 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         }
     }
 
+    fn voxel_boxes(&self, refs: &[u64], out: &mut dyn FnMut([f64; 3], [f64; 3])) {
+        let Voxels::Octant(e) = &self.voxels else {
+            for &r in refs {
+                let (lo, hi) = self.voxel_box(r);
+                out(lo, hi);
+            }
+            return;
+        };
+        e.voxel_boxes(refs, |b| match b {
+            Ok((lo, hi)) => out(lo.map(|x| x as f64), hi.map(|x| x as f64)),
+            Err(err) => {
+                self.record(err);
+                out(Voxel::EMPTY.lo, Voxel::EMPTY.hi);
+            }
+        });
+    }
+
     fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)> {
         let mut cache = self.thread_cache().borrow_mut();
         match self

@@ -70,6 +70,15 @@ pub trait VoxelSource: Sync {
         (v.lo, v.hi)
     }
 
+    /// [`Self::voxel_box`] of each of `refs`, passed in order to `out`; sources may share work
+    /// between neighbouring refs (the BVH build decodes all boxes through this).
+    fn voxel_boxes(&self, refs: &[u64], out: &mut dyn FnMut([f64; 3], [f64; 3])) {
+        for &r in refs {
+            let (lo, hi) = self.voxel_box(r);
+            out(lo, hi);
+        }
+    }
+
     /// The reconstructed field and the AMR level at grid point `p`, or `None` outside the data.
     fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)>;
 

@@ -47,9 +47,11 @@ pub fn bvh_pad(frame: &GridFrame) -> f64 {
     1e-5 * frame.extent.iter().fold(1.0f64, |m, &e| m.max(e))
 }
 
-/// The grid box of a voxel, from its ref.
-fn voxel_box<S: VoxelSource + ?Sized>(src: &S) -> impl Fn(u64) -> ([f64; 3], [f64; 3]) + Sync + '_ {
-    |r| src.voxel_box(r)
+/// The grid boxes of runs of voxels, from their refs.
+fn voxel_boxes<S: VoxelSource + ?Sized>(
+    src: &S,
+) -> impl Fn(&[u64], &mut dyn FnMut([f64; 3], [f64; 3])) + Sync + '_ {
+    |refs, out| src.voxel_boxes(refs, out)
 }
 
 impl Surface {
@@ -78,7 +80,7 @@ impl Surface {
     ) {
         self.iso = iso;
         let pad = bvh_pad(&src.frame());
-        builder.build_into(&mut self.bvh, refs, pad, voxel_box(src), || {
+        builder.build_into(&mut self.bvh, refs, pad, voxel_boxes(src), || {
             src.release_pages()
         });
     }
@@ -95,7 +97,7 @@ impl Surface {
             bvh: OctantBvh::default(),
         };
         let pad = bvh_pad(&src.frame());
-        builder.build_owned(&mut s.bvh, refs, pad, voxel_box(src), || {
+        builder.build_owned(&mut s.bvh, refs, pad, voxel_boxes(src), || {
             src.release_pages()
         });
         s

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use amr_bench::bvh::{compare, table, BvhBenchConfig};
+use amr_render::bvh::BuildMethod;
 use clap::Args;
 
 /// Arguments of `amr-bench bvh`.
@@ -16,6 +17,10 @@ pub struct BvhArgs {
     /// Refs per chunk of each variant, comma-separated; 0 is one BVH over all refs.
     #[arg(long, value_delimiter = ',', default_value = "0,65536")]
     chunks: Vec<usize>,
+    /// Build methods of each chunk size, comma-separated: `morton` (the renderer's), `ploc`
+    /// (obvhs's PLOC and CWBVH conversion).
+    #[arg(long, value_delimiter = ',', default_value = "morton,ploc", value_parser = parse_method)]
+    methods: Vec<BuildMethod>,
     /// Frames per variant (the variants take turns).
     #[arg(long, default_value_t = 5)]
     runs: usize,
@@ -28,6 +33,15 @@ pub struct BvhArgs {
     /// Ambient-occlusion rays per hit.
     #[arg(long, default_value_t = 0)]
     ao: u32,
+}
+
+/// A build method's name.
+fn parse_method(s: &str) -> Result<BuildMethod, String> {
+    match s.trim() {
+        "morton" => Ok(BuildMethod::Morton),
+        "ploc" => Ok(BuildMethod::Ploc),
+        _ => Err(format!("build method '{s}' is not morton or ploc")),
+    }
 }
 
 /// An image size `WxH`.
@@ -51,6 +65,7 @@ pub fn run(args: &BvhArgs) -> anyhow::Result<()> {
             .iter()
             .map(|&c| if c == 0 { usize::MAX } else { c })
             .collect(),
+        methods: args.methods.clone(),
         runs: args.runs,
         size: args.size,
         shadows: args.shadows,

@@ -1,0 +1,502 @@
+//! A compressed wide BVH (obvhs's CWBVH8 layout) built directly from boxes in Morton order.
+//!
+//! The boxes' centres are radix-sorted along a Morton curve. A node's run of sorted boxes is cut
+//! where the highest bit in which the run's first and last codes differ flips (the cut a linear
+//! BVH or an octree makes), the spatially largest run first, until the node has eight children or
+//! no run of two boxes or more is left. Runs of at most three boxes become leaves, longer runs
+//! child nodes. No binary BVH and no cost table are built: the build is a sort and one pass over
+//! the boxes.
+
+use glam::{Vec3, Vec3A};
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::node::CwBvhNode;
+use obvhs::cwbvh::CwBvh;
+
+/// Most boxes in one leaf (the node format's limit).
+const LEAF_MAX: usize = 3;
+
+/// Node depth past which runs are cut at their middle, so that the depth stays far below
+/// obvhs's traversal stack of 32 whatever the codes.
+const MORTON_DEPTH: u32 = 20;
+
+/// Build scratch: the sort keys and the boxes in their order, kept between builds.
+#[derive(Default)]
+pub struct WideBuilder {
+    keys: Vec<u64>,
+    tmp: Vec<u64>,
+    sorted: Vec<Aabb>,
+}
+
+impl WideBuilder {
+    /// A CWBVH over `boxes`; its `primitive_indices[i]` is the index in `boxes` of its primitive
+    /// `i`. The same boxes always give the same BVH.
+    pub fn build(&mut self, boxes: &[Aabb]) -> CwBvh {
+        let n = boxes.len();
+        if n == 0 {
+            return CwBvh::default();
+        }
+        assert!(n <= u32::MAX as usize, "{n} boxes in one BVH");
+        let index_bits = (usize::BITS - (n - 1).leading_zeros()).max(1);
+        let axis_bits = ((64 - index_bits) / 3).min(21);
+        self.sort(boxes, index_bits, axis_bits);
+        let index_mask = (1u64 << index_bits) - 1;
+        self.sorted.clear();
+        self.sorted
+            .extend(self.keys.iter().map(|&k| boxes[(k & index_mask) as usize]));
+        let mut b = Build {
+            boxes: &self.sorted,
+            keys: &self.keys,
+            shift: index_bits,
+            index_mask,
+            nodes: Vec::with_capacity(n / 4 + 1),
+            prims: Vec::with_capacity(n),
+        };
+        b.nodes.push(CwBvhNode::default());
+        let total = b.node(0, 0, n, 0);
+        CwBvh {
+            nodes: b.nodes,
+            primitive_indices: b.prims,
+            total_aabb: total,
+            exact_node_aabbs: None,
+            uses_spatial_splits: false,
+        }
+    }
+
+    /// Bytes of scratch held.
+    pub fn scratch_bytes(&self) -> usize {
+        (self.keys.capacity() + self.tmp.capacity()) * 8
+            + self.sorted.capacity() * size_of::<Aabb>()
+    }
+
+    /// Fills `self.keys` with `code << index_bits | index`, sorted by code (then index): the
+    /// Morton code of each box's centre on a grid of `2^axis_bits` steps per axis over the
+    /// centres' bounds.
+    fn sort(&mut self, boxes: &[Aabb], index_bits: u32, axis_bits: u32) {
+        let mut lo = Vec3A::splat(f32::INFINITY);
+        let mut hi = Vec3A::splat(f32::NEG_INFINITY);
+        for b in boxes {
+            let c = b.min + b.max;
+            lo = lo.min(c);
+            hi = hi.max(c);
+        }
+        let steps = ((1u64 << axis_bits) - 1) as f32;
+        let scale = Vec3A::splat(steps) / (hi - lo).max(Vec3A::splat(f32::MIN_POSITIVE));
+        self.keys.clear();
+        self.keys.extend(boxes.iter().enumerate().map(|(i, b)| {
+            let q = ((b.min + b.max - lo) * scale).clamp(Vec3A::ZERO, Vec3A::splat(steps));
+            let code = spread(q.x as u64) << 2 | spread(q.y as u64) << 1 | spread(q.z as u64);
+            code << index_bits | i as u64
+        }));
+        self.tmp.resize(self.keys.len(), 0);
+        radix_sort(&mut self.keys, &mut self.tmp, index_bits);
+    }
+}
+
+/// Spreads the low 21 bits of `v` three bits apart.
+fn spread(v: u64) -> u64 {
+    let mut x = v & 0x1f_ffff;
+    x = (x | x << 32) & 0x001f_0000_0000_ffff;
+    x = (x | x << 16) & 0x001f_0000_ff00_00ff;
+    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+    x = (x | x << 2) & 0x1249_2492_4924_9249;
+    x
+}
+
+/// Stable LSD radix sort of `keys` by their bits from `from` up, a byte at a time; bytes that
+/// are the same in every key are skipped.
+fn radix_sort(keys: &mut Vec<u64>, tmp: &mut Vec<u64>, from: u32) {
+    let mut shift = from;
+    while shift < 64 {
+        let mut count = [0u32; 256];
+        for &k in keys.iter() {
+            count[(k >> shift & 0xff) as usize] += 1;
+        }
+        if !count.iter().any(|&c| c as usize == keys.len()) {
+            let mut at = [0u32; 256];
+            let mut sum = 0;
+            for (a, c) in at.iter_mut().zip(count) {
+                *a = sum;
+                sum += c;
+            }
+            for &k in keys.iter() {
+                let d = (k >> shift & 0xff) as usize;
+                tmp[at[d] as usize] = k;
+                at[d] += 1;
+            }
+            std::mem::swap(keys, tmp);
+        }
+        shift += 8;
+    }
+}
+
+/// One build: the sorted keys and boxes, and the nodes and primitive order written so far.
+struct Build<'a> {
+    /// The boxes in the keys' order.
+    boxes: &'a [Aabb],
+    keys: &'a [u64],
+    shift: u32,
+    index_mask: u64,
+    nodes: Vec<CwBvhNode>,
+    prims: Vec<u32>,
+}
+
+/// A run `[a, b)` of sorted boxes, one child of a node being built.
+#[derive(Clone, Copy, Default)]
+struct Run {
+    a: usize,
+    b: usize,
+    /// Which run to cut first: the highest differing code bit plus one (0: all codes equal),
+    /// then the length.
+    rank: (u32, usize),
+}
+
+impl Build<'_> {
+    fn code(&self, i: usize) -> u64 {
+        self.keys[i] >> self.shift
+    }
+
+    fn run(&self, a: usize, b: usize, depth: u32) -> Run {
+        let x = self.code(a) ^ self.code(b - 1);
+        let bit = if x == 0 || depth >= MORTON_DEPTH {
+            0
+        } else {
+            64 - x.leading_zeros()
+        };
+        Run {
+            a,
+            b,
+            rank: (bit, b - a),
+        }
+    }
+
+    /// Where `run` is cut: at the first code with its highest differing bit set, or in the
+    /// middle when the codes are equal.
+    fn cut(&self, run: Run) -> usize {
+        let (a, b) = (run.a, run.b);
+        match run.rank.0 {
+            0 => a + (b - a) / 2,
+            bit => {
+                let shift = self.shift + bit - 1;
+                a + self.keys[a..b].partition_point(|&k| k >> shift & 1 == 0)
+            }
+        }
+    }
+
+    /// Writes the node of the sorted boxes `[a, b)` at `self.nodes[at]` and its subtree after
+    /// the nodes written so far; returns its box.
+    fn node(&mut self, at: usize, a: usize, b: usize, depth: u32) -> Aabb {
+        let mut runs = [Run::default(); 8];
+        runs[0] = self.run(a, b, depth);
+        let mut len = 1;
+        while len < 8 {
+            let Some(i) = (0..len)
+                .filter(|&i| runs[i].rank.1 > 1)
+                .max_by_key(|&i| runs[i].rank)
+            else {
+                break;
+            };
+            let r = runs[i];
+            let m = self.cut(r);
+            runs[i] = self.run(r.a, m, depth);
+            runs[len] = self.run(m, r.b, depth);
+            len += 1;
+        }
+        let runs = &runs[..len];
+
+        let prim_base = self.prims.len();
+        let mut child_box = [Aabb::empty(); 8];
+        let mut leaf_meta = [0u8; 8];
+        for (i, r) in runs.iter().enumerate() {
+            if r.b - r.a <= LEAF_MAX {
+                leaf_meta[i] =
+                    (self.prims.len() - prim_base) as u8 | [0, 0x20, 0x60, 0xe0][r.b - r.a];
+                child_box[i] = self.boxes[r.a + 1..r.b]
+                    .iter()
+                    .fold(self.boxes[r.a], |t, c| t.union(c));
+                self.prims.extend(
+                    self.keys[r.a..r.b]
+                        .iter()
+                        .map(|&k| (k & self.index_mask) as u32),
+                );
+            }
+        }
+        let child_base = self.nodes.len();
+        let mut inner_at = [0usize; 8];
+        let mut inner = 0;
+        for i in (0..len).filter(|&i| leaf_meta[i] == 0) {
+            inner_at[i] = child_base + inner;
+            inner += 1;
+        }
+        self.nodes.resize(child_base + inner, CwBvhNode::default());
+        for i in (0..len).filter(|&i| leaf_meta[i] == 0) {
+            child_box[i] = self.node(inner_at[i], runs[i].a, runs[i].b, depth + 1);
+        }
+
+        let total = child_box[..len]
+            .iter()
+            .fold(Aabb::empty(), |t, c| t.union(c));
+        let slots = order_children(&total, &child_box[..len]);
+        let mut node = CwBvhNode {
+            primitive_base_idx: prim_base as u32,
+            child_base_idx: child_base as u32,
+            ..Default::default()
+        };
+        let (p, e, rcp) = quantization(&total);
+        node.p = Vec3::from(p);
+        node.e = e;
+        let mut slot_node = [usize::MAX; 8];
+        let mut moved = [CwBvhNode::default(); 8];
+        for (i, &s) in slots[..len].iter().enumerate() {
+            let c = &child_box[i];
+            let qlo = ((c.min - p) * rcp)
+                .floor()
+                .clamp(Vec3A::ZERO, Vec3A::splat(255.0));
+            let qhi = ((c.max - p) * rcp)
+                .ceil()
+                .clamp(Vec3A::ZERO, Vec3A::splat(255.0));
+            node.child_min_x[s] = qlo.x as u8;
+            node.child_min_y[s] = qlo.y as u8;
+            node.child_min_z[s] = qlo.z as u8;
+            node.child_max_x[s] = qhi.x as u8;
+            node.child_max_y[s] = qhi.y as u8;
+            node.child_max_z[s] = qhi.z as u8;
+            if leaf_meta[i] != 0 {
+                node.child_meta[s] = leaf_meta[i];
+            } else {
+                node.imask |= 1 << s;
+                node.child_meta[s] = (24 + s as u8) | 0x20;
+                slot_node[s] = inner_at[i];
+            }
+        }
+        let mut k = 0;
+        for &n in slot_node.iter().filter(|&&n| n != usize::MAX) {
+            moved[k] = self.nodes[n];
+            k += 1;
+        }
+        self.nodes[child_base..child_base + k].copy_from_slice(&moved[..k]);
+        self.nodes[at] = node;
+        total
+    }
+}
+
+/// The origin, the per-axis exponents and the reciprocal of the step of a node's 8-bit child
+/// planes over `total` (the step a power of two with 255 steps covering the box).
+fn quantization(total: &Aabb) -> (Vec3A, [u8; 3], Vec3A) {
+    let p = total.min;
+    let extent = (total.max - total.min).max(Vec3A::splat(1e-20));
+    let mut e = [0u8; 3];
+    let mut rcp = Vec3A::ZERO;
+    for a in 0..3 {
+        let mut step = pow2_at_least(extent[a] / 255.0);
+        while p[a] + 255.0 * step < total.max[a] {
+            step *= 2.0;
+        }
+        e[a] = (step.to_bits() >> 23) as u8;
+        rcp[a] = 1.0 / step;
+    }
+    (p, e, rcp)
+}
+
+/// The least power of two at or above `x` (a positive normal `f32`).
+fn pow2_at_least(x: f32) -> f32 {
+    let bits = x.to_bits();
+    let exp = (bits >> 23) + u32::from(bits & 0x7f_ffff != 0);
+    f32::from_bits(exp << 23)
+}
+
+/// The slot of each child: slot `s` is visited first by rays whose direction octant is `s`
+/// (bit 2: x negative, bit 1: y, bit 0: z), so a child is placed in the slot of the direction it
+/// lies furthest against (the cost `d . (centre of child - centre of node)` of Ylitie et al. and
+/// obvhs): each slot goes to the cheapest child that wants it, and children left without one
+/// take, in turn, their cheapest free slot.
+fn order_children(total: &Aabb, children: &[Aabb]) -> [usize; 8] {
+    let centre = total.center();
+    let mut v = [Vec3A::ZERO; 8];
+    for (c, b) in children.iter().enumerate() {
+        v[c] = b.center() - centre;
+    }
+    let cost = |c: usize, s: usize| {
+        let d = Vec3A::new(
+            if s & 4 != 0 { -1.0 } else { 1.0 },
+            if s & 2 != 0 { -1.0 } else { 1.0 },
+            if s & 1 != 0 { -1.0 } else { 1.0 },
+        );
+        d.dot(v[c])
+    };
+    // The cheapest slot of child c is the octant it lies in, mirrored.
+    let wanted = |c: usize| {
+        usize::from(v[c].x > 0.0) << 2 | usize::from(v[c].y > 0.0) << 1 | usize::from(v[c].z > 0.0)
+    };
+    let mut owner = [usize::MAX; 8];
+    for c in 0..children.len() {
+        let s = wanted(c);
+        if owner[s] == usize::MAX || cost(c, s) < cost(owner[s], s) {
+            owner[s] = c;
+        }
+    }
+    let mut slot_of = [usize::MAX; 8];
+    for (s, &c) in owner.iter().enumerate() {
+        if c != usize::MAX {
+            slot_of[c] = s;
+        }
+    }
+    for c in 0..children.len() {
+        if slot_of[c] != usize::MAX {
+            continue;
+        }
+        let mut best = (f32::INFINITY, usize::MAX);
+        for s in (0..8).filter(|&s| owner[s] == usize::MAX) {
+            let k = cost(c, s);
+            if k < best.0 || best.1 == usize::MAX {
+                best = (k, s);
+            }
+        }
+        owner[best.1] = c;
+        slot_of[c] = best.1;
+    }
+    slot_of
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn powers_of_two() {
+        assert_eq!(pow2_at_least(1.0), 1.0);
+        assert_eq!(pow2_at_least(1.5), 2.0);
+        assert_eq!(pow2_at_least(0.25), 0.25);
+        assert_eq!(pow2_at_least(0.3), 0.5);
+        assert_eq!(
+            pow2_at_least(1e-20 / 255.0),
+            (1e-20f32 / 255.0).log2().ceil().exp2()
+        );
+    }
+
+    #[test]
+    fn spread_interleaves() {
+        assert_eq!(spread(0b11), 0b1001);
+        assert_eq!(spread(0x1f_ffff).count_ones(), 21);
+    }
+
+    #[test]
+    fn radix_sort_sorts_by_the_high_bits_stably() {
+        let mut keys: Vec<u64> = (0..1000u64).map(|i| (i * 7919 % 613) << 10 | i).collect();
+        let mut want = keys.clone();
+        want.sort_by_key(|k| (k >> 10, k & 1023));
+        let mut tmp = vec![0; keys.len()];
+        radix_sort(&mut keys, &mut tmp, 10);
+        assert_eq!(keys, want);
+    }
+
+    fn grid(n: usize) -> Vec<Aabb> {
+        (0..n)
+            .map(|i| {
+                let p = Vec3A::new((i % 17) as f32, (i / 17 % 13) as f32, (i / 221) as f32);
+                Aabb::new(p, p + Vec3A::splat(1.0 + (i % 3) as f32))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_bvh_is_valid_and_holds_every_box_once() {
+        for n in [1, 2, 3, 4, 5, 9, 24, 25, 100, 1000, 5000] {
+            let boxes = grid(n);
+            let bvh = WideBuilder::default().build(&boxes);
+            let mut seen = bvh.primitive_indices.clone();
+            seen.sort();
+            assert_eq!(seen, (0..n as u32).collect::<Vec<_>>(), "{n} boxes");
+            let r = bvh.validate(&boxes, false);
+            assert!(r.max_depth < 16, "{n} boxes: depth {}", r.max_depth);
+        }
+    }
+
+    #[test]
+    fn equal_boxes_still_give_a_shallow_bvh() {
+        let boxes = vec![Aabb::new(Vec3A::ZERO, Vec3A::ONE); 5000];
+        let bvh = WideBuilder::default().build(&boxes);
+        let r = bvh.validate(&boxes, false);
+        assert!(r.max_depth < 10, "depth {}", r.max_depth);
+    }
+}
+
+#[cfg(test)]
+mod quality {
+    use super::*;
+    use obvhs::cwbvh::builder::build_cwbvh;
+    use obvhs::BvhBuildParams;
+
+    /// Node and leaf-primitive surface-area costs of `bvh` (relative to its root's area).
+    fn sah(bvh: &CwBvh) -> (usize, f64, f64) {
+        let root = f64::from(bvh.nodes[0].aabb().half_area());
+        let (mut nodes, mut prims) = (0.0, 0.0);
+        for n in &bvh.nodes {
+            nodes += f64::from(n.aabb().half_area()) / root;
+            for c in 0..8 {
+                if n.is_leaf(c) && !n.is_child_empty(c) {
+                    let (_, count) = n.child_primitives(c);
+                    prims += f64::from(n.child_aabb(c).half_area()) / root * f64::from(count);
+                }
+            }
+        }
+        (bvh.nodes.len(), nodes, prims)
+    }
+
+    /// The octant boxes of the cells of a 160^3 grid that a sphere's shell crosses.
+    fn shell() -> Vec<Aabb> {
+        let mut boxes = Vec::new();
+        let n = 160;
+        for z in 0..n {
+            for y in 0..n {
+                for x in 0..n {
+                    let c = Vec3A::new(x as f32, y as f32, z as f32) + 0.5 - n as f32 / 2.0;
+                    if (c.length() - 60.0).abs() < 0.9 {
+                        for o in 0..8 {
+                            let lo = c - 0.5
+                                + 0.5
+                                    * Vec3A::new(
+                                        (o & 1) as f32,
+                                        (o >> 1 & 1) as f32,
+                                        (o >> 2) as f32,
+                                    );
+                            boxes.push(Aabb::new(lo, lo + 0.5));
+                        }
+                    }
+                }
+            }
+        }
+        boxes
+    }
+
+    #[test]
+    #[ignore = "prints the surface-area costs of the Morton and PLOC builds"]
+    fn surface_area_costs() {
+        let boxes = shell();
+        let ours = WideBuilder::default().build(&boxes);
+        let mut t = std::time::Duration::ZERO;
+        let ploc = build_cwbvh(&boxes, BvhBuildParams::fast_build(), &mut t);
+        eprintln!("{} boxes", boxes.len());
+        eprintln!("Morton (nodes, node cost, prim cost): {:?}", sah(&ours));
+        eprintln!("PLOC   (nodes, node cost, prim cost): {:?}", sah(&ploc));
+        for (name, b) in [("Morton", &ours), ("PLOC", &ploc)] {
+            let mut hist = [[0usize; 9]; 3];
+            for n in &b.nodes {
+                let inner = n.imask.count_ones() as usize;
+                let leaves = (0..8)
+                    .filter(|&c| n.is_leaf(c) && !n.is_child_empty(c))
+                    .count();
+                let prims: u32 = (0..8)
+                    .filter(|&c| n.is_leaf(c) && !n.is_child_empty(c))
+                    .map(|c| n.child_primitives(c).1)
+                    .sum();
+                hist[0][inner] += 1;
+                hist[1][leaves] += 1;
+                hist[2][(prims as usize / 3).min(8)] += 1;
+            }
+            eprintln!("{name}: nodes by inner children {:?}", hist[0]);
+            eprintln!("{name}: nodes by leaf children {:?}", hist[1]);
+            eprintln!("{name}: nodes by leaf prims / 3 {:?}", hist[2]);
+        }
+    }
+}

@@ -15,6 +15,7 @@ use amr_format::IBox;
 
 use crate::error::Result;
 
+use super::grid::axes;
 use super::local::pow2_shift;
 use super::sampler::{LeafCell, Locate, Sampler, Slab, VertexMemo};
 
@@ -118,9 +119,9 @@ impl<D: AsRef<[u8]>> Locate for RecentLocator<'_, '_, '_, D> {
             };
             if let Some(i) = hit {
                 let l = &leaves[i];
-                let abs = [0, 1, 2].map(|a| finest[a] + offset[a]);
+                let abs = axes(|a| finest[a] + offset[a]);
                 let cell = match l.shift {
-                    Some(sh) => [0, 1, 2].map(|a| abs[a] >> sh[a]),
+                    Some(sh) => axes(|a| abs[a] >> sh[a]),
                     None => self.sampler.grid().cell_of(l.level, finest),
                 };
                 let values: &[f32] = match &l.decoded {
@@ -183,7 +184,7 @@ impl<D: AsRef<[u8]>> Locate for RecentLocator<'_, '_, '_, D> {
         }
         let offset = self.sampler.grid().offset();
         let cell_of = |f: [i64; 3]| match l.shift {
-            Some(sh) => [0, 1, 2].map(|a| (f[a] + offset[a]) >> sh[a]),
+            Some(sh) => axes(|a| (f[a] + offset[a]) >> sh[a]),
             None => self.sampler.grid().cell_of(level, f),
         };
         let (clo, chi) = (cell_of(lo), cell_of(hi));
@@ -198,7 +199,7 @@ impl<D: AsRef<[u8]>> Locate for RecentLocator<'_, '_, '_, D> {
         // and three strides.
         let e = l.cells.extent();
         let stride = [1, e[0], e[0] * e[1]];
-        let step: [usize; 3] = [0, 1, 2].map(|a| ((chi[a] - clo[a]) * stride[a]) as usize);
+        let step: [usize; 3] = axes(|a| ((chi[a] - clo[a]) * stride[a]) as usize);
         let first = l.cells.linear_index(clo);
         let last = first + step[0] + step[1] + step[2];
         let block = values.get(first..=last)?;

@@ -17,6 +17,15 @@ pub fn axes<T>(mut f: impl FnMut(usize) -> T) -> [T; 3] {
     [f(0), f(1), f(2)]
 }
 
+/// The index of cell `cell` in the x-fastest values of a brick of cells `cells` (which holds
+/// `cell`): [`IBox::linear_index`], inlined.
+#[inline(always)]
+pub fn index_in(cells: &IBox, cell: [i64; 3]) -> usize {
+    let (ex, ey) = (cells.hi[0] - cells.lo[0], cells.hi[1] - cells.lo[1]);
+    let d = axes(|a| cell[a] - cells.lo[a]);
+    (d[0] + ex * (d[1] + ey * d[2])) as usize
+}
+
 /// The geometry of a file's levels in doubled finest-level coordinates.
 #[derive(Clone, Debug)]
 pub struct Grid {
@@ -57,7 +66,7 @@ impl Grid {
     }
 
     /// Width of one cell of `level` in finest-level cells.
-    #[inline]
+    #[inline(always)]
     pub fn scale(&self, level: u32) -> [i64; 3] {
         self.scale[level as usize]
     }
@@ -80,14 +89,21 @@ impl Grid {
     }
 
     /// The doubled coordinate of the centre of cell `cell` (absolute index) of `level`.
-    #[inline]
+    #[inline(always)]
     pub fn centre(&self, level: u32, cell: [i64; 3]) -> [i64; 3] {
         let s = self.scale(level);
         axes(|a| 2 * (cell[a] * s[a] - self.offset[a]) + s[a])
     }
 
+    /// log2 of the width of one cell of `level` in finest-level cells, when every axis is a
+    /// power of two.
+    #[inline(always)]
+    pub fn shift(&self, level: u32) -> Option<[u32; 3]> {
+        self.shift[level as usize]
+    }
+
     /// The cell of `level` (absolute index) holding finest-level cell `finest` (relative).
-    #[inline]
+    #[inline(always)]
     pub fn cell_of(&self, level: u32, finest: [i64; 3]) -> [i64; 3] {
         let abs = axes(|a| finest[a] + self.offset[a]);
         match self.shift[level as usize] {
@@ -122,7 +138,7 @@ impl Grid {
 
     /// The finest-level cell (relative) holding doubled point `p` nudged toward `dir`
     /// (bit `a` set: toward `+` on axis `a`), clamped into the domain.
-    #[inline]
+    #[inline(always)]
     pub fn finest_cell(&self, p: [i64; 3], dir: u8) -> [i64; 3] {
         axes(|a| {
             let f = if dir >> a & 1 == 1 {

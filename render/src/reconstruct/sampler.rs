@@ -19,7 +19,7 @@ use crate::error::RenderError;
 use crate::error::Result;
 
 use super::cache::BrickCache;
-use super::grid::{axes, Grid};
+use super::grid::{axes, index_in, Grid};
 use super::interp::{avg8, trilinear};
 use super::leaf_grid::LeafGrid;
 
@@ -265,6 +265,56 @@ impl<D: AsRef<[u8]>> Locate for Sampler<'_, D> {
     fn locate_cell(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
         self.locate(finest)
     }
+
+    /// With the shortcuts on: when `lo` and `hi` lie in one kd-tree leaf whose finest brick is
+    /// of `level` and read in place, from that brick.
+    #[inline]
+    fn block_of_level(&self, lo: [i64; 3], hi: [i64; 3], level: u32) -> Option<[f32; 8]> {
+        self.leaf_grid.as_ref()?;
+        let leaf = self.find_leaf(lo)?;
+        let (brick, top) = self.leaf_top[leaf as usize]?;
+        if top != level || !self.tree.leaf_box(leaf).contains_cell(hi) {
+            return None;
+        }
+        let b = &self.bricks[brick as usize];
+        let (clo, chi) = (self.grid.cell_of(level, lo), self.grid.cell_of(level, hi));
+        block_in_brick(&b.cells, b.values?, clo, chi)
+    }
+}
+
+/// The values of the eight cells `clo`/`hi` per axis (cell `n` takes `chi` on axis `a` when bit
+/// `a` of `n` is set; `chi` is `clo` or one more on every axis) of a brick of cells `cells` and
+/// values `values`: one index and three strides. `None` when a cell lies outside the brick.
+#[inline]
+pub(super) fn block_in_brick(
+    cells: &IBox,
+    values: &[f32],
+    clo: [i64; 3],
+    chi: [i64; 3],
+) -> Option<[f32; 8]> {
+    if !cells.contains_cell(clo) || !cells.contains_cell(chi) {
+        return None;
+    }
+    let e = cells.extent();
+    let stride = [1, e[0], e[0] * e[1]];
+    let step: [usize; 3] = axes(|a| ((chi[a] - clo[a]) * stride[a]) as usize);
+    let first = index_in(cells, clo);
+    let last = first + step[0] + step[1] + step[2];
+    let block = values.get(first..=last)?;
+    let mut out = [0f32; 8];
+    for (n, slot) in out.iter_mut().enumerate() {
+        let at = (n & 1) * step[0] + (n >> 1 & 1) * step[1] + (n >> 2 & 1) * step[2];
+        *slot = block[at];
+    }
+    Some(out)
+}
+
+/// One brick as the sampler reads it.
+struct BrickRef<'f> {
+    /// Its cells in its level's index space.
+    cells: IBox,
+    /// Its values when they can be read in place.
+    values: Option<&'f [f32]>,
 }
 
 /// Reconstructs one field of an open file.
@@ -274,10 +324,8 @@ pub struct Sampler<'f, D> {
     grid: Grid,
     /// Per leaf: its finest brick and that brick's level, `None` where no brick covers it.
     leaf_top: Vec<Option<(u32, u32)>>,
-    /// Per brick: its cells in its level's index space.
-    brick_cells: Vec<IBox>,
-    /// Per brick: its values when they can be read in place.
-    in_place: Vec<Option<&'f [f32]>>,
+    /// Per brick: its cells and its values when they can be read in place.
+    bricks: Vec<BrickRef<'f>>,
     tree: TreeView<'f>,
     /// Point location in one table read and a short walk; `None` with the shortcuts off.
     leaf_grid: Option<LeafGrid>,
@@ -308,21 +356,22 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 })
             })
             .collect();
-        let brick_cells = (0..file.num_bricks())
-            .map(|b| file.brick(b).cells)
-            .collect();
-        let in_place = (0..file.num_bricks())
+        let bricks = (0..file.num_bricks())
             .map(|b| {
                 let raw = file.brick_data(field, b).encoding == amr_format::compress::Encoding::Raw;
                 // Only raw bricks are asked for: reading a compressed one here would decode it.
-                match raw.then(|| file.brick_values(field, b)) {
+                let values = match raw.then(|| file.brick_values(field, b)) {
                     Some(Ok(Cow::Borrowed(v))) => Some(v),
                     _ => None,
+                };
+                BrickRef {
+                    cells: file.brick(b).cells,
+                    values,
                 }
             })
             .collect();
         let sampler = Self {
-            in_place,
+            bricks,
             leaf_grid: None,
             gather: false,
             tree: file.tree(),
@@ -330,7 +379,6 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             field,
             grid: Grid::new(file),
             leaf_top,
-            brick_cells,
             cache: BrickCache::new(cache_bytes),
             id: super::recent::next_sampler_id(),
         };
@@ -384,7 +432,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 
     /// Brick `brick`'s cells in its level's index space.
     pub fn brick_cells(&self, brick: u32) -> IBox {
-        self.brick_cells[brick as usize]
+        self.bricks[brick as usize].cells
     }
 
     /// Number of bricks decoded into the cache so far.
@@ -395,16 +443,17 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// Brick `brick`'s values when they are read in place (stored raw), else `None`.
     #[inline]
     pub fn values_in_place(&self, brick: u32) -> Option<&'f [f32]> {
-        self.in_place[brick as usize]
+        self.bricks[brick as usize].values
     }
 
     /// Brick `brick`'s values of the sampled field.
     pub fn values(&self, brick: u32) -> Result<Slab<'f>> {
         let file: &'f AmrkFile<D> = self.file;
-        if let Some(v) = self.in_place[brick as usize] {
+        let b = &self.bricks[brick as usize];
+        if let Some(v) = b.values {
             return Ok(Slab::Borrowed(v));
         }
-        let cells = self.brick_cells[brick as usize].num_cells().unwrap_or(0) as usize;
+        let cells = b.cells.num_cells().unwrap_or(0) as usize;
         let shared = self.cache.get(brick, cells, || {
             let mut out = Vec::with_capacity(cells);
             file.brick_values_into(self.field, brick as usize, &mut out)?;
@@ -417,19 +466,19 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// the domain or where no brick covers it.
     #[inline]
     pub fn locate(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
-        let leaf = match &self.leaf_grid {
-            Some(g) => g.find_leaf(&self.tree, finest),
-            None => self.tree.find_leaf(finest),
-        };
-        let Some(leaf) = leaf else {
+        let Some(leaf) = self.find_leaf(finest) else {
             return Ok(None);
         };
         let Some((brick, level)) = self.leaf_top[leaf as usize] else {
             return Ok(None);
         };
         let cell = self.grid.cell_of(level, finest);
-        let cells = &self.brick_cells[brick as usize];
-        let value = self.values(brick)?[cells.linear_index(cell)];
+        let b = &self.bricks[brick as usize];
+        let index = index_in(&b.cells, cell);
+        let value = match b.values {
+            Some(v) => v[index],
+            None => self.values(brick)?[index],
+        };
         Ok(Some(LeafCell {
             leaf,
             brick,
@@ -437,6 +486,15 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             cell,
             value,
         }))
+    }
+
+    /// The kd-tree leaf holding finest-level cell `finest`, `None` outside the domain.
+    #[inline]
+    pub fn find_leaf(&self, finest: [i64; 3]) -> Option<u32> {
+        match &self.leaf_grid {
+            Some(g) => g.find_leaf(&self.tree, finest),
+            None => self.tree.find_leaf(finest),
+        }
     }
 
     /// The leaf cells touching doubled point `v` from its eight sides (side `n`: nudged toward
@@ -592,6 +650,12 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             .position(|c| c.level == coarsest)
             .expect("the coarsest level is present");
         let q = cells[side];
+        (q, self.octant_toward(v, &q, side))
+    }
+
+    /// The octant of leaf cell `q` holding `v`, which `q` touches from side `side` of `v`.
+    #[inline]
+    fn octant_toward(&self, v: [i64; 3], q: &LeafCell, side: usize) -> u8 {
         let centre = self.grid.centre(q.level, q.cell);
         let mut octant = 0u8;
         for a in 0..3 {
@@ -599,7 +663,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 octant |= 1 << a;
             }
         }
-        (q, octant)
+        octant
     }
 
     /// The trilinear interpolant at `v` of octant `octant` of leaf cell `q`, whose corner
@@ -863,7 +927,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 cell: c,
                 whole: c.level <= level && leaf_box.contains_box(&b.intersect(&domain)),
                 leaf_box,
-                values: self.in_place[c.brick as usize],
+                values: self.bricks[c.brick as usize].values,
             });
         }
         // Per axis and side of the octant's box: the finest cells the vertex there is nudged
@@ -883,7 +947,19 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 }
             }
         }
+        // Per position: its cell's level and value when the cell covers the whole position.
+        let mut whole = 0u8;
+        let mut whole_level = [0u32; 8];
+        let mut whole_value = [0f32; 8];
+        for (k, p) in positions.iter().enumerate() {
+            if let Some(p) = p.as_ref().filter(|p| p.whole) {
+                whole |= 1 << k;
+                (whole_level[k], whole_value[k]) = (p.cell.level, p.cell.value);
+            }
+        }
         let mut coarse = CoarseOctants::default();
+        // Cells located for the corner at hand, by side.
+        let mut extra = [PLACEHOLDER; 8];
         let mut out = [0f32; 8];
         for (n, slot) in out.iter_mut().enumerate() {
             if n == down {
@@ -892,28 +968,39 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 continue;
             }
             let at = axes(|a| &nudged[a][n >> a & 1]);
+            // Per side: its position, the cell's level and value, and where the cell is (a
+            // position, or 8 + side for `extra`).
+            let ks: [usize; 8] =
+                std::array::from_fn(|i| at[0][i & 1].1 | at[1][i >> 1 & 1].1 | at[2][i >> 2].1);
+            let mut levels = ks.map(|k| whole_level[k]);
+            let mut values = ks.map(|k| whole_value[k]);
+            let mut from = ks;
             let vsame = (0..3).fold(0usize, |m, a| {
                 m | usize::from(at[a][0].0 == at[a][1].0) << a
             });
-            let mut cells = [PLACEHOLDER; 8];
-            for side in 0..8 {
+            for side in (0..8).filter(|&i| whole >> ks[i] & 1 == 0) {
                 let m = side & !vsame;
                 if m != side {
-                    cells[side] = cells[m];
+                    (levels[side], values[side], from[side]) = (levels[m], values[m], from[m]);
                     continue;
                 }
-                let pick = axes(|a| at[a][side >> a & 1]);
-                let f = axes(|a| pick[a].0);
-                let k = pick[0].1 | pick[1].1 | pick[2].1;
-                match self.position_cell(loc, positions[k].as_ref(), f)? {
-                    Some(c) => cells[side] = c,
-                    None => return Ok(None),
-                }
+                let f = axes(|a| at[a][side >> a & 1].0);
+                let Some(c) = self.position_cell(loc, positions[ks[side]].as_ref(), f)? else {
+                    return Ok(None);
+                };
+                extra[side] = c;
+                from[side] = 8 + side;
+                (levels[side], values[side]) = (c.level, c.value);
             }
-            let v = axes(|a| base[a] + (n >> a & 1) as i64 * s[a]);
-            let coarsest = cells.iter().map(|c| c.level).min().unwrap_or(level);
+            let coarsest = levels.iter().copied().min().unwrap_or(level);
             *slot = if coarsest < level {
-                let (q, octant) = self.coarse_octant(v, &cells, coarsest);
+                let v = axes(|a| base[a] + (n >> a & 1) as i64 * s[a]);
+                let side = levels.iter().position(|&l| l == coarsest).unwrap_or(0);
+                let q = match from[side] {
+                    k @ 0..=7 => positions[k].map_or(PLACEHOLDER, |p| p.cell),
+                    e => extra[e - 8],
+                };
+                let octant = self.octant_toward(v, &q, side);
                 let key = Octant {
                     level: q.level,
                     cell: q.cell,
@@ -932,7 +1019,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                     None => return Ok(None),
                 }
             } else {
-                avg8(&cells.map(|c| c.value))
+                avg8(&values)
             };
         }
         Ok(Some(out))
@@ -954,8 +1041,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             }
             if let Some(values) = p.values.filter(|_| p.leaf_box.contains_cell(f)) {
                 let cell = self.grid.cell_of(p.cell.level, f);
-                let cells = &self.brick_cells[p.cell.brick as usize];
-                if let Some(&value) = values.get(cells.linear_index(cell)) {
+                let cells = &self.bricks[p.cell.brick as usize].cells;
+                if let Some(&value) = values.get(index_in(cells, cell)) {
                     return Ok(Some(LeafCell {
                         cell,
                         value,

@@ -3,8 +3,9 @@
 //! the vertex evaluations they share.
 //!
 //! A leaf cell is located from the leaf that answered last when the finest cell lies in its box;
-//! otherwise the sampler names the leaf ([`Sampler::find_leaf`]), which is read from its
-//! remembered brick (a decoded one stays at hand) or remembered.
+//! otherwise the sampler names the leaf ([`Sampler::find_leaf`]). A leaf whose brick is read in
+//! place is then read directly and becomes the last one; one whose brick is decoded is read
+//! from the remembered leaves (which keep their decoded bricks at hand) or remembered.
 //! Leaves tile the domain and a leaf's finest brick holds every cell of it, so both ways give
 //! [`Sampler::locate`]'s answer: the scratch changes how fast a sample is, never its value.
 
@@ -43,6 +44,8 @@ struct RecentLeaves {
     leaves: RefCell<Vec<RecentLeaf>>,
     last: Cell<usize>,
     next: Cell<usize>,
+    /// The last leaf whose brick is read in place, and its box.
+    last_in_place: Cell<Option<(u32, IBox)>>,
 }
 
 /// A sampler's per-thread scratch for [`Sampler::sample_with`] and for decoding voxels: pure
@@ -137,6 +140,11 @@ impl<D: AsRef<[u8]>> RecentLocator<'_, '_, '_, D> {
 impl<D: AsRef<[u8]>> Locate for RecentLocator<'_, '_, '_, D> {
     #[inline]
     fn locate_cell(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
+        if let Some((leaf, b)) = self.leaves.last_in_place.get() {
+            if b.contains_cell(finest) {
+                return self.sampler.leaf_cell(leaf, finest);
+            }
+        }
         {
             let leaves = self.leaves.leaves.borrow();
             let last = self.leaves.last.get();
@@ -149,6 +157,15 @@ impl<D: AsRef<[u8]>> Locate for RecentLocator<'_, '_, '_, D> {
         let Some(leaf) = self.sampler.find_leaf(finest) else {
             return Ok(None);
         };
+        let Some((brick, level)) = self.sampler.leaf_top(leaf) else {
+            return Ok(None);
+        };
+        if self.sampler.values_in_place(brick).is_some() {
+            // Read in place: only the leaf and its box are remembered.
+            let b = self.sampler.leaf_box(leaf);
+            self.leaves.last_in_place.set(Some((leaf, b)));
+            return self.sampler.leaf_cell(leaf, finest);
+        }
         {
             let leaves = self.leaves.leaves.borrow();
             if let Some(i) = leaves.iter().position(|l| l.leaf == leaf) {
@@ -158,9 +175,6 @@ impl<D: AsRef<[u8]>> Locate for RecentLocator<'_, '_, '_, D> {
                 }
             }
         }
-        let Some((brick, level)) = self.sampler.leaf_top(leaf) else {
-            return Ok(None);
-        };
         let recent = RecentLeaf {
             finest: self.sampler.leaf_box(leaf),
             leaf,
@@ -168,12 +182,9 @@ impl<D: AsRef<[u8]>> Locate for RecentLocator<'_, '_, '_, D> {
             level,
             cells: self.sampler.brick_cells(brick),
             shift: self.sampler.grid().shift(level),
-            decoded: match self.sampler.values_in_place(brick) {
-                Some(_) => None,
-                None => match self.sampler.values(brick)? {
-                    Slab::Shared(v) => Some(v),
-                    Slab::Borrowed(_) => None,
-                },
+            decoded: match self.sampler.values(brick)? {
+                Slab::Shared(v) => Some(v),
+                Slab::Borrowed(_) => None,
             },
         };
         let found = self.read(&recent, finest);

@@ -466,9 +466,16 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// the domain or where no brick covers it.
     #[inline]
     pub fn locate(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
-        let Some(leaf) = self.find_leaf(finest) else {
-            return Ok(None);
-        };
+        match self.find_leaf(finest) {
+            Some(leaf) => self.leaf_cell(leaf, finest),
+            None => Ok(None),
+        }
+    }
+
+    /// The leaf cell holding finest-level cell `finest`, which lies in kd-tree leaf `leaf`;
+    /// `None` where no brick covers the leaf.
+    #[inline]
+    pub fn leaf_cell(&self, leaf: u32, finest: [i64; 3]) -> Result<Option<LeafCell>> {
         let Some((brick, level)) = self.leaf_top[leaf as usize] else {
             return Ok(None);
         };

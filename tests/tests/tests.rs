@@ -21,6 +21,7 @@
 //!   filtered.
 //! - [`hybrid_current_nearest`]: the `current` and `nearest` voxels.
 //! - [`sample_scratch`]: point samples through a per-thread scratch equal fresh samples.
+//! - [`sample_shortcuts`]: the sampler's shortcuts give the general rules' answers bit for bit.
 //!
 //! Rendering:
 //! - [`render_watertight`] and [`render_watertight_amrk`]: no ray leaks through a closed surface.
@@ -63,5 +64,6 @@ mod render_normals;
 mod render_watertight;
 mod render_watertight_amrk;
 mod sample_scratch;
+mod sample_shortcuts;
 mod scene_api;
 mod simulation_stamp;

@@ -9,11 +9,30 @@
 
 use amr_format::{AmrkFile, IBox};
 
+use super::local::pow2_shift;
+
+/// `[f(0), f(1), f(2)]`: a value per axis, built without a call per element.
+#[inline(always)]
+pub fn axes<T>(mut f: impl FnMut(usize) -> T) -> [T; 3] {
+    [f(0), f(1), f(2)]
+}
+
+/// The index of cell `cell` in the x-fastest values of a brick of cells `cells` (which holds
+/// `cell`): [`IBox::linear_index`], inlined.
+#[inline(always)]
+pub fn index_in(cells: &IBox, cell: [i64; 3]) -> usize {
+    let (ex, ey) = (cells.hi[0] - cells.lo[0], cells.hi[1] - cells.lo[1]);
+    let d = axes(|a| cell[a] - cells.lo[a]);
+    (d[0] + ex * (d[1] + ey * d[2])) as usize
+}
+
 /// The geometry of a file's levels in doubled finest-level coordinates.
 #[derive(Clone, Debug)]
 pub struct Grid {
     /// Per level: the width of one cell in finest-level cells.
     scale: Vec<[i64; 3]>,
+    /// Per level: log2 of `scale` when every axis is a power of two.
+    shift: Vec<Option<[u32; 3]>>,
     /// Per level: the index domain.
     domains: Vec<IBox>,
     /// The finest domain's lower corner in absolute finest-level indices.
@@ -32,6 +51,7 @@ impl Grid {
         let domain = file.finest_domain();
         Self {
             scale: levels.iter().map(|l| l.finest_scale).collect(),
+            shift: levels.iter().map(|l| pow2_shift(l.finest_scale)).collect(),
             domains: levels.iter().map(|l| l.domain).collect(),
             offset: domain.lo,
             extent: domain.extent(),
@@ -46,6 +66,7 @@ impl Grid {
     }
 
     /// Width of one cell of `level` in finest-level cells.
+    #[inline(always)]
     pub fn scale(&self, level: u32) -> [i64; 3] {
         self.scale[level as usize]
     }
@@ -56,33 +77,50 @@ impl Grid {
     }
 
     /// The finest domain's extent in finest-level cells.
+    #[inline]
     pub fn extent(&self) -> [i64; 3] {
         self.extent
     }
 
     /// The finest domain's lower corner in absolute finest-level indices.
+    #[inline]
     pub fn offset(&self) -> [i64; 3] {
         self.offset
     }
 
     /// The doubled coordinate of the centre of cell `cell` (absolute index) of `level`.
+    #[inline(always)]
     pub fn centre(&self, level: u32, cell: [i64; 3]) -> [i64; 3] {
         let s = self.scale(level);
-        [0, 1, 2].map(|a| 2 * (cell[a] * s[a] - self.offset[a]) + s[a])
+        axes(|a| 2 * (cell[a] * s[a] - self.offset[a]) + s[a])
+    }
+
+    /// log2 of the width of one cell of `level` in finest-level cells, when every axis is a
+    /// power of two.
+    #[inline(always)]
+    pub fn shift(&self, level: u32) -> Option<[u32; 3]> {
+        self.shift[level as usize]
     }
 
     /// The cell of `level` (absolute index) holding finest-level cell `finest` (relative).
+    #[inline(always)]
     pub fn cell_of(&self, level: u32, finest: [i64; 3]) -> [i64; 3] {
-        let s = self.scale(level);
-        [0, 1, 2].map(|a| (finest[a] + self.offset[a]).div_euclid(s[a]))
+        let abs = axes(|a| finest[a] + self.offset[a]);
+        match self.shift[level as usize] {
+            Some(sh) => axes(|a| abs[a] >> sh[a]),
+            None => {
+                let s = self.scale(level);
+                axes(|a| abs[a].div_euclid(s[a]))
+            }
+        }
     }
 
     /// The finest-level cells (relative) of cell `cell` of `level`.
     pub fn finest_box(&self, level: u32, cell: [i64; 3]) -> IBox {
         let s = self.scale(level);
         IBox::new(
-            [0, 1, 2].map(|a| cell[a] * s[a] - self.offset[a]),
-            [0, 1, 2].map(|a| (cell[a] + 1) * s[a] - self.offset[a]),
+            axes(|a| cell[a] * s[a] - self.offset[a]),
+            axes(|a| (cell[a] + 1) * s[a] - self.offset[a]),
         )
     }
 
@@ -100,8 +138,9 @@ impl Grid {
 
     /// The finest-level cell (relative) holding doubled point `p` nudged toward `dir`
     /// (bit `a` set: toward `+` on axis `a`), clamped into the domain.
+    #[inline(always)]
     pub fn finest_cell(&self, p: [i64; 3], dir: u8) -> [i64; 3] {
-        [0, 1, 2].map(|a| {
+        axes(|a| {
             let f = if dir >> a & 1 == 1 {
                 p[a].div_euclid(2)
             } else {
@@ -118,15 +157,11 @@ impl Grid {
 
     /// World position of a doubled point.
     pub fn to_world(&self, p: [f64; 3]) -> [f64; 3] {
-        [0, 1, 2].map(|a| {
-            self.world_origin[a] + self.world_cell[a] * (0.5 * p[a] + self.offset[a] as f64)
-        })
+        axes(|a| self.world_origin[a] + self.world_cell[a] * (0.5 * p[a] + self.offset[a] as f64))
     }
 
     /// Doubled coordinates of a world position.
     pub fn to_doubled(&self, x: [f64; 3]) -> [f64; 3] {
-        [0, 1, 2].map(|a| {
-            2.0 * ((x[a] - self.world_origin[a]) / self.world_cell[a] - self.offset[a] as f64)
-        })
+        axes(|a| 2.0 * ((x[a] - self.world_origin[a]) / self.world_cell[a] - self.offset[a] as f64))
     }
 }

@@ -10,6 +10,7 @@
 use crate::error::Result;
 use amr_format::IBox;
 
+use super::grid::axes;
 use super::sampler::{LeafCell, Locate, Sampler, Slab};
 
 /// No kd-tree leaf recorded yet.
@@ -81,7 +82,7 @@ impl<'s, 'f, D: AsRef<[u8]>> LocalLocator<'s, 'f, D> {
         // Capped at eight level-L cells (a steep level jump would make the table huge; points
         // beyond it go to the tree) and clamped to the domain.
         let (sc, sl) = (grid.scale(coarsest), grid.scale(level));
-        let reach = [0, 1, 2].map(|a| (2 * sc[a]).min(MAX_REACH * sl[a]));
+        let reach = axes(|a| (2 * sc[a]).min(MAX_REACH * sl[a]));
         let ext = grid.extent();
         let region = finest.grow(reach).intersect(&IBox::new([0; 3], ext));
         let cells = grid.level_box(level, &region);
@@ -157,10 +158,10 @@ impl<'s, 'f, D: AsRef<[u8]>> LocalLocator<'s, 'f, D> {
 impl<D: AsRef<[u8]>> Locate for LocalLocator<'_, '_, D> {
     #[inline]
     fn locate_cell(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
-        let abs = [0, 1, 2].map(|a| finest[a] + self.offset[a]);
+        let abs = axes(|a| finest[a] + self.offset[a]);
         let c = match self.shift {
-            Some(sh) => [0, 1, 2].map(|a| abs[a] >> sh[a]),
-            None => [0, 1, 2].map(|a| abs[a].div_euclid(self.scale[a])),
+            Some(sh) => axes(|a| abs[a] >> sh[a]),
+            None => axes(|a| abs[a].div_euclid(self.scale[a])),
         };
         if !self.cells.contains_cell(c) {
             return self.sampler.locate(finest);
@@ -174,7 +175,7 @@ impl<D: AsRef<[u8]>> Locate for LocalLocator<'_, '_, D> {
             return Ok(None);
         };
         let cell = match part.shift {
-            Some(sh) => [0, 1, 2].map(|a| abs[a] >> sh[a]),
+            Some(sh) => axes(|a| abs[a] >> sh[a]),
             None => self.sampler.grid().cell_of(*level, finest),
         };
         Ok(Some(LeafCell {

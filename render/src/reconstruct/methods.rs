@@ -3,6 +3,7 @@
 
 use crate::error::Result as RenderResult;
 
+use super::grid::axes;
 use super::interp::trilinear;
 use super::recent::SampleScratch;
 use super::sampler::{LeafCell, Locate, Sampler, VertexMemo};
@@ -103,7 +104,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         if (0..3).any(|a| !(p[a] >= 0.0 && p[a] <= 2.0 * ext[a] as f64)) {
             return Ok(None);
         }
-        let finest = [0, 1, 2].map(|a| ((p[a] * 0.5).floor() as i64).min(ext[a] - 1));
+        let finest = axes(|a| ((p[a] * 0.5).floor() as i64).min(ext[a] - 1));
         let Some(c) = loc.locate_cell(finest)? else {
             return Ok(None);
         };
@@ -141,7 +142,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         let Some(corners) = self.leaf_octant_corners_in(loc, c, octant, memo)? else {
             return Ok(None);
         };
-        let t = [0, 1, 2].map(|a| {
+        let t = axes(|a| {
             let lo = if octant >> a & 1 == 1 {
                 centre[a]
             } else {
@@ -164,7 +165,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             .map(|a| (((p[a] - s[a] as f64) * 0.5 + o[a] as f64) / s[a] as f64).floor() as i64);
         let base = self.grid().centre(level, first);
         let finest_of = |n: usize| {
-            let cell = [0, 1, 2].map(|a| first[a] + (n >> a & 1) as i64);
+            let cell = axes(|a| first[a] + (n >> a & 1) as i64);
             self.grid().finest_cell(self.grid().centre(level, cell), 7)
         };
         let corners = match loc.block_of_level(finest_of(0), finest_of(7), level) {
@@ -180,8 +181,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 corners
             }
         };
-        let t =
-            [0, 1, 2].map(|a| ((p[a] - base[a] as f64) / (2 * s[a]) as f64).clamp(0.0, 1.0) as f32);
+        let t = axes(|a| ((p[a] - base[a] as f64) / (2 * s[a]) as f64).clamp(0.0, 1.0) as f32);
         Ok(Some(trilinear(&corners, t)))
     }
 }

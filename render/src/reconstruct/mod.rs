@@ -3,6 +3,7 @@
 //! - [`grid`]: doubled finest-level integer coordinates, where every location is exact.
 //! - [`interp`]: trilinear interpolation and averages in one fixed evaluation order.
 //! - [`cache`]: a bounded cache of decoded (decompressed) bricks.
+//! - [`leaf_grid`]: point location in one table read over the kd-tree.
 //! - [`local`]: leaf-cell location around one kd-tree leaf from a table, without tree walks.
 //! - [`recent`]: per-thread scratch that makes nearby point samples cheap.
 //! - [`sampler`]: leaf-cell location and the octant method's vertex values.
@@ -13,6 +14,7 @@
 pub mod cache;
 pub mod grid;
 pub mod interp;
+pub mod leaf_grid;
 pub mod local;
 pub mod methods;
 pub mod recent;

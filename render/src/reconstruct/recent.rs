@@ -2,8 +2,10 @@
 //! and octant corners computed last, so that samples near each other skip the kd-tree walks and
 //! the vertex evaluations they share.
 //!
-//! A leaf cell is located from a remembered leaf's box and finest brick when the finest cell
-//! lies in that box; otherwise by the sampler's kd-tree walk, whose leaf is then remembered.
+//! A leaf cell is located from the leaf that answered last when the finest cell lies in its box;
+//! otherwise the sampler names the leaf ([`Sampler::find_leaf`]). A leaf whose brick is read in
+//! place is then read directly and becomes the last one; one whose brick is decoded is read
+//! from the remembered leaves (which keep their decoded bricks at hand) or remembered.
 //! Leaves tile the domain and a leaf's finest brick holds every cell of it, so both ways give
 //! [`Sampler::locate`]'s answer: the scratch changes how fast a sample is, never its value.
 
@@ -15,8 +17,8 @@ use amr_format::IBox;
 
 use crate::error::Result;
 
-use super::local::pow2_shift;
-use super::sampler::{LeafCell, Locate, Sampler, Slab, VertexMemo};
+use super::grid::{axes, index_in};
+use super::sampler::{block_in_brick, LeafCell, Locate, Sampler, Slab, VertexMemo};
 
 /// Leaves remembered: a sample's neighbourhood touches at most eight leaves.
 const RECENT_LEAVES: usize = 8;
@@ -42,6 +44,8 @@ struct RecentLeaves {
     leaves: RefCell<Vec<RecentLeaf>>,
     last: Cell<usize>,
     next: Cell<usize>,
+    /// The last leaf whose brick is read in place, and its box.
+    last_in_place: Cell<Option<(u32, IBox)>>,
 }
 
 /// A sampler's per-thread scratch for [`Sampler::sample_with`] and for decoding voxels: pure
@@ -105,108 +109,120 @@ impl SampleScratch {
     }
 }
 
+impl<D: AsRef<[u8]>> RecentLocator<'_, '_, '_, D> {
+    /// The leaf cell at finest cell `finest`, which lies in remembered leaf `l`, read from the
+    /// leaf's brick; `None` when the brick does not hold it (the sampler then answers).
+    #[inline(always)]
+    fn read(&self, l: &RecentLeaf, finest: [i64; 3]) -> Option<LeafCell> {
+        let offset = self.sampler.grid().offset();
+        let cell = match l.shift {
+            Some(sh) => axes(|a| (finest[a] + offset[a]) >> sh[a]),
+            None => self.sampler.grid().cell_of(l.level, finest),
+        };
+        let values: &[f32] = match &l.decoded {
+            Some(v) => v,
+            None => self.sampler.values_in_place(l.brick)?,
+        };
+        if !l.cells.contains_cell(cell) {
+            return None;
+        }
+        let value = *values.get(index_in(&l.cells, cell))?;
+        Some(LeafCell {
+            leaf: l.leaf,
+            brick: l.brick,
+            level: l.level,
+            cell,
+            value,
+        })
+    }
+}
+
 impl<D: AsRef<[u8]>> Locate for RecentLocator<'_, '_, '_, D> {
     #[inline]
     fn locate_cell(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
-        let offset = self.sampler.grid().offset();
+        if let Some((leaf, b)) = self.leaves.last_in_place.get() {
+            if b.contains_cell(finest) {
+                return self.sampler.leaf_cell(leaf, finest);
+            }
+        }
         {
             let leaves = self.leaves.leaves.borrow();
             let last = self.leaves.last.get();
-            let hit = match leaves.get(last) {
-                Some(l) if l.finest.contains_cell(finest) => Some(last),
-                _ => leaves.iter().position(|l| l.finest.contains_cell(finest)),
-            };
-            if let Some(i) = hit {
-                let l = &leaves[i];
-                let abs = [0, 1, 2].map(|a| finest[a] + offset[a]);
-                let cell = match l.shift {
-                    Some(sh) => [0, 1, 2].map(|a| abs[a] >> sh[a]),
-                    None => self.sampler.grid().cell_of(l.level, finest),
-                };
-                let values: &[f32] = match &l.decoded {
-                    Some(v) => v,
-                    None => self.sampler.values_in_place(l.brick).unwrap_or(&[]),
-                };
-                let value = l
-                    .cells
-                    .contains_cell(cell)
-                    .then(|| values.get(l.cells.linear_index(cell)))
-                    .flatten();
-                if let Some(&value) = value {
-                    let found = LeafCell {
-                        leaf: l.leaf,
-                        brick: l.brick,
-                        level: l.level,
-                        cell,
-                        value,
-                    };
+            if let Some(l) = leaves.get(last).filter(|l| l.finest.contains_cell(finest)) {
+                if let Some(found) = self.read(l, finest) {
+                    return Ok(Some(found));
+                }
+            }
+        }
+        let Some(leaf) = self.sampler.find_leaf(finest) else {
+            return Ok(None);
+        };
+        let Some((brick, level)) = self.sampler.leaf_top(leaf) else {
+            return Ok(None);
+        };
+        if self.sampler.values_in_place(brick).is_some() {
+            // Read in place: only the leaf and its box are remembered.
+            let b = self.sampler.leaf_box(leaf);
+            self.leaves.last_in_place.set(Some((leaf, b)));
+            return self.sampler.leaf_cell(leaf, finest);
+        }
+        {
+            let leaves = self.leaves.leaves.borrow();
+            if let Some(i) = leaves.iter().position(|l| l.leaf == leaf) {
+                if let Some(found) = self.read(&leaves[i], finest) {
                     self.leaves.last.set(i);
                     return Ok(Some(found));
                 }
             }
         }
-        let found = self.sampler.locate(finest)?;
-        if let Some(c) = &found {
-            let recent = RecentLeaf {
-                finest: self.sampler.leaf_box(c.leaf),
-                leaf: c.leaf,
-                brick: c.brick,
-                level: c.level,
-                cells: self.sampler.brick_cells(c.brick),
-                shift: pow2_shift(self.sampler.grid().scale(c.level)),
-                decoded: match self.sampler.values(c.brick)? {
-                    Slab::Shared(v) => Some(v),
-                    Slab::Borrowed(_) => None,
-                },
-            };
-            let mut leaves = self.leaves.leaves.borrow_mut();
-            let slot = if leaves.len() < RECENT_LEAVES {
-                leaves.push(recent);
-                leaves.len() - 1
-            } else {
-                let slot = self.leaves.next.get();
-                self.leaves.next.set((slot + 1) % RECENT_LEAVES);
-                leaves[slot] = recent;
-                slot
-            };
-            self.leaves.last.set(slot);
+        let recent = RecentLeaf {
+            finest: self.sampler.leaf_box(leaf),
+            leaf,
+            brick,
+            level,
+            cells: self.sampler.brick_cells(brick),
+            shift: self.sampler.grid().shift(level),
+            decoded: match self.sampler.values(brick)? {
+                Slab::Shared(v) => Some(v),
+                Slab::Borrowed(_) => None,
+            },
+        };
+        let found = self.read(&recent, finest);
+        let mut leaves = self.leaves.leaves.borrow_mut();
+        let slot = if leaves.len() < RECENT_LEAVES {
+            leaves.push(recent);
+            leaves.len() - 1
+        } else {
+            let slot = self.leaves.next.get();
+            self.leaves.next.set((slot + 1) % RECENT_LEAVES);
+            leaves[slot] = recent;
+            slot
+        };
+        self.leaves.last.set(slot);
+        match found {
+            Some(found) => Ok(Some(found)),
+            None => self.sampler.locate(finest),
         }
-        Ok(found)
     }
 
     #[inline]
     fn block_of_level(&self, lo: [i64; 3], hi: [i64; 3], level: u32) -> Option<[f32; 8]> {
         let leaves = self.leaves.leaves.borrow();
-        let l = leaves.get(self.leaves.last.get())?;
-        if l.level != level || !l.finest.contains_cell(lo) || !l.finest.contains_cell(hi) {
-            return None;
-        }
+        let last = leaves.get(self.leaves.last.get()).filter(|l| {
+            l.level == level && l.finest.contains_cell(lo) && l.finest.contains_cell(hi)
+        });
+        let Some(l) = last else {
+            return self.sampler.block_of_level(lo, hi, level);
+        };
         let offset = self.sampler.grid().offset();
         let cell_of = |f: [i64; 3]| match l.shift {
-            Some(sh) => [0, 1, 2].map(|a| (f[a] + offset[a]) >> sh[a]),
+            Some(sh) => axes(|a| (f[a] + offset[a]) >> sh[a]),
             None => self.sampler.grid().cell_of(level, f),
         };
-        let (clo, chi) = (cell_of(lo), cell_of(hi));
-        if !l.cells.contains_cell(clo) || !l.cells.contains_cell(chi) {
-            return None;
-        }
         let values: &[f32] = match &l.decoded {
             Some(v) => v,
             None => self.sampler.values_in_place(l.brick)?,
         };
-        // The eight cells are `clo` plus, per axis, 0 or `chi - clo` (0 or 1) cells: one index
-        // and three strides.
-        let e = l.cells.extent();
-        let stride = [1, e[0], e[0] * e[1]];
-        let step: [usize; 3] = [0, 1, 2].map(|a| ((chi[a] - clo[a]) * stride[a]) as usize);
-        let first = l.cells.linear_index(clo);
-        let last = first + step[0] + step[1] + step[2];
-        let block = values.get(first..=last)?;
-        let mut out = [0f32; 8];
-        for (n, slot) in out.iter_mut().enumerate() {
-            let at = (n & 1) * step[0] + (n >> 1 & 1) * step[1] + (n >> 2 & 1) * step[2];
-            *slot = block[at];
-        }
-        Some(out)
+        block_in_brick(&l.cells, values, cell_of(lo), cell_of(hi))
     }
 }

@@ -19,8 +19,9 @@ use crate::error::RenderError;
 use crate::error::Result;
 
 use super::cache::BrickCache;
-use super::grid::Grid;
+use super::grid::{axes, index_in, Grid};
 use super::interp::{avg8, trilinear};
+use super::leaf_grid::LeafGrid;
 
 /// The leaf cell at a point: the finest cell any brick holds there.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -146,6 +147,65 @@ impl VertexMemo {
     }
 }
 
+/// A neighbour position of [`Sampler::corners_gathered`]: the leaf cell located there, its
+/// kd-tree leaf's box and its brick's values when read in place.
+#[derive(Clone, Copy)]
+struct Position<'f> {
+    cell: LeafCell,
+    /// True when every finest cell of the position (in the domain) lies in `cell`.
+    whole: bool,
+    leaf_box: IBox,
+    values: Option<&'f [f32]>,
+}
+
+/// A leaf cell to fill arrays with before they are written.
+const PLACEHOLDER: LeafCell = LeafCell {
+    leaf: 0,
+    brick: 0,
+    level: 0,
+    cell: [0; 3],
+    value: 0.0,
+};
+
+/// The coarse octants one call of [`Sampler::corners_gathered`] has evaluated (at most one per
+/// corner).
+struct CoarseOctants {
+    known: [(Octant, Option<[f32; 8]>); 7],
+    len: usize,
+}
+
+impl Default for CoarseOctants {
+    fn default() -> Self {
+        let none = Octant {
+            level: u32::MAX,
+            cell: [0; 3],
+            octant: 0,
+        };
+        Self {
+            known: [(none, None); 7],
+            len: 0,
+        }
+    }
+}
+
+impl CoarseOctants {
+    #[inline]
+    fn get(&self, o: &Octant) -> Option<Option<[f32; 8]>> {
+        self.known[..self.len]
+            .iter()
+            .find(|(k, _)| k == o)
+            .map(|(_, c)| *c)
+    }
+
+    #[inline]
+    fn put(&mut self, o: Octant, corners: Option<[f32; 8]>) {
+        if self.len < self.known.len() {
+            self.known[self.len] = (o, corners);
+            self.len += 1;
+        }
+    }
+}
+
 /// A vertex and the level asking for its value.
 #[derive(Clone, Copy, PartialEq, Eq)]
 struct VertexKey([i64; 3], u32);
@@ -205,6 +265,56 @@ impl<D: AsRef<[u8]>> Locate for Sampler<'_, D> {
     fn locate_cell(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
         self.locate(finest)
     }
+
+    /// With the shortcuts on: when `lo` and `hi` lie in one kd-tree leaf whose finest brick is
+    /// of `level` and read in place, from that brick.
+    #[inline]
+    fn block_of_level(&self, lo: [i64; 3], hi: [i64; 3], level: u32) -> Option<[f32; 8]> {
+        self.leaf_grid.as_ref()?;
+        let leaf = self.find_leaf(lo)?;
+        let (brick, top) = self.leaf_top[leaf as usize]?;
+        if top != level || !self.tree.leaf_box(leaf).contains_cell(hi) {
+            return None;
+        }
+        let b = &self.bricks[brick as usize];
+        let (clo, chi) = (self.grid.cell_of(level, lo), self.grid.cell_of(level, hi));
+        block_in_brick(&b.cells, b.values?, clo, chi)
+    }
+}
+
+/// The values of the eight cells `clo`/`hi` per axis (cell `n` takes `chi` on axis `a` when bit
+/// `a` of `n` is set; `chi` is `clo` or one more on every axis) of a brick of cells `cells` and
+/// values `values`: one index and three strides. `None` when a cell lies outside the brick.
+#[inline]
+pub(super) fn block_in_brick(
+    cells: &IBox,
+    values: &[f32],
+    clo: [i64; 3],
+    chi: [i64; 3],
+) -> Option<[f32; 8]> {
+    if !cells.contains_cell(clo) || !cells.contains_cell(chi) {
+        return None;
+    }
+    let e = cells.extent();
+    let stride = [1, e[0], e[0] * e[1]];
+    let step: [usize; 3] = axes(|a| ((chi[a] - clo[a]) * stride[a]) as usize);
+    let first = index_in(cells, clo);
+    let last = first + step[0] + step[1] + step[2];
+    let block = values.get(first..=last)?;
+    let mut out = [0f32; 8];
+    for (n, slot) in out.iter_mut().enumerate() {
+        let at = (n & 1) * step[0] + (n >> 1 & 1) * step[1] + (n >> 2 & 1) * step[2];
+        *slot = block[at];
+    }
+    Some(out)
+}
+
+/// One brick as the sampler reads it.
+struct BrickRef<'f> {
+    /// Its cells in its level's index space.
+    cells: IBox,
+    /// Its values when they can be read in place.
+    values: Option<&'f [f32]>,
 }
 
 /// Reconstructs one field of an open file.
@@ -214,11 +324,15 @@ pub struct Sampler<'f, D> {
     grid: Grid,
     /// Per leaf: its finest brick and that brick's level, `None` where no brick covers it.
     leaf_top: Vec<Option<(u32, u32)>>,
-    /// Per brick: its cells in its level's index space.
-    brick_cells: Vec<IBox>,
-    /// Per brick: its values when they can be read in place.
-    in_place: Vec<Option<&'f [f32]>>,
+    /// Per brick: its cells and its values when they can be read in place.
+    bricks: Vec<BrickRef<'f>>,
     tree: TreeView<'f>,
+    /// Point location in one table read and a short walk; `None` with the shortcuts off.
+    leaf_grid: Option<LeafGrid>,
+    /// True when octant corners are gathered around the octant's outer corner
+    /// ([`Self::corners_gathered`]): shortcuts on, and every level's cells nest in the cells of
+    /// the coarser levels.
+    gather: bool,
     cache: BrickCache,
     /// This sampler's identity, which scratch memory serving it remembers.
     id: u64,
@@ -242,30 +356,48 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 })
             })
             .collect();
-        let brick_cells = (0..file.num_bricks())
-            .map(|b| file.brick(b).cells)
-            .collect();
-        let in_place = (0..file.num_bricks())
+        let bricks = (0..file.num_bricks())
             .map(|b| {
                 let raw = file.brick_data(field, b).encoding == amr_format::compress::Encoding::Raw;
                 // Only raw bricks are asked for: reading a compressed one here would decode it.
-                match raw.then(|| file.brick_values(field, b)) {
+                let values = match raw.then(|| file.brick_values(field, b)) {
                     Some(Ok(Cow::Borrowed(v))) => Some(v),
                     _ => None,
+                };
+                BrickRef {
+                    cells: file.brick(b).cells,
+                    values,
                 }
             })
             .collect();
-        Ok(Self {
-            in_place,
+        let sampler = Self {
+            bricks,
+            leaf_grid: None,
+            gather: false,
             tree: file.tree(),
             file,
             field,
             grid: Grid::new(file),
             leaf_top,
-            brick_cells,
             cache: BrickCache::new(cache_bytes),
             id: super::recent::next_sampler_id(),
-        })
+        };
+        Ok(sampler.with_shortcuts(true))
+    }
+
+    /// This sampler with its shortcuts (the leaf grid of [`Self::locate`], the gathered octant
+    /// corners of [`Self::corners`]) on or off: the same values either way, computed by the
+    /// general rules when off, for tests and benchmarks that compare the two.
+    pub fn with_shortcuts(mut self, on: bool) -> Self {
+        let file = self.file;
+        self.leaf_grid = on.then(|| LeafGrid::new(&file.tree()));
+        let g = &self.grid;
+        let nested = (1..g.num_levels() as u32).all(|l| {
+            let (coarse, fine) = (g.scale(l - 1), g.scale(l));
+            (0..3).all(|a| fine[a] > 0 && coarse[a] % fine[a] == 0)
+        });
+        self.gather = on && nested;
+        self
     }
 
     /// The file.
@@ -300,7 +432,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 
     /// Brick `brick`'s cells in its level's index space.
     pub fn brick_cells(&self, brick: u32) -> IBox {
-        self.brick_cells[brick as usize]
+        self.bricks[brick as usize].cells
     }
 
     /// Number of bricks decoded into the cache so far.
@@ -311,16 +443,17 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// Brick `brick`'s values when they are read in place (stored raw), else `None`.
     #[inline]
     pub fn values_in_place(&self, brick: u32) -> Option<&'f [f32]> {
-        self.in_place[brick as usize]
+        self.bricks[brick as usize].values
     }
 
     /// Brick `brick`'s values of the sampled field.
     pub fn values(&self, brick: u32) -> Result<Slab<'f>> {
         let file: &'f AmrkFile<D> = self.file;
-        if let Some(v) = self.in_place[brick as usize] {
+        let b = &self.bricks[brick as usize];
+        if let Some(v) = b.values {
             return Ok(Slab::Borrowed(v));
         }
-        let cells = self.brick_cells[brick as usize].num_cells().unwrap_or(0) as usize;
+        let cells = b.cells.num_cells().unwrap_or(0) as usize;
         let shared = self.cache.get(brick, cells, || {
             let mut out = Vec::with_capacity(cells);
             file.brick_values_into(self.field, brick as usize, &mut out)?;
@@ -331,16 +464,28 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 
     /// The leaf cell holding finest-level cell `finest` (relative to the domain), `None` outside
     /// the domain or where no brick covers it.
+    #[inline]
     pub fn locate(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
-        let Some(leaf) = self.tree.find_leaf(finest) else {
-            return Ok(None);
-        };
+        match self.find_leaf(finest) {
+            Some(leaf) => self.leaf_cell(leaf, finest),
+            None => Ok(None),
+        }
+    }
+
+    /// The leaf cell holding finest-level cell `finest`, which lies in kd-tree leaf `leaf`;
+    /// `None` where no brick covers the leaf.
+    #[inline]
+    pub fn leaf_cell(&self, leaf: u32, finest: [i64; 3]) -> Result<Option<LeafCell>> {
         let Some((brick, level)) = self.leaf_top[leaf as usize] else {
             return Ok(None);
         };
         let cell = self.grid.cell_of(level, finest);
-        let cells = &self.brick_cells[brick as usize];
-        let value = self.values(brick)?[cells.linear_index(cell)];
+        let b = &self.bricks[brick as usize];
+        let index = index_in(&b.cells, cell);
+        let value = match b.values {
+            Some(v) => v[index],
+            None => self.values(brick)?[index],
+        };
         Ok(Some(LeafCell {
             leaf,
             brick,
@@ -348,6 +493,15 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             cell,
             value,
         }))
+    }
+
+    /// The kd-tree leaf holding finest-level cell `finest`, `None` outside the domain.
+    #[inline]
+    pub fn find_leaf(&self, finest: [i64; 3]) -> Option<u32> {
+        match &self.leaf_grid {
+            Some(g) => g.find_leaf(&self.tree, finest),
+            None => self.tree.find_leaf(finest),
+        }
     }
 
     /// The leaf cells touching doubled point `v` from its eight sides (side `n`: nudged toward
@@ -377,7 +531,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             out[n] = if m != n {
                 out[m]
             } else {
-                let f = [0, 1, 2].map(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+                let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
                 match loc.locate_cell(f)? {
                     Some(c) => Some(c),
                     None => return Ok(None),
@@ -488,11 +642,27 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         coarsest: u32,
         memo: &mut VertexMemo,
     ) -> Result<Option<f32>> {
+        let (q, octant) = self.coarse_octant(v, cells, coarsest);
+        let Some(corners) = self.leaf_octant_corners_in(loc, &q, octant, memo)? else {
+            return Ok(None);
+        };
+        Ok(Some(self.coarse_lerp(v, &q, octant, &corners)))
+    }
+
+    /// The leaf cell [`Self::coarse_value_in`] interpolates at `v` and its octant holding `v`.
+    #[inline]
+    fn coarse_octant(&self, v: [i64; 3], cells: &[LeafCell; 8], coarsest: u32) -> (LeafCell, u8) {
         let side = cells
             .iter()
             .position(|c| c.level == coarsest)
             .expect("the coarsest level is present");
         let q = cells[side];
+        (q, self.octant_toward(v, &q, side))
+    }
+
+    /// The octant of leaf cell `q` holding `v`, which `q` touches from side `side` of `v`.
+    #[inline]
+    fn octant_toward(&self, v: [i64; 3], q: &LeafCell, side: usize) -> u8 {
         let centre = self.grid.centre(q.level, q.cell);
         let mut octant = 0u8;
         for a in 0..3 {
@@ -500,9 +670,13 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 octant |= 1 << a;
             }
         }
-        let Some(corners) = self.leaf_octant_corners_in(loc, &q, octant, memo)? else {
-            return Ok(None);
-        };
+        octant
+    }
+
+    /// The trilinear interpolant at `v` of octant `octant` of leaf cell `q`, whose corner
+    /// values are `corners`.
+    #[inline]
+    fn coarse_lerp(&self, v: [i64; 3], q: &LeafCell, octant: u8, corners: &[f32; 8]) -> f32 {
         let key = Octant {
             level: q.level,
             cell: q.cell,
@@ -510,8 +684,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         };
         let (lo, _) = self.octant_box(&key);
         let s = self.grid.scale(q.level);
-        let t = [0, 1, 2].map(|a| ((v[a] - lo[a]) as f64 / s[a] as f64) as f32);
-        Ok(Some(trilinear(&corners, t)))
+        let t = axes(|a| ((v[a] - lo[a]) as f64 / s[a] as f64) as f32);
+        trilinear(corners, t)
     }
 
     /// [`Self::corners_in`] for octant `octant` of leaf cell `q`, remembered in `memo`'s octant
@@ -540,14 +714,14 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     pub fn octant_box(&self, o: &Octant) -> ([i64; 3], [i64; 3]) {
         let c = self.grid.centre(o.level, o.cell);
         let s = self.grid.scale(o.level);
-        let lo = [0, 1, 2].map(|a| {
+        let lo = axes(|a| {
             if o.octant >> a & 1 == 1 {
                 c[a]
             } else {
                 c[a] - s[a]
             }
         });
-        (lo, [0, 1, 2].map(|a| lo[a] + s[a]))
+        (lo, axes(|a| lo[a] + s[a]))
     }
 
     /// The corner values of octant `octant` of leaf cell `cell` of `level`, whose value is `value`.
@@ -577,10 +751,26 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             cell,
             octant,
         };
+        if self.gather {
+            return self.corners_gathered(loc, &o, value, memo);
+        }
         if let Some(out) = self.corners_one_level(loc, &o, value)? {
             return Ok(Some(out));
         }
-        let (lo, _) = self.octant_box(&o);
+        self.corners_per_vertex(loc, &o, value, memo)
+    }
+
+    /// [`Self::corners_in`] by the general rule: [`Self::vertex_value_in`] at every corner but
+    /// the cell's centre, which carries the cell's value.
+    fn corners_per_vertex<L: Locate>(
+        &self,
+        loc: &L,
+        o: &Octant,
+        value: f32,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<[f32; 8]>> {
+        let Octant { level, octant, .. } = *o;
+        let (lo, _) = self.octant_box(o);
         let s = self.grid.scale(level);
         let mut out = [0f32; 8];
         for (n, slot) in out.iter_mut().enumerate() {
@@ -589,7 +779,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 *slot = value;
                 continue;
             }
-            let v = [0, 1, 2].map(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
+            let v = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
             match self.vertex_value_in(loc, v, level, memo)? {
                 Some(x) => *slot = x,
                 None => return Ok(None),
@@ -619,8 +809,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         } = *o;
         let centre = self.grid.centre(level, cell);
         let s = self.grid.scale(level);
-        let up = [0, 1, 2].map(|a| octant >> a & 1 == 1);
-        let outer = [0, 1, 2].map(|a| {
+        let up = axes(|a| octant >> a & 1 == 1);
+        let outer = axes(|a| {
             if up[a] {
                 centre[a] + s[a]
             } else {
@@ -638,7 +828,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 block[n] = block[m];
                 continue;
             }
-            let f = [0, 1, 2].map(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+            let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
             match loc.locate_cell(f)? {
                 Some(c) if c.level == level => block[n] = c.value,
                 _ => return Ok(None),
@@ -668,6 +858,207 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             *slot = avg8(&cells);
         }
         out
+    }
+
+    /// [`Self::corners_in`] from the leaf cells gathered around the octant's outer corner (the
+    /// cell's corner on the octant's side): the cell and its seven neighbours of the same level
+    /// there, its positions, each located once at the finest cell next to the outer corner.
+    ///
+    /// When all eight are leaf cells of the octant's level, the corners follow from them as in
+    /// [`Self::corners_one_level`]. Otherwise each corner but the centre is
+    /// [`Self::vertex_value_in`]'s value, computed from the eight leaf cells touching it, which
+    /// are the ones [`Self::around_in`] finds: a finest cell in a position whose located leaf
+    /// cell is of the octant's level or coarser and whose kd-tree leaf contains the whole
+    /// position is in that leaf cell (every finest cell of the position then lies in that leaf,
+    /// whose finest brick has one cell over the position); one in the kd-tree leaf of its
+    /// position's located cell is read from that leaf's brick; the others are located. A coarse
+    /// octant met at several corners is evaluated once.
+    fn corners_gathered<L: Locate>(
+        &self,
+        loc: &L,
+        o: &Octant,
+        value: f32,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<[f32; 8]>> {
+        let Octant { level, cell, .. } = *o;
+        let centre = self.grid.centre(level, cell);
+        let s = self.grid.scale(level);
+        let up = axes(|a| o.octant >> a & 1 == 1);
+        let outer = axes(|a| {
+            if up[a] {
+                centre[a] + s[a]
+            } else {
+                centre[a] - s[a]
+            }
+        });
+        let (lo, hi, same) = self.nudges(outer);
+        if let Some(block) = loc.block_of_level(lo, hi, level) {
+            return Ok(Some(self.corners_from_block(&block, value, up)));
+        }
+        // Side `n` of the outer corner, as in `corners_one_level`.
+        let mut around = [None::<LeafCell>; 8];
+        let mut one_level = true;
+        for n in 0..8 {
+            let m = n & !same;
+            around[n] = if m != n {
+                around[m]
+            } else {
+                let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+                loc.locate_cell(f)?
+            };
+            one_level &= matches!(around[n], Some(c) if c.level == level);
+        }
+        if one_level {
+            let block = around.map(|c| c.map_or(0.0, |c| c.value));
+            return Ok(Some(self.corners_from_block(&block, value, up)));
+        }
+        // Position `k` is the cell's neighbour on the octant's side of every axis `a` whose bit
+        // is set in `k`; side `n` of the outer corner lies in position `n ^ down`.
+        let down = (0..3).fold(0usize, |m, a| m | usize::from(!up[a]) << a);
+        let domain = IBox::new([0; 3], self.grid.extent());
+        let own = self.grid.finest_box(level, cell);
+        let mut positions = [None::<Position<'f>>; 8];
+        for (k, slot) in positions.iter_mut().enumerate() {
+            // A set bit of `same` is an axis where the outer corner lies on the domain's face.
+            let Some(c) = around[k ^ down].filter(|_| k & same == 0) else {
+                continue;
+            };
+            let mut b = own;
+            for a in (0..3).filter(|a| k >> a & 1 == 1) {
+                let step = if up[a] { s[a] } else { -s[a] };
+                b.lo[a] += step;
+                b.hi[a] += step;
+            }
+            let leaf_box = self.tree.leaf_box(c.leaf);
+            *slot = Some(Position {
+                cell: c,
+                whole: c.level <= level && leaf_box.contains_box(&b.intersect(&domain)),
+                leaf_box,
+                values: self.bricks[c.brick as usize].values,
+            });
+        }
+        // Per axis and side of the octant's box: the finest cells the vertex there is nudged
+        // into (toward `-`, toward `+`) and whether each lies in the neighbour.
+        let (base, _) = self.octant_box(o);
+        let ext = self.grid.extent();
+        let mut nudged = [[[(0i64, 0usize); 2]; 2]; 3];
+        for a in 0..3 {
+            for (side, x) in [base[a], base[a] + s[a]].into_iter().enumerate() {
+                for (dir, f) in [(x - 1).div_euclid(2), x.div_euclid(2)]
+                    .into_iter()
+                    .enumerate()
+                {
+                    let f = f.clamp(0, ext[a] - 1);
+                    let out = usize::from(f < own.lo[a] || f >= own.hi[a]) << a;
+                    nudged[a][side][dir] = (f, out);
+                }
+            }
+        }
+        // Per position: its cell's level and value when the cell covers the whole position.
+        let mut whole = 0u8;
+        let mut whole_level = [0u32; 8];
+        let mut whole_value = [0f32; 8];
+        for (k, p) in positions.iter().enumerate() {
+            if let Some(p) = p.as_ref().filter(|p| p.whole) {
+                whole |= 1 << k;
+                (whole_level[k], whole_value[k]) = (p.cell.level, p.cell.value);
+            }
+        }
+        let mut coarse = CoarseOctants::default();
+        // Cells located for the corner at hand, by side.
+        let mut extra = [PLACEHOLDER; 8];
+        let mut out = [0f32; 8];
+        for (n, slot) in out.iter_mut().enumerate() {
+            if n == down {
+                // The corner at the cell centre carries the cell's value.
+                *slot = value;
+                continue;
+            }
+            let at = axes(|a| &nudged[a][n >> a & 1]);
+            // Per side: its position, the cell's level and value, and where the cell is (a
+            // position, or 8 + side for `extra`).
+            let ks: [usize; 8] =
+                std::array::from_fn(|i| at[0][i & 1].1 | at[1][i >> 1 & 1].1 | at[2][i >> 2].1);
+            let mut levels = ks.map(|k| whole_level[k]);
+            let mut values = ks.map(|k| whole_value[k]);
+            let mut from = ks;
+            let vsame = (0..3).fold(0usize, |m, a| {
+                m | usize::from(at[a][0].0 == at[a][1].0) << a
+            });
+            for side in (0..8).filter(|&i| whole >> ks[i] & 1 == 0) {
+                let m = side & !vsame;
+                if m != side {
+                    (levels[side], values[side], from[side]) = (levels[m], values[m], from[m]);
+                    continue;
+                }
+                let f = axes(|a| at[a][side >> a & 1].0);
+                let Some(c) = self.position_cell(loc, positions[ks[side]].as_ref(), f)? else {
+                    return Ok(None);
+                };
+                extra[side] = c;
+                from[side] = 8 + side;
+                (levels[side], values[side]) = (c.level, c.value);
+            }
+            let coarsest = levels.iter().copied().min().unwrap_or(level);
+            *slot = if coarsest < level {
+                let v = axes(|a| base[a] + (n >> a & 1) as i64 * s[a]);
+                let side = levels.iter().position(|&l| l == coarsest).unwrap_or(0);
+                let q = match from[side] {
+                    k @ 0..=7 => positions[k].map_or(PLACEHOLDER, |p| p.cell),
+                    e => extra[e - 8],
+                };
+                let octant = self.octant_toward(v, &q, side);
+                let key = Octant {
+                    level: q.level,
+                    cell: q.cell,
+                    octant,
+                };
+                let corners = match coarse.get(&key) {
+                    Some(known) => known,
+                    None => {
+                        let c = self.leaf_octant_corners_in(loc, &q, octant, memo)?;
+                        coarse.put(key, c);
+                        c
+                    }
+                };
+                match corners {
+                    Some(corners) => self.coarse_lerp(v, &q, octant, &corners),
+                    None => return Ok(None),
+                }
+            } else {
+                avg8(&values)
+            };
+        }
+        Ok(Some(out))
+    }
+
+    /// The leaf cell at finest cell `f` of a position gathered by [`Self::corners_gathered`]:
+    /// the position's cell when it covers the whole position, else read from the brick of the
+    /// position's kd-tree leaf when `f` lies in that leaf, else located through `loc`.
+    #[inline]
+    fn position_cell<L: Locate>(
+        &self,
+        loc: &L,
+        p: Option<&Position<'f>>,
+        f: [i64; 3],
+    ) -> Result<Option<LeafCell>> {
+        if let Some(p) = p {
+            if p.whole {
+                return Ok(Some(p.cell));
+            }
+            if let Some(values) = p.values.filter(|_| p.leaf_box.contains_cell(f)) {
+                let cell = self.grid.cell_of(p.cell.level, f);
+                let cells = &self.bricks[p.cell.brick as usize].cells;
+                if let Some(&value) = values.get(index_in(cells, cell)) {
+                    return Ok(Some(LeafCell {
+                        cell,
+                        value,
+                        ..p.cell
+                    }));
+                }
+            }
+        }
+        loc.locate_cell(f)
     }
 
     /// The corner values of an octant of a leaf cell; `None` when the cell is not a leaf cell or

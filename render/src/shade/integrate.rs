@@ -115,14 +115,22 @@ pub fn shade_ray<T: Tracer + ?Sized>(
         if transmittance < MIN_TRANSMITTANCE {
             break;
         }
-        next[i] = next_crossing(tracer, i, &ray, &hit);
+        // A crossing behind a pending opaque hit of another surface is never composited: the
+        // search for this surface's next one stops there.
+        let opaque_ahead = next
+            .iter()
+            .enumerate()
+            .filter(|&(k, h)| k != i && h.is_some() && light.opacity[k] >= 1.0)
+            .filter_map(|(_, h)| h.map(|h| h.t))
+            .fold(f64::INFINITY, f64::min);
+        next[i] = next_crossing(tracer, i, &ray, &hit, opaque_ahead);
     }
     out.rgb = rgb;
     out.alpha = 1.0 - transmittance;
     out
 }
 
-/// The next hit of surface `i` along `ray` after `hit` that is a new crossing.
+/// The next hit of surface `i` along `ray` after `hit` that is a new crossing, up to `tmax`.
 ///
 /// Where a ray passes through a face, edge or corner shared by two octants, both octants report
 /// the crossing (their segments are widened so that none is lost), a hair apart along the ray.
@@ -134,6 +142,7 @@ fn next_crossing<T: Tracer + ?Sized>(
     i: usize,
     ray: &GridRay,
     hit: &SurfaceHit,
+    tmax: f64,
 ) -> Option<SurfaceHit> {
     let per_t = grid_len(ray.d);
     let step = 1e-4 * hit.size / per_t;
@@ -141,7 +150,7 @@ fn next_crossing<T: Tracer + ?Sized>(
     let side = dot(hit.grad, ray.d) > 0.0;
     let mut from = hit.t + step;
     loop {
-        let next = tracer.next_hit(i, ray, from, f64::INFINITY)?;
+        let next = tracer.next_hit(i, ray, from, tmax)?;
         let duplicate =
             next.t - hit.t < same_crossing_within && (dot(next.grad, ray.d) > 0.0) == side;
         if !duplicate {

@@ -4,12 +4,13 @@
 //! faces), change only slightly where the level changes, and stay within a degree of the
 //! sphere's normal.
 
-use amr_format::progress::NoProgress;
-use amr_format::{AmrkFile, WriterOptions};
+use amr_format::AmrkFile;
 use amr_render::bvh::BvhBuilder;
 use amr_render::trace::{FieldSource, GridRay, HybridTracer, Surface, Tracer, VoxelSource};
 use amr_render::Reconstruction;
-use amr_synth::{build_hierarchy_by, near_surface, write_spec, AnalyticField, Case, SynthParams};
+use amr_synth::{AnalyticField, Case};
+
+use crate::support::half_refined::write_half_refined_sphere;
 
 const CENTRE: [f64; 3] = [0.47, 0.52, 0.5];
 
@@ -25,13 +26,12 @@ fn unit(v: [f64; 3]) -> [f64; 3] {
 }
 
 /// What a sweep of rays saw: the largest angle between the normals of neighbouring rays hitting
-/// the same level and hitting different levels, the median step, the largest angle to the exact
-/// normal, and the levels hit.
+/// the same level and hitting different levels, the largest angle to the exact normal, and the
+/// levels hit.
 #[derive(Debug)]
 struct Sweep {
     max_step: f64,
     max_step_across_levels: f64,
-    median_step: f64,
     max_error: f64,
     levels: Vec<u32>,
 }
@@ -73,23 +73,17 @@ fn sweep(path: &std::path::Path, reconstruction: Reconstruction, smooth: bool) -
         }
     }
     let (mut max_step, mut max_step_across_levels) = (0f64, 0f64);
-    let mut steps: Vec<f64> = normals
-        .windows(2)
-        .map(|w| {
-            let step = angle(w[0].0, w[1].0);
-            if w[0].1 == w[1].1 {
-                max_step = max_step.max(step);
-            } else {
-                max_step_across_levels = max_step_across_levels.max(step);
-            }
-            step
-        })
-        .collect();
-    steps.sort_by(f64::total_cmp);
+    for w in normals.windows(2) {
+        let step = angle(w[0].0, w[1].0);
+        if w[0].1 == w[1].1 {
+            max_step = max_step.max(step);
+        } else {
+            max_step_across_levels = max_step_across_levels.max(step);
+        }
+    }
     Sweep {
         max_step,
         max_step_across_levels,
-        median_step: steps[steps.len() / 2],
         max_error,
         levels,
     }
@@ -99,24 +93,9 @@ fn sweep(path: &std::path::Path, reconstruction: Reconstruction, smooth: bool) -
 fn smooth_normals_turn_steadily_across_voxel_faces_and_level_boundaries() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("sphere.amrk");
-    let params = SynthParams {
-        levels: 3,
-        ratio: 2,
-        base: 16,
-        brick: 8,
-        origin: [0.0; 3],
-        size: 1.0,
-    };
-    let field = Case::Sphere;
-    let iso = field.default_iso();
-    // Level 1 only where x >= 0.5, level 2 also only where y >= 0.5: the sweep crosses the
-    // boundary between levels 0 and 1.
-    let spec = build_hierarchy_by(&params, vec!["sphere".into()], |b| {
-        let half = (0..b.level as usize).all(|a| b.lo[a] >= 0.5);
-        half && near_surface(&field, iso, b)
-    })
-    .unwrap();
-    write_spec(&path, spec, &field, WriterOptions::default(), &NoProgress).unwrap();
+    // The sweep crosses the boundary between levels 0 and 2 (level 1 only where x >= 0.5,
+    // level 2 also only where y >= 0.5).
+    write_half_refined_sphere(&path, 3, 2, 16);
 
     // The sweep turns the exact normal by 30 degrees over 6000 rays: 0.005 degrees a step.
     let flat = sweep(&path, Reconstruction::Octant, false);

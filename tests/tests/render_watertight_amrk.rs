@@ -4,16 +4,15 @@
 //! directions, the axes and diagonals, and rays aimed exactly at finest-cell corners near the
 //! surface, many of which lie on the level-boundary faces, edges and corners the surface crosses.
 
-use amr_format::progress::NoProgress;
-use amr_format::{AmrkFile, WriterOptions};
+use amr_format::AmrkFile;
 use amr_render::bvh::BvhBuilder;
 use amr_render::trace::traverse::Surface;
 use amr_render::trace::FieldSource;
 use amr_render::trace::{GridRay, VoxelSource};
 use amr_render::Reconstruction;
-use amr_synth::{build_hierarchy_by, near_surface, write_spec, AnalyticField, Case, SynthParams};
 use rayon::prelude::*;
 
+use crate::support::half_refined::write_half_refined_sphere;
 use crate::support::rng::Rng;
 
 const CENTRE: [f64; 3] = [0.47, 0.52, 0.5];
@@ -22,25 +21,7 @@ const RADIUS: f64 = 0.31;
 fn check(seed: u64, levels: u32, ratio: u32, base: u32, random: usize) -> usize {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("sphere.amrk");
-    let params = SynthParams {
-        levels,
-        ratio,
-        base,
-        brick: 8,
-        origin: [0.0; 3],
-        size: 1.0,
-    };
-    // Refined near the surface, but only on one side of a plane per level (x >= 0.5 for level
-    // 1, also y >= 0.5 for level 2, also z >= 0.5 for level 3), so the closed surface crosses
-    // level boundaries, and two or three levels meet along lines and at points on it.
-    let field = Case::Sphere;
-    let iso = field.default_iso();
-    let spec = build_hierarchy_by(&params, vec!["sphere".into()], |b| {
-        let half = (0..b.level as usize).all(|a| b.lo[a] >= 0.5);
-        half && near_surface(&field, iso, b)
-    })
-    .unwrap();
-    write_spec(&path, spec, &field, WriterOptions::default(), &NoProgress).unwrap();
+    write_half_refined_sphere(&path, levels, ratio, base);
     let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
     assert_eq!(
         file.levels().len() as u32,

@@ -4,6 +4,7 @@
 //! most of them near level boundaries, fresh and through a scratch; every failure names its
 //! seed.
 
+use amr_format::AmrkFile;
 use amr_render::reconstruct::{Octant, Reconstruction, SampleScratch, Sampler};
 
 use crate::support::hierarchy::{build, standard_cases, Case, Rng};
@@ -56,14 +57,23 @@ fn points(s: &Sampler<'_, Vec<u8>>, seed: u64, n: usize) -> Vec<[f64; 3]> {
     out
 }
 
+/// Two samplers of field `field` of `file`: with the shortcuts (the default) and without.
+fn fast_and_general<D: AsRef<[u8]>>(
+    file: &AmrkFile<D>,
+    field: usize,
+) -> (Sampler<'_, D>, Sampler<'_, D>) {
+    let fast = Sampler::new(file, field, 64 << 20).unwrap();
+    let general = Sampler::new(file, field, 64 << 20)
+        .unwrap()
+        .with_shortcuts(false);
+    (fast, general)
+}
+
 #[test]
 fn shortcut_locates_equal_tree_walks() {
     for case in cases() {
         let (_, file) = build(&case);
-        let fast = Sampler::new(&file, 0, 64 << 20).unwrap();
-        let general = Sampler::new(&file, 0, 64 << 20)
-            .unwrap()
-            .with_shortcuts(false);
+        let (fast, general) = fast_and_general(&file, 0);
         let ext = fast.grid().extent();
         let mut rng = Rng(case.seed ^ 0x10c8);
         for _ in 0..4000 {
@@ -84,10 +94,7 @@ fn gathered_octant_corners_equal_the_general_rule() {
     for case in cases() {
         let (_, file) = build(&case);
         for field in 0..2 {
-            let fast = Sampler::new(&file, field, 64 << 20).unwrap();
-            let general = Sampler::new(&file, field, 64 << 20)
-                .unwrap()
-                .with_shortcuts(false);
+            let (fast, general) = fast_and_general(&file, field);
             for leaf in 0..file.num_leaves() as u32 {
                 let Some((_, level)) = fast.leaf_top(leaf) else {
                     continue;
@@ -140,10 +147,7 @@ fn shortcut_samples_equal_general_samples_near_level_boundaries() {
     for case in cases() {
         let (_, file) = build(&case);
         for field in 0..2 {
-            let fast = Sampler::new(&file, field, 64 << 20).unwrap();
-            let general = Sampler::new(&file, field, 64 << 20)
-                .unwrap()
-                .with_shortcuts(false);
+            let (fast, general) = fast_and_general(&file, field);
             let mut scratch = SampleScratch::default();
             for p in points(&fast, case.seed ^ 0x5a3b ^ field as u64, 1500) {
                 for m in Reconstruction::ALL {

@@ -93,7 +93,14 @@ impl<'a> TreeView<'a> {
         if !self.domain.contains_cell(p) {
             return None;
         }
-        let mut i = 0usize;
+        self.find_leaf_from(0, p)
+    }
+
+    /// The leaf containing finest-level cell `p`, walking down from node `node`, whose box must
+    /// contain `p` (a shortcut past the upper levels for callers that know such a node);
+    /// `None` for a node index out of range.
+    pub fn find_leaf_from(&self, node: usize, p: [i64; 3]) -> Option<u32> {
+        let mut i = node;
         loop {
             match self.node(i)? {
                 KdNode::Leaf { leaf } => return Some(leaf),

@@ -134,18 +134,7 @@ impl LeafGrid {
         if entry & NODE == 0 {
             return Some(entry);
         }
-        let mut i = (entry & !NODE) as usize;
-        loop {
-            match tree.node(i)? {
-                KdNode::Leaf { leaf } => return Some(leaf),
-                KdNode::Split {
-                    axis,
-                    pos,
-                    low,
-                    high,
-                } => i = if p[axis] < pos { low } else { high },
-            }
-        }
+        tree.find_leaf_from((entry & !NODE) as usize, p)
     }
 
     /// log2 of a grid cell's edge in finest cells.

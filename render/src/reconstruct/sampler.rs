@@ -802,22 +802,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         o: &Octant,
         value: f32,
     ) -> Result<Option<[f32; 8]>> {
-        let Octant {
-            level,
-            cell,
-            octant,
-        } = *o;
-        let centre = self.grid.centre(level, cell);
-        let s = self.grid.scale(level);
-        let up = axes(|a| octant >> a & 1 == 1);
-        let outer = axes(|a| {
-            if up[a] {
-                centre[a] + s[a]
-            } else {
-                centre[a] - s[a]
-            }
-        });
-        let (lo, hi, same) = self.nudges(outer);
+        let level = o.level;
+        let (up, lo, hi, same) = self.outer_corner(o);
         if let Some(block) = loc.block_of_level(lo, hi, level) {
             return Ok(Some(self.corners_from_block(&block, value, up)));
         }
@@ -835,6 +821,24 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             }
         }
         Ok(Some(self.corners_from_block(&block, value, up)))
+    }
+
+    /// The sides of octant `o` (`up[a]`: the upper side of axis `a`) and the finest cells around
+    /// its outer corner (the cell's corner on the octant's side), as [`Self::nudges`] gives them.
+    #[inline]
+    fn outer_corner(&self, o: &Octant) -> ([bool; 3], [i64; 3], [i64; 3], usize) {
+        let centre = self.grid.centre(o.level, o.cell);
+        let s = self.grid.scale(o.level);
+        let up = axes(|a| o.octant >> a & 1 == 1);
+        let outer = axes(|a| {
+            if up[a] {
+                centre[a] + s[a]
+            } else {
+                centre[a] - s[a]
+            }
+        });
+        let (lo, hi, same) = self.nudges(outer);
+        (up, lo, hi, same)
     }
 
     /// The corners of an octant on the `up` side of a leaf cell of value `value`, from the
@@ -881,17 +885,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         memo: &mut VertexMemo,
     ) -> Result<Option<[f32; 8]>> {
         let Octant { level, cell, .. } = *o;
-        let centre = self.grid.centre(level, cell);
         let s = self.grid.scale(level);
-        let up = axes(|a| o.octant >> a & 1 == 1);
-        let outer = axes(|a| {
-            if up[a] {
-                centre[a] + s[a]
-            } else {
-                centre[a] - s[a]
-            }
-        });
-        let (lo, hi, same) = self.nudges(outer);
+        let (up, lo, hi, same) = self.outer_corner(o);
         if let Some(block) = loc.block_of_level(lo, hi, level) {
             return Ok(Some(self.corners_from_block(&block, value, up)));
         }

@@ -6,6 +6,7 @@ pub mod block_grid;
 pub mod chombo;
 pub mod enzo;
 pub mod golden;
+pub mod half_refined;
 pub mod hierarchy;
 pub mod render;
 pub mod rng;

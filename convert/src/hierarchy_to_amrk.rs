@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use amr_format::{FormatError, IBox, LevelSpec};
 
 use crate::bricking::{BrickLayout, BrickSink, ConvertOptions, ConvertStats};
-use crate::progress::Progress;
+use amr_format::progress::Progress;
 
 /// Part of one field of one box, valid cells only, ready to be cut into bricks.
 #[derive(Debug)]
@@ -41,6 +41,10 @@ pub enum ConvertError {
         /// The dump's field names, comma-separated.
         available: String,
     },
+    /// The output would replace one of the dump's files or something that is not a regular
+    /// file ([`amr_format::output::check_output`]; the message names both).
+    #[error("{0}")]
+    RefusedOutput(FormatError),
     /// The `.amrk` writer refused the data or failed to write.
     #[error("writing {}: {source}", path.display())]
     Output {

@@ -11,8 +11,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::Mutex;
 
-use amr_convert::isolate::TEST_CRASH_ENV;
 use support::chombo::{writer, Desc};
+
+/// The child's crash hook (`src/bin/amr-convert/isolate.rs`).
+const TEST_CRASH_ENV: &str = "AMR_CONVERT_TEST_CRASH_CHILD";
 
 const BIN: &str = env!("CARGO_BIN_EXE_amr-convert");
 
@@ -59,6 +61,24 @@ fn names(dir: &Path) -> Vec<String> {
         .collect();
     v.sort();
     v
+}
+
+/// A bad command line (an out-of-range option, an unknown flag) is exit 1 like any other bad
+/// input, with clap's message; `--help` still succeeds.
+#[test]
+fn a_bad_command_line_is_exit_1() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture(dir.path());
+    let out = dir.path().join("o.amrk");
+    for bad in [&["--brick", "0"][..], &["--no-such-flag"][..]] {
+        let mut args: Vec<&Path> = vec![&input, Path::new("-o"), &out];
+        args.extend(bad.iter().map(Path::new));
+        let (code, err) = run(&args, &[]);
+        assert_eq!(code, Some(1), "{bad:?}: {err}");
+        assert!(err.contains("error:"), "{bad:?}: {err}");
+    }
+    assert_eq!(run(&[Path::new("--help")], &[]).0, Some(0));
+    assert!(!out.exists());
 }
 
 #[test]

@@ -444,7 +444,7 @@ fn painting_by_a_missing_field_names_the_file_and_the_fields() {
     let o = amr_render(&[f, "--color-range", "5:1", "-o", out.to_str().unwrap()]);
     assert_eq!(
         o.status.code(),
-        Some(2),
+        Some(1),
         "clap refuses an inverted range: {}",
         stderr(&o)
     );
@@ -452,7 +452,7 @@ fn painting_by_a_missing_field_names_the_file_and_the_fields() {
     let o = amr_render(&[f, "--colormap", "jet", "-o", out.to_str().unwrap()]);
     assert_eq!(
         o.status.code(),
-        Some(2),
+        Some(1),
         "clap refuses an unknown colormap: {}",
         stderr(&o)
     );

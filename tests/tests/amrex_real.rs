@@ -3,9 +3,9 @@
 //! plotfiles must fail with a clear message and leave nothing behind.
 
 use crate::support::amrex::check::{check_against, check_conversion};
+use crate::support::amrex::run_convert;
 use crate::support::amrex::source::read_plotfile;
 use crate::support::amrex::{assert_fails, convert, shared_amrex};
-use amr_convert::convert_cmd::run_convert;
 use amr_format::Compression;
 
 #[test]

@@ -53,7 +53,7 @@ fn amr_convert_detects_a_chombo_file_by_its_extension() {
         let input = dir.path().join(name);
         let output = dir.path().join(format!("{name}.amrk"));
         writer::write(&input, &d).unwrap();
-        let s = amr_convert::convert_cmd::run_convert(&input, &output, &[], 8, Compression::None)
+        let s = crate::support::amrex::run_convert(&input, &output, &[], 8, Compression::None)
             .unwrap_or_else(|e| panic!("{e:#}"));
         assert!(s.cells > 0 && s.bricks > 0);
         check(&output, &d, &["density", "phi", "chi"], 8);

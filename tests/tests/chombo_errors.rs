@@ -251,7 +251,7 @@ fn run_convert_reports_the_chombo_error_with_context() {
     writer::write(&input, &d).unwrap();
     let out = dir.path().join("out.amrk");
     let err =
-        amr_convert::convert_cmd::run_convert(&input, &out, &[], 8, Compression::None).unwrap_err();
+        crate::support::amrex::run_convert(&input, &out, &[], 8, Compression::None).unwrap_err();
     assert_has(
         &format!("{err:#}"),
         &[

@@ -192,3 +192,34 @@ fn misaligned_and_badly_nested_grids_are_refused() {
     std::fs::remove_file(tmp.path().join("e/DD0003.cpu0000")).unwrap();
     assert_fails(&p, &[], &["DD0003.cpu0000", "cannot open as an HDF5 file"]);
 }
+
+/// An output named like one of the dataset's grid data files (packed `.cpuNNNN` or one file
+/// per grid) is refused before anything is read, and the file is left as it was.
+#[test]
+fn an_output_that_is_a_grid_file_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    for packed in [true, false] {
+        let d = Desc {
+            packed,
+            ..Desc::three_levels()
+        };
+        let params = writer::write(&tmp.path().join(format!("p{packed}")), "DD0003", &d);
+        let dir = params.parent().unwrap();
+        let grid_files: Vec<_> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p != &params && p.extension().is_none_or(|e| e != "hierarchy"))
+            .collect();
+        assert!(!grid_files.is_empty(), "the writer wrote no grid file");
+        for grid in grid_files {
+            let before = std::fs::read(&grid).unwrap();
+            let err = convert(&params, &grid, &[], 8).expect_err("a grid file is an input");
+            let msg = err.to_string();
+            assert!(
+                msg.contains("refusing") && msg.contains(&*grid.to_string_lossy()),
+                "{msg}"
+            );
+            assert_eq!(std::fs::read(&grid).unwrap(), before, "{}", grid.display());
+        }
+    }
+}

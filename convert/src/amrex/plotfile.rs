@@ -10,7 +10,7 @@ use super::error::{AmrexError, Result};
 use super::header::{read_header, PlotHeader};
 use super::reader::stream;
 use crate::hierarchy_to_amrk::{AmrSource, Slab};
-use crate::progress::Progress;
+use amr_format::progress::Progress;
 
 /// One level: its `Cell_H` and the directory its data files are in.
 #[derive(Clone, Debug)]

@@ -17,7 +17,7 @@ use super::error::{AmrexError, Result};
 use super::fab::{why_not_f32, FabHeader, RealFormat, MAX_FAB_HEADER};
 use super::plotfile::{show, Plotfile};
 use crate::hierarchy_to_amrk::Slab;
-use crate::progress::Progress;
+use amr_format::progress::Progress;
 
 /// Read buffer per data file.
 const READ_BUFFER: usize = 4 << 20;

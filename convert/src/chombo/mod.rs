@@ -17,7 +17,7 @@ pub use plotfile::{Level, Plotfile, Precision};
 
 use std::path::Path;
 
-use crate::progress::Progress;
+use amr_format::progress::Progress;
 
 /// Converts the Chombo file `input` into the `.amrk` file `output`
 /// (see [`crate::hierarchy_to_amrk::convert`]).

@@ -18,7 +18,7 @@ use super::props::{check_members, Props, ROOT};
 use super::raw::{self, RawBox, RawIntVect, RawRealVect};
 use super::reader::stream;
 use crate::hierarchy_to_amrk::{AmrSource, Slab};
-use crate::progress::Progress;
+use amr_format::progress::Progress;
 
 /// Most components accepted (a sanity bound on a count read from the file).
 const MAX_COMPONENTS: i64 = 4096;

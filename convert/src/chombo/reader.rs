@@ -14,7 +14,7 @@ use super::error::{BadValue, ChomboError, Result};
 use super::plotfile::{Level, Plotfile, Precision};
 use crate::finite::ToFiniteF32;
 use crate::hierarchy_to_amrk::{slab_ranges, Slab};
-use crate::progress::Progress;
+use amr_format::progress::Progress;
 
 /// What [`stream`] read.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -14,7 +14,7 @@ use super::hierarchy::{read_hierarchy, GridEntry};
 use super::parameters::{read_parameters, Parameters};
 use super::reader::{field_dataset, stream, OpenFile};
 use crate::hierarchy_to_amrk::{AmrSource, Slab};
-use crate::progress::Progress;
+use amr_format::progress::Progress;
 
 /// How far (in cells of its level) a grid edge may sit from the level's cell grid: Enzo prints
 /// edges with `%.16g` (or 8 digits in old single-precision builds), well inside this.

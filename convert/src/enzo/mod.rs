@@ -16,9 +16,11 @@ use std::path::{Path, PathBuf};
 
 pub use crate::bricking::{ConvertOptions, ConvertStats};
 pub use dataset::Dataset;
+
+use crate::hierarchy_to_amrk::ConvertError;
 pub use error::{EnzoError, Result};
 
-use crate::progress::Progress;
+use amr_format::progress::Progress;
 
 /// The suffix of the hierarchy file beside a parameter file.
 pub const HIERARCHY_SUFFIX: &str = ".hierarchy";
@@ -52,7 +54,9 @@ fn strip_suffix(h: &Path) -> Option<PathBuf> {
 }
 
 /// Converts the Enzo dataset with parameter file `params` and hierarchy `hierarchy` into the
-/// `.amrk` file `output` (see [`crate::hierarchy_to_amrk::convert`]).
+/// `.amrk` file `output` (see [`crate::hierarchy_to_amrk::convert`]). An output that would
+/// replace one of the dataset's files (its parameter file, hierarchy or a grid data file) is
+/// refused before anything is read.
 pub fn convert(
     params: &Path,
     hierarchy: &Path,
@@ -60,5 +64,11 @@ pub fn convert(
     opts: &ConvertOptions,
     progress: &dyn Progress,
 ) -> Result<ConvertStats> {
-    crate::hierarchy_to_amrk::convert(&Dataset::open(params, hierarchy)?, output, opts, progress)
+    let dataset = Dataset::open(params, hierarchy)?;
+    let mut inputs: Vec<&Path> = vec![params, hierarchy];
+    inputs.extend(dataset.grids.iter().map(|g| g.file.as_path()));
+    inputs.sort();
+    inputs.dedup();
+    amr_format::output::check_output(output, &inputs).map_err(ConvertError::RefusedOutput)?;
+    crate::hierarchy_to_amrk::convert(&dataset, output, opts, progress)
 }

@@ -15,7 +15,7 @@ use super::dataset::{Dataset, Grid};
 use super::error::{EnzoError, Result};
 use crate::finite::ToFiniteF32;
 use crate::hierarchy_to_amrk::{slab_ranges, Slab};
-use crate::progress::Progress;
+use amr_format::progress::Progress;
 
 /// Streams the fields `comps` (indices into `ds.fields`) of every grid to `sink`, in slabs of
 /// at most `chunk` rows and layers. Returns the bytes of cell data read.

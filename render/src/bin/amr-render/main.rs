@@ -66,12 +66,22 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 fn parse() -> anyhow::Result<Cli> {
     let argv = scene_file::expand(std::env::args_os().collect())?;
     let cmd = Cli::command();
-    let matches = cmd.clone().get_matches_from(argv);
-    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    let matches = cmd
+        .clone()
+        .try_get_matches_from(argv)
+        .unwrap_or_else(exit_on);
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(exit_on);
     if let Some(path) = cli.render.as_ref().and_then(|r| r.write_scene.as_ref()) {
         scene_file::write(path, &cmd, &matches)?;
     }
     Ok(cli)
+}
+
+/// Prints clap's message and exits: 0 after `--help` or `--version`, 1 for a bad command line
+/// (like every other bad input; clap's own code would be 2).
+fn exit_on<T>(e: clap::Error) -> T {
+    let _ = e.print();
+    std::process::exit(if e.use_stderr() { 1 } else { 0 })
 }
 
 fn main() -> ExitCode {

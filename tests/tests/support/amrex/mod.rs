@@ -7,7 +7,9 @@ pub mod writer;
 
 use std::path::{Path, PathBuf};
 
-use amr_convert::convert_cmd::{run_convert, ConvertSummary};
+use amr_convert::bricking::ConvertOptions;
+use amr_convert::dump::{convert_dump, ConvertSummary, DumpError};
+use amr_format::progress::NoProgress;
 use amr_format::Compression;
 
 /// The shared real data folder `REL` (`$AMR_TEST_DATA/REL`, else `../shared/data/REL` from the
@@ -41,9 +43,25 @@ pub fn convert(
     output: &Path,
     fields: &[&str],
     brick: u32,
-) -> anyhow::Result<ConvertSummary> {
+) -> Result<ConvertSummary, DumpError> {
     let fields: Vec<String> = fields.iter().map(|s| s.to_string()).collect();
     run_convert(input, output, &fields, brick, Compression::None)
+}
+
+/// Converts `input` (any format) as `amr-convert` does, without a progress bar.
+pub fn run_convert(
+    input: &Path,
+    output: &Path,
+    fields: &[String],
+    brick: u32,
+    compression: Compression,
+) -> Result<ConvertSummary, DumpError> {
+    let opts = ConvertOptions {
+        fields: fields.to_vec(),
+        brick,
+        compression,
+    };
+    convert_dump(input, output, &opts, &NoProgress)
 }
 
 /// Asserts that converting `input` fails with a message containing every one of `needles`,

@@ -1,15 +1,20 @@
 //! `amr-convert`: turns simulation dumps, or synthetic cases, into `.amrk` files.
 
+mod isolate;
+mod progress_bar;
 mod series;
+mod synth;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use amr_convert::convert_cmd::{detect, run_convert, InputFormat};
-use amr_convert::isolate;
-use amr_convert::synth_cmd::{run_synth, SynthArgs};
+use amr_convert::bricking::ConvertOptions;
+use amr_convert::dump::{convert_dump, detect, InputFormat};
 use amr_format::Compression;
 use clap::{Parser, Subcommand};
+
+use progress_bar::Bar;
+use synth::{run_synth, SynthArgs};
 
 /// Streams AMR simulation dumps (AMReX plotfiles, Chombo HDF5 plotfiles and checkpoints, Enzo datasets) into one memory-mappable .amrk file.
 #[derive(Parser, Debug)]
@@ -70,13 +75,26 @@ fn convert_one(cli: &Cli, input: &Path, output: &Path) -> anyhow::Result<()> {
     } else {
         Compression::None
     };
-    let summary = run_convert(input, output, &cli.fields, cli.brick, compression)?;
+    let opts = ConvertOptions {
+        fields: cli.fields.clone(),
+        brick: cli.brick,
+        compression,
+    };
+    let summary = convert_dump(input, output, &opts, &Bar::bytes("converting"))?;
     eprintln!("{}: {summary}", output.display());
     Ok(())
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            // Help and version go to stdout and succeed; a bad command line is an error (exit
+            // 1, like every other bad input, rather than clap's 2).
+            let _ = e.print();
+            return ExitCode::from(if e.use_stderr() { 1 } else { 0 });
+        }
+    };
     let result = match &cli.command {
         Some(Command::Synth(args)) => run_synth(args),
         None => {

@@ -1,10 +1,10 @@
-//! Progress reporting: the [`Progress`] trait (from `amr-format`) and a terminal bar for it.
+//! A terminal progress bar for the library's [`Progress`] reports.
 
 use std::io::IsTerminal;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-pub use amr_format::progress::{NoProgress, Progress};
+use amr_format::progress::Progress;
 
 /// A terminal progress bar on stderr counting bytes, with rate and ETA; hidden when stderr is
 /// not a terminal.

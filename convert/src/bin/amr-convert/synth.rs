@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use amr_format::{Compression, WriterOptions};
 use anyhow::Context;
 
-use crate::progress::Bar;
+use crate::progress_bar::Bar;
 use amr_synth::{fit_cells, write_synth, Case, SynthParams};
 
 /// zstd level used by `--compress`.

@@ -1,0 +1,246 @@
+//! One dump in, one `.amrk` file out: detects the input format and runs its converter.
+
+use std::error::Error;
+use std::fs::File;
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use amr_format::hierarchy::MAX_BRICK_EXTENT;
+use amr_format::progress::Progress;
+use amr_format::FormatError;
+
+use crate::amrex::{self, AmrexError};
+use crate::bricking::ConvertOptions;
+use crate::chombo::ChomboError;
+use crate::enzo::EnzoError;
+
+/// Why a dump was not converted. Each message names the file and the problem, with the
+/// reader's own explanation (and its causes) written out in full.
+#[derive(Debug, thiserror::Error)]
+pub enum DumpError {
+    /// The input does not exist.
+    #[error("input {} does not exist", path.display())]
+    Missing {
+        /// The input as given.
+        path: PathBuf,
+    },
+    /// The input is none of the formats this crate reads.
+    #[error("unrecognised input {}: {reason}", path.display())]
+    Unrecognised {
+        /// The input as given.
+        path: PathBuf,
+        /// What it is, and what was expected.
+        reason: String,
+    },
+    /// A file needed to recognise the input could not be read.
+    #[error("cannot read {}: {error}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The system's error.
+        error: std::io::Error,
+    },
+    /// The brick size is out of range.
+    #[error("--brick {0}: the brick size must be 1 to {MAX_BRICK_EXTENT}")]
+    BrickSize(u32),
+    /// The output would replace an input or something that is not a regular file.
+    #[error("{}", chain(.0))]
+    Output(FormatError),
+    /// The AMReX reader or the writer failed.
+    #[error("converting AMReX plotfile {}: {}", path.display(), chain(error))]
+    Amrex {
+        /// The plotfile directory.
+        path: PathBuf,
+        /// The reader's error.
+        error: AmrexError,
+    },
+    /// The Chombo reader or the writer failed (the error names the file).
+    #[error("converting Chombo file: {}", chain(.0))]
+    Chombo(ChomboError),
+    /// The Enzo reader or the writer failed.
+    #[error("converting Enzo dataset {}: {}", params.display(), chain(error))]
+    Enzo {
+        /// The dataset's parameter file.
+        params: PathBuf,
+        /// The reader's error.
+        error: EnzoError,
+    },
+}
+
+/// `error` and its causes, joined by ": ".
+fn chain(error: &dyn Error) -> String {
+    let mut text = error.to_string();
+    let mut cause = error.source();
+    while let Some(c) = cause {
+        text.push_str(": ");
+        text.push_str(&c.to_string());
+        cause = c.source();
+    }
+    text
+}
+
+/// What a conversion read and wrote.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ConvertSummary {
+    /// Bytes read from the input's data files.
+    pub bytes_read: u64,
+    /// Cells written per field, over all levels.
+    pub cells: u64,
+    /// Bricks written.
+    pub bricks: u64,
+    /// Size of the output file.
+    pub output_bytes: u64,
+    /// Wall-clock time of the conversion.
+    pub seconds: f64,
+}
+
+impl std::fmt::Display for ConvertSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mib = |b: u64| b as f64 / (1024.0 * 1024.0);
+        let rate = if self.seconds > 0.0 {
+            mib(self.bytes_read) / self.seconds
+        } else {
+            0.0
+        };
+        write!(
+            f,
+            "read {:.1} MiB, wrote {} cells in {} bricks, {:.1} MiB, in {:.2} s ({:.0} MiB/s)",
+            mib(self.bytes_read),
+            self.cells,
+            self.bricks,
+            mib(self.output_bytes),
+            self.seconds,
+            rate
+        )
+    }
+}
+
+/// An input format `amr-convert` recognises.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum InputFormat {
+    /// An AMReX plotfile directory.
+    Amrex,
+    /// A Chombo HDF5 file (plotfile or checkpoint).
+    ChomboHdf5,
+    /// An Enzo dataset: its parameter file and hierarchy file.
+    Enzo {
+        /// The parameter file.
+        params: PathBuf,
+        /// The `.hierarchy` file.
+        hierarchy: PathBuf,
+    },
+}
+
+/// Works out what `input` is, or says why it is not recognised.
+pub fn detect(input: &Path) -> Result<InputFormat, DumpError> {
+    if let Some((params, hierarchy)) = crate::enzo::locate(input) {
+        return Ok(InputFormat::Enzo { params, hierarchy });
+    }
+    if input.is_dir() {
+        let header = input.join("Header");
+        if header.is_file() {
+            let first = first_line(&header)?;
+            if amrex::looks_like_version(&first) {
+                return Ok(InputFormat::Amrex);
+            }
+            return Err(unrecognised(
+                input,
+                format!(
+                    "its Header starts with '{}', not an AMReX plotfile version string",
+                    first.trim()
+                ),
+            ));
+        }
+        return Err(unrecognised(
+            input,
+            "a directory without a Header file (not an AMReX plotfile) and without exactly one \
+             .hierarchy file (not an Enzo dataset)"
+                .into(),
+        ));
+    }
+    let ext = input
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if matches!(ext.as_deref(), Some("h5" | "hdf5")) {
+        return Ok(InputFormat::ChomboHdf5);
+    }
+    if !input.exists() {
+        return Err(DumpError::Missing {
+            path: input.to_path_buf(),
+        });
+    }
+    Err(unrecognised(
+        input,
+        "expected an AMReX plotfile directory, a Chombo .h5/.hdf5 file, or an Enzo parameter \
+         file with its .hierarchy beside it"
+            .into(),
+    ))
+}
+
+fn unrecognised(input: &Path, reason: String) -> DumpError {
+    DumpError::Unrecognised {
+        path: input.to_path_buf(),
+        reason,
+    }
+}
+
+/// Converts `input` (format detected) to the `.amrk` file `output` as `opts` asks, reporting
+/// the bytes read to `progress`. The output appears only when the conversion succeeds, and is
+/// refused when it would replace an input.
+pub fn convert_dump(
+    input: &Path,
+    output: &Path,
+    opts: &ConvertOptions,
+    progress: &dyn Progress,
+) -> Result<ConvertSummary, DumpError> {
+    if opts.brick == 0 || i64::from(opts.brick) > MAX_BRICK_EXTENT {
+        return Err(DumpError::BrickSize(opts.brick));
+    }
+    let format = detect(input)?;
+    let mut inputs = vec![input];
+    if let InputFormat::Enzo { params, hierarchy } = &format {
+        inputs.extend([params.as_path(), hierarchy.as_path()]);
+    }
+    amr_format::output::check_output(output, &inputs).map_err(DumpError::Output)?;
+    let start = Instant::now();
+    let stats = match format {
+        InputFormat::Amrex => amrex::Plotfile::open(input)
+            .and_then(|pf| crate::hierarchy_to_amrk::convert(&pf, output, opts, progress))
+            .map_err(|error| DumpError::Amrex {
+                path: input.to_path_buf(),
+                error,
+            })?,
+        InputFormat::ChomboHdf5 => {
+            crate::chombo::convert(input, output, opts, progress).map_err(DumpError::Chombo)?
+        }
+        InputFormat::Enzo { params, hierarchy } => {
+            crate::enzo::convert(&params, &hierarchy, output, opts, progress)
+                .map_err(|error| DumpError::Enzo { params, error })?
+        }
+    };
+    let output_bytes = std::fs::metadata(output).map(|m| m.len()).unwrap_or(0);
+    Ok(ConvertSummary {
+        bytes_read: stats.bytes_read,
+        cells: stats.cells,
+        bricks: stats.bricks,
+        output_bytes,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// The first line of `path`, at most 256 bytes of it.
+fn first_line(path: &Path) -> Result<String, DumpError> {
+    let read = |error| DumpError::Read {
+        path: path.to_path_buf(),
+        error,
+    };
+    let file = File::open(path).map_err(read)?;
+    let mut bytes = Vec::new();
+    BufReader::new(file)
+        .take(256)
+        .read_until(b'\n', &mut bytes)
+        .map_err(read)?;
+    Ok(String::from_utf8_lossy(&bytes).into_owned())
+}

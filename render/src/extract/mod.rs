@@ -11,6 +11,7 @@
 //! - [`blocks`]: per-brick ranges of blocks of cells (stored in the file, or built), for bounds
 //!   that do not rescan cells.
 //! - [`leaf_tree`]: a box tree over the leaves, for region queries of ranges and levels.
+//! - [`halo`]: the leaves around one leaf, gathered once for the bounds of its parts.
 //! - [`tight`]: per-leaf ranges from cell values, computed once, skipping leaves the file's
 //!   looser stored ranges let through.
 //! - [`region`]: limiting an extraction to a clip box or a view frustum.
@@ -27,6 +28,7 @@ pub mod band;
 pub mod blocks;
 pub mod cull;
 pub mod current;
+pub mod halo;
 pub mod leaf;
 pub mod leaf_tree;
 pub mod local;

@@ -8,7 +8,8 @@
 //! whose lowest cell lies in the part, and the bound is the union of the stored blocks the part
 //! grown by one cell upwards overlaps; otherwise it is the tight-range bound of the
 //! part's box ([`super::tight::box_range`]) over the stored blocks alone
-//! ([`BlockRanges::loose`]).
+//! ([`BlockRanges::loose`]), its region queries answered by the leaves around the leaf, gathered
+//! once ([`Halo`]).
 //! Parts that are kept and adjacent along x are extracted together, so that the cells shared
 //! by their neighbourhoods are filled once.
 //!
@@ -22,9 +23,10 @@ use amr_format::kdtree::widen_range;
 use amr_format::IBox;
 
 use super::blocks::BlockRanges;
+use super::halo::Halo;
 use super::leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
 use super::leaf_tree::LeafTree;
-use super::tight::{box_range, box_range_flat, pack, unpack};
+use super::tight::{box_range_flat, box_range_in, pack, unpack, Regions};
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::Sampler;
 
@@ -90,13 +92,12 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
     let ranges = match slot.get() {
         Some(r) => r,
         None => {
+            // The leaves around the leaf, once: the parts' bounds ask them, not the tree.
+            let loose = bounds.0.loose();
+            let around = Halo::new(sampler, (&loose, bounds.1), &frame.finest, frame.level);
             // With no coarser leaf around the leaf, none is around its parts either.
             let grown = frame.finest.grow(s);
-            let flat = bounds
-                .1
-                .coarsest_touching(sampler, &grown)
-                .unwrap_or(frame.level)
-                >= frame.level;
+            let flat = around.coarsest_touching(&grown).unwrap_or(frame.level) >= frame.level;
             let mut r = Vec::new();
             for pz in first[2]..=last[2] {
                 for py in first[1]..=last[1] {
@@ -105,7 +106,7 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
                         let range = if finest.is_empty() {
                             (f32::INFINITY, f32::NEG_INFINITY)
                         } else {
-                            part_range(sampler, frame, (bounds, flat), &finest)?
+                            part_range(sampler, frame, (bounds.0, &around), flat, &finest)?
                         };
                         r.push(pack(range));
                     }
@@ -156,11 +157,13 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
 
 /// A range holding every corner of every voxel of `frame` whose lower corner lies in
 /// finest-level box `finest` (see the module documentation); `(+inf, -inf)` when there is
-/// none. `flat`: no leaf coarser than the leaf touches the leaf grown by one cell.
+/// none. `around`: the leaves around the leaf; `flat`: no leaf coarser than the leaf touches the
+/// leaf grown by one cell.
 fn part_range<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     frame: &LeafFrame,
-    ((blocks, leaves), flat): ((&BlockRanges, &LeafTree), bool),
+    (blocks, around): (&BlockRanges, &Halo<'_, '_, D>),
+    flat: bool,
     finest: &IBox,
 ) -> Result<(f32, f32)> {
     let empty = (f32::INFINITY, f32::NEG_INFINITY);
@@ -176,13 +179,10 @@ fn part_range<D: AsRef<[u8]>>(
             return Ok(empty);
         }
         widen_range(lo, hi)
+    } else if flat {
+        box_range_flat(s, around, finest)?
     } else {
-        let bounds = (&blocks.loose(), leaves);
-        if flat {
-            box_range_flat(sampler, bounds, finest, frame.level)?
-        } else {
-            box_range(sampler, bounds, finest, frame.level)?
-        }
+        box_range_in(sampler, around, finest, frame.level)?
     };
     Ok(if lo <= hi { (lo, hi) } else { empty })
 }

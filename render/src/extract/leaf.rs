@@ -9,6 +9,7 @@
 use crate::error::Result;
 use amr_format::IBox;
 
+use super::band::AroundMemo;
 use super::cull::{around_offsets, cell_may_hold, Shared};
 use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};
 use super::refs::{make_ref, LocalVoxel};
@@ -31,6 +32,8 @@ pub struct Scratch<'s, 'f, D> {
     /// The block ranges, the leaf tree (for region queries) and the bounds of coarser
     /// neighbours.
     pub shared: Shared<'s>,
+    /// The bounds around coarse cells this thread asked for last.
+    pub near: AroundMemo,
 }
 
 impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
@@ -43,6 +46,7 @@ impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
             loc: LocalLocator::new(sampler),
             rows: Vec::new(),
             shared,
+            near: AroundMemo::default(),
         }
     }
 }
@@ -133,6 +137,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         loc,
         rows,
         shared,
+        near,
     } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();
@@ -199,7 +204,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                     if !hood.near_boundary[i] {
                         continue;
                     }
-                    if !cell_may_hold((sampler, *shared), hood, (loc, memo), (i, &around), iso)? {
+                    if !cell_may_hold((sampler, *shared), hood, (loc, memo, near), (i, &around), iso)? {
                         counts.culled += 1;
                         continue;
                     }

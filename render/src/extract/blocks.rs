@@ -83,7 +83,8 @@ impl BlockRanges {
                 return Ok(bound);
             }
         }
-        let cells = sampler.grid().level_box(level, part);
+        let grid = sampler.grid();
+        let cells = level_cells(grid.scale(level), grid.offset(), part);
         self.range_of_cells(sampler, brick, &cells)
     }
 
@@ -99,20 +100,17 @@ impl BlockRanges {
     ) -> Option<(f32, f32)> {
         let block = self.stored?;
         let bc = sampler.brick_cells(brick);
-        let cells = sampler.grid().level_box(level, part).intersect(&bc);
+        let grid = sampler.grid();
+        let cells = level_cells(grid.scale(level), grid.offset(), part).intersect(&bc);
         let (mut x, mut y) = (f32::INFINITY, f32::NEG_INFINITY);
         if cells.is_empty() {
             return Some((x, y));
         }
-        let lo = [0, 1, 2].map(|a| (cells.lo[a] - bc.lo[a]) / block);
-        let hi = [0, 1, 2].map(|a| (cells.hi[a] - bc.lo[a] + block - 1) / block);
-        fold_stored(
-            sampler,
-            brick,
-            &blocks_per_axis(&bc, block),
-            (lo, hi),
-            (&mut x, &mut y),
-        );
+        let unit = [block; 3];
+        let lo = floor_div([0, 1, 2].map(|a| cells.lo[a] - bc.lo[a]), unit);
+        let hi = floor_div([0, 1, 2].map(|a| cells.hi[a] - bc.lo[a] + block - 1), unit);
+        let n = floor_div(bc.extent().map(|e| e.max(0) + block - 1), unit);
+        fold_stored(sampler, brick, &n, (lo, hi), (&mut x, &mut y));
         Some((x, y))
     }
 
@@ -205,12 +203,46 @@ fn fold_stored<D: AsRef<[u8]>>(
         .file()
         .block_ranges(sampler.field(), brick as usize)
         .unwrap_or_default();
+    let (mut a, mut b) = (*lo, *hi);
     fold_blocks(n, blocks, |row| {
         for r in table.get(row).unwrap_or_default() {
-            *lo = lo.min(r.min.get());
-            *hi = hi.max(r.max.get());
+            // Comparisons, not f32::min: stored ranges hold no NaN.
+            let (x, y) = (r.min.get(), r.max.get());
+            if x < a {
+                a = x;
+            }
+            if y > b {
+                b = y;
+            }
         }
     });
+    (*lo, *hi) = (a, b);
+}
+
+/// `v` divided by `d` per axis, rounded toward minus infinity (`d > 0`); a shift when `d` is a
+/// power of two, as the scales of refinement ratios 2 and 4 and the block sizes are.
+#[inline]
+fn floor_div(v: [i64; 3], d: [i64; 3]) -> [i64; 3] {
+    [0, 1, 2].map(|a| {
+        if d[a].count_ones() == 1 {
+            v[a] >> d[a].trailing_zeros()
+        } else {
+            v[a].div_euclid(d[a])
+        }
+    })
+}
+
+/// The cells of a level whose cells are `scale` finest cells wide (the grid's index offset
+/// `offset`) that overlap finest-level box `finest`: `Grid::level_box`, with shifts where it can.
+#[inline]
+pub fn level_cells(scale: [i64; 3], offset: [i64; 3], finest: &IBox) -> IBox {
+    IBox::new(
+        floor_div([0, 1, 2].map(|a| finest.lo[a] + offset[a]), scale),
+        floor_div(
+            [0, 1, 2].map(|a| finest.hi[a] + offset[a] + scale[a] - 1),
+            scale,
+        ),
+    )
 }
 
 /// Calls `f` with the table index range of each x-row of the blocks `lo..hi` (block indices) of

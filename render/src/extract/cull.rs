@@ -104,7 +104,9 @@ fn settle_coarse<D: AsRef<[u8]>>(
         return Ok(());
     }
     let q_box = grid.finest_box(q.level, q.cell);
-    if let Some(range) = coarse.range_around_memo((sampler, blocks, leaves), near, q.level, q.cell)? {
+    if let Some(range) =
+        coarse.range_around_memo((sampler, blocks, leaves), near, q.level, q.cell)?
+    {
         let bound = widen(range);
         let inside = grid.level_box(level, &q_box).intersect(&hood.cells);
         for z in inside.lo[2]..inside.hi[2] {

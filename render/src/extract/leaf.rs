@@ -204,7 +204,13 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                     if !hood.near_boundary[i] {
                         continue;
                     }
-                    if !cell_may_hold((sampler, *shared), hood, (loc, memo, near), (i, &around), iso)? {
+                    if !cell_may_hold(
+                        (sampler, *shared),
+                        hood,
+                        (loc, memo, near),
+                        (i, &around),
+                        iso,
+                    )? {
                         counts.culled += 1;
                         continue;
                     }

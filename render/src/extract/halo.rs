@@ -32,15 +32,20 @@ pub struct Halo<'a, 'f, D> {
     leaves: Vec<Around>,
 }
 
+/// Leaves around, at most: past that (small leaves within a coarse level's reach), the tree's
+/// queries, which count whole nodes inside the reach at once, cost less than the list's.
+pub const MAX_AROUND: usize = 64;
+
 impl<'a, 'f, D: AsRef<[u8]>> Halo<'a, 'f, D> {
     /// The leaves around finest-level box `own` (a leaf of level `level`) within the reach of
-    /// any bound of a box inside it; ranges read through `blocks`.
+    /// any bound of a box inside it, ranges read through `blocks`; `None` when there are more
+    /// than [`MAX_AROUND`].
     pub fn new(
         sampler: &'a Sampler<'f, D>,
         (blocks, tree): (&'a BlockRanges, &'a LeafTree),
         own: &IBox,
         level: u32,
-    ) -> Self {
+    ) -> Option<Self> {
         let region = reach_region(sampler, tree, own, level);
         let mut leaves = Vec::new();
         tree.for_each_leaf_touching(&region, |l| {
@@ -50,13 +55,13 @@ impl<'a, 'f, D: AsRef<[u8]>> Halo<'a, 'f, D> {
                 top: sampler.leaf_top(l),
             })
         });
-        Self {
+        (leaves.len() <= MAX_AROUND).then_some(Self {
             sampler,
             blocks,
             tree,
             region,
             leaves,
-        }
+        })
     }
 }
 

@@ -54,12 +54,22 @@ impl TightRanges {
         bounds: (&BlockRanges, &LeafTree),
         leaf: u32,
     ) -> Result<(f32, f32)> {
+        self.get_with(leaf, || compute(sampler, bounds, leaf))
+    }
+
+    /// The tight range of `leaf`, computed on first need by `compute` (which must give what
+    /// [`Self::get`] would, or a range inside it).
+    pub fn get_with(
+        &self,
+        leaf: u32,
+        compute: impl FnOnce() -> Result<(f32, f32)>,
+    ) -> Result<(f32, f32)> {
         let slot = &self.bits[leaf as usize];
         let known = slot.load(Ordering::Relaxed);
         if known != UNKNOWN {
             return Ok(unpack(known));
         }
-        let range = compute(sampler, bounds, leaf)?;
+        let range = compute()?;
         slot.store(pack(range), Ordering::Relaxed);
         Ok(range)
     }
@@ -80,7 +90,7 @@ pub(super) fn unpack(bits: u64) -> (f32, f32) {
 
 /// A range holding the leaf cells within reach of `leaf`, widened for
 /// round-off.
-fn compute<D: AsRef<[u8]>>(
+pub fn compute<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     bounds: (&BlockRanges, &LeafTree),
     leaf: u32,
@@ -187,7 +197,7 @@ pub fn box_range<D: AsRef<[u8]>>(
 /// [`box_range`] with its region queries answered by `regions`.
 pub fn box_range_in<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
-    regions: &impl Regions,
+    regions: &(impl Regions + ?Sized),
     own: &IBox,
     level: u32,
 ) -> Result<(f32, f32)> {
@@ -203,7 +213,7 @@ pub fn box_range_in<D: AsRef<[u8]>>(
 /// when it lies in a leaf of level `level` for which that holds), without asking for levels.
 pub fn box_range_flat(
     grid_scale: [i64; 3],
-    regions: &impl Regions,
+    regions: &(impl Regions + ?Sized),
     own: &IBox,
 ) -> Result<(f32, f32)> {
     let hood = own.grow(grid_scale);

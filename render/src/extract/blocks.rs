@@ -101,15 +101,20 @@ impl BlockRanges {
         let block = self.stored?;
         let bc = sampler.brick_cells(brick);
         let grid = sampler.grid();
-        let cells = level_cells(grid.scale(level), grid.offset(), part).intersect(&bc);
+        let (s, o) = (grid.scale(level), grid.offset());
         let (mut x, mut y) = (f32::INFINITY, f32::NEG_INFINITY);
-        if cells.is_empty() {
-            return Some((x, y));
+        // The blocks overlapping the brick's cells that overlap `part`, of `n` per axis.
+        let (mut lo, mut hi, mut n) = ([0i64; 3], [0i64; 3], [0i64; 3]);
+        for a in 0..3 {
+            let first = floor_div1(part.lo[a] + o[a], s[a]).max(bc.lo[a]);
+            let end = floor_div1(part.hi[a] + o[a] + s[a] - 1, s[a]).min(bc.hi[a]);
+            if first >= end {
+                return Some((x, y));
+            }
+            lo[a] = floor_div1(first - bc.lo[a], block);
+            hi[a] = floor_div1(end - bc.lo[a] + block - 1, block);
+            n[a] = floor_div1(bc.hi[a] - bc.lo[a] + block - 1, block);
         }
-        let unit = [block; 3];
-        let lo = floor_div([0, 1, 2].map(|a| cells.lo[a] - bc.lo[a]), unit);
-        let hi = floor_div([0, 1, 2].map(|a| cells.hi[a] - bc.lo[a] + block - 1), unit);
-        let n = floor_div(bc.extent().map(|e| e.max(0) + block - 1), unit);
         fold_stored(sampler, brick, &n, (lo, hi), (&mut x, &mut y));
         Some((x, y))
     }
@@ -223,13 +228,21 @@ fn fold_stored<D: AsRef<[u8]>>(
 /// power of two, as the scales of refinement ratios 2 and 4 and the block sizes are.
 #[inline]
 fn floor_div(v: [i64; 3], d: [i64; 3]) -> [i64; 3] {
-    [0, 1, 2].map(|a| {
-        if d[a].count_ones() == 1 {
-            v[a] >> d[a].trailing_zeros()
-        } else {
-            v[a].div_euclid(d[a])
-        }
-    })
+    [
+        floor_div1(v[0], d[0]),
+        floor_div1(v[1], d[1]),
+        floor_div1(v[2], d[2]),
+    ]
+}
+
+/// [`floor_div`] on one axis.
+#[inline(always)]
+fn floor_div1(v: i64, d: i64) -> i64 {
+    if d.count_ones() == 1 {
+        v >> d.trailing_zeros()
+    } else {
+        v.div_euclid(d)
+    }
 }
 
 /// The cells of a level whose cells are `scale` finest cells wide (the grid's index offset

@@ -124,6 +124,24 @@ impl Default for CoarseBounds {
     }
 }
 
+/// Slots of an [`AroundMemo`] (a power of two).
+const MEMO_SLOTS: usize = 4096;
+
+/// One thread's memo of [`CoarseBounds::range_around`] answers, which do not depend on the
+/// isovalue: a coarse cell is asked about again by each small leaf next to it. Direct-mapped:
+/// a slot keeps the last cell hashed to it.
+pub struct AroundMemo {
+    slots: Vec<(u32, [i64; 3], u64)>,
+}
+
+impl Default for AroundMemo {
+    fn default() -> Self {
+        Self {
+            slots: vec![(u32::MAX, [0; 3], 0); MEMO_SLOTS],
+        }
+    }
+}
+
 impl CoarseBounds {
     /// A range holding the leaf cells within one cell of level-`level` cell `c` (absolute
     /// index); `None` when a leaf cell coarser than `level` lies there: the union of the 27
@@ -135,6 +153,26 @@ impl CoarseBounds {
         c: [i64; 3],
     ) -> Result<Option<(f32, f32)>> {
         let bits = self.compute_around(sources, level, c)?;
+        Ok((bits != NEXT_TO_COARSER).then(|| unpack(bits)))
+    }
+
+    /// [`Self::range_around`], answered from `memo` when it holds the cell.
+    pub fn range_around_memo<D: AsRef<[u8]>>(
+        &self,
+        sources: Sources<'_, '_, D>,
+        memo: &mut AroundMemo,
+        level: u32,
+        c: [i64; 3],
+    ) -> Result<Option<(f32, f32)>> {
+        let key = Key(level, c);
+        let slot = &mut memo.slots[(hash_of(&key) >> 20) as usize % MEMO_SLOTS];
+        let bits = if slot.0 == level && slot.1 == c {
+            slot.2
+        } else {
+            let bits = self.compute_around(sources, level, c)?;
+            *slot = (level, c, bits);
+            bits
+        };
         Ok((bits != NEXT_TO_COARSER).then(|| unpack(bits)))
     }
 
@@ -297,7 +335,12 @@ fn gather_tile<D: AsRef<[u8]>>(
 
 /// The shard of key `k`.
 fn shard_of(k: &Key) -> usize {
+    (hash_of(k) >> 40) as usize % SHARDS
+}
+
+/// The hash of key `k`.
+fn hash_of(k: &Key) -> u64 {
     let mut h = FxHasher::default();
     k.hash(&mut h);
-    (h.finish() >> 40) as usize % SHARDS
+    h.finish()
 }

@@ -83,7 +83,8 @@ impl BlockRanges {
                 return Ok(bound);
             }
         }
-        let cells = sampler.grid().level_box(level, part);
+        let grid = sampler.grid();
+        let cells = level_cells(grid.scale(level), grid.offset(), part);
         self.range_of_cells(sampler, brick, &cells)
     }
 
@@ -99,20 +100,22 @@ impl BlockRanges {
     ) -> Option<(f32, f32)> {
         let block = self.stored?;
         let bc = sampler.brick_cells(brick);
-        let cells = sampler.grid().level_box(level, part).intersect(&bc);
+        let grid = sampler.grid();
+        let (s, o) = (grid.scale(level), grid.offset());
         let (mut x, mut y) = (f32::INFINITY, f32::NEG_INFINITY);
-        if cells.is_empty() {
-            return Some((x, y));
+        // The blocks overlapping the brick's cells that overlap `part`, of `n` per axis.
+        let (mut lo, mut hi, mut n) = ([0i64; 3], [0i64; 3], [0i64; 3]);
+        for a in 0..3 {
+            let first = floor_div1(part.lo[a] + o[a], s[a]).max(bc.lo[a]);
+            let end = floor_div1(part.hi[a] + o[a] + s[a] - 1, s[a]).min(bc.hi[a]);
+            if first >= end {
+                return Some((x, y));
+            }
+            lo[a] = floor_div1(first - bc.lo[a], block);
+            hi[a] = floor_div1(end - bc.lo[a] + block - 1, block);
+            n[a] = floor_div1(bc.hi[a] - bc.lo[a] + block - 1, block);
         }
-        let lo = [0, 1, 2].map(|a| (cells.lo[a] - bc.lo[a]) / block);
-        let hi = [0, 1, 2].map(|a| (cells.hi[a] - bc.lo[a] + block - 1) / block);
-        fold_stored(
-            sampler,
-            brick,
-            &blocks_per_axis(&bc, block),
-            (lo, hi),
-            (&mut x, &mut y),
-        );
+        fold_stored(sampler, brick, &n, (lo, hi), (&mut x, &mut y));
         Some((x, y))
     }
 
@@ -205,12 +208,54 @@ fn fold_stored<D: AsRef<[u8]>>(
         .file()
         .block_ranges(sampler.field(), brick as usize)
         .unwrap_or_default();
+    let (mut a, mut b) = (*lo, *hi);
     fold_blocks(n, blocks, |row| {
         for r in table.get(row).unwrap_or_default() {
-            *lo = lo.min(r.min.get());
-            *hi = hi.max(r.max.get());
+            // Comparisons, not f32::min: stored ranges hold no NaN.
+            let (x, y) = (r.min.get(), r.max.get());
+            if x < a {
+                a = x;
+            }
+            if y > b {
+                b = y;
+            }
         }
     });
+    (*lo, *hi) = (a, b);
+}
+
+/// `v` divided by `d` per axis, rounded toward minus infinity (`d > 0`); a shift when `d` is a
+/// power of two, as the scales of refinement ratios 2 and 4 and the block sizes are.
+#[inline]
+fn floor_div(v: [i64; 3], d: [i64; 3]) -> [i64; 3] {
+    [
+        floor_div1(v[0], d[0]),
+        floor_div1(v[1], d[1]),
+        floor_div1(v[2], d[2]),
+    ]
+}
+
+/// [`floor_div`] on one axis.
+#[inline(always)]
+fn floor_div1(v: i64, d: i64) -> i64 {
+    if d.count_ones() == 1 {
+        v >> d.trailing_zeros()
+    } else {
+        v.div_euclid(d)
+    }
+}
+
+/// The cells of a level whose cells are `scale` finest cells wide (the grid's index offset
+/// `offset`) that overlap finest-level box `finest`: `Grid::level_box`, with shifts where it can.
+#[inline]
+pub fn level_cells(scale: [i64; 3], offset: [i64; 3], finest: &IBox) -> IBox {
+    IBox::new(
+        floor_div([0, 1, 2].map(|a| finest.lo[a] + offset[a]), scale),
+        floor_div(
+            [0, 1, 2].map(|a| finest.hi[a] + offset[a] + scale[a] - 1),
+            scale,
+        ),
+    )
 }
 
 /// Calls `f` with the table index range of each x-row of the blocks `lo..hi` (block indices) of

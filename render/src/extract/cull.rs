@@ -13,7 +13,7 @@
 
 use crate::error::Result;
 
-use super::band::CoarseBounds;
+use super::band::{AroundMemo, CoarseBounds};
 use super::blocks::BlockRanges;
 use super::leaf_tree::LeafTree;
 use super::local::{Neighbourhood, ABOVE, BELOW, COARSER, PENDING};
@@ -37,7 +37,11 @@ pub type Shared<'s> = (&'s BlockRanges, &'s LeafTree, &'s CoarseBounds);
 pub fn cell_may_hold<D: AsRef<[u8]>>(
     (sampler, (blocks, leaves, coarse)): (&Sampler<'_, D>, Shared<'_>),
     hood: &mut Neighbourhood,
-    (loc, memo): (&mut LocalLocator<'_, '_, D>, &mut VertexMemo),
+    (loc, memo, near): (
+        &mut LocalLocator<'_, '_, D>,
+        &mut VertexMemo,
+        &mut AroundMemo,
+    ),
     (i, around): (usize, &[usize; 27]),
     iso: f32,
 ) -> Result<bool> {
@@ -58,7 +62,7 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
             settle_coarse(
                 (sampler, (blocks, leaves, coarse)),
                 hood,
-                (loc, memo),
+                (loc, memo, near),
                 j,
                 iso,
             )?;
@@ -75,7 +79,11 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
 fn settle_coarse<D: AsRef<[u8]>>(
     (sampler, (blocks, leaves, coarse)): (&Sampler<'_, D>, Shared<'_>),
     hood: &mut Neighbourhood,
-    (loc, memo): (&mut LocalLocator<'_, '_, D>, &mut VertexMemo),
+    (loc, memo, near): (
+        &mut LocalLocator<'_, '_, D>,
+        &mut VertexMemo,
+        &mut AroundMemo,
+    ),
     j: usize,
     iso: f32,
 ) -> Result<()> {
@@ -96,7 +104,9 @@ fn settle_coarse<D: AsRef<[u8]>>(
         return Ok(());
     }
     let q_box = grid.finest_box(q.level, q.cell);
-    if let Some(range) = coarse.range_around((sampler, blocks, leaves), q.level, q.cell)? {
+    if let Some(range) =
+        coarse.range_around_memo((sampler, blocks, leaves), near, q.level, q.cell)?
+    {
         let bound = widen(range);
         let inside = grid.level_box(level, &q_box).intersect(&hood.cells);
         for z in inside.lo[2]..inside.hi[2] {

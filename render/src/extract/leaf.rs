@@ -9,6 +9,7 @@
 use crate::error::Result;
 use amr_format::IBox;
 
+use super::band::AroundMemo;
 use super::cull::{around_offsets, cell_may_hold, Shared};
 use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};
 use super::refs::{make_ref, LocalVoxel};
@@ -31,6 +32,8 @@ pub struct Scratch<'s, 'f, D> {
     /// The block ranges, the leaf tree (for region queries) and the bounds of coarser
     /// neighbours.
     pub shared: Shared<'s>,
+    /// The bounds around coarse cells this thread asked for last.
+    pub near: AroundMemo,
 }
 
 impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
@@ -43,6 +46,7 @@ impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
             loc: LocalLocator::new(sampler),
             rows: Vec::new(),
             shared,
+            near: AroundMemo::default(),
         }
     }
 }
@@ -133,6 +137,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         loc,
         rows,
         shared,
+        near,
     } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();
@@ -151,18 +156,41 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     hood.classify(iso);
     let codes = hood.codes();
     let width = (last[0] - first[0] + 1).max(0) as usize;
+    // A dual cell's code is the OR of its eight cells': ORed along z, then y, then x, each pair
+    // of rows once (the z-pairs of a row serve the two dual rows beside it).
+    let w1 = width + 1;
     rows.clear();
-    rows.resize(width, 0);
-    let row_masks = &mut rows[..];
+    rows.resize(4 * w1, 0);
+    let (row_masks, rest) = rows.split_at_mut(w1);
+    let (mut prev, rest) = rest.split_at_mut(w1);
+    let (mut cur, yz) = rest.split_at_mut(w1);
+    let row_masks = &mut row_masks[..width];
+    let any_duals = width > 0 && first[1] <= last[1];
+    let or_rows = |dst: &mut [u8], a: &[u8], b: &[u8]| {
+        for ((d, &x), &y) in dst.iter_mut().zip(a).zip(b) {
+            *d = x | y;
+        }
+    };
     for z in first[2]..=last[2] {
+        if !any_duals {
+            break;
+        }
+        let r0 = hood.index([first[0], first[1], z]);
+        or_rows(
+            prev,
+            &codes[r0..r0 + w1],
+            &codes[r0 + step[2]..r0 + step[2] + w1],
+        );
         for y in first[1]..=last[1] {
-            let row = hood.index([first[0], y, z]);
-            row_masks.copy_from_slice(&codes[row..row + width]);
-            for &d in &offsets[1..] {
-                for (m, &c) in row_masks.iter_mut().zip(&codes[row + d..row + d + width]) {
-                    *m |= c;
-                }
-            }
+            let r = hood.index([first[0], y + 1, z]);
+            or_rows(
+                cur,
+                &codes[r..r + w1],
+                &codes[r + step[2]..r + step[2] + w1],
+            );
+            or_rows(yz, prev, cur);
+            or_rows(row_masks, &yz[..width], &yz[1..]);
+            std::mem::swap(&mut prev, &mut cur);
             let leaf_duals = row_masks.iter().filter(|&&m| m & NOT_LEAF == 0).count();
             counts.evaluated += leaf_duals as u64;
             let active = |m: &u8| m & (NOT_LEAF | ABOVE | BELOW) == ABOVE | BELOW;
@@ -199,7 +227,13 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                     if !hood.near_boundary[i] {
                         continue;
                     }
-                    if !cell_may_hold((sampler, *shared), hood, (loc, memo), (i, &around), iso)? {
+                    if !cell_may_hold(
+                        (sampler, *shared),
+                        hood,
+                        (loc, memo, near),
+                        (i, &around),
+                        iso,
+                    )? {
                         counts.culled += 1;
                         continue;
                     }

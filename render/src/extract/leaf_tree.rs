@@ -225,7 +225,7 @@ impl LeafTree {
     }
 
     /// The range of leaf `l`'s cells (of its finest brick), computed on first need.
-    fn leaf_range<D: AsRef<[u8]>>(
+    pub fn leaf_range<D: AsRef<[u8]>>(
         &self,
         sampler: &Sampler<'_, D>,
         blocks: &BlockRanges,

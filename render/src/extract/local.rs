@@ -54,7 +54,8 @@ pub struct Neighbourhood {
     /// True when every cell is [`LEAF`].
     pub all_leaf: bool,
     /// Per cell: the smallest and largest value of the leaf cells of level `L` or finer inside it
-    /// (`+inf` and `-inf` when it holds none); both are the value of a [`LEAF`] cell.
+    /// (`+inf` and `-inf` when it holds none); a [`LEAF`] cell's value is its `lo` (its `hi` is
+    /// not kept).
     lo: Vec<f32>,
     hi: Vec<f32>,
     /// Per cell: inside a coarser leaf cell whose octants' corners are not yet in the bound.
@@ -130,7 +131,6 @@ impl Neighbourhood {
                             let w = (block.hi[0] - block.lo[0]) as usize;
                             self.kind[dst..dst + w].fill(LEAF);
                             self.lo[dst..dst + w].copy_from_slice(&values[src..src + w]);
-                            self.hi[dst..dst + w].copy_from_slice(&values[src..src + w]);
                         }
                     }
                 }
@@ -141,13 +141,12 @@ impl Neighbourhood {
             for z in g.lo[2]..g.hi[2] {
                 for y in g.lo[1]..g.hi[1] {
                     let row = g.linear_index([g.lo[0], y, z]);
-                    let kinds = &mut self.kind[row..row + g.extent()[0] as usize];
                     let row_inside = (inside.lo[1]..inside.hi[1]).contains(&y)
                         && (inside.lo[2]..inside.hi[2]).contains(&z);
-                    for (k, kind) in kinds.iter_mut().enumerate() {
+                    for k in 0..g.extent()[0] as usize {
                         let x = g.lo[0] + k as i64;
                         if !row_inside || !(inside.lo[0]..inside.hi[0]).contains(&x) {
-                            *kind = OUTSIDE;
+                            self.set_kinds(row + k..row + k + 1, OUTSIDE);
                         }
                     }
                 }
@@ -220,14 +219,26 @@ impl Neighbourhood {
         }
     }
 
+    /// Sets the kind of the cells of `block` (not [`LEAF`]); a [`LEAF`] cell overwritten gets its
+    /// value as both ends of its bound, as if it had been kept.
     fn set_block(&mut self, block: &IBox, kind: u8) {
         let g = self.cells;
         for z in block.lo[2]..block.hi[2] {
             for y in block.lo[1]..block.hi[1] {
                 let dst = g.linear_index([block.lo[0], y, z]);
                 let w = (block.hi[0] - block.lo[0]).max(0) as usize;
-                self.kind[dst..dst + w].fill(kind);
+                self.set_kinds(dst..dst + w, kind);
             }
+        }
+    }
+
+    /// [`Self::set_block`] for the cells of index range `cells`.
+    fn set_kinds(&mut self, cells: std::ops::Range<usize>, kind: u8) {
+        for i in cells {
+            if self.kind[i] == LEAF {
+                self.hi[i] = self.lo[i];
+            }
+            self.kind[i] = kind;
         }
     }
 
@@ -247,7 +258,11 @@ impl Neighbourhood {
     /// level `L` or finer inside it; `(+inf, -inf)` when there are none.
     #[inline]
     pub fn bound(&self, i: usize) -> (f32, f32) {
-        (self.lo[i], self.hi[i])
+        if self.kind[i] == LEAF {
+            (self.lo[i], self.lo[i])
+        } else {
+            (self.lo[i], self.hi[i])
+        }
     }
 
     /// Computes every cell's code for `iso` from its bound, kind and pending flag.
@@ -259,7 +274,9 @@ impl Neighbourhood {
                 .zip(&self.hi)
                 .zip(self.kind.iter().zip(&self.coarse_pending))
                 .map(|((&lo, &hi), (&kind, &pending))| {
-                    code(lo, hi, iso) | u8::from(kind != LEAF) << 2 | u8::from(pending) << 3
+                    let not_leaf = kind != LEAF;
+                    let hi = if not_leaf { hi } else { lo };
+                    code(lo, hi, iso) | u8::from(not_leaf) << 2 | u8::from(pending) << 3
                 }),
         );
     }

@@ -11,6 +11,7 @@
 //! - [`blocks`]: per-brick ranges of blocks of cells (stored in the file, or built), for bounds
 //!   that do not rescan cells.
 //! - [`leaf_tree`]: a box tree over the leaves, for region queries of ranges and levels.
+//! - [`halo`]: the leaves around one leaf, gathered once for the bounds of its parts.
 //! - [`tight`]: per-leaf ranges from cell values, computed once, skipping leaves the file's
 //!   looser stored ranges let through.
 //! - [`region`]: limiting an extraction to a clip box or a view frustum.
@@ -27,6 +28,7 @@ pub mod band;
 pub mod blocks;
 pub mod cull;
 pub mod current;
+pub mod halo;
 pub mod leaf;
 pub mod leaf_tree;
 pub mod local;
@@ -51,13 +53,14 @@ use crate::reconstruct::{Locate, Octant, SampleScratch, Sampler, VertexMemo};
 pub use crate::voxel::Voxel;
 use band::CoarseBounds;
 use blocks::BlockRanges;
+use halo::Halo;
 use leaf::{LeafCounts, LeafFrame, Scratch};
 use leaf_tree::LeafTree;
-use parts::{extract_in_parts, PartRanges};
+use parts::{extract_in_parts, in_parts, PartRanges};
 pub use refs::{make_ref, split_ref, LocalVoxel, DUAL_BASE};
 pub use region::Region;
 pub use stats::ExtractStats;
-use tight::TightRanges;
+use tight::{box_range_in, TightRanges};
 
 /// Leaves handed to the thread pool at a time, at most; bounds the memory held beside the result.
 const CHUNK_LEAVES: usize = 4096;
@@ -235,9 +238,23 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     || Scratch::new(&self.sampler, (&self.blocks, &self.leaves, &self.coarse)),
                     |scratch, &leaf| {
                         let mut out = Vec::new();
-                        let (lo, hi) =
-                            self.tight
-                                .get(&self.sampler, (tight_blocks, &self.leaves), leaf)?;
+                        // A first visit to a leaf extracted in parts gathers the leaves around
+                        // it once, for its tight range and its parts' bounds.
+                        let mut around = None;
+                        let (lo, hi) = self.tight.get_with(leaf, || {
+                            let bounds = (tight_blocks, &self.leaves);
+                            let own = file.tree().leaf_box(leaf);
+                            if let Some((_, level)) = self.sampler.leaf_top(leaf) {
+                                let cells = self.sampler.grid().level_box(level, &own);
+                                if in_parts(&self.sampler, &cells) {
+                                    around = Halo::new(&self.sampler, bounds, &own, level);
+                                    if let Some(h) = &around {
+                                        return box_range_in(&self.sampler, h, &own, level);
+                                    }
+                                }
+                            }
+                            tight::compute(&self.sampler, bounds, leaf)
+                        })?;
                         if !straddles(lo, hi, iso) {
                             let skipped = LeafCounts {
                                 skipped: 1,
@@ -253,6 +270,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                             &frame,
                             iso,
                             (scratch, (&self.blocks, &self.leaves), &self.parts),
+                            around.as_ref(),
                             &mut out,
                         )?;
                         Ok((out, counts))

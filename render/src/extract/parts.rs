@@ -8,7 +8,8 @@
 //! whose lowest cell lies in the part, and the bound is the union of the stored blocks the part
 //! grown by one cell upwards overlaps; otherwise it is the tight-range bound of the
 //! part's box ([`super::tight::box_range`]) over the stored blocks alone
-//! ([`BlockRanges::loose`]).
+//! ([`BlockRanges::loose`]), its region queries answered by the leaves around the leaf, gathered
+//! once ([`Halo`]), unless they are too many.
 //! Parts that are kept and adjacent along x are extracted together, so that the cells shared
 //! by their neighbourhoods are filled once.
 //!
@@ -22,9 +23,10 @@ use amr_format::kdtree::widen_range;
 use amr_format::IBox;
 
 use super::blocks::BlockRanges;
+use super::halo::Halo;
 use super::leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
 use super::leaf_tree::LeafTree;
-use super::tight::{box_range, box_range_flat, pack, unpack};
+use super::tight::{box_range_flat, box_range_in, pack, unpack, Regions, TreeRegions};
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::Sampler;
 
@@ -47,8 +49,19 @@ impl PartRanges {
     }
 }
 
+/// True when a leaf whose level-`level`-cells are `cells` is extracted in parts.
+pub fn in_parts<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>, cells: &IBox) -> bool {
+    let Some(block) = sampler.file().block_cells().map(i64::from) else {
+        return false;
+    };
+    let k = (PART_CELLS + block - 1) / block * block;
+    cells.extent().iter().any(|&e| e > k)
+}
+
 /// [`extract_leaf`] of `frame`, part by part when the file stores block ranges and the leaf
-/// spans more than one part; the active voxels appended to `out` are sorted by id.
+/// spans more than one part; the active voxels appended to `out` are sorted by id. `around`:
+/// the leaves around the leaf ([`Halo::new`] of its box and level over the stored blocks alone),
+/// when the caller gathered them already.
 pub fn extract_in_parts<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     frame: &LeafFrame,
@@ -58,6 +71,7 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
         (&BlockRanges, &LeafTree),
         &PartRanges,
     ),
+    around: Option<&Halo<'_, '_, D>>,
     out: &mut Vec<u64>,
 ) -> Result<LeafCounts> {
     let Some(block) = sampler.file().block_cells().map(i64::from) else {
@@ -90,13 +104,27 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
     let ranges = match slot.get() {
         Some(r) => r,
         None => {
+            // The leaves around the leaf, once: the parts' bounds ask them, not the tree.
+            let loose = bounds.0.loose();
+            let gathered;
+            let tree = TreeRegions {
+                sampler,
+                blocks: &loose,
+                leaves: bounds.1,
+            };
+            let around: &dyn Regions = match around {
+                Some(h) => h,
+                None => {
+                    gathered = Halo::new(sampler, (&loose, bounds.1), &frame.finest, frame.level);
+                    match &gathered {
+                        Some(h) => h,
+                        None => &tree,
+                    }
+                }
+            };
             // With no coarser leaf around the leaf, none is around its parts either.
             let grown = frame.finest.grow(s);
-            let flat = bounds
-                .1
-                .coarsest_touching(sampler, &grown)
-                .unwrap_or(frame.level)
-                >= frame.level;
+            let flat = around.coarsest_touching(&grown).unwrap_or(frame.level) >= frame.level;
             let mut r = Vec::new();
             for pz in first[2]..=last[2] {
                 for py in first[1]..=last[1] {
@@ -105,7 +133,7 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
                         let range = if finest.is_empty() {
                             (f32::INFINITY, f32::NEG_INFINITY)
                         } else {
-                            part_range(sampler, frame, (bounds, flat), &finest)?
+                            part_range(sampler, frame, (bounds.0, around), flat, &finest)?
                         };
                         r.push(pack(range));
                     }
@@ -156,11 +184,13 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
 
 /// A range holding every corner of every voxel of `frame` whose lower corner lies in
 /// finest-level box `finest` (see the module documentation); `(+inf, -inf)` when there is
-/// none. `flat`: no leaf coarser than the leaf touches the leaf grown by one cell.
+/// none. `around`: the region queries of the leaf's neighbourhood; `flat`: no leaf coarser than the leaf touches the
+/// leaf grown by one cell.
 fn part_range<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     frame: &LeafFrame,
-    ((blocks, leaves), flat): ((&BlockRanges, &LeafTree), bool),
+    (blocks, around): (&BlockRanges, &dyn Regions),
+    flat: bool,
     finest: &IBox,
 ) -> Result<(f32, f32)> {
     let empty = (f32::INFINITY, f32::NEG_INFINITY);
@@ -176,13 +206,10 @@ fn part_range<D: AsRef<[u8]>>(
             return Ok(empty);
         }
         widen_range(lo, hi)
+    } else if flat {
+        box_range_flat(s, around, finest)?
     } else {
-        let bounds = (&blocks.loose(), leaves);
-        if flat {
-            box_range_flat(sampler, bounds, finest, frame.level)?
-        } else {
-            box_range(sampler, bounds, finest, frame.level)?
-        }
+        box_range_in(sampler, around, finest, frame.level)?
     };
     Ok(if lo <= hi { (lo, hi) } else { empty })
 }

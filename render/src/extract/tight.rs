@@ -54,12 +54,22 @@ impl TightRanges {
         bounds: (&BlockRanges, &LeafTree),
         leaf: u32,
     ) -> Result<(f32, f32)> {
+        self.get_with(leaf, || compute(sampler, bounds, leaf))
+    }
+
+    /// The tight range of `leaf`, computed on first need by `compute` (which must give what
+    /// [`Self::get`] would, or a range inside it).
+    pub fn get_with(
+        &self,
+        leaf: u32,
+        compute: impl FnOnce() -> Result<(f32, f32)>,
+    ) -> Result<(f32, f32)> {
         let slot = &self.bits[leaf as usize];
         let known = slot.load(Ordering::Relaxed);
         if known != UNKNOWN {
             return Ok(unpack(known));
         }
-        let range = compute(sampler, bounds, leaf)?;
+        let range = compute()?;
         slot.store(pack(range), Ordering::Relaxed);
         Ok(range)
     }
@@ -80,7 +90,7 @@ pub(super) fn unpack(bits: u64) -> (f32, f32) {
 
 /// A range holding the leaf cells within reach of `leaf`, widened for
 /// round-off.
-fn compute<D: AsRef<[u8]>>(
+pub fn compute<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     bounds: (&BlockRanges, &LeafTree),
     leaf: u32,
@@ -92,6 +102,81 @@ fn compute<D: AsRef<[u8]>>(
     box_range(sampler, bounds, &own, level)
 }
 
+/// The region queries a bound needs: the coarsest level touching a region and a range of the
+/// leaf cells inside one.
+pub trait Regions {
+    /// The coarsest level of the leaves with data whose closed boxes touch the closed `region`.
+    fn coarsest_touching(&self, region: &IBox) -> Option<u32>;
+    /// A range holding the leaf cells inside `region`; whatever lies inside `region` grown by
+    /// `slack` may be counted too.
+    fn range_over(&self, region: &IBox, slack: [i64; 3]) -> Result<(f32, f32)>;
+}
+
+/// [`Regions`] answered by walking the [`LeafTree`], ranges read through the block ranges.
+pub struct TreeRegions<'a, 'f, D> {
+    /// The sampler of the file.
+    pub sampler: &'a Sampler<'f, D>,
+    /// The block ranges ranges are read through.
+    pub blocks: &'a BlockRanges,
+    /// The leaf tree.
+    pub leaves: &'a LeafTree,
+}
+
+impl<D: AsRef<[u8]>> Regions for TreeRegions<'_, '_, D> {
+    fn coarsest_touching(&self, region: &IBox) -> Option<u32> {
+        self.leaves.coarsest_touching(self.sampler, region)
+    }
+
+    fn range_over(&self, region: &IBox, slack: [i64; 3]) -> Result<(f32, f32)> {
+        self.leaves
+            .range_over(self.sampler, self.blocks, region, slack)
+    }
+}
+
+/// The region whose leaf cells bound the voxels owned by finest-level box `own` (of level
+/// `level`), and the slack by which it may be grown: the module's reach rule.
+fn reach<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    coarsest_touching: impl Fn(&IBox) -> Option<u32>,
+    own: &IBox,
+    level: u32,
+) -> (IBox, [i64; 3]) {
+    let grid = sampler.grid();
+    let margin = grid.scale(level);
+    let hood = own.grow(margin);
+    let mut coarsest = coarsest_touching(&hood).unwrap_or(level);
+    if coarsest >= level {
+        return (hood, [0; 3]);
+    }
+    loop {
+        let reach = [0, 1, 2].map(|a| 2 * grid.scale(coarsest)[a] + margin[a]);
+        let region = own.grow(reach);
+        let met = coarsest_touching(&region).unwrap_or(coarsest);
+        if met >= coarsest {
+            // Nodes lying within the reach again count whole.
+            return (region, reach);
+        }
+        coarsest = met;
+    }
+}
+
+/// The largest region a bound of finest-level box `own` (of level `level`) or of any box inside
+/// it reads ([`box_range`]): a smaller box meets no coarser level, so its reach is no larger.
+pub fn reach_region<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    leaves: &LeafTree,
+    own: &IBox,
+    level: u32,
+) -> IBox {
+    reach(
+        sampler,
+        |r| leaves.coarsest_touching(sampler, r),
+        own,
+        level,
+    )
+    .0
+}
+
 /// A range holding every corner of every voxel whose lower corner lies in the finest-level box
 /// `own` (the box of a leaf of level `level`, or a part of it), widened for round-off: the
 /// module's argument, which holds point by point.
@@ -101,45 +186,38 @@ pub fn box_range<D: AsRef<[u8]>>(
     own: &IBox,
     level: u32,
 ) -> Result<(f32, f32)> {
-    let empty = (f32::INFINITY, f32::NEG_INFINITY);
-    let grid = sampler.grid();
-    let margin = grid.scale(level);
-    let hood = own.grow(margin);
-    let mut coarsest = leaves.coarsest_touching(sampler, &hood).unwrap_or(level);
-    let (region, slack) = if coarsest >= level {
-        (hood, [0; 3])
-    } else {
-        loop {
-            let reach = [0, 1, 2].map(|a| 2 * grid.scale(coarsest)[a] + margin[a]);
-            let region = own.grow(reach);
-            let met = leaves
-                .coarsest_touching(sampler, &region)
-                .unwrap_or(coarsest);
-            if met >= coarsest {
-                // Nodes lying within the reach again count whole.
-                break (region, reach);
-            }
-            coarsest = met;
-        }
+    let tree = TreeRegions {
+        sampler,
+        blocks,
+        leaves,
     };
-    let (lo, hi) = leaves.range_over(sampler, blocks, &region, slack)?;
+    box_range_in(sampler, &tree, own, level)
+}
+
+/// [`box_range`] with its region queries answered by `regions`.
+pub fn box_range_in<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    regions: &(impl Regions + ?Sized),
+    own: &IBox,
+    level: u32,
+) -> Result<(f32, f32)> {
+    let (region, slack) = reach(sampler, |r| regions.coarsest_touching(r), own, level);
+    let (lo, hi) = regions.range_over(&region, slack)?;
     if lo > hi {
-        return Ok(empty);
+        return Ok((f32::INFINITY, f32::NEG_INFINITY));
     }
     Ok(widen_range(lo, hi))
 }
 
 /// [`box_range`] of a box `own` whose grown box no leaf coarser than `level` touches (as
-/// when it lies in a leaf of level `level` for which that holds), without asking the tree for
-/// levels.
-pub fn box_range_flat<D: AsRef<[u8]>>(
-    sampler: &Sampler<'_, D>,
-    (blocks, leaves): (&BlockRanges, &LeafTree),
+/// when it lies in a leaf of level `level` for which that holds), without asking for levels.
+pub fn box_range_flat(
+    grid_scale: [i64; 3],
+    regions: &(impl Regions + ?Sized),
     own: &IBox,
-    level: u32,
 ) -> Result<(f32, f32)> {
-    let hood = own.grow(sampler.grid().scale(level));
-    let (lo, hi) = leaves.range_over(sampler, blocks, &hood, [0; 3])?;
+    let hood = own.grow(grid_scale);
+    let (lo, hi) = regions.range_over(&hood, [0; 3])?;
     if lo > hi {
         return Ok((f32::INFINITY, f32::NEG_INFINITY));
     }

@@ -12,20 +12,24 @@
 //! chunks are likewise put in the top-level BVH's leaf order. [`BvhBuilder`] keeps the scratch so
 //! that a new isovalue rebuilds without reallocating.
 
-use glam::{UVec2, Vec3A};
+use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::bvh2::Bvh2;
 use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
+use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ploc::PlocBuilder;
 use obvhs::ray::Ray;
 use obvhs::BvhBuildParams;
 use rayon::prelude::*;
 
+mod node_test;
+mod walk;
 pub mod wide;
 
+use walk::{walk, Stack};
 use wide::WideBuilder;
 
 /// Refs whose boxes one task decodes (the chunk's boxes are decoded in parallel runs).
@@ -359,11 +363,102 @@ impl OctantBvh {
 
     /// Calls `visit(r, &mut tmax)` for the refs of every leaf the `f32` ray reaches before its
     /// `tmax`, nearer leaves roughly first; `visit` may lower `tmax` (closest-hit search) and
-    /// returns `true` to stop (any-hit search).
+    /// returns `true` to stop (any-hit search). The refs and their order are those of obvhs's
+    /// traversal; the node test runs eight children wide with AVX2 when the CPU has it
+    /// ([`node_test`]).
     #[inline]
     pub fn traverse(&self, mut ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            unsafe { self.traverse_avx2(&mut ray, &mut visit) };
+            return;
+        }
+        self.traverse_with(&mut ray, &mut visit, node_test::hits_portable);
+    }
+
+    /// [`OctantBvh::traverse`] with obvhs's node test, whatever the CPU (for tests).
+    pub fn traverse_portable(&self, mut ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
+        self.traverse_with(&mut ray, &mut visit, node_test::hits_portable);
+    }
+
+    /// [`OctantBvh::traverse`] with the AVX2 node test, the whole walk compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn traverse_avx2(&self, ray: &mut Ray, visit: &mut impl FnMut(u64, &mut f32) -> bool) {
+        self.traverse_with(ray, visit, |node, ray, oct| {
+            node_test::hits_avx2(node, ray, oct)
+        });
+    }
+
+    /// The top level, then each chunk it reaches, with the node test `test`.
+    #[inline(always)]
+    fn traverse_with(
+        &self,
+        ray: &mut Ray,
+        visit: &mut impl FnMut(u64, &mut f32) -> bool,
+        test: impl Fn(&CwBvhNode, &Ray, u32) -> u32 + Copy,
+    ) {
+        let oct = node_test::octant_inv4(ray.direction);
+        let mut stack = Stack::new();
         if let [chunk] = self.chunks.as_slice() {
-            self.traverse_chunk(chunk, &mut ray, &mut visit);
+            self.walk_chunk(chunk, ray, oct, &mut stack, test, visit);
+            return;
+        }
+        walk(
+            &self.top.nodes,
+            ray,
+            oct,
+            &mut stack,
+            test,
+            |c, ray, stack| self.walk_chunk(&self.chunks[c as usize], ray, oct, stack, test, visit),
+        );
+    }
+
+    /// The walk in one chunk; true when `visit` asked to stop.
+    #[inline(always)]
+    fn walk_chunk(
+        &self,
+        chunk: &Chunk,
+        ray: &mut Ray,
+        oct: u32,
+        stack: &mut Stack,
+        test: impl Fn(&CwBvhNode, &Ray, u32) -> u32,
+        visit: &mut impl FnMut(u64, &mut f32) -> bool,
+    ) -> bool {
+        let refs = &self.refs[chunk.first..chunk.first + chunk.len];
+        walk(&chunk.bvh.nodes, ray, oct, stack, test, |i, ray, _| {
+            visit(refs[i as usize], &mut ray.tmax)
+        })
+    }
+
+    /// [`OctantBvh::traverse`] with obvhs's own `traverse!` loop and node test: the reference
+    /// the walk must match visit for visit.
+    #[cfg(test)]
+    fn traverse_obvhs(&self, mut ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
+        use glam::UVec2;
+        let chunk_walk =
+            |chunk: &Chunk, ray: &mut Ray, visit: &mut dyn FnMut(u64, &mut f32) -> bool| {
+                let bvh = &chunk.bvh;
+                if bvh.nodes.is_empty() {
+                    return false;
+                }
+                let refs = &self.refs[chunk.first..chunk.first + chunk.len];
+                let mut state = bvh.new_traversal(ray.direction);
+                let mut node;
+                let mut stopped = false;
+                obvhs::traverse!(bvh, node, state, node.intersect_ray(ray, state.oct_inv4), {
+                    if visit(refs[state.primitive_id as usize], &mut ray.tmax) {
+                        stopped = true;
+                        state.stack.clear();
+                        state.current_group = UVec2::ZERO;
+                        break;
+                    }
+                });
+                stopped
+            };
+        if let [chunk] = self.chunks.as_slice() {
+            chunk_walk(chunk, &mut ray, &mut visit);
             return;
         }
         if self.top.nodes.is_empty() {
@@ -379,40 +474,13 @@ impl OctantBvh {
             node.intersect_ray(&ray, state.oct_inv4),
             {
                 let chunk = &self.chunks[state.primitive_id as usize];
-                if self.traverse_chunk(chunk, &mut ray, &mut visit) {
+                if chunk_walk(chunk, &mut ray, &mut visit) {
                     state.stack.clear();
                     state.current_group = UVec2::ZERO;
                     break;
                 }
             }
         );
-    }
-
-    /// [`OctantBvh::traverse`] in one chunk; true when `visit` asked to stop.
-    #[inline]
-    fn traverse_chunk(
-        &self,
-        chunk: &Chunk,
-        ray: &mut Ray,
-        visit: &mut impl FnMut(u64, &mut f32) -> bool,
-    ) -> bool {
-        let bvh = &chunk.bvh;
-        if bvh.nodes.is_empty() {
-            return false;
-        }
-        let refs = &self.refs[chunk.first..chunk.first + chunk.len];
-        let mut state = bvh.new_traversal(ray.direction);
-        let mut node;
-        let mut stopped = false;
-        obvhs::traverse!(bvh, node, state, node.intersect_ray(ray, state.oct_inv4), {
-            if visit(refs[state.primitive_id as usize], &mut ray.tmax) {
-                stopped = true;
-                state.stack.clear();
-                state.current_group = UVec2::ZERO;
-                break;
-            }
-        });
-        stopped
     }
 }
 
@@ -508,6 +576,80 @@ mod tests {
             assert_eq!(calls, 1, "ray {k}: the traversal went on after a stop");
         }
         assert!(crossed > 200, "the rays cross only {crossed} boxes");
+    }
+
+    /// Boxes of mixed sizes scattered in a 100-cube, one per ref.
+    fn scattered_boxes(r: u64) -> ([f64; 3], [f64; 3]) {
+        let h = |k: u64| {
+            let x = (r * 4 + k + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+            ((x ^ (x >> 29)).wrapping_mul(0xbf58_476d_1ce4_e5b9) >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let lo = [h(0) * 100.0, h(1) * 100.0, h(2) * 100.0];
+        let s = 0.2 + 3.0 * h(3) * h(3);
+        (lo, [lo[0] + s, lo[1] + s * 0.7, lo[2] + s * 1.3])
+    }
+
+    /// The refs a traversal visits, in order, each with the `tmax` it was visited under; every
+    /// seventh visit lowers `tmax` (as a closest hit does) and, with `stop_at`, the traversal
+    /// stops at that visit.
+    fn visits(
+        traverse: impl FnOnce(Ray, &mut dyn FnMut(u64, &mut f32) -> bool),
+        ray: Ray,
+        stop_at: Option<usize>,
+    ) -> Vec<(u64, u32)> {
+        let mut seen = Vec::new();
+        traverse(ray, &mut |r, tmax| {
+            seen.push((r, tmax.to_bits()));
+            if seen.len() % 7 == 0 {
+                *tmax *= 0.9;
+            }
+            stop_at == Some(seen.len())
+        });
+        seen
+    }
+
+    #[test]
+    fn walk_visits_what_obvhs_visits_in_its_order() {
+        let refs: Vec<u64> = (0..20_000).collect();
+        let mut builder = BvhBuilder::new();
+        builder.chunk_refs = 1500;
+        let chunked = builder.build(&refs, 1e-4, scattered_boxes);
+        let one = BvhBuilder::new().build(&refs, 1e-4, scattered_boxes);
+        builder.method = BuildMethod::Ploc;
+        let ploc = builder.build(&refs, 1e-4, scattered_boxes);
+        let mut visited = 0;
+        for (name, bvh) in [("chunked", &chunked), ("one", &one), ("ploc", &ploc)] {
+            for k in 0..300u32 {
+                let a = k as f32 * 0.618;
+                let origin = Vec3A::new(
+                    50.0 + 80.0 * a.cos(),
+                    50.0 + 80.0 * a.sin(),
+                    30.0 + (k % 40) as f32,
+                );
+                let mut dir = (Vec3A::new(50.0, 50.0, 50.0) - origin
+                    + Vec3A::new((a * 3.1).sin(), (a * 2.3).cos(), (a * 1.7).sin()) * 30.0)
+                    .normalize();
+                if k % 9 == 0 {
+                    dir[(k % 3) as usize] = 0.0;
+                }
+                let tmax = if k % 4 == 0 { 60.0 } else { f32::INFINITY };
+                let ray = Ray::new(origin, dir, 0.0, tmax);
+                let stop = (k % 5 == 0).then_some(1 + (k as usize % 13));
+                let want = visits(|r, v| bvh.traverse_obvhs(r, v), ray, stop);
+                assert_eq!(
+                    visits(|r, v| bvh.traverse(r, v), ray, stop),
+                    want,
+                    "{name} ray {k}"
+                );
+                assert_eq!(
+                    visits(|r, v| bvh.traverse_portable(r, v), ray, stop),
+                    want,
+                    "{name} ray {k}, portable"
+                );
+                visited += want.len();
+            }
+        }
+        assert!(visited > 20_000, "only {visited} visits");
     }
 
     #[test]

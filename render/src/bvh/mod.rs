@@ -386,9 +386,8 @@ impl OctantBvh {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn traverse_avx2(&self, ray: &mut Ray, visit: &mut impl FnMut(u64, &mut f32) -> bool) {
-        self.traverse_with(ray, visit, |node, ray, oct| {
-            node_test::hits_avx2(node, ray, oct)
-        });
+        let consts = node_test::Avx2Ray::new(ray, node_test::octant_inv4(ray.direction));
+        self.traverse_with(ray, visit, |node, ray, _| consts.hits(node, ray.tmax));
     }
 
     /// The top level, then each chunk it reaches, with the node test `test`.

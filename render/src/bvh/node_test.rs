@@ -32,47 +32,101 @@ pub fn hits_portable(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
     node.intersect_ray(ray, oct_inv4)
 }
 
-/// The node test with AVX2; the same mask as [`hits_portable`] on x86 (obvhs's SSE test).
+/// A ray's constants for the AVX2 node test, computed once per ray.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-pub fn hits_avx2(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
-    use std::arch::x86_64::*;
-    let scale = node.compute_extent() * ray.inv_direction;
-    let offset = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
-    let (x0, x1) = slab(
-        &node.child_min_x,
-        &node.child_max_x,
-        ray.direction.x < 0.0,
-        scale.x,
-        offset.x,
-    );
-    let (y0, y1) = slab(
-        &node.child_min_y,
-        &node.child_max_y,
-        ray.direction.y < 0.0,
-        scale.y,
-        offset.y,
-    );
-    let (z0, z1) = slab(
-        &node.child_min_z,
-        &node.child_max_z,
-        ray.direction.z < 0.0,
-        scale.z,
-        offset.z,
-    );
-    let t0 = _mm256_max_ps(x0, _mm256_max_ps(y0, z0));
-    let t1 = _mm256_min_ps(x1, _mm256_min_ps(y1, z1));
-    let t0 = _mm256_max_ps(t0, _mm256_set1_ps(T_MIN));
-    let t1 = _mm256_min_ps(t1, _mm256_set1_ps(ray.tmax));
-    let entered = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1));
-    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
-    let bits = _mm256_sllv_epi32(widen(child_bits8), widen(bit_index8));
-    let m = _mm256_and_si256(bits, entered);
-    let m = _mm_or_si128(_mm256_castsi256_si128(m), _mm256_extracti128_si256::<1>(m));
-    let m = _mm_or_si128(m, _mm_shuffle_epi32::<0b01_00_11_10>(m));
-    let m = _mm_or_si128(m, _mm_shuffle_epi32::<0b10_11_00_01>(m));
-    _mm_cvtsi128_si32(m) as u32
+#[derive(Clone, Copy)]
+pub struct Avx2Ray {
+    origin: Vec3A,
+    inv_direction: Vec3A,
+    /// Per axis, all lanes set when the ray goes down the axis (its near planes are the high
+    /// ones).
+    down: [std::arch::x86_64::__m256; 3],
+    /// The octant code's byte in every lane.
+    octant: std::arch::x86_64::__m256i,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Avx2Ray {
+    /// The constants of `ray`, whose octant code is `oct_inv4`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub fn new(ray: &Ray, oct_inv4: u32) -> Self {
+        use std::arch::x86_64::*;
+        let down = |d: f32| _mm256_castsi256_ps(_mm256_set1_epi32(-i32::from(d < 0.0)));
+        Self {
+            origin: ray.origin,
+            inv_direction: ray.inv_direction,
+            down: [
+                down(ray.direction.x),
+                down(ray.direction.y),
+                down(ray.direction.z),
+            ],
+            octant: _mm256_set1_epi32((oct_inv4 & 0xff) as i32),
+        }
+    }
+
+    /// The node test with AVX2 for a ray with these constants and `tmax`: the same mask as
+    /// [`hits_portable`] on x86 (obvhs's SSE test).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub fn hits(&self, node: &CwBvhNode, tmax: f32) -> u32 {
+        use std::arch::x86_64::*;
+        let scale = node.compute_extent() * self.inv_direction;
+        let offset = (Vec3A::from(node.p) - self.origin) * self.inv_direction;
+        let planes = |q: &[u8; 8], s: f32, o: f32| {
+            let q = _mm256_cvtepi32_ps(widen(u64::from_le_bytes(*q)));
+            _mm256_add_ps(_mm256_mul_ps(q, _mm256_set1_ps(s)), _mm256_set1_ps(o))
+        };
+        let slab = |lo: &[u8; 8], hi: &[u8; 8], down: __m256, s: f32, o: f32| {
+            let (lo, hi) = (planes(lo, s, o), planes(hi, s, o));
+            (
+                _mm256_blendv_ps(lo, hi, down),
+                _mm256_blendv_ps(hi, lo, down),
+            )
+        };
+        let (x0, x1) = slab(
+            &node.child_min_x,
+            &node.child_max_x,
+            self.down[0],
+            scale.x,
+            offset.x,
+        );
+        let (y0, y1) = slab(
+            &node.child_min_y,
+            &node.child_max_y,
+            self.down[1],
+            scale.y,
+            offset.y,
+        );
+        let (z0, z1) = slab(
+            &node.child_min_z,
+            &node.child_max_z,
+            self.down[2],
+            scale.z,
+            offset.z,
+        );
+        let t0 = _mm256_max_ps(x0, _mm256_max_ps(y0, z0));
+        let t1 = _mm256_min_ps(x1, _mm256_min_ps(y1, z1));
+        let t0 = _mm256_max_ps(t0, _mm256_set1_ps(T_MIN));
+        let t1 = _mm256_min_ps(t1, _mm256_set1_ps(tmax));
+        let entered = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1));
+        // Each child's bits in the mask (obvhs's `get_child_and_index_bits`, lane by lane): an
+        // inner child (both bits 3 and 4 of its meta set) is one bit at its slot plus 24 mixed
+        // with the octant code, a leaf its unary primitive count at its primitive offset.
+        let meta = widen(u64::from_le_bytes(node.child_meta));
+        let inner_bits = _mm256_set1_epi32(0x18);
+        let inner = _mm256_cmpeq_epi32(_mm256_and_si256(meta, inner_bits), inner_bits);
+        let index = _mm256_and_si256(
+            _mm256_xor_si256(meta, _mm256_and_si256(inner, self.octant)),
+            _mm256_set1_epi32(0x1f),
+        );
+        let bits = _mm256_sllv_epi32(_mm256_srli_epi32::<5>(meta), index);
+        let m = _mm256_and_si256(bits, entered);
+        let m = _mm_or_si128(_mm256_castsi256_si128(m), _mm256_extracti128_si256::<1>(m));
+        let m = _mm_or_si128(m, _mm_shuffle_epi32::<0b01_00_11_10>(m));
+        let m = _mm_or_si128(m, _mm_shuffle_epi32::<0b10_11_00_01>(m));
+        _mm_cvtsi128_si32(m) as u32
+    }
 }
 
 /// The eight bytes of `b` (little-endian), one per 32-bit lane.
@@ -82,28 +136,6 @@ pub fn hits_avx2(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
 fn widen(b: u64) -> std::arch::x86_64::__m256i {
     use std::arch::x86_64::*;
     _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(b as i64))
-}
-
-/// The eight children's entry and exit distances along one axis: the near plane is the low one
-/// unless the ray goes down the axis.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-fn slab(
-    lo: &[u8; 8],
-    hi: &[u8; 8],
-    down: bool,
-    scale: f32,
-    offset: f32,
-) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
-    use std::arch::x86_64::*;
-    let (near, far) = if down { (hi, lo) } else { (lo, hi) };
-    let planes = |q: &[u8; 8]| _mm256_cvtepi32_ps(widen(u64::from_le_bytes(*q)));
-    let (s, o) = (_mm256_set1_ps(scale), _mm256_set1_ps(offset));
-    (
-        _mm256_add_ps(_mm256_mul_ps(planes(near), s), o),
-        _mm256_add_ps(_mm256_mul_ps(planes(far), s), o),
-    )
 }
 
 #[cfg(test)]
@@ -175,7 +207,7 @@ mod tests {
                 let oct = octant_inv4(dir);
                 for node in &bvh.nodes {
                     // SAFETY: the CPU has AVX2, checked above.
-                    let fast = unsafe { hits_avx2(node, &ray, oct) };
+                    let fast = unsafe { Avx2Ray::new(&ray, oct).hits(node, ray.tmax) };
                     assert_eq!(
                         fast,
                         hits_portable(node, &ray, oct),

@@ -33,14 +33,14 @@ impl Stack {
     /// same; the depth bound above keeps it from happening).
     #[inline(always)]
     fn push(&mut self, g: UVec2) {
-        self.groups[self.len] = g;
+        self.groups[self.len % STACK] = g;
         self.len = (self.len + 1).min(STACK - 1);
     }
 
     #[inline(always)]
     fn pop(&mut self) -> UVec2 {
         self.len -= 1;
-        self.groups[self.len]
+        self.groups[self.len % STACK]
     }
 }
 

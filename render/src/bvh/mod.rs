@@ -301,6 +301,18 @@ impl Worker {
     }
 }
 
+/// `ray` with `+0.0` for any `-0.0` in its direction. obvhs's node test takes a component's
+/// near planes from its sign bit (`< 0.0`, false for `-0.0`) but its inverse from
+/// `signum` (negative for `-0.0`): a ray with a `-0.0` component would enter no child at all.
+#[inline(always)]
+fn positive_zeros(ray: Ray) -> Ray {
+    if ray.direction.cmpeq(Vec3A::ZERO).any() {
+        Ray::new(ray.origin, ray.direction + Vec3A::ZERO, ray.tmin, ray.tmax)
+    } else {
+        ray
+    }
+}
+
 /// `values[i] = old values[perm[i]]` without a second array; `perm` is destroyed.
 fn gather_in_place(values: &mut [u64], perm: &mut [u32]) {
     const DONE: u32 = u32::MAX;
@@ -367,7 +379,8 @@ impl OctantBvh {
     /// traversal; the node test runs eight children wide with AVX2 when the CPU has it
     /// ([`node_test`]).
     #[inline]
-    pub fn traverse(&self, mut ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
+    pub fn traverse(&self, ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
+        let mut ray = positive_zeros(ray);
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
@@ -378,7 +391,8 @@ impl OctantBvh {
     }
 
     /// [`OctantBvh::traverse`] with obvhs's node test, whatever the CPU (for tests).
-    pub fn traverse_portable(&self, mut ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
+    pub fn traverse_portable(&self, ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
+        let mut ray = positive_zeros(ray);
         self.traverse_with(&mut ray, &mut visit, node_test::hits_portable);
     }
 
@@ -649,6 +663,26 @@ mod tests {
             }
         }
         assert!(visited > 20_000, "only {visited} visits");
+    }
+
+    #[test]
+    fn a_negative_zero_in_the_direction_visits_as_a_positive_one() {
+        let refs: Vec<u64> = (0..1000).collect();
+        let bvh = BvhBuilder::new().build(&refs, 1e-4, grid_boxes);
+        let origin = Vec3A::new(-1.0, 4.5, 4.5);
+        let plus = visited(&bvh, Ray::new(origin, Vec3A::X, 0.0, f32::INFINITY));
+        assert_eq!(plus.len(), 10);
+        for d in [Vec3A::new(1.0, -0.0, 0.0), Vec3A::new(1.0, 0.0, -0.0)] {
+            let ray = Ray::new(origin, d, 0.0, f32::INFINITY);
+            assert_eq!(visited(&bvh, ray), plus, "{d}");
+            let mut portable = Vec::new();
+            bvh.traverse_portable(ray, |r, _| {
+                portable.push(r);
+                false
+            });
+            portable.sort();
+            assert_eq!(portable, plus, "{d}, portable");
+        }
     }
 
     #[test]

@@ -377,7 +377,7 @@ impl OctantBvh {
     /// `tmax`, nearer leaves roughly first; `visit` may lower `tmax` (closest-hit search) and
     /// returns `true` to stop (any-hit search). The refs and their order are those of obvhs's
     /// traversal; the node test runs eight children wide with AVX2 when the CPU has it
-    /// ([`node_test`]).
+    /// ([`node_test`]). A `-0.0` in the direction is taken as `+0.0`.
     #[inline]
     pub fn traverse(&self, ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
         let mut ray = positive_zeros(ray);
@@ -390,7 +390,7 @@ impl OctantBvh {
         self.traverse_with(&mut ray, &mut visit, node_test::hits_portable);
     }
 
-    /// [`OctantBvh::traverse`] with obvhs's node test, whatever the CPU (for tests).
+    /// [`OctantBvh::traverse`] as on a CPU without AVX2 (obvhs's node test), to compare the two.
     pub fn traverse_portable(&self, ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
         let mut ray = positive_zeros(ray);
         self.traverse_with(&mut ray, &mut visit, node_test::hits_portable);

@@ -9,8 +9,9 @@ use glam::UVec2;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray;
 
-/// Stack entries: a walk pushes at most one group per level of its path, and the wide builder's
-/// depth stays far below half of this for the top level and for a chunk alike.
+/// Stack entries: a walk holds at most one group per level of its path, and the wide builder
+/// keeps a BVH's depth below 32 (obvhs's own stack size), so the top level and a chunk fit
+/// together.
 const STACK: usize = 64;
 
 /// Groups of children still to visit, for one ray.

@@ -712,4 +712,87 @@ mod tests {
             assert!(seen.contains(&(x + 40 + 400)), "missing {x}");
         }
     }
+
+    /// Times the walk (AVX2 and portable node tests) against obvhs's `traverse!` on the same
+    /// rays, in alternating rounds in one process so that a loaded machine slows all alike:
+    /// `cargo test --release -p amr-render --lib walk_speed -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "prints the time per ray of the walk and of obvhs's traversal"]
+    fn walk_speed() {
+        use std::time::Instant;
+        let refs: Vec<u64> = (0..200_000).collect();
+        let bvh = BvhBuilder::new().build(&refs, 1e-4, scattered_boxes);
+        let rays: Vec<Ray> = (0..20_000u32)
+            .map(|k| {
+                let a = k as f32 * 0.618;
+                let b = k as f32 * 0.414;
+                let origin = Vec3A::new(
+                    50.0 + 90.0 * a.cos() * b.sin(),
+                    50.0 + 90.0 * a.sin() * b.sin(),
+                    50.0 + 90.0 * b.cos(),
+                );
+                let target = Vec3A::new(
+                    50.0 + 30.0 * (a * 3.1).sin(),
+                    50.0 + 30.0 * (a * 2.3).cos(),
+                    50.0 + 30.0 * (b * 1.7).sin(),
+                );
+                Ray::new(origin, (target - origin).normalize(), 0.0, f32::INFINITY)
+            })
+            .collect();
+        // A closest-hit search: each visited box's slab entry lowers `tmax`.
+        let run = |traverse: &dyn Fn(Ray, &mut dyn FnMut(u64, &mut f32) -> bool)| {
+            let mut visits = 0u64;
+            let t = Instant::now();
+            for ray in &rays {
+                traverse(*ray, &mut |r, tmax| {
+                    visits += 1;
+                    let (lo, hi) = scattered_boxes(r);
+                    let (mut t0, mut t1) = (0.0f32, *tmax);
+                    for a in 0..3 {
+                        let (ta, tb) = (
+                            (lo[a] as f32 - ray.origin[a]) * ray.inv_direction[a],
+                            (hi[a] as f32 - ray.origin[a]) * ray.inv_direction[a],
+                        );
+                        t0 = t0.max(ta.min(tb));
+                        t1 = t1.min(ta.max(tb));
+                    }
+                    if t0 <= t1 {
+                        *tmax = t0.max(1e-3) + 1.0;
+                    }
+                    false
+                });
+            }
+            (t.elapsed().as_secs_f64() * 1e9 / rays.len() as f64, visits)
+        };
+        let mut times = [Vec::new(), Vec::new(), Vec::new()];
+        let mut visits = [0; 3];
+        for _ in 0..15 {
+            for (m, times) in times.iter_mut().enumerate() {
+                let (ns, v) = match m {
+                    0 => run(&|r, v| bvh.traverse_obvhs(r, v)),
+                    1 => run(&|r, v| bvh.traverse(r, v)),
+                    _ => run(&|r, v| bvh.traverse_portable(r, v)),
+                };
+                times.push(ns);
+                visits[m] = v;
+            }
+        }
+        assert!(visits.iter().all(|&v| v == visits[0]), "{visits:?}");
+        for (name, mut t) in [
+            "obvhs traverse!",
+            "walk (dispatched)",
+            "walk, obvhs node test",
+        ]
+        .into_iter()
+        .zip(times)
+        {
+            t.sort_by(f64::total_cmp);
+            println!(
+                "{name}: {:.0} ns per ray (median of 15 rounds), {:.0} min; {:.1} candidates per ray",
+                t[7],
+                t[0],
+                visits[0] as f64 / rays.len() as f64
+            );
+        }
+    }
 }

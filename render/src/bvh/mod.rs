@@ -739,8 +739,9 @@ mod tests {
                 Ray::new(origin, (target - origin).normalize(), 0.0, f32::INFINITY)
             })
             .collect();
+        type Visit<'a> = &'a mut dyn FnMut(u64, &mut f32) -> bool;
         // A closest-hit search: each visited box's slab entry lowers `tmax`.
-        let run = |traverse: &dyn Fn(Ray, &mut dyn FnMut(u64, &mut f32) -> bool)| {
+        let run = |traverse: &dyn Fn(Ray, Visit)| {
             let mut visits = 0u64;
             let t = Instant::now();
             for ray in &rays {

@@ -8,7 +8,7 @@
 //! obvhs converts the 48 plane bytes one scalar at a time into two SSE registers of four children
 //! and builds the mask child by child; with AVX2 the eight children are one register, the bytes
 //! are widened eight at a time (`vpmovzxbd`), and the mask is built with a variable shift and an
-//! OR reduction, a few dozen instructions per node instead of about three hundred.
+//! OR reduction: about 85 instructions per node instead of over 160 (callgrind).
 
 use glam::Vec3A;
 use obvhs::cwbvh::node::CwBvhNode;

@@ -377,7 +377,7 @@ impl OctantBvh {
     /// `tmax`, nearer leaves roughly first; `visit` may lower `tmax` (closest-hit search) and
     /// returns `true` to stop (any-hit search). The refs and their order are those of obvhs's
     /// traversal; the node test runs eight children wide with AVX2 when the CPU has it
-    /// ([`node_test`]). A `-0.0` in the direction is taken as `+0.0`.
+    /// (the `node_test` module). A `-0.0` in the direction is taken as `+0.0`.
     #[inline]
     pub fn traverse(&self, ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
         let mut ray = positive_zeros(ray);

@@ -12,20 +12,24 @@
 //! chunks are likewise put in the top-level BVH's leaf order. [`BvhBuilder`] keeps the scratch so
 //! that a new isovalue rebuilds without reallocating.
 
-use glam::{UVec2, Vec3A};
+use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::bvh2::Bvh2;
 use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
+use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ploc::PlocBuilder;
 use obvhs::ray::Ray;
 use obvhs::BvhBuildParams;
 use rayon::prelude::*;
 
+mod node_test;
+mod walk;
 pub mod wide;
 
+use walk::{walk, Stack};
 use wide::WideBuilder;
 
 /// Refs whose boxes one task decodes (the chunk's boxes are decoded in parallel runs).
@@ -297,6 +301,18 @@ impl Worker {
     }
 }
 
+/// `ray` with `+0.0` for any `-0.0` in its direction. obvhs's node test takes a component's
+/// near planes from its sign bit (`< 0.0`, false for `-0.0`) but its inverse from
+/// `signum` (negative for `-0.0`): a ray with a `-0.0` component would enter no child at all.
+#[inline(always)]
+fn positive_zeros(ray: Ray) -> Ray {
+    if ray.direction.cmpeq(Vec3A::ZERO).any() {
+        Ray::new(ray.origin, ray.direction + Vec3A::ZERO, ray.tmin, ray.tmax)
+    } else {
+        ray
+    }
+}
+
 /// `values[i] = old values[perm[i]]` without a second array; `perm` is destroyed.
 fn gather_in_place(values: &mut [u64], perm: &mut [u32]) {
     const DONE: u32 = u32::MAX;
@@ -359,11 +375,103 @@ impl OctantBvh {
 
     /// Calls `visit(r, &mut tmax)` for the refs of every leaf the `f32` ray reaches before its
     /// `tmax`, nearer leaves roughly first; `visit` may lower `tmax` (closest-hit search) and
-    /// returns `true` to stop (any-hit search).
+    /// returns `true` to stop (any-hit search). The refs and their order are those of obvhs's
+    /// traversal; the node test runs eight children wide with AVX2 when the CPU has it
+    /// (the `node_test` module). A `-0.0` in the direction is taken as `+0.0`.
     #[inline]
-    pub fn traverse(&self, mut ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
+    pub fn traverse(&self, ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
+        let mut ray = positive_zeros(ray);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            unsafe { self.traverse_avx2(&mut ray, &mut visit) };
+            return;
+        }
+        self.traverse_with(&mut ray, &mut visit, node_test::hits_portable);
+    }
+
+    /// [`OctantBvh::traverse`] as on a CPU without AVX2 (obvhs's node test), to compare the two.
+    pub fn traverse_portable(&self, ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
+        let mut ray = positive_zeros(ray);
+        self.traverse_with(&mut ray, &mut visit, node_test::hits_portable);
+    }
+
+    /// [`OctantBvh::traverse`] with the AVX2 node test, the whole walk compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn traverse_avx2(&self, ray: &mut Ray, visit: &mut impl FnMut(u64, &mut f32) -> bool) {
+        let consts = node_test::Avx2Ray::new(ray, node_test::octant_inv4(ray.direction));
+        self.traverse_with(ray, visit, |node, ray, _| consts.hits(node, ray.tmax));
+    }
+
+    /// The top level, then each chunk it reaches, with the node test `test`.
+    #[inline(always)]
+    fn traverse_with(
+        &self,
+        ray: &mut Ray,
+        visit: &mut impl FnMut(u64, &mut f32) -> bool,
+        test: impl Fn(&CwBvhNode, &Ray, u32) -> u32 + Copy,
+    ) {
+        let oct = node_test::octant_inv4(ray.direction);
+        let mut stack = Stack::new();
         if let [chunk] = self.chunks.as_slice() {
-            self.traverse_chunk(chunk, &mut ray, &mut visit);
+            self.walk_chunk(chunk, ray, oct, &mut stack, test, visit);
+            return;
+        }
+        walk(
+            &self.top.nodes,
+            ray,
+            oct,
+            &mut stack,
+            test,
+            |c, ray, stack| self.walk_chunk(&self.chunks[c as usize], ray, oct, stack, test, visit),
+        );
+    }
+
+    /// The walk in one chunk; true when `visit` asked to stop.
+    #[inline(always)]
+    fn walk_chunk(
+        &self,
+        chunk: &Chunk,
+        ray: &mut Ray,
+        oct: u32,
+        stack: &mut Stack,
+        test: impl Fn(&CwBvhNode, &Ray, u32) -> u32,
+        visit: &mut impl FnMut(u64, &mut f32) -> bool,
+    ) -> bool {
+        let refs = &self.refs[chunk.first..chunk.first + chunk.len];
+        walk(&chunk.bvh.nodes, ray, oct, stack, test, |i, ray, _| {
+            visit(refs[i as usize], &mut ray.tmax)
+        })
+    }
+
+    /// [`OctantBvh::traverse`] with obvhs's own `traverse!` loop and node test: the reference
+    /// the walk must match visit for visit.
+    #[cfg(test)]
+    fn traverse_obvhs(&self, mut ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
+        use glam::UVec2;
+        let chunk_walk =
+            |chunk: &Chunk, ray: &mut Ray, visit: &mut dyn FnMut(u64, &mut f32) -> bool| {
+                let bvh = &chunk.bvh;
+                if bvh.nodes.is_empty() {
+                    return false;
+                }
+                let refs = &self.refs[chunk.first..chunk.first + chunk.len];
+                let mut state = bvh.new_traversal(ray.direction);
+                let mut node;
+                let mut stopped = false;
+                obvhs::traverse!(bvh, node, state, node.intersect_ray(ray, state.oct_inv4), {
+                    if visit(refs[state.primitive_id as usize], &mut ray.tmax) {
+                        stopped = true;
+                        state.stack.clear();
+                        state.current_group = UVec2::ZERO;
+                        break;
+                    }
+                });
+                stopped
+            };
+        if let [chunk] = self.chunks.as_slice() {
+            chunk_walk(chunk, &mut ray, &mut visit);
             return;
         }
         if self.top.nodes.is_empty() {
@@ -379,40 +487,13 @@ impl OctantBvh {
             node.intersect_ray(&ray, state.oct_inv4),
             {
                 let chunk = &self.chunks[state.primitive_id as usize];
-                if self.traverse_chunk(chunk, &mut ray, &mut visit) {
+                if chunk_walk(chunk, &mut ray, &mut visit) {
                     state.stack.clear();
                     state.current_group = UVec2::ZERO;
                     break;
                 }
             }
         );
-    }
-
-    /// [`OctantBvh::traverse`] in one chunk; true when `visit` asked to stop.
-    #[inline]
-    fn traverse_chunk(
-        &self,
-        chunk: &Chunk,
-        ray: &mut Ray,
-        visit: &mut impl FnMut(u64, &mut f32) -> bool,
-    ) -> bool {
-        let bvh = &chunk.bvh;
-        if bvh.nodes.is_empty() {
-            return false;
-        }
-        let refs = &self.refs[chunk.first..chunk.first + chunk.len];
-        let mut state = bvh.new_traversal(ray.direction);
-        let mut node;
-        let mut stopped = false;
-        obvhs::traverse!(bvh, node, state, node.intersect_ray(ray, state.oct_inv4), {
-            if visit(refs[state.primitive_id as usize], &mut ray.tmax) {
-                stopped = true;
-                state.stack.clear();
-                state.current_group = UVec2::ZERO;
-                break;
-            }
-        });
-        stopped
     }
 }
 
@@ -510,6 +591,100 @@ mod tests {
         assert!(crossed > 200, "the rays cross only {crossed} boxes");
     }
 
+    /// Boxes of mixed sizes scattered in a 100-cube, one per ref.
+    fn scattered_boxes(r: u64) -> ([f64; 3], [f64; 3]) {
+        let h = |k: u64| {
+            let x = (r * 4 + k + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+            ((x ^ (x >> 29)).wrapping_mul(0xbf58_476d_1ce4_e5b9) >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let lo = [h(0) * 100.0, h(1) * 100.0, h(2) * 100.0];
+        let s = 0.2 + 3.0 * h(3) * h(3);
+        (lo, [lo[0] + s, lo[1] + s * 0.7, lo[2] + s * 1.3])
+    }
+
+    /// The refs a traversal visits, in order, each with the `tmax` it was visited under; every
+    /// seventh visit lowers `tmax` (as a closest hit does) and, with `stop_at`, the traversal
+    /// stops at that visit.
+    fn visits(
+        traverse: impl FnOnce(Ray, &mut dyn FnMut(u64, &mut f32) -> bool),
+        ray: Ray,
+        stop_at: Option<usize>,
+    ) -> Vec<(u64, u32)> {
+        let mut seen = Vec::new();
+        traverse(ray, &mut |r, tmax| {
+            seen.push((r, tmax.to_bits()));
+            if seen.len() % 7 == 0 {
+                *tmax *= 0.9;
+            }
+            stop_at == Some(seen.len())
+        });
+        seen
+    }
+
+    #[test]
+    fn walk_visits_what_obvhs_visits_in_its_order() {
+        let refs: Vec<u64> = (0..20_000).collect();
+        let mut builder = BvhBuilder::new();
+        builder.chunk_refs = 1500;
+        let chunked = builder.build(&refs, 1e-4, scattered_boxes);
+        let one = BvhBuilder::new().build(&refs, 1e-4, scattered_boxes);
+        builder.method = BuildMethod::Ploc;
+        let ploc = builder.build(&refs, 1e-4, scattered_boxes);
+        let mut visited = 0;
+        for (name, bvh) in [("chunked", &chunked), ("one", &one), ("ploc", &ploc)] {
+            for k in 0..300u32 {
+                let a = k as f32 * 0.618;
+                let origin = Vec3A::new(
+                    50.0 + 80.0 * a.cos(),
+                    50.0 + 80.0 * a.sin(),
+                    30.0 + (k % 40) as f32,
+                );
+                let mut dir = (Vec3A::new(50.0, 50.0, 50.0) - origin
+                    + Vec3A::new((a * 3.1).sin(), (a * 2.3).cos(), (a * 1.7).sin()) * 30.0)
+                    .normalize();
+                if k % 9 == 0 {
+                    dir[(k % 3) as usize] = 0.0;
+                }
+                let tmax = if k % 4 == 0 { 60.0 } else { f32::INFINITY };
+                let ray = Ray::new(origin, dir, 0.0, tmax);
+                let stop = (k % 5 == 0).then_some(1 + (k as usize % 13));
+                let want = visits(|r, v| bvh.traverse_obvhs(r, v), ray, stop);
+                assert_eq!(
+                    visits(|r, v| bvh.traverse(r, v), ray, stop),
+                    want,
+                    "{name} ray {k}"
+                );
+                assert_eq!(
+                    visits(|r, v| bvh.traverse_portable(r, v), ray, stop),
+                    want,
+                    "{name} ray {k}, portable"
+                );
+                visited += want.len();
+            }
+        }
+        assert!(visited > 20_000, "only {visited} visits");
+    }
+
+    #[test]
+    fn a_negative_zero_in_the_direction_visits_as_a_positive_one() {
+        let refs: Vec<u64> = (0..1000).collect();
+        let bvh = BvhBuilder::new().build(&refs, 1e-4, grid_boxes);
+        let origin = Vec3A::new(-1.0, 4.5, 4.5);
+        let plus = visited(&bvh, Ray::new(origin, Vec3A::X, 0.0, f32::INFINITY));
+        assert_eq!(plus.len(), 10);
+        for d in [Vec3A::new(1.0, -0.0, 0.0), Vec3A::new(1.0, 0.0, -0.0)] {
+            let ray = Ray::new(origin, d, 0.0, f32::INFINITY);
+            assert_eq!(visited(&bvh, ray), plus, "{d}");
+            let mut portable = Vec::new();
+            bvh.traverse_portable(ray, |r, _| {
+                portable.push(r);
+                false
+            });
+            portable.sort();
+            assert_eq!(portable, plus, "{d}, portable");
+        }
+    }
+
     #[test]
     fn every_box_hit_by_a_ray_is_visited() {
         let refs: Vec<u64> = (0..1000).collect();
@@ -535,6 +710,90 @@ mod tests {
         });
         for x in 0..10 {
             assert!(seen.contains(&(x + 40 + 400)), "missing {x}");
+        }
+    }
+
+    /// Times the walk (AVX2 and portable node tests) against obvhs's `traverse!` on the same
+    /// rays, in alternating rounds in one process so that a loaded machine slows all alike:
+    /// `cargo test --release -p amr-render --lib walk_speed -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "prints the time per ray of the walk and of obvhs's traversal"]
+    fn walk_speed() {
+        use std::time::Instant;
+        let refs: Vec<u64> = (0..200_000).collect();
+        let bvh = BvhBuilder::new().build(&refs, 1e-4, scattered_boxes);
+        let rays: Vec<Ray> = (0..20_000u32)
+            .map(|k| {
+                let a = k as f32 * 0.618;
+                let b = k as f32 * 0.414;
+                let origin = Vec3A::new(
+                    50.0 + 90.0 * a.cos() * b.sin(),
+                    50.0 + 90.0 * a.sin() * b.sin(),
+                    50.0 + 90.0 * b.cos(),
+                );
+                let target = Vec3A::new(
+                    50.0 + 30.0 * (a * 3.1).sin(),
+                    50.0 + 30.0 * (a * 2.3).cos(),
+                    50.0 + 30.0 * (b * 1.7).sin(),
+                );
+                Ray::new(origin, (target - origin).normalize(), 0.0, f32::INFINITY)
+            })
+            .collect();
+        type Visit<'a> = &'a mut dyn FnMut(u64, &mut f32) -> bool;
+        // A closest-hit search: each visited box's slab entry lowers `tmax`.
+        let run = |traverse: &dyn Fn(Ray, Visit)| {
+            let mut visits = 0u64;
+            let t = Instant::now();
+            for ray in &rays {
+                traverse(*ray, &mut |r, tmax| {
+                    visits += 1;
+                    let (lo, hi) = scattered_boxes(r);
+                    let (mut t0, mut t1) = (0.0f32, *tmax);
+                    for a in 0..3 {
+                        let (ta, tb) = (
+                            (lo[a] as f32 - ray.origin[a]) * ray.inv_direction[a],
+                            (hi[a] as f32 - ray.origin[a]) * ray.inv_direction[a],
+                        );
+                        t0 = t0.max(ta.min(tb));
+                        t1 = t1.min(ta.max(tb));
+                    }
+                    if t0 <= t1 {
+                        *tmax = t0.max(1e-3) + 1.0;
+                    }
+                    false
+                });
+            }
+            (t.elapsed().as_secs_f64() * 1e9 / rays.len() as f64, visits)
+        };
+        let mut times = [Vec::new(), Vec::new(), Vec::new()];
+        let mut visits = [0; 3];
+        for _ in 0..15 {
+            for (m, times) in times.iter_mut().enumerate() {
+                let (ns, v) = match m {
+                    0 => run(&|r, v| bvh.traverse_obvhs(r, v)),
+                    1 => run(&|r, v| bvh.traverse(r, v)),
+                    _ => run(&|r, v| bvh.traverse_portable(r, v)),
+                };
+                times.push(ns);
+                visits[m] = v;
+            }
+        }
+        assert!(visits.iter().all(|&v| v == visits[0]), "{visits:?}");
+        for (name, mut t) in [
+            "obvhs traverse!",
+            "walk (dispatched)",
+            "walk, obvhs node test",
+        ]
+        .into_iter()
+        .zip(times)
+        {
+            t.sort_by(f64::total_cmp);
+            println!(
+                "{name}: {:.0} ns per ray (median of 15 rounds), {:.0} min; {:.1} candidates per ray",
+                t[7],
+                t[0],
+                visits[0] as f64 / rays.len() as f64
+            );
         }
     }
 }

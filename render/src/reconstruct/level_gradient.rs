@@ -277,6 +277,9 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 /// Slots of a [`LevelBlocks`] table (a power of two).
 const BLOCK_SLOTS: usize = 4096;
 
+/// A slot of [`LevelBlocks`]: the level and dual cell, and the block there.
+type BlockSlot = ((u32, [i64; 3]), Option<LevelBlock>);
+
 /// A per-thread memo of [`Sampler::level_block`]'s answers, direct-mapped by level and dual
 /// cell: the hits of neighbouring rays share dual cells, so most gradients read a remembered
 /// block. Blocks are pure functions of their key, so the memo never changes a gradient.
@@ -284,13 +287,12 @@ const BLOCK_SLOTS: usize = 4096;
 pub struct LevelBlocks {
     /// The sampler served, by [`Sampler::id`] (0: none yet).
     owner: u64,
-    slots: Vec<((u32, [i64; 3]), Option<LevelBlock>)>,
+    slots: Vec<BlockSlot>,
 }
 
 impl LevelBlocks {
     /// Bytes of one table.
-    pub const BYTES: usize =
-        BLOCK_SLOTS * std::mem::size_of::<((u32, [i64; 3]), Option<LevelBlock>)>();
+    pub const BYTES: usize = BLOCK_SLOTS * std::mem::size_of::<BlockSlot>();
 
     /// [`Sampler::level_gradient`], reading the block from this memo when it holds it.
     pub fn gradient<D: AsRef<[u8]>>(

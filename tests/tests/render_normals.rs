@@ -224,6 +224,23 @@ fn smooth_normals_turn_steadily_across_voxel_faces_and_level_boundaries() {
     );
 }
 
+/// With refinement ratio 3, where kd-tree leaf faces cut coarse cells, the blocks still give
+/// the six samples' normals.
+#[test]
+fn block_normals_equal_the_sampled_ones_at_ratio_3() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sphere3.amrk");
+    write_half_refined_sphere(&path, 2, 3, 12);
+    for reconstruction in [Reconstruction::Octant, Reconstruction::Current] {
+        let smooth = sweep(&path, reconstruction, Normals::Smooth);
+        eprintln!("{reconstruction}, ratio 3, smooth normals: {smooth:?}");
+        assert!(
+            smooth.from_blocks > 1000 && smooth.max_to_sampled < 1e-3,
+            "{reconstruction}, ratio 3: {smooth:?}"
+        );
+    }
+}
+
 /// The bits of the colour and normals of a frame of `path` with `reconstruction`, rendered on
 /// `threads` threads.
 fn frame_bits(path: &std::path::Path, reconstruction: Reconstruction, threads: usize) -> Vec<u32> {

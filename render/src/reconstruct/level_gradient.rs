@@ -88,6 +88,10 @@ pub type LevelBlock = [f32; 32];
 /// Kd-tree leaves a block may span before [`Sampler::level_block`] gives up.
 const BLOCK_LEAVES: usize = 8;
 
+/// Finest cells of a cell cut by kd-tree leaves that [`Sampler::level_block`] checks one by
+/// one before giving up.
+const CUT_CELL_FINEST: i64 = 64;
+
 /// A kd-tree leaf a block's cells are read from: the cells of the block's level lying whole in
 /// it (within its finest brick), that brick's lower cell and strides, and which of the block's
 /// slabs holds its values.
@@ -230,8 +234,36 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         Ok(Some(out))
     }
 
-    /// The kd-tree leaf holding cell `cell` of `level` whole, its values kept in `slabs[slab]`,
-    /// when its finest brick is of `level`; `None` otherwise.
+    /// True when every finest cell of `finest` (the finest cells of one cell of `level`, at
+    /// most [`CUT_CELL_FINEST`]) lies in a kd-tree leaf whose finest brick is of `level`.
+    fn leaf_cell_of_level(&self, finest: &IBox, level: u32) -> bool {
+        let e = finest.extent();
+        if e[0] * e[1] * e[2] > CUT_CELL_FINEST {
+            return false;
+        }
+        let mut leaf_box = IBox::default();
+        for z in finest.lo[2]..finest.hi[2] {
+            for y in finest.lo[1]..finest.hi[1] {
+                for x in finest.lo[0]..finest.hi[0] {
+                    if leaf_box.contains_cell([x, y, z]) {
+                        continue;
+                    }
+                    let Some(leaf) = self.find_leaf([x, y, z]) else {
+                        return false;
+                    };
+                    if !matches!(self.leaf_top(leaf), Some((_, top)) if top == level) {
+                        return false;
+                    }
+                    leaf_box = self.leaf_box(leaf);
+                }
+            }
+        }
+        true
+    }
+
+    /// The kd-tree leaf holding the lowest finest cell of cell `cell` of `level`, its values
+    /// kept in `slabs[slab]`, when its finest brick is of `level` and the cell is a leaf cell
+    /// everywhere (whole in that leaf, or in leaves all of `level`); `None` otherwise.
     fn block_leaf(
         &self,
         level: u32,
@@ -248,17 +280,26 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             return Ok(None);
         };
         let leaf_box = self.leaf_box(leaf);
-        if top != level || !leaf_box.contains_box(&finest) {
+        if top != level {
             return Ok(None);
         }
-        // The cells of `level` lying whole in the leaf, within the brick.
-        let (s, o) = (grid.scale(level), grid.offset());
         let brick_cells = self.brick_cells(brick);
-        let whole = IBox::new(
-            axes(|a| (leaf_box.lo[a] + o[a] + s[a] - 1).div_euclid(s[a])),
-            axes(|a| (leaf_box.hi[a] + o[a]).div_euclid(s[a])),
-        )
-        .intersect(&brick_cells);
+        let whole = if leaf_box.contains_box(&finest) {
+            // The cells of `level` lying whole in the leaf, within the brick.
+            let (s, o) = (grid.scale(level), grid.offset());
+            IBox::new(
+                axes(|a| (leaf_box.lo[a] + o[a] + s[a] - 1).div_euclid(s[a])),
+                axes(|a| (leaf_box.hi[a] + o[a]).div_euclid(s[a])),
+            )
+            .intersect(&brick_cells)
+        } else if self.leaf_cell_of_level(&finest, level) {
+            // A cell cut by a leaf's face (the kd-tree splits on finest cells, which need not
+            // fall on a coarser level's cells): the cell alone, read from the same brick (one
+            // brick of a level holds a cell).
+            IBox::new(cell, axes(|a| cell[a] + 1))
+        } else {
+            return Ok(None);
+        };
         let e = brick_cells.extent();
         slabs[slab] = Some(match self.values_in_place(brick) {
             Some(v) => Slab::Borrowed(v),

@@ -1,4 +1,4 @@
-//! Smooth normals inside one level, read from one brick: the central differences one cell
+//! Smooth normals inside one level, read from the bricks: the central differences one cell
 //! apart that smooth normals take of the `octant` and `current` fields, computed from the
 //! 4x4x4 cell values around the point's dual cell instead of from six point samples.
 //!
@@ -181,17 +181,18 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 
     /// The values of the cells of `level` that [`Self::level_gradient`] reads in the dual cell
     /// whose lower corner cell is `first` (the 4x4x4 cells from `first - 1`, but for the block's
-    /// edges and corners), when each lies whole in a kd-tree leaf whose finest brick is of
-    /// `level` (so it is a leaf cell everywhere) and they span at most [`BLOCK_LEAVES`] leaves;
-    /// `None` otherwise. A pure function of `level` and `first`.
+    /// edges and corners), when each is a leaf cell everywhere (it lies whole in a kd-tree leaf
+    /// whose finest brick is of `level`, or all its finest cells lie in such leaves) and they
+    /// span at most [`BLOCK_LEAVES`] leaves; `None` otherwise. A pure function of `level` and
+    /// `first`.
     pub fn level_block(&self, level: u32, first: [i64; 3]) -> Result<Option<LevelBlock>> {
         let lo = axes(|a| first[a] - 1);
         let mut slabs: [Option<Slab<'f>>; BLOCK_LEAVES] = Default::default();
-        let Some(leaf) = self.block_leaf(level, lo, 0, &mut slabs)? else {
+        let Some(leaf) = self.block_leaf(level, first, 0, &mut slabs)? else {
             return Ok(None);
         };
         let mut out = [0f32; 32];
-        if leaf.holds(axes(|a| lo[a] + 3)) {
+        if leaf.holds(lo) && leaf.holds(axes(|a| lo[a] + 3)) {
             // One leaf holds the whole block: one index and three strides.
             let Some(slab) = &slabs[0] else {
                 return Ok(None);
@@ -216,7 +217,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                     Some(k) => last = k,
                     None if known == BLOCK_LEAVES => return Ok(None),
                     None => {
-                        let Some(l) = self.block_leaf(level, cell, known, &mut slabs)? else {
+                        let found = self.block_leaf(level, cell, known, &mut slabs)?;
+                        let Some(l) = found.filter(|l| l.holds(cell)) else {
                             return Ok(None);
                         };
                         leaves[known] = l;
@@ -296,7 +298,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             // A cell cut by a leaf's face (the kd-tree splits on finest cells, which need not
             // fall on a coarser level's cells): the cell alone, read from the same brick (one
             // brick of a level holds a cell).
-            IBox::new(cell, axes(|a| cell[a] + 1))
+            IBox::new(cell, axes(|a| cell[a] + 1)).intersect(&brick_cells)
         } else {
             return Ok(None);
         };

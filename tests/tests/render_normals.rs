@@ -4,7 +4,8 @@
 //! faces), change only slightly where the level changes, and stay within a degree of the
 //! sphere's normal. The normals read from blocks of cell values inside one level
 //! (`VoxelSource::level_gradient`) are compared ray by ray with the six point samples they
-//! replace, which the sweep also traces.
+//! replace, which the sweep also traces, also on a ratio-3 file whose kd-tree leaves cut coarse
+//! cells; and frames with smooth normals are the same on 1, 2 and 3 threads.
 
 use amr_format::AmrkFile;
 use amr_render::bvh::BvhBuilder;

@@ -238,6 +238,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 
     /// True when every finest cell of `finest` (the finest cells of one cell of `level`, at
     /// most [`CUT_CELL_FINEST`]) lies in a kd-tree leaf whose finest brick is of `level`.
+    #[cold]
+    #[inline(never)]
     fn leaf_cell_of_level(&self, finest: &IBox, level: u32) -> bool {
         let e = finest.extent();
         if e[0] * e[1] * e[2] > CUT_CELL_FINEST {

@@ -2,12 +2,19 @@
 //! surface crosses voxel faces and a level boundary, the octant method's smooth normals turn
 //! steadily within a level (where the voxels' own trilinear gradients jump by degrees at
 //! faces), change only slightly where the level changes, and stay within a degree of the
-//! sphere's normal.
+//! sphere's normal. The normals read from blocks of cell values inside one level
+//! (`VoxelSource::level_gradient`) are compared ray by ray with the six point samples they
+//! replace, which the sweep also traces, also on a ratio-3 file whose kd-tree leaves cut coarse
+//! cells; and frames with smooth normals are the same on 1, 2 and 3 threads.
 
 use amr_format::AmrkFile;
 use amr_render::bvh::BvhBuilder;
-use amr_render::trace::{FieldSource, GridRay, HybridTracer, Surface, Tracer, VoxelSource};
-use amr_render::Reconstruction;
+use amr_render::shade::IsoSpec;
+use amr_render::trace::octant::VoxelHit;
+use amr_render::trace::{
+    FieldSource, GridFrame, GridRay, HybridTracer, Surface, Tracer, Voxel, VoxelSource,
+};
+use amr_render::{render, CameraPlacement, Reconstruction, Scene, SceneOptions, View};
 use amr_synth::{AnalyticField, Case};
 
 use crate::support::half_refined::write_half_refined_sphere;
@@ -25,6 +32,38 @@ fn unit(v: [f64; 3]) -> [f64; 3] {
     v.map(|x| x / n)
 }
 
+/// A source tracing like `S` whose smooth normals always take six point samples (the trait's
+/// default `level_gradient`), never the blocks of cell values.
+struct Sampled<'a, S>(&'a S);
+
+impl<S: VoxelSource> VoxelSource for Sampled<'_, S> {
+    fn frame(&self) -> GridFrame {
+        self.0.frame()
+    }
+    fn voxel(&self, r: u64) -> Voxel {
+        self.0.voxel(r)
+    }
+    fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)> {
+        self.0.sample(p)
+    }
+    fn gradient(&self, p: [f64; 3], h: [f64; 3]) -> Option<[f64; 3]> {
+        self.0.gradient(p, h)
+    }
+    fn cell_size(&self, level: u32) -> Option<[f64; 3]> {
+        self.0.cell_size(level)
+    }
+    fn intersect(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        tmin: f64,
+        tmax: f64,
+    ) -> Option<VoxelHit> {
+        self.0.intersect(voxel, iso, ray, tmin, tmax)
+    }
+}
+
 /// What a sweep of rays saw: the largest angle between the normals of neighbouring rays hitting
 /// the same level and hitting different levels, the largest angle to the exact normal, and the
 /// levels hit.
@@ -34,18 +73,39 @@ struct Sweep {
     max_step_across_levels: f64,
     max_error: f64,
     levels: Vec<u32>,
+    /// The largest angle between a ray's normal and the six-sample normal at the same hit.
+    max_to_sampled: f64,
+    /// Hits whose level's block of cell values gives the gradient (`Sampler::level_gradient`).
+    from_blocks: usize,
 }
 
-fn sweep(path: &std::path::Path, reconstruction: Reconstruction, smooth: bool) -> Sweep {
+/// Which normals a sweep takes.
+#[derive(Clone, Copy, PartialEq)]
+enum Normals {
+    /// Each voxel's own trilinear gradient.
+    Flat,
+    /// The source's smooth normals.
+    Smooth,
+    /// Smooth normals from six point samples at every hit.
+    Sampled,
+}
+
+fn sweep(path: &std::path::Path, reconstruction: Reconstruction, kind: Normals) -> Sweep {
     let file = AmrkFile::open(std::fs::read(path).unwrap()).unwrap();
     let src = FieldSource::new(&file, 0, reconstruction).unwrap();
     let iso = Case::Sphere.default_iso() as f32;
     let refs = src.extract(iso).unwrap().refs;
     let surfaces = [Surface::build(&src, iso, &refs, &mut BvhBuilder::new())];
+    let sampled = Sampled(&src);
     let tracer = HybridTracer {
         src: &src,
         surfaces: &surfaces,
-        smooth_normals: smooth,
+        smooth_normals: kind == Normals::Smooth,
+    };
+    let reference = HybridTracer {
+        src: &sampled,
+        surfaces: &surfaces,
+        smooth_normals: true,
     };
     let frame = src.frame();
     // Directions from the centre across the plane x = 0.5 (where level 1 begins) at a tilt, so
@@ -56,14 +116,27 @@ fn sweep(path: &std::path::Path, reconstruction: Reconstruction, smooth: bool) -
     let mut normals = Vec::with_capacity(n);
     let mut max_error = 0f64;
     let mut levels = Vec::new();
+    let mut max_to_sampled = 0f64;
+    let mut from_blocks = 0;
     for i in 0..n {
         let th = from + (to - from) * i as f64 / (n - 1) as f64;
         let d = [th.cos(), th.sin() * tilt.cos(), th.sin() * tilt.sin()];
         let ray = GridRay::from_world(&frame, CENTRE, d);
-        let hit = tracer
-            .next_hit(0, &ray, 0.0, f64::INFINITY)
-            .expect("every ray from inside hits the sphere");
-        let g = unit([0, 1, 2].map(|a| hit.grad[a] / frame.unit[a]));
+        let trace = |t: &dyn Tracer| {
+            t.next_hit(0, &ray, 0.0, f64::INFINITY)
+                .expect("every ray from inside hits the sphere")
+        };
+        let world = |grad: [f64; 3]| unit([0, 1, 2].map(|a| grad[a] / frame.unit[a]));
+        let sampled_hit = trace(&reference);
+        let hit = match kind {
+            Normals::Sampled => sampled_hit,
+            _ => trace(&tracer),
+        };
+        let g = world(hit.grad);
+        assert_eq!(hit.pos, sampled_hit.pos, "the normals change no hit");
+        max_to_sampled = max_to_sampled.max(angle(g, world(sampled_hit.grad)));
+        let block = src.sampler().level_gradient(hit.pos, hit.level).unwrap();
+        from_blocks += usize::from(block.is_some());
         let p = frame.to_world(hit.pos);
         let exact = unit([0, 1, 2].map(|a| p[a] - CENTRE[a]));
         max_error = max_error.max(angle(g, exact));
@@ -86,6 +159,8 @@ fn sweep(path: &std::path::Path, reconstruction: Reconstruction, smooth: bool) -
         max_step_across_levels,
         max_error,
         levels,
+        max_to_sampled,
+        from_blocks,
     }
 }
 
@@ -98,10 +173,18 @@ fn smooth_normals_turn_steadily_across_voxel_faces_and_level_boundaries() {
     write_half_refined_sphere(&path, 3, 2, 16);
 
     // The sweep turns the exact normal by 30 degrees over 6000 rays: 0.005 degrees a step.
-    let flat = sweep(&path, Reconstruction::Octant, false);
-    let smooth = sweep(&path, Reconstruction::Octant, true);
+    let flat = sweep(&path, Reconstruction::Octant, Normals::Flat);
+    let smooth = sweep(&path, Reconstruction::Octant, Normals::Smooth);
+    let sampled = sweep(&path, Reconstruction::Octant, Normals::Sampled);
     eprintln!("octant, flat normals: {flat:?}");
     eprintln!("octant, smooth normals: {smooth:?}");
+    eprintln!("octant, smooth normals from six samples: {sampled:?}");
+    // Inside one level the blocks give the samples' normal up to rounding, and most hits are
+    // inside one level.
+    assert!(
+        smooth.from_blocks > 1500 && smooth.max_to_sampled < 1e-3,
+        "block normals differ from the sampled ones: {smooth:?}"
+    );
     assert!(
         flat.levels.len() >= 2 && smooth.levels.len() >= 2,
         "the sweep should cross a level boundary: {smooth:?}"
@@ -126,12 +209,85 @@ fn smooth_normals_turn_steadily_across_voxel_faces_and_level_boundaries() {
 
     // `current` is discontinuous at level boundaries by construction (its surface cracks
     // there); its smooth normals are still closer to the sphere's than its voxels' gradients.
-    let flat = sweep(&path, Reconstruction::Current, false);
-    let smooth = sweep(&path, Reconstruction::Current, true);
+    let flat = sweep(&path, Reconstruction::Current, Normals::Flat);
+    let smooth = sweep(&path, Reconstruction::Current, Normals::Smooth);
+    let sampled = sweep(&path, Reconstruction::Current, Normals::Sampled);
     eprintln!("current, flat normals: {flat:?}");
     eprintln!("current, smooth normals: {smooth:?}");
+    eprintln!("current, smooth normals from six samples: {sampled:?}");
+    assert!(
+        smooth.from_blocks > 1500 && smooth.max_to_sampled < 1e-3,
+        "current: block normals differ from the sampled ones: {smooth:?}"
+    );
     assert!(
         smooth.max_error < flat.max_error,
         "current: {smooth:?} {flat:?}"
     );
+}
+
+/// With refinement ratio 3, where kd-tree leaf faces cut coarse cells, the blocks still give
+/// the six samples' normals.
+#[test]
+fn block_normals_equal_the_sampled_ones_at_ratio_3() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sphere3.amrk");
+    write_half_refined_sphere(&path, 2, 3, 12);
+    for reconstruction in [Reconstruction::Octant, Reconstruction::Current] {
+        let smooth = sweep(&path, reconstruction, Normals::Smooth);
+        eprintln!("{reconstruction}, ratio 3, smooth normals: {smooth:?}");
+        assert!(
+            smooth.from_blocks > 1000 && smooth.max_to_sampled < 1e-3,
+            "{reconstruction}, ratio 3: {smooth:?}"
+        );
+    }
+}
+
+/// The bits of the colour and normals of a frame of `path` with `reconstruction`, rendered on
+/// `threads` threads.
+fn frame_bits(path: &std::path::Path, reconstruction: Reconstruction, threads: usize) -> Vec<u32> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    pool.install(|| {
+        let options = SceneOptions {
+            reconstruction,
+            ..SceneOptions::default()
+        };
+        let mut scene = Scene::open(path, &options).unwrap();
+        let iso = Case::Sphere.default_iso();
+        scene.set_isosurfaces(&[IsoSpec::new(iso as f32)]).unwrap();
+        let view = View {
+            camera: Some(CameraPlacement {
+                pos: [1.6, 1.3, 1.1],
+                look_at: Some(CENTRE),
+                up: None,
+            }),
+            size: (96, 72),
+            ao_rays: 1,
+            ..View::default()
+        };
+        let f = render(&scene, &view, &|_| {}).unwrap().frame;
+        assert!(f.covered() > 1000, "the sphere fills the frame");
+        let bits = f.rgb.iter().chain(&f.n).chain([&f.alpha, &f.z]);
+        bits.flatten().map(|x| x.to_bits()).collect()
+    })
+}
+
+/// The per-thread memo of cell blocks holds values that depend on the block alone, so a frame
+/// does not depend on which thread met a block first.
+#[test]
+fn smooth_normals_are_the_same_on_any_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sphere.amrk");
+    write_half_refined_sphere(&path, 3, 2, 16);
+    for reconstruction in [Reconstruction::Octant, Reconstruction::Current] {
+        let one = frame_bits(&path, reconstruction, 1);
+        for threads in [2, 3] {
+            assert!(
+                frame_bits(&path, reconstruction, threads) == one,
+                "{reconstruction}: other pixels on {threads} threads"
+            );
+        }
+    }
 }

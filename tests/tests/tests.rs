@@ -27,7 +27,8 @@
 //! - [`render_watertight`] and [`render_watertight_amrk`]: no ray leaks through a closed surface.
 //! - [`render_accuracy`]: the hybrid method against the sample method.
 //! - [`render_golden`]: a golden image.
-//! - [`render_normals`]: smooth normals turn steadily across voxel faces and level boundaries.
+//! - [`render_normals`]: smooth normals turn steadily across voxel faces and level boundaries,
+//!   equal the six-sample normals inside a level, and do not depend on the thread count.
 //! - [`render_clip`]: a clip box cuts surfaces open; view-limited extraction renders the view
 //!   bit for bit.
 //! - [`scene_api`]: the library's scene, views and isovalue changes.

@@ -7,6 +7,7 @@
 //! - [`local`]: leaf-cell location around one kd-tree leaf from a table, without tree walks.
 //! - [`recent`]: per-thread scratch that makes nearby point samples cheap.
 //! - [`sampler`]: leaf-cell location and the octant method's vertex values.
+//! - [`level_gradient`]: smooth normals' central differences inside one level, from a brick.
 //! - [`methods`]: point sampling with `nearest`, `current`, `finest` and `octant`.
 //!
 //! `docs/reconstruction.md` gives the rules and the reasons for them.
@@ -15,6 +16,7 @@ pub mod cache;
 pub mod grid;
 pub mod interp;
 pub mod leaf_grid;
+pub mod level_gradient;
 pub mod local;
 pub mod methods;
 pub mod recent;

@@ -18,6 +18,7 @@ use crate::extract::current::CurrentVoxels;
 use crate::extract::nearest::NearestFaces;
 use crate::extract::{candidate_leaves, ExtractStats, Extraction, Extractor, Region};
 use crate::mapping::PageRelease;
+use crate::reconstruct::level_gradient::LevelBlocks;
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
 use crate::trace::octant::{intersect_voxel, voxel_occludes, VoxelHit};
@@ -31,9 +32,10 @@ pub const BRICK_CACHE_BYTES: usize = 256 << 20;
 /// Slots of each thread's cache of decoded voxels (a power of two).
 const VOXEL_CACHE_SLOTS: usize = 4096;
 
-/// Bytes of one thread's voxel cache: the decoded voxels with their refs, plus the sampling
-/// scratch (bounded by its own capacities, not counted here).
-pub const VOXEL_CACHE_BYTES: usize = VOXEL_CACHE_SLOTS * std::mem::size_of::<(u64, Voxel)>();
+/// Bytes of one thread's voxel cache: the decoded voxels with their refs and the cell blocks of
+/// smooth normals, plus the sampling scratch (bounded by its own capacities, not counted here).
+pub const VOXEL_CACHE_BYTES: usize =
+    VOXEL_CACHE_SLOTS * std::mem::size_of::<(u64, Voxel)>() + LevelBlocks::BYTES;
 
 /// The voxels of one reconstruction.
 enum Voxels<'f, D> {
@@ -49,6 +51,7 @@ enum Voxels<'f, D> {
 struct VoxelCache {
     slots: Vec<(u64, Voxel)>,
     scratch: SampleScratch,
+    blocks: LevelBlocks,
 }
 
 /// One field of an open file, reconstructed one way, as a [`VoxelSource`].
@@ -234,6 +237,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
             RefCell::new(VoxelCache {
                 slots: vec![(u64::MAX, Voxel::EMPTY); VOXEL_CACHE_SLOTS],
                 scratch: SampleScratch::default(),
+                blocks: LevelBlocks::default(),
             })
         })
     }
@@ -336,6 +340,27 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
             p,
             h,
         )
+    }
+
+    fn level_gradient(&self, p: [f64; 3], level: u32, step: [f64; 3]) -> Option<[f64; 3]> {
+        let step = self.cell_size(level).unwrap_or(step);
+        if matches!(self.voxels, Voxels::Octant(_) | Voxels::Current(_)) {
+            // Inside one level, both fields are the dual cells' trilinear interpolant, whose
+            // central differences one cell apart the brick gives directly.
+            let found = {
+                let mut cache = self.thread_cache().borrow_mut();
+                cache.blocks.gradient(self.sampler(), p, level)
+            };
+            match found {
+                Ok(Some(g)) => return Some(g),
+                Ok(None) => {}
+                Err(e) => {
+                    self.record(e);
+                    return None;
+                }
+            }
+        }
+        self.gradient(p, step)
     }
 
     fn release_pages(&self) {

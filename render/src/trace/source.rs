@@ -88,6 +88,13 @@ pub trait VoxelSource: Sync {
         central_difference(self, p, h)
     }
 
+    /// The gradient smooth normals take at `p` on a hit of AMR level `level`: [`Self::gradient`]
+    /// one cell of that level apart on each axis ([`Self::cell_size`], `step` when the source
+    /// has no levels). Sources may compute the same values faster.
+    fn level_gradient(&self, p: [f64; 3], level: u32, step: [f64; 3]) -> Option<[f64; 3]> {
+        self.gradient(p, self.cell_size(level).unwrap_or(step))
+    }
+
     /// The size of a cell of AMR level `level` in grid units, per axis; `None` (the default)
     /// when the source has no levels to tell.
     fn cell_size(&self, _level: u32) -> Option<[f64; 3]> {

@@ -90,8 +90,7 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
         if self.smooth_normals {
             // The step depends on the level alone, not on the voxel's shape (an octant or a
             // merged dual cell), so that neighbouring hits of one level use the same step.
-            let step = self.src.cell_size(h.voxel.level).unwrap_or([size; 3]);
-            if let Some(g) = self.src.gradient(pos, step) {
+            if let Some(g) = self.src.level_gradient(pos, h.voxel.level, [size; 3]) {
                 grad = g;
             }
         }

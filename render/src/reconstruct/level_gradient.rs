@@ -1,0 +1,372 @@
+//! Smooth normals inside one level, read from the bricks: the central differences one cell
+//! apart that smooth normals take of the `octant` and `current` fields, computed from the
+//! 4x4x4 cell values around the point's dual cell instead of from six point samples.
+//!
+//! Where every cell of a level `L` block is a leaf cell of `L`, both reconstructions are the
+//! trilinear interpolant of the cell values on the level's dual cells (cell centres at the
+//! corners; the octant method's vertex values are then averages of these corners, which the
+//! trilinear interpolant takes at the same points). For that interpolant `f` and a step `h` of
+//! one cell on axis `a`, `(f(p + h) - f(p - h)) / 2h` is the trilinear interpolant, over the dual
+//! cell holding `p`, of the central differences `(v[i + 1] - v[i - 1]) / 2h` at its eight corners:
+//! both are linear on `a` between the corners with the same weights on the other axes. So the
+//! gradient is eight corner gradients, each one subtraction of two neighbouring cells, shared
+//! by every point of the dual cell, and the same function of `p` as the six samples give (up
+//! to rounding: the samples round to `f32`, this evaluates in `f64`). See
+//! `docs/reconstruction.md`.
+
+use amr_format::IBox;
+
+use crate::error::Result;
+
+use super::grid::axes;
+use super::sampler::{Sampler, Slab};
+
+/// The cells of a 4x4x4 block of one level that [`Sampler::gradient_in_block`] reads: the
+/// dual cell's eight corners (offsets 1 and 2) and their neighbours on each axis (at most one
+/// offset of 0 or 3), x fastest.
+const NEEDED: [[usize; 3]; 32] = needed_cells();
+
+/// Per offset in the block (`x + 4 y + 16 z`): its index in [`NEEDED`] (64 for the others).
+const SLOT: [usize; 64] = slots();
+
+const fn needed_cells() -> [[usize; 3]; 32] {
+    let mut out = [[0; 3]; 32];
+    let (mut i, mut n) = (0, 0);
+    while i < 64 {
+        let c = [i & 3, i >> 2 & 3, i >> 4 & 3];
+        let outer = (c[0] == 0 || c[0] == 3) as usize
+            + (c[1] == 0 || c[1] == 3) as usize
+            + (c[2] == 0 || c[2] == 3) as usize;
+        if outer <= 1 {
+            out[n] = c;
+            n += 1;
+        }
+        i += 1;
+    }
+    out
+}
+
+const fn slots() -> [usize; 64] {
+    let mut out = [64; 64];
+    let mut n = 0;
+    while n < 32 {
+        let c = NEEDED[n];
+        out[c[0] + 4 * c[1] + 16 * c[2]] = n;
+        n += 1;
+    }
+    out
+}
+
+/// Per axis `a` and corner `n` of the dual cell (cell `1 + bit` of the block on each axis):
+/// the [`NEEDED`] slots of its neighbours above and below on `a`.
+const PAIRS: [[[usize; 2]; 8]; 3] = pairs();
+
+const fn pairs() -> [[[usize; 2]; 8]; 3] {
+    let mut out = [[[0; 2]; 8]; 3];
+    let mut a = 0;
+    while a < 3 {
+        let mut n = 0;
+        while n < 8 {
+            let c = [1 + (n & 1), 1 + (n >> 1 & 1), 1 + (n >> 2 & 1)];
+            let (mut up, mut down) = (c, c);
+            up[a] += 1;
+            down[a] -= 1;
+            out[a][n] = [
+                SLOT[up[0] + 4 * up[1] + 16 * up[2]],
+                SLOT[down[0] + 4 * down[1] + 16 * down[2]],
+            ];
+            n += 1;
+        }
+        a += 1;
+    }
+    out
+}
+
+/// The values of the cells of a block that the gradient reads, in [`NEEDED`]'s order.
+pub type LevelBlock = [f32; 32];
+
+/// Kd-tree leaves a block may span before [`Sampler::level_block`] gives up.
+const BLOCK_LEAVES: usize = 8;
+
+/// Finest cells of a cell cut by kd-tree leaves that [`Sampler::level_block`] checks one by
+/// one before giving up.
+const CUT_CELL_FINEST: i64 = 64;
+
+/// A kd-tree leaf a block's cells are read from: the cells of the block's level lying whole in
+/// it (within its finest brick), that brick's lower cell and strides, and which of the block's
+/// slabs holds its values.
+#[derive(Clone, Copy)]
+struct BlockLeaf {
+    lo: [i64; 3],
+    hi: [i64; 3],
+    brick_lo: [i64; 3],
+    stride: [i64; 3],
+    slab: usize,
+}
+
+impl BlockLeaf {
+    #[inline(always)]
+    fn holds(&self, c: [i64; 3]) -> bool {
+        (0..3).all(|a| self.lo[a] <= c[a] && c[a] < self.hi[a])
+    }
+
+    #[inline(always)]
+    fn index(&self, c: [i64; 3]) -> usize {
+        (0..3)
+            .map(|a| (c[a] - self.brick_lo[a]) * self.stride[a])
+            .sum::<i64>() as usize
+    }
+}
+
+impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
+    /// The central differences of the `octant` (and `current`) field at doubled point `p` one
+    /// cell of `level` apart on each axis (cell sizes in doubled units: `2 * scale`), divided by
+    /// twice the step, when the cells of `level` around `p`'s dual cell of that level that the
+    /// differences read are leaf cells ([`Self::level_block`]); `None` otherwise (near a level
+    /// boundary or the domain's edge), where the caller samples.
+    pub fn level_gradient(&self, p: [f64; 3], level: u32) -> Result<Option<[f64; 3]>> {
+        let Some(first) = self.dual_cell(p, level) else {
+            return Ok(None);
+        };
+        Ok(self
+            .level_block(level, first)?
+            .map(|block| self.gradient_in_block(&block, p, level, first)))
+    }
+
+    /// The lower corner cell of the dual cell of `level` holding doubled point `p` (the cells
+    /// at its corners are `first` and one more on each axis), as `current` sampling finds it;
+    /// `None` for a level the file lacks or a point not finite.
+    #[inline]
+    pub fn dual_cell(&self, p: [f64; 3], level: u32) -> Option<[i64; 3]> {
+        let grid = self.grid();
+        if level as usize >= grid.num_levels() {
+            return None;
+        }
+        let (s, o) = (grid.scale(level), grid.offset());
+        let first = axes(|a| (((p[a] - s[a] as f64) * 0.5 + o[a] as f64) / s[a] as f64).floor());
+        first
+            .iter()
+            .all(|x| x.abs() < 1e15)
+            .then(|| first.map(|x| x as i64))
+    }
+
+    /// [`Self::level_gradient`] at `p` in the dual cell `first` of `level`, from the block's
+    /// values there.
+    #[inline]
+    pub fn gradient_in_block(
+        &self,
+        block: &LevelBlock,
+        p: [f64; 3],
+        level: u32,
+        first: [i64; 3],
+    ) -> [f64; 3] {
+        let s = self.grid().scale(level);
+        let base = self.grid().centre(level, first);
+        let t = axes(|a| ((p[a] - base[a] as f64) / (2 * s[a]) as f64).clamp(0.0, 1.0));
+        // The trilinear weight of each corner of the dual cell.
+        let u = [[1.0 - t[0], t[0]], [1.0 - t[1], t[1]], [1.0 - t[2], t[2]]];
+        let w: [f64; 8] = std::array::from_fn(|n| u[0][n & 1] * u[1][n >> 1 & 1] * u[2][n >> 2]);
+        let mut g = [0f64; 3];
+        for (a, ga) in g.iter_mut().enumerate() {
+            let mut sum = 0.0;
+            for (n, wn) in w.iter().enumerate() {
+                let [up, down] = PAIRS[a][n];
+                sum += wn * (f64::from(block[up]) - f64::from(block[down]));
+            }
+            // Two cells apart, each `2 * scale` doubled units.
+            *ga = sum / (4 * s[a]) as f64;
+        }
+        g
+    }
+
+    /// The values of the cells of `level` that [`Self::level_gradient`] reads in the dual cell
+    /// whose lower corner cell is `first` (the 4x4x4 cells from `first - 1`, but for the block's
+    /// edges and corners), when each is a leaf cell everywhere (it lies whole in a kd-tree leaf
+    /// whose finest brick is of `level`, or all its finest cells lie in such leaves) and they
+    /// span at most [`BLOCK_LEAVES`] leaves; `None` otherwise. A pure function of `level` and
+    /// `first`.
+    pub fn level_block(&self, level: u32, first: [i64; 3]) -> Result<Option<LevelBlock>> {
+        let lo = axes(|a| first[a] - 1);
+        let mut slabs: [Option<Slab<'f>>; BLOCK_LEAVES] = Default::default();
+        let Some(leaf) = self.block_leaf(level, first, 0, &mut slabs)? else {
+            return Ok(None);
+        };
+        let mut out = [0f32; 32];
+        if leaf.holds(lo) && leaf.holds(axes(|a| lo[a] + 3)) {
+            // One leaf holds the whole block: one index and three strides.
+            let Some(slab) = &slabs[0] else {
+                return Ok(None);
+            };
+            let start = leaf.index(lo);
+            let step = leaf.stride.map(|x| x as usize);
+            let Some(v) = slab.get(start..=start + 3 * (step[0] + step[1] + step[2])) else {
+                return Ok(None);
+            };
+            for (slot, c) in out.iter_mut().zip(NEEDED) {
+                *slot = v[c[0] + c[1] * step[1] + c[2] * step[2]];
+            }
+            return Ok(Some(out));
+        }
+        // Otherwise cell by cell, from the leaves met so far or one found next.
+        let mut leaves = [leaf; BLOCK_LEAVES];
+        let (mut known, mut last) = (1, 0);
+        for (slot, c) in out.iter_mut().zip(NEEDED) {
+            let cell = axes(|a| lo[a] + c[a] as i64);
+            if !leaves[last].holds(cell) {
+                match (0..known).find(|&k| leaves[k].holds(cell)) {
+                    Some(k) => last = k,
+                    None if known == BLOCK_LEAVES => return Ok(None),
+                    None => {
+                        let found = self.block_leaf(level, cell, known, &mut slabs)?;
+                        let Some(l) = found.filter(|l| l.holds(cell)) else {
+                            return Ok(None);
+                        };
+                        leaves[known] = l;
+                        last = known;
+                        known += 1;
+                    }
+                }
+            }
+            let l = &leaves[last];
+            let Some(v) = slabs[l.slab].as_ref().and_then(|s| s.get(l.index(cell))) else {
+                return Ok(None);
+            };
+            *slot = *v;
+        }
+        Ok(Some(out))
+    }
+
+    /// True when every finest cell of `finest` (the finest cells of one cell of `level`, at
+    /// most [`CUT_CELL_FINEST`]) lies in a kd-tree leaf whose finest brick is of `level`.
+    #[cold]
+    #[inline(never)]
+    fn leaf_cell_of_level(&self, finest: &IBox, level: u32) -> bool {
+        let e = finest.extent();
+        if e[0] * e[1] * e[2] > CUT_CELL_FINEST {
+            return false;
+        }
+        let mut leaf_box = IBox::default();
+        for z in finest.lo[2]..finest.hi[2] {
+            for y in finest.lo[1]..finest.hi[1] {
+                for x in finest.lo[0]..finest.hi[0] {
+                    if leaf_box.contains_cell([x, y, z]) {
+                        continue;
+                    }
+                    let Some(leaf) = self.find_leaf([x, y, z]) else {
+                        return false;
+                    };
+                    if !matches!(self.leaf_top(leaf), Some((_, top)) if top == level) {
+                        return false;
+                    }
+                    leaf_box = self.leaf_box(leaf);
+                }
+            }
+        }
+        true
+    }
+
+    /// The kd-tree leaf holding the lowest finest cell of cell `cell` of `level`, its values
+    /// kept in `slabs[slab]`, when its finest brick is of `level` and the cell is a leaf cell
+    /// everywhere (whole in that leaf, or in leaves all of `level`); `None` otherwise.
+    fn block_leaf(
+        &self,
+        level: u32,
+        cell: [i64; 3],
+        slab: usize,
+        slabs: &mut [Option<Slab<'f>>; BLOCK_LEAVES],
+    ) -> Result<Option<BlockLeaf>> {
+        let grid = self.grid();
+        let finest = grid.finest_box(level, cell);
+        let Some(leaf) = self.find_leaf(finest.lo) else {
+            return Ok(None);
+        };
+        let Some((brick, top)) = self.leaf_top(leaf) else {
+            return Ok(None);
+        };
+        let leaf_box = self.leaf_box(leaf);
+        if top != level {
+            return Ok(None);
+        }
+        let brick_cells = self.brick_cells(brick);
+        let whole = if leaf_box.contains_box(&finest) {
+            // The cells of `level` lying whole in the leaf, within the brick.
+            let (s, o) = (grid.scale(level), grid.offset());
+            IBox::new(
+                axes(|a| (leaf_box.lo[a] + o[a] + s[a] - 1).div_euclid(s[a])),
+                axes(|a| (leaf_box.hi[a] + o[a]).div_euclid(s[a])),
+            )
+            .intersect(&brick_cells)
+        } else if self.leaf_cell_of_level(&finest, level) {
+            // A cell cut by a leaf's face (the kd-tree splits on finest cells, which need not
+            // fall on a coarser level's cells): the cell alone, read from the same brick (one
+            // brick of a level holds a cell).
+            IBox::new(cell, axes(|a| cell[a] + 1)).intersect(&brick_cells)
+        } else {
+            return Ok(None);
+        };
+        let e = brick_cells.extent();
+        slabs[slab] = Some(match self.values_in_place(brick) {
+            Some(v) => Slab::Borrowed(v),
+            None => self.values(brick)?,
+        });
+        Ok(Some(BlockLeaf {
+            lo: whole.lo,
+            hi: whole.hi,
+            brick_lo: brick_cells.lo,
+            stride: [1, e[0], e[0] * e[1]],
+            slab,
+        }))
+    }
+}
+
+/// Slots of a [`LevelBlocks`] table (a power of two).
+const BLOCK_SLOTS: usize = 4096;
+
+/// A slot of [`LevelBlocks`]: the level and dual cell, and the block there.
+type BlockSlot = ((u32, [i64; 3]), Option<LevelBlock>);
+
+/// A per-thread memo of [`Sampler::level_block`]'s answers, direct-mapped by level and dual
+/// cell: the hits of neighbouring rays share dual cells, so most gradients read a remembered
+/// block. Blocks are pure functions of their key, so the memo never changes a gradient.
+#[derive(Default)]
+pub struct LevelBlocks {
+    /// The sampler served, by [`Sampler::id`] (0: none yet).
+    owner: u64,
+    slots: Vec<BlockSlot>,
+}
+
+impl LevelBlocks {
+    /// Bytes of one table.
+    pub const BYTES: usize = BLOCK_SLOTS * std::mem::size_of::<BlockSlot>();
+
+    /// [`Sampler::level_gradient`], reading the block from this memo when it holds it.
+    pub fn gradient<D: AsRef<[u8]>>(
+        &mut self,
+        sampler: &Sampler<'_, D>,
+        p: [f64; 3],
+        level: u32,
+    ) -> Result<Option<[f64; 3]>> {
+        let Some(first) = sampler.dual_cell(p, level) else {
+            return Ok(None);
+        };
+        if self.owner != sampler.id() || self.slots.is_empty() {
+            self.owner = sampler.id();
+            self.slots.clear();
+            self.slots.resize(BLOCK_SLOTS, ((u32::MAX, [0; 3]), None));
+        }
+        let key = (level, first);
+        let h = (first[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ (first[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+            ^ (first[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
+            ^ u64::from(level).wrapping_mul(0x27D4_EB2F_1656_67C5);
+        let slot = (h >> (64 - BLOCK_SLOTS.trailing_zeros())) as usize;
+        let block = if self.slots[slot].0 == key {
+            self.slots[slot].1
+        } else {
+            let block = sampler.level_block(level, first)?;
+            self.slots[slot] = (key, block);
+            block
+        };
+        Ok(block.map(|b| sampler.gradient_in_block(&b, p, level, first)))
+    }
+}

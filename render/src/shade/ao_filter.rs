@@ -7,15 +7,24 @@
 //! shaded hits along a pixel's ray, the occlusion it shaded with and how much the pixel's colour
 //! changes per unit of it ([`AoLayer`]); the filter then moves the pixel's colour by that much
 //! times the change of the occlusion. It runs after the whole frame (or a rectangle with a
-//! margin of [`RADIUS`] pixels), in a fixed order: the frame is the same on any number of
+//! margin of [`MARGIN`] pixels), in a fixed order: the frame is the same on any number of
 //! threads and in tiles.
+//!
+//! The window is the size of the tile the rays' pattern is spread over
+//! ([`crate::shade::sampling::TILE`]): on a smooth surface it averages each stratum of the
+//! pattern once.
 
 use rayon::prelude::*;
 
 use crate::output::frame::PixelSample;
+use crate::shade::sampling::TILE;
 
-/// Half the side of the filter's square window, pixels.
-pub const RADIUS: u32 = 2;
+/// Pixels of the filter's square window before a pixel, on each axis.
+const BEFORE: u32 = TILE / 2;
+/// Pixels of the window after a pixel, on each axis.
+const AFTER: u32 = TILE - 1 - BEFORE;
+/// Pixels around a rectangle of a frame that the filter of its pixels reads.
+pub const MARGIN: u32 = BEFORE;
 /// Shaded hits per pixel whose occlusion is filtered (the nearest ones along the ray).
 pub const FILTERED_HITS: usize = 2;
 /// Least cosine between the normals of two hits averaged together.
@@ -98,8 +107,8 @@ impl AoBuffer {
     fn filtered(&self, layer: &AoLayer, x: u32, y: u32, pixel_angle: f32) -> f32 {
         let footprint = PLANE_TOLERANCE * norm(layer.p) * pixel_angle;
         let (mut sum, mut count) = (0.0f32, 0u32);
-        let (x0, x1) = (x.saturating_sub(RADIUS), (x + RADIUS).min(self.width - 1));
-        for qy in y.saturating_sub(RADIUS)..=(y + RADIUS).min(self.height - 1) {
+        let (x0, x1) = (x.saturating_sub(BEFORE), (x + AFTER).min(self.width - 1));
+        for qy in y.saturating_sub(BEFORE)..=(y + AFTER).min(self.height - 1) {
             let row = (qy * self.width) as usize;
             let dy = qy.abs_diff(y);
             for qx in x0..=x1 {

@@ -98,10 +98,10 @@ pub fn render_rect<T: Tracer + Sync + ?Sized>(
     (x0, y0, w, h): (u32, u32, u32, u32),
 ) -> (Vec<PixelSample>, u64) {
     let (fw, fh) = (settings.width, settings.height);
-    // The filter reads `RADIUS` pixels around each: the rectangle is rendered with that margin
+    // The filter reads pixels up to `MARGIN` away: the rectangle is rendered with that margin
     // (inside the frame) and cut out after the filter.
     let margin = if filters(light, settings) {
-        ao_filter::RADIUS
+        ao_filter::MARGIN
     } else {
         0
     };

@@ -80,8 +80,18 @@ pub fn shade_ray<T: Tracer + ?Sized>(
         spilled.resize(n, None);
         &mut spilled
     };
-    for (i, slot) in next.iter_mut().enumerate() {
-        *slot = tracer.next_hit(i, &ray, 0.0, f64::INFINITY);
+    // Opaque surfaces first: a first crossing behind the nearest opaque hit is never composited,
+    // so the other surfaces' searches stop there.
+    let mut opaque_near = f64::INFINITY;
+    for opaque in [true, false] {
+        for (i, slot) in next.iter_mut().enumerate() {
+            if (light.opacity[i] >= 1.0) == opaque {
+                *slot = tracer.next_hit(i, &ray, 0.0, opaque_near);
+                if let (true, Some(h)) = (opaque, slot.as_ref()) {
+                    opaque_near = opaque_near.min(h.t);
+                }
+            }
+        }
     }
     let mut out = PixelSample::MISS;
     let mut recorded = 0;

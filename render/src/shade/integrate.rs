@@ -58,14 +58,21 @@ impl Lighting {
 /// Surfaces whose next hits [`shade_ray`] keeps on the stack.
 const INLINE_SURFACES: usize = 4;
 
+/// Where [`shade_ray`] looks first: the opaque surface nearest along the previous ray (a hint
+/// carried from pixel to pixel; it changes the work, never the result).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SearchHint {
+    nearest_opaque: usize,
+}
+
 /// Shades the world ray `origin + t dir` (`dir` unit length). With `ao_layers`, records the
 /// first [`FILTERED_HITS`] hits shaded with ambient occlusion there.
 pub fn shade_ray<T: Tracer + ?Sized>(
     tracer: &T,
     light: &Lighting,
-    origin: [f64; 3],
-    dir: [f64; 3],
+    (origin, dir): ([f64; 3], [f64; 3]),
     rng: &mut Rng,
+    hint: &mut SearchHint,
     mut ao_layers: Option<&mut Vec<AoLayer>>,
 ) -> PixelSample {
     let frame = tracer.frame();
@@ -80,16 +87,24 @@ pub fn shade_ray<T: Tracer + ?Sized>(
         spilled.resize(n, None);
         &mut spilled
     };
-    // Opaque surfaces first: a first crossing behind the nearest opaque hit is never composited,
-    // so the other surfaces' searches stop there.
+    // Opaque surfaces first, the one nearest in the previous pixel first of all: a first
+    // crossing behind the nearest opaque hit is never composited, so the other surfaces'
+    // searches stop there. The order changes the work, not the hits found.
+    let opaque = |i: usize| light.opacity[i] >= 1.0;
+    let nearest_opaque = &mut hint.nearest_opaque;
+    let first = *nearest_opaque;
+    let order = (first < n && opaque(first))
+        .then_some(first)
+        .into_iter()
+        .chain((0..n).filter(|&i| i != first && opaque(i)))
+        .chain((0..n).filter(|&i| !opaque(i)));
     let mut opaque_near = f64::INFINITY;
-    for opaque in [true, false] {
-        for (i, slot) in next.iter_mut().enumerate() {
-            if (light.opacity[i] >= 1.0) == opaque {
-                *slot = tracer.next_hit(i, &ray, 0.0, opaque_near);
-                if let (true, Some(h)) = (opaque, slot.as_ref()) {
-                    opaque_near = opaque_near.min(h.t);
-                }
+    for i in order {
+        next[i] = tracer.next_hit(i, &ray, 0.0, opaque_near);
+        if let (true, Some(h)) = (opaque(i), next[i]) {
+            if h.t < opaque_near {
+                opaque_near = h.t;
+                *nearest_opaque = i;
             }
         }
     }

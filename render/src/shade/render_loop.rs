@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use crate::camera::Camera;
 use crate::output::frame::{FrameBuffer, PixelSample};
 use crate::shade::ao_filter::{self, AoBuffer, AoLayer};
-use crate::shade::integrate::{shade_ray, Lighting};
+use crate::shade::integrate::{shade_ray, Lighting, SearchHint};
 use crate::shade::sampling::Rng;
 use crate::trace::ray::GridRay;
 use crate::trace::source::GridFrame;
@@ -155,11 +155,20 @@ fn render_row<T: Tracer + ?Sized>(
         ao_layers: Vec::new(),
         rays: 0,
     };
+    let mut hint = SearchHint::default();
     for x in xs {
         let before = row.ao_layers.len();
         let layers = record.then_some(&mut row.ao_layers);
-        row.pixels
-            .push(pixel(&counting, camera, light, (x, y), settings, layers));
+        let px = pixel(
+            &counting,
+            camera,
+            light,
+            (x, y),
+            settings,
+            &mut hint,
+            layers,
+        );
+        row.pixels.push(px);
         if record {
             row.ao_counts.push((row.ao_layers.len() - before) as u8);
         }
@@ -206,6 +215,7 @@ fn pixel<T: Tracer + ?Sized>(
     light: &Lighting,
     (x, y): (u32, u32),
     settings: RenderSettings,
+    hint: &mut SearchHint,
     mut ao_layers: Option<&mut Vec<AoLayer>>,
 ) -> PixelSample {
     let (w, h) = (settings.width, settings.height);
@@ -222,7 +232,7 @@ fn pixel<T: Tracer + ?Sized>(
         };
         let dir = camera.ray_dir(f64::from(x) + jx, f64::from(y) + jy, w, h);
         let layers = ao_layers.as_deref_mut();
-        let sample = shade_ray(tracer, light, camera.pos, dir, &mut rng, layers);
+        let sample = shade_ray(tracer, light, (camera.pos, dir), &mut rng, hint, layers);
         for c in 0..3 {
             rgba[c] += sample.rgb[c];
         }

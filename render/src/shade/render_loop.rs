@@ -89,7 +89,7 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
 
 /// Renders the rectangle of `settings`' frame with lower corner `(x0, y0)` and size `w x h` (rows
 /// in parallel); returns its pixels row-major, each equal to the same pixel of [`render_frame`],
-/// and the number of ray queries.
+/// and the number of ray queries (those of the filter's margin around it included).
 pub fn render_rect<T: Tracer + Sync + ?Sized>(
     tracer: &T,
     camera: &Camera,

@@ -2,13 +2,14 @@
 //! the same frame with 256 AO rays per hit.
 //!
 //! ```sh
-//! cargo run --release -p amr-render --example ao_noise -- OUT_DIR [AO_RAYS...]
+//! cargo run --release -p amr-render --example ao_noise -- OUT_DIR [AO_RAYS[f]...]
 //! ```
 //!
 //! Writes a small synthetic file (two blobs on three levels, an opaque and a transparent
 //! surface, as the demo), renders it at 512x384 with shadows and each number of AO rays given
-//! (default 1, 4, 16), and prints the RMS and the largest colour difference from the reference
-//! over the pixels the surfaces cover.
+//! (default 1, 4, 16; `4f` is 4 rays filtered across pixels, `4` without the filter), and
+//! prints the RMS and the largest colour difference from the reference (256 rays, no filter)
+//! over the pixels the surfaces cover, and the ray queries of the frame.
 
 use std::path::PathBuf;
 
@@ -21,9 +22,14 @@ use amr_synth::{write_synth, Case, SynthParams};
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let out = PathBuf::from(args.next().unwrap_or_else(|| "ao-noise-out".into()));
-    let counts: Vec<u32> = args.map(|a| a.parse()).collect::<Result<_, _>>()?;
+    let counts: Vec<(u32, bool)> = args
+        .map(|a| match a.strip_suffix('f') {
+            Some(n) => n.parse().map(|n| (n, true)),
+            None => a.parse().map(|n| (n, false)),
+        })
+        .collect::<Result<_, _>>()?;
     let counts = if counts.is_empty() {
-        vec![1, 4, 16]
+        vec![(1, false), (4, false), (16, false)]
     } else {
         counts
     };
@@ -50,7 +56,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             opacity: 0.3,
         },
     ])?;
-    let view = |ao_rays: u32| View {
+    let view = |ao_rays: u32, ao_filter: bool| View {
         camera: Some(CameraPlacement {
             pos: [1.3, -0.2, 0.9],
             look_at: None,
@@ -58,15 +64,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }),
         size: (512, 384),
         ao_rays,
+        ao_filter,
         ..View::default()
     };
-    let reference = render(&scene, &view(256), &|_| ())?;
+    let reference = render(&scene, &view(256, false), &|_| ())?;
     write_preview(&out.join("ao_256.png"), &reference.frame)?;
-    for n in counts {
-        let frame = render(&scene, &view(n), &|_| ())?;
-        write_preview(&out.join(format!("ao_{n}.png")), &frame.frame)?;
+    for (n, filtered) in counts {
+        let frame = render(&scene, &view(n, filtered), &|_| ())?;
+        let name = format!("ao_{n}{}", if filtered { "f" } else { "" });
+        write_preview(&out.join(format!("{name}.png")), &frame.frame)?;
         let (rms, max) = difference(&frame, &reference);
-        println!("{n:>3} AO rays: RMS {rms:.5}, largest {max:.4} (colour, linear)");
+        println!(
+            "{name:>5}: RMS {rms:.5}, largest {max:.4} (colour, linear), {} ray queries",
+            frame.stats.rays
+        );
     }
     Ok(())
 }

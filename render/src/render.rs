@@ -49,7 +49,7 @@ pub struct Rect {
 pub struct RegionPixels {
     /// Row-major pixels, each equal to the same pixel of the whole frame.
     pub pixels: Vec<PixelSample>,
-    /// Ray queries.
+    /// Ray queries, those of the margin the filter of the ambient occlusion reads included.
     pub rays: u64,
 }
 

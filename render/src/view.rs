@@ -43,6 +43,9 @@ pub struct View {
     pub shadows: bool,
     /// Ambient-occlusion rays per hit (0 disables).
     pub ao_rays: u32,
+    /// Filter the ambient occlusion across neighbouring pixels of the same surface (frames of
+    /// one sample per pixel; [`crate::shade::ao_filter`]).
+    pub ao_filter: bool,
     /// Normals continuous across voxels (central differences of the reconstruction) instead of
     /// each voxel's own trilinear gradient.
     pub smooth_normals: bool,
@@ -62,7 +65,8 @@ impl Default for View {
             size: (1024, 768),
             spp: 1,
             shadows: true,
-            ao_rays: 4,
+            ao_rays: 1,
+            ao_filter: true,
             smooth_normals: true,
             sample_step: None,
             color_scale: ColorScale::default(),
@@ -155,6 +159,7 @@ impl View {
         let mut light = Lighting::for_camera(camera, colors, opacity, 0.08 * diag);
         light.shadows = self.shadows;
         light.ao_rays = self.ao_rays;
+        light.ao_filter = self.ao_filter;
         light
     }
 

@@ -1,4 +1,5 @@
-//! Golden image: a two-surface render (an opaque sphere inside a transparent one, shadows, AO)
+//! Golden image: a two-surface render (an opaque sphere inside a transparent one, shadows, one
+//! AO ray per hit filtered across pixels, the defaults)
 //! compared pixel by pixel with a stored PPM; on failure the expected, actual and difference
 //! images are written. `AMR_RENDER_BLESS=1` rewrites the golden image. Also checks the EXR
 //! channels: `A = 0` exactly where `Z = +inf`.
@@ -35,7 +36,8 @@ fn view() -> View {
         size: (128, 96),
         spp: 1,
         shadows: true,
-        ao_rays: 4,
+        ao_rays: 1,
+        ao_filter: true,
         smooth_normals: true,
         sample_step: None,
         ..View::default()

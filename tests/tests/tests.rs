@@ -27,6 +27,8 @@
 //! - [`render_watertight`] and [`render_watertight_amrk`]: no ray leaks through a closed surface.
 //! - [`render_accuracy`]: the hybrid method against the sample method.
 //! - [`render_golden`]: a golden image.
+//! - [`render_ao_filter`]: the ambient occlusion filtered across pixels: less noise, and tiles
+//!   equal to the whole frame.
 //! - [`render_normals`]: smooth normals turn steadily across voxel faces and level boundaries,
 //!   equal the six-sample normals inside a level, and do not depend on the thread count.
 //! - [`render_clip`]: a clip box cuts surfaces open; view-limited extraction renders the view
@@ -58,6 +60,7 @@ mod hybrid_current_nearest;
 mod pictures;
 mod reconstruct_continuity;
 mod render_accuracy;
+mod render_ao_filter;
 mod render_bench;
 mod render_clip;
 mod render_golden;

@@ -2,6 +2,7 @@
 
 use crate::camera::{dot, normalize, Camera};
 use crate::output::frame::PixelSample;
+use crate::shade::ao_filter::{AoLayer, FILTERED_HITS};
 use crate::shade::sampling::{cosine_hemisphere, Rng};
 use crate::trace::ray::GridRay;
 use crate::trace::tracer::{SurfaceHit, Tracer};
@@ -26,6 +27,9 @@ pub struct Lighting {
     pub ao_rays: u32,
     /// Length of ambient-occlusion rays, world units.
     pub ao_distance: f64,
+    /// Filter the ambient occlusion across pixels ([`crate::shade::ao_filter`]); its rays then
+    /// follow the pattern spread over tiles of pixels.
+    pub ao_filter: bool,
 }
 
 impl Lighting {
@@ -46,6 +50,7 @@ impl Lighting {
             shadows: true,
             ao_rays: 0,
             ao_distance,
+            ao_filter: false,
         }
     }
 }
@@ -53,13 +58,22 @@ impl Lighting {
 /// Surfaces whose next hits [`shade_ray`] keeps on the stack.
 const INLINE_SURFACES: usize = 4;
 
-/// Shades the world ray `origin + t dir` (`dir` unit length).
+/// Where [`shade_ray`] looks first: the opaque surface nearest along the previous ray (a hint
+/// carried from pixel to pixel; it changes the work, never the result).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SearchHint {
+    nearest_opaque: usize,
+}
+
+/// Shades the world ray `origin + t dir` (`dir` unit length). With `ao_layers`, records the
+/// first [`FILTERED_HITS`] hits shaded with ambient occlusion there.
 pub fn shade_ray<T: Tracer + ?Sized>(
     tracer: &T,
     light: &Lighting,
-    origin: [f64; 3],
-    dir: [f64; 3],
+    (origin, dir): ([f64; 3], [f64; 3]),
     rng: &mut Rng,
+    hint: &mut SearchHint,
+    mut ao_layers: Option<&mut Vec<AoLayer>>,
 ) -> PixelSample {
     let frame = tracer.frame();
     let ray = GridRay::from_world(&frame, origin, dir);
@@ -73,10 +87,29 @@ pub fn shade_ray<T: Tracer + ?Sized>(
         spilled.resize(n, None);
         &mut spilled
     };
-    for (i, slot) in next.iter_mut().enumerate() {
-        *slot = tracer.next_hit(i, &ray, 0.0, f64::INFINITY);
+    // Opaque surfaces first, the one nearest in the previous pixel first of all: a first
+    // crossing behind the nearest opaque hit is never composited, so the other surfaces'
+    // searches stop there. The order changes the work, not the hits found.
+    let opaque = |i: usize| light.opacity[i] >= 1.0;
+    let nearest_opaque = &mut hint.nearest_opaque;
+    let first = *nearest_opaque;
+    let order = (first < n && opaque(first))
+        .then_some(first)
+        .into_iter()
+        .chain((0..n).filter(|&i| i != first && opaque(i)))
+        .chain((0..n).filter(|&i| !opaque(i)));
+    let mut opaque_near = f64::INFINITY;
+    for i in order {
+        next[i] = tracer.next_hit(i, &ray, 0.0, opaque_near);
+        if let (true, Some(h)) = (opaque(i), next[i]) {
+            if h.t < opaque_near {
+                opaque_near = h.t;
+                *nearest_opaque = i;
+            }
+        }
     }
     let mut out = PixelSample::MISS;
+    let mut recorded = 0;
     let mut transmittance = 1.0f32;
     let mut rgb = [0.0f32; 3];
     for layer in 0..MAX_LAYERS {
@@ -90,17 +123,31 @@ pub fn shade_ray<T: Tracer + ?Sized>(
         };
         let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dir.map(|x| -x));
         let paint = tracer.paint(i, &hit);
+        let alpha = light.opacity[i];
         let colour = match paint {
             Some(p) if !p.lit => p.rgb,
             _ => {
                 let base = paint.map_or(light.colors[i], |p| p.rgb);
-                shade_hit(tracer, light, base, &hit, normal, dir, rng)
+                let shaded = shade_hit(tracer, light, base, &hit, normal, dir, rng);
+                if let (Some(layers), Some(ao)) = (ao_layers.as_deref_mut(), shaded.ao) {
+                    if recorded < FILTERED_HITS {
+                        recorded += 1;
+                        let p = frame.to_world(hit.pos);
+                        layers.push(AoLayer {
+                            surface: i as u32,
+                            p: [0, 1, 2].map(|a| (p[a] - origin[a]) as f32),
+                            n: shaded.facing.map(|x| x as f32),
+                            ao: ao.value as f32,
+                            weight: ao.weight.map(|w| transmittance * alpha * w),
+                        });
+                    }
+                }
+                shaded.rgb
             }
         };
         if let (Some(p), true) = (paint, out.color_value.is_nan()) {
             out.color_value = p.value;
         }
-        let alpha = light.opacity[i];
         for c in 0..3 {
             rgb[c] += transmittance * alpha * colour[c];
         }
@@ -169,6 +216,24 @@ fn grid_len(d: [f64; 3]) -> f64 {
     dot(d, d).sqrt().max(f64::MIN_POSITIVE)
 }
 
+/// A shaded hit.
+struct Shaded {
+    /// Its colour.
+    rgb: [f32; 3],
+    /// The unit normal on the viewer's side.
+    facing: [f64; 3],
+    /// Its ambient occlusion, when traced.
+    ao: Option<Occlusion>,
+}
+
+/// The ambient occlusion a hit was shaded with.
+struct Occlusion {
+    /// Fraction of the ambient light that reaches the hit.
+    value: f64,
+    /// Change of the hit's colour per unit of `value` (the colour is linear in it).
+    weight: [f32; 3],
+}
+
 /// The colour of a surface of colour `base` at `hit`, seen along `dir`.
 fn shade_hit<T: Tracer + ?Sized>(
     tracer: &T,
@@ -178,7 +243,7 @@ fn shade_hit<T: Tracer + ?Sized>(
     normal: [f64; 3],
     dir: [f64; 3],
     rng: &mut Rng,
-) -> [f32; 3] {
+) -> Shaded {
     let view = dir.map(|x| -x);
     let nf = if dot(normal, view) < 0.0 {
         normal.map(|x| -x)
@@ -191,18 +256,29 @@ fn shade_hit<T: Tracer + ?Sized>(
     if key > 0.0 && light.shadows {
         key *= transmittance_towards(tracer, light, hit, nf, light.key_dir, f64::INFINITY);
     }
-    let ao = if light.ao_rays > 0 {
+    let ao = (light.ao_rays > 0).then(|| {
         let mut open = 0.0;
-        for (u1, u2) in rng.ao_pattern(light.ao_rays) {
+        let mut trace = |(u1, u2)| {
             let d = cosine_hemisphere(nf, u1, u2);
             open += transmittance_towards(tracer, light, hit, nf, d, light.ao_distance);
+        };
+        if light.ao_filter {
+            rng.ao_tile_pattern(light.ao_rays).for_each(&mut trace);
+        } else {
+            rng.ao_pattern(light.ao_rays).for_each(&mut trace);
         }
         open / f64::from(light.ao_rays)
-    } else {
-        1.0
-    };
-    let diffuse = 0.22 * ao + 0.55 * key + 0.35 * head * (0.5 + 0.5 * ao);
-    base.map(|c| (f64::from(c) * diffuse + 0.25 * spec) as f32)
+    });
+    let a = ao.unwrap_or(1.0);
+    let diffuse = 0.22 * a + 0.55 * key + 0.35 * head * (0.5 + 0.5 * a);
+    Shaded {
+        rgb: base.map(|c| (f64::from(c) * diffuse + 0.25 * spec) as f32),
+        facing: nf,
+        ao: ao.map(|value| Occlusion {
+            value,
+            weight: base.map(|c| (f64::from(c) * (0.22 + 0.175 * head)) as f32),
+        }),
+    }
 }
 
 /// Fraction of light reaching `hit` from direction `d` (world, unit) within `max_t`: the

@@ -2,6 +2,7 @@
 //! light with hard shadows, ambient occlusion, per-isosurface colour and opacity, and
 //! transparent surfaces composited front to back.
 
+pub mod ao_filter;
 pub mod integrate;
 pub mod material;
 pub mod render_loop;

@@ -1,4 +1,5 @@
-//! The frame loop: rows in parallel, `spp` jittered samples per pixel, ray counting and progress.
+//! The frame loop: rows in parallel, `spp` jittered samples per pixel, ray counting and progress,
+//! then the filter of the ambient occlusion over the whole frame.
 
 use std::cell::Cell;
 
@@ -6,7 +7,8 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::output::frame::{FrameBuffer, PixelSample};
-use crate::shade::integrate::{shade_ray, Lighting};
+use crate::shade::ao_filter::{self, AoBuffer, AoLayer};
+use crate::shade::integrate::{shade_ray, Lighting, SearchHint};
 use crate::shade::sampling::Rng;
 use crate::trace::ray::GridRay;
 use crate::trace::source::GridFrame;
@@ -65,27 +67,20 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
     let (w, h) = (settings.width, settings.height);
     let spp = settings.spp.max(1);
     let band = (BAND_PIXELS / (u64::from(w) * u64::from(spp)).max(1)).clamp(1, u64::from(h)) as u32;
-    let mut rows: Vec<(Vec<PixelSample>, u64)> = Vec::with_capacity(h as usize);
+    let mut rows: Vec<Row> = Vec::with_capacity(h as usize);
     for y0 in (0..h).step_by(band.max(1) as usize) {
-        let part: Vec<(Vec<PixelSample>, u64)> = (y0..(y0 + band).min(h))
+        let part: Vec<Row> = (y0..(y0 + band).min(h))
             .into_par_iter()
             .map(|y| {
-                let counting = Counting {
-                    inner: tracer,
-                    rays: Cell::new(0),
-                };
-                let row = (0..w)
-                    .map(|x| pixel(&counting, camera, light, x, y, w, h, spp))
-                    .collect();
+                let row = render_row(tracer, camera, light, settings, (0..w, y));
                 progress(1);
-                (row, counting.rays.get())
+                row
             })
             .collect();
         rows.extend(part);
         tracer.release_pages();
     }
-    let rays = rows.iter().map(|r| r.1).sum();
-    let pixels: Vec<PixelSample> = rows.into_iter().flat_map(|r| r.0).collect();
+    let (pixels, rays) = finish(rows, camera, light, settings, (w, h));
     (
         FrameBuffer::from_pixels(w, h, &pixels, tracer.frame().origin),
         rays,
@@ -94,7 +89,7 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
 
 /// Renders the rectangle of `settings`' frame with lower corner `(x0, y0)` and size `w x h` (rows
 /// in parallel); returns its pixels row-major, each equal to the same pixel of [`render_frame`],
-/// and the number of ray queries.
+/// and the number of ray queries (those of the filter's margin around it included).
 pub fn render_rect<T: Tracer + Sync + ?Sized>(
     tracer: &T,
     camera: &Camera,
@@ -103,35 +98,128 @@ pub fn render_rect<T: Tracer + Sync + ?Sized>(
     (x0, y0, w, h): (u32, u32, u32, u32),
 ) -> (Vec<PixelSample>, u64) {
     let (fw, fh) = (settings.width, settings.height);
-    let spp = settings.spp.max(1);
-    let rows: Vec<(Vec<PixelSample>, u64)> = (y0..y0 + h)
+    // The filter reads pixels up to `MARGIN` away: the rectangle is rendered with that margin
+    // (inside the frame) and cut out after the filter.
+    let margin = if filters(light, settings) {
+        ao_filter::MARGIN
+    } else {
+        0
+    };
+    let (mx0, my0) = (x0.saturating_sub(margin), y0.saturating_sub(margin));
+    let mx1 = (x0 + w).saturating_add(margin).min(fw).max(x0 + w);
+    let my1 = (y0 + h).saturating_add(margin).min(fh).max(y0 + h);
+    let rows: Vec<Row> = (my0..my1)
         .into_par_iter()
-        .map(|y| {
-            let counting = Counting {
-                inner: tracer,
-                rays: Cell::new(0),
-            };
-            let row = (x0..x0 + w)
-                .map(|x| pixel(&counting, camera, light, x, y, fw, fh, spp))
-                .collect();
-            (row, counting.rays.get())
-        })
+        .map(|y| render_row(tracer, camera, light, settings, (mx0..mx1, y)))
         .collect();
-    let rays = rows.iter().map(|r| r.1).sum();
-    (rows.into_iter().flat_map(|r| r.0).collect(), rays)
+    let (mw, mh) = (mx1 - mx0, my1 - my0);
+    let (pixels, rays) = finish(rows, camera, light, settings, (mw, mh));
+    let mut out = Vec::with_capacity(w as usize * h as usize);
+    for y in y0 - my0..y0 - my0 + h {
+        let first = (y * mw + (x0 - mx0)) as usize;
+        out.extend_from_slice(&pixels[first..first + w as usize]);
+    }
+    (out, rays)
 }
 
-#[allow(clippy::too_many_arguments)]
+/// One rendered row: its pixels, the hits of each to filter, and its ray queries.
+struct Row {
+    pixels: Vec<PixelSample>,
+    ao_counts: Vec<u8>,
+    ao_layers: Vec<AoLayer>,
+    rays: u64,
+}
+
+/// True when `light`'s ambient occlusion is filtered across pixels in frames of `settings`:
+/// with one sample per pixel (more samples average the occlusion within each pixel).
+fn filters(light: &Lighting, settings: RenderSettings) -> bool {
+    light.ao_filter && light.ao_rays > 0 && settings.spp <= 1
+}
+
+/// The pixels `xs` of row `y`.
+fn render_row<T: Tracer + ?Sized>(
+    tracer: &T,
+    camera: &Camera,
+    light: &Lighting,
+    settings: RenderSettings,
+    (xs, y): (std::ops::Range<u32>, u32),
+) -> Row {
+    let counting = Counting {
+        inner: tracer,
+        rays: Cell::new(0),
+    };
+    let record = filters(light, settings);
+    let mut row = Row {
+        pixels: Vec::with_capacity(xs.len()),
+        ao_counts: Vec::new(),
+        ao_layers: Vec::new(),
+        rays: 0,
+    };
+    let mut hint = SearchHint::default();
+    for x in xs {
+        let before = row.ao_layers.len();
+        let layers = record.then_some(&mut row.ao_layers);
+        let px = pixel(
+            &counting,
+            camera,
+            light,
+            (x, y),
+            settings,
+            &mut hint,
+            layers,
+        );
+        row.pixels.push(px);
+        if record {
+            row.ao_counts.push((row.ao_layers.len() - before) as u8);
+        }
+    }
+    row.rays = counting.rays.get();
+    row
+}
+
+/// The pixels of `rows` (a `w x h` rectangle), the ambient occlusion filtered, and the ray
+/// queries they took.
+fn finish(
+    rows: Vec<Row>,
+    camera: &Camera,
+    light: &Lighting,
+    settings: RenderSettings,
+    (w, h): (u32, u32),
+) -> (Vec<PixelSample>, u64) {
+    let rays = rows.iter().map(|r| r.rays).sum();
+    let mut ao = filters(light, settings).then(|| AoBuffer::new(w, h));
+    let mut pixels = Vec::with_capacity(w as usize * h as usize);
+    for row in rows {
+        if let Some(ao) = ao.as_mut() {
+            let mut layers = row.ao_layers.as_slice();
+            for &n in &row.ao_counts {
+                let (these, rest) = layers.split_at(usize::from(n));
+                ao.push_pixel(these);
+                layers = rest;
+            }
+        }
+        pixels.extend(row.pixels);
+    }
+    if let Some(ao) = ao {
+        let pixel_angle =
+            2.0 * (0.5 * camera.fov_deg).to_radians().tan() / f64::from(settings.height);
+        ao.apply(&mut pixels, pixel_angle as f32);
+    }
+    (pixels, rays)
+}
+
+/// Pixel `(x, y)`: the average of its samples; with `ao_layers`, its hits to filter are appended.
 fn pixel<T: Tracer + ?Sized>(
     tracer: &T,
     camera: &Camera,
     light: &Lighting,
-    x: u32,
-    y: u32,
-    w: u32,
-    h: u32,
-    spp: u32,
+    (x, y): (u32, u32),
+    settings: RenderSettings,
+    hint: &mut SearchHint,
+    mut ao_layers: Option<&mut Vec<AoLayer>>,
 ) -> PixelSample {
+    let (w, h) = (settings.width, settings.height);
+    let spp = settings.spp.max(1);
     let mut acc = PixelSample::MISS;
     let mut rgba = [0.0f32; 4];
     let mut have_first = false;
@@ -143,7 +231,8 @@ fn pixel<T: Tracer + ?Sized>(
             (rng.next_f64(), rng.next_f64())
         };
         let dir = camera.ray_dir(f64::from(x) + jx, f64::from(y) + jy, w, h);
-        let sample = shade_ray(tracer, light, camera.pos, dir, &mut rng);
+        let layers = ao_layers.as_deref_mut();
+        let sample = shade_ray(tracer, light, (camera.pos, dir), &mut rng, hint, layers);
         for c in 0..3 {
             rgba[c] += sample.rgb[c];
         }

@@ -6,9 +6,24 @@
 //! ratio), rotated per pixel by interleaved gradient noise (Jimenez 2014), so that a few rays
 //! per hit give about half the error of independent ones and what error is left is fine-grained
 //! (`docs/benchmarks-render.md`, "Ambient occlusion pattern").
+//!
+//! When the ambient occlusion is filtered across pixels ([`crate::shade::ao_filter`]), the
+//! pattern is spread over a 4x4 tile of pixels instead: each pixel of the tile takes other
+//! strata of one 16-point set, so that the filter, which averages a pixel's neighbours, sees
+//! the whole set even at one ray per hit.
 
 /// The golden ratio's inverse: the most evenly spread increment modulo 1.
 const GOLDEN: f64 = 0.618_033_988_749_894_9;
+
+/// Pixels per side of the tile the filtered ambient-occlusion pattern is spread over.
+pub const TILE: u32 = 4;
+/// Strata of the filtered pattern per ray and hit: one per pixel of a tile.
+const TILE_STRATA: u32 = TILE * TILE;
+/// The order of the strata over a tile (a Bayer matrix): neighbouring pixels take strata far
+/// apart, so that any 2x2 block of pixels covers the set evenly.
+const TILE_ORDER: [[u32; 4]; 4] = [[0, 8, 2, 10], [12, 4, 14, 6], [3, 11, 1, 9], [15, 7, 13, 5]];
+/// Steps of a pixel's stratum from one hit along its ray to the next (coprime to 16).
+const STRATA_PER_HIT: u32 = 7;
 
 /// A small counter-based generator (SplitMix64), seeded from the pixel and sample index, and
 /// the pixel's rotation of the ambient-occlusion pattern.
@@ -17,6 +32,10 @@ pub struct Rng {
     state: u64,
     /// The rotation of the next hit's ambient-occlusion pattern, in `[0, 1)^2`.
     shift: [f64; 2],
+    /// The pixel's stratum in its tile for the next hit.
+    stratum: u32,
+    /// The rotation of the pixel's tile's pattern about the normal, in `[0, 1)`.
+    tile_turn: f64,
 }
 
 impl Rng {
@@ -26,13 +45,34 @@ impl Rng {
             (u64::from(x) << 40) ^ (u64::from(y) << 16) ^ u64::from(s) ^ 0x9e37_79b9_7f4a_7c15;
         let frame = 5.588_238 * f64::from(s);
         let (fx, fy) = (f64::from(x) + frame, f64::from(y) + frame);
+        let (tx, ty) = (x / TILE, y / TILE);
         Rng {
             state,
             shift: [
                 interleaved_gradient_noise(fx, fy),
                 interleaved_gradient_noise(fy + 17.0, fx + 41.0),
             ],
+            stratum: TILE_ORDER[(y % TILE) as usize][(x % TILE) as usize],
+            tile_turn: interleaved_gradient_noise(f64::from(tx) + frame, f64::from(ty) + frame),
         }
+    }
+
+    /// The `n` points in `[0, 1)^2` that place the ambient-occlusion rays of one hit when they
+    /// are filtered across pixels: the pixel's stratum `k` of the tile's `16 n` points, whose
+    /// point `s` lies in the `s`-th of `16 n` equal bands of the first coordinate and at `s`
+    /// golden-ratio steps in the second (a Fibonacci lattice), turned per tile in the second.
+    /// Point `j` of the pixel is the set's point `k + 16 j`, so that each pixel's own points
+    /// are stratified too. Each call moves the pixel to another stratum, the same way in
+    /// every pixel, so that the hits behind a transparent surface cover the set as well.
+    pub fn ao_tile_pattern(&mut self, n: u32) -> impl Iterator<Item = (f64, f64)> {
+        let k = self.stratum;
+        self.stratum = (k + STRATA_PER_HIT) % TILE_STRATA;
+        let turn = self.tile_turn;
+        let total = f64::from(TILE_STRATA * n.max(1));
+        (0..n).map(move |j| {
+            let s = f64::from(k + TILE_STRATA * j);
+            ((s + 0.5) / total, (s * GOLDEN + turn).fract())
+        })
     }
 
     /// The `n` points in `[0, 1)^2` that place the ambient-occlusion rays of one hit: point `k`
@@ -102,6 +142,31 @@ mod tests {
                     .all(|&(a, b)| (0.0..1.0).contains(&a) && (0.0..1.0).contains(&b)));
                 let next: Vec<(f64, f64)> = rng.ao_pattern(n).collect();
                 assert_ne!(first, next);
+            }
+        }
+    }
+
+    #[test]
+    fn a_tile_covers_every_stratum_of_the_filtered_pattern_once() {
+        for n in [1, 2, 4] {
+            for hit in 0..3 {
+                let mut u: Vec<f64> = (0..TILE * TILE)
+                    .flat_map(|i| {
+                        let mut rng = Rng::for_pixel(8 + i % TILE, 4 + i / TILE, 0);
+                        for _ in 0..hit {
+                            let _ = rng.ao_tile_pattern(n).count();
+                        }
+                        rng.ao_tile_pattern(n).map(|p| p.0).collect::<Vec<_>>()
+                    })
+                    .collect();
+                u.sort_by(f64::total_cmp);
+                let total = f64::from(TILE * TILE * n);
+                for (s, v) in u.iter().enumerate() {
+                    assert!(
+                        (v - (s as f64 + 0.5) / total).abs() < 1e-12,
+                        "{n} {hit} {u:?}"
+                    );
+                }
             }
         }
     }

@@ -166,9 +166,14 @@ pub struct RenderArgs {
     /// Write statistics as JSON.
     #[arg(long, value_name = "PATH")]
     pub stats_json: Option<PathBuf>,
-    /// Ambient-occlusion rays per hit (0 disables).
-    #[arg(long, value_name = "N", default_value_t = 4)]
+    /// Ambient-occlusion rays per hit (0 disables); filtered across pixels, one ray per hit
+    /// is less noisy than four unfiltered ones.
+    #[arg(long, value_name = "N", default_value_t = 1)]
     pub ao: u32,
+    /// Do not filter the ambient occlusion across neighbouring pixels (noisier; the filter
+    /// applies to frames of one sample per pixel).
+    #[arg(long)]
+    pub no_ao_filter: bool,
     /// Do not cast shadow rays.
     #[arg(long)]
     pub no_shadows: bool,
@@ -263,6 +268,7 @@ impl RenderArgs {
             spp: self.spp,
             shadows: !self.no_shadows,
             ao_rays: self.ao,
+            ao_filter: !self.no_ao_filter,
             smooth_normals: !self.flat_normals,
             sample_step: self.step,
             color_scale: ColorScale {

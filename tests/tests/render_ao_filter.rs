@@ -1,0 +1,121 @@
+//! The filter of the ambient occlusion across pixels: one filtered ray per hit is closer to a
+//! many-ray reference than four unfiltered rays, and the filter, which reads neighbouring
+//! pixels, leaves rectangles of a frame (tiles) equal to the whole frame, bit for bit.
+
+use amr_format::progress::NoProgress;
+use amr_format::WriterOptions;
+use amr_render::shade::IsoSpec;
+use amr_render::{
+    render, render_region, CameraPlacement, Rect, Rendered, Scene, SceneOptions, View,
+};
+use amr_synth::{write_synth, Case, SynthParams};
+
+/// The demo's two blobs on two levels, an opaque and a transparent surface.
+fn scene(dir: &std::path::Path) -> Scene {
+    let path = dir.join("blobs.amrk");
+    let params = SynthParams::unit_cube(2, 2, 16, 8);
+    write_synth(
+        &path,
+        Case::Blobs,
+        &params,
+        WriterOptions::default(),
+        &NoProgress,
+    )
+    .unwrap();
+    let mut scene = Scene::open(&path, &SceneOptions::default()).unwrap();
+    let isos: Vec<IsoSpec> = ["10:#d99e59", "6:#598cd9:0.3"]
+        .iter()
+        .map(|s| s.parse().unwrap())
+        .collect();
+    scene.set_isosurfaces(&isos).unwrap();
+    scene
+}
+
+fn view(ao_rays: u32, ao_filter: bool) -> View {
+    View {
+        camera: Some(CameraPlacement {
+            pos: [1.3, -0.2, 0.9],
+            look_at: None,
+            up: None,
+        }),
+        size: (160, 120),
+        ao_rays,
+        ao_filter,
+        ..View::default()
+    }
+}
+
+/// RMS difference of the linear colour over the pixels either frame covers.
+fn rms(a: &Rendered, b: &Rendered) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0u64);
+    for i in 0..a.frame.alpha.len() {
+        if a.frame.alpha[i] > 0.0 || b.frame.alpha[i] > 0.0 {
+            for c in 0..3 {
+                sum += f64::from(a.frame.rgb[c][i] - b.frame.rgb[c][i]).powi(2);
+                n += 1;
+            }
+        }
+    }
+    (sum / n.max(1) as f64).sqrt()
+}
+
+#[test]
+fn one_filtered_ray_is_closer_to_the_reference_than_four_unfiltered() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene(dir.path());
+    let reference = render(&scene, &view(64, false), &|_| ()).unwrap();
+    let four = render(&scene, &view(4, false), &|_| ()).unwrap();
+    let one_filtered = render(&scene, &view(1, true), &|_| ()).unwrap();
+    let one = render(&scene, &view(1, false), &|_| ()).unwrap();
+    let (e4, e1f, e1) = (
+        rms(&four, &reference),
+        rms(&one_filtered, &reference),
+        rms(&one, &reference),
+    );
+    assert!(e1f < e4 && e4 < e1, "RMS: 1 filtered {e1f}, 4 {e4}, 1 {e1}");
+    assert!(
+        one_filtered.stats.rays < four.stats.rays,
+        "{} rays against {}",
+        one_filtered.stats.rays,
+        four.stats.rays
+    );
+}
+
+#[test]
+fn tiles_of_a_filtered_frame_equal_the_whole_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene(dir.path());
+    let view = view(1, true);
+    let whole = render(&scene, &view, &|_| ()).unwrap().frame;
+    let (w, h) = view.size;
+    // Uneven tiles, one of them a single pixel, some at the frame's edges.
+    let xs = [0, 1, 37, 80, 159, 160];
+    let ys = [0, 2, 61, 119, 120];
+    for x in xs.windows(2) {
+        for y in ys.windows(2) {
+            let rect = Rect {
+                x0: x[0],
+                y0: y[0],
+                width: x[1] - x[0],
+                height: y[1] - y[0],
+            };
+            let tile = render_region(&scene, &view, rect).unwrap();
+            for ty in 0..rect.height {
+                for tx in 0..rect.width {
+                    let p = &tile.pixels[(ty * rect.width + tx) as usize];
+                    let i = ((rect.y0 + ty) * w + rect.x0 + tx) as usize;
+                    for c in 0..3 {
+                        assert_eq!(
+                            p.rgb[c].to_bits(),
+                            whole.rgb[c][i].to_bits(),
+                            "{rect:?} pixel ({}, {}) of {w}x{h}",
+                            rect.x0 + tx,
+                            rect.y0 + ty
+                        );
+                    }
+                    assert_eq!(p.z.to_bits(), whole.z[i].to_bits());
+                }
+            }
+        }
+    }
+}

@@ -170,6 +170,21 @@ mod tests {
     }
 
     #[test]
+    fn a_nan_corner_gives_no_hit() {
+        let ray = GridRay {
+            o: [-1.0, 0.3, 0.6],
+            d: [1.0, 0.1, -0.05],
+        };
+        for i in 0..8 {
+            let mut values = [0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0];
+            values[i] = f32::NAN;
+            let v = voxel(values);
+            assert!(intersect_voxel(&v, 0.5, &ray, 0.0, f64::INFINITY).is_none(), "{i}");
+            assert!(!voxel_occludes(&v, 0.5, &ray, 0.0, f64::INFINITY), "{i}");
+        }
+    }
+
+    #[test]
     fn axis_parallel_and_degenerate_rays() {
         let v = voxel([0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0]);
         let ray = GridRay {

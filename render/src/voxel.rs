@@ -20,11 +20,13 @@ pub struct Voxel {
 impl Voxel {
     /// Smallest and largest corner value.
     pub fn range(&self) -> (f32, f32) {
-        self.values
-            .iter()
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
-                (a.min(v), b.max(v))
-            })
+        // Plain comparisons (one instruction each) rather than `f32::min`/`max`, whose NaN
+        // handling costs more; for finite values (all a converter writes) both agree. A NaN in a
+        // damaged file reaches the voxel's cubic either way, which then has no root.
+        let [v0, rest @ ..] = self.values;
+        rest.iter().fold((v0, v0), |(lo, hi), &v| {
+            (if v < lo { v } else { lo }, if v > hi { v } else { hi })
+        })
     }
 
     /// The trilinear interpolant at local coordinates `u` (`[0, 1]^3` inside the voxel).

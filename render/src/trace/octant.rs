@@ -94,11 +94,11 @@ impl Segment {
         let q = [0, 1, 2].map(|a| p1[a] - p0[a]);
         let iso = f64::from(iso);
         let c = voxel.values.map(|v| f64::from(v) - iso);
-        let span = c.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let magnitude = voxel
-            .values
-            .iter()
-            .fold(iso.abs(), |m, v| m.max(f64::from(v.abs())));
+        // `v - iso` and `|v|` are largest in magnitude at the smallest or largest value (both
+        // are monotonic in `v`, rounding included), so these are the maxima over all corners.
+        let (lo, hi) = (f64::from(vmin), f64::from(vmax));
+        let span = (hi - iso).abs().max((lo - iso).abs());
+        let magnitude = iso.abs().max(hi.abs()).max(lo.abs());
         let tol = (SPAN_TOL * span).max(ULP_TOL * magnitude).min(0.5 * span);
         let cubic = along_segment(&c, p0, q);
         if cubic.clear_of_zero_on_unit(tol) {
@@ -166,6 +166,21 @@ mod tests {
             let s = i as f64 / 10.0;
             let u = [0, 1, 2].map(|a| p0[a] + s * q[a]);
             assert!((cubic.eval(s) - v.eval_local(u)).abs() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn a_nan_corner_gives_no_hit() {
+        let ray = GridRay {
+            o: [-1.0, 0.3, 0.6],
+            d: [1.0, 0.1, -0.05],
+        };
+        for i in 0..8 {
+            let mut values = [0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0];
+            values[i] = f32::NAN;
+            let v = voxel(values);
+            assert!(intersect_voxel(&v, 0.5, &ray, 0.0, f64::INFINITY).is_none(), "{i}");
+            assert!(!voxel_occludes(&v, 0.5, &ray, 0.0, f64::INFINITY), "{i}");
         }
     }
 

@@ -13,6 +13,8 @@ use crate::reconstruct::Sampler;
 
 /// Leaves per bottom node, at most.
 const BUCKET: usize = 8;
+/// Cells per axis (at its own level) of a leaf that counts whole in a region it overlaps.
+const SMALL: i64 = 8;
 /// A range not computed yet (the bits of two NaNs, which no computed range holds).
 const UNKNOWN: u64 = u64::MAX;
 
@@ -140,7 +142,9 @@ impl LeafTree {
 
     /// A range holding the cells of the leaves (each leaf's finest brick) inside `region`, from
     /// the `blocks` they lie in; a node lying inside `region` grown by `slack` contributes its
-    /// whole range.
+    /// whole range, and so does a small leaf (at most [`SMALL`] cells per axis) partly inside
+    /// it: its kept range costs a load where a bound of its part costs a table walk, and is
+    /// about as tight (a few blocks of the stored tables span it).
     pub fn range_over<D: AsRef<[u8]>>(
         &self,
         sampler: &Sampler<'_, D>,
@@ -173,12 +177,13 @@ impl LeafTree {
                     if part.is_empty() {
                         continue;
                     }
-                    let (x, y) = if contains(region, &leaf_box) {
-                        self.leaf_range(sampler, blocks, l)?
-                    } else if let Some((brick, lv)) = sampler.leaf_top(l) {
-                        blocks.range_in(sampler, brick, lv, &part)?
-                    } else {
+                    let Some((brick, lv)) = sampler.leaf_top(l) else {
                         continue;
+                    };
+                    let (x, y) = if contains(region, &leaf_box) || small(sampler, &leaf_box, lv) {
+                        self.leaf_range(sampler, blocks, l)?
+                    } else {
+                        blocks.range_in(sampler, brick, lv, &part)?
                     };
                     a = a.min(x);
                     b = b.max(y);
@@ -295,4 +300,11 @@ fn union(a: &IBox, b: &IBox) -> IBox {
 /// True when box `inner` lies inside `outer`.
 fn contains(outer: &IBox, inner: &IBox) -> bool {
     (0..3).all(|k| outer.lo[k] <= inner.lo[k] && inner.hi[k] <= outer.hi[k])
+}
+
+/// True when the finest-level box `b` of a leaf of level `level` spans at most [`SMALL`] cells
+/// of that level per axis.
+fn small<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>, b: &IBox, level: u32) -> bool {
+    let s = sampler.grid().scale(level);
+    (0..3).all(|a| b.hi[a] - b.lo[a] <= SMALL * s[a])
 }

@@ -14,7 +14,7 @@ use crate::reconstruct::Sampler;
 /// Leaves per bottom node, at most.
 const BUCKET: usize = 8;
 /// Cells per axis (at its own level) of a leaf that counts whole in a region it overlaps.
-const SMALL: i64 = 8;
+const SMALL: i64 = 4;
 /// A range not computed yet (the bits of two NaNs, which no computed range holds).
 const UNKNOWN: u64 = u64::MAX;
 

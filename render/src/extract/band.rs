@@ -20,7 +20,7 @@ use std::sync::{Arc, Mutex};
 use crate::error::Result;
 use amr_format::IBox;
 
-use super::blocks::{BlockRanges, BLOCK};
+use super::blocks::{level_box, BlockRanges, BLOCK};
 use super::leaf_tree::LeafTree;
 use super::tight::{pack, unpack};
 use crate::reconstruct::Sampler;
@@ -283,7 +283,7 @@ fn gather_tile<D: AsRef<[u8]>>(
             continue;
         }
         if lv < level {
-            let block = grid.level_box(level, &part).intersect(g);
+            let block = level_box(grid, level, &part).intersect(g);
             for z in block.lo[2]..block.hi[2] {
                 for y in block.lo[1]..block.hi[1] {
                     let row = g.linear_index([block.lo[0], y, z]);
@@ -293,7 +293,7 @@ fn gather_tile<D: AsRef<[u8]>>(
             continue;
         }
         let bc = sampler.brick_cells(brick);
-        let cells = grid.level_box(lv, &part).intersect(&bc);
+        let cells = level_box(grid, lv, &part).intersect(&bc);
         if cells.is_empty() {
             continue;
         }

@@ -15,7 +15,7 @@ use amr_format::blocks::{block_ranges, blocks_per_axis};
 use amr_format::{AmrkFile, IBox, RangeAccumulator};
 
 use crate::error::Result;
-use crate::reconstruct::Sampler;
+use crate::reconstruct::{Grid, Sampler};
 
 /// Cells per axis of a block of the tables built in memory (files of layout version 1).
 pub const BLOCK: i64 = 4;
@@ -256,6 +256,12 @@ pub fn level_cells(scale: [i64; 3], offset: [i64; 3], finest: &IBox) -> IBox {
             scale,
         ),
     )
+}
+
+/// [`Grid::level_box`] through [`level_cells`]: shifts where the scale is a power of two.
+#[inline]
+pub fn level_box(grid: &Grid, level: u32, finest: &IBox) -> IBox {
+    level_cells(grid.scale(level), grid.offset(), finest)
 }
 
 /// Calls `f` with the table index range of each x-row of the blocks `lo..hi` (block indices) of

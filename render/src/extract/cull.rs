@@ -14,7 +14,7 @@
 use crate::error::Result;
 
 use super::band::{AroundMemo, CoarseBounds};
-use super::blocks::BlockRanges;
+use super::blocks::{level_box, BlockRanges};
 use super::leaf_tree::LeafTree;
 use super::local::{Neighbourhood, ABOVE, BELOW, COARSER, PENDING};
 use crate::reconstruct::sampler::Locate;
@@ -108,7 +108,7 @@ fn settle_coarse<D: AsRef<[u8]>>(
         coarse.range_around_memo((sampler, blocks, leaves), near, q.level, q.cell)?
     {
         let bound = widen(range);
-        let inside = grid.level_box(level, &q_box).intersect(&hood.cells);
+        let inside = level_box(grid, level, &q_box).intersect(&hood.cells);
         for z in inside.lo[2]..inside.hi[2] {
             for y in inside.lo[1]..inside.hi[1] {
                 let row = hood.index([inside.lo[0], y, z]);

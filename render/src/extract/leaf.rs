@@ -6,6 +6,7 @@
 //! cells are all leaf cells of level `L`; every other octant of the leaf's cells is a voxel of
 //! its own, with corners from [`Sampler::corners`].
 
+use super::blocks::level_box;
 use crate::error::Result;
 use amr_format::IBox;
 
@@ -91,7 +92,7 @@ impl LeafFrame {
     pub fn new<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>, leaf: u32) -> Option<Self> {
         let (brick, level) = sampler.leaf_top(leaf)?;
         let finest = sampler.file().tree().leaf_box(leaf);
-        let cells = sampler.grid().level_box(level, &finest);
+        let cells = level_box(sampler.grid(), level, &finest);
         Some(Self {
             leaf,
             level,
@@ -107,7 +108,7 @@ impl LeafFrame {
     pub fn part<D: AsRef<[u8]>>(&self, sampler: &Sampler<'_, D>, finest: IBox) -> Self {
         Self {
             finest,
-            cells: sampler.grid().level_box(self.level, &finest),
+            cells: level_box(sampler.grid(), self.level, &finest),
             ..*self
         }
     }

@@ -13,6 +13,8 @@ use crate::reconstruct::Sampler;
 
 /// Leaves per bottom node, at most.
 const BUCKET: usize = 8;
+/// Cells per axis (at its own level) of a leaf that counts whole in a region it overlaps.
+const SMALL: i64 = 4;
 /// A range not computed yet (the bits of two NaNs, which no computed range holds).
 const UNKNOWN: u64 = u64::MAX;
 
@@ -74,13 +76,11 @@ impl LeafTree {
         region: &IBox,
     ) -> Option<u32> {
         let mut best = u32::MAX;
-        let mut stack = Vec::with_capacity(64);
-        if !self.nodes.is_empty() {
-            stack.push(0u32);
-        }
-        let tree = sampler.file().tree();
-        while let Some(i) = stack.pop() {
-            let node = &self.nodes[i as usize];
+        let mut stack = [0u32; 64];
+        let mut top = usize::from(!self.nodes.is_empty());
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
             if node.coarsest >= best || !node.bounds.touches(region) {
                 continue;
             }
@@ -89,11 +89,16 @@ impl LeafTree {
                 continue;
             }
             match node.children {
-                Some((a, b)) => stack.extend([b, a]),
-                None => {
+                // The tree is balanced: its depth stays far below the stack's size.
+                Some((a, b)) if top + 2 <= stack.len() => {
+                    stack[top] = b;
+                    stack[top + 1] = a;
+                    top += 2;
+                }
+                _ => {
                     for &l in &self.order[node.first as usize..node.end as usize] {
                         if let Some((_, lv)) = sampler.leaf_top(l) {
-                            if lv < best && tree.leaf_box(l).touches(region) {
+                            if lv < best && self.boxes[l as usize].touches(region) {
                                 best = lv;
                             }
                         }
@@ -140,7 +145,9 @@ impl LeafTree {
 
     /// A range holding the cells of the leaves (each leaf's finest brick) inside `region`, from
     /// the `blocks` they lie in; a node lying inside `region` grown by `slack` contributes its
-    /// whole range.
+    /// whole range, and so does a small leaf (at most [`SMALL`] cells per axis) partly inside
+    /// it: its kept range costs a load where a bound of its part costs a table walk, and is
+    /// about as tight (a few blocks of the stored tables span it).
     pub fn range_over<D: AsRef<[u8]>>(
         &self,
         sampler: &Sampler<'_, D>,
@@ -150,45 +157,59 @@ impl LeafTree {
     ) -> Result<(f32, f32)> {
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         let loose = region.grow(slack);
-        let tree = sampler.file().tree();
-        let mut stack = Vec::with_capacity(64);
-        if !self.nodes.is_empty() {
-            stack.push(0u32);
-        }
-        while let Some(i) = stack.pop() {
+        let mut stack = [0u32; 64];
+        let mut top = usize::from(!self.nodes.is_empty());
+        while top > 0 {
+            top -= 1;
+            let i = stack[top];
             let node = &self.nodes[i as usize];
-            if node.bounds.intersect(region).is_empty() {
+            if !node.bounds.overlaps(region) {
                 continue;
             }
-            let (a, b) = if contains(&loose, &node.bounds) {
-                self.node_range(sampler, blocks, i)?
-            } else if let Some((a, b)) = node.children {
-                stack.extend([b, a]);
-                continue;
-            } else {
-                let (mut a, mut b) = (f32::INFINITY, f32::NEG_INFINITY);
-                for &l in &self.order[node.first as usize..node.end as usize] {
-                    let leaf_box = tree.leaf_box(l);
-                    let part = leaf_box.intersect(region);
-                    if part.is_empty() {
-                        continue;
-                    }
-                    let (x, y) = if contains(region, &leaf_box) {
-                        self.leaf_range(sampler, blocks, l)?
-                    } else if let Some((brick, lv)) = sampler.leaf_top(l) {
-                        blocks.range_in(sampler, brick, lv, &part)?
-                    } else {
-                        continue;
-                    };
-                    a = a.min(x);
-                    b = b.max(y);
+            let (a, b) = match node.children {
+                _ if contains(&loose, &node.bounds) => self.node_range(sampler, blocks, i)?,
+                // The tree is balanced: its depth stays far below the stack's size.
+                Some((a, b)) if top + 2 <= stack.len() => {
+                    stack[top] = b;
+                    stack[top + 1] = a;
+                    top += 2;
+                    continue;
                 }
-                (a, b)
+                _ => self.leaves_range(sampler, blocks, node, region)?,
             };
             lo = lo.min(a);
             hi = hi.max(b);
         }
         Ok((lo, hi))
+    }
+
+    /// A range holding the cells inside `region` of the leaves of `node` (or of its subtree),
+    /// by [`Self::range_over`]'s rule for leaves.
+    fn leaves_range<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        blocks: &BlockRanges,
+        node: &Node,
+        region: &IBox,
+    ) -> Result<(f32, f32)> {
+        let (mut a, mut b) = (f32::INFINITY, f32::NEG_INFINITY);
+        for &l in &self.order[node.first as usize..node.end as usize] {
+            let leaf_box = &self.boxes[l as usize];
+            if !leaf_box.overlaps(region) {
+                continue;
+            }
+            let Some((brick, lv)) = sampler.leaf_top(l) else {
+                continue;
+            };
+            let (x, y) = if contains(region, leaf_box) || small(sampler, leaf_box, lv) {
+                self.leaf_range(sampler, blocks, l)?
+            } else {
+                blocks.range_in(sampler, brick, lv, &leaf_box.intersect(region))?
+            };
+            a = a.min(x);
+            b = b.max(y);
+        }
+        Ok((a, b))
     }
 
     /// The range of node `i`'s cells, computed on first need.
@@ -293,6 +314,14 @@ fn union(a: &IBox, b: &IBox) -> IBox {
 }
 
 /// True when box `inner` lies inside `outer`.
+#[inline]
 fn contains(outer: &IBox, inner: &IBox) -> bool {
     (0..3).all(|k| outer.lo[k] <= inner.lo[k] && inner.hi[k] <= outer.hi[k])
+}
+
+/// True when the finest-level box `b` of a leaf of level `level` spans at most [`SMALL`] cells
+/// of that level per axis.
+fn small<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>, b: &IBox, level: u32) -> bool {
+    let s = sampler.grid().scale(level);
+    (0..3).all(|a| b.hi[a] - b.lo[a] <= SMALL * s[a])
 }

@@ -6,6 +6,7 @@
 //! is needed; it decides which dual cells can be merged and which octants touch a boundary, and
 //! holds each cell's value bound for [`super::cull`].
 
+use super::blocks::level_box;
 use crate::error::Result;
 use amr_format::IBox;
 
@@ -103,7 +104,7 @@ impl Neighbourhood {
             if !lb.overlaps(&region) {
                 continue;
             }
-            let block = grid.level_box(level, &lb).intersect(&g);
+            let block = level_box(grid, level, &lb).intersect(&g);
             if block.is_empty() {
                 continue;
             }
@@ -190,7 +191,7 @@ impl Neighbourhood {
     ) -> Result<()> {
         let grid = sampler.grid();
         let bc = sampler.brick_cells(brick);
-        let cells = grid.level_box(fine, part).intersect(&bc);
+        let cells = level_box(grid, fine, part).intersect(&bc);
         if cells.is_empty() {
             return Ok(());
         }

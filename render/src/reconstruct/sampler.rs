@@ -909,7 +909,10 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 *slot = value;
                 continue;
             }
-            let cells = std::array::from_fn(|m| block[(m & face) | (own & !face)]);
+            let mut cells = [0f32; 8];
+            for (m, c) in cells.iter_mut().enumerate() {
+                *c = block[((m & face) | (own & !face)) & 7];
+            }
             *slot = avg8(&cells);
         }
         out
@@ -1046,13 +1049,20 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 *slot = value;
                 continue;
             }
-            let at = axes(|a| &nudged[a][n >> a & 1]);
+            let at = [
+                &nudged[0][n & 1],
+                &nudged[1][n >> 1 & 1],
+                &nudged[2][n >> 2 & 1],
+            ];
             // Per side: its position, the cell's level and value, and where the cell is (a
             // position, or 8 + side for `extra`).
-            let ks: [usize; 8] =
-                std::array::from_fn(|i| at[0][i & 1].1 | at[1][i >> 1 & 1].1 | at[2][i >> 2].1);
-            let mut levels = ks.map(|k| whole_level[k]);
-            let mut values = ks.map(|k| whole_value[k]);
+            let mut ks = [0usize; 8];
+            let mut levels = [0u32; 8];
+            let mut values = [0f32; 8];
+            for i in 0..8 {
+                let k = (at[0][i & 1].1 | at[1][i >> 1 & 1].1 | at[2][i >> 2 & 1].1) & 7;
+                (ks[i], levels[i], values[i]) = (k, whole_level[k], whole_value[k]);
+            }
             let mut from = ks;
             let vsame = (0..3).fold(0usize, |m, a| {
                 m | usize::from(at[a][0].0 == at[a][1].0) << a

@@ -179,7 +179,10 @@ mod tests {
             let mut values = [0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0];
             values[i] = f32::NAN;
             let v = voxel(values);
-            assert!(intersect_voxel(&v, 0.5, &ray, 0.0, f64::INFINITY).is_none(), "{i}");
+            assert!(
+                intersect_voxel(&v, 0.5, &ray, 0.0, f64::INFINITY).is_none(),
+                "{i}"
+            );
             assert!(!voxel_occludes(&v, 0.5, &ray, 0.0, f64::INFINITY), "{i}");
         }
     }

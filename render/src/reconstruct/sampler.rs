@@ -512,7 +512,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 
     /// The leaf cell holding finest-level cell `finest` (relative to the domain), `None` outside
     /// the domain or where no brick covers it.
-    #[inline]
+    #[inline(always)]
     pub fn locate(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
         match self.find_leaf(finest) {
             Some(leaf) => self.leaf_cell(leaf, finest),
@@ -522,7 +522,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 
     /// The leaf cell holding finest-level cell `finest`, which lies in kd-tree leaf `leaf`;
     /// `None` where no brick covers the leaf.
-    #[inline]
+    #[inline(always)]
     pub fn leaf_cell(&self, leaf: u32, finest: [i64; 3]) -> Result<Option<LeafCell>> {
         let Some(t) = &self.tops[leaf as usize] else {
             return Ok(None);
@@ -531,7 +531,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         let index = t.index(cell);
         let value = match t.values {
             Some(v) => v[index],
-            None => self.values(t.brick)?[index],
+            None => self.decoded_value(t.brick, index)?,
         };
         Ok(Some(LeafCell {
             leaf,
@@ -540,6 +540,13 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             cell,
             value,
         }))
+    }
+
+    /// Value `index` of brick `brick`, which is decoded (through the cache) to be read.
+    #[cold]
+    #[inline(never)]
+    fn decoded_value(&self, brick: u32, index: usize) -> Result<f32> {
+        Ok(self.values(brick)?[index])
     }
 
     /// The kd-tree leaf holding finest-level cell `finest`, `None` outside the domain.

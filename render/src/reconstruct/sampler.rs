@@ -147,15 +147,14 @@ impl VertexMemo {
     }
 }
 
-/// A neighbour position of [`Sampler::corners_gathered`]: the leaf cell located there, its
-/// kd-tree leaf's box and its brick's values when read in place.
+/// A neighbour position of [`Sampler::corners_gathered`]: the leaf cell located there and its
+/// kd-tree leaf's box.
 #[derive(Clone, Copy)]
-struct Position<'f> {
+struct Position {
     cell: LeafCell,
     /// True when every finest cell of the position (in the domain) lies in `cell`.
     whole: bool,
     leaf_box: IBox,
-    values: Option<&'f [f32]>,
 }
 
 /// A leaf cell to fill arrays with before they are written.
@@ -272,13 +271,13 @@ impl<D: AsRef<[u8]>> Locate for Sampler<'_, D> {
     fn block_of_level(&self, lo: [i64; 3], hi: [i64; 3], level: u32) -> Option<[f32; 8]> {
         self.leaf_grid.as_ref()?;
         let leaf = self.find_leaf(lo)?;
-        let (brick, top) = self.leaf_top[leaf as usize]?;
-        if top != level || !self.tree.leaf_box(leaf).contains_cell(hi) {
+        let t = self.tops[leaf as usize].as_ref()?;
+        if t.level != level || !self.tree.leaf_box(leaf).contains_cell(hi) {
             return None;
         }
-        let b = &self.bricks[brick as usize];
+        let b = &self.bricks[t.brick as usize];
         let (clo, chi) = (self.grid.cell_of(level, lo), self.grid.cell_of(level, hi));
-        block_in_brick(&b.cells, b.values?, clo, chi)
+        block_in_brick(&b.cells, t.values?, clo, chi)
     }
 }
 
@@ -309,6 +308,44 @@ pub(super) fn block_in_brick(
     Some(out)
 }
 
+/// A kd-tree leaf's finest brick as point location reads it: one record per leaf, so a locate
+/// reads no other table.
+#[derive(Clone, Copy)]
+struct LeafTop<'f> {
+    brick: u32,
+    level: u32,
+    /// log2 of the level's cell width in finest cells, when every axis is a power of two.
+    shift: Option<[u32; 3]>,
+    /// The brick's lowest cell (absolute index of `level`).
+    lo: [i64; 3],
+    /// The brick's extent along x and y.
+    ex: i64,
+    ey: i64,
+    /// The brick's values when they can be read in place.
+    values: Option<&'f [f32]>,
+}
+
+impl LeafTop<'_> {
+    /// The cell of the brick's level holding finest-level cell `finest` (relative).
+    #[inline(always)]
+    fn cell_of(&self, grid: &Grid, finest: [i64; 3]) -> [i64; 3] {
+        match self.shift {
+            Some(sh) => {
+                let offset = grid.offset();
+                axes(|a| (finest[a] + offset[a]) >> sh[a])
+            }
+            None => grid.cell_of(self.level, finest),
+        }
+    }
+
+    /// The index of cell `cell` (which the brick holds) in the brick's values.
+    #[inline(always)]
+    fn index(&self, cell: [i64; 3]) -> usize {
+        let d = axes(|a| cell[a] - self.lo[a]);
+        (d[0] + self.ex * (d[1] + self.ey * d[2])) as usize
+    }
+}
+
 /// One brick as the sampler reads it.
 struct BrickRef<'f> {
     /// Its cells in its level's index space.
@@ -322,8 +359,8 @@ pub struct Sampler<'f, D> {
     file: &'f AmrkFile<D>,
     field: usize,
     grid: Grid,
-    /// Per leaf: its finest brick and that brick's level, `None` where no brick covers it.
-    leaf_top: Vec<Option<(u32, u32)>>,
+    /// Per leaf: its finest brick, `None` where no brick covers it.
+    tops: Vec<Option<LeafTop<'f>>>,
     /// Per brick: its cells and its values when they can be read in place.
     bricks: Vec<BrickRef<'f>>,
     tree: TreeView<'f>,
@@ -348,15 +385,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 file.fields().len()
             )));
         }
-        let leaf_top = (0..file.num_leaves() as u32)
-            .map(|l| {
-                file.leaf(l).bricks.first().map(|b| {
-                    let b = b.get();
-                    (b, file.brick(b as usize).level)
-                })
-            })
-            .collect();
-        let bricks = (0..file.num_bricks())
+        let bricks: Vec<BrickRef<'f>> = (0..file.num_bricks())
             .map(|b| {
                 let raw = file.brick_data(field, b).encoding == amr_format::compress::Encoding::Raw;
                 // Only raw bricks are asked for: reading a compressed one here would decode it.
@@ -370,6 +399,25 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 }
             })
             .collect();
+        let grid = Grid::new(file);
+        let tops = (0..file.num_leaves() as u32)
+            .map(|l| {
+                file.leaf(l).bricks.first().map(|b| {
+                    let brick = b.get();
+                    let level = file.brick(brick as usize).level;
+                    let BrickRef { cells, values } = &bricks[brick as usize];
+                    LeafTop {
+                        brick,
+                        level,
+                        shift: grid.shift(level),
+                        lo: cells.lo,
+                        ex: cells.hi[0] - cells.lo[0],
+                        ey: cells.hi[1] - cells.lo[1],
+                        values: *values,
+                    }
+                })
+            })
+            .collect();
         let sampler = Self {
             bricks,
             leaf_grid: None,
@@ -377,8 +425,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             tree: file.tree(),
             file,
             field,
-            grid: Grid::new(file),
-            leaf_top,
+            grid,
+            tops,
             cache: BrickCache::new(cache_bytes),
             id: super::recent::next_sampler_id(),
         };
@@ -427,7 +475,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 
     /// Leaf `leaf`'s finest brick and its level, `None` for a leaf no brick covers.
     pub fn leaf_top(&self, leaf: u32) -> Option<(u32, u32)> {
-        self.leaf_top[leaf as usize]
+        self.tops[leaf as usize].map(|t| (t.brick, t.level))
     }
 
     /// Brick `brick`'s cells in its level's index space.
@@ -464,7 +512,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 
     /// The leaf cell holding finest-level cell `finest` (relative to the domain), `None` outside
     /// the domain or where no brick covers it.
-    #[inline]
+    #[inline(always)]
     pub fn locate(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
         match self.find_leaf(finest) {
             Some(leaf) => self.leaf_cell(leaf, finest),
@@ -474,25 +522,31 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 
     /// The leaf cell holding finest-level cell `finest`, which lies in kd-tree leaf `leaf`;
     /// `None` where no brick covers the leaf.
-    #[inline]
+    #[inline(always)]
     pub fn leaf_cell(&self, leaf: u32, finest: [i64; 3]) -> Result<Option<LeafCell>> {
-        let Some((brick, level)) = self.leaf_top[leaf as usize] else {
+        let Some(t) = &self.tops[leaf as usize] else {
             return Ok(None);
         };
-        let cell = self.grid.cell_of(level, finest);
-        let b = &self.bricks[brick as usize];
-        let index = index_in(&b.cells, cell);
-        let value = match b.values {
+        let cell = t.cell_of(&self.grid, finest);
+        let index = t.index(cell);
+        let value = match t.values {
             Some(v) => v[index],
-            None => self.values(brick)?[index],
+            None => self.decoded_value(t.brick, index)?,
         };
         Ok(Some(LeafCell {
             leaf,
-            brick,
-            level,
+            brick: t.brick,
+            level: t.level,
             cell,
             value,
         }))
+    }
+
+    /// Value `index` of brick `brick`, which is decoded (through the cache) to be read.
+    #[cold]
+    #[inline(never)]
+    fn decoded_value(&self, brick: u32, index: usize) -> Result<f32> {
+        Ok(self.values(brick)?[index])
     }
 
     /// The kd-tree leaf holding finest-level cell `finest`, `None` outside the domain.
@@ -705,7 +759,11 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         if let Some(known) = memo.octant_get(&key) {
             return Ok(known);
         }
-        let c = self.corners_in(loc, q.level, q.cell, q.value, octant, memo)?;
+        let c = if self.gather {
+            self.corners_gathered(loc, &key, q.value, Some(q), memo)?
+        } else {
+            self.corners_in(loc, q.level, q.cell, q.value, octant, memo)?
+        };
         memo.octant_put(&key, c);
         Ok(c)
     }
@@ -752,7 +810,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             octant,
         };
         if self.gather {
-            return self.corners_gathered(loc, &o, value, memo);
+            return self.corners_gathered(loc, &o, value, None, memo);
         }
         if let Some(out) = self.corners_one_level(loc, &o, value)? {
             return Ok(Some(out));
@@ -858,7 +916,10 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 *slot = value;
                 continue;
             }
-            let cells = std::array::from_fn(|m| block[(m & face) | (own & !face)]);
+            let mut cells = [0f32; 8];
+            for (m, c) in cells.iter_mut().enumerate() {
+                *c = block[((m & face) | (own & !face)) & 7];
+            }
             *slot = avg8(&cells);
         }
         out
@@ -877,17 +938,32 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// whose finest brick has one cell over the position); one in the kd-tree leaf of its
     /// position's located cell is read from that leaf's brick; the others are located. A coarse
     /// octant met at several corners is evaluated once.
+    ///
+    /// `located`, when given, is the octant's leaf cell as located: cells in its kd-tree leaf are
+    /// then read from that leaf's brick without locating them.
     fn corners_gathered<L: Locate>(
         &self,
         loc: &L,
         o: &Octant,
         value: f32,
+        located: Option<&LeafCell>,
         memo: &mut VertexMemo,
     ) -> Result<Option<[f32; 8]>> {
         let Octant { level, cell, .. } = *o;
         let s = self.grid.scale(level);
         let (up, lo, hi, same) = self.outer_corner(o);
-        if let Some(block) = loc.block_of_level(lo, hi, level) {
+        // A leaf cell and its kd-tree leaf's box: finest cells in that leaf are read from its
+        // brick.
+        let mut near = located.map(|c| (*c, self.tree.leaf_box(c.leaf)));
+        let block = match near {
+            // Otherwise the sides are located one by one below: the same values either way.
+            Some((c, b)) if b.contains_cell(lo) && b.contains_cell(hi) => self
+                .block_in_leaf(&c, lo, hi, level)
+                .or_else(|| loc.block_of_level(lo, hi, level)),
+            Some(_) => None,
+            None => loc.block_of_level(lo, hi, level),
+        };
+        if let Some(block) = block {
             return Ok(Some(self.corners_from_block(&block, value, up)));
         }
         // Side `n` of the outer corner, as in `corners_one_level`.
@@ -899,7 +975,16 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 around[m]
             } else {
                 let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
-                loc.locate_cell(f)?
+                match near.and_then(|(c, b)| self.cell_in_leaf(&c, &b, f)) {
+                    Some(c) => Some(c),
+                    None => {
+                        let c = loc.locate_cell(f)?;
+                        if near.is_none() {
+                            near = c.map(|c| (c, self.tree.leaf_box(c.leaf)));
+                        }
+                        c
+                    }
+                }
             };
             one_level &= matches!(around[n], Some(c) if c.level == level);
         }
@@ -912,7 +997,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         let down = (0..3).fold(0usize, |m, a| m | usize::from(!up[a]) << a);
         let domain = IBox::new([0; 3], self.grid.extent());
         let own = self.grid.finest_box(level, cell);
-        let mut positions = [None::<Position<'f>>; 8];
+        let mut positions = [None::<Position>; 8];
         for (k, slot) in positions.iter_mut().enumerate() {
             // A set bit of `same` is an axis where the outer corner lies on the domain's face.
             let Some(c) = around[k ^ down].filter(|_| k & same == 0) else {
@@ -924,12 +1009,14 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 b.lo[a] += step;
                 b.hi[a] += step;
             }
-            let leaf_box = self.tree.leaf_box(c.leaf);
+            let leaf_box = match near {
+                Some((n, nb)) if n.leaf == c.leaf => nb,
+                _ => self.tree.leaf_box(c.leaf),
+            };
             *slot = Some(Position {
                 cell: c,
                 whole: c.level <= level && leaf_box.contains_box(&b.intersect(&domain)),
                 leaf_box,
-                values: self.bricks[c.brick as usize].values,
             });
         }
         // Per axis and side of the octant's box: the finest cells the vertex there is nudged
@@ -969,13 +1056,20 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 *slot = value;
                 continue;
             }
-            let at = axes(|a| &nudged[a][n >> a & 1]);
+            let at = [
+                &nudged[0][n & 1],
+                &nudged[1][n >> 1 & 1],
+                &nudged[2][n >> 2 & 1],
+            ];
             // Per side: its position, the cell's level and value, and where the cell is (a
             // position, or 8 + side for `extra`).
-            let ks: [usize; 8] =
-                std::array::from_fn(|i| at[0][i & 1].1 | at[1][i >> 1 & 1].1 | at[2][i >> 2].1);
-            let mut levels = ks.map(|k| whole_level[k]);
-            let mut values = ks.map(|k| whole_value[k]);
+            let mut ks = [0usize; 8];
+            let mut levels = [0u32; 8];
+            let mut values = [0f32; 8];
+            for i in 0..8 {
+                let k = (at[0][i & 1].1 | at[1][i >> 1 & 1].1 | at[2][i >> 2 & 1].1) & 7;
+                (ks[i], levels[i], values[i]) = (k, whole_level[k], whole_value[k]);
+            }
             let mut from = ks;
             let vsame = (0..3).fold(0usize, |m, a| {
                 m | usize::from(at[a][0].0 == at[a][1].0) << a
@@ -987,7 +1081,9 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                     continue;
                 }
                 let f = axes(|a| at[a][side >> a & 1].0);
-                let Some(c) = self.position_cell(loc, positions[ks[side]].as_ref(), f)? else {
+                let Some(c) =
+                    self.position_cell(loc, positions[ks[side]].as_ref(), near.as_ref(), f)?
+                else {
                     return Ok(None);
                 };
                 extra[side] = c;
@@ -1029,31 +1125,67 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 
     /// The leaf cell at finest cell `f` of a position gathered by [`Self::corners_gathered`]:
     /// the position's cell when it covers the whole position, else read from the brick of the
-    /// position's kd-tree leaf when `f` lies in that leaf, else located through `loc`.
+    /// position's kd-tree leaf or of `near`'s when `f` lies in that leaf, else located through
+    /// `loc`.
     #[inline]
     fn position_cell<L: Locate>(
         &self,
         loc: &L,
-        p: Option<&Position<'f>>,
+        p: Option<&Position>,
+        near: Option<&(LeafCell, IBox)>,
         f: [i64; 3],
     ) -> Result<Option<LeafCell>> {
         if let Some(p) = p {
             if p.whole {
                 return Ok(Some(p.cell));
             }
-            if let Some(values) = p.values.filter(|_| p.leaf_box.contains_cell(f)) {
-                let cell = self.grid.cell_of(p.cell.level, f);
-                let cells = &self.bricks[p.cell.brick as usize].cells;
-                if let Some(&value) = values.get(index_in(cells, cell)) {
-                    return Ok(Some(LeafCell {
-                        cell,
-                        value,
-                        ..p.cell
-                    }));
-                }
+            if let Some(c) = self.cell_in_leaf(&p.cell, &p.leaf_box, f) {
+                return Ok(Some(c));
             }
         }
+        if let Some(c) = near.and_then(|(c, b)| self.cell_in_leaf(c, b, f)) {
+            return Ok(Some(c));
+        }
         loc.locate_cell(f)
+    }
+
+    /// The values of the eight cells at finest cells `lo`/`hi` per axis (as in
+    /// [`Locate::block_of_level`]), which lie in the kd-tree leaf of leaf cell `c`, from that
+    /// leaf's brick when it is of `level` and read in place.
+    #[inline]
+    fn block_in_leaf(
+        &self,
+        c: &LeafCell,
+        lo: [i64; 3],
+        hi: [i64; 3],
+        level: u32,
+    ) -> Option<[f32; 8]> {
+        let t = self.tops[c.leaf as usize].as_ref()?;
+        if t.level != level {
+            return None;
+        }
+        let b = &self.bricks[t.brick as usize];
+        block_in_brick(
+            &b.cells,
+            t.values?,
+            t.cell_of(&self.grid, lo),
+            t.cell_of(&self.grid, hi),
+        )
+    }
+
+    /// The leaf cell at finest cell `f` read from the brick of leaf cell `c`'s kd-tree leaf
+    /// (box `leaf_box`) when `f` lies in that leaf and the brick is read in place: the leaf's
+    /// finest brick holds every cell of the leaf, so this is [`Self::locate`]'s answer. `None`
+    /// otherwise.
+    #[inline(always)]
+    fn cell_in_leaf(&self, c: &LeafCell, leaf_box: &IBox, f: [i64; 3]) -> Option<LeafCell> {
+        if !leaf_box.contains_cell(f) {
+            return None;
+        }
+        let t = self.tops[c.leaf as usize].as_ref()?;
+        let cell = t.cell_of(&self.grid, f);
+        let &value = t.values?.get(t.index(cell))?;
+        Some(LeafCell { cell, value, ..*c })
     }
 
     /// The corner values of an octant of a leaf cell; `None` when the cell is not a leaf cell or

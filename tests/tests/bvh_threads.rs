@@ -2,7 +2,7 @@
 //! and 3 threads, in small chunks (a two-level BVH) and in one BVH, give the same pixels bit for
 //! bit, and each build puts the refs in the same order.
 
-use crate::support::render::sphere_grid;
+use crate::support::render::{frame_bits, on_threads, sphere_grid};
 use amr_render::bvh::BvhBuilder;
 use amr_render::render::render_surfaces;
 use amr_render::shade::IsoSpec;
@@ -20,11 +20,7 @@ fn isos() -> Vec<IsoSpec> {
 /// rendered on `threads` threads with chunks of `chunk_refs` refs.
 fn build_and_render(threads: usize, chunk_refs: usize) -> (Vec<Vec<u64>>, Vec<u32>) {
     let grid = sphere_grid(7, 3, 2, 1.3, [0.0; 3], 1.0);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap();
-    pool.install(|| {
+    on_threads(threads, || {
         let mut b = BvhBuilder::new();
         b.chunk_refs = chunk_refs;
         let surfaces: Vec<Surface> = isos()
@@ -46,8 +42,7 @@ fn build_and_render(threads: usize, chunk_refs: usize) -> (Vec<Vec<u64>>, Vec<u3
             .unwrap()
             .frame;
         let refs = surfaces.iter().map(|s| s.bvh.refs().to_vec()).collect();
-        let bits = f.rgb.iter().chain(&f.n).chain([&f.alpha, &f.z]);
-        (refs, bits.flatten().map(|x| x.to_bits()).collect())
+        (refs, frame_bits(&f))
     })
 }
 

@@ -2,26 +2,17 @@
 //! many-ray reference than four unfiltered rays, and the filter, which reads neighbouring
 //! pixels, leaves rectangles of a frame (tiles) equal to the whole frame, bit for bit.
 
-use amr_format::progress::NoProgress;
-use amr_format::WriterOptions;
 use amr_render::shade::IsoSpec;
 use amr_render::{
     render, render_region, CameraPlacement, Rect, Rendered, Scene, SceneOptions, View,
 };
-use amr_synth::{write_synth, Case, SynthParams};
+use amr_synth::Case;
+
+use crate::support::synth_file::two_level;
 
 /// The demo's two blobs on two levels, an opaque and a transparent surface.
 fn scene(dir: &std::path::Path) -> Scene {
-    let path = dir.join("blobs.amrk");
-    let params = SynthParams::unit_cube(2, 2, 16, 8);
-    write_synth(
-        &path,
-        Case::Blobs,
-        &params,
-        WriterOptions::default(),
-        &NoProgress,
-    )
-    .unwrap();
+    let path = two_level(dir, Case::Blobs);
     let mut scene = Scene::open(&path, &SceneOptions::default()).unwrap();
     let isos: Vec<IsoSpec> = ["10:#d99e59", "6:#598cd9:0.3"]
         .iter()

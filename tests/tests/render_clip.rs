@@ -3,24 +3,15 @@
 //! extracted inside a view's frustum renders that view bit for bit as the whole extraction does
 //! when no shadow or ambient-occlusion ray leaves the view.
 
-use std::path::{Path, PathBuf};
-
-use amr_format::progress::NoProgress;
-use amr_format::WriterOptions;
 use amr_render::output::frame::FrameBuffer;
 use amr_render::reconstruct::Reconstruction;
 use amr_render::shade::IsoSpec;
 use amr_render::trace::{ClippedTracer, GridRay, HybridTracer, Tracer};
 use amr_render::{render, CameraPlacement, ClipBox, Rendered, Scene, SceneOptions, View};
 use amr_synth::fields::{SPHERE_CENTRE, SPHERE_RADIUS};
-use amr_synth::{write_synth, Case, SynthParams};
+use amr_synth::Case;
 
-fn synth(dir: &Path, case: Case) -> PathBuf {
-    let path = dir.join(format!("{case}.amrk"));
-    let params = SynthParams::unit_cube(2, 2, 16, 8);
-    write_synth(&path, case, &params, WriterOptions::default(), &NoProgress).unwrap();
-    path
-}
+use crate::support::synth_file::two_level;
 
 fn looking_from(pos: [f64; 3], look_at: [f64; 3], fov_deg: f64) -> View {
     View {
@@ -45,7 +36,7 @@ fn centre_pixel(r: &Rendered) -> usize {
 #[test]
 fn a_clip_box_opens_the_sphere_onto_its_inner_side() {
     let dir = tempfile::tempdir().unwrap();
-    let path = synth(dir.path(), Case::Sphere);
+    let path = two_level(dir.path(), Case::Sphere);
     let [cx, cy, cz] = SPHERE_CENTRE;
     let eye = [cx + 3.0, cy, cz];
     let view = looking_from(eye, SPHERE_CENTRE, 30.0);
@@ -122,7 +113,7 @@ fn shadow_and_occlusion_rays_see_only_the_cut_surface() {
     // The shader asks the same tracer for shadow and ambient-occlusion rays (`occluded`) as for
     // primary rays (`next_hit`); cut, both see nothing of the removed half.
     let dir = tempfile::tempdir().unwrap();
-    let path = synth(dir.path(), Case::Sphere);
+    let path = two_level(dir.path(), Case::Sphere);
     let mut scene = Scene::open(&path, &SceneOptions::default()).unwrap();
     scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
     let whole = HybridTracer {
@@ -172,7 +163,7 @@ fn same_bits(a: &FrameBuffer, b: &FrameBuffer) -> bool {
 #[test]
 fn view_limited_extraction_renders_the_view_as_the_whole_one() {
     let dir = tempfile::tempdir().unwrap();
-    let path = synth(dir.path(), Case::Blobs);
+    let path = two_level(dir.path(), Case::Blobs);
     for reconstruction in [Reconstruction::Octant, Reconstruction::Current] {
         let options = SceneOptions {
             reconstruction,

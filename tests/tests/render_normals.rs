@@ -18,6 +18,7 @@ use amr_render::{render, CameraPlacement, Reconstruction, Scene, SceneOptions, V
 use amr_synth::{AnalyticField, Case};
 
 use crate::support::half_refined::write_half_refined_sphere;
+use crate::support::render::{frame_bits, on_threads};
 
 const CENTRE: [f64; 3] = [0.47, 0.52, 0.5];
 
@@ -244,12 +245,12 @@ fn block_normals_equal_the_sampled_ones_at_ratio_3() {
 
 /// The bits of the colour and normals of a frame of `path` with `reconstruction`, rendered on
 /// `threads` threads.
-fn frame_bits(path: &std::path::Path, reconstruction: Reconstruction, threads: usize) -> Vec<u32> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap();
-    pool.install(|| {
+fn smooth_frame_bits(
+    path: &std::path::Path,
+    reconstruction: Reconstruction,
+    threads: usize,
+) -> Vec<u32> {
+    on_threads(threads, || {
         let options = SceneOptions {
             reconstruction,
             ..SceneOptions::default()
@@ -269,8 +270,7 @@ fn frame_bits(path: &std::path::Path, reconstruction: Reconstruction, threads: u
         };
         let f = render(&scene, &view, &|_| {}).unwrap().frame;
         assert!(f.covered() > 1000, "the sphere fills the frame");
-        let bits = f.rgb.iter().chain(&f.n).chain([&f.alpha, &f.z]);
-        bits.flatten().map(|x| x.to_bits()).collect()
+        frame_bits(&f)
     })
 }
 
@@ -282,10 +282,10 @@ fn smooth_normals_are_the_same_on_any_thread_count() {
     let path = dir.path().join("sphere.amrk");
     write_half_refined_sphere(&path, 3, 2, 16);
     for reconstruction in [Reconstruction::Octant, Reconstruction::Current] {
-        let one = frame_bits(&path, reconstruction, 1);
+        let one = smooth_frame_bits(&path, reconstruction, 1);
         for threads in [2, 3] {
             assert!(
-                frame_bits(&path, reconstruction, threads) == one,
+                smooth_frame_bits(&path, reconstruction, threads) == one,
                 "{reconstruction}: other pixels on {threads} threads"
             );
         }

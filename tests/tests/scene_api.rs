@@ -1,25 +1,15 @@
 //! The library's scene: a camera change costs a frame and no extraction, an isovalue change
 //! re-extracts only the surfaces that changed, and the frames equal those of a fresh scene.
 
-use amr_format::progress::NoProgress;
-use amr_format::WriterOptions;
 use amr_render::shade::IsoSpec;
 use amr_render::{render, CameraPlacement, RenderError, Scene, SceneOptions, View};
-use amr_synth::{write_synth, Case, SynthParams};
+use amr_synth::Case;
+
+use crate::support::synth_file::two_level;
 
 /// A two-level blobs file in `dir`.
 fn blobs(dir: &std::path::Path) -> std::path::PathBuf {
-    let path = dir.join("blobs.amrk");
-    let params = SynthParams::unit_cube(2, 2, 16, 8);
-    write_synth(
-        &path,
-        Case::Blobs,
-        &params,
-        WriterOptions::default(),
-        &NoProgress,
-    )
-    .unwrap();
-    path
+    two_level(dir, Case::Blobs)
 }
 
 fn view(pos: [f64; 3]) -> View {

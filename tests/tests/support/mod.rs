@@ -10,3 +10,4 @@ pub mod half_refined;
 pub mod hierarchy;
 pub mod render;
 pub mod rng;
+pub mod synth_file;

@@ -91,3 +91,18 @@ pub fn surfaces(grid: &BlockGrid, isos: &[f32]) -> Vec<Surface> {
         .map(|&iso| Surface::build(grid, iso, &grid.active(iso), &mut b))
         .collect()
 }
+
+/// `f()` run on a pool of `threads` threads (frames must not depend on the count).
+pub fn on_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    pool.install(f)
+}
+
+/// The bits of a frame's colour, normals, alpha and depth, for bit-for-bit comparisons.
+pub fn frame_bits(f: &amr_render::output::frame::FrameBuffer) -> Vec<u32> {
+    let channels = f.rgb.iter().chain(&f.n).chain([&f.alpha, &f.z]);
+    channels.flatten().map(|x| x.to_bits()).collect()
+}

@@ -76,6 +76,11 @@ impl Colormap {
     }
 }
 
+/// The categorical palette of AMR levels (Tableau 10), as 8-bit sRGB.
+pub fn level_palette() -> impl Iterator<Item = [u8; 3]> {
+    colorous::TABLEAU10.iter().map(|c| [c.r, c.g, c.b])
+}
+
 /// The 8-bit sRGB colour of AMR level `level` (Tableau 10, repeating after ten levels).
 pub fn level_srgb8(level: u32) -> [u8; 3] {
     let c = colorous::TABLEAU10[level as usize % colorous::TABLEAU10.len()];
@@ -85,6 +90,14 @@ pub fn level_srgb8(level: u32) -> [u8; 3] {
 /// The linear RGB colour of AMR level `level`.
 pub fn level_linear(level: u32) -> [f32; 3] {
     srgb8_to_linear(level_srgb8(level))
+}
+
+/// The distance of two 8-bit sRGB colours in OKLab, a perceptually uniform space: about 0.02 is
+/// barely visible, 0.1 a plain difference of hue or lightness.
+pub fn oklab_distance(a: [u8; 3], b: [u8; 3]) -> f32 {
+    let lab = |c: [u8; 3]| csscolorparser::Color::from_rgba8(c[0], c[1], c[2], 255).to_oklaba();
+    let (a, b) = (lab(a), lab(b));
+    (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f32>().sqrt()
 }
 
 /// Linear RGB of an 8-bit sRGB colour.

@@ -6,8 +6,11 @@ use std::str::FromStr;
 use amr_format::AmrkFile;
 
 use crate::camera::{dot, sub, Camera};
-use crate::colormap::level_linear;
+use crate::coloring::ColorBy;
+use crate::colormap::{level_palette, oklab_distance, srgb8_to_linear};
 use crate::output::frame::FrameBuffer;
+use crate::output::png_preview::{background_srgb8, display_srgb8};
+use crate::scene::Scene;
 
 /// Which boxes a frame outlines.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -37,6 +40,67 @@ impl FromStr for Outline {
 /// Linear grey of the domain's box.
 pub const DOMAIN_COLOR: [f32; 3] = [0.75, 0.75, 0.75];
 
+/// Level colours closer than this (OKLab distance) to a surface's colour or the background are
+/// not used for boxes: a reader would take the lines for the surface, or not see them.
+const CONFUSABLE: f32 = 0.13;
+
+/// The colour of each level's boxes in one frame.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LevelColors {
+    /// 8-bit sRGB colours, level `l` taking entry `l % len`.
+    palette: Vec<[u8; 3]>,
+}
+
+impl LevelColors {
+    /// The categorical palette of levels, as surfaces painted by level use it.
+    pub fn categorical() -> LevelColors {
+        LevelColors {
+            palette: level_palette().collect(),
+        }
+    }
+
+    /// The categorical palette without the colours a reader could confuse with one of `avoid`
+    /// (8-bit sRGB); the whole palette when that would leave none.
+    pub fn avoiding(avoid: &[[u8; 3]]) -> LevelColors {
+        let clear = |c: &[u8; 3]| avoid.iter().all(|&a| oklab_distance(*c, a) >= CONFUSABLE);
+        let palette: Vec<[u8; 3]> = level_palette().filter(clear).collect();
+        match palette.is_empty() {
+            true => LevelColors::categorical(),
+            false => LevelColors { palette },
+        }
+    }
+
+    /// The colours of a frame of `scene`: the categorical palette when something is painted by
+    /// level (lines and surfaces then agree), else the palette clear of the background and of
+    /// every unpainted surface's colour. A painting colormap is not avoided: it spans so many
+    /// hues that too few colours would be left to tell the levels apart, and a thin line is not
+    /// taken for a painted surface.
+    pub fn of_scene(scene: &Scene) -> LevelColors {
+        let mut painters = scene.color_by().iter().flatten();
+        let mut slice_painters = scene.slices().iter().map(|s| &s.1);
+        if painters.any(|b| *b == ColorBy::Level) || slice_painters.any(|b| *b == ColorBy::Level) {
+            return LevelColors::categorical();
+        }
+        let mut avoid = vec![background_srgb8()];
+        for (i, s) in scene.isosurfaces().iter().enumerate() {
+            if scene.color_by().get(i).is_none_or(Option::is_none) {
+                avoid.push(s.color_or_palette(i).map(display_srgb8));
+            }
+        }
+        LevelColors::avoiding(&avoid)
+    }
+
+    /// The 8-bit sRGB colour of `level`'s boxes.
+    pub fn srgb8(&self, level: u32) -> [u8; 3] {
+        self.palette[level as usize % self.palette.len()]
+    }
+
+    /// The linear RGB colour of `level`'s boxes.
+    pub fn linear(&self, level: u32) -> [f32; 3] {
+        srgb8_to_linear(self.srgb8(level))
+    }
+}
+
 /// A world-space segment and its linear colour.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Segment {
@@ -62,12 +126,13 @@ pub fn box_edges(lo: [f64; 3], hi: [f64; 3], color: [f32; 3]) -> impl Iterator<I
     })
 }
 
-/// The segments `outline` asks for in `file` whose domain is `[lo, hi]` (world): brick edges
-/// finest level last, so that they draw over the coarser ones they share.
+/// The segments `outline` asks for in `file` whose domain is `[lo, hi]` (world): brick edges in
+/// `colors`, finest level last, so that they draw over the coarser ones they share.
 pub fn segments<D: AsRef<[u8]>>(
     outline: Outline,
     file: &AmrkFile<D>,
     (lo, hi): ([f64; 3], [f64; 3]),
+    colors: &LevelColors,
 ) -> Vec<Segment> {
     let mut out = Vec::new();
     if outline == Outline::None {
@@ -86,7 +151,7 @@ pub fn segments<D: AsRef<[u8]>>(
             out.extend(box_edges(
                 at(info.cells.lo),
                 at(info.cells.hi),
-                level_linear(info.level),
+                colors.linear(info.level),
             ));
         }
     }
@@ -167,6 +232,29 @@ pub fn line_width(w: u32, h: u32) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::colormap::level_srgb8;
+
+    #[test]
+    fn level_colors_stay_clear_of_what_they_avoid() {
+        let avoid = [level_srgb8(0), level_srgb8(1), [118, 118, 118]];
+        let colors = LevelColors::avoiding(&avoid);
+        for l in 0..30 {
+            for a in avoid {
+                assert!(
+                    oklab_distance(colors.srgb8(l), a) >= CONFUSABLE,
+                    "level {l}"
+                );
+            }
+        }
+        assert_ne!(colors.srgb8(0), colors.srgb8(1));
+    }
+
+    #[test]
+    fn avoiding_every_colour_falls_back_to_the_whole_palette() {
+        let all: Vec<[u8; 3]> = level_palette().collect();
+        assert_eq!(LevelColors::avoiding(&all), LevelColors::categorical());
+        assert_eq!(LevelColors::categorical().srgb8(3), level_srgb8(3));
+    }
 
     #[test]
     fn a_box_has_twelve_edges_of_its_sides() {

@@ -64,6 +64,7 @@ pub fn render(scene: &Scene, view: &View, progress: &(dyn Fn(u64) + Sync)) -> Re
         view.outline,
         scene.file(),
         scene.grid_frame().world_bounds(),
+        &outline::LevelColors::of_scene(scene),
     );
     let width = outline::line_width(view.size.0, view.size.1);
     outline::draw(&mut rendered.frame, &rendered.camera, &segments, width);

@@ -8,9 +8,10 @@ use std::path::{Path, PathBuf};
 
 use amr_format::WriterOptions;
 use amr_render::camera::Camera;
-use amr_render::outline::DOMAIN_COLOR;
-use amr_render::output::legend::Legend;
-use amr_render::output::png_preview::preview_rgb8;
+use amr_render::colormap::{level_srgb8, oklab_distance};
+use amr_render::outline::{LevelColors, DOMAIN_COLOR};
+use amr_render::output::legend::{Legend, Swatch};
+use amr_render::output::png_preview::{background_srgb8, display_srgb8, preview_rgb8};
 use amr_render::shade::IsoSpec;
 use amr_render::{
     render, CameraPlacement, ColorBy, ColorScale, Colormap, Outline, Rendered, Scene, SceneOptions,
@@ -318,4 +319,51 @@ fn a_painted_frame_with_its_legend_matches_the_golden_preview() {
     let golden =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/render_golden/painted_legend.ppm");
     assert_matches_golden(&golden, w, h, &rgb, "sphere painted by ramp, with legend");
+}
+
+#[test]
+fn level_boxes_are_not_drawn_in_a_surface_colour_unless_surfaces_are_painted_by_level() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let mut scene = scene(&path);
+    // The default palette's first two colours are close to the level palette's first two.
+    scene
+        .set_isosurfaces(&[IsoSpec::new(0.0), IsoSpec::new(0.1)])
+        .unwrap();
+    let v = View {
+        size: (96, 72),
+        outline: Outline::Boxes,
+        ..view()
+    };
+    let colors = LevelColors::of_scene(&scene);
+    let mut avoid = vec![background_srgb8()];
+    for (i, s) in scene.isosurfaces().iter().enumerate() {
+        avoid.push(s.color_or_palette(i).map(display_srgb8));
+    }
+    let r = render(&scene, &v, &|_| {}).unwrap();
+    let legend = Legend::of_frame(&scene, &v, &r);
+    let strokes: Vec<[u8; 3]> = legend
+        .entries
+        .iter()
+        .filter_map(|(_, s)| match s {
+            Some(Swatch::Stroke(c)) => Some(*c),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(strokes.len(), scene.file().levels().len());
+    for (l, c) in strokes.iter().enumerate() {
+        assert_eq!(*c, colors.srgb8(l as u32));
+        for a in &avoid {
+            assert!(
+                oklab_distance(*c, *a) > 0.1,
+                "level {l} {c:?} against {a:?}"
+            );
+        }
+    }
+    // Painted by level, boxes and surfaces share the level palette.
+    scene.set_color_by(&[Some(ColorBy::Level), None]).unwrap();
+    let colors = LevelColors::of_scene(&scene);
+    for l in 0..4 {
+        assert_eq!(colors.srgb8(l), level_srgb8(l));
+    }
 }

@@ -8,7 +8,7 @@ use crate::camera::Camera;
 use crate::coloring::ColorBy;
 use crate::colormap::{level_srgb8, Colormap};
 use crate::field_stats::format_value;
-use crate::outline::Outline;
+use crate::outline::{LevelColors, Outline};
 use crate::render::Rendered;
 use crate::scene::Scene;
 use crate::shade::material::srgb8;
@@ -27,11 +27,20 @@ pub struct ColorBar {
     pub log: bool,
 }
 
+/// The mark beside a legend line, in 8-bit sRGB.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Swatch {
+    /// A filled square: the colour of a surface.
+    Patch([u8; 3]),
+    /// A short stroke: the colour of lines drawn in the frame.
+    Stroke([u8; 3]),
+}
+
 /// Everything a legend shows; absent parts are left out.
 #[derive(Clone, Debug, Default)]
 pub struct Legend {
-    /// Lines at the top left, each with its colour swatch (`None`: no swatch).
-    pub entries: Vec<(String, Option<[u8; 3]>)>,
+    /// Lines at the top left, each with its swatch (`None`: no swatch).
+    pub entries: Vec<(String, Option<Swatch>)>,
     /// The colour bar of the field that paints.
     pub color_bar: Option<ColorBar>,
     /// The level palette's swatches, for this many levels.
@@ -151,7 +160,7 @@ impl Legend {
                 ),
                 None => (
                     format!("{field} = {}{opacity}", format_value(f64::from(s.value))),
-                    Some(srgb8(s.color_or_palette(i))),
+                    Some(Swatch::Patch(srgb8(s.color_or_palette(i)))),
                 ),
             };
             entries.push((label, swatch));
@@ -167,8 +176,10 @@ impl Legend {
             ));
         }
         if view.outline == Outline::Boxes {
+            let colors = LevelColors::of_scene(scene);
             for l in 0..scene.file().levels().len() as u32 {
-                entries.push((format!("level {l} boxes"), Some(level_srgb8(l))));
+                let swatch = Swatch::Stroke(colors.srgb8(l));
+                entries.push((format!("level {l} boxes"), Some(swatch)));
             }
         }
         let painters: Vec<&ColorBy> = scene
@@ -214,17 +225,28 @@ impl Legend {
         for (k, (s, swatch)) in self.entries.iter().enumerate() {
             let y = m + k as f32 * line;
             let mut x = m;
-            if let Some(c) = swatch {
-                let side = (0.8 * px) as i64;
-                canvas.rect(
-                    x as i64 - 1,
-                    y as i64 + 1,
-                    side + 2,
-                    side + 2,
-                    [0, 0, 0],
-                    1.0,
-                );
-                canvas.rect(x as i64, y as i64 + 2, side, side, *c, 1.0);
+            let side = (0.8 * px) as i64;
+            match swatch {
+                Some(Swatch::Patch(c)) => {
+                    canvas.rect(
+                        x as i64 - 1,
+                        y as i64 + 1,
+                        side + 2,
+                        side + 2,
+                        [0, 0, 0],
+                        1.0,
+                    );
+                    canvas.rect(x as i64, y as i64 + 2, side, side, *c, 1.0);
+                }
+                Some(Swatch::Stroke(c)) => {
+                    let thick = (side / 5).max(2);
+                    let y0 = y as i64 + 2 + (side - thick) / 2;
+                    canvas.rect(x as i64 - 1, y0 - 1, side + 2, thick + 2, [0, 0, 0], 1.0);
+                    canvas.rect(x as i64, y0, side, thick, *c, 1.0);
+                }
+                None => {}
+            }
+            if swatch.is_some() {
                 x += px * 1.2;
             }
             text.draw(&mut canvas, s, x, y);

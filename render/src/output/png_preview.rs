@@ -17,11 +17,20 @@ pub fn preview_rgb8(frame: &FrameBuffer) -> Vec<u8> {
     for i in 0..frame.len() {
         let a = frame.alpha[i];
         for c in 0..3 {
-            let v = frame.rgb[c][i] + BACKGROUND * (1.0 - a);
-            out.push(to_srgb8(v / (1.0 + 0.25 * v)));
+            out.push(display_srgb8(frame.rgb[c][i] + BACKGROUND * (1.0 - a)));
         }
     }
     out
+}
+
+/// The preview's colour of an uncovered pixel.
+pub fn background_srgb8() -> [u8; 3] {
+    [display_srgb8(BACKGROUND); 3]
+}
+
+/// The 8-bit sRGB value the preview shows for linear radiance `v` (tone-mapped).
+pub fn display_srgb8(v: f32) -> u8 {
+    to_srgb8(v / (1.0 + 0.25 * v))
 }
 
 fn to_srgb8(v: f32) -> u8 {

@@ -187,6 +187,7 @@ fn run_rank(
         view.outline,
         scene.file(),
         scene.grid_frame().world_bounds(),
+        &outline::LevelColors::of_scene(&scene),
     );
     outline::draw(
         &mut frame,

@@ -1,14 +1,17 @@
 //! A SIGBUS on a mapped file (it was truncated while it was read) becomes a clear error naming
 //! the file and exit status 1, instead of a signal death.
 //!
-//! [`watch`] records a map's address range and its file's path in a fixed table of atomics and
-//! installs, once, a SIGBUS handler. The handler finds the faulting address in the table, writes
-//! `Error: FILE: the file changed or was truncated while it was read` with `write(2)` and leaves
-//! with `_exit(1)`: both async-signal-safe, and the table is read with atomic loads only. A fault
-//! outside every watched map restores the default action, so it kills the process as before.
+//! [`watch`] records a map's address range and its file's path in a fixed table of atomics.
+//! A program opts in with [`install`] (`amr-render` does, first thing): a signal handler is
+//! process-wide, so a library must not take it from the application that embeds it. The handler
+//! finds the faulting address in the table, writes `Error: FILE: the file changed or was
+//! truncated while it was read` with `write(2)` and leaves with `_exit(1)`: both
+//! async-signal-safe, and the table is read with atomic loads only. A fault outside every
+//! watched map goes to the handler installed before (or the default action, which kills the
+//! process as before).
 
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
-use std::sync::Once;
+use std::sync::{Once, OnceLock};
 
 /// Maps watched at once; a map opened when all are taken is not watched (it still works).
 const SLOTS: usize = 64;
@@ -37,6 +40,8 @@ impl Slot {
 
 static TABLE: [Slot; SLOTS] = [const { Slot::new() }; SLOTS];
 static INSTALL: Once = Once::new();
+/// The SIGBUS action [`install`] replaced, for faults outside every watched map.
+static PREVIOUS: OnceLock<libc::sigaction> = OnceLock::new();
 
 /// A watched map: dropping it (before the map is unmapped) stops watching.
 #[derive(Debug)]
@@ -55,10 +60,9 @@ impl Drop for Watch {
     }
 }
 
-/// Watches the mapped bytes `map` of the file `path`: a SIGBUS there ends the process with a
-/// message naming `path` and exit status 1.
+/// Watches the mapped bytes `map` of the file `path`: once [`install`] was called, a SIGBUS
+/// there ends the process with a message naming `path` and exit status 1.
 pub fn watch(path: &std::path::Path, map: &[u8]) -> Watch {
-    INSTALL.call_once(install);
     let Some(i) = TABLE.iter().position(|s| {
         s.used
             .compare_exchange(false, true, Ordering::AcqRel, Ordering::Relaxed)
@@ -81,20 +85,58 @@ pub fn watch(path: &std::path::Path, map: &[u8]) -> Watch {
     Watch { slot: Some(i) }
 }
 
-fn install() {
-    // SAFETY: `action` is fully initialised (zeroed, then the handler, flags and an empty mask
-    // set) before `sigaction` reads it; the handler has the three-argument signature SA_SIGINFO
-    // requires and only does async-signal-safe things (atomic loads, write(2), _exit(2)).
+/// Installs, once per process, the SIGBUS handler that turns a fault on a watched map into an
+/// error naming its file and exit status 1. For programs; a library leaves the choice to them.
+pub fn install() {
+    INSTALL.call_once(|| {
+        // SAFETY: `action` is fully initialised (zeroed, then the handler, flags and an empty
+        // mask set) before `sigaction` reads it, and `previous` is written by `sigaction`
+        // before it is read; the handler has the three-argument signature SA_SIGINFO requires.
+        unsafe {
+            let mut action: libc::sigaction = std::mem::zeroed();
+            action.sa_sigaction = on_sigbus as *const () as libc::sighandler_t;
+            action.sa_flags = libc::SA_SIGINFO;
+            libc::sigemptyset(&mut action.sa_mask);
+            let mut previous: libc::sigaction = std::mem::zeroed();
+            if libc::sigaction(libc::SIGBUS, &action, &mut previous) == 0 {
+                let _ = PREVIOUS.set(previous);
+            }
+        }
+    });
+}
+
+/// Hands a fault outside every watched map to the action [`install`] replaced: its handler, or
+/// the default action (restored, so that the fault, repeated on return, kills the process).
+///
+/// # Safety
+/// Only from the SIGBUS handler, with the arguments the kernel passed it.
+unsafe fn pass_on(sig: libc::c_int, info: *mut libc::siginfo_t, ctx: *mut libc::c_void) {
+    // SAFETY: `PREVIOUS` holds the action `sigaction` reported, whose handler field is SIG_DFL,
+    // SIG_IGN or a function of the signature its SA_SIGINFO flag says; calling it as the kernel
+    // would is what chaining handlers means. signal(2) is async-signal-safe.
     unsafe {
-        let mut action: libc::sigaction = std::mem::zeroed();
-        action.sa_sigaction = on_sigbus as *const () as libc::sighandler_t;
-        action.sa_flags = libc::SA_SIGINFO;
-        libc::sigemptyset(&mut action.sa_mask);
-        libc::sigaction(libc::SIGBUS, &action, std::ptr::null_mut());
+        match PREVIOUS.get() {
+            Some(p) if p.sa_sigaction != libc::SIG_DFL && p.sa_sigaction != libc::SIG_IGN => {
+                if p.sa_flags & libc::SA_SIGINFO != 0 {
+                    let handler: extern "C" fn(
+                        libc::c_int,
+                        *mut libc::siginfo_t,
+                        *mut libc::c_void,
+                    ) = std::mem::transmute(p.sa_sigaction);
+                    handler(sig, info, ctx);
+                } else {
+                    let handler: extern "C" fn(libc::c_int) = std::mem::transmute(p.sa_sigaction);
+                    handler(sig);
+                }
+            }
+            _ => {
+                libc::signal(libc::SIGBUS, libc::SIG_DFL);
+            }
+        }
     }
 }
 
-extern "C" fn on_sigbus(_sig: libc::c_int, info: *mut libc::siginfo_t, _ctx: *mut libc::c_void) {
+extern "C" fn on_sigbus(sig: libc::c_int, info: *mut libc::siginfo_t, ctx: *mut libc::c_void) {
     // SAFETY: the kernel passes a valid siginfo for SA_SIGINFO handlers; `si_addr` is the faulting
     // address for SIGBUS. write(2), _exit(2) and signal(2) are async-signal-safe, and the
     // buffers written live on this stack frame.
@@ -104,8 +146,7 @@ extern "C" fn on_sigbus(_sig: libc::c_int, info: *mut libc::siginfo_t, _ctx: *mu
             let start = s.start.load(Ordering::Acquire);
             start != 0 && start <= addr && addr < s.end.load(Ordering::Acquire)
         }) else {
-            // Not a watched map: let the fault happen again with the default action.
-            libc::signal(libc::SIGBUS, libc::SIG_DFL);
+            pass_on(sig, info, ctx);
             return;
         };
         let mut path = [0u8; PATH_BYTES];

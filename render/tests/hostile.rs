@@ -378,6 +378,9 @@ fn sigbus_child() {
     let Some(path) = std::env::var_os("AMR_SIGBUS_CHILD_FILE") else {
         return;
     };
+    if std::env::var_os("AMR_SIGBUS_CHILD_INSTALL").is_some() {
+        amr_render::sigbus::install();
+    }
     let file = open_mapped(Path::new(&path)).unwrap();
     std::fs::OpenOptions::new()
         .write(true)
@@ -397,6 +400,7 @@ fn truncation_under_the_map_is_an_error() {
     let out = Command::new(std::env::current_exe().unwrap())
         .args(["--exact", "sigbus_child", "--nocapture", "--test-threads=1"])
         .env("AMR_SIGBUS_CHILD_FILE", &path)
+        .env("AMR_SIGBUS_CHILD_INSTALL", "1")
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -406,6 +410,85 @@ fn truncation_under_the_map_is_an_error() {
         path.display()
     );
     assert!(stderr.contains(&want), "{stderr}");
+}
+
+/// The library alone takes no signal: a program that did not call `sigbus::install` sees the
+/// plain SIGBUS of a truncated map, as with any other mapped file.
+#[test]
+fn the_library_alone_installs_no_signal_handler() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = base_file(dir.path(), Case::Blobs, false);
+    let out = Command::new(std::env::current_exe().unwrap())
+        .args(["--exact", "sigbus_child", "--nocapture", "--test-threads=1"])
+        .env("AMR_SIGBUS_CHILD_FILE", &path)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.signal(), Some(libc::SIGBUS), "{:?}", out.status);
+}
+
+/// Exit status of the handler [`foreign_fault_child`] installs before `sigbus::install`.
+const FOREIGN_HANDLER_EXIT: i32 = 42;
+
+extern "C" fn foreign_handler(_: libc::c_int) {
+    // SAFETY: _exit(2) is async-signal-safe.
+    unsafe { libc::_exit(FOREIGN_HANDLER_EXIT) }
+}
+
+/// Run in a child process by [`a_fault_outside_watched_maps_reaches_the_handler_before`]: installs
+/// its own SIGBUS handler, then the library's, opens a watched `.amrk` file, and faults on another
+/// map of its own.
+#[test]
+fn foreign_fault_child() {
+    let Some(path) = std::env::var_os("AMR_FOREIGN_FAULT_CHILD_FILE") else {
+        return;
+    };
+    // SAFETY: a plain handler that only calls _exit(2).
+    unsafe {
+        libc::signal(
+            libc::SIGBUS,
+            foreign_handler as *const () as libc::sighandler_t,
+        );
+    }
+    amr_render::sigbus::install();
+    let _watched = open_mapped(Path::new(&path)).unwrap();
+    let other = Path::new(&path).with_extension("other");
+    std::fs::write(&other, vec![7u8; 1 << 16]).unwrap();
+    let f = std::fs::File::open(&other).unwrap();
+    // SAFETY: the map is read-only; the test truncates the file under it on purpose to fault.
+    let map = unsafe { memmap2::Mmap::map(&f) }.unwrap();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&other)
+        .unwrap()
+        .set_len(0)
+        .unwrap();
+    let sum: u64 = map.iter().map(|&b| u64::from(b)).sum();
+    panic!("reading a truncated map raised no SIGBUS ({sum})");
+}
+
+/// A SIGBUS outside every watched map goes to the handler the program had before.
+#[test]
+fn a_fault_outside_watched_maps_reaches_the_handler_before() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = base_file(dir.path(), Case::Blobs, false);
+    let out = Command::new(std::env::current_exe().unwrap())
+        .args([
+            "--exact",
+            "foreign_fault_child",
+            "--nocapture",
+            "--test-threads=1",
+        ])
+        .env("AMR_FOREIGN_FAULT_CHILD_FILE", &path)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        out.status.code(),
+        Some(FOREIGN_HANDLER_EXIT),
+        "{:?}: {stderr}",
+        out.status
+    );
+    assert!(!stderr.contains("truncated while it was read"), "{stderr}");
 }
 
 /// A compressed brick that does not decode: the message names the file once and says the

@@ -86,6 +86,7 @@ fn exit_on<T>(e: clap::Error) -> T {
 
 fn main() -> ExitCode {
     heap::keep_large_blocks_mapped();
+    amr_render::sigbus::install();
     match parse().and_then(run) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,

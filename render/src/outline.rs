@@ -59,15 +59,30 @@ impl LevelColors {
         }
     }
 
-    /// The categorical palette without the colours a reader could confuse with one of `avoid`
-    /// (8-bit sRGB); the whole palette when that would leave none.
-    pub fn avoiding(avoid: &[[u8; 3]]) -> LevelColors {
-        let clear = |c: &[u8; 3]| avoid.iter().all(|&a| oklab_distance(*c, a) >= CONFUSABLE);
-        let palette: Vec<[u8; 3]> = level_palette().filter(clear).collect();
-        match palette.is_empty() {
-            true => LevelColors::categorical(),
-            false => LevelColors { palette },
-        }
+    /// Colours for `levels` levels from the categorical palette without the colours a reader
+    /// could confuse with one of `avoid` (8-bit sRGB). Telling levels apart comes first: the
+    /// most confusable colours are left out only while at least `levels` colours remain (the
+    /// whole palette when it has fewer).
+    pub fn avoiding(avoid: &[[u8; 3]], levels: usize) -> LevelColors {
+        let all: Vec<[u8; 3]> = level_palette().collect();
+        let nearest = |c: [u8; 3]| {
+            avoid
+                .iter()
+                .map(|&a| oklab_distance(c, a))
+                .fold(f32::INFINITY, f32::min)
+        };
+        let mut confusable: Vec<(f32, usize)> = (0..all.len())
+            .map(|i| (nearest(all[i]), i))
+            .filter(|&(d, _)| d < CONFUSABLE)
+            .collect();
+        confusable.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let removable = all.len().saturating_sub(levels.max(1));
+        let dropped: Vec<usize> = confusable.iter().take(removable).map(|&(_, i)| i).collect();
+        let palette = (0..all.len())
+            .filter(|i| !dropped.contains(i))
+            .map(|i| all[i])
+            .collect();
+        LevelColors { palette }
     }
 
     /// The colours of a frame of `scene`: the categorical palette when something is painted by
@@ -87,7 +102,7 @@ impl LevelColors {
                 avoid.push(s.color_or_palette(i).map(display_srgb8));
             }
         }
-        LevelColors::avoiding(&avoid)
+        LevelColors::avoiding(&avoid, scene.file().levels().len())
     }
 
     /// The 8-bit sRGB colour of `level`'s boxes.
@@ -237,7 +252,7 @@ mod tests {
     #[test]
     fn level_colors_stay_clear_of_what_they_avoid() {
         let avoid = [level_srgb8(0), level_srgb8(1), [118, 118, 118]];
-        let colors = LevelColors::avoiding(&avoid);
+        let colors = LevelColors::avoiding(&avoid, 3);
         for l in 0..30 {
             for a in avoid {
                 assert!(
@@ -250,10 +265,20 @@ mod tests {
     }
 
     #[test]
-    fn avoiding_every_colour_falls_back_to_the_whole_palette() {
+    fn levels_keep_distinct_colours_before_avoiding_any() {
         let all: Vec<[u8; 3]> = level_palette().collect();
-        assert_eq!(LevelColors::avoiding(&all), LevelColors::categorical());
-        assert_eq!(LevelColors::categorical().srgb8(3), level_srgb8(3));
+        for levels in 1..=all.len() + 2 {
+            let colors = LevelColors::avoiding(&all, levels);
+            let distinct = levels.min(all.len());
+            let used: std::collections::BTreeSet<[u8; 3]> =
+                (0..distinct as u32).map(|l| colors.srgb8(l)).collect();
+            assert_eq!(used.len(), distinct, "{levels} levels");
+        }
+        // The nearest colours go first: with room for nine, only the avoided grey goes.
+        let grey = all[9];
+        let colors = LevelColors::avoiding(&[grey, [0, 0, 255]], 9);
+        assert!((0..9).all(|l| colors.srgb8(l) != grey));
+        assert_eq!(LevelColors::avoiding(&[], 3), LevelColors::categorical());
     }
 
     #[test]

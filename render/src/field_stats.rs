@@ -55,6 +55,30 @@ impl FieldPercentiles {
         f64::from(self.sorted[i])
     }
 
+    /// The median of the values off the plateaus at the ends of the range: the values within
+    /// round-off (a millionth of their magnitude) of the smallest or the largest are left out, as
+    /// a floor or a ceiling many cells sit on. `None` when nothing is left.
+    pub fn median_off_plateaus(&self) -> Option<f64> {
+        let (&lo, &hi) = (self.sorted.first()?, self.sorted.last()?);
+        let above_floor = |v: f32| f64::from(v) > f64::from(lo) + 1e-6 * f64::from(lo.abs());
+        let below_ceiling = |v: f32| f64::from(v) < f64::from(hi) - 1e-6 * f64::from(hi.abs());
+        let first = self.sorted.partition_point(|&v| !above_floor(v));
+        let end = self.sorted.partition_point(|&v| below_ceiling(v));
+        (first < end).then(|| f64::from(self.sorted[first + (end - 1 - first) / 2]))
+    }
+
+    /// True when `v` lies off the plateaus at the ends of the range (see
+    /// [`FieldPercentiles::median_off_plateaus`]).
+    pub fn off_plateaus(&self, v: f64) -> bool {
+        match (self.sorted.first(), self.sorted.last()) {
+            (Some(&lo), Some(&hi)) => {
+                let (lo, hi) = (f64::from(lo), f64::from(hi));
+                v > lo + 1e-6 * lo.abs() && v < hi - 1e-6 * hi.abs()
+            }
+            _ => false,
+        }
+    }
+
     /// Values the distribution was computed from.
     pub fn samples(&self) -> usize {
         self.sorted.len()

@@ -254,22 +254,21 @@ impl Scene {
         &self.stats
     }
 
-    /// The isovalue used when none is given: the median of the field's cell values, or the
-    /// middle of its range when the median is at an end of the range (a field that is mostly
-    /// one value).
+    /// The isovalue used when none is given: the median of the field's cell values; when the
+    /// median sits on a floor or ceiling many cells share (a density floor, zero dark matter in
+    /// voids), the median of the values off those plateaus; the middle of the range when
+    /// nothing is off them (a field that is one value up to round-off).
     pub fn default_isovalue(&self) -> f32 {
         let f = &self.file().fields()[self.field];
         let mid = 0.5 * (f.min + f.max);
         let Ok(p) = crate::field_stats::FieldPercentiles::of(self.file(), self.field) else {
             return mid;
         };
-        let median = p.at(0.5) as f32;
-        let margin = 1e-3 * (f.max - f.min);
-        if median > f.min + margin && median < f.max - margin {
-            median
-        } else {
-            mid
+        let median = p.at(0.5);
+        if p.off_plateaus(median) {
+            return median as f32;
         }
+        p.median_off_plateaus().map_or(mid, |m| m as f32)
     }
 
     /// The box the surfaces are cut to, if any.
@@ -573,9 +572,14 @@ impl Scene {
     }
 }
 
-/// The index of the field `name`; when `None`, the first field whose range is not degenerate
-/// (constant, or round-off around zero, like a velocity component that is zero everywhere), or the
-/// first field when all are.
+/// Names of the field a scientist looks at first (compared ignoring case: Enzo's `Density`,
+/// AMReX's and Chombo's `density`, FLASH's `dens`), preferred as the default field in this order.
+const DENSITY_NAMES: [&str; 3] = ["density", "rho", "dens"];
+
+/// The index of the field `name`; when `None`, the density (a field named as in
+/// [`DENSITY_NAMES`]) if its range is not degenerate, else the first field whose range is not
+/// degenerate (constant, or round-off around zero, like a velocity component that is zero
+/// everywhere), or the first field when all are.
 fn resolve_field(file: &MappedFile, name: Option<&str>) -> Result<usize> {
     let Some(name) = name else {
         let spread = |f: &amr_format::FieldInfo| {
@@ -583,7 +587,15 @@ fn resolve_field(file: &MappedFile, name: Option<&str>) -> Result<usize> {
             let size = f64::from(f.max.abs().max(f.min.abs()));
             width > DEGENERATE_WIDTH && width > 1e-6 * size
         };
-        return Ok(file.fields().iter().position(spread).unwrap_or(0));
+        let fields = file.fields();
+        let density = DENSITY_NAMES.iter().find_map(|want| {
+            fields
+                .iter()
+                .position(|f| f.name.eq_ignore_ascii_case(want) && spread(f))
+        });
+        return Ok(density
+            .or_else(|| fields.iter().position(spread))
+            .unwrap_or(0));
     };
     file.field_index(name).ok_or_else(|| RenderError::NoField {
         name: name.to_string(),

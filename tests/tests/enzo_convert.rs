@@ -10,6 +10,8 @@ use crate::support::amrex::{assert_fails, convert, shared_data};
 use crate::support::enzo::value;
 use crate::support::enzo::writer::{self, Desc, GridDesc};
 use amr_format::AmrkFile;
+use amr_render::field_stats::FieldPercentiles;
+use amr_render::{Scene, SceneOptions};
 
 /// yt 4.4.3 on DD0010 (`docs/enzo.md`): per field, the minimum and maximum over every grid's
 /// active cells, `g[("enzo", field)]`.
@@ -50,6 +52,36 @@ fn dd0010_matches_yt() {
                 .sum();
             assert_eq!(got, *want, "sum of {name}");
         }
+    }
+}
+
+/// Rendered without a field or an isovalue, DD0010 shows `Density` (not the first field in name
+/// order, `Dark_Matter_Density`) at its median; `Dark_Matter_Density`, zero in over a quarter of
+/// the cells, gets its median too, not the middle of its range.
+#[test]
+fn dd0010_defaults_to_density_at_its_median() {
+    let Some(dir) = shared_data(
+        "dd0010_defaults_to_density_at_its_median",
+        "enzo/DD0010",
+        "moving7_0010.hierarchy",
+    ) else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("dd0010.amrk");
+    convert(&dir.join("moving7_0010"), &out, &[], 32).unwrap();
+    let scene = Scene::open(&out, &SceneOptions::default()).unwrap();
+    assert_eq!(scene.field_name(), "Density");
+    let file = AmrkFile::open(std::fs::read(&out).unwrap()).unwrap();
+    for (field, name) in [(1, "Density"), (0, "Dark_Matter_Density")] {
+        let median = FieldPercentiles::of(&file, field).unwrap().at(0.5) as f32;
+        let options = SceneOptions {
+            field: Some(name.into()),
+            ..SceneOptions::default()
+        };
+        let scene = Scene::open(&out, &options).unwrap();
+        assert_eq!(scene.default_isovalue(), median, "{name}");
+        assert!(median > 1.0 && median < 10.0, "{name}: median {median}");
     }
 }
 

@@ -299,6 +299,46 @@ fn the_default_field_skips_round_off_and_the_default_isovalue_is_the_median() {
 }
 
 #[test]
+fn the_default_field_is_the_density_unless_it_is_constant() {
+    let dir = tempfile::tempdir().unwrap();
+    let x = |p: [f64; 3]| p[0];
+    let constant = |_: [f64; 3]| 1.0;
+    type Field<'a> = &'a (dyn Fn([f64; 3]) -> f64 + Sync);
+    let cases: [([&str; 2], [Field; 2], &str); 3] = [
+        (["temp", "Density"], [&x, &x], "Density"),
+        (["rho", "velx"], [&x, &x], "rho"),
+        (["density", "temp"], [&constant, &x], "temp"),
+    ];
+    for (names, fields, want) in cases {
+        let path = dir.path().join(format!("{}.amrk", names[0]));
+        let mut spec =
+            build_hierarchy(&Case::Sphere, "x", &SynthParams::unit_cube(2, 2, 16, 8)).unwrap();
+        spec.fields = names.iter().map(|s| s.to_string()).collect();
+        write_fields(&path, spec, &fields, WriterOptions::default()).unwrap();
+        let scene = Scene::open(&path, &SceneOptions::default()).unwrap();
+        assert_eq!(scene.field_name(), want, "{names:?}");
+    }
+}
+
+#[test]
+fn a_median_on_a_floor_gives_the_median_above_the_floor() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("floor.amrk");
+    let mut spec =
+        build_hierarchy(&Case::Sphere, "x", &SynthParams::unit_cube(2, 2, 16, 8)).unwrap();
+    spec.fields = vec!["density".into()];
+    // Zero for x < 0.6 (the median cell is there), (x - 0.6)^4 above: values crowd near the
+    // floor, so the middle of the range (0.0128) is far above the typical value.
+    let floor = |p: [f64; 3]| (p[0] - 0.6).max(0.0).powi(4);
+    write_fields(&path, spec, &[&floor], WriterOptions::default()).unwrap();
+    let scene = Scene::open(&path, &SceneOptions::default()).unwrap();
+    let iso = f64::from(scene.default_isovalue());
+    // The median cell above the floor has x between 0.7 and 0.9 (finer cells near the sphere
+    // weigh more): (x - 0.6)^4 between 1e-4 and 8.1e-3.
+    assert!(iso >= 1e-4 && iso <= 8.1e-3, "default isovalue {iso}");
+}
+
+#[test]
 fn a_painted_frame_with_its_legend_matches_the_golden_preview() {
     let dir = tempfile::tempdir().unwrap();
     let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);

@@ -22,6 +22,7 @@ use amr_format::IBox;
 
 use super::blocks::{level_box, BlockRanges, BLOCK};
 use super::leaf_tree::LeafTree;
+use super::local::div_floor;
 use super::tight::{pack, unpack};
 use crate::reconstruct::Sampler;
 
@@ -44,12 +45,12 @@ pub fn fold_cell_bounds(
         return;
     }
     for z in cells.lo[2]..cells.hi[2] {
-        let gz = z.div_euclid(ratio[2]) - g.lo[2];
+        let gz = div_floor(z, ratio[2]) - g.lo[2];
         if !(0..e[2]).contains(&gz) {
             continue;
         }
         for y in cells.lo[1]..cells.hi[1] {
-            let gy = y.div_euclid(ratio[1]) - g.lo[1];
+            let gy = div_floor(y, ratio[1]) - g.lo[1];
             if !(0..e[1]).contains(&gy) {
                 continue;
             }
@@ -57,7 +58,7 @@ pub fn fold_cell_bounds(
             let row = ((gz * e[1] + gy) * e[0]) as usize;
             let mut x = x0;
             while x < x1 {
-                let gx = x.div_euclid(ratio[0]);
+                let gx = div_floor(x, ratio[0]);
                 let end = ((gx + 1) * ratio[0]).min(x1);
                 let i = row + (gx - g.lo[0]) as usize;
                 let (mut l, mut h) = (lo[i], hi[i]);

@@ -6,7 +6,6 @@
 //! is needed; it decides which dual cells can be merged and which octants touch a boundary, and
 //! holds each cell's value bound for [`super::cull`].
 
-use super::blocks::level_box;
 use crate::error::Result;
 use amr_format::IBox;
 
@@ -42,6 +41,34 @@ fn code(lo: f32, hi: f32, iso: f32) -> u8 {
     u8::from(hi >= iso) | u8::from(lo < iso) << 1
 }
 
+/// `floor(v / d)` for `d > 0`, a shift when `d` is a power of two.
+#[inline(always)]
+pub(super) fn div_floor(v: i64, d: i64) -> i64 {
+    if d & (d - 1) == 0 {
+        v >> d.trailing_zeros()
+    } else {
+        v.div_euclid(d)
+    }
+}
+
+/// The cells of a level whose cells are `scale` finest cells wide (index offset `offset`)
+/// overlapping finest-level box `finest`: [`super::blocks::level_box`], inlined.
+#[inline(always)]
+fn level_cells(scale: [i64; 3], offset: [i64; 3], finest: &IBox) -> IBox {
+    IBox::new(
+        [0, 1, 2].map(|a| div_floor(finest.lo[a] + offset[a], scale[a])),
+        [0, 1, 2].map(|a| div_floor(finest.hi[a] + offset[a] + scale[a] - 1, scale[a])),
+    )
+}
+
+/// ORs `src` into `dst`, element by element.
+#[inline]
+fn or_into(dst: &mut [bool], src: &[bool]) {
+    for (d, &s) in dst.iter_mut().zip(src) {
+        *d |= s;
+    }
+}
+
 /// Per-thread scratch: the classified neighbourhood of the leaf being processed.
 #[derive(Default)]
 pub struct Neighbourhood {
@@ -65,19 +92,47 @@ pub struct Neighbourhood {
     /// [`NOT_LEAF`] and [`PENDING`] bits.
     codes: Vec<u8>,
     touching: Vec<u32>,
+    /// Scratch of [`Self::mark_near_boundary`].
+    dilated: Vec<bool>,
+    /// The level and box of the last fill, while the cells hold it.
+    filled: Option<(u32, IBox)>,
 }
 
 impl Neighbourhood {
     /// Fills the neighbourhood of `leaf` (level `level`, level-`level` box `own`), finding the
-    /// leaves around it in `leaves`.
+    /// leaves around it in `leaves`. Nothing is done when the last fill was of the same box: the
+    /// cells, and the coarser cells' bounds settled since, do not depend on the isovalue.
     pub fn fill<D: AsRef<[u8]>>(
         &mut self,
         (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
         level: u32,
         own: &IBox,
     ) -> Result<()> {
-        let grid = sampler.grid();
         let g = own.grow([1; 3]);
+        if self.holds(level, &g) {
+            return Ok(());
+        }
+        self.fill_region((sampler, leaves), level, g)
+    }
+
+    /// True when the cells hold level-`level` box `g` (a fill of a box holding it is kept).
+    #[inline]
+    pub fn holds(&self, level: u32, g: &IBox) -> bool {
+        self.filled
+            .is_some_and(|(lv, held)| lv == level && held.contains_box(g))
+    }
+
+    /// Fills the level-`level` cells of box `g`: [`Self::fill`] of the box inside `g` by one
+    /// cell, or of several leaves at once when `g` holds their grown boxes (each cell's kind and
+    /// bound depend on the cell alone, not on the box filled).
+    pub fn fill_region<D: AsRef<[u8]>>(
+        &mut self,
+        (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
+        level: u32,
+        g: IBox,
+    ) -> Result<()> {
+        self.filled = None;
+        let grid = sampler.grid();
         let n = g.num_cells().unwrap_or(0) as usize;
         self.cells = g;
         self.level = level;
@@ -104,10 +159,9 @@ impl Neighbourhood {
             if !lb.overlaps(&region) {
                 continue;
             }
-            let block = level_box(grid, level, &lb).intersect(&g);
-            if block.is_empty() {
-                continue;
-            }
+            // `region` is whole level cells, so this is the leaf's level box clipped to `g`.
+            let part = lb.intersect(&region);
+            let block = level_cells(s, o, &part);
             match sampler.leaf_top(l) {
                 None => self.set_block(&block, UNCOVERED),
                 Some((_, lv)) if lv < level => {
@@ -116,7 +170,7 @@ impl Neighbourhood {
                 }
                 Some((brick, lv)) if lv > level => {
                     self.set_block(&block, FINER);
-                    self.bound_finer(sampler, level, &lb.intersect(&region), brick, lv)?;
+                    self.bound_finer(sampler, level, &part, brick, lv)?;
                 }
                 Some((brick, _)) => {
                     let values = sampler.values(brick)?;
@@ -156,27 +210,104 @@ impl Neighbourhood {
         self.all_leaf = self.kind.iter().all(|&k| k == LEAF);
         self.near_boundary.clear();
         if !self.all_leaf {
-            self.near_boundary.resize(n, false);
-            let e = g.extent();
-            for z in 0..e[2] {
-                for y in 0..e[1] {
-                    for x in 0..e[0] {
-                        if self.kind[(x + e[0] * (y + e[1] * z)) as usize] == LEAF {
-                            continue;
-                        }
-                        for dz in (z - 1).max(0)..(z + 2).min(e[2]) {
-                            for dy in (y - 1).max(0)..(y + 2).min(e[1]) {
-                                for dx in (x - 1).max(0)..(x + 2).min(e[0]) {
-                                    self.near_boundary[(dx + e[0] * (dy + e[1] * dz)) as usize] =
-                                        true;
-                                }
-                            }
-                        }
+            self.mark_near_boundary();
+        }
+        // Codes before any classification: the pending flags, which settling keeps.
+        self.codes.clear();
+        self.codes
+            .extend(self.coarse_pending.iter().map(|&p| u8::from(p) << 3));
+        self.filled = Some((level, g));
+        Ok(())
+    }
+
+    /// Cells held.
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.kind.len()
+    }
+
+    /// True when no cell is held.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.kind.is_empty()
+    }
+
+    /// The union of the bounds ([`Self::bound`]) of the cells of `b` (inside [`Self::cells`]);
+    /// `(+inf, -inf)` when none holds a value.
+    pub fn range_in(&self, b: &IBox) -> (f32, f32) {
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        let w = b.extent()[0].max(0) as usize;
+        for z in b.lo[2]..b.hi[2] {
+            for y in b.lo[1]..b.hi[1] {
+                let r = self.index([b.lo[0], y, z]);
+                let cells = self.kind[r..r + w]
+                    .iter()
+                    .zip(&self.lo[r..r + w])
+                    .zip(&self.hi[r..r + w]);
+                for ((&kind, &a), &b) in cells {
+                    let b = if kind == LEAF { a } else { b };
+                    // Comparisons, not f32::min: a NaN compares false and is left out.
+                    if a < lo {
+                        lo = a;
+                    }
+                    if b > hi {
+                        hi = b;
                     }
                 }
             }
         }
-        Ok(())
+        (lo, hi)
+    }
+
+    /// Sets [`Self::near_boundary`]: a cell is near the boundary when one of the up to 27 cells
+    /// around it (inside the neighbourhood) is not [`LEAF`]. The 3x3x3 dilation is done one axis
+    /// at a time (three ORs of whole rows per cell instead of 27 writes per non-leaf cell).
+    fn mark_near_boundary(&mut self) {
+        let e = self.cells.extent().map(|v| v as usize);
+        let n = self.kind.len();
+        let (row, slab) = (e[0], e[0] * e[1]);
+        self.dilated.clear();
+        self.dilated.extend(self.kind.iter().map(|&k| k != LEAF));
+        let not_leaf = &mut self.dilated;
+        // Along x, within each row.
+        self.near_boundary.clear();
+        self.near_boundary.extend_from_slice(not_leaf);
+        let along = &mut self.near_boundary;
+        for r in (0..n).step_by(row.max(1)) {
+            let src = &not_leaf[r..r + row];
+            let dst = &mut along[r..r + row];
+            for (d, &s) in dst[1..].iter_mut().zip(src) {
+                *d |= s;
+            }
+            for (d, &s) in dst.iter_mut().zip(&src[1..]) {
+                *d |= s;
+            }
+        }
+        // Along y, within each slab, then along z; `not_leaf` becomes the y-dilated cells.
+        not_leaf.copy_from_slice(along);
+        for z in 0..e[2] {
+            for y in 0..e[1] {
+                let r = z * slab + y * row;
+                let dst = &mut not_leaf[r..r + row];
+                if y > 0 {
+                    or_into(dst, &along[r - row..r]);
+                }
+                if y + 1 < e[1] {
+                    or_into(dst, &along[r + row..r + 2 * row]);
+                }
+            }
+        }
+        along.copy_from_slice(not_leaf);
+        for z in 0..e[2] {
+            let r = z * slab;
+            let dst = &mut along[r..r + slab];
+            if z > 0 {
+                or_into(dst, &not_leaf[r - slab..r]);
+            }
+            if z + 1 < e[2] {
+                or_into(dst, &not_leaf[r + slab..r + 2 * slab]);
+            }
+        }
     }
 
     /// Widens the bounds of the cells holding the cells of brick `brick` (level `fine`) inside
@@ -191,7 +322,7 @@ impl Neighbourhood {
     ) -> Result<()> {
         let grid = sampler.grid();
         let bc = sampler.brick_cells(brick);
-        let cells = level_box(grid, fine, part).intersect(&bc);
+        let cells = level_cells(grid.scale(fine), grid.offset(), part).intersect(&bc);
         if cells.is_empty() {
             return Ok(());
         }

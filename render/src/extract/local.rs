@@ -52,13 +52,47 @@ pub(super) fn div_floor(v: i64, d: i64) -> i64 {
 }
 
 /// The cells of a level whose cells are `scale` finest cells wide (index offset `offset`)
-/// overlapping finest-level box `finest`: [`super::blocks::level_box`], inlined.
-#[inline(always)]
-fn level_cells(scale: [i64; 3], offset: [i64; 3], finest: &IBox) -> IBox {
-    IBox::new(
-        [0, 1, 2].map(|a| div_floor(finest.lo[a] + offset[a], scale[a])),
-        [0, 1, 2].map(|a| div_floor(finest.hi[a] + offset[a] + scale[a] - 1, scale[a])),
-    )
+/// overlapping finest-level boxes: [`super::blocks::level_box`], with the shifts found once.
+#[derive(Clone, Copy)]
+struct LevelCells {
+    scale: [i64; 3],
+    offset: [i64; 3],
+    shift: Option<[u32; 3]>,
+}
+
+impl LevelCells {
+    fn new(scale: [i64; 3], offset: [i64; 3]) -> Self {
+        let pow2 = scale.iter().all(|&d| d > 0 && d & (d - 1) == 0);
+        Self {
+            scale,
+            offset,
+            shift: pow2.then(|| scale.map(|d| d.trailing_zeros())),
+        }
+    }
+
+    /// The cells overlapping finest-level box `f`.
+    #[inline(always)]
+    fn of(&self, f: &IBox) -> IBox {
+        let (o, s) = (self.offset, self.scale);
+        match self.shift {
+            Some(sh) => IBox::new(
+                [
+                    (f.lo[0] + o[0]) >> sh[0],
+                    (f.lo[1] + o[1]) >> sh[1],
+                    (f.lo[2] + o[2]) >> sh[2],
+                ],
+                [
+                    (f.hi[0] + o[0] + s[0] - 1) >> sh[0],
+                    (f.hi[1] + o[1] + s[1] - 1) >> sh[1],
+                    (f.hi[2] + o[2] + s[2] - 1) >> sh[2],
+                ],
+            ),
+            None => IBox::new(
+                [0, 1, 2].map(|a| (f.lo[a] + o[a]).div_euclid(s[a])),
+                [0, 1, 2].map(|a| (f.hi[a] + o[a] + s[a] - 1).div_euclid(s[a])),
+            ),
+        }
+    }
 }
 
 /// ORs `src` into `dst`, element by element.
@@ -151,6 +185,7 @@ impl Neighbourhood {
             [0, 1, 2].map(|a| g.lo[a] * s[a] - o[a]),
             [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
         );
+        let at_level = LevelCells::new(s, o);
         self.touching.clear();
         leaves.for_each_leaf_touching(&region, |l| self.touching.push(l));
         for i in 0..self.touching.len() {
@@ -161,7 +196,7 @@ impl Neighbourhood {
             }
             // `region` is whole level cells, so this is the leaf's level box clipped to `g`.
             let part = lb.intersect(&region);
-            let block = level_cells(s, o, &part);
+            let block = at_level.of(&part);
             match sampler.leaf_top(l) {
                 None => self.set_block(&block, UNCOVERED),
                 Some((_, lv)) if lv < level => {
@@ -322,17 +357,17 @@ impl Neighbourhood {
     ) -> Result<()> {
         let grid = sampler.grid();
         let bc = sampler.brick_cells(brick);
-        let cells = level_cells(grid.scale(fine), grid.offset(), part).intersect(&bc);
+        let (sf, sl) = (grid.scale(fine), grid.scale(level));
+        let cells = LevelCells::new(sf, grid.offset()).of(part).intersect(&bc);
         if cells.is_empty() {
             return Ok(());
         }
         let values = sampler.values(brick)?;
-        let (sf, sl) = (grid.scale(fine), grid.scale(level));
         fold_cell_bounds(
             &values,
             &bc,
             &cells,
-            [0, 1, 2].map(|a| sl[a] / sf[a]),
+            [sl[0] / sf[0], sl[1] / sf[1], sl[2] / sf[2]],
             &self.cells,
             (&mut self.lo, &mut self.hi),
         );

@@ -143,10 +143,13 @@ impl Neighbourhood {
         own: &IBox,
     ) -> Result<()> {
         let g = own.grow([1; 3]);
-        if self.holds(level, &g) {
-            return Ok(());
+        if !self.holds(level, &g) {
+            self.fill_region((sampler, leaves), level, g)?;
         }
-        self.fill_region((sampler, leaves), level, g)
+        if !self.all_leaf && self.near_boundary.is_empty() {
+            self.mark_near_boundary();
+        }
+        Ok(())
     }
 
     /// True when the cells hold level-`level` box `g` (a fill of a box holding it is kept).
@@ -158,7 +161,8 @@ impl Neighbourhood {
 
     /// Fills the level-`level` cells of box `g`: [`Self::fill`] of the box inside `g` by one
     /// cell, or of several leaves at once when `g` holds their grown boxes (each cell's kind and
-    /// bound depend on the cell alone, not on the box filled).
+    /// bound depend on the cell alone, not on the box filled), without
+    /// [`Self::near_boundary`], which `fill` adds when a leaf is extracted from it.
     pub fn fill_region<D: AsRef<[u8]>>(
         &mut self,
         (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
@@ -243,10 +247,8 @@ impl Neighbourhood {
             }
         }
         self.all_leaf = self.kind.iter().all(|&k| k == LEAF);
+        // Marked by `fill`, when the cells are extracted from.
         self.near_boundary.clear();
-        if !self.all_leaf {
-            self.mark_near_boundary();
-        }
         // Codes before any classification: the pending flags, which settling keeps.
         self.codes.clear();
         self.codes

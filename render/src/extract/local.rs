@@ -190,6 +190,8 @@ impl Neighbourhood {
             [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
         );
         let at_level = LevelCells::new(s, o);
+        // The cells and ratio of each finer level met, found once per fill.
+        let mut finer: [Option<(u32, (LevelCells, [i64; 3]))>; 8] = [None; 8];
         self.touching.clear();
         leaves.for_each_leaf_touching(&region, |l| self.touching.push(l));
         for i in 0..self.touching.len() {
@@ -209,7 +211,18 @@ impl Neighbourhood {
                 }
                 Some((brick, lv)) if lv > level => {
                     self.set_block(&block, FINER);
-                    self.bound_finer(sampler, level, &part, brick, lv)?;
+                    let k = lv as usize % finer.len();
+                    let map = match finer[k] {
+                        Some((l, map)) if l == lv => map,
+                        _ => {
+                            let sf = grid.scale(lv);
+                            let ratio = [s[0] / sf[0], s[1] / sf[1], s[2] / sf[2]];
+                            let map = (LevelCells::new(sf, o), ratio);
+                            finer[k] = Some((lv, map));
+                            map
+                        }
+                    };
+                    self.bound_finer(sampler, map, &part, brick)?;
                 }
                 Some((brick, _)) => {
                     let values = sampler.values(brick)?;
@@ -347,20 +360,18 @@ impl Neighbourhood {
         }
     }
 
-    /// Widens the bounds of the cells holding the cells of brick `brick` (level `fine`) inside
-    /// finest-level box `part`.
+    /// Widens the bounds of the cells holding the cells of brick `brick` of a finer level
+    /// inside finest-level box `part`; `cells` maps finest boxes to that level's cells, `ratio`
+    /// is the number of its cells per neighbourhood cell along each axis.
     fn bound_finer<D: AsRef<[u8]>>(
         &mut self,
         sampler: &Sampler<'_, D>,
-        level: u32,
+        (cells, ratio): (LevelCells, [i64; 3]),
         part: &IBox,
         brick: u32,
-        fine: u32,
     ) -> Result<()> {
-        let grid = sampler.grid();
         let bc = sampler.brick_cells(brick);
-        let (sf, sl) = (grid.scale(fine), grid.scale(level));
-        let cells = LevelCells::new(sf, grid.offset()).of(part).intersect(&bc);
+        let cells = cells.of(part).intersect(&bc);
         if cells.is_empty() {
             return Ok(());
         }
@@ -369,7 +380,7 @@ impl Neighbourhood {
             &values,
             &bc,
             &cells,
-            [sl[0] / sf[0], sl[1] / sf[1], sl[2] / sf[2]],
+            ratio,
             &self.cells,
             (&mut self.lo, &mut self.hi),
         );

@@ -37,7 +37,36 @@ pub fn fold_cell_bounds(
     g: &IBox,
     (lo, hi): (&mut [f32], &mut [f32]),
 ) {
+    if cells.is_empty() {
+        return;
+    }
     let e = g.extent();
+    let first = [0, 1, 2].map(|a| div_floor(cells.lo[a], ratio[a]));
+    if (0..3).all(|a| div_floor(cells.hi[a] - 1, ratio[a]) == first[a]) {
+        // All the cells lie in one cell of `g` (a small finer leaf's part, often): one scan.
+        if !g.contains_cell(first) {
+            return;
+        }
+        let i = g.linear_index(first);
+        let (mut l, mut h) = (lo[i], hi[i]);
+        let w = cells.extent()[0] as usize;
+        for z in cells.lo[2]..cells.hi[2] {
+            for y in cells.lo[1]..cells.hi[1] {
+                let src = bc.linear_index([cells.lo[0], y, z]);
+                for &v in &values[src..src + w] {
+                    // Comparisons, not f32::min: a NaN compares false and is left out.
+                    if v < l {
+                        l = v;
+                    }
+                    if v > h {
+                        h = v;
+                    }
+                }
+            }
+        }
+        (lo[i], hi[i]) = (l, h);
+        return;
+    }
     // The x-range of fine cells inside `g`'s cells.
     let x0 = cells.lo[0].max(g.lo[0] * ratio[0]);
     let x1 = cells.hi[0].min(g.hi[0] * ratio[0]);

@@ -22,6 +22,7 @@ use amr_format::IBox;
 
 use super::blocks::{level_box, BlockRanges, BLOCK};
 use super::leaf_tree::LeafTree;
+use super::local::div_floor;
 use super::tight::{pack, unpack};
 use crate::reconstruct::Sampler;
 
@@ -36,7 +37,36 @@ pub fn fold_cell_bounds(
     g: &IBox,
     (lo, hi): (&mut [f32], &mut [f32]),
 ) {
+    if cells.is_empty() {
+        return;
+    }
     let e = g.extent();
+    let first = [0, 1, 2].map(|a| div_floor(cells.lo[a], ratio[a]));
+    if (0..3).all(|a| div_floor(cells.hi[a] - 1, ratio[a]) == first[a]) {
+        // All the cells lie in one cell of `g` (a small finer leaf's part, often): one scan.
+        if !g.contains_cell(first) {
+            return;
+        }
+        let i = g.linear_index(first);
+        let (mut l, mut h) = (lo[i], hi[i]);
+        let w = cells.extent()[0] as usize;
+        for z in cells.lo[2]..cells.hi[2] {
+            for y in cells.lo[1]..cells.hi[1] {
+                let src = bc.linear_index([cells.lo[0], y, z]);
+                for &v in &values[src..src + w] {
+                    // Comparisons, not f32::min: a NaN compares false and is left out.
+                    if v < l {
+                        l = v;
+                    }
+                    if v > h {
+                        h = v;
+                    }
+                }
+            }
+        }
+        (lo[i], hi[i]) = (l, h);
+        return;
+    }
     // The x-range of fine cells inside `g`'s cells.
     let x0 = cells.lo[0].max(g.lo[0] * ratio[0]);
     let x1 = cells.hi[0].min(g.hi[0] * ratio[0]);
@@ -44,12 +74,12 @@ pub fn fold_cell_bounds(
         return;
     }
     for z in cells.lo[2]..cells.hi[2] {
-        let gz = z.div_euclid(ratio[2]) - g.lo[2];
+        let gz = div_floor(z, ratio[2]) - g.lo[2];
         if !(0..e[2]).contains(&gz) {
             continue;
         }
         for y in cells.lo[1]..cells.hi[1] {
-            let gy = y.div_euclid(ratio[1]) - g.lo[1];
+            let gy = div_floor(y, ratio[1]) - g.lo[1];
             if !(0..e[1]).contains(&gy) {
                 continue;
             }
@@ -57,7 +87,7 @@ pub fn fold_cell_bounds(
             let row = ((gz * e[1] + gy) * e[0]) as usize;
             let mut x = x0;
             while x < x1 {
-                let gx = x.div_euclid(ratio[0]);
+                let gx = div_floor(x, ratio[0]);
                 let end = ((gx + 1) * ratio[0]).min(x1);
                 let i = row + (gx - g.lo[0]) as usize;
                 let (mut l, mut h) = (lo[i], hi[i]);

@@ -12,6 +12,7 @@
 //! trilinear interpolation can by a few ulps, so coarse contributions are widened.
 
 use crate::error::Result;
+use amr_format::IBox;
 
 use super::band::{AroundMemo, CoarseBounds};
 use super::blocks::{level_box, BlockRanges};
@@ -70,6 +71,33 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
         union |= hood.codes()[j];
     }
     Ok(union & (ABOVE | BELOW) == ABOVE | BELOW)
+}
+
+/// Settles the pending cells of box `b` of `hood` (the bounds of its cells inside coarser leaf
+/// cells), as [`cell_may_hold`] does on need; the isovalue bits of the codes then mean nothing
+/// until the next [`Neighbourhood::classify`].
+pub fn settle_in<D: AsRef<[u8]>>(
+    (sampler, shared): (&Sampler<'_, D>, Shared<'_>),
+    hood: &mut Neighbourhood,
+    (loc, memo, near): (
+        &mut LocalLocator<'_, '_, D>,
+        &mut VertexMemo,
+        &mut AroundMemo,
+    ),
+    b: &IBox,
+) -> Result<()> {
+    let w = b.extent()[0].max(0) as usize;
+    for z in b.lo[2]..b.hi[2] {
+        for y in b.lo[1]..b.hi[1] {
+            let r = hood.index([b.lo[0], y, z]);
+            for j in r..r + w {
+                if hood.codes()[j] & PENDING != 0 {
+                    settle_coarse((sampler, shared), hood, (loc, memo, near), j, 0.0)?;
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Computes the bound of coarser neighbourhood cell `j` and of every pending cell sharing its

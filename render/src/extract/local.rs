@@ -6,7 +6,6 @@
 //! is needed; it decides which dual cells can be merged and which octants touch a boundary, and
 //! holds each cell's value bound for [`super::cull`].
 
-use super::blocks::level_box;
 use crate::error::Result;
 use amr_format::IBox;
 
@@ -42,6 +41,68 @@ fn code(lo: f32, hi: f32, iso: f32) -> u8 {
     u8::from(hi >= iso) | u8::from(lo < iso) << 1
 }
 
+/// `floor(v / d)` for `d > 0`, a shift when `d` is a power of two.
+#[inline(always)]
+pub(super) fn div_floor(v: i64, d: i64) -> i64 {
+    if d & (d - 1) == 0 {
+        v >> d.trailing_zeros()
+    } else {
+        v.div_euclid(d)
+    }
+}
+
+/// The cells of a level whose cells are `scale` finest cells wide (index offset `offset`)
+/// overlapping finest-level boxes: [`super::blocks::level_box`], with the shifts found once.
+#[derive(Clone, Copy)]
+struct LevelCells {
+    scale: [i64; 3],
+    offset: [i64; 3],
+    shift: Option<[u32; 3]>,
+}
+
+impl LevelCells {
+    fn new(scale: [i64; 3], offset: [i64; 3]) -> Self {
+        let pow2 = scale.iter().all(|&d| d > 0 && d & (d - 1) == 0);
+        Self {
+            scale,
+            offset,
+            shift: pow2.then(|| scale.map(|d| d.trailing_zeros())),
+        }
+    }
+
+    /// The cells overlapping finest-level box `f`.
+    #[inline(always)]
+    fn of(&self, f: &IBox) -> IBox {
+        let (o, s) = (self.offset, self.scale);
+        match self.shift {
+            Some(sh) => IBox::new(
+                [
+                    (f.lo[0] + o[0]) >> sh[0],
+                    (f.lo[1] + o[1]) >> sh[1],
+                    (f.lo[2] + o[2]) >> sh[2],
+                ],
+                [
+                    (f.hi[0] + o[0] + s[0] - 1) >> sh[0],
+                    (f.hi[1] + o[1] + s[1] - 1) >> sh[1],
+                    (f.hi[2] + o[2] + s[2] - 1) >> sh[2],
+                ],
+            ),
+            None => IBox::new(
+                [0, 1, 2].map(|a| (f.lo[a] + o[a]).div_euclid(s[a])),
+                [0, 1, 2].map(|a| (f.hi[a] + o[a] + s[a] - 1).div_euclid(s[a])),
+            ),
+        }
+    }
+}
+
+/// ORs `src` into `dst`, element by element.
+#[inline]
+fn or_into(dst: &mut [bool], src: &[bool]) {
+    for (d, &s) in dst.iter_mut().zip(src) {
+        *d |= s;
+    }
+}
+
 /// Per-thread scratch: the classified neighbourhood of the leaf being processed.
 #[derive(Default)]
 pub struct Neighbourhood {
@@ -65,19 +126,51 @@ pub struct Neighbourhood {
     /// [`NOT_LEAF`] and [`PENDING`] bits.
     codes: Vec<u8>,
     touching: Vec<u32>,
+    /// Scratch of [`Self::mark_near_boundary`].
+    dilated: Vec<bool>,
+    /// The level and box of the last fill, while the cells hold it.
+    filled: Option<(u32, IBox)>,
 }
 
 impl Neighbourhood {
     /// Fills the neighbourhood of `leaf` (level `level`, level-`level` box `own`), finding the
-    /// leaves around it in `leaves`.
+    /// leaves around it in `leaves`. Nothing is done when the last fill was of the same box: the
+    /// cells, and the coarser cells' bounds settled since, do not depend on the isovalue.
     pub fn fill<D: AsRef<[u8]>>(
         &mut self,
         (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
         level: u32,
         own: &IBox,
     ) -> Result<()> {
-        let grid = sampler.grid();
         let g = own.grow([1; 3]);
+        if !self.holds(level, &g) {
+            self.fill_region((sampler, leaves), level, g)?;
+        }
+        if !self.all_leaf && self.near_boundary.is_empty() {
+            self.mark_near_boundary();
+        }
+        Ok(())
+    }
+
+    /// True when the cells hold level-`level` box `g` (a fill of a box holding it is kept).
+    #[inline]
+    pub fn holds(&self, level: u32, g: &IBox) -> bool {
+        self.filled
+            .is_some_and(|(lv, held)| lv == level && held.contains_box(g))
+    }
+
+    /// Fills the level-`level` cells of box `g`: [`Self::fill`] of the box inside `g` by one
+    /// cell, or of several leaves at once when `g` holds their grown boxes (each cell's kind and
+    /// bound depend on the cell alone, not on the box filled), without
+    /// [`Self::near_boundary`], which `fill` adds when a leaf is extracted from it.
+    pub fn fill_region<D: AsRef<[u8]>>(
+        &mut self,
+        (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
+        level: u32,
+        g: IBox,
+    ) -> Result<()> {
+        self.filled = None;
+        let grid = sampler.grid();
         let n = g.num_cells().unwrap_or(0) as usize;
         self.cells = g;
         self.level = level;
@@ -96,6 +189,9 @@ impl Neighbourhood {
             [0, 1, 2].map(|a| g.lo[a] * s[a] - o[a]),
             [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
         );
+        let at_level = LevelCells::new(s, o);
+        // The cells and ratio of each finer level met, found once per fill.
+        let mut finer: [Option<(u32, (LevelCells, [i64; 3]))>; 8] = [None; 8];
         self.touching.clear();
         leaves.for_each_leaf_touching(&region, |l| self.touching.push(l));
         for i in 0..self.touching.len() {
@@ -104,10 +200,9 @@ impl Neighbourhood {
             if !lb.overlaps(&region) {
                 continue;
             }
-            let block = level_box(grid, level, &lb).intersect(&g);
-            if block.is_empty() {
-                continue;
-            }
+            // `region` is whole level cells, so this is the leaf's level box clipped to `g`.
+            let part = lb.intersect(&region);
+            let block = at_level.of(&part);
             match sampler.leaf_top(l) {
                 None => self.set_block(&block, UNCOVERED),
                 Some((_, lv)) if lv < level => {
@@ -116,7 +211,18 @@ impl Neighbourhood {
                 }
                 Some((brick, lv)) if lv > level => {
                     self.set_block(&block, FINER);
-                    self.bound_finer(sampler, level, &lb.intersect(&region), brick, lv)?;
+                    let k = lv as usize % finer.len();
+                    let map = match finer[k] {
+                        Some((l, map)) if l == lv => map,
+                        _ => {
+                            let sf = grid.scale(lv);
+                            let ratio = [s[0] / sf[0], s[1] / sf[1], s[2] / sf[2]];
+                            let map = (LevelCells::new(sf, o), ratio);
+                            finer[k] = Some((lv, map));
+                            map
+                        }
+                    };
+                    self.bound_finer(sampler, map, &part, brick)?;
                 }
                 Some((brick, _)) => {
                     let values = sampler.values(brick)?;
@@ -154,54 +260,127 @@ impl Neighbourhood {
             }
         }
         self.all_leaf = self.kind.iter().all(|&k| k == LEAF);
+        // Marked by `fill`, when the cells are extracted from.
         self.near_boundary.clear();
-        if !self.all_leaf {
-            self.near_boundary.resize(n, false);
-            let e = g.extent();
-            for z in 0..e[2] {
-                for y in 0..e[1] {
-                    for x in 0..e[0] {
-                        if self.kind[(x + e[0] * (y + e[1] * z)) as usize] == LEAF {
-                            continue;
-                        }
-                        for dz in (z - 1).max(0)..(z + 2).min(e[2]) {
-                            for dy in (y - 1).max(0)..(y + 2).min(e[1]) {
-                                for dx in (x - 1).max(0)..(x + 2).min(e[0]) {
-                                    self.near_boundary[(dx + e[0] * (dy + e[1] * dz)) as usize] =
-                                        true;
-                                }
-                            }
-                        }
+        // Codes before any classification: the pending flags, which settling keeps.
+        self.codes.clear();
+        self.codes
+            .extend(self.coarse_pending.iter().map(|&p| u8::from(p) << 3));
+        self.filled = Some((level, g));
+        Ok(())
+    }
+
+    /// Cells held.
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.kind.len()
+    }
+
+    /// True when no cell is held.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.kind.is_empty()
+    }
+
+    /// The union of the bounds ([`Self::bound`]) of the cells of `b` (inside [`Self::cells`]);
+    /// `(+inf, -inf)` when none holds a value.
+    pub fn range_in(&self, b: &IBox) -> (f32, f32) {
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        let w = b.extent()[0].max(0) as usize;
+        for z in b.lo[2]..b.hi[2] {
+            for y in b.lo[1]..b.hi[1] {
+                let r = self.index([b.lo[0], y, z]);
+                let cells = self.kind[r..r + w]
+                    .iter()
+                    .zip(&self.lo[r..r + w])
+                    .zip(&self.hi[r..r + w]);
+                for ((&kind, &a), &b) in cells {
+                    let b = if kind == LEAF { a } else { b };
+                    // Comparisons, not f32::min: a NaN compares false and is left out.
+                    if a < lo {
+                        lo = a;
+                    }
+                    if b > hi {
+                        hi = b;
                     }
                 }
             }
         }
-        Ok(())
+        (lo, hi)
     }
 
-    /// Widens the bounds of the cells holding the cells of brick `brick` (level `fine`) inside
-    /// finest-level box `part`.
+    /// Sets [`Self::near_boundary`]: a cell is near the boundary when one of the up to 27 cells
+    /// around it (inside the neighbourhood) is not [`LEAF`]. The 3x3x3 dilation is done one axis
+    /// at a time (three ORs of whole rows per cell instead of 27 writes per non-leaf cell).
+    fn mark_near_boundary(&mut self) {
+        let e = self.cells.extent().map(|v| v as usize);
+        let n = self.kind.len();
+        let (row, slab) = (e[0], e[0] * e[1]);
+        self.dilated.clear();
+        self.dilated.extend(self.kind.iter().map(|&k| k != LEAF));
+        let not_leaf = &mut self.dilated;
+        // Along x, within each row.
+        self.near_boundary.clear();
+        self.near_boundary.extend_from_slice(not_leaf);
+        let along = &mut self.near_boundary;
+        for r in (0..n).step_by(row.max(1)) {
+            let src = &not_leaf[r..r + row];
+            let dst = &mut along[r..r + row];
+            for (d, &s) in dst[1..].iter_mut().zip(src) {
+                *d |= s;
+            }
+            for (d, &s) in dst.iter_mut().zip(&src[1..]) {
+                *d |= s;
+            }
+        }
+        // Along y, within each slab, then along z; `not_leaf` becomes the y-dilated cells.
+        not_leaf.copy_from_slice(along);
+        for z in 0..e[2] {
+            for y in 0..e[1] {
+                let r = z * slab + y * row;
+                let dst = &mut not_leaf[r..r + row];
+                if y > 0 {
+                    or_into(dst, &along[r - row..r]);
+                }
+                if y + 1 < e[1] {
+                    or_into(dst, &along[r + row..r + 2 * row]);
+                }
+            }
+        }
+        along.copy_from_slice(not_leaf);
+        for z in 0..e[2] {
+            let r = z * slab;
+            let dst = &mut along[r..r + slab];
+            if z > 0 {
+                or_into(dst, &not_leaf[r - slab..r]);
+            }
+            if z + 1 < e[2] {
+                or_into(dst, &not_leaf[r + slab..r + 2 * slab]);
+            }
+        }
+    }
+
+    /// Widens the bounds of the cells holding the cells of brick `brick` of a finer level
+    /// inside finest-level box `part`; `cells` maps finest boxes to that level's cells, `ratio`
+    /// is the number of its cells per neighbourhood cell along each axis.
     fn bound_finer<D: AsRef<[u8]>>(
         &mut self,
         sampler: &Sampler<'_, D>,
-        level: u32,
+        (cells, ratio): (LevelCells, [i64; 3]),
         part: &IBox,
         brick: u32,
-        fine: u32,
     ) -> Result<()> {
-        let grid = sampler.grid();
         let bc = sampler.brick_cells(brick);
-        let cells = level_box(grid, fine, part).intersect(&bc);
+        let cells = cells.of(part).intersect(&bc);
         if cells.is_empty() {
             return Ok(());
         }
         let values = sampler.values(brick)?;
-        let (sf, sl) = (grid.scale(fine), grid.scale(level));
         fold_cell_bounds(
             &values,
             &bc,
             &cells,
-            [0, 1, 2].map(|a| sl[a] / sf[a]),
+            ratio,
             &self.cells,
             (&mut self.lo, &mut self.hi),
         );

@@ -12,6 +12,7 @@
 //!   that do not rescan cells.
 //! - [`leaf_tree`]: a box tree over the leaves, for region queries of ranges and levels.
 //! - [`halo`]: the leaves around one leaf, gathered once for the bounds of its parts.
+//! - [`small`]: the tight ranges of small leaves, from their neighbourhood.
 //! - [`tight`]: per-leaf ranges from cell values, computed once, skipping leaves the file's
 //!   looser stored ranges let through.
 //! - [`region`]: limiting an extraction to a clip box or a view frustum.
@@ -36,6 +37,7 @@ pub mod nearest;
 pub mod parts;
 pub mod refs;
 pub mod region;
+pub mod small;
 pub mod stats;
 pub mod tight;
 pub mod vertices;
@@ -253,7 +255,10 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                                     }
                                 }
                             }
-                            tight::compute(&self.sampler, bounds, leaf)
+                            match small::hood_range(&self.sampler, scratch, leaf)? {
+                                Some(range) => Ok(range),
+                                None => tight::compute(&self.sampler, bounds, leaf),
+                            }
                         })?;
                         if !straddles(lo, hi, iso) {
                             let skipped = LeafCounts {

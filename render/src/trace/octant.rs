@@ -78,11 +78,13 @@ impl Segment {
     /// the voxel's values exclude `iso`, or when the cubic provably stays clear of zero.
     #[inline]
     fn new(voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f64) -> Option<Segment> {
+        // The box first: most candidates it rejects (their leaf's box met the ray, or they lie
+        // behind a hit found already), while the BVH holds only voxels whose range has `iso`.
+        let (t_in, t_out) = ray.clip(voxel.lo, voxel.hi, tmin, tmax)?;
         let (vmin, vmax) = voxel.range();
         if vmin > iso || vmax < iso {
             return None;
         }
-        let (t_in, t_out) = ray.clip(voxel.lo, voxel.hi, tmin, tmax)?;
         let widen =
             SEGMENT_WIDEN * (t_out - t_in) + 8.0 * f64::EPSILON * t_in.abs().max(t_out.abs());
         let ta = (t_in - widen).max(tmin);

@@ -63,6 +63,14 @@ pub trait VoxelSource: Sync {
     /// The voxel named by `r`; `r` must come from this source's extraction.
     fn voxel(&self, r: u64) -> Voxel;
 
+    /// Calls `f` with a lookup that gives what [`Self::voxel`] gives, for the many refs one
+    /// ray's traversal asks for: sources with a per-thread cache bind it once for all of them
+    /// (the default looks each up by [`Self::voxel`]). The lookup must not be used to reenter
+    /// this source's other methods.
+    fn with_voxels(&self, f: &mut dyn FnMut(&mut dyn FnMut(u64) -> Voxel)) {
+        f(&mut |r| self.voxel(r))
+    }
+
     /// The box `(lo, hi)` of the voxel named by `r`: by default [`Self::voxel`]'s; sources that
     /// can tell it from the reference alone skip reading its values.
     fn voxel_box(&self, r: u64) -> ([f64; 3], [f64; 3]) {

@@ -1,6 +1,8 @@
 //! Cubic polynomials along a ray segment: evaluation, root isolation with the derivative's
 //! roots, and refinement of a bracketed root (Marmitt et al. 2004).
 
+use crate::trace::ray::{larger, smaller};
+
 /// Where a scan of a cubic found its first root: at a point, or inside a bracket.
 enum Bracket {
     /// A point where the value is within the tolerance of zero.
@@ -142,7 +144,7 @@ impl Cubic {
         }
         let negative_at_x0 = f0 < 0.0;
         let mut x = (x0 * f1 - x1 * f0) / (f1 - f0);
-        if !(x > x0.min(x1) && x < x0.max(x1)) {
+        if !(x > smaller(x0, x1) && x < larger(x0, x1)) {
             x = 0.5 * (x0 + x1);
         }
         let mut step = (x1 - x0).abs();
@@ -160,13 +162,15 @@ impl Cubic {
                 f1 = f;
             }
             let width = x1 - x0;
-            if width.abs() <= 4.0 * f64::EPSILON * x0.abs().max(x1.abs()).max(f64::MIN_POSITIVE) {
+            if width.abs()
+                <= 4.0 * f64::EPSILON * larger(larger(x0.abs(), x1.abs()), f64::MIN_POSITIVE)
+            {
                 break;
             }
             let slope = self.slope(x);
             let newton = x - f / slope;
-            let next = if newton > x0.min(x1)
-                && newton < x0.max(x1)
+            let next = if newton > smaller(x0, x1)
+                && newton < larger(x0, x1)
                 && (2.0 * f).abs() <= (step_before * slope).abs()
             {
                 newton
@@ -175,7 +179,7 @@ impl Cubic {
             };
             step_before = step;
             step = (next - x).abs();
-            if step <= 2.0 * f64::EPSILON * x.abs().max(f64::MIN_POSITIVE) {
+            if step <= 2.0 * f64::EPSILON * larger(x.abs(), f64::MIN_POSITIVE) {
                 return next;
             }
             x = next;

@@ -23,7 +23,7 @@ use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
 use crate::trace::octant::{intersect_voxel, voxel_occludes, VoxelHit};
 use crate::trace::ray::GridRay;
-use crate::trace::source::{GridFrame, Voxel, VoxelSource};
+use crate::trace::source::{GridFrame, Voxel, VoxelLookup, VoxelSource};
 use crate::trace::tracer::central_difference_of;
 
 /// Bytes of decompressed bricks the sampler may cache.
@@ -277,7 +277,7 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         self.cached_voxel(r)
     }
 
-    fn with_voxels(&self, f: &mut dyn FnMut(&mut dyn FnMut(u64) -> Voxel)) {
+    fn with_voxels(&self, f: &mut dyn FnMut(&mut VoxelLookup<'_>)) {
         let mut cache = self.thread_cache().borrow_mut();
         f(&mut |r| self.voxel_in(&mut cache, r))
     }

@@ -54,6 +54,9 @@ impl GridFrame {
     }
 }
 
+/// A lookup of voxels by ref ([`VoxelSource::with_voxels`]).
+pub type VoxelLookup<'a> = dyn FnMut(u64) -> Voxel + 'a;
+
 /// A volume seen as a source of trilinear voxels, each named by a 64-bit ref (the paper's
 /// *VoxelSource*, section 4.1.1), plus point sampling of the same reconstruction.
 pub trait VoxelSource: Sync {
@@ -67,7 +70,7 @@ pub trait VoxelSource: Sync {
     /// ray's traversal asks for: sources with a per-thread cache bind it once for all of them
     /// (the default looks each up by [`Self::voxel`]). The lookup must not be used to reenter
     /// this source's other methods.
-    fn with_voxels(&self, f: &mut dyn FnMut(&mut dyn FnMut(u64) -> Voxel)) {
+    fn with_voxels(&self, f: &mut dyn FnMut(&mut VoxelLookup<'_>)) {
         f(&mut |r| self.voxel(r))
     }
 

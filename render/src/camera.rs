@@ -118,11 +118,42 @@ impl Camera {
 
     /// Unit direction through image point `(x, y)` in pixels (`y` down) of a `w x h` image.
     pub fn ray_dir(&self, x: f64, y: f64, w: u32, h: u32) -> [f64; 3] {
-        let tan = (0.5 * self.fov_deg).to_radians().tan();
-        let sx = (2.0 * x / w as f64 - 1.0) * tan * w as f64 / h as f64;
-        let sy = (1.0 - 2.0 * y / h as f64) * tan;
-        let d = [0, 1, 2].map(|a| self.forward[a] + sx * self.right[a] + sy * self.true_up[a]);
-        normalize(d).unwrap_or(self.forward)
+        self.pixel_dirs(w, h).dir(x, y)
+    }
+
+    /// [`Camera::ray_dir`] for many points of one `w x h` image, the field of view's tangent
+    /// computed once.
+    pub fn pixel_dirs(&self, w: u32, h: u32) -> PixelDirs<'_> {
+        PixelDirs {
+            camera: self,
+            tan: (0.5 * self.fov_deg).to_radians().tan(),
+            w: f64::from(w),
+            h: f64::from(h),
+        }
+    }
+}
+
+/// The directions through the points of one image ([`Camera::pixel_dirs`]).
+pub struct PixelDirs<'a> {
+    camera: &'a Camera,
+    tan: f64,
+    w: f64,
+    h: f64,
+}
+
+impl PixelDirs<'_> {
+    /// The camera's position, where every ray starts.
+    pub fn origin(&self) -> [f64; 3] {
+        self.camera.pos
+    }
+
+    /// Unit direction through image point `(x, y)` in pixels (`y` down).
+    pub fn dir(&self, x: f64, y: f64) -> [f64; 3] {
+        let (c, tan) = (self.camera, self.tan);
+        let sx = (2.0 * x / self.w - 1.0) * tan * self.w / self.h;
+        let sy = (1.0 - 2.0 * y / self.h) * tan;
+        let d = [0, 1, 2].map(|a| c.forward[a] + sx * c.right[a] + sy * c.true_up[a]);
+        normalize(d).unwrap_or(c.forward)
     }
 }
 

@@ -5,7 +5,7 @@ use std::cell::Cell;
 
 use rayon::prelude::*;
 
-use crate::camera::Camera;
+use crate::camera::{Camera, PixelDirs};
 use crate::output::frame::{FrameBuffer, PixelSample};
 use crate::shade::ao_filter::{self, AoBuffer, AoLayer};
 use crate::shade::integrate::{shade_ray, Lighting, SearchHint};
@@ -156,18 +156,11 @@ fn render_row<T: Tracer + ?Sized>(
         rays: 0,
     };
     let mut hint = SearchHint::default();
+    let dirs = camera.pixel_dirs(settings.width, settings.height);
     for x in xs {
         let before = row.ao_layers.len();
         let layers = record.then_some(&mut row.ao_layers);
-        let px = pixel(
-            &counting,
-            camera,
-            light,
-            (x, y),
-            settings,
-            &mut hint,
-            layers,
-        );
+        let px = pixel(&counting, &dirs, light, (x, y), settings, &mut hint, layers);
         row.pixels.push(px);
         if record {
             row.ao_counts.push((row.ao_layers.len() - before) as u8);
@@ -211,14 +204,13 @@ fn finish(
 /// Pixel `(x, y)`: the average of its samples; with `ao_layers`, its hits to filter are appended.
 fn pixel<T: Tracer + ?Sized>(
     tracer: &T,
-    camera: &Camera,
+    dirs: &PixelDirs,
     light: &Lighting,
     (x, y): (u32, u32),
     settings: RenderSettings,
     hint: &mut SearchHint,
     mut ao_layers: Option<&mut Vec<AoLayer>>,
 ) -> PixelSample {
-    let (w, h) = (settings.width, settings.height);
     let spp = settings.spp.max(1);
     let mut acc = PixelSample::MISS;
     let mut rgba = [0.0f32; 4];
@@ -230,9 +222,9 @@ fn pixel<T: Tracer + ?Sized>(
         } else {
             (rng.next_f64(), rng.next_f64())
         };
-        let dir = camera.ray_dir(f64::from(x) + jx, f64::from(y) + jy, w, h);
+        let dir = dirs.dir(f64::from(x) + jx, f64::from(y) + jy);
         let layers = ao_layers.as_deref_mut();
-        let sample = shade_ray(tracer, light, (camera.pos, dir), &mut rng, hint, layers);
+        let sample = shade_ray(tracer, light, (dirs.origin(), dir), &mut rng, hint, layers);
         for c in 0..3 {
             rgba[c] += sample.rgb[c];
         }

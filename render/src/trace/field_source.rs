@@ -23,7 +23,7 @@ use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
 use crate::trace::octant::{intersect_voxel, voxel_occludes, VoxelHit};
 use crate::trace::ray::GridRay;
-use crate::trace::source::{GridFrame, Voxel, VoxelSource};
+use crate::trace::source::{GridFrame, Voxel, VoxelLookup, VoxelSource};
 use crate::trace::tracer::central_difference_of;
 
 /// Bytes of decompressed bricks the sampler may cache.
@@ -244,8 +244,12 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
 
     /// The voxel `r` names, from this thread's cache when it holds it.
     fn cached_voxel(&self, r: u64) -> Voxel {
-        let mut guard = self.thread_cache().borrow_mut();
-        let cache = &mut *guard;
+        self.voxel_in(&mut self.thread_cache().borrow_mut(), r)
+    }
+
+    /// The voxel `r` names, from `cache` when it holds it.
+    #[inline]
+    fn voxel_in(&self, cache: &mut VoxelCache, r: u64) -> Voxel {
         // Fibonacci hashing of the ref: neighbouring refs land in different slots.
         let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
         let (key, v) = cache.slots[slot];
@@ -271,6 +275,11 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
 
     fn voxel(&self, r: u64) -> Voxel {
         self.cached_voxel(r)
+    }
+
+    fn with_voxels(&self, f: &mut dyn FnMut(&mut VoxelLookup<'_>)) {
+        let mut cache = self.thread_cache().borrow_mut();
+        f(&mut |r| self.voxel_in(&mut cache, r))
     }
 
     fn voxel_box(&self, r: u64) -> ([f64; 3], [f64; 3]) {

@@ -14,6 +14,6 @@ pub mod traverse;
 pub use clipped::ClippedTracer;
 pub use field_source::FieldSource;
 pub use ray::GridRay;
-pub use source::{GridFrame, Voxel, VoxelSource};
+pub use source::{GridFrame, Voxel, VoxelLookup, VoxelSource};
 pub use tracer::{HybridTracer, Paint, SurfaceHit, Tracer};
 pub use traverse::{Hit, Surface};

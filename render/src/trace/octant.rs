@@ -7,7 +7,7 @@
 //! roots and refines it.
 
 use crate::trace::cubic::Cubic;
-use crate::trace::ray::GridRay;
+use crate::trace::ray::{larger, smaller, GridRay};
 use crate::trace::source::Voxel;
 
 /// Relative widening of each segment at both ends, so that a ray passing exactly through a shared
@@ -78,15 +78,17 @@ impl Segment {
     /// the voxel's values exclude `iso`, or when the cubic provably stays clear of zero.
     #[inline]
     fn new(voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f64) -> Option<Segment> {
+        // The box first: most candidates it rejects (their leaf's box met the ray, or they lie
+        // behind a hit found already), while the BVH holds only voxels whose range has `iso`.
+        let (t_in, t_out) = ray.clip(voxel.lo, voxel.hi, tmin, tmax)?;
         let (vmin, vmax) = voxel.range();
         if vmin > iso || vmax < iso {
             return None;
         }
-        let (t_in, t_out) = ray.clip(voxel.lo, voxel.hi, tmin, tmax)?;
         let widen =
-            SEGMENT_WIDEN * (t_out - t_in) + 8.0 * f64::EPSILON * t_in.abs().max(t_out.abs());
-        let ta = (t_in - widen).max(tmin);
-        let tb = (t_out + widen).min(tmax);
+            SEGMENT_WIDEN * (t_out - t_in) + 8.0 * f64::EPSILON * larger(t_in.abs(), t_out.abs());
+        let ta = larger(tmin, t_in - widen);
+        let tb = smaller(tmax, t_out + widen);
         let w = [0, 1, 2].map(|a| voxel.hi[a] - voxel.lo[a]);
         let local = |t: f64| [0, 1, 2].map(|a| ((ray.o[a] - voxel.lo[a]) + t * ray.d[a]) / w[a]);
         let p0 = local(ta);
@@ -97,9 +99,9 @@ impl Segment {
         // `v - iso` and `|v|` are largest in magnitude at the smallest or largest value (both
         // are monotonic in `v`, rounding included), so these are the maxima over all corners.
         let (lo, hi) = (f64::from(vmin), f64::from(vmax));
-        let span = (hi - iso).abs().max((lo - iso).abs());
-        let magnitude = iso.abs().max(hi.abs()).max(lo.abs());
-        let tol = (SPAN_TOL * span).max(ULP_TOL * magnitude).min(0.5 * span);
+        let span = larger((hi - iso).abs(), (lo - iso).abs());
+        let magnitude = larger(larger(iso.abs(), hi.abs()), lo.abs());
+        let tol = smaller(larger(SPAN_TOL * span, ULP_TOL * magnitude), 0.5 * span);
         let cubic = along_segment(&c, p0, q);
         if cubic.clear_of_zero_on_unit(tol) {
             return None;

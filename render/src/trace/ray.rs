@@ -62,8 +62,8 @@ impl GridRay {
                 if ta > tb {
                     std::mem::swap(&mut ta, &mut tb);
                 }
-                t0 = t0.max(ta);
-                t1 = t1.min(tb);
+                t0 = larger(t0, ta);
+                t1 = smaller(t1, tb);
             }
         }
         (t0 <= t1).then_some((t0, t1))
@@ -97,5 +97,26 @@ impl GridRay {
             if span.is_finite() { span } else { f32::MAX },
         );
         Some(BvhRay { ray, t_off, scale })
+    }
+}
+
+/// The larger of `a` and `b`, `a` when `b` is NaN: [`f64::max`] for the operands the tracer
+/// meets, as one `maxsd` instead of `f64::max`'s NaN handling (three more instructions).
+#[inline(always)]
+pub fn larger(a: f64, b: f64) -> f64 {
+    if b > a {
+        b
+    } else {
+        a
+    }
+}
+
+/// The smaller of `a` and `b`, `a` when `b` is NaN (see [`larger`]).
+#[inline(always)]
+pub fn smaller(a: f64, b: f64) -> f64 {
+    if b < a {
+        b
+    } else {
+        a
     }
 }

@@ -117,21 +117,23 @@ impl Surface {
         let slack = 4.0 * pad;
         let mut best: Option<Hit> = None;
         let mut best_t = tmax;
-        self.bvh.traverse(b.ray, |r, tmax32| {
-            let voxel = src.voxel(r);
-            if let Some(h) = src.intersect(&voxel, self.iso, ray, tmin, best_t) {
-                if h.t < best_t || best.is_none() {
-                    best_t = h.t;
-                    best = Some(Hit {
-                        t: h.t,
-                        r,
-                        voxel,
-                        local: h.local,
-                    });
-                    *tmax32 = ((h.t - b.t_off) * b.scale + slack) as f32;
+        src.with_voxels(&mut |voxel_of| {
+            self.bvh.traverse(b.ray, |r, tmax32| {
+                let voxel = voxel_of(r);
+                if let Some(h) = src.intersect(&voxel, self.iso, ray, tmin, best_t) {
+                    if h.t < best_t || best.is_none() {
+                        best_t = h.t;
+                        best = Some(Hit {
+                            t: h.t,
+                            r,
+                            voxel,
+                            local: h.local,
+                        });
+                        *tmax32 = ((h.t - b.t_off) * b.scale + slack) as f32;
+                    }
                 }
-            }
-            false
+                false
+            })
         });
         best
     }
@@ -151,12 +153,14 @@ impl Surface {
         // The traversal macro's `break` leaves only the current leaf's loop, so a hit must also
         // stay set and empty the ray's interval, or later candidates would overwrite it.
         let mut hit = false;
-        self.bvh.traverse(b.ray, |r, tmax32| {
-            if !hit && src.occludes(&src.voxel(r), self.iso, ray, tmin, tmax) {
-                hit = true;
-                *tmax32 = f32::NEG_INFINITY;
-            }
-            hit
+        src.with_voxels(&mut |voxel_of| {
+            self.bvh.traverse(b.ray, |r, tmax32| {
+                if !hit && src.occludes(&voxel_of(r), self.iso, ray, tmin, tmax) {
+                    hit = true;
+                    *tmax32 = f32::NEG_INFINITY;
+                }
+                hit
+            })
         });
         hit
     }

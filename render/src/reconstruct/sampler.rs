@@ -226,7 +226,7 @@ pub trait Locate {
 }
 
 impl<D: AsRef<[u8]>> Locate for Sampler<'_, D> {
-    #[inline]
+    #[inline(always)]
     fn locate_cell(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
         self.locate(finest)
     }

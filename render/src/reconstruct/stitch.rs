@@ -69,6 +69,7 @@ impl Stitches {
         }
     }
 
+    #[inline]
     fn vertex(&self, v: [i64; 3], level: u32) -> Option<Option<f32>> {
         self.vertices[..self.num_vertices]
             .iter()

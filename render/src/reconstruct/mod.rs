@@ -7,6 +7,7 @@
 //! - [`local`]: leaf-cell location around one kd-tree leaf from a table, without tree walks.
 //! - [`recent`]: per-thread scratch that makes nearby point samples cheap.
 //! - [`sampler`]: leaf-cell location and the octant method's vertex values.
+//! - [`stitch`]: stitched vertex values from the coarse corners of non-zero weight alone.
 //! - [`level_gradient`]: smooth normals' central differences inside one level, from a brick.
 //! - [`methods`]: point sampling with `nearest`, `current`, `finest` and `octant`.
 //!
@@ -21,6 +22,7 @@ pub mod local;
 pub mod methods;
 pub mod recent;
 pub mod sampler;
+mod stitch;
 
 pub use grid::Grid;
 pub use local::LocalLocator;

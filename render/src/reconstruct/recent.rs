@@ -138,7 +138,7 @@ impl<D: AsRef<[u8]>> RecentLocator<'_, '_, '_, D> {
 }
 
 impl<D: AsRef<[u8]>> Locate for RecentLocator<'_, '_, '_, D> {
-    #[inline]
+    #[inline(always)]
     fn locate_cell(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
         if let Some((leaf, b)) = self.leaves.last_in_place.get() {
             if b.contains_cell(finest) {

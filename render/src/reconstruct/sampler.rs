@@ -22,6 +22,7 @@ use super::cache::BrickCache;
 use super::grid::{axes, index_in, Grid};
 use super::interp::{avg8, trilinear};
 use super::leaf_grid::LeafGrid;
+use super::stitch::Stitches;
 
 /// The leaf cell at a point: the finest cell any brick holds there.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -121,7 +122,7 @@ impl VertexMemo {
     }
 
     #[inline]
-    fn octant_get(&self, o: &Octant) -> Option<Option<[f32; 8]>> {
+    pub(super) fn octant_get(&self, o: &Octant) -> Option<Option<[f32; 8]>> {
         if self.octants.is_empty() {
             return None;
         }
@@ -166,44 +167,9 @@ const PLACEHOLDER: LeafCell = LeafCell {
     value: 0.0,
 };
 
-/// The coarse octants one call of [`Sampler::corners_gathered`] has evaluated (at most one per
-/// corner).
-struct CoarseOctants {
-    known: [(Octant, Option<[f32; 8]>); 7],
-    len: usize,
-}
-
-impl Default for CoarseOctants {
-    fn default() -> Self {
-        let none = Octant {
-            level: u32::MAX,
-            cell: [0; 3],
-            octant: 0,
-        };
-        Self {
-            known: [(none, None); 7],
-            len: 0,
-        }
-    }
-}
-
-impl CoarseOctants {
-    #[inline]
-    fn get(&self, o: &Octant) -> Option<Option<[f32; 8]>> {
-        self.known[..self.len]
-            .iter()
-            .find(|(k, _)| k == o)
-            .map(|(_, c)| *c)
-    }
-
-    #[inline]
-    fn put(&mut self, o: Octant, corners: Option<[f32; 8]>) {
-        if self.len < self.known.len() {
-            self.known[self.len] = (o, corners);
-            self.len += 1;
-        }
-    }
-}
+/// The largest cell value magnitude for which [`Sampler::bounded`] holds: sums of two vertex
+/// values, and interpolants of them, stay finite.
+const BOUND: f32 = f32::MAX / 8.0;
 
 /// A vertex and the level asking for its value.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -260,7 +226,7 @@ pub trait Locate {
 }
 
 impl<D: AsRef<[u8]>> Locate for Sampler<'_, D> {
-    #[inline]
+    #[inline(always)]
     fn locate_cell(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
         self.locate(finest)
     }
@@ -371,6 +337,9 @@ pub struct Sampler<'f, D> {
     /// the coarser levels.
     gather: bool,
     cache: BrickCache,
+    /// True when every stored brick range of the field lies within `BOUND`: every vertex value
+    /// is then finite ([`super::stitch`]).
+    bounded: bool,
     /// This sampler's identity, which scratch memory serving it remembers.
     id: u64,
 }
@@ -428,6 +397,10 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             grid,
             tops,
             cache: BrickCache::new(cache_bytes),
+            bounded: (0..file.num_bricks()).all(|b| {
+                let (lo, hi) = file.brick_range(field, b);
+                lo.abs() <= BOUND && hi.abs() <= BOUND
+            }),
             id: super::recent::next_sampler_id(),
         };
         Ok(sampler.with_shortcuts(true))
@@ -461,6 +434,14 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// The file's geometry.
     pub fn grid(&self) -> &Grid {
         &self.grid
+    }
+
+    /// True when every cell value of the field is finite and at most `f32::MAX / 8` in
+    /// magnitude, as the bricks' stored ranges say: then every vertex value and every
+    /// interpolant of them is finite.
+    #[inline]
+    pub fn bounded(&self) -> bool {
+        self.bounded
     }
 
     /// This sampler's identity, unique in the process (scratch memory is keyed by it).
@@ -567,8 +548,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// The finest cells holding doubled point `v` nudged toward `-` and toward `+` on every
     /// axis, and the axes (bit `a`) on which they coincide (odd coordinate, or clamped at the
     /// domain's edge): there side `n` of `v` repeats the side without that bit.
-    #[inline]
-    fn nudges(&self, v: [i64; 3]) -> ([i64; 3], [i64; 3], usize) {
+    #[inline(always)]
+    pub(super) fn nudges(&self, v: [i64; 3]) -> ([i64; 3], [i64; 3], usize) {
         let lo = self.grid.finest_cell(v, 0);
         let hi = self.grid.finest_cell(v, 7);
         let same = (0..3).fold(0usize, |m, a| m | usize::from(lo[a] == hi[a]) << a);
@@ -705,7 +686,12 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 
     /// The leaf cell [`Self::coarse_value_in`] interpolates at `v` and its octant holding `v`.
     #[inline]
-    fn coarse_octant(&self, v: [i64; 3], cells: &[LeafCell; 8], coarsest: u32) -> (LeafCell, u8) {
+    pub(super) fn coarse_octant(
+        &self,
+        v: [i64; 3],
+        cells: &[LeafCell; 8],
+        coarsest: u32,
+    ) -> (LeafCell, u8) {
         let side = cells
             .iter()
             .position(|c| c.level == coarsest)
@@ -730,7 +716,13 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// The trilinear interpolant at `v` of octant `octant` of leaf cell `q`, whose corner
     /// values are `corners`.
     #[inline]
-    fn coarse_lerp(&self, v: [i64; 3], q: &LeafCell, octant: u8, corners: &[f32; 8]) -> f32 {
+    pub(super) fn coarse_lerp(
+        &self,
+        v: [i64; 3],
+        q: &LeafCell,
+        octant: u8,
+        corners: &[f32; 8],
+    ) -> f32 {
         let key = Octant {
             level: q.level,
             cell: q.cell,
@@ -1046,7 +1038,10 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 (whole_level[k], whole_value[k]) = (p.cell.level, p.cell.value);
             }
         }
-        let mut coarse = CoarseOctants::default();
+        let mut stitches = Stitches::new();
+        if let Some((c, b)) = near {
+            stitches.add_leaf(c, b);
+        }
         // Cells located for the corner at hand, by side.
         let mut extra = [PLACEHOLDER; 8];
         let mut out = [0f32; 8];
@@ -1099,21 +1094,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                     e => extra[e - 8],
                 };
                 let octant = self.octant_toward(v, &q, side);
-                let key = Octant {
-                    level: q.level,
-                    cell: q.cell,
-                    octant,
-                };
-                let corners = match coarse.get(&key) {
-                    Some(known) => known,
-                    None => {
-                        let c = self.leaf_octant_corners_in(loc, &q, octant, memo)?;
-                        coarse.put(key, c);
-                        c
-                    }
-                };
-                match corners {
-                    Some(corners) => self.coarse_lerp(v, &q, octant, &corners),
+                match self.stitched_value(loc, v, &q, octant, &mut stitches, memo)? {
+                    Some(x) => x,
                     None => return Ok(None),
                 }
             } else {
@@ -1178,7 +1160,12 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// finest brick holds every cell of the leaf, so this is [`Self::locate`]'s answer. `None`
     /// otherwise.
     #[inline(always)]
-    fn cell_in_leaf(&self, c: &LeafCell, leaf_box: &IBox, f: [i64; 3]) -> Option<LeafCell> {
+    pub(super) fn cell_in_leaf(
+        &self,
+        c: &LeafCell,
+        leaf_box: &IBox,
+        f: [i64; 3],
+    ) -> Option<LeafCell> {
         if !leaf_box.contains_cell(f) {
             return None;
         }

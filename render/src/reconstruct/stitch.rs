@@ -1,0 +1,325 @@
+//! Stitched vertex values from only the coarse corners they depend on.
+//!
+//! A vertex on the fine side of a level boundary takes the trilinear interpolant of a coarse
+//! octant at the vertex (`docs/reconstruction.md`). The vertex lies on that octant's boundary,
+//! so on at least one axis its local coordinate `t` is exactly 0 or 1, where
+//! `lerp(a, b, 0) = a * 1 + b * 0` is `a` bit for bit whenever `a` is not zero and `b` is finite
+//! (and symmetrically at 1). When every value the interpolation could meet is finite (the
+//! sampler checks the bricks' stored ranges once, [`Sampler::bounded`]), the interpolant is
+//! therefore computed from the corners with non-zero weight alone (typically one, two or four
+//! of the eight), each by the same vertex rule as the full octant; where a kept operand is zero
+//! (the skipped one could flip its sign) the full octant is evaluated instead.
+
+use amr_format::IBox;
+
+use crate::error::Result;
+
+use super::grid::axes;
+use super::interp::{avg8, lerp};
+use super::sampler::{LeafCell, Locate, Octant, Sampler, VertexMemo};
+
+/// What one octant evaluation has learnt while stitching its vertices: coarse octants
+/// evaluated whole, coarse vertex values, and kd-tree leaves met (with their boxes), which
+/// nearby cells are read from before they are located.
+pub(super) struct Stitches {
+    octants: [(Octant, Option<[f32; 8]>); 4],
+    num_octants: usize,
+    vertices: [([i64; 3], u32, Option<f32>); 16],
+    num_vertices: usize,
+    leaves: [(LeafCell, IBox); 6],
+    num_leaves: usize,
+}
+
+impl Stitches {
+    /// Nothing learnt yet.
+    pub(super) fn new() -> Self {
+        let none = Octant {
+            level: 0,
+            cell: [0; 3],
+            octant: 0,
+        };
+        let placeholder = LeafCell {
+            leaf: 0,
+            brick: 0,
+            level: 0,
+            cell: [0; 3],
+            value: 0.0,
+        };
+        Self {
+            octants: [(none, None); 4],
+            num_octants: 0,
+            vertices: [([0; 3], 0, None); 16],
+            num_vertices: 0,
+            leaves: [(placeholder, IBox::new([0; 3], [0; 3])); 6],
+            num_leaves: 0,
+        }
+    }
+
+    fn octant(&self, o: &Octant) -> Option<Option<[f32; 8]>> {
+        self.octants[..self.num_octants]
+            .iter()
+            .find(|(k, _)| k == o)
+            .map(|(_, c)| *c)
+    }
+
+    fn add_octant(&mut self, o: Octant, corners: Option<[f32; 8]>) {
+        if self.num_octants < self.octants.len() {
+            self.octants[self.num_octants] = (o, corners);
+            self.num_octants += 1;
+        }
+    }
+
+    #[inline]
+    fn vertex(&self, v: [i64; 3], level: u32) -> Option<Option<f32>> {
+        self.vertices[..self.num_vertices]
+            .iter()
+            .find(|(w, l, _)| *w == v && *l == level)
+            .map(|(_, _, x)| *x)
+    }
+
+    fn add_vertex(&mut self, v: [i64; 3], level: u32, value: Option<f32>) {
+        if self.num_vertices < self.vertices.len() {
+            self.vertices[self.num_vertices] = (v, level, value);
+            self.num_vertices += 1;
+        }
+    }
+
+    /// Remembers the kd-tree leaf of leaf cell `c` (box `leaf_box`), if not yet known and
+    /// there is room.
+    pub(super) fn add_leaf(&mut self, c: LeafCell, leaf_box: IBox) {
+        let known = &self.leaves[..self.num_leaves];
+        if self.num_leaves < self.leaves.len() && !known.iter().any(|(k, _)| k.leaf == c.leaf) {
+            self.leaves[self.num_leaves] = (c, leaf_box);
+            self.num_leaves += 1;
+        }
+    }
+
+    /// The leaf cell at finest cell `f` when it lies in a kd-tree leaf met so far whose brick
+    /// is read in place ([`Sampler::cell_in_leaf`]).
+    #[inline(always)]
+    pub(super) fn cell_in_leaves<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        f: [i64; 3],
+    ) -> Option<LeafCell> {
+        for (c, b) in &self.leaves[..self.num_leaves] {
+            if let Some(found) = sampler.cell_in_leaf(c, b, f) {
+                return Some(found);
+            }
+        }
+        None
+    }
+}
+
+/// `lerp(a, b, t)`, skipping the operand of weight 0 when `t` is 0 or 1; `None` when the
+/// operand kept is zero (the skipped one could change the sign of that zero). A NaN operand
+/// stands for a value not computed and passes through.
+#[inline]
+fn lerp_skipping(a: f32, b: f32, t: f32) -> Option<f32> {
+    let kept = if t == 0.0 {
+        a
+    } else if t == 1.0 {
+        b
+    } else {
+        return Some(lerp(a, b, t));
+    };
+    (kept != 0.0).then_some(kept)
+}
+
+/// [`super::interp::trilinear`] of corners `v` at `t` through [`lerp_skipping`]: the same bits
+/// when the corners of weight 0 (NaN in `v`) are finite, `None` when a zero was kept.
+#[inline]
+fn trilinear_skipping(v: &[f32; 8], t: [f32; 3]) -> Option<f32> {
+    let x = [
+        lerp_skipping(v[0], v[1], t[0])?,
+        lerp_skipping(v[2], v[3], t[0])?,
+        lerp_skipping(v[4], v[5], t[0])?,
+        lerp_skipping(v[6], v[7], t[0])?,
+    ];
+    let y = [
+        lerp_skipping(x[0], x[1], t[1])?,
+        lerp_skipping(x[2], x[3], t[1])?,
+    ];
+    lerp_skipping(y[0], y[1], t[2])
+}
+
+impl<D: AsRef<[u8]>> Sampler<'_, D> {
+    /// The value at vertex `v` of octant `octant` of leaf cell `q`, which holds `v` and is the
+    /// coarse cell the vertex is stitched to: [`Self::coarse_value_in`]'s value, computed from
+    /// the octant's corners of non-zero weight when the file allows it, else from the whole
+    /// octant (remembered in `known`). `None` where a cell involved is not covered.
+    pub(super) fn stitched_value<L: Locate>(
+        &self,
+        loc: &L,
+        v: [i64; 3],
+        q: &LeafCell,
+        octant: u8,
+        known: &mut Stitches,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<f32>> {
+        let key = Octant {
+            level: q.level,
+            cell: q.cell,
+            octant,
+        };
+        if let Some(corners) = known.octant(&key).or_else(|| memo.octant_get(&key)) {
+            return Ok(corners.map(|c| self.coarse_lerp(v, q, octant, &c)));
+        }
+        if self.bounded() {
+            if let Some(x) = self.stitched_from_needed(loc, v, q, &key, known, memo)? {
+                return Ok(Some(x));
+            }
+        }
+        let corners = self.leaf_octant_corners_in(loc, q, octant, memo)?;
+        known.add_octant(key, corners);
+        Ok(corners.map(|c| self.coarse_lerp(v, q, octant, &c)))
+    }
+
+    /// [`Self::stitched_value`] from the corners of non-zero weight alone; `None` when that
+    /// does not decide the bits (a kept zero) or a cell involved is not covered.
+    fn stitched_from_needed<L: Locate>(
+        &self,
+        loc: &L,
+        v: [i64; 3],
+        q: &LeafCell,
+        key: &Octant,
+        known: &mut Stitches,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<f32>> {
+        let (lo, _) = self.octant_box(key);
+        let s = self.grid().scale(q.level);
+        // As `coarse_lerp` computes them.
+        let t = axes(|a| ((v[a] - lo[a]) as f64 / s[a] as f64) as f32);
+        let centre = usize::from(!key.octant & 7);
+        let mut corners = [f32::NAN; 8];
+        for (n, slot) in corners.iter_mut().enumerate() {
+            let needed = (0..3).all(|a| {
+                if n >> a & 1 == 1 {
+                    t[a] != 0.0
+                } else {
+                    t[a] != 1.0
+                }
+            });
+            if !needed {
+                continue;
+            }
+            *slot = if n == centre {
+                q.value
+            } else {
+                let w = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
+                match self.coarse_vertex(loc, w, q.level, known, memo)? {
+                    Some(x) => x,
+                    None => return Ok(None),
+                }
+            };
+        }
+        Ok(trilinear_skipping(&corners, t))
+    }
+
+    /// The value at vertex `w` seen from an octant of level `level` ([`Self::vertex_value_in`]'s
+    /// value), its cells read from the kd-tree leaves `known` has met where they lie there.
+    fn coarse_vertex<L: Locate>(
+        &self,
+        loc: &L,
+        w: [i64; 3],
+        level: u32,
+        known: &mut Stitches,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<f32>> {
+        if let Some(x) = known.vertex(w, level) {
+            return Ok(x);
+        }
+        let value = match self.around_known(loc, w, known)? {
+            None => None,
+            Some(cells) => {
+                let coarsest = cells.iter().map(|c| c.level).min().unwrap_or(level);
+                if coarsest < level {
+                    let (q, octant) = self.coarse_octant(w, &cells, coarsest);
+                    self.stitched_value(loc, w, &q, octant, known, memo)?
+                } else {
+                    Some(avg8(&cells.map(|c| c.value)))
+                }
+            }
+        };
+        known.add_vertex(w, level, value);
+        Ok(value)
+    }
+
+    /// [`Self::around_in`], reading cells from the kd-tree leaves `known` has met before
+    /// locating them, and remembering the leaves located.
+    fn around_known<L: Locate>(
+        &self,
+        loc: &L,
+        v: [i64; 3],
+        known: &mut Stitches,
+    ) -> Result<Option<[LeafCell; 8]>> {
+        let (lo, hi, same) = self.nudges(v);
+        let mut out = [known.leaves[0].0; 8];
+        for n in 0..8 {
+            let m = n & !same;
+            if m != n {
+                out[n] = out[m];
+                continue;
+            }
+            let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+            out[n] = match known.cell_in_leaves(self, f) {
+                Some(c) => c,
+                None => match loc.locate_cell(f)? {
+                    Some(c) => {
+                        known.add_leaf(c, self.leaf_box(c.leaf));
+                        c
+                    }
+                    None => return Ok(None),
+                },
+            };
+        }
+        Ok(Some(out))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::reconstruct::interp::trilinear;
+
+    /// Wherever the skipping interpolation answers, it has the full interpolation's bits, for
+    /// any finite values of the corners it skipped; zeros of both signs included.
+    #[test]
+    fn skipping_interpolation_has_the_full_bits() {
+        let pool = [0.0f32, -0.0, 1.5, -2.25, 3.0e-39, -7.0e12, 0.1, -0.1];
+        let ts = [0.0f32, 1.0, 0.5, 0.25, 0.75];
+        let mut seed = 0x9E37_79B9_u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed
+        };
+        let (mut answered, mut declined) = (0, 0);
+        for _ in 0..20_000 {
+            let v: [f32; 8] = std::array::from_fn(|_| pool[next() as usize % pool.len()]);
+            let t: [f32; 3] = std::array::from_fn(|_| ts[next() as usize % ts.len()]);
+            let mut kept = v;
+            for (n, x) in kept.iter_mut().enumerate() {
+                let weight = (0..3).all(|a| {
+                    if n >> a & 1 == 1 {
+                        t[a] != 0.0
+                    } else {
+                        t[a] != 1.0
+                    }
+                });
+                if !weight {
+                    *x = f32::NAN;
+                }
+            }
+            match trilinear_skipping(&kept, t) {
+                Some(x) => {
+                    answered += 1;
+                    assert_eq!(x.to_bits(), trilinear(&v, t).to_bits(), "{v:?} at {t:?}");
+                }
+                None => declined += 1,
+            }
+        }
+        assert!(answered > 10_000 && declined > 100, "{answered} {declined}");
+    }
+}

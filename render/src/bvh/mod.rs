@@ -92,6 +92,8 @@ pub struct BvhBuilder {
 #[derive(Default)]
 struct Worker {
     boxes: Vec<Aabb>,
+    /// The items of a level in their BVH's leaf order, before they are copied back.
+    items: Vec<u64>,
     wide: WideBuilder,
     ploc: PlocBuilder,
     bvh2: Bvh2,
@@ -260,8 +262,8 @@ impl Worker {
             BuildMethod::Morton => self.wide.build(&self.boxes),
             BuildMethod::Ploc => self.build_ploc(items.len()),
         };
-        let mut perm = std::mem::take(&mut bvh.primitive_indices);
-        gather_in_place(items, &mut perm);
+        let perm = std::mem::take(&mut bvh.primitive_indices);
+        gather(items, &perm, &mut self.items);
         bvh.nodes.shrink_to_fit();
         bvh
     }
@@ -291,6 +293,7 @@ impl Worker {
     /// Bytes of scratch held (boxes, sort keys, PLOC buffers, binary BVH).
     fn scratch_bytes(&self) -> usize {
         self.boxes.capacity() * size_of::<Aabb>()
+            + self.items.capacity() * size_of::<u64>()
             + self.wide.scratch_bytes()
             + (self.ploc.current_nodes.capacity()
                 + self.ploc.next_nodes.capacity()
@@ -313,26 +316,12 @@ fn positive_zeros(ray: Ray) -> Ray {
     }
 }
 
-/// `values[i] = old values[perm[i]]` without a second array; `perm` is destroyed.
-fn gather_in_place(values: &mut [u64], perm: &mut [u32]) {
-    const DONE: u32 = u32::MAX;
-    for start in 0..perm.len() {
-        if perm[start] == DONE {
-            continue;
-        }
-        let first = values[start];
-        let mut j = start;
-        loop {
-            let k = perm[j] as usize;
-            perm[j] = DONE;
-            if k == start {
-                values[j] = first;
-                break;
-            }
-            values[j] = values[k];
-            j = k;
-        }
-    }
+/// `values[i] = old values[perm[i]]`, through `tmp` (independent reads, where following the
+/// permutation's cycles in place makes each read wait for the one before).
+fn gather(values: &mut [u64], perm: &[u32], tmp: &mut Vec<u64>) {
+    tmp.clear();
+    tmp.extend(perm.iter().map(|&k| values[k as usize]));
+    values.copy_from_slice(tmp);
 }
 
 impl OctantBvh {
@@ -504,8 +493,8 @@ mod tests {
     #[test]
     fn gather_permutes() {
         let mut v: Vec<u64> = vec![10, 11, 12, 13, 14];
-        let mut p: Vec<u32> = vec![3, 0, 4, 1, 2];
-        gather_in_place(&mut v, &mut p);
+        let p: Vec<u32> = vec![3, 0, 4, 1, 2];
+        gather(&mut v, &p, &mut Vec::new());
         assert_eq!(v, vec![13, 10, 14, 11, 12]);
     }
 

@@ -15,6 +15,9 @@ use obvhs::cwbvh::CwBvh;
 /// Most boxes in one leaf (the node format's limit).
 const LEAF_MAX: usize = 3;
 
+/// Runs of at most this many boxes are cut by counting, longer ones by a binary search.
+const SCAN_MAX: usize = 64;
+
 /// Node depth past which runs are cut at their middle, so that the depth stays far below
 /// obvhs's traversal stack of 32 whatever the codes.
 const MORTON_DEPTH: u32 = 20;
@@ -178,7 +181,14 @@ impl Build<'_> {
             0 => a + (b - a) / 2,
             bit => {
                 let shift = self.shift + bit - 1;
-                a + self.keys[a..b].partition_point(|&k| k >> shift & 1 == 0)
+                let keys = &self.keys[a..b];
+                // The keys are sorted, so those with the bit clear come first: short runs count
+                // them (independent loads), long ones search.
+                a + if keys.len() <= SCAN_MAX {
+                    keys.iter().filter(|&&k| k >> shift & 1 == 0).count()
+                } else {
+                    keys.partition_point(|&k| k >> shift & 1 == 0)
+                }
             }
         }
     }

@@ -211,14 +211,11 @@ fn fold_stored<D: AsRef<[u8]>>(
     let (mut a, mut b) = (*lo, *hi);
     fold_blocks(n, blocks, |row| {
         for r in table.get(row).unwrap_or_default() {
-            // Comparisons, not f32::min: stored ranges hold no NaN.
+            // Selects, not branches (the order of the values is unpredictable) nor f32::min
+            // (stored ranges hold no NaN; a NaN would compare false and be left out).
             let (x, y) = (r.min.get(), r.max.get());
-            if x < a {
-                a = x;
-            }
-            if y > b {
-                b = y;
-            }
+            a = if x < a { x } else { a };
+            b = if y > b { y } else { b };
         }
     });
     (*lo, *hi) = (a, b);

@@ -94,8 +94,6 @@ pub struct BvhBuilder {
 #[derive(Default)]
 struct Worker {
     boxes: Vec<Aabb>,
-    /// The items of a level in their BVH's leaf order, before they are copied back.
-    items: Vec<u64>,
     wide: WideBuilder,
     ploc: PlocBuilder,
     bvh2: Bvh2,
@@ -308,7 +306,7 @@ impl Worker {
             BuildMethod::Ploc => self.build_ploc(items.len()),
         };
         let perm = std::mem::take(&mut bvh.primitive_indices);
-        gather(items, &perm, &mut self.items);
+        gather(items, &perm, self.wide.spare());
         bvh.nodes.shrink_to_fit();
         bvh
     }
@@ -338,7 +336,6 @@ impl Worker {
     /// Bytes of scratch held (boxes, sort keys, PLOC buffers, binary BVH).
     fn scratch_bytes(&self) -> usize {
         self.boxes.capacity() * size_of::<Aabb>()
-            + self.items.capacity() * size_of::<u64>()
             + self.wide.scratch_bytes()
             + (self.ploc.current_nodes.capacity()
                 + self.ploc.next_nodes.capacity()

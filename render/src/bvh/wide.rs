@@ -65,6 +65,12 @@ impl WideBuilder {
         }
     }
 
+    /// A buffer of the scratch that is free between builds (the radix sort's second buffer,
+    /// as large as the last build's boxes), for the caller's own use.
+    pub fn spare(&mut self) -> &mut Vec<u64> {
+        &mut self.tmp
+    }
+
     /// Bytes of scratch held.
     pub fn scratch_bytes(&self) -> usize {
         (self.keys.capacity() + self.tmp.capacity()) * 8

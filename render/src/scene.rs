@@ -424,16 +424,14 @@ impl Scene {
     /// The world box of the isosurfaces' active voxels, `None` without any (or with the
     /// sample method, which extracts none).
     pub fn surface_bounds(&self) -> Option<([f64; 3], [f64; 3])> {
-        let source = self.source();
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
-        for s in &self.surfaces {
-            source.voxel_boxes(s.bvh.refs(), &mut |a, b| {
-                for k in 0..3 {
-                    lo[k] = lo[k].min(a[k]);
-                    hi[k] = hi[k].max(b[k]);
-                }
-            });
+        // The BVH build kept the union of the boxes it decoded.
+        for (a, b) in self.surfaces.iter().filter_map(|s| s.bvh.voxel_bounds()) {
+            for k in 0..3 {
+                lo[k] = lo[k].min(a[k]);
+                hi[k] = hi[k].max(b[k]);
+            }
         }
         if !(0..3).all(|k| lo[k] <= hi[k]) {
             return None;

@@ -112,6 +112,18 @@ fn check_file(file: &AmrkFile<Vec<u8>>, seed: u64, name: &str) -> (u64, u64, u64
                 .filter(|(_, v)| straddles(v, iso))
                 .map(|(o, _)| *o)
                 .collect();
+            let mut boxes = Vec::new();
+            ex.voxel_boxes(refs, |b| {
+                boxes.push(b.unwrap_or_else(|e| panic!("{ctx}: {e}")))
+            });
+            for (&r, b) in refs.iter().zip(&boxes) {
+                assert_eq!(
+                    ex.voxel_box(r).unwrap_or_else(|e| panic!("{ctx}: {e}")),
+                    *b,
+                    "{ctx}: ref {r:#x}: voxel_boxes and voxel_box differ"
+                );
+            }
+            assert_eq!(boxes.len(), refs.len(), "{ctx}: a box per ref");
             let mut covered: HashSet<Octant> = HashSet::new();
             let mut last: Option<u64> = None;
             for &r in refs {

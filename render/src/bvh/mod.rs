@@ -55,6 +55,8 @@ pub struct OctantBvh {
     chunks: Vec<Chunk>,
     /// Over the chunks' boxes; its primitive `c` is `chunks[c]`. Empty when there is one chunk.
     top: CwBvh,
+    /// The union of the refs' boxes as given to the build, before padding.
+    bounds: Option<([f64; 3], [f64; 3])>,
 }
 
 /// One chunk: its BVH, whose primitive `i` is `refs[first + i]`.
@@ -158,17 +160,22 @@ impl BvhBuilder {
     ) {
         out.chunks.clear();
         out.top = CwBvh::default();
+        out.bounds = None;
         out.refs.shrink_to_fit();
-        let decode = |refs: &[u64], out: &mut [Aabb]| {
+        // Decodes the boxes of `refs` into `out`, padded, and returns their union unpadded.
+        let decode = |refs: &[u64], out: &mut [Aabb]| -> Bounds {
             let v = |p: [f64; 3], s: f64| {
                 Vec3A::new((p[0] + s) as f32, (p[1] + s) as f32, (p[2] + s) as f32)
             };
             let mut slots = out.iter_mut();
+            let mut union = Bounds::EMPTY;
             boxes(refs, &mut |lo, hi| {
+                union.add(lo, hi);
                 if let Some(slot) = slots.next() {
                     *slot = Aabb::new(v(lo, -pad), v(hi, pad));
                 }
             });
+            union
         };
         let size = self.chunk_refs.max(1);
         let method = self.method;
@@ -180,21 +187,25 @@ impl BvhBuilder {
         let mut boxes = Vec::new();
         let mut first = 0;
         let mut since_release = 0;
+        let mut bounds = Bounds::EMPTY;
         for round in parts.chunks_mut(self.workers.len()) {
-            let bvhs: Vec<CwBvh> = round
+            let bvhs: Vec<(CwBvh, Bounds)> = round
                 .par_iter_mut()
                 .zip(self.workers.par_iter_mut())
                 .map(|(part, w)| {
                     w.boxes.clear();
                     w.boxes.resize(part.len(), Aabb::empty());
-                    w.boxes
+                    let union = w
+                        .boxes
                         .par_chunks_mut(DECODE_RUN)
                         .zip(part.par_chunks(DECODE_RUN))
-                        .for_each(|(out, refs)| decode(refs, out));
-                    w.build_level(part, method)
+                        .map(|(out, refs)| decode(refs, out))
+                        .reduce(|| Bounds::EMPTY, Bounds::union);
+                    (w.build_level(part, method), union)
                 })
                 .collect();
-            for (bvh, part) in bvhs.into_iter().zip(round.iter()) {
+            for ((bvh, union), part) in bvhs.into_iter().zip(round.iter()) {
+                bounds = bounds.union(union);
                 boxes.push(bvh.total_aabb);
                 out.chunks.push(Chunk {
                     first,
@@ -221,6 +232,7 @@ impl BvhBuilder {
                 .map(|&c| std::mem::take(&mut chunks[c as usize]))
                 .collect();
         }
+        out.bounds = bounds.get();
         self.last_scratch_bytes = self.workers.iter().map(Worker::scratch_bytes).sum();
     }
 
@@ -252,6 +264,39 @@ impl BvhBuilder {
     }
 }
 
+/// A union of boxes, built up one box at a time.
+#[derive(Clone, Copy)]
+struct Bounds {
+    lo: [f64; 3],
+    hi: [f64; 3],
+}
+
+impl Bounds {
+    const EMPTY: Self = Self {
+        lo: [f64::INFINITY; 3],
+        hi: [f64::NEG_INFINITY; 3],
+    };
+
+    fn add(&mut self, lo: [f64; 3], hi: [f64; 3]) {
+        for k in 0..3 {
+            self.lo[k] = self.lo[k].min(lo[k]);
+            self.hi[k] = self.hi[k].max(hi[k]);
+        }
+    }
+
+    fn union(mut self, other: Self) -> Self {
+        self.add(other.lo, other.hi);
+        self
+    }
+
+    /// The union, `None` when no box (or only empty ones) was added.
+    fn get(self) -> Option<([f64; 3], [f64; 3])> {
+        (0..3)
+            .all(|k| self.lo[k] <= self.hi[k])
+            .then_some((self.lo, self.hi))
+    }
+}
+
 impl Worker {
     /// A CWBVH over `self.boxes`, whose primitive `i` is `items[i]` (the items are permuted into
     /// the BVH's leaf order and its primitive index array is dropped).
@@ -260,8 +305,8 @@ impl Worker {
             BuildMethod::Morton => self.wide.build(&self.boxes),
             BuildMethod::Ploc => self.build_ploc(items.len()),
         };
-        let mut perm = std::mem::take(&mut bvh.primitive_indices);
-        gather_in_place(items, &mut perm);
+        let perm = std::mem::take(&mut bvh.primitive_indices);
+        gather(items, &perm, self.wide.spare());
         bvh.nodes.shrink_to_fit();
         bvh
     }
@@ -313,29 +358,21 @@ fn positive_zeros(ray: Ray) -> Ray {
     }
 }
 
-/// `values[i] = old values[perm[i]]` without a second array; `perm` is destroyed.
-fn gather_in_place(values: &mut [u64], perm: &mut [u32]) {
-    const DONE: u32 = u32::MAX;
-    for start in 0..perm.len() {
-        if perm[start] == DONE {
-            continue;
-        }
-        let first = values[start];
-        let mut j = start;
-        loop {
-            let k = perm[j] as usize;
-            perm[j] = DONE;
-            if k == start {
-                values[j] = first;
-                break;
-            }
-            values[j] = values[k];
-            j = k;
-        }
-    }
+/// `values[i] = old values[perm[i]]`, through `tmp` (independent reads, where following the
+/// permutation's cycles in place makes each read wait for the one before).
+fn gather(values: &mut [u64], perm: &[u32], tmp: &mut Vec<u64>) {
+    tmp.clear();
+    tmp.extend(perm.iter().map(|&k| values[k as usize]));
+    values.copy_from_slice(tmp);
 }
 
 impl OctantBvh {
+    /// The union of the refs' boxes, as the build's `boxes` gave them (not padded): the
+    /// componentwise least and greatest corners; `None` when there are no refs.
+    pub fn voxel_bounds(&self) -> Option<([f64; 3], [f64; 3])> {
+        self.bounds
+    }
+
     /// The refs, chunk after chunk, each chunk in its BVH's leaf order.
     pub fn refs(&self) -> &[u64] {
         &self.refs
@@ -504,8 +541,8 @@ mod tests {
     #[test]
     fn gather_permutes() {
         let mut v: Vec<u64> = vec![10, 11, 12, 13, 14];
-        let mut p: Vec<u32> = vec![3, 0, 4, 1, 2];
-        gather_in_place(&mut v, &mut p);
+        let p: Vec<u32> = vec![3, 0, 4, 1, 2];
+        gather(&mut v, &p, &mut Vec::new());
         assert_eq!(v, vec![13, 10, 14, 11, 12]);
     }
 

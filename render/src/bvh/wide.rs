@@ -15,6 +15,9 @@ use obvhs::cwbvh::CwBvh;
 /// Most boxes in one leaf (the node format's limit).
 const LEAF_MAX: usize = 3;
 
+/// Runs of at most this many boxes are cut by counting, longer ones by a binary search.
+const SCAN_MAX: usize = 64;
+
 /// Node depth past which runs are cut at their middle, so that the depth stays far below
 /// obvhs's traversal stack of 32 whatever the codes.
 const MORTON_DEPTH: u32 = 20;
@@ -60,6 +63,12 @@ impl WideBuilder {
             exact_node_aabbs: None,
             uses_spatial_splits: false,
         }
+    }
+
+    /// A buffer of the scratch that is free between builds (the radix sort's second buffer,
+    /// as large as the last build's boxes), for the caller's own use.
+    pub fn spare(&mut self) -> &mut Vec<u64> {
+        &mut self.tmp
     }
 
     /// Bytes of scratch held.
@@ -178,7 +187,14 @@ impl Build<'_> {
             0 => a + (b - a) / 2,
             bit => {
                 let shift = self.shift + bit - 1;
-                a + self.keys[a..b].partition_point(|&k| k >> shift & 1 == 0)
+                let keys = &self.keys[a..b];
+                // The keys are sorted, so those with the bit clear come first: short runs count
+                // them (independent loads), long ones search.
+                a + if keys.len() <= SCAN_MAX {
+                    keys.iter().filter(|&&k| k >> shift & 1 == 0).count()
+                } else {
+                    keys.partition_point(|&k| k >> shift & 1 == 0)
+                }
             }
         }
     }

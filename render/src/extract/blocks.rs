@@ -12,6 +12,7 @@
 use std::sync::OnceLock;
 
 use amr_format::blocks::{block_ranges, blocks_per_axis};
+use amr_format::raw::BlockRange;
 use amr_format::{AmrkFile, IBox, RangeAccumulator};
 
 use crate::error::Result;
@@ -208,20 +209,32 @@ fn fold_stored<D: AsRef<[u8]>>(
         .file()
         .block_ranges(sampler.field(), brick as usize)
         .unwrap_or_default();
-    let (mut a, mut b) = (*lo, *hi);
+    // Four lanes, so that each comparison does not wait for the one before; selects, not
+    // branches (the order of the values is unpredictable) nor f32::min (stored ranges hold no
+    // NaN; a NaN would compare false and be left out).
+    let (mut a, mut b) = ([*lo; 4], [*hi; 4]);
+    let mut fold = |k: usize, r: &BlockRange| {
+        let (x, y) = (r.min.get(), r.max.get());
+        a[k] = if x < a[k] { x } else { a[k] };
+        b[k] = if y > b[k] { y } else { b[k] };
+    };
     fold_blocks(n, blocks, |row| {
-        for r in table.get(row).unwrap_or_default() {
-            // Comparisons, not f32::min: stored ranges hold no NaN.
-            let (x, y) = (r.min.get(), r.max.get());
-            if x < a {
-                a = x;
-            }
-            if y > b {
-                b = y;
+        let row = table.get(row).unwrap_or_default();
+        let mut quads = row.chunks_exact(4);
+        for q in &mut quads {
+            for (k, r) in q.iter().enumerate() {
+                fold(k, r);
             }
         }
+        for (k, r) in quads.remainder().iter().enumerate() {
+            fold(k, r);
+        }
     });
-    (*lo, *hi) = (a, b);
+    for k in 1..4 {
+        a[0] = if a[k] < a[0] { a[k] } else { a[0] };
+        b[0] = if b[k] > b[0] { b[k] } else { b[0] };
+    }
+    (*lo, *hi) = (a[0], b[0]);
 }
 
 /// `v` divided by `d` per axis, rounded toward minus infinity (`d > 0`); a shift when `d` is a

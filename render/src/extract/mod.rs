@@ -389,13 +389,44 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// few leaves met are kept, so that refs of a few leaves interleaved (as a BVH orders them)
     /// or in runs (as the extraction emits them) find each leaf's frame once.
     pub fn voxel_boxes(&self, refs: &[u64], mut out: impl FnMut(Result<([i64; 3], [i64; 3])>)) {
-        let mut frames = [None; 16];
+        let mut frames: [Option<BoxFrame>; 16] = [None; 16];
         for &r in refs {
-            let slot = &mut frames[(r >> 32) as usize % 16];
-            out(self
-                .resolve_in(r, slot)
-                .map(|(frame, cell, octant)| self.doubled_box(frame.level, cell, octant)));
+            let leaf = (r >> 32) as u32;
+            let slot = &mut frames[leaf as usize % 16];
+            let frame = match slot {
+                Some(f) if f.leaf == leaf => f,
+                _ => match self.box_frame(r) {
+                    Ok(f) => slot.insert(f),
+                    Err(e) => {
+                        out(Err(e));
+                        continue;
+                    }
+                },
+            };
+            out(frame.voxel_box(r));
         }
+    }
+
+    /// What [`Self::voxel_boxes`] keeps of the leaf of `r` to compute its voxels' boxes.
+    fn box_frame(&self, r: u64) -> Result<BoxFrame> {
+        let leaf = (r >> 32) as u32;
+        if leaf as usize >= self.sampler.file().num_leaves() {
+            return Err(bad_ref(r, "no such leaf"));
+        }
+        let frame = LeafFrame::new(&self.sampler, leaf)
+            .ok_or_else(|| bad_ref(r, "the leaf holds no brick"))?;
+        let e = frame.cells.extent();
+        let (Ok(e0), Ok(e1)) = (u32::try_from(e[0]), u32::try_from(e[1])) else {
+            return Err(bad_ref(r, "the leaf's extent is out of range"));
+        };
+        let grid = self.sampler.grid();
+        Ok(BoxFrame {
+            leaf,
+            extent: (e0, e1),
+            cells: e[0] * e[1] * e[2],
+            lowest: grid.centre(frame.level, frame.cells.lo),
+            scale: grid.scale(frame.level),
+        })
     }
 
     /// The leaf of the voxel `r` names, its level-`L` cell (absolute index) and its octant, or
@@ -458,6 +489,47 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 (lo, [0, 1, 2].map(|a| lo[a] + 2 * s[a]))
             }
         }
+    }
+}
+
+/// A leaf's cells as [`Extractor::voxel_boxes`] needs them: the boxes of its voxels from their
+/// local indices alone.
+#[derive(Clone, Copy)]
+struct BoxFrame {
+    leaf: u32,
+    /// The leaf's level-`L` cells per axis along x and y.
+    extent: (u32, u32),
+    /// Its level-`L` cells.
+    cells: i64,
+    /// The doubled centre of its lowest level-`L` cell.
+    lowest: [i64; 3],
+    /// The width of a level-`L` cell in finest cells.
+    scale: [i64; 3],
+}
+
+impl BoxFrame {
+    /// [`Extractor::voxel_box`] of `r`, a ref of this leaf: the same boxes as
+    /// [`Extractor::doubled_box`] of [`Extractor::resolve`].
+    #[inline]
+    fn voxel_box(&self, r: u64) -> Result<([i64; 3], [i64; 3])> {
+        let (index, octant) = match LocalVoxel::from_id(r as u32) {
+            LocalVoxel::Octant { cell, octant } => (cell, Some(octant)),
+            LocalVoxel::Dual { cell } => (cell, None),
+        };
+        if i64::from(index) >= self.cells {
+            return Err(bad_ref(r, "cell index past the leaf"));
+        }
+        let (e0, e1) = self.extent;
+        let d = [index % e0, index / e0 % e1, index / e0 / e1].map(i64::from);
+        let s = self.scale;
+        let c = [0, 1, 2].map(|a| self.lowest[a] + 2 * d[a] * s[a]);
+        Ok(match octant {
+            Some(octant) => {
+                let lo = [0, 1, 2].map(|a| c[a] - s[a] * i64::from(1 - (octant >> a & 1)));
+                (lo, [0, 1, 2].map(|a| lo[a] + s[a]))
+            }
+            None => (c, [0, 1, 2].map(|a| c[a] + 2 * s[a])),
+        })
     }
 }
 

@@ -10,8 +10,9 @@
 //! part's box ([`super::tight::box_range`]) over the stored blocks alone
 //! ([`BlockRanges::loose`]), its region queries answered by the leaves around the leaf, gathered
 //! once ([`Halo`]), unless they are too many.
-//! Parts that are kept and adjacent along x are extracted together, so that the cells shared
-//! by their neighbourhoods are filled once.
+//! Parts that are kept and adjacent are extracted together (runs along x, joined across rows
+//! and layers when their extents match), so that the cells shared by their neighbourhoods are
+//! filled once.
 //!
 //! The parts' bounds do not depend on the isovalue: each leaf's are computed the first time it
 //! is extracted and kept ([`PartRanges`]), 8 bytes per part, so a later isovalue only compares.
@@ -143,16 +144,7 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
         }
     };
     let mut counts = LeafCounts::default();
-    let mut run = |run: &mut Option<IBox>, counts: &mut LeafCounts| -> Result<()> {
-        if let Some(finest) = run.take() {
-            let part = frame.part(sampler, finest);
-            let n = extract_leaf(sampler, &part, iso, scratch, out)?;
-            counts.evaluated += n.evaluated;
-            counts.boundary += n.boundary;
-            counts.culled += n.culled;
-        }
-        Ok(())
-    };
+    let mut runs: Vec<IBox> = Vec::new();
     let mut ranges = ranges.iter();
     for pz in first[2]..=last[2] {
         for py in first[1]..=last[1] {
@@ -161,7 +153,7 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
                 let (lo, hi) = unpack(ranges.next().copied().unwrap_or(u64::MAX));
                 let finest = part_box([px, py, pz]);
                 if finest.is_empty() {
-                    run(&mut kept, &mut counts)?;
+                    runs.extend(kept.take());
                     continue;
                 }
                 if straddles(lo, hi, iso) {
@@ -171,15 +163,58 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
                     });
                 } else {
                     counts.parts_skipped += 1;
-                    run(&mut kept, &mut counts)?;
+                    runs.extend(kept.take());
                 }
             }
-            run(&mut kept, &mut counts)?;
+            runs.extend(kept.take());
         }
+    }
+    for finest in merge_runs(runs) {
+        let part = frame.part(sampler, finest);
+        let n = extract_leaf(sampler, &part, iso, scratch, out)?;
+        counts.evaluated += n.evaluated;
+        counts.boundary += n.boundary;
+        counts.culled += n.culled;
     }
     // Runs of sorted refs, one per run of parts: the stable sort merges them.
     out[start..].sort();
     Ok(counts)
+}
+
+/// The runs of kept parts `runs` (boxes along x, in row order: z, then y), joined into fewer
+/// boxes holding the same cells: runs of the same x-extent in adjacent rows of a layer, then
+/// boxes of the same x- and y-extent in adjacent layers. A neighbourhood holds a box grown by
+/// one cell, so fewer, larger boxes fill fewer cells and ask for the leaves around them fewer
+/// times.
+fn merge_runs(runs: Vec<IBox>) -> Vec<IBox> {
+    let same = |a: &IBox, b: &IBox, axes: std::ops::Range<usize>| {
+        axes.into_iter()
+            .all(|k| a.lo[k] == b.lo[k] && a.hi[k] == b.hi[k])
+    };
+    let mut rows: Vec<IBox> = Vec::with_capacity(runs.len());
+    for r in runs {
+        // The boxes of this layer are the last ones.
+        let joined = rows
+            .iter_mut()
+            .rev()
+            .take_while(|b| same(b, &r, 2..3))
+            .find(|b| same(b, &r, 0..1) && b.hi[1] == r.lo[1]);
+        match joined {
+            Some(b) => b.hi[1] = r.hi[1],
+            None => rows.push(r),
+        }
+    }
+    let mut boxes: Vec<IBox> = Vec::with_capacity(rows.len());
+    for r in rows {
+        match boxes
+            .iter_mut()
+            .find(|b| same(b, &r, 0..2) && b.hi[2] == r.lo[2])
+        {
+            Some(b) => b.hi[2] = r.hi[2],
+            None => boxes.push(r),
+        }
+    }
+    boxes
 }
 
 /// A range holding every corner of every voxel of `frame` whose lower corner lies in

@@ -137,6 +137,36 @@ impl LeafTree {
         }
     }
 
+    /// Calls `f` with every leaf whose box overlaps `region` (shares at least one cell): the
+    /// leaves that only touch its faces, edges or corners, and the nodes holding only those, are
+    /// not visited.
+    pub fn for_each_leaf_overlapping(&self, region: &IBox, mut f: impl FnMut(u32)) {
+        let mut stack = [0u32; 64];
+        let mut top = usize::from(!self.nodes.is_empty());
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if !node.bounds.overlaps(region) {
+                continue;
+            }
+            match node.children {
+                // The tree is balanced: its depth stays far below the stack's size.
+                Some((a, b)) if top + 2 <= stack.len() => {
+                    stack[top] = b;
+                    stack[top + 1] = a;
+                    top += 2;
+                }
+                _ => {
+                    for &l in &self.order[node.first as usize..node.end as usize] {
+                        if self.boxes[l as usize].overlaps(region) {
+                            f(l);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// The box of leaf `l` (finest-level cells).
     #[inline]
     pub fn leaf_box(&self, l: u32) -> IBox {

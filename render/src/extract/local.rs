@@ -2,7 +2,7 @@
 //! classified as a leaf cell of level `L` (with its value), coarser, refined, outside the
 //! domain or uncovered.
 //!
-//! It is filled from the leaves touching that box, one block per leaf, so no per-cell tree walk
+//! It is filled from the leaves overlapping that box, one block per leaf, so no per-cell tree walk
 //! is needed; it decides which dual cells can be merged and which octants touch a boundary, and
 //! holds each cell's value bound for [`super::cull`].
 
@@ -193,13 +193,10 @@ impl Neighbourhood {
         // The cells and ratio of each finer level met, found once per fill.
         let mut finer: [Option<(u32, (LevelCells, [i64; 3]))>; 8] = [None; 8];
         self.touching.clear();
-        leaves.for_each_leaf_touching(&region, |l| self.touching.push(l));
+        leaves.for_each_leaf_overlapping(&region, |l| self.touching.push(l));
         for i in 0..self.touching.len() {
             let l = self.touching[i];
             let lb = leaves.leaf_box(l);
-            if !lb.overlaps(&region) {
-                continue;
-            }
             // `region` is whole level cells, so this is the leaf's level box clipped to `g`.
             let part = lb.intersect(&region);
             let block = at_level.of(&part);

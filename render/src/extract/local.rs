@@ -208,6 +208,20 @@ impl Neighbourhood {
                 }
                 Some((brick, lv)) if lv > level => {
                     self.set_block(&block, FINER);
+                    if block.num_cells() == Some(1) && region.contains_box(&lb) {
+                        // The whole leaf lies in one cell: its kept exact range is that of
+                        // its cells folded one by one.
+                        let (a, b) = leaves.exact_range(sampler, l)?;
+                        let i = g.linear_index(block.lo);
+                        // Comparisons, not f32::min, as in the fold.
+                        if a < self.lo[i] {
+                            self.lo[i] = a;
+                        }
+                        if b > self.hi[i] {
+                            self.hi[i] = b;
+                        }
+                        continue;
+                    }
                     let k = lv as usize % finer.len();
                     let map = match finer[k] {
                         Some((l, map)) if l == lv => map,

@@ -95,6 +95,9 @@ impl LevelCells {
     }
 }
 
+/// A finer level's cells and its number of cells per neighbourhood cell along each axis.
+type FinerCells = (LevelCells, [i64; 3]);
+
 /// ORs `src` into `dst`, element by element.
 #[inline]
 fn or_into(dst: &mut [bool], src: &[bool]) {
@@ -191,7 +194,7 @@ impl Neighbourhood {
         );
         let at_level = LevelCells::new(s, o);
         // The cells and ratio of each finer level met, found once per fill.
-        let mut finer: [Option<(u32, (LevelCells, [i64; 3]))>; 8] = [None; 8];
+        let mut finer: [Option<(u32, FinerCells)>; 8] = [None; 8];
         self.touching.clear();
         leaves.for_each_leaf_overlapping(&region, |l| self.touching.push(l));
         for i in 0..self.touching.len() {
@@ -377,7 +380,7 @@ impl Neighbourhood {
     fn bound_finer<D: AsRef<[u8]>>(
         &mut self,
         sampler: &Sampler<'_, D>,
-        (cells, ratio): (LevelCells, [i64; 3]),
+        (cells, ratio): FinerCells,
         part: &IBox,
         brick: u32,
     ) -> Result<()> {

@@ -302,7 +302,7 @@ fn gather_tile<D: AsRef<[u8]>>(
         [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
     );
     let mut touching = Vec::new();
-    leaves.for_each_leaf_touching(&finest, |l| touching.push(l));
+    leaves.for_each_leaf_overlapping(&finest, |l| touching.push(l));
     for l in touching {
         let leaf_box = leaves.leaf_box(l);
         let part = leaf_box.intersect(&finest);

@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use amr_format::IBox;
 
-use super::blocks::BlockRanges;
+use super::blocks::{level_box, BlockRanges};
 use super::tight::{pack, unpack};
 use crate::error::Result;
 use crate::reconstruct::Sampler;
@@ -38,6 +38,8 @@ pub struct LeafTree {
     ranges: Vec<AtomicU64>,
     /// Per leaf, the range of its cells once asked.
     leaf_ranges: Vec<AtomicU64>,
+    /// Per leaf, the exact range of its cells once asked.
+    exact_ranges: Vec<AtomicU64>,
     /// Per leaf, its box.
     boxes: Vec<IBox>,
 }
@@ -60,11 +62,13 @@ impl LeafTree {
         }
         let ranges = (0..nodes.len()).map(|_| AtomicU64::new(UNKNOWN)).collect();
         let leaf_ranges = (0..n).map(|_| AtomicU64::new(UNKNOWN)).collect();
+        let exact_ranges = (0..n).map(|_| AtomicU64::new(UNKNOWN)).collect();
         Self {
             nodes,
             order,
             ranges,
             leaf_ranges,
+            exact_ranges,
             boxes: leaves.into_iter().map(|(b, _)| b).collect(),
         }
     }
@@ -129,6 +133,36 @@ impl LeafTree {
                 _ => {
                     for &l in &self.order[node.first as usize..node.end as usize] {
                         if self.boxes[l as usize].touches(region) {
+                            f(l);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Calls `f` with every leaf whose box overlaps `region` (shares at least one cell): the
+    /// leaves that only touch its faces, edges or corners, and the nodes holding only those, are
+    /// not visited.
+    pub fn for_each_leaf_overlapping(&self, region: &IBox, mut f: impl FnMut(u32)) {
+        let mut stack = [0u32; 64];
+        let mut top = usize::from(!self.nodes.is_empty());
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if !node.bounds.overlaps(region) {
+                continue;
+            }
+            match node.children {
+                // The tree is balanced: its depth stays far below the stack's size.
+                Some((a, b)) if top + 2 <= stack.len() => {
+                    stack[top] = b;
+                    stack[top + 1] = a;
+                    top += 2;
+                }
+                _ => {
+                    for &l in &self.order[node.first as usize..node.end as usize] {
+                        if self.boxes[l as usize].overlaps(region) {
                             f(l);
                         }
                     }
@@ -243,6 +277,48 @@ impl LeafTree {
         };
         slot.store(pack(range), Ordering::Relaxed);
         Ok(range)
+    }
+
+    /// The smallest and largest value of leaf `l`'s cells (of its finest brick, NaNs left
+    /// out), computed on first need; `(+inf, -inf)` when it has none. Unlike
+    /// [`Self::leaf_range`], which the stored block ranges give, this is exact: the same as
+    /// folding the leaf's cells one by one.
+    pub fn exact_range<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        l: u32,
+    ) -> Result<(f32, f32)> {
+        let slot = &self.exact_ranges[l as usize];
+        let known = slot.load(Ordering::Relaxed);
+        if known != UNKNOWN {
+            return Ok(unpack(known));
+        }
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        if let Some((brick, lv)) = sampler.leaf_top(l) {
+            let bc = sampler.brick_cells(brick);
+            let cells = level_box(sampler.grid(), lv, &self.boxes[l as usize]).intersect(&bc);
+            if !cells.is_empty() {
+                let values = sampler.values(brick)?;
+                let w = cells.extent()[0] as usize;
+                for z in cells.lo[2]..cells.hi[2] {
+                    for y in cells.lo[1]..cells.hi[1] {
+                        let src = bc.linear_index([cells.lo[0], y, z]);
+                        for &v in &values[src..src + w] {
+                            // Comparisons, not f32::min: a NaN compares false and is left out.
+                            if v < lo {
+                                lo = v;
+                            }
+                            if v > hi {
+                                hi = v;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // Never NaN, so never the bits of `UNKNOWN`.
+        slot.store(pack((lo, hi)), Ordering::Relaxed);
+        Ok((lo, hi))
     }
 
     /// The range of leaf `l`'s cells (of its finest brick), computed on first need.

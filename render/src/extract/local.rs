@@ -2,7 +2,7 @@
 //! classified as a leaf cell of level `L` (with its value), coarser, refined, outside the
 //! domain or uncovered.
 //!
-//! It is filled from the leaves touching that box, one block per leaf, so no per-cell tree walk
+//! It is filled from the leaves overlapping that box, one block per leaf, so no per-cell tree walk
 //! is needed; it decides which dual cells can be merged and which octants touch a boundary, and
 //! holds each cell's value bound for [`super::cull`].
 
@@ -94,6 +94,9 @@ impl LevelCells {
         }
     }
 }
+
+/// A finer level's cells and its number of cells per neighbourhood cell along each axis.
+type FinerCells = (LevelCells, [i64; 3]);
 
 /// ORs `src` into `dst`, element by element.
 #[inline]
@@ -191,15 +194,12 @@ impl Neighbourhood {
         );
         let at_level = LevelCells::new(s, o);
         // The cells and ratio of each finer level met, found once per fill.
-        let mut finer: [Option<(u32, (LevelCells, [i64; 3]))>; 8] = [None; 8];
+        let mut finer: [Option<(u32, FinerCells)>; 8] = [None; 8];
         self.touching.clear();
-        leaves.for_each_leaf_touching(&region, |l| self.touching.push(l));
+        leaves.for_each_leaf_overlapping(&region, |l| self.touching.push(l));
         for i in 0..self.touching.len() {
             let l = self.touching[i];
             let lb = leaves.leaf_box(l);
-            if !lb.overlaps(&region) {
-                continue;
-            }
             // `region` is whole level cells, so this is the leaf's level box clipped to `g`.
             let part = lb.intersect(&region);
             let block = at_level.of(&part);
@@ -211,6 +211,20 @@ impl Neighbourhood {
                 }
                 Some((brick, lv)) if lv > level => {
                     self.set_block(&block, FINER);
+                    if block.num_cells() == Some(1) && region.contains_box(&lb) {
+                        // The whole leaf lies in one cell: its kept exact range is that of
+                        // its cells folded one by one.
+                        let (a, b) = leaves.exact_range(sampler, l)?;
+                        let i = g.linear_index(block.lo);
+                        // Comparisons, not f32::min, as in the fold.
+                        if a < self.lo[i] {
+                            self.lo[i] = a;
+                        }
+                        if b > self.hi[i] {
+                            self.hi[i] = b;
+                        }
+                        continue;
+                    }
                     let k = lv as usize % finer.len();
                     let map = match finer[k] {
                         Some((l, map)) if l == lv => map,
@@ -366,7 +380,7 @@ impl Neighbourhood {
     fn bound_finer<D: AsRef<[u8]>>(
         &mut self,
         sampler: &Sampler<'_, D>,
-        (cells, ratio): (LevelCells, [i64; 3]),
+        (cells, ratio): FinerCells,
         part: &IBox,
         brick: u32,
     ) -> Result<()> {

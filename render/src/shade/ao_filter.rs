@@ -29,6 +29,8 @@ pub const MARGIN: u32 = BEFORE;
 pub const FILTERED_HITS: usize = 2;
 /// Least cosine between the normals of two hits averaged together.
 const MIN_NORMAL_COSINE: f32 = 0.9;
+/// Least cosine between a hit's normal and its ray counted in the plane tolerance.
+const MIN_FACING: f32 = 0.2;
 /// Largest distance of a neighbour's hit from a hit's tangent plane, in pixel footprints at
 /// the hit per pixel of offset (at least one).
 const PLANE_TOLERANCE: f32 = 1.0;
@@ -105,7 +107,9 @@ impl AoBuffer {
 
     /// The filtered occlusion of `layer`, a hit in pixel `(x, y)`.
     fn filtered(&self, layer: &AoLayer, x: u32, y: u32, pixel_angle: f32) -> f32 {
-        let footprint = PLANE_TOLERANCE * norm(layer.p) * pixel_angle;
+        let distance = norm(layer.p);
+        let facing = (dot(layer.n, layer.p).abs() / distance).max(MIN_FACING);
+        let footprint = PLANE_TOLERANCE * distance * pixel_angle / (facing * facing);
         let (mut sum, mut count) = (0.0f32, 0u32);
         let (x0, x1) = (x.saturating_sub(BEFORE), (x + AFTER).min(self.width - 1));
         for qy in y.saturating_sub(BEFORE)..=(y + AFTER).min(self.height - 1) {

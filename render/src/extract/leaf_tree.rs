@@ -114,43 +114,30 @@ impl LeafTree {
     }
 
     /// Calls `f` with every leaf whose closed box touches the closed `region`.
-    pub fn for_each_leaf_touching(&self, region: &IBox, mut f: impl FnMut(u32)) {
-        let mut stack = [0u32; 64];
-        let mut top = usize::from(!self.nodes.is_empty());
-        while top > 0 {
-            top -= 1;
-            let node = &self.nodes[stack[top] as usize];
-            if !node.bounds.touches(region) {
-                continue;
-            }
-            match node.children {
-                // The tree is balanced: its depth stays far below the stack's size.
-                Some((a, b)) if top + 2 <= stack.len() => {
-                    stack[top] = b;
-                    stack[top + 1] = a;
-                    top += 2;
-                }
-                _ => {
-                    for &l in &self.order[node.first as usize..node.end as usize] {
-                        if self.boxes[l as usize].touches(region) {
-                            f(l);
-                        }
-                    }
-                }
-            }
-        }
+    pub fn for_each_leaf_touching(&self, region: &IBox, f: impl FnMut(u32)) {
+        self.for_each_leaf_meeting::<false>(region, f);
     }
 
     /// Calls `f` with every leaf whose box overlaps `region` (shares at least one cell): the
     /// leaves that only touch its faces, edges or corners, and the nodes holding only those, are
     /// not visited.
-    pub fn for_each_leaf_overlapping(&self, region: &IBox, mut f: impl FnMut(u32)) {
+    pub fn for_each_leaf_overlapping(&self, region: &IBox, f: impl FnMut(u32)) {
+        self.for_each_leaf_meeting::<true>(region, f);
+    }
+
+    /// Calls `f` with every leaf whose box overlaps `region` (`OVERLAP`) or touches it; nodes
+    /// that fail the same test are skipped whole.
+    fn for_each_leaf_meeting<const OVERLAP: bool>(&self, region: &IBox, mut f: impl FnMut(u32)) {
+        let meets = |b: &IBox| match OVERLAP {
+            true => b.overlaps(region),
+            false => b.touches(region),
+        };
         let mut stack = [0u32; 64];
         let mut top = usize::from(!self.nodes.is_empty());
         while top > 0 {
             top -= 1;
             let node = &self.nodes[stack[top] as usize];
-            if !node.bounds.overlaps(region) {
+            if !meets(&node.bounds) {
                 continue;
             }
             match node.children {
@@ -162,7 +149,7 @@ impl LeafTree {
                 }
                 _ => {
                     for &l in &self.order[node.first as usize..node.end as usize] {
-                        if self.boxes[l as usize].overlaps(region) {
+                        if meets(&self.boxes[l as usize]) {
                             f(l);
                         }
                     }

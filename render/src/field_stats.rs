@@ -59,24 +59,26 @@ impl FieldPercentiles {
     /// round-off (a millionth of their magnitude) of the smallest or the largest are left out, as
     /// a floor or a ceiling many cells sit on. `None` when nothing is left.
     pub fn median_off_plateaus(&self) -> Option<f64> {
-        let (&lo, &hi) = (self.sorted.first()?, self.sorted.last()?);
-        let above_floor = |v: f32| f64::from(v) > f64::from(lo) + 1e-6 * f64::from(lo.abs());
-        let below_ceiling = |v: f32| f64::from(v) < f64::from(hi) - 1e-6 * f64::from(hi.abs());
-        let first = self.sorted.partition_point(|&v| !above_floor(v));
-        let end = self.sorted.partition_point(|&v| below_ceiling(v));
+        let (floor, ceiling) = self.plateau_edges()?;
+        let first = self.sorted.partition_point(|&v| f64::from(v) <= floor);
+        let end = self.sorted.partition_point(|&v| f64::from(v) < ceiling);
         (first < end).then(|| f64::from(self.sorted[first + (end - 1 - first) / 2]))
     }
 
     /// True when `v` lies off the plateaus at the ends of the range (see
     /// [`FieldPercentiles::median_off_plateaus`]).
     pub fn off_plateaus(&self, v: f64) -> bool {
-        match (self.sorted.first(), self.sorted.last()) {
-            (Some(&lo), Some(&hi)) => {
-                let (lo, hi) = (f64::from(lo), f64::from(hi));
-                v > lo + 1e-6 * lo.abs() && v < hi - 1e-6 * hi.abs()
-            }
-            _ => false,
-        }
+        self.plateau_edges()
+            .is_some_and(|(floor, ceiling)| v > floor && v < ceiling)
+    }
+
+    /// The top of the floor plateau and the bottom of the ceiling plateau; `None` without values.
+    fn plateau_edges(&self) -> Option<(f64, f64)> {
+        let (lo, hi) = (
+            f64::from(*self.sorted.first()?),
+            f64::from(*self.sorted.last()?),
+        );
+        Some((lo + 1e-6 * lo.abs(), hi - 1e-6 * hi.abs()))
     }
 
     /// Values the distribution was computed from.

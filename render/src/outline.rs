@@ -91,9 +91,7 @@ impl LevelColors {
     /// hues that too few colours would be left to tell the levels apart, and a thin line is not
     /// taken for a painted surface.
     pub fn of_scene(scene: &Scene) -> LevelColors {
-        let mut painters = scene.color_by().iter().flatten();
-        let mut slice_painters = scene.slices().iter().map(|s| &s.1);
-        if painters.any(|b| *b == ColorBy::Level) || slice_painters.any(|b| *b == ColorBy::Level) {
+        if scene.painters().any(|b| *b == ColorBy::Level) {
             return LevelColors::categorical();
         }
         let mut avoid = vec![background_srgb8()];

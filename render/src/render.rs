@@ -152,14 +152,11 @@ fn with_scene_tracer<R>(
         method,
         (view, scene.clip()),
         |tracer, camera, light| {
-            if scene.color_by().iter().all(Option::is_none) && scene.slices().is_empty() {
+            if scene.painters().next().is_none() {
                 return Ok((run(tracer, camera, light), None));
             }
             let fields: Vec<&ColorBy> = scene
-                .color_by()
-                .iter()
-                .flatten()
-                .chain(scene.slices().iter().map(|s| &s.1))
+                .painters()
                 .filter(|b| matches!(b, ColorBy::Field(_)))
                 .collect();
             if let Some(other) = fields.iter().find(|b| **b != fields[0]) {

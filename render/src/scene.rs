@@ -359,6 +359,12 @@ impl Scene {
         &self.slices
     }
 
+    /// Everything that paints: the painted isosurfaces' painters, then the slices'.
+    pub fn painters(&self) -> impl Iterator<Item = &ColorBy> {
+        let surfaces = self.color_by.iter().flatten();
+        surfaces.chain(self.slices.iter().map(|s| &s.1))
+    }
+
     /// Paints the isosurfaces by data: `per_surface[i]` paints the `i`-th (`None` keeps its
     /// colour; surfaces past the list keep theirs). Opens a source for each field named.
     pub fn set_color_by(&mut self, per_surface: &[Option<ColorBy>]) -> Result<()> {

@@ -182,12 +182,7 @@ impl Legend {
                 entries.push((format!("level {l} boxes"), Some(swatch)));
             }
         }
-        let painters: Vec<&ColorBy> = scene
-            .color_by()
-            .iter()
-            .flatten()
-            .chain(scene.slices().iter().map(|s| &s.1))
-            .collect();
+        let painters: Vec<&ColorBy> = scene.painters().collect();
         let field_painter = painters.iter().find_map(|b| match b {
             ColorBy::Field(name) => Some(name.clone()),
             ColorBy::Level => None,

@@ -4,7 +4,7 @@
 use std::fs::File;
 use std::ops::Deref;
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use amr_format::{AmrkFile, FormatError, Result};
 use memmap2::{Advice, Mmap, UncheckedAdvice};
@@ -117,12 +117,16 @@ fn file_resident_bytes() -> Option<u64> {
 /// map's resident bytes are measured as the growth of the process's file-backed resident set
 /// (`/proc/self/statm`, a counter) since the last release, not by walking the map's page tables
 /// in `/proc/self/smaps`; file pages of other mappings faulted in meanwhile (program code)
-/// count too. The unmapping itself is split over the thread pool.
+/// count too. The first release measures the map exactly instead (`/proc/self/smaps`, once),
+/// because the first stage also faults in the program's own code for it; no measurement exceeds
+/// the map's size. The unmapping itself is split over the thread pool.
 pub struct PageRelease<'f> {
     file: &'f MappedFile,
     peak: AtomicU64,
     /// File-backed resident bytes of the process outside the map, as of the last release.
     others: AtomicU64,
+    /// Whether the next release reads the map's resident bytes from `/proc/self/smaps`.
+    exact_next: AtomicBool,
 }
 
 /// Bytes of the map unmapped by one `madvise` call of a release.
@@ -137,16 +141,23 @@ impl<'f> PageRelease<'f> {
             file,
             peak: AtomicU64::new(0),
             others: AtomicU64::new(others),
+            exact_next: AtomicBool::new(true),
         }
     }
 
     /// Drops every page of the map from the resident set; returns the bytes that were resident
     /// just before, when `/proc/self/statm` tells.
     pub fn release(&self) -> Option<u64> {
-        let others = self.others.load(Ordering::Relaxed);
-        let resident = file_resident_bytes()
-            .filter(|_| others != u64::MAX)
-            .map(|b| b.saturating_sub(others));
+        let map_len = self.file.bytes().len() as u64;
+        let resident = if self.exact_next.swap(false, Ordering::Relaxed) {
+            mapped_resident_bytes(self.file.bytes())
+        } else {
+            let others = self.others.load(Ordering::Relaxed);
+            file_resident_bytes()
+                .filter(|_| others != u64::MAX)
+                .map(|b| b.saturating_sub(others))
+        }
+        .map(|b| b.min(map_len));
         if let Some(b) = resident {
             self.peak.fetch_max(b, Ordering::Relaxed);
         }

@@ -85,7 +85,7 @@ impl fmt::Display for ExtractStats {
         if let Some(r) = self.resident_bytes {
             write!(
                 f,
-                ", {:.1} MiB of the {:.1} MiB map touched",
+                ", {:.1} MiB of map pages touched (summed over chunks of leaves; the map is {:.1} MiB)",
                 r as f64 / 1048576.0,
                 self.file_bytes as f64 / 1048576.0
             )?;

@@ -104,6 +104,7 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
             t,
             pos,
             grad: s.normal,
+            rising: den > 0.0,
             level,
             size: 1.0,
             r: u64::MAX,

@@ -91,10 +91,12 @@ impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {
         let size = (self.step * len).max(1e-9);
         let grad = self.src.gradient(pos, [0.5 * size; 3]).unwrap_or([0.0; 3]);
         let level = self.src.sample(pos).map_or(0, |s| s.1);
+        let rising = (0..3).map(|a| grad[a] * ray.d[a]).sum::<f64>() > 0.0;
         SurfaceHit {
             t,
             pos,
             grad,
+            rising,
             level,
             size,
             r: u64::MAX,

@@ -29,6 +29,8 @@
 //! - [`render_golden`]: a golden image.
 //! - [`render_ao_filter`]: the ambient occlusion filtered across pixels: less noise, and tiles
 //!   equal to the whole frame.
+//! - [`render_shading`]: coarse real data under smooth normals: no black silhouette pixels, no
+//!   self-shadow on a convex surface.
 //! - [`render_normals`]: smooth normals turn steadily across voxel faces and level boundaries,
 //!   equal the six-sample normals inside a level, and do not depend on the thread count.
 //! - [`render_clip`]: a clip box cuts surfaces open; view-limited extraction renders the view
@@ -65,6 +67,7 @@ mod render_bench;
 mod render_clip;
 mod render_golden;
 mod render_normals;
+mod render_shading;
 mod render_watertight;
 mod render_watertight_amrk;
 mod sample_scratch;

@@ -194,12 +194,10 @@ fn next_crossing<T: Tracer + ?Sized>(
     let per_t = grid_len(ray.d);
     let step = 1e-4 * hit.size / per_t;
     let same_crossing_within = 1e-2 * hit.size / per_t;
-    let side = dot(hit.grad, ray.d) > 0.0;
     let mut from = hit.t + step;
     loop {
         let next = tracer.next_hit(i, ray, from, tmax)?;
-        let duplicate =
-            next.t - hit.t < same_crossing_within && (dot(next.grad, ray.d) > 0.0) == side;
+        let duplicate = next.t - hit.t < same_crossing_within && next.rising == hit.rising;
         if !duplicate {
             return Some(next);
         }
@@ -234,6 +232,12 @@ struct Occlusion {
     weight: [f32; 3],
 }
 
+/// How far a shadow ray starts off the surface, in voxel sizes, where the key light grazes it
+/// (scaled by one minus the cosine): the interpolated surface of coarse cells is faceted under
+/// its smooth normals, and without the lift the facets shadow their own neighbours where the
+/// smooth shading still says lit, a staircase along the voxels at the shadow terminator.
+const TERMINATOR_LIFT: f64 = 0.25;
+
 /// The colour of a surface of colour `base` at `hit`, seen along `dir`.
 fn shade_hit<T: Tracer + ?Sized>(
     tracer: &T,
@@ -245,7 +249,10 @@ fn shade_hit<T: Tracer + ?Sized>(
     rng: &mut Rng,
 ) -> Shaded {
     let view = dir.map(|x| -x);
-    let nf = if dot(normal, view) < 0.0 {
+    // The normal on the side the ray came from, which the crossing's direction tells; not the
+    // one facing the viewer, which at a silhouette can be the inside when the smooth normal
+    // leans past the ray, and would send the shadow and AO rays into the surface (black pixels).
+    let nf = if hit.rising {
         normal.map(|x| -x)
     } else {
         normal
@@ -254,13 +261,14 @@ fn shade_hit<T: Tracer + ?Sized>(
     let spec = head.powi(48);
     let mut key = dot(nf, light.key_dir).max(0.0);
     if key > 0.0 && light.shadows {
-        key *= transmittance_towards(tracer, light, hit, nf, light.key_dir, f64::INFINITY);
+        let lift = TERMINATOR_LIFT * (1.0 - key) * hit.size;
+        key *= transmittance_towards(tracer, light, hit, nf, light.key_dir, f64::INFINITY, lift);
     }
     let ao = (light.ao_rays > 0).then(|| {
         let mut open = 0.0;
         let mut trace = |(u1, u2)| {
             let d = cosine_hemisphere(nf, u1, u2);
-            open += transmittance_towards(tracer, light, hit, nf, d, light.ao_distance);
+            open += transmittance_towards(tracer, light, hit, nf, d, light.ao_distance, 0.0);
         };
         if light.ao_filter {
             rng.ao_tile_pattern(light.ao_rays).for_each(&mut trace);
@@ -282,7 +290,8 @@ fn shade_hit<T: Tracer + ?Sized>(
 }
 
 /// Fraction of light reaching `hit` from direction `d` (world, unit) within `max_t`: the
-/// product of `1 - opacity` over the surfaces in the way.
+/// product of `1 - opacity` over the surfaces in the way, seen from `lift` grid units (besides
+/// a small fixed offset) off the surface along the normal `nf`.
 fn transmittance_towards<T: Tracer + ?Sized>(
     tracer: &T,
     light: &Lighting,
@@ -290,9 +299,10 @@ fn transmittance_towards<T: Tracer + ?Sized>(
     nf: [f64; 3],
     d: [f64; 3],
     max_t: f64,
+    lift: f64,
 ) -> f64 {
     let frame = tracer.frame();
-    let offset = 1e-3 * hit.size;
+    let offset = 1e-3 * hit.size + lift;
     let n_grid = [0, 1, 2].map(|a| nf[a] / frame.unit[a]);
     let n_len = grid_len(n_grid);
     let o = [0, 1, 2].map(|a| hit.pos[a] + n_grid[a] / n_len * offset);

@@ -12,8 +12,13 @@ pub struct SurfaceHit {
     pub t: f64,
     /// Hit position, grid coordinates.
     pub pos: [f64; 3],
-    /// Field gradient per grid unit (not normalized; may be zero).
+    /// Field gradient per grid unit (not normalized; may be zero): the shading normal.
     pub grad: [f64; 3],
+    /// Whether the field rises through the isovalue along the ray here: the crossing's
+    /// direction, from the surface the ray crossed (the hit voxel's own interpolant), so the
+    /// side the ray came from even where a smooth shading normal [`SurfaceHit::grad`] leans past
+    /// the ray at a silhouette.
+    pub rising: bool,
     /// AMR level of the voxel hit.
     pub level: u32,
     /// Size of the voxel hit (grid units), the scale for offsets that leave the surface.
@@ -87,6 +92,7 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
             .map(|a| h.voxel.hi[a] - h.voxel.lo[a])
             .fold(f64::INFINITY, f64::min);
         let mut grad = h.grid_gradient();
+        let rising = (0..3).map(|a| grad[a] * ray.d[a]).sum::<f64>() > 0.0;
         if self.smooth_normals {
             // The step depends on the level alone, not on the voxel's shape (an octant or a
             // merged dual cell), so that neighbouring hits of one level use the same step.
@@ -98,6 +104,7 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
             t: h.t,
             pos,
             grad,
+            rising,
             level: h.voxel.level,
             size,
             r: h.r,

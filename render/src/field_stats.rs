@@ -90,6 +90,27 @@ impl FieldPercentiles {
 /// `v` with about 5 significant digits: plain between 1e-3 and 1e6, scientific otherwise
 /// (`-6.6796e-33`, not 40 digits of zeros).
 pub fn format_value(v: f64) -> String {
+    format_significant(v, 5)
+}
+
+/// The labels of `values` (tick marks) by [`format_value`], with more significant digits
+/// where that would print two of them alike (ticks `1.00002` apart near 1).
+pub fn distinct_labels(values: &[f64]) -> Vec<String> {
+    let mut labels = Vec::new();
+    for digits in 5..=17 {
+        labels = values
+            .iter()
+            .map(|&v| format_significant(v, digits))
+            .collect();
+        if labels.windows(2).all(|w| w[0] != w[1]) {
+            break;
+        }
+    }
+    labels
+}
+
+/// `v` with about `digits` significant digits, as [`format_value`] prints it.
+fn format_significant(v: f64, digits: usize) -> String {
     if v == 0.0 {
         return "0".into();
     }
@@ -98,14 +119,15 @@ pub fn format_value(v: f64) -> String {
     }
     let a = v.abs();
     if (1e-3..1e6).contains(&a) {
-        let digits = (4 - a.log10().floor() as i32).max(0) as usize;
-        let s = format!("{v:.digits$}");
+        let decimals = (digits as i32 - 1 - a.log10().floor() as i32).max(0) as usize;
+        let s = format!("{v:.decimals$}");
         match s.contains('.') {
             true => s.trim_end_matches('0').trim_end_matches('.').to_string(),
             false => s,
         }
     } else {
-        let s = format!("{v:.4e}");
+        let mantissa = digits.saturating_sub(1);
+        let s = format!("{v:.mantissa$e}");
         let (m, e) = s.split_once('e').unwrap_or((&s, "0"));
         let m = match m.contains('.') {
             true => m.trim_end_matches('0').trim_end_matches('.'),
@@ -131,5 +153,15 @@ mod tests {
         assert_eq!(format_value(855399.2), "855399");
         assert_eq!(format_value(2.5e7), "2.5e7");
         assert_eq!(format_value(0.0), "0");
+    }
+
+    #[test]
+    fn tick_labels_are_told_apart() {
+        assert_eq!(distinct_labels(&[0.0, 2.5, 5.0]), ["0", "2.5", "5"]);
+        assert_eq!(
+            distinct_labels(&[1.0, 1.00002, 1.00004]),
+            ["1", "1.00002", "1.00004"]
+        );
+        assert_eq!(distinct_labels(&[2e7, 2.00001e7]), ["2e7", "2.00001e7"]);
     }
 }

@@ -7,7 +7,7 @@ use ab_glyph::{point, Font, FontRef, PxScale, ScaleFont};
 use crate::camera::Camera;
 use crate::coloring::ColorBy;
 use crate::colormap::{level_srgb8, Colormap};
-use crate::field_stats::format_value;
+use crate::field_stats::{distinct_labels, format_value};
 use crate::outline::{LevelColors, Outline};
 use crate::render::Rendered;
 use crate::scene::Scene;
@@ -49,6 +49,10 @@ pub struct Legend {
     pub camera: Option<Camera>,
 }
 
+/// Colour and opacity of the panels behind the legend's text.
+const PANEL: [u8; 3] = [24, 24, 24];
+const PANEL_ALPHA: f32 = 0.55;
+
 /// An RGB8 image being drawn on.
 struct Canvas<'a> {
     rgb: &'a mut [u8],
@@ -74,6 +78,14 @@ impl Canvas<'_> {
                 self.blend(x, y, c, a);
             }
         }
+    }
+
+    /// Darkens the box `(x0, y0)`-`(x1, y1)` with a margin of `pad`, so that the light text
+    /// drawn on it reads over box lines and bright surfaces alike.
+    fn panel(&mut self, (x0, y0): (f32, f32), (x1, y1): (f32, f32), pad: f32) {
+        let (x0, y0) = ((x0 - pad) as i64, (y0 - pad) as i64);
+        let (x1, y1) = ((x1 + pad).ceil() as i64, (y1 + pad).ceil() as i64);
+        self.rect(x0, y0, x1 - x0, y1 - y0, PANEL, PANEL_ALPHA);
     }
 
     fn line(&mut self, a: (f64, f64), b: (f64, f64), c: [u8; 3], width: i64) {
@@ -217,6 +229,16 @@ impl Legend {
         let mut canvas = Canvas { rgb, w, h };
         let m = px;
         let line = px * 1.3;
+        let swatch_w = px * 1.2;
+        let entries_w = self
+            .entries
+            .iter()
+            .map(|(s, sw)| text.width(s) + if sw.is_some() { swatch_w } else { 0.0 })
+            .fold(0.0, f32::max);
+        if !self.entries.is_empty() {
+            let bottom = m + (self.entries.len() as f32 - 1.0) * line + px * 1.2;
+            canvas.panel((m, m), (m + entries_w, bottom), px * 0.4);
+        }
         for (k, (s, swatch)) in self.entries.iter().enumerate() {
             let y = m + k as f32 * line;
             let mut x = m;
@@ -242,7 +264,7 @@ impl Legend {
                 None => {}
             }
             if swatch.is_some() {
-                x += px * 1.2;
+                x += swatch_w;
             }
             text.draw(&mut canvas, s, x, y);
         }
@@ -252,6 +274,8 @@ impl Legend {
             let labels: Vec<String> = (0..n).map(|l| format!("level {l}")).collect();
             let tw = labels.iter().map(|s| text.width(s)).fold(0.0, f32::max);
             let x = w as f32 - m - tw - px * 1.2;
+            let bottom = m + (n as f32 - 1.0) * line + px * 1.2;
+            canvas.panel((x, m), (w as f32 - m, bottom), px * 0.4);
             for (l, s) in labels.iter().enumerate() {
                 let y = m + l as f32 * line;
                 let side = (0.8 * px) as i64;
@@ -275,7 +299,8 @@ impl Legend {
         let (w, h) = (canvas.w as f32, canvas.h as f32);
         let px = text.px;
         let ticks = ticks(bar.range, bar.log);
-        let labels: Vec<(f64, String)> = ticks.iter().map(|&v| (v, format_value(v))).collect();
+        let labels: Vec<(f64, String)> =
+            ticks.iter().copied().zip(distinct_labels(&ticks)).collect();
         let label_w = labels.iter().map(|l| text.width(&l.1)).fold(0.0, f32::max);
         let bar_w = (w / 60.0).max(10.0);
         let title = match bar.log {
@@ -285,12 +310,9 @@ impl Legend {
         let right = w - px;
         let x0 = (right - label_w - px * 0.5 - bar_w).min(right - text.width(&title));
         let (y0, y1) = (h * 0.2, h * 0.8);
-        text.draw(
-            canvas,
-            &title,
-            x0.min(right - text.width(&title)),
-            y0 - px * 1.6,
-        );
+        let title_x = x0.min(right - text.width(&title));
+        canvas.panel((title_x, y0 - px * 1.6), (right, y1 + px * 0.6), px * 0.4);
+        text.draw(canvas, &title, title_x, y0 - px * 1.6);
         let position = |v: f64| {
             crate::coloring::ColorScale {
                 colormap: bar.colormap,

@@ -57,6 +57,7 @@ const BAND_PIXELS: u64 = 1 << 16;
 
 /// Renders a frame; calls `progress(rows_done)` after each row. Returns the frame and the number
 /// of ray queries (one per ray and isosurface).
+#[inline(never)]
 pub fn render_frame<T: Tracer + Sync + ?Sized>(
     tracer: &T,
     camera: &Camera,

@@ -1,5 +1,7 @@
 //! The rendered frame: one plane per output channel.
 
+use rayon::prelude::*;
+
 /// What one pixel sample produced.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PixelSample {
@@ -59,30 +61,71 @@ pub struct FrameBuffer {
 }
 
 impl FrameBuffer {
-    /// A frame of `width x height` pixels from its rows of samples, top row first.
+    /// A frame of `width x height` pixels from its samples, row-major from the top row (rows
+    /// copied in parallel).
     pub fn from_pixels(
         width: u32,
         height: u32,
         pixels: &[PixelSample],
         p_origin: [f64; 3],
     ) -> FrameBuffer {
-        let plane = |f: &dyn Fn(&PixelSample) -> f32| pixels.iter().map(f).collect::<Vec<f32>>();
+        assert_eq!(pixels.len(), width as usize * height as usize);
+        let mut frame = FrameBuffer::zeroed(width, height, p_origin);
+        frame
+            .rows_mut()
+            .into_par_iter()
+            .zip(pixels.par_chunks(width.max(1) as usize))
+            .for_each(|(mut row, px)| row.set_all(px));
+        frame
+    }
+
+    /// A frame of `width x height` pixels, every channel zero (the planes are allocated zeroed,
+    /// so their pages are first touched by whoever writes them).
+    pub fn zeroed(width: u32, height: u32, p_origin: [f64; 3]) -> FrameBuffer {
+        let n = width as usize * height as usize;
+        let plane = || vec![0.0f32; n];
         FrameBuffer {
             width,
             height,
-            rgb: [
-                plane(&|s| s.rgb[0]),
-                plane(&|s| s.rgb[1]),
-                plane(&|s| s.rgb[2]),
-            ],
-            alpha: plane(&|s| s.alpha),
-            z: plane(&|s| s.z),
-            n: [plane(&|s| s.n[0]), plane(&|s| s.n[1]), plane(&|s| s.n[2])],
-            p: [plane(&|s| s.p[0]), plane(&|s| s.p[1]), plane(&|s| s.p[2])],
-            level: plane(&|s| s.level),
-            color_value: plane(&|s| s.color_value),
+            rgb: [plane(), plane(), plane()],
+            alpha: plane(),
+            z: plane(),
+            n: [plane(), plane(), plane()],
+            p: [plane(), plane(), plane()],
+            level: plane(),
+            color_value: plane(),
             p_origin,
         }
+    }
+
+    /// Every row's slice of every channel, top row first: rows can be written in parallel.
+    pub fn rows_mut(&mut self) -> Vec<RowPlanes<'_>> {
+        let w = self.width.max(1) as usize;
+        let h = self.height as usize;
+        let [r, g, b] = &mut self.rgb;
+        let [nx, ny, nz] = &mut self.n;
+        let [px, py, pz] = &mut self.p;
+        let mut planes = [
+            r,
+            g,
+            b,
+            &mut self.alpha,
+            &mut self.z,
+            nx,
+            ny,
+            nz,
+            px,
+            py,
+            pz,
+            &mut self.level,
+            &mut self.color_value,
+        ]
+        .map(|p| p.chunks_mut(w));
+        (0..h)
+            .map(|_| RowPlanes {
+                planes: std::array::from_fn(|i| planes[i].next().unwrap_or_default()),
+            })
+            .collect()
     }
 
     /// Number of pixels.
@@ -98,5 +141,38 @@ impl FrameBuffer {
     /// Number of pixels with coverage.
     pub fn covered(&self) -> usize {
         self.alpha.iter().filter(|&&a| a > 0.0).count()
+    }
+}
+
+/// One row of every channel of a [`FrameBuffer`], in the order R, G, B, A, Z, N.X/Y/Z,
+/// P.X/Y/Z, level, painted value.
+#[derive(Debug)]
+pub struct RowPlanes<'a> {
+    planes: [&'a mut [f32]; 13],
+}
+
+impl RowPlanes<'_> {
+    /// Writes the row's pixels from `pixels`, its samples from the left.
+    pub fn set_all(&mut self, pixels: &[PixelSample]) {
+        for (x, s) in pixels.iter().enumerate() {
+            let values = [
+                s.rgb[0],
+                s.rgb[1],
+                s.rgb[2],
+                s.alpha,
+                s.z,
+                s.n[0],
+                s.n[1],
+                s.n[2],
+                s.p[0],
+                s.p[1],
+                s.p[2],
+                s.level,
+                s.color_value,
+            ];
+            for (plane, v) in self.planes.iter_mut().zip(values) {
+                plane[x] = v;
+            }
+        }
     }
 }

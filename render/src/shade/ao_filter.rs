@@ -14,8 +14,6 @@
 //! ([`crate::shade::sampling::TILE`]): on a smooth surface it averages each stratum of the
 //! pattern once.
 
-use rayon::prelude::*;
-
 use crate::output::frame::PixelSample;
 use crate::shade::sampling::TILE;
 
@@ -50,59 +48,67 @@ pub struct AoLayer {
     pub weight: [f32; 3],
 }
 
-/// The filtered hits of a rectangle of pixels, row-major: pixel `i`'s are
-/// `layers[start[i]..start[i + 1]]`.
+/// The filtered hits of one row of pixels: pixel `x`'s are `layers[start[x]..start[x + 1]]`.
 #[derive(Clone, Debug, Default)]
-pub struct AoBuffer {
-    width: u32,
-    height: u32,
+pub struct AoRow {
     start: Vec<u32>,
     layers: Vec<AoLayer>,
 }
 
-impl AoBuffer {
-    /// A buffer for `width x height` pixels, to be filled pixel by pixel in row-major order.
-    pub fn new(width: u32, height: u32) -> AoBuffer {
-        let mut start = Vec::with_capacity(width as usize * height as usize + 1);
-        start.push(0);
-        AoBuffer {
-            width,
-            height,
-            start,
+impl AoRow {
+    /// An empty row, to be filled pixel by pixel from the left.
+    pub fn new() -> AoRow {
+        AoRow {
+            start: vec![0],
             layers: Vec::new(),
         }
     }
 
-    /// Appends the next pixel's hits.
-    pub fn push_pixel(&mut self, layers: &[AoLayer]) {
-        self.layers.extend_from_slice(layers);
+    /// The hits recorded so far, to which the next pixel appends its own before
+    /// [`AoRow::end_pixel`].
+    pub fn layers_mut(&mut self) -> &mut Vec<AoLayer> {
+        &mut self.layers
+    }
+
+    /// Ends the current pixel: the hits appended since the last call are its.
+    pub fn end_pixel(&mut self) {
         self.start.push(self.layers.len() as u32);
     }
 
-    fn pixel(&self, x: u32, y: u32) -> &[AoLayer] {
-        let i = (y * self.width + x) as usize;
-        &self.layers[self.start[i] as usize..self.start[i + 1] as usize]
+    fn pixel(&self, x: u32) -> &[AoLayer] {
+        let x = x as usize;
+        &self.layers[self.start[x] as usize..self.start[x + 1] as usize]
+    }
+}
+
+/// The filtered hits of a rectangle of pixels, one [`AoRow`] per row from the top.
+#[derive(Clone, Copy, Debug)]
+pub struct AoRows<'a> {
+    width: u32,
+    rows: &'a [AoRow],
+}
+
+impl<'a> AoRows<'a> {
+    /// The rows `rows` of a rectangle `width` pixels wide (each row holding `width` pixels).
+    pub fn new(width: u32, rows: &'a [AoRow]) -> AoRows<'a> {
+        assert!(rows.iter().all(|r| r.start.len() == width as usize + 1));
+        AoRows { width, rows }
     }
 
-    /// Replaces the occlusion of every hit by the filtered one in the colour of `pixels` (the
-    /// same rectangle, row-major). `pixel_angle` is the angle one pixel spans (radians).
-    pub fn apply(&self, pixels: &mut [PixelSample], pixel_angle: f32) {
-        assert_eq!(pixels.len() + 1, self.start.len());
-        let w = self.width as usize;
-        pixels
-            .par_chunks_mut(w.max(1))
-            .enumerate()
-            .for_each(|(y, row)| {
-                for (x, px) in row.iter_mut().enumerate() {
-                    let (x, y) = (x as u32, y as u32);
-                    for layer in self.pixel(x, y) {
-                        let ao = self.filtered(layer, x, y, pixel_angle);
-                        for c in 0..3 {
-                            px.rgb[c] += layer.weight[c] * (ao - layer.ao);
-                        }
-                    }
+    /// Replaces the occlusion of every hit of row `y` by the filtered one in the colour of
+    /// `pixels` (that row). `pixel_angle` is the angle one pixel spans (radians). Each row
+    /// reads the others only, so rows can be filtered in any order and in parallel.
+    pub fn apply_row(&self, y: u32, pixels: &mut [PixelSample], pixel_angle: f32) {
+        assert_eq!(pixels.len(), self.width as usize);
+        for (x, px) in pixels.iter_mut().enumerate() {
+            let x = x as u32;
+            for layer in self.rows[y as usize].pixel(x) {
+                let ao = self.filtered(layer, x, y, pixel_angle);
+                for c in 0..3 {
+                    px.rgb[c] += layer.weight[c] * (ao - layer.ao);
                 }
-            });
+            }
+        }
     }
 
     /// The filtered occlusion of `layer`, a hit in pixel `(x, y)`.
@@ -112,16 +118,13 @@ impl AoBuffer {
         let footprint = PLANE_TOLERANCE * distance * pixel_angle / (facing * facing);
         let (mut sum, mut count) = (0.0f32, 0u32);
         let (x0, x1) = (x.saturating_sub(BEFORE), (x + AFTER).min(self.width - 1));
-        for qy in y.saturating_sub(BEFORE)..=(y + AFTER).min(self.height - 1) {
-            let row = (qy * self.width) as usize;
+        let last_row = self.rows.len() as u32 - 1;
+        for qy in y.saturating_sub(BEFORE)..=(y + AFTER).min(last_row) {
+            let row = &self.rows[qy as usize];
             let dy = qy.abs_diff(y);
             for qx in x0..=x1 {
                 let offset = qx.abs_diff(x).max(dy).max(1) as f32;
-                let (first, last) = (
-                    self.start[row + qx as usize],
-                    self.start[row + qx as usize + 1],
-                );
-                for q in &self.layers[first as usize..last as usize] {
+                for q in row.pixel(qx) {
                     if q.surface == layer.surface
                         && dot(q.n, layer.n) >= MIN_NORMAL_COSINE
                         && dot(layer.n, sub(q.p, layer.p)).abs() <= footprint * offset
@@ -168,8 +171,7 @@ mod tests {
 
     #[test]
     fn averages_a_plane_and_keeps_other_surfaces_and_planes_apart() {
-        let (w, h) = (5, 1);
-        let mut buf = AoBuffer::new(w, h);
+        let mut row = AoRow::new();
         let facing = [0.0, 0.0, -1.0];
         // A plane at z = 1 seen head on, with one pixel of another surface and one far behind.
         let rows = [
@@ -180,10 +182,12 @@ mod tests {
             vec![],
         ];
         for r in &rows {
-            buf.push_pixel(r);
+            row.layers_mut().extend_from_slice(r);
+            row.end_pixel();
         }
+        let rows = [row];
         let mut pixels = vec![PixelSample::MISS; 5];
-        buf.apply(&mut pixels, 0.01);
+        AoRows::new(5, &rows).apply_row(0, &mut pixels, 0.01);
         assert_eq!(pixels[0].rgb[0], 0.5 - 1.0);
         assert_eq!(pixels[1].rgb[0], 0.5);
         assert_eq!(pixels[2].rgb[0], 0.0);

@@ -312,7 +312,14 @@ fn transmittance_towards<T: Tracer + ?Sized>(
     };
     let tmin = 1e-3 * hit.size / grid_len(ray.d);
     let mut t = 1.0;
-    for s in 0..tracer.num_surfaces() {
+    // Opaque surfaces first: one in the way ends the search. The transparent surfaces' factors
+    // are multiplied in the same order either way, so the result does not change.
+    let n = tracer.num_surfaces();
+    let opaque = |s: usize| light.opacity[s] >= 1.0;
+    let order = (0..n)
+        .filter(|&s| opaque(s))
+        .chain((0..n).filter(|&s| !opaque(s)));
+    for s in order {
         if tracer.occluded(s, &ray, tmin, max_t) {
             t *= 1.0 - f64::from(light.opacity[s]);
             if t == 0.0 {

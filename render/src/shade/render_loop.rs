@@ -7,7 +7,7 @@ use rayon::prelude::*;
 
 use crate::camera::{Camera, PixelDirs};
 use crate::output::frame::{FrameBuffer, PixelSample};
-use crate::shade::ao_filter::{self, AoBuffer, AoLayer};
+use crate::shade::ao_filter::{self, AoLayer, AoRow, AoRows};
 use crate::shade::integrate::{shade_ray, Lighting, SearchHint};
 use crate::shade::sampling::Rng;
 use crate::trace::ray::GridRay;
@@ -57,6 +57,7 @@ const BAND_PIXELS: u64 = 1 << 16;
 
 /// Renders a frame; calls `progress(rows_done)` after each row. Returns the frame and the number
 /// of ray queries (one per ray and isosurface).
+#[inline(never)]
 pub fn render_frame<T: Tracer + Sync + ?Sized>(
     tracer: &T,
     camera: &Camera,
@@ -80,11 +81,13 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
         rows.extend(part);
         tracer.release_pages();
     }
-    let (pixels, rays) = finish(rows, camera, light, settings, (w, h));
-    (
-        FrameBuffer::from_pixels(w, h, &pixels, tracer.frame().origin),
-        rays,
-    )
+    let rays = rows.iter().map(|r| r.rays).sum();
+    let mut frame = FrameBuffer::zeroed(w, h, tracer.frame().origin);
+    let out = frame.rows_mut();
+    finish(rows, camera, light, settings, w, out, |mut out, pixels| {
+        out.set_all(pixels)
+    });
+    (frame, rays)
 }
 
 /// Renders the rectangle of `settings`' frame with lower corner `(x0, y0)` and size `w x h` (rows
@@ -112,21 +115,30 @@ pub fn render_rect<T: Tracer + Sync + ?Sized>(
         .into_par_iter()
         .map(|y| render_row(tracer, camera, light, settings, (mx0..mx1, y)))
         .collect();
-    let (mw, mh) = (mx1 - mx0, my1 - my0);
-    let (pixels, rays) = finish(rows, camera, light, settings, (mw, mh));
-    let mut out = Vec::with_capacity(w as usize * h as usize);
-    for y in y0 - my0..y0 - my0 + h {
-        let first = (y * mw + (x0 - mx0)) as usize;
-        out.extend_from_slice(&pixels[first..first + w as usize]);
+    let rays = rows.iter().map(|r| r.rays).sum();
+    let mw = mx1 - mx0;
+    let (cut_x, cut_y) = ((x0 - mx0) as usize, (y0 - my0) as usize);
+    let mut out = vec![PixelSample::MISS; w as usize * h as usize];
+    // One slot per rendered row: the rows of the margin write nowhere.
+    let mut slots: Vec<Option<&mut [PixelSample]>> = (0..my1 - my0).map(|_| None).collect();
+    for (slot, dst) in slots[cut_y..]
+        .iter_mut()
+        .zip(out.chunks_mut(w.max(1) as usize))
+    {
+        *slot = Some(dst);
     }
+    finish(rows, camera, light, settings, mw, slots, |slot, pixels| {
+        if let Some(dst) = slot {
+            dst.copy_from_slice(&pixels[cut_x..cut_x + dst.len()]);
+        }
+    });
     (out, rays)
 }
 
 /// One rendered row: its pixels, the hits of each to filter, and its ray queries.
 struct Row {
     pixels: Vec<PixelSample>,
-    ao_counts: Vec<u8>,
-    ao_layers: Vec<AoLayer>,
+    ao: AoRow,
     rays: u64,
 }
 
@@ -151,54 +163,50 @@ fn render_row<T: Tracer + ?Sized>(
     let record = filters(light, settings);
     let mut row = Row {
         pixels: Vec::with_capacity(xs.len()),
-        ao_counts: Vec::new(),
-        ao_layers: Vec::new(),
+        ao: AoRow::new(),
         rays: 0,
     };
     let mut hint = SearchHint::default();
     let dirs = camera.pixel_dirs(settings.width, settings.height);
     for x in xs {
-        let before = row.ao_layers.len();
-        let layers = record.then_some(&mut row.ao_layers);
+        let layers = record.then_some(row.ao.layers_mut());
         let px = pixel(&counting, &dirs, light, (x, y), settings, &mut hint, layers);
         row.pixels.push(px);
         if record {
-            row.ao_counts.push((row.ao_layers.len() - before) as u8);
+            row.ao.end_pixel();
         }
     }
     row.rays = counting.rays.get();
     row
 }
 
-/// The pixels of `rows` (a `w x h` rectangle), the ambient occlusion filtered, and the ray
-/// queries they took.
-fn finish(
+/// Hands each of `rows` (a rectangle `w` pixels wide, top row first) to `write` with its
+/// destination in `out` (one per row), its ambient occlusion filtered first; rows in parallel.
+fn finish<O: Send>(
     rows: Vec<Row>,
     camera: &Camera,
     light: &Lighting,
     settings: RenderSettings,
-    (w, h): (u32, u32),
-) -> (Vec<PixelSample>, u64) {
-    let rays = rows.iter().map(|r| r.rays).sum();
-    let mut ao = filters(light, settings).then(|| AoBuffer::new(w, h));
-    let mut pixels = Vec::with_capacity(w as usize * h as usize);
-    for row in rows {
-        if let Some(ao) = ao.as_mut() {
-            let mut layers = row.ao_layers.as_slice();
-            for &n in &row.ao_counts {
-                let (these, rest) = layers.split_at(usize::from(n));
-                ao.push_pixel(these);
-                layers = rest;
+    w: u32,
+    out: Vec<O>,
+    write: impl Fn(O, &[PixelSample]) + Sync,
+) {
+    assert_eq!(rows.len(), out.len());
+    let (pixels, ao): (Vec<Vec<PixelSample>>, Vec<AoRow>) =
+        rows.into_iter().map(|r| (r.pixels, r.ao)).unzip();
+    let filter = filters(light, settings).then(|| AoRows::new(w, &ao));
+    let pixel_angle =
+        (2.0 * (0.5 * camera.fov_deg).to_radians().tan() / f64::from(settings.height)) as f32;
+    pixels
+        .into_par_iter()
+        .zip(out)
+        .enumerate()
+        .for_each(|(y, (mut px, out))| {
+            if let Some(f) = &filter {
+                f.apply_row(y as u32, &mut px, pixel_angle);
             }
-        }
-        pixels.extend(row.pixels);
-    }
-    if let Some(ao) = ao {
-        let pixel_angle =
-            2.0 * (0.5 * camera.fov_deg).to_radians().tan() / f64::from(settings.height);
-        ao.apply(&mut pixels, pixel_angle as f32);
-    }
-    (pixels, rays)
+            write(out, &px);
+        });
 }
 
 /// Pixel `(x, y)`: the average of its samples; with `ao_layers`, its hits to filter are appended.

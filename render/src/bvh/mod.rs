@@ -417,6 +417,13 @@ impl OctantBvh {
     /// (the `node_test` module). A `-0.0` in the direction is taken as `+0.0`.
     #[inline]
     pub fn traverse(&self, ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
+        self.traverse_indexed(ray, |_, r, tmax| visit(r, tmax));
+    }
+
+    /// [`OctantBvh::traverse`] telling `visit` also where each ref is in [`OctantBvh::refs`]:
+    /// `visit(i, refs()[i], &mut tmax)`.
+    #[inline]
+    pub fn traverse_indexed(&self, ray: Ray, mut visit: impl FnMut(usize, u64, &mut f32) -> bool) {
         let mut ray = positive_zeros(ray);
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -430,13 +437,17 @@ impl OctantBvh {
     /// [`OctantBvh::traverse`] as on a CPU without AVX2 (obvhs's node test), to compare the two.
     pub fn traverse_portable(&self, ray: Ray, mut visit: impl FnMut(u64, &mut f32) -> bool) {
         let mut ray = positive_zeros(ray);
-        self.traverse_with(&mut ray, &mut visit, node_test::hits_portable);
+        self.traverse_with(
+            &mut ray,
+            &mut |_, r, tmax: &mut f32| visit(r, tmax),
+            node_test::hits_portable,
+        );
     }
 
-    /// [`OctantBvh::traverse`] with the AVX2 node test, the whole walk compiled for AVX2.
+    /// [`OctantBvh::traverse_indexed`] with the AVX2 node test, the whole walk compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn traverse_avx2(&self, ray: &mut Ray, visit: &mut impl FnMut(u64, &mut f32) -> bool) {
+    fn traverse_avx2(&self, ray: &mut Ray, visit: &mut impl FnMut(usize, u64, &mut f32) -> bool) {
         let consts = node_test::Avx2Ray::new(ray, node_test::octant_inv4(ray.direction));
         self.traverse_with(ray, visit, |node, ray, _| consts.hits(node, ray.tmax));
     }
@@ -446,7 +457,7 @@ impl OctantBvh {
     fn traverse_with(
         &self,
         ray: &mut Ray,
-        visit: &mut impl FnMut(u64, &mut f32) -> bool,
+        visit: &mut impl FnMut(usize, u64, &mut f32) -> bool,
         test: impl Fn(&CwBvhNode, &Ray, u32) -> u32 + Copy,
     ) {
         let oct = node_test::octant_inv4(ray.direction);
@@ -474,11 +485,12 @@ impl OctantBvh {
         oct: u32,
         stack: &mut Stack,
         test: impl Fn(&CwBvhNode, &Ray, u32) -> u32,
-        visit: &mut impl FnMut(u64, &mut f32) -> bool,
+        visit: &mut impl FnMut(usize, u64, &mut f32) -> bool,
     ) -> bool {
         let refs = &self.refs[chunk.first..chunk.first + chunk.len];
         walk(&chunk.bvh.nodes, ray, oct, stack, test, |i, ray, _| {
-            visit(refs[i as usize], &mut ray.tmax)
+            let i = i as usize;
+            visit(chunk.first + i, refs[i], &mut ray.tmax)
         })
     }
 

@@ -5,6 +5,7 @@ pub mod clipped;
 pub mod cubic;
 pub mod face;
 pub mod field_source;
+mod last_hit;
 pub mod octant;
 pub mod ray;
 pub mod source;

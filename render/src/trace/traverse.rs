@@ -2,6 +2,7 @@
 //! the exact `f64` intersection decides.
 
 use crate::bvh::{BvhBuilder, OctantBvh};
+use crate::trace::last_hit::{self, Query};
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
 
@@ -104,6 +105,12 @@ impl Surface {
     }
 
     /// The first hit with `t` in `[tmin, tmax]`.
+    ///
+    /// For a query from the ray's origin (`tmin <= 0`: primary rays), the voxel of this thread's
+    /// last such hit on this surface is tested before the walk while such hits keep repeating
+    /// voxels ([`last_hit`]): the walk then starts with `tmax` at its hit and enters nothing
+    /// behind it. The hit is the nearest of all candidates either way. Queries that continue
+    /// behind a hit (`tmin > 0`) have left that voxel, and neither use nor change the memory.
     pub fn closest_hit<S: VoxelSource + ?Sized>(
         &self,
         src: &S,
@@ -115,14 +122,18 @@ impl Surface {
         let pad = bvh_pad(&frame);
         let b = ray.bvh_ray(&frame, pad, tmin, tmax)?;
         let slack = 4.0 * pad;
+        let key = (tmin <= 0.0).then(|| last_hit::key(self, Query::Closest));
+        let seed = key.and_then(|key| self.seed(key));
         let mut best: Option<Hit> = None;
+        let mut best_at = usize::MAX;
         let mut best_t = tmax;
         src.with_voxels(&mut |voxel_of| {
-            self.bvh.traverse(b.ray, |r, tmax32| {
+            let mut test = |at: usize, r: u64, tmax32: &mut f32| {
                 let voxel = voxel_of(r);
                 if let Some(h) = src.intersect(&voxel, self.iso, ray, tmin, best_t) {
                     if h.t < best_t || best.is_none() {
                         best_t = h.t;
+                        best_at = at;
                         best = Some(Hit {
                             t: h.t,
                             r,
@@ -132,9 +143,22 @@ impl Surface {
                         *tmax32 = ((h.t - b.t_off) * b.scale + slack) as f32;
                     }
                 }
+            };
+            let mut ray32 = b.ray;
+            if let Some((at, r)) = seed {
+                test(at, r, &mut ray32.tmax);
+            }
+            let skip = seed.map_or(usize::MAX, |(at, _)| at);
+            self.bvh.traverse_indexed(ray32, |at, r, tmax32| {
+                if at != skip {
+                    test(at, r, tmax32);
+                }
                 false
             })
         });
+        if let Some(key) = key {
+            last_hit::record(key, best.is_some().then_some(best_at));
+        }
         best
     }
 
@@ -163,5 +187,15 @@ impl Surface {
             })
         });
         hit
+    }
+
+    /// The position and ref of the voxel to test before the walk, if this thread remembers one
+    /// for `key` with confidence and it is one of this surface's.
+    #[inline]
+    fn seed(&self, key: usize) -> Option<(usize, u64)> {
+        match last_hit::recall(key)? {
+            (at, true) => Some((at, *self.bvh.refs().get(at)?)),
+            _ => None,
+        }
     }
 }

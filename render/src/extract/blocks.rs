@@ -196,6 +196,144 @@ impl BlockRanges {
     }
 }
 
+impl BlockRanges {
+    /// [`Self::bound_in`] of every box `axes[0][i] x axes[1][j] x axes[2][k]` of finest-level
+    /// intervals (`lo..hi`; an interval with `hi <= lo` is empty), folded into `out[(k * nj + j)
+    /// * ni + i]`, for a box lying in brick `brick` (of level `level`); false, with nothing
+    /// folded, when the tables are not stored or not [`Self::loose`] (its `range_in` would scan).
+    ///
+    /// A box's blocks are the product of one block interval per axis, so the union is taken one
+    /// axis at a time over whole rows of boxes: a block is read once per row, not once per box
+    /// overlapping it, which is what neighbouring boxes grown by a cell share.
+    pub fn bound_grid<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        (brick, level): (u32, u32),
+        axes: [&[(i64, i64)]; 3],
+        (scratch, out): (&mut GridScratch, &mut [(f32, f32)]),
+    ) -> bool {
+        let Some(block) = self.stored.filter(|_| self.loose) else {
+            return false;
+        };
+        let bc = sampler.brick_cells(brick);
+        let grid = sampler.grid();
+        let (s, o) = (grid.scale(level), grid.offset());
+        let mut n = [0usize; 3];
+        let GridScratch {
+            spans,
+            along_x,
+            along_y,
+        } = scratch;
+        let mut union = [(usize::MAX, 0usize); 3];
+        for a in 0..3 {
+            n[a] = floor_div1(bc.hi[a] - bc.lo[a] + block - 1, block).max(0) as usize;
+            spans[a].clear();
+            spans[a].extend(axes[a].iter().map(|&(lo, hi)| {
+                if hi <= lo {
+                    return None;
+                }
+                let first = floor_div1(lo + o[a], s[a]).max(bc.lo[a]);
+                let end = floor_div1(hi + o[a] + s[a] - 1, s[a]).min(bc.hi[a]);
+                (first < end).then(|| {
+                    (
+                        floor_div1(first - bc.lo[a], block) as usize,
+                        floor_div1(end - bc.lo[a] + block - 1, block) as usize,
+                    )
+                })
+            }));
+            for &(lo, hi) in spans[a].iter().flatten() {
+                union[a] = (union[a].0.min(lo), union[a].1.max(hi));
+            }
+            if union[a].0 >= union[a].1 {
+                return true;
+            }
+        }
+        let table = sampler
+            .file()
+            .block_ranges(sampler.field(), brick as usize)
+            .unwrap_or_default();
+        let empty = (f32::INFINITY, f32::NEG_INFINITY);
+        let (ni, nj) = (axes[0].len(), axes[1].len());
+        // Per axis, the boxes from the first to the last that meet the brick's cells.
+        let live = |a: usize| {
+            let first = spans[a].iter().position(Option::is_some).unwrap_or(0);
+            let end = spans[a]
+                .iter()
+                .rposition(Option::is_some)
+                .map_or(0, |k| k + 1);
+            first..end
+        };
+        let (xs, ys, zs) = (live(0), live(1), live(2));
+        let (wi, wj) = (xs.len(), ys.len());
+        let (uy, uz) = (union[1].1 - union[1].0, union[2].1 - union[2].0);
+        // Along x: per box column, block row and block layer.
+        along_x.clear();
+        along_x.resize(uz * uy * wi, empty);
+        for z in 0..uz {
+            for y in 0..uy {
+                let row = ((union[2].0 + z) * n[1] + union[1].0 + y) * n[0];
+                let dst = &mut along_x[(z * uy + y) * wi..][..wi];
+                for (d, span) in dst.iter_mut().zip(&spans[0][xs.clone()]) {
+                    if let Some((lo, hi)) = *span {
+                        for r in table.get(row + lo..row + hi).unwrap_or_default() {
+                            fold(d, (r.min.get(), r.max.get()));
+                        }
+                    }
+                }
+            }
+        }
+        // Along y: per box column, box row and block layer; then along z into `out`.
+        along_y.clear();
+        along_y.resize(uz * wj * wi, empty);
+        for z in 0..uz {
+            for (j, span) in spans[1][ys.clone()].iter().enumerate() {
+                let Some((lo, hi)) = *span else {
+                    continue;
+                };
+                let dst = &mut along_y[(z * wj + j) * wi..][..wi];
+                for y in lo - union[1].0..hi - union[1].0 {
+                    for (d, &v) in dst.iter_mut().zip(&along_x[(z * uy + y) * wi..][..wi]) {
+                        fold(d, v);
+                    }
+                }
+            }
+        }
+        for k in zs {
+            let Some((lo, hi)) = spans[2][k] else {
+                continue;
+            };
+            for (j, oj) in ys.clone().enumerate() {
+                let dst = &mut out[(k * nj + oj) * ni + xs.start..][..wi];
+                for z in lo - union[2].0..hi - union[2].0 {
+                    for (d, &v) in dst.iter_mut().zip(&along_y[(z * wj + j) * wi..][..wi]) {
+                        fold(d, v);
+                    }
+                }
+            }
+        }
+        true
+    }
+}
+
+/// The buffers of [`BlockRanges::bound_grid`], kept between calls.
+#[derive(Default)]
+pub struct GridScratch {
+    /// Per axis and box: the blocks `lo..hi` its cells overlap, as `bound_in` finds them.
+    spans: [Vec<Option<(usize, usize)>>; 3],
+    /// Ranges folded along x.
+    along_x: Vec<(f32, f32)>,
+    /// Then along y.
+    along_y: Vec<(f32, f32)>,
+}
+
+/// Folds `(x, y)` into the range `d` with comparisons (stored ranges hold no NaN), as
+/// [`fold_stored`] does.
+#[inline(always)]
+fn fold(d: &mut (f32, f32), (x, y): (f32, f32)) {
+    d.0 = if x < d.0 { x } else { d.0 };
+    d.1 = if y > d.1 { y } else { d.1 };
+}
+
 /// Folds the stored table entries of the blocks `blocks` (block indices, of `n` per axis) of
 /// brick `brick` into `lo`/`hi`.
 fn fold_stored<D: AsRef<[u8]>>(

@@ -9,7 +9,7 @@
 
 use amr_format::IBox;
 
-use super::blocks::{BlockRanges, GridScratch};
+use super::blocks::BlockRanges;
 use super::leaf_tree::LeafTree;
 use super::tight::{reach_region, Regions};
 use crate::error::Result;
@@ -62,65 +62,6 @@ impl<'a, 'f, D: AsRef<[u8]>> Halo<'a, 'f, D> {
             region,
             leaves,
         })
-    }
-}
-
-impl<D: AsRef<[u8]>> Halo<'_, '_, D> {
-    /// [`Regions::range_over`] of every box `axes[0][i] x axes[1][j] x axes[2][k]` of
-    /// finest-level intervals (`lo..hi`, each box inside the halo's region; an interval with
-    /// `hi <= lo` is empty), at `(k * nj + j) * ni + i`, found leaf by leaf for whole rows of
-    /// boxes at once ([`BlockRanges::bound_grid`]). `None` when the ranges are not read from
-    /// stored tables alone, or when some leaf around lies whole inside one of the boxes
-    /// (`range_over` then takes its kept range).
-    pub fn range_over_grid(&self, axes: [&[(i64, i64)]; 3]) -> Option<Vec<(f32, f32)>> {
-        let mut out =
-            vec![(f32::INFINITY, f32::NEG_INFINITY); axes.iter().map(|a| a.len()).product()];
-        let mut clipped: [Vec<(i64, i64)>; 3] = Default::default();
-        let mut scratch = GridScratch::default();
-        // The boxes' union: leaves around outside it are skipped.
-        let span = |k: usize| {
-            let live = axes[k].iter().filter(|&&(lo, hi)| lo < hi);
-            (
-                live.clone().map(|&(lo, _)| lo).min().unwrap_or(0),
-                live.map(|&(_, hi)| hi).max().unwrap_or(0),
-            )
-        };
-        let (x, y, z) = (span(0), span(1), span(2));
-        let all = IBox::new([x.0, y.0, z.0], [x.1, y.1, z.1]);
-        for a in &self.leaves {
-            let Some(top) = a.top else {
-                continue;
-            };
-            let b = &a.bounds;
-            if !b.overlaps(&all) {
-                continue;
-            }
-            // Inside some box on every axis: inside one box (the product of those intervals).
-            let inside = (0..3).all(|k| {
-                axes[k]
-                    .iter()
-                    .any(|&(lo, hi)| lo < hi && lo <= b.lo[k] && b.hi[k] <= hi)
-            });
-            if inside {
-                return None;
-            }
-            for k in 0..3 {
-                clipped[k].clear();
-                clipped[k].extend(
-                    axes[k]
-                        .iter()
-                        .map(|&(lo, hi)| (lo.max(b.lo[k]), hi.min(b.hi[k]))),
-                );
-            }
-            let axes = [&clipped[0][..], &clipped[1][..], &clipped[2][..]];
-            if !self
-                .blocks
-                .bound_grid(self.sampler, top, axes, (&mut scratch, &mut out))
-            {
-                return None;
-            }
-        }
-        Some(out)
     }
 }
 

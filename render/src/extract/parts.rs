@@ -113,43 +113,19 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
                 blocks: &loose,
                 leaves: bounds.1,
             };
-            let halo = match around {
-                Some(h) => Some(h),
+            let around: &dyn Regions = match around {
+                Some(h) => h,
                 None => {
                     gathered = Halo::new(sampler, (&loose, bounds.1), &frame.finest, frame.level);
-                    gathered.as_ref()
+                    match &gathered {
+                        Some(h) => h,
+                        None => &tree,
+                    }
                 }
-            };
-            let around: &dyn Regions = match halo {
-                Some(h) => h,
-                None => &tree,
             };
             // With no coarser leaf around the leaf, none is around its parts either.
             let grown = frame.finest.grow(s);
             let flat = around.coarsest_touching(&grown).unwrap_or(frame.level) >= frame.level;
-            // The bounds of every part as if no coarser leaf touched it grown by one cell, at
-            // once, when the leaves around are gathered: most parts are so even where the leaf
-            // is not.
-            let hoods = match halo {
-                Some(h) => {
-                    let axes = [0, 1, 2].map(|a| {
-                        (first[a]..=last[a])
-                            .map(|p| {
-                                let mut at = first;
-                                at[a] = p;
-                                let b = part_box(at);
-                                if b.lo[a] < b.hi[a] {
-                                    (b.lo[a] - s[a], b.hi[a] + s[a])
-                                } else {
-                                    (b.lo[a], b.lo[a])
-                                }
-                            })
-                            .collect::<Vec<_>>()
-                    });
-                    h.range_over_grid([&axes[0], &axes[1], &axes[2]])
-                }
-                _ => None,
-            };
             let mut r = Vec::new();
             for pz in first[2]..=last[2] {
                 for py in first[1]..=last[1] {
@@ -157,18 +133,6 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
                         let finest = part_box([px, py, pz]);
                         let range = if finest.is_empty() {
                             (f32::INFINITY, f32::NEG_INFINITY)
-                        } else if let (Some(hoods), false) =
-                            (&hoods, frame.finest.contains_box(&finest.grow(s)))
-                        {
-                            let hood = finest.grow(s);
-                            if flat
-                                || around.coarsest_touching(&hood).unwrap_or(frame.level)
-                                    >= frame.level
-                            {
-                                flat_range(hoods[r.len()])
-                            } else {
-                                part_range(sampler, frame, (bounds.0, around), flat, &finest)?
-                            }
                         } else {
                             part_range(sampler, frame, (bounds.0, around), flat, &finest)?
                         };
@@ -251,21 +215,6 @@ fn merge_runs(runs: Vec<IBox>) -> Vec<IBox> {
         }
     }
     boxes
-}
-
-/// [`part_range`] of a part that is not inside the leaf grown by one cell and that no coarser
-/// leaf touches grown by one cell, from the range of the leaf cells in the part grown by one
-/// cell: [`box_range_flat`], and what [`super::tight::box_range_in`] finds for such a part.
-fn flat_range((lo, hi): (f32, f32)) -> (f32, f32) {
-    if lo > hi {
-        return (f32::INFINITY, f32::NEG_INFINITY);
-    }
-    let (lo, hi) = widen_range(lo, hi);
-    if lo <= hi {
-        (lo, hi)
-    } else {
-        (f32::INFINITY, f32::NEG_INFINITY)
-    }
 }
 
 /// A range holding every corner of every voxel of `frame` whose lower corner lies in

@@ -213,11 +213,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let field = self.sampler.field();
         let decodes = self.sampler.decodes();
         let mut refs = Vec::new();
-        let mut evaluated = 0u64;
-        let mut culled_cells = 0u64;
-        let mut parts_skipped = 0u64;
-        let mut boundary_evaluated = 0u64;
-        let mut leaves_skipped = 0u64;
+        let mut totals = LeafCounts::default();
         let mut touched: Option<u64> = None;
         // Tight ranges read the stored tables alone (no brick data) when the file has them.
         let loose = self.blocks.loose();
@@ -230,71 +226,34 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         if let Some(first) = chunks.first() {
             self.read_ahead(first);
         }
+        let mut done: Vec<Result<(Vec<u64>, LeafCounts)>> = Vec::new();
         for (k, chunk) in chunks.iter().enumerate() {
-            if let Some(next) = chunks.get(k + 1) {
-                self.read_ahead(next);
+            let next = chunks.get(k + 1);
+            let (parts, appended) = std::thread::scope(|s| {
+                // While the workers extract this chunk, another thread asks for the next chunk's
+                // reads and appends the chunk before's refs: neither waits for the other, and
+                // the workers no longer wait for them between chunks.
+                let before = std::mem::take(&mut done);
+                let (refs, totals) = (&mut refs, &mut totals);
+                let helper = s.spawn(move || {
+                    if let Some(next) = next {
+                        self.read_ahead(next);
+                    }
+                    append(before, refs, totals)
+                });
+                let parts = self.extract_chunk(iso, chunk, tight_blocks);
+                (parts, helper.join())
+            });
+            match appended {
+                Ok(r) => r?,
+                Err(panic) => std::panic::resume_unwind(panic),
             }
-            let parts: Vec<Result<(Vec<u64>, LeafCounts)>> = chunk
-                .par_iter()
-                .map_init(
-                    || Scratch::new(&self.sampler, (&self.blocks, &self.leaves, &self.coarse)),
-                    |scratch, &leaf| {
-                        let mut out = Vec::new();
-                        // A first visit to a leaf extracted in parts gathers the leaves around
-                        // it once, for its tight range and its parts' bounds.
-                        let mut around = None;
-                        let (lo, hi) = self.tight.get_with(leaf, || {
-                            let bounds = (tight_blocks, &self.leaves);
-                            let own = file.tree().leaf_box(leaf);
-                            if let Some((_, level)) = self.sampler.leaf_top(leaf) {
-                                let cells = self.sampler.grid().level_box(level, &own);
-                                if in_parts(&self.sampler, &cells) {
-                                    around = Halo::new(&self.sampler, bounds, &own, level);
-                                    if let Some(h) = &around {
-                                        return box_range_in(&self.sampler, h, &own, level);
-                                    }
-                                }
-                            }
-                            match small::hood_range(&self.sampler, scratch, leaf)? {
-                                Some(range) => Ok(range),
-                                None => tight::compute(&self.sampler, bounds, leaf),
-                            }
-                        })?;
-                        if !straddles(lo, hi, iso) {
-                            let skipped = LeafCounts {
-                                skipped: 1,
-                                ..LeafCounts::default()
-                            };
-                            return Ok((out, skipped));
-                        }
-                        let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
-                            return Ok((out, LeafCounts::default()));
-                        };
-                        let counts = extract_in_parts(
-                            &self.sampler,
-                            &frame,
-                            iso,
-                            (scratch, (&self.blocks, &self.leaves), &self.parts),
-                            around.as_ref(),
-                            &mut out,
-                        )?;
-                        Ok((out, counts))
-                    },
-                )
-                .collect();
-            for part in parts {
-                let (part, n) = part?;
-                refs.extend_from_slice(&part);
-                evaluated += n.evaluated;
-                culled_cells += n.culled;
-                parts_skipped += n.parts_skipped;
-                boundary_evaluated += n.boundary;
-                leaves_skipped += n.skipped;
-            }
+            done = parts;
             if let Some(b) = self.release_pages() {
                 touched = Some(touched.unwrap_or(0) + b);
             }
         }
+        append(done, &mut refs, &mut totals)?;
         refs.shrink_to_fit();
         let active_duals = refs.iter().filter(|&&r| r as u32 >= DUAL_BASE).count() as u64;
         let stats = ExtractStats {
@@ -303,12 +262,12 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             active: refs.len() as u64,
             active_duals,
             leaves_visited: leaves.len() as u64,
-            leaves_skipped,
+            leaves_skipped: totals.skipped,
             leaves_total: file.num_leaves() as u64,
-            evaluated,
-            boundary_evaluated,
-            culled_cells,
-            parts_skipped,
+            evaluated: totals.evaluated,
+            boundary_evaluated: totals.boundary,
+            culled_cells: totals.culled,
+            parts_skipped: totals.parts_skipped,
             file_cells: self.file_cells,
             seconds: start.elapsed().as_secs_f64(),
             threads: rayon::current_num_threads(),
@@ -317,6 +276,65 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             file_bytes: file.bytes().len() as u64,
         };
         Ok(Extraction { refs, stats })
+    }
+
+    /// The refs and counts of each leaf of `chunk`, in parallel, in order; tight ranges not
+    /// known yet are bounded through `tight_blocks`.
+    fn extract_chunk(
+        &self,
+        iso: f32,
+        chunk: &[u32],
+        tight_blocks: &BlockRanges,
+    ) -> Vec<Result<(Vec<u64>, LeafCounts)>> {
+        let file = self.sampler.file();
+        chunk
+            .par_iter()
+            .map_init(
+                || Scratch::new(&self.sampler, (&self.blocks, &self.leaves, &self.coarse)),
+                |scratch, &leaf| {
+                    let mut out = Vec::new();
+                    // A first visit to a leaf extracted in parts gathers the leaves around
+                    // it once, for its tight range and its parts' bounds.
+                    let mut around = None;
+                    let (lo, hi) = self.tight.get_with(leaf, || {
+                        let bounds = (tight_blocks, &self.leaves);
+                        let own = file.tree().leaf_box(leaf);
+                        if let Some((_, level)) = self.sampler.leaf_top(leaf) {
+                            let cells = self.sampler.grid().level_box(level, &own);
+                            if in_parts(&self.sampler, &cells) {
+                                around = Halo::new(&self.sampler, bounds, &own, level);
+                                if let Some(h) = &around {
+                                    return box_range_in(&self.sampler, h, &own, level);
+                                }
+                            }
+                        }
+                        match small::hood_range(&self.sampler, scratch, leaf)? {
+                            Some(range) => Ok(range),
+                            None => tight::compute(&self.sampler, bounds, leaf),
+                        }
+                    })?;
+                    if !straddles(lo, hi, iso) {
+                        let skipped = LeafCounts {
+                            skipped: 1,
+                            ..LeafCounts::default()
+                        };
+                        return Ok((out, skipped));
+                    }
+                    let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
+                        return Ok((out, LeafCounts::default()));
+                    };
+                    let counts = extract_in_parts(
+                        &self.sampler,
+                        &frame,
+                        iso,
+                        (scratch, (&self.blocks, &self.leaves), &self.parts),
+                        around.as_ref(),
+                        &mut out,
+                    )?;
+                    Ok((out, counts))
+                },
+            )
+            .collect()
     }
 
     /// The voxel reference `r` names: its box and its eight corner values, recomputed from the
@@ -531,6 +549,25 @@ impl BoxFrame {
             None => (c, [0, 1, 2].map(|a| c[a] + 2 * s[a])),
         })
     }
+}
+
+/// Appends the refs of `parts` (one entry per leaf, in order) to `refs` and adds their counts to
+/// `totals`; the first error stops it.
+fn append(
+    parts: Vec<Result<(Vec<u64>, LeafCounts)>>,
+    refs: &mut Vec<u64>,
+    totals: &mut LeafCounts,
+) -> Result<()> {
+    for part in parts {
+        let (part, n) = part?;
+        refs.extend_from_slice(&part);
+        totals.evaluated += n.evaluated;
+        totals.culled += n.culled;
+        totals.parts_skipped += n.parts_skipped;
+        totals.boundary += n.boundary;
+        totals.skipped += n.skipped;
+    }
+    Ok(())
 }
 
 /// The leaves of `sampler`'s file whose stored value range of its field may hold `iso`, in leaf

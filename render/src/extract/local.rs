@@ -125,6 +125,8 @@ pub struct Neighbourhood {
     hi: Vec<f32>,
     /// Per cell: inside a coarser leaf cell whose octants' corners are not yet in the bound.
     coarse_pending: Vec<bool>,
+    /// Cells of [`Self::coarse_pending`] still set.
+    pending_left: usize,
     /// Per cell, for the isovalue of the last [`Self::classify`]: [`ABOVE`], [`BELOW`],
     /// [`NOT_LEAF`] and [`PENDING`] bits.
     codes: Vec<u8>,
@@ -185,6 +187,7 @@ impl Neighbourhood {
         self.hi.resize(n, f32::NEG_INFINITY);
         self.coarse_pending.clear();
         self.coarse_pending.resize(n, false);
+        self.pending_left = 0;
         let domain = grid.domain(level);
         let s = grid.scale(level);
         let o = grid.offset();
@@ -207,7 +210,12 @@ impl Neighbourhood {
                 None => self.set_block(&block, UNCOVERED),
                 Some((_, lv)) if lv < level => {
                     self.set_block(&block, COARSER);
-                    self.for_block(&block, |h, i| h.coarse_pending[i] = true);
+                    self.for_block(&block, |h, i| {
+                        if !h.coarse_pending[i] {
+                            h.coarse_pending[i] = true;
+                            h.pending_left += 1;
+                        }
+                    });
                 }
                 Some((brick, lv)) if lv > level => {
                     self.set_block(&block, FINER);
@@ -292,6 +300,7 @@ impl Neighbourhood {
         self.kind.resize(n, UNCOVERED);
         self.coarse_pending.clear();
         self.coarse_pending.resize(n, false);
+        self.pending_left = 0;
     }
 
     /// Copies the cells of `tile` (a neighbourhood of the level being filled) that lie in the
@@ -310,8 +319,9 @@ impl Neighbourhood {
                 self.kind[dst..dst + w].copy_from_slice(&tile.kind[src..src + w]);
                 self.lo[dst..dst + w].copy_from_slice(&tile.lo[src..src + w]);
                 self.hi[dst..dst + w].copy_from_slice(&tile.hi[src..src + w]);
-                self.coarse_pending[dst..dst + w]
-                    .copy_from_slice(&tile.coarse_pending[src..src + w]);
+                let pending = &tile.coarse_pending[src..src + w];
+                self.coarse_pending[dst..dst + w].copy_from_slice(pending);
+                self.pending_left += pending.iter().filter(|&&p| p).count();
             }
         }
     }
@@ -526,6 +536,12 @@ impl Neighbourhood {
         );
     }
 
+    /// True when some cell lies in a coarser leaf cell whose octants are not yet in its bound.
+    #[inline]
+    pub fn has_pending(&self) -> bool {
+        self.pending_left > 0
+    }
+
     /// The codes of [`Self::classify`].
     #[inline]
     pub fn codes(&self) -> &[u8] {
@@ -537,6 +553,9 @@ impl Neighbourhood {
     pub fn settle_coarse(&mut self, i: usize, (lo, hi): (f32, f32), iso: f32) {
         self.lo[i] = self.lo[i].min(lo);
         self.hi[i] = self.hi[i].max(hi);
+        if self.coarse_pending[i] {
+            self.pending_left -= 1;
+        }
         self.coarse_pending[i] = false;
         self.codes[i] = self.codes[i] & NOT_LEAF | code(self.lo[i], self.hi[i], iso);
     }

@@ -86,6 +86,9 @@ pub fn settle_in<D: AsRef<[u8]>>(
     ),
     b: &IBox,
 ) -> Result<()> {
+    if !hood.has_pending() {
+        return Ok(());
+    }
     let w = b.extent()[0].max(0) as usize;
     for z in b.lo[2]..b.hi[2] {
         for y in b.lo[1]..b.hi[1] {

@@ -11,9 +11,11 @@ use crate::error::Result;
 use amr_format::IBox;
 
 use super::band::AroundMemo;
+use super::cell_tiles::CellTiles;
 use super::cull::{around_offsets, cell_may_hold, Shared};
 use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};
 use super::refs::{make_ref, LocalVoxel};
+use super::small::MAX_CELLS;
 use super::vertices::LeafVertices;
 use crate::reconstruct::interp::{avg8, min_max, straddles};
 use crate::reconstruct::{LocalLocator, Sampler, VertexMemo};
@@ -35,11 +37,19 @@ pub struct Scratch<'s, 'f, D> {
     pub shared: Shared<'s>,
     /// The bounds around coarse cells this thread asked for last.
     pub near: AroundMemo,
+    /// The settled cells of small leaves' neighbourhoods, a tile at a time, when the file's
+    /// leaves are small ([`CellTiles::pays`]).
+    pub tiles: Option<&'s CellTiles>,
 }
 
 impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
-    /// Empty scratch for extracting from `sampler`, reading the tables of `shared`.
-    pub fn new(sampler: &'s Sampler<'f, D>, shared: Shared<'s>) -> Self {
+    /// Empty scratch for extracting from `sampler`, reading the tables of `shared` and the
+    /// cell tiles `tiles`.
+    pub fn new(
+        sampler: &'s Sampler<'f, D>,
+        shared: Shared<'s>,
+        tiles: Option<&'s CellTiles>,
+    ) -> Self {
         Self {
             hood: Neighbourhood::default(),
             memo: VertexMemo::default(),
@@ -48,6 +58,7 @@ impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
             rows: Vec::new(),
             shared,
             near: AroundMemo::default(),
+            tiles,
         }
     }
 }
@@ -139,10 +150,16 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         rows,
         shared,
         near,
+        tiles,
     } = scratch;
     let mut counts = LeafCounts::default();
     let start = out.len();
     let level = frame.level;
+    let g = frame.cells.grow([1; 3]);
+    let small = frame.cells.extent().iter().all(|&e| e <= MAX_CELLS);
+    if let (Some(tiles), true, false) = (tiles, small, hood.holds(level, &g)) {
+        tiles.fill((sampler, *shared), hood, (loc, memo, near), level, g)?;
+    }
     hood.fill((sampler, shared.1), level, &frame.cells)?;
     let grid = sampler.grid();
     let s = grid.scale(level);

@@ -125,6 +125,8 @@ pub struct Neighbourhood {
     hi: Vec<f32>,
     /// Per cell: inside a coarser leaf cell whose octants' corners are not yet in the bound.
     coarse_pending: Vec<bool>,
+    /// Cells of [`Self::coarse_pending`] still set.
+    pending_left: usize,
     /// Per cell, for the isovalue of the last [`Self::classify`]: [`ABOVE`], [`BELOW`],
     /// [`NOT_LEAF`] and [`PENDING`] bits.
     codes: Vec<u8>,
@@ -185,6 +187,7 @@ impl Neighbourhood {
         self.hi.resize(n, f32::NEG_INFINITY);
         self.coarse_pending.clear();
         self.coarse_pending.resize(n, false);
+        self.pending_left = 0;
         let domain = grid.domain(level);
         let s = grid.scale(level);
         let o = grid.offset();
@@ -207,7 +210,12 @@ impl Neighbourhood {
                 None => self.set_block(&block, UNCOVERED),
                 Some((_, lv)) if lv < level => {
                     self.set_block(&block, COARSER);
-                    self.for_block(&block, |h, i| h.coarse_pending[i] = true);
+                    self.for_block(&block, |h, i| {
+                        if !h.coarse_pending[i] {
+                            h.coarse_pending[i] = true;
+                            h.pending_left += 1;
+                        }
+                    });
                 }
                 Some((brick, lv)) if lv > level => {
                     self.set_block(&block, FINER);
@@ -273,6 +281,60 @@ impl Neighbourhood {
                 }
             }
         }
+        self.finish_fill();
+        Ok(())
+    }
+
+    /// Starts a fill of the level-`level` cells of box `g` by copies of tiles
+    /// ([`Self::copy_tile`]) that together hold every cell of `g`; [`Self::end_copies`] ends it.
+    pub fn begin_copies(&mut self, level: u32, g: IBox) {
+        self.filled = None;
+        let n = g.num_cells().unwrap_or(0) as usize;
+        self.cells = g;
+        self.level = level;
+        for v in [&mut self.lo, &mut self.hi] {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+        self.kind.clear();
+        self.kind.resize(n, UNCOVERED);
+        self.coarse_pending.clear();
+        self.coarse_pending.resize(n, false);
+        self.pending_left = 0;
+    }
+
+    /// Copies the cells of `tile` (a neighbourhood of the level being filled) that lie in the
+    /// box being filled: their kinds, bounds and pending flags.
+    pub fn copy_tile(&mut self, tile: &Neighbourhood) {
+        let g = self.cells;
+        let b = g.intersect(&tile.cells);
+        let w = b.extent()[0] as usize;
+        if b.is_empty() {
+            return;
+        }
+        for z in b.lo[2]..b.hi[2] {
+            for y in b.lo[1]..b.hi[1] {
+                let src = tile.cells.linear_index([b.lo[0], y, z]);
+                let dst = g.linear_index([b.lo[0], y, z]);
+                self.kind[dst..dst + w].copy_from_slice(&tile.kind[src..src + w]);
+                self.lo[dst..dst + w].copy_from_slice(&tile.lo[src..src + w]);
+                self.hi[dst..dst + w].copy_from_slice(&tile.hi[src..src + w]);
+                let pending = &tile.coarse_pending[src..src + w];
+                self.coarse_pending[dst..dst + w].copy_from_slice(pending);
+                self.pending_left += pending.iter().filter(|&&p| p).count();
+            }
+        }
+    }
+
+    /// Ends a fill begun by [`Self::begin_copies`]: the cells then hold what
+    /// [`Self::fill_region`] of the same box gives, with the cells the tiles had settled
+    /// settled.
+    pub fn end_copies(&mut self) {
+        self.finish_fill();
+    }
+
+    /// What every fill ends with: the flags, codes and box of the cells held.
+    fn finish_fill(&mut self) {
         self.all_leaf = self.kind.iter().all(|&k| k == LEAF);
         // Marked by `fill`, when the cells are extracted from.
         self.near_boundary.clear();
@@ -280,8 +342,7 @@ impl Neighbourhood {
         self.codes.clear();
         self.codes
             .extend(self.coarse_pending.iter().map(|&p| u8::from(p) << 3));
-        self.filled = Some((level, g));
-        Ok(())
+        self.filled = Some((self.level, self.cells));
     }
 
     /// Cells held.
@@ -475,6 +536,12 @@ impl Neighbourhood {
         );
     }
 
+    /// True when some cell lies in a coarser leaf cell whose octants are not yet in its bound.
+    #[inline]
+    pub fn has_pending(&self) -> bool {
+        self.pending_left > 0
+    }
+
     /// The codes of [`Self::classify`].
     #[inline]
     pub fn codes(&self) -> &[u8] {
@@ -486,6 +553,9 @@ impl Neighbourhood {
     pub fn settle_coarse(&mut self, i: usize, (lo, hi): (f32, f32), iso: f32) {
         self.lo[i] = self.lo[i].min(lo);
         self.hi[i] = self.hi[i].max(hi);
+        if self.coarse_pending[i] {
+            self.pending_left -= 1;
+        }
         self.coarse_pending[i] = false;
         self.codes[i] = self.codes[i] & NOT_LEAF | code(self.lo[i], self.hi[i], iso);
     }

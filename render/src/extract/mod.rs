@@ -10,6 +10,8 @@
 //! - [`vertices`]: a leaf's boundary vertex values, computed once each.
 //! - [`blocks`]: per-brick ranges of blocks of cells (stored in the file, or built), for bounds
 //!   that do not rescan cells.
+//! - [`cell_tiles`]: the classified cells of each level, a tile at a time, which small leaves'
+//!   neighbourhoods copy.
 //! - [`leaf_tree`]: a box tree over the leaves, for region queries of ranges and levels.
 //! - [`halo`]: the leaves around one leaf, gathered once for the bounds of its parts.
 //! - [`small`]: the tight ranges of small leaves, from their neighbourhood.
@@ -27,6 +29,7 @@
 
 pub mod band;
 pub mod blocks;
+pub mod cell_tiles;
 pub mod cull;
 pub mod current;
 pub mod halo;
@@ -55,6 +58,7 @@ use crate::reconstruct::{Locate, Octant, SampleScratch, Sampler, VertexMemo};
 pub use crate::voxel::Voxel;
 use band::CoarseBounds;
 use blocks::BlockRanges;
+use cell_tiles::CellTiles;
 use halo::Halo;
 use leaf::{LeafCounts, LeafFrame, Scratch};
 use leaf_tree::LeafTree;
@@ -88,6 +92,7 @@ pub struct Extractor<'f, D> {
     blocks: BlockRanges,
     leaves: LeafTree,
     coarse: CoarseBounds,
+    cells: CellTiles,
     pages: Option<PageRelease<'f>>,
 }
 
@@ -107,6 +112,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             blocks: BlockRanges::new(file),
             leaves: LeafTree::new(&sampler),
             coarse: CoarseBounds::default(),
+            cells: CellTiles::default(),
             sampler,
             file_cells,
             pages: None,
@@ -290,7 +296,12 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         chunk
             .par_iter()
             .map_init(
-                || Scratch::new(&self.sampler, (&self.blocks, &self.leaves, &self.coarse)),
+                || {
+                    let shared = (&self.blocks, &self.leaves, &self.coarse);
+                    let tiles =
+                        CellTiles::pays(self.file_cells, file.num_leaves()).then_some(&self.cells);
+                    Scratch::new(&self.sampler, shared, tiles)
+                },
                 |scratch, &leaf| {
                     let mut out = Vec::new();
                     // A first visit to a leaf extracted in parts gathers the leaves around

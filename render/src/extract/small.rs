@@ -1,17 +1,13 @@
-//! Tight ranges of small leaves read off their own neighbourhood, which their extraction then
-//! reuses.
+//! Tight ranges of small leaves read off their own neighbourhood.
 //!
 //! The corners of every voxel a leaf owns lie in the union of the bounds of the cells of its
 //! neighbourhood (the leaf grown by one cell of its level), once the bounds of the cells inside
 //! coarser leaf cells are settled: the argument of [`super::cull`], which bounds each cell's
 //! octants by the 27 cells around it. So that union, widened for round-off, is a tight range
 //! for the leaf: exact leaf and finer cells, and the coarse bounds the cull reads. For a small
-//! leaf the neighbourhood costs less than the leaf-tree queries of [`super::tight`] over its
-//! reach, and it is built anyway when the leaf is extracted: the fill is kept
-//! ([`super::local::Neighbourhood::fill`] of a box it holds does nothing), so a leaf that is not
-//! skipped pays for it once. One fill serves a run of adjacent small leaves of one level (the
-//! leaves visited next by the same thread): each neighbour leaf around them is visited once
-//! for the run rather than once per leaf.
+//! leaf it is read from the settled cells of [`super::cell_tiles`], which the leaf's extraction
+//! then copies its neighbourhood from: each cell is classified once per file, not once per
+//! neighbourhood holding it.
 
 use amr_format::kdtree::widen_range;
 
@@ -31,11 +27,9 @@ const MAX_REGION: u64 = 16 * 16 * 16;
 /// Leaves after the first of a run sharing one neighbourhood, at most.
 const MAX_RUN: u32 = 32;
 
-/// The tight range of `leaf` from its neighbourhood, filled into `scratch` and kept there, when
-/// the leaf spans at most [`MAX_CELLS`] cells per axis; `None` for a larger leaf or one without
-/// data. When the neighbourhood held is not the leaf's, the one filled also holds those of the
-/// leaves after it of the same level (the next ones visited, in leaf order), as long as it has
-/// no more cells than their own neighbourhoods together.
+/// The tight range of `leaf` from its neighbourhood's settled cells, read from the tiles of
+/// `scratch`, when the leaf spans at most [`MAX_CELLS`] cells per axis; `None` for a larger leaf
+/// or one without data.
 pub fn hood_range<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     scratch: &mut Scratch<'_, '_, D>,
@@ -50,6 +44,7 @@ pub fn hood_range<D: AsRef<[u8]>>(
         loc,
         shared,
         near,
+        tiles,
         ..
     } = scratch;
     let leaves = shared.1;
@@ -59,15 +54,25 @@ pub fn hood_range<D: AsRef<[u8]>>(
         return Ok(None);
     }
     let g = cells.grow([1; 3]);
-    if !hood.holds(level, &g) {
-        let region = run_region(sampler, leaves, leaf, level, g);
-        hood.fill_region((sampler, leaves), level, region)?;
-    }
+    let Some(tiles) = tiles else {
+        if !hood.holds(level, &g) {
+            let region = run_region(sampler, leaves, leaf, level, g);
+            hood.fill_region((sampler, leaves), level, region)?;
+        }
+        loc.defer(level, &finest);
+        let settled = settle_in((sampler, *shared), hood, (loc, memo, near), &g);
+        loc.finish();
+        settled?;
+        let (lo, hi) = hood.range_in(&g);
+        if lo > hi {
+            return Ok(Some((f32::INFINITY, f32::NEG_INFINITY)));
+        }
+        return Ok(Some(widen_range(lo, hi)));
+    };
     loc.defer(level, &finest);
-    let settled = settle_in((sampler, *shared), hood, (loc, memo, near), &g);
+    let range = tiles.range_in((sampler, *shared), (loc, memo, near), level, g);
     loc.finish();
-    settled?;
-    let (lo, hi) = hood.range_in(&g);
+    let (lo, hi) = range?;
     if lo > hi {
         return Ok(Some((f32::INFINITY, f32::NEG_INFINITY)));
     }

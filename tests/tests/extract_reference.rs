@@ -262,11 +262,13 @@ fn extraction_equals_brute_force_on_small_irregular_boxes() {
     use amr_synth::{build_box_hierarchy, write_spec, BoxParams, Case as Synth};
     let dir = tempfile::tempdir().unwrap();
     let (mut culled, mut skipped) = (0, 0);
-    for seed in 1..=2u64 {
+    // Seed 3's boxes are small enough (at most 32 cells per leaf on average) that small
+    // leaves take their neighbourhoods from tiles of cells (`extract::cell_tiles`).
+    for seed in 1..=3u64 {
         let params = BoxParams {
             base: 6,
-            ratios: vec![2, 4],
-            sizes: (1, 5),
+            ratios: if seed == 3 { vec![2, 2] } else { vec![2, 4] },
+            sizes: if seed == 3 { (1, 2) } else { (1, 5) },
             seed,
         };
         let spec = build_box_hierarchy(&Synth::Blobs, "blobs", &params).unwrap();
@@ -280,6 +282,17 @@ fn extraction_equals_brute_force_on_small_irregular_boxes() {
         )
         .unwrap();
         let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+        let cells = Extractor::new(&file, 0, 64 << 20)
+            .and_then(|ex| ex.extract(0.0))
+            .unwrap()
+            .stats
+            .file_cells;
+        assert_eq!(
+            amr_render::extract::cell_tiles::CellTiles::pays(cells, file.num_leaves()),
+            seed == 3,
+            "seed {seed}: {cells} cells in {} leaves",
+            file.num_leaves()
+        );
         let (c, s, _) = check_file(&file, seed, &format!("small boxes {params:?}"));
         culled += c;
         skipped += s;

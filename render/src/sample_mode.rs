@@ -1,6 +1,7 @@
 //! The sample-based baseline (section 4's ray marching): step along the ray by a fixed distance,
 //! evaluate the same reconstruction, and bisect the first sign change of `F - iso`.
 
+use crate::camera::dot;
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, VoxelSource};
 use crate::trace::tracer::{SurfaceHit, Tracer};
@@ -91,7 +92,7 @@ impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {
         let size = (self.step * len).max(1e-9);
         let grad = self.src.gradient(pos, [0.5 * size; 3]).unwrap_or([0.0; 3]);
         let level = self.src.sample(pos).map_or(0, |s| s.1);
-        let rising = (0..3).map(|a| grad[a] * ray.d[a]).sum::<f64>() > 0.0;
+        let rising = dot(grad, ray.d) > 0.0;
         SurfaceHit {
             t,
             pos,

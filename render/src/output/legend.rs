@@ -230,13 +230,15 @@ impl Legend {
         let m = px;
         let line = px * 1.3;
         let swatch_w = px * 1.2;
+        // The bottom of a list of `n` lines: the last line's top plus its height.
+        let list_bottom = |n: usize| m + (n as f32 - 1.0) * line + px * 1.2;
         let entries_w = self
             .entries
             .iter()
             .map(|(s, sw)| text.width(s) + if sw.is_some() { swatch_w } else { 0.0 })
             .fold(0.0, f32::max);
         if !self.entries.is_empty() {
-            let bottom = m + (self.entries.len() as f32 - 1.0) * line + px * 1.2;
+            let bottom = list_bottom(self.entries.len());
             canvas.panel((m, m), (m + entries_w, bottom), px * 0.4);
         }
         for (k, (s, swatch)) in self.entries.iter().enumerate() {
@@ -273,8 +275,8 @@ impl Legend {
         } else if let Some(n) = self.levels {
             let labels: Vec<String> = (0..n).map(|l| format!("level {l}")).collect();
             let tw = labels.iter().map(|s| text.width(s)).fold(0.0, f32::max);
-            let x = w as f32 - m - tw - px * 1.2;
-            let bottom = m + (n as f32 - 1.0) * line + px * 1.2;
+            let x = w as f32 - m - tw - swatch_w;
+            let bottom = list_bottom(n as usize);
             canvas.panel((x, m), (w as f32 - m, bottom), px * 0.4);
             for (l, s) in labels.iter().enumerate() {
                 let y = m + l as f32 * line;
@@ -287,7 +289,7 @@ impl Legend {
                     level_srgb8(l as u32),
                     1.0,
                 );
-                text.draw(&mut canvas, s, x + px * 1.2, y);
+                text.draw(&mut canvas, s, x + swatch_w, y);
             }
         }
         if let Some(camera) = &self.camera {

@@ -1,6 +1,7 @@
 //! The interface the shader traces through, and its exact ("hybrid") implementation: a BVH per
 //! isosurface and the implicit ray-voxel intersection.
 
+use crate::camera::dot;
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, VoxelSource};
 use crate::trace::traverse::Surface;
@@ -92,7 +93,7 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
             .map(|a| h.voxel.hi[a] - h.voxel.lo[a])
             .fold(f64::INFINITY, f64::min);
         let mut grad = h.grid_gradient();
-        let rising = (0..3).map(|a| grad[a] * ray.d[a]).sum::<f64>() > 0.0;
+        let rising = dot(grad, ray.d) > 0.0;
         if self.smooth_normals {
             // The step depends on the level alone, not on the voxel's shape (an octant or a
             // merged dual cell), so that neighbouring hits of one level use the same step.

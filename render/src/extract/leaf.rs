@@ -174,53 +174,31 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     hood.classify(iso);
     let codes = hood.codes();
     let width = (last[0] - first[0] + 1).max(0) as usize;
-    // A dual cell's code is the OR of its eight cells': ORed along z, then y, then x, each pair
-    // of rows once (the z-pairs of a row serve the two dual rows beside it).
-    let w1 = width + 1;
-    rows.clear();
-    rows.resize(4 * w1, 0);
-    let (row_masks, rest) = rows.split_at_mut(w1);
-    let (mut prev, rest) = rest.split_at_mut(w1);
-    let (mut cur, yz) = rest.split_at_mut(w1);
-    let row_masks = &mut row_masks[..width];
-    let any_duals = width > 0 && first[1] <= last[1];
-    let or_rows = |dst: &mut [u8], a: &[u8], b: &[u8]| {
-        for ((d, &x), &y) in dst.iter_mut().zip(a).zip(b) {
-            *d = x | y;
-        }
-    };
-    for z in first[2]..=last[2] {
-        if !any_duals {
-            break;
-        }
-        let r0 = hood.index([first[0], first[1], z]);
-        or_rows(
-            prev,
-            &codes[r0..r0 + w1],
-            &codes[r0 + step[2]..r0 + step[2] + w1],
-        );
-        for y in first[1]..=last[1] {
-            let r = hood.index([first[0], y + 1, z]);
-            or_rows(
-                cur,
-                &codes[r..r + w1],
-                &codes[r + step[2]..r + step[2] + w1],
+    let any_duals = width > 0 && first[1] <= last[1] && first[2] <= last[2];
+    if any_duals {
+        let dual_rows = ((last[1] - first[1] + 1) * (last[2] - first[2] + 1)) as usize;
+        let lowest = hood.index(first);
+        let span = hood.index([last[0] + 1, last[1] + 1, last[2] + 1]) + 1 - lowest;
+        let scan = DualScan {
+            frame,
+            first,
+            last,
+            width,
+        };
+        if span <= FLAT_SPAN * width * dual_rows {
+            let duals = dual_codes_flat(&codes[lowest..lowest + span], step, rows);
+            scan.emit(
+                |[y, z]| hood.index([first[0], y, z]) - lowest,
+                duals,
+                &mut counts,
+                out,
             );
-            or_rows(yz, prev, cur);
-            or_rows(row_masks, &yz[..width], &yz[1..]);
-            std::mem::swap(&mut prev, &mut cur);
-            let leaf_duals = row_masks.iter().filter(|&&m| m & NOT_LEAF == 0).count();
-            counts.evaluated += leaf_duals as u64;
-            let active = |m: &u8| m & (NOT_LEAF | ABOVE | BELOW) == ABOVE | BELOW;
-            if leaf_duals == 0 || !row_masks.iter().any(active) {
-                continue;
-            }
-            for (k, m) in row_masks.iter().enumerate() {
-                if active(m) {
-                    let cell = frame.refs.linear_index([first[0] + k as i64, y, z]) as u32;
-                    out.push(make_ref(frame.leaf, LocalVoxel::Dual { cell }));
-                }
-            }
+        } else {
+            let duals = dual_codes_by_row(hood, codes, (first, last, width), step, rows);
+            let row = |[y, z]: [i64; 2]| {
+                ((z - first[2]) * (last[1] - first[1] + 1) + (y - first[1])) as usize * width
+            };
+            scan.emit(row, duals, &mut counts, out);
         }
     }
 
@@ -382,4 +360,131 @@ fn boundary_corners<D: AsRef<[u8]>>(
         }
     }
     Ok(Some(out))
+}
+
+/// The merged dual cells are coded over the whole stretch of the neighbourhood's cells from the
+/// first dual cell's lowest cell to the last one's highest ([`dual_codes_flat`]) when that
+/// stretch holds at most this many cells per dual cell; otherwise row by row
+/// ([`dual_codes_by_row`]), as for a small leaf inside a neighbourhood filled for a run of
+/// leaves.
+const FLAT_SPAN: usize = 4;
+
+/// The code of every dual cell whose lowest cell lies in `codes` (cell codes, of a stretch of
+/// the neighbourhood whose rows and slabs are `step[1]` and `step[2]` cells apart), at the
+/// position of that lowest cell: the OR of its eight cells' codes, taken along x, then y, then
+/// z, each over the whole stretch at once (long runs of bytes, which vectorize). Positions whose
+/// eight cells are not all in the stretch hold no meaningful code (whatever `scratch`, which
+/// holds the result, held before).
+fn dual_codes_flat<'r>(codes: &[u8], step: [usize; 3], scratch: &'r mut Vec<u8>) -> &'r [u8] {
+    let n = codes.len();
+    // Only grown, never cleared: every position read is written first.
+    if scratch.len() < 2 * n {
+        scratch.resize(2 * n, 0);
+    }
+    let (a, b) = scratch[..2 * n].split_at_mut(n);
+    let or_shifted = |dst: &mut [u8], src: &[u8], shift: usize| {
+        let len = n.saturating_sub(shift);
+        for ((d, &x), &y) in dst[..len].iter_mut().zip(&src[..len]).zip(&src[shift..]) {
+            *d = x | y;
+        }
+    };
+    or_shifted(a, codes, 1);
+    or_shifted(b, a, step[1]);
+    or_shifted(a, b, step[2]);
+    a
+}
+
+/// The codes of the dual cells `first..=last` (lowest cells; `width` per row), row after row
+/// (z, then y), each row `width` codes long: a dual cell's code is the OR of its eight cells',
+/// ORed along z, then y, then x, each pair of rows once (the z-pairs of a row serve the two
+/// dual rows beside it). `scratch` holds the result.
+fn dual_codes_by_row<'r>(
+    hood: &Neighbourhood,
+    codes: &[u8],
+    (first, last, width): ([i64; 3], [i64; 3], usize),
+    step: [usize; 3],
+    scratch: &'r mut Vec<u8>,
+) -> &'r [u8] {
+    let w1 = width + 1;
+    let dual_rows = ((last[1] - first[1] + 1) * (last[2] - first[2] + 1)) as usize;
+    scratch.clear();
+    scratch.resize(3 * w1 + dual_rows * width, 0);
+    let (work, out) = scratch.split_at_mut(3 * w1);
+    let (mut prev, rest) = work.split_at_mut(w1);
+    let (mut cur, yz) = rest.split_at_mut(w1);
+    let or_rows = |dst: &mut [u8], a: &[u8], b: &[u8]| {
+        for ((d, &x), &y) in dst.iter_mut().zip(a).zip(b) {
+            *d = x | y;
+        }
+    };
+    let mut rows = out.chunks_exact_mut(width.max(1));
+    for z in first[2]..=last[2] {
+        let r0 = hood.index([first[0], first[1], z]);
+        or_rows(
+            prev,
+            &codes[r0..r0 + w1],
+            &codes[r0 + step[2]..r0 + step[2] + w1],
+        );
+        for y in first[1]..=last[1] {
+            let r = hood.index([first[0], y + 1, z]);
+            or_rows(
+                cur,
+                &codes[r..r + w1],
+                &codes[r + step[2]..r + step[2] + w1],
+            );
+            or_rows(yz, prev, cur);
+            if let Some(row) = rows.next() {
+                or_rows(row, &yz[..width], &yz[1..]);
+            }
+            std::mem::swap(&mut prev, &mut cur);
+        }
+    }
+    out
+}
+
+/// The merged dual cells of a frame, `first..=last` (lowest cells), `width` per row.
+struct DualScan<'a> {
+    frame: &'a LeafFrame,
+    first: [i64; 3],
+    last: [i64; 3],
+    width: usize,
+}
+
+impl DualScan<'_> {
+    /// Counts the dual cells of leaf cells whose codes `duals` holds (the row of `[y, z]`
+    /// starting at `row([y, z])`) and pushes the refs of the active ones to `out`, in row order.
+    fn emit(
+        &self,
+        row: impl Fn([i64; 2]) -> usize,
+        duals: &[u8],
+        counts: &mut LeafCounts,
+        out: &mut Vec<u64>,
+    ) {
+        let (first, last, width) = (self.first, self.last, self.width);
+        for z in first[2]..=last[2] {
+            for y in first[1]..=last[1] {
+                let r = row([y, z]);
+                let masks = &duals[r..r + width];
+                // Folds without early exits, so that they vectorize.
+                let leaf_duals: u32 = masks.iter().map(|&m| u32::from(m & NOT_LEAF == 0)).sum();
+                counts.evaluated += u64::from(leaf_duals);
+                let any = masks.iter().fold(0u8, |acc, &m| acc | u8::from(active(m)));
+                if leaf_duals == 0 || any == 0 {
+                    continue;
+                }
+                for (k, &m) in masks.iter().enumerate() {
+                    if active(m) {
+                        let cell = self.frame.refs.linear_index([first[0] + k as i64, y, z]) as u32;
+                        out.push(make_ref(self.frame.leaf, LocalVoxel::Dual { cell }));
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// True for the code of a dual cell of eight leaf cells whose values straddle the isovalue.
+#[inline(always)]
+fn active(m: u8) -> bool {
+    m & (NOT_LEAF | ABOVE | BELOW) == ABOVE | BELOW
 }

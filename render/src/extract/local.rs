@@ -335,7 +335,8 @@ impl Neighbourhood {
 
     /// What every fill ends with: the flags, codes and box of the cells held.
     fn finish_fill(&mut self) {
-        self.all_leaf = self.kind.iter().all(|&k| k == LEAF);
+        // An OR of every kind (`LEAF` is 0), without an early exit, so that it vectorizes.
+        self.all_leaf = self.kind.iter().fold(LEAF, |acc, &k| acc | k) == LEAF;
         // Marked by `fill`, when the cells are extracted from.
         self.near_boundary.clear();
         // Codes before any classification: the pending flags, which settling keeps.
@@ -523,6 +524,11 @@ impl Neighbourhood {
     /// Computes every cell's code for `iso` from its bound, kind and pending flag.
     pub fn classify(&mut self, iso: f32) {
         self.codes.clear();
+        if self.all_leaf {
+            // Every cell a leaf cell, none pending: the code of its value alone.
+            self.codes.extend(self.lo.iter().map(|&v| code(v, v, iso)));
+            return;
+        }
         self.codes.extend(
             self.lo
                 .iter()

@@ -12,7 +12,6 @@
 use std::sync::OnceLock;
 
 use amr_format::blocks::{block_ranges, blocks_per_axis};
-use amr_format::raw::BlockRange;
 use amr_format::{AmrkFile, IBox, RangeAccumulator};
 
 use crate::error::Result;
@@ -209,32 +208,37 @@ fn fold_stored<D: AsRef<[u8]>>(
         .file()
         .block_ranges(sampler.field(), brick as usize)
         .unwrap_or_default();
-    // Four lanes, so that each comparison does not wait for the one before; selects, not
-    // branches (the order of the values is unpredictable) nor f32::min (stored ranges hold no
-    // NaN; a NaN would compare false and be left out).
+    // Two entries at a time, as four lanes `[min, max, min, max]` folded into a lane-wise
+    // minimum and a lane-wise maximum (of which the even lanes of the first and the odd lanes
+    // of the second are kept): one vector minimum and maximum per two entries, and no
+    // comparison waiting for the one before. Selects, not branches (the order of the values is
+    // unpredictable) nor f32::min (stored ranges hold no NaN; a NaN would compare false and be
+    // left out).
     let (mut a, mut b) = ([*lo; 4], [*hi; 4]);
-    let mut fold = |k: usize, r: &BlockRange| {
-        let (x, y) = (r.min.get(), r.max.get());
-        a[k] = if x < a[k] { x } else { a[k] };
-        b[k] = if y > b[k] { y } else { b[k] };
-    };
     fold_blocks(n, blocks, |row| {
         let row = table.get(row).unwrap_or_default();
-        let mut quads = row.chunks_exact(4);
-        for q in &mut quads {
-            for (k, r) in q.iter().enumerate() {
-                fold(k, r);
+        let mut pairs = row.chunks_exact(2);
+        for p in &mut pairs {
+            let v = [
+                p[0].min.get(),
+                p[0].max.get(),
+                p[1].min.get(),
+                p[1].max.get(),
+            ];
+            for k in 0..4 {
+                a[k] = if v[k] < a[k] { v[k] } else { a[k] };
+                b[k] = if v[k] > b[k] { v[k] } else { b[k] };
             }
         }
-        for (k, r) in quads.remainder().iter().enumerate() {
-            fold(k, r);
+        if let [r] = pairs.remainder() {
+            let (x, y) = (r.min.get(), r.max.get());
+            a[0] = if x < a[0] { x } else { a[0] };
+            b[1] = if y > b[1] { y } else { b[1] };
         }
     });
-    for k in 1..4 {
-        a[0] = if a[k] < a[0] { a[k] } else { a[0] };
-        b[0] = if b[k] > b[0] { b[k] } else { b[0] };
-    }
-    (*lo, *hi) = (a[0], b[0]);
+    let x = if a[2] < a[0] { a[2] } else { a[0] };
+    let y = if b[3] > b[1] { b[3] } else { b[1] };
+    (*lo, *hi) = (x, y);
 }
 
 /// `v` divided by `d` per axis, rounded toward minus infinity (`d > 0`); a shift when `d` is a

@@ -29,6 +29,7 @@ pub struct Halo<'a, 'f, D> {
     blocks: &'a BlockRanges,
     tree: &'a LeafTree,
     region: IBox,
+    /// In order of level, coarsest first; the leaves without data last.
     leaves: Vec<Around>,
 }
 
@@ -55,7 +56,17 @@ impl<'a, 'f, D: AsRef<[u8]>> Halo<'a, 'f, D> {
                 top: sampler.leaf_top(l),
             })
         });
-        (leaves.len() <= MAX_AROUND).then_some(Self {
+        if leaves.len() > MAX_AROUND {
+            return None;
+        }
+        // Coarsest first, and of the leaf's own level the leaf itself first (it touches every
+        // region asked about), so that [`Regions::coarsest_touching`] stops at the first leaf
+        // touching: no leaf after it is coarser.
+        leaves.sort_by_key(|a| match a.top {
+            Some((_, lv)) => (lv, !a.bounds.contains_box(own)),
+            None => (u32::MAX, true),
+        });
+        Some(Self {
             sampler,
             blocks,
             tree,
@@ -71,8 +82,7 @@ impl<D: AsRef<[u8]>> Regions for Halo<'_, '_, D> {
         self.leaves
             .iter()
             .filter(|a| a.bounds.touches(region))
-            .filter_map(|a| a.top.map(|(_, lv)| lv))
-            .min()
+            .find_map(|a| a.top.map(|(_, lv)| lv))
     }
 
     fn range_over(&self, region: &IBox, _slack: [i64; 3]) -> Result<(f32, f32)> {

@@ -22,7 +22,7 @@ use super::band::AroundMemo;
 use super::cull::{settle_in, Shared};
 use super::local::Neighbourhood;
 use crate::error::Result;
-use crate::reconstruct::{LocalLocator, Sampler, VertexMemo};
+use crate::reconstruct::{Sampler, VertexMemo};
 
 /// log2 of [`TILE`].
 const TILE_SHIFT: u32 = 3;
@@ -68,7 +68,7 @@ impl CellTiles {
     pub fn range_in<D: AsRef<[u8]>>(
         &self,
         sources: (&Sampler<'_, D>, Shared<'_>),
-        locs: Locs<'_, '_, '_, D>,
+        locs: Memos<'_>,
         level: u32,
         g: IBox,
     ) -> Result<(f32, f32)> {
@@ -92,7 +92,7 @@ impl CellTiles {
         &self,
         sources: (&Sampler<'_, D>, Shared<'_>),
         hood: &mut Neighbourhood,
-        locs: Locs<'_, '_, '_, D>,
+        locs: Memos<'_>,
         level: u32,
         g: IBox,
     ) -> Result<()> {
@@ -107,7 +107,7 @@ impl CellTiles {
     fn each_tile<D: AsRef<[u8]>>(
         &self,
         sources: (&Sampler<'_, D>, Shared<'_>),
-        (loc, memo, near): Locs<'_, '_, '_, D>,
+        (memo, near): Memos<'_>,
         level: u32,
         g: IBox,
         mut f: impl FnMut(&Neighbourhood, &IBox),
@@ -135,7 +135,7 @@ impl CellTiles {
                         tile.fill_region((sources.0, sources.1 .1), level, cells)?;
                     }
                     let part = g.intersect(&cells);
-                    settle_in(sources, tile, (&mut *loc, &mut *memo, &mut *near), &part)?;
+                    settle_in(sources, tile, (&mut *memo, &mut *near), &part)?;
                     f(tile, &part);
                 }
             }
@@ -144,12 +144,8 @@ impl CellTiles {
     }
 }
 
-/// The locator and memos settling reads through.
-pub type Locs<'a, 's, 'f, D> = (
-    &'a mut LocalLocator<'s, 'f, D>,
-    &'a mut VertexMemo,
-    &'a mut AroundMemo,
-);
+/// The memos settling reads through.
+pub type Memos<'a> = (&'a mut VertexMemo, &'a mut AroundMemo);
 
 /// The slot of tile `t` of level `level`.
 fn slot_of(level: u32, t: [i64; 3]) -> usize {

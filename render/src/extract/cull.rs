@@ -19,7 +19,7 @@ use super::blocks::{level_box, BlockRanges};
 use super::leaf_tree::LeafTree;
 use super::local::{Neighbourhood, ABOVE, BELOW, COARSER, PENDING};
 use crate::reconstruct::sampler::Locate;
-use crate::reconstruct::{LocalLocator, Sampler, VertexMemo};
+use crate::reconstruct::{Sampler, VertexMemo};
 
 /// The neighbourhood-index offsets of the 27 cells around a cell, in a neighbourhood whose
 /// rows hold `row` cells and whose slabs hold `slab` cells, relative to the lowest of them.
@@ -38,11 +38,7 @@ pub type Shared<'s> = (&'s BlockRanges, &'s LeafTree, &'s CoarseBounds);
 pub fn cell_may_hold<D: AsRef<[u8]>>(
     (sampler, (blocks, leaves, coarse)): (&Sampler<'_, D>, Shared<'_>),
     hood: &mut Neighbourhood,
-    (loc, memo, near): (
-        &mut LocalLocator<'_, '_, D>,
-        &mut VertexMemo,
-        &mut AroundMemo,
-    ),
+    (memo, near): (&mut VertexMemo, &mut AroundMemo),
     (i, around): (usize, &[usize; 27]),
     iso: f32,
 ) -> Result<bool> {
@@ -63,7 +59,7 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
             settle_coarse(
                 (sampler, (blocks, leaves, coarse)),
                 hood,
-                (loc, memo, near),
+                (memo, near),
                 j,
                 iso,
             )?;
@@ -79,11 +75,7 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
 pub fn settle_in<D: AsRef<[u8]>>(
     (sampler, shared): (&Sampler<'_, D>, Shared<'_>),
     hood: &mut Neighbourhood,
-    (loc, memo, near): (
-        &mut LocalLocator<'_, '_, D>,
-        &mut VertexMemo,
-        &mut AroundMemo,
-    ),
+    (memo, near): (&mut VertexMemo, &mut AroundMemo),
     b: &IBox,
 ) -> Result<()> {
     if !hood.has_pending() {
@@ -95,7 +87,7 @@ pub fn settle_in<D: AsRef<[u8]>>(
             let r = hood.index([b.lo[0], y, z]);
             for j in r..r + w {
                 if hood.codes()[j] & PENDING != 0 {
-                    settle_coarse((sampler, shared), hood, (loc, memo, near), j, 0.0)?;
+                    settle_coarse((sampler, shared), hood, (memo, near), j, 0.0)?;
                 }
             }
         }
@@ -110,11 +102,7 @@ pub fn settle_in<D: AsRef<[u8]>>(
 fn settle_coarse<D: AsRef<[u8]>>(
     (sampler, (blocks, leaves, coarse)): (&Sampler<'_, D>, Shared<'_>),
     hood: &mut Neighbourhood,
-    (loc, memo, near): (
-        &mut LocalLocator<'_, '_, D>,
-        &mut VertexMemo,
-        &mut AroundMemo,
-    ),
+    (memo, near): (&mut VertexMemo, &mut AroundMemo),
     j: usize,
     iso: f32,
 ) -> Result<()> {
@@ -125,7 +113,7 @@ fn settle_coarse<D: AsRef<[u8]>>(
     let o = grid.offset();
     let x = hood.cell_at(j);
     let lower = [0, 1, 2].map(|a| x[a] * s[a] - o[a]);
-    let Some(q) = (*loc).locate_cell(lower)? else {
+    let Some(q) = sampler.locate_cell(lower)? else {
         hood.settle_coarse(j, (f32::INFINITY, f32::NEG_INFINITY), iso);
         return Ok(());
     };
@@ -152,8 +140,6 @@ fn settle_coarse<D: AsRef<[u8]>>(
         }
         return Ok(());
     }
-    loc.ensure_started()?;
-    let loc = &*loc;
     let c = grid.centre(q.level, q.cell);
     let (x0, x1) = (
         lower.map(|v| 2 * v),
@@ -172,7 +158,7 @@ fn settle_coarse<D: AsRef<[u8]>>(
         if !overlaps {
             continue;
         }
-        if let Some(corners) = sampler.leaf_octant_corners_in(loc, &q, octant, memo)? {
+        if let Some(corners) = sampler.leaf_octant_corners_in(sampler, &q, octant, memo)? {
             for v in corners {
                 lo = lo.min(v);
                 hi = hi.max(v);

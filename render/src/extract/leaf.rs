@@ -18,18 +18,16 @@ use super::refs::{make_ref, LocalVoxel};
 use super::small::MAX_CELLS;
 use super::vertices::LeafVertices;
 use crate::reconstruct::interp::{avg8, min_max, straddles};
-use crate::reconstruct::{LocalLocator, Sampler, VertexMemo};
+use crate::reconstruct::{Sampler, VertexMemo};
 
 /// Per-thread scratch of [`extract_leaf`].
-pub struct Scratch<'s, 'f, D> {
+pub struct Scratch<'s> {
     /// The leaf's classified neighbourhood.
     pub hood: Neighbourhood,
     /// Vertex values met while stitching to coarser levels.
     pub memo: VertexMemo,
     /// The leaf's boundary vertex values.
     pub verts: LeafVertices,
-    /// Leaf cells around the leaf, located without tree walks.
-    pub loc: LocalLocator<'s, 'f, D>,
     /// One row of merged-dual-cell codes.
     pub rows: Vec<u8>,
     /// The block ranges, the leaf tree (for region queries) and the bounds of coarser
@@ -42,19 +40,13 @@ pub struct Scratch<'s, 'f, D> {
     pub tiles: Option<&'s CellTiles>,
 }
 
-impl<'s, 'f, D: AsRef<[u8]>> Scratch<'s, 'f, D> {
-    /// Empty scratch for extracting from `sampler`, reading the tables of `shared` and the
-    /// cell tiles `tiles`.
-    pub fn new(
-        sampler: &'s Sampler<'f, D>,
-        shared: Shared<'s>,
-        tiles: Option<&'s CellTiles>,
-    ) -> Self {
+impl<'s> Scratch<'s> {
+    /// Empty scratch for extracting, reading the tables of `shared` and the cell tiles `tiles`.
+    pub fn new(shared: Shared<'s>, tiles: Option<&'s CellTiles>) -> Self {
         Self {
             hood: Neighbourhood::default(),
             memo: VertexMemo::default(),
             verts: LeafVertices::default(),
-            loc: LocalLocator::new(sampler),
             rows: Vec::new(),
             shared,
             near: AroundMemo::default(),
@@ -139,14 +131,13 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     frame: &LeafFrame,
     iso: f32,
-    scratch: &mut Scratch<'_, '_, D>,
+    scratch: &mut Scratch<'_>,
     out: &mut Vec<u64>,
 ) -> Result<LeafCounts> {
     let Scratch {
         hood,
         memo,
         verts,
-        loc,
         rows,
         shared,
         near,
@@ -158,7 +149,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     let g = frame.cells.grow([1; 3]);
     let small = frame.cells.extent().iter().all(|&e| e <= MAX_CELLS);
     if let (Some(tiles), true, false) = (tiles, small, hood.holds(level, &g)) {
-        tiles.fill((sampler, *shared), hood, (loc, memo, near), level, g)?;
+        tiles.fill((sampler, *shared), hood, (memo, near), level, g)?;
     }
     hood.fill((sampler, shared.1), level, &frame.cells)?;
     let grid = sampler.grid();
@@ -204,8 +195,8 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
 
     // Octants that touch a level boundary, the domain boundary or an uncovered region.
     if !hood.all_leaf {
-        // The locator table and the vertex grid are prepared when a first cell survives culling.
-        loc.defer(level, &frame.finest);
+        // The vertex grid is prepared when a first cell survives culling; the locator table once
+        // enough queries ask for it.
         let mut verts_started = false;
         let lowest = grid.centre(level, frame.cells.lo);
         let c = &frame.cells;
@@ -223,18 +214,11 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                     if !hood.near_boundary[i] {
                         continue;
                     }
-                    if !cell_may_hold(
-                        (sampler, *shared),
-                        hood,
-                        (loc, memo, near),
-                        (i, &around),
-                        iso,
-                    )? {
+                    if !cell_may_hold((sampler, *shared), hood, (memo, near), (i, &around), iso)? {
                         counts.culled += 1;
                         continue;
                     }
                     if !verts_started {
-                        loc.ensure_started()?;
                         verts.start(&frame.cells, [0, 1, 2].map(|a| lowest[a] - s[a]), s);
                         verts_started = true;
                     }
@@ -262,7 +246,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                         let Some(v) = boundary_corners(
                             sampler,
                             hood,
-                            (memo, verts, loc),
+                            (memo, verts),
                             level,
                             i,
                             [0, 1, 2].map(|a| (cell[a] - c.lo[a]) as usize),
@@ -288,7 +272,6 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
             }
         }
     }
-    loc.finish();
     out[start..].sort_unstable();
     Ok(counts)
 }
@@ -302,7 +285,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
 fn boundary_corners<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     hood: &Neighbourhood,
-    (memo, verts, loc): (&mut VertexMemo, &mut LeafVertices, &LocalLocator<'_, '_, D>),
+    (memo, verts): (&mut VertexMemo, &mut LeafVertices),
     level: u32,
     i: usize,
     local: [usize; 3],
@@ -348,7 +331,7 @@ fn boundary_corners<D: AsRef<[u8]>>(
                     Some(avg8(&around.map(|j| hood.value(j))))
                 } else {
                     let v = [0, 1, 2].map(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
-                    sampler.vertex_value_unmemoized_in(loc, v, level, memo)?
+                    sampler.vertex_value_unmemoized_in(sampler, v, level, memo)?
                 };
                 verts.put_slot(vi, value);
                 value

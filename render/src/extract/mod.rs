@@ -300,7 +300,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     let shared = (&self.blocks, &self.leaves, &self.coarse);
                     let tiles =
                         CellTiles::pays(self.file_cells, file.num_leaves()).then_some(&self.cells);
-                    Scratch::new(&self.sampler, shared, tiles)
+                    Scratch::new(shared, tiles)
                 },
                 |scratch, &leaf| {
                     let mut out = Vec::new();

@@ -67,11 +67,7 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     frame: &LeafFrame,
     iso: f32,
-    (scratch, bounds, kept): (
-        &mut Scratch<'_, '_, D>,
-        (&BlockRanges, &LeafTree),
-        &PartRanges,
-    ),
+    (scratch, bounds, kept): (&mut Scratch<'_>, (&BlockRanges, &LeafTree), &PartRanges),
     around: Option<&Halo<'_, '_, D>>,
     out: &mut Vec<u64>,
 ) -> Result<LeafCounts> {

@@ -32,7 +32,7 @@ const MAX_RUN: u32 = 32;
 /// or one without data.
 pub fn hood_range<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
-    scratch: &mut Scratch<'_, '_, D>,
+    scratch: &mut Scratch<'_>,
     leaf: u32,
 ) -> Result<Option<(f32, f32)>> {
     let Some((_, level)) = sampler.leaf_top(leaf) else {
@@ -41,7 +41,6 @@ pub fn hood_range<D: AsRef<[u8]>>(
     let Scratch {
         hood,
         memo,
-        loc,
         shared,
         near,
         tiles,
@@ -59,9 +58,7 @@ pub fn hood_range<D: AsRef<[u8]>>(
             let region = run_region(sampler, leaves, leaf, level, g);
             hood.fill_region((sampler, leaves), level, region)?;
         }
-        loc.defer(level, &finest);
-        let settled = settle_in((sampler, *shared), hood, (loc, memo, near), &g);
-        loc.finish();
+        let settled = settle_in((sampler, *shared), hood, (memo, near), &g);
         settled?;
         let (lo, hi) = hood.range_in(&g);
         if lo > hi {
@@ -69,9 +66,7 @@ pub fn hood_range<D: AsRef<[u8]>>(
         }
         return Ok(Some(widen_range(lo, hi)));
     };
-    loc.defer(level, &finest);
-    let range = tiles.range_in((sampler, *shared), (loc, memo, near), level, g);
-    loc.finish();
+    let range = tiles.range_in((sampler, *shared), (memo, near), level, g);
     let (lo, hi) = range?;
     if lo > hi {
         return Ok(Some((f32::INFINITY, f32::NEG_INFINITY)));

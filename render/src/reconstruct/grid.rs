@@ -9,8 +9,6 @@
 
 use amr_format::{AmrkFile, IBox};
 
-use super::local::pow2_shift;
-
 /// `[f(0), f(1), f(2)]`: a value per axis, built without a call per element.
 #[inline(always)]
 pub fn axes<T>(mut f: impl FnMut(usize) -> T) -> [T; 3] {
@@ -164,4 +162,12 @@ impl Grid {
     pub fn to_doubled(&self, x: [f64; 3]) -> [f64; 3] {
         axes(|a| 2.0 * ((x[a] - self.world_origin[a]) / self.world_cell[a] - self.offset[a] as f64))
     }
+}
+
+/// log2 of a cell width per axis, when every axis is a power of two.
+pub(super) fn pow2_shift(scale: [i64; 3]) -> Option<[u32; 3]> {
+    scale
+        .iter()
+        .all(|s| *s > 0 && (*s as u64).is_power_of_two())
+        .then(|| scale.map(|s| s.trailing_zeros()))
 }

@@ -4,7 +4,6 @@
 //! - [`interp`]: trilinear interpolation and averages in one fixed evaluation order.
 //! - [`cache`]: a bounded cache of decoded (decompressed) bricks.
 //! - [`leaf_grid`]: point location in one table read over the kd-tree.
-//! - [`local`]: leaf-cell location around one kd-tree leaf from a table, without tree walks.
 //! - [`recent`]: per-thread scratch that makes nearby point samples cheap.
 //! - [`sampler`]: leaf-cell location and the octant method's vertex values.
 //! - [`stitch`]: stitched vertex values from the coarse corners of non-zero weight alone.
@@ -18,14 +17,12 @@ pub mod grid;
 pub mod interp;
 pub mod leaf_grid;
 pub mod level_gradient;
-pub mod local;
 pub mod methods;
 pub mod recent;
 pub mod sampler;
 mod stitch;
 
 pub use grid::Grid;
-pub use local::LocalLocator;
 pub use methods::Reconstruction;
 pub use recent::SampleScratch;
 pub use sampler::{LeafCell, Locate, Octant, Sampler, Slab, VertexMemo};

@@ -209,8 +209,8 @@ impl Hasher for VertexHasher {
     }
 }
 
-/// Finds the leaf cell holding a finest-level cell. The sampler answers with a kd-tree walk;
-/// [`super::local::LocalLocator`] answers from a per-leaf table and falls back to the sampler.
+/// Finds the leaf cell holding a finest-level cell. The sampler answers through its leaf grid
+/// over the kd-tree; [`super::recent::RecentLocator`] first tries the leaves it met last.
 /// Every implementation must give exactly [`Sampler::locate`]'s answer.
 pub trait Locate {
     /// The leaf cell holding finest-level cell `finest` (relative to the domain, inside it).

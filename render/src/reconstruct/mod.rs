@@ -8,6 +8,7 @@
 //! - [`sampler`]: leaf-cell location and the octant method's vertex values.
 //! - [`stitch`]: stitched vertex values from the coarse corners of non-zero weight alone.
 //! - [`level_gradient`]: smooth normals' central differences inside one level, from a brick.
+//! - [`mixed`]: octant corners next to other levels, from one table of the cells they read.
 //! - [`methods`]: point sampling with `nearest`, `current`, `finest` and `octant`.
 //!
 //! `docs/reconstruction.md` gives the rules and the reasons for them.
@@ -18,6 +19,7 @@ pub mod interp;
 pub mod leaf_grid;
 pub mod level_gradient;
 pub mod methods;
+mod mixed;
 pub mod recent;
 pub mod sampler;
 mod stitch;

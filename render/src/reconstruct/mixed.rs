@@ -1,0 +1,234 @@
+//! Octant corners next to other levels, from one table of the leaf cells they read.
+//!
+//! Every corner of an octant but the cell centre is the value at a vertex computed from the eight
+//! finest cells the vertex is nudged into. Per axis those cells lie at four finest-level
+//! coordinates (the two faces of the octant's box, nudged toward `-` and toward `+`), so all the
+//! corners read from one 4x4x4 table of finest cells, each cell used by exactly one corner. The
+//! table is filled once, position by position (the cell and its seven neighbours of the same
+//! level around the octant's outer corner): a position whose located leaf cell covers it whole
+//! fills its entries with that cell, the others read their cells from the position's or the
+//! octant's kd-tree leaf, or locate them. The corners then follow from the table in
+//! [`Sampler::vertex_value_in`]'s order and operations, so the values are its values bit for bit.
+
+use amr_format::IBox;
+
+use crate::error::Result;
+
+use super::grid::axes;
+use super::interp::avg8;
+use super::sampler::{LeafCell, Locate, Octant, Position, Sampler, VertexMemo};
+use super::stitch::Stitches;
+
+/// The finest cells of the table along one axis.
+#[derive(Clone, Copy, Default)]
+struct Axis {
+    /// Per table index `2 * face + dir`: the finest coordinate (clamped into the domain).
+    at: [i64; 4],
+    /// Per table index: the axis's bit when the cell lies outside the octant's own cell.
+    out: [usize; 4],
+}
+
+/// Branch-free: true when finest cell `p` lies in box `b`.
+#[inline(always)]
+pub(super) fn holds(b: &IBox, p: [i64; 3]) -> bool {
+    (b.lo[0] <= p[0])
+        & (p[0] < b.hi[0])
+        & (b.lo[1] <= p[1])
+        & (p[1] < b.hi[1])
+        & (b.lo[2] <= p[2])
+        & (p[2] < b.hi[2])
+}
+
+impl<D: AsRef<[u8]>> Sampler<'_, D> {
+    /// The corners of octant `o` of a leaf cell of value `value` when the leaf cells `around`
+    /// its outer corner (side `n` of the corner; [`Sampler::nudges`]' `same` axes repeat a side)
+    /// are not all of the octant's level: the rest of [`Self::corners_gathered`]. `near` is a
+    /// leaf cell already located and its kd-tree leaf's box. `None` where a cell involved is not
+    /// covered by any brick.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn corners_mixed<L: Locate>(
+        &self,
+        loc: &L,
+        o: &Octant,
+        value: f32,
+        (up, same): ([bool; 3], usize),
+        around: &[Option<LeafCell>; 8],
+        near: Option<(LeafCell, IBox)>,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<[f32; 8]>> {
+        let Octant { level, cell, .. } = *o;
+        let grid = self.grid();
+        let s = grid.scale(level);
+        let ext = grid.extent();
+        // Position `k` is the cell's neighbour on the octant's side of every axis `a` whose bit
+        // is set in `k`; side `n` of the outer corner lies in position `n ^ down`.
+        let down = (0..3).fold(0usize, |m, a| m | usize::from(!up[a]) << a);
+        let domain = IBox::new([0; 3], ext);
+        let own = grid.finest_box(level, cell);
+        let mut positions = [None::<Position>; 8];
+        // Per position: its cell's level and value when the cell covers the whole position.
+        let mut whole = 0u8;
+        let mut whole_level = [0u32; 8];
+        let mut whole_value = [0f32; 8];
+        for (k, slot) in positions.iter_mut().enumerate() {
+            // A set bit of `same` is an axis where the outer corner lies on the domain's face.
+            let Some(c) = around[k ^ down].filter(|_| k & same == 0) else {
+                continue;
+            };
+            let mut b = own;
+            for a in (0..3).filter(|a| k >> a & 1 == 1) {
+                let step = if up[a] { s[a] } else { -s[a] };
+                b.lo[a] += step;
+                b.hi[a] += step;
+            }
+            let leaf_box = match near {
+                Some((n, nb)) if n.leaf == c.leaf => nb,
+                _ => self.leaf_box(c.leaf),
+            };
+            let p = Position {
+                cell: c,
+                whole: c.level <= level && leaf_box.contains_box(&b.intersect(&domain)),
+                leaf_box,
+            };
+            if p.whole {
+                whole |= 1 << k;
+                (whole_level[k], whole_value[k]) = (c.level, c.value);
+            }
+            *slot = Some(p);
+        }
+        let (base, _) = self.octant_box(o);
+        let mut axis = [Axis::default(); 3];
+        for (a, ax) in axis.iter_mut().enumerate() {
+            for i in 0..4 {
+                let x = base[a] + (i >> 1) as i64 * s[a];
+                let f = if i & 1 == 0 { x - 1 } else { x }.div_euclid(2);
+                let f = f.clamp(0, ext[a] - 1);
+                ax.at[i] = f;
+                ax.out[i] = usize::from((f < own.lo[a]) | (f >= own.hi[a])) << a;
+            }
+        }
+        // The table, entry `x + 4 y + 16 z`: each finest cell's leaf-cell level and value, and
+        // (bit per entry) whether the cell was read or located rather than its position's.
+        let mut levels = [0u32; 64];
+        let mut values = [0f32; 64];
+        let mut read = 0u64;
+        // Per axis: the entries whose index along it is `i`.
+        const SLAB: [u64; 3] = [0x1111_1111_1111_1111, 0x000F_000F_000F_000F, 0xFFFF];
+        let slab = |a: usize, i: usize| SLAB[a] << (i << (2 * a));
+        // Per axis and position bit: the entries whose cell along the axis lies in the own cell
+        // (bit 0) or in the neighbour (bit 1); and the entries whose cell repeats the one an
+        // index lower (both nudges of a face meet one cell).
+        let mut part = [[0u64; 2]; 3];
+        // Per axis and position bit: the lowest and highest finest coordinate.
+        let mut span = [[(i64::MAX, i64::MIN); 2]; 3];
+        let mut repeat = [0u64; 3];
+        for (a, ax) in axis.iter().enumerate() {
+            for i in 0..4 {
+                let bit = usize::from(ax.out[i] != 0);
+                part[a][bit] |= slab(a, i);
+                span[a][bit] = (span[a][bit].0.min(ax.at[i]), span[a][bit].1.max(ax.at[i]));
+                if i & 1 == 1 && ax.at[i] == ax.at[i - 1] {
+                    repeat[a] |= slab(a, i);
+                }
+            }
+        }
+        // The centre corner's entries are never read.
+        let centre = !(0..3).fold(u64::MAX, |m, a| {
+            let side = down >> a & 1;
+            m & (slab(a, 2 * side) | slab(a, 2 * side + 1))
+        });
+        for (k, p) in positions.iter().enumerate() {
+            let mut mask = part[0][k & 1] & part[1][k >> 1 & 1] & part[2][k >> 2 & 1] & centre;
+            if whole >> k & 1 == 1 {
+                while mask != 0 {
+                    let e = mask.trailing_zeros() as usize;
+                    (levels[e], values[e]) = (whole_level[k], whole_value[k]);
+                    mask &= mask - 1;
+                }
+                continue;
+            }
+            read |= mask;
+            // The position's kd-tree leaf, when it holds all the position's cells.
+            let leaf = p.map_or(u32::MAX, |p| {
+                let r: [usize; 3] = axes(|a| k >> a & 1);
+                let lo = axes(|a| span[a][r[a]].0);
+                let hi = axes(|a| span[a][r[a]].1);
+                if holds(&p.leaf_box, lo) & holds(&p.leaf_box, hi) {
+                    p.cell.leaf
+                } else {
+                    u32::MAX
+                }
+            });
+            while mask != 0 {
+                let e = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let (x, y, z) = (e & 3, e >> 2 & 3, e >> 4);
+                let first = e
+                    - (repeat[0] >> e & 1) as usize
+                    - 4 * (repeat[1] >> e & 1) as usize
+                    - 16 * (repeat[2] >> e & 1) as usize;
+                if first != e {
+                    (levels[e], values[e]) = (levels[first], values[first]);
+                    continue;
+                }
+                let f = [axis[0].at[x], axis[1].at[y], axis[2].at[z]];
+                if leaf != u32::MAX {
+                    if let Some(v) = self.value_in_leaf(leaf, f) {
+                        (levels[e], values[e]) = (p.map_or(0, |p| p.cell.level), v);
+                        continue;
+                    }
+                }
+                let Some(c) = self.position_cell(loc, p.as_ref(), near.as_ref(), f)? else {
+                    return Ok(None);
+                };
+                (levels[e], values[e]) = (c.level, c.value);
+            }
+        }
+        let mut stitches = None::<Stitches>;
+        let mut out = [0f32; 8];
+        for (n, slot) in out.iter_mut().enumerate() {
+            if n == down {
+                // The corner at the cell centre carries the cell's value.
+                *slot = value;
+                continue;
+            }
+            // Side `i` of corner `n` is table entry `corner + step(i)`.
+            let corner = (n & 1) * 2 + (n >> 1 & 1) * 8 + (n >> 2 & 1) * 32;
+            let entry = |i: usize| corner + (i & 1) + (i >> 1 & 1) * 4 + (i >> 2 & 1) * 16;
+            let lv: [u32; 8] = std::array::from_fn(|i| levels[entry(i)]);
+            let coarsest = lv.iter().copied().fold(u32::MAX, u32::min);
+            *slot = if coarsest < level {
+                let v = axes(|a| base[a] + (n >> a & 1) as i64 * s[a]);
+                let side = lv.iter().position(|&l| l == coarsest).unwrap_or(0);
+                let e = entry(side);
+                let (x, y, z) = (e & 3, e >> 2 & 3, e >> 4);
+                let k = axis[0].out[x] | axis[1].out[y] | axis[2].out[z];
+                let q = if read >> e & 1 == 0 {
+                    positions[k].map(|p| p.cell)
+                } else {
+                    // The cell read or located for the entry: the same answer again.
+                    let f = [axis[0].at[x], axis[1].at[y], axis[2].at[z]];
+                    self.position_cell(loc, positions[k].as_ref(), near.as_ref(), f)?
+                };
+                let Some(q) = q else {
+                    return Ok(None);
+                };
+                let octant = self.octant_toward(v, &q, side);
+                let stitches = stitches.get_or_insert_with(|| {
+                    let mut st = Stitches::new();
+                    if let Some((c, b)) = near {
+                        st.add_leaf(c, b);
+                    }
+                    st
+                });
+                match self.stitched_value(loc, v, &q, octant, stitches, memo)? {
+                    Some(x) => x,
+                    None => return Ok(None),
+                }
+            } else {
+                avg8(&std::array::from_fn(|i| values[entry(i)]))
+            };
+        }
+        Ok(Some(out))
+    }
+}

@@ -527,7 +527,9 @@ impl OctantBvh {
         stack: &mut PacketStack,
         visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]),
     ) {
-        let test = packet::Avx2Packet::new(oct);
+        let mut lanes: packet::Avx2Lanes =
+            [const { std::mem::MaybeUninit::uninit() }; packet::PACKET];
+        let test = packet::Avx2Packet::new(&mut lanes, rays, m, oct);
         self.packet_with(rays, m, oct, stack, visit, |node, rays, m, e| {
             test.children(node, rays, m, e)
         });

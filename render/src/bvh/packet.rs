@@ -12,7 +12,6 @@
 //! What a packet shares is the node: its fetch, the decoding of its 48 plane bytes and its child
 //! layout; each ray's test is then about 30 instructions instead of 85.
 
-use glam::Vec3A;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray;
 
@@ -143,20 +142,43 @@ pub fn children_portable(
 
 /// The packet node test with AVX2: for each ray, the eight children at once, computed exactly as
 /// [`super::node_test::Avx2Ray::hits`] computes them, with the node's planes decoded once for
-/// the packet and the near and far planes chosen by the packet's octant once.
+/// the packet, the near and far planes chosen by the packet's octant once, and each ray's origin
+/// and inverse direction already in all eight lanes.
 #[cfg(target_arch = "x86_64")]
-#[derive(Clone, Copy)]
-pub struct Avx2Packet {
+pub struct Avx2Packet<'a> {
     /// Per axis, whether the rays go down it (their near planes are the high ones).
     down: [bool; 3],
+    /// The packet's rays' lanes, written for the rays of `rays` only.
+    lanes: &'a Avx2Lanes,
+    rays: Mask,
 }
 
+/// Per ray of a packet: its origin's and its inverse direction's coordinates, each in all eight
+/// lanes; written for the packet's rays only (the rest is never read, nor zeroed).
 #[cfg(target_arch = "x86_64")]
-impl Avx2Packet {
-    /// The test for rays of direction octant code `oct_inv4`.
-    pub fn new(oct_inv4: u32) -> Self {
+pub type Avx2Lanes = [std::mem::MaybeUninit<[std::arch::x86_64::__m256; 6]>; PACKET];
+
+/// From this many rays at a node on, their child masks are transposed into the packet's with
+/// byte shifts over all rays at once rather than bit by bit.
+#[cfg(target_arch = "x86_64")]
+const TRANSPOSE_FROM: u32 = 4;
+
+#[cfg(target_arch = "x86_64")]
+impl<'a> Avx2Packet<'a> {
+    /// The test for the rays `m` of `rays`, of direction octant code `oct_inv4`, with their
+    /// lanes written into `lanes`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub fn new(lanes: &'a mut Avx2Lanes, rays: &[Ray], m: Mask, oct_inv4: u32) -> Self {
+        use std::arch::x86_64::*;
+        for k in rays_of(m) {
+            let (o, inv) = (rays[k].origin, rays[k].inv_direction);
+            lanes[k].write([o.x, o.y, o.z, inv.x, inv.y, inv.z].map(|x| _mm256_set1_ps(x)));
+        }
         Self {
             down: [oct_inv4 & 4 == 0, oct_inv4 & 2 == 0, oct_inv4 & 1 == 0],
+            lanes,
+            rays: m,
         }
     }
 
@@ -187,31 +209,61 @@ impl Avx2Packet {
             used |= u32::from(meta >> (8 * s) & 0xff != 0) << s;
         }
         let extent = node.compute_extent();
-        let p = Vec3A::from(node.p);
+        let e = [extent.x, extent.y, extent.z].map(|x| _mm256_set1_ps(x));
+        let p = node.p;
+        let p = [p.x, p.y, p.z].map(|x| _mm256_set1_ps(x));
         let t_min = _mm256_set1_ps(T_MIN);
-        for k in rays_of(m) {
-            let ray = &rays[k];
-            let scale = extent * ray.inv_direction;
-            let offset = (p - ray.origin) * ray.inv_direction;
-            let plane = |q: __m256, s: f32, o: f32| {
-                _mm256_add_ps(_mm256_mul_ps(q, _mm256_set1_ps(s)), _mm256_set1_ps(o))
+        // The children each ray enters: `Vec3A`'s lane-wise products and differences, so each
+        // value is the one the single-ray test computes.
+        let hits = |k: usize| {
+            assert!(self.rays >> k & 1 != 0, "ray {k} is not in the packet");
+            // SAFETY: `new` wrote the lanes of every ray of `self.rays`, checked just above.
+            let l = unsafe { self.lanes[k].assume_init_ref() };
+            let axis = |a: usize, near: __m256, far: __m256| {
+                let scale = _mm256_mul_ps(e[a], l[3 + a]);
+                let offset = _mm256_mul_ps(_mm256_sub_ps(p[a], l[a]), l[3 + a]);
+                (
+                    _mm256_add_ps(_mm256_mul_ps(near, scale), offset),
+                    _mm256_add_ps(_mm256_mul_ps(far, scale), offset),
+                )
             };
-            let x0 = plane(nx, scale.x, offset.x);
-            let x1 = plane(fx, scale.x, offset.x);
-            let y0 = plane(ny, scale.y, offset.y);
-            let y1 = plane(fy, scale.y, offset.y);
-            let z0 = plane(nz, scale.z, offset.z);
-            let z1 = plane(fz, scale.z, offset.z);
+            let (x0, x1) = axis(0, nx, fx);
+            let (y0, y1) = axis(1, ny, fy);
+            let (z0, z1) = axis(2, nz, fz);
             let t0 = _mm256_max_ps(x0, _mm256_max_ps(y0, z0));
             let t1 = _mm256_min_ps(x1, _mm256_min_ps(y1, z1));
             let t0 = _mm256_max_ps(t0, t_min);
-            let t1 = _mm256_min_ps(t1, _mm256_set1_ps(ray.tmax));
-            let mut e = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32 & used;
-            while e != 0 {
-                let s = e.trailing_zeros() as usize;
-                e &= e - 1;
-                entered[s] |= 1 << k;
+            let t1 = _mm256_min_ps(t1, _mm256_set1_ps(rays[k].tmax));
+            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32 & used
+        };
+        if m.count_ones() < TRANSPOSE_FROM {
+            for k in rays_of(m) {
+                let mut h = hits(k);
+                while h != 0 {
+                    let s = h.trailing_zeros() as usize;
+                    h &= h - 1;
+                    entered[s] |= 1 << k;
+                }
             }
+            return;
+        }
+        // One byte per ray, then bit `s` of every byte shifted to the top and gathered.
+        let mut bytes = [_mm256_setzero_si256(); 2];
+        {
+            // SAFETY: `bytes` is 64 bytes, plain integers; `k < PACKET = 64`.
+            let b = unsafe { &mut *(bytes.as_mut_ptr() as *mut [u8; PACKET]) };
+            for k in rays_of(m) {
+                b[k] = hits(k) as u8;
+            }
+        }
+        for (s, entered) in entered.iter_mut().enumerate() {
+            if used >> s & 1 == 0 {
+                continue;
+            }
+            let shift = _mm_cvtsi32_si128(7 - s as i32);
+            let lo = _mm256_movemask_epi8(_mm256_sll_epi16(bytes[0], shift)) as u32;
+            let hi = _mm256_movemask_epi8(_mm256_sll_epi16(bytes[1], shift)) as u32;
+            *entered |= u64::from(lo) | u64::from(hi) << 32;
         }
     }
 }

@@ -132,9 +132,9 @@ pub fn children_portable(
     }
     for k in rays_of(m) {
         let hits = node.intersect_ray(&rays[k], oct_inv4);
-        for s in 0..8 {
-            if hits & bit[s] != 0 {
-                entered[s] |= 1 << k;
+        for (e, b) in entered.iter_mut().zip(bit) {
+            if hits & b != 0 {
+                *e |= 1 << k;
             }
         }
     }
@@ -167,6 +167,9 @@ const TRANSPOSE_FROM: u32 = 4;
 impl<'a> Avx2Packet<'a> {
     /// The test for the rays `m` of `rays`, of direction octant code `oct_inv4`, with their
     /// lanes written into `lanes`.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
     #[target_feature(enable = "avx2")]
     #[inline]
     pub fn new(lanes: &'a mut Avx2Lanes, rays: &[Ray], m: Mask, oct_inv4: u32) -> Self {
@@ -183,7 +186,10 @@ impl<'a> Avx2Packet<'a> {
     }
 
     /// Sets bit `k` of `entered[s]` for each ray `k` of `m` that enters the non-empty child in
-    /// slot `s` of `node`.
+    /// slot `s` of `node`. Panics unless `m` is a subset of the packet's rays.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
     #[target_feature(enable = "avx2")]
     #[inline]
     pub fn children(&self, node: &CwBvhNode, rays: &[Ray], m: Mask, entered: &mut [Mask; 8]) {

@@ -204,10 +204,12 @@ impl Surface {
         let mut ray32 = [unused; PACKET];
         let mut back = [(0.0f64, 0.0f64); PACKET];
         let mut best_t = [0.0f64; PACKET];
+        let mut recips = [[0.0f64; 3]; PACKET];
         let mut active: Mask = 0;
         for k in 0..n {
             out[k] = None;
             best_t[k] = tmax[k];
+            recips[k] = rays[k].recip();
             if let Some(b) = rays[k].bvh_ray(&frame, pad, tmin, tmax[k]) {
                 ray32[k] = b.ray;
                 back[k] = (b.t_off, b.scale);
@@ -217,13 +219,23 @@ impl Surface {
         if active == 0 {
             return;
         }
+        let mut found = [None; PACKET];
         src.with_voxels(&mut |voxel_of| {
             self.bvh
                 .traverse_packet(&mut ray32[..n], active, |_, r, m, ray32| {
                     let voxel = voxel_of(r);
+                    src.intersect_packet(
+                        &voxel,
+                        self.iso,
+                        rays,
+                        &recips[..n],
+                        m,
+                        tmin,
+                        &best_t[..n],
+                        &mut found[..n],
+                    );
                     for k in rays_of(m) {
-                        let Some(h) = src.intersect(&voxel, self.iso, &rays[k], tmin, best_t[k])
-                        else {
+                        let Some(h) = found[k] else {
                             continue;
                         };
                         if h.t < best_t[k] || out[k].is_none() {

@@ -52,7 +52,11 @@ fn packets_find_the_single_ray_hits() {
     write_half_refined_sphere(&path, 3, 2, 8);
     let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
     let finest = file.levels().last().unwrap().cell_size[0];
-    for method in [Reconstruction::Octant, Reconstruction::Current] {
+    for method in [
+        Reconstruction::Octant,
+        Reconstruction::Current,
+        Reconstruction::Nearest,
+    ] {
         let src = FieldSource::new(&file, 0, method).unwrap();
         let refs = src.extract(0.0).unwrap().refs;
         let surface = Surface::build(&src, 0.0, &refs, &mut BvhBuilder::new());

@@ -224,16 +224,22 @@ impl Surface {
             self.bvh
                 .traverse_packet(&mut ray32[..n], active, |_, r, m, ray32| {
                     let voxel = voxel_of(r);
-                    src.intersect_packet(
-                        &voxel,
-                        self.iso,
-                        rays,
-                        &recips[..n],
-                        m,
-                        tmin,
-                        &best_t[..n],
-                        &mut found[..n],
-                    );
+                    if m & (m - 1) == 0 {
+                        // One ray: its own test, inlined (most candidates of a far view).
+                        let k = m.trailing_zeros() as usize;
+                        found[k] = src.intersect(&voxel, self.iso, &rays[k], tmin, best_t[k]);
+                    } else {
+                        src.intersect_packet(
+                            &voxel,
+                            self.iso,
+                            rays,
+                            &recips[..n],
+                            m,
+                            tmin,
+                            &best_t[..n],
+                            &mut found[..n],
+                        );
+                    }
                     for k in rays_of(m) {
                         let Some(h) = found[k] else {
                             continue;

@@ -184,6 +184,15 @@ impl<T: Tracer + Sync + ?Sized> Tracer for PaintedTracer<'_, T> {
         }
     }
 
+    fn next_hits(&self, i: usize, rays: &[GridRay], tmax: &[f64], out: &mut [Option<SurfaceHit>]) {
+        if i < self.surfaces.len() {
+            return self.inner.next_hits(i, rays, tmax, out);
+        }
+        for ((ray, &tmax), out) in rays.iter().zip(tmax).zip(out) {
+            *out = self.next_hit(i, ray, 0.0, tmax);
+        }
+    }
+
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
         // Slices cast no shadows: they show the data, not an object in the light.
         i < self.surfaces.len() && self.inner.occluded(i, ray, tmin, tmax)

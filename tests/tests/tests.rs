@@ -27,6 +27,7 @@
 //! - [`render_watertight`] and [`render_watertight_amrk`]: no ray leaks through a closed surface.
 //! - [`render_accuracy`]: the hybrid method against the sample method.
 //! - [`render_golden`]: a golden image.
+//! - [`render_packets`]: packets of primary rays find each ray's single-ray hit.
 //! - [`render_ao_filter`]: the ambient occlusion filtered across pixels: less noise, and tiles
 //!   equal to the whole frame.
 //! - [`render_shading`]: coarse real data under smooth normals: no black silhouette pixels, no
@@ -67,6 +68,7 @@ mod render_bench;
 mod render_clip;
 mod render_golden;
 mod render_normals;
+mod render_packets;
 mod render_shading;
 mod render_watertight;
 mod render_watertight_amrk;

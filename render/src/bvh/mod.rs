@@ -26,9 +26,11 @@ use obvhs::BvhBuildParams;
 use rayon::prelude::*;
 
 mod node_test;
+pub mod packet;
 mod walk;
 pub mod wide;
 
+use packet::{walk_packet, Mask, PacketStack};
 use walk::{walk, Stack};
 use wide::WideBuilder;
 
@@ -452,6 +454,128 @@ impl OctantBvh {
         self.traverse_with(ray, visit, |node, ray, _| consts.hits(node, ray.tmax));
     }
 
+    /// [`OctantBvh::traverse_indexed`] for the rays of `active` among `rays` (at most
+    /// [`packet::PACKET`]) together: `visit(i, refs()[i], m, rays)` is called with the rays `m`
+    /// that reach the ref, and may lower their `tmax` (closest-hit searches; there is no stop).
+    /// Each ray gets exactly the visits, in the same order and under the same `tmax`, that
+    /// [`OctantBvh::traverse_indexed`] would give it alone; rays are grouped by direction octant
+    /// into packets ([`packet`]). Each ray's `-0.0` direction components become `+0.0`.
+    pub fn traverse_packet(
+        &self,
+        rays: &mut [Ray],
+        active: Mask,
+        mut visit: impl FnMut(usize, u64, Mask, &mut [Ray]),
+    ) {
+        assert!(
+            rays.len() <= packet::PACKET,
+            "{} rays in a packet",
+            rays.len()
+        );
+        let mut octants = [0 as Mask; 8];
+        for k in packet::rays_of(active) {
+            rays[k] = positive_zeros(rays[k]);
+            octants[(node_test::octant_inv4(rays[k].direction) & 7) as usize] |= 1 << k;
+        }
+        let mut stack = PacketStack::with_capacity(256);
+        for (o, &m) in octants.iter().enumerate() {
+            if m == 0 {
+                continue;
+            }
+            let oct = (o as u32) * 0x0101_0101;
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2, checked just above.
+                unsafe { self.packet_avx2(rays, m, oct, &mut stack, &mut visit) };
+                continue;
+            }
+            self.packet_with(rays, m, oct, &mut stack, &mut visit, |node, rays, m, e| {
+                packet::children_portable(node, rays, m, oct, e)
+            });
+        }
+    }
+
+    /// [`OctantBvh::traverse_packet`] on a CPU without AVX2, to compare with the AVX2 test.
+    #[cfg(test)]
+    fn traverse_packet_portable(
+        &self,
+        rays: &mut [Ray],
+        active: Mask,
+        mut visit: impl FnMut(usize, u64, Mask, &mut [Ray]),
+    ) {
+        let mut octants = [0 as Mask; 8];
+        for k in packet::rays_of(active) {
+            rays[k] = positive_zeros(rays[k]);
+            octants[(node_test::octant_inv4(rays[k].direction) & 7) as usize] |= 1 << k;
+        }
+        let mut stack = PacketStack::new();
+        for (o, &m) in octants.iter().enumerate() {
+            let oct = (o as u32) * 0x0101_0101;
+            self.packet_with(rays, m, oct, &mut stack, &mut visit, |node, rays, m, e| {
+                packet::children_portable(node, rays, m, oct, e)
+            });
+        }
+    }
+
+    /// One octant's packet with the AVX2 node test, the whole walk compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn packet_avx2(
+        &self,
+        rays: &mut [Ray],
+        m: Mask,
+        oct: u32,
+        stack: &mut PacketStack,
+        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]),
+    ) {
+        let mut lanes: packet::Avx2Lanes =
+            [const { std::mem::MaybeUninit::uninit() }; packet::PACKET];
+        let test = packet::Avx2Packet::new(&mut lanes, rays, m, oct);
+        self.packet_with(rays, m, oct, stack, visit, |node, rays, m, e| {
+            test.children(node, rays, m, e)
+        });
+    }
+
+    /// One octant's packet: the top level, then each chunk it reaches, with the node test `test`.
+    #[inline(always)]
+    fn packet_with(
+        &self,
+        rays: &mut [Ray],
+        m: Mask,
+        oct: u32,
+        stack: &mut PacketStack,
+        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]),
+        test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) + Copy,
+    ) {
+        let mut chunk_walk = |chunk: &Chunk, rays: &mut [Ray], m: Mask, stack: &mut PacketStack| {
+            let refs = &self.refs[chunk.first..chunk.first + chunk.len];
+            walk_packet(
+                &chunk.bvh.nodes,
+                rays,
+                m,
+                oct,
+                stack,
+                test,
+                |i, m, rays, _| {
+                    let i = i as usize;
+                    visit(chunk.first + i, refs[i], m, rays)
+                },
+            );
+        };
+        if let [chunk] = self.chunks.as_slice() {
+            chunk_walk(chunk, rays, m, stack);
+            return;
+        }
+        walk_packet(
+            &self.top.nodes,
+            rays,
+            m,
+            oct,
+            stack,
+            test,
+            |c, m, rays, stack| chunk_walk(&self.chunks[c as usize], rays, m, stack),
+        );
+    }
+
     /// The top level, then each chunk it reaches, with the node test `test`.
     #[inline(always)]
     fn traverse_with(
@@ -712,6 +836,94 @@ mod tests {
             }
         }
         assert!(visited > 20_000, "only {visited} visits");
+    }
+
+    /// What each ray of `rays` visits in a packet walk, as [`visits`] records it for one ray:
+    /// every seventh visit of a ray lowers its `tmax`. Rays outside `active` visit nothing.
+    fn packet_visits(
+        bvh: &OctantBvh,
+        rays: &[Ray],
+        active: Mask,
+        portable: bool,
+    ) -> Vec<Vec<(u64, u32)>> {
+        let mut rs = rays.to_vec();
+        let mut seen = vec![Vec::new(); rays.len()];
+        let visit = |_: usize, r: u64, m: Mask, rays: &mut [Ray]| {
+            for k in packet::rays_of(m) {
+                seen[k].push((r, rays[k].tmax.to_bits()));
+                if seen[k].len() % 7 == 0 {
+                    rays[k].tmax *= 0.9;
+                }
+            }
+        };
+        if portable {
+            bvh.traverse_packet_portable(&mut rs, active, visit);
+        } else {
+            bvh.traverse_packet(&mut rs, active, visit);
+        }
+        seen
+    }
+
+    #[test]
+    fn a_packet_visits_for_each_ray_what_its_own_walk_visits() {
+        let refs: Vec<u64> = (0..20_000).collect();
+        let mut builder = BvhBuilder::new();
+        builder.chunk_refs = 1500;
+        let chunked = builder.build(&refs, 1e-4, scattered_boxes);
+        let one = BvhBuilder::new().build(&refs, 1e-4, scattered_boxes);
+        builder.method = BuildMethod::Ploc;
+        let ploc = builder.build(&refs, 1e-4, scattered_boxes);
+        let mut visited = 0;
+        for (name, bvh) in [("chunked", &chunked), ("one", &one), ("ploc", &ploc)] {
+            for p in 0..24u32 {
+                let a = p as f32 * 0.618;
+                let origin = Vec3A::new(
+                    50.0 + 80.0 * a.cos(),
+                    50.0 + 80.0 * a.sin(),
+                    30.0 + (p % 40) as f32,
+                );
+                let target = Vec3A::new(50.0, 50.0, 50.0)
+                    + Vec3A::new((a * 3.1).sin(), (a * 2.3).cos(), (a * 1.7).sin()) * 30.0;
+                // An 8x8 tile of directions around the target; every third packet spread so
+                // wide that its rays fall in several octants, some with zero components.
+                let spread = if p % 3 == 0 { 2.0 } else { 0.02 };
+                let rays: Vec<Ray> = (0..64u32)
+                    .map(|k| {
+                        let (u, v) = ((k % 8) as f32 - 3.5, (k / 8) as f32 - 3.5);
+                        let mut dir = ((target - origin).normalize()
+                            + Vec3A::new(u, v, u - v) * spread * 0.25)
+                            .normalize();
+                        if p % 3 == 0 && k % 9 == 0 {
+                            dir[(k % 3) as usize] = if k % 2 == 0 { 0.0 } else { -0.0 };
+                        }
+                        let tmax = if (p + k) % 4 == 0 {
+                            60.0
+                        } else {
+                            f32::INFINITY
+                        };
+                        Ray::new(origin, dir, 0.0, tmax)
+                    })
+                    .collect();
+                let active = if p % 4 == 1 {
+                    0x5555_aaaa_f0f0_0ff1
+                } else {
+                    u64::MAX
+                };
+                let got = packet_visits(bvh, &rays, active, false);
+                let portable = packet_visits(bvh, &rays, active, true);
+                for (k, ray) in rays.iter().enumerate() {
+                    let want = if active >> k & 1 != 0 {
+                        visits(|r, v| bvh.traverse(r, v), *ray, None)
+                    } else {
+                        Vec::new()
+                    };
+                    assert_eq!(got[k], want, "{name} packet {p} ray {k}");
+                    assert_eq!(portable[k], want, "{name} packet {p} ray {k}, portable");
+                    visited += want.len();
+                }
+            }
+        }
+        assert!(visited > 50_000, "only {visited} visits");
     }
 
     #[test]

@@ -62,7 +62,7 @@ const INLINE_SURFACES: usize = 4;
 /// carried from pixel to pixel; it changes the work, never the result).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct SearchHint {
-    nearest_opaque: usize,
+    pub(crate) nearest_opaque: usize,
 }
 
 /// Shades the world ray `origin + t dir` (`dir` unit length). With `ao_layers`, records the
@@ -73,7 +73,7 @@ pub fn shade_ray<T: Tracer + ?Sized>(
     (origin, dir): ([f64; 3], [f64; 3]),
     rng: &mut Rng,
     hint: &mut SearchHint,
-    mut ao_layers: Option<&mut Vec<AoLayer>>,
+    ao_layers: Option<&mut Vec<AoLayer>>,
 ) -> PixelSample {
     let frame = tracer.frame();
     let ray = GridRay::from_world(&frame, origin, dir);
@@ -87,27 +87,47 @@ pub fn shade_ray<T: Tracer + ?Sized>(
         spilled.resize(n, None);
         &mut spilled
     };
-    // Opaque surfaces first, the one nearest in the previous pixel first of all: a first
-    // crossing behind the nearest opaque hit is never composited, so the other surfaces'
-    // searches stop there. The order changes the work, not the hits found.
-    let opaque = |i: usize| light.opacity[i] >= 1.0;
-    let nearest_opaque = &mut hint.nearest_opaque;
-    let first = *nearest_opaque;
-    let order = (first < n && opaque(first))
-        .then_some(first)
-        .into_iter()
-        .chain((0..n).filter(|&i| i != first && opaque(i)))
-        .chain((0..n).filter(|&i| !opaque(i)));
     let mut opaque_near = f64::INFINITY;
-    for i in order {
+    for i in search_order(light, n, hint.nearest_opaque) {
         next[i] = tracer.next_hit(i, &ray, 0.0, opaque_near);
-        if let (true, Some(h)) = (opaque(i), next[i]) {
+        if let (true, Some(h)) = (light.opacity[i] >= 1.0, next[i]) {
             if h.t < opaque_near {
                 opaque_near = h.t;
-                *nearest_opaque = i;
+                hint.nearest_opaque = i;
             }
         }
     }
+    shade_hits(tracer, light, (origin, dir), &ray, next, rng, ao_layers)
+}
+
+/// The order in which a ray's first hits with the `n` surfaces are searched: opaque surfaces
+/// first, `first` (the one nearest in the previous pixel) first of all. A first crossing behind
+/// the nearest opaque hit is never composited, so the other surfaces' searches stop there; the
+/// order changes the work, not the hits found.
+pub fn search_order(light: &Lighting, n: usize, first: usize) -> impl Iterator<Item = usize> + '_ {
+    let opaque = move |i: usize| light.opacity[i] >= 1.0;
+    (first < n && opaque(first))
+        .then_some(first)
+        .into_iter()
+        .chain((0..n).filter(move |&i| i != first && opaque(i)))
+        .chain((0..n).filter(move |&i| !opaque(i)))
+}
+
+/// Shades the world ray `origin + t dir` (`dir` unit length; `ray` the same in grid
+/// coordinates) from `next[i]`, its first hit with each surface `i` (up to the nearest opaque
+/// one; [`shade_ray`] finds them); `next` is used up. With `ao_layers`, records the first
+/// [`FILTERED_HITS`] hits shaded with ambient occlusion there.
+pub fn shade_hits<T: Tracer + ?Sized>(
+    tracer: &T,
+    light: &Lighting,
+    (origin, dir): ([f64; 3], [f64; 3]),
+    ray: &GridRay,
+    next: &mut [Option<SurfaceHit>],
+    rng: &mut Rng,
+    mut ao_layers: Option<&mut Vec<AoLayer>>,
+) -> PixelSample {
+    let frame = tracer.frame();
+    let ray = *ray;
     let mut out = PixelSample::MISS;
     let mut recorded = 0;
     let mut transmittance = 1.0f32;

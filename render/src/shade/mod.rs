@@ -5,6 +5,7 @@
 pub mod ao_filter;
 pub mod integrate;
 pub mod material;
+pub mod packets;
 pub mod render_loop;
 pub mod sampling;
 

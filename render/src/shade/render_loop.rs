@@ -1,14 +1,16 @@
-//! The frame loop: rows in parallel, `spp` jittered samples per pixel, ray counting and progress,
+//! The frame loop: strips of tiles of 8x8 pixels in parallel (each tile's primary rays traced
+//! together), `spp` jittered samples per pixel, ray counting and progress,
 //! then the filter of the ambient occlusion over the whole frame.
 
 use std::cell::Cell;
 
 use rayon::prelude::*;
 
-use crate::camera::{Camera, PixelDirs};
+use crate::camera::Camera;
 use crate::output::frame::{FrameBuffer, PixelSample};
-use crate::shade::ao_filter::{self, AoLayer, AoRow, AoRows};
-use crate::shade::integrate::{shade_ray, Lighting, SearchHint};
+use crate::shade::ao_filter::{self, AoRow, AoRows};
+use crate::shade::integrate::{shade_hits, Lighting, SearchHint};
+use crate::shade::packets::TileHits;
 use crate::shade::sampling::Rng;
 use crate::trace::ray::GridRay;
 use crate::trace::source::GridFrame;
@@ -42,6 +44,10 @@ impl<T: Tracer + ?Sized> Tracer for Counting<'_, T> {
         self.rays.set(self.rays.get() + 1);
         self.inner.next_hit(i, ray, tmin, tmax)
     }
+    fn next_hits(&self, i: usize, rays: &[GridRay], tmax: &[f64], out: &mut [Option<SurfaceHit>]) {
+        self.rays.set(self.rays.get() + rays.len() as u64);
+        self.inner.next_hits(i, rays, tmax, out)
+    }
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
         self.rays.set(self.rays.get() + 1);
         self.inner.occluded(i, ray, tmin, tmax)
@@ -68,17 +74,22 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
     let (w, h) = (settings.width, settings.height);
     let spp = settings.spp.max(1);
     let band = (BAND_PIXELS / (u64::from(w) * u64::from(spp)).max(1)).clamp(1, u64::from(h)) as u32;
+    // Whole strips of tiles per band.
+    let band = (band / TILE).max(1) * TILE;
     let mut rows: Vec<Row> = Vec::with_capacity(h as usize);
-    for y0 in (0..h).step_by(band.max(1) as usize) {
-        let part: Vec<Row> = (y0..(y0 + band).min(h))
+    for y0 in (0..h).step_by(band as usize) {
+        let part: Vec<Vec<Row>> = (y0..(y0 + band).min(h))
+            .step_by(TILE as usize)
+            .collect::<Vec<u32>>()
             .into_par_iter()
             .map(|y| {
-                let row = render_row(tracer, camera, light, settings, (0..w, y));
-                progress(1);
-                row
+                let ys = y..(y + TILE).min(h);
+                let strip = render_strip(tracer, camera, light, settings, (0..w, ys));
+                progress(strip.len() as u64);
+                strip
             })
             .collect();
-        rows.extend(part);
+        rows.extend(part.into_iter().flatten());
         tracer.release_pages();
     }
     let rays = rows.iter().map(|r| r.rays).sum();
@@ -112,8 +123,16 @@ pub fn render_rect<T: Tracer + Sync + ?Sized>(
     let mx1 = (x0 + w).saturating_add(margin).min(fw).max(x0 + w);
     let my1 = (y0 + h).saturating_add(margin).min(fh).max(y0 + h);
     let rows: Vec<Row> = (my0..my1)
+        .step_by(TILE as usize)
+        .collect::<Vec<u32>>()
         .into_par_iter()
-        .map(|y| render_row(tracer, camera, light, settings, (mx0..mx1, y)))
+        .map(|y| {
+            let ys = y..(y + TILE).min(my1);
+            render_strip(tracer, camera, light, settings, (mx0..mx1, ys))
+        })
+        .collect::<Vec<Vec<Row>>>()
+        .into_iter()
+        .flatten()
         .collect();
     let rays = rows.iter().map(|r| r.rays).sum();
     let mw = mx1 - mx0;
@@ -148,36 +167,87 @@ fn filters(light: &Lighting, settings: RenderSettings) -> bool {
     light.ao_filter && light.ao_rays > 0 && settings.spp <= 1
 }
 
-/// The pixels `xs` of row `y`.
-fn render_row<T: Tracer + ?Sized>(
+/// Pixels per side of a tile, whose primary rays are traced together.
+const TILE: u32 = 8;
+
+/// The pixels `xs` of the rows `ys` (at most [`TILE`]), one row each, tile after tile of
+/// [`TILE`] columns; the strip's ray queries are counted in its first row.
+fn render_strip<T: Tracer + ?Sized>(
     tracer: &T,
     camera: &Camera,
     light: &Lighting,
     settings: RenderSettings,
-    (xs, y): (std::ops::Range<u32>, u32),
-) -> Row {
+    (xs, ys): (std::ops::Range<u32>, std::ops::Range<u32>),
+) -> Vec<Row> {
     let counting = Counting {
         inner: tracer,
         rays: Cell::new(0),
     };
     let record = filters(light, settings);
-    let mut row = Row {
-        pixels: Vec::with_capacity(xs.len()),
-        ao: AoRow::new(),
-        rays: 0,
-    };
+    let mut rows: Vec<Row> = ys
+        .clone()
+        .map(|_| Row {
+            pixels: Vec::with_capacity(xs.len()),
+            ao: AoRow::new(),
+            rays: 0,
+        })
+        .collect();
     let mut hint = SearchHint::default();
     let dirs = camera.pixel_dirs(settings.width, settings.height);
-    for x in xs {
-        let layers = record.then_some(row.ao.layers_mut());
-        let px = pixel(&counting, &dirs, light, (x, y), settings, &mut hint, layers);
-        row.pixels.push(px);
-        if record {
-            row.ao.end_pixel();
+    let frame = tracer.frame();
+    let spp = settings.spp.max(1);
+    let mut tile = TileHits::new(tracer.num_surfaces());
+    for x0 in xs.clone().step_by(TILE as usize) {
+        let x1 = (x0 + TILE).min(xs.end);
+        let pixels: Vec<(u32, u32)> = ys
+            .clone()
+            .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+            .collect();
+        let mut acc = vec![PixelAcc::default(); pixels.len()];
+        for s in 0..spp {
+            let mut rngs = Vec::with_capacity(pixels.len());
+            let mut world = Vec::with_capacity(pixels.len());
+            let mut rays = Vec::with_capacity(pixels.len());
+            for &(x, y) in &pixels {
+                let mut rng = Rng::for_pixel(x, y, s);
+                let (jx, jy) = if spp == 1 {
+                    (0.5, 0.5)
+                } else {
+                    (rng.next_f64(), rng.next_f64())
+                };
+                let dir = dirs.dir(f64::from(x) + jx, f64::from(y) + jy);
+                rngs.push(rng);
+                world.push((dirs.origin(), dir));
+                rays.push(GridRay::from_world(&frame, dirs.origin(), dir));
+            }
+            tile.trace(&counting, light, &rays, &mut hint);
+            for (k, &(_, y)) in pixels.iter().enumerate() {
+                let row = &mut rows[(y - ys.start) as usize];
+                let layers = record.then_some(row.ao.layers_mut());
+                let next = tile.ray_hits(k);
+                let sample = shade_hits(
+                    &counting,
+                    light,
+                    world[k],
+                    &rays[k],
+                    next,
+                    &mut rngs[k],
+                    layers,
+                );
+                acc[k].add(sample);
+                if s + 1 == spp {
+                    row.pixels.push(acc[k].finish(spp));
+                    if record {
+                        row.ao.end_pixel();
+                    }
+                }
+            }
         }
     }
-    row.rays = counting.rays.get();
-    row
+    if let Some(first) = rows.first_mut() {
+        first.rays = counting.rays.get();
+    }
+    rows
 }
 
 /// Hands each of `rows` (a rectangle `w` pixels wide, top row first) to `write` with its
@@ -209,41 +279,43 @@ fn finish<O: Send>(
         });
 }
 
-/// Pixel `(x, y)`: the average of its samples; with `ao_layers`, its hits to filter are appended.
-fn pixel<T: Tracer + ?Sized>(
-    tracer: &T,
-    dirs: &PixelDirs,
-    light: &Lighting,
-    (x, y): (u32, u32),
-    settings: RenderSettings,
-    hint: &mut SearchHint,
-    mut ao_layers: Option<&mut Vec<AoLayer>>,
-) -> PixelSample {
-    let spp = settings.spp.max(1);
-    let mut acc = PixelSample::MISS;
-    let mut rgba = [0.0f32; 4];
-    let mut have_first = false;
-    for s in 0..spp {
-        let mut rng = Rng::for_pixel(x, y, s);
-        let (jx, jy) = if spp == 1 {
-            (0.5, 0.5)
-        } else {
-            (rng.next_f64(), rng.next_f64())
-        };
-        let dir = dirs.dir(f64::from(x) + jx, f64::from(y) + jy);
-        let layers = ao_layers.as_deref_mut();
-        let sample = shade_ray(tracer, light, (dirs.origin(), dir), &mut rng, hint, layers);
-        for c in 0..3 {
-            rgba[c] += sample.rgb[c];
-        }
-        rgba[3] += sample.alpha;
-        if !have_first && sample.alpha > 0.0 {
-            acc = sample;
-            have_first = true;
+/// A pixel's samples added up: the average of their colours and coverage, the rest of the first
+/// sample that hit anything.
+#[derive(Clone, Copy)]
+struct PixelAcc {
+    first: PixelSample,
+    have_first: bool,
+    rgba: [f32; 4],
+}
+
+impl Default for PixelAcc {
+    fn default() -> Self {
+        Self {
+            first: PixelSample::MISS,
+            have_first: false,
+            rgba: [0.0; 4],
         }
     }
-    let inv = 1.0 / spp as f32;
-    acc.rgb = [rgba[0] * inv, rgba[1] * inv, rgba[2] * inv];
-    acc.alpha = rgba[3] * inv;
-    acc
+}
+
+impl PixelAcc {
+    fn add(&mut self, sample: PixelSample) {
+        for c in 0..3 {
+            self.rgba[c] += sample.rgb[c];
+        }
+        self.rgba[3] += sample.alpha;
+        if !self.have_first && sample.alpha > 0.0 {
+            self.first = sample;
+            self.have_first = true;
+        }
+    }
+
+    /// The pixel of `spp` samples.
+    fn finish(&self, spp: u32) -> PixelSample {
+        let inv = 1.0 / spp as f32;
+        let mut px = self.first;
+        px.rgb = [self.rgba[0] * inv, self.rgba[1] * inv, self.rgba[2] * inv];
+        px.alpha = self.rgba[3] * inv;
+        px
+    }
 }

@@ -13,6 +13,7 @@ use std::sync::Mutex;
 use amr_format::AmrkFile;
 use thread_local::ThreadLocal;
 
+use crate::bvh::packet::{rays_of, Mask};
 use crate::error::{RenderError, Result};
 use crate::extract::current::CurrentVoxels;
 use crate::extract::nearest::NearestFaces;
@@ -21,7 +22,7 @@ use crate::mapping::PageRelease;
 use crate::reconstruct::level_gradient::LevelBlocks;
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
-use crate::trace::octant::{intersect_voxel, voxel_occludes, VoxelHit};
+use crate::trace::octant::{intersect_voxel, intersect_voxel_packet, voxel_occludes, VoxelHit};
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelLookup, VoxelSource};
 use crate::trace::tracer::central_difference_of;
@@ -390,6 +391,28 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         match self.voxels {
             Voxels::Nearest(_) => intersect_face(voxel, iso, ray, tmin, tmax),
             _ => intersect_voxel(voxel, iso, ray, tmin, tmax),
+        }
+    }
+
+    #[inline]
+    fn intersect_packet(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        rays: &[GridRay],
+        recips: &[[f64; 3]],
+        m: Mask,
+        tmin: f64,
+        tmax: &[f64],
+        hits: &mut [Option<VoxelHit>],
+    ) {
+        match self.voxels {
+            Voxels::Nearest(_) => {
+                for k in rays_of(m) {
+                    hits[k] = intersect_face(voxel, iso, &rays[k], tmin, tmax[k]);
+                }
+            }
+            _ => intersect_voxel_packet(voxel, iso, rays, recips, m, tmin, tmax, hits),
         }
     }
 

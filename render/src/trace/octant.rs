@@ -6,6 +6,7 @@
 //! three linear factors, and [`Cubic::first_root`] isolates the first root with the derivative's
 //! roots and refines it.
 
+use crate::bvh::packet::{rays_of, Mask};
 use crate::trace::cubic::Cubic;
 use crate::trace::ray::{larger, smaller, GridRay};
 use crate::trace::source::Voxel;
@@ -42,12 +43,7 @@ pub fn intersect_voxel(
     tmin: f64,
     tmax: f64,
 ) -> Option<VoxelHit> {
-    let seg = Segment::new(voxel, iso, ray, tmin, tmax)?;
-    let s = seg.cubic.first_root(0.0, 1.0, seg.tol)?;
-    Some(VoxelHit {
-        t: seg.ta + s * (seg.tb - seg.ta),
-        local: [0, 1, 2].map(|a| seg.p0[a] + s * seg.q[a]),
-    })
+    Segment::new(voxel, iso, ray, tmin, tmax)?.first_hit()
 }
 
 /// True exactly when [`intersect_voxel`] finds a hit: the any-hit test, which skips refining
@@ -73,6 +69,59 @@ struct Segment {
     tol: f64,
 }
 
+/// What the intersection with a voxel needs of the voxel and the isovalue alone, whatever the
+/// ray: computed once for all the rays of a packet that reach the voxel.
+pub struct VoxelSetup {
+    /// The corner values less the isovalue.
+    c: [f64; 8],
+    /// Values within `tol` of zero count as on the surface.
+    tol: f64,
+}
+
+impl VoxelSetup {
+    /// The set-up of `voxel` for `iso`; `None` when the voxel's values exclude `iso`.
+    #[inline]
+    pub fn new(voxel: &Voxel, iso: f32) -> Option<VoxelSetup> {
+        let (vmin, vmax) = voxel.range();
+        if vmin > iso || vmax < iso {
+            return None;
+        }
+        let iso = f64::from(iso);
+        let c = voxel.values.map(|v| f64::from(v) - iso);
+        // `v - iso` and `|v|` are largest in magnitude at the smallest or largest value (both
+        // are monotonic in `v`, rounding included), so these are the maxima over all corners.
+        let (lo, hi) = (f64::from(vmin), f64::from(vmax));
+        let span = larger((hi - iso).abs(), (lo - iso).abs());
+        let magnitude = larger(larger(iso.abs(), hi.abs()), lo.abs());
+        let tol = smaller(larger(SPAN_TOL * span, ULP_TOL * magnitude), 0.5 * span);
+        Some(VoxelSetup { c, tol })
+    }
+}
+
+/// [`intersect_voxel`] for the rays `m` of a packet, each with its reciprocal direction
+/// ([`GridRay::recip`]) and its own `tmax`: `hits[k]` for each ray `k` of `m`, the hit
+/// [`intersect_voxel`] gives it (the voxel's set-up is computed once).
+#[allow(clippy::too_many_arguments)]
+pub fn intersect_voxel_packet(
+    voxel: &Voxel,
+    iso: f32,
+    rays: &[GridRay],
+    recips: &[[f64; 3]],
+    m: Mask,
+    tmin: f64,
+    tmax: &[f64],
+    hits: &mut [Option<VoxelHit>],
+) {
+    let setup = VoxelSetup::new(voxel, iso);
+    for k in rays_of(m) {
+        hits[k] = setup.as_ref().and_then(|setup| {
+            let (t_in, t_out) = rays[k].clip_with(&recips[k], voxel.lo, voxel.hi, tmin, tmax[k])?;
+            let seg = Segment::in_box(voxel, setup, &rays[k], (tmin, tmax[k]), (t_in, t_out))?;
+            seg.first_hit()
+        });
+    }
+}
+
 impl Segment {
     /// The segment of `ray` in `voxel` within `[tmin, tmax]`; `None` when there is none, when
     /// the voxel's values exclude `iso`, or when the cubic provably stays clear of zero.
@@ -81,10 +130,20 @@ impl Segment {
         // The box first: most candidates it rejects (their leaf's box met the ray, or they lie
         // behind a hit found already), while the BVH holds only voxels whose range has `iso`.
         let (t_in, t_out) = ray.clip(voxel.lo, voxel.hi, tmin, tmax)?;
-        let (vmin, vmax) = voxel.range();
-        if vmin > iso || vmax < iso {
-            return None;
-        }
+        let setup = VoxelSetup::new(voxel, iso)?;
+        Self::in_box(voxel, &setup, ray, (tmin, tmax), (t_in, t_out))
+    }
+
+    /// The segment of `ray` in `voxel` within `[tmin, tmax]`, given the ray's interval
+    /// `[t_in, t_out]` in the voxel's box.
+    #[inline]
+    fn in_box(
+        voxel: &Voxel,
+        setup: &VoxelSetup,
+        ray: &GridRay,
+        (tmin, tmax): (f64, f64),
+        (t_in, t_out): (f64, f64),
+    ) -> Option<Segment> {
         let widen =
             SEGMENT_WIDEN * (t_out - t_in) + 8.0 * f64::EPSILON * larger(t_in.abs(), t_out.abs());
         let ta = larger(tmin, t_in - widen);
@@ -94,15 +153,8 @@ impl Segment {
         let p0 = local(ta);
         let p1 = local(tb);
         let q = [0, 1, 2].map(|a| p1[a] - p0[a]);
-        let iso = f64::from(iso);
-        let c = voxel.values.map(|v| f64::from(v) - iso);
-        // `v - iso` and `|v|` are largest in magnitude at the smallest or largest value (both
-        // are monotonic in `v`, rounding included), so these are the maxima over all corners.
-        let (lo, hi) = (f64::from(vmin), f64::from(vmax));
-        let span = larger((hi - iso).abs(), (lo - iso).abs());
-        let magnitude = larger(larger(iso.abs(), hi.abs()), lo.abs());
-        let tol = smaller(larger(SPAN_TOL * span, ULP_TOL * magnitude), 0.5 * span);
-        let cubic = along_segment(&c, p0, q);
+        let tol = setup.tol;
+        let cubic = along_segment(&setup.c, p0, q);
         if cubic.clear_of_zero_on_unit(tol) {
             return None;
         }
@@ -113,6 +165,16 @@ impl Segment {
             q,
             cubic,
             tol,
+        })
+    }
+
+    /// The segment's first hit with the surface.
+    #[inline]
+    fn first_hit(&self) -> Option<VoxelHit> {
+        let s = self.cubic.first_root(0.0, 1.0, self.tol)?;
+        Some(VoxelHit {
+            t: self.ta + s * (self.tb - self.ta),
+            local: [0, 1, 2].map(|a| self.p0[a] + s * self.q[a]),
         })
     }
 }

@@ -69,6 +69,42 @@ impl GridRay {
         (t0 <= t1).then_some((t0, t1))
     }
 
+    /// The reciprocals of the direction's components, for [`GridRay::clip_with`].
+    #[inline]
+    pub fn recip(&self) -> [f64; 3] {
+        self.d.map(|x| 1.0 / x)
+    }
+
+    /// [`GridRay::clip`] with the reciprocals of the direction's components given (`recip`):
+    /// the same interval, without the three divisions, for a ray clipped to many boxes.
+    #[inline]
+    pub fn clip_with(
+        &self,
+        recip: &[f64; 3],
+        lo: [f64; 3],
+        hi: [f64; 3],
+        tmin: f64,
+        tmax: f64,
+    ) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = (tmin, tmax);
+        for a in 0..3 {
+            if self.d[a] == 0.0 {
+                if self.o[a] < lo[a] || self.o[a] > hi[a] {
+                    return None;
+                }
+            } else {
+                let inv = recip[a];
+                let (mut ta, mut tb) = ((lo[a] - self.o[a]) * inv, (hi[a] - self.o[a]) * inv);
+                if ta > tb {
+                    std::mem::swap(&mut ta, &mut tb);
+                }
+                t0 = larger(t0, ta);
+                t1 = smaller(t1, tb);
+            }
+        }
+        (t0 <= t1).then_some((t0, t1))
+    }
+
     /// The `f32` ray for BVH traversal over `[tmin, tmax]`, and the map back to this ray's `t`.
     ///
     /// The `f32` ray has a unit grid-space direction and starts [`BVH_LEAD`] grid units before

@@ -1,5 +1,6 @@
 //! What the tracer needs from a volume: active voxels decoded from 64-bit refs, and point samples.
 
+use crate::bvh::packet::{rays_of, Mask};
 use crate::reconstruct::Grid;
 use crate::trace::octant::{intersect_voxel, VoxelHit};
 use crate::trace::ray::GridRay;
@@ -128,6 +129,28 @@ pub trait VoxelSource: Sync {
         tmax: f64,
     ) -> Option<VoxelHit> {
         intersect_voxel(voxel, iso, ray, tmin, tmax)
+    }
+
+    /// [`Self::intersect`] for the rays `m` of a packet (each with its reciprocal direction,
+    /// [`GridRay::recip`], and its own `tmax`) that reach `voxel`: `hits[k]` for each ray `k` of
+    /// `m`, what [`Self::intersect`] gives it. Sources may share the voxel's own work between the
+    /// rays; the others' entries are left as they are.
+    #[allow(clippy::too_many_arguments)]
+    fn intersect_packet(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        rays: &[GridRay],
+        recips: &[[f64; 3]],
+        m: Mask,
+        tmin: f64,
+        tmax: &[f64],
+        hits: &mut [Option<VoxelHit>],
+    ) {
+        let _ = recips;
+        for k in rays_of(m) {
+            hits[k] = self.intersect(voxel, iso, &rays[k], tmin, tmax[k]);
+        }
     }
 
     /// True when [`Self::intersect`] would find a hit: the any-hit test of shadow and occlusion

@@ -1,10 +1,11 @@
 //! The interface the shader traces through, and its exact ("hybrid") implementation: a BVH per
 //! isosurface and the implicit ray-voxel intersection.
 
+use crate::bvh::packet::PACKET;
 use crate::camera::dot;
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, VoxelSource};
-use crate::trace::traverse::Surface;
+use crate::trace::traverse::{Hit, Surface};
 
 /// A hit as the shader sees it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -50,6 +51,15 @@ pub trait Tracer {
     /// The first hit with surface `i` with `t` in `[tmin, tmax]`.
     fn next_hit(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> Option<SurfaceHit>;
 
+    /// The first hit with surface `i` of each of `rays` from its origin (`t` in `[0, tmax[k]]`),
+    /// into `out[k]`: for each ray what [`Tracer::next_hit`] finds (by default it is asked ray
+    /// by ray; tracers may trace the rays together, as packets).
+    fn next_hits(&self, i: usize, rays: &[GridRay], tmax: &[f64], out: &mut [Option<SurfaceHit>]) {
+        for ((ray, &tmax), out) in rays.iter().zip(tmax).zip(out) {
+            *out = self.next_hit(i, ray, 0.0, tmax);
+        }
+    }
+
     /// Drops the pages of the file traced from the resident set (between bands of a frame);
     /// a no-op unless the source holds a file.
     fn release_pages(&self) {}
@@ -88,6 +98,37 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
 
     fn next_hit(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> Option<SurfaceHit> {
         let h = self.surfaces[i].closest_hit(self.src, ray, tmin, tmax)?;
+        Some(self.surface_hit(h, ray))
+    }
+
+    fn next_hits(&self, i: usize, rays: &[GridRay], tmax: &[f64], out: &mut [Option<SurfaceHit>]) {
+        let mut hits = [None; PACKET];
+        for ((rays, tmax), out) in rays
+            .chunks(PACKET)
+            .zip(tmax.chunks(PACKET))
+            .zip(out.chunks_mut(PACKET))
+        {
+            let hits = &mut hits[..rays.len()];
+            self.surfaces[i].closest_hits(self.src, rays, 0.0, tmax, hits);
+            for ((out, h), ray) in out.iter_mut().zip(hits.iter()).zip(rays) {
+                *out = h.map(|h| self.surface_hit(h, ray));
+            }
+        }
+    }
+
+    fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
+        self.surfaces[i].any_hit(self.src, ray, tmin, tmax)
+    }
+
+    fn release_pages(&self) {
+        self.src.release_pages();
+    }
+}
+
+impl<S: VoxelSource + ?Sized> HybridTracer<'_, S> {
+    /// The hit the shader sees for `h`, a hit of `ray`.
+    #[inline]
+    fn surface_hit(&self, h: Hit, ray: &GridRay) -> SurfaceHit {
         let pos = h.grid_pos();
         let size = (0..3)
             .map(|a| h.voxel.hi[a] - h.voxel.lo[a])
@@ -101,7 +142,7 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
                 grad = g;
             }
         }
-        Some(SurfaceHit {
+        SurfaceHit {
             t: h.t,
             pos,
             grad,
@@ -109,15 +150,7 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
             level: h.voxel.level,
             size,
             r: h.r,
-        })
-    }
-
-    fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
-        self.surfaces[i].any_hit(self.src, ray, tmin, tmax)
-    }
-
-    fn release_pages(&self) {
-        self.src.release_pages();
+        }
     }
 }
 

@@ -1,6 +1,10 @@
 //! Closest-hit and any-hit queries of one isosurface: the `f32` BVH finds candidate voxels,
 //! the exact `f64` intersection decides.
 
+use glam::Vec3A;
+use obvhs::ray::Ray;
+
+use crate::bvh::packet::{rays_of, Mask, PACKET};
 use crate::bvh::{BvhBuilder, OctantBvh};
 use crate::trace::last_hit::{self, Query};
 use crate::trace::ray::GridRay;
@@ -118,11 +122,24 @@ impl Surface {
         tmin: f64,
         tmax: f64,
     ) -> Option<Hit> {
+        self.closest_hit_with(src, ray, tmin, tmax, tmin <= 0.0)
+    }
+
+    /// [`Surface::closest_hit`], with the last hit's memory used and updated only when
+    /// `remember`.
+    pub fn closest_hit_with<S: VoxelSource + ?Sized>(
+        &self,
+        src: &S,
+        ray: &GridRay,
+        tmin: f64,
+        tmax: f64,
+        remember: bool,
+    ) -> Option<Hit> {
         let frame = src.frame();
         let pad = bvh_pad(&frame);
         let b = ray.bvh_ray(&frame, pad, tmin, tmax)?;
         let slack = 4.0 * pad;
-        let key = (tmin <= 0.0).then(|| last_hit::key(self, Query::Closest));
+        let key = remember.then(|| last_hit::key(self, Query::Closest));
         let seed = key.and_then(|key| self.seed(key));
         let mut best: Option<Hit> = None;
         let mut best_at = usize::MAX;
@@ -160,6 +177,87 @@ impl Surface {
             last_hit::record(key, best.is_some().then_some(best_at));
         }
         best
+    }
+
+    /// The first hit of each of `rays` (at most [`PACKET`]) with `t` in `[tmin, tmax[k]]`, into
+    /// `out[k]`: the rays walk the BVH as packets ([`OctantBvh::traverse_packet`]), and a voxel
+    /// that several rays reach is looked up once for all of them.
+    ///
+    /// Each ray's hit is the one [`Surface::closest_hit`] finds without the last hit's memory:
+    /// the ray visits the same candidates in the same order under the same `tmax`, and the same
+    /// exact test keeps the same nearest one. The memory is neither used nor changed (with it,
+    /// only a hit exactly tied between two voxels could differ).
+    pub fn closest_hits<S: VoxelSource + ?Sized>(
+        &self,
+        src: &S,
+        rays: &[GridRay],
+        tmin: f64,
+        tmax: &[f64],
+        out: &mut [Option<Hit>],
+    ) {
+        let n = rays.len();
+        assert!(n <= PACKET && tmax.len() == n && out.len() == n);
+        let frame = src.frame();
+        let pad = bvh_pad(&frame);
+        let slack = 4.0 * pad;
+        let unused = Ray::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0);
+        let mut ray32 = [unused; PACKET];
+        let mut back = [(0.0f64, 0.0f64); PACKET];
+        let mut best_t = [0.0f64; PACKET];
+        let mut recips = [[0.0f64; 3]; PACKET];
+        let mut active: Mask = 0;
+        for k in 0..n {
+            out[k] = None;
+            best_t[k] = tmax[k];
+            recips[k] = rays[k].recip();
+            if let Some(b) = rays[k].bvh_ray(&frame, pad, tmin, tmax[k]) {
+                ray32[k] = b.ray;
+                back[k] = (b.t_off, b.scale);
+                active |= 1 << k;
+            }
+        }
+        if active == 0 {
+            return;
+        }
+        let mut found = [None; PACKET];
+        src.with_voxels(&mut |voxel_of| {
+            self.bvh
+                .traverse_packet(&mut ray32[..n], active, |_, r, m, ray32| {
+                    let voxel = voxel_of(r);
+                    if m & (m - 1) == 0 {
+                        // One ray: its own test, inlined (most candidates of a far view).
+                        let k = m.trailing_zeros() as usize;
+                        found[k] = src.intersect(&voxel, self.iso, &rays[k], tmin, best_t[k]);
+                    } else {
+                        src.intersect_packet(
+                            &voxel,
+                            self.iso,
+                            rays,
+                            &recips[..n],
+                            m,
+                            tmin,
+                            &best_t[..n],
+                            &mut found[..n],
+                        );
+                    }
+                    for k in rays_of(m) {
+                        let Some(h) = found[k] else {
+                            continue;
+                        };
+                        if h.t < best_t[k] || out[k].is_none() {
+                            best_t[k] = h.t;
+                            out[k] = Some(Hit {
+                                t: h.t,
+                                r,
+                                voxel,
+                                local: h.local,
+                            });
+                            let (t_off, scale) = back[k];
+                            ray32[k].tmax = ((h.t - t_off) * scale + slack) as f32;
+                        }
+                    }
+                })
+        });
     }
 
     /// True when the surface is hit anywhere with `t` in `[tmin, tmax]`.

@@ -1,0 +1,80 @@
+//! The first hits of a tile of primary rays, found surface by surface for the whole tile at once
+//! ([`Tracer::next_hits`]: packets of rays through the BVH), then shaded ray by ray.
+
+use crate::bvh::packet::PACKET;
+use crate::shade::integrate::{search_order, Lighting, SearchHint};
+use crate::trace::ray::GridRay;
+use crate::trace::tracer::{SurfaceHit, Tracer};
+
+/// Rays of one tile: 8x8 pixels.
+pub const TILE_RAYS: usize = PACKET;
+
+/// The first hits of up to [`TILE_RAYS`] rays from their origins with every surface, up to each
+/// ray's nearest opaque hit, as [`crate::shade::integrate::shade_ray`] searches them.
+pub struct TileHits {
+    surfaces: usize,
+    /// Ray `k`'s hit with surface `i` at `k * surfaces + i`.
+    hits: Vec<Option<SurfaceHit>>,
+    /// One surface's hits of the tile, as the tracer gives them.
+    found: [Option<SurfaceHit>; TILE_RAYS],
+    /// Each ray's nearest opaque hit so far.
+    opaque_near: [f64; TILE_RAYS],
+}
+
+impl TileHits {
+    /// Room for the hits of a tile with `surfaces` surfaces.
+    pub fn new(surfaces: usize) -> Self {
+        Self {
+            surfaces,
+            hits: vec![None; surfaces * TILE_RAYS],
+            found: [None; TILE_RAYS],
+            opaque_near: [f64::INFINITY; TILE_RAYS],
+        }
+    }
+
+    /// Finds the first hits of `rays` (at most [`TILE_RAYS`]) with each surface of `tracer`:
+    /// opaque surfaces first, `hint`'s first of all, each searched up to the ray's nearest opaque
+    /// hit so far. For each ray, the hits [`crate::shade::integrate::shade_ray`] would find
+    /// (the order changes the work, not the hits); `hint` becomes the opaque surface nearest
+    /// for most of the rays.
+    pub fn trace<T: Tracer + ?Sized>(
+        &mut self,
+        tracer: &T,
+        light: &Lighting,
+        rays: &[GridRay],
+        hint: &mut SearchHint,
+    ) {
+        let (n, m) = (self.surfaces, rays.len());
+        assert!(m <= TILE_RAYS && tracer.num_surfaces() == n);
+        self.opaque_near[..m].fill(f64::INFINITY);
+        let mut nearest = [0u32; 64];
+        for i in search_order(light, n, hint.nearest_opaque) {
+            let found = &mut self.found[..m];
+            tracer.next_hits(i, rays, &self.opaque_near[..m], found);
+            let opaque = light.opacity[i] >= 1.0;
+            for (k, h) in found.iter().enumerate() {
+                self.hits[k * n + i] = *h;
+                if let (true, Some(h)) = (opaque, h) {
+                    if h.t < self.opaque_near[k] {
+                        self.opaque_near[k] = h.t;
+                        if let Some(c) = nearest.get_mut(i) {
+                            *c += 1;
+                        }
+                    }
+                }
+            }
+        }
+        if let Some((i, _)) = nearest.iter().enumerate().max_by_key(|&(i, &c)| (c, !i)) {
+            if nearest[i] > 0 {
+                hint.nearest_opaque = i;
+            }
+        }
+    }
+
+    /// Ray `k`'s first hit with each surface, to shade ([`crate::shade::integrate::shade_hits`]
+    /// uses it up).
+    pub fn ray_hits(&mut self, k: usize) -> &mut [Option<SurfaceHit>] {
+        let n = self.surfaces;
+        &mut self.hits[k * n..(k + 1) * n]
+    }
+}

@@ -46,6 +46,20 @@ impl TightRanges {
         }
     }
 
+    /// The tight ranges `file` stores for field `field` (layout version 3), known from the
+    /// start; unknown ranges when it stores none.
+    pub fn of_file<D: AsRef<[u8]>>(file: &amr_format::AmrkFile<D>, field: usize) -> Self {
+        let n = file.num_leaves();
+        if !file.has_tight_ranges() {
+            return Self::new(n);
+        }
+        Self {
+            bits: (0..n as u32)
+                .map(|l| AtomicU64::new(file.tight_range(field, l).map_or(UNKNOWN, pack)))
+                .collect(),
+        }
+    }
+
     /// The tight range of `leaf`, computed on first need from the block ranges and the leaf
     /// tree.
     pub fn get<D: AsRef<[u8]>>(

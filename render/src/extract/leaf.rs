@@ -77,6 +77,8 @@ pub struct LeafCounts {
     /// Parts of the leaf skipped because their block bound excludes the isovalue
     /// ([`super::parts`]).
     pub parts_skipped: u64,
+    /// Leaf-cell location tables prepared ([`crate::reconstruct::LocalLocator`]).
+    pub locator_tables: u64,
 }
 
 /// The level-`L` frame of a leaf: its level, finest brick, box of finest-level cells and box of
@@ -233,8 +235,8 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                         counts.culled += 1;
                         continue;
                     }
+                    loc.ensure_started()?;
                     if !verts_started {
-                        loc.ensure_started()?;
                         verts.start(&frame.cells, [0, 1, 2].map(|a| lowest[a] - s[a]), s);
                         verts_started = true;
                     }

@@ -287,6 +287,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             boundary_evaluated: totals.boundary,
             culled_cells: totals.culled,
             parts_skipped: totals.parts_skipped,
+            locator_tables: totals.locator_tables,
             file_cells: self.file_cells,
             seconds: start.elapsed().as_secs_f64(),
             threads: rayon::current_num_threads(),
@@ -318,6 +319,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 |scratch, &leaf| {
                     let mut out = Vec::new();
                     let mut around = None;
+                    let tables = scratch.loc.tables_built();
                     let (lo, hi) = self.tight.get_with(leaf, || {
                         let (range, halo) = self.compute_tight(scratch, leaf, tight_blocks)?;
                         around = halo;
@@ -326,6 +328,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     if !straddles(lo, hi, iso) {
                         let skipped = LeafCounts {
                             skipped: 1,
+                            locator_tables: scratch.loc.tables_built() - tables,
                             ..LeafCounts::default()
                         };
                         return Ok((out, skipped));
@@ -333,7 +336,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
                         return Ok((out, LeafCounts::default()));
                     };
-                    let counts = extract_in_parts(
+                    let mut counts = extract_in_parts(
                         &self.sampler,
                         &frame,
                         iso,
@@ -341,6 +344,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                         around.as_ref(),
                         &mut out,
                     )?;
+                    counts.locator_tables = scratch.loc.tables_built() - tables;
                     Ok((out, counts))
                 },
             )
@@ -639,6 +643,7 @@ fn append(
         totals.parts_skipped += n.parts_skipped;
         totals.boundary += n.boundary;
         totals.skipped += n.skipped;
+        totals.locator_tables += n.locator_tables;
     }
     Ok(())
 }

@@ -30,6 +30,9 @@ pub struct ExtractStats {
     /// Parts of large leaves skipped whole because the stored block ranges around them exclude
     /// the isovalue (files with block range tables).
     pub parts_skipped: u64,
+    /// Leaf-cell location tables built for leaves with many boundary queries
+    /// ([`crate::reconstruct::LocalLocator`]); each costs a walk over the leaves around one.
+    pub locator_tables: u64,
     /// Cells in the file (all bricks, all levels).
     pub file_cells: u64,
     /// Wall-clock seconds of the extraction.
@@ -63,7 +66,7 @@ impl fmt::Display for ExtractStats {
         write!(
             f,
             "field '{}' iso {}: {} active voxels ({} merged dual cells), {} of {} leaves visited ({} skipped by tight range), \
-             {} voxels evaluated ({} boundary octants; {} boundary cells culled; {} leaf parts skipped), {:.3} s on {} threads ({:.1} M file cells per core-second, \
+             {} voxels evaluated ({} boundary octants; {} boundary cells culled; {} leaf parts skipped; {} locator tables), {:.3} s on {} threads ({:.1} M file cells per core-second, \
              {:.1} M voxels per second), {} bricks decompressed",
             self.field,
             self.iso,
@@ -76,6 +79,7 @@ impl fmt::Display for ExtractStats {
             self.boundary_evaluated,
             self.culled_cells,
             self.parts_skipped,
+            self.locator_tables,
             self.seconds,
             self.threads,
             self.cells_per_core_second() / 1e6,

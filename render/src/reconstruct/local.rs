@@ -21,6 +21,13 @@ const MIXED: u32 = u32::MAX - 1;
 /// Largest growth of the region, in level-`L` cells.
 const MAX_REACH: i64 = 8;
 
+/// Queries a deferred leaf answers through the tree before [`LocalLocator::ensure_started`]
+/// prepares its table. A table costs a walk over every kd-tree leaf touching the region, which
+/// next to a much finer level is thousands of leaves (about 1.5 M instructions on issue 17's
+/// `tiny.amrk`), while a tree walk costs a few hundred: a leaf with a handful of boundary
+/// octants is cheaper without one.
+const QUERIES_BEFORE_TABLE: u32 = 512;
+
 /// One kd-tree leaf near the current leaf.
 struct Part<'f> {
     leaf: u32,
@@ -44,6 +51,10 @@ pub struct LocalLocator<'s, 'f, D> {
     touching: Vec<u32>,
     /// The leaf given to [`Self::defer`] and not yet prepared.
     deferred: Option<(u32, IBox)>,
+    /// Queries answered through the tree since the last [`Self::defer`].
+    walks: std::cell::Cell<u32>,
+    /// Tables prepared so far.
+    tables: u64,
 }
 
 impl<'s, 'f, D: AsRef<[u8]>> LocalLocator<'s, 'f, D> {
@@ -59,6 +70,8 @@ impl<'s, 'f, D: AsRef<[u8]>> LocalLocator<'s, 'f, D> {
             parts: Vec::new(),
             touching: Vec::new(),
             deferred: None,
+            walks: std::cell::Cell::new(0),
+            tables: 0,
         }
     }
 
@@ -68,6 +81,7 @@ impl<'s, 'f, D: AsRef<[u8]>> LocalLocator<'s, 'f, D> {
         let grid = sampler.grid();
         let tree = sampler.file().tree();
         self.parts.clear();
+        self.tables += 1;
         // The coarsest level within two level-L cells, then the region two of its cells wide.
         let mut coarsest = level;
         self.touching.clear();
@@ -144,14 +158,32 @@ impl<'s, 'f, D: AsRef<[u8]>> LocalLocator<'s, 'f, D> {
     pub fn defer(&mut self, level: u32, finest: &IBox) {
         self.finish();
         self.deferred = Some((level, *finest));
+        self.walks.set(0);
     }
 
-    /// Prepares the table for the leaf given to [`Self::defer`], if not yet done.
+    /// Prepares the table for the leaf given to [`Self::defer`], if not yet done, once more than
+    /// [`QUERIES_BEFORE_TABLE`] queries have gone to the tree since: call it before each run of
+    /// queries that would use the table.
     pub fn ensure_started(&mut self) -> Result<()> {
+        if self.deferred.is_none() || self.walks.get() < QUERIES_BEFORE_TABLE {
+            return Ok(());
+        }
         match self.deferred.take() {
             Some((level, finest)) => self.start(level, &finest),
             None => Ok(()),
         }
+    }
+
+    /// Tables prepared by [`Self::start`] since the locator was made.
+    pub fn tables_built(&self) -> u64 {
+        self.tables
+    }
+
+    /// [`Sampler::locate`], counted.
+    #[inline]
+    fn walk(&self, finest: [i64; 3]) -> Result<Option<LeafCell>> {
+        self.walks.set(self.walks.get().saturating_add(1));
+        self.sampler.locate(finest)
     }
 }
 
@@ -164,11 +196,11 @@ impl<D: AsRef<[u8]>> Locate for LocalLocator<'_, '_, D> {
             None => axes(|a| abs[a].div_euclid(self.scale[a])),
         };
         if !self.cells.contains_cell(c) {
-            return self.sampler.locate(finest);
+            return self.walk(finest);
         }
         let idx = self.table[self.cells.linear_index(c)];
         if idx >= MIXED {
-            return self.sampler.locate(finest);
+            return self.walk(finest);
         }
         let part = &self.parts[idx as usize];
         let Some((brick, level, cells, values)) = &part.top else {

@@ -359,7 +359,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         scratch: &mut Scratch<'_, 'f, D>,
         leaf: u32,
         tight_blocks: &'a BlockRanges,
-    ) -> Result<((f32, f32), Option<Halo<'a, 'f, D>>)> {
+    ) -> Result<RangeAndHalo<'a, 'f, D>> {
         let bounds = (tight_blocks, &self.leaves);
         let own = self.sampler.file().tree().leaf_box(leaf);
         if let Some((_, level)) = self.sampler.leaf_top(leaf) {
@@ -586,6 +586,9 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         }
     }
 }
+
+/// A leaf's tight range, and the leaves around it when they were gathered to compute it.
+type RangeAndHalo<'a, 'f, D> = ((f32, f32), Option<Halo<'a, 'f, D>>);
 
 /// A leaf's cells as [`Extractor::voxel_boxes`] needs them: the boxes of its voxels from their
 /// local indices alone.

@@ -17,7 +17,9 @@
 //!   count whole, so the cost is the nodes along the region's boundary.
 //!
 //! A leaf whose tight range does not hold the isovalue has no active voxel and is skipped before
-//! its neighbourhood is built. The argument holds point by point, so [`box_range`] bounds a part
+//! its neighbourhood is built. Files of layout version 3 store these ranges
+//! ([`super::tight_tables_of`] computes them for the writer); the extractor then starts with all
+//! of them known and never visits a leaf whose range excludes the isovalue. The argument holds point by point, so [`box_range`] bounds a part
 //! of a leaf the same way ([`super::parts`]).
 
 use std::sync::atomic::{AtomicU64, Ordering};

@@ -30,7 +30,7 @@ impl Case {
             far: seed % 2 == 1,
             zstd: false,
             // Two cases in three store tight leaf ranges; the others leave them to the extraction.
-            tight: seed % 3 != 0,
+            tight: !seed.is_multiple_of(3),
         }
     }
 }

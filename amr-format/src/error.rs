@@ -38,6 +38,9 @@ pub enum FormatError {
     /// A count, offset or value in the file is impossible.
     #[error("corrupt file: {0}")]
     Corrupt(String),
+    /// The tight leaf ranges handed to the writer could not be computed or are not valid.
+    #[error("tight leaf ranges: {0}")]
+    TightRanges(String),
     /// The input handed to the writer is inconsistent (overlapping bricks, a bad ratio, ...).
     #[error("invalid hierarchy: {0}")]
     InvalidHierarchy(String),

@@ -10,8 +10,8 @@ use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 /// First eight bytes of the file and of the footer.
 pub const MAGIC: [u8; 8] = *b"\x89AMRK\r\n\x1a";
 /// Layout version: changes only when the byte layout changes. Version 2 added the block range
-/// tables ([`Footer::block_tables`]).
-pub const LAYOUT_VERSION: u32 = 2;
+/// tables ([`Footer::block_tables`]), version 3 the tight leaf ranges ([`Footer::tight_ranges`]).
+pub const LAYOUT_VERSION: u32 = 3;
 /// The oldest layout version readers still open (version 1: no block range tables).
 pub const OLDEST_LAYOUT_VERSION: u32 = 1;
 /// Cells per axis of the blocks the writer's block range tables cover.
@@ -117,8 +117,13 @@ pub struct Footer {
     pub block_tables: Section,
     /// Version 2: cells per axis of a block of the block range tables. Zero in version 1.
     pub block_cells: U32,
+    /// Version 3: [`LeafRange`] × num_leaves × num_fields (field after field), inside the
+    /// metadata: each leaf's tight range, every value the octant reconstruction can give on the
+    /// voxels the leaf owns. Empty when the writer was not given the computation, zero (reserved)
+    /// before version 3.
+    pub tight_ranges: Section,
     /// Zero.
-    pub reserved1: [u8; 28],
+    pub reserved1: [u8; 12],
     /// When in the simulation the data was written, where the input said.
     pub simulation: SimulationStamp,
     /// CRC-32 of the metadata region.
@@ -225,7 +230,8 @@ pub struct KdLeaf {
     pub brick_count: U32,
 }
 
-/// A leaf's conservative value range for one field (8 bytes).
+/// A leaf's conservative value range for one field (8 bytes); in the tight leaf ranges (version
+/// 3) of a leaf without data, `min` is +inf and `max` is -inf.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 pub struct LeafRange {

@@ -101,6 +101,8 @@ pub struct AmrkFile<D> {
     block_tables: Option<(u32, Vec<u64>)>,
     /// Per brick: its first entry in a field's block range table (empty without tables).
     block_starts: Vec<u64>,
+    /// Version 3: the file stores tight leaf ranges ([`Footer::tight_ranges`]).
+    tight: bool,
 }
 
 impl<D: AsRef<[u8]>> AmrkFile<D> {
@@ -180,6 +182,7 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             path: None,
             block_tables: None,
             block_starts: Vec::new(),
+            tight: false,
         };
         file.check_sections()?;
         file.levels = file.read_levels()?;
@@ -187,6 +190,7 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         file.fields = file.read_fields()?;
         file.check_bricks()?;
         file.check_block_tables()?;
+        file.check_tight_ranges()?;
         file.tree_depth = file.check_tree()?;
         file.check_leaves()?;
         Ok(file)
@@ -366,6 +370,23 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         (r.min.get(), r.max.get())
     }
 
+    /// True when the file stores tight leaf ranges (layout version 3, written with them).
+    pub fn has_tight_ranges(&self) -> bool {
+        self.tight
+    }
+
+    /// The stored tight range of `leaf` for field `field`: every value the octant
+    /// reconstruction gives on the voxels the leaf owns lies inside it (`(+inf, -inf)` for a
+    /// leaf without data); `None` when the file stores none ([`Self::has_tight_ranges`]).
+    pub fn tight_range(&self, field: usize, leaf: u32) -> Option<(f32, f32)> {
+        if !self.tight {
+            return None;
+        }
+        let i = field * self.num_leaves() + leaf as usize;
+        let r: &LeafRange = &self.slice::<LeafRange>(&self.footer.tight_ranges)[i];
+        Some((r.min.get(), r.max.get()))
+    }
+
     /// The finest level's index domain (absolute finest-level cell indices).
     pub fn finest_domain(&self) -> IBox {
         self.finest_domain
@@ -399,6 +420,9 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             let tables: &[Section] = self.slice(&f.block_tables);
             let bytes: u64 = tables.iter().map(|s| s.len.get()).sum();
             out.push(("block range tables".to_string(), bytes));
+        }
+        if self.tight {
+            out.push(("tight leaf ranges".to_string(), f.tight_ranges.len.get()));
         }
         out.push(("footer".to_string(), size_of::<Footer>() as u64));
         out
@@ -740,6 +764,40 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         }
         self.block_starts = starts;
         self.block_tables = Some((block, offsets));
+        Ok(())
+    }
+
+    /// Layout version 3: the tight leaf ranges, when stored, lie in the metadata with one entry
+    /// per leaf and field, none of them NaN or reversed (but for the empty range).
+    fn check_tight_ranges(&mut self) -> Result<()> {
+        let f = self.footer;
+        let s = f.tight_ranges;
+        if f.layout_version.get() < 3 || (s.offset.get() == 0 && s.len.get() == 0) {
+            return Ok(());
+        }
+        let entries = f.num_leaves.get().checked_mul(f.num_fields.get());
+        let Some(entries) = entries else {
+            return Err(FormatError::Corrupt("tight leaf ranges overflow".into()));
+        };
+        check_table(
+            "tight leaf ranges",
+            &s,
+            &f.metadata,
+            entries,
+            size_of::<LeafRange>(),
+        )?;
+        let nl = self.num_leaves();
+        for (i, r) in self.slice::<LeafRange>(&s).iter().enumerate() {
+            let (lo, hi) = (r.min.get(), r.max.get());
+            if !crate::value_range::valid_tight_range(lo, hi) {
+                return Err(FormatError::Corrupt(format!(
+                    "field {}, leaf {}: tight range {lo}..{hi}",
+                    i / nl.max(1),
+                    i % nl.max(1)
+                )));
+            }
+        }
+        self.tight = true;
         Ok(())
     }
 

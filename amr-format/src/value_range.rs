@@ -5,6 +5,12 @@
 //! the lanes are independent.
 
 const LANES: usize = 16;
+
+/// True for a range a tight leaf range table may hold: no NaN, and `lo <= hi` or the empty
+/// range `(+inf, -inf)` of a leaf without data.
+pub fn valid_tight_range(lo: f32, hi: f32) -> bool {
+    lo <= hi || (lo == f32::INFINITY && hi == f32::NEG_INFINITY)
+}
 const EXPONENT: u32 = 0x7f80_0000;
 
 /// A running range of `f32` values fed a slice at a time; NaNs are ignored.

@@ -42,11 +42,20 @@ pub enum Compression {
     },
 }
 
+/// Computes the tight leaf ranges of a finished file, given its path (a complete file of the
+/// current layout without them): per field, one `(min, max)` per leaf, `(+inf, -inf)` for a leaf
+/// without data (see [`raw::Footer::tight_ranges`]). `amr-render` has one; this crate cannot
+/// compute them (it does not reconstruct).
+pub type TightFn = fn(&Path) -> std::result::Result<Vec<Vec<(f32, f32)>>, String>;
+
 /// Options of [`AmrkWriter::create`].
 #[derive(Clone, Copy, Debug, Default)]
 pub struct WriterOptions {
     /// How brick data is stored.
     pub compression: Compression,
+    /// Stores the tight leaf ranges this computes over the finished file, before it is renamed
+    /// into place; without it the file has none (readers then compute them as they go).
+    pub tight: Option<TightFn>,
 }
 
 /// What a finished write produced.
@@ -76,6 +85,7 @@ pub struct AmrkWriter {
     written: Vec<Vec<Option<BrickData>>>,
     spill: Option<Vec<Spill>>,
     compression: Compression,
+    tight: Option<TightFn>,
     data_end: u64,
     tree: KdTree,
     simulation: raw::SimulationStamp,
@@ -169,6 +179,7 @@ impl AmrkWriter {
             written,
             spill,
             compression: opts.compression,
+            tight: opts.tight,
             data_end,
             tree,
             simulation: raw::SimulationStamp::default(),
@@ -429,44 +440,63 @@ impl AmrkWriter {
         let fields_sec = meta.push(fields.as_bytes())?;
         let tables_sec = meta.push(self.block_tables.as_bytes())?;
         let strings_sec = meta.push(&strings)?;
-        let (metadata, metadata_crc) = meta.finish()?;
-
-        let mut footer = Footer {
-            magic: raw::MAGIC,
-            layout_version: raw::LAYOUT_VERSION.into(),
-            footer_size: (size_of::<Footer>() as u32).into(),
-            num_levels: (nl as u32).into(),
-            num_fields: (self.spec.fields.len() as u32).into(),
-            num_bricks: (self.spec.bricks.len() as u32).into(),
-            num_nodes: (tree.nodes.len() as u32).into(),
-            num_leaves: (tree.leaves.len() as u32).into(),
-            brick_list_len: (tree.brick_list.len() as u32).into(),
-            reserved0: [0; 8],
-            metadata,
-            levels: levels_sec,
-            fields: fields_sec,
-            bricks: bricks_sec,
-            nodes: nodes_sec,
-            leaves: leaves_sec,
-            brick_list: list_sec,
-            strings: strings_sec,
-            block_tables: tables_sec,
-            block_cells: raw::BLOCK_CELLS.into(),
-            reserved1: [0; 28],
-            simulation: self.simulation,
-            metadata_crc: metadata_crc.into(),
-            footer_crc: 0.into(),
+        let footer_of = |metadata: Section, metadata_crc: u32, tight_ranges: Section| {
+            let mut footer = Footer {
+                magic: raw::MAGIC,
+                layout_version: raw::LAYOUT_VERSION.into(),
+                footer_size: (size_of::<Footer>() as u32).into(),
+                num_levels: (nl as u32).into(),
+                num_fields: (self.spec.fields.len() as u32).into(),
+                num_bricks: (self.spec.bricks.len() as u32).into(),
+                num_nodes: (tree.nodes.len() as u32).into(),
+                num_leaves: (tree.leaves.len() as u32).into(),
+                brick_list_len: (tree.brick_list.len() as u32).into(),
+                reserved0: [0; 8],
+                metadata,
+                levels: levels_sec,
+                fields: fields_sec,
+                bricks: bricks_sec,
+                nodes: nodes_sec,
+                leaves: leaves_sec,
+                brick_list: list_sec,
+                strings: strings_sec,
+                block_tables: tables_sec,
+                block_cells: raw::BLOCK_CELLS.into(),
+                tight_ranges,
+                reserved1: [0; 12],
+                simulation: self.simulation,
+                metadata_crc: metadata_crc.into(),
+                footer_crc: 0.into(),
+            };
+            let fb = footer.as_bytes();
+            footer.footer_crc = crc32fast::hash(&fb[..fb.len() - 4]).into();
+            footer
         };
-        let fb = footer.as_bytes();
-        footer.footer_crc = crc32fast::hash(&fb[..fb.len() - 4]).into();
-
+        let file_bytes = match self.tight {
+            None => {
+                let (metadata, crc) = meta.finish()?;
+                write_footer(
+                    self.file.as_file(),
+                    &footer_of(metadata, crc, Section::default()),
+                )?
+            }
+            Some(tight) => {
+                // A complete file without the tight ranges first, which `tight` reads; the
+                // ranges then go where its footer was, and a new footer after them.
+                let (metadata, crc) = meta.snapshot()?;
+                write_footer(
+                    self.file.as_file(),
+                    &footer_of(metadata, crc, Section::default()),
+                )?;
+                let ranges = tight(self.file.path()).map_err(FormatError::TightRanges)?;
+                let table = tight_table(&ranges, self.spec.fields.len(), tree.leaves.len())?;
+                let tight_sec = meta.push(table.as_bytes())?;
+                drop(table);
+                let (metadata, crc) = meta.finish()?;
+                write_footer(self.file.as_file(), &footer_of(metadata, crc, tight_sec))?
+            }
+        };
         let file = self.file.as_file();
-        let footer_at = metadata.offset.get() + metadata.len.get();
-        file.write_all_at(footer.as_bytes(), footer_at)
-            .map_err(|e| FormatError::io("writing the footer", e))?;
-        let file_bytes = footer_at + size_of::<Footer>() as u64;
-        file.set_len(file_bytes)
-            .map_err(|e| FormatError::io("setting the file length", e))?;
         file.sync_all()
             .map_err(|e| FormatError::io("syncing the file", e))?;
         let target = self.target.clone();
@@ -571,6 +601,49 @@ fn build_tree(spec: &HierarchySpec) -> Result<KdTree> {
     kdtree::build(&tree_bricks, IBox::new([0; 3], domain.extent()))
 }
 
+/// Writes `footer` right after its metadata region and ends the file there; returns the file's
+/// length.
+fn write_footer(file: &File, footer: &Footer) -> Result<u64> {
+    let footer_at = footer.metadata.offset.get() + footer.metadata.len.get();
+    file.write_all_at(footer.as_bytes(), footer_at)
+        .map_err(|e| FormatError::io("writing the footer", e))?;
+    let file_bytes = footer_at + size_of::<Footer>() as u64;
+    file.set_len(file_bytes)
+        .map_err(|e| FormatError::io("setting the file length", e))?;
+    Ok(file_bytes)
+}
+
+/// The tight range table of `ranges` (per field, per leaf), checked for the counts and values a
+/// reader accepts.
+fn tight_table(ranges: &[Vec<(f32, f32)>], fields: usize, leaves: usize) -> Result<Vec<LeafRange>> {
+    let bad = |m: String| Err(FormatError::TightRanges(m));
+    if ranges.len() != fields {
+        return bad(format!(
+            "{} fields given, the file has {fields}",
+            ranges.len()
+        ));
+    }
+    let mut table = Vec::with_capacity(fields * leaves);
+    for (f, per_leaf) in ranges.iter().enumerate() {
+        if per_leaf.len() != leaves {
+            return bad(format!(
+                "field {f}: {} leaves given, the file has {leaves}",
+                per_leaf.len()
+            ));
+        }
+        for (leaf, &(lo, hi)) in per_leaf.iter().enumerate() {
+            if !crate::value_range::valid_tight_range(lo, hi) {
+                return bad(format!("field {f}, leaf {leaf}: range {lo}..{hi}"));
+            }
+            table.push(LeafRange {
+                min: lo.into(),
+                max: hi.into(),
+            });
+        }
+    }
+    Ok(table)
+}
+
 /// The little-endian bytes of `values`: borrowed on little-endian hosts.
 fn le_bytes<'a>(values: &[f32], native: &'a [u8]) -> std::borrow::Cow<'a, [u8]> {
     if cfg!(target_endian = "little") {
@@ -622,6 +695,19 @@ impl<'a> MetaWriter<'a> {
             offset: at.into(),
             len: (data.len() as u64).into(),
         })
+    }
+
+    /// The region written so far and its checksum, as [`Self::finish`] would give them; more
+    /// sections may follow.
+    fn snapshot(&mut self) -> Result<(Section, u32)> {
+        self.pad()?;
+        Ok((
+            Section {
+                offset: self.start.into(),
+                len: (self.pos - self.start).into(),
+            },
+            self.crc.clone().finalize(),
+        ))
     }
 
     fn finish(mut self) -> Result<(Section, u32)> {

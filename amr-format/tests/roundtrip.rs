@@ -11,7 +11,14 @@ fn check_round_trip(seed: u64, levels: usize, ratio: u32, compression: Compressi
     let spec = random_hierarchy(&mut rng, levels, ratio, brick);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("t.amrk");
-    let summary = write_file(&spec, &path, WriterOptions { compression });
+    let summary = write_file(
+        &spec,
+        &path,
+        WriterOptions {
+            compression,
+            ..Default::default()
+        },
+    );
     let file = AmrkFile::open(std::fs::read(&path).unwrap())
         .unwrap_or_else(|e| panic!("seed {seed}: open failed: {e}"));
     assert_eq!(file.num_bricks(), spec.bricks.len(), "seed {seed}");

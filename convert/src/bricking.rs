@@ -5,7 +5,6 @@ use std::path::Path;
 
 use amr_format::{
     copy_subbox, AmrkWriter, BrickSpec, Compression, FormatError, HierarchySpec, IBox, LevelSpec,
-    WriterOptions,
 };
 
 /// What to convert and how.
@@ -139,7 +138,11 @@ impl BrickSink {
             fields,
             bricks: layout.bricks().to_vec(),
         };
-        let writer = AmrkWriter::create(output, spec, WriterOptions { compression })?;
+        let writer = AmrkWriter::create(
+            output,
+            spec,
+            amr_render::extract::writer_options(compression),
+        )?;
         Ok(Self {
             layout,
             writer,

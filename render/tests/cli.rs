@@ -773,3 +773,32 @@ fn every_exr_compression_writes_the_same_channels_and_says_which_it_used() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("piz, zip, rle, none"), "{}", stderr(&o));
 }
+
+/// `verify` recomputes the stored tight leaf ranges (layout version 3) and names a leaf whose
+/// stored range differs from the data's.
+#[test]
+fn verify_finds_a_wrong_tight_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("tight.amrk");
+    let params = SynthParams::unit_cube(2, 2, 16, 8);
+    let opts = amr_render::extract::writer_options(Default::default());
+    write_synth(&path, Case::Blobs, &params, opts, &NoProgress).unwrap();
+    let o = amr_render(&["verify", path.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(out.contains("tight leaf ranges recomputed"), "{out}");
+    let mut bytes = std::fs::read(&path).unwrap();
+    let file = amr_format::AmrkFile::open(bytes.clone()).unwrap();
+    let leaf = (0..file.num_leaves() as u32)
+        .find(|&l| file.tight_range(0, l).is_some_and(|(lo, _)| lo.is_finite()))
+        .unwrap();
+    let at = file.footer().tight_ranges.offset.get() as usize + 8 * leaf as usize;
+    let lo = f32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
+    bytes[at..at + 4].copy_from_slice(&(lo - 1.0).to_le_bytes());
+    assert!(amr_format::reader::recompute_checksums(&mut bytes));
+    std::fs::write(&path, &bytes).unwrap();
+    let o = amr_render(&["verify", path.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert!(err.contains(&format!("leaf {leaf} stores")), "{err}");
+}

@@ -110,7 +110,10 @@ fn base_file(dir: &Path, case: Case, compress: bool) -> (PathBuf, f32) {
         &path,
         case,
         &params,
-        WriterOptions { compression },
+        WriterOptions {
+            compression,
+            ..Default::default()
+        },
         &NoProgress,
     )
     .unwrap();

@@ -229,7 +229,10 @@ mod tests {
                 &path,
                 case,
                 &params,
-                WriterOptions { compression },
+                WriterOptions {
+                    compression,
+                    ..Default::default()
+                },
                 &NoProgress,
             )
             .unwrap();

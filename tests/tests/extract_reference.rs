@@ -12,8 +12,16 @@ use amr_render::reconstruct::{Octant, Sampler, VertexMemo};
 /// Every octant of every leaf, once (owned by the leaf holding its lowest finest cell), with its
 /// corner values.
 fn all_octants(s: &Sampler<'_, Vec<u8>>) -> HashMap<Octant, [f32; 8]> {
-    let file = s.file();
     let mut out = HashMap::new();
+    for_each_octant(s, |_, o, v| {
+        assert!(out.insert(o, v).is_none(), "octant {o:?} owned twice");
+    });
+    out
+}
+
+/// Calls `f` with every octant of every leaf, its owning leaf and its corner values.
+fn for_each_octant(s: &Sampler<'_, Vec<u8>>, mut f: impl FnMut(u32, Octant, [f32; 8])) {
+    let file = s.file();
     let mut memo = VertexMemo::default();
     for leaf in 0..file.num_leaves() as u32 {
         let Some((_, level)) = s.leaf_top(leaf) else {
@@ -38,13 +46,34 @@ fn all_octants(s: &Sampler<'_, Vec<u8>>) -> HashMap<Octant, [f32; 8]> {
                             .octant_values_memo(&o, &mut memo)
                             .unwrap()
                             .expect("level 0 covers the domain");
-                        assert!(out.insert(o, v).is_none(), "octant {o:?} owned twice");
+                        f(leaf, o, v);
                     }
                 }
             }
         }
     }
-    out
+}
+
+/// Every corner of every octant a leaf owns lies in the leaf's stored tight range, when the
+/// file stores them (layout version 3); returns how many corners were checked.
+fn check_stored_tight_ranges(s: &Sampler<'_, Vec<u8>>, name: &str) -> u64 {
+    let file = s.file();
+    let field = s.field();
+    let mut checked = 0;
+    for_each_octant(s, |leaf, o, v| {
+        let Some((lo, hi)) = file.tight_range(field, leaf) else {
+            return;
+        };
+        for c in v {
+            assert!(
+                lo <= c && c <= hi,
+                "{name} field {field}: {o:?} (leaf {leaf}) has corner value {c} outside the \
+                 stored tight range {lo}..{hi}"
+            );
+            checked += 1;
+        }
+    });
+    checked
 }
 
 fn straddles(v: &[f32; 8], iso: f32) -> bool {
@@ -100,6 +129,12 @@ fn check_file(file: &AmrkFile<Vec<u8>>, seed: u64, name: &str) -> (u64, u64, u64
         let ex = Extractor::new(file, field, 64 << 20).unwrap();
         let s = ex.sampler();
         let octants = all_octants(s);
+        if file.has_tight_ranges() {
+            assert!(
+                check_stored_tight_ranges(s, name) > 0,
+                "{name}: no corner checked"
+            );
+        }
         for iso in isovalues(&mut rng, &octants, file, field) {
             let ctx = format!("{name} field {field} iso {iso}");
             let result = ex.extract(iso).unwrap_or_else(|e| panic!("{ctx}: {e}"));
@@ -144,6 +179,13 @@ fn check_file(file: &AmrkFile<Vec<u8>>, seed: u64, name: &str) -> (u64, u64, u64
                     straddles(&vox.values, iso),
                     "{ctx}: ref {r:#x} decodes to inactive {vox:?}"
                 );
+                if let Some((tlo, thi)) = file.tight_range(field, leaf) {
+                    assert!(
+                        vox.values.iter().all(|&v| tlo <= v && v <= thi),
+                        "{ctx}: ref {r:#x} (leaf {leaf}) has a corner outside the stored tight \
+                         range {tlo}..{thi}"
+                    );
+                }
                 let (rlo, rhi) = file.leaf_range(field, leaf);
                 for v in vox.values {
                     assert!(
@@ -271,31 +313,40 @@ fn extraction_equals_brute_force_on_small_irregular_boxes() {
             sizes: if seed == 3 { (1, 2) } else { (1, 5) },
             seed,
         };
-        let spec = build_box_hierarchy(&Synth::Blobs, "blobs", &params).unwrap();
-        let path = dir.path().join(format!("boxes{seed}.amrk"));
-        write_spec(
-            &path,
-            spec,
-            &Synth::Blobs,
-            Default::default(),
-            &amr_format::progress::NoProgress,
-        )
-        .unwrap();
-        let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
-        let cells = Extractor::new(&file, 0, 64 << 20)
-            .and_then(|ex| ex.extract(0.0))
-            .unwrap()
-            .stats
-            .file_cells;
-        assert_eq!(
-            amr_render::extract::cell_tiles::CellTiles::pays(cells, file.num_leaves()),
-            seed == 3,
-            "seed {seed}: {cells} cells in {} leaves",
-            file.num_leaves()
-        );
-        let (c, s, _) = check_file(&file, seed, &format!("small boxes {params:?}"));
-        culled += c;
-        skipped += s;
+        // Without stored tight ranges (computed as the extraction goes) and with them.
+        for stored in [false, true] {
+            let spec = build_box_hierarchy(&Synth::Blobs, "blobs", &params).unwrap();
+            let path = dir.path().join(format!("boxes{seed}-{stored}.amrk"));
+            let opts = match stored {
+                false => Default::default(),
+                true => amr_render::extract::writer_options(Default::default()),
+            };
+            write_spec(
+                &path,
+                spec,
+                &Synth::Blobs,
+                opts,
+                &amr_format::progress::NoProgress,
+            )
+            .unwrap();
+            let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+            assert_eq!(file.has_tight_ranges(), stored);
+            let cells = Extractor::new(&file, 0, 64 << 20)
+                .and_then(|ex| ex.extract(0.0))
+                .unwrap()
+                .stats
+                .file_cells;
+            assert_eq!(
+                amr_render::extract::cell_tiles::CellTiles::pays(cells, file.num_leaves()),
+                seed == 3,
+                "seed {seed}: {cells} cells in {} leaves",
+                file.num_leaves()
+            );
+            let name = format!("small boxes {params:?}, stored tight ranges {stored}");
+            let (c, s, _) = check_file(&file, seed, &name);
+            culled += c;
+            skipped += s;
+        }
     }
     assert!(
         culled > 0 && skipped > 0,

@@ -107,7 +107,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             .map(|b| file.brick(b).cells.num_cells().unwrap_or(0))
             .sum();
         Ok(Self {
-            tight: TightRanges::new(file.num_leaves()),
+            tight: TightRanges::of_file(file, field),
             parts: PartRanges::new(file.num_leaves()),
             blocks: BlockRanges::new(file),
             leaves: LeafTree::new(&sampler),
@@ -206,9 +206,22 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         self.extract_leaves(iso, &self.candidate_leaves(iso))
     }
 
-    /// The leaves whose stored value range may hold `iso`, in leaf order.
+    /// The leaves whose stored value range may hold `iso`, in leaf order: their tight ranges
+    /// when the file stores them, else the looser leaf ranges.
     pub fn candidate_leaves(&self, iso: f32) -> Vec<u32> {
-        candidate_leaves(&self.sampler, iso)
+        let file = self.sampler.file();
+        let field = self.sampler.field();
+        if !file.has_tight_ranges() {
+            return candidate_leaves(&self.sampler, iso);
+        }
+        (0..file.num_leaves() as u32)
+            .filter(|&l| {
+                let (lo, hi) = file
+                    .tight_range(field, l)
+                    .unwrap_or((f32::NEG_INFINITY, f32::INFINITY));
+                straddles(lo, hi, iso)
+            })
+            .collect()
     }
 
     /// [`Self::extract`] over the given `leaves` only (a subset of the candidates, as when MPI
@@ -304,25 +317,11 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 },
                 |scratch, &leaf| {
                     let mut out = Vec::new();
-                    // A first visit to a leaf extracted in parts gathers the leaves around
-                    // it once, for its tight range and its parts' bounds.
                     let mut around = None;
                     let (lo, hi) = self.tight.get_with(leaf, || {
-                        let bounds = (tight_blocks, &self.leaves);
-                        let own = file.tree().leaf_box(leaf);
-                        if let Some((_, level)) = self.sampler.leaf_top(leaf) {
-                            let cells = self.sampler.grid().level_box(level, &own);
-                            if in_parts(&self.sampler, &cells) {
-                                around = Halo::new(&self.sampler, bounds, &own, level);
-                                if let Some(h) = &around {
-                                    return box_range_in(&self.sampler, h, &own, level);
-                                }
-                            }
-                        }
-                        match small::hood_range(&self.sampler, scratch, leaf)? {
-                            Some(range) => Ok(range),
-                            None => tight::compute(&self.sampler, bounds, leaf),
-                        }
+                        let (range, halo) = self.compute_tight(scratch, leaf, tight_blocks)?;
+                        around = halo;
+                        Ok(range)
                     })?;
                     if !straddles(lo, hi, iso) {
                         let skipped = LeafCounts {
@@ -346,6 +345,69 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 },
             )
             .collect()
+    }
+
+    /// The tight range of `leaf` computed from the file's data and tables, whatever the file
+    /// stores, and for a leaf extracted in parts the leaves around it, gathered once for its
+    /// tight range and its parts' bounds.
+    fn compute_tight<'a>(
+        &'a self,
+        scratch: &mut Scratch<'_>,
+        leaf: u32,
+        tight_blocks: &'a BlockRanges,
+    ) -> Result<RangeAndHalo<'a, 'f, D>> {
+        let bounds = (tight_blocks, &self.leaves);
+        let own = self.sampler.file().tree().leaf_box(leaf);
+        if let Some((_, level)) = self.sampler.leaf_top(leaf) {
+            let cells = self.sampler.grid().level_box(level, &own);
+            if in_parts(&self.sampler, &cells) {
+                let around = Halo::new(&self.sampler, bounds, &own, level);
+                if let Some(h) = &around {
+                    let range = box_range_in(&self.sampler, h, &own, level)?;
+                    return Ok((range, around));
+                }
+            }
+        }
+        let range = match small::hood_range(&self.sampler, scratch, leaf)? {
+            Some(range) => range,
+            None => tight::compute(&self.sampler, bounds, leaf)?,
+        };
+        Ok((range, None))
+    }
+
+    /// The tight range of every leaf computed from the file's data and tables (what a file of
+    /// layout version 3 stores, see [`tight_tables_of`]), whatever the file stores; leaves in
+    /// parallel, a chunk at a time, releasing the map's pages after each chunk when a
+    /// [`PageRelease`] is set.
+    pub fn computed_tight_ranges(&self) -> Result<Vec<(f32, f32)>> {
+        let loose = self.blocks.loose();
+        let tight_blocks = if self.blocks.stored() {
+            &loose
+        } else {
+            &self.blocks
+        };
+        let file = self.sampler.file();
+        let all: Vec<u32> = (0..file.num_leaves() as u32).collect();
+        let mut out = Vec::with_capacity(all.len());
+        for chunk in self.chunks(&all) {
+            let ranges: Vec<Result<(f32, f32)>> = chunk
+                .par_iter()
+                .map_init(
+                    || {
+                        let shared = (&self.blocks, &self.leaves, &self.coarse);
+                        let tiles = CellTiles::pays(self.file_cells, file.num_leaves())
+                            .then_some(&self.cells);
+                        Scratch::new(shared, tiles)
+                    },
+                    |scratch, &leaf| Ok(self.compute_tight(scratch, leaf, tight_blocks)?.0),
+                )
+                .collect();
+            for r in ranges {
+                out.push(r?);
+            }
+            self.release_pages();
+        }
+        Ok(out)
     }
 
     /// The voxel reference `r` names: its box and its eight corner values, recomputed from the
@@ -521,6 +583,9 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     }
 }
 
+/// A leaf's tight range, and the leaves around it when they were gathered to compute it.
+type RangeAndHalo<'a, 'f, D> = ((f32, f32), Option<Halo<'a, 'f, D>>);
+
 /// A leaf's cells as [`Extractor::voxel_boxes`] needs them: the boxes of its voxels from their
 /// local indices alone.
 #[derive(Clone, Copy)]
@@ -616,6 +681,34 @@ pub fn over_leaves(
         refs.extend_from_slice(&p?);
     }
     Ok(refs)
+}
+
+/// The tight range of every leaf of every field of the `.amrk` file at `path` (per field, per
+/// leaf), computed from its data: what a file of layout version 3 stores
+/// ([`amr_format::WriterOptions::tight`]). Maps the file, releasing its pages after each chunk
+/// of leaves so that memory stays bounded on large files.
+pub fn tight_tables_of(
+    path: &std::path::Path,
+) -> std::result::Result<Vec<Vec<(f32, f32)>>, String> {
+    /// Bytes of the shared cache of decoded compressed bricks.
+    const CACHE_BYTES: usize = 256 << 20;
+    let file = crate::mapping::open_mapped(path).map_err(|e| e.to_string())?;
+    (0..file.fields().len())
+        .map(|field| {
+            let mut ex = Extractor::new(&file, field, CACHE_BYTES).map_err(|e| e.to_string())?;
+            ex.set_page_release(PageRelease::new(&file));
+            ex.computed_tight_ranges().map_err(|e| e.to_string())
+        })
+        .collect()
+}
+
+/// [`amr_format::WriterOptions`] with `compression` that store the tight leaf ranges
+/// ([`tight_tables_of`]): what every writer of this workspace uses by default.
+pub fn writer_options(compression: amr_format::Compression) -> amr_format::WriterOptions {
+    amr_format::WriterOptions {
+        compression,
+        tight: Some(tight_tables_of),
+    }
 }
 
 /// The error for a reference that names no voxel of the file.

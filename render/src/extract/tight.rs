@@ -17,7 +17,9 @@
 //!   count whole, so the cost is the nodes along the region's boundary.
 //!
 //! A leaf whose tight range does not hold the isovalue has no active voxel and is skipped before
-//! its neighbourhood is built. The argument holds point by point, so [`box_range`] bounds a part
+//! its neighbourhood is built. Files of layout version 3 store these ranges
+//! ([`super::tight_tables_of`] computes them for the writer); the extractor then starts with all
+//! of them known and never visits a leaf whose range excludes the isovalue. The argument holds point by point, so [`box_range`] bounds a part
 //! of a leaf the same way ([`super::parts`]).
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -43,6 +45,20 @@ impl TightRanges {
     pub fn new(leaves: usize) -> Self {
         Self {
             bits: (0..leaves).map(|_| AtomicU64::new(UNKNOWN)).collect(),
+        }
+    }
+
+    /// The tight ranges `file` stores for field `field` (layout version 3), known from the
+    /// start; unknown ranges when it stores none.
+    pub fn of_file<D: AsRef<[u8]>>(file: &amr_format::AmrkFile<D>, field: usize) -> Self {
+        let n = file.num_leaves();
+        if !file.has_tight_ranges() {
+            return Self::new(n);
+        }
+        Self {
+            bits: (0..n as u32)
+                .map(|l| AtomicU64::new(file.tight_range(field, l).map_or(UNKNOWN, pack)))
+                .collect(),
         }
     }
 

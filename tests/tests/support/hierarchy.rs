@@ -16,6 +16,8 @@ pub struct Case {
     /// World origin magnitude (up to 1e6) and finest cell size (down to 1e-6).
     pub far: bool,
     pub zstd: bool,
+    /// The file stores tight leaf ranges (layout version 3) computed by the renderer.
+    pub tight: bool,
 }
 
 impl Case {
@@ -27,6 +29,8 @@ impl Case {
             brick: 4,
             far: seed % 2 == 1,
             zstd: false,
+            // Two cases in three store tight leaf ranges; the others leave them to the extraction.
+            tight: !seed.is_multiple_of(3),
         }
     }
 }
@@ -161,8 +165,15 @@ pub fn build(case: &Case) -> (HierarchySpec, AmrkFile<Vec<u8>>) {
     } else {
         Compression::None
     };
-    let mut w = AmrkWriter::create(&path, spec.clone(), WriterOptions { compression })
-        .unwrap_or_else(|e| panic!("{case:?}: {e}"));
+    let mut w = AmrkWriter::create(
+        &path,
+        spec.clone(),
+        WriterOptions {
+            compression,
+            tight: case.tight.then_some(amr_render::extract::tight_tables_of),
+        },
+    )
+    .unwrap_or_else(|e| panic!("{case:?}: {e}"));
     for (i, b) in spec.bricks.iter().enumerate() {
         for f in 0..spec.fields.len() {
             w.write_brick(i, f, &brick_values(&spec, f, b)).unwrap();

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use amr_format::progress::NoProgress;
-use amr_format::WriterOptions;
+use amr_format::Compression;
 use amr_synth::{build_box_hierarchy, stream::cells_per_level, write_spec, BoxParams, Case};
 use anyhow::Context;
 use clap::Args;
@@ -52,7 +52,7 @@ pub fn run(args: &BoxesArgs) -> anyhow::Result<()> {
         &args.output,
         spec,
         &case,
-        WriterOptions::default(),
+        amr_render::extract::writer_options(Compression::None),
         &NoProgress,
     )
     .with_context(|| format!("writing {}", args.output.display()))?;

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use amr_format::{Compression, WriterOptions};
+use amr_format::Compression;
 use anyhow::Context;
 
 use crate::progress_bar::Bar;
@@ -83,7 +83,7 @@ pub fn run_synth(args: &SynthArgs) -> anyhow::Result<()> {
         &args.output,
         case,
         &params,
-        WriterOptions { compression },
+        amr_render::extract::writer_options(compression),
         &bar,
     )
     .with_context(|| format!("writing {}", args.output.display()))?;

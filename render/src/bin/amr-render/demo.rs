@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use amr_format::WriterOptions;
+use amr_format::Compression;
 use amr_render::output::exr_file::ExrCompression;
 use amr_render::shade::IsoSpec;
 use amr_render::{ColorBy, Outline, Reconstruction, SceneOptions, TraceMethod, View};
@@ -36,8 +36,13 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     spec.fields = vec!["blobs".into(), "swirl".into()];
     let blobs = |p: [f64; 3]| Case::Blobs.value(p);
     let swirl = |p: [f64; 3]| swirl(p);
-    write_fields(&path, spec, &[&blobs, &swirl], WriterOptions::default())
-        .with_context(|| format!("cannot write {}", path.display()))?;
+    write_fields(
+        &path,
+        spec,
+        &[&blobs, &swirl],
+        amr_render::extract::writer_options(Compression::None),
+    )
+    .with_context(|| format!("cannot write {}", path.display()))?;
     let iso = Case::Blobs.default_iso() as f32;
     let preview = args.output.with_extension("png");
     let request = RenderRequest {

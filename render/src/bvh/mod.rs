@@ -765,6 +765,18 @@ mod tests {
     }
 
     /// Boxes of mixed sizes scattered in a 100-cube, one per ref.
+    /// 20,000 scattered boxes built in chunks, in one piece and by PLOC.
+    fn scattered_builds() -> [(&'static str, OctantBvh); 3] {
+        let refs: Vec<u64> = (0..20_000).collect();
+        let mut builder = BvhBuilder::new();
+        builder.chunk_refs = 1500;
+        let chunked = builder.build(&refs, 1e-4, scattered_boxes);
+        let one = BvhBuilder::new().build(&refs, 1e-4, scattered_boxes);
+        builder.method = BuildMethod::Ploc;
+        let ploc = builder.build(&refs, 1e-4, scattered_boxes);
+        [("chunked", chunked), ("one", one), ("ploc", ploc)]
+    }
+
     fn scattered_boxes(r: u64) -> ([f64; 3], [f64; 3]) {
         let h = |k: u64| {
             let x = (r * 4 + k + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15);
@@ -796,15 +808,8 @@ mod tests {
 
     #[test]
     fn walk_visits_what_obvhs_visits_in_its_order() {
-        let refs: Vec<u64> = (0..20_000).collect();
-        let mut builder = BvhBuilder::new();
-        builder.chunk_refs = 1500;
-        let chunked = builder.build(&refs, 1e-4, scattered_boxes);
-        let one = BvhBuilder::new().build(&refs, 1e-4, scattered_boxes);
-        builder.method = BuildMethod::Ploc;
-        let ploc = builder.build(&refs, 1e-4, scattered_boxes);
         let mut visited = 0;
-        for (name, bvh) in [("chunked", &chunked), ("one", &one), ("ploc", &ploc)] {
+        for (name, bvh) in &scattered_builds() {
             for k in 0..300u32 {
                 let a = k as f32 * 0.618;
                 let origin = Vec3A::new(
@@ -866,15 +871,8 @@ mod tests {
 
     #[test]
     fn a_packet_visits_for_each_ray_what_its_own_walk_visits() {
-        let refs: Vec<u64> = (0..20_000).collect();
-        let mut builder = BvhBuilder::new();
-        builder.chunk_refs = 1500;
-        let chunked = builder.build(&refs, 1e-4, scattered_boxes);
-        let one = BvhBuilder::new().build(&refs, 1e-4, scattered_boxes);
-        builder.method = BuildMethod::Ploc;
-        let ploc = builder.build(&refs, 1e-4, scattered_boxes);
         let mut visited = 0;
-        for (name, bvh) in [("chunked", &chunked), ("one", &one), ("ploc", &ploc)] {
+        for (name, bvh) in &scattered_builds() {
             for p in 0..24u32 {
                 let a = p as f32 * 0.618;
                 let origin = Vec3A::new(

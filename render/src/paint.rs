@@ -5,6 +5,7 @@
 
 use rayon::prelude::*;
 
+use crate::bvh::packet::Mask;
 use crate::camera::Camera;
 use crate::coloring::ColorScale;
 use crate::colormap::level_linear;
@@ -196,6 +197,21 @@ impl<T: Tracer + Sync + ?Sized> Tracer for PaintedTracer<'_, T> {
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
         // Slices cast no shadows: they show the data, not an object in the light.
         i < self.surfaces.len() && self.inner.occluded(i, ray, tmin, tmax)
+    }
+
+    fn occluded_many(
+        &self,
+        i: usize,
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: f64,
+        active: Mask,
+    ) -> Mask {
+        if i < self.surfaces.len() {
+            self.inner.occluded_many(i, rays, tmin, tmax, active)
+        } else {
+            0
+        }
     }
 
     fn release_pages(&self) {

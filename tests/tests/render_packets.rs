@@ -1,7 +1,9 @@
 //! Primary rays traced as packets ([`Surface::closest_hits`]) find for every ray exactly the hit
 //! the single-ray search finds ([`Surface::closest_hit_with`] without the last hit's memory):
 //! tiles of camera rays over a multi-level sphere file, and rays from inside aimed at
-//! finest-cell corners, which lie on faces, edges and corners shared by several voxels.
+//! finest-cell corners, which lie on faces, edges and corners shared by several voxels. Shadow
+//! rays traced as packets ([`Surface::any_hits`]) answer for every ray what the single-ray
+//! occlusion query ([`Surface::any_hit`]) answers, on the same rays.
 
 use amr_format::AmrkFile;
 use amr_render::bvh::BvhBuilder;
@@ -15,8 +17,8 @@ use crate::support::rng::Rng;
 
 const CENTRE: [f64; 3] = [0.47, 0.52, 0.5];
 
-/// Compares packet and single-ray hits for each packet of `(origin, direction)` pairs; returns
-/// the hits found.
+/// Compares packet and single-ray hits, and packet and single-ray occlusion, for each packet of
+/// `(origin, direction)` pairs; returns the hits found.
 fn compare(
     src: &(impl VoxelSource + ?Sized),
     surface: &Surface,
@@ -25,6 +27,7 @@ fn compare(
 ) -> usize {
     let frame = src.frame();
     let mut found = 0;
+    let (mut occluded_rays, mut open_rays) = (0, 0);
     for (p, packet) in packets.iter().enumerate() {
         let rays: Vec<GridRay> = packet
             .iter()
@@ -41,7 +44,36 @@ fn compare(
             assert_eq!(hits[k], want, "{name}: packet {p}, ray {k}");
             found += usize::from(want.is_some());
         }
+        // Occlusion: some rays left out, some starting a little along, every other packet up to
+        // a limit.
+        let active = (0..rays.len())
+            .filter(|k| k % 7 != 4)
+            .fold(0u64, |m, k| m | 1 << k);
+        let tmin: Vec<f64> = (0..rays.len())
+            .map(|k| if k % 3 == 1 { 0.05 } else { 0.0 })
+            .collect();
+        let limit = if p % 2 == 0 { f64::INFINITY } else { 0.3 };
+        let occluded = surface.any_hits(src, &rays, &tmin, limit, active);
+        for (k, ray) in rays.iter().enumerate() {
+            let want = active >> k & 1 != 0 && surface.any_hit(src, ray, tmin[k], limit);
+            assert_eq!(
+                occluded >> k & 1 != 0,
+                want,
+                "{name}: packet {p}, ray {k} occlusion"
+            );
+            if active >> k & 1 != 0 {
+                *if want {
+                    &mut occluded_rays
+                } else {
+                    &mut open_rays
+                } += 1;
+            }
+        }
     }
+    assert!(
+        occluded_rays > 100 && open_rays > 100,
+        "{name}: {occluded_rays} rays occluded, {open_rays} open"
+    );
     found
 }
 

@@ -1,10 +1,12 @@
 //! One primary ray: its hits with every isosurface in depth order, each shaded and composited.
 
+use crate::bvh::packet::{rays_of, Mask, PACKET};
 use crate::camera::{dot, normalize, Camera};
 use crate::output::frame::PixelSample;
 use crate::shade::ao_filter::{AoLayer, FILTERED_HITS};
 use crate::shade::sampling::{cosine_hemisphere, Rng};
 use crate::trace::ray::GridRay;
+use crate::trace::source::GridFrame;
 use crate::trace::tracer::{SurfaceHit, Tracer};
 
 /// Most surfaces composited along one ray.
@@ -97,7 +99,16 @@ pub fn shade_ray<T: Tracer + ?Sized>(
             }
         }
     }
-    shade_hits(tracer, light, (origin, dir), &ray, next, rng, ao_layers)
+    shade_hits(
+        tracer,
+        light,
+        (origin, dir),
+        &ray,
+        next,
+        None,
+        rng,
+        ao_layers,
+    )
 }
 
 /// The order in which a ray's first hits with the `n` surfaces are searched: opaque surfaces
@@ -115,14 +126,18 @@ pub fn search_order(light: &Lighting, n: usize, first: usize) -> impl Iterator<I
 
 /// Shades the world ray `origin + t dir` (`dir` unit length; `ray` the same in grid
 /// coordinates) from `next[i]`, its first hit with each surface `i` (up to the nearest opaque
-/// one; [`shade_ray`] finds them); `next` is used up. With `ao_layers`, records the first
-/// [`FILTERED_HITS`] hits shaded with ambient occlusion there.
+/// one; [`shade_ray`] finds them); `next` is used up. `first_shadow` is the key light's
+/// transmittance at the nearest of them when already traced ([`KeyShadow`]), or `None` to trace
+/// it here. With `ao_layers`, records the first [`FILTERED_HITS`] hits shaded with ambient
+/// occlusion there.
+#[allow(clippy::too_many_arguments)]
 pub fn shade_hits<T: Tracer + ?Sized>(
     tracer: &T,
     light: &Lighting,
     (origin, dir): ([f64; 3], [f64; 3]),
     ray: &GridRay,
     next: &mut [Option<SurfaceHit>],
+    first_shadow: Option<f64>,
     rng: &mut Rng,
     mut ao_layers: Option<&mut Vec<AoLayer>>,
 ) -> PixelSample {
@@ -133,12 +148,7 @@ pub fn shade_hits<T: Tracer + ?Sized>(
     let mut transmittance = 1.0f32;
     let mut rgb = [0.0f32; 3];
     for layer in 0..MAX_LAYERS {
-        let Some((i, hit)) = next
-            .iter()
-            .enumerate()
-            .filter_map(|(i, h)| h.map(|h| (i, h)))
-            .min_by(|a, b| a.1.t.total_cmp(&b.1.t))
-        else {
+        let Some((i, hit)) = nearest(next) else {
             break;
         };
         let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dir.map(|x| -x));
@@ -148,7 +158,8 @@ pub fn shade_hits<T: Tracer + ?Sized>(
             Some(p) if !p.lit => p.rgb,
             _ => {
                 let base = paint.map_or(light.colors[i], |p| p.rgb);
-                let shaded = shade_hit(tracer, light, base, &hit, normal, dir, rng);
+                let shadow = first_shadow.filter(|_| layer == 0);
+                let shaded = shade_hit(tracer, light, base, &hit, normal, dir, shadow, rng);
                 if let (Some(layers), Some(ao)) = (ao_layers.as_deref_mut(), shaded.ao) {
                     if recorded < FILTERED_HITS {
                         recorded += 1;
@@ -195,6 +206,14 @@ pub fn shade_hits<T: Tracer + ?Sized>(
     out.rgb = rgb;
     out.alpha = 1.0 - transmittance;
     out
+}
+
+/// The nearest of the hits `next` and its surface (the first one of a tie): the next layer.
+fn nearest(next: &[Option<SurfaceHit>]) -> Option<(usize, SurfaceHit)> {
+    next.iter()
+        .enumerate()
+        .filter_map(|(i, h)| h.map(|h| (i, h)))
+        .min_by(|a, b| a.1.t.total_cmp(&b.1.t))
 }
 
 /// The next hit of surface `i` along `ray` after `hit` that is a new crossing, up to `tmax`.
@@ -258,7 +277,35 @@ struct Occlusion {
 /// smooth shading still says lit, a staircase along the voxels at the shadow terminator.
 const TERMINATOR_LIFT: f64 = 0.25;
 
-/// The colour of a surface of colour `base` at `hit`, seen along `dir`.
+/// The normal on the side the ray came from, which the crossing's direction tells; not the one
+/// facing the viewer, which at a silhouette can be the inside when the smooth normal leans past
+/// the ray, and would send the shadow and AO rays into the surface (black pixels).
+fn facing(hit: &SurfaceHit, normal: [f64; 3]) -> [f64; 3] {
+    if hit.rising {
+        normal.map(|x| -x)
+    } else {
+        normal
+    }
+}
+
+/// The shadow ray towards the key light from `hit` (facing normal `nf`), when one is cast: the
+/// ray and its `tmin`.
+fn key_ray(
+    frame: &GridFrame,
+    light: &Lighting,
+    hit: &SurfaceHit,
+    nf: [f64; 3],
+) -> Option<(GridRay, f64)> {
+    let key = dot(nf, light.key_dir).max(0.0);
+    (key > 0.0 && light.shadows).then(|| {
+        let lift = TERMINATOR_LIFT * (1.0 - key) * hit.size;
+        ray_off(frame, hit, nf, light.key_dir, lift)
+    })
+}
+
+/// The colour of a surface of colour `base` at `hit`, seen along `dir`; `shadow` is the key
+/// light's transmittance there when already traced.
+#[allow(clippy::too_many_arguments)]
 fn shade_hit<T: Tracer + ?Sized>(
     tracer: &T,
     light: &Lighting,
@@ -266,23 +313,18 @@ fn shade_hit<T: Tracer + ?Sized>(
     hit: &SurfaceHit,
     normal: [f64; 3],
     dir: [f64; 3],
+    shadow: Option<f64>,
     rng: &mut Rng,
 ) -> Shaded {
     let view = dir.map(|x| -x);
-    // The normal on the side the ray came from, which the crossing's direction tells; not the
-    // one facing the viewer, which at a silhouette can be the inside when the smooth normal
-    // leans past the ray, and would send the shadow and AO rays into the surface (black pixels).
-    let nf = if hit.rising {
-        normal.map(|x| -x)
-    } else {
-        normal
-    };
+    let nf = facing(hit, normal);
     let head = dot(nf, view).max(0.0);
     let spec = head.powi(48);
     let mut key = dot(nf, light.key_dir).max(0.0);
-    if key > 0.0 && light.shadows {
-        let lift = TERMINATOR_LIFT * (1.0 - key) * hit.size;
-        key *= transmittance_towards(tracer, light, hit, nf, light.key_dir, f64::INFINITY, lift);
+    if let Some(s) = shadow {
+        key *= s;
+    } else if let Some((ray, tmin)) = key_ray(&tracer.frame(), light, hit, nf) {
+        key *= transmittance_along(tracer, light, &ray, tmin, f64::INFINITY);
     }
     let ao = (light.ao_rays > 0).then(|| {
         let mut open = 0.0;
@@ -321,7 +363,19 @@ fn transmittance_towards<T: Tracer + ?Sized>(
     max_t: f64,
     lift: f64,
 ) -> f64 {
-    let frame = tracer.frame();
+    let (ray, tmin) = ray_off(&tracer.frame(), hit, nf, d, lift);
+    transmittance_along(tracer, light, &ray, tmin, max_t)
+}
+
+/// The grid ray in world direction `d` (unit) from `lift` grid units (besides a small fixed
+/// offset) off `hit` along the normal `nf`, and the `tmin` its search starts from.
+fn ray_off(
+    frame: &GridFrame,
+    hit: &SurfaceHit,
+    nf: [f64; 3],
+    d: [f64; 3],
+    lift: f64,
+) -> (GridRay, f64) {
     let offset = 1e-3 * hit.size + lift;
     let n_grid = [0, 1, 2].map(|a| nf[a] / frame.unit[a]);
     let n_len = grid_len(n_grid);
@@ -331,16 +385,31 @@ fn transmittance_towards<T: Tracer + ?Sized>(
         d: [0, 1, 2].map(|a| d[a] / frame.unit[a]),
     };
     let tmin = 1e-3 * hit.size / grid_len(ray.d);
+    (ray, tmin)
+}
+
+/// The surfaces in the order a transmittance is searched: opaque surfaces first, as one in the
+/// way ends the search. The transparent surfaces' factors are multiplied in the same order
+/// either way, so the result does not change.
+fn occluder_order(light: &Lighting, n: usize) -> impl Iterator<Item = usize> + '_ {
+    let opaque = move |s: usize| light.opacity[s] >= 1.0;
+    (0..n)
+        .filter(move |&s| opaque(s))
+        .chain((0..n).filter(move |&s| !opaque(s)))
+}
+
+/// Fraction of light reaching along `ray` with `t` in `[tmin, max_t]`: the product of
+/// `1 - opacity` over the surfaces in the way.
+fn transmittance_along<T: Tracer + ?Sized>(
+    tracer: &T,
+    light: &Lighting,
+    ray: &GridRay,
+    tmin: f64,
+    max_t: f64,
+) -> f64 {
     let mut t = 1.0;
-    // Opaque surfaces first: one in the way ends the search. The transparent surfaces' factors
-    // are multiplied in the same order either way, so the result does not change.
-    let n = tracer.num_surfaces();
-    let opaque = |s: usize| light.opacity[s] >= 1.0;
-    let order = (0..n)
-        .filter(|&s| opaque(s))
-        .chain((0..n).filter(|&s| !opaque(s)));
-    for s in order {
-        if tracer.occluded(s, &ray, tmin, max_t) {
+    for s in occluder_order(light, tracer.num_surfaces()) {
+        if tracer.occluded(s, ray, tmin, max_t) {
             t *= 1.0 - f64::from(light.opacity[s]);
             if t == 0.0 {
                 break;
@@ -348,4 +417,80 @@ fn transmittance_towards<T: Tracer + ?Sized>(
         }
     }
     t
+}
+
+/// The key light's transmittance at the nearest hits of a tile of rays, traced for the tile at
+/// once as packets ([`Tracer::occluded_many`]), for [`shade_hits`] to use at its first layer.
+pub struct KeyShadow {
+    rays: [GridRay; PACKET],
+    tmin: [f64; PACKET],
+    /// Per ray, the transmittance; `None` where no shadow ray is cast.
+    shadow: [Option<f64>; PACKET],
+}
+
+impl Default for KeyShadow {
+    fn default() -> Self {
+        Self {
+            rays: [GridRay {
+                o: [0.0; 3],
+                d: [1.0, 0.0, 0.0],
+            }; PACKET],
+            tmin: [0.0; PACKET],
+            shadow: [None; PACKET],
+        }
+    }
+}
+
+impl KeyShadow {
+    /// Traces the shadow rays of the nearest hits of up to [`PACKET`] rays: `hits(k)` gives ray
+    /// `k`'s first hit with each surface and `dirs[k]` its world direction. Each ray's value is
+    /// the one [`shade_hits`] computes for it alone: the same shadow ray, the surfaces asked in
+    /// the same order, up to the same one.
+    pub fn trace<'h, T: Tracer + ?Sized>(
+        &mut self,
+        tracer: &T,
+        light: &Lighting,
+        dirs: &[[f64; 3]],
+        mut hits: impl FnMut(usize) -> &'h [Option<SurfaceHit>],
+    ) {
+        let m = dirs.len();
+        assert!(m <= PACKET);
+        let frame = tracer.frame();
+        let mut live: Mask = 0;
+        for k in 0..m {
+            self.shadow[k] = None;
+            let Some((i, hit)) = nearest(hits(k)) else {
+                continue;
+            };
+            if tracer.paint(i, &hit).is_some_and(|p| !p.lit) {
+                continue;
+            }
+            let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dirs[k].map(|x| -x));
+            if let Some((ray, tmin)) = key_ray(&frame, light, &hit, facing(&hit, normal)) {
+                self.rays[k] = ray;
+                self.tmin[k] = tmin;
+                self.shadow[k] = Some(1.0);
+                live |= 1 << k;
+            }
+        }
+        for s in occluder_order(light, tracer.num_surfaces()) {
+            if live == 0 {
+                break;
+            }
+            let hit =
+                tracer.occluded_many(s, &self.rays[..m], &self.tmin[..m], f64::INFINITY, live);
+            for k in rays_of(hit) {
+                let t = self.shadow[k].as_mut().expect("a live ray has a shadow");
+                *t *= 1.0 - f64::from(light.opacity[s]);
+                if *t == 0.0 {
+                    live &= !(1 << k);
+                }
+            }
+        }
+    }
+
+    /// Ray `k`'s transmittance, if its shadow ray was cast.
+    pub fn get(&self, k: usize) -> Option<f64> {
+        self.shadow[k]
+    }
 }

@@ -71,6 +71,12 @@ impl TileHits {
         }
     }
 
+    /// Ray `k`'s first hit with each surface.
+    pub fn hits_of(&self, k: usize) -> &[Option<SurfaceHit>] {
+        let n = self.surfaces;
+        &self.hits[k * n..(k + 1) * n]
+    }
+
     /// Ray `k`'s first hit with each surface, to shade ([`crate::shade::integrate::shade_hits`]
     /// uses it up).
     pub fn ray_hits(&mut self, k: usize) -> &mut [Option<SurfaceHit>] {

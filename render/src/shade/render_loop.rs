@@ -6,11 +6,12 @@ use std::cell::Cell;
 
 use rayon::prelude::*;
 
+use crate::bvh::packet::Mask;
 use crate::camera::Camera;
 use crate::output::frame::{FrameBuffer, PixelSample};
 use crate::shade::ao_filter::{self, AoRow, AoRows};
-use crate::shade::integrate::{shade_hits, Lighting, SearchHint};
-use crate::shade::packets::TileHits;
+use crate::shade::integrate::{shade_hits, KeyShadow, Lighting, SearchHint};
+use crate::shade::packets::{TileHits, TILE_RAYS};
 use crate::shade::sampling::Rng;
 use crate::trace::ray::GridRay;
 use crate::trace::source::GridFrame;
@@ -51,6 +52,18 @@ impl<T: Tracer + ?Sized> Tracer for Counting<'_, T> {
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
         self.rays.set(self.rays.get() + 1);
         self.inner.occluded(i, ray, tmin, tmax)
+    }
+    fn occluded_many(
+        &self,
+        i: usize,
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: f64,
+        active: Mask,
+    ) -> Mask {
+        self.rays
+            .set(self.rays.get() + u64::from(active.count_ones()));
+        self.inner.occluded_many(i, rays, tmin, tmax, active)
     }
     fn paint(&self, i: usize, hit: &SurfaceHit) -> Option<Paint> {
         self.inner.paint(i, hit)
@@ -197,6 +210,8 @@ fn render_strip<T: Tracer + ?Sized>(
     let frame = tracer.frame();
     let spp = settings.spp.max(1);
     let mut tile = TileHits::new(tracer.num_surfaces());
+    let mut shadows = Box::<KeyShadow>::default();
+    let mut dirs_k = Vec::with_capacity(TILE_RAYS);
     for x0 in xs.clone().step_by(TILE as usize) {
         let x1 = (x0 + TILE).min(xs.end);
         let pixels: Vec<(u32, u32)> = ys
@@ -221,6 +236,9 @@ fn render_strip<T: Tracer + ?Sized>(
                 rays.push(GridRay::from_world(&frame, dirs.origin(), dir));
             }
             tile.trace(&counting, light, &rays, &mut hint);
+            dirs_k.clear();
+            dirs_k.extend(world.iter().map(|w| w.1));
+            shadows.trace(&counting, light, &dirs_k, |k| tile.hits_of(k));
             for (k, &(_, y)) in pixels.iter().enumerate() {
                 let row = &mut rows[(y - ys.start) as usize];
                 let layers = record.then_some(row.ao.layers_mut());
@@ -231,6 +249,7 @@ fn render_strip<T: Tracer + ?Sized>(
                     world[k],
                     &rays[k],
                     next,
+                    shadows.get(k),
                     &mut rngs[k],
                     layers,
                 );

@@ -1,7 +1,7 @@
 //! The interface the shader traces through, and its exact ("hybrid") implementation: a BVH per
 //! isosurface and the implicit ray-voxel intersection.
 
-use crate::bvh::packet::PACKET;
+use crate::bvh::packet::{rays_of, Mask, PACKET};
 use crate::camera::dot;
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, VoxelSource};
@@ -69,6 +69,26 @@ pub trait Tracer {
         self.next_hit(i, ray, tmin, tmax).is_some()
     }
 
+    /// The rays `k` of `active` (bit `k` for `rays[k]`, at most [`PACKET`] rays) for which
+    /// surface `i` is hit with `t` in `[tmin[k], tmax]`: for each ray what [`Tracer::occluded`]
+    /// answers (by default it is asked ray by ray; tracers may trace the rays as a packet).
+    fn occluded_many(
+        &self,
+        i: usize,
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: f64,
+        active: Mask,
+    ) -> Mask {
+        let mut hit = 0;
+        for k in rays_of(active) {
+            if self.occluded(i, &rays[k], tmin[k], tmax) {
+                hit |= 1 << k;
+            }
+        }
+        hit
+    }
+
     /// The colour data gives surface `i` at `hit`; `None` (the default) keeps the surface's own.
     fn paint(&self, _i: usize, _hit: &SurfaceHit) -> Option<Paint> {
         None
@@ -118,6 +138,17 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
 
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
         self.surfaces[i].any_hit(self.src, ray, tmin, tmax)
+    }
+
+    fn occluded_many(
+        &self,
+        i: usize,
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: f64,
+        active: Mask,
+    ) -> Mask {
+        self.surfaces[i].any_hits(self.src, rays, tmin, tmax, active)
     }
 
     fn release_pages(&self) {

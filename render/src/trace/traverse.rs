@@ -287,6 +287,55 @@ impl Surface {
         hit
     }
 
+    /// The rays of `active` (of `rays`, at most [`PACKET`]) that hit the surface anywhere with
+    /// `t` in `[tmin[k], tmax]`: the rays walk the BVH as a packet, and a ray leaves the walk at
+    /// its first occluding voxel. Each ray's answer is [`Surface::any_hit`]'s: until it is hit,
+    /// a ray visits the candidates the single-ray walk gives it, under the same `tmax`, with
+    /// the same exact test.
+    pub fn any_hits<S: VoxelSource + ?Sized>(
+        &self,
+        src: &S,
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: f64,
+        active: Mask,
+    ) -> Mask {
+        let n = rays.len();
+        assert!(n <= PACKET && tmin.len() == n && (n == PACKET || active >> n == 0));
+        let frame = src.frame();
+        let pad = bvh_pad(&frame);
+        let unused = Ray::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0);
+        let mut ray32 = [unused; PACKET];
+        let mut live: Mask = 0;
+        for k in rays_of(active) {
+            if let Some(b) = rays[k].bvh_ray(&frame, pad, tmin[k], tmax) {
+                ray32[k] = b.ray;
+                live |= 1 << k;
+            }
+        }
+        let mut hit: Mask = 0;
+        if live == 0 {
+            return hit;
+        }
+        src.with_voxels(&mut |voxel_of| {
+            self.bvh
+                .traverse_packet(&mut ray32[..n], live, |_, r, m, ray32| {
+                    let m = m & !hit;
+                    if m == 0 {
+                        return;
+                    }
+                    let voxel = voxel_of(r);
+                    for k in rays_of(m) {
+                        if src.occludes(&voxel, self.iso, &rays[k], tmin[k], tmax) {
+                            hit |= 1 << k;
+                            ray32[k].tmax = f32::NEG_INFINITY;
+                        }
+                    }
+                })
+        });
+        hit
+    }
+
     /// The position and ref of the voxel to test before the walk, if this thread remembers one
     /// for `key` with confidence and it is one of this surface's.
     #[inline]

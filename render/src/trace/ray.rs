@@ -50,23 +50,7 @@ impl GridRay {
     /// corner) is kept.
     #[inline]
     pub fn clip(&self, lo: [f64; 3], hi: [f64; 3], tmin: f64, tmax: f64) -> Option<(f64, f64)> {
-        let (mut t0, mut t1) = (tmin, tmax);
-        for a in 0..3 {
-            if self.d[a] == 0.0 {
-                if self.o[a] < lo[a] || self.o[a] > hi[a] {
-                    return None;
-                }
-            } else {
-                let inv = 1.0 / self.d[a];
-                let (mut ta, mut tb) = ((lo[a] - self.o[a]) * inv, (hi[a] - self.o[a]) * inv);
-                if ta > tb {
-                    std::mem::swap(&mut ta, &mut tb);
-                }
-                t0 = larger(t0, ta);
-                t1 = smaller(t1, tb);
-            }
-        }
-        (t0 <= t1).then_some((t0, t1))
+        self.clip_with(&self.recip(), lo, hi, tmin, tmax)
     }
 
     /// The reciprocals of the direction's components, for [`GridRay::clip_with`].

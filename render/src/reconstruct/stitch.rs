@@ -34,6 +34,8 @@ pub(super) struct Stitches {
     /// Whole leaf cells: finest box, level and value.
     wholes: [(IBox, u32, f32); 4],
     num_wholes: usize,
+    /// The coarse leaf cell (level and cell) last tested for being whole.
+    last_coarse: Option<(u32, [i64; 3])>,
 }
 
 impl Stitches {
@@ -54,6 +56,7 @@ impl Stitches {
             num_leaves: 0,
             wholes: [(empty, 0, 0.0); 4],
             num_wholes: 0,
+            last_coarse: None,
         }
     }
 
@@ -219,9 +222,10 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             }
         }
         let centre = usize::from(!key.octant & 7);
-        if needed & !(1 << centre) != 0 {
+        if needed & !(1 << centre) != 0 && known.last_coarse != Some((q.level, q.cell)) {
             // The coarse cell's other corners read its cells without locating them when it
             // covers its whole finest box.
+            known.last_coarse = Some((q.level, q.cell));
             let own = self.grid().finest_box(q.level, q.cell);
             let domain = IBox::new([0; 3], self.grid().extent());
             if self.leaf_box(q.leaf).contains_box(&own.intersect(&domain)) {

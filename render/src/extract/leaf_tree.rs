@@ -404,15 +404,23 @@ fn from_kd_node(
             node.children = Some((a, b));
         }
         _ => {
-            // At most `BUCKET` leaves: gathered depth first into one bottom node.
-            let mut stack = vec![i];
-            while let Some(j) = stack.pop() {
-                match tree.node(j)? {
+            // At most `BUCKET` leaves: gathered depth first into one bottom node. Its subtree
+            // is at most `BUCKET - 1` splits deep, so the stack never holds more than `BUCKET`.
+            let mut stack = [0usize; BUCKET + 1];
+            let mut top = 1;
+            stack[0] = i;
+            while top > 0 {
+                top -= 1;
+                match tree.node(stack[top])? {
                     KdNode::Leaf { leaf } => {
                         all.get(leaf as usize)?;
                         order.push(leaf);
                     }
-                    KdNode::Split { low, high, .. } => stack.extend([high, low]),
+                    KdNode::Split { low, high, .. } => {
+                        *stack.get_mut(top + 1)? = low;
+                        stack[top] = high;
+                        top += 2;
+                    }
                 }
             }
             let leaves = &order[first as usize..];

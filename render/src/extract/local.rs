@@ -95,6 +95,49 @@ impl LevelCells {
     }
 }
 
+/// Copies `src` into `dst` (of the same length) by moves of a known length when it holds at
+/// most 8 values: the rows of small leaves hold 2 to 4 cells, where a call to `memcpy` costs
+/// several times the copy.
+#[inline(always)]
+fn copy_short<T: Copy>(dst: &mut [T], src: &[T]) {
+    #[inline(always)]
+    fn fixed<const N: usize, T: Copy>(dst: &mut [T], src: &[T]) {
+        dst[..N].copy_from_slice(&src[..N]);
+    }
+    match src.len() {
+        1 => fixed::<1, T>(dst, src),
+        2 => fixed::<2, T>(dst, src),
+        3 => fixed::<3, T>(dst, src),
+        4 => fixed::<4, T>(dst, src),
+        5 => fixed::<5, T>(dst, src),
+        6 => fixed::<6, T>(dst, src),
+        7 => fixed::<7, T>(dst, src),
+        8 => fixed::<8, T>(dst, src),
+        _ => dst.copy_from_slice(src),
+    }
+}
+
+/// Sets every value of `dst` to `v`, by stores of a known length when it holds at most 8
+/// values (see [`copy_short`]).
+#[inline(always)]
+fn fill_short<T: Copy>(dst: &mut [T], v: T) {
+    #[inline(always)]
+    fn fixed<const N: usize, T: Copy>(dst: &mut [T], v: T) {
+        dst[..N].copy_from_slice(&[v; N]);
+    }
+    match dst.len() {
+        1 => fixed::<1, T>(dst, v),
+        2 => fixed::<2, T>(dst, v),
+        3 => fixed::<3, T>(dst, v),
+        4 => fixed::<4, T>(dst, v),
+        5 => fixed::<5, T>(dst, v),
+        6 => fixed::<6, T>(dst, v),
+        7 => fixed::<7, T>(dst, v),
+        8 => fixed::<8, T>(dst, v),
+        _ => dst.fill(v),
+    }
+}
+
 /// The rows of a box inside two boxes of cells, x fastest: where the first row starts in each
 /// and how far apart rows (along y) and planes (along z) of rows lie.
 struct Rows {
@@ -273,8 +316,8 @@ impl Neighbourhood {
                             let src = bc.linear_index([block.lo[0], y, z]);
                             let dst = g.linear_index([block.lo[0], y, z]);
                             let w = (block.hi[0] - block.lo[0]) as usize;
-                            self.kind[dst..dst + w].fill(LEAF);
-                            self.lo[dst..dst + w].copy_from_slice(&values[src..src + w]);
+                            fill_short(&mut self.kind[dst..dst + w], LEAF);
+                            copy_short(&mut self.lo[dst..dst + w], &values[src..src + w]);
                         }
                     }
                 }

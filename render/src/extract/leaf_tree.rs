@@ -53,8 +53,21 @@ pub struct LeafTree {
 }
 
 impl LeafTree {
-    /// The tree over every leaf of `sampler`'s file.
+    /// The tree over every leaf of `sampler`'s file, in the kd-tree's shape unless that is
+    /// deeper than [`MAX_KD_DEPTH`].
     pub fn new<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>) -> Self {
+        Self::with_shape(sampler, sampler.file().tree_depth() <= MAX_KD_DEPTH)
+    }
+
+    /// The tree over every leaf of `sampler`'s file split at the median of the longest axis,
+    /// whatever the kd-tree: what [`Self::new`] builds for a kd-tree too deep to follow.
+    pub fn median<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>) -> Self {
+        Self::with_shape(sampler, false)
+    }
+
+    /// The tree in the kd-tree's shape when `kd` (and the kd-tree has that form), else split at
+    /// medians.
+    fn with_shape<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>, kd: bool) -> Self {
         let n = sampler.file().num_leaves() as u32;
         let mut nodes = Vec::with_capacity(4 * n as usize / BUCKET + 1);
         let mut order: Vec<u32> = Vec::with_capacity(n as usize);
@@ -65,8 +78,7 @@ impl LeafTree {
                 (tree.leaf_box(l), level)
             })
             .collect();
-        let from_kd = sampler.file().tree_depth() <= MAX_KD_DEPTH
-            && from_kd_tree(&tree, &leaves, &mut order, &mut nodes).is_some();
+        let from_kd = kd && from_kd_tree(&tree, &leaves, &mut order, &mut nodes).is_some();
         if !from_kd && n > 0 {
             nodes.clear();
             order = (0..n).collect();

@@ -20,6 +20,7 @@
 //! - [`extract_region`]: extraction in a clip box or a view frustum equals the whole extraction
 //!   filtered.
 //! - [`hybrid_current_nearest`]: the `current` and `nearest` voxels.
+//! - [`leaf_tree`]: the extraction's leaf tree finds what a scan of every leaf finds.
 //! - [`sample_scratch`]: point samples through a per-thread scratch equal fresh samples.
 //! - [`sample_shortcuts`]: the sampler's shortcuts give the general rules' answers bit for bit.
 //!
@@ -60,6 +61,7 @@ mod extract_reference;
 mod extract_region;
 mod format_versions;
 mod hybrid_current_nearest;
+mod leaf_tree;
 mod pictures;
 mod reconstruct_continuity;
 mod render_accuracy;

@@ -1,9 +1,15 @@
-//! A bounding-box tree over the kd-tree's leaves, split at the median of the longest axis,
-//! holding each node's coarsest level and, once asked, a range of its cells: region queries for
-//! tight ranges cost the nodes along the region's boundary, not one visit per leaf inside it.
+//! A bounding-box tree over the kd-tree's leaves, holding each node's coarsest level and, once
+//! asked, a range of its cells: region queries for tight ranges cost the nodes along the
+//! region's boundary, not one visit per leaf inside it.
+//!
+//! The tree is the file's kd-tree itself with its subtrees of at most [`BUCKET`] leaves
+//! collapsed into bottom nodes: one pass over the stored nodes, no sorting. A kd-tree deeper than
+//! [`MAX_KD_DEPTH`] (which the writers never produce, but a file may hold) is replaced by a tree
+//! split at the median of the longest axis, balanced whatever the file.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use amr_format::kdtree::{KdNode, TreeView};
 use amr_format::IBox;
 
 use super::blocks::{level_box, BlockRanges};
@@ -15,6 +21,8 @@ use crate::reconstruct::Sampler;
 const BUCKET: usize = 8;
 /// Cells per axis (at its own level) of a leaf that counts whole in a region it overlaps.
 const SMALL: i64 = 4;
+/// Deepest kd-tree whose shape the tree takes; the walks' stacks of 64 nodes stay far from full.
+const MAX_KD_DEPTH: u32 = 48;
 /// A range not computed yet (the bits of two NaNs, which no computed range holds).
 const UNKNOWN: u64 = u64::MAX;
 
@@ -45,11 +53,24 @@ pub struct LeafTree {
 }
 
 impl LeafTree {
-    /// The tree over every leaf of `sampler`'s file.
+    /// The tree over every leaf of `sampler`'s file, in the kd-tree's shape unless that is
+    /// deeper than [`MAX_KD_DEPTH`].
     pub fn new<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>) -> Self {
+        Self::with_shape(sampler, sampler.file().tree_depth() <= MAX_KD_DEPTH)
+    }
+
+    /// The tree over every leaf of `sampler`'s file split at the median of the longest axis,
+    /// whatever the kd-tree: what [`Self::new`] builds for a kd-tree too deep to follow.
+    pub fn median<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>) -> Self {
+        Self::with_shape(sampler, false)
+    }
+
+    /// The tree in the kd-tree's shape when `kd` (and the kd-tree has that form), else split at
+    /// medians.
+    fn with_shape<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>, kd: bool) -> Self {
         let n = sampler.file().num_leaves() as u32;
         let mut nodes = Vec::with_capacity(4 * n as usize / BUCKET + 1);
-        let mut order: Vec<u32> = (0..n).collect();
+        let mut order: Vec<u32> = Vec::with_capacity(n as usize);
         let tree = sampler.file().tree();
         let leaves: Vec<(IBox, u32)> = (0..n)
             .map(|l| {
@@ -57,7 +78,10 @@ impl LeafTree {
                 (tree.leaf_box(l), level)
             })
             .collect();
-        if n > 0 {
+        let from_kd = kd && from_kd_tree(&tree, &leaves, &mut order, &mut nodes).is_some();
+        if !from_kd && n > 0 {
+            nodes.clear();
+            order = (0..n).collect();
             build(&leaves, &mut order, 0, &mut nodes);
         }
         let ranges = (0..nodes.len()).map(|_| AtomicU64::new(UNKNOWN)).collect();
@@ -330,6 +354,105 @@ impl LeafTree {
         slot.store(pack(range), Ordering::Relaxed);
         Ok(range)
     }
+}
+
+/// Fills `nodes` and `order` with the tree of the kd-tree `tree`'s shape (the file checked it
+/// at open: children after their parent, every node reached once); `None`, leaving them in any
+/// state, for a tree not of that form. `all` holds every leaf's box and level.
+fn from_kd_tree(
+    tree: &TreeView<'_>,
+    all: &[(IBox, u32)],
+    order: &mut Vec<u32>,
+    nodes: &mut Vec<Node>,
+) -> Option<()> {
+    // Leaves under each kd node, children before parents.
+    let mut counts = vec![0u32; tree.num_nodes()];
+    for i in (0..tree.num_nodes()).rev() {
+        counts[i] = match tree.node(i)? {
+            KdNode::Leaf { .. } => 1,
+            KdNode::Split { low, high, .. } if low > i && high > i => {
+                counts.get(low)?.checked_add(*counts.get(high)?)?
+            }
+            KdNode::Split { .. } => return None,
+        };
+    }
+    order.clear();
+    nodes.clear();
+    if tree.num_nodes() > 0 {
+        from_kd_node(tree, all, &counts, 0, order, nodes)?;
+    }
+    (order.len() == all.len()).then_some(())
+}
+
+/// Appends the node of kd node `i`'s leaves (`counts` per kd node) and its descendants to
+/// `nodes`, and those leaves to `order`; returns the node's index.
+fn from_kd_node(
+    tree: &TreeView<'_>,
+    all: &[(IBox, u32)],
+    counts: &[u32],
+    i: usize,
+    order: &mut Vec<u32>,
+    nodes: &mut Vec<Node>,
+) -> Option<u32> {
+    let index = nodes.len() as u32;
+    let first = order.len() as u32;
+    match tree.node(i)? {
+        KdNode::Split { low, high, .. } if counts[i] as usize > BUCKET => {
+            nodes.push(Node {
+                bounds: IBox::new([0; 3], [0; 3]),
+                coarsest: u32::MAX,
+                first,
+                end: first,
+                children: None,
+            });
+            let a = from_kd_node(tree, all, counts, low, order, nodes)?;
+            let b = from_kd_node(tree, all, counts, high, order, nodes)?;
+            let (na, nb) = (&nodes[a as usize], &nodes[b as usize]);
+            let (bounds, coarsest) = (union(&na.bounds, &nb.bounds), na.coarsest.min(nb.coarsest));
+            let node = &mut nodes[index as usize];
+            node.bounds = bounds;
+            node.coarsest = coarsest;
+            node.end = order.len() as u32;
+            node.children = Some((a, b));
+        }
+        _ => {
+            // At most `BUCKET` leaves: gathered depth first into one bottom node. Its subtree
+            // is at most `BUCKET - 1` splits deep, so the stack never holds more than `BUCKET`.
+            let mut stack = [0usize; BUCKET + 1];
+            let mut top = 1;
+            stack[0] = i;
+            while top > 0 {
+                top -= 1;
+                match tree.node(stack[top])? {
+                    KdNode::Leaf { leaf } => {
+                        all.get(leaf as usize)?;
+                        order.push(leaf);
+                    }
+                    KdNode::Split { low, high, .. } => {
+                        *stack.get_mut(top + 1)? = low;
+                        stack[top] = high;
+                        top += 2;
+                    }
+                }
+            }
+            let leaves = &order[first as usize..];
+            let mut bounds = all[*leaves.first()? as usize].0;
+            let mut coarsest = u32::MAX;
+            for &l in leaves {
+                let (b, lv) = &all[l as usize];
+                bounds = union(&bounds, b);
+                coarsest = coarsest.min(*lv);
+            }
+            nodes.push(Node {
+                bounds,
+                coarsest,
+                first,
+                end: order.len() as u32,
+                children: None,
+            });
+        }
+    }
+    Some(index)
 }
 
 /// Appends the node of the leaves `leaves` (which start at `order[first]`) and its descendants to

@@ -95,16 +95,14 @@ impl LevelCells {
     }
 }
 
-/// Copies `src` into `dst` (of the same length): a row of at most a tile's cells is copied by
-/// moves of its known length, not by a call to `memcpy`, which costs several times more for a
-/// few cells (tiles are copied a row at a time, about 170 rows per leaf of `tiny.amrk`).
+/// Copies `src` into `dst` (of the same length) by moves of a known length when it holds at
+/// most 8 values: the rows of small leaves hold 2 to 4 cells, where a call to `memcpy` costs
+/// several times the copy.
 #[inline(always)]
-fn copy_row<T: Copy>(dst: &mut [T], src: &[T]) {
+fn copy_short<T: Copy>(dst: &mut [T], src: &[T]) {
+    #[inline(always)]
     fn fixed<const N: usize, T: Copy>(dst: &mut [T], src: &[T]) {
-        match (<&mut [T; N]>::try_from(&mut *dst), <&[T; N]>::try_from(src)) {
-            (Ok(d), Ok(s)) => *d = *s,
-            _ => dst.copy_from_slice(src),
-        }
+        dst[..N].copy_from_slice(&src[..N]);
     }
     match src.len() {
         1 => fixed::<1, T>(dst, src),
@@ -117,6 +115,42 @@ fn copy_row<T: Copy>(dst: &mut [T], src: &[T]) {
         8 => fixed::<8, T>(dst, src),
         _ => dst.copy_from_slice(src),
     }
+}
+
+/// Sets every value of `dst` to `v`, by stores of a known length when it holds at most 8
+/// values (see [`copy_short`]).
+#[inline(always)]
+fn fill_short<T: Copy>(dst: &mut [T], v: T) {
+    #[inline(always)]
+    fn fixed<const N: usize, T: Copy>(dst: &mut [T], v: T) {
+        dst[..N].copy_from_slice(&[v; N]);
+    }
+    match dst.len() {
+        1 => fixed::<1, T>(dst, v),
+        2 => fixed::<2, T>(dst, v),
+        3 => fixed::<3, T>(dst, v),
+        4 => fixed::<4, T>(dst, v),
+        5 => fixed::<5, T>(dst, v),
+        6 => fixed::<6, T>(dst, v),
+        7 => fixed::<7, T>(dst, v),
+        8 => fixed::<8, T>(dst, v),
+        _ => dst.fill(v),
+    }
+}
+
+/// The rows of a box inside two boxes of cells, x fastest: where the first row starts in each
+/// and how far apart rows (along y) and planes (along z) of rows lie.
+struct Rows {
+    dst: usize,
+    src: usize,
+    dst_y: usize,
+    src_y: usize,
+    dst_z: usize,
+    src_z: usize,
+    /// Rows per plane.
+    ny: usize,
+    /// Planes.
+    nz: usize,
 }
 
 /// A finer level's cells and its number of cells per neighbourhood cell along each axis.
@@ -282,8 +316,8 @@ impl Neighbourhood {
                             let src = bc.linear_index([block.lo[0], y, z]);
                             let dst = g.linear_index([block.lo[0], y, z]);
                             let w = (block.hi[0] - block.lo[0]) as usize;
-                            self.kind[dst..dst + w].fill(LEAF);
-                            self.lo[dst..dst + w].copy_from_slice(&values[src..src + w]);
+                            fill_short(&mut self.kind[dst..dst + w], LEAF);
+                            copy_short(&mut self.lo[dst..dst + w], &values[src..src + w]);
                         }
                     }
                 }
@@ -332,20 +366,56 @@ impl Neighbourhood {
     pub fn copy_tile(&mut self, tile: &Neighbourhood) {
         let g = self.cells;
         let b = g.intersect(&tile.cells);
-        let w = b.extent()[0] as usize;
         if b.is_empty() {
             return;
         }
-        for z in b.lo[2]..b.hi[2] {
-            for y in b.lo[1]..b.hi[1] {
-                let src = tile.cells.linear_index([b.lo[0], y, z]);
-                let dst = g.linear_index([b.lo[0], y, z]);
-                copy_row(&mut self.kind[dst..dst + w], &tile.kind[src..src + w]);
-                copy_row(&mut self.lo[dst..dst + w], &tile.lo[src..src + w]);
-                copy_row(&mut self.hi[dst..dst + w], &tile.hi[src..src + w]);
-                let pending = &tile.coarse_pending[src..src + w];
-                copy_row(&mut self.coarse_pending[dst..dst + w], pending);
+        let (ge, te, be) = (g.extent(), tile.cells.extent(), b.extent());
+        let rows = Rows {
+            dst: g.linear_index(b.lo),
+            src: tile.cells.linear_index(b.lo),
+            dst_y: ge[0] as usize,
+            src_y: te[0] as usize,
+            dst_z: (ge[0] * ge[1]) as usize,
+            src_z: (te[0] * te[1]) as usize,
+            ny: be[1] as usize,
+            nz: be[2] as usize,
+        };
+        // One copy loop per row length, so that each row is moved by fixed-length moves.
+        match be[0] {
+            1 => self.copy_rows::<1>(tile, &rows),
+            2 => self.copy_rows::<2>(tile, &rows),
+            3 => self.copy_rows::<3>(tile, &rows),
+            4 => self.copy_rows::<4>(tile, &rows),
+            5 => self.copy_rows::<5>(tile, &rows),
+            6 => self.copy_rows::<6>(tile, &rows),
+            7 => self.copy_rows::<7>(tile, &rows),
+            8 => self.copy_rows::<8>(tile, &rows),
+            w => self.copy_rows_of(tile, &rows, w as usize),
+        }
+    }
+
+    /// [`Self::copy_rows_of`] for rows of `N` cells, a length known when compiled.
+    #[inline(always)]
+    fn copy_rows<const N: usize>(&mut self, tile: &Neighbourhood, rows: &Rows) {
+        self.copy_rows_of(tile, rows, N);
+    }
+
+    /// Copies `rows` of `w` cells of `tile` (kinds, bounds, pending flags) into these cells.
+    #[inline(always)]
+    fn copy_rows_of(&mut self, tile: &Neighbourhood, rows: &Rows, w: usize) {
+        let (mut dz, mut sz) = (rows.dst, rows.src);
+        for _ in 0..rows.nz {
+            let (mut d, mut s) = (dz, sz);
+            for _ in 0..rows.ny {
+                self.kind[d..d + w].copy_from_slice(&tile.kind[s..s + w]);
+                self.lo[d..d + w].copy_from_slice(&tile.lo[s..s + w]);
+                self.hi[d..d + w].copy_from_slice(&tile.hi[s..s + w]);
+                self.coarse_pending[d..d + w].copy_from_slice(&tile.coarse_pending[s..s + w]);
+                d += rows.dst_y;
+                s += rows.src_y;
             }
+            dz += rows.dst_z;
+            sz += rows.src_z;
         }
     }
 

@@ -101,6 +101,10 @@ impl LeafGrid {
         while let Some((i, region)) = stack.pop() {
             let Some(node) = tree.node(i) else { continue };
             let mut range = self.inside(&region);
+            if range.iter().any(|&(lo, hi)| lo >= hi) {
+                // No grid cell lies inside the region, nor inside any region under it.
+                continue;
+            }
             match node {
                 KdNode::Leaf { leaf } => self.set(range, leaf),
                 KdNode::Split {

@@ -4,15 +4,11 @@ use crate::bvh::packet::{rays_of, Mask, PACKET};
 use crate::camera::{dot, normalize, Camera};
 use crate::output::frame::PixelSample;
 use crate::shade::ao_filter::{AoLayer, FILTERED_HITS};
+use crate::shade::layers::{ray_layers, Layer};
 use crate::shade::sampling::{cosine_hemisphere, Rng};
 use crate::trace::ray::GridRay;
 use crate::trace::source::GridFrame;
 use crate::trace::tracer::{SurfaceHit, Tracer};
-
-/// Most surfaces composited along one ray.
-const MAX_LAYERS: usize = 32;
-/// Stop compositing once less than this much light gets through.
-const MIN_TRANSMITTANCE: f32 = 1e-3;
 
 /// Light and material settings for a frame.
 #[derive(Clone, Debug)]
@@ -99,16 +95,9 @@ pub fn shade_ray<T: Tracer + ?Sized>(
             }
         }
     }
-    shade_hits(
-        tracer,
-        light,
-        (origin, dir),
-        &ray,
-        next,
-        None,
-        rng,
-        ao_layers,
-    )
+    let mut layers = Vec::new();
+    ray_layers(tracer, light, &ray, next, &mut layers);
+    shade_hits(tracer, light, (origin, dir), &layers, None, rng, ao_layers)
 }
 
 /// The order in which a ray's first hits with the `n` surfaces are searched: opaque surfaces
@@ -124,33 +113,25 @@ pub fn search_order(light: &Lighting, n: usize, first: usize) -> impl Iterator<I
         .chain((0..n).filter(move |&i| !opaque(i)))
 }
 
-/// Shades the world ray `origin + t dir` (`dir` unit length; `ray` the same in grid
-/// coordinates) from `next[i]`, its first hit with each surface `i` (up to the nearest opaque
-/// one; [`shade_ray`] finds them); `next` is used up. `first_shadow` is the key light's
-/// transmittance at the nearest of them when already traced ([`KeyShadow`]), or `None` to trace
-/// it here. With `ao_layers`, records the first [`FILTERED_HITS`] hits shaded with ambient
-/// occlusion there.
-#[allow(clippy::too_many_arguments)]
+/// Shades the world ray `origin + t dir` (`dir` unit length) from its `layers`
+/// ([`crate::shade::layers`]). `first_shadow` is the key light's transmittance at the first
+/// layer when already traced ([`KeyShadow`]), or `None` to trace it here. With `ao_layers`,
+/// records the first [`FILTERED_HITS`] hits shaded with ambient occlusion there.
 pub fn shade_hits<T: Tracer + ?Sized>(
     tracer: &T,
     light: &Lighting,
     (origin, dir): ([f64; 3], [f64; 3]),
-    ray: &GridRay,
-    next: &mut [Option<SurfaceHit>],
+    layers: &[Layer],
     first_shadow: Option<f64>,
     rng: &mut Rng,
     mut ao_layers: Option<&mut Vec<AoLayer>>,
 ) -> PixelSample {
     let frame = tracer.frame();
-    let ray = *ray;
     let mut out = PixelSample::MISS;
     let mut recorded = 0;
     let mut transmittance = 1.0f32;
     let mut rgb = [0.0f32; 3];
-    for layer in 0..MAX_LAYERS {
-        let Some((i, hit)) = nearest(next) else {
-            break;
-        };
+    for (layer, &Layer { surface: i, hit }) in layers.iter().enumerate() {
         let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dir.map(|x| -x));
         let paint = tracer.paint(i, &hit);
         let alpha = light.opacity[i];
@@ -190,18 +171,6 @@ pub fn shade_hits<T: Tracer + ?Sized>(
             out.level = hit.level as f32;
         }
         transmittance *= 1.0 - alpha;
-        if transmittance < MIN_TRANSMITTANCE {
-            break;
-        }
-        // A crossing behind a pending opaque hit of another surface is never composited: the
-        // search for this surface's next one stops there.
-        let opaque_ahead = next
-            .iter()
-            .enumerate()
-            .filter(|&(k, h)| k != i && h.is_some() && light.opacity[k] >= 1.0)
-            .filter_map(|(_, h)| h.map(|h| h.t))
-            .fold(f64::INFINITY, f64::min);
-        next[i] = next_crossing(tracer, i, &ray, &hit, opaque_ahead);
     }
     out.rgb = rgb;
     out.alpha = 1.0 - transmittance;
@@ -214,34 +183,6 @@ fn nearest(next: &[Option<SurfaceHit>]) -> Option<(usize, SurfaceHit)> {
         .enumerate()
         .filter_map(|(i, h)| h.map(|h| (i, h)))
         .min_by(|a, b| a.1.t.total_cmp(&b.1.t))
-}
-
-/// The next hit of surface `i` along `ray` after `hit` that is a new crossing, up to `tmax`.
-///
-/// Where a ray passes through a face, edge or corner shared by two octants, both octants report
-/// the crossing (their segments are widened so that none is lost), a hair apart along the ray.
-/// Compositing such a duplicate would draw a transparent surface twice along every octant
-/// boundary. A real next crossing of a surface leaves it on the other side, so a hit that is
-/// close behind and crosses in the same direction is the same crossing, and is skipped.
-fn next_crossing<T: Tracer + ?Sized>(
-    tracer: &T,
-    i: usize,
-    ray: &GridRay,
-    hit: &SurfaceHit,
-    tmax: f64,
-) -> Option<SurfaceHit> {
-    let per_t = grid_len(ray.d);
-    let step = 1e-4 * hit.size / per_t;
-    let same_crossing_within = 1e-2 * hit.size / per_t;
-    let mut from = hit.t + step;
-    loop {
-        let next = tracer.next_hit(i, ray, from, tmax)?;
-        let duplicate = next.t - hit.t < same_crossing_within && next.rising == hit.rising;
-        if !duplicate {
-            return Some(next);
-        }
-        from = next.t + step;
-    }
 }
 
 /// The unit world-space normal for a grid-space gradient.

@@ -179,19 +179,20 @@ impl Surface {
         best
     }
 
-    /// The first hit of each of `rays` (at most [`PACKET`]) with `t` in `[tmin, tmax[k]]`, into
-    /// `out[k]`: the rays walk the BVH as packets ([`OctantBvh::traverse_packet`]), and a voxel
+    /// The first hit of each of `rays` (at most [`PACKET`]) with `t` in `[tmin, tmax[k]]` (`tmin`
+    /// one for all rays or one per ray, [`PacketTmin`]), into `out[k]`: the rays walk the BVH as packets ([`OctantBvh::traverse_packet`]), and a voxel
     /// that several rays reach is looked up once for all of them.
     ///
-    /// Each ray's hit is the one [`Surface::closest_hit`] finds without the last hit's memory:
-    /// the ray visits the same candidates in the same order under the same `tmax`, and the same
+    /// Each ray's hit is the one [`Surface::closest_hit`] finds without the last hit's memory
+    /// (the memory of queries from the origin; a query with `tmin > 0`, a continuation behind a
+    /// hit, never uses it): the ray visits the same candidates in the same order under the same `tmax`, and the same
     /// exact test keeps the same nearest one. The memory is neither used nor changed (with it,
     /// only a hit exactly tied between two voxels could differ).
     pub fn closest_hits<S: VoxelSource + ?Sized>(
         &self,
         src: &S,
         rays: &[GridRay],
-        tmin: f64,
+        tmin: impl PacketTmin,
         tmax: &[f64],
         out: &mut [Option<Hit>],
     ) {
@@ -205,12 +206,14 @@ impl Surface {
         let mut back = [(0.0f64, 0.0f64); PACKET];
         let mut best_t = [0.0f64; PACKET];
         let mut recips = [[0.0f64; 3]; PACKET];
+        let mut tmins = [0.0f64; PACKET];
         let mut active: Mask = 0;
         for k in 0..n {
             out[k] = None;
             best_t[k] = tmax[k];
             recips[k] = rays[k].recip();
-            if let Some(b) = rays[k].bvh_ray(&frame, pad, tmin, tmax[k]) {
+            tmins[k] = tmin.of(k);
+            if let Some(b) = rays[k].bvh_ray(&frame, pad, tmin.of(k), tmax[k]) {
                 ray32[k] = b.ray;
                 back[k] = (b.t_off, b.scale);
                 active |= 1 << k;
@@ -227,7 +230,7 @@ impl Surface {
                     if m & (m - 1) == 0 {
                         // One ray: its own test, inlined (most candidates of a far view).
                         let k = m.trailing_zeros() as usize;
-                        found[k] = src.intersect(&voxel, self.iso, &rays[k], tmin, best_t[k]);
+                        found[k] = src.intersect(&voxel, self.iso, &rays[k], tmin.of(k), best_t[k]);
                     } else {
                         src.intersect_packet(
                             &voxel,
@@ -235,7 +238,7 @@ impl Surface {
                             rays,
                             &recips[..n],
                             m,
-                            tmin,
+                            &tmins[..n],
                             &best_t[..n],
                             &mut found[..n],
                         );
@@ -344,5 +347,27 @@ impl Surface {
             (at, true) => Some((at, *self.bvh.refs().get(at)?)),
             _ => None,
         }
+    }
+}
+
+/// Where the search of each ray of a packet starts ([`Surface::closest_hits`]): one `tmin` for
+/// all the rays (`f64`: primary rays from their origins), or one per ray (`&[f64]`:
+/// continuations behind hits).
+pub trait PacketTmin: Copy {
+    /// Ray `k`'s `tmin`.
+    fn of(self, k: usize) -> f64;
+}
+
+impl PacketTmin for f64 {
+    #[inline(always)]
+    fn of(self, _: usize) -> f64 {
+        self
+    }
+}
+
+impl PacketTmin for &[f64] {
+    #[inline(always)]
+    fn of(self, k: usize) -> f64 {
+        self[k]
     }
 }

@@ -21,6 +21,9 @@ pub struct Layer {
     pub surface: usize,
     /// The hit.
     pub hit: SurfaceHit,
+    /// The key light's transmittance at the hit, when already traced
+    /// ([`crate::shade::integrate::KeyShadow`]); `None` leaves the shadow ray to the shading.
+    pub shadow: Option<f64>,
 }
 
 /// Where a ray is in the search for its layers: the light that gets through the layers taken so
@@ -65,7 +68,11 @@ impl LayerSearch {
         }
         let (i, _) = nearest?;
         let hit = next[i].take()?;
-        out.push(Layer { surface: i, hit });
+        out.push(Layer {
+            surface: i,
+            hit,
+            shadow: None,
+        });
         self.taken += 1;
         self.transmittance *= 1.0 - light.opacity[i];
         let goes_on = self.transmittance >= MIN_TRANSMITTANCE && self.taken < MAX_LAYERS;
@@ -279,5 +286,10 @@ impl TileLayers {
     /// Ray `k`'s layers, nearest first.
     pub fn of(&self, k: usize) -> &[Layer] {
         &self.layers[k]
+    }
+
+    /// Ray `k`'s layers, to fill in their shadows.
+    pub fn of_mut(&mut self, k: usize) -> &mut [Layer] {
+        &mut self.layers[k]
     }
 }

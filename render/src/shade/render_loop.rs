@@ -251,8 +251,8 @@ fn render_strip<T: Tracer + ?Sized>(
             tile.trace(&counting, light, &rays, &mut hint);
             dirs_k.clear();
             dirs_k.extend(world.iter().map(|w| w.1));
-            shadows.trace(&counting, light, &dirs_k, |k| tile.hits_of(k));
             layers.trace(&counting, light, &rays, &mut tile);
+            shadows.trace(&counting, light, &dirs_k, &mut layers);
             for (k, &(_, y)) in pixels.iter().enumerate() {
                 let row = &mut rows[(y - ys.start) as usize];
                 let ao_layers = record.then_some(row.ao.layers_mut());
@@ -261,7 +261,6 @@ fn render_strip<T: Tracer + ?Sized>(
                     light,
                     world[k],
                     layers.of(k),
-                    shadows.get(k),
                     &mut rngs[k],
                     ao_layers,
                 );

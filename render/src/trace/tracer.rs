@@ -146,7 +146,8 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
             .zip(out.chunks_mut(PACKET))
         {
             let hits = &mut hits[..rays.len()];
-            self.surfaces[i].closest_hits(self.src, rays, 0.0, tmax, hits);
+            let from_origin = &[0.0; PACKET][..rays.len()];
+            self.surfaces[i].closest_hits(self.src, rays, from_origin, tmax, hits);
             for ((out, h), ray) in out.iter_mut().zip(hits.iter()).zip(rays) {
                 *out = h.map(|h| self.surface_hit(h, ray));
             }

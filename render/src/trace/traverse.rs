@@ -179,8 +179,8 @@ impl Surface {
         best
     }
 
-    /// The first hit of each of `rays` (at most [`PACKET`]) with `t` in `[tmin, tmax[k]]` (`tmin`
-    /// one for all rays or one per ray, [`PacketTmin`]), into `out[k]`: the rays walk the BVH as packets ([`OctantBvh::traverse_packet`]), and a voxel
+    /// The first hit of each of `rays` (at most [`PACKET`]) with `t` in `[tmin[k], tmax[k]]`, into
+    /// `out[k]`: the rays walk the BVH as packets ([`OctantBvh::traverse_packet`]), and a voxel
     /// that several rays reach is looked up once for all of them.
     ///
     /// Each ray's hit is the one [`Surface::closest_hit`] finds without the last hit's memory
@@ -192,12 +192,12 @@ impl Surface {
         &self,
         src: &S,
         rays: &[GridRay],
-        tmin: impl PacketTmin,
+        tmin: &[f64],
         tmax: &[f64],
         out: &mut [Option<Hit>],
     ) {
         let n = rays.len();
-        assert!(n <= PACKET && tmax.len() == n && out.len() == n);
+        assert!(n <= PACKET && tmin.len() == n && tmax.len() == n && out.len() == n);
         let frame = src.frame();
         let pad = bvh_pad(&frame);
         let slack = 4.0 * pad;
@@ -206,14 +206,12 @@ impl Surface {
         let mut back = [(0.0f64, 0.0f64); PACKET];
         let mut best_t = [0.0f64; PACKET];
         let mut recips = [[0.0f64; 3]; PACKET];
-        let mut tmins = [0.0f64; PACKET];
         let mut active: Mask = 0;
         for k in 0..n {
             out[k] = None;
             best_t[k] = tmax[k];
             recips[k] = rays[k].recip();
-            tmins[k] = tmin.of(k);
-            if let Some(b) = rays[k].bvh_ray(&frame, pad, tmin.of(k), tmax[k]) {
+            if let Some(b) = rays[k].bvh_ray(&frame, pad, tmin[k], tmax[k]) {
                 ray32[k] = b.ray;
                 back[k] = (b.t_off, b.scale);
                 active |= 1 << k;
@@ -230,7 +228,7 @@ impl Surface {
                     if m & (m - 1) == 0 {
                         // One ray: its own test, inlined (most candidates of a far view).
                         let k = m.trailing_zeros() as usize;
-                        found[k] = src.intersect(&voxel, self.iso, &rays[k], tmin.of(k), best_t[k]);
+                        found[k] = src.intersect(&voxel, self.iso, &rays[k], tmin[k], best_t[k]);
                     } else {
                         src.intersect_packet(
                             &voxel,
@@ -238,7 +236,7 @@ impl Surface {
                             rays,
                             &recips[..n],
                             m,
-                            &tmins[..n],
+                            &tmin[..n],
                             &best_t[..n],
                             &mut found[..n],
                         );
@@ -347,27 +345,5 @@ impl Surface {
             (at, true) => Some((at, *self.bvh.refs().get(at)?)),
             _ => None,
         }
-    }
-}
-
-/// Where the search of each ray of a packet starts ([`Surface::closest_hits`]): one `tmin` for
-/// all the rays (`f64`: primary rays from their origins), or one per ray (`&[f64]`:
-/// continuations behind hits).
-pub trait PacketTmin: Copy {
-    /// Ray `k`'s `tmin`.
-    fn of(self, k: usize) -> f64;
-}
-
-impl PacketTmin for f64 {
-    #[inline(always)]
-    fn of(self, _: usize) -> f64 {
-        self
-    }
-}
-
-impl PacketTmin for &[f64] {
-    #[inline(always)]
-    fn of(self, k: usize) -> f64 {
-        self[k]
     }
 }

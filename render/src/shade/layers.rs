@@ -126,7 +126,7 @@ impl Behind {
     /// `None` when `next` is a new crossing; else where the search goes on.
     fn again_after(&self, next: &SurfaceHit) -> Option<f64> {
         let duplicate = next.t - self.t < self.same_within && next.rising == self.rising;
-        duplicate.then(|| next.t + self.step)
+        duplicate.then_some(next.t + self.step)
     }
 }
 

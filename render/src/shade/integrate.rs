@@ -130,15 +130,8 @@ pub fn shade_hits<T: Tracer + ?Sized>(
     let mut recorded = 0;
     let mut transmittance = 1.0f32;
     let mut rgb = [0.0f32; 3];
-    for (
-        layer,
-        &Layer {
-            surface: i,
-            hit,
-            shadow,
-        },
-    ) in layers.iter().enumerate()
-    {
+    for (layer, l) in layers.iter().enumerate() {
+        let (i, hit, shadow) = (l.surface, l.hit, l.shadow);
         let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dir.map(|x| -x));
         let paint = tracer.paint(i, &hit);
         let alpha = light.opacity[i];

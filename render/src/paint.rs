@@ -194,6 +194,22 @@ impl<T: Tracer + Sync + ?Sized> Tracer for PaintedTracer<'_, T> {
         }
     }
 
+    fn next_hits_from(
+        &self,
+        i: usize,
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: &[f64],
+        out: &mut [Option<SurfaceHit>],
+    ) {
+        if i < self.surfaces.len() {
+            return self.inner.next_hits_from(i, rays, tmin, tmax, out);
+        }
+        for (k, out) in out.iter_mut().enumerate().take(rays.len()) {
+            *out = self.next_hit(i, &rays[k], tmin[k], tmax[k]);
+        }
+    }
+
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
         // Slices cast no shadows: they show the data, not an object in the light.
         i < self.surfaces.len() && self.inner.occluded(i, ray, tmin, tmax)

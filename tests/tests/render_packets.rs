@@ -1,12 +1,19 @@
 //! Primary rays traced as packets ([`Surface::closest_hits`]) find for every ray exactly the hit
-//! the single-ray search finds ([`Surface::closest_hit_with`] without the last hit's memory):
+//! the single-ray search finds ([`Surface::closest_hit_with`] without the last hit's memory),
+//! from the origin and, each ray with its own `tmin`, from behind its first hit:
 //! tiles of camera rays over a multi-level sphere file, and rays from inside aimed at
 //! finest-cell corners, which lie on faces, edges and corners shared by several voxels. Shadow
 //! rays traced as packets ([`Surface::any_hits`]) answer for every ray what the single-ray
-//! occlusion query ([`Surface::any_hit`]) answers, on the same rays.
+//! occlusion query ([`Surface::any_hit`]) answers, on the same rays. A tile's layers behind
+//! transparent hits found with packets ([`TileLayers`]) are the single-ray search's.
 
 use amr_format::AmrkFile;
 use amr_render::bvh::BvhBuilder;
+use amr_render::shade::integrate::{shade_hits, KeyShadow, Lighting, SearchHint};
+use amr_render::shade::layers::{ray_layers, Layer, TileLayers};
+use amr_render::shade::packets::TileHits;
+use amr_render::shade::sampling::Rng as PixelRng;
+use amr_render::trace::tracer::HybridTracer;
 use amr_render::trace::traverse::Surface;
 use amr_render::trace::FieldSource;
 use amr_render::trace::{GridRay, VoxelSource};
@@ -18,16 +25,17 @@ use crate::support::rng::Rng;
 const CENTRE: [f64; 3] = [0.47, 0.52, 0.5];
 
 /// Compares packet and single-ray hits, and packet and single-ray occlusion, for each packet of
-/// `(origin, direction)` pairs; returns the hits found.
+/// `(origin, direction)` pairs; returns the hits found from the origins and behind them.
 fn compare(
     src: &(impl VoxelSource + ?Sized),
     surface: &Surface,
     name: &str,
     packets: &[Vec<([f64; 3], [f64; 3])>],
-) -> usize {
+) -> (usize, usize) {
     let frame = src.frame();
     let mut found = 0;
     let (mut occluded_rays, mut open_rays) = (0, 0);
+    let mut behind_found = 0;
     for (p, packet) in packets.iter().enumerate() {
         let rays: Vec<GridRay> = packet
             .iter()
@@ -38,11 +46,27 @@ fn compare(
             .map(|k| if k % 5 == 2 { 0.3 } else { f64::INFINITY })
             .collect();
         let mut hits = vec![None; rays.len()];
-        surface.closest_hits(src, &rays, 0.0, &tmax, &mut hits);
+        surface.closest_hits(src, &rays, &vec![0.0; rays.len()], &tmax, &mut hits);
         for (k, ray) in rays.iter().enumerate() {
             let want = surface.closest_hit_with(src, ray, 0.0, tmax[k], false);
             assert_eq!(hits[k], want, "{name}: packet {p}, ray {k}");
             found += usize::from(want.is_some());
+        }
+        // Continuations: each ray again from a little behind its hit (or from a fixed start when
+        // it has none), each with its own `tmin`, as the layers behind a transparent hit.
+        let from: Vec<f64> = hits
+            .iter()
+            .map(|h| h.as_ref().map_or(0.02, |h| h.t + 1e-4))
+            .collect();
+        let mut behind = vec![None; rays.len()];
+        surface.closest_hits(src, &rays, &from, &tmax, &mut behind);
+        for (k, ray) in rays.iter().enumerate() {
+            let want = surface.closest_hit(src, ray, from[k], tmax[k]);
+            assert_eq!(
+                behind[k], want,
+                "{name}: packet {p}, ray {k} behind its hit"
+            );
+            behind_found += usize::from(want.is_some());
         }
         // Occlusion: some rays left out, some starting a little along, every other packet up to
         // a limit.
@@ -74,7 +98,7 @@ fn compare(
         occluded_rays > 100 && open_rays > 100,
         "{name}: {occluded_rays} rays occluded, {open_rays} open"
     );
-    found
+    (found, behind_found)
 }
 
 #[test]
@@ -115,8 +139,13 @@ fn packets_find_the_single_ray_hits() {
             }
             packets.push(tile);
         }
-        let found = compare(&src, &surface, &format!("{method:?} camera"), &packets);
+        let (found, behind) = compare(&src, &surface, &format!("{method:?} camera"), &packets);
         assert!(found > 1000, "{method:?}: only {found} camera rays hit");
+        // The far side of the sphere behind the near one.
+        assert!(
+            behind > 500,
+            "{method:?}: only {behind} camera rays hit behind"
+        );
         // From the centre: finest-cell corners near the sphere, 64 at a time.
         let n = (1.0 / finest).round() as i64;
         let mut aimed = Vec::new();
@@ -135,7 +164,122 @@ fn packets_find_the_single_ray_hits() {
             }
         }
         let packets: Vec<Vec<_>> = aimed.chunks(64).map(|c| c.to_vec()).collect();
-        let found = compare(&src, &surface, &format!("{method:?} corners"), &packets);
+        let (found, _) = compare(&src, &surface, &format!("{method:?} corners"), &packets);
         assert!(found > 500, "{method:?}: only {found} aimed rays hit");
     }
+}
+
+/// The layers of tiles of camera rays through three nested spheres (two transparent, the inner
+/// one opaque) found together ([`TileLayers`]: continuations as packets) are, ray by ray, the
+/// layers found ray by ray ([`ray_layers`]) from the same first hits; with the key light's
+/// shadows of all layers traced as packets ([`KeyShadow`]) each ray shades to the sample it
+/// gives with its shadow rays traced one by one.
+#[test]
+fn tile_layers_are_the_single_ray_layers() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sphere.amrk");
+    write_half_refined_sphere(&path, 3, 2, 8);
+    let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+    let isos = [0.08f32, 0.0, -0.08];
+    for method in [Reconstruction::Octant, Reconstruction::Nearest] {
+        let src = FieldSource::new(&file, 0, method).unwrap();
+        let surfaces: Vec<Surface> = isos
+            .iter()
+            .map(|&iso| {
+                let refs = src.extract(iso).unwrap().refs;
+                Surface::build(&src, iso, &refs, &mut BvhBuilder::new())
+            })
+            .collect();
+        let tracer = HybridTracer {
+            src: &src,
+            surfaces: &surfaces,
+            smooth_normals: false,
+        };
+        let light = Lighting {
+            colors: vec![[1.0; 3]; 3],
+            opacity: vec![0.3, 0.5, 1.0],
+            key_dir: [0.0, 0.0, 1.0],
+            shadows: true,
+            ao_rays: 0,
+            ao_distance: 0.1,
+            ao_filter: false,
+        };
+        let frame = src.frame();
+        let mut rng = Rng(5);
+        let mut hint = SearchHint::default();
+        let mut tile = TileHits::new(surfaces.len());
+        let mut layers = TileLayers::default();
+        let mut shadows = KeyShadow::default();
+        let (mut deep, mut rays_seen, mut deep_shadows, mut dimmed) = (0, 0, 0, 0);
+        for t in 0..30u32 {
+            let eye = eye_of(t);
+            let look = [0, 1, 2].map(|a| CENTRE[a] + 0.5 * (rng.f64() - 0.5) - eye[a]);
+            let pitch = if t % 3 == 0 { 0.04 } else { 0.003 };
+            let (w, h) = if t % 7 == 3 { (6, 5) } else { (8, 8) };
+            let (mut rays, mut dirs) = (Vec::new(), Vec::new());
+            for y in 0..h {
+                for x in 0..w {
+                    let (u, v) = (x as f64 - 3.5, y as f64 - 3.5);
+                    let d = [look[0] + pitch * u, look[1] + pitch * v, look[2]];
+                    let len = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+                    let d = d.map(|x| x / len);
+                    rays.push(GridRay::from_world(&frame, eye, d));
+                    dirs.push(d);
+                }
+            }
+            tile.trace(&tracer, &light, &rays, &mut hint);
+            let firsts: Vec<Vec<_>> = (0..rays.len()).map(|k| tile.hits_of(k).to_vec()).collect();
+            layers.trace(&tracer, &light, &rays, &mut tile);
+            for (k, ray) in rays.iter().enumerate() {
+                let mut want = Vec::new();
+                ray_layers(&tracer, &light, ray, &mut firsts[k].clone(), &mut want);
+                assert_eq!(layers.of(k), &want[..], "{method:?}: tile {t}, ray {k}");
+                deep += usize::from(want.len() >= 3);
+                rays_seen += 1;
+            }
+            shadows.trace(&tracer, &light, &dirs, &mut layers);
+            for (k, &d) in dirs.iter().enumerate() {
+                let traced = layers.of(k);
+                deep_shadows += traced.iter().skip(1).filter(|l| l.shadow.is_some()).count();
+                dimmed += traced
+                    .iter()
+                    .filter(|l| l.shadow.is_some_and(|s| s < 1.0))
+                    .count();
+                let single: Vec<_> = traced
+                    .iter()
+                    .map(|&l| Layer { shadow: None, ..l })
+                    .collect();
+                let sample = |layers: &[Layer]| {
+                    let mut rng = PixelRng::for_pixel(k as u32, t, 0);
+                    shade_hits(&tracer, &light, (eye_of(t), d), layers, &mut rng, None)
+                };
+                // Compared as printed (shortest round-trip digits): equal values, NaN (no
+                // painted value) included.
+                let (a, b) = (sample(traced), sample(&single));
+                assert_eq!(
+                    format!("{a:?}"),
+                    format!("{b:?}"),
+                    "{method:?}: tile {t}, ray {k}"
+                );
+            }
+        }
+        assert!(
+            deep > rays_seen / 4,
+            "{method:?}: only {deep} of {rays_seen} rays have three layers or more"
+        );
+        assert!(
+            deep_shadows > rays_seen / 4,
+            "{method:?}: only {deep_shadows} shadow rays behind a first layer"
+        );
+        // The outer shells shade the inner ones.
+        assert!(
+            dimmed > rays_seen / 4,
+            "{method:?}: only {dimmed} layers in a shell's shadow"
+        );
+    }
+}
+
+/// The camera position of tile `t` in [`tile_layers_are_the_single_ray_layers`].
+fn eye_of(t: u32) -> [f64; 3] {
+    [1.5 - 0.03 * f64::from(t), 0.25 + 0.02 * f64::from(t), 1.4]
 }

@@ -4,15 +4,11 @@ use crate::bvh::packet::{rays_of, Mask, PACKET};
 use crate::camera::{dot, normalize, Camera};
 use crate::output::frame::PixelSample;
 use crate::shade::ao_filter::{AoLayer, FILTERED_HITS};
+use crate::shade::layers::{ray_layers, Layer, TileLayers};
 use crate::shade::sampling::{cosine_hemisphere, Rng};
 use crate::trace::ray::GridRay;
 use crate::trace::source::GridFrame;
 use crate::trace::tracer::{SurfaceHit, Tracer};
-
-/// Most surfaces composited along one ray.
-const MAX_LAYERS: usize = 32;
-/// Stop compositing once less than this much light gets through.
-const MIN_TRANSMITTANCE: f32 = 1e-3;
 
 /// Light and material settings for a frame.
 #[derive(Clone, Debug)]
@@ -99,16 +95,9 @@ pub fn shade_ray<T: Tracer + ?Sized>(
             }
         }
     }
-    shade_hits(
-        tracer,
-        light,
-        (origin, dir),
-        &ray,
-        next,
-        None,
-        rng,
-        ao_layers,
-    )
+    let mut layers = Vec::new();
+    ray_layers(tracer, light, &ray, next, &mut layers);
+    shade_hits(tracer, light, (origin, dir), &layers, rng, ao_layers)
 }
 
 /// The order in which a ray's first hits with the `n` surfaces are searched: opaque surfaces
@@ -124,33 +113,25 @@ pub fn search_order(light: &Lighting, n: usize, first: usize) -> impl Iterator<I
         .chain((0..n).filter(move |&i| !opaque(i)))
 }
 
-/// Shades the world ray `origin + t dir` (`dir` unit length; `ray` the same in grid
-/// coordinates) from `next[i]`, its first hit with each surface `i` (up to the nearest opaque
-/// one; [`shade_ray`] finds them); `next` is used up. `first_shadow` is the key light's
-/// transmittance at the nearest of them when already traced ([`KeyShadow`]), or `None` to trace
-/// it here. With `ao_layers`, records the first [`FILTERED_HITS`] hits shaded with ambient
-/// occlusion there.
-#[allow(clippy::too_many_arguments)]
+/// Shades the world ray `origin + t dir` (`dir` unit length) from its `layers`
+/// ([`crate::shade::layers`]); the key light's shadow ray is traced here at the layers whose
+/// transmittance is not given ([`Layer::shadow`]). With `ao_layers`, records the first
+/// [`FILTERED_HITS`] hits shaded with ambient occlusion there.
 pub fn shade_hits<T: Tracer + ?Sized>(
     tracer: &T,
     light: &Lighting,
     (origin, dir): ([f64; 3], [f64; 3]),
-    ray: &GridRay,
-    next: &mut [Option<SurfaceHit>],
-    first_shadow: Option<f64>,
+    layers: &[Layer],
     rng: &mut Rng,
     mut ao_layers: Option<&mut Vec<AoLayer>>,
 ) -> PixelSample {
     let frame = tracer.frame();
-    let ray = *ray;
     let mut out = PixelSample::MISS;
     let mut recorded = 0;
     let mut transmittance = 1.0f32;
     let mut rgb = [0.0f32; 3];
-    for layer in 0..MAX_LAYERS {
-        let Some((i, hit)) = nearest(next) else {
-            break;
-        };
+    for (layer, l) in layers.iter().enumerate() {
+        let (i, hit, shadow) = (l.surface, l.hit, l.shadow);
         let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dir.map(|x| -x));
         let paint = tracer.paint(i, &hit);
         let alpha = light.opacity[i];
@@ -158,7 +139,6 @@ pub fn shade_hits<T: Tracer + ?Sized>(
             Some(p) if !p.lit => p.rgb,
             _ => {
                 let base = paint.map_or(light.colors[i], |p| p.rgb);
-                let shadow = first_shadow.filter(|_| layer == 0);
                 let shaded = shade_hit(tracer, light, base, &hit, normal, dir, shadow, rng);
                 if let (Some(layers), Some(ao)) = (ao_layers.as_deref_mut(), shaded.ao) {
                     if recorded < FILTERED_HITS {
@@ -190,58 +170,10 @@ pub fn shade_hits<T: Tracer + ?Sized>(
             out.level = hit.level as f32;
         }
         transmittance *= 1.0 - alpha;
-        if transmittance < MIN_TRANSMITTANCE {
-            break;
-        }
-        // A crossing behind a pending opaque hit of another surface is never composited: the
-        // search for this surface's next one stops there.
-        let opaque_ahead = next
-            .iter()
-            .enumerate()
-            .filter(|&(k, h)| k != i && h.is_some() && light.opacity[k] >= 1.0)
-            .filter_map(|(_, h)| h.map(|h| h.t))
-            .fold(f64::INFINITY, f64::min);
-        next[i] = next_crossing(tracer, i, &ray, &hit, opaque_ahead);
     }
     out.rgb = rgb;
     out.alpha = 1.0 - transmittance;
     out
-}
-
-/// The nearest of the hits `next` and its surface (the first one of a tie): the next layer.
-fn nearest(next: &[Option<SurfaceHit>]) -> Option<(usize, SurfaceHit)> {
-    next.iter()
-        .enumerate()
-        .filter_map(|(i, h)| h.map(|h| (i, h)))
-        .min_by(|a, b| a.1.t.total_cmp(&b.1.t))
-}
-
-/// The next hit of surface `i` along `ray` after `hit` that is a new crossing, up to `tmax`.
-///
-/// Where a ray passes through a face, edge or corner shared by two octants, both octants report
-/// the crossing (their segments are widened so that none is lost), a hair apart along the ray.
-/// Compositing such a duplicate would draw a transparent surface twice along every octant
-/// boundary. A real next crossing of a surface leaves it on the other side, so a hit that is
-/// close behind and crosses in the same direction is the same crossing, and is skipped.
-fn next_crossing<T: Tracer + ?Sized>(
-    tracer: &T,
-    i: usize,
-    ray: &GridRay,
-    hit: &SurfaceHit,
-    tmax: f64,
-) -> Option<SurfaceHit> {
-    let per_t = grid_len(ray.d);
-    let step = 1e-4 * hit.size / per_t;
-    let same_crossing_within = 1e-2 * hit.size / per_t;
-    let mut from = hit.t + step;
-    loop {
-        let next = tracer.next_hit(i, ray, from, tmax)?;
-        let duplicate = next.t - hit.t < same_crossing_within && next.rising == hit.rising;
-        if !duplicate {
-            return Some(next);
-        }
-        from = next.t + step;
-    }
 }
 
 /// The unit world-space normal for a grid-space gradient.
@@ -419,13 +351,16 @@ fn transmittance_along<T: Tracer + ?Sized>(
     t
 }
 
-/// The key light's transmittance at the nearest hits of a tile of rays, traced for the tile at
-/// once as packets ([`Tracer::occluded_many`]), for [`shade_hits`] to use at its first layer.
+/// The key light's transmittance at every layer of a tile of rays, traced for the tile at once
+/// as packets of up to [`PACKET`] shadow rays ([`Tracer::occluded_many`]), for [`shade_hits`]
+/// to use ([`Layer::shadow`]). The shadow rays are all parallel, so any of them make a packet;
+/// they are taken layer by layer, each layer's rays in the tile's order.
 pub struct KeyShadow {
     rays: [GridRay; PACKET],
     tmin: [f64; PACKET],
-    /// Per ray, the transmittance; `None` where no shadow ray is cast.
-    shadow: [Option<f64>; PACKET],
+    /// Per ray of the packet, its transmittance so far, and its ray and layer in the tile.
+    shadow: [f64; PACKET],
+    at: [(usize, usize); PACKET],
 }
 
 impl Default for KeyShadow {
@@ -436,61 +371,87 @@ impl Default for KeyShadow {
                 d: [1.0, 0.0, 0.0],
             }; PACKET],
             tmin: [0.0; PACKET],
-            shadow: [None; PACKET],
+            shadow: [0.0; PACKET],
+            at: [(0, 0); PACKET],
         }
     }
 }
 
 impl KeyShadow {
-    /// Traces the shadow rays of the nearest hits of up to [`PACKET`] rays: `hits(k)` gives ray
-    /// `k`'s first hit with each surface and `dirs[k]` its world direction. Each ray's value is
-    /// the one [`shade_hits`] computes for it alone: the same shadow ray, the surfaces asked in
-    /// the same order, up to the same one.
-    pub fn trace<'h, T: Tracer + ?Sized>(
+    /// Traces the shadow rays of the layers of up to [`PACKET`] rays (`layers`; `dirs[k]` is
+    /// ray `k`'s world direction) and sets [`Layer::shadow`] where one is cast. Each value is the
+    /// one [`shade_hits`] computes for its layer alone: the same shadow ray, the surfaces asked
+    /// in the same order, up to the same one.
+    pub fn trace<T: Tracer + ?Sized>(
         &mut self,
         tracer: &T,
         light: &Lighting,
         dirs: &[[f64; 3]],
-        mut hits: impl FnMut(usize) -> &'h [Option<SurfaceHit>],
+        layers: &mut TileLayers,
     ) {
         let m = dirs.len();
         assert!(m <= PACKET);
+        if !light.shadows {
+            return;
+        }
         let frame = tracer.frame();
-        let mut live: Mask = 0;
-        for k in 0..m {
-            self.shadow[k] = None;
-            let Some((i, hit)) = nearest(hits(k)) else {
-                continue;
-            };
-            if tracer.paint(i, &hit).is_some_and(|p| !p.lit) {
-                continue;
-            }
-            let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dirs[k].map(|x| -x));
-            if let Some((ray, tmin)) = key_ray(&frame, light, &hit, facing(&hit, normal)) {
-                self.rays[k] = ray;
-                self.tmin[k] = tmin;
-                self.shadow[k] = Some(1.0);
-                live |= 1 << k;
+        let mut c = 0;
+        let deepest = (0..m).map(|k| layers.of(k).len()).max().unwrap_or(0);
+        for l in 0..deepest {
+            for (k, dir) in dirs.iter().enumerate() {
+                let Some(layer) = layers.of(k).get(l) else {
+                    continue;
+                };
+                let hit = layer.hit;
+                if tracer.paint(layer.surface, &hit).is_some_and(|p| !p.lit) {
+                    continue;
+                }
+                let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dir.map(|x| -x));
+                if let Some((ray, tmin)) = key_ray(&frame, light, &hit, facing(&hit, normal)) {
+                    self.rays[c] = ray;
+                    self.tmin[c] = tmin;
+                    self.at[c] = (k, l);
+                    c += 1;
+                    if c == PACKET {
+                        self.trace_packet(tracer, light, c, layers);
+                        c = 0;
+                    }
+                }
             }
         }
+        self.trace_packet(tracer, light, c, layers);
+    }
+
+    /// Traces the first `c` shadow rays gathered and writes their transmittances.
+    fn trace_packet<T: Tracer + ?Sized>(
+        &mut self,
+        tracer: &T,
+        light: &Lighting,
+        c: usize,
+        layers: &mut TileLayers,
+    ) {
+        if c == 0 {
+            return;
+        }
+        let mut live: Mask = if c == PACKET { !0 } else { (1 << c) - 1 };
+        self.shadow[..c].fill(1.0);
         for s in occluder_order(light, tracer.num_surfaces()) {
             if live == 0 {
                 break;
             }
             let hit =
-                tracer.occluded_many(s, &self.rays[..m], &self.tmin[..m], f64::INFINITY, live);
-            for k in rays_of(hit) {
-                let t = self.shadow[k].as_mut().expect("a live ray has a shadow");
+                tracer.occluded_many(s, &self.rays[..c], &self.tmin[..c], f64::INFINITY, live);
+            for j in rays_of(hit) {
+                let t = &mut self.shadow[j];
                 *t *= 1.0 - f64::from(light.opacity[s]);
                 if *t == 0.0 {
-                    live &= !(1 << k);
+                    live &= !(1 << j);
                 }
             }
         }
-    }
-
-    /// Ray `k`'s transmittance, if its shadow ray was cast.
-    pub fn get(&self, k: usize) -> Option<f64> {
-        self.shadow[k]
+        for j in 0..c {
+            let (k, l) = self.at[j];
+            layers.of_mut(k)[l].shadow = Some(self.shadow[j]);
+        }
     }
 }

@@ -4,6 +4,7 @@
 
 pub mod ao_filter;
 pub mod integrate;
+pub mod layers;
 pub mod material;
 pub mod packets;
 pub mod render_loop;

@@ -1,6 +1,6 @@
-//! The frame loop: strips of tiles of 8x8 pixels in parallel (each tile's primary rays traced
-//! together), `spp` jittered samples per pixel, ray counting and progress,
-//! then the filter of the ambient occlusion over the whole frame.
+//! The frame loop: strips of tiles of 8x8 pixels in parallel (each tile's primary rays, and the
+//! continuations behind transparent hits, traced together), `spp` jittered samples per pixel,
+//! ray counting and progress, then the filter of the ambient occlusion over the whole frame.
 
 use std::cell::Cell;
 
@@ -11,6 +11,7 @@ use crate::camera::Camera;
 use crate::output::frame::{FrameBuffer, PixelSample};
 use crate::shade::ao_filter::{self, AoRow, AoRows};
 use crate::shade::integrate::{shade_hits, KeyShadow, Lighting, SearchHint};
+use crate::shade::layers::TileLayers;
 use crate::shade::packets::{TileHits, TILE_RAYS};
 use crate::shade::sampling::Rng;
 use crate::trace::ray::GridRay;
@@ -48,6 +49,17 @@ impl<T: Tracer + ?Sized> Tracer for Counting<'_, T> {
     fn next_hits(&self, i: usize, rays: &[GridRay], tmax: &[f64], out: &mut [Option<SurfaceHit>]) {
         self.rays.set(self.rays.get() + rays.len() as u64);
         self.inner.next_hits(i, rays, tmax, out)
+    }
+    fn next_hits_from(
+        &self,
+        i: usize,
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: &[f64],
+        out: &mut [Option<SurfaceHit>],
+    ) {
+        self.rays.set(self.rays.get() + rays.len() as u64);
+        self.inner.next_hits_from(i, rays, tmin, tmax, out)
     }
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
         self.rays.set(self.rays.get() + 1);
@@ -211,6 +223,7 @@ fn render_strip<T: Tracer + ?Sized>(
     let spp = settings.spp.max(1);
     let mut tile = TileHits::new(tracer.num_surfaces());
     let mut shadows = Box::<KeyShadow>::default();
+    let mut layers = Box::<TileLayers>::default();
     let mut dirs_k = Vec::with_capacity(TILE_RAYS);
     for x0 in xs.clone().step_by(TILE as usize) {
         let x1 = (x0 + TILE).min(xs.end);
@@ -238,20 +251,18 @@ fn render_strip<T: Tracer + ?Sized>(
             tile.trace(&counting, light, &rays, &mut hint);
             dirs_k.clear();
             dirs_k.extend(world.iter().map(|w| w.1));
-            shadows.trace(&counting, light, &dirs_k, |k| tile.hits_of(k));
+            layers.trace(&counting, light, &rays, &mut tile);
+            shadows.trace(&counting, light, &dirs_k, &mut layers);
             for (k, &(_, y)) in pixels.iter().enumerate() {
                 let row = &mut rows[(y - ys.start) as usize];
-                let layers = record.then_some(row.ao.layers_mut());
-                let next = tile.ray_hits(k);
+                let ao_layers = record.then_some(row.ao.layers_mut());
                 let sample = shade_hits(
                     &counting,
                     light,
                     world[k],
-                    &rays[k],
-                    next,
-                    shadows.get(k),
+                    layers.of(k),
                     &mut rngs[k],
-                    layers,
+                    ao_layers,
                 );
                 acc[k].add(sample);
                 if s + 1 == spp {

@@ -402,14 +402,14 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         rays: &[GridRay],
         recips: &[[f64; 3]],
         m: Mask,
-        tmin: f64,
+        tmin: &[f64],
         tmax: &[f64],
         hits: &mut [Option<VoxelHit>],
     ) {
         match self.voxels {
             Voxels::Nearest(_) => {
                 for k in rays_of(m) {
-                    hits[k] = intersect_face(voxel, iso, &rays[k], tmin, tmax[k]);
+                    hits[k] = intersect_face(voxel, iso, &rays[k], tmin[k], tmax[k]);
                 }
             }
             _ => intersect_voxel_packet(voxel, iso, rays, recips, m, tmin, tmax, hits),

@@ -99,7 +99,7 @@ impl VoxelSetup {
 }
 
 /// [`intersect_voxel`] for the rays `m` of a packet, each with its reciprocal direction
-/// ([`GridRay::recip`]) and its own `tmax`: `hits[k]` for each ray `k` of `m`, the hit
+/// ([`GridRay::recip`]) and its own `tmin` and `tmax`: `hits[k]` for each ray `k` of `m`, the hit
 /// [`intersect_voxel`] gives it (the voxel's set-up is computed once).
 #[allow(clippy::too_many_arguments)]
 pub fn intersect_voxel_packet(
@@ -108,15 +108,16 @@ pub fn intersect_voxel_packet(
     rays: &[GridRay],
     recips: &[[f64; 3]],
     m: Mask,
-    tmin: f64,
+    tmin: &[f64],
     tmax: &[f64],
     hits: &mut [Option<VoxelHit>],
 ) {
     let setup = VoxelSetup::new(voxel, iso);
     for k in rays_of(m) {
         hits[k] = setup.as_ref().and_then(|setup| {
-            let (t_in, t_out) = rays[k].clip_with(&recips[k], voxel.lo, voxel.hi, tmin, tmax[k])?;
-            let seg = Segment::in_box(voxel, setup, &rays[k], (tmin, tmax[k]), (t_in, t_out))?;
+            let (tmin, tmax) = (tmin[k], tmax[k]);
+            let (t_in, t_out) = rays[k].clip_with(&recips[k], voxel.lo, voxel.hi, tmin, tmax)?;
+            let seg = Segment::in_box(voxel, setup, &rays[k], (tmin, tmax), (t_in, t_out))?;
             seg.first_hit()
         });
     }

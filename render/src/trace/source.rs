@@ -132,7 +132,7 @@ pub trait VoxelSource: Sync {
     }
 
     /// [`Self::intersect`] for the rays `m` of a packet (each with its reciprocal direction,
-    /// [`GridRay::recip`], and its own `tmax`) that reach `voxel`: `hits[k]` for each ray `k` of
+    /// [`GridRay::recip`], and its own `tmin` and `tmax`) that reach `voxel`: `hits[k]` for each ray `k` of
     /// `m`, what [`Self::intersect`] gives it. Sources may share the voxel's own work between the
     /// rays; the others' entries are left as they are.
     #[allow(clippy::too_many_arguments)]
@@ -143,13 +143,13 @@ pub trait VoxelSource: Sync {
         rays: &[GridRay],
         recips: &[[f64; 3]],
         m: Mask,
-        tmin: f64,
+        tmin: &[f64],
         tmax: &[f64],
         hits: &mut [Option<VoxelHit>],
     ) {
         let _ = recips;
         for k in rays_of(m) {
-            hits[k] = self.intersect(voxel, iso, &rays[k], tmin, tmax[k]);
+            hits[k] = self.intersect(voxel, iso, &rays[k], tmin[k], tmax[k]);
         }
     }
 

@@ -60,6 +60,23 @@ pub trait Tracer {
         }
     }
 
+    /// The first hit with surface `i` of each of `rays` with `t` in `[tmin[k], tmax[k]]`, into
+    /// `out[k]`: for each ray what [`Tracer::next_hit`] finds (by default it is asked ray by
+    /// ray; tracers may trace the rays together, as packets). The continuations behind
+    /// transparent hits ([`crate::shade::layers`]).
+    fn next_hits_from(
+        &self,
+        i: usize,
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: &[f64],
+        out: &mut [Option<SurfaceHit>],
+    ) {
+        for (k, out) in out.iter_mut().enumerate().take(rays.len()) {
+            *out = self.next_hit(i, &rays[k], tmin[k], tmax[k]);
+        }
+    }
+
     /// Drops the pages of the file traced from the resident set (between bands of a frame);
     /// a no-op unless the source holds a file.
     fn release_pages(&self) {}
@@ -129,7 +146,31 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
             .zip(out.chunks_mut(PACKET))
         {
             let hits = &mut hits[..rays.len()];
-            self.surfaces[i].closest_hits(self.src, rays, 0.0, tmax, hits);
+            let from_origin = &[0.0; PACKET][..rays.len()];
+            self.surfaces[i].closest_hits(self.src, rays, from_origin, tmax, hits);
+            for ((out, h), ray) in out.iter_mut().zip(hits.iter()).zip(rays) {
+                *out = h.map(|h| self.surface_hit(h, ray));
+            }
+        }
+    }
+
+    fn next_hits_from(
+        &self,
+        i: usize,
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: &[f64],
+        out: &mut [Option<SurfaceHit>],
+    ) {
+        let mut hits = [None; PACKET];
+        for (((rays, tmin), tmax), out) in rays
+            .chunks(PACKET)
+            .zip(tmin.chunks(PACKET))
+            .zip(tmax.chunks(PACKET))
+            .zip(out.chunks_mut(PACKET))
+        {
+            let hits = &mut hits[..rays.len()];
+            self.surfaces[i].closest_hits(self.src, rays, tmin, tmax, hits);
             for ((out, h), ray) in out.iter_mut().zip(hits.iter()).zip(rays) {
                 *out = h.map(|h| self.surface_hit(h, ray));
             }

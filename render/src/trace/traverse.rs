@@ -179,24 +179,25 @@ impl Surface {
         best
     }
 
-    /// The first hit of each of `rays` (at most [`PACKET`]) with `t` in `[tmin, tmax[k]]`, into
+    /// The first hit of each of `rays` (at most [`PACKET`]) with `t` in `[tmin[k], tmax[k]]`, into
     /// `out[k]`: the rays walk the BVH as packets ([`OctantBvh::traverse_packet`]), and a voxel
     /// that several rays reach is looked up once for all of them.
     ///
-    /// Each ray's hit is the one [`Surface::closest_hit`] finds without the last hit's memory:
-    /// the ray visits the same candidates in the same order under the same `tmax`, and the same
+    /// Each ray's hit is the one [`Surface::closest_hit`] finds without the last hit's memory
+    /// (the memory of queries from the origin; a query with `tmin > 0`, a continuation behind a
+    /// hit, never uses it): the ray visits the same candidates in the same order under the same `tmax`, and the same
     /// exact test keeps the same nearest one. The memory is neither used nor changed (with it,
     /// only a hit exactly tied between two voxels could differ).
     pub fn closest_hits<S: VoxelSource + ?Sized>(
         &self,
         src: &S,
         rays: &[GridRay],
-        tmin: f64,
+        tmin: &[f64],
         tmax: &[f64],
         out: &mut [Option<Hit>],
     ) {
         let n = rays.len();
-        assert!(n <= PACKET && tmax.len() == n && out.len() == n);
+        assert!(n <= PACKET && tmin.len() == n && tmax.len() == n && out.len() == n);
         let frame = src.frame();
         let pad = bvh_pad(&frame);
         let slack = 4.0 * pad;
@@ -210,7 +211,7 @@ impl Surface {
             out[k] = None;
             best_t[k] = tmax[k];
             recips[k] = rays[k].recip();
-            if let Some(b) = rays[k].bvh_ray(&frame, pad, tmin, tmax[k]) {
+            if let Some(b) = rays[k].bvh_ray(&frame, pad, tmin[k], tmax[k]) {
                 ray32[k] = b.ray;
                 back[k] = (b.t_off, b.scale);
                 active |= 1 << k;
@@ -227,7 +228,7 @@ impl Surface {
                     if m & (m - 1) == 0 {
                         // One ray: its own test, inlined (most candidates of a far view).
                         let k = m.trailing_zeros() as usize;
-                        found[k] = src.intersect(&voxel, self.iso, &rays[k], tmin, best_t[k]);
+                        found[k] = src.intersect(&voxel, self.iso, &rays[k], tmin[k], best_t[k]);
                     } else {
                         src.intersect_packet(
                             &voxel,
@@ -235,7 +236,7 @@ impl Surface {
                             rays,
                             &recips[..n],
                             m,
-                            tmin,
+                            &tmin[..n],
                             &best_t[..n],
                             &mut found[..n],
                         );

@@ -86,12 +86,23 @@ impl<D: AsRef<[u8]>> Regions for Halo<'_, '_, D> {
     }
 
     fn range_over(&self, region: &IBox, _slack: [i64; 3]) -> Result<(f32, f32)> {
+        self.range_over_without(region, None)
+    }
+}
+
+impl<D: AsRef<[u8]>> Halo<'_, '_, D> {
+    /// [`Regions::range_over`] of `region`, leaving out the cells of leaf `skip` when set (the
+    /// caller bounds them itself).
+    pub fn range_over_without(&self, region: &IBox, skip: Option<u32>) -> Result<(f32, f32)> {
         debug_assert!(self.region.contains_box(region));
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         for a in &self.leaves {
             let Some((brick, lv)) = a.top else {
                 continue;
             };
+            if skip == Some(a.leaf) {
+                continue;
+            }
             let part = a.bounds.intersect(region);
             if part.is_empty() {
                 continue;

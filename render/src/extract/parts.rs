@@ -109,26 +109,40 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
                 blocks: &loose,
                 leaves: bounds.1,
             };
-            let around: &dyn Regions = match around {
-                Some(h) => h,
+            let halo = match around {
+                Some(h) => Some(h),
                 None => {
                     gathered = Halo::new(sampler, (&loose, bounds.1), &frame.finest, frame.level);
-                    match &gathered {
-                        Some(h) => h,
-                        None => &tree,
-                    }
+                    gathered.as_ref()
                 }
+            };
+            let around: &dyn Regions = match halo {
+                Some(h) => h,
+                None => &tree,
             };
             // With no coarser leaf around the leaf, none is around its parts either.
             let grown = frame.finest.grow(s);
             let flat = around.coarsest_touching(&grown).unwrap_or(frame.level) >= frame.level;
+            // The leaf's own share of its boundary parts' bounds, all at once.
+            let own = match (flat, halo) {
+                (true, Some(h)) => OwnShare::new(sampler, frame, bounds.0, (first, last, k))
+                    .map(|table| (h, table)),
+                _ => None,
+            };
             let mut r = Vec::new();
+            let mut index = 0;
             for pz in first[2]..=last[2] {
                 for py in first[1]..=last[1] {
                     for px in first[0]..=last[0] {
                         let finest = part_box([px, py, pz]);
+                        let own_share = own.as_ref().map(|(h, t)| (*h, t.bounds[index]));
+                        index += 1;
                         let range = if finest.is_empty() {
                             (f32::INFINITY, f32::NEG_INFINITY)
+                        } else if let Some(range) =
+                            boundary_part_range(frame, s, own_share, &finest)?
+                        {
+                            range
                         } else {
                             part_range(sampler, frame, (bounds.0, around), flat, &finest)?
                         };
@@ -211,6 +225,78 @@ fn merge_runs(runs: Vec<IBox>) -> Vec<IBox> {
         }
     }
     boxes
+}
+
+/// The bounds of the leaf's own cells near each part of a leaf with no coarser leaf around it:
+/// for each part (x fastest), [`BlockRanges::bound_in`] of the part grown by one cell, cut to
+/// the leaf, which is the leaf's own share of what [`box_range_flat`] of the part asks the
+/// leaves around (the whole of it for most parts). Computed for all parts at once
+/// ([`BlockRanges::bounds_in_grid`]): neighbouring parts share most of their blocks.
+struct OwnShare {
+    bounds: Vec<(f32, f32)>,
+}
+
+impl OwnShare {
+    /// The shares of the parts `first..=last` (per axis; `k` cells each, aligned to the leaf's
+    /// brick) of `frame`; `None` when the file stores no block tables.
+    fn new<D: AsRef<[u8]>>(
+        sampler: &Sampler<'_, D>,
+        frame: &LeafFrame,
+        blocks: &BlockRanges,
+        (first, last, k): ([i64; 3], [i64; 3], i64),
+    ) -> Option<Self> {
+        let grid = sampler.grid();
+        let (s, o) = (grid.scale(frame.level), grid.offset());
+        let bc = sampler.brick_cells(frame.brick);
+        let (c, f) = (frame.cells, frame.finest);
+        // Per axis, each part's finest-level interval (as `part_box` cuts it) grown by one
+        // cell and cut to the leaf.
+        let spans: [Vec<(i64, i64)>; 3] = std::array::from_fn(|a| {
+            (first[a]..=last[a])
+                .map(|p| {
+                    let lo = (bc.lo[a] + p * k).max(c.lo[a]);
+                    let hi = (bc.lo[a] + (p + 1) * k).min(c.hi[a]);
+                    let lo = (lo * s[a] - o[a]).max(f.lo[a]);
+                    let hi = (hi * s[a] - o[a]).min(f.hi[a]);
+                    ((lo - s[a]).max(f.lo[a]), (hi + s[a]).min(f.hi[a]))
+                })
+                .collect()
+        });
+        let bounds = blocks.bounds_in_grid(
+            sampler,
+            frame.brick,
+            frame.level,
+            [&spans[0], &spans[1], &spans[2]],
+        )?;
+        Some(Self { bounds })
+    }
+}
+
+/// [`part_range`] of a part `finest` (not empty) of a leaf with no coarser leaf around it whose
+/// grown box leaves the leaf: the leaf's own share `own` (with the leaves around it) joined to
+/// what the other leaves around hold in the grown box; `None` for the other parts, or without
+/// the share (the caller then asks [`part_range`]).
+fn boundary_part_range<D: AsRef<[u8]>>(
+    frame: &LeafFrame,
+    s: [i64; 3],
+    own: Option<(&Halo<'_, '_, D>, (f32, f32))>,
+    finest: &IBox,
+) -> Result<Option<(f32, f32)>> {
+    let Some((halo, (own_lo, own_hi))) = own else {
+        return Ok(None);
+    };
+    let hood = finest.grow(s);
+    // Interior parts take the tighter bound of their merged dual cells; a grown box holding
+    // the whole leaf counts the leaf's whole range.
+    if frame.finest.contains_box(&hood) || hood.contains_box(&frame.finest) {
+        return Ok(None);
+    }
+    let (lo, hi) = halo.range_over_without(&hood, Some(frame.leaf))?;
+    let (lo, hi) = (lo.min(own_lo), hi.max(own_hi));
+    if lo > hi {
+        return Ok(Some((f32::INFINITY, f32::NEG_INFINITY)));
+    }
+    Ok(Some(widen_range(lo, hi)))
 }
 
 /// A range holding every corner of every voxel of `frame` whose lower corner lies in

@@ -118,7 +118,8 @@ impl BlockRanges {
     }
 
     /// [`Self::bound_in`] of every box of a grid of boxes, x fastest: the box `(i, j, k)` spans
-    /// the finest-level intervals `spans[0][i]`, `spans[1][j]` and `spans[2][k]`. The same
+    /// the finest-level intervals `spans[0][i]`, `spans[1][j]` and `spans[2][k]` (an empty
+    /// interval, `lo >= hi`, makes an empty box, bounded by `(+inf, -inf)`). The same
     /// bounds, with the stored blocks folded one axis at a time, so that a block that
     /// neighbouring boxes share is read once per axis rather than once per box. `None` when the
     /// file stores no tables.
@@ -139,6 +140,9 @@ impl BlockRanges {
             spans[a]
                 .iter()
                 .map(|&span| {
+                    if span.0 >= span.1 {
+                        return None;
+                    }
                     let (lo, hi) = block_span(block, &bc, (s[a], o[a]), a, span)?;
                     Some((lo as usize, hi as usize))
                 })

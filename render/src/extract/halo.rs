@@ -86,23 +86,12 @@ impl<D: AsRef<[u8]>> Regions for Halo<'_, '_, D> {
     }
 
     fn range_over(&self, region: &IBox, _slack: [i64; 3]) -> Result<(f32, f32)> {
-        self.range_over_without(region, None)
-    }
-}
-
-impl<D: AsRef<[u8]>> Halo<'_, '_, D> {
-    /// [`Regions::range_over`] of `region`, leaving out the cells of leaf `skip` when set (the
-    /// caller bounds them itself).
-    pub fn range_over_without(&self, region: &IBox, skip: Option<u32>) -> Result<(f32, f32)> {
         debug_assert!(self.region.contains_box(region));
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         for a in &self.leaves {
             let Some((brick, lv)) = a.top else {
                 continue;
             };
-            if skip == Some(a.leaf) {
-                continue;
-            }
             let part = a.bounds.intersect(region);
             if part.is_empty() {
                 continue;
@@ -116,5 +105,20 @@ impl<D: AsRef<[u8]>> Halo<'_, '_, D> {
             hi = hi.max(y);
         }
         Ok((lo, hi))
+    }
+}
+
+impl<D: AsRef<[u8]>> Halo<'_, '_, D> {
+    /// The leaves around that hold data: `(leaf, box, finest brick, level)`.
+    pub fn leaves_with_data(&self) -> impl Iterator<Item = (u32, IBox, u32, u32)> + '_ {
+        self.leaves
+            .iter()
+            .filter_map(|a| a.top.map(|(brick, lv)| (a.leaf, a.bounds, brick, lv)))
+    }
+
+    /// The range of the whole leaf `leaf`, as [`Regions::range_over`] counts a leaf lying inside
+    /// the region asked about.
+    pub fn leaf_range(&self, leaf: u32) -> Result<(f32, f32)> {
+        self.tree.leaf_range(self.sampler, self.blocks, leaf)
     }
 }

@@ -106,115 +106,17 @@ impl BlockRanges {
         // The blocks overlapping the brick's cells that overlap `part`, of `n` per axis.
         let (mut lo, mut hi, mut n) = ([0i64; 3], [0i64; 3], [0i64; 3]);
         for a in 0..3 {
-            let Some(span) = block_span(block, &bc, (s[a], o[a]), a, (part.lo[a], part.hi[a]))
-            else {
+            let first = floor_div1(part.lo[a] + o[a], s[a]).max(bc.lo[a]);
+            let end = floor_div1(part.hi[a] + o[a] + s[a] - 1, s[a]).min(bc.hi[a]);
+            if first >= end {
                 return Some((x, y));
-            };
-            (lo[a], hi[a]) = span;
+            }
+            lo[a] = floor_div1(first - bc.lo[a], block);
+            hi[a] = floor_div1(end - bc.lo[a] + block - 1, block);
             n[a] = floor_div1(bc.hi[a] - bc.lo[a] + block - 1, block);
         }
         fold_stored(sampler, brick, &n, (lo, hi), (&mut x, &mut y));
         Some((x, y))
-    }
-
-    /// [`Self::bound_in`] of every box of a grid of boxes, x fastest: the box `(i, j, k)` spans
-    /// the finest-level intervals `spans[0][i]`, `spans[1][j]` and `spans[2][k]` (an empty
-    /// interval, `lo >= hi`, makes an empty box, bounded by `(+inf, -inf)`). The same
-    /// bounds, with the stored blocks folded one axis at a time, so that a block that
-    /// neighbouring boxes share is read once per axis rather than once per box. `None` when the
-    /// file stores no tables.
-    pub fn bounds_in_grid<D: AsRef<[u8]>>(
-        &self,
-        sampler: &Sampler<'_, D>,
-        brick: u32,
-        level: u32,
-        spans: [&[(i64, i64)]; 3],
-    ) -> Option<Vec<(f32, f32)>> {
-        let block = self.stored?;
-        let bc = sampler.brick_cells(brick);
-        let grid = sampler.grid();
-        let (s, o) = (grid.scale(level), grid.offset());
-        let n = [0, 1, 2].map(|a| floor_div1(bc.hi[a] - bc.lo[a] + block - 1, block) as usize);
-        // Each box's blocks per axis; `None` where it overlaps none of the brick's cells.
-        let windows: [Vec<Option<(usize, usize)>>; 3] = std::array::from_fn(|a| {
-            spans[a]
-                .iter()
-                .map(|&span| {
-                    if span.0 >= span.1 {
-                        return None;
-                    }
-                    let (lo, hi) = block_span(block, &bc, (s[a], o[a]), a, span)?;
-                    Some((lo as usize, hi as usize))
-                })
-                .collect()
-        });
-        let table = sampler
-            .file()
-            .block_ranges(sampler.field(), brick as usize)
-            .unwrap_or_default();
-        let empty = (f32::INFINITY, f32::NEG_INFINITY);
-        // Selects, as `fold_stored` (no NaN enters).
-        let fold = |acc: (f32, f32), v: (f32, f32)| {
-            (
-                if v.0 < acc.0 { v.0 } else { acc.0 },
-                if v.1 > acc.1 { v.1 } else { acc.1 },
-            )
-        };
-        // The rows and layers any box reads.
-        let reach = |w: &[Option<(usize, usize)>]| {
-            w.iter()
-                .flatten()
-                .fold((usize::MAX, 0), |(a, b), &(lo, hi)| (a.min(lo), b.max(hi)))
-        };
-        let (y0, y1) = reach(&windows[1]);
-        let (z0, z1) = reach(&windows[2]);
-        let (nx, ny, nz) = (windows[0].len(), windows[1].len(), windows[2].len());
-        if y0 >= y1 || z0 >= z1 {
-            return Some(vec![empty; nx * ny * nz]);
-        }
-        let (rows, layers) = (y1 - y0, z1 - z0);
-        // Along x: each row of blocks folded over each box's x-window.
-        let mut along_x = vec![empty; layers * rows * nx];
-        for z in z0..z1 {
-            for y in y0..y1 {
-                let row = (z * n[1] + y) * n[0];
-                let out = &mut along_x[((z - z0) * rows + (y - y0)) * nx..][..nx];
-                for (o, w) in out.iter_mut().zip(&windows[0]) {
-                    if let Some((lo, hi)) = *w {
-                        let entries = table.get(row + lo..row + hi).unwrap_or_default();
-                        *o = entries
-                            .iter()
-                            .fold(empty, |acc, r| fold(acc, (r.min.get(), r.max.get())));
-                    }
-                }
-            }
-        }
-        // Along y, then along z.
-        let mut along_y = vec![empty; layers * ny * nx];
-        for z in 0..layers {
-            for (j, w) in windows[1].iter().enumerate() {
-                let Some((lo, hi)) = *w else { continue };
-                let out = &mut along_y[(z * ny + j) * nx..][..nx];
-                for y in lo..hi {
-                    let src = &along_x[(z * rows + (y - y0)) * nx..][..nx];
-                    for (o, &v) in out.iter_mut().zip(src) {
-                        *o = fold(*o, v);
-                    }
-                }
-            }
-        }
-        let mut out = vec![empty; nz * ny * nx];
-        for (k, w) in windows[2].iter().enumerate() {
-            let Some((lo, hi)) = *w else { continue };
-            let dst = &mut out[k * ny * nx..][..ny * nx];
-            for z in lo..hi {
-                let src = &along_y[(z - z0) * ny * nx..][..ny * nx];
-                for (o, &v) in dst.iter_mut().zip(src) {
-                    *o = fold(*o, v);
-                }
-            }
-        }
-        Some(out)
     }
 
     /// The exact range of the cells `cells` (indices of the brick's level) of brick `brick`;
@@ -291,29 +193,6 @@ impl BlockRanges {
         });
         Ok((lo, hi))
     }
-}
-
-/// The blocks (indices along axis `a`, of `block` cells) of a brick whose cells are `bc` that
-/// the brick's cells (of scale and index offset `so` along the axis) overlapping the
-/// finest-level interval `span` overlap, as `(first, end)`; `None` when no cell of the brick
-/// does.
-#[inline]
-fn block_span(
-    block: i64,
-    bc: &IBox,
-    (s, o): (i64, i64),
-    a: usize,
-    (lo, hi): (i64, i64),
-) -> Option<(i64, i64)> {
-    let first = floor_div1(lo + o, s).max(bc.lo[a]);
-    let end = floor_div1(hi + o + s - 1, s).min(bc.hi[a]);
-    if first >= end {
-        return None;
-    }
-    Some((
-        floor_div1(first - bc.lo[a], block),
-        floor_div1(end - bc.lo[a] + block - 1, block),
-    ))
 }
 
 /// Folds the stored table entries of the blocks `blocks` (block indices, of `n` per axis) of

@@ -107,18 +107,3 @@ impl<D: AsRef<[u8]>> Regions for Halo<'_, '_, D> {
         Ok((lo, hi))
     }
 }
-
-impl<D: AsRef<[u8]>> Halo<'_, '_, D> {
-    /// The leaves around that hold data: `(leaf, box, finest brick, level)`.
-    pub fn leaves_with_data(&self) -> impl Iterator<Item = (u32, IBox, u32, u32)> + '_ {
-        self.leaves
-            .iter()
-            .filter_map(|a| a.top.map(|(brick, lv)| (a.leaf, a.bounds, brick, lv)))
-    }
-
-    /// The range of the whole leaf `leaf`, as [`Regions::range_over`] counts a leaf lying inside
-    /// the region asked about.
-    pub fn leaf_range(&self, leaf: u32) -> Result<(f32, f32)> {
-        self.tree.leaf_range(self.sampler, self.blocks, leaf)
-    }
-}

@@ -109,37 +109,26 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
                 blocks: &loose,
                 leaves: bounds.1,
             };
-            let halo = match around {
-                Some(h) => Some(h),
+            let around: &dyn Regions = match around {
+                Some(h) => h,
                 None => {
                     gathered = Halo::new(sampler, (&loose, bounds.1), &frame.finest, frame.level);
-                    gathered.as_ref()
+                    match &gathered {
+                        Some(h) => h,
+                        None => &tree,
+                    }
                 }
-            };
-            let around: &dyn Regions = match halo {
-                Some(h) => h,
-                None => &tree,
             };
             // With no coarser leaf around the leaf, none is around its parts either.
             let grown = frame.finest.grow(s);
             let flat = around.coarsest_touching(&grown).unwrap_or(frame.level) >= frame.level;
-            // The leaf's own share of its boundary parts' bounds, all at once.
-            // What each leaf around holds near each part, for all parts at once.
-            let shares = halo.map(|h| Shares::new(sampler, frame, (bounds.0, h), (first, last, k)));
             let mut r = Vec::new();
-            let mut index = 0;
             for pz in first[2]..=last[2] {
                 for py in first[1]..=last[1] {
                     for px in first[0]..=last[0] {
                         let finest = part_box([px, py, pz]);
-                        let share = shares.as_ref().map(|sh| (sh, index));
-                        index += 1;
                         let range = if finest.is_empty() {
                             (f32::INFINITY, f32::NEG_INFINITY)
-                        } else if let Some(range) =
-                            boundary_part_range(frame, (s, flat), share, &finest)?
-                        {
-                            range
                         } else {
                             part_range(sampler, frame, (bounds.0, around), flat, &finest)?
                         };
@@ -222,154 +211,6 @@ fn merge_runs(runs: Vec<IBox>) -> Vec<IBox> {
         }
     }
     boxes
-}
-
-/// What each leaf around a leaf (with data, of the leaf's level or finer) holds near each of
-/// the leaf's parts: for each part (x fastest) and leaf around, [`BlockRanges::bound_in`] of the
-/// part grown by one cell, cut to the leaf around, which is that leaf's share of what
-/// [`box_range_flat`] of the part asks the [`Halo`]. Computed for all parts at once
-/// ([`BlockRanges::bounds_in_grid`]): neighbouring parts share most of their blocks.
-struct Shares<'h, 'a, 'f, D> {
-    halo: &'h Halo<'a, 'f, D>,
-    /// Parts per axis.
-    parts: [usize; 3],
-    leaves: Vec<Share>,
-}
-
-/// One leaf around: the parts (index box per axis) whose grown box meets it, their bounds, and
-/// per axis and part whether the part's grown box spans the leaf's extent.
-struct Share {
-    leaf: u32,
-    lo: [usize; 3],
-    hi: [usize; 3],
-    bounds: Vec<(f32, f32)>,
-    spans_leaf: [Vec<bool>; 3],
-}
-
-impl<'h, 'a, 'f, D: AsRef<[u8]>> Shares<'h, 'a, 'f, D> {
-    /// The shares of the leaves around `frame`'s leaf in its parts `first..=last` (per axis;
-    /// `k` cells each, aligned to the leaf's brick).
-    fn new(
-        sampler: &Sampler<'_, D>,
-        frame: &LeafFrame,
-        (blocks, halo): (&BlockRanges, &'h Halo<'a, 'f, D>),
-        (first, last, k): ([i64; 3], [i64; 3], i64),
-    ) -> Self {
-        let grid = sampler.grid();
-        let (s, o) = (grid.scale(frame.level), grid.offset());
-        let bc = sampler.brick_cells(frame.brick);
-        let (c, f) = (frame.cells, frame.finest);
-        // Per axis, each part's finest-level interval (as `part_box` cuts it) grown by one
-        // cell.
-        let hoods: [Vec<(i64, i64)>; 3] = std::array::from_fn(|a| {
-            (first[a]..=last[a])
-                .map(|p| {
-                    let lo = (bc.lo[a] + p * k).max(c.lo[a]);
-                    let hi = (bc.lo[a] + (p + 1) * k).min(c.hi[a]);
-                    let lo = (lo * s[a] - o[a]).max(f.lo[a]);
-                    let hi = (hi * s[a] - o[a]).min(f.hi[a]);
-                    (lo - s[a], hi + s[a])
-                })
-                .collect()
-        });
-        let parts = [0, 1, 2].map(|a| hoods[a].len());
-        let mut leaves = Vec::new();
-        for (leaf, bounds, brick, lv) in halo.leaves_with_data() {
-            // A coarser leaf meeting a part's grown box sends the part to `part_range`.
-            if lv < frame.level {
-                continue;
-            }
-            let cut: [Vec<(i64, i64)>; 3] = std::array::from_fn(|a| {
-                hoods[a]
-                    .iter()
-                    .map(|&(lo, hi)| (lo.max(bounds.lo[a]), hi.min(bounds.hi[a])))
-                    .collect()
-            });
-            let met = |a: usize| {
-                let i0 = cut[a].iter().position(|&(lo, hi)| lo < hi);
-                let i1 = cut[a].iter().rposition(|&(lo, hi)| lo < hi);
-                i0.zip(i1).map(|(i0, i1)| (i0, i1 + 1))
-            };
-            let (Some(x), Some(y), Some(z)) = (met(0), met(1), met(2)) else {
-                continue;
-            };
-            let (lo, hi) = ([x.0, y.0, z.0], [x.1, y.1, z.1]);
-            let spans: [&[(i64, i64)]; 3] = std::array::from_fn(|a| &cut[a][lo[a]..hi[a]]);
-            let Some(b) = blocks.bounds_in_grid(sampler, brick, lv, spans) else {
-                continue;
-            };
-            let spans_leaf = std::array::from_fn(|a| {
-                hoods[a][lo[a]..hi[a]]
-                    .iter()
-                    .map(|&(l, h)| l <= bounds.lo[a] && bounds.hi[a] <= h)
-                    .collect()
-            });
-            leaves.push(Share {
-                leaf,
-                lo,
-                hi,
-                bounds: b,
-                spans_leaf,
-            });
-        }
-        Self {
-            halo,
-            parts,
-            leaves,
-        }
-    }
-
-    /// What [`Regions::range_over`] of the [`Halo`] gives for the grown box of the part of
-    /// index `index` (x fastest) when no coarser leaf meets that box.
-    fn range(&self, index: usize) -> Result<(f32, f32)> {
-        let n = self.parts;
-        let p = [index % n[0], index / n[0] % n[1], index / n[0] / n[1]];
-        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        for sh in &self.leaves {
-            if (0..3).any(|a| p[a] < sh.lo[a] || p[a] >= sh.hi[a]) {
-                continue;
-            }
-            let q = [0, 1, 2].map(|a| p[a] - sh.lo[a]);
-            let (x, y) = if (0..3).all(|a| sh.spans_leaf[a][q[a]]) {
-                self.halo.leaf_range(sh.leaf)?
-            } else {
-                let w = [0, 1, 2].map(|a| sh.hi[a] - sh.lo[a]);
-                sh.bounds[(q[2] * w[1] + q[1]) * w[0] + q[0]]
-            };
-            lo = lo.min(x);
-            hi = hi.max(y);
-        }
-        Ok((lo, hi))
-    }
-}
-
-/// [`part_range`] of a part `finest` (not empty) whose grown box leaves the leaf and meets no
-/// coarser leaf (always so when `flat`, see [`part_range`]), so that its bound is that of the
-/// grown box ([`box_range_flat`], and the first case of [`box_range_in`]'s reach rule), from
-/// the shares of the leaves around (`share`: them and the part's index); `None` for the other
-/// parts, or without the shares (the caller then asks [`part_range`]).
-fn boundary_part_range<D: AsRef<[u8]>>(
-    frame: &LeafFrame,
-    (s, flat): ([i64; 3], bool),
-    share: Option<(&Shares<'_, '_, '_, D>, usize)>,
-    finest: &IBox,
-) -> Result<Option<(f32, f32)>> {
-    let Some((shares, index)) = share else {
-        return Ok(None);
-    };
-    let hood = finest.grow(s);
-    // Interior parts take the tighter bound of their merged dual cells.
-    if frame.finest.contains_box(&hood) {
-        return Ok(None);
-    }
-    if !flat && shares.halo.coarsest_touching(&hood).unwrap_or(frame.level) < frame.level {
-        return Ok(None);
-    }
-    let (lo, hi) = shares.range(index)?;
-    if lo > hi {
-        return Ok(Some((f32::INFINITY, f32::NEG_INFINITY)));
-    }
-    Ok(Some(widen_range(lo, hi)))
 }
 
 /// A range holding every corner of every voxel of `frame` whose lower corner lies in

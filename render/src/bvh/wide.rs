@@ -93,7 +93,11 @@ impl WideBuilder {
         self.keys.clear();
         self.keys.extend(boxes.iter().enumerate().map(|(i, b)| {
             let q = ((b.min + b.max - lo) * scale).clamp(Vec3A::ZERO, Vec3A::splat(steps));
-            let code = spread(q.x as u64) << 2 | spread(q.y as u64) << 1 | spread(q.z as u64);
+            // In `0..2^21` (a NaN clamps to NaN and converts to 0 either way): the `i32`
+            // conversion is one instruction, the `u64` one a branch.
+            let code = spread(q.x as i32 as u64) << 2
+                | spread(q.y as i32 as u64) << 1
+                | spread(q.z as i32 as u64);
             code << index_bits | i as u64
         }));
         self.tmp.resize(self.keys.len(), 0);
@@ -101,41 +105,59 @@ impl WideBuilder {
     }
 }
 
-/// Spreads the low 21 bits of `v` three bits apart.
+/// Each byte's bits spread three apart (bit `i` to bit `3 i`).
+const SPREAD_BYTE: [u32; 256] = {
+    let mut t = [0u32; 256];
+    let mut b = 0;
+    while b < 256 {
+        let mut i = 0;
+        while i < 8 {
+            t[b] |= ((b as u32 >> i) & 1) << (3 * i);
+            i += 1;
+        }
+        b += 1;
+    }
+    t
+};
+
+/// Spreads the low 21 bits of `v` three bits apart: a table look-up per byte.
+#[inline(always)]
 fn spread(v: u64) -> u64 {
-    let mut x = v & 0x1f_ffff;
-    x = (x | x << 32) & 0x001f_0000_0000_ffff;
-    x = (x | x << 16) & 0x001f_0000_ff00_00ff;
-    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
-    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
-    x = (x | x << 2) & 0x1249_2492_4924_9249;
-    x
+    let x = v & 0x1f_ffff;
+    u64::from(SPREAD_BYTE[(x & 0xff) as usize])
+        | u64::from(SPREAD_BYTE[(x >> 8 & 0xff) as usize]) << 24
+        | u64::from(SPREAD_BYTE[(x >> 16) as usize]) << 48
 }
 
 /// Stable LSD radix sort of `keys` by their bits from `from` up, a byte at a time; bytes that
-/// are the same in every key are skipped.
+/// are the same in every key are skipped. The counts of every byte are taken in one pass over
+/// the keys (a permutation does not change them).
 fn radix_sort(keys: &mut Vec<u64>, tmp: &mut Vec<u64>, from: u32) {
-    let mut shift = from;
-    while shift < 64 {
-        let mut count = [0u32; 256];
+    let digits = (64 - from).div_ceil(8) as usize;
+    let mut counts = [[0u32; 256]; 8];
+    for &k in keys.iter() {
+        let k = k >> from;
+        for (d, count) in counts[..digits].iter_mut().enumerate() {
+            count[(k >> (8 * d) & 0xff) as usize] += 1;
+        }
+    }
+    for (d, count) in counts[..digits].iter().enumerate() {
+        if count.iter().any(|&c| c as usize == keys.len()) {
+            continue;
+        }
+        let shift = from + 8 * d as u32;
+        let mut at = [0u32; 256];
+        let mut sum = 0;
+        for (a, &c) in at.iter_mut().zip(count) {
+            *a = sum;
+            sum += c;
+        }
         for &k in keys.iter() {
-            count[(k >> shift & 0xff) as usize] += 1;
+            let d = (k >> shift & 0xff) as usize;
+            tmp[at[d] as usize] = k;
+            at[d] += 1;
         }
-        if !count.iter().any(|&c| c as usize == keys.len()) {
-            let mut at = [0u32; 256];
-            let mut sum = 0;
-            for (a, c) in at.iter_mut().zip(count) {
-                *a = sum;
-                sum += c;
-            }
-            for &k in keys.iter() {
-                let d = (k >> shift & 0xff) as usize;
-                tmp[at[d] as usize] = k;
-                at[d] += 1;
-            }
-            std::mem::swap(keys, tmp);
-        }
-        shift += 8;
+        std::mem::swap(keys, tmp);
     }
 }
 
@@ -394,6 +416,21 @@ mod tests {
     fn spread_interleaves() {
         assert_eq!(spread(0b11), 0b1001);
         assert_eq!(spread(0x1f_ffff).count_ones(), 21);
+        // The table gives what the shifts and masks gave.
+        let shifts = |v: u64| {
+            let mut x = v & 0x1f_ffff;
+            x = (x | x << 32) & 0x001f_0000_0000_ffff;
+            x = (x | x << 16) & 0x001f_0000_ff00_00ff;
+            x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+            x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+            (x | x << 2) & 0x1249_2492_4924_9249
+        };
+        for v in (0..1u64 << 21)
+            .step_by(97)
+            .chain([0x1f_ffff, 1 << 20, 0xff_ffff])
+        {
+            assert_eq!(spread(v), shifts(v), "{v:#x}");
+        }
     }
 
     #[test]
@@ -403,6 +440,15 @@ mod tests {
         want.sort_by_key(|k| (k >> 10, k & 1023));
         let mut tmp = vec![0; keys.len()];
         radix_sort(&mut keys, &mut tmp, 10);
+        assert_eq!(keys, want);
+        // High bits in every byte, from a start that is not a multiple of 8.
+        let mut keys: Vec<u64> = (0..5000u64)
+            .map(|i| i.wrapping_mul(0x9e37_79b9_7f4a_7c15) & !0x1fff | i)
+            .collect();
+        let mut want = keys.clone();
+        want.sort_by_key(|k| (k >> 13, k & 0x1fff));
+        let mut tmp = vec![0; keys.len()];
+        radix_sort(&mut keys, &mut tmp, 13);
         assert_eq!(keys, want);
     }
 

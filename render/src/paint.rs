@@ -12,7 +12,7 @@ use crate::colormap::level_linear;
 use crate::slice::Slice;
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, VoxelSource};
-use crate::trace::tracer::{Paint, SurfaceHit, Tracer};
+use crate::trace::tracer::{next_hits_one_by_one, Paint, SurfaceHit, Tracer};
 
 /// Pixels between the primary rays of the colour-range pre-pass, on each axis.
 const RANGE_STRIDE: u32 = 4;
@@ -205,9 +205,7 @@ impl<T: Tracer + Sync + ?Sized> Tracer for PaintedTracer<'_, T> {
         if i < self.surfaces.len() {
             return self.inner.next_hits_from(i, rays, tmin, tmax, out);
         }
-        for (k, out) in out.iter_mut().enumerate().take(rays.len()) {
-            *out = self.next_hit(i, &rays[k], tmin[k], tmax[k]);
-        }
+        next_hits_one_by_one(self, i, rays, tmin, tmax, out)
     }
 
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {

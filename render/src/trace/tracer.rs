@@ -72,9 +72,7 @@ pub trait Tracer {
         tmax: &[f64],
         out: &mut [Option<SurfaceHit>],
     ) {
-        for (k, out) in out.iter_mut().enumerate().take(rays.len()) {
-            *out = self.next_hit(i, &rays[k], tmin[k], tmax[k]);
-        }
+        next_hits_one_by_one(self, i, rays, tmin, tmax, out)
     }
 
     /// Drops the pages of the file traced from the resident set (between bands of a frame);
@@ -109,6 +107,21 @@ pub trait Tracer {
     /// The colour data gives surface `i` at `hit`; `None` (the default) keeps the surface's own.
     fn paint(&self, _i: usize, _hit: &SurfaceHit) -> Option<Paint> {
         None
+    }
+}
+
+/// [`Tracer::next_hits_from`] asked ray by ray through [`Tracer::next_hit`]: what tracers that
+/// do not trace packets give.
+pub fn next_hits_one_by_one<T: Tracer + ?Sized>(
+    tracer: &T,
+    i: usize,
+    rays: &[GridRay],
+    tmin: &[f64],
+    tmax: &[f64],
+    out: &mut [Option<SurfaceHit>],
+) {
+    for (k, out) in out.iter_mut().enumerate().take(rays.len()) {
+        *out = tracer.next_hit(i, &rays[k], tmin[k], tmax[k]);
     }
 }
 

@@ -106,6 +106,7 @@ pub fn shade_ray<T: Tracer + ?Sized>(
         &ray,
         next,
         None,
+        None,
         rng,
         ao_layers,
     )
@@ -128,8 +129,9 @@ pub fn search_order(light: &Lighting, n: usize, first: usize) -> impl Iterator<I
 /// coordinates) from `next[i]`, its first hit with each surface `i` (up to the nearest opaque
 /// one; [`shade_ray`] finds them); `next` is used up. `first_shadow` is the key light's
 /// transmittance at the nearest of them when already traced ([`KeyShadow`]), or `None` to trace
-/// it here. With `ao_layers`, records the first [`FILTERED_HITS`] hits shaded with ambient
-/// occlusion there.
+/// it here; `first_ao` likewise its ambient occlusion ([`crate::shade::ao_packets::TileAo`],
+/// which moved `rng` on as tracing it here would). With `ao_layers`, records the first
+/// [`FILTERED_HITS`] hits shaded with ambient occlusion there.
 #[allow(clippy::too_many_arguments)]
 pub fn shade_hits<T: Tracer + ?Sized>(
     tracer: &T,
@@ -138,6 +140,7 @@ pub fn shade_hits<T: Tracer + ?Sized>(
     ray: &GridRay,
     next: &mut [Option<SurfaceHit>],
     first_shadow: Option<f64>,
+    first_ao: Option<f64>,
     rng: &mut Rng,
     mut ao_layers: Option<&mut Vec<AoLayer>>,
 ) -> PixelSample {
@@ -159,7 +162,8 @@ pub fn shade_hits<T: Tracer + ?Sized>(
             _ => {
                 let base = paint.map_or(light.colors[i], |p| p.rgb);
                 let shadow = first_shadow.filter(|_| layer == 0);
-                let shaded = shade_hit(tracer, light, base, &hit, normal, dir, shadow, rng);
+                let ao = first_ao.filter(|_| layer == 0);
+                let shaded = shade_hit(tracer, light, base, &hit, normal, dir, (shadow, ao), rng);
                 if let (Some(layers), Some(ao)) = (ao_layers.as_deref_mut(), shaded.ao) {
                     if recorded < FILTERED_HITS {
                         recorded += 1;
@@ -209,7 +213,8 @@ pub fn shade_hits<T: Tracer + ?Sized>(
 }
 
 /// The nearest of the hits `next` and its surface (the first one of a tie): the next layer.
-fn nearest(next: &[Option<SurfaceHit>]) -> Option<(usize, SurfaceHit)> {
+#[inline]
+pub(crate) fn nearest(next: &[Option<SurfaceHit>]) -> Option<(usize, SurfaceHit)> {
     next.iter()
         .enumerate()
         .filter_map(|(i, h)| h.map(|h| (i, h)))
@@ -245,7 +250,7 @@ fn next_crossing<T: Tracer + ?Sized>(
 }
 
 /// The unit world-space normal for a grid-space gradient.
-fn world_normal(unit: &[f64; 3], grad: [f64; 3]) -> Option<[f64; 3]> {
+pub(crate) fn world_normal(unit: &[f64; 3], grad: [f64; 3]) -> Option<[f64; 3]> {
     normalize([0, 1, 2].map(|a| grad[a] / unit[a]))
 }
 
@@ -280,7 +285,7 @@ const TERMINATOR_LIFT: f64 = 0.25;
 /// The normal on the side the ray came from, which the crossing's direction tells; not the one
 /// facing the viewer, which at a silhouette can be the inside when the smooth normal leans past
 /// the ray, and would send the shadow and AO rays into the surface (black pixels).
-fn facing(hit: &SurfaceHit, normal: [f64; 3]) -> [f64; 3] {
+pub(crate) fn facing(hit: &SurfaceHit, normal: [f64; 3]) -> [f64; 3] {
     if hit.rising {
         normal.map(|x| -x)
     } else {
@@ -304,7 +309,7 @@ fn key_ray(
 }
 
 /// The colour of a surface of colour `base` at `hit`, seen along `dir`; `shadow` is the key
-/// light's transmittance there when already traced.
+/// light's transmittance there and `ao` its ambient occlusion, when already traced.
 #[allow(clippy::too_many_arguments)]
 fn shade_hit<T: Tracer + ?Sized>(
     tracer: &T,
@@ -313,7 +318,7 @@ fn shade_hit<T: Tracer + ?Sized>(
     hit: &SurfaceHit,
     normal: [f64; 3],
     dir: [f64; 3],
-    shadow: Option<f64>,
+    (shadow, ao): (Option<f64>, Option<f64>),
     rng: &mut Rng,
 ) -> Shaded {
     let view = dir.map(|x| -x);
@@ -326,7 +331,10 @@ fn shade_hit<T: Tracer + ?Sized>(
     } else if let Some((ray, tmin)) = key_ray(&tracer.frame(), light, hit, nf) {
         key *= transmittance_along(tracer, light, &ray, tmin, f64::INFINITY);
     }
-    let ao = (light.ao_rays > 0).then(|| {
+    let ao = (light.ao_rays > 0).then(|| ao).map(|ao| {
+        if let Some(ao) = ao {
+            return ao;
+        }
         let mut open = 0.0;
         let mut trace = |(u1, u2)| {
             let d = cosine_hemisphere(nf, u1, u2);
@@ -369,7 +377,7 @@ fn transmittance_towards<T: Tracer + ?Sized>(
 
 /// The grid ray in world direction `d` (unit) from `lift` grid units (besides a small fixed
 /// offset) off `hit` along the normal `nf`, and the `tmin` its search starts from.
-fn ray_off(
+pub(crate) fn ray_off(
     frame: &GridFrame,
     hit: &SurfaceHit,
     nf: [f64; 3],
@@ -391,7 +399,7 @@ fn ray_off(
 /// The surfaces in the order a transmittance is searched: opaque surfaces first, as one in the
 /// way ends the search. The transparent surfaces' factors are multiplied in the same order
 /// either way, so the result does not change.
-fn occluder_order(light: &Lighting, n: usize) -> impl Iterator<Item = usize> + '_ {
+pub(crate) fn occluder_order(light: &Lighting, n: usize) -> impl Iterator<Item = usize> + '_ {
     let opaque = move |s: usize| light.opacity[s] >= 1.0;
     (0..n)
         .filter(move |&s| opaque(s))

@@ -10,9 +10,11 @@ use crate::bvh::packet::Mask;
 use crate::camera::Camera;
 use crate::output::frame::{FrameBuffer, PixelSample};
 use crate::shade::ao_filter::{self, AoRow, AoRows};
+use crate::shade::ao_packets::TileAo;
 use crate::shade::integrate::{shade_hits, KeyShadow, Lighting, SearchHint};
 use crate::shade::packets::{TileHits, TILE_RAYS};
 use crate::shade::sampling::Rng;
+use crate::shade::tile_spread::{self, AO_PACKETS_UP_TO, SHADOW_PACKETS_UP_TO};
 use crate::trace::ray::GridRay;
 use crate::trace::source::GridFrame;
 use crate::trace::tracer::{Paint, SurfaceHit, Tracer};
@@ -211,6 +213,7 @@ fn render_strip<T: Tracer + ?Sized>(
     let spp = settings.spp.max(1);
     let mut tile = TileHits::new(tracer.num_surfaces());
     let mut shadows = Box::<KeyShadow>::default();
+    let mut ao = TileAo::default();
     let mut dirs_k = Vec::with_capacity(TILE_RAYS);
     for x0 in xs.clone().step_by(TILE as usize) {
         let x1 = (x0 + TILE).min(xs.end);
@@ -238,7 +241,16 @@ fn render_strip<T: Tracer + ?Sized>(
             tile.trace(&counting, light, &rays, &mut hint);
             dirs_k.clear();
             dirs_k.extend(world.iter().map(|w| w.1));
-            shadows.trace(&counting, light, &dirs_k, |k| tile.hits_of(k));
+            // Shadow and AO rays of tiles whose hits lie far apart stay single rays.
+            let spread = tile_spread::spread(rays.len(), |k| tile.hits_of(k));
+            let shadow_packets = spread <= SHADOW_PACKETS_UP_TO;
+            let ao_packets = spread <= AO_PACKETS_UP_TO;
+            if shadow_packets {
+                shadows.trace(&counting, light, &dirs_k, |k| tile.hits_of(k));
+            }
+            if ao_packets {
+                ao.trace(&counting, light, &dirs_k, &mut rngs, |k| tile.hits_of(k));
+            }
             for (k, &(_, y)) in pixels.iter().enumerate() {
                 let row = &mut rows[(y - ys.start) as usize];
                 let layers = record.then_some(row.ao.layers_mut());
@@ -249,7 +261,8 @@ fn render_strip<T: Tracer + ?Sized>(
                     world[k],
                     &rays[k],
                     next,
-                    shadows.get(k),
+                    shadows.get(k).filter(|_| shadow_packets),
+                    ao.get(k).filter(|_| ao_packets),
                     &mut rngs[k],
                     layers,
                 );

@@ -331,7 +331,7 @@ fn shade_hit<T: Tracer + ?Sized>(
     } else if let Some((ray, tmin)) = key_ray(&tracer.frame(), light, hit, nf) {
         key *= transmittance_along(tracer, light, &ray, tmin, f64::INFINITY);
     }
-    let ao = (light.ao_rays > 0).then(|| ao).map(|ao| {
+    let ao = (light.ao_rays > 0).then(|| {
         if let Some(ao) = ao {
             return ao;
         }

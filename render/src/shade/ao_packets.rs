@@ -15,22 +15,13 @@ use crate::trace::tracer::Tracer;
 /// the rays of a packet leave from neighbouring points of the surface and are short (up to
 /// `ao_distance`), so they share the tree's nodes near their origins whatever their directions;
 /// the walk splits each packet by direction octant.
+#[derive(Default)]
 pub struct TileAo {
     /// Ray `j` of pixel `k` at `j * PACKET + k`.
     rays: Vec<GridRay>,
     tmin: Vec<f64>,
     /// Each ray's transmittance so far.
     open: Vec<f64>,
-}
-
-impl Default for TileAo {
-    fn default() -> Self {
-        Self {
-            rays: Vec::new(),
-            tmin: Vec::new(),
-            open: Vec::new(),
-        }
-    }
 }
 
 impl TileAo {

@@ -29,6 +29,8 @@
 //! - [`render_accuracy`]: the hybrid method against the sample method.
 //! - [`render_golden`]: a golden image.
 //! - [`render_packets`]: packets of primary rays find each ray's single-ray hit.
+//! - [`render_ao_packets`]: frames whose first-layer shadow and AO rays are traced as packets
+//!   equal the single-ray shader's pixel for pixel.
 //! - [`render_ao_filter`]: the ambient occlusion filtered across pixels: less noise, and tiles
 //!   equal to the whole frame.
 //! - [`render_shading`]: coarse real data under smooth normals: no black silhouette pixels, no
@@ -66,6 +68,7 @@ mod pictures;
 mod reconstruct_continuity;
 mod render_accuracy;
 mod render_ao_filter;
+mod render_ao_packets;
 mod render_bench;
 mod render_clip;
 mod render_golden;

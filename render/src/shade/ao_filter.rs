@@ -53,6 +53,8 @@ pub struct AoLayer {
 pub struct AoRow {
     start: Vec<u32>,
     layers: Vec<AoLayer>,
+    /// Each hit's pixel, so that a window's hits in a row are read as one run.
+    column: Vec<u32>,
 }
 
 impl AoRow {
@@ -61,6 +63,7 @@ impl AoRow {
         AoRow {
             start: vec![0],
             layers: Vec::new(),
+            column: Vec::new(),
         }
     }
 
@@ -72,6 +75,8 @@ impl AoRow {
 
     /// Ends the current pixel: the hits appended since the last call are its.
     pub fn end_pixel(&mut self) {
+        let x = self.start.len() as u32 - 1;
+        self.column.resize(self.layers.len(), x);
         self.start.push(self.layers.len() as u32);
     }
 
@@ -122,16 +127,20 @@ impl<'a> AoRows<'a> {
         for qy in y.saturating_sub(BEFORE)..=(y + AFTER).min(last_row) {
             let row = &self.rows[qy as usize];
             let dy = qy.abs_diff(y);
-            for qx in x0..=x1 {
-                let offset = qx.abs_diff(x).max(dy).max(1) as f32;
-                for q in row.pixel(qx) {
-                    if q.surface == layer.surface
-                        && dot(q.n, layer.n) >= MIN_NORMAL_COSINE
-                        && dot(layer.n, sub(q.p, layer.p)).abs() <= footprint * offset
-                    {
-                        sum += q.ao;
-                        count += 1;
-                    }
+            // The plane tolerance per column of the window.
+            let mut tolerance = [0.0f32; TILE as usize];
+            for (qx, t) in (x0..=x1).zip(&mut tolerance) {
+                *t = footprint * qx.abs_diff(x).max(dy).max(1) as f32;
+            }
+            // The window's hits in this row, pixel after pixel from `x0`: one run.
+            let run = row.start[x0 as usize] as usize..row.start[x1 as usize + 1] as usize;
+            for (q, &qx) in row.layers[run.clone()].iter().zip(&row.column[run]) {
+                if q.surface == layer.surface
+                    && dot(q.n, layer.n) >= MIN_NORMAL_COSINE
+                    && dot(layer.n, sub(q.p, layer.p)).abs() <= tolerance[(qx - x0) as usize]
+                {
+                    sum += q.ao;
+                    count += 1;
                 }
             }
         }

@@ -114,9 +114,10 @@ pub fn search_order(light: &Lighting, n: usize, first: usize) -> impl Iterator<I
 }
 
 /// Shades the world ray `origin + t dir` (`dir` unit length) from its `layers`
-/// ([`crate::shade::layers`]); the key light's shadow ray is traced here at the layers whose
-/// transmittance is not given ([`Layer::shadow`]). With `ao_layers`, records the first
-/// [`FILTERED_HITS`] hits shaded with ambient occlusion there.
+/// ([`crate::shade::layers`]); the key light's shadow ray and the ambient-occlusion rays are
+/// traced here at the layers whose transmittance or occlusion is not given ([`Layer::shadow`],
+/// [`Layer::ao`]). With `ao_layers`, records the first [`FILTERED_HITS`] hits shaded with
+/// ambient occlusion there.
 pub fn shade_hits<T: Tracer + ?Sized>(
     tracer: &T,
     light: &Lighting,
@@ -131,7 +132,7 @@ pub fn shade_hits<T: Tracer + ?Sized>(
     let mut transmittance = 1.0f32;
     let mut rgb = [0.0f32; 3];
     for (layer, l) in layers.iter().enumerate() {
-        let (i, hit, shadow) = (l.surface, l.hit, l.shadow);
+        let (i, hit) = (l.surface, l.hit);
         let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dir.map(|x| -x));
         let paint = tracer.paint(i, &hit);
         let alpha = light.opacity[i];
@@ -139,7 +140,8 @@ pub fn shade_hits<T: Tracer + ?Sized>(
             Some(p) if !p.lit => p.rgb,
             _ => {
                 let base = paint.map_or(light.colors[i], |p| p.rgb);
-                let shaded = shade_hit(tracer, light, base, &hit, normal, dir, shadow, rng);
+                let given = (l.shadow, l.ao);
+                let shaded = shade_hit(tracer, light, base, &hit, normal, dir, given, rng);
                 if let (Some(layers), Some(ao)) = (ao_layers.as_deref_mut(), shaded.ao) {
                     if recorded < FILTERED_HITS {
                         recorded += 1;
@@ -177,7 +179,7 @@ pub fn shade_hits<T: Tracer + ?Sized>(
 }
 
 /// The unit world-space normal for a grid-space gradient.
-fn world_normal(unit: &[f64; 3], grad: [f64; 3]) -> Option<[f64; 3]> {
+pub(crate) fn world_normal(unit: &[f64; 3], grad: [f64; 3]) -> Option<[f64; 3]> {
     normalize([0, 1, 2].map(|a| grad[a] / unit[a]))
 }
 
@@ -212,7 +214,7 @@ const TERMINATOR_LIFT: f64 = 0.25;
 /// The normal on the side the ray came from, which the crossing's direction tells; not the one
 /// facing the viewer, which at a silhouette can be the inside when the smooth normal leans past
 /// the ray, and would send the shadow and AO rays into the surface (black pixels).
-fn facing(hit: &SurfaceHit, normal: [f64; 3]) -> [f64; 3] {
+pub(crate) fn facing(hit: &SurfaceHit, normal: [f64; 3]) -> [f64; 3] {
     if hit.rising {
         normal.map(|x| -x)
     } else {
@@ -236,7 +238,7 @@ fn key_ray(
 }
 
 /// The colour of a surface of colour `base` at `hit`, seen along `dir`; `shadow` is the key
-/// light's transmittance there when already traced.
+/// light's transmittance there and `ao` its ambient occlusion, when already traced.
 #[allow(clippy::too_many_arguments)]
 fn shade_hit<T: Tracer + ?Sized>(
     tracer: &T,
@@ -245,7 +247,7 @@ fn shade_hit<T: Tracer + ?Sized>(
     hit: &SurfaceHit,
     normal: [f64; 3],
     dir: [f64; 3],
-    shadow: Option<f64>,
+    (shadow, ao): (Option<f64>, Option<f64>),
     rng: &mut Rng,
 ) -> Shaded {
     let view = dir.map(|x| -x);
@@ -259,6 +261,9 @@ fn shade_hit<T: Tracer + ?Sized>(
         key *= transmittance_along(tracer, light, &ray, tmin, f64::INFINITY);
     }
     let ao = (light.ao_rays > 0).then(|| {
+        if let Some(ao) = ao {
+            return ao;
+        }
         let mut open = 0.0;
         let mut trace = |(u1, u2)| {
             let d = cosine_hemisphere(nf, u1, u2);
@@ -301,7 +306,7 @@ fn transmittance_towards<T: Tracer + ?Sized>(
 
 /// The grid ray in world direction `d` (unit) from `lift` grid units (besides a small fixed
 /// offset) off `hit` along the normal `nf`, and the `tmin` its search starts from.
-fn ray_off(
+pub(crate) fn ray_off(
     frame: &GridFrame,
     hit: &SurfaceHit,
     nf: [f64; 3],
@@ -323,7 +328,7 @@ fn ray_off(
 /// The surfaces in the order a transmittance is searched: opaque surfaces first, as one in the
 /// way ends the search. The transparent surfaces' factors are multiplied in the same order
 /// either way, so the result does not change.
-fn occluder_order(light: &Lighting, n: usize) -> impl Iterator<Item = usize> + '_ {
+pub(crate) fn occluder_order(light: &Lighting, n: usize) -> impl Iterator<Item = usize> + '_ {
     let opaque = move |s: usize| light.opacity[s] >= 1.0;
     (0..n)
         .filter(move |&s| opaque(s))

@@ -24,6 +24,10 @@ pub struct Layer {
     /// The key light's transmittance at the hit, when already traced
     /// ([`crate::shade::integrate::KeyShadow`]); `None` leaves the shadow ray to the shading.
     pub shadow: Option<f64>,
+    /// The ambient occlusion at the hit, when already traced
+    /// ([`crate::shade::ao_packets::TileAo`], which moved the pixel's generator on as tracing it
+    /// in the shading would); `None` leaves the AO rays to the shading.
+    pub ao: Option<f64>,
 }
 
 /// Where a ray is in the search for its layers: the light that gets through the layers taken so
@@ -72,6 +76,7 @@ impl LayerSearch {
             surface: i,
             hit,
             shadow: None,
+            ao: None,
         });
         self.taken += 1;
         self.transmittance *= 1.0 - light.opacity[i];

@@ -3,12 +3,14 @@
 //! transparent surfaces composited front to back.
 
 pub mod ao_filter;
+pub mod ao_packets;
 pub mod integrate;
 pub mod layers;
 pub mod material;
 pub mod packets;
 pub mod render_loop;
 pub mod sampling;
+pub mod tile_spread;
 
 pub use integrate::{shade_ray, Lighting};
 pub use material::IsoSpec;

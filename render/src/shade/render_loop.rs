@@ -10,10 +10,12 @@ use crate::bvh::packet::Mask;
 use crate::camera::Camera;
 use crate::output::frame::{FrameBuffer, PixelSample};
 use crate::shade::ao_filter::{self, AoRow, AoRows};
+use crate::shade::ao_packets::TileAo;
 use crate::shade::integrate::{shade_hits, KeyShadow, Lighting, SearchHint};
 use crate::shade::layers::TileLayers;
 use crate::shade::packets::{TileHits, TILE_RAYS};
 use crate::shade::sampling::Rng;
+use crate::shade::tile_spread::{self, AO_PACKETS_UP_TO, SHADOW_PACKETS_UP_TO};
 use crate::trace::ray::GridRay;
 use crate::trace::source::GridFrame;
 use crate::trace::tracer::{Paint, SurfaceHit, Tracer};
@@ -224,6 +226,7 @@ fn render_strip<T: Tracer + ?Sized>(
     let mut tile = TileHits::new(tracer.num_surfaces());
     let mut shadows = Box::<KeyShadow>::default();
     let mut layers = Box::<TileLayers>::default();
+    let mut ao = TileAo::default();
     let mut dirs_k = Vec::with_capacity(TILE_RAYS);
     for x0 in xs.clone().step_by(TILE as usize) {
         let x1 = (x0 + TILE).min(xs.end);
@@ -252,7 +255,14 @@ fn render_strip<T: Tracer + ?Sized>(
             dirs_k.clear();
             dirs_k.extend(world.iter().map(|w| w.1));
             layers.trace(&counting, light, &rays, &mut tile);
-            shadows.trace(&counting, light, &dirs_k, &mut layers);
+            // Shadow and AO rays of tiles whose hits lie far apart stay single rays.
+            let spread = tile_spread::spread(rays.len(), |k| layers.of(k).first().map(|l| l.hit));
+            if spread <= SHADOW_PACKETS_UP_TO {
+                shadows.trace(&counting, light, &dirs_k, &mut layers);
+            }
+            if spread <= AO_PACKETS_UP_TO {
+                ao.trace(&counting, light, &dirs_k, &mut rngs, &mut layers);
+            }
             for (k, &(_, y)) in pixels.iter().enumerate() {
                 let row = &mut rows[(y - ys.start) as usize];
                 let ao_layers = record.then_some(row.ao.layers_mut());

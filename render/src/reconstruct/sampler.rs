@@ -1076,15 +1076,6 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         t.values?.get(t.index(t.cell_of(&self.grid, f))).copied()
     }
 
-    /// The level and value of the leaf cell at finest cell `f`, which lies in kd-tree leaf
-    /// `leaf`, read from the leaf's finest brick when that brick is read in place.
-    #[inline(always)]
-    pub(super) fn level_value_in_leaf(&self, leaf: u32, f: [i64; 3]) -> Option<(u32, f32)> {
-        let t = self.tops[leaf as usize].as_ref()?;
-        let &value = t.values?.get(t.index(t.cell_of(&self.grid, f)))?;
-        Some((t.level, value))
-    }
-
     /// The leaf cell at finest cell `f` read from the brick of leaf cell `c`'s kd-tree leaf
     /// (box `leaf_box`) when `f` lies in that leaf and the brick is read in place: the leaf's
     /// finest brick holds every cell of the leaf, so this is [`Self::locate`]'s answer. `None`

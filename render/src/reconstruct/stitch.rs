@@ -16,26 +16,18 @@ use crate::error::Result;
 
 use super::grid::axes;
 use super::interp::{avg8, lerp};
-use super::mixed::holds;
 use super::sampler::{LeafCell, Locate, Octant, Sampler, VertexMemo};
 
 /// What one octant evaluation has learnt while stitching its vertices: coarse octants
-/// evaluated whole, coarse vertex values, the kd-tree leaves met (their boxes), which nearby
-/// cells are read from before they are located, and the coarse leaf cells known to cover their
-/// whole finest box, whose cells are answered without a read.
+/// evaluated whole, coarse vertex values, and kd-tree leaves met (with their boxes), which
+/// nearby cells are read from before they are located.
 pub(super) struct Stitches {
     octants: [(Octant, Option<[f32; 8]>); 4],
     num_octants: usize,
     vertices: [([i64; 3], u32, Option<f32>); 16],
     num_vertices: usize,
-    /// Kd-tree leaves: box and leaf.
-    leaves: [(IBox, u32); 6],
+    leaves: [(LeafCell, IBox); 6],
     num_leaves: usize,
-    /// Whole leaf cells: finest box, level and value.
-    wholes: [(IBox, u32, f32); 4],
-    num_wholes: usize,
-    /// The coarse leaf cell (level and cell) last tested for being whole.
-    last_coarse: Option<(u32, [i64; 3])>,
 }
 
 impl Stitches {
@@ -46,17 +38,20 @@ impl Stitches {
             cell: [0; 3],
             octant: 0,
         };
-        let empty = IBox::new([0; 3], [0; 3]);
+        let placeholder = LeafCell {
+            leaf: 0,
+            brick: 0,
+            level: 0,
+            cell: [0; 3],
+            value: 0.0,
+        };
         Self {
             octants: [(none, None); 4],
             num_octants: 0,
             vertices: [([0; 3], 0, None); 16],
             num_vertices: 0,
-            leaves: [(empty, 0); 6],
+            leaves: [(placeholder, IBox::new([0; 3], [0; 3])); 6],
             num_leaves: 0,
-            wholes: [(empty, 0, 0.0); 4],
-            num_wholes: 0,
-            last_coarse: None,
         }
     }
 
@@ -89,42 +84,27 @@ impl Stitches {
         }
     }
 
-    /// Remembers kd-tree leaf `leaf` (box `leaf_box`), if not yet known and there is room.
-    pub(super) fn add_leaf(&mut self, leaf: u32, leaf_box: IBox) {
+    /// Remembers the kd-tree leaf of leaf cell `c` (box `leaf_box`), if not yet known and
+    /// there is room.
+    pub(super) fn add_leaf(&mut self, c: LeafCell, leaf_box: IBox) {
         let known = &self.leaves[..self.num_leaves];
-        if self.num_leaves < self.leaves.len() && !known.iter().any(|(_, l)| *l == leaf) {
-            self.leaves[self.num_leaves] = (leaf_box, leaf);
+        if self.num_leaves < self.leaves.len() && !known.iter().any(|(k, _)| k.leaf == c.leaf) {
+            self.leaves[self.num_leaves] = (c, leaf_box);
             self.num_leaves += 1;
         }
     }
 
-    /// Remembers that every finest cell of box `b` lies in a leaf cell of `level` and value
-    /// `value`, if not yet known and there is room.
-    fn add_whole(&mut self, b: IBox, level: u32, value: f32) {
-        let known = &self.wholes[..self.num_wholes];
-        if self.num_wholes < self.wholes.len() && !known.iter().any(|(k, _, _)| *k == b) {
-            self.wholes[self.num_wholes] = (b, level, value);
-            self.num_wholes += 1;
-        }
-    }
-
-    /// The level and value of the leaf cell at finest cell `f` when it lies in a whole leaf
-    /// cell met so far, or in a kd-tree leaf met so far whose brick is read in place
-    /// ([`Sampler::value_in_leaf`]).
+    /// The leaf cell at finest cell `f` when it lies in a kd-tree leaf met so far whose brick
+    /// is read in place ([`Sampler::cell_in_leaf`]).
     #[inline(always)]
-    fn level_value<D: AsRef<[u8]>>(
+    pub(super) fn cell_in_leaves<D: AsRef<[u8]>>(
         &self,
         sampler: &Sampler<'_, D>,
         f: [i64; 3],
-    ) -> Option<(u32, f32)> {
-        for (b, level, value) in &self.wholes[..self.num_wholes] {
-            if holds(b, f) {
-                return Some((*level, *value));
-            }
-        }
-        for (b, leaf) in &self.leaves[..self.num_leaves] {
-            if holds(b, f) {
-                return sampler.level_value_in_leaf(*leaf, f);
+    ) -> Option<LeafCell> {
+        for (c, b) in &self.leaves[..self.num_leaves] {
+            if let Some(found) = sampler.cell_in_leaf(c, b, f) {
+                return Some(found);
             }
         }
         None
@@ -210,33 +190,20 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         let s = self.grid().scale(q.level);
         // As `coarse_lerp` computes them.
         let t = axes(|a| ((v[a] - lo[a]) as f64 / s[a] as f64) as f32);
-        // The corners of non-zero weight: per axis, bit `a` of the corner clear where `t` is 0,
-        // set where it is 1.
-        const UPPER: [u8; 3] = [0xAA, 0xCC, 0xF0];
-        let mut needed = 0xFFu8;
-        for a in 0..3 {
-            if t[a] == 0.0 {
-                needed &= !UPPER[a];
-            } else if t[a] == 1.0 {
-                needed &= UPPER[a];
-            }
-        }
         let centre = usize::from(!key.octant & 7);
-        if needed & !(1 << centre) != 0 && known.last_coarse != Some((q.level, q.cell)) {
-            // The coarse cell's other corners read its cells without locating them when it
-            // covers its whole finest box.
-            known.last_coarse = Some((q.level, q.cell));
-            let own = self.grid().finest_box(q.level, q.cell);
-            let domain = IBox::new([0; 3], self.grid().extent());
-            if self.leaf_box(q.leaf).contains_box(&own.intersect(&domain)) {
-                known.add_whole(own, q.level, q.value);
-            }
-        }
         let mut corners = [f32::NAN; 8];
-        while needed != 0 {
-            let n = needed.trailing_zeros() as usize;
-            needed &= needed - 1;
-            corners[n] = if n == centre {
+        for (n, slot) in corners.iter_mut().enumerate() {
+            let needed = (0..3).all(|a| {
+                if n >> a & 1 == 1 {
+                    t[a] != 0.0
+                } else {
+                    t[a] != 1.0
+                }
+            });
+            if !needed {
+                continue;
+            }
+            *slot = if n == centre {
                 q.value
             } else {
                 let w = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
@@ -250,8 +217,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
     }
 
     /// The value at vertex `w` seen from an octant of level `level` ([`Self::vertex_value_in`]'s
-    /// value), its cells read from the whole cells and kd-tree leaves `known` has met where they
-    /// lie there.
+    /// value), its cells read from the kd-tree leaves `known` has met where they lie there.
     fn coarse_vertex<L: Locate>(
         &self,
         loc: &L,
@@ -265,23 +231,13 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         }
         let value = match self.around_known(loc, w, known)? {
             None => None,
-            Some((levels, values)) => {
-                let coarsest = levels.iter().copied().fold(u32::MAX, u32::min);
+            Some(cells) => {
+                let coarsest = cells.iter().map(|c| c.level).min().unwrap_or(level);
                 if coarsest < level {
-                    // The first side of the coarsest level, located again for its cell: the
-                    // same leaf cell as read.
-                    let side = levels.iter().position(|&l| l == coarsest).unwrap_or(0);
-                    let (lo, hi, _) = self.nudges(w);
-                    let f = axes(|a| if side >> a & 1 == 1 { hi[a] } else { lo[a] });
-                    match loc.locate_cell(f)? {
-                        Some(q) => {
-                            let octant = self.octant_toward(w, &q, side);
-                            self.stitched_value(loc, w, &q, octant, known, memo)?
-                        }
-                        None => None,
-                    }
+                    let (q, octant) = self.coarse_octant(w, &cells, coarsest);
+                    self.stitched_value(loc, w, &q, octant, known, memo)?
                 } else {
-                    Some(avg8(&values))
+                    Some(avg8(&cells.map(|c| c.value)))
                 }
             }
         };
@@ -289,36 +245,35 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         Ok(value)
     }
 
-    /// The levels and values of [`Self::around_in`]'s cells, read from the whole cells and
-    /// kd-tree leaves `known` has met before locating them, and remembering the leaves located.
+    /// [`Self::around_in`], reading cells from the kd-tree leaves `known` has met before
+    /// locating them, and remembering the leaves located.
     fn around_known<L: Locate>(
         &self,
         loc: &L,
         v: [i64; 3],
         known: &mut Stitches,
-    ) -> Result<Option<([u32; 8], [f32; 8])>> {
+    ) -> Result<Option<[LeafCell; 8]>> {
         let (lo, hi, same) = self.nudges(v);
-        let mut levels = [0u32; 8];
-        let mut values = [0f32; 8];
+        let mut out = [known.leaves[0].0; 8];
         for n in 0..8 {
             let m = n & !same;
             if m != n {
-                (levels[n], values[n]) = (levels[m], values[m]);
+                out[n] = out[m];
                 continue;
             }
             let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
-            (levels[n], values[n]) = match known.level_value(self, f) {
-                Some(x) => x,
+            out[n] = match known.cell_in_leaves(self, f) {
+                Some(c) => c,
                 None => match loc.locate_cell(f)? {
                     Some(c) => {
-                        known.add_leaf(c.leaf, self.leaf_box(c.leaf));
-                        (c.level, c.value)
+                        known.add_leaf(c, self.leaf_box(c.leaf));
+                        c
                     }
                     None => return Ok(None),
                 },
             };
         }
-        Ok(Some((levels, values)))
+        Ok(Some(out))
     }
 }
 

@@ -10,7 +10,6 @@ pub mod material;
 pub mod packets;
 pub mod render_loop;
 pub mod sampling;
-pub mod tile_spread;
 
 pub use integrate::{shade_ray, Lighting};
 pub use material::IsoSpec;

@@ -15,7 +15,6 @@ use crate::shade::integrate::{shade_hits, KeyShadow, Lighting, SearchHint};
 use crate::shade::layers::TileLayers;
 use crate::shade::packets::{TileHits, TILE_RAYS};
 use crate::shade::sampling::Rng;
-use crate::shade::tile_spread::{self, AO_PACKETS_UP_TO, SHADOW_PACKETS_UP_TO};
 use crate::trace::ray::GridRay;
 use crate::trace::source::GridFrame;
 use crate::trace::tracer::{Paint, SurfaceHit, Tracer};
@@ -255,14 +254,8 @@ fn render_strip<T: Tracer + ?Sized>(
             dirs_k.clear();
             dirs_k.extend(world.iter().map(|w| w.1));
             layers.trace(&counting, light, &rays, &mut tile);
-            // Shadow and AO rays of tiles whose hits lie far apart stay single rays.
-            let spread = tile_spread::spread(rays.len(), |k| layers.of(k).first().map(|l| l.hit));
-            if spread <= SHADOW_PACKETS_UP_TO {
-                shadows.trace(&counting, light, &dirs_k, &mut layers);
-            }
-            if spread <= AO_PACKETS_UP_TO {
-                ao.trace(&counting, light, &dirs_k, &mut rngs, &mut layers);
-            }
+            shadows.trace(&counting, light, &dirs_k, &mut layers);
+            ao.trace(&counting, light, &dirs_k, &mut rngs, &mut layers);
             for (k, &(_, y)) in pixels.iter().enumerate() {
                 let row = &mut rows[(y - ys.start) as usize];
                 let ao_layers = record.then_some(row.ao.layers_mut());

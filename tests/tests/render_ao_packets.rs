@@ -41,11 +41,7 @@ fn single_ray_pixel(
     let mut sum = [0.0f32; 4];
     for s in 0..spp {
         let mut rng = Rng::for_pixel(x, y, s);
-        let (jx, jy) = if spp == 1 {
-            (0.5, 0.5)
-        } else {
-            (rng.next_f64(), rng.next_f64())
-        };
+        let (jx, jy) = rng.subpixel(spp);
         let dir = dirs.dir(f64::from(x) + jx, f64::from(y) + jy);
         let mut hint = SearchHint::default();
         let p: PixelSample = shade_ray(

@@ -183,7 +183,8 @@ pub(crate) fn world_normal(unit: &[f64; 3], grad: [f64; 3]) -> Option<[f64; 3]> 
     normalize([0, 1, 2].map(|a| grad[a] / unit[a]))
 }
 
-fn grid_len(d: [f64; 3]) -> f64 {
+/// The length of a grid-space direction, never zero.
+pub(crate) fn grid_len(d: [f64; 3]) -> f64 {
     dot(d, d).sqrt().max(f64::MIN_POSITIVE)
 }
 

@@ -3,8 +3,7 @@
 //! rays at once, the continuations behind transparent hits traced as packets.
 
 use crate::bvh::packet::{rays_of, Mask, PACKET};
-use crate::camera::dot;
-use crate::shade::integrate::Lighting;
+use crate::shade::integrate::{grid_len, Lighting};
 use crate::shade::packets::TileHits;
 use crate::trace::ray::GridRay;
 use crate::trace::tracer::{SurfaceHit, Tracer};
@@ -114,7 +113,7 @@ struct Behind {
 
 impl Behind {
     fn new(ray: &GridRay, hit: &SurfaceHit) -> Self {
-        let per_t = dot(ray.d, ray.d).sqrt().max(f64::MIN_POSITIVE);
+        let per_t = grid_len(ray.d);
         Self {
             t: hit.t,
             rising: hit.rising,

@@ -240,11 +240,7 @@ fn render_strip<T: Tracer + ?Sized>(
             let mut rays = Vec::with_capacity(pixels.len());
             for &(x, y) in &pixels {
                 let mut rng = Rng::for_pixel(x, y, s);
-                let (jx, jy) = if spp == 1 {
-                    (0.5, 0.5)
-                } else {
-                    (rng.next_f64(), rng.next_f64())
-                };
+                let (jx, jy) = rng.subpixel(spp);
                 let dir = dirs.dir(f64::from(x) + jx, f64::from(y) + jy);
                 rngs.push(rng);
                 world.push((dirs.origin(), dir));

@@ -57,6 +57,16 @@ impl Rng {
         }
     }
 
+    /// Where in its pixel a sample's ray passes, in `[0, 1)^2`: the centre for one sample per
+    /// pixel, else two draws from this generator.
+    pub fn subpixel(&mut self, spp: u32) -> (f64, f64) {
+        if spp == 1 {
+            (0.5, 0.5)
+        } else {
+            (self.next_f64(), self.next_f64())
+        }
+    }
+
     /// The `n` points in `[0, 1)^2` that place the ambient-occlusion rays of one hit when they
     /// are filtered across pixels: the pixel's stratum `k` of the tile's `16 n` points, whose
     /// point `s` lies in the `s`-th of `16 n` equal bands of the first coordinate and at `s`

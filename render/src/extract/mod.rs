@@ -419,19 +419,33 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// [`Self::decode`], remembering vertex values in `memo` for the next calls (a memo must
     /// serve one sampler only: values are keyed by position).
     pub fn decode_memo(&self, r: u64, memo: &mut VertexMemo) -> Result<Voxel> {
-        self.decode_in(r, &self.sampler, memo)
+        self.decode_in(r, &self.sampler, memo, &mut None)
     }
 
     /// [`Self::decode`] through a per-thread `scratch`, which remembers the leaves, vertex
-    /// values and octant corners that nearby voxels and samples share.
-    pub fn decode_with(&self, r: u64, scratch: &mut SampleScratch) -> Result<Voxel> {
+    /// values and octant corners that nearby voxels and samples share, and `last`, the frame of
+    /// the leaf decoded last (kept for the next call; it must serve this extractor only).
+    pub fn decode_with(
+        &self,
+        r: u64,
+        scratch: &mut SampleScratch,
+        last: &mut Option<LeafFrame>,
+    ) -> Result<Voxel> {
         let (loc, memo) = scratch.bind(&self.sampler);
-        self.decode_in(r, &loc, memo)
+        self.decode_in(r, &loc, memo, last)
     }
 
-    /// [`Self::decode_memo`], locating leaf cells through `loc`.
-    fn decode_in<L: Locate>(&self, r: u64, loc: &L, memo: &mut VertexMemo) -> Result<Voxel> {
-        let (frame, cell, octant) = self.resolve(r)?;
+    /// [`Self::decode_memo`], locating leaf cells through `loc` and reusing `last`
+    /// ([`Self::resolve_in`]).
+    fn decode_in<L: Locate>(
+        &self,
+        r: u64,
+        loc: &L,
+        memo: &mut VertexMemo,
+        last: &mut Option<LeafFrame>,
+    ) -> Result<Voxel> {
+        let (frame, cell, octant) = self.resolve_in(r, last)?;
+        let frame = *frame;
         let grid = self.sampler.grid();
         let level = frame.level;
         let (lo, hi) = self.doubled_box(level, cell, octant);
@@ -446,20 +460,23 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     .octant_values_in(loc, &o, memo)?
                     .ok_or_else(|| bad_ref(r, "no values there"))?
             }
-            None => {
-                let mut values = [0f32; 8];
-                for (n, v) in values.iter_mut().enumerate() {
-                    let c = [0, 1, 2].map(|a| cell[a] + (n >> a & 1) as i64);
-                    let at = grid.finest_cell(grid.centre(level, c), 7);
-                    match loc.locate_cell(at)? {
-                        Some(leaf_cell) if leaf_cell.level == level && leaf_cell.cell == c => {
-                            *v = leaf_cell.value
+            None => match self.dual_block_in_leaf(&frame, cell) {
+                Some(values) => values,
+                None => {
+                    let mut values = [0f32; 8];
+                    for (n, v) in values.iter_mut().enumerate() {
+                        let c = [0, 1, 2].map(|a| cell[a] + (n >> a & 1) as i64);
+                        let at = grid.finest_cell(grid.centre(level, c), 7);
+                        match loc.locate_cell(at)? {
+                            Some(leaf_cell) if leaf_cell.level == level && leaf_cell.cell == c => {
+                                *v = leaf_cell.value
+                            }
+                            _ => return Err(bad_ref(r, "not a merged dual cell")),
                         }
-                        _ => return Err(bad_ref(r, "not a merged dual cell")),
                     }
+                    values
                 }
-                values
-            }
+            },
         };
         Ok(Voxel {
             lo: lo.map(|v| v as f64),
@@ -467,6 +484,26 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             values,
             level,
         })
+    }
+
+    /// The values of the merged dual cell whose lowest cell is `cell` (of `frame`'s level), read
+    /// from the brick of `frame`'s leaf in one go when its eight cells lie in that leaf (whose
+    /// cells are all of that level) and the brick is read in place; `None` leaves them to be
+    /// located one by one, which gives the same values where both do.
+    fn dual_block_in_leaf(&self, frame: &LeafFrame, cell: [i64; 3]) -> Option<[f32; 8]> {
+        let grid = self.sampler.grid();
+        let level = frame.level;
+        let hi = cell.map(|c| c + 1);
+        let at_lo = grid.finest_cell(grid.centre(level, cell), 7);
+        let at_hi = grid.finest_cell(grid.centre(level, hi), 7);
+        let inside = frame.finest.contains_cell(at_lo)
+            && frame.finest.contains_cell(at_hi)
+            && grid.cell_of(level, at_lo) == cell
+            && grid.cell_of(level, at_hi) == hi;
+        if !inside {
+            return None;
+        }
+        self.sampler.brick_block(frame.brick, cell, hi)
     }
 
     /// The box, in doubled coordinates, of the voxel `r` names, from the reference alone: no

@@ -518,6 +518,15 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         self.bricks[brick as usize].values
     }
 
+    /// The values of the eight level cells `clo`/`chi` per axis (cell `n` takes `chi` on axis
+    /// `a` when bit `a` of `n` is set; `chi` is `clo` or one more on every axis) of brick
+    /// `brick`, when all eight lie in it and it is read in place; else `None`.
+    #[inline]
+    pub fn brick_block(&self, brick: u32, clo: [i64; 3], chi: [i64; 3]) -> Option<[f32; 8]> {
+        let b = self.bricks.get(brick as usize)?;
+        block_in_brick(&b.cells, b.values?, clo, chi)
+    }
+
     /// Brick `brick`'s values of the sampled field.
     pub fn values(&self, brick: u32) -> Result<Slab<'f>> {
         let file: &'f AmrkFile<D> = self.file;

@@ -1,5 +1,5 @@
-//! The ambient occlusion at the first layers of a tile of rays, its rays traced for the whole
-//! tile at once as packets ([`Tracer::occluded_many`]), for
+//! The ambient occlusion at every layer of a tile of rays, its rays traced for the whole tile at
+//! once as packets ([`Tracer::occluded_many`]), layer by layer, for
 //! [`crate::shade::integrate::shade_hits`] to use ([`Layer::ao`]).
 
 use crate::bvh::packet::{rays_of, Mask, PACKET};
@@ -9,12 +9,12 @@ use crate::shade::sampling::{cosine_hemisphere, Rng};
 use crate::trace::ray::GridRay;
 use crate::trace::tracer::Tracer;
 
-/// The first-layer ambient occlusion of up to [`PACKET`] pixels' rays.
+/// The ambient occlusion at every layer of up to [`PACKET`] pixels' rays.
 ///
-/// Ray `j` of every pixel's hit goes into packet `j` (at most one ray per pixel in a packet):
-/// the rays of a packet leave from neighbouring points of the surface and are short (up to
-/// `ao_distance`), so they share the tree's nodes near their origins whatever their directions;
-/// the walk splits each packet by direction octant.
+/// Layer by layer, ray `j` of every pixel's hit goes into packet `j` (at most one ray per pixel
+/// in a packet): the rays of a packet leave from neighbouring points of the surface and are
+/// short (up to `ao_distance`), so they share the tree's nodes near their origins whatever their
+/// directions; the walk splits each packet by direction octant.
 #[derive(Default)]
 pub struct TileAo {
     /// Ray `j` of pixel `k` at `j * PACKET + k`.
@@ -25,10 +25,10 @@ pub struct TileAo {
 }
 
 impl TileAo {
-    /// Traces the ambient-occlusion rays of the first layers of up to [`PACKET`] rays
-    /// (`layers`; `dirs[k]` is ray `k`'s world direction and `rngs[k]` its pixel's generator,
-    /// which moves on as shading the layer moves it) and sets their [`Layer::ao`] where the layer
-    /// is shaded with it. Each value is the one [`crate::shade::integrate::shade_hits`] computes
+    /// Traces the ambient-occlusion rays of every layer of up to [`PACKET`] rays (`layers`;
+    /// `dirs[k]` is ray `k`'s world direction and `rngs[k]` its pixel's generator, which moves
+    /// on layer after layer as shading the layers moves it) and sets their [`Layer::ao`] where
+    /// the layer is shaded with it. Each value is the one [`crate::shade::integrate::shade_hits`] computes
     /// for the layer alone: the same rays, each one's surfaces asked in the same order, up to the
     /// same one, the sum in the same order.
     pub fn trace<T: Tracer + ?Sized>(
@@ -53,62 +53,65 @@ impl TileAo {
         self.tmin.resize(per_hit * PACKET, 0.0);
         self.open.resize(per_hit * PACKET, 0.0);
         let frame = tracer.frame();
-        let mut shaded: Mask = 0;
-        for (k, rng) in rngs.iter_mut().enumerate() {
-            let Some(&Layer {
-                surface: i, hit, ..
-            }) = layers.of(k).first()
-            else {
-                continue;
-            };
-            if tracer.paint(i, &hit).is_some_and(|p| !p.lit) {
-                continue;
-            }
-            shaded |= 1 << k;
-            let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dirs[k].map(|x| -x));
-            let nf = facing(&hit, normal);
-            let mut put = |j: usize, (u1, u2)| {
-                let d = cosine_hemisphere(nf, u1, u2);
-                let (ray, tmin) = ray_off(&frame, &hit, nf, d, 0.0);
-                self.rays[j * PACKET + k] = ray;
-                self.tmin[j * PACKET + k] = tmin;
-                self.open[j * PACKET + k] = 1.0;
-            };
-            if light.ao_filter {
-                rng.ao_tile_pattern(light.ao_rays)
-                    .enumerate()
-                    .for_each(|(j, u)| put(j, u));
-            } else {
-                rng.ao_pattern(light.ao_rays)
-                    .enumerate()
-                    .for_each(|(j, u)| put(j, u));
-            }
-        }
-        for j in 0..per_hit {
-            let at = j * PACKET;
-            let mut live = shaded;
-            for s in occluder_order(light, tracer.num_surfaces()) {
-                if live == 0 {
-                    break;
+        let deepest = (0..m).map(|k| layers.of(k).len()).max().unwrap_or(0);
+        for l in 0..deepest {
+            let mut shaded: Mask = 0;
+            for (k, rng) in rngs.iter_mut().enumerate() {
+                let Some(&Layer {
+                    surface: i, hit, ..
+                }) = layers.of(k).get(l)
+                else {
+                    continue;
+                };
+                if tracer.paint(i, &hit).is_some_and(|p| !p.lit) {
+                    continue;
                 }
-                let rays = &self.rays[at..at + m];
-                let tmin = &self.tmin[at..at + m];
-                let hit = tracer.occluded_many(s, rays, tmin, light.ao_distance, live);
-                for k in rays_of(hit) {
-                    let t = &mut self.open[at + k];
-                    *t *= 1.0 - f64::from(light.opacity[s]);
-                    if *t == 0.0 {
-                        live &= !(1 << k);
+                shaded |= 1 << k;
+                let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dirs[k].map(|x| -x));
+                let nf = facing(&hit, normal);
+                let mut put = |j: usize, (u1, u2)| {
+                    let d = cosine_hemisphere(nf, u1, u2);
+                    let (ray, tmin) = ray_off(&frame, &hit, nf, d, 0.0);
+                    self.rays[j * PACKET + k] = ray;
+                    self.tmin[j * PACKET + k] = tmin;
+                    self.open[j * PACKET + k] = 1.0;
+                };
+                if light.ao_filter {
+                    rng.ao_tile_pattern(light.ao_rays)
+                        .enumerate()
+                        .for_each(|(j, u)| put(j, u));
+                } else {
+                    rng.ao_pattern(light.ao_rays)
+                        .enumerate()
+                        .for_each(|(j, u)| put(j, u));
+                }
+            }
+            for j in 0..per_hit {
+                let at = j * PACKET;
+                let mut live = shaded;
+                for s in occluder_order(light, tracer.num_surfaces()) {
+                    if live == 0 {
+                        break;
+                    }
+                    let rays = &self.rays[at..at + m];
+                    let tmin = &self.tmin[at..at + m];
+                    let hit = tracer.occluded_many(s, rays, tmin, light.ao_distance, live);
+                    for k in rays_of(hit) {
+                        let t = &mut self.open[at + k];
+                        *t *= 1.0 - f64::from(light.opacity[s]);
+                        if *t == 0.0 {
+                            live &= !(1 << k);
+                        }
                     }
                 }
             }
-        }
-        for k in rays_of(shaded) {
-            let mut open = 0.0;
-            for j in 0..per_hit {
-                open += self.open[j * PACKET + k];
+            for k in rays_of(shaded) {
+                let mut open = 0.0;
+                for j in 0..per_hit {
+                    open += self.open[j * PACKET + k];
+                }
+                layers.of_mut(k)[l].ao = Some(open / f64::from(light.ao_rays));
             }
-            layers.of_mut(k)[0].ao = Some(open / f64::from(light.ao_rays));
         }
     }
 }

@@ -17,6 +17,7 @@ use crate::bvh::packet::{rays_of, Mask};
 use crate::error::{RenderError, Result};
 use crate::extract::current::CurrentVoxels;
 use crate::extract::nearest::NearestFaces;
+use crate::extract::leaf::LeafFrame;
 use crate::extract::{candidate_leaves, ExtractStats, Extraction, Extractor, Region};
 use crate::mapping::PageRelease;
 use crate::reconstruct::level_gradient::LevelBlocks;
@@ -52,6 +53,8 @@ enum Voxels<'f, D> {
 struct VoxelCache {
     slots: Vec<(u64, Voxel)>,
     scratch: SampleScratch,
+    /// The frame of the leaf of the voxel decoded last.
+    leaf: Option<LeafFrame>,
     blocks: LevelBlocks,
 }
 
@@ -222,10 +225,15 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         self.failed.store(true, Ordering::Release);
     }
 
-    /// Decodes `r`.
-    fn decode(&self, r: u64, scratch: &mut SampleScratch) -> Result<Voxel> {
+    /// Decodes `r` (`last`: the frame of the leaf of the last voxel decoded, kept for the next).
+    fn decode(
+        &self,
+        r: u64,
+        scratch: &mut SampleScratch,
+        last: &mut Option<LeafFrame>,
+    ) -> Result<Voxel> {
         match &self.voxels {
-            Voxels::Octant(e) => e.decode_with(r, scratch),
+            Voxels::Octant(e) => e.decode_with(r, scratch, last),
             Voxels::Current(s) => CurrentVoxels::new(s).decode(r),
             Voxels::Nearest(s) => NearestFaces::new(s).decode(r),
         }
@@ -238,6 +246,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
             RefCell::new(VoxelCache {
                 slots: vec![(u64::MAX, Voxel::EMPTY); VOXEL_CACHE_SLOTS],
                 scratch: SampleScratch::default(),
+                leaf: None,
                 blocks: LevelBlocks::default(),
             })
         })
@@ -257,7 +266,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         if key == r && r != u64::MAX {
             return v;
         }
-        let v = match self.decode(r, &mut cache.scratch) {
+        let v = match self.decode(r, &mut cache.scratch, &mut cache.leaf) {
             Ok(v) => v,
             Err(e) => {
                 self.record(e);

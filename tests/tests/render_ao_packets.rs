@@ -1,10 +1,11 @@
-//! The frame loop traces the first layer's shadow and ambient-occlusion rays of a tile as
-//! packets (`KeyShadow`, `TileAo`) where the tile's hits lie close together, and single rays
-//! elsewhere; either way every pixel is the one the single-ray shader ([`shade_ray`]) gives it:
-//! the same AO rays, the pixel's random pattern moved on the same way for the hits behind,
-//! the same sums. Checked on frames of an opaque surface behind a transparent one, with the
-//! per-pixel AO pattern (one sample per pixel) and the pattern spread over tiles (two samples
-//! per pixel, so that the cross-pixel filter stays off and pixels compare one by one).
+//! The frame loop traces the shadow and ambient-occlusion rays of every layer of a tile as
+//! packets (`KeyShadow`, `TileAo`: the AO rays layer by layer, each pixel's pattern drawn in
+//! layer order); every pixel is the one the single-ray shader ([`shade_ray`]) gives it: the
+//! same AO rays, the pixel's random pattern moved on the same way for the hits behind, the same
+//! sums. Checked on frames of an opaque surface behind a transparent one (so the second
+//! layer's AO rays are packets too), close and far, with the per-pixel AO pattern (one sample
+//! per pixel) and the pattern spread over tiles (two samples per pixel, so that the cross-pixel
+//! filter stays off and pixels compare one by one).
 
 use amr_render::camera::Camera;
 use amr_render::output::frame::{FrameBuffer, PixelSample};
@@ -62,7 +63,7 @@ fn single_ray_pixel(
 }
 
 #[test]
-fn first_layer_packets_shade_every_pixel_as_single_rays_do() {
+fn layer_packets_shade_every_pixel_as_single_rays_do() {
     let dir = tempfile::tempdir().unwrap();
     let path = two_level(dir.path(), Case::Blobs);
     let mut scene = Scene::open(&path, &SceneOptions::default()).unwrap();
@@ -76,7 +77,7 @@ fn first_layer_packets_shade_every_pixel_as_single_rays_do() {
         surfaces: scene.surfaces(),
         smooth_normals: true,
     };
-    // A close view (tiles of packets) and a far one (tiles of single rays).
+    // A close view and a far one (hits of a tile close together, and far apart).
     let cameras = [
         Camera::new([0.8, 0.7, 1.1], [0.5, 0.5, 0.5], [0.0, 1.0, 0.0], 25.0).unwrap(),
         Camera::new([2.5, 2.0, 3.5], [0.5, 0.5, 0.5], [0.0, 1.0, 0.0], 30.0).unwrap(),

@@ -29,7 +29,7 @@
 //! - [`render_accuracy`]: the hybrid method against the sample method.
 //! - [`render_golden`]: a golden image.
 //! - [`render_packets`]: packets of primary rays find each ray's single-ray hit.
-//! - [`render_ao_packets`]: frames whose first-layer shadow and AO rays are traced as packets
+//! - [`render_ao_packets`]: frames whose shadow and AO rays of every layer are traced as packets
 //!   equal the single-ray shader's pixel for pixel.
 //! - [`render_ao_filter`]: the ambient occlusion filtered across pixels: less noise, and tiles
 //!   equal to the whole frame.

@@ -153,6 +153,27 @@ struct Rows {
     nz: usize,
 }
 
+impl Rows {
+    /// The index one past the last cell of the rows of `w` cells starting at `first`, rows
+    /// `y` and planes `z` apart; `None` on overflow. `first` when there are no rows.
+    fn end(&self, first: usize, (y, z): (usize, usize), w: usize) -> Option<usize> {
+        if self.ny == 0 || self.nz == 0 || w == 0 {
+            return Some(first);
+        }
+        first
+            .checked_add((self.nz - 1).checked_mul(z)?)?
+            .checked_add((self.ny - 1).checked_mul(y)?)?
+            .checked_add(w)
+    }
+
+    /// True when the rows of `w` cells lie inside `dst` cells and `src` cells.
+    fn fit(&self, dst: usize, src: usize, w: usize) -> bool {
+        let fits = |end: Option<usize>, len: usize| end.is_some_and(|e| e <= len);
+        fits(self.end(self.dst, (self.dst_y, self.dst_z), w), dst)
+            && fits(self.end(self.src, (self.src_y, self.src_z), w), src)
+    }
+}
+
 /// A finer level's cells and its number of cells per neighbourhood cell along each axis.
 type FinerCells = (LevelCells, [i64; 3]);
 
@@ -401,16 +422,46 @@ impl Neighbourhood {
     }
 
     /// Copies `rows` of `w` cells of `tile` (kinds, bounds, pending flags) into these cells.
+    /// The bounds are checked once for all rows and arrays: four slices of a few cells checked
+    /// per row cost more than their copies. Rows that do not fit are a bug, and copy nothing.
     #[inline(always)]
     fn copy_rows_of(&mut self, tile: &Neighbourhood, rows: &Rows, w: usize) {
+        let n = self.kind.len();
+        let same = |a: usize, b: usize, c: usize| a == n && b == n && c == n;
+        let t = tile.kind.len();
+        let ok = same(self.lo.len(), self.hi.len(), self.coarse_pending.len())
+            && [tile.lo.len(), tile.hi.len(), tile.coarse_pending.len()] == [t; 3]
+            && rows.fit(n, t, w);
+        debug_assert!(ok, "tile rows outside the cells");
+        if !ok {
+            return;
+        }
+        let dst = (
+            self.kind.as_mut_ptr(),
+            self.lo.as_mut_ptr(),
+            self.hi.as_mut_ptr(),
+            self.coarse_pending.as_mut_ptr(),
+        );
+        let src = (
+            tile.kind.as_ptr(),
+            tile.lo.as_ptr(),
+            tile.hi.as_ptr(),
+            tile.coarse_pending.as_ptr(),
+        );
         let (mut dz, mut sz) = (rows.dst, rows.src);
         for _ in 0..rows.nz {
             let (mut d, mut s) = (dz, sz);
             for _ in 0..rows.ny {
-                self.kind[d..d + w].copy_from_slice(&tile.kind[s..s + w]);
-                self.lo[d..d + w].copy_from_slice(&tile.lo[s..s + w]);
-                self.hi[d..d + w].copy_from_slice(&tile.hi[s..s + w]);
-                self.coarse_pending[d..d + w].copy_from_slice(&tile.coarse_pending[s..s + w]);
+                // SAFETY: every row lies below the ends checked above (`d + w <= n`, the length
+                // of each of the four destination arrays, and `s + w <= t`, that of each source
+                // array); the destinations are this neighbourhood's own vectors, borrowed
+                // mutably, and the sources another's, so no two overlap.
+                unsafe {
+                    std::ptr::copy_nonoverlapping(src.0.add(s), dst.0.add(d), w);
+                    std::ptr::copy_nonoverlapping(src.1.add(s), dst.1.add(d), w);
+                    std::ptr::copy_nonoverlapping(src.2.add(s), dst.2.add(d), w);
+                    std::ptr::copy_nonoverlapping(src.3.add(s), dst.3.add(d), w);
+                }
                 d += rows.dst_y;
                 s += rows.src_y;
             }

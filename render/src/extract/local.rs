@@ -95,49 +95,6 @@ impl LevelCells {
     }
 }
 
-/// Copies `src` into `dst` (of the same length) by moves of a known length when it holds at
-/// most 8 values: the rows of small leaves hold 2 to 4 cells, where a call to `memcpy` costs
-/// several times the copy.
-#[inline(always)]
-fn copy_short<T: Copy>(dst: &mut [T], src: &[T]) {
-    #[inline(always)]
-    fn fixed<const N: usize, T: Copy>(dst: &mut [T], src: &[T]) {
-        dst[..N].copy_from_slice(&src[..N]);
-    }
-    match src.len() {
-        1 => fixed::<1, T>(dst, src),
-        2 => fixed::<2, T>(dst, src),
-        3 => fixed::<3, T>(dst, src),
-        4 => fixed::<4, T>(dst, src),
-        5 => fixed::<5, T>(dst, src),
-        6 => fixed::<6, T>(dst, src),
-        7 => fixed::<7, T>(dst, src),
-        8 => fixed::<8, T>(dst, src),
-        _ => dst.copy_from_slice(src),
-    }
-}
-
-/// Sets every value of `dst` to `v`, by stores of a known length when it holds at most 8
-/// values (see [`copy_short`]).
-#[inline(always)]
-fn fill_short<T: Copy>(dst: &mut [T], v: T) {
-    #[inline(always)]
-    fn fixed<const N: usize, T: Copy>(dst: &mut [T], v: T) {
-        dst[..N].copy_from_slice(&[v; N]);
-    }
-    match dst.len() {
-        1 => fixed::<1, T>(dst, v),
-        2 => fixed::<2, T>(dst, v),
-        3 => fixed::<3, T>(dst, v),
-        4 => fixed::<4, T>(dst, v),
-        5 => fixed::<5, T>(dst, v),
-        6 => fixed::<6, T>(dst, v),
-        7 => fixed::<7, T>(dst, v),
-        8 => fixed::<8, T>(dst, v),
-        _ => dst.fill(v),
-    }
-}
-
 /// The rows of a box inside two boxes of cells, x fastest: where the first row starts in each
 /// and how far apart rows (along y) and planes (along z) of rows lie.
 struct Rows {
@@ -151,6 +108,42 @@ struct Rows {
     ny: usize,
     /// Planes.
     nz: usize,
+}
+
+impl Rows {
+    /// The rows of box `b`, inside both boxes of cells `dst` and `src`.
+    fn of(b: &IBox, dst: &IBox, src: &IBox) -> Self {
+        let (de, se, be) = (dst.extent(), src.extent(), b.extent());
+        Self {
+            dst: dst.linear_index(b.lo),
+            src: src.linear_index(b.lo),
+            dst_y: de[0] as usize,
+            src_y: se[0] as usize,
+            dst_z: (de[0] * de[1]) as usize,
+            src_z: (se[0] * se[1]) as usize,
+            ny: be[1] as usize,
+            nz: be[2] as usize,
+        }
+    }
+
+    /// The index one past the last cell of the rows of `w` cells starting at `first`, rows
+    /// `y` and planes `z` apart; `None` on overflow. `first` when there are no rows.
+    fn end(&self, first: usize, (y, z): (usize, usize), w: usize) -> Option<usize> {
+        if self.ny == 0 || self.nz == 0 || w == 0 {
+            return Some(first);
+        }
+        first
+            .checked_add((self.nz - 1).checked_mul(z)?)?
+            .checked_add((self.ny - 1).checked_mul(y)?)?
+            .checked_add(w)
+    }
+
+    /// True when the rows of `w` cells lie inside `dst` cells and `src` cells.
+    fn fit(&self, dst: usize, src: usize, w: usize) -> bool {
+        let fits = |end: Option<usize>, len: usize| end.is_some_and(|e| e <= len);
+        fits(self.end(self.dst, (self.dst_y, self.dst_z), w), dst)
+            && fits(self.end(self.src, (self.src_y, self.src_z), w), src)
+    }
 }
 
 /// A finer level's cells and its number of cells per neighbourhood cell along each axis.
@@ -305,21 +298,14 @@ impl Neighbourhood {
                     self.bound_finer(sampler, map, &part, brick)?;
                 }
                 Some((brick, _)) => {
-                    let values = sampler.values(brick)?;
+                    let slab = sampler.values(brick)?;
+                    let values: &[f32] = &slab;
                     let bc = sampler.brick_cells(brick);
                     let block = block.intersect(&bc);
                     if block.is_empty() {
                         continue;
                     }
-                    for z in block.lo[2]..block.hi[2] {
-                        for y in block.lo[1]..block.hi[1] {
-                            let src = bc.linear_index([block.lo[0], y, z]);
-                            let dst = g.linear_index([block.lo[0], y, z]);
-                            let w = (block.hi[0] - block.lo[0]) as usize;
-                            fill_short(&mut self.kind[dst..dst + w], LEAF);
-                            copy_short(&mut self.lo[dst..dst + w], &values[src..src + w]);
-                        }
-                    }
+                    self.set_leaf_rows(&Rows::of(&block, &g, &bc), values, block.extent()[0]);
                 }
             }
         }
@@ -369,17 +355,8 @@ impl Neighbourhood {
         if b.is_empty() {
             return;
         }
-        let (ge, te, be) = (g.extent(), tile.cells.extent(), b.extent());
-        let rows = Rows {
-            dst: g.linear_index(b.lo),
-            src: tile.cells.linear_index(b.lo),
-            dst_y: ge[0] as usize,
-            src_y: te[0] as usize,
-            dst_z: (ge[0] * ge[1]) as usize,
-            src_z: (te[0] * te[1]) as usize,
-            ny: be[1] as usize,
-            nz: be[2] as usize,
-        };
+        let rows = Rows::of(&b, &g, &tile.cells);
+        let be = b.extent();
         // One copy loop per row length, so that each row is moved by fixed-length moves.
         match be[0] {
             1 => self.copy_rows::<1>(tile, &rows),
@@ -401,16 +378,97 @@ impl Neighbourhood {
     }
 
     /// Copies `rows` of `w` cells of `tile` (kinds, bounds, pending flags) into these cells.
+    /// The bounds are checked once for all rows and arrays: four slices of a few cells checked
+    /// per row cost more than their copies. Rows that do not fit are a bug, and copy nothing.
     #[inline(always)]
     fn copy_rows_of(&mut self, tile: &Neighbourhood, rows: &Rows, w: usize) {
+        let n = self.kind.len();
+        let same = |a: usize, b: usize, c: usize| a == n && b == n && c == n;
+        let t = tile.kind.len();
+        let ok = same(self.lo.len(), self.hi.len(), self.coarse_pending.len())
+            && [tile.lo.len(), tile.hi.len(), tile.coarse_pending.len()] == [t; 3]
+            && rows.fit(n, t, w);
+        debug_assert!(ok, "tile rows outside the cells");
+        if !ok {
+            return;
+        }
+        let dst = (
+            self.kind.as_mut_ptr(),
+            self.lo.as_mut_ptr(),
+            self.hi.as_mut_ptr(),
+            self.coarse_pending.as_mut_ptr(),
+        );
+        let src = (
+            tile.kind.as_ptr(),
+            tile.lo.as_ptr(),
+            tile.hi.as_ptr(),
+            tile.coarse_pending.as_ptr(),
+        );
         let (mut dz, mut sz) = (rows.dst, rows.src);
         for _ in 0..rows.nz {
             let (mut d, mut s) = (dz, sz);
             for _ in 0..rows.ny {
-                self.kind[d..d + w].copy_from_slice(&tile.kind[s..s + w]);
-                self.lo[d..d + w].copy_from_slice(&tile.lo[s..s + w]);
-                self.hi[d..d + w].copy_from_slice(&tile.hi[s..s + w]);
-                self.coarse_pending[d..d + w].copy_from_slice(&tile.coarse_pending[s..s + w]);
+                // SAFETY: every row lies below the ends checked above (`d + w <= n`, the length
+                // of each of the four destination arrays, and `s + w <= t`, that of each source
+                // array); the destinations are this neighbourhood's own vectors, borrowed
+                // mutably, and the sources another's, so no two overlap.
+                unsafe {
+                    std::ptr::copy_nonoverlapping(src.0.add(s), dst.0.add(d), w);
+                    std::ptr::copy_nonoverlapping(src.1.add(s), dst.1.add(d), w);
+                    std::ptr::copy_nonoverlapping(src.2.add(s), dst.2.add(d), w);
+                    std::ptr::copy_nonoverlapping(src.3.add(s), dst.3.add(d), w);
+                }
+                d += rows.dst_y;
+                s += rows.src_y;
+            }
+            dz += rows.dst_z;
+            sz += rows.src_z;
+        }
+    }
+
+    /// Makes the cells of `rows` of `w` cells [`LEAF`] cells with the values of the same rows
+    /// of a brick's `values`.
+    fn set_leaf_rows(&mut self, rows: &Rows, values: &[f32], w: i64) {
+        // One loop per row length, so that each short row is moved by fixed-length moves.
+        match w {
+            1 => self.set_leaf_rows_of(rows, values, 1),
+            2 => self.set_leaf_rows_of(rows, values, 2),
+            3 => self.set_leaf_rows_of(rows, values, 3),
+            4 => self.set_leaf_rows_of(rows, values, 4),
+            5 => self.set_leaf_rows_of(rows, values, 5),
+            6 => self.set_leaf_rows_of(rows, values, 6),
+            7 => self.set_leaf_rows_of(rows, values, 7),
+            8 => self.set_leaf_rows_of(rows, values, 8),
+            w => self.set_leaf_rows_of(rows, values, w.max(0) as usize),
+        }
+    }
+
+    /// [`Self::set_leaf_rows`], inlined for each row length. The bounds are checked once for
+    /// all rows, as in [`Self::copy_rows_of`]; rows that do not fit are a bug, and set nothing.
+    #[inline(always)]
+    fn set_leaf_rows_of(&mut self, rows: &Rows, values: &[f32], w: usize) {
+        let n = self.kind.len();
+        let ok = self.lo.len() == n && rows.fit(n, values.len(), w);
+        debug_assert!(ok, "brick rows outside the cells");
+        if !ok {
+            return;
+        }
+        let (kind, lo, src) = (
+            self.kind.as_mut_ptr(),
+            self.lo.as_mut_ptr(),
+            values.as_ptr(),
+        );
+        let (mut dz, mut sz) = (rows.dst, rows.src);
+        for _ in 0..rows.nz {
+            let (mut d, mut s) = (dz, sz);
+            for _ in 0..rows.ny {
+                // SAFETY: every row lies below the ends checked above (`d + w <= n`, the length
+                // of `kind` and of `lo`, and `s + w <= values.len()`); `values` is a brick's data,
+                // not this neighbourhood's vectors, which are borrowed mutably.
+                unsafe {
+                    std::ptr::write_bytes(kind.add(d), LEAF, w);
+                    std::ptr::copy_nonoverlapping(src.add(s), lo.add(d), w);
+                }
                 d += rows.dst_y;
                 s += rows.src_y;
             }

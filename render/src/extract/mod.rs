@@ -378,12 +378,12 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// The tight range of every leaf and the bounds of its parts, computed from the file's data
     /// and tables (what a file of layout version 4 stores, see [`tight_tables_of`]), whatever
     /// the file stores, passed to `each` leaf after leaf (the leaf, its tight range and its
-    /// parts' bounds, packed, empty for a leaf extracted whole); leaves in parallel, a chunk at
+    /// parts' bounds, empty for a leaf extracted whole); leaves in parallel, a chunk at
     /// a time, releasing the map's pages after each chunk when a [`PageRelease`] is set. Only
     /// one chunk's results are held at a time.
     pub fn computed_tables(
         &self,
-        mut each: impl FnMut(u32, (f32, f32), &[u64]) -> Result<()>,
+        mut each: impl FnMut(u32, (f32, f32), &[(f32, f32)]) -> Result<()>,
     ) -> Result<()> {
         let loose = self.blocks.loose();
         let tight_blocks = if self.blocks.stored() {
@@ -394,7 +394,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let file = self.sampler.file();
         let all: Vec<u32> = (0..file.num_leaves() as u32).collect();
         for chunk in self.chunks(&all) {
-            let tables: Vec<Result<((f32, f32), Vec<u64>)>> = chunk
+            let tables: Vec<Result<((f32, f32), Vec<(f32, f32)>)>> = chunk
                 .par_iter()
                 .map_init(
                     || {
@@ -735,13 +735,8 @@ pub fn tight_tables_of(
     for field in 0..file.fields().len() {
         let mut ex = Extractor::new(&file, field, CACHE_BYTES).map_err(|e| e.to_string())?;
         ex.set_page_release(PageRelease::new(&file));
-        let mut bounds = Vec::new();
-        ex.computed_tables(|_, range, parts| {
-            bounds.clear();
-            bounds.extend(parts.iter().map(|&b| tight::unpack(b)));
-            sink.push(range, &bounds).map_err(RenderError::Invalid)
-        })
-        .map_err(|e| e.to_string())?;
+        ex.computed_tables(|_, range, parts| sink.push(range, parts).map_err(RenderError::Invalid))
+            .map_err(|e| e.to_string())?;
     }
     Ok(())
 }

@@ -29,7 +29,7 @@ use super::blocks::BlockRanges;
 use super::halo::Halo;
 use super::leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
 use super::leaf_tree::LeafTree;
-use super::tight::{box_range_flat, box_range_in, pack, unpack, Regions, TreeRegions};
+use super::tight::{box_range_flat, box_range_in, Regions, TreeRegions};
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::Sampler;
 
@@ -38,11 +38,10 @@ use crate::reconstruct::Sampler;
 pub const PART_CELLS: i64 = 8;
 
 /// The bounds of the parts of every leaf: the file's, when it stores them for this part size,
-/// else those of every leaf extracted so far, in part order (x fastest), packed ([`pack`]);
-/// filled from any thread.
+/// else those of every leaf extracted so far, in part order (x fastest); filled from any thread.
 pub struct PartRanges {
     stored: bool,
-    leaves: Box<[OnceLock<Box<[u64]>>]>,
+    leaves: Box<[OnceLock<Box<[(f32, f32)]>>]>,
 }
 
 impl PartRanges {
@@ -161,8 +160,7 @@ impl PartGrid {
     }
 }
 
-/// The bounds of the parts of `frame`'s leaf, in part order, packed ([`pack`]); empty for a
-/// leaf extracted whole. `bounds`: the block ranges (the file's, or built) and the leaf tree;
+/// The bounds of the parts of `frame`'s leaf, in part order; empty for a leaf extracted whole. `bounds`: the block ranges (the file's, or built) and the leaf tree;
 /// `around`: the leaves around the leaf ([`Halo::new`] of its box and level over the stored
 /// blocks alone), when the caller gathered them already.
 pub fn leaf_part_ranges<D: AsRef<[u8]>>(
@@ -170,7 +168,7 @@ pub fn leaf_part_ranges<D: AsRef<[u8]>>(
     frame: &LeafFrame,
     bounds: (&BlockRanges, &LeafTree),
     around: Option<&Halo<'_, '_, D>>,
-) -> Result<Vec<u64>> {
+) -> Result<Vec<(f32, f32)>> {
     let Some(parts) = PartGrid::of(sampler, frame) else {
         return Ok(Vec::new());
     };
@@ -207,7 +205,7 @@ pub fn leaf_part_ranges<D: AsRef<[u8]>>(
                 } else {
                     part_range(sampler, frame, (bounds.0, around), flat, &finest)?
                 };
-                r.push(pack(range));
+                r.push(range);
             }
         }
     }
@@ -253,7 +251,7 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
     let bound = |i: usize| -> (f32, f32) {
         let b = match (stored, computed) {
             (Some(s), _) => s.get(i).map(|r| (r.min.get(), r.max.get())),
-            (None, Some(c)) => c.get(i).map(|&b| unpack(b)),
+            (None, Some(c)) => c.get(i).copied(),
             (None, None) => None,
         };
         b.unwrap_or((f32::NEG_INFINITY, f32::INFINITY))

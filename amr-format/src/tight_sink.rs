@@ -11,8 +11,8 @@ use crate::raw::{LeafRange, PartTable, Section};
 use crate::value_range::valid_tight_range;
 use crate::writer::MetaWriter;
 
-/// Bytes of part bounds gathered before they are written.
-const BUFFER_BYTES: usize = 1 << 20;
+/// Bytes of part bounds gathered before they are written, at most.
+const BUFFER_BYTES: usize = 64 << 10;
 
 /// Receives the tables a [`crate::writer::TightFn`] computes; see the module documentation.
 pub struct TightSink<'a, 'f> {
@@ -45,7 +45,7 @@ impl<'a, 'f> TightSink<'a, 'f> {
             part_cells: None,
             ranges_at: None,
             parts: 0,
-            buffer: Vec::new(),
+            buffer: Vec::with_capacity(BUFFER_BYTES),
         }
     }
 
@@ -114,6 +114,9 @@ impl<'a, 'f> TightSink<'a, 'f> {
             max: tight.1.into(),
         });
         for &(lo, hi) in parts {
+            if self.buffer.len() + size_of::<LeafRange>() > BUFFER_BYTES {
+                self.flush().map_err(|e| e.to_string())?;
+            }
             let r = LeafRange {
                 min: lo.into(),
                 max: hi.into(),
@@ -121,9 +124,6 @@ impl<'a, 'f> TightSink<'a, 'f> {
             self.buffer.extend_from_slice(r.as_bytes());
         }
         self.parts += parts.len() as u64;
-        if self.buffer.len() >= BUFFER_BYTES {
-            self.flush().map_err(|e| e.to_string())?;
-        }
         self.next = if leaf + 1 == self.leaves {
             (field + 1, 0)
         } else {

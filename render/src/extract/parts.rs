@@ -41,7 +41,9 @@ pub const PART_CELLS: i64 = 8;
 /// else those of every leaf extracted so far, in part order (x fastest); filled from any thread.
 pub struct PartRanges {
     stored: bool,
-    leaves: Box<[OnceLock<Box<[(f32, f32)]>>]>,
+    /// Per leaf, once the first leaf's are computed (never, on a file that stores them).
+    leaves: OnceLock<Box<[OnceLock<Box<[(f32, f32)]>>]>>,
+    num_leaves: usize,
 }
 
 impl PartRanges {
@@ -52,7 +54,8 @@ impl PartRanges {
         let file = sampler.file();
         let computed = || Self {
             stored: false,
-            leaves: (0..file.num_leaves()).map(|_| OnceLock::new()).collect(),
+            leaves: OnceLock::new(),
+            num_leaves: file.num_leaves(),
         };
         let (Some(stored), Some(block)) = (file.part_cells(), file.block_cells()) else {
             return Ok(computed());
@@ -76,7 +79,8 @@ impl PartRanges {
         }
         Ok(Self {
             stored: true,
-            leaves: Box::new([]),
+            leaves: OnceLock::new(),
+            num_leaves: file.num_leaves(),
         })
     }
 
@@ -236,7 +240,10 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
     let computed = match stored {
         Some(_) => None,
         None => {
-            let slot = &kept.leaves[frame.leaf as usize];
+            let all = kept
+                .leaves
+                .get_or_init(|| (0..kept.num_leaves).map(|_| OnceLock::new()).collect());
+            let slot = &all[frame.leaf as usize];
             Some(match slot.get() {
                 Some(r) => r,
                 None => {

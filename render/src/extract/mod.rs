@@ -394,7 +394,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let file = self.sampler.file();
         let all: Vec<u32> = (0..file.num_leaves() as u32).collect();
         for chunk in self.chunks(&all) {
-            let tables: Vec<Result<((f32, f32), Vec<(f32, f32)>)>> = chunk
+            let tables: Vec<Result<LeafTables>> = chunk
                 .par_iter()
                 .map_init(
                     || {
@@ -616,6 +616,9 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         }
     }
 }
+
+/// A leaf's tight range and its parts' bounds.
+type LeafTables = ((f32, f32), Vec<(f32, f32)>);
 
 /// A leaf's tight range, and the leaves around it when they were gathered to compute it.
 type RangeAndHalo<'a, 'f, D> = ((f32, f32), Option<Halo<'a, 'f, D>>);

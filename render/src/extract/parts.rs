@@ -37,12 +37,15 @@ use crate::reconstruct::Sampler;
 /// 4 or 16 on the 1e7-cell `blobs` file (`docs/benchmarks-extract.md`).
 pub const PART_CELLS: i64 = 8;
 
+/// One leaf's part bounds, once computed.
+type LeafBounds = OnceLock<Box<[(f32, f32)]>>;
+
 /// The bounds of the parts of every leaf: the file's, when it stores them for this part size,
 /// else those of every leaf extracted so far, in part order (x fastest); filled from any thread.
 pub struct PartRanges {
     stored: bool,
     /// Per leaf, once the first leaf's are computed (never, on a file that stores them).
-    leaves: OnceLock<Box<[OnceLock<Box<[(f32, f32)]>>]>>,
+    leaves: OnceLock<Box<[LeafBounds]>>,
     num_leaves: usize,
 }
 

@@ -10,8 +10,9 @@ use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 /// First eight bytes of the file and of the footer.
 pub const MAGIC: [u8; 8] = *b"\x89AMRK\r\n\x1a";
 /// Layout version: changes only when the byte layout changes. Version 2 added the block range
-/// tables ([`Footer::block_tables`]), version 3 the tight leaf ranges ([`Footer::tight_ranges`]).
-pub const LAYOUT_VERSION: u32 = 3;
+/// tables ([`Footer::block_tables`]), version 3 the tight leaf ranges ([`Footer::tight_ranges`]),
+/// version 4 the part bounds ([`Footer::part_table`]).
+pub const LAYOUT_VERSION: u32 = 4;
 /// The oldest layout version readers still open (version 1: no block range tables).
 pub const OLDEST_LAYOUT_VERSION: u32 = 1;
 /// Cells per axis of the blocks the writer's block range tables cover.
@@ -122,8 +123,11 @@ pub struct Footer {
     /// voxels the leaf owns. Empty when the writer was not given the computation, zero (reserved)
     /// before version 3.
     pub tight_ranges: Section,
+    /// Version 4: offset of the [`PartTable`] record inside the metadata; zero when the file
+    /// stores no part bounds (and before version 4).
+    pub part_table: U64,
     /// Zero.
-    pub reserved1: [u8; 12],
+    pub reserved1: [u8; 4],
     /// When in the simulation the data was written, where the input said.
     pub simulation: SimulationStamp,
     /// CRC-32 of the metadata region.
@@ -241,6 +245,29 @@ pub struct LeafRange {
     pub max: F32,
 }
 
+/// Where the part bounds lie (64 bytes, version 4, inside the metadata): a range for each part
+/// of each leaf the renderer extracts part by part.
+///
+/// A leaf's parts are the boxes of `part_cells`^3 cells of its level, aligned to the lower
+/// corner of the leaf's first brick, that overlap the leaf, x fastest; a leaf the renderer
+/// extracts whole has none. Each part's range holds every corner value of every voxel whose
+/// lower corner lies in the part (`(+inf, -inf)` when none does).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+pub struct PartTable {
+    /// Cells per axis of a part (of the leaf's level).
+    pub part_cells: U32,
+    /// Zero.
+    pub reserved0: U32,
+    /// U64 × (num_leaves + 1), inside the metadata: leaf `l`'s parts are entries
+    /// `starts[l]..starts[l + 1]` of each field's ranges.
+    pub starts: Section,
+    /// [`LeafRange`] × `starts[num_leaves]` × num_fields, inside the metadata, field after field.
+    pub ranges: Section,
+    /// Zero.
+    pub reserved1: [u8; 24],
+}
+
 /// The value range of one block of a brick's cells, for one field (8 bytes, version 2).
 ///
 /// A field's table holds, brick after brick in brick order, the blocks of each brick's cells
@@ -267,6 +294,7 @@ const _: () = assert!(size_of::<KdNode>() == 8);
 const _: () = assert!(size_of::<KdLeaf>() == 32);
 const _: () = assert!(size_of::<LeafRange>() == 8);
 const _: () = assert!(size_of::<BlockRange>() == 8);
+const _: () = assert!(size_of::<PartTable>() == 64);
 
 /// Rounds `x` up to the next multiple of [`ALIGN`].
 pub const fn align_up(x: u64) -> u64 {

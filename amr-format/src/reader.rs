@@ -7,7 +7,7 @@
 use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 
-use zerocopy::little_endian::U32;
+use zerocopy::little_endian::{U32, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout};
 
 use crate::blocks::block_count;
@@ -18,7 +18,7 @@ use crate::hierarchy::{MAX_BRICK_CELLS, MAX_BRICK_EXTENT, MAX_FINEST_EXTENT, MAX
 use crate::kdtree::{KdNode, TreeView};
 use crate::raw::{
     self, BlockRange, BrickData, BrickRecord, FieldRecord, Footer, Header, KdLeaf, LeafRange,
-    LevelRecord, Section,
+    LevelRecord, PartTable, Section,
 };
 
 /// One level of an open file.
@@ -103,6 +103,8 @@ pub struct AmrkFile<D> {
     block_starts: Vec<u64>,
     /// Version 3: the file stores tight leaf ranges ([`Footer::tight_ranges`]).
     tight: bool,
+    /// Version 4: the part bounds, when stored ([`Footer::part_table`]).
+    parts: Option<PartTable>,
 }
 
 impl<D: AsRef<[u8]>> AmrkFile<D> {
@@ -183,6 +185,7 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             block_tables: None,
             block_starts: Vec::new(),
             tight: false,
+            parts: None,
         };
         file.check_sections()?;
         file.levels = file.read_levels()?;
@@ -191,6 +194,7 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         file.check_bricks()?;
         file.check_block_tables()?;
         file.check_tight_ranges()?;
+        file.check_part_table()?;
         file.tree_depth = file.check_tree()?;
         file.check_leaves()?;
         Ok(file)
@@ -387,6 +391,26 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         Some((r.min.get(), r.max.get()))
     }
 
+    /// Cells per axis of the parts whose bounds the file stores (layout version 4, written with
+    /// them); `None` when it stores none.
+    pub fn part_cells(&self) -> Option<u32> {
+        self.parts.map(|p| p.part_cells.get())
+    }
+
+    /// The stored bounds of the parts of `leaf` for field `field`, in part order (see
+    /// [`PartTable`]; empty for a leaf with no parts); `None` when the file stores none. Every
+    /// entry is checked at open (no NaN, `min <= max` or the empty range).
+    pub fn part_ranges(&self, field: usize, leaf: u32) -> Option<&[LeafRange]> {
+        let p = self.parts.as_ref()?;
+        let starts: &[U64] = self.slice(&p.starts);
+        // In bounds and ordered: checked at open.
+        let (start, end) = (starts[leaf as usize].get(), starts[leaf as usize + 1].get());
+        let total = starts[self.num_leaves()].get();
+        let all: &[LeafRange] = self.slice(&p.ranges);
+        let first = field as u64 * total;
+        Some(&all[(first + start) as usize..(first + end) as usize])
+    }
+
     /// The finest level's index domain (absolute finest-level cell indices).
     pub fn finest_domain(&self) -> IBox {
         self.finest_domain
@@ -423,6 +447,12 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         }
         if self.tight {
             out.push(("tight leaf ranges".to_string(), f.tight_ranges.len.get()));
+        }
+        if let Some(p) = &self.parts {
+            out.push((
+                "part bounds".to_string(),
+                size_of::<PartTable>() as u64 + p.starts.len.get() + p.ranges.len.get(),
+            ));
         }
         out.push(("footer".to_string(), size_of::<Footer>() as u64));
         out
@@ -798,6 +828,78 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             }
         }
         self.tight = true;
+        Ok(())
+    }
+
+    /// Layout version 4: the part table, when stored, lies in the metadata; its leaf starts
+    /// (one per leaf and one past the last) begin at zero and never decrease; its ranges hold
+    /// one entry per part and field, none of them NaN or reversed (but for the empty range).
+    fn check_part_table(&mut self) -> Result<()> {
+        let f = self.footer;
+        let at = f.part_table.get();
+        if f.layout_version.get() < 4 || at == 0 {
+            return Ok(());
+        }
+        let bad = |m: String| Err(FormatError::Corrupt(m));
+        let record = Section {
+            offset: at.into(),
+            len: (size_of::<PartTable>() as u64).into(),
+        };
+        check_within("part table", &record, &f.metadata)?;
+        let table = *self
+            .slice::<PartTable>(&record)
+            .first()
+            .expect("one record, checked to lie in the metadata");
+        if table.part_cells.get() == 0 {
+            return bad("parts of 0 cells".into());
+        }
+        let leaves = f
+            .num_leaves
+            .get()
+            .checked_add(1)
+            .ok_or_else(|| FormatError::Corrupt("part starts overflow".into()))?;
+        check_table(
+            "part starts",
+            &table.starts,
+            &f.metadata,
+            leaves,
+            size_of::<U64>(),
+        )?;
+        let starts: &[U64] = self.slice(&table.starts);
+        if starts[0].get() != 0 {
+            return bad(format!(
+                "the first leaf's parts start at {}",
+                starts[0].get()
+            ));
+        }
+        if let Some(l) = starts.windows(2).position(|w| w[1].get() < w[0].get()) {
+            return bad(format!("leaf {l}: its parts end before they start"));
+        }
+        let total = starts[starts.len() - 1].get();
+        let want = total
+            .checked_mul(u64::from(f.num_fields.get()))
+            .and_then(|n| n.checked_mul(size_of::<LeafRange>() as u64))
+            .ok_or_else(|| FormatError::Corrupt("part bounds overflow".into()))?;
+        check_within("part bounds", &table.ranges, &f.metadata)?;
+        if table.ranges.len.get() != want {
+            return bad(format!(
+                "part bounds section holds {} bytes, {total} parts x {} fields need {want}",
+                table.ranges.len.get(),
+                f.num_fields.get()
+            ));
+        }
+        for (i, r) in self.slice::<LeafRange>(&table.ranges).iter().enumerate() {
+            let (lo, hi) = (r.min.get(), r.max.get());
+            if !crate::value_range::valid_tight_range(lo, hi) {
+                let total = total.max(1) as usize;
+                return bad(format!(
+                    "field {}, part {}: bound {lo}..{hi}",
+                    i / total,
+                    i % total
+                ));
+            }
+        }
+        self.parts = Some(table);
         Ok(())
     }
 

@@ -27,6 +27,7 @@ use crate::raw::{
     self, align_up, BlockRange, BrickData, BrickRecord, FieldRecord, Footer, Header, LeafRange,
     LevelRecord, Section,
 };
+use crate::tight_sink::TightSink;
 use crate::value_range::finite_range;
 
 /// How brick data is stored.
@@ -43,18 +44,19 @@ pub enum Compression {
 }
 
 /// Computes the tight leaf ranges of a finished file, given its path (a complete file of the
-/// current layout without them): per field, one `(min, max)` per leaf, `(+inf, -inf)` for a leaf
-/// without data (see [`raw::Footer::tight_ranges`]). `amr-render` has one; this crate cannot
-/// compute them (it does not reconstruct).
-pub type TightFn = fn(&Path) -> std::result::Result<Vec<Vec<(f32, f32)>>, String>;
+/// current layout without them), and the bounds of the parts of its leaves when it can: hands
+/// them to the sink, leaf after leaf, field after field ([`TightSink`]). `amr-render` has one;
+/// this crate cannot compute them (it does not reconstruct).
+pub type TightFn = fn(&Path, &mut TightSink<'_, '_>) -> std::result::Result<(), String>;
 
 /// Options of [`AmrkWriter::create`].
 #[derive(Clone, Copy, Debug, Default)]
 pub struct WriterOptions {
     /// How brick data is stored.
     pub compression: Compression,
-    /// Stores the tight leaf ranges this computes over the finished file, before it is renamed
-    /// into place; without it the file has none (readers then compute them as they go).
+    /// Stores the tight leaf ranges (and part bounds) this computes over the finished file,
+    /// before it is renamed into place; without it the file has none (readers then compute them
+    /// as they go).
     pub tight: Option<TightFn>,
 }
 
@@ -440,60 +442,67 @@ impl AmrkWriter {
         let fields_sec = meta.push(fields.as_bytes())?;
         let tables_sec = meta.push(self.block_tables.as_bytes())?;
         let strings_sec = meta.push(&strings)?;
-        let footer_of = |metadata: Section, metadata_crc: u32, tight_ranges: Section| {
-            let mut footer = Footer {
-                magic: raw::MAGIC,
-                layout_version: raw::LAYOUT_VERSION.into(),
-                footer_size: (size_of::<Footer>() as u32).into(),
-                num_levels: (nl as u32).into(),
-                num_fields: (self.spec.fields.len() as u32).into(),
-                num_bricks: (self.spec.bricks.len() as u32).into(),
-                num_nodes: (tree.nodes.len() as u32).into(),
-                num_leaves: (tree.leaves.len() as u32).into(),
-                brick_list_len: (tree.brick_list.len() as u32).into(),
-                reserved0: [0; 8],
-                metadata,
-                levels: levels_sec,
-                fields: fields_sec,
-                bricks: bricks_sec,
-                nodes: nodes_sec,
-                leaves: leaves_sec,
-                brick_list: list_sec,
-                strings: strings_sec,
-                block_tables: tables_sec,
-                block_cells: raw::BLOCK_CELLS.into(),
-                tight_ranges,
-                reserved1: [0; 12],
-                simulation: self.simulation,
-                metadata_crc: metadata_crc.into(),
-                footer_crc: 0.into(),
+        // What the footer needs of the tree; the tree itself is not held while the tight ranges
+        // are computed.
+        let (num_nodes, num_leaves, list_len) =
+            (tree.nodes.len(), tree.leaves.len(), tree.brick_list.len());
+        drop((records, leaf_level));
+        drop(tree);
+        let footer_of =
+            |metadata: Section, metadata_crc: u32, (tight_ranges, part_table): (Section, u64)| {
+                let mut footer = Footer {
+                    magic: raw::MAGIC,
+                    layout_version: raw::LAYOUT_VERSION.into(),
+                    footer_size: (size_of::<Footer>() as u32).into(),
+                    num_levels: (nl as u32).into(),
+                    num_fields: (self.spec.fields.len() as u32).into(),
+                    num_bricks: (self.spec.bricks.len() as u32).into(),
+                    num_nodes: (num_nodes as u32).into(),
+                    num_leaves: (num_leaves as u32).into(),
+                    brick_list_len: (list_len as u32).into(),
+                    reserved0: [0; 8],
+                    metadata,
+                    levels: levels_sec,
+                    fields: fields_sec,
+                    bricks: bricks_sec,
+                    nodes: nodes_sec,
+                    leaves: leaves_sec,
+                    brick_list: list_sec,
+                    strings: strings_sec,
+                    block_tables: tables_sec,
+                    block_cells: raw::BLOCK_CELLS.into(),
+                    tight_ranges,
+                    part_table: part_table.into(),
+                    reserved1: [0; 4],
+                    simulation: self.simulation,
+                    metadata_crc: metadata_crc.into(),
+                    footer_crc: 0.into(),
+                };
+                let fb = footer.as_bytes();
+                footer.footer_crc = crc32fast::hash(&fb[..fb.len() - 4]).into();
+                footer
             };
-            let fb = footer.as_bytes();
-            footer.footer_crc = crc32fast::hash(&fb[..fb.len() - 4]).into();
-            footer
-        };
         let file_bytes = match self.tight {
             None => {
                 let (metadata, crc) = meta.finish()?;
                 write_footer(
                     self.file.as_file(),
-                    &footer_of(metadata, crc, Section::default()),
+                    &footer_of(metadata, crc, (Section::default(), 0)),
                 )?
             }
             Some(tight) => {
                 // A complete file without the tight ranges first, which `tight` reads; the
-                // ranges then go where its footer was, and a new footer after them.
+                // tables then go where its footer was, and a new footer after them.
                 let (metadata, crc) = meta.snapshot()?;
                 write_footer(
                     self.file.as_file(),
-                    &footer_of(metadata, crc, Section::default()),
+                    &footer_of(metadata, crc, (Section::default(), 0)),
                 )?;
-                let ranges = tight(self.file.path()).map_err(FormatError::TightRanges)?;
-                let table = tight_table(&ranges, self.spec.fields.len(), tree.leaves.len())?;
-                let tight_sec = meta.push(table.as_bytes())?;
-                drop(table);
+                let mut sink = TightSink::new(&mut meta, self.spec.fields.len(), num_leaves);
+                tight(self.file.path(), &mut sink).map_err(FormatError::TightRanges)?;
+                let tables = sink.finish()?;
                 let (metadata, crc) = meta.finish()?;
-                write_footer(self.file.as_file(), &footer_of(metadata, crc, tight_sec))?
+                write_footer(self.file.as_file(), &footer_of(metadata, crc, tables))?
             }
         };
         let file = self.file.as_file();
@@ -515,8 +524,8 @@ impl AmrkWriter {
             data_bytes,
             raw_data_bytes,
             bricks: self.spec.bricks.len(),
-            leaves: tree.leaves.len(),
-            nodes: tree.nodes.len(),
+            leaves: num_leaves,
+            nodes: num_nodes,
             cells: self.spec.total_cells(),
         })
     }
@@ -613,37 +622,6 @@ fn write_footer(file: &File, footer: &Footer) -> Result<u64> {
     Ok(file_bytes)
 }
 
-/// The tight range table of `ranges` (per field, per leaf), checked for the counts and values a
-/// reader accepts.
-fn tight_table(ranges: &[Vec<(f32, f32)>], fields: usize, leaves: usize) -> Result<Vec<LeafRange>> {
-    let bad = |m: String| Err(FormatError::TightRanges(m));
-    if ranges.len() != fields {
-        return bad(format!(
-            "{} fields given, the file has {fields}",
-            ranges.len()
-        ));
-    }
-    let mut table = Vec::with_capacity(fields * leaves);
-    for (f, per_leaf) in ranges.iter().enumerate() {
-        if per_leaf.len() != leaves {
-            return bad(format!(
-                "field {f}: {} leaves given, the file has {leaves}",
-                per_leaf.len()
-            ));
-        }
-        for (leaf, &(lo, hi)) in per_leaf.iter().enumerate() {
-            if !crate::value_range::valid_tight_range(lo, hi) {
-                return bad(format!("field {f}, leaf {leaf}: range {lo}..{hi}"));
-            }
-            table.push(LeafRange {
-                min: lo.into(),
-                max: hi.into(),
-            });
-        }
-    }
-    Ok(table)
-}
-
 /// The little-endian bytes of `values`: borrowed on little-endian hosts.
 fn le_bytes<'a>(values: &[f32], native: &'a [u8]) -> std::borrow::Cow<'a, [u8]> {
     if cfg!(target_endian = "little") {
@@ -655,7 +633,7 @@ fn le_bytes<'a>(values: &[f32], native: &'a [u8]) -> std::borrow::Cow<'a, [u8]> 
 
 /// Writes the metadata region: sections appended at 64-byte boundaries, zero padding between
 /// them, every byte fed to the region's checksum in file order.
-struct MetaWriter<'a> {
+pub(crate) struct MetaWriter<'a> {
     file: &'a File,
     start: u64,
     pos: u64,
@@ -673,7 +651,8 @@ impl<'a> MetaWriter<'a> {
         }
     }
 
-    fn write(&mut self, data: &[u8]) -> Result<()> {
+    /// Appends `data` to the section being written.
+    pub(crate) fn write(&mut self, data: &[u8]) -> Result<()> {
         self.file
             .write_all_at(data, self.pos)
             .map_err(|e| FormatError::io("writing metadata", e))?;
@@ -687,7 +666,14 @@ impl<'a> MetaWriter<'a> {
         self.write(&[0u8; raw::ALIGN as usize][..pad])
     }
 
-    fn push(&mut self, data: &[u8]) -> Result<Section> {
+    /// Starts a section written piece by piece ([`Self::write`]): pads, and returns its offset.
+    pub(crate) fn begin(&mut self) -> Result<u64> {
+        self.pad()?;
+        Ok(self.pos)
+    }
+
+    /// Writes `data` as one section.
+    pub(crate) fn push(&mut self, data: &[u8]) -> Result<Section> {
         self.pad()?;
         let at = self.pos;
         self.write(data)?;

@@ -813,3 +813,57 @@ fn verify_finds_a_wrong_tight_range() {
     assert!(err.contains(&format!("leaf {leaf} stores")), "{err}");
     assert!(err.contains("miss values the data give"), "{err}");
 }
+
+/// `verify` recomputes the stored part bounds (layout version 4): a stored bound that misses
+/// values the data give fails and names the leaf and part; a wider one passes and is counted.
+#[test]
+fn verify_finds_a_wrong_part_bound() {
+    use zerocopy::FromBytes;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("parts.amrk");
+    let params = SynthParams::unit_cube(2, 2, 32, 16);
+    let opts = amr_render::extract::writer_options(Default::default());
+    write_synth(&path, Case::Blobs, &params, opts, &NoProgress).unwrap();
+    let o = amr_render(&["verify", path.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(out.contains("part bounds recomputed"), "{out}");
+    assert!(!out.contains("wider"), "{out}");
+    let bytes = std::fs::read(&path).unwrap();
+    let file = amr_format::AmrkFile::open(bytes.clone()).unwrap();
+    let (leaf, part, (lo, hi)) = (0..file.num_leaves() as u32)
+        .flat_map(|l| {
+            let parts = file.part_ranges(0, l).unwrap();
+            parts
+                .iter()
+                .enumerate()
+                .map(move |(p, r)| (l, p, (r.min.get(), r.max.get())))
+        })
+        .find(|&(_, _, (lo, hi))| lo.is_finite() && lo < hi)
+        .unwrap();
+    let at = file.footer().part_table.get() as usize;
+    let (table, _) = amr_format::raw::PartTable::read_from_prefix(&bytes[at..]).unwrap();
+    let first: usize = (0..leaf)
+        .map(|l| file.part_ranges(0, l).unwrap().len())
+        .sum();
+    let at = table.ranges.offset.get() as usize + 8 * (first + part);
+    let with_lo = |new_lo: f32| {
+        let mut b = bytes.clone();
+        b[at..at + 4].copy_from_slice(&new_lo.to_le_bytes());
+        assert!(amr_format::reader::recompute_checksums(&mut b));
+        std::fs::write(&path, &b).unwrap();
+        amr_render(&["verify", path.to_str().unwrap()])
+    };
+    let o = with_lo(lo - 1.0);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(out.contains("1 stored wider than the data's"), "{out}");
+    let o = with_lo(0.5 * (lo + hi));
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert!(
+        err.contains(&format!("leaf {leaf}, part {part} stores")),
+        "{err}"
+    );
+    assert!(err.contains("miss values the data give"), "{err}");
+}

@@ -97,6 +97,8 @@ where
         ready = next;
         first = next_first;
     }
+    // Not held while the writer finishes (the tight ranges' pass maps the whole file).
+    drop(jobs);
     let summary = writer.finish().map_err(|e| e.in_file(path))?;
     progress.finish();
     Ok(summary)

@@ -3,14 +3,18 @@
 //! --compress`) and frozen under `tests/fixtures/`, opens, verifies, and extracts and renders
 //! exactly as the others. Version 1 has no block range tables (the renderer builds them);
 //! version 2 stores them; version 3 also stores each leaf's tight range (the renderer computed
-//! them as it went before).
+//! them as it went before); version 4 also stores the bounds of the parts of large leaves
+//! (its fixture, `--base 16 --brick 10`, has leaves of more than one part: with bricks of 6
+//! cells there are none), and extracts as the same file written today, with or without them.
 
 use std::path::{Path, PathBuf};
 
-use amr_format::AmrkFile;
-use amr_render::extract::Extractor;
+use amr_format::progress::NoProgress;
+use amr_format::{AmrkFile, Compression, WriterOptions};
+use amr_render::extract::{writer_options, Extractor};
 use amr_render::shade::IsoSpec;
 use amr_render::{render, CameraPlacement, Scene, SceneOptions, View};
+use amr_synth::{write_synth, Case, SynthParams};
 
 fn fixture(version: u32) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("tests/fixtures/blobs-v{version}.amrk"))
@@ -109,6 +113,91 @@ fn stored_tight_ranges_hold_the_computed_ones() {
             "leaf {leaf}: stored {slo}..{shi}, computed {lo}..{hi}"
         );
     }
+}
+
+/// The synth parameters of the version-1 to -3 fixtures, and of the version-4 one.
+const OLD_PARAMS: (u32, u32) = (12, 6);
+const V4_PARAMS: (u32, u32) = (16, 10);
+
+/// The fixture's hierarchy written now (`amr-convert synth blobs --base B --brick R --levels 2
+/// --compress`), with the tables the converter stores, or none.
+fn fresh(dir: &Path, (base, brick): (u32, u32), tables: bool) -> AmrkFile<Vec<u8>> {
+    let path = dir.join(format!("fresh-{base}-{brick}-{tables}.amrk"));
+    let compression = Compression::Zstd { level: 3 };
+    let opts = match tables {
+        true => writer_options(compression),
+        false => WriterOptions {
+            compression,
+            tight: None,
+        },
+    };
+    let params = SynthParams::unit_cube(2, 2, base, brick);
+    write_synth(&path, Case::Blobs, &params, opts, &NoProgress).unwrap();
+    AmrkFile::open(std::fs::read(&path).unwrap()).unwrap()
+}
+
+/// Each isovalue's refs and skipped parts.
+fn extract_all(file: &AmrkFile<Vec<u8>>) -> Vec<(Vec<u64>, u64)> {
+    let ex = Extractor::new(file, 0, 64 << 20).unwrap();
+    [3.0f32, 5.0, 10.0, 20.0, 50.0]
+        .map(|iso| {
+            let e = ex.extract(iso).unwrap();
+            (e.refs, e.stats.parts_skipped)
+        })
+        .into()
+}
+
+#[test]
+fn frozen_files_extract_as_a_fresh_conversion() {
+    let dir = tempfile::tempdir().unwrap();
+    let now = fresh(dir.path(), OLD_PARAMS, true);
+    assert_eq!(now.footer().layout_version.get(), 4);
+    let v3 = extract_all(&open(3));
+    assert_eq!(v3, extract_all(&now));
+    assert!(v3.iter().any(|(refs, _)| !refs.is_empty()));
+
+    let v4 = open(4);
+    assert_eq!(v4.footer().layout_version.get(), 4);
+    v4.verify().unwrap();
+    assert_eq!(v4.part_cells(), Some(8));
+    let ex = Extractor::new(&v4, 0, 64 << 20).unwrap();
+    assert!(ex.stored_part_ranges());
+    let stored = extract_all(&v4);
+    // The same hierarchy written today, with its tables and without (the parts' bounds then
+    // computed as the extraction goes): the same voxels, the same parts skipped.
+    let with = fresh(dir.path(), V4_PARAMS, true);
+    let without = fresh(dir.path(), V4_PARAMS, false);
+    assert!(!Extractor::new(&without, 0, 64 << 20)
+        .unwrap()
+        .stored_part_ranges());
+    assert_eq!(stored, extract_all(&with));
+    assert_eq!(stored, extract_all(&without));
+    assert!(stored.iter().map(|(_, skipped)| skipped).sum::<u64>() > 0);
+}
+
+/// The version-4 fixture's stored part bounds hold the ones computed from its data now (equal,
+/// unless the computation has become tighter since the file was written).
+#[test]
+fn stored_part_bounds_hold_the_computed_ones() {
+    let v4 = open(4);
+    let mut parts = 0;
+    Extractor::new(&v4, 0, 64 << 20)
+        .unwrap()
+        .computed_tables(|leaf, _, computed| {
+            let stored = v4.part_ranges(0, leaf).unwrap();
+            assert_eq!(stored.len(), computed.len(), "leaf {leaf}");
+            for (p, (s, &(lo, hi))) in stored.iter().zip(computed).enumerate() {
+                let (slo, shi) = (s.min.get(), s.max.get());
+                assert!(
+                    lo > hi || (slo <= lo && hi <= shi),
+                    "leaf {leaf} part {p}: stored {slo}..{shi}, computed {lo}..{hi}"
+                );
+            }
+            parts += computed.len();
+            Ok(())
+        })
+        .unwrap();
+    assert!(parts > 0);
 }
 
 #[test]

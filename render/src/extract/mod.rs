@@ -62,7 +62,7 @@ use cell_tiles::CellTiles;
 use halo::Halo;
 use leaf::{LeafCounts, LeafFrame, Scratch};
 use leaf_tree::LeafTree;
-use parts::{extract_in_parts, in_parts, PartRanges};
+use parts::{extract_in_parts, in_parts, leaf_part_ranges, PartRanges};
 pub use refs::{make_ref, split_ref, LocalVoxel, DUAL_BASE};
 pub use region::Region;
 pub use stats::ExtractStats;
@@ -108,7 +108,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             .sum();
         Ok(Self {
             tight: TightRanges::of_file(file, field),
-            parts: PartRanges::new(file.num_leaves()),
+            parts: PartRanges::of_file(&sampler)?,
             blocks: BlockRanges::new(file),
             leaves: LeafTree::new(&sampler),
             coarse: CoarseBounds::default(),
@@ -375,11 +375,16 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         Ok((range, None))
     }
 
-    /// The tight range of every leaf computed from the file's data and tables (what a file of
-    /// layout version 3 stores, see [`tight_tables_of`]), whatever the file stores; leaves in
-    /// parallel, a chunk at a time, releasing the map's pages after each chunk when a
-    /// [`PageRelease`] is set.
-    pub fn computed_tight_ranges(&self) -> Result<Vec<(f32, f32)>> {
+    /// The tight range of every leaf and the bounds of its parts, computed from the file's data
+    /// and tables (what a file of layout version 4 stores, see [`tight_tables_of`]), whatever
+    /// the file stores, passed to `each` leaf after leaf (the leaf, its tight range and its
+    /// parts' bounds, empty for a leaf extracted whole); leaves in parallel, a chunk at
+    /// a time, releasing the map's pages after each chunk when a [`PageRelease`] is set. Only
+    /// one chunk's results are held at a time.
+    pub fn computed_tables(
+        &self,
+        mut each: impl FnMut(u32, (f32, f32), &[(f32, f32)]) -> Result<()>,
+    ) -> Result<()> {
         let loose = self.blocks.loose();
         let tight_blocks = if self.blocks.stored() {
             &loose
@@ -388,9 +393,8 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         };
         let file = self.sampler.file();
         let all: Vec<u32> = (0..file.num_leaves() as u32).collect();
-        let mut out = Vec::with_capacity(all.len());
         for chunk in self.chunks(&all) {
-            let ranges: Vec<Result<(f32, f32)>> = chunk
+            let tables: Vec<Result<LeafTables>> = chunk
                 .par_iter()
                 .map_init(
                     || {
@@ -399,15 +403,45 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                             .then_some(&self.cells);
                         Scratch::new(shared, tiles)
                     },
-                    |scratch, &leaf| Ok(self.compute_tight(scratch, leaf, tight_blocks)?.0),
+                    |scratch, &leaf| {
+                        let (range, around) = self.compute_tight(scratch, leaf, tight_blocks)?;
+                        let parts = match LeafFrame::new(&self.sampler, leaf) {
+                            Some(frame) => leaf_part_ranges(
+                                &self.sampler,
+                                &frame,
+                                (&self.blocks, &self.leaves),
+                                around.as_ref(),
+                            )?,
+                            None => Vec::new(),
+                        };
+                        Ok((range, parts))
+                    },
                 )
                 .collect();
-            for r in ranges {
-                out.push(r?);
+            for (&leaf, t) in chunk.iter().zip(tables) {
+                let (range, parts) = t?;
+                each(leaf, range, &parts)?;
             }
             self.release_pages();
         }
+        Ok(())
+    }
+
+    /// The tight range of every leaf computed from the file's data and tables, whatever the
+    /// file stores ([`Self::computed_tables`] without the parts' bounds).
+    pub fn computed_tight_ranges(&self) -> Result<Vec<(f32, f32)>> {
+        let mut out = Vec::with_capacity(self.sampler.file().num_leaves());
+        self.computed_tables(|_, range, _| {
+            out.push(range);
+            Ok(())
+        })?;
         Ok(out)
+    }
+
+    /// True when the bounds of the parts of large leaves are read from the file (layout
+    /// version 4), not computed.
+    pub fn stored_part_ranges(&self) -> bool {
+        self.parts.stored()
     }
 
     /// The voxel reference `r` names: its box and its eight corner values, recomputed from the
@@ -620,6 +654,9 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     }
 }
 
+/// A leaf's tight range and its parts' bounds.
+type LeafTables = ((f32, f32), Vec<(f32, f32)>);
+
 /// A leaf's tight range, and the leaves around it when they were gathered to compute it.
 type RangeAndHalo<'a, 'f, D> = ((f32, f32), Option<Halo<'a, 'f, D>>);
 
@@ -720,23 +757,28 @@ pub fn over_leaves(
     Ok(refs)
 }
 
-/// The tight range of every leaf of every field of the `.amrk` file at `path` (per field, per
-/// leaf), computed from its data: what a file of layout version 3 stores
-/// ([`amr_format::WriterOptions::tight`]). Maps the file, releasing its pages after each chunk
-/// of leaves so that memory stays bounded on large files.
+/// The tight range of every leaf of every field of the `.amrk` file at `path` and the bounds of
+/// the parts of its large leaves, computed from its data and handed to `sink` leaf after leaf,
+/// field after field: what a file of layout version 4 stores ([`amr_format::WriterOptions::tight`]).
+/// Maps the file, releasing its pages after each chunk of leaves, and holds one chunk's results
+/// at a time, so that memory stays bounded on large files.
 pub fn tight_tables_of(
     path: &std::path::Path,
-) -> std::result::Result<Vec<Vec<(f32, f32)>>, String> {
+    sink: &mut amr_format::TightSink<'_, '_>,
+) -> std::result::Result<(), String> {
     /// Bytes of the shared cache of decoded compressed bricks.
     const CACHE_BYTES: usize = 256 << 20;
     let file = crate::mapping::open_mapped(path).map_err(|e| e.to_string())?;
-    (0..file.fields().len())
-        .map(|field| {
-            let mut ex = Extractor::new(&file, field, CACHE_BYTES).map_err(|e| e.to_string())?;
-            ex.set_page_release(PageRelease::new(&file));
-            ex.computed_tight_ranges().map_err(|e| e.to_string())
-        })
-        .collect()
+    if let Some(k) = file.block_cells().and_then(parts::part_cells) {
+        sink.set_part_cells(k)?;
+    }
+    for field in 0..file.fields().len() {
+        let mut ex = Extractor::new(&file, field, CACHE_BYTES).map_err(|e| e.to_string())?;
+        ex.set_page_release(PageRelease::new(&file));
+        ex.computed_tables(|_, range, parts| sink.push(range, parts).map_err(RenderError::Invalid))
+            .map_err(|e| e.to_string())?;
+    }
+    Ok(())
 }
 
 /// [`amr_format::WriterOptions`] with `compression` that store the tight leaf ranges

@@ -14,20 +14,22 @@
 //! and layers when their extents match), so that the cells shared by their neighbourhoods are
 //! filled once.
 //!
-//! The parts' bounds do not depend on the isovalue: each leaf's are computed the first time it
-//! is extracted and kept ([`PartRanges`]), 8 bytes per part, so a later isovalue only compares.
+//! The parts' bounds do not depend on the isovalue: files of layout version 4 store them (the
+//! converter computes them with [`leaf_part_ranges`], in the tight ranges' pass); on older
+//! files each leaf's are computed the first time it is extracted and kept ([`PartRanges`]),
+//! 8 bytes per part, so a later isovalue only compares.
 
 use std::sync::OnceLock;
 
-use crate::error::Result;
+use crate::error::{RenderError, Result};
 use amr_format::kdtree::widen_range;
-use amr_format::IBox;
+use amr_format::{FormatError, IBox};
 
 use super::blocks::BlockRanges;
 use super::halo::Halo;
 use super::leaf::{extract_leaf, LeafCounts, LeafFrame, Scratch};
 use super::leaf_tree::LeafTree;
-use super::tight::{box_range_flat, box_range_in, pack, unpack, Regions, TreeRegions};
+use super::tight::{box_range_flat, box_range_in, Regions, TreeRegions};
 use crate::reconstruct::interp::straddles;
 use crate::reconstruct::Sampler;
 
@@ -35,28 +37,186 @@ use crate::reconstruct::Sampler;
 /// 4 or 16 on the 1e7-cell `blobs` file (`docs/benchmarks-extract.md`).
 pub const PART_CELLS: i64 = 8;
 
-/// The bounds of the parts of every leaf extracted so far, in part order (x fastest), packed
-/// ([`pack`]); filled from any thread.
+/// One leaf's part bounds, once computed.
+type LeafBounds = OnceLock<Box<[(f32, f32)]>>;
+
+/// The bounds of the parts of every leaf: the file's, when it stores them for this part size,
+/// else those of every leaf extracted so far, in part order (x fastest); filled from any thread.
 pub struct PartRanges {
-    leaves: Box<[OnceLock<Box<[u64]>>]>,
+    stored: bool,
+    /// Per leaf, once the first leaf's are computed (never, on a file that stores them).
+    leaves: OnceLock<Box<[LeafBounds]>>,
+    num_leaves: usize,
 }
 
 impl PartRanges {
-    /// No bounds yet, for `leaves` leaves.
-    pub fn new(leaves: usize) -> Self {
-        Self {
-            leaves: (0..leaves).map(|_| OnceLock::new()).collect(),
+    /// The part bounds of `sampler`'s field: the file's, when it stores them for
+    /// [`part_cells`] and every leaf has as many as it has parts; else none yet. An error when
+    /// a leaf stores another number of bounds than it has parts (a damaged file).
+    pub fn of_file<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>) -> Result<Self> {
+        let file = sampler.file();
+        let computed = || Self {
+            stored: false,
+            leaves: OnceLock::new(),
+            num_leaves: file.num_leaves(),
+        };
+        let (Some(stored), Some(block)) = (file.part_cells(), file.block_cells()) else {
+            return Ok(computed());
+        };
+        if Some(stored) != part_cells(block) {
+            return Ok(computed());
         }
+        for leaf in 0..file.num_leaves() as u32 {
+            let have = file
+                .part_ranges(sampler.field(), leaf)
+                .map_or(0, <[_]>::len) as u64;
+            let want = LeafFrame::new(sampler, leaf)
+                .and_then(|f| PartGrid::of(sampler, &f))
+                .map_or(Some(0), |g| g.count());
+            if Some(have) != want {
+                return Err(RenderError::Format(FormatError::Corrupt(format!(
+                    "kd leaf {leaf} stores {have} part bounds; it has {} parts",
+                    want.map_or("too many".to_string(), |n| n.to_string())
+                ))));
+            }
+        }
+        Ok(Self {
+            stored: true,
+            leaves: OnceLock::new(),
+            num_leaves: file.num_leaves(),
+        })
     }
+
+    /// True when the bounds are the file's.
+    pub fn stored(&self) -> bool {
+        self.stored
+    }
+}
+
+/// Cells per axis of a part of a file whose block range tables have blocks of `block` cells:
+/// [`PART_CELLS`] rounded up to whole blocks; `None` for a block size of 0 or one that
+/// overflows.
+pub fn part_cells(block: u32) -> Option<u32> {
+    let k = u32::try_from(PART_CELLS).ok()?;
+    k.checked_next_multiple_of(block)
 }
 
 /// True when a leaf whose level-`level`-cells are `cells` is extracted in parts.
 pub fn in_parts<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>, cells: &IBox) -> bool {
-    let Some(block) = sampler.file().block_cells().map(i64::from) else {
+    let Some(k) = sampler.file().block_cells().and_then(part_cells) else {
         return false;
     };
-    let k = (PART_CELLS + block - 1) / block * block;
-    cells.extent().iter().any(|&e| e > k)
+    cells.extent().iter().any(|&e| e > i64::from(k))
+}
+
+/// The parts of a leaf extracted in parts: the boxes of `k` cells per axis of its level,
+/// aligned to the lower corner of its first brick, that overlap its cells; numbered x fastest
+/// from `first` to `last` (inclusive).
+struct PartGrid {
+    k: i64,
+    /// The first brick's lower corner.
+    origin: [i64; 3],
+    first: [i64; 3],
+    last: [i64; 3],
+}
+
+impl PartGrid {
+    /// The parts of `frame`'s leaf; `None` when it is extracted whole.
+    fn of<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>, frame: &LeafFrame) -> Option<Self> {
+        let k = i64::from(sampler.file().block_cells().and_then(part_cells)?);
+        let c = frame.cells;
+        if c.extent().iter().all(|&e| e <= k) {
+            return None;
+        }
+        let origin = sampler.brick_cells(frame.brick).lo;
+        Some(Self {
+            k,
+            origin,
+            first: [0, 1, 2].map(|a| (c.lo[a] - origin[a]).div_euclid(k)),
+            last: [0, 1, 2].map(|a| (c.hi[a] - 1 - origin[a]).div_euclid(k)),
+        })
+    }
+
+    /// The number of parts; `None` when it overflows.
+    fn count(&self) -> Option<u64> {
+        (0..3).try_fold(1u64, |n, a| {
+            n.checked_mul(u64::try_from(self.last[a] - self.first[a] + 1).ok()?)
+        })
+    }
+
+    /// Part `p`'s cells inside the leaf's, in finest-level cells.
+    fn part_box<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        frame: &LeafFrame,
+        p: [i64; 3],
+    ) -> IBox {
+        let grid = sampler.grid();
+        let (s, o) = (grid.scale(frame.level), grid.offset());
+        let (k, b) = (self.k, self.origin);
+        let cells = IBox::new(
+            [0, 1, 2].map(|a| b[a] + p[a] * k),
+            [0, 1, 2].map(|a| b[a] + (p[a] + 1) * k),
+        )
+        .intersect(&frame.cells);
+        IBox::new(
+            [0, 1, 2].map(|a| cells.lo[a] * s[a] - o[a]),
+            [0, 1, 2].map(|a| cells.hi[a] * s[a] - o[a]),
+        )
+        .intersect(&frame.finest)
+    }
+}
+
+/// The bounds of the parts of `frame`'s leaf, in part order; empty for a leaf extracted whole. `bounds`: the block ranges (the file's, or built) and the leaf tree;
+/// `around`: the leaves around the leaf ([`Halo::new`] of its box and level over the stored
+/// blocks alone), when the caller gathered them already.
+pub fn leaf_part_ranges<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    frame: &LeafFrame,
+    bounds: (&BlockRanges, &LeafTree),
+    around: Option<&Halo<'_, '_, D>>,
+) -> Result<Vec<(f32, f32)>> {
+    let Some(parts) = PartGrid::of(sampler, frame) else {
+        return Ok(Vec::new());
+    };
+    // The leaves around the leaf, once: the parts' bounds ask them, not the tree.
+    let loose = bounds.0.loose();
+    let gathered;
+    let tree = TreeRegions {
+        sampler,
+        blocks: &loose,
+        leaves: bounds.1,
+    };
+    let around: &dyn Regions = match around {
+        Some(h) => h,
+        None => {
+            gathered = Halo::new(sampler, (&loose, bounds.1), &frame.finest, frame.level);
+            match &gathered {
+                Some(h) => h,
+                None => &tree,
+            }
+        }
+    };
+    // With no coarser leaf around the leaf, none is around its parts either.
+    let s = sampler.grid().scale(frame.level);
+    let grown = frame.finest.grow(s);
+    let flat = around.coarsest_touching(&grown).unwrap_or(frame.level) >= frame.level;
+    let (first, last) = (parts.first, parts.last);
+    let mut r = Vec::new();
+    for pz in first[2]..=last[2] {
+        for py in first[1]..=last[1] {
+            for px in first[0]..=last[0] {
+                let finest = parts.part_box(sampler, frame, [px, py, pz]);
+                let range = if finest.is_empty() {
+                    (f32::INFINITY, f32::NEG_INFINITY)
+                } else {
+                    part_range(sampler, frame, (bounds.0, around), flat, &finest)?
+                };
+                r.push(range);
+            }
+        }
+    }
+    Ok(r)
 }
 
 /// [`extract_leaf`] of `frame`, part by part when the file stores block ranges and the leaf
@@ -71,83 +231,52 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
     around: Option<&Halo<'_, '_, D>>,
     out: &mut Vec<u64>,
 ) -> Result<LeafCounts> {
-    let Some(block) = sampler.file().block_cells().map(i64::from) else {
+    let Some(parts) = PartGrid::of(sampler, frame) else {
         return extract_leaf(sampler, frame, iso, scratch, out);
     };
-    let k = (PART_CELLS + block - 1) / block * block;
-    let c = frame.cells;
-    if c.extent().iter().all(|&e| e <= k) {
-        return extract_leaf(sampler, frame, iso, scratch, out);
-    }
     let start = out.len();
-    let grid = sampler.grid();
-    let (s, o) = (grid.scale(frame.level), grid.offset());
-    let bc = sampler.brick_cells(frame.brick);
-    let first = [0, 1, 2].map(|a| (c.lo[a] - bc.lo[a]).div_euclid(k));
-    let last = [0, 1, 2].map(|a| (c.hi[a] - 1 - bc.lo[a]).div_euclid(k));
-    let part_box = |p: [i64; 3]| -> IBox {
-        let cells = IBox::new(
-            [0, 1, 2].map(|a| bc.lo[a] + p[a] * k),
-            [0, 1, 2].map(|a| bc.lo[a] + (p[a] + 1) * k),
-        )
-        .intersect(&c);
-        IBox::new(
-            [0, 1, 2].map(|a| cells.lo[a] * s[a] - o[a]),
-            [0, 1, 2].map(|a| cells.hi[a] * s[a] - o[a]),
-        )
-        .intersect(&frame.finest)
+    let stored = if kept.stored {
+        sampler.file().part_ranges(sampler.field(), frame.leaf)
+    } else {
+        None
     };
-    let slot = &kept.leaves[frame.leaf as usize];
-    let ranges = match slot.get() {
-        Some(r) => r,
+    let computed = match stored {
+        Some(_) => None,
         None => {
-            // The leaves around the leaf, once: the parts' bounds ask them, not the tree.
-            let loose = bounds.0.loose();
-            let gathered;
-            let tree = TreeRegions {
-                sampler,
-                blocks: &loose,
-                leaves: bounds.1,
-            };
-            let around: &dyn Regions = match around {
-                Some(h) => h,
+            let all = kept
+                .leaves
+                .get_or_init(|| (0..kept.num_leaves).map(|_| OnceLock::new()).collect());
+            let slot = &all[frame.leaf as usize];
+            Some(match slot.get() {
+                Some(r) => r,
                 None => {
-                    gathered = Halo::new(sampler, (&loose, bounds.1), &frame.finest, frame.level);
-                    match &gathered {
-                        Some(h) => h,
-                        None => &tree,
-                    }
+                    let r = leaf_part_ranges(sampler, frame, bounds, around)?;
+                    slot.get_or_init(|| r.into_boxed_slice())
                 }
-            };
-            // With no coarser leaf around the leaf, none is around its parts either.
-            let grown = frame.finest.grow(s);
-            let flat = around.coarsest_touching(&grown).unwrap_or(frame.level) >= frame.level;
-            let mut r = Vec::new();
-            for pz in first[2]..=last[2] {
-                for py in first[1]..=last[1] {
-                    for px in first[0]..=last[0] {
-                        let finest = part_box([px, py, pz]);
-                        let range = if finest.is_empty() {
-                            (f32::INFINITY, f32::NEG_INFINITY)
-                        } else {
-                            part_range(sampler, frame, (bounds.0, around), flat, &finest)?
-                        };
-                        r.push(pack(range));
-                    }
-                }
-            }
-            slot.get_or_init(|| r.into_boxed_slice())
+            })
         }
+    };
+    // Part `i`'s bound; every part has one (counts are checked when the file's are read), and
+    // a missing one would keep the part.
+    let bound = |i: usize| -> (f32, f32) {
+        let b = match (stored, computed) {
+            (Some(s), _) => s.get(i).map(|r| (r.min.get(), r.max.get())),
+            (None, Some(c)) => c.get(i).copied(),
+            (None, None) => None,
+        };
+        b.unwrap_or((f32::NEG_INFINITY, f32::INFINITY))
     };
     let mut counts = LeafCounts::default();
     let mut runs: Vec<IBox> = Vec::new();
-    let mut ranges = ranges.iter();
+    let (first, last) = (parts.first, parts.last);
+    let mut i = 0;
     for pz in first[2]..=last[2] {
         for py in first[1]..=last[1] {
             let mut kept: Option<IBox> = None;
             for px in first[0]..=last[0] {
-                let (lo, hi) = unpack(ranges.next().copied().unwrap_or(u64::MAX));
-                let finest = part_box([px, py, pz]);
+                let (lo, hi) = bound(i);
+                i += 1;
+                let finest = parts.part_box(sampler, frame, [px, py, pz]);
                 if finest.is_empty() {
                     runs.extend(kept.take());
                     continue;

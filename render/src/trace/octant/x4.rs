@@ -278,3 +278,97 @@ fn along_segment(c: &[f64; 8], p0: [__m256d; 3], q: [__m256d; 3]) -> [__m256d; 4
         mul(d[2], uz1),
     ]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::{intersect_voxel, intersect_voxel_packet};
+    use super::*;
+
+    /// A small deterministic generator of numbers in `[0, 1)`.
+    struct Lcg(u64);
+
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    #[test]
+    fn four_lanes_give_each_ray_its_single_ray_hit() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut rng = Lcg(7);
+        let (mut hits, mut misses) = (0, 0);
+        for v in 0..400 {
+            let lo = [0, 1, 2].map(|_| (rng.next() * 8.0).floor() * 0.25);
+            let size = if v % 3 == 0 { 0.25 } else { 0.0625 };
+            let mut voxel = Voxel {
+                lo,
+                hi: lo.map(|x| x + size),
+                values: [0; 8].map(|_| (rng.next() * 2.0 - 1.0) as f32),
+                level: 0,
+            };
+            if v % 40 == 0 {
+                voxel.values[v % 8] = f32::NAN;
+            }
+            // Rays from around the voxel towards points in or near it; some parallel to an
+            // axis, some along a face, corner or edge, some short, some starting inside.
+            let rays: Vec<GridRay> = (0..64)
+                .map(|k| {
+                    let target = [0, 1, 2].map(|a| lo[a] + (rng.next() * 1.4 - 0.2) * size);
+                    let mut o =
+                        [0, 1, 2].map(|a| target[a] + (rng.next() * 2.0 - 1.0) * size * 3.0);
+                    if k % 11 == 0 {
+                        o = [0, 1, 2].map(|a| lo[a] + rng.next() * size);
+                    }
+                    let mut d = [0, 1, 2].map(|a| target[a] - o[a]);
+                    match k % 9 {
+                        0 => d[k % 3] = 0.0,
+                        1 => d[(k + 1) % 3] = -0.0,
+                        2 => {
+                            o[0] = lo[0];
+                            d[0] = 0.0;
+                        }
+                        3 => o = voxel.hi,
+                        _ => {}
+                    }
+                    GridRay { o, d }
+                })
+                .collect();
+            let recips: Vec<[f64; 3]> = rays.iter().map(GridRay::recip).collect();
+            let tmin: Vec<f64> = (0..64)
+                .map(|k| if k % 5 == 0 { 0.3 } else { 0.0 })
+                .collect();
+            let tmax: Vec<f64> = (0..64)
+                .map(|k| if k % 4 == 0 { 0.8 } else { f64::INFINITY })
+                .collect();
+            for m in [
+                u64::MAX,
+                0x8000_0000_0000_0001,
+                0b1110,
+                0x00f0_0f00_1234_5678,
+            ] {
+                let mut got = vec![None; 64];
+                intersect_voxel_packet(&voxel, 0.1, &rays, &recips, m, &tmin, &tmax, &mut got);
+                for k in rays_of(m) {
+                    let want = intersect_voxel(&voxel, 0.1, &rays[k], tmin[k], tmax[k]);
+                    assert_eq!(got[k], want, "voxel {v} ray {k}");
+                    if want.is_some() {
+                        hits += 1;
+                    } else {
+                        misses += 1;
+                    }
+                }
+            }
+        }
+        assert!(
+            hits > 5_000 && misses > 5_000,
+            "{hits} hits, {misses} misses"
+        );
+    }
+}

@@ -22,9 +22,7 @@ use crate::mapping::PageRelease;
 use crate::reconstruct::level_gradient::LevelBlocks;
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
-use crate::trace::octant::{
-    intersect_voxel, intersect_voxel_packet, voxel_occludes, voxel_occludes_packet, VoxelHit,
-};
+use crate::trace::octant::{intersect_voxel, intersect_voxel_packet, voxel_occludes, VoxelHit};
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelLookup, VoxelSource};
 use crate::trace::tracer::central_difference_of;
@@ -415,30 +413,6 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
                 }
             }
             _ => intersect_voxel_packet(voxel, iso, rays, recips, m, tmin, tmax, hits),
-        }
-    }
-
-    fn occludes_packet(
-        &self,
-        voxel: &Voxel,
-        iso: f32,
-        rays: &[GridRay],
-        recips: &[[f64; 3]],
-        m: Mask,
-        tmin: &[f64],
-        tmax: f64,
-    ) -> Mask {
-        match self.voxels {
-            Voxels::Nearest(_) => {
-                let mut hit: Mask = 0;
-                for k in rays_of(m) {
-                    if intersect_face(voxel, iso, &rays[k], tmin[k], tmax).is_some() {
-                        hit |= 1 << k;
-                    }
-                }
-                hit
-            }
-            _ => voxel_occludes_packet(voxel, iso, rays, recips, m, tmin, tmax),
         }
     }
 

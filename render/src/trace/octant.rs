@@ -135,40 +135,6 @@ pub fn intersect_voxel_packet(
     }
 }
 
-/// [`voxel_occludes`] for the rays `m` of a packet, each with its reciprocal direction
-/// ([`GridRay::recip`]) and its own `tmin`, all with `tmax`: the rays of `m` it finds occluded
-/// (the voxel's set-up is computed once).
-pub fn voxel_occludes_packet(
-    voxel: &Voxel,
-    iso: f32,
-    rays: &[GridRay],
-    recips: &[[f64; 3]],
-    m: Mask,
-    tmin: &[f64],
-    tmax: f64,
-) -> Mask {
-    let Some(setup) = VoxelSetup::new(voxel, iso) else {
-        return 0;
-    };
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { x4::occluded(voxel, &setup, rays, recips, m, tmin, tmax) };
-    }
-    let mut hit: Mask = 0;
-    for k in rays_of(m) {
-        let Some((t_in, t_out)) = rays[k].clip_with(&recips[k], voxel.lo, voxel.hi, tmin[k], tmax)
-        else {
-            continue;
-        };
-        let seg = Segment::in_box(voxel, &setup, &rays[k], (tmin[k], tmax), (t_in, t_out));
-        if seg.is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol)) {
-            hit |= 1 << k;
-        }
-    }
-    hit
-}
-
 impl Segment {
     /// The segment of `ray` in `voxel` within `[tmin, tmax]`; `None` when there is none, when
     /// the voxel's values exclude `iso`, or when the cubic provably stays clear of zero.

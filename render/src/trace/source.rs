@@ -153,30 +153,6 @@ pub trait VoxelSource: Sync {
         }
     }
 
-    /// [`Self::occludes`] for the rays `m` of a packet (each with its reciprocal direction,
-    /// [`GridRay::recip`], and its own `tmin`, all with `tmax`) that reach `voxel`: the rays of
-    /// `m` it finds occluded. Sources may share the voxel's own work between the rays.
-    #[allow(clippy::too_many_arguments)]
-    fn occludes_packet(
-        &self,
-        voxel: &Voxel,
-        iso: f32,
-        rays: &[GridRay],
-        recips: &[[f64; 3]],
-        m: Mask,
-        tmin: &[f64],
-        tmax: f64,
-    ) -> Mask {
-        let _ = recips;
-        let mut hit: Mask = 0;
-        for k in rays_of(m) {
-            if self.occludes(voxel, iso, &rays[k], tmin[k], tmax) {
-                hit |= 1 << k;
-            }
-        }
-        hit
-    }
-
     /// True when [`Self::intersect`] would find a hit: the any-hit test of shadow and occlusion
     /// rays. Sources may answer without computing where the hit is.
     #[inline]

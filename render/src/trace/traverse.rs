@@ -307,11 +307,9 @@ impl Surface {
         let pad = bvh_pad(&frame);
         let unused = Ray::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0);
         let mut ray32 = [unused; PACKET];
-        let mut recips = [[0.0f64; 3]; PACKET];
         let mut live: Mask = 0;
         for k in rays_of(active) {
-            recips[k] = rays[k].recip();
-            if let Some(b) = rays[k].bvh_ray_with(&recips[k], &frame, pad, tmin[k], tmax) {
+            if let Some(b) = rays[k].bvh_ray(&frame, pad, tmin[k], tmax) {
                 ray32[k] = b.ray;
                 live |= 1 << k;
             }
@@ -328,17 +326,11 @@ impl Surface {
                         return;
                     }
                     let voxel = voxel_of(r);
-                    let now = if m & (m - 1) == 0 {
-                        // One ray: its own test.
-                        let k = m.trailing_zeros() as usize;
-                        Mask::from(src.occludes(&voxel, self.iso, &rays[k], tmin[k], tmax)) << k
-                    } else {
-                        let recips = &recips[..n];
-                        src.occludes_packet(&voxel, self.iso, rays, recips, m, tmin, tmax)
-                    };
-                    hit |= now;
-                    for k in rays_of(now) {
-                        ray32[k].tmax = f32::NEG_INFINITY;
+                    for k in rays_of(m) {
+                        if src.occludes(&voxel, self.iso, &rays[k], tmin[k], tmax) {
+                            hit |= 1 << k;
+                            ray32[k].tmax = f32::NEG_INFINITY;
+                        }
                     }
                 })
         });

@@ -31,50 +31,6 @@ pub(super) fn hits(
     tmax: &[f64],
     hits: &mut [Option<VoxelHit>],
 ) {
-    let bounds = |k: usize| (tmin[k], tmax[k]);
-    each_segment(voxel, setup, rays, recips, m, bounds, |k, seg| {
-        hits[k] = seg.and_then(|seg| seg.first_hit());
-    });
-}
-
-/// [`super::voxel_occludes_packet`]'s work for the rays `m` once the voxel's `setup` is known:
-/// the rays of `m` that [`super::voxel_occludes`] finds occluded, each within `[tmin[k], tmax]`.
-///
-/// # Safety
-/// The CPU must have AVX2.
-#[target_feature(enable = "avx2")]
-pub(super) fn occluded(
-    voxel: &Voxel,
-    setup: &VoxelSetup,
-    rays: &[GridRay],
-    recips: &[[f64; 3]],
-    m: Mask,
-    tmin: &[f64],
-    tmax: f64,
-) -> Mask {
-    let mut hit: Mask = 0;
-    let bounds = |k: usize| (tmin[k], tmax);
-    each_segment(voxel, setup, rays, recips, m, bounds, |k, seg| {
-        if seg.is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol)) {
-            hit |= 1 << k;
-        }
-    });
-    hit
-}
-
-/// Calls `f(k, segment)` for each ray `k` of `m`, with ray `k`'s segment in `voxel` within
-/// `bounds(k)` (its `tmin` and `tmax`) as [`Segment::new`] makes it, or `None`.
-#[target_feature(enable = "avx2")]
-#[inline]
-fn each_segment(
-    voxel: &Voxel,
-    setup: &VoxelSetup,
-    rays: &[GridRay],
-    recips: &[[f64; 3]],
-    m: Mask,
-    bounds: impl Fn(usize) -> (f64, f64),
-    mut f: impl FnMut(usize, Option<Segment>),
-) {
     let mut left = rays_of(m);
     loop {
         let Some(first) = left.next() else { break };
@@ -85,10 +41,10 @@ fn each_segment(
             ks[n] = k;
             n += 1;
         }
-        let lanes = Lanes::new(rays, recips, ks.map(&bounds), ks);
+        let lanes = Lanes::new(rays, recips, tmin, tmax, ks);
         let segs = lanes.segments(voxel, setup);
         for (i, &k) in ks[..n].iter().enumerate() {
-            f(k, segs.get(i));
+            hits[k] = segs.get(i).and_then(|seg| seg.first_hit());
         }
     }
 }
@@ -153,14 +109,14 @@ fn abs(x: __m256d) -> __m256d {
 }
 
 impl Lanes {
-    /// The rays `ks` of the packet, ray `ks[i]` in lane `i` with its `tmin` and `tmax` in
-    /// `bounds[i]`.
+    /// The rays `ks` of the packet, ray `ks[i]` in lane `i`.
     #[target_feature(enable = "avx2")]
     #[inline]
     fn new(
         rays: &[GridRay],
         recips: &[[f64; 3]],
-        bounds: [(f64, f64); 4],
+        tmin: &[f64],
+        tmax: &[f64],
         ks: [usize; 4],
     ) -> Lanes {
         let r = [&rays[ks[0]], &rays[ks[1]], &rays[ks[2]], &rays[ks[3]]];
@@ -174,8 +130,8 @@ impl Lanes {
             o: [_mm256_setzero_pd(); 3],
             d: [_mm256_setzero_pd(); 3],
             recip: [_mm256_setzero_pd(); 3],
-            tmin: _mm256_setr_pd(bounds[0].0, bounds[1].0, bounds[2].0, bounds[3].0),
-            tmax: _mm256_setr_pd(bounds[0].1, bounds[1].1, bounds[2].1, bounds[3].1),
+            tmin: _mm256_setr_pd(tmin[ks[0]], tmin[ks[1]], tmin[ks[2]], tmin[ks[3]]),
+            tmax: _mm256_setr_pd(tmax[ks[0]], tmax[ks[1]], tmax[ks[2]], tmax[ks[3]]),
         };
         for a in 0..3 {
             lanes.o[a] = _mm256_setr_pd(r[0].o[a], r[1].o[a], r[2].o[a], r[3].o[a]);
@@ -325,9 +281,7 @@ fn along_segment(c: &[f64; 8], p0: [__m256d; 3], q: [__m256d; 3]) -> [__m256d; 4
 
 #[cfg(test)]
 mod tests {
-    use super::super::{
-        intersect_voxel, intersect_voxel_packet, voxel_occludes, voxel_occludes_packet,
-    };
+    use super::super::{intersect_voxel, intersect_voxel_packet};
     use super::*;
 
     /// A small deterministic generator of numbers in `[0, 1)`.
@@ -344,7 +298,7 @@ mod tests {
     }
 
     #[test]
-    fn four_lanes_give_each_ray_its_single_ray_hit_and_occlusion() {
+    fn four_lanes_give_each_ray_its_single_ray_hit() {
         if !std::arch::is_x86_feature_detected!("avx2") {
             return;
         }
@@ -401,17 +355,9 @@ mod tests {
             ] {
                 let mut got = vec![None; 64];
                 intersect_voxel_packet(&voxel, 0.1, &rays, &recips, m, &tmin, &tmax, &mut got);
-                let occluded = voxel_occludes_packet(&voxel, 0.1, &rays, &recips, m, &tmin, 0.8);
-                assert_eq!(occluded & !m, 0);
                 for k in rays_of(m) {
                     let want = intersect_voxel(&voxel, 0.1, &rays[k], tmin[k], tmax[k]);
                     assert_eq!(got[k], want, "voxel {v} ray {k}");
-                    let occludes = voxel_occludes(&voxel, 0.1, &rays[k], tmin[k], 0.8);
-                    assert_eq!(
-                        occluded >> k & 1 != 0,
-                        occludes,
-                        "voxel {v} ray {k}, any hit"
-                    );
                     if want.is_some() {
                         hits += 1;
                     } else {

@@ -11,6 +11,9 @@ use crate::trace::cubic::Cubic;
 use crate::trace::ray::{larger, smaller, GridRay};
 use crate::trace::source::Voxel;
 
+#[cfg(target_arch = "x86_64")]
+mod x4;
+
 /// Relative widening of each segment at both ends, so that a ray passing exactly through a shared
 /// face, edge or corner is covered by the voxels on both sides despite round-off.
 const SEGMENT_WIDEN: f64 = 1e-9;
@@ -113,6 +116,15 @@ pub fn intersect_voxel_packet(
     hits: &mut [Option<VoxelHit>],
 ) {
     let setup = VoxelSetup::new(voxel, iso);
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        match &setup {
+            // SAFETY: the CPU has AVX2, checked just above.
+            Some(setup) => unsafe { x4::hits(voxel, setup, rays, recips, m, tmin, tmax, hits) },
+            None => rays_of(m).for_each(|k| hits[k] = None),
+        }
+        return;
+    }
     for k in rays_of(m) {
         hits[k] = setup.as_ref().and_then(|setup| {
             let (tmin, tmax) = (tmin[k], tmax[k]);

@@ -97,9 +97,22 @@ impl GridRay {
     /// clips near-hits with, whatever the world scale. `t = t_off + t32 / scale`.
     /// `None` if the ray misses the domain.
     pub fn bvh_ray(&self, frame: &GridFrame, pad: f64, tmin: f64, tmax: f64) -> Option<BvhRay> {
+        self.bvh_ray_with(&self.recip(), frame, pad, tmin, tmax)
+    }
+
+    /// [`GridRay::bvh_ray`] with the reciprocals of the direction's components given (`recip`,
+    /// [`GridRay::recip`]), for a ray that keeps them for its candidates' clips.
+    pub fn bvh_ray_with(
+        &self,
+        recip: &[f64; 3],
+        frame: &GridFrame,
+        pad: f64,
+        tmin: f64,
+        tmax: f64,
+    ) -> Option<BvhRay> {
         let lo = [-pad; 3];
         let hi = frame.extent.map(|e| e + pad);
-        let (t0, t1) = self.clip(lo, hi, tmin, tmax)?;
+        let (t0, t1) = self.clip_with(recip, lo, hi, tmin, tmax)?;
         let scale = (self.d[0] * self.d[0] + self.d[1] * self.d[1] + self.d[2] * self.d[2]).sqrt();
         if !(scale > 0.0 && scale.is_finite()) {
             return None;

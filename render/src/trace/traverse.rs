@@ -211,7 +211,7 @@ impl Surface {
             out[k] = None;
             best_t[k] = tmax[k];
             recips[k] = rays[k].recip();
-            if let Some(b) = rays[k].bvh_ray(&frame, pad, tmin[k], tmax[k]) {
+            if let Some(b) = rays[k].bvh_ray_with(&recips[k], &frame, pad, tmin[k], tmax[k]) {
                 ray32[k] = b.ray;
                 back[k] = (b.t_off, b.scale);
                 active |= 1 << k;

@@ -1,0 +1,374 @@
+//! The rays of a packet that reach one voxel, four at a time in AVX2 lanes: the box clip, the
+//! segment's widening and local coordinates, the cubic and its Bernstein hull test, each lane
+//! computed with exactly the `f64` operations, in the same order, of the single-ray
+//! [`Segment::new`], so that every ray gets the same candidate segment bit for bit. Only the
+//! root finding of the segments that pass ([`Segment::first_hit`]) stays one ray at a time.
+//!
+//! A candidate's test is a long chain of dependent operations (clip, widening, six divisions,
+//! cubic, hull); four independent chains in one register replace four chains one after the other.
+
+use std::arch::x86_64::*;
+
+use super::{Segment, VoxelHit, VoxelSetup, SEGMENT_WIDEN};
+use crate::bvh::packet::{rays_of, Mask};
+use crate::trace::ray::GridRay;
+use crate::trace::source::Voxel;
+
+/// [`super::intersect_voxel_packet`]'s work for the rays `m` once the voxel's `setup` is known:
+/// `hits[k]` for each ray `k` of `m`.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn hits(
+    voxel: &Voxel,
+    setup: &VoxelSetup,
+    rays: &[GridRay],
+    recips: &[[f64; 3]],
+    m: Mask,
+    tmin: &[f64],
+    tmax: &[f64],
+    hits: &mut [Option<VoxelHit>],
+) {
+    let mut left = rays_of(m);
+    loop {
+        let Some(first) = left.next() else { break };
+        // Up to four rays; a short group repeats its first ray in the spare lanes.
+        let mut ks = [first; 4];
+        let mut n = 1;
+        for k in left.by_ref().take(3) {
+            ks[n] = k;
+            n += 1;
+        }
+        let lanes = Lanes::new(rays, recips, tmin, tmax, ks);
+        let segs = lanes.segments(voxel, setup);
+        for (i, &k) in ks[..n].iter().enumerate() {
+            hits[k] = segs.get(i).and_then(|seg| seg.first_hit());
+        }
+    }
+}
+
+/// Four rays, each quantity one register with ray `i` in lane `i`.
+struct Lanes {
+    o: [__m256d; 3],
+    d: [__m256d; 3],
+    recip: [__m256d; 3],
+    tmin: __m256d,
+    tmax: __m256d,
+}
+
+/// The four rays' segments in one voxel, lane by lane: `pass` has bit `i` when ray `i` has one.
+struct Segments {
+    pass: i32,
+    ta: [f64; 4],
+    tb: [f64; 4],
+    p0: [[f64; 4]; 3],
+    q: [[f64; 4]; 3],
+    c: [[f64; 4]; 4],
+    tol: f64,
+}
+
+impl Segments {
+    /// Lane `i`'s segment, if it has one.
+    #[inline(always)]
+    fn get(&self, i: usize) -> Option<Segment> {
+        (self.pass >> i & 1 != 0).then(|| Segment {
+            ta: self.ta[i],
+            tb: self.tb[i],
+            p0: [0, 1, 2].map(|a| self.p0[a][i]),
+            q: [0, 1, 2].map(|a| self.q[a][i]),
+            cubic: crate::trace::cubic::Cubic {
+                c: [0, 1, 2, 3].map(|j| self.c[j][i]),
+            },
+            tol: self.tol,
+        })
+    }
+}
+
+/// `a` where `b` is not greater, `b` where it is: [`crate::trace::ray::larger`] lane by lane
+/// (`a` when `b` is NaN).
+#[target_feature(enable = "avx2")]
+#[inline]
+fn larger(a: __m256d, b: __m256d) -> __m256d {
+    _mm256_blendv_pd(a, b, _mm256_cmp_pd::<_CMP_GT_OQ>(b, a))
+}
+
+/// [`crate::trace::ray::smaller`] lane by lane (`a` when `b` is NaN).
+#[target_feature(enable = "avx2")]
+#[inline]
+fn smaller(a: __m256d, b: __m256d) -> __m256d {
+    _mm256_blendv_pd(a, b, _mm256_cmp_pd::<_CMP_LT_OQ>(b, a))
+}
+
+/// `|x|` lane by lane (the sign bit cleared, as [`f64::abs`]).
+#[target_feature(enable = "avx2")]
+#[inline]
+fn abs(x: __m256d) -> __m256d {
+    _mm256_andnot_pd(_mm256_set1_pd(-0.0), x)
+}
+
+impl Lanes {
+    /// The rays `ks` of the packet, ray `ks[i]` in lane `i`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn new(
+        rays: &[GridRay],
+        recips: &[[f64; 3]],
+        tmin: &[f64],
+        tmax: &[f64],
+        ks: [usize; 4],
+    ) -> Lanes {
+        let r = [&rays[ks[0]], &rays[ks[1]], &rays[ks[2]], &rays[ks[3]]];
+        let v = [
+            &recips[ks[0]],
+            &recips[ks[1]],
+            &recips[ks[2]],
+            &recips[ks[3]],
+        ];
+        let mut lanes = Lanes {
+            o: [_mm256_setzero_pd(); 3],
+            d: [_mm256_setzero_pd(); 3],
+            recip: [_mm256_setzero_pd(); 3],
+            tmin: _mm256_setr_pd(tmin[ks[0]], tmin[ks[1]], tmin[ks[2]], tmin[ks[3]]),
+            tmax: _mm256_setr_pd(tmax[ks[0]], tmax[ks[1]], tmax[ks[2]], tmax[ks[3]]),
+        };
+        for a in 0..3 {
+            lanes.o[a] = _mm256_setr_pd(r[0].o[a], r[1].o[a], r[2].o[a], r[3].o[a]);
+            lanes.d[a] = _mm256_setr_pd(r[0].d[a], r[1].d[a], r[2].d[a], r[3].d[a]);
+            lanes.recip[a] = _mm256_setr_pd(v[0][a], v[1][a], v[2][a], v[3][a]);
+        }
+        lanes
+    }
+
+    /// Each lane's segment in `voxel`, as [`Segment::new`] makes it (after the set-up's range
+    /// test, which `setup` passed).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn segments(&self, voxel: &Voxel, setup: &VoxelSetup) -> Segments {
+        let lo = voxel.lo.map(|x| _mm256_set1_pd(x));
+        let hi = voxel.hi.map(|x| _mm256_set1_pd(x));
+        // The box clip (`GridRay::clip_with`): an axis the ray is parallel to rejects the lanes
+        // outside the slab and leaves the interval alone.
+        let (mut t0, mut t1) = (self.tmin, self.tmax);
+        let mut reject = _mm256_setzero_pd();
+        for a in 0..3 {
+            let (o, inv) = (self.o[a], self.recip[a]);
+            let flat = _mm256_cmp_pd::<_CMP_EQ_OQ>(self.d[a], _mm256_setzero_pd());
+            let outside = _mm256_or_pd(
+                _mm256_cmp_pd::<_CMP_LT_OQ>(o, lo[a]),
+                _mm256_cmp_pd::<_CMP_GT_OQ>(o, hi[a]),
+            );
+            reject = _mm256_or_pd(reject, _mm256_and_pd(flat, outside));
+            let ta = _mm256_mul_pd(_mm256_sub_pd(lo[a], o), inv);
+            let tb = _mm256_mul_pd(_mm256_sub_pd(hi[a], o), inv);
+            let swap = _mm256_cmp_pd::<_CMP_GT_OQ>(ta, tb);
+            let (ta, tb) = (
+                _mm256_blendv_pd(ta, tb, swap),
+                _mm256_blendv_pd(tb, ta, swap),
+            );
+            t0 = _mm256_blendv_pd(larger(t0, ta), t0, flat);
+            t1 = _mm256_blendv_pd(smaller(t1, tb), t1, flat);
+        }
+        let inside = _mm256_andnot_pd(reject, _mm256_cmp_pd::<_CMP_LE_OQ>(t0, t1));
+        let mut out = Segments {
+            pass: _mm256_movemask_pd(inside),
+            ta: [0.0; 4],
+            tb: [0.0; 4],
+            p0: [[0.0; 4]; 3],
+            q: [[0.0; 4]; 3],
+            c: [[0.0; 4]; 4],
+            tol: setup.tol,
+        };
+        if out.pass == 0 {
+            return out;
+        }
+        // The widened segment (`Segment::in_box`).
+        let widen = _mm256_add_pd(
+            _mm256_mul_pd(_mm256_set1_pd(SEGMENT_WIDEN), _mm256_sub_pd(t1, t0)),
+            _mm256_mul_pd(_mm256_set1_pd(8.0 * f64::EPSILON), larger(abs(t0), abs(t1))),
+        );
+        let ta = larger(self.tmin, _mm256_sub_pd(t0, widen));
+        let tb = smaller(self.tmax, _mm256_add_pd(t1, widen));
+        let mut p0 = [_mm256_setzero_pd(); 3];
+        let mut q = [_mm256_setzero_pd(); 3];
+        for a in 0..3 {
+            let w = _mm256_set1_pd(voxel.hi[a] - voxel.lo[a]);
+            let rel = _mm256_sub_pd(self.o[a], lo[a]);
+            let local =
+                |t: __m256d| _mm256_div_pd(_mm256_add_pd(rel, _mm256_mul_pd(t, self.d[a])), w);
+            p0[a] = local(ta);
+            q[a] = _mm256_sub_pd(local(tb), p0[a]);
+        }
+        let c = along_segment(&setup.c, p0, q);
+        // The Bernstein hull (`Cubic::clear_of_zero_on_unit`).
+        let third = _mm256_set1_pd(3.0);
+        let b = [
+            c[0],
+            _mm256_add_pd(c[0], _mm256_div_pd(c[1], third)),
+            _mm256_add_pd(
+                _mm256_add_pd(c[0], _mm256_mul_pd(_mm256_set1_pd(2.0 / 3.0), c[1])),
+                _mm256_div_pd(c[2], third),
+            ),
+            _mm256_add_pd(_mm256_add_pd(_mm256_add_pd(c[0], c[1]), c[2]), c[3]),
+        ];
+        let sum = _mm256_add_pd(
+            _mm256_add_pd(_mm256_add_pd(abs(c[0]), abs(c[1])), abs(c[2])),
+            abs(c[3]),
+        );
+        let margin = _mm256_add_pd(
+            _mm256_set1_pd(setup.tol),
+            _mm256_mul_pd(_mm256_set1_pd(64.0 * f64::EPSILON), sum),
+        );
+        let below = _mm256_xor_pd(margin, _mm256_set1_pd(-0.0));
+        let (mut above_all, mut below_all) = (inside, inside);
+        for x in b {
+            above_all = _mm256_and_pd(above_all, _mm256_cmp_pd::<_CMP_GT_OQ>(x, margin));
+            below_all = _mm256_and_pd(below_all, _mm256_cmp_pd::<_CMP_LT_OQ>(x, below));
+        }
+        out.pass &= !_mm256_movemask_pd(_mm256_or_pd(above_all, below_all));
+        if out.pass == 0 {
+            return out;
+        }
+        let store = |dst: &mut [f64; 4], v: __m256d| {
+            // SAFETY: `dst` holds four `f64`; unaligned store.
+            unsafe { _mm256_storeu_pd(dst.as_mut_ptr(), v) }
+        };
+        store(&mut out.ta, ta);
+        store(&mut out.tb, tb);
+        for a in 0..3 {
+            store(&mut out.p0[a], p0[a]);
+            store(&mut out.q[a], q[a]);
+        }
+        for j in 0..4 {
+            store(&mut out.c[j], c[j]);
+        }
+        out
+    }
+}
+
+/// [`super::along_segment`] lane by lane: the cubic's coefficients, constant term first.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn along_segment(c: &[f64; 8], p0: [__m256d; 3], q: [__m256d; 3]) -> [__m256d; 4] {
+    use std::arch::x86_64::{_mm256_add_pd as add, _mm256_mul_pd as mul, _mm256_sub_pd as sub};
+    let (ux0, ux1) = (p0[0], q[0]);
+    let edge = |i: usize| {
+        let d = c[i + 1] - c[i];
+        let dv = _mm256_set1_pd(d);
+        (add(_mm256_set1_pd(c[i]), mul(dv, ux0)), mul(dv, ux1))
+    };
+    let (e00, e10, e01, e11) = (edge(0), edge(2), edge(4), edge(6));
+    let (t0, t1) = (p0[1], q[1]);
+    let face = |a: (__m256d, __m256d), b: (__m256d, __m256d)| {
+        let d = (sub(b.0, a.0), sub(b.1, a.1));
+        [
+            add(a.0, mul(d.0, t0)),
+            add(add(a.1, mul(d.1, t0)), mul(d.0, t1)),
+            mul(d.1, t1),
+        ]
+    };
+    let (f0, f1) = (face(e00, e10), face(e01, e11));
+    let (uz0, uz1) = (p0[2], q[2]);
+    let d = [sub(f1[0], f0[0]), sub(f1[1], f0[1]), sub(f1[2], f0[2])];
+    [
+        add(f0[0], mul(d[0], uz0)),
+        add(add(f0[1], mul(d[1], uz0)), mul(d[0], uz1)),
+        add(add(f0[2], mul(d[2], uz0)), mul(d[1], uz1)),
+        mul(d[2], uz1),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{intersect_voxel, intersect_voxel_packet};
+    use super::*;
+
+    /// A small deterministic generator of numbers in `[0, 1)`.
+    struct Lcg(u64);
+
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    #[test]
+    fn four_lanes_give_each_ray_its_single_ray_hit() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut rng = Lcg(7);
+        let (mut hits, mut misses) = (0, 0);
+        for v in 0..400 {
+            let lo = [0, 1, 2].map(|_| (rng.next() * 8.0).floor() * 0.25);
+            let size = if v % 3 == 0 { 0.25 } else { 0.0625 };
+            let mut voxel = Voxel {
+                lo,
+                hi: lo.map(|x| x + size),
+                values: [0; 8].map(|_| (rng.next() * 2.0 - 1.0) as f32),
+                level: 0,
+            };
+            if v % 40 == 0 {
+                voxel.values[v % 8] = f32::NAN;
+            }
+            // Rays from around the voxel towards points in or near it; some parallel to an
+            // axis, some along a face, corner or edge, some short, some starting inside.
+            let rays: Vec<GridRay> = (0..64)
+                .map(|k| {
+                    let target = [0, 1, 2].map(|a| lo[a] + (rng.next() * 1.4 - 0.2) * size);
+                    let mut o =
+                        [0, 1, 2].map(|a| target[a] + (rng.next() * 2.0 - 1.0) * size * 3.0);
+                    if k % 11 == 0 {
+                        o = [0, 1, 2].map(|a| lo[a] + rng.next() * size);
+                    }
+                    let mut d = [0, 1, 2].map(|a| target[a] - o[a]);
+                    match k % 9 {
+                        0 => d[k % 3] = 0.0,
+                        1 => d[(k + 1) % 3] = -0.0,
+                        2 => {
+                            o[0] = lo[0];
+                            d[0] = 0.0;
+                        }
+                        3 => o = voxel.hi,
+                        _ => {}
+                    }
+                    GridRay { o, d }
+                })
+                .collect();
+            let recips: Vec<[f64; 3]> = rays.iter().map(GridRay::recip).collect();
+            let tmin: Vec<f64> = (0..64)
+                .map(|k| if k % 5 == 0 { 0.3 } else { 0.0 })
+                .collect();
+            let tmax: Vec<f64> = (0..64)
+                .map(|k| if k % 4 == 0 { 0.8 } else { f64::INFINITY })
+                .collect();
+            for m in [
+                u64::MAX,
+                0x8000_0000_0000_0001,
+                0b1110,
+                0x00f0_0f00_1234_5678,
+            ] {
+                let mut got = vec![None; 64];
+                intersect_voxel_packet(&voxel, 0.1, &rays, &recips, m, &tmin, &tmax, &mut got);
+                for k in rays_of(m) {
+                    let want = intersect_voxel(&voxel, 0.1, &rays[k], tmin[k], tmax[k]);
+                    assert_eq!(got[k], want, "voxel {v} ray {k}");
+                    if want.is_some() {
+                        hits += 1;
+                    } else {
+                        misses += 1;
+                    }
+                }
+            }
+        }
+        assert!(
+            hits > 5_000 && misses > 5_000,
+            "{hits} hits, {misses} misses"
+        );
+    }
+}

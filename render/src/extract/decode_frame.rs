@@ -29,21 +29,27 @@ impl DecodeFrame {
         let (Ok(e0), Ok(e1)) = (u32::try_from(e[0]), u32::try_from(e[1])) else {
             return None;
         };
-        let owned = |c: [i64; 3]| -> [bool; 3] {
-            let at = grid.finest_cell(grid.centre(frame.level, c), 7);
-            let back = grid.cell_of(frame.level, at);
-            [0, 1, 2].map(|a| {
-                frame.finest.lo[a] <= at[a] && at[a] < frame.finest.hi[a] && back[a] == c[a]
-            })
-        };
-        // Each axis decides on its own, and the cells it keeps are a run: trim both ends.
+        // Each axis decides on its own, and the cells it keeps are a run: trim both ends, all
+        // three axes a step at a time (a leaf's box is rarely more than one cell off its run).
         let (mut lo, mut hi) = (frame.cells.lo, frame.cells.hi);
-        for a in 0..3 {
-            while lo[a] < hi[a] && !owned(lo)[a] {
-                lo[a] += 1;
+        loop {
+            let keep = owned(grid, &frame, lo);
+            let trim = [0, 1, 2].map(|a| !keep[a] && lo[a] < hi[a]);
+            if trim == [false; 3] {
+                break;
             }
-            while lo[a] < hi[a] && !owned(hi.map(|h| h - 1))[a] {
-                hi[a] -= 1;
+            for a in 0..3 {
+                lo[a] += i64::from(trim[a]);
+            }
+        }
+        loop {
+            let keep = owned(grid, &frame, hi.map(|h| h - 1));
+            let trim = [0, 1, 2].map(|a| !keep[a] && lo[a] < hi[a]);
+            if trim == [false; 3] {
+                break;
+            }
+            for a in 0..3 {
+                hi[a] -= i64::from(trim[a]);
             }
         }
         // A dual cell's lowest cell is one below the highest cell owned on each axis.
@@ -66,4 +72,13 @@ impl DecodeFrame {
         let d = [index % e0, index / e0 % e1, index / e0 / e1].map(i64::from);
         Some([0, 1, 2].map(|a| self.frame.cells.lo[a] + d[a]))
     }
+}
+
+/// Per axis, whether level cell `c` of `frame`'s level is a cell of its leaf as the finest cells
+/// say: the finest cell at its centre lies in the leaf and in `c`.
+#[inline(always)]
+fn owned(grid: &Grid, frame: &LeafFrame, c: [i64; 3]) -> [bool; 3] {
+    let at = grid.finest_cell(grid.centre(frame.level, c), 7);
+    let back = grid.cell_of(frame.level, at);
+    [0, 1, 2].map(|a| frame.finest.lo[a] <= at[a] && at[a] < frame.finest.hi[a] && back[a] == c[a])
 }

@@ -21,6 +21,7 @@
 //!   filtered.
 //! - [`hybrid_current_nearest`]: the `current` and `nearest` voxels.
 //! - [`leaf_tree`]: the extraction's leaf tree finds what a scan of every leaf finds.
+//! - [`decode_frame`]: the box of merged dual cells a decode keeps per leaf.
 //! - [`sample_scratch`]: point samples through a per-thread scratch equal fresh samples.
 //! - [`sample_shortcuts`]: the sampler's shortcuts give the general rules' answers bit for bit.
 //!
@@ -57,6 +58,7 @@ mod chombo_bench;
 mod chombo_checkpoint;
 mod chombo_convert;
 mod chombo_errors;
+mod decode_frame;
 mod enzo_bench;
 mod enzo_convert;
 mod extract_reference;

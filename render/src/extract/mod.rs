@@ -19,6 +19,7 @@
 //!   looser stored ranges let through.
 //! - [`region`]: limiting an extraction to a clip box or a view frustum.
 //! - [`stats`]: what an extraction did.
+//! - [`decode_frame`]: what decoding keeps of the leaf decoded last.
 //! - [`current`] and [`nearest`]: the active voxels of the `current` and `nearest`
 //!   reconstructions, for the hybrid tracer's comparisons.
 //!
@@ -32,6 +33,7 @@ pub mod blocks;
 pub mod cell_tiles;
 pub mod cull;
 pub mod current;
+pub mod decode_frame;
 pub mod halo;
 pub mod leaf;
 pub mod leaf_tree;
@@ -59,6 +61,7 @@ pub use crate::voxel::Voxel;
 use band::CoarseBounds;
 use blocks::BlockRanges;
 use cell_tiles::CellTiles;
+pub use decode_frame::DecodeFrame;
 use halo::Halo;
 use leaf::{LeafCounts, LeafFrame, Scratch};
 use leaf_tree::LeafTree;
@@ -463,7 +466,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         &self,
         r: u64,
         scratch: &mut SampleScratch,
-        last: &mut Option<LeafFrame>,
+        last: &mut Option<DecodeFrame>,
     ) -> Result<Voxel> {
         let (loc, memo) = scratch.bind(&self.sampler);
         self.decode_in(r, &loc, memo, last)
@@ -476,12 +479,12 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         r: u64,
         loc: &L,
         memo: &mut VertexMemo,
-        last: &mut Option<LeafFrame>,
+        last: &mut Option<DecodeFrame>,
     ) -> Result<Voxel> {
         let (frame, cell, octant) = self.resolve_in(r, last)?;
         let frame = *frame;
         let grid = self.sampler.grid();
-        let level = frame.level;
+        let level = frame.frame.level;
         let (lo, hi) = self.doubled_box(level, cell, octant);
         let values = match octant {
             Some(octant) => {
@@ -522,29 +525,22 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
 
     /// The values of the merged dual cell whose lowest cell is `cell` (of `frame`'s level), read
     /// from the brick of `frame`'s leaf in one go when its eight cells lie in that leaf (whose
-    /// cells are all of that level) and the brick is read in place; `None` leaves them to be
-    /// located one by one, which gives the same values where both do.
-    fn dual_block_in_leaf(&self, frame: &LeafFrame, cell: [i64; 3]) -> Option<[f32; 8]> {
-        let grid = self.sampler.grid();
-        let level = frame.level;
-        let hi = cell.map(|c| c + 1);
-        let at_lo = grid.finest_cell(grid.centre(level, cell), 7);
-        let at_hi = grid.finest_cell(grid.centre(level, hi), 7);
-        let inside = frame.finest.contains_cell(at_lo)
-            && frame.finest.contains_cell(at_hi)
-            && grid.cell_of(level, at_lo) == cell
-            && grid.cell_of(level, at_hi) == hi;
-        if !inside {
+    /// cells are all of that level; [`DecodeFrame::duals`]) and the brick is read in place;
+    /// `None` leaves them to be located one by one, which gives the same values where both do.
+    #[inline]
+    fn dual_block_in_leaf(&self, frame: &DecodeFrame, cell: [i64; 3]) -> Option<[f32; 8]> {
+        if !frame.duals.contains_cell(cell) {
             return None;
         }
-        self.sampler.brick_block(frame.brick, cell, hi)
+        self.sampler
+            .brick_block(frame.frame.brick, cell, cell.map(|c| c + 1))
     }
 
     /// The box, in doubled coordinates, of the voxel `r` names, from the reference alone: no
     /// brick data is read (the BVH build needs only boxes).
     pub fn voxel_box(&self, r: u64) -> Result<([i64; 3], [i64; 3])> {
         let (frame, cell, octant) = self.resolve(r)?;
-        Ok(self.doubled_box(frame.level, cell, octant))
+        Ok(self.doubled_box(frame.frame.level, cell, octant))
     }
 
     /// [`Self::voxel_box`] of each of `refs`, in order, passed to `out`; the frames of the last
@@ -593,7 +589,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
 
     /// The leaf of the voxel `r` names, its level-`L` cell (absolute index) and its octant, or
     /// `None` for a merged dual cell (the cell is then the dual cell's lowest).
-    fn resolve(&self, r: u64) -> Result<(LeafFrame, [i64; 3], Option<u8>)> {
+    fn resolve(&self, r: u64) -> Result<(DecodeFrame, [i64; 3], Option<u8>)> {
         let mut last = None;
         let (frame, cell, octant) = self.resolve_in(r, &mut last)?;
         Ok((*frame, cell, octant))
@@ -604,16 +600,18 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     fn resolve_in<'l>(
         &self,
         r: u64,
-        last: &'l mut Option<LeafFrame>,
-    ) -> Result<(&'l LeafFrame, [i64; 3], Option<u8>)> {
+        last: &'l mut Option<DecodeFrame>,
+    ) -> Result<(&'l DecodeFrame, [i64; 3], Option<u8>)> {
         let (leaf, local) = split_ref(r);
-        if last.is_none_or(|f| f.leaf != leaf) {
+        if last.is_none_or(|f| f.frame.leaf != leaf) {
             if leaf as usize >= self.sampler.file().num_leaves() {
                 return Err(bad_ref(r, "no such leaf"));
             }
+            let frame = LeafFrame::new(&self.sampler, leaf)
+                .ok_or_else(|| bad_ref(r, "the leaf holds no brick"))?;
             *last = Some(
-                LeafFrame::new(&self.sampler, leaf)
-                    .ok_or_else(|| bad_ref(r, "the leaf holds no brick"))?,
+                DecodeFrame::new(self.sampler.grid(), frame)
+                    .ok_or_else(|| bad_ref(r, "the leaf's extent is out of range"))?,
             );
         }
         let Some(frame) = last.as_ref() else {
@@ -623,16 +621,9 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             LocalVoxel::Octant { cell, octant } => (cell, Some(octant)),
             LocalVoxel::Dual { cell } => (cell, None),
         };
-        let e = frame.cells.extent();
-        let i = i64::from(index);
-        if i >= e[0] * e[1] * e[2] {
-            return Err(bad_ref(r, "cell index past the leaf"));
-        }
-        let (Ok(e0), Ok(e1)) = (u32::try_from(e[0]), u32::try_from(e[1])) else {
-            return Err(bad_ref(r, "the leaf's extent is out of range"));
-        };
-        let d = [index % e0, index / e0 % e1, index / e0 / e1].map(i64::from);
-        let cell = [0, 1, 2].map(|a| frame.cells.lo[a] + d[a]);
+        let cell = frame
+            .cell(index)
+            .ok_or_else(|| bad_ref(r, "cell index past the leaf"))?;
         Ok((frame, cell, octant))
     }
 

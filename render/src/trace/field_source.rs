@@ -16,9 +16,8 @@ use thread_local::ThreadLocal;
 use crate::bvh::packet::{rays_of, Mask};
 use crate::error::{RenderError, Result};
 use crate::extract::current::CurrentVoxels;
-use crate::extract::leaf::LeafFrame;
 use crate::extract::nearest::NearestFaces;
-use crate::extract::{candidate_leaves, ExtractStats, Extraction, Extractor, Region};
+use crate::extract::{candidate_leaves, DecodeFrame, ExtractStats, Extraction, Extractor, Region};
 use crate::mapping::PageRelease;
 use crate::reconstruct::level_gradient::LevelBlocks;
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
@@ -54,7 +53,7 @@ struct VoxelCache {
     slots: Vec<(u64, Voxel)>,
     scratch: SampleScratch,
     /// The frame of the leaf of the voxel decoded last.
-    leaf: Option<LeafFrame>,
+    leaf: Option<DecodeFrame>,
     blocks: LevelBlocks,
 }
 
@@ -230,7 +229,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         &self,
         r: u64,
         scratch: &mut SampleScratch,
-        last: &mut Option<LeafFrame>,
+        last: &mut Option<DecodeFrame>,
     ) -> Result<Voxel> {
         match &self.voxels {
             Voxels::Octant(e) => e.decode_with(r, scratch, last),

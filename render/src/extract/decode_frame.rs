@@ -1,0 +1,84 @@
+//! What decoding keeps of the leaf decoded last: its [`LeafFrame`], its extent for turning
+//! local cell indices into cells, and the box of merged dual cells whose eight cells lie in the
+//! leaf, so that a decode tests six bounds instead of locating two cells.
+
+use amr_format::IBox;
+
+use super::leaf::LeafFrame;
+use crate::reconstruct::grid::Grid;
+
+/// A leaf's frame as [`super::Extractor::decode_with`] keeps it between decodes.
+#[derive(Clone, Copy, Debug)]
+pub struct DecodeFrame {
+    /// The leaf's frame.
+    pub frame: LeafFrame,
+    /// The leaf's level cells per axis along x and y.
+    pub extent: (u32, u32),
+    /// Its level cells.
+    pub cells: i64,
+    /// The lowest cells of the merged dual cells whose eight cells are cells of the leaf, read
+    /// where the leaf's finest cells say (the finest cell at each cell's centre lies in the leaf
+    /// and in that cell).
+    pub duals: IBox,
+}
+
+impl DecodeFrame {
+    /// The decode frame of `frame`; `None` when its extent does not fit 32-bit indices.
+    pub fn new(grid: &Grid, frame: LeafFrame) -> Option<Self> {
+        let e = frame.cells.extent();
+        let (Ok(e0), Ok(e1)) = (u32::try_from(e[0]), u32::try_from(e[1])) else {
+            return None;
+        };
+        // Each axis decides on its own, and the cells it keeps are a run: trim both ends, all
+        // three axes a step at a time (a leaf's box is rarely more than one cell off its run).
+        let (mut lo, mut hi) = (frame.cells.lo, frame.cells.hi);
+        loop {
+            let keep = owned(grid, &frame, lo);
+            let trim = [0, 1, 2].map(|a| !keep[a] && lo[a] < hi[a]);
+            if trim == [false; 3] {
+                break;
+            }
+            for a in 0..3 {
+                lo[a] += i64::from(trim[a]);
+            }
+        }
+        loop {
+            let keep = owned(grid, &frame, hi.map(|h| h - 1));
+            let trim = [0, 1, 2].map(|a| !keep[a] && lo[a] < hi[a]);
+            if trim == [false; 3] {
+                break;
+            }
+            for a in 0..3 {
+                hi[a] -= i64::from(trim[a]);
+            }
+        }
+        // A dual cell's lowest cell is one below the highest cell owned on each axis.
+        let duals = IBox::new(lo, [0, 1, 2].map(|a| (hi[a] - 1).max(lo[a])));
+        Some(Self {
+            frame,
+            extent: (e0, e1),
+            cells: e[0] * e[1] * e[2],
+            duals,
+        })
+    }
+
+    /// The level cell (absolute index) of local cell index `index`, `None` past the leaf.
+    #[inline]
+    pub fn cell(&self, index: u32) -> Option<[i64; 3]> {
+        if i64::from(index) >= self.cells {
+            return None;
+        }
+        let (e0, e1) = self.extent;
+        let d = [index % e0, index / e0 % e1, index / e0 / e1].map(i64::from);
+        Some([0, 1, 2].map(|a| self.frame.cells.lo[a] + d[a]))
+    }
+}
+
+/// Per axis, whether level cell `c` of `frame`'s level is a cell of its leaf as the finest cells
+/// say: the finest cell at its centre lies in the leaf and in `c`.
+#[inline(always)]
+fn owned(grid: &Grid, frame: &LeafFrame, c: [i64; 3]) -> [bool; 3] {
+    let at = grid.finest_cell(grid.centre(frame.level, c), 7);
+    let back = grid.cell_of(frame.level, at);
+    [0, 1, 2].map(|a| frame.finest.lo[a] <= at[a] && at[a] < frame.finest.hi[a] && back[a] == c[a])
+}

@@ -225,3 +225,38 @@ fn every_version_renders_the_same_frame() {
         assert_eq!(frames[0].rgb, other.rgb);
     }
 }
+
+/// A stand-in for the converter's tables that stores one part bound per leaf, in the renderer's
+/// part size: valid to the format, but no leaf of the version-4 fixture's hierarchy has exactly
+/// one part (a leaf has none, or at least two).
+fn one_part_per_leaf(path: &Path, sink: &mut amr_format::TightSink<'_, '_>) -> Result<(), String> {
+    let file = AmrkFile::open(std::fs::read(path).map_err(|e| e.to_string())?)
+        .map_err(|e| e.to_string())?;
+    let k = file
+        .block_cells()
+        .and_then(amr_render::extract::parts::part_cells);
+    sink.set_part_cells(k.ok_or("no block tables")?)?;
+    for field in 0..file.fields().len() {
+        for leaf in 0..file.num_leaves() as u32 {
+            let range = file.leaf_range(field, leaf);
+            sink.push(range, &[range])?;
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn stored_part_counts_unlike_the_leaves_layout_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("counts.amrk");
+    let opts = WriterOptions {
+        compression: Compression::None,
+        tight: Some(one_part_per_leaf),
+    };
+    let (base, brick) = V4_PARAMS;
+    let params = SynthParams::unit_cube(2, 2, base, brick);
+    write_synth(&path, Case::Blobs, &params, opts, &NoProgress).unwrap();
+    let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+    let err = Extractor::new(&file, 0, 64 << 20).err().expect("refused");
+    assert!(err.to_string().contains("part bounds"), "{err}");
+}

@@ -867,3 +867,21 @@ fn verify_finds_a_wrong_part_bound() {
     );
     assert!(err.contains("miss values the data give"), "{err}");
 }
+
+#[test]
+fn extract_runs_on_the_threads_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let f = file.to_str().unwrap();
+    let o = amr_render(&["extract", f, "--iso", "10", "--threads", "1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = String::from_utf8_lossy(&o.stdout);
+    assert!(report.contains("on 1 threads"), "{report}");
+    let o = amr_render(&["extract", f, "--iso", "10", "--threads", "0"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--threads 0 must be between 1"),
+        "{}",
+        stderr(&o)
+    );
+}

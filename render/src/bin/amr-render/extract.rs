@@ -11,6 +11,7 @@ use anyhow::{bail, Context};
 use serde::Serialize;
 
 use crate::outputs::write_json;
+use crate::render_args::MAX_THREADS;
 
 /// Arguments of `amr-render extract`.
 #[derive(clap::Args, Debug, Clone)]
@@ -36,6 +37,9 @@ pub struct ExtractArgs {
     /// Writes the statistics of every run as a JSON array to this file.
     #[arg(long)]
     pub stats_json: Option<PathBuf>,
+    /// Worker threads (default: all cores), as `--threads` of a render.
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
 }
 
 /// One run's statistics with the rates derived from them.
@@ -47,8 +51,22 @@ struct ExtractRecord<'a> {
     active_per_second: f64,
 }
 
-/// Opens the file once and extracts every isovalue in turn.
+/// Opens the file once and extracts every isovalue in turn, on `--threads` workers.
 pub fn run(args: &ExtractArgs) -> anyhow::Result<()> {
+    match args.threads {
+        Some(n) if n == 0 || n > MAX_THREADS => {
+            bail!("--threads {n} must be between 1 and {MAX_THREADS}")
+        }
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()?
+            .install(|| extract_all(args)),
+        None => extract_all(args),
+    }
+}
+
+/// [`run`] on the current thread pool.
+fn extract_all(args: &ExtractArgs) -> anyhow::Result<()> {
     if let Some(bad) = args.iso.iter().find(|v| !v.is_finite()) {
         bail!("isovalue {bad} is not a finite number");
     }

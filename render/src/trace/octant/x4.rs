@@ -283,34 +283,22 @@ fn along_segment(c: &[f64; 8], p0: [__m256d; 3], q: [__m256d; 3]) -> [__m256d; 4
 mod tests {
     use super::super::{intersect_voxel, intersect_voxel_packet};
     use super::*;
-
-    /// A small deterministic generator of numbers in `[0, 1)`.
-    struct Lcg(u64);
-
-    impl Lcg {
-        fn next(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-    }
+    use crate::shade::sampling::Rng;
 
     #[test]
     fn four_lanes_give_each_ray_its_single_ray_hit() {
         if !std::arch::is_x86_feature_detected!("avx2") {
             return;
         }
-        let mut rng = Lcg(7);
+        let mut rng = Rng::for_pixel(7, 0, 0);
         let (mut hits, mut misses) = (0, 0);
         for v in 0..400 {
-            let lo = [0, 1, 2].map(|_| (rng.next() * 8.0).floor() * 0.25);
+            let lo = [0, 1, 2].map(|_| (rng.next_f64() * 8.0).floor() * 0.25);
             let size = if v % 3 == 0 { 0.25 } else { 0.0625 };
             let mut voxel = Voxel {
                 lo,
                 hi: lo.map(|x| x + size),
-                values: [0; 8].map(|_| (rng.next() * 2.0 - 1.0) as f32),
+                values: [0; 8].map(|_| (rng.next_f64() * 2.0 - 1.0) as f32),
                 level: 0,
             };
             if v % 40 == 0 {
@@ -320,11 +308,11 @@ mod tests {
             // axis, some along a face, corner or edge, some short, some starting inside.
             let rays: Vec<GridRay> = (0..64)
                 .map(|k| {
-                    let target = [0, 1, 2].map(|a| lo[a] + (rng.next() * 1.4 - 0.2) * size);
+                    let target = [0, 1, 2].map(|a| lo[a] + (rng.next_f64() * 1.4 - 0.2) * size);
                     let mut o =
-                        [0, 1, 2].map(|a| target[a] + (rng.next() * 2.0 - 1.0) * size * 3.0);
+                        [0, 1, 2].map(|a| target[a] + (rng.next_f64() * 2.0 - 1.0) * size * 3.0);
                     if k % 11 == 0 {
-                        o = [0, 1, 2].map(|a| lo[a] + rng.next() * size);
+                        o = [0, 1, 2].map(|a| lo[a] + rng.next_f64() * size);
                     }
                     let mut d = [0, 1, 2].map(|a| target[a] - o[a]);
                     match k % 9 {

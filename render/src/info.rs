@@ -3,7 +3,7 @@
 
 use std::fmt::Write;
 
-use amr_format::AmrkFile;
+use amr_format::{AmrkFile, LevelInfo};
 
 use crate::field_stats::{format_value, FieldPercentiles, TABLE};
 
@@ -14,10 +14,21 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
     let nl = file.levels().len();
     let mut bricks = vec![0u64; nl];
     let mut cells = vec![0u64; nl];
+    // The index box around each level's bricks.
+    let mut covered: Vec<Option<([i64; 3], [i64; 3])>> = vec![None; nl];
     for b in 0..file.num_bricks() {
         let info = file.brick(b);
-        bricks[info.level as usize] += 1;
-        cells[info.level as usize] += info.cells.num_cells().unwrap_or(0);
+        let l = info.level as usize;
+        bricks[l] += 1;
+        cells[l] += info.cells.num_cells().unwrap_or(0);
+        let (lo, hi) = (info.cells.lo, info.cells.hi);
+        covered[l] = Some(match covered[l] {
+            None => (lo, hi),
+            Some((a, b)) => (
+                [0, 1, 2].map(|k| a[k].min(lo[k])),
+                [0, 1, 2].map(|k| b[k].max(hi[k])),
+            ),
+        });
     }
     let _ = writeln!(out, "file bytes: {}", file.bytes().len());
     match (file.simulation_time(), file.simulation_step()) {
@@ -45,12 +56,27 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
             vec3(lev.origin),
             lev.ratio_to_next
         );
-        let (lo, hi) = level_extent(file, l);
-        let _ = writeln!(out, "           extent {} .. {}", vec3(lo), vec3(hi));
+        match covered[l] {
+            Some((lo, hi)) => {
+                let _ = writeln!(
+                    out,
+                    "           boxes within {} .. {}",
+                    vec3(world(lev, lo)),
+                    vec3(world(lev, hi))
+                );
+            }
+            None => {
+                let _ = writeln!(out, "           no boxes");
+            }
+        }
     }
-    if !file.levels().is_empty() {
-        let (lo, hi) = level_extent(file, 0);
-        let _ = writeln!(out, "domain extent: {} .. {}", vec3(lo), vec3(hi));
+    if let Some(lev) = file.levels().first() {
+        let _ = writeln!(
+            out,
+            "domain extent: {} .. {}",
+            vec3(world(lev, lev.domain.lo)),
+            vec3(world(lev, lev.domain.hi))
+        );
     }
     let _ = writeln!(out, "bricks: {}", file.num_bricks());
     let _ = writeln!(out, "cells: {}", cells.iter().sum::<u64>());
@@ -97,11 +123,9 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
     out
 }
 
-/// World corners of level `l`'s index domain.
-fn level_extent<D: AsRef<[u8]>>(file: &AmrkFile<D>, l: usize) -> ([f64; 3], [f64; 3]) {
-    let lev = &file.levels()[l];
-    let at = |i: [i64; 3]| [0, 1, 2].map(|a| lev.origin[a] + i[a] as f64 * lev.cell_size[a]);
-    (at(lev.domain.lo), at(lev.domain.hi))
+/// The world position of the corner of `lev`'s cell index `i`.
+fn world(lev: &LevelInfo, i: [i64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|a| lev.origin[a] + i[a] as f64 * lev.cell_size[a])
 }
 
 /// `(x, y, z)` with readable numbers.

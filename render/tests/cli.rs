@@ -885,3 +885,33 @@ fn extract_runs_on_the_threads_asked_for() {
         stderr(&o)
     );
 }
+
+#[test]
+fn info_says_where_each_levels_boxes_lie() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("sphere.amrk");
+    let params = SynthParams::unit_cube(3, 2, 16, 8);
+    write_synth(
+        &file,
+        Case::Sphere,
+        &params,
+        WriterOptions::default(),
+        &NoProgress,
+    )
+    .unwrap();
+    let o = amr_render(&["info", file.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = String::from_utf8_lossy(&o.stdout);
+    let within: Vec<&str> = report
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("boxes within "))
+        .collect();
+    assert_eq!(within.len(), 3, "{report}");
+    // The base level covers the domain; the finest only around the sphere.
+    let domain = report
+        .lines()
+        .find_map(|l| l.strip_prefix("domain extent: "))
+        .unwrap();
+    assert_eq!(within[0], domain, "{report}");
+    assert_ne!(within[2], domain, "{report}");
+}

@@ -52,19 +52,19 @@ pub enum DumpError {
     Amrex {
         /// The plotfile directory.
         path: PathBuf,
-        /// The reader's error.
-        error: AmrexError,
+        /// The reader's error (boxed: it is large, and errors are rare).
+        error: Box<AmrexError>,
     },
     /// The Chombo reader or the writer failed (the error names the file).
     #[error("converting Chombo file: {}", chain(.0))]
-    Chombo(ChomboError),
+    Chombo(Box<ChomboError>),
     /// The Enzo reader or the writer failed.
     #[error("converting Enzo dataset {}: {}", params.display(), chain(error))]
     Enzo {
         /// The dataset's parameter file.
         params: PathBuf,
-        /// The reader's error.
-        error: EnzoError,
+        /// The reader's error (boxed: it is large, and errors are rare).
+        error: Box<EnzoError>,
     },
 }
 
@@ -210,14 +210,17 @@ pub fn convert_dump(
             .and_then(|pf| crate::hierarchy_to_amrk::convert(&pf, output, opts, progress))
             .map_err(|error| DumpError::Amrex {
                 path: input.to_path_buf(),
-                error,
+                error: Box::new(error),
             })?,
-        InputFormat::ChomboHdf5 => {
-            crate::chombo::convert(input, output, opts, progress).map_err(DumpError::Chombo)?
-        }
+        InputFormat::ChomboHdf5 => crate::chombo::convert(input, output, opts, progress)
+            .map_err(|e| DumpError::Chombo(Box::new(e)))?,
         InputFormat::Enzo { params, hierarchy } => {
-            crate::enzo::convert(&params, &hierarchy, output, opts, progress)
-                .map_err(|error| DumpError::Enzo { params, error })?
+            crate::enzo::convert(&params, &hierarchy, output, opts, progress).map_err(|error| {
+                DumpError::Enzo {
+                    params,
+                    error: Box::new(error),
+                }
+            })?
         }
     };
     let output_bytes = std::fs::metadata(output).map(|m| m.len()).unwrap_or(0);

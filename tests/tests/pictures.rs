@@ -335,7 +335,7 @@ fn a_median_on_a_floor_gives_the_median_above_the_floor() {
     let iso = f64::from(scene.default_isovalue());
     // The median cell above the floor has x between 0.7 and 0.9 (finer cells near the sphere
     // weigh more): (x - 0.6)^4 between 1e-4 and 8.1e-3.
-    assert!(iso >= 1e-4 && iso <= 8.1e-3, "default isovalue {iso}");
+    assert!((1e-4..=8.1e-3).contains(&iso), "default isovalue {iso}");
 }
 
 #[test]

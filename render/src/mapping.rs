@@ -8,7 +8,6 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use amr_format::{AmrkFile, FormatError, Result};
 use memmap2::{Advice, Mmap, UncheckedAdvice};
-use rayon::prelude::*;
 
 use crate::sigbus::{self, Watch};
 
@@ -119,7 +118,8 @@ fn file_resident_bytes() -> Option<u64> {
 /// in `/proc/self/smaps`; file pages of other mappings faulted in meanwhile (program code)
 /// count too. The first release measures the map exactly instead (`/proc/self/smaps`, once),
 /// because the first stage also faults in the program's own code for it; no measurement exceeds
-/// the map's size. The unmapping itself is split over the thread pool.
+/// the map's size. The unmapping is one `madvise` call over the whole map, made by the
+/// requesting thread (see `docs/rendering.md`, "Map pages").
 pub struct PageRelease<'f> {
     file: &'f MappedFile,
     peak: AtomicU64,
@@ -128,9 +128,6 @@ pub struct PageRelease<'f> {
     /// Whether the next release reads the map's resident bytes from `/proc/self/smaps`.
     exact_next: AtomicBool,
 }
-
-/// Bytes of the map unmapped by one `madvise` call of a release.
-const RELEASE_PIECE: usize = 8 << 20;
 
 impl<'f> PageRelease<'f> {
     /// Releases pages of `file`'s map.
@@ -161,23 +158,19 @@ impl<'f> PageRelease<'f> {
         if let Some(b) = resident {
             self.peak.fetch_max(b, Ordering::Relaxed);
         }
+        // One call over the whole map, from this thread: each call that unmaps pages ends in a
+        // TLB flush that interrupts the other cores running this process, so calls from the
+        // thread pool would interrupt each other; stretches with nothing resident cost little.
+        //
         // SAFETY: memmap2 calls MADV_DONTNEED unsafe because on a private writable map it throws
         // away what was written. This map is read-only and shared with the page cache (that is
         // how `Mmap::map` maps), so nothing was written through it: the kernel only unmaps the
         // pages, and the next access through any slice borrowed from the map faults in the same
         // file bytes again. Those bytes stay the same under the contract `open_mapped` states (no
         // one rewrites a finished file in place).
-        let map = self.file.data();
-        let pieces = map.len().div_ceil(RELEASE_PIECE);
-        (0..pieces).into_par_iter().for_each(|k| {
-            let start = k * RELEASE_PIECE;
-            let len = RELEASE_PIECE.min(map.len() - start);
-            // SAFETY: as above; the pieces lie inside the map.
-            let dropped =
-                unsafe { map.unchecked_advise_range(UncheckedAdvice::DontNeed, start, len) };
-            // A refused hint leaves the pages resident, which costs memory but changes no result.
-            drop(dropped);
-        });
+        let dropped = unsafe { self.file.data().unchecked_advise(UncheckedAdvice::DontNeed) };
+        // A refused hint leaves the pages resident, which costs memory but changes no result.
+        drop(dropped);
         if let Some(b) = file_resident_bytes() {
             self.others.store(b, Ordering::Relaxed);
         }

@@ -184,15 +184,19 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         };
         let file = self.sampler.file();
         let field = self.sampler.field();
-        let mut ranges: Vec<(u64, u64)> = leaves
-            .iter()
-            .flat_map(|&l| file.leaf(l).bricks.iter())
-            .map(|b| {
-                let d = file.brick_data(field, b.get() as usize);
-                (d.offset, d.offset.saturating_add(d.len))
-            })
-            .collect();
-        ranges.sort_unstable();
+        let mut ranges: Vec<(u64, u64)> = Vec::new();
+        let mut last = None;
+        for b in leaves.iter().flat_map(|&l| file.leaf(l).bricks.iter()) {
+            // Neighbouring leaves often share a brick: ask for it once.
+            if last.replace(b.get()) == Some(b.get()) {
+                continue;
+            }
+            let d = file.brick_data(field, b.get() as usize);
+            ranges.push((d.offset, d.offset.saturating_add(d.len)));
+        }
+        if !ranges.is_sorted() {
+            ranges.sort_unstable();
+        }
         let mut merged: Vec<(u64, u64)> = Vec::new();
         for (start, end) in ranges {
             match merged.last_mut() {

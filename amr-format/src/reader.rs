@@ -307,7 +307,8 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
     /// on a little-endian host and 4-byte aligned, decoded otherwise.
     pub fn brick_values(&self, field: usize, brick: usize) -> Result<Cow<'_, [f32]>> {
         let d = self.brick_data(field, brick);
-        let bytes = self.brick_bytes(field, brick);
+        let start = d.offset as usize;
+        let bytes = &self.bytes()[start..start + d.len as usize];
         if d.encoding == Encoding::Raw && cfg!(target_endian = "little") {
             if let Ok(values) = <[f32]>::ref_from_bytes(bytes) {
                 return Ok(Cow::Borrowed(values));

@@ -62,3 +62,85 @@ fn leaf_tree_queries_equal_a_scan_of_every_leaf() {
         "only {leaves_seen} leaves over all cases"
     );
 }
+
+/// `LeafTree::exact_range_over` (the coarse-cell bounds of small cells) gives the range a scan
+/// of every leaf's cells inside the region gives, NaNs left out, or `None` exactly when a leaf
+/// with data coarser than the level asked overlaps the region; asked twice, so that the
+/// second answer comes from the kept leaf and node ranges.
+#[test]
+fn exact_range_over_equals_a_scan_of_every_leaf() {
+    use amr_render::extract::blocks::{level_box, BlockRanges};
+    let (mut ranges, mut coarser) = (0, 0);
+    for case in standard_cases(2) {
+        let (_, file) = build(&case);
+        let sampler = Sampler::new(&file, 0, 1 << 20).unwrap();
+        let blocks = BlockRanges::new(&file);
+        let grid = sampler.grid();
+        let trees = [
+            ("kd-tree shape", LeafTree::new(&sampler)),
+            ("median splits", LeafTree::median(&sampler)),
+        ];
+        let tree = file.tree();
+        let n = tree.num_leaves() as u32;
+        let extent = tree.domain.extent();
+        let levels = grid.num_levels() as i64;
+        let mut rng = Rng(case.seed ^ 0xe4ac7);
+        for q in 0..200 {
+            let lo = extent.map(|e| rng.range(-2, e + 1));
+            let hi = [0, 1, 2].map(|a| lo[a] + rng.range(1, extent[a] / (1 + q % 4) + 2));
+            let region = IBox::new(lo, hi);
+            let level = rng.range(0, levels) as u32;
+            let mut want = Some((f32::INFINITY, f32::NEG_INFINITY));
+            for l in 0..n {
+                let leaf_box = tree.leaf_box(l);
+                let Some((brick, lv)) = sampler.leaf_top(l) else {
+                    continue;
+                };
+                if !leaf_box.overlaps(&region) {
+                    continue;
+                }
+                if lv < level {
+                    want = None;
+                    break;
+                }
+                let bc = sampler.brick_cells(brick);
+                let cells = level_box(grid, lv, &leaf_box.intersect(&region)).intersect(&bc);
+                let values = sampler.values(brick).unwrap();
+                let w = want.as_mut().unwrap();
+                for z in cells.lo[2]..cells.hi[2] {
+                    for y in cells.lo[1]..cells.hi[1] {
+                        for x in cells.lo[0]..cells.hi[0] {
+                            let v = values[bc.linear_index([x, y, z])];
+                            if v < w.0 {
+                                w.0 = v;
+                            }
+                            if v > w.1 {
+                                w.1 = v;
+                            }
+                        }
+                    }
+                }
+            }
+            match want {
+                Some(_) => ranges += 1,
+                None => coarser += 1,
+            }
+            for (name, t) in &trees {
+                let what = format!(
+                    "seed {}, {name}, region {region:?}, level {level}",
+                    case.seed
+                );
+                for pass in ["first", "second"] {
+                    let got = t
+                        .exact_range_over(&sampler, &blocks, &region, level)
+                        .unwrap();
+                    assert_eq!(got, want, "{pass} ask: {what}");
+                }
+            }
+        }
+    }
+    assert!(
+        ranges > 100 && coarser > 100,
+        "{ranges} ranges and {coarser} coarser answers over all cases"
+    );
+}

@@ -9,6 +9,12 @@
 //! costs a few look-ups per leaf, and no leaf gathers the leaves around it. The tiles kept are
 //! bounded ([`MAX_TILES`]): past that, all are forgotten and gathered again when asked, so the
 //! memory stays flat on files of any size.
+//!
+//! Around a cell at most [`DIRECT_SCALE`] finest cells wide, the 27 cells span a few finest
+//! cells, so few leaves overlap them: the bound is then the exact range of those leaves' cells
+//! there ([`LeafTree::exact_range_over`]: the same cells, so the same bound), with no tile. A
+//! tile would gather 64 cells for a bound that reads 27, and small leaves' coarse neighbours
+//! rarely share tiles.
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hash, Hasher};
@@ -110,6 +116,12 @@ pub fn fold_cell_bounds(
 /// Marks a coarse cell next to a leaf cell coarser than itself (the bits of two NaNs, which no
 /// packed range holds).
 const NEXT_TO_COARSER: u64 = u64::MAX - 1;
+/// Finest cells per axis of a level-`q` cell, at most, for the bound around it to be computed
+/// from the leaves overlapping its 27 cells rather than read from tiles: the region is then a
+/// few finest cells wide, so few leaves overlap it, where a tile gathers 64 cells' leaves of
+/// which one bound reads 27 (tiles pay for coarse cells, whose regions hold many leaves that
+/// neighbouring bounds share).
+const DIRECT_SCALE: i64 = 2;
 /// Level-`q` cells per axis of a tile.
 const TILE: i64 = 4;
 /// Independently locked parts of the tables, so threads rarely wait on each other.
@@ -206,7 +218,9 @@ impl CoarseBounds {
         Ok((bits != NEXT_TO_COARSER).then(|| unpack(bits)))
     }
 
-    /// The packed union of the bounds of the 27 cells around `c`, or [`NEXT_TO_COARSER`].
+    /// The packed union of the bounds of the 27 cells around `c`, or [`NEXT_TO_COARSER`]: for
+    /// cells at most [`DIRECT_SCALE`] finest cells wide, the exact range of the leaf cells
+    /// overlapping them (the same cells, so the same range); else from the tiles.
     fn compute_around<D: AsRef<[u8]>>(
         &self,
         sources: Sources<'_, '_, D>,
@@ -214,6 +228,18 @@ impl CoarseBounds {
         c: [i64; 3],
     ) -> Result<u64> {
         let near = IBox::new(c.map(|v| v - 1), c.map(|v| v + 2));
+        let (sampler, blocks, leaves) = sources;
+        let grid = sampler.grid();
+        let s = grid.scale(level);
+        if s.iter().all(|&v| v <= DIRECT_SCALE) {
+            let o = grid.offset();
+            let finest = IBox::new(
+                [0, 1, 2].map(|a| near.lo[a] * s[a] - o[a]),
+                [0, 1, 2].map(|a| near.hi[a] * s[a] - o[a]),
+            );
+            let range = leaves.exact_range_over(sampler, blocks, &finest, level)?;
+            return Ok(range.map_or(NEXT_TO_COARSER, pack));
+        }
         let tiles = near.coarsen([TILE; 3]);
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         for tz in tiles.lo[2]..tiles.hi[2] {

@@ -266,12 +266,14 @@ fn floor_div1(v: i64, d: i64) -> i64 {
 /// `offset`) that overlap finest-level box `finest`: `Grid::level_box`, with shifts where it can.
 #[inline]
 pub fn level_cells(scale: [i64; 3], offset: [i64; 3], finest: &IBox) -> IBox {
+    let (lo, hi) = (finest.lo, finest.hi);
+    let end = |a: usize| hi[a] + offset[a] + scale[a] - 1;
     IBox::new(
-        floor_div([0, 1, 2].map(|a| finest.lo[a] + offset[a]), scale),
         floor_div(
-            [0, 1, 2].map(|a| finest.hi[a] + offset[a] + scale[a] - 1),
+            [lo[0] + offset[0], lo[1] + offset[1], lo[2] + offset[2]],
             scale,
         ),
+        floor_div([end(0), end(1), end(2)], scale),
     )
 }
 
@@ -296,8 +298,9 @@ fn fold_blocks(
     }
 }
 
-/// The range of the cells `cells` (inside the brick's cells `bc`) of brick data `values`.
-fn scan(values: &[f32], bc: &IBox, cells: &IBox) -> (f32, f32) {
+/// The range of the cells `cells` (inside the brick's cells `bc`) of brick data `values`; NaNs
+/// are left out.
+pub fn scan(values: &[f32], bc: &IBox, cells: &IBox) -> (f32, f32) {
     let e = bc.extent();
     let (row, slab) = (e[0] as usize, (e[0] * e[1]) as usize);
     let w = cells.extent()[0] as usize;

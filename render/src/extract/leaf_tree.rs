@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use amr_format::kdtree::{KdNode, TreeView};
 use amr_format::IBox;
 
-use super::blocks::{level_box, BlockRanges};
+use super::blocks::{level_box, scan, BlockRanges};
 use super::tight::{pack, unpack};
 use crate::error::Result;
 use crate::reconstruct::Sampler;
@@ -23,6 +23,9 @@ const BUCKET: usize = 8;
 const SMALL: i64 = 4;
 /// Deepest kd-tree whose shape the tree takes; the walks' stacks of 64 nodes stay far from full.
 const MAX_KD_DEPTH: u32 = 48;
+/// Cells of a leaf's part, at most, that [`LeafTree::exact_range_over`] scans without asking
+/// the block tables (a part this small holds no whole block of them).
+const SCAN_CELLS: u64 = 64;
 /// A range not computed yet (the bits of two NaNs, which no computed range holds).
 const UNKNOWN: u64 = u64::MAX;
 
@@ -48,6 +51,8 @@ pub struct LeafTree {
     leaf_ranges: Vec<AtomicU64>,
     /// Per leaf, the exact range of its cells once asked.
     exact_ranges: Vec<AtomicU64>,
+    /// Per node, the exact range of its leaves' cells once asked.
+    exact_nodes: Vec<AtomicU64>,
     /// Per leaf, its box.
     boxes: Vec<IBox>,
 }
@@ -87,12 +92,14 @@ impl LeafTree {
         let ranges = (0..nodes.len()).map(|_| AtomicU64::new(UNKNOWN)).collect();
         let leaf_ranges = (0..n).map(|_| AtomicU64::new(UNKNOWN)).collect();
         let exact_ranges = (0..n).map(|_| AtomicU64::new(UNKNOWN)).collect();
+        let exact_nodes = (0..nodes.len()).map(|_| AtomicU64::new(UNKNOWN)).collect();
         Self {
             nodes,
             order,
             ranges,
             leaf_ranges,
             exact_ranges,
+            exact_nodes,
             boxes: leaves.into_iter().map(|(b, _)| b).collect(),
         }
     }
@@ -186,6 +193,120 @@ impl LeafTree {
     #[inline]
     pub fn leaf_box(&self, l: u32) -> IBox {
         self.boxes[l as usize]
+    }
+
+    /// The exact range of the cells (NaNs left out) of the leaves with data overlapping
+    /// `region` (finest-level cells), each leaf's cells inside it; `None` when one of those
+    /// leaves is coarser than level `level`. A node inside `region` adds its kept exact range,
+    /// a leaf inside it its own; a leaf partly inside adds its cells there, from the blocks.
+    pub fn exact_range_over<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        blocks: &BlockRanges,
+        region: &IBox,
+        level: u32,
+    ) -> Result<Option<(f32, f32)>> {
+        let grid = sampler.grid();
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        let mut stack = [0u32; 64];
+        let mut top = usize::from(!self.nodes.is_empty());
+        while top > 0 {
+            top -= 1;
+            let i = stack[top];
+            let node = &self.nodes[i as usize];
+            if !node.bounds.overlaps(region) {
+                continue;
+            }
+            if node.coarsest >= level && contains(region, &node.bounds) {
+                let (a, b) = self.exact_node_range(sampler, i)?;
+                lo = lo.min(a);
+                hi = hi.max(b);
+                continue;
+            }
+            match node.children {
+                // The tree is balanced: its depth stays far below the stack's size.
+                Some((a, b)) if top + 2 <= stack.len() => {
+                    stack[top] = b;
+                    stack[top + 1] = a;
+                    top += 2;
+                }
+                _ => {
+                    for &l in &self.order[node.first as usize..node.end as usize] {
+                        let leaf_box = &self.boxes[l as usize];
+                        if !leaf_box.overlaps(region) {
+                            continue;
+                        }
+                        let Some((brick, lv)) = sampler.leaf_top(l) else {
+                            continue;
+                        };
+                        if lv < level {
+                            return Ok(None);
+                        }
+                        let (a, b) = if contains(region, leaf_box) {
+                            self.exact_range(sampler, l)?
+                        } else {
+                            let part = IBox::new(
+                                [
+                                    leaf_box.lo[0].max(region.lo[0]),
+                                    leaf_box.lo[1].max(region.lo[1]),
+                                    leaf_box.lo[2].max(region.lo[2]),
+                                ],
+                                [
+                                    leaf_box.hi[0].min(region.hi[0]),
+                                    leaf_box.hi[1].min(region.hi[1]),
+                                    leaf_box.hi[2].min(region.hi[2]),
+                                ],
+                            );
+                            let cells = level_box(grid, lv, &part);
+                            if cells.num_cells().is_some_and(|n| n <= SCAN_CELLS) {
+                                // Fewer cells than a block: the table would not be read.
+                                let bc = sampler.brick_cells(brick);
+                                scan(&sampler.values(brick)?, &bc, &cells.intersect(&bc))
+                            } else {
+                                blocks.range_of_cells(sampler, brick, &cells)?
+                            }
+                        };
+                        lo = lo.min(a);
+                        hi = hi.max(b);
+                    }
+                }
+            }
+        }
+        Ok(Some((lo, hi)))
+    }
+
+    /// The exact range of node `i`'s leaves' cells ([`Self::exact_range`] of each), computed on
+    /// first need.
+    fn exact_node_range<D: AsRef<[u8]>>(
+        &self,
+        sampler: &Sampler<'_, D>,
+        i: u32,
+    ) -> Result<(f32, f32)> {
+        let slot = &self.exact_nodes[i as usize];
+        let known = slot.load(Ordering::Relaxed);
+        if known != UNKNOWN {
+            return Ok(unpack(known));
+        }
+        let node = &self.nodes[i as usize];
+        let range = match node.children {
+            Some((a, b)) => {
+                let (x0, y0) = self.exact_node_range(sampler, a)?;
+                let (x1, y1) = self.exact_node_range(sampler, b)?;
+                (x0.min(x1), y0.max(y1))
+            }
+            None => {
+                let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+                for &l in &self.order[node.first as usize..node.end as usize] {
+                    let (a, b) = self.exact_range(sampler, l)?;
+                    lo = lo.min(a);
+                    hi = hi.max(b);
+                }
+                (lo, hi)
+            }
+        };
+        // Never NaN, so never the bits of `UNKNOWN`.
+        slot.store(pack(range), Ordering::Relaxed);
+        Ok(range)
     }
 
     /// A range holding the cells of the leaves (each leaf's finest brick) inside `region`, from

@@ -184,15 +184,26 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         };
         let file = self.sampler.file();
         let field = self.sampler.field();
-        let mut ranges: Vec<(u64, u64)> = leaves
-            .iter()
-            .flat_map(|&l| file.leaf(l).bricks.iter())
-            .map(|b| {
-                let d = file.brick_data(field, b.get() as usize);
-                (d.offset, d.offset.saturating_add(d.len))
-            })
-            .collect();
-        ranges.sort_unstable();
+        // Each brick once (neighbouring leaves share bricks), in brick order: one bit each.
+        let mut wanted = vec![0u64; file.num_bricks().div_ceil(64)];
+        for b in leaves.iter().flat_map(|&l| file.leaf(l).bricks.iter()) {
+            let b = b.get() as usize;
+            wanted[b / 64] |= 1 << (b % 64);
+        }
+        let mut ranges: Vec<(u64, u64)> = Vec::new();
+        for (w, &word) in wanted.iter().enumerate() {
+            let mut bits = word;
+            while bits != 0 {
+                let b = w * 64 + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let d = file.brick_data(field, b);
+                ranges.push((d.offset, d.offset.saturating_add(d.len)));
+            }
+        }
+        // Writers store bricks in order, so this is usually sorted already.
+        if !ranges.is_sorted() {
+            ranges.sort_unstable();
+        }
         let mut merged: Vec<(u64, u64)> = Vec::new();
         for (start, end) in ranges {
             match merged.last_mut() {
@@ -336,6 +347,8 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
                         return Ok((out, LeafCounts::default()));
                     };
+                    // Room for a small leaf's refs at once, not grown from 4 to 8 to 16.
+                    out.reserve(16);
                     let counts = extract_in_parts(
                         &self.sampler,
                         &frame,

@@ -36,7 +36,7 @@ const VOXEL_CACHE_SLOTS: usize = 4096;
 /// Bytes of one thread's voxel cache: the decoded voxels with their refs and the cell blocks of
 /// smooth normals, plus the sampling scratch (bounded by its own capacities, not counted here).
 pub const VOXEL_CACHE_BYTES: usize =
-    VOXEL_CACHE_SLOTS * std::mem::size_of::<(u64, Voxel)>() + LevelBlocks::BYTES;
+    VOXEL_CACHE_SLOTS * std::mem::size_of::<Slot>() + LevelBlocks::BYTES;
 
 /// The voxels of one reconstruction.
 enum Voxels<'f, D> {
@@ -48,9 +48,19 @@ enum Voxels<'f, D> {
     Nearest(Sampler<'f, D>),
 }
 
+/// A voxel a thread looked up: its ref, and the voxel, or only its box when a lookup's `keep`
+/// rejected it before its values were read.
+#[derive(Clone, Copy)]
+struct Slot {
+    r: u64,
+    voxel: Voxel,
+    /// Whether `voxel` holds the values, not only the box.
+    values: bool,
+}
+
 /// One thread's decoded voxels, direct-mapped by ref, and its scratch for decoding and sampling.
 struct VoxelCache {
-    slots: Vec<(u64, Voxel)>,
+    slots: Vec<Slot>,
     scratch: SampleScratch,
     /// The frame of the leaf of the voxel decoded last.
     leaf: Option<DecodeFrame>,
@@ -243,7 +253,14 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         self.caches.get_or(|| {
             self.cache_threads.fetch_add(1, Ordering::Relaxed);
             RefCell::new(VoxelCache {
-                slots: vec![(u64::MAX, Voxel::EMPTY); VOXEL_CACHE_SLOTS],
+                slots: vec![
+                    Slot {
+                        r: u64::MAX,
+                        voxel: Voxel::EMPTY,
+                        values: true,
+                    };
+                    VOXEL_CACHE_SLOTS
+                ],
                 scratch: SampleScratch::default(),
                 leaf: None,
                 blocks: LevelBlocks::default(),
@@ -253,27 +270,70 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
 
     /// The voxel `r` names, from this thread's cache when it holds it.
     fn cached_voxel(&self, r: u64) -> Voxel {
-        self.voxel_in(&mut self.thread_cache().borrow_mut(), r)
+        self.voxel_in(&mut self.thread_cache().borrow_mut(), r, &|_, _| true)
+            .unwrap_or(Voxel::EMPTY)
     }
 
-    /// The voxel `r` names, from `cache` when it holds it.
+    /// The voxel `r` names, from `cache` when it holds it; else, for the octant method, `None`
+    /// without reading its values when `keep` is false for its box ([`VoxelLookup`]).
     #[inline]
-    fn voxel_in(&self, cache: &mut VoxelCache, r: u64) -> Voxel {
+    fn voxel_in(
+        &self,
+        cache: &mut VoxelCache,
+        r: u64,
+        keep: &dyn Fn(&[f64; 3], &[f64; 3]) -> bool,
+    ) -> Option<Voxel> {
         // Fibonacci hashing of the ref: neighbouring refs land in different slots.
         let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
-        let (key, v) = cache.slots[slot];
-        if key == r && r != u64::MAX {
-            return v;
-        }
-        let v = match self.decode(r, &mut cache.scratch, &mut cache.leaf) {
-            Ok(v) => v,
+        let held = cache.slots[slot];
+        let keep: &dyn Fn(&[f64; 3], &[f64; 3]) -> bool = if held.r == r && r != u64::MAX {
+            if held.values {
+                return Some(held.voxel);
+            }
+            if !keep(&held.voxel.lo, &held.voxel.hi) {
+                return None;
+            }
+            &|_, _| true
+        } else {
+            keep
+        };
+        let slots = &mut cache.slots;
+        let decoded = match &self.voxels {
+            Voxels::Octant(e) => {
+                e.decode_with_if(r, &mut cache.scratch, &mut cache.leaf, |lo, hi| {
+                    keep(lo, hi) || {
+                        // The box alone, for the next rays that ask.
+                        slots[slot] = Slot {
+                            r,
+                            voxel: Voxel {
+                                lo: *lo,
+                                hi: *hi,
+                                ..Voxel::EMPTY
+                            },
+                            values: false,
+                        };
+                        false
+                    }
+                })
+            }
+            _ => self
+                .decode(r, &mut cache.scratch, &mut cache.leaf)
+                .map(Some),
+        };
+        let v = match decoded {
+            Ok(Some(v)) => v,
+            Ok(None) => return None,
             Err(e) => {
                 self.record(e);
-                return Voxel::EMPTY;
+                return Some(Voxel::EMPTY);
             }
         };
-        cache.slots[slot] = (r, v);
-        v
+        slots[slot] = Slot {
+            r,
+            voxel: v,
+            values: true,
+        };
+        Some(v)
     }
 }
 
@@ -288,7 +348,7 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
 
     fn with_voxels(&self, f: &mut dyn FnMut(&mut VoxelLookup<'_>)) {
         let mut cache = self.thread_cache().borrow_mut();
-        f(&mut |r| self.voxel_in(&mut cache, r))
+        f(&mut |r, keep| self.voxel_in(&mut cache, r, keep))
     }
 
     fn voxel_box(&self, r: u64) -> ([f64; 3], [f64; 3]) {

@@ -285,18 +285,29 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     ) -> Option<Voxel> {
         // Fibonacci hashing of the ref: neighbouring refs land in different slots.
         let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
-        let held = cache.slots[slot];
-        let keep: &dyn Fn(&[f64; 3], &[f64; 3]) -> bool = if held.r == r && r != u64::MAX {
-            if held.values {
-                return Some(held.voxel);
-            }
-            if !keep(&held.voxel.lo, &held.voxel.hi) {
-                return None;
-            }
-            &|_, _| true
-        } else {
-            keep
-        };
+        let held = &cache.slots[slot];
+        if held.r != r || r == u64::MAX {
+            return self.fill(cache, slot, r, keep);
+        }
+        if held.values {
+            return Some(held.voxel);
+        }
+        if !keep(&held.voxel.lo, &held.voxel.hi) {
+            return None;
+        }
+        self.fill(cache, slot, r, &|_, _| true)
+    }
+
+    /// [`Self::voxel_in`] for a ref whose values `cache` does not hold, in slot `slot`: decoded
+    /// and kept there, or only its box when `keep` rejects it.
+    #[inline(never)]
+    fn fill(
+        &self,
+        cache: &mut VoxelCache,
+        slot: usize,
+        r: u64,
+        keep: &dyn Fn(&[f64; 3], &[f64; 3]) -> bool,
+    ) -> Option<Voxel> {
         let slots = &mut cache.slots;
         let decoded = match &self.voxels {
             Voxels::Octant(e) => {

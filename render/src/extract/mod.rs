@@ -472,33 +472,6 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         self.decode_in(r, &loc, memo, last)
     }
 
-    /// [`Self::decode_with`] for a voxel wanted only when its box passes `keep`: the box is
-    /// computed first, from the reference alone, and the corner values are read only when
-    /// `keep(lo, hi)` holds; `Ok(None)` when it does not.
-    pub fn decode_with_if(
-        &self,
-        r: u64,
-        scratch: &mut SampleScratch,
-        last: &mut Option<DecodeFrame>,
-        keep: impl FnOnce(&[f64; 3], &[f64; 3]) -> bool,
-    ) -> Result<Option<Voxel>> {
-        let (frame, cell, octant) = self.resolve_in(r, last)?;
-        let frame = *frame;
-        let (lo, hi) = self.doubled_box(frame.frame.level, cell, octant);
-        let (lo, hi) = (lo.map(|v| v as f64), hi.map(|v| v as f64));
-        if !keep(&lo, &hi) {
-            return Ok(None);
-        }
-        let (loc, memo) = scratch.bind(&self.sampler);
-        let values = self.values_in(r, &frame, cell, octant, &loc, memo)?;
-        Ok(Some(Voxel {
-            lo,
-            hi,
-            values,
-            level: frame.frame.level,
-        }))
-    }
-
     /// [`Self::decode_memo`], locating leaf cells through `loc` and reusing `last`
     /// ([`Self::resolve_in`]).
     fn decode_in<L: Locate>(
@@ -510,32 +483,10 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     ) -> Result<Voxel> {
         let (frame, cell, octant) = self.resolve_in(r, last)?;
         let frame = *frame;
-        let level = frame.frame.level;
-        let (lo, hi) = self.doubled_box(level, cell, octant);
-        let values = self.values_in(r, &frame, cell, octant, loc, memo)?;
-        Ok(Voxel {
-            lo: lo.map(|v| v as f64),
-            hi: hi.map(|v| v as f64),
-            values,
-            level,
-        })
-    }
-
-    /// The corner values of the voxel `r` names, resolved to `cell` and `octant` of `frame`'s
-    /// leaf ([`Self::resolve_in`]).
-    #[inline]
-    fn values_in<L: Locate>(
-        &self,
-        r: u64,
-        frame: &DecodeFrame,
-        cell: [i64; 3],
-        octant: Option<u8>,
-        loc: &L,
-        memo: &mut VertexMemo,
-    ) -> Result<[f32; 8]> {
         let grid = self.sampler.grid();
         let level = frame.frame.level;
-        Ok(match octant {
+        let (lo, hi) = self.doubled_box(level, cell, octant);
+        let values = match octant {
             Some(octant) => {
                 let o = Octant {
                     level,
@@ -546,7 +497,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     .octant_values_in(loc, &o, memo)?
                     .ok_or_else(|| bad_ref(r, "no values there"))?
             }
-            None => match self.dual_block_in_leaf(frame, cell) {
+            None => match self.dual_block_in_leaf(&frame, cell) {
                 Some(values) => values,
                 None => {
                     let mut values = [0f32; 8];
@@ -563,6 +514,12 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     values
                 }
             },
+        };
+        Ok(Voxel {
+            lo: lo.map(|v| v as f64),
+            hi: hi.map(|v| v as f64),
+            values,
+            level,
         })
     }
 

@@ -36,7 +36,7 @@ const VOXEL_CACHE_SLOTS: usize = 4096;
 /// Bytes of one thread's voxel cache: the decoded voxels with their refs and the cell blocks of
 /// smooth normals, plus the sampling scratch (bounded by its own capacities, not counted here).
 pub const VOXEL_CACHE_BYTES: usize =
-    VOXEL_CACHE_SLOTS * std::mem::size_of::<Slot>() + LevelBlocks::BYTES;
+    VOXEL_CACHE_SLOTS * std::mem::size_of::<(u64, Voxel)>() + LevelBlocks::BYTES;
 
 /// The voxels of one reconstruction.
 enum Voxels<'f, D> {
@@ -48,19 +48,9 @@ enum Voxels<'f, D> {
     Nearest(Sampler<'f, D>),
 }
 
-/// A voxel a thread looked up: its ref, and the voxel, or only its box when a lookup's `keep`
-/// rejected it before its values were read.
-#[derive(Clone, Copy)]
-struct Slot {
-    r: u64,
-    voxel: Voxel,
-    /// Whether `voxel` holds the values, not only the box.
-    values: bool,
-}
-
 /// One thread's decoded voxels, direct-mapped by ref, and its scratch for decoding and sampling.
 struct VoxelCache {
-    slots: Vec<Slot>,
+    slots: Vec<(u64, Voxel)>,
     scratch: SampleScratch,
     /// The frame of the leaf of the voxel decoded last.
     leaf: Option<DecodeFrame>,
@@ -253,14 +243,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         self.caches.get_or(|| {
             self.cache_threads.fetch_add(1, Ordering::Relaxed);
             RefCell::new(VoxelCache {
-                slots: vec![
-                    Slot {
-                        r: u64::MAX,
-                        voxel: Voxel::EMPTY,
-                        values: true,
-                    };
-                    VOXEL_CACHE_SLOTS
-                ],
+                slots: vec![(u64::MAX, Voxel::EMPTY); VOXEL_CACHE_SLOTS],
                 scratch: SampleScratch::default(),
                 leaf: None,
                 blocks: LevelBlocks::default(),
@@ -270,81 +253,27 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
 
     /// The voxel `r` names, from this thread's cache when it holds it.
     fn cached_voxel(&self, r: u64) -> Voxel {
-        self.voxel_in(&mut self.thread_cache().borrow_mut(), r, &|_, _| true)
-            .unwrap_or(Voxel::EMPTY)
+        self.voxel_in(&mut self.thread_cache().borrow_mut(), r)
     }
 
-    /// The voxel `r` names, from `cache` when it holds it; else, for the octant method, `None`
-    /// without reading its values when `keep` is false for its box ([`VoxelLookup`]).
+    /// The voxel `r` names, from `cache` when it holds it.
     #[inline]
-    fn voxel_in(
-        &self,
-        cache: &mut VoxelCache,
-        r: u64,
-        keep: &dyn Fn(&[f64; 3], &[f64; 3]) -> bool,
-    ) -> Option<Voxel> {
+    fn voxel_in(&self, cache: &mut VoxelCache, r: u64) -> Voxel {
         // Fibonacci hashing of the ref: neighbouring refs land in different slots.
         let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
-        let held = &cache.slots[slot];
-        if held.r != r || r == u64::MAX {
-            return self.fill(cache, slot, r, keep);
+        let (key, v) = cache.slots[slot];
+        if key == r && r != u64::MAX {
+            return v;
         }
-        if held.values {
-            return Some(held.voxel);
-        }
-        if !keep(&held.voxel.lo, &held.voxel.hi) {
-            return None;
-        }
-        self.fill(cache, slot, r, &|_, _| true)
-    }
-
-    /// [`Self::voxel_in`] for a ref whose values `cache` does not hold, in slot `slot`: decoded
-    /// and kept there, or only its box when `keep` rejects it.
-    #[inline(never)]
-    fn fill(
-        &self,
-        cache: &mut VoxelCache,
-        slot: usize,
-        r: u64,
-        keep: &dyn Fn(&[f64; 3], &[f64; 3]) -> bool,
-    ) -> Option<Voxel> {
-        let slots = &mut cache.slots;
-        let decoded = match &self.voxels {
-            Voxels::Octant(e) => {
-                e.decode_with_if(r, &mut cache.scratch, &mut cache.leaf, |lo, hi| {
-                    keep(lo, hi) || {
-                        // The box alone, for the next rays that ask.
-                        slots[slot] = Slot {
-                            r,
-                            voxel: Voxel {
-                                lo: *lo,
-                                hi: *hi,
-                                ..Voxel::EMPTY
-                            },
-                            values: false,
-                        };
-                        false
-                    }
-                })
-            }
-            _ => self
-                .decode(r, &mut cache.scratch, &mut cache.leaf)
-                .map(Some),
-        };
-        let v = match decoded {
-            Ok(Some(v)) => v,
-            Ok(None) => return None,
+        let v = match self.decode(r, &mut cache.scratch, &mut cache.leaf) {
+            Ok(v) => v,
             Err(e) => {
                 self.record(e);
-                return Some(Voxel::EMPTY);
+                return Voxel::EMPTY;
             }
         };
-        slots[slot] = Slot {
-            r,
-            voxel: v,
-            values: true,
-        };
-        Some(v)
+        cache.slots[slot] = (r, v);
+        v
     }
 }
 
@@ -359,7 +288,7 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
 
     fn with_voxels(&self, f: &mut dyn FnMut(&mut VoxelLookup<'_>)) {
         let mut cache = self.thread_cache().borrow_mut();
-        f(&mut |r, keep| self.voxel_in(&mut cache, r, keep))
+        f(&mut |r| self.voxel_in(&mut cache, r))
     }
 
     fn voxel_box(&self, r: u64) -> ([f64; 3], [f64; 3]) {

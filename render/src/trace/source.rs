@@ -55,12 +55,8 @@ impl GridFrame {
     }
 }
 
-/// A lookup of voxels by ref ([`VoxelSource::with_voxels`]): `lookup(r, keep)` gives the voxel
-/// `r` names, or `None` when `keep` is false for its box `(lo, hi)`. A source may give a voxel
-/// whose box fails `keep` (one it holds decoded already); one that reads a voxel's values only
-/// when its box passes `keep` saves that read for candidates a ray's box clip rejects.
-pub type VoxelLookup<'a> =
-    dyn FnMut(u64, &dyn Fn(&[f64; 3], &[f64; 3]) -> bool) -> Option<Voxel> + 'a;
+/// A lookup of voxels by ref ([`VoxelSource::with_voxels`]).
+pub type VoxelLookup<'a> = dyn FnMut(u64) -> Voxel + 'a;
 
 /// A volume seen as a source of trilinear voxels, each named by a 64-bit ref (the paper's
 /// *VoxelSource*, section 4.1.1), plus point sampling of the same reconstruction.
@@ -71,13 +67,12 @@ pub trait VoxelSource: Sync {
     /// The voxel named by `r`; `r` must come from this source's extraction.
     fn voxel(&self, r: u64) -> Voxel;
 
-    /// Calls `f` with a lookup that gives what [`Self::voxel`] gives (or `None`, see
-    /// [`VoxelLookup`]), for the many refs one
+    /// Calls `f` with a lookup that gives what [`Self::voxel`] gives, for the many refs one
     /// ray's traversal asks for: sources with a per-thread cache bind it once for all of them
     /// (the default looks each up by [`Self::voxel`]). The lookup must not be used to reenter
     /// this source's other methods.
     fn with_voxels(&self, f: &mut dyn FnMut(&mut VoxelLookup<'_>)) {
-        f(&mut |r, _| Some(self.voxel(r)))
+        f(&mut |r| self.voxel(r))
     }
 
     /// The box `(lo, hi)` of the voxel named by `r`: by default [`Self::voxel`]'s; sources that

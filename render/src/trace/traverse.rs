@@ -144,14 +144,9 @@ impl Surface {
         let mut best: Option<Hit> = None;
         let mut best_at = usize::MAX;
         let mut best_t = tmax;
-        let recip = ray.recip();
         src.with_voxels(&mut |voxel_of| {
             let mut test = |at: usize, r: u64, tmax32: &mut f32| {
-                let t1 = best_t;
-                let Some(voxel) = voxel_of(r, &|lo, hi| meets(ray, &recip, lo, hi, tmin, t1))
-                else {
-                    return;
-                };
+                let voxel = voxel_of(r);
                 if let Some(h) = src.intersect(&voxel, self.iso, ray, tmin, best_t) {
                     if h.t < best_t || best.is_none() {
                         best_t = h.t;
@@ -229,22 +224,10 @@ impl Surface {
         src.with_voxels(&mut |voxel_of| {
             self.bvh
                 .traverse_packet(&mut ray32[..n], active, |_, r, m, ray32| {
-                    let one = m.trailing_zeros() as usize;
-                    let found_voxel = if m & (m - 1) == 0 {
-                        let (ray, recip, t0, t1) =
-                            (&rays[one], &recips[one], tmin[one], best_t[one]);
-                        voxel_of(r, &|lo, hi| meets(ray, recip, lo, hi, t0, t1))
-                    } else {
-                        // Several rays: most of them enter the box, so its values are read
-                        // (testing each ray's clip first cost more than it saved).
-                        voxel_of(r, &|_, _| true)
-                    };
-                    let Some(voxel) = found_voxel else {
-                        return;
-                    };
+                    let voxel = voxel_of(r);
                     if m & (m - 1) == 0 {
                         // One ray: its own test, inlined (most candidates of a far view).
-                        let k = one;
+                        let k = m.trailing_zeros() as usize;
                         found[k] = src.intersect(&voxel, self.iso, &rays[k], tmin[k], best_t[k]);
                     } else {
                         src.intersect_packet(
@@ -293,14 +276,9 @@ impl Surface {
         // The traversal macro's `break` leaves only the current leaf's loop, so a hit must also
         // stay set and empty the ray's interval, or later candidates would overwrite it.
         let mut hit = false;
-        let recip = ray.recip();
-        let keep = |lo: &[f64; 3], hi: &[f64; 3]| meets(ray, &recip, lo, hi, tmin, tmax);
         src.with_voxels(&mut |voxel_of| {
             self.bvh.traverse(b.ray, |r, tmax32| {
-                if !hit
-                    && voxel_of(r, &keep)
-                        .is_some_and(|v| src.occludes(&v, self.iso, ray, tmin, tmax))
-                {
+                if !hit && src.occludes(&voxel_of(r), self.iso, ray, tmin, tmax) {
                     hit = true;
                     *tmax32 = f32::NEG_INFINITY;
                 }
@@ -330,10 +308,8 @@ impl Surface {
         let unused = Ray::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0);
         let mut ray32 = [unused; PACKET];
         let mut live: Mask = 0;
-        let mut recips = [[0.0f64; 3]; PACKET];
         for k in rays_of(active) {
-            recips[k] = rays[k].recip();
-            if let Some(b) = rays[k].bvh_ray_with(&recips[k], &frame, pad, tmin[k], tmax) {
+            if let Some(b) = rays[k].bvh_ray(&frame, pad, tmin[k], tmax) {
                 ray32[k] = b.ray;
                 live |= 1 << k;
             }
@@ -349,16 +325,7 @@ impl Surface {
                     if m == 0 {
                         return;
                     }
-                    let found = if m & (m - 1) == 0 {
-                        let k = m.trailing_zeros() as usize;
-                        let (ray, recip, t0) = (&rays[k], &recips[k], tmin[k]);
-                        voxel_of(r, &|lo, hi| meets(ray, recip, lo, hi, t0, tmax))
-                    } else {
-                        voxel_of(r, &|_, _| true)
-                    };
-                    let Some(voxel) = found else {
-                        return;
-                    };
+                    let voxel = voxel_of(r);
                     for k in rays_of(m) {
                         if src.occludes(&voxel, self.iso, &rays[k], tmin[k], tmax) {
                             hit |= 1 << k;
@@ -379,19 +346,4 @@ impl Surface {
             _ => None,
         }
     }
-}
-
-/// True when `ray` (with its reciprocals `recip`, [`GridRay::recip`]) meets the box `[lo, hi]`
-/// within `[tmin, tmax]`: the box clip that begins the exact voxel tests, so a voxel it rejects
-/// would give the ray no hit, and its values need not be read.
-#[inline(always)]
-fn meets(
-    ray: &GridRay,
-    recip: &[f64; 3],
-    lo: &[f64; 3],
-    hi: &[f64; 3],
-    tmin: f64,
-    tmax: f64,
-) -> bool {
-    ray.clip_with(recip, *lo, *hi, tmin, tmax).is_some()
 }

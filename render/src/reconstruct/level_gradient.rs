@@ -141,9 +141,15 @@ impl LevelCells {
         valid: 0,
     };
 
+    /// True when every cell is a leaf cell of the level.
+    #[inline(always)]
+    pub fn is_whole(&self) -> bool {
+        self.valid == u32::MAX
+    }
+
     /// The whole block, when every cell is a leaf cell of the level.
     pub fn block(&self) -> Option<LevelBlock> {
-        (self.valid == u32::MAX).then_some(self.values)
+        self.is_whole().then_some(self.values)
     }
 
     /// Per axis: true when the cells the gradient along it reads are all leaf cells of the
@@ -222,8 +228,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             return Ok(None);
         };
         Ok(self
-            .level_cells(level, first)?
-            .block()
+            .level_block(level, first)?
             .map(|block| self.gradient_in_block(&block, p, level, first)))
     }
 
@@ -290,7 +295,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     }
 
     /// The trilinear weight of each corner of the dual cell `first` of `level` at `p`.
-    #[inline]
+    #[inline(always)]
     fn dual_weights(&self, p: [f64; 3], level: u32, first: [i64; 3]) -> [f64; 8] {
         let s = self.grid().scale(level);
         let base = self.grid().centre(level, first);
@@ -306,40 +311,79 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// span at most [`BLOCK_LEAVES`] leaves; `None` otherwise. A pure function of `level` and
     /// `first`.
     pub fn level_block(&self, level: u32, first: [i64; 3]) -> Result<Option<LevelBlock>> {
-        Ok(self.level_cells(level, first)?.block())
-    }
-
-    /// The cells of [`Self::level_block`] that are leaf cells everywhere, found in at most
-    /// [`BLOCK_LEAVES`] kd-tree leaves (cells past those count as not): the whole block when
-    /// [`Self::level_block`] gives it, else the cells that are. A pure function of `level` and
-    /// `first`.
-    pub fn level_cells(&self, level: u32, first: [i64; 3]) -> Result<LevelCells> {
         let lo = axes(|a| first[a] - 1);
         let mut slabs: [Option<Slab<'f>>; BLOCK_LEAVES] = Default::default();
-        let mut out = LevelCells::NONE;
-        let found = self.block_leaf(level, first, 0, &mut slabs)?;
-        if let Some(leaf) = found.filter(|l| l.holds(lo) && l.holds(axes(|a| lo[a] + 3))) {
+        let Some(leaf) = self.block_leaf(level, first, 0, &mut slabs)? else {
+            return Ok(None);
+        };
+        let mut out = [0f32; 32];
+        if leaf.holds(lo) && leaf.holds(axes(|a| lo[a] + 3)) {
             // One leaf holds the whole block: one index and three strides.
             let Some(slab) = &slabs[0] else {
-                return Ok(out);
+                return Ok(None);
             };
             let start = leaf.index(lo);
             let step = leaf.stride.map(|x| x as usize);
             let Some(v) = slab.get(start..=start + 3 * (step[0] + step[1] + step[2])) else {
-                return Ok(out);
+                return Ok(None);
             };
-            for (slot, c) in out.values.iter_mut().zip(NEEDED) {
+            for (slot, c) in out.iter_mut().zip(NEEDED) {
                 *slot = v[c[0] + c[1] * step[1] + c[2] * step[2]];
             }
-            out.valid = u32::MAX;
-            return Ok(out);
+            return Ok(Some(out));
         }
         // Otherwise cell by cell, from the leaves met so far or one found next.
+        let mut leaves = [leaf; BLOCK_LEAVES];
+        let (mut known, mut last) = (1, 0);
+        for (slot, c) in out.iter_mut().zip(NEEDED) {
+            let cell = axes(|a| lo[a] + c[a] as i64);
+            if !leaves[last].holds(cell) {
+                match (0..known).find(|&k| leaves[k].holds(cell)) {
+                    Some(k) => last = k,
+                    None if known == BLOCK_LEAVES => return Ok(None),
+                    None => {
+                        let found = self.block_leaf(level, cell, known, &mut slabs)?;
+                        let Some(l) = found.filter(|l| l.holds(cell)) else {
+                            return Ok(None);
+                        };
+                        leaves[known] = l;
+                        last = known;
+                        known += 1;
+                    }
+                }
+            }
+            let l = &leaves[last];
+            let Some(v) = slabs[l.slab].as_ref().and_then(|s| s.get(l.index(cell))) else {
+                return Ok(None);
+            };
+            *slot = *v;
+        }
+        Ok(Some(out))
+    }
+
+    /// The cells of [`Self::level_block`] that are leaf cells everywhere, found in at most
+    /// [`BLOCK_LEAVES`] kd-tree leaves (cells past those count as not): the whole block when
+    /// [`Self::level_block`] gives it, else the cells that are, as far as an axis could still
+    /// use them ([`LevelCells::valid`]). A pure function of `level` and `first`.
+    pub fn level_cells(&self, level: u32, first: [i64; 3]) -> Result<LevelCells> {
+        Ok(match self.level_block(level, first)? {
+            Some(values) => LevelCells {
+                values,
+                valid: u32::MAX,
+            },
+            None => self.level_cells_apart(level, first)?,
+        })
+    }
+
+    /// [`Self::level_cells`] where [`Self::level_block`] gives no whole block.
+    #[inline(never)]
+    fn level_cells_apart(&self, level: u32, first: [i64; 3]) -> Result<LevelCells> {
+        let lo = axes(|a| first[a] - 1);
+        let mut slabs: [Option<Slab<'f>>; BLOCK_LEAVES] = Default::default();
+        let mut out = LevelCells::NONE;
+        // Cell by cell, from the leaves met so far or one found next.
         let mut leaves = [BlockLeaf::EMPTY; BLOCK_LEAVES];
         let (mut known, mut last) = (0, 0);
-        if let Some(leaf) = found {
-            (leaves[0], known) = (leaf, 1);
-        }
         // Boxes of kd-tree leaves whose finest brick is of another level: a cell whose lowest
         // finest cell lies in one is not a leaf cell of `level` (as `block_leaf` finds).
         let mut foreign = [IBox::default(); FOREIGN_LEAVES];
@@ -500,15 +544,18 @@ impl LevelBlocks {
     /// Bytes of one table.
     pub const BYTES: usize = BLOCK_SLOTS * std::mem::size_of::<BlockSlot>();
 
-    /// [`Sampler::level_gradient_axes`], reading the cells from this memo when it holds them.
+    /// [`Sampler::level_gradient`], reading the cells from this memo when it holds them; where
+    /// that is `None`, the components [`Sampler::level_gradient_axes`] gives are put in `given`
+    /// (left alone otherwise).
     pub fn gradient<D: AsRef<[u8]>>(
         &mut self,
         sampler: &Sampler<'_, D>,
         p: [f64; 3],
         level: u32,
-    ) -> Result<[Option<f64>; 3]> {
+        given: &mut [Option<f64>; 3],
+    ) -> Result<Option<[f64; 3]>> {
         let Some(first) = sampler.dual_cell(p, level) else {
-            return Ok([None; 3]);
+            return Ok(None);
         };
         if self.owner != sampler.id() || self.slots.is_empty() {
             self.owner = sampler.id();
@@ -526,9 +573,15 @@ impl LevelBlocks {
             self.slots[slot] = (key, sampler.level_cells(level, first)?);
         }
         let cells = &self.slots[slot].1;
-        Ok(match cells.block() {
-            Some(b) => sampler.gradient_in_block(&b, p, level, first).map(Some),
-            None => sampler.gradient_axes_in(cells, p, level, first),
-        })
+        if cells.is_whole() {
+            return Ok(Some(sampler.gradient_in_block(
+                &cells.values,
+                p,
+                level,
+                first,
+            )));
+        }
+        *given = sampler.gradient_axes_in(cells, p, level, first);
+        Ok(None)
     }
 }

@@ -278,7 +278,9 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
 }
 
 impl<D: AsRef<[u8]> + Sync> FieldSource<'_, D> {
-    /// [`VoxelSource::gradient`] taking the components `given` has as they are.
+    /// [`VoxelSource::gradient`] taking the components `given` has as they are. Kept out of
+    /// line: most smooth normals never sample.
+    #[inline(never)]
     fn gradient_given(
         &self,
         p: [f64; 3],
@@ -373,6 +375,7 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         self.gradient_given(p, h, [None; 3])
     }
 
+    #[inline]
     fn level_gradient(&self, p: [f64; 3], level: u32, step: [f64; 3]) -> Option<[f64; 3]> {
         let step = self.cell_size(level).unwrap_or(step);
         let mut given = [None; 3];
@@ -382,11 +385,11 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
             // cells are leaf cells of the level, the others are sampled.
             let found = {
                 let mut cache = self.thread_cache().borrow_mut();
-                cache.blocks.gradient(self.sampler(), p, level)
+                cache.blocks.gradient(self.sampler(), p, level, &mut given)
             };
             match found {
-                Ok([Some(x), Some(y), Some(z)]) => return Some([x, y, z]),
-                Ok(g) => given = g,
+                Ok(Some(g)) => return Some(g),
+                Ok(None) => {}
                 Err(e) => {
                     self.record(e);
                     return None;

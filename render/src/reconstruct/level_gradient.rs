@@ -11,8 +11,9 @@
 //! both are linear on `a` between the corners with the same weights on the other axes. So the
 //! gradient is eight corner gradients, each one subtraction of two neighbouring cells, shared
 //! by every point of the dual cell, and the same function of `p` as the six samples give (up
-//! to rounding: the samples round to `f32`, this evaluates in `f64`). See
-//! `docs/reconstruction.md`.
+//! to rounding: the samples round to `f32`, this evaluates in `f64`). Next to another level,
+//! each component whose 16 cells are leaf cells of the level is still read from the block, and
+//! only the other axes are sampled. See `docs/reconstruction.md`.
 
 use amr_format::IBox;
 
@@ -145,11 +146,6 @@ impl LevelCells {
     #[inline(always)]
     pub fn is_whole(&self) -> bool {
         self.valid == u32::MAX
-    }
-
-    /// The whole block, when every cell is a leaf cell of the level.
-    pub fn block(&self) -> Option<LevelBlock> {
-        self.is_whole().then_some(self.values)
     }
 
     /// Per axis: true when the cells the gradient along it reads are all leaf cells of the

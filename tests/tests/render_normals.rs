@@ -4,8 +4,9 @@
 //! faces), change only slightly where the level changes, and stay within a degree of the
 //! sphere's normal. The normals read from blocks of cell values inside one level
 //! (`VoxelSource::level_gradient`) are compared ray by ray with the six point samples they
-//! replace, which the sweep also traces, also on a ratio-3 file whose kd-tree leaves cut coarse
-//! cells; and frames with smooth normals are the same on 1, 2 and 3 threads.
+//! replace, which the sweep also traces (also where the block gives only some components and
+//! the others are sampled), also on a ratio-3 file whose kd-tree leaves cut coarse cells; and
+//! frames with smooth normals are the same on 1, 2 and 3 threads.
 
 use amr_format::AmrkFile;
 use amr_render::bvh::BvhBuilder;
@@ -78,6 +79,9 @@ struct Sweep {
     max_to_sampled: f64,
     /// Hits whose level's block of cell values gives the gradient (`Sampler::level_gradient`).
     from_blocks: usize,
+    /// Hits where the block gives some components but not all
+    /// (`Sampler::level_gradient_axes`): the others are sampled.
+    from_some_axes: usize,
 }
 
 /// Which normals a sweep takes.
@@ -119,6 +123,7 @@ fn sweep(path: &std::path::Path, reconstruction: Reconstruction, kind: Normals) 
     let mut levels = Vec::new();
     let mut max_to_sampled = 0f64;
     let mut from_blocks = 0;
+    let mut from_some_axes = 0;
     for i in 0..n {
         let th = from + (to - from) * i as f64 / (n - 1) as f64;
         let d = [th.cos(), th.sin() * tilt.cos(), th.sin() * tilt.sin()];
@@ -138,6 +143,16 @@ fn sweep(path: &std::path::Path, reconstruction: Reconstruction, kind: Normals) 
         max_to_sampled = max_to_sampled.max(angle(g, world(sampled_hit.grad)));
         let block = src.sampler().level_gradient(hit.pos, hit.level).unwrap();
         from_blocks += usize::from(block.is_some());
+        let by_axis = src
+            .sampler()
+            .level_gradient_axes(hit.pos, hit.level)
+            .unwrap();
+        let given = by_axis.iter().filter(|g| g.is_some()).count();
+        from_some_axes += usize::from(given > 0 && given < 3);
+        match block {
+            Some(g) => assert_eq!(by_axis, g.map(Some), "the block's components, axis by axis"),
+            None => assert!(given < 3, "a component the whole block lacks"),
+        }
         let p = frame.to_world(hit.pos);
         let exact = unit([0, 1, 2].map(|a| p[a] - CENTRE[a]));
         max_error = max_error.max(angle(g, exact));
@@ -162,6 +177,7 @@ fn sweep(path: &std::path::Path, reconstruction: Reconstruction, kind: Normals) 
         levels,
         max_to_sampled,
         from_blocks,
+        from_some_axes,
     }
 }
 
@@ -185,6 +201,12 @@ fn smooth_normals_turn_steadily_across_voxel_faces_and_level_boundaries() {
     assert!(
         smooth.from_blocks > 1500 && smooth.max_to_sampled < 1e-3,
         "block normals differ from the sampled ones: {smooth:?}"
+    );
+    // Next to the level boundary, some hits take some components from the block and sample
+    // the others; the comparison above covers them too.
+    assert!(
+        smooth.from_some_axes > 10,
+        "no hit takes part of its gradient from a block: {smooth:?}"
     );
     assert!(
         flat.levels.len() >= 2 && smooth.levels.len() >= 2,

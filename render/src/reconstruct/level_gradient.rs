@@ -11,8 +11,9 @@
 //! both are linear on `a` between the corners with the same weights on the other axes. So the
 //! gradient is eight corner gradients, each one subtraction of two neighbouring cells, shared
 //! by every point of the dual cell, and the same function of `p` as the six samples give (up
-//! to rounding: the samples round to `f32`, this evaluates in `f64`). See
-//! `docs/reconstruction.md`.
+//! to rounding: the samples round to `f32`, this evaluates in `f64`). Next to another level,
+//! each component whose 16 cells are leaf cells of the level is still read from the block, and
+//! only the other axes are sampled. See `docs/reconstruction.md`.
 
 use amr_format::IBox;
 
@@ -85,8 +86,93 @@ const fn pairs() -> [[[usize; 2]; 8]; 3] {
 /// The values of the cells of a block that the gradient reads, in [`NEEDED`]'s order.
 pub type LevelBlock = [f32; 32];
 
+/// Per axis: the [`NEEDED`] slots (bit per slot) whose differences give the gradient along it,
+/// which are the corners of the dual cells of the two samples one cell apart on that axis.
+const AXIS_SLOTS: [u32; 3] = axis_slots();
+
+const fn axis_slots() -> [u32; 3] {
+    let mut out = [0u32; 3];
+    let mut a = 0;
+    while a < 3 {
+        let mut n = 0;
+        while n < 8 {
+            out[a] |= 1 << PAIRS[a][n][0] | 1 << PAIRS[a][n][1];
+            n += 1;
+        }
+        a += 1;
+    }
+    out
+}
+
+/// Per [`NEEDED`] slot: the axes (bit per axis) whose gradient reads it ([`AXIS_SLOTS`]).
+const SLOT_AXES: [u8; 32] = slot_axes();
+
+const fn slot_axes() -> [u8; 32] {
+    let mut out = [0u8; 32];
+    let mut k = 0;
+    while k < 32 {
+        let mut a = 0;
+        while a < 3 {
+            if AXIS_SLOTS[a] >> k & 1 == 1 {
+                out[k] |= 1 << a;
+            }
+            a += 1;
+        }
+        k += 1;
+    }
+    out
+}
+
+/// The cells of a block of one level as far as they are leaf cells of it: their values (in
+/// [`NEEDED`]'s order) and, bit per slot, which are ([`Sampler::level_cells`]); a slot whose bit
+/// is clear holds 0.
+#[derive(Clone, Copy)]
+pub struct LevelCells {
+    /// The values, in [`NEEDED`]'s order.
+    pub values: LevelBlock,
+    /// Bit `k` set: slot `k` is a leaf cell of the level at every finest cell of it; clear:
+    /// it is not, or it was not looked at because every axis reading it lacks another cell.
+    pub valid: u32,
+}
+
+impl LevelCells {
+    /// No cell known.
+    const NONE: Self = Self {
+        values: [0.0; 32],
+        valid: 0,
+    };
+
+    /// True when every cell is a leaf cell of the level.
+    #[inline(always)]
+    pub fn is_whole(&self) -> bool {
+        self.valid == u32::MAX
+    }
+
+    /// Per axis: true when the cells the gradient along it reads are all leaf cells of the
+    /// level, so the block gives that component.
+    pub fn axes(&self) -> [bool; 3] {
+        axes(|a| self.valid & AXIS_SLOTS[a] == AXIS_SLOTS[a])
+    }
+}
+
 /// Kd-tree leaves a block may span before [`Sampler::level_block`] gives up.
 const BLOCK_LEAVES: usize = 8;
+
+/// The gradient along axis `a` (cells `2 * scale` doubled units wide) from a block's values:
+/// the corner differences two cells apart, weighted by `w` ([`Sampler::gradient_in_block`]).
+#[inline(always)]
+fn axis_difference(block: &LevelBlock, w: &[f64; 8], a: usize, scale: i64) -> f64 {
+    let mut sum = 0.0;
+    for (n, wn) in w.iter().enumerate() {
+        let [up, down] = PAIRS[a][n];
+        sum += wn * (f64::from(block[up]) - f64::from(block[down]));
+    }
+    // Two cells apart, each `2 * scale` doubled units.
+    sum / (4 * scale) as f64
+}
+
+/// Kd-tree leaves of another level whose boxes [`Sampler::level_cells`] remembers.
+const FOREIGN_LEAVES: usize = 4;
 
 /// Finest cells of a cell cut by kd-tree leaves that [`Sampler::level_block`] checks one by
 /// one before giving up.
@@ -105,6 +191,15 @@ struct BlockLeaf {
 }
 
 impl BlockLeaf {
+    /// A leaf holding no cell.
+    const EMPTY: Self = Self {
+        lo: [0; 3],
+        hi: [0; 3],
+        brick_lo: [0; 3],
+        stride: [0; 3],
+        slab: 0,
+    };
+
     #[inline(always)]
     fn holds(&self, c: [i64; 3]) -> bool {
         (0..3).all(|a| self.lo[a] <= c[a] && c[a] < self.hi[a])
@@ -131,6 +226,17 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         Ok(self
             .level_block(level, first)?
             .map(|block| self.gradient_in_block(&block, p, level, first)))
+    }
+
+    /// [`Self::level_gradient`] axis by axis: the component along each axis whose cells are leaf
+    /// cells of `level` ([`LevelCells::axes`]), `None` on the others, where the caller samples.
+    /// Each component is the one [`Self::level_gradient`] gives when it gives all three.
+    pub fn level_gradient_axes(&self, p: [f64; 3], level: u32) -> Result<[Option<f64>; 3]> {
+        let Some(first) = self.dual_cell(p, level) else {
+            return Ok([None; 3]);
+        };
+        let cells = self.level_cells(level, first)?;
+        Ok(self.gradient_axes_in(&cells, p, level, first))
     }
 
     /// The lower corner cell of the dual cell of `level` holding doubled point `p` (the cells
@@ -160,23 +266,38 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         level: u32,
         first: [i64; 3],
     ) -> [f64; 3] {
+        let w = self.dual_weights(p, level, first);
+        let s = self.grid().scale(level);
+        axes(|a| axis_difference(block, &w, a, s[a]))
+    }
+
+    /// [`Self::gradient_in_block`]'s component along each axis that `cells` give
+    /// ([`LevelCells::axes`]), the same bits; `None` on the others.
+    #[inline]
+    pub fn gradient_axes_in(
+        &self,
+        cells: &LevelCells,
+        p: [f64; 3],
+        level: u32,
+        first: [i64; 3],
+    ) -> [Option<f64>; 3] {
+        let given = cells.axes();
+        if given == [false; 3] {
+            return [None; 3];
+        }
+        let w = self.dual_weights(p, level, first);
+        let s = self.grid().scale(level);
+        axes(|a| given[a].then(|| axis_difference(&cells.values, &w, a, s[a])))
+    }
+
+    /// The trilinear weight of each corner of the dual cell `first` of `level` at `p`.
+    #[inline(always)]
+    fn dual_weights(&self, p: [f64; 3], level: u32, first: [i64; 3]) -> [f64; 8] {
         let s = self.grid().scale(level);
         let base = self.grid().centre(level, first);
         let t = axes(|a| ((p[a] - base[a] as f64) / (2 * s[a]) as f64).clamp(0.0, 1.0));
-        // The trilinear weight of each corner of the dual cell.
         let u = [[1.0 - t[0], t[0]], [1.0 - t[1], t[1]], [1.0 - t[2], t[2]]];
-        let w: [f64; 8] = std::array::from_fn(|n| u[0][n & 1] * u[1][n >> 1 & 1] * u[2][n >> 2]);
-        let mut g = [0f64; 3];
-        for (a, ga) in g.iter_mut().enumerate() {
-            let mut sum = 0.0;
-            for (n, wn) in w.iter().enumerate() {
-                let [up, down] = PAIRS[a][n];
-                sum += wn * (f64::from(block[up]) - f64::from(block[down]));
-            }
-            // Two cells apart, each `2 * scale` doubled units.
-            *ga = sum / (4 * s[a]) as f64;
-        }
-        g
+        std::array::from_fn(|n| u[0][n & 1] * u[1][n >> 1 & 1] * u[2][n >> 2])
     }
 
     /// The values of the cells of `level` that [`Self::level_gradient`] reads in the dual cell
@@ -234,6 +355,86 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             *slot = *v;
         }
         Ok(Some(out))
+    }
+
+    /// The cells of [`Self::level_block`] that are leaf cells everywhere, found in at most
+    /// [`BLOCK_LEAVES`] kd-tree leaves (cells past those count as not): the whole block when
+    /// [`Self::level_block`] gives it, else the cells that are, as far as an axis could still
+    /// use them ([`LevelCells::valid`]). A pure function of `level` and `first`.
+    pub fn level_cells(&self, level: u32, first: [i64; 3]) -> Result<LevelCells> {
+        Ok(match self.level_block(level, first)? {
+            Some(values) => LevelCells {
+                values,
+                valid: u32::MAX,
+            },
+            None => self.level_cells_apart(level, first)?,
+        })
+    }
+
+    /// [`Self::level_cells`] where [`Self::level_block`] gives no whole block.
+    #[inline(never)]
+    fn level_cells_apart(&self, level: u32, first: [i64; 3]) -> Result<LevelCells> {
+        let lo = axes(|a| first[a] - 1);
+        let mut slabs: [Option<Slab<'f>>; BLOCK_LEAVES] = Default::default();
+        let mut out = LevelCells::NONE;
+        // Cell by cell, from the leaves met so far or one found next.
+        let mut leaves = [BlockLeaf::EMPTY; BLOCK_LEAVES];
+        let (mut known, mut last) = (0, 0);
+        // Boxes of kd-tree leaves whose finest brick is of another level: a cell whose lowest
+        // finest cell lies in one is not a leaf cell of `level` (as `block_leaf` finds).
+        let mut foreign = [IBox::default(); FOREIGN_LEAVES];
+        let mut num_foreign = 0;
+        let grid = self.grid();
+        // The axes whose cells are all leaf cells of `level` so far; a cell only axes already
+        // lost read is not looked at.
+        let mut alive = 7u8;
+        for (k, c) in NEEDED.iter().enumerate() {
+            if SLOT_AXES[k] & alive == 0 {
+                continue;
+            }
+            let cell = axes(|a| lo[a] + c[a] as i64);
+            if known == 0 || !leaves[last].holds(cell) {
+                match (0..known).find(|&j| leaves[j].holds(cell)) {
+                    Some(j) => last = j,
+                    None if known == BLOCK_LEAVES => {
+                        alive &= !SLOT_AXES[k];
+                        continue;
+                    }
+                    None => {
+                        let f = grid.finest_box(level, cell).lo;
+                        if foreign[..num_foreign].iter().any(|b| b.contains_cell(f)) {
+                            alive &= !SLOT_AXES[k];
+                            continue;
+                        }
+                        let found = self.block_leaf(level, cell, known, &mut slabs)?;
+                        let Some(l) = found.filter(|l| l.holds(cell)) else {
+                            alive &= !SLOT_AXES[k];
+                            if num_foreign < FOREIGN_LEAVES {
+                                if let Some(leaf) = self.find_leaf(f) {
+                                    if !matches!(self.leaf_top(leaf), Some((_, top)) if top == level)
+                                    {
+                                        foreign[num_foreign] = self.leaf_box(leaf);
+                                        num_foreign += 1;
+                                    }
+                                }
+                            }
+                            continue;
+                        };
+                        leaves[known] = l;
+                        last = known;
+                        known += 1;
+                    }
+                }
+            }
+            let l = &leaves[last];
+            if let Some(v) = slabs[l.slab].as_ref().and_then(|s| s.get(l.index(cell))) {
+                out.values[k] = *v;
+                out.valid |= 1 << k;
+            } else {
+                alive &= !SLOT_AXES[k];
+            }
+        }
+        Ok(out)
     }
 
     /// True when every finest cell of `finest` (the finest cells of one cell of `level`, at
@@ -322,12 +523,12 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 /// Slots of a [`LevelBlocks`] table (a power of two).
 const BLOCK_SLOTS: usize = 4096;
 
-/// A slot of [`LevelBlocks`]: the level and dual cell, and the block there.
-type BlockSlot = ((u32, [i64; 3]), Option<LevelBlock>);
+/// A slot of [`LevelBlocks`]: the level and dual cell, and the cells there.
+type BlockSlot = ((u32, [i64; 3]), LevelCells);
 
-/// A per-thread memo of [`Sampler::level_block`]'s answers, direct-mapped by level and dual
-/// cell: the hits of neighbouring rays share dual cells, so most gradients read a remembered
-/// block. Blocks are pure functions of their key, so the memo never changes a gradient.
+/// A per-thread memo of [`Sampler::level_cells`]' answers, direct-mapped by level and dual
+/// cell: the hits of neighbouring rays share dual cells, so most gradients read remembered
+/// cells. They are pure functions of their key, so the memo never changes a gradient.
 #[derive(Default)]
 pub struct LevelBlocks {
     /// The sampler served, by [`Sampler::id`] (0: none yet).
@@ -339,12 +540,15 @@ impl LevelBlocks {
     /// Bytes of one table.
     pub const BYTES: usize = BLOCK_SLOTS * std::mem::size_of::<BlockSlot>();
 
-    /// [`Sampler::level_gradient`], reading the block from this memo when it holds it.
+    /// [`Sampler::level_gradient`], reading the cells from this memo when it holds them; where
+    /// that is `None`, the components [`Sampler::level_gradient_axes`] gives are put in `given`
+    /// (left alone otherwise).
     pub fn gradient<D: AsRef<[u8]>>(
         &mut self,
         sampler: &Sampler<'_, D>,
         p: [f64; 3],
         level: u32,
+        given: &mut [Option<f64>; 3],
     ) -> Result<Option<[f64; 3]>> {
         let Some(first) = sampler.dual_cell(p, level) else {
             return Ok(None);
@@ -352,7 +556,8 @@ impl LevelBlocks {
         if self.owner != sampler.id() || self.slots.is_empty() {
             self.owner = sampler.id();
             self.slots.clear();
-            self.slots.resize(BLOCK_SLOTS, ((u32::MAX, [0; 3]), None));
+            self.slots
+                .resize(BLOCK_SLOTS, ((u32::MAX, [0; 3]), LevelCells::NONE));
         }
         let key = (level, first);
         let h = (first[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
@@ -360,13 +565,19 @@ impl LevelBlocks {
             ^ (first[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
             ^ u64::from(level).wrapping_mul(0x27D4_EB2F_1656_67C5);
         let slot = (h >> (64 - BLOCK_SLOTS.trailing_zeros())) as usize;
-        let block = if self.slots[slot].0 == key {
-            self.slots[slot].1
-        } else {
-            let block = sampler.level_block(level, first)?;
-            self.slots[slot] = (key, block);
-            block
-        };
-        Ok(block.map(|b| sampler.gradient_in_block(&b, p, level, first)))
+        if self.slots[slot].0 != key {
+            self.slots[slot] = (key, sampler.level_cells(level, first)?);
+        }
+        let cells = &self.slots[slot].1;
+        if cells.is_whole() {
+            return Ok(Some(sampler.gradient_in_block(
+                &cells.values,
+                p,
+                level,
+                first,
+            )));
+        }
+        *given = sampler.gradient_axes_in(cells, p, level, first);
+        Ok(None)
     }
 }

@@ -25,7 +25,7 @@ use crate::trace::face::intersect_face;
 use crate::trace::octant::{intersect_voxel, intersect_voxel_packet, voxel_occludes, VoxelHit};
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelLookup, VoxelSource};
-use crate::trace::tracer::central_difference_of;
+use crate::trace::tracer::central_difference_given;
 
 /// Bytes of decompressed bricks the sampler may cache.
 pub const BRICK_CACHE_BYTES: usize = 256 << 20;
@@ -282,6 +282,35 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     }
 }
 
+impl<D: AsRef<[u8]> + Sync> FieldSource<'_, D> {
+    /// [`VoxelSource::gradient`] taking the components `given` has as they are. Kept out of
+    /// line: most smooth normals never sample.
+    #[inline(never)]
+    fn gradient_given(
+        &self,
+        p: [f64; 3],
+        h: [f64; 3],
+        given: [Option<f64>; 3],
+    ) -> Option<[f64; 3]> {
+        let mut cache = self.thread_cache().borrow_mut();
+        let sampler = self.sampler();
+        // Bound once for the samples: `sample_with` without binding each time.
+        let (loc, memo) = cache.scratch.bind(sampler);
+        central_difference_given(
+            |q| match sampler.sample_in(&loc, q, self.reconstruction, memo) {
+                Ok(v) => v.map(|s| s.0),
+                Err(e) => {
+                    self.record(e);
+                    None
+                }
+            },
+            p,
+            h,
+            given,
+        )
+    }
+}
+
 impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
     fn frame(&self) -> GridFrame {
         self.frame
@@ -348,31 +377,20 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
     }
 
     fn gradient(&self, p: [f64; 3], h: [f64; 3]) -> Option<[f64; 3]> {
-        let mut cache = self.thread_cache().borrow_mut();
-        let sampler = self.sampler();
-        // Bound once for the six samples: `sample_with` without binding each time.
-        let (loc, memo) = cache.scratch.bind(sampler);
-        central_difference_of(
-            |q| match sampler.sample_in(&loc, q, self.reconstruction, memo) {
-                Ok(v) => v.map(|s| s.0),
-                Err(e) => {
-                    self.record(e);
-                    None
-                }
-            },
-            p,
-            h,
-        )
+        self.gradient_given(p, h, [None; 3])
     }
 
+    #[inline]
     fn level_gradient(&self, p: [f64; 3], level: u32, step: [f64; 3]) -> Option<[f64; 3]> {
         let step = self.cell_size(level).unwrap_or(step);
+        let mut given = [None; 3];
         if matches!(self.voxels, Voxels::Octant(_) | Voxels::Current(_)) {
             // Inside one level, both fields are the dual cells' trilinear interpolant, whose
-            // central differences one cell apart the brick gives directly.
+            // central differences one cell apart the brick gives directly: on every axis whose
+            // cells are leaf cells of the level, the others are sampled.
             let found = {
                 let mut cache = self.thread_cache().borrow_mut();
-                cache.blocks.gradient(self.sampler(), p, level)
+                cache.blocks.gradient(self.sampler(), p, level, &mut given)
             };
             match found {
                 Ok(Some(g)) => return Some(g),
@@ -383,7 +401,7 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
                 }
             }
         }
-        self.gradient(p, step)
+        self.gradient_given(p, step, given)
     }
 
     fn release_pages(&self) {

@@ -251,14 +251,29 @@ pub fn central_difference<S: VoxelSource + ?Sized>(
 
 /// [`central_difference`] of the field `sample` gives.
 pub fn central_difference_of(
+    sample: impl FnMut([f64; 3]) -> Option<f32>,
+    p: [f64; 3],
+    h: [f64; 3],
+) -> Option<[f64; 3]> {
+    central_difference_given(sample, p, h, [None; 3])
+}
+
+/// [`central_difference_of`] taking the components `given` has as they are: only the other
+/// axes are sampled.
+pub fn central_difference_given(
     mut sample: impl FnMut([f64; 3]) -> Option<f32>,
     p: [f64; 3],
     h: [f64; 3],
+    given: [Option<f64>; 3],
 ) -> Option<[f64; 3]> {
     let mut g = [0.0; 3];
     // The value at `p` itself is needed only for a one-sided difference.
     let mut centre: Option<Option<f64>> = None;
     for a in 0..3 {
+        if let Some(x) = given[a] {
+            g[a] = x;
+            continue;
+        }
         let h = h[a];
         let mut at = |d: f64| {
             let mut q = p;

@@ -15,9 +15,6 @@ use obvhs::cwbvh::CwBvh;
 /// Most boxes in one leaf (the node format's limit).
 const LEAF_MAX: usize = 3;
 
-/// Runs of at most this many boxes are cut by counting, longer ones by a binary search.
-const SCAN_MAX: usize = 64;
-
 /// Node depth past which runs are cut at their middle, so that the depth stays far below
 /// obvhs's traversal stack of 32 whatever the codes.
 const MORTON_DEPTH: u32 = 20;
@@ -172,103 +169,119 @@ struct Build<'a> {
     prims: Vec<u32>,
 }
 
-/// A run `[a, b)` of sorted boxes, one child of a node being built.
-#[derive(Clone, Copy, Default)]
-struct Run {
-    a: usize,
-    b: usize,
-    /// Which run to cut first: the highest differing code bit plus one (0: all codes equal),
-    /// then the length.
-    rank: (u32, usize),
+/// The runs `[a, b)` of sorted boxes that become one node's children, in the order they were
+/// made (a cut run keeps its place for its first half; its second half comes last).
+struct Runs {
+    a: [usize; 8],
+    b: [usize; 8],
+    /// Which run to cut first, the largest: the highest differing code bit plus one (0: all
+    /// codes equal) above the length; 0 for runs of one box and for unused places.
+    rank: [u64; 8],
+    len: usize,
 }
 
 impl Build<'_> {
-    fn code(&self, i: usize) -> u64 {
-        self.keys[i] >> self.shift
-    }
-
-    fn run(&self, a: usize, b: usize, depth: u32) -> Run {
-        let x = self.code(a) ^ self.code(b - 1);
-        let bit = if x == 0 || depth >= MORTON_DEPTH {
+    /// The rank of the run `[a, b)` (see [`Runs::rank`]).
+    #[inline(always)]
+    fn rank(&self, a: usize, b: usize, depth: u32) -> u64 {
+        let n = (b - a) as u64;
+        if n < 2 {
+            return 0;
+        }
+        let x = (self.keys[a] ^ self.keys[b - 1]) >> self.shift;
+        let bit = if depth >= MORTON_DEPTH {
             0
         } else {
             64 - x.leading_zeros()
         };
-        Run {
-            a,
-            b,
-            rank: (bit, b - a),
-        }
+        u64::from(bit) << 32 | n
     }
 
-    /// Where `run` is cut: at the first code with its highest differing bit set, or in the
-    /// middle when the codes are equal.
-    fn cut(&self, run: Run) -> usize {
-        let (a, b) = (run.a, run.b);
-        match run.rank.0 {
+    /// Where the run `[a, b)` of rank `rank` is cut: at the first code with its highest
+    /// differing bit set, or in the middle when the codes are equal.
+    #[inline(always)]
+    fn cut(&self, a: usize, b: usize, rank: u64) -> usize {
+        match (rank >> 32) as u32 {
             0 => a + (b - a) / 2,
             bit => {
                 let shift = self.shift + bit - 1;
-                let keys = &self.keys[a..b];
-                // The keys are sorted, so those with the bit clear come first: short runs count
-                // them (independent loads), long ones search.
-                a + if keys.len() <= SCAN_MAX {
-                    keys.iter().filter(|&&k| k >> shift & 1 == 0).count()
-                } else {
-                    keys.partition_point(|&k| k >> shift & 1 == 0)
-                }
+                // The keys are sorted, so those with the bit clear come first.
+                a + self.keys[a..b].partition_point(|&k| k >> shift & 1 == 0)
             }
         }
+    }
+
+    /// The runs of the node over `[a, b)`: the largest run cut (the last of equal ranks) until
+    /// there are eight or no run of two boxes or more is left.
+    #[inline(always)]
+    fn runs(&self, a: usize, b: usize, depth: u32) -> Runs {
+        let mut runs = Runs {
+            a: [a; 8],
+            b: [b; 8],
+            rank: [0; 8],
+            len: 1,
+        };
+        runs.rank[0] = self.rank(a, b, depth);
+        while runs.len < 8 {
+            let mut i = 0;
+            let mut best = 0;
+            for (k, &r) in runs.rank.iter().enumerate() {
+                if r >= best {
+                    best = r;
+                    i = k;
+                }
+            }
+            if best == 0 {
+                break;
+            }
+            let (ra, rb) = (runs.a[i], runs.b[i]);
+            let m = self.cut(ra, rb, best);
+            let n = runs.len;
+            runs.b[i] = m;
+            runs.rank[i] = self.rank(ra, m, depth);
+            runs.a[n] = m;
+            runs.b[n] = rb;
+            runs.rank[n] = self.rank(m, rb, depth);
+            runs.len += 1;
+        }
+        runs
     }
 
     /// Writes the node of the sorted boxes `[a, b)` at `self.nodes[at]` and its subtree after
     /// the nodes written so far; returns its box.
     fn node(&mut self, at: usize, a: usize, b: usize, depth: u32) -> Aabb {
-        let mut runs = [Run::default(); 8];
-        runs[0] = self.run(a, b, depth);
-        let mut len = 1;
-        while len < 8 {
-            let Some(i) = (0..len)
-                .filter(|&i| runs[i].rank.1 > 1)
-                .max_by_key(|&i| runs[i].rank)
-            else {
-                break;
-            };
-            let r = runs[i];
-            let m = self.cut(r);
-            runs[i] = self.run(r.a, m, depth);
-            runs[len] = self.run(m, r.b, depth);
-            len += 1;
-        }
-        let runs = &runs[..len];
+        let runs = self.runs(a, b, depth);
+        let len = runs.len;
 
         let prim_base = self.prims.len();
         let mut child_box = [Aabb::empty(); 8];
         let mut leaf_meta = [0u8; 8];
-        for (i, r) in runs.iter().enumerate() {
-            if r.b - r.a <= LEAF_MAX {
-                leaf_meta[i] =
-                    (self.prims.len() - prim_base) as u8 | [0, 0x20, 0x60, 0xe0][r.b - r.a];
-                child_box[i] = self.boxes[r.a + 1..r.b]
-                    .iter()
-                    .fold(self.boxes[r.a], |t, c| t.union(c));
-                self.prims.extend(
-                    self.keys[r.a..r.b]
-                        .iter()
-                        .map(|&k| (k & self.index_mask) as u32),
-                );
-            }
-        }
         let child_base = self.nodes.len();
         let mut inner_at = [0usize; 8];
         let mut inner = 0;
-        for i in (0..len).filter(|&i| leaf_meta[i] == 0) {
-            inner_at[i] = child_base + inner;
-            inner += 1;
+        for i in 0..len {
+            let (ra, rb) = (runs.a[i], runs.b[i]);
+            if rb - ra <= LEAF_MAX {
+                leaf_meta[i] =
+                    (self.prims.len() - prim_base) as u8 | [0, 0x20, 0x60, 0xe0][rb - ra];
+                child_box[i] = self.boxes[ra + 1..rb]
+                    .iter()
+                    .fold(self.boxes[ra], |t, c| t.union(c));
+                self.prims.extend(
+                    self.keys[ra..rb]
+                        .iter()
+                        .map(|&k| (k & self.index_mask) as u32),
+                );
+            } else {
+                inner_at[i] = child_base + inner;
+                inner += 1;
+            }
         }
         self.nodes.resize(child_base + inner, CwBvhNode::default());
-        for i in (0..len).filter(|&i| leaf_meta[i] == 0) {
-            child_box[i] = self.node(inner_at[i], runs[i].a, runs[i].b, depth + 1);
+        for i in 0..len {
+            if leaf_meta[i] == 0 {
+                child_box[i] = self.node(inner_at[i], runs.a[i], runs.b[i], depth + 1);
+            }
         }
 
         let total = child_box[..len]
@@ -284,21 +297,18 @@ impl Build<'_> {
         node.p = Vec3::from(p);
         node.e = e;
         let mut slot_node = [usize::MAX; 8];
-        let mut moved = [CwBvhNode::default(); 8];
+        let max = Vec3A::splat(255.0);
         for (i, &s) in slots[..len].iter().enumerate() {
             let c = &child_box[i];
-            let qlo = ((c.min - p) * rcp)
-                .floor()
-                .clamp(Vec3A::ZERO, Vec3A::splat(255.0));
-            let qhi = ((c.max - p) * rcp)
-                .ceil()
-                .clamp(Vec3A::ZERO, Vec3A::splat(255.0));
-            node.child_min_x[s] = qlo.x as u8;
-            node.child_min_y[s] = qlo.y as u8;
-            node.child_min_z[s] = qlo.z as u8;
-            node.child_max_x[s] = qhi.x as u8;
-            node.child_max_y[s] = qhi.y as u8;
-            node.child_max_z[s] = qhi.z as u8;
+            // In `0..=255` (a NaN clamps to 0): the conversions through `i32` are exact.
+            let qlo = ((c.min - p) * rcp).floor().clamp(Vec3A::ZERO, max);
+            let qhi = ((c.max - p) * rcp).ceil().clamp(Vec3A::ZERO, max);
+            node.child_min_x[s] = qlo.x as i32 as u8;
+            node.child_min_y[s] = qlo.y as i32 as u8;
+            node.child_min_z[s] = qlo.z as i32 as u8;
+            node.child_max_x[s] = qhi.x as i32 as u8;
+            node.child_max_y[s] = qhi.y as i32 as u8;
+            node.child_max_z[s] = qhi.z as i32 as u8;
             if leaf_meta[i] != 0 {
                 node.child_meta[s] = leaf_meta[i];
             } else {
@@ -307,12 +317,15 @@ impl Build<'_> {
                 slot_node[s] = inner_at[i];
             }
         }
-        let mut k = 0;
-        for &n in slot_node.iter().filter(|&&n| n != usize::MAX) {
-            moved[k] = self.nodes[n];
-            k += 1;
+        if inner > 1 {
+            let mut moved = [CwBvhNode::default(); 8];
+            let mut k = 0;
+            for &n in slot_node.iter().filter(|&&n| n != usize::MAX) {
+                moved[k] = self.nodes[n];
+                k += 1;
+            }
+            self.nodes[child_base..child_base + k].copy_from_slice(&moved[..k]);
         }
-        self.nodes[child_base..child_base + k].copy_from_slice(&moved[..k]);
         self.nodes[at] = node;
         total
     }
@@ -343,6 +356,21 @@ fn pow2_at_least(x: f32) -> f32 {
     f32::from_bits(exp << 23)
 }
 
+/// The direction signs of slot `s`'s rays: bit 2 of `s` x negative, bit 1 y, bit 0 z.
+const SLOT_DIRECTION: [Vec3A; 8] = {
+    let mut d = [Vec3A::ZERO; 8];
+    let mut s = 0;
+    while s < 8 {
+        d[s] = Vec3A::new(
+            if s & 4 != 0 { -1.0 } else { 1.0 },
+            if s & 2 != 0 { -1.0 } else { 1.0 },
+            if s & 1 != 0 { -1.0 } else { 1.0 },
+        );
+        s += 1;
+    }
+    d
+};
+
 /// The slot of each child: slot `s` is visited first by rays whose direction octant is `s`
 /// (bit 2: x negative, bit 1: y, bit 0: z), so a child is placed in the slot of the direction it
 /// lies furthest against (the cost `d . (centre of child - centre of node)` of Ylitie et al. and
@@ -354,14 +382,7 @@ fn order_children(total: &Aabb, children: &[Aabb]) -> [usize; 8] {
     for (c, b) in children.iter().enumerate() {
         v[c] = b.center() - centre;
     }
-    let cost = |c: usize, s: usize| {
-        let d = Vec3A::new(
-            if s & 4 != 0 { -1.0 } else { 1.0 },
-            if s & 2 != 0 { -1.0 } else { 1.0 },
-            if s & 1 != 0 { -1.0 } else { 1.0 },
-        );
-        d.dot(v[c])
-    };
+    let cost = |c: usize, s: usize| SLOT_DIRECTION[s].dot(v[c]);
     // The cheapest slot of child c is the octant it lies in, mirrored.
     let wanted = |c: usize| {
         usize::from(v[c].x > 0.0) << 2 | usize::from(v[c].y > 0.0) << 1 | usize::from(v[c].z > 0.0)

@@ -377,45 +377,52 @@ const SLOT_DIRECTION: [Vec3A; 8] = {
 /// obvhs): each slot goes to the cheapest child that wants it, and children left without one
 /// take, in turn, their cheapest free slot.
 fn order_children(total: &Aabb, children: &[Aabb]) -> [usize; 8] {
+    /// No child, or no slot.
+    const NONE: usize = 8;
     let centre = total.center();
     let mut v = [Vec3A::ZERO; 8];
     for (c, b) in children.iter().enumerate() {
         v[c] = b.center() - centre;
     }
     let cost = |c: usize, s: usize| SLOT_DIRECTION[s].dot(v[c]);
-    // The cheapest slot of child c is the octant it lies in, mirrored.
-    let wanted = |c: usize| {
-        usize::from(v[c].x > 0.0) << 2 | usize::from(v[c].y > 0.0) << 1 | usize::from(v[c].z > 0.0)
-    };
-    let mut owner = [usize::MAX; 8];
+    // The loops below choose by selects rather than branches: the choices are unpredictable.
+    let mut owner = [NONE; 8];
+    let mut owner_cost = [0.0f32; 8];
     for c in 0..children.len() {
-        let s = wanted(c);
-        if owner[s] == usize::MAX || cost(c, s) < cost(owner[s], s) {
-            owner[s] = c;
-        }
+        // The cheapest slot of child c is the octant it lies in, mirrored.
+        let s = MIRRORED_OCTANT[v[c].cmpgt(Vec3A::ZERO).bitmask() as usize];
+        let k = cost(c, s);
+        let take = owner[s] == NONE || k < owner_cost[s];
+        owner[s] = if take { c } else { owner[s] };
+        owner_cost[s] = if take { k } else { owner_cost[s] };
     }
-    let mut slot_of = [usize::MAX; 8];
+    // One place past the children, where slots without an owner write.
+    let mut slot_of = [NONE; 9];
     for (s, &c) in owner.iter().enumerate() {
-        if c != usize::MAX {
-            slot_of[c] = s;
-        }
+        slot_of[c] = s;
     }
     for c in 0..children.len() {
-        if slot_of[c] != usize::MAX {
+        if slot_of[c] != NONE {
             continue;
         }
-        let mut best = (f32::INFINITY, usize::MAX);
-        for s in (0..8).filter(|&s| owner[s] == usize::MAX) {
+        let (mut best_cost, mut best) = (f32::INFINITY, NONE);
+        for (s, &o) in owner.iter().enumerate() {
             let k = cost(c, s);
-            if k < best.0 || best.1 == usize::MAX {
-                best = (k, s);
-            }
+            let better = o == NONE && (k < best_cost || best == NONE);
+            best_cost = if better { k } else { best_cost };
+            best = if better { s } else { best };
         }
-        owner[best.1] = c;
-        slot_of[c] = best.1;
+        owner[best] = c;
+        slot_of[c] = best;
     }
-    slot_of
+    let mut slots = [NONE; 8];
+    slots.copy_from_slice(&slot_of[..8]);
+    slots
 }
+
+/// The slot whose rays come from the octant of a bit mask `x | y << 1 | z << 2` of positive
+/// components: the mirrored octant, in the slots' bit order (x in bit 2, z in bit 0).
+const MIRRORED_OCTANT: [usize; 8] = [0, 4, 2, 6, 1, 5, 3, 7];
 
 #[cfg(test)]
 mod tests {

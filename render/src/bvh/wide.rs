@@ -49,7 +49,8 @@ impl WideBuilder {
             shift: index_bits,
             index_mask,
             nodes: Vec::with_capacity(n / 4 + 1),
-            prims: Vec::with_capacity(n),
+            // A leaf writes three primitives before it drops those past its own.
+            prims: Vec::with_capacity(n + 2),
         };
         b.nodes.push(CwBvhNode::default());
         let total = b.node(0, 0, n, 0);
@@ -261,17 +262,20 @@ impl Build<'_> {
         let mut inner = 0;
         for i in 0..len {
             let (ra, rb) = (runs.a[i], runs.b[i]);
-            if rb - ra <= LEAF_MAX {
-                leaf_meta[i] =
-                    (self.prims.len() - prim_base) as u8 | [0, 0x20, 0x60, 0xe0][rb - ra];
-                child_box[i] = self.boxes[ra + 1..rb]
-                    .iter()
-                    .fold(self.boxes[ra], |t, c| t.union(c));
-                self.prims.extend(
-                    self.keys[ra..rb]
-                        .iter()
-                        .map(|&k| (k & self.index_mask) as u32),
-                );
+            let n = rb - ra;
+            if n <= LEAF_MAX {
+                let first = self.prims.len();
+                leaf_meta[i] = (first - prim_base) as u8 | [0, 0x20, 0x60, 0xe0][n];
+                // The first, second and last boxes are all of a run of one to three (some
+                // twice): no loop of one to three turns, whose count branches mispredict.
+                let (second, last) = (ra + n / 2, rb - 1);
+                child_box[i] = self.boxes[ra]
+                    .union(&self.boxes[second])
+                    .union(&self.boxes[last]);
+                let prim = |k: usize| (self.keys[k] & self.index_mask) as u32;
+                self.prims
+                    .extend_from_slice(&[prim(ra), prim(second), prim(last)]);
+                self.prims.truncate(first + n);
             } else {
                 inner_at[i] = child_base + inner;
                 inner += 1;
@@ -298,17 +302,19 @@ impl Build<'_> {
         node.e = e;
         let mut slot_node = [usize::MAX; 8];
         let max = Vec3A::splat(255.0);
+        // Whole numbers in `0..=255` (a NaN clamps to 0) plus 2^23 keep themselves in their low
+        // mantissa bits: the low byte of the sum's bits is the plane, with no conversion.
+        let magic = Vec3A::splat(8_388_608.0);
         for (i, &s) in slots[..len].iter().enumerate() {
             let c = &child_box[i];
-            // In `0..=255` (a NaN clamps to 0): the conversions through `i32` are exact.
-            let qlo = ((c.min - p) * rcp).floor().clamp(Vec3A::ZERO, max);
-            let qhi = ((c.max - p) * rcp).ceil().clamp(Vec3A::ZERO, max);
-            node.child_min_x[s] = qlo.x as i32 as u8;
-            node.child_min_y[s] = qlo.y as i32 as u8;
-            node.child_min_z[s] = qlo.z as i32 as u8;
-            node.child_max_x[s] = qhi.x as i32 as u8;
-            node.child_max_y[s] = qhi.y as i32 as u8;
-            node.child_max_z[s] = qhi.z as i32 as u8;
+            let qlo = ((c.min - p) * rcp).floor().clamp(Vec3A::ZERO, max) + magic;
+            let qhi = ((c.max - p) * rcp).ceil().clamp(Vec3A::ZERO, max) + magic;
+            node.child_min_x[s] = qlo.x.to_bits() as u8;
+            node.child_min_y[s] = qlo.y.to_bits() as u8;
+            node.child_min_z[s] = qlo.z.to_bits() as u8;
+            node.child_max_x[s] = qhi.x.to_bits() as u8;
+            node.child_max_y[s] = qhi.y.to_bits() as u8;
+            node.child_max_z[s] = qhi.z.to_bits() as u8;
             if leaf_meta[i] != 0 {
                 node.child_meta[s] = leaf_meta[i];
             } else {

@@ -88,18 +88,25 @@ impl WideBuilder {
         }
         let steps = ((1u64 << axis_bits) - 1) as f32;
         let scale = Vec3A::splat(steps) / (hi - lo).max(Vec3A::splat(f32::MIN_POSITIVE));
+        // Whole numbers below 2^21 plus 2^23 keep themselves in their low mantissa bits (a NaN's
+        // low bits are 0, what its conversion gave): no conversion to integers.
+        let magic = Vec3A::splat(8_388_608.0);
+        let mut counts = [[0u32; 256]; 8];
+        let digits = digits_above(index_bits);
         self.keys.clear();
         self.keys.extend(boxes.iter().enumerate().map(|(i, b)| {
-            let q = ((b.min + b.max - lo) * scale).clamp(Vec3A::ZERO, Vec3A::splat(steps));
-            // In `0..2^21` (a NaN clamps to NaN and converts to 0 either way): the `i32`
-            // conversion is one instruction, the `u64` one a branch.
-            let code = spread(q.x as i32 as u64) << 2
-                | spread(q.y as i32 as u64) << 1
-                | spread(q.z as i32 as u64);
+            let q = ((b.min + b.max - lo) * scale)
+                .clamp(Vec3A::ZERO, Vec3A::splat(steps))
+                .floor()
+                + magic;
+            let code = spread(u64::from(q.x.to_bits())) << 2
+                | spread(u64::from(q.y.to_bits())) << 1
+                | spread(u64::from(q.z.to_bits()));
+            count_digits(&mut counts, code, digits);
             code << index_bits | i as u64
         }));
         self.tmp.resize(self.keys.len(), 0);
-        radix_sort(&mut self.keys, &mut self.tmp, index_bits);
+        radix_passes(&mut self.keys, &mut self.tmp, index_bits, &counts[..digits]);
     }
 }
 
@@ -128,18 +135,35 @@ fn spread(v: u64) -> u64 {
 }
 
 /// Stable LSD radix sort of `keys` by their bits from `from` up, a byte at a time; bytes that
-/// are the same in every key are skipped. The counts of every byte are taken in one pass over
-/// the keys (a permutation does not change them).
+/// are the same in every key are skipped.
+#[cfg(test)]
 fn radix_sort(keys: &mut Vec<u64>, tmp: &mut Vec<u64>, from: u32) {
-    let digits = (64 - from).div_ceil(8) as usize;
+    let digits = digits_above(from);
     let mut counts = [[0u32; 256]; 8];
     for &k in keys.iter() {
-        let k = k >> from;
-        for (d, count) in counts[..digits].iter_mut().enumerate() {
-            count[(k >> (8 * d) & 0xff) as usize] += 1;
-        }
+        count_digits(&mut counts, k >> from, digits);
     }
-    for (d, count) in counts[..digits].iter().enumerate() {
+    radix_passes(keys, tmp, from, &counts[..digits]);
+}
+
+/// Bytes of a key above its low `from` bits.
+fn digits_above(from: u32) -> usize {
+    (64 - from).div_ceil(8) as usize
+}
+
+/// Counts each of the low `digits` bytes of `k` (a key shifted down to its sorted bits).
+#[inline(always)]
+fn count_digits(counts: &mut [[u32; 256]; 8], k: u64, digits: usize) {
+    for (d, count) in counts[..digits].iter_mut().enumerate() {
+        count[(k >> (8 * d) & 0xff) as usize] += 1;
+    }
+}
+
+/// The passes of the radix sort of `keys` by their bytes from bit `from` up, given the counts
+/// of each byte over all keys (taken before, as a permutation does not change them); a byte that
+/// is the same in every key is skipped.
+fn radix_passes(keys: &mut Vec<u64>, tmp: &mut Vec<u64>, from: u32, counts: &[[u32; 256]]) {
+    for (d, count) in counts.iter().enumerate() {
         if count.iter().any(|&c| c as usize == keys.len()) {
             continue;
         }

@@ -326,8 +326,9 @@ impl Build<'_> {
         node.e = e;
         let mut slot_node = [usize::MAX; 8];
         let max = Vec3A::splat(255.0);
-        // Whole numbers in `0..=255` (a NaN clamps to 0) plus 2^23 keep themselves in their low
-        // mantissa bits: the low byte of the sum's bits is the plane, with no conversion.
+        // Whole numbers in `0..=255` plus 2^23 keep themselves in their low mantissa bits: the
+        // low byte of the sum's bits is the plane, with no conversion (a NaN gives 0, as its
+        // conversion did).
         let magic = Vec3A::splat(8_388_608.0);
         for (i, &s) in slots[..len].iter().enumerate() {
             let c = &child_box[i];

@@ -15,9 +15,6 @@ use obvhs::cwbvh::CwBvh;
 /// Most boxes in one leaf (the node format's limit).
 const LEAF_MAX: usize = 3;
 
-/// Runs of at most this many boxes are cut by counting, longer ones by a binary search.
-const SCAN_MAX: usize = 64;
-
 /// Node depth past which runs are cut at their middle, so that the depth stays far below
 /// obvhs's traversal stack of 32 whatever the codes.
 const MORTON_DEPTH: u32 = 20;
@@ -52,7 +49,8 @@ impl WideBuilder {
             shift: index_bits,
             index_mask,
             nodes: Vec::with_capacity(n / 4 + 1),
-            prims: Vec::with_capacity(n),
+            // A leaf writes three primitives before it drops those past its own.
+            prims: Vec::with_capacity(n + 2),
         };
         b.nodes.push(CwBvhNode::default());
         let total = b.node(0, 0, n, 0);
@@ -90,18 +88,25 @@ impl WideBuilder {
         }
         let steps = ((1u64 << axis_bits) - 1) as f32;
         let scale = Vec3A::splat(steps) / (hi - lo).max(Vec3A::splat(f32::MIN_POSITIVE));
+        // Whole numbers below 2^21 plus 2^23 keep themselves in their low mantissa bits (a NaN's
+        // low bits are 0, what its conversion gave): no conversion to integers.
+        let magic = Vec3A::splat(8_388_608.0);
+        let mut counts = [[0u32; 256]; 8];
+        let digits = digits_above(index_bits);
         self.keys.clear();
         self.keys.extend(boxes.iter().enumerate().map(|(i, b)| {
-            let q = ((b.min + b.max - lo) * scale).clamp(Vec3A::ZERO, Vec3A::splat(steps));
-            // In `0..2^21` (a NaN clamps to NaN and converts to 0 either way): the `i32`
-            // conversion is one instruction, the `u64` one a branch.
-            let code = spread(q.x as i32 as u64) << 2
-                | spread(q.y as i32 as u64) << 1
-                | spread(q.z as i32 as u64);
+            let q = ((b.min + b.max - lo) * scale)
+                .clamp(Vec3A::ZERO, Vec3A::splat(steps))
+                .floor()
+                + magic;
+            let code = spread(u64::from(q.x.to_bits())) << 2
+                | spread(u64::from(q.y.to_bits())) << 1
+                | spread(u64::from(q.z.to_bits()));
+            count_digits(&mut counts, code, digits);
             code << index_bits | i as u64
         }));
         self.tmp.resize(self.keys.len(), 0);
-        radix_sort(&mut self.keys, &mut self.tmp, index_bits);
+        radix_passes(&mut self.keys, &mut self.tmp, index_bits, &counts[..digits]);
     }
 }
 
@@ -130,18 +135,35 @@ fn spread(v: u64) -> u64 {
 }
 
 /// Stable LSD radix sort of `keys` by their bits from `from` up, a byte at a time; bytes that
-/// are the same in every key are skipped. The counts of every byte are taken in one pass over
-/// the keys (a permutation does not change them).
+/// are the same in every key are skipped.
+#[cfg(test)]
 fn radix_sort(keys: &mut Vec<u64>, tmp: &mut Vec<u64>, from: u32) {
-    let digits = (64 - from).div_ceil(8) as usize;
+    let digits = digits_above(from);
     let mut counts = [[0u32; 256]; 8];
     for &k in keys.iter() {
-        let k = k >> from;
-        for (d, count) in counts[..digits].iter_mut().enumerate() {
-            count[(k >> (8 * d) & 0xff) as usize] += 1;
-        }
+        count_digits(&mut counts, k >> from, digits);
     }
-    for (d, count) in counts[..digits].iter().enumerate() {
+    radix_passes(keys, tmp, from, &counts[..digits]);
+}
+
+/// Bytes of a key above its low `from` bits.
+fn digits_above(from: u32) -> usize {
+    (64 - from).div_ceil(8) as usize
+}
+
+/// Counts each of the low `digits` bytes of `k` (a key shifted down to its sorted bits).
+#[inline(always)]
+fn count_digits(counts: &mut [[u32; 256]; 8], k: u64, digits: usize) {
+    for (d, count) in counts[..digits].iter_mut().enumerate() {
+        count[(k >> (8 * d) & 0xff) as usize] += 1;
+    }
+}
+
+/// The passes of the radix sort of `keys` by their bytes from bit `from` up, given the counts
+/// of each byte over all keys (taken before, as a permutation does not change them); a byte that
+/// is the same in every key is skipped.
+fn radix_passes(keys: &mut Vec<u64>, tmp: &mut Vec<u64>, from: u32, counts: &[[u32; 256]]) {
+    for (d, count) in counts.iter().enumerate() {
         if count.iter().any(|&c| c as usize == keys.len()) {
             continue;
         }
@@ -172,103 +194,122 @@ struct Build<'a> {
     prims: Vec<u32>,
 }
 
-/// A run `[a, b)` of sorted boxes, one child of a node being built.
-#[derive(Clone, Copy, Default)]
-struct Run {
-    a: usize,
-    b: usize,
-    /// Which run to cut first: the highest differing code bit plus one (0: all codes equal),
-    /// then the length.
-    rank: (u32, usize),
+/// The runs `[a, b)` of sorted boxes that become one node's children, in the order they were
+/// made (a cut run keeps its place for its first half; its second half comes last).
+struct Runs {
+    a: [usize; 8],
+    b: [usize; 8],
+    /// Which run to cut first, the largest: the highest differing code bit plus one (0: all
+    /// codes equal) above the length; 0 for runs of one box and for unused places.
+    rank: [u64; 8],
+    len: usize,
 }
 
 impl Build<'_> {
-    fn code(&self, i: usize) -> u64 {
-        self.keys[i] >> self.shift
-    }
-
-    fn run(&self, a: usize, b: usize, depth: u32) -> Run {
-        let x = self.code(a) ^ self.code(b - 1);
-        let bit = if x == 0 || depth >= MORTON_DEPTH {
+    /// The rank of the run `[a, b)` (see [`Runs::rank`]).
+    #[inline(always)]
+    fn rank(&self, a: usize, b: usize, depth: u32) -> u64 {
+        let n = (b - a) as u64;
+        if n < 2 {
+            return 0;
+        }
+        let x = (self.keys[a] ^ self.keys[b - 1]) >> self.shift;
+        let bit = if depth >= MORTON_DEPTH {
             0
         } else {
             64 - x.leading_zeros()
         };
-        Run {
-            a,
-            b,
-            rank: (bit, b - a),
-        }
+        u64::from(bit) << 32 | n
     }
 
-    /// Where `run` is cut: at the first code with its highest differing bit set, or in the
-    /// middle when the codes are equal.
-    fn cut(&self, run: Run) -> usize {
-        let (a, b) = (run.a, run.b);
-        match run.rank.0 {
+    /// Where the run `[a, b)` of rank `rank` is cut: at the first code with its highest
+    /// differing bit set, or in the middle when the codes are equal.
+    #[inline(always)]
+    fn cut(&self, a: usize, b: usize, rank: u64) -> usize {
+        match (rank >> 32) as u32 {
             0 => a + (b - a) / 2,
             bit => {
                 let shift = self.shift + bit - 1;
-                let keys = &self.keys[a..b];
-                // The keys are sorted, so those with the bit clear come first: short runs count
-                // them (independent loads), long ones search.
-                a + if keys.len() <= SCAN_MAX {
-                    keys.iter().filter(|&&k| k >> shift & 1 == 0).count()
-                } else {
-                    keys.partition_point(|&k| k >> shift & 1 == 0)
-                }
+                // The keys are sorted, so those with the bit clear come first.
+                a + self.keys[a..b].partition_point(|&k| k >> shift & 1 == 0)
             }
         }
+    }
+
+    /// The runs of the node over `[a, b)`: the largest run cut (the last of equal ranks) until
+    /// there are eight or no run of two boxes or more is left.
+    #[inline(always)]
+    fn runs(&self, a: usize, b: usize, depth: u32) -> Runs {
+        let mut runs = Runs {
+            a: [a; 8],
+            b: [b; 8],
+            rank: [0; 8],
+            len: 1,
+        };
+        runs.rank[0] = self.rank(a, b, depth);
+        while runs.len < 8 {
+            let mut i = 0;
+            let mut best = 0;
+            for (k, &r) in runs.rank.iter().enumerate() {
+                if r >= best {
+                    best = r;
+                    i = k;
+                }
+            }
+            if best == 0 {
+                break;
+            }
+            let (ra, rb) = (runs.a[i], runs.b[i]);
+            let m = self.cut(ra, rb, best);
+            let n = runs.len;
+            runs.b[i] = m;
+            runs.rank[i] = self.rank(ra, m, depth);
+            runs.a[n] = m;
+            runs.b[n] = rb;
+            runs.rank[n] = self.rank(m, rb, depth);
+            runs.len += 1;
+        }
+        runs
     }
 
     /// Writes the node of the sorted boxes `[a, b)` at `self.nodes[at]` and its subtree after
     /// the nodes written so far; returns its box.
     fn node(&mut self, at: usize, a: usize, b: usize, depth: u32) -> Aabb {
-        let mut runs = [Run::default(); 8];
-        runs[0] = self.run(a, b, depth);
-        let mut len = 1;
-        while len < 8 {
-            let Some(i) = (0..len)
-                .filter(|&i| runs[i].rank.1 > 1)
-                .max_by_key(|&i| runs[i].rank)
-            else {
-                break;
-            };
-            let r = runs[i];
-            let m = self.cut(r);
-            runs[i] = self.run(r.a, m, depth);
-            runs[len] = self.run(m, r.b, depth);
-            len += 1;
-        }
-        let runs = &runs[..len];
+        let runs = self.runs(a, b, depth);
+        let len = runs.len;
 
         let prim_base = self.prims.len();
         let mut child_box = [Aabb::empty(); 8];
         let mut leaf_meta = [0u8; 8];
-        for (i, r) in runs.iter().enumerate() {
-            if r.b - r.a <= LEAF_MAX {
-                leaf_meta[i] =
-                    (self.prims.len() - prim_base) as u8 | [0, 0x20, 0x60, 0xe0][r.b - r.a];
-                child_box[i] = self.boxes[r.a + 1..r.b]
-                    .iter()
-                    .fold(self.boxes[r.a], |t, c| t.union(c));
-                self.prims.extend(
-                    self.keys[r.a..r.b]
-                        .iter()
-                        .map(|&k| (k & self.index_mask) as u32),
-                );
-            }
-        }
         let child_base = self.nodes.len();
         let mut inner_at = [0usize; 8];
         let mut inner = 0;
-        for i in (0..len).filter(|&i| leaf_meta[i] == 0) {
-            inner_at[i] = child_base + inner;
-            inner += 1;
+        for i in 0..len {
+            let (ra, rb) = (runs.a[i], runs.b[i]);
+            let n = rb - ra;
+            if n <= LEAF_MAX {
+                let first = self.prims.len();
+                leaf_meta[i] = (first - prim_base) as u8 | [0, 0x20, 0x60, 0xe0][n];
+                // The first, second and last boxes are all of a run of one to three (some
+                // twice): no loop of one to three turns, whose count branches mispredict.
+                let (second, last) = (ra + n / 2, rb - 1);
+                child_box[i] = self.boxes[ra]
+                    .union(&self.boxes[second])
+                    .union(&self.boxes[last]);
+                let prim = |k: usize| (self.keys[k] & self.index_mask) as u32;
+                self.prims
+                    .extend_from_slice(&[prim(ra), prim(second), prim(last)]);
+                self.prims.truncate(first + n);
+            } else {
+                inner_at[i] = child_base + inner;
+                inner += 1;
+            }
         }
         self.nodes.resize(child_base + inner, CwBvhNode::default());
-        for i in (0..len).filter(|&i| leaf_meta[i] == 0) {
-            child_box[i] = self.node(inner_at[i], runs[i].a, runs[i].b, depth + 1);
+        for i in 0..len {
+            if leaf_meta[i] == 0 {
+                child_box[i] = self.node(inner_at[i], runs.a[i], runs.b[i], depth + 1);
+            }
         }
 
         let total = child_box[..len]
@@ -284,21 +325,21 @@ impl Build<'_> {
         node.p = Vec3::from(p);
         node.e = e;
         let mut slot_node = [usize::MAX; 8];
-        let mut moved = [CwBvhNode::default(); 8];
+        let max = Vec3A::splat(255.0);
+        // Whole numbers in `0..=255` plus 2^23 keep themselves in their low mantissa bits: the
+        // low byte of the sum's bits is the plane, with no conversion (a NaN gives 0, as its
+        // conversion did).
+        let magic = Vec3A::splat(8_388_608.0);
         for (i, &s) in slots[..len].iter().enumerate() {
             let c = &child_box[i];
-            let qlo = ((c.min - p) * rcp)
-                .floor()
-                .clamp(Vec3A::ZERO, Vec3A::splat(255.0));
-            let qhi = ((c.max - p) * rcp)
-                .ceil()
-                .clamp(Vec3A::ZERO, Vec3A::splat(255.0));
-            node.child_min_x[s] = qlo.x as u8;
-            node.child_min_y[s] = qlo.y as u8;
-            node.child_min_z[s] = qlo.z as u8;
-            node.child_max_x[s] = qhi.x as u8;
-            node.child_max_y[s] = qhi.y as u8;
-            node.child_max_z[s] = qhi.z as u8;
+            let qlo = ((c.min - p) * rcp).floor().clamp(Vec3A::ZERO, max) + magic;
+            let qhi = ((c.max - p) * rcp).ceil().clamp(Vec3A::ZERO, max) + magic;
+            node.child_min_x[s] = qlo.x.to_bits() as u8;
+            node.child_min_y[s] = qlo.y.to_bits() as u8;
+            node.child_min_z[s] = qlo.z.to_bits() as u8;
+            node.child_max_x[s] = qhi.x.to_bits() as u8;
+            node.child_max_y[s] = qhi.y.to_bits() as u8;
+            node.child_max_z[s] = qhi.z.to_bits() as u8;
             if leaf_meta[i] != 0 {
                 node.child_meta[s] = leaf_meta[i];
             } else {
@@ -307,12 +348,15 @@ impl Build<'_> {
                 slot_node[s] = inner_at[i];
             }
         }
-        let mut k = 0;
-        for &n in slot_node.iter().filter(|&&n| n != usize::MAX) {
-            moved[k] = self.nodes[n];
-            k += 1;
+        if inner > 1 {
+            let mut moved = [CwBvhNode::default(); 8];
+            let mut k = 0;
+            for &n in slot_node.iter().filter(|&&n| n != usize::MAX) {
+                moved[k] = self.nodes[n];
+                k += 1;
+            }
+            self.nodes[child_base..child_base + k].copy_from_slice(&moved[..k]);
         }
-        self.nodes[child_base..child_base + k].copy_from_slice(&moved[..k]);
         self.nodes[at] = node;
         total
     }
@@ -343,58 +387,73 @@ fn pow2_at_least(x: f32) -> f32 {
     f32::from_bits(exp << 23)
 }
 
+/// The direction signs of slot `s`'s rays: bit 2 of `s` x negative, bit 1 y, bit 0 z.
+const SLOT_DIRECTION: [Vec3A; 8] = {
+    let mut d = [Vec3A::ZERO; 8];
+    let mut s = 0;
+    while s < 8 {
+        d[s] = Vec3A::new(
+            if s & 4 != 0 { -1.0 } else { 1.0 },
+            if s & 2 != 0 { -1.0 } else { 1.0 },
+            if s & 1 != 0 { -1.0 } else { 1.0 },
+        );
+        s += 1;
+    }
+    d
+};
+
 /// The slot of each child: slot `s` is visited first by rays whose direction octant is `s`
 /// (bit 2: x negative, bit 1: y, bit 0: z), so a child is placed in the slot of the direction it
 /// lies furthest against (the cost `d . (centre of child - centre of node)` of Ylitie et al. and
 /// obvhs): each slot goes to the cheapest child that wants it, and children left without one
 /// take, in turn, their cheapest free slot.
 fn order_children(total: &Aabb, children: &[Aabb]) -> [usize; 8] {
+    /// No child, or no slot.
+    const NONE: usize = 8;
     let centre = total.center();
     let mut v = [Vec3A::ZERO; 8];
     for (c, b) in children.iter().enumerate() {
         v[c] = b.center() - centre;
     }
-    let cost = |c: usize, s: usize| {
-        let d = Vec3A::new(
-            if s & 4 != 0 { -1.0 } else { 1.0 },
-            if s & 2 != 0 { -1.0 } else { 1.0 },
-            if s & 1 != 0 { -1.0 } else { 1.0 },
-        );
-        d.dot(v[c])
-    };
-    // The cheapest slot of child c is the octant it lies in, mirrored.
-    let wanted = |c: usize| {
-        usize::from(v[c].x > 0.0) << 2 | usize::from(v[c].y > 0.0) << 1 | usize::from(v[c].z > 0.0)
-    };
-    let mut owner = [usize::MAX; 8];
+    let cost = |c: usize, s: usize| SLOT_DIRECTION[s].dot(v[c]);
+    // The loops below choose by selects rather than branches: the choices are unpredictable.
+    let mut owner = [NONE; 8];
+    let mut owner_cost = [0.0f32; 8];
     for c in 0..children.len() {
-        let s = wanted(c);
-        if owner[s] == usize::MAX || cost(c, s) < cost(owner[s], s) {
-            owner[s] = c;
-        }
+        // The cheapest slot of child c is the octant it lies in, mirrored.
+        let s = MIRRORED_OCTANT[v[c].cmpgt(Vec3A::ZERO).bitmask() as usize];
+        let k = cost(c, s);
+        let take = owner[s] == NONE || k < owner_cost[s];
+        owner[s] = if take { c } else { owner[s] };
+        owner_cost[s] = if take { k } else { owner_cost[s] };
     }
-    let mut slot_of = [usize::MAX; 8];
+    // One place past the children, where slots without an owner write.
+    let mut slot_of = [NONE; 9];
     for (s, &c) in owner.iter().enumerate() {
-        if c != usize::MAX {
-            slot_of[c] = s;
-        }
+        slot_of[c] = s;
     }
     for c in 0..children.len() {
-        if slot_of[c] != usize::MAX {
+        if slot_of[c] != NONE {
             continue;
         }
-        let mut best = (f32::INFINITY, usize::MAX);
-        for s in (0..8).filter(|&s| owner[s] == usize::MAX) {
+        let (mut best_cost, mut best) = (f32::INFINITY, NONE);
+        for (s, &o) in owner.iter().enumerate() {
             let k = cost(c, s);
-            if k < best.0 || best.1 == usize::MAX {
-                best = (k, s);
-            }
+            let better = o == NONE && (k < best_cost || best == NONE);
+            best_cost = if better { k } else { best_cost };
+            best = if better { s } else { best };
         }
-        owner[best.1] = c;
-        slot_of[c] = best.1;
+        owner[best] = c;
+        slot_of[c] = best;
     }
-    slot_of
+    let mut slots = [NONE; 8];
+    slots.copy_from_slice(&slot_of[..8]);
+    slots
 }
+
+/// The slot whose rays come from the octant of a bit mask `x | y << 1 | z << 2` of positive
+/// components: the mirrored octant, in the slots' bit order (x in bit 2, z in bit 0).
+const MIRRORED_OCTANT: [usize; 8] = [0, 4, 2, 6, 1, 5, 3, 7];
 
 #[cfg(test)]
 mod tests {

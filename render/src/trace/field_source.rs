@@ -35,9 +35,8 @@ const VOXEL_CACHE_SLOTS: usize = 4096;
 
 /// Bytes of one thread's voxel cache: the decoded voxels with their refs and the cell blocks of
 /// smooth normals, plus the sampling scratch (bounded by its own capacities, not counted here).
-pub const VOXEL_CACHE_BYTES: usize = VOXEL_CACHE_SLOTS
-    * (std::mem::size_of::<u64>() + std::mem::size_of::<Voxel>())
-    + LevelBlocks::BYTES;
+pub const VOXEL_CACHE_BYTES: usize =
+    VOXEL_CACHE_SLOTS * std::mem::size_of::<(u64, Voxel)>() + LevelBlocks::BYTES;
 
 /// The voxels of one reconstruction.
 enum Voxels<'f, D> {
@@ -51,10 +50,7 @@ enum Voxels<'f, D> {
 
 /// One thread's decoded voxels, direct-mapped by ref, and its scratch for decoding and sampling.
 struct VoxelCache {
-    /// The ref held in each slot, apart from the voxels: a lookup that misses (most of them in a
-    /// far view, where each voxel is met once) reads only this 32 KB array, not a random voxel.
-    keys: Vec<u64>,
-    voxels: Vec<Voxel>,
+    slots: Vec<(u64, Voxel)>,
     scratch: SampleScratch,
     /// The frame of the leaf of the voxel decoded last.
     leaf: Option<DecodeFrame>,
@@ -247,8 +243,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         self.caches.get_or(|| {
             self.cache_threads.fetch_add(1, Ordering::Relaxed);
             RefCell::new(VoxelCache {
-                keys: vec![u64::MAX; VOXEL_CACHE_SLOTS],
-                voxels: vec![Voxel::EMPTY; VOXEL_CACHE_SLOTS],
+                slots: vec![(u64::MAX, Voxel::EMPTY); VOXEL_CACHE_SLOTS],
                 scratch: SampleScratch::default(),
                 leaf: None,
                 blocks: LevelBlocks::default(),
@@ -266,8 +261,9 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     fn voxel_in(&self, cache: &mut VoxelCache, r: u64) -> Voxel {
         // Fibonacci hashing of the ref: neighbouring refs land in different slots.
         let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
-        if cache.keys[slot] == r && r != u64::MAX {
-            return cache.voxels[slot];
+        let (key, v) = cache.slots[slot];
+        if key == r && r != u64::MAX {
+            return v;
         }
         let v = match self.decode(r, &mut cache.scratch, &mut cache.leaf) {
             Ok(v) => v,
@@ -276,8 +272,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
                 return Voxel::EMPTY;
             }
         };
-        cache.keys[slot] = r;
-        cache.voxels[slot] = v;
+        cache.slots[slot] = (r, v);
         v
     }
 }

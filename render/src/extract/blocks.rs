@@ -33,8 +33,12 @@ pub struct BlockRanges {
     stored: Option<i64>,
     /// [`Self::range_in`] gives the looser [`Self::bound_in`] (stored tables only).
     loose: bool,
-    built: Vec<OnceLock<Box<[(f32, f32)]>>>,
+    /// Each brick's table, built on first need (when the file stores none).
+    built: Vec<OnceLock<BlockTable>>,
 }
+
+/// One brick's built table: the `(min, max)` of each of its blocks.
+type BlockTable = Box<[(f32, f32)]>;
 
 impl BlockRanges {
     /// The tables of `file`: its stored ones, or none built yet when it has none.

@@ -39,6 +39,9 @@ pub const VOXEL_CACHE_BYTES: usize =
     VOXEL_CACHE_SLOTS * std::mem::size_of::<(u64, Voxel)>() + LevelBlocks::BYTES;
 
 /// The voxels of one reconstruction.
+// One value per source, matched on every lookup: boxing the large variant would add an
+// indirection to the hot path to save bytes of which there is one copy.
+#[allow(clippy::large_enum_variant)]
 enum Voxels<'f, D> {
     /// Octants and merged dual cells of the octant method.
     Octant(Extractor<'f, D>),

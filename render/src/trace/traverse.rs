@@ -52,10 +52,11 @@ pub fn bvh_pad(frame: &GridFrame) -> f64 {
     1e-5 * frame.extent.iter().fold(1.0f64, |m, &e| m.max(e))
 }
 
+/// Where the grid boxes of voxels go, one `(lo, hi)` at a time.
+type BoxSink<'a> = dyn FnMut([f64; 3], [f64; 3]) + 'a;
+
 /// The grid boxes of runs of voxels, from their refs.
-fn voxel_boxes<S: VoxelSource + ?Sized>(
-    src: &S,
-) -> impl Fn(&[u64], &mut dyn FnMut([f64; 3], [f64; 3])) + Sync + '_ {
+fn voxel_boxes<S: VoxelSource + ?Sized>(src: &S) -> impl Fn(&[u64], &mut BoxSink) + Sync + '_ {
     |refs, out| src.voxel_boxes(refs, out)
 }
 

@@ -32,8 +32,7 @@ pub(super) fn hits(
     hits: &mut [Option<VoxelHit>],
 ) {
     let mut left = rays_of(m);
-    loop {
-        let Some(first) = left.next() else { break };
+    while let Some(first) = left.next() {
         // Up to four rays; a short group repeats its first ray in the spare lanes.
         let mut ks = [first; 4];
         let mut n = 1;

@@ -7,6 +7,7 @@
 //! [`MAX_KD_DEPTH`] (which the writers never produce, but a file may hold) is replaced by a tree
 //! split at the median of the longest axis, balanced whatever the file.
 
+use std::convert::Infallible;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use amr_format::kdtree::{KdNode, TreeView};
@@ -39,6 +40,22 @@ struct Node {
     end: u32,
     /// Its two children, for a node of more than [`BUCKET`] leaves.
     children: Option<(u32, u32)>,
+}
+
+/// Where a walk of the tree is ([`LeafTree::walk`]).
+enum At<'a> {
+    /// A node reached, with its index: enter it or not.
+    Node(u32, &'a Node),
+    /// An entered node to be taken leaf by leaf.
+    Leaves(&'a Node),
+}
+
+/// What a walk does next ([`LeafTree::walk`]).
+enum Visit {
+    /// Leave this node's subtree out (or, after [`At::Leaves`], go on).
+    Skip,
+    /// Enter the node.
+    Enter,
 }
 
 /// The tree over all leaves of one file, with lazily computed node ranges of one field.
@@ -111,36 +128,28 @@ impl LeafTree {
         region: &IBox,
     ) -> Option<u32> {
         let mut best = u32::MAX;
-        let mut stack = [0u32; 64];
-        let mut top = usize::from(!self.nodes.is_empty());
-        while top > 0 {
-            top -= 1;
-            let node = &self.nodes[stack[top] as usize];
-            if node.coarsest >= best || !node.bounds.touches(region) {
-                continue;
-            }
-            if contains(region, &node.bounds) {
-                best = node.coarsest;
-                continue;
-            }
-            match node.children {
-                // The tree is balanced: its depth stays far below the stack's size.
-                Some((a, b)) if top + 2 <= stack.len() => {
-                    stack[top] = b;
-                    stack[top + 1] = a;
-                    top += 2;
+        let Ok(()) = self.walk::<Infallible>(|at| {
+            Ok(match at {
+                At::Node(_, node) if node.coarsest >= best || !node.bounds.touches(region) => {
+                    Visit::Skip
                 }
-                _ => {
-                    for &l in &self.order[node.first as usize..node.end as usize] {
+                At::Node(_, node) if contains(region, &node.bounds) => {
+                    best = node.coarsest;
+                    Visit::Skip
+                }
+                At::Node(..) => Visit::Enter,
+                At::Leaves(node) => {
+                    for &l in self.leaves(node) {
                         if let Some((_, lv)) = sampler.leaf_top(l) {
                             if lv < best && self.boxes[l as usize].touches(region) {
                                 best = lv;
                             }
                         }
                     }
+                    Visit::Skip
                 }
-            }
-        }
+            })
+        });
         (best != u32::MAX).then_some(best)
     }
 
@@ -163,12 +172,37 @@ impl LeafTree {
             true => b.overlaps(region),
             false => b.touches(region),
         };
+        let Ok(()) = self.walk::<Infallible>(|at| {
+            Ok(match at {
+                At::Node(_, node) if !meets(&node.bounds) => Visit::Skip,
+                At::Node(..) => Visit::Enter,
+                At::Leaves(node) => {
+                    for &l in self.leaves(node) {
+                        if meets(&self.boxes[l as usize]) {
+                            f(l);
+                        }
+                    }
+                    Visit::Skip
+                }
+            })
+        });
+    }
+
+    /// Walks the tree depth first, the first child first: `visit` is called with each node
+    /// reached ([`At::Node`]) and says whether to enter it; an entered node without children
+    /// (or one past the stack's depth) is handed back whole ([`At::Leaves`]). Stops at the
+    /// first error.
+    fn walk<E>(
+        &self,
+        mut visit: impl FnMut(At<'_>) -> std::result::Result<Visit, E>,
+    ) -> std::result::Result<(), E> {
         let mut stack = [0u32; 64];
         let mut top = usize::from(!self.nodes.is_empty());
         while top > 0 {
             top -= 1;
-            let node = &self.nodes[stack[top] as usize];
-            if !meets(&node.bounds) {
+            let i = stack[top];
+            let node = &self.nodes[i as usize];
+            if let Visit::Skip = visit(At::Node(i, node))? {
                 continue;
             }
             match node.children {
@@ -179,14 +213,17 @@ impl LeafTree {
                     top += 2;
                 }
                 _ => {
-                    for &l in &self.order[node.first as usize..node.end as usize] {
-                        if meets(&self.boxes[l as usize]) {
-                            f(l);
-                        }
-                    }
+                    visit(At::Leaves(node))?;
                 }
             }
         }
+        Ok(())
+    }
+
+    /// The leaves of `node`'s subtree.
+    #[inline]
+    fn leaves(&self, node: &Node) -> &[u32] {
+        &self.order[node.first as usize..node.end as usize]
     }
 
     /// The box of leaf `l` (finest-level cells).
@@ -208,6 +245,8 @@ impl LeafTree {
     ) -> Result<Option<(f32, f32)>> {
         let grid = sampler.grid();
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        // Its own loop rather than `walk`: through `walk` this query cost 7 % more of `big`'s
+        // whole extraction (callgrind, 199.0 -> 213.2 M instructions at iso 10).
         let mut stack = [0u32; 64];
         let mut top = usize::from(!self.nodes.is_empty());
         while top > 0 {
@@ -323,29 +362,19 @@ impl LeafTree {
     ) -> Result<(f32, f32)> {
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         let loose = region.grow(slack);
-        let mut stack = [0u32; 64];
-        let mut top = usize::from(!self.nodes.is_empty());
-        while top > 0 {
-            top -= 1;
-            let i = stack[top];
-            let node = &self.nodes[i as usize];
-            if !node.bounds.overlaps(region) {
-                continue;
-            }
-            let (a, b) = match node.children {
-                _ if contains(&loose, &node.bounds) => self.node_range(sampler, blocks, i)?,
-                // The tree is balanced: its depth stays far below the stack's size.
-                Some((a, b)) if top + 2 <= stack.len() => {
-                    stack[top] = b;
-                    stack[top + 1] = a;
-                    top += 2;
-                    continue;
+        self.walk(|at| -> Result<Visit> {
+            let (a, b) = match at {
+                At::Node(_, node) if !node.bounds.overlaps(region) => return Ok(Visit::Skip),
+                At::Node(i, node) if contains(&loose, &node.bounds) => {
+                    self.node_range(sampler, blocks, i)?
                 }
-                _ => self.leaves_range(sampler, blocks, node, region)?,
+                At::Node(..) => return Ok(Visit::Enter),
+                At::Leaves(node) => self.leaves_range(sampler, blocks, node, region)?,
             };
             lo = lo.min(a);
             hi = hi.max(b);
-        }
+            Ok(Visit::Skip)
+        })?;
         Ok((lo, hi))
     }
 

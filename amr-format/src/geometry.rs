@@ -48,6 +48,15 @@ impl IBox {
         }
     }
 
+    /// The smallest box holding both boxes.
+    #[inline]
+    pub fn union(&self, other: &IBox) -> IBox {
+        IBox {
+            lo: [0, 1, 2].map(|a| self.lo[a].min(other.lo[a])),
+            hi: [0, 1, 2].map(|a| self.hi[a].max(other.hi[a])),
+        }
+    }
+
     /// True when the boxes share at least one cell.
     #[inline]
     pub fn overlaps(&self, other: &IBox) -> bool {

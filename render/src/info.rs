@@ -3,7 +3,7 @@
 
 use std::fmt::Write;
 
-use amr_format::{AmrkFile, LevelInfo};
+use amr_format::{AmrkFile, IBox, LevelInfo};
 
 use crate::field_stats::{format_value, FieldPercentiles, TABLE};
 
@@ -15,20 +15,13 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
     let mut bricks = vec![0u64; nl];
     let mut cells = vec![0u64; nl];
     // The index box around each level's bricks.
-    let mut covered: Vec<Option<([i64; 3], [i64; 3])>> = vec![None; nl];
+    let mut covered: Vec<Option<IBox>> = vec![None; nl];
     for b in 0..file.num_bricks() {
         let info = file.brick(b);
         let l = info.level as usize;
         bricks[l] += 1;
         cells[l] += info.cells.num_cells().unwrap_or(0);
-        let (lo, hi) = (info.cells.lo, info.cells.hi);
-        covered[l] = Some(match covered[l] {
-            None => (lo, hi),
-            Some((a, b)) => (
-                [0, 1, 2].map(|k| a[k].min(lo[k])),
-                [0, 1, 2].map(|k| b[k].max(hi[k])),
-            ),
-        });
+        covered[l] = Some(covered[l].map_or(info.cells, |c| c.union(&info.cells)));
     }
     let _ = writeln!(out, "file bytes: {}", file.bytes().len());
     match (file.simulation_time(), file.simulation_step()) {
@@ -57,12 +50,12 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
             lev.ratio_to_next
         );
         match covered[l] {
-            Some((lo, hi)) => {
+            Some(b) => {
                 let _ = writeln!(
                     out,
                     "           boxes within {} .. {}",
-                    vec3(world(lev, lo)),
-                    vec3(world(lev, hi))
+                    vec3(world(lev, b.lo)),
+                    vec3(world(lev, b.hi))
                 );
             }
             None => {

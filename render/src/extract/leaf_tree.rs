@@ -133,7 +133,7 @@ impl LeafTree {
                 At::Node(_, node) if node.coarsest >= best || !node.bounds.touches(region) => {
                     Visit::Skip
                 }
-                At::Node(_, node) if contains(region, &node.bounds) => {
+                At::Node(_, node) if region.contains_box(&node.bounds) => {
                     best = node.coarsest;
                     Visit::Skip
                 }
@@ -256,7 +256,7 @@ impl LeafTree {
             if !node.bounds.overlaps(region) {
                 continue;
             }
-            if node.coarsest >= level && contains(region, &node.bounds) {
+            if node.coarsest >= level && region.contains_box(&node.bounds) {
                 let (a, b) = self.exact_node_range(sampler, i)?;
                 lo = lo.min(a);
                 hi = hi.max(b);
@@ -281,7 +281,7 @@ impl LeafTree {
                         if lv < level {
                             return Ok(None);
                         }
-                        let (a, b) = if contains(region, leaf_box) {
+                        let (a, b) = if region.contains_box(leaf_box) {
                             self.exact_range(sampler, l)?
                         } else {
                             let part = IBox::new(
@@ -365,7 +365,7 @@ impl LeafTree {
         self.walk(|at| -> Result<Visit> {
             let (a, b) = match at {
                 At::Node(_, node) if !node.bounds.overlaps(region) => return Ok(Visit::Skip),
-                At::Node(i, node) if contains(&loose, &node.bounds) => {
+                At::Node(i, node) if loose.contains_box(&node.bounds) => {
                     self.node_range(sampler, blocks, i)?
                 }
                 At::Node(..) => return Ok(Visit::Enter),
@@ -396,7 +396,7 @@ impl LeafTree {
             let Some((brick, lv)) = sampler.leaf_top(l) else {
                 continue;
             };
-            let (x, y) = if contains(region, leaf_box) || small(sampler, leaf_box, lv) {
+            let (x, y) = if region.contains_box(leaf_box) || small(sampler, leaf_box, lv) {
                 self.leaf_range(sampler, blocks, l)?
             } else {
                 blocks.range_in(sampler, brick, lv, &leaf_box.intersect(region))?
@@ -558,7 +558,7 @@ fn from_kd_node(
             let a = from_kd_node(tree, all, counts, low, order, nodes)?;
             let b = from_kd_node(tree, all, counts, high, order, nodes)?;
             let (na, nb) = (&nodes[a as usize], &nodes[b as usize]);
-            let (bounds, coarsest) = (union(&na.bounds, &nb.bounds), na.coarsest.min(nb.coarsest));
+            let (bounds, coarsest) = (na.bounds.union(&nb.bounds), na.coarsest.min(nb.coarsest));
             let node = &mut nodes[index as usize];
             node.bounds = bounds;
             node.coarsest = coarsest;
@@ -590,7 +590,7 @@ fn from_kd_node(
             let mut coarsest = u32::MAX;
             for &l in leaves {
                 let (b, lv) = &all[l as usize];
-                bounds = union(&bounds, b);
+                bounds = bounds.union(b);
                 coarsest = coarsest.min(*lv);
             }
             nodes.push(Node {
@@ -613,7 +613,7 @@ fn build(all: &[(IBox, u32)], leaves: &mut [u32], first: u32, nodes: &mut Vec<No
     let mut coarsest = u32::MAX;
     for &l in leaves.iter() {
         let (b, lv) = &all[l as usize];
-        bounds = union(&bounds, b);
+        bounds = bounds.union(b);
         coarsest = coarsest.min(*lv);
     }
     let index = nodes.len() as u32;
@@ -639,20 +639,6 @@ fn build(all: &[(IBox, u32)], leaves: &mut [u32], first: u32, nodes: &mut Vec<No
         nodes[index as usize].children = Some((a, b));
     }
     index
-}
-
-/// The smallest box holding `a` and `b`.
-fn union(a: &IBox, b: &IBox) -> IBox {
-    IBox::new(
-        [0, 1, 2].map(|k| a.lo[k].min(b.lo[k])),
-        [0, 1, 2].map(|k| a.hi[k].max(b.hi[k])),
-    )
-}
-
-/// True when box `inner` lies inside `outer`.
-#[inline]
-fn contains(outer: &IBox, inner: &IBox) -> bool {
-    (0..3).all(|k| outer.lo[k] <= inner.lo[k] && inner.hi[k] <= outer.hi[k])
 }
 
 /// True when the finest-level box `b` of a leaf of level `level` spans at most [`SMALL`] cells

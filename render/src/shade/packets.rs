@@ -36,23 +36,25 @@ impl TileHits {
     /// opaque surfaces first, `hint`'s first of all, each searched up to the ray's nearest opaque
     /// hit so far. For each ray, the hits [`crate::shade::integrate::shade_ray`] would find
     /// (the order changes the work, not the hits); `hint` becomes the opaque surface nearest
-    /// for most of the rays.
+    /// for most of the rays. Returns whether any ray hit any surface.
     pub fn trace<T: Tracer + ?Sized>(
         &mut self,
         tracer: &T,
         light: &Lighting,
         rays: &[GridRay],
         hint: &mut SearchHint,
-    ) {
+    ) -> bool {
         let (n, m) = (self.surfaces, rays.len());
         assert!(m <= TILE_RAYS && tracer.num_surfaces() == n);
         self.opaque_near[..m].fill(f64::INFINITY);
         let mut nearest = [0u32; 64];
+        let mut any = false;
         for i in search_order(light, n, hint.nearest_opaque) {
             let found = &mut self.found[..m];
             tracer.next_hits(i, rays, &self.opaque_near[..m], found);
             let opaque = light.opacity[i] >= 1.0;
             for (k, h) in found.iter().enumerate() {
+                any |= h.is_some();
                 self.hits[k * n + i] = *h;
                 if let (true, Some(h)) = (opaque, h) {
                     if h.t < self.opaque_near[k] {
@@ -69,6 +71,7 @@ impl TileHits {
                 hint.nearest_opaque = i;
             }
         }
+        any
     }
 
     /// Ray `k`'s first hit with each surface.

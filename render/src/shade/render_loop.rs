@@ -226,43 +226,55 @@ fn render_strip<T: Tracer + ?Sized>(
     let mut shadows = Box::<KeyShadow>::default();
     let mut layers = Box::<TileLayers>::default();
     let mut ao = TileAo::default();
+    // One tile's pixels, samples, generators, world rays and grid rays, reused tile after tile.
+    let mut pixels: Vec<(u32, u32)> = Vec::with_capacity(TILE_RAYS);
+    let mut acc: Vec<PixelAcc> = Vec::with_capacity(TILE_RAYS);
+    let mut rngs = Vec::with_capacity(TILE_RAYS);
+    let mut world = Vec::with_capacity(TILE_RAYS);
     let mut dirs_k = Vec::with_capacity(TILE_RAYS);
+    let mut rays = Vec::with_capacity(TILE_RAYS);
     for x0 in xs.clone().step_by(TILE as usize) {
         let x1 = (x0 + TILE).min(xs.end);
-        let pixels: Vec<(u32, u32)> = ys
-            .clone()
-            .flat_map(|y| (x0..x1).map(move |x| (x, y)))
-            .collect();
-        let mut acc = vec![PixelAcc::default(); pixels.len()];
+        pixels.clear();
+        pixels.extend(ys.clone().flat_map(|y| (x0..x1).map(move |x| (x, y))));
+        acc.clear();
+        acc.resize(pixels.len(), PixelAcc::default());
         for s in 0..spp {
-            let mut rngs = Vec::with_capacity(pixels.len());
-            let mut world = Vec::with_capacity(pixels.len());
-            let mut rays = Vec::with_capacity(pixels.len());
+            rngs.clear();
+            world.clear();
+            dirs_k.clear();
+            rays.clear();
             for &(x, y) in &pixels {
                 let mut rng = Rng::for_pixel(x, y, s);
                 let (jx, jy) = rng.subpixel(spp);
                 let dir = dirs.dir(f64::from(x) + jx, f64::from(y) + jy);
                 rngs.push(rng);
                 world.push((dirs.origin(), dir));
+                dirs_k.push(dir);
                 rays.push(GridRay::from_world(&frame, dirs.origin(), dir));
             }
-            tile.trace(&counting, light, &rays, &mut hint);
-            dirs_k.clear();
-            dirs_k.extend(world.iter().map(|w| w.1));
-            layers.trace(&counting, light, &rays, &mut tile);
-            shadows.trace(&counting, light, &dirs_k, &mut layers);
-            ao.trace(&counting, light, &dirs_k, &mut rngs, &mut layers);
+            // A tile whose rays hit nothing has no layers: every sample is a miss.
+            let any_hit = tile.trace(&counting, light, &rays, &mut hint);
+            if any_hit {
+                layers.trace(&counting, light, &rays, &mut tile);
+                shadows.trace(&counting, light, &dirs_k, &mut layers);
+                ao.trace(&counting, light, &dirs_k, &mut rngs, &mut layers);
+            }
             for (k, &(_, y)) in pixels.iter().enumerate() {
                 let row = &mut rows[(y - ys.start) as usize];
-                let ao_layers = record.then_some(row.ao.layers_mut());
-                let sample = shade_hits(
-                    &counting,
-                    light,
-                    world[k],
-                    layers.of(k),
-                    &mut rngs[k],
-                    ao_layers,
-                );
+                let sample = if any_hit {
+                    let ao_layers = record.then_some(row.ao.layers_mut());
+                    shade_hits(
+                        &counting,
+                        light,
+                        world[k],
+                        layers.of(k),
+                        &mut rngs[k],
+                        ao_layers,
+                    )
+                } else {
+                    PixelSample::MISS
+                };
                 acc[k].add(sample);
                 if s + 1 == spp {
                     row.pixels.push(acc[k].finish(spp));

@@ -80,6 +80,16 @@ impl AoRow {
         self.start.push(self.layers.len() as u32);
     }
 
+    /// Appends `more`, the pixels to the right of this row's.
+    pub fn append(&mut self, more: AoRow) {
+        let layers = self.layers.len() as u32;
+        let pixels = self.start.len() as u32 - 1;
+        self.start
+            .extend(more.start[1..].iter().map(|&s| s + layers));
+        self.layers.extend(more.layers);
+        self.column.extend(more.column.iter().map(|&x| x + pixels));
+    }
+
     fn pixel(&self, x: u32) -> &[AoLayer] {
         let x = x as usize;
         &self.layers[self.start[x] as usize..self.start[x + 1] as usize]
@@ -175,6 +185,34 @@ mod tests {
             n,
             ao,
             weight: [1.0; 3],
+        }
+    }
+
+    #[test]
+    fn a_row_appended_in_pieces_equals_the_row_filled_at_once() {
+        let facing = [0.0, 0.0, -1.0];
+        let pixels = [
+            vec![layer(0, 1.0, facing, 0.5)],
+            vec![],
+            vec![layer(0, 1.0, facing, 0.25), layer(1, 2.0, facing, 0.75)],
+            vec![layer(1, 2.0, facing, 1.0)],
+            vec![],
+        ];
+        let fill = |range: std::ops::Range<usize>| {
+            let mut row = AoRow::new();
+            for p in &pixels[range] {
+                row.layers_mut().extend_from_slice(p);
+                row.end_pixel();
+            }
+            row
+        };
+        let whole = fill(0..5);
+        for cut in 0..=5 {
+            let mut joined = fill(0..cut);
+            joined.append(fill(cut..5));
+            assert_eq!(joined.start, whole.start, "cut at {cut}");
+            assert_eq!(joined.layers, whole.layers, "cut at {cut}");
+            assert_eq!(joined.column, whole.column, "cut at {cut}");
         }
     }
 

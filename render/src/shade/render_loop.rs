@@ -83,9 +83,14 @@ impl<T: Tracer + ?Sized> Tracer for Counting<'_, T> {
     }
 }
 
-/// Pixels of a band of rows rendered between two [`Tracer::release_pages`] calls: the map pages a
-/// frame holds resident are those one band touches, not the whole frame's.
-const BAND_PIXELS: u64 = 1 << 16;
+/// Pixels of a band rendered between two [`Tracer::release_pages`] calls, per thread: the map
+/// pages a frame holds resident are those one band touches, not the whole frame's, and they grow
+/// with the band's rays (`docs/rendering.md`, "Map pages").
+const BAND_PIXELS_PER_THREAD: u64 = 1 << 13;
+
+/// Columns of the pieces a band's strips are cut into, so that a band of few strips still gives
+/// every thread several pieces (a multiple of [`TILE`]).
+const PIECE_COLUMNS: u32 = 16 * TILE;
 
 /// Renders a frame; calls `progress(rows_done)` after each row. Returns the frame and the number
 /// of ray queries (one per ray and isosurface).
@@ -99,23 +104,45 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
 ) -> (FrameBuffer, u64) {
     let (w, h) = (settings.width, settings.height);
     let spp = settings.spp.max(1);
-    let band = (BAND_PIXELS / (u64::from(w) * u64::from(spp)).max(1)).clamp(1, u64::from(h)) as u32;
+    let threads = rayon::current_num_threads().max(1) as u64;
+    let band_pixels = BAND_PIXELS_PER_THREAD.saturating_mul(threads);
+    let band = (band_pixels / (u64::from(w) * u64::from(spp)).max(1)).clamp(1, u64::from(h)) as u32;
     // Whole strips of tiles per band.
-    let band = (band / TILE).max(1) * TILE;
+    let band = band.div_ceil(TILE) * TILE;
     let mut rows: Vec<Row> = Vec::with_capacity(h as usize);
     for y0 in (0..h).step_by(band as usize) {
-        let part: Vec<Vec<Row>> = (y0..(y0 + band).min(h))
+        let pieces: Vec<(u32, u32)> = (y0..(y0 + band).min(h))
             .step_by(TILE as usize)
-            .collect::<Vec<u32>>()
+            .flat_map(|y| (0..w).step_by(PIECE_COLUMNS as usize).map(move |x| (x, y)))
+            .collect();
+        let part: Vec<Vec<Row>> = pieces
             .into_par_iter()
-            .map(|y| {
+            .map(|(x, y)| {
+                let xs = x..(x + PIECE_COLUMNS).min(w);
                 let ys = y..(y + TILE).min(h);
-                let strip = render_strip(tracer, camera, light, settings, (0..w, ys));
-                progress(strip.len() as u64);
+                let last = xs.end == w;
+                let strip = render_strip(tracer, camera, light, settings, (xs, ys));
+                if last {
+                    progress(strip.len() as u64);
+                }
                 strip
             })
             .collect();
-        rows.extend(part.into_iter().flatten());
+        // The pieces of a strip are consecutive, left to right: their rows joined are the
+        // strip's.
+        let mut strip: Vec<Row> = Vec::new();
+        for piece in part {
+            if strip.is_empty() {
+                strip = piece;
+            } else {
+                for (row, more) in strip.iter_mut().zip(piece) {
+                    row.append(more);
+                }
+            }
+            if strip.first().is_some_and(|r| r.pixels.len() == w as usize) {
+                rows.append(&mut strip);
+            }
+        }
         tracer.release_pages();
     }
     let rays = rows.iter().map(|r| r.rays).sum();
@@ -185,6 +212,15 @@ struct Row {
     pixels: Vec<PixelSample>,
     ao: AoRow,
     rays: u64,
+}
+
+impl Row {
+    /// Appends `more`, the pixels to the right of this row's.
+    fn append(&mut self, mut more: Row) {
+        self.pixels.append(&mut more.pixels);
+        self.ao.append(more.ao);
+        self.rays += more.rays;
+    }
 }
 
 /// True when `light`'s ambient occlusion is filtered across pixels in frames of `settings`:

@@ -30,6 +30,7 @@ use super::blocks::{level_box, BlockRanges, BLOCK};
 use super::leaf_tree::LeafTree;
 use super::local::div_floor;
 use super::tight::{pack, unpack};
+use crate::reconstruct::grid::axes;
 use crate::reconstruct::Sampler;
 
 /// Folds the values of the cells `cells` (level-`fine` indices, inside the brick's cells `bc`)
@@ -47,7 +48,7 @@ pub fn fold_cell_bounds(
         return;
     }
     let e = g.extent();
-    let first = [0, 1, 2].map(|a| div_floor(cells.lo[a], ratio[a]));
+    let first = axes(|a| div_floor(cells.lo[a], ratio[a]));
     if (0..3).all(|a| div_floor(cells.hi[a] - 1, ratio[a]) == first[a]) {
         // All the cells lie in one cell of `g` (a small finer leaf's part, often): one scan.
         if !g.contains_cell(first) {
@@ -354,18 +355,15 @@ fn gather_tile<D: AsRef<[u8]>>(
             continue;
         }
         let sf = grid.scale(lv);
-        let r = [0, 1, 2].map(|a| s[a] / sf[a]);
+        let r = axes(|a| s[a] / sf[a]);
         if r.iter().all(|&v| v >= BLOCK) {
             let over = cells.coarsen(r).intersect(g);
             for z in over.lo[2]..over.hi[2] {
                 for y in over.lo[1]..over.hi[1] {
                     for x in over.lo[0]..over.hi[0] {
                         let c = [x, y, z];
-                        let inside = IBox::new(
-                            [0, 1, 2].map(|a| c[a] * r[a]),
-                            [0, 1, 2].map(|a| (c[a] + 1) * r[a]),
-                        )
-                        .intersect(&cells);
+                        let inside = IBox::new(axes(|a| c[a] * r[a]), axes(|a| (c[a] + 1) * r[a]))
+                            .intersect(&cells);
                         let (a, b) = blocks.range_of_cells(sampler, brick, &inside)?;
                         let i = g.linear_index(c);
                         lo[i] = lo[i].min(a);

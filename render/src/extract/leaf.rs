@@ -282,7 +282,8 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
 /// cell position `local` in the leaf's box), whose lower corner is doubled point `lo`:
 /// [`Sampler::corners`], reading the eight cells around a vertex from the neighbourhood when
 /// they are all leaf cells of the octant's level (the same values in the same order), and asking
-/// the sampler otherwise. Every vertex is computed once per leaf.
+/// the sampler otherwise. Every vertex is computed once per leaf, and those the sampler gives
+/// are kept for the leaves after it ([`LeafVertices::kept`]).
 #[allow(clippy::too_many_arguments)]
 fn boundary_corners<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
@@ -333,7 +334,15 @@ fn boundary_corners<D: AsRef<[u8]>>(
                     Some(avg8(&around.map(|j| hood.value(j))))
                 } else {
                     let v = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
-                    sampler.vertex_value_unmemoized_in(sampler, v, level, memo)?
+                    match verts.kept(v, level) {
+                        Some(kept) => kept,
+                        None => {
+                            let value =
+                                sampler.vertex_value_unmemoized_in(sampler, v, level, memo)?;
+                            verts.keep(v, level, value);
+                            value
+                        }
+                    }
                 };
                 verts.put_slot(vi, value);
                 value

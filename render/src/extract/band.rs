@@ -27,7 +27,7 @@ use crate::error::Result;
 use amr_format::IBox;
 
 use super::blocks::{level_box, BlockRanges, BLOCK};
-use super::leaf_tree::LeafTree;
+use super::leaf_tree::{LeafTree, Met};
 use super::local::div_floor;
 use super::tight::{pack, unpack};
 use crate::reconstruct::grid::axes;
@@ -328,15 +328,40 @@ fn gather_tile<D: AsRef<[u8]>>(
         [0, 1, 2].map(|a| g.lo[a] * s[a] - o[a]),
         [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
     );
+    // A node or leaf of leaves no coarser than `level` inside one cell adds its kept exact
+    // range to that cell: the range of the same cells.
+    let one_cell = |b: &IBox| {
+        (0..3).all(|a| b.hi[a] - b.lo[a] <= s[a])
+            && level_box(grid, level, b).num_cells() == Some(1)
+    };
+    let whole = |b: &IBox, coarsest: u32, _| coarsest >= level && one_cell(b);
     let mut touching = Vec::new();
-    leaves.for_each_leaf_overlapping(&finest, |l| touching.push(l));
-    for l in touching {
+    leaves.for_each_overlapping_grouped(&finest, whole, |m| touching.push(m));
+    for m in touching {
+        let l = match m {
+            Met::Leaf(l) => l,
+            Met::Node(n) => {
+                let b = leaves.node_box(n);
+                let (a, z) = leaves.exact_node_range(sampler, n)?;
+                let i = g.linear_index(level_box(grid, level, &b).lo);
+                lo[i] = lo[i].min(a);
+                hi[i] = hi[i].max(z);
+                continue;
+            }
+        };
         let leaf_box = leaves.leaf_box(l);
         let part = leaf_box.intersect(&finest);
         let Some((brick, lv)) = sampler.leaf_top(l) else {
             continue;
         };
         if part.is_empty() {
+            continue;
+        }
+        if lv >= level && part == leaf_box && one_cell(&leaf_box) {
+            let (a, z) = leaves.exact_range(sampler, l)?;
+            let i = g.linear_index(level_box(grid, level, &leaf_box).lo);
+            lo[i] = lo[i].min(a);
+            hi[i] = hi[i].max(z);
             continue;
         }
         if lv < level {

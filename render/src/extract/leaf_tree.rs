@@ -230,6 +230,11 @@ impl LeafTree {
         self.nodes[i as usize].bounds
     }
 
+    /// The leaves of node `i`'s subtree.
+    pub fn node_leaves(&self, i: u32) -> &[u32] {
+        self.leaves(&self.nodes[i as usize])
+    }
+
     /// Calls `f` with every leaf whose box overlaps `region` (`OVERLAP`) or touches it; nodes
     /// that fail the same test are skipped whole.
     fn for_each_leaf_meeting<const OVERLAP: bool>(&self, region: &IBox, mut f: impl FnMut(u32)) {

@@ -4,7 +4,7 @@
 
 use crate::support::hierarchy::{build, standard_cases, Rng};
 use amr_format::IBox;
-use amr_render::extract::leaf_tree::LeafTree;
+use amr_render::extract::leaf_tree::{LeafTree, Met};
 use amr_render::reconstruct::Sampler;
 
 #[test]
@@ -143,4 +143,80 @@ fn exact_range_over_equals_a_scan_of_every_leaf() {
         ranges > 100 && coarser > 100,
         "{ranges} ranges and {coarser} coarser answers over all cases"
     );
+}
+
+/// `LeafTree::for_each_overlapping_grouped` hands over the leaves `for_each_leaf_overlapping`
+/// finds, in the same order, with some runs of them as one node: a node inside the region, for
+/// which the test held with its box (the union of its leaves'), its leaves' coarsest level with
+/// data and whether all have data, and whose kept exact range is the union of its leaves'.
+#[test]
+fn grouped_walk_gives_the_overlapping_leaves_in_order() {
+    let mut nodes_met = 0;
+    for case in standard_cases(2) {
+        let (_, file) = build(&case);
+        let sampler = Sampler::new(&file, 0, 1 << 20).unwrap();
+        let trees = [
+            ("kd-tree shape", LeafTree::new(&sampler)),
+            ("median splits", LeafTree::median(&sampler)),
+        ];
+        let tree = file.tree();
+        let extent = tree.domain.extent();
+        let mut rng = Rng(case.seed ^ 0x960e);
+        for q in 0..200 {
+            let lo = extent.map(|e| rng.range(-2, e + 1));
+            let hi = [0, 1, 2].map(|a| lo[a] + rng.range(1, extent[a] / (1 + q % 4) + 2));
+            let region = IBox::new(lo, hi);
+            // Nodes up to this many cells are taken whole.
+            let most = rng.range(1, 4096);
+            for (name, t) in &trees {
+                let what = format!("seed {}, {name}, region {region:?}", case.seed);
+                let mut want = Vec::new();
+                t.for_each_leaf_overlapping(&region, |l| want.push(l));
+                let asked = std::cell::RefCell::new(Vec::new());
+                let whole = |b: &IBox, coarsest: u32, complete: bool| {
+                    let take = b.num_cells().is_some_and(|c| c <= most as u64);
+                    if take {
+                        asked.borrow_mut().push((*b, coarsest, complete));
+                    }
+                    take
+                };
+                let mut got = Vec::new();
+                t.for_each_overlapping_grouped(&region, whole, |m| match m {
+                    Met::Leaf(l) => got.push(l),
+                    Met::Node(n) => {
+                        nodes_met += 1;
+                        let leaves = t.node_leaves(n);
+                        let b = t.node_box(n);
+                        assert!(region.contains_box(&b), "node inside: {what}");
+                        let union = leaves
+                            .iter()
+                            .map(|&l| tree.leaf_box(l))
+                            .reduce(|a, c| a.union(&c))
+                            .unwrap();
+                        assert_eq!(b, union, "node box: {what}");
+                        let levels: Vec<Option<u32>> = leaves
+                            .iter()
+                            .map(|&l| sampler.leaf_top(l).map(|(_, lv)| lv))
+                            .collect();
+                        let coarsest = levels.iter().flatten().min().copied().unwrap_or(u32::MAX);
+                        let complete = levels.iter().all(Option::is_some);
+                        assert!(
+                            asked.borrow().contains(&(b, coarsest, complete)),
+                            "node asked about with its box, level and completeness: {what}"
+                        );
+                        let mut range = (f32::INFINITY, f32::NEG_INFINITY);
+                        for &l in leaves {
+                            let (a, z) = t.exact_range(&sampler, l).unwrap();
+                            range = (range.0.min(a), range.1.max(z));
+                        }
+                        let kept = t.exact_node_range(&sampler, n).unwrap();
+                        assert_eq!(kept, range, "node range: {what}");
+                        got.extend_from_slice(leaves);
+                    }
+                });
+                assert_eq!(got, want, "leaves in order: {what}");
+            }
+        }
+    }
+    assert!(nodes_met > 100, "only {nodes_met} nodes taken whole");
 }

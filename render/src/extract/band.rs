@@ -27,9 +27,10 @@ use crate::error::Result;
 use amr_format::IBox;
 
 use super::blocks::{level_box, BlockRanges, BLOCK};
-use super::leaf_tree::LeafTree;
+use super::leaf_tree::{LeafTree, Met};
 use super::local::div_floor;
 use super::tight::{pack, unpack};
+use crate::reconstruct::grid::axes;
 use crate::reconstruct::Sampler;
 
 /// Folds the values of the cells `cells` (level-`fine` indices, inside the brick's cells `bc`)
@@ -47,7 +48,7 @@ pub fn fold_cell_bounds(
         return;
     }
     let e = g.extent();
-    let first = [0, 1, 2].map(|a| div_floor(cells.lo[a], ratio[a]));
+    let first = axes(|a| div_floor(cells.lo[a], ratio[a]));
     if (0..3).all(|a| div_floor(cells.hi[a] - 1, ratio[a]) == first[a]) {
         // All the cells lie in one cell of `g` (a small finer leaf's part, often): one scan.
         if !g.contains_cell(first) {
@@ -327,15 +328,40 @@ fn gather_tile<D: AsRef<[u8]>>(
         [0, 1, 2].map(|a| g.lo[a] * s[a] - o[a]),
         [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
     );
+    // A node or leaf of leaves no coarser than `level` inside one cell adds its kept exact
+    // range to that cell: the range of the same cells.
+    let one_cell = |b: &IBox| {
+        (0..3).all(|a| b.hi[a] - b.lo[a] <= s[a])
+            && level_box(grid, level, b).num_cells() == Some(1)
+    };
+    let whole = |b: &IBox, coarsest: u32, _| coarsest >= level && one_cell(b);
     let mut touching = Vec::new();
-    leaves.for_each_leaf_overlapping(&finest, |l| touching.push(l));
-    for l in touching {
+    leaves.for_each_overlapping_grouped(&finest, whole, |m| touching.push(m));
+    for m in touching {
+        let l = match m {
+            Met::Leaf(l) => l,
+            Met::Node(n) => {
+                let b = leaves.node_box(n);
+                let (a, z) = leaves.exact_node_range(sampler, n)?;
+                let i = g.linear_index(level_box(grid, level, &b).lo);
+                lo[i] = lo[i].min(a);
+                hi[i] = hi[i].max(z);
+                continue;
+            }
+        };
         let leaf_box = leaves.leaf_box(l);
         let part = leaf_box.intersect(&finest);
         let Some((brick, lv)) = sampler.leaf_top(l) else {
             continue;
         };
         if part.is_empty() {
+            continue;
+        }
+        if lv >= level && part == leaf_box && one_cell(&leaf_box) {
+            let (a, z) = leaves.exact_range(sampler, l)?;
+            let i = g.linear_index(level_box(grid, level, &leaf_box).lo);
+            lo[i] = lo[i].min(a);
+            hi[i] = hi[i].max(z);
             continue;
         }
         if lv < level {
@@ -354,18 +380,15 @@ fn gather_tile<D: AsRef<[u8]>>(
             continue;
         }
         let sf = grid.scale(lv);
-        let r = [0, 1, 2].map(|a| s[a] / sf[a]);
+        let r = axes(|a| s[a] / sf[a]);
         if r.iter().all(|&v| v >= BLOCK) {
             let over = cells.coarsen(r).intersect(g);
             for z in over.lo[2]..over.hi[2] {
                 for y in over.lo[1]..over.hi[1] {
                     for x in over.lo[0]..over.hi[0] {
                         let c = [x, y, z];
-                        let inside = IBox::new(
-                            [0, 1, 2].map(|a| c[a] * r[a]),
-                            [0, 1, 2].map(|a| (c[a] + 1) * r[a]),
-                        )
-                        .intersect(&cells);
+                        let inside = IBox::new(axes(|a| c[a] * r[a]), axes(|a| (c[a] + 1) * r[a]))
+                            .intersect(&cells);
                         let (a, b) = blocks.range_of_cells(sampler, brick, &inside)?;
                         let i = g.linear_index(c);
                         lo[i] = lo[i].min(a);

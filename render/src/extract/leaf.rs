@@ -17,6 +17,7 @@ use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};
 use super::refs::{make_ref, LocalVoxel};
 use super::small::MAX_CELLS;
 use super::vertices::LeafVertices;
+use crate::reconstruct::grid::axes;
 use crate::reconstruct::interp::{avg8, min_max, straddles};
 use crate::reconstruct::{Sampler, VertexMemo};
 
@@ -219,12 +220,13 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                         continue;
                     }
                     if !verts_started {
-                        verts.start(&frame.cells, [0, 1, 2].map(|a| lowest[a] - s[a]), s);
+                        verts.start(&frame.cells, axes(|a| lowest[a] - s[a]), s);
                         verts_started = true;
                     }
                     let centre = grid.centre(level, cell);
+                    let local = axes(|a| (cell[a] - c.lo[a]) as usize);
                     for octant in 0..8u8 {
-                        let lo = [0, 1, 2].map(|a| {
+                        let lo = axes(|a| {
                             if octant >> a & 1 == 1 {
                                 centre[a]
                             } else {
@@ -249,7 +251,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                             (memo, verts),
                             level,
                             i,
-                            [0, 1, 2].map(|a| (cell[a] - c.lo[a]) as usize),
+                            local,
                             lo,
                             octant,
                         )?
@@ -280,7 +282,8 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
 /// cell position `local` in the leaf's box), whose lower corner is doubled point `lo`:
 /// [`Sampler::corners`], reading the eight cells around a vertex from the neighbourhood when
 /// they are all leaf cells of the octant's level (the same values in the same order), and asking
-/// the sampler otherwise. Every vertex is computed once per leaf.
+/// the sampler otherwise. Every vertex is computed once per leaf, and those the sampler gives
+/// are kept for the leaves after it ([`LeafVertices::kept`]).
 #[allow(clippy::too_many_arguments)]
 fn boundary_corners<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
@@ -316,7 +319,7 @@ fn boundary_corners<D: AsRef<[u8]>>(
             *slot = hood.value(i);
             continue;
         }
-        let k = [0, 1, 2].map(|a| 2 * local[a] + (octant as usize >> a & 1) + (n >> a & 1));
+        let k = axes(|a| 2 * local[a] + (octant as usize >> a & 1) + (n >> a & 1));
         let vi = verts.slot_at(k);
         let value = match verts.get_slot(vi) {
             Some(known) => known,
@@ -330,8 +333,16 @@ fn boundary_corners<D: AsRef<[u8]>>(
                 let value = if around.iter().all(|&j| hood.kind(j) == LEAF) {
                     Some(avg8(&around.map(|j| hood.value(j))))
                 } else {
-                    let v = [0, 1, 2].map(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
-                    sampler.vertex_value_unmemoized_in(sampler, v, level, memo)?
+                    let v = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
+                    match verts.kept(v, level) {
+                        Some(kept) => kept,
+                        None => {
+                            let value =
+                                sampler.vertex_value_unmemoized_in(sampler, v, level, memo)?;
+                            verts.keep(v, level, value);
+                            value
+                        }
+                    }
                 };
                 verts.put_slot(vi, value);
                 value

@@ -10,9 +10,13 @@ use crate::error::Result;
 use amr_format::IBox;
 
 use super::band::fold_cell_bounds;
-use super::leaf_tree::LeafTree;
+use super::leaf_tree::{LeafTree, Met};
 
 use crate::reconstruct::Sampler;
+
+/// Finest cells per axis of a cell, at most, for which a fill takes no node of the leaf tree
+/// whole (a node of up to 8 leaves rarely fits in such a cell; the test would cost more).
+const GROUP_SCALE: i64 = 2;
 
 /// A leaf cell of the leaf's own level.
 pub const LEAF: u8 = 0;
@@ -181,7 +185,7 @@ pub struct Neighbourhood {
     /// Per cell, for the isovalue of the last [`Self::classify`]: [`ABOVE`], [`BELOW`],
     /// [`NOT_LEAF`] and [`PENDING`] bits.
     codes: Vec<u8>,
-    touching: Vec<u32>,
+    touching: Vec<Met>,
     /// Scratch of [`Self::mark_near_boundary`].
     dilated: Vec<bool>,
     /// The level and box of the last fill, while the cells hold it.
@@ -250,9 +254,39 @@ impl Neighbourhood {
         // The cells and ratio of each finer level met, found once per fill.
         let mut finer: [Option<(u32, FinerCells)>; 8] = [None; 8];
         self.touching.clear();
-        leaves.for_each_leaf_overlapping(&region, |l| self.touching.push(l));
+        // A node of finer leaves (all with data) inside one cell comes whole: its kept exact
+        // range is that of its leaves' cells, each of which would add its own to that cell.
+        // Cells of at most `GROUP_SCALE` finest cells per axis rarely hold a node whole.
+        let group = s.iter().any(|&v| v > GROUP_SCALE);
+        let whole = |b: &IBox, coarsest: u32, complete: bool| {
+            complete
+                && coarsest > level
+                && (0..3).all(|a| b.hi[a] - b.lo[a] <= s[a])
+                && at_level.of(b).num_cells() == Some(1)
+        };
+        if group {
+            leaves.for_each_overlapping_grouped(&region, whole, |m| self.touching.push(m));
+        } else {
+            leaves.for_each_leaf_overlapping(&region, |l| self.touching.push(Met::Leaf(l)));
+        }
         for i in 0..self.touching.len() {
-            let l = self.touching[i];
+            let l = match self.touching[i] {
+                Met::Leaf(l) => l,
+                Met::Node(n) => {
+                    let block = at_level.of(&leaves.node_box(n));
+                    self.set_block(&block, FINER);
+                    let (a, b) = leaves.exact_node_range(sampler, n)?;
+                    let i = g.linear_index(block.lo);
+                    // Comparisons, not f32::min, as for a leaf.
+                    if a < self.lo[i] {
+                        self.lo[i] = a;
+                    }
+                    if b > self.hi[i] {
+                        self.hi[i] = b;
+                    }
+                    continue;
+                }
+            };
             let lb = leaves.leaf_box(l);
             // `region` is whole level cells, so this is the leaf's level box clipped to `g`.
             let part = lb.intersect(&region);

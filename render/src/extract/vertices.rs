@@ -1,6 +1,11 @@
 //! Vertex values of one leaf's boundary octants, in a dense grid over the leaf's level-`L`
 //! half-cell lattice: octants sharing a vertex compute it once, with array lookups in cell
 //! order instead of hashing. Generation stamps make starting a new leaf free.
+//!
+//! Vertices on a leaf's faces are also vertices of the leaves beside it, which are mostly
+//! extracted soon after (leaves go in kd-tree order). The values the sampler computes (the
+//! costly ones, next to other levels) are also kept across leaves, in a small direct-mapped
+//! table keyed by position and level: a vertex value is a function of those two alone.
 
 use amr_format::IBox;
 
@@ -17,7 +22,23 @@ pub struct LeafVertices {
     /// the value's bits, side by side so one lookup touches one cache line.
     slots: Vec<(u32, f32)>,
     generation: u32,
+    /// Values computed by the sampler for any leaf, direct-mapped (allocated on first use).
+    shared: Vec<Shared>,
 }
+
+/// A slot of [`LeafVertices`]' table of values kept across leaves.
+#[derive(Clone, Copy)]
+struct Shared {
+    /// The vertex (doubled coordinates).
+    v: [i64; 3],
+    /// The asking level; `u32::MAX` for an empty slot.
+    level: u32,
+    /// The value, `None` where a cell touching the vertex is not covered.
+    value: Option<f32>,
+}
+
+/// log2 of the slots of the table of values kept across leaves (40 bytes each).
+const SHARED_BITS: u32 = 12;
 
 impl LeafVertices {
     /// Starts a leaf whose cells (of level scale `scale`) are `cells`, with lowest doubled
@@ -80,6 +101,38 @@ impl LeafVertices {
             Some(x) => (self.generation, x),
             None => (self.generation | NONE, 0.0),
         };
+    }
+
+    /// The slot of vertex `v` asked by level `level` in the table kept across leaves.
+    #[inline]
+    fn shared_slot(v: [i64; 3], level: u32) -> usize {
+        let h = (v[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ (v[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+            ^ (v[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
+            ^ u64::from(level).wrapping_mul(0x27D4_EB2F_1656_67C5);
+        (h >> (64 - SHARED_BITS)) as usize
+    }
+
+    /// The value at doubled vertex `v` as seen by level `level`, kept from any leaf
+    /// ([`Self::keep`]), if any.
+    #[inline]
+    pub fn kept(&self, v: [i64; 3], level: u32) -> Option<Option<f32>> {
+        let e = self.shared.get(Self::shared_slot(v, level))?;
+        (e.level == level && e.v == v).then_some(e.value)
+    }
+
+    /// Keeps the value at doubled vertex `v` as seen by level `level` for any later leaf.
+    #[inline]
+    pub fn keep(&mut self, v: [i64; 3], level: u32, value: Option<f32>) {
+        if self.shared.is_empty() {
+            let empty = Shared {
+                v: [0; 3],
+                level: u32::MAX,
+                value: None,
+            };
+            self.shared.resize(1 << SHARED_BITS, empty);
+        }
+        self.shared[Self::shared_slot(v, level)] = Shared { v, level, value };
     }
 
     /// The remembered value at doubled vertex `v`, if any.

@@ -39,6 +39,32 @@ pub(super) fn holds(b: &IBox, p: [i64; 3]) -> bool {
         & (p[2] < b.hi[2])
 }
 
+/// Per axis: the sides of a vertex (bit `n` for side `n`, as in [`Sampler::nudges`]) nudged
+/// toward `-` on it.
+const SIDES_DOWN: [u8; 3] = [0x55, 0x33, 0x0F];
+
+/// The sides of a vertex whose finest cell (`lo`/`hi` per axis, as [`Sampler::nudges`] gives
+/// them) lies in box `b`, one bit per side: branch-free, two tests per axis for the eight cells.
+#[inline(always)]
+pub(super) fn sides_in(b: &IBox, lo: [i64; 3], hi: [i64; 3]) -> u8 {
+    let mut m = 0xFF;
+    for a in 0..3 {
+        let l = (b.lo[a] <= lo[a]) & (lo[a] < b.hi[a]);
+        let h = (b.lo[a] <= hi[a]) & (hi[a] < b.hi[a]);
+        m &= (SIDES_DOWN[a] & 0u8.wrapping_sub(u8::from(l)))
+            | (!SIDES_DOWN[a] & 0u8.wrapping_sub(u8::from(h)));
+    }
+    m
+}
+
+/// The sides of a vertex that are not repeats: side `n` repeats side `n & !same` ([`Sampler::nudges`]).
+#[inline(always)]
+pub(super) fn distinct_sides(same: usize) -> u8 {
+    (0..3).fold(0xFF, |m, a| {
+        m & (SIDES_DOWN[a] | 0u8.wrapping_sub(u8::from(same >> a & 1 == 0)))
+    })
+}
+
 impl<D: AsRef<[u8]>> Sampler<'_, D> {
     /// The corners of octant `o` of a leaf cell of value `value` when the leaf cells `around`
     /// its outer corner (side `n` of the corner; [`Sampler::nudges`]' `same` axes repeat a side)

@@ -1099,6 +1099,12 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         if !holds(leaf_box, f) {
             return None;
         }
+        self.cell_in_own_leaf(c, f)
+    }
+
+    /// [`Self::cell_in_leaf`] for a finest cell `f` known to lie in leaf cell `c`'s kd-tree leaf.
+    #[inline(always)]
+    pub(super) fn cell_in_own_leaf(&self, c: &LeafCell, f: [i64; 3]) -> Option<LeafCell> {
         let t = self.tops[c.leaf as usize].as_ref()?;
         let cell = t.cell_of(&self.grid, f);
         let &value = t.values?.get(t.index(cell))?;

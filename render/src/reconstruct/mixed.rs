@@ -41,7 +41,7 @@ pub(super) fn holds(b: &IBox, p: [i64; 3]) -> bool {
 
 /// Per axis: the sides of a vertex (bit `n` for side `n`, as in [`Sampler::nudges`]) nudged
 /// toward `-` on it.
-const SIDES_DOWN: [u8; 3] = [0x55, 0x33, 0x0F];
+pub(super) const SIDES_DOWN: [u8; 3] = [0x55, 0x33, 0x0F];
 
 /// The sides of a vertex whose finest cell (`lo`/`hi` per axis, as [`Sampler::nudges`] gives
 /// them) lies in box `b`, one bit per side: branch-free, two tests per axis for the eight cells.
@@ -163,16 +163,23 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             let side = down >> a & 1;
             m & (slab(a, 2 * side) | slab(a, 2 * side + 1))
         });
-        for (k, p) in positions.iter().enumerate() {
-            let mut mask = part[0][k & 1] & part[1][k >> 1 & 1] & part[2][k >> 2 & 1] & centre;
-            if whole >> k & 1 == 1 {
-                while mask != 0 {
-                    let e = mask.trailing_zeros() as usize;
+        // Every entry first takes its position's cell when that cell covers the whole position;
+        // the entries of the other positions are read or located below.
+        for (z, &kz) in axis[2].out.iter().enumerate() {
+            for (y, &ky) in axis[1].out.iter().enumerate() {
+                for (x, &kx) in axis[0].out.iter().enumerate() {
+                    let k = (kx | ky | kz) & 7;
+                    let e = x + 4 * y + 16 * z;
                     (levels[e], values[e]) = (whole_level[k], whole_value[k]);
-                    mask &= mask - 1;
                 }
-                continue;
             }
+        }
+        let mut partial = !whole;
+        while partial != 0 {
+            let k = partial.trailing_zeros() as usize;
+            partial &= partial - 1;
+            let p = &positions[k];
+            let mut mask = part[0][k & 1] & part[1][k >> 1 & 1] & part[2][k >> 2 & 1] & centre;
             read |= mask;
             // The position's kd-tree leaf, when it holds all the position's cells.
             let leaf = p.map_or(u32::MAX, |p| {

@@ -16,7 +16,7 @@ use crate::error::Result;
 
 use super::grid::axes;
 use super::interp::{avg8, lerp};
-use super::mixed::{distinct_sides, sides_in};
+use super::mixed::{distinct_sides, sides_in, SIDES_DOWN};
 use super::sampler::{LeafCell, Locate, Octant, Sampler, VertexMemo};
 
 /// What one octant evaluation has learnt while stitching its vertices: coarse octants
@@ -177,18 +177,17 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         let t = axes(|a| ((v[a] - lo[a]) as f64 / s[a] as f64) as f32);
         let centre = usize::from(!key.octant & 7);
         let mut corners = [f32::NAN; 8];
-        for (n, slot) in corners.iter_mut().enumerate() {
-            let needed = (0..3).all(|a| {
-                if n >> a & 1 == 1 {
-                    t[a] != 0.0
-                } else {
-                    t[a] != 1.0
-                }
-            });
-            if !needed {
-                continue;
-            }
-            *slot = if n == centre {
+        // The corners of non-zero weight: on no axis on the upper side where `t` is 0, nor on
+        // the lower side where it is 1.
+        let mut needed = (0..3).fold(0xFFu8, |m, a| {
+            let zero = 0u8.wrapping_sub(u8::from(t[a] == 0.0));
+            let one = 0u8.wrapping_sub(u8::from(t[a] == 1.0));
+            m & !((!SIDES_DOWN[a] & zero) | (SIDES_DOWN[a] & one))
+        });
+        while needed != 0 {
+            let n = needed.trailing_zeros() as usize;
+            needed &= needed - 1;
+            corners[n] = if n == centre {
                 q.value
             } else {
                 let w = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);

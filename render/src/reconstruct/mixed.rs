@@ -164,13 +164,18 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             m & (slab(a, 2 * side) | slab(a, 2 * side + 1))
         });
         // Every entry first takes its position's cell when that cell covers the whole position;
-        // the entries of the other positions are read or located below.
+        // the entries of the other positions are read or located below. A row along x holds
+        // two positions: `k` and, where x lies outside the own cell, `k | 1`.
         for (z, &kz) in axis[2].out.iter().enumerate() {
             for (y, &ky) in axis[1].out.iter().enumerate() {
+                let k = (ky | kz) & 6;
+                let (l0, v0) = (whole_level[k], whole_value[k]);
+                let (l1, v1) = (whole_level[k | 1], whole_value[k | 1]);
+                let row = 4 * y + 16 * z;
                 for (x, &kx) in axis[0].out.iter().enumerate() {
-                    let k = (kx | ky | kz) & 7;
-                    let e = x + 4 * y + 16 * z;
-                    (levels[e], values[e]) = (whole_level[k], whole_value[k]);
+                    let beyond = kx != 0;
+                    levels[row + x] = if beyond { l1 } else { l0 };
+                    values[row + x] = if beyond { v1 } else { v0 };
                 }
             }
         }

@@ -39,6 +39,32 @@ pub(super) fn holds(b: &IBox, p: [i64; 3]) -> bool {
         & (p[2] < b.hi[2])
 }
 
+/// Per axis: the sides of a vertex (bit `n` for side `n`, as in [`Sampler::nudges`]) nudged
+/// toward `-` on it.
+pub(super) const SIDES_DOWN: [u8; 3] = [0x55, 0x33, 0x0F];
+
+/// The sides of a vertex whose finest cell (`lo`/`hi` per axis, as [`Sampler::nudges`] gives
+/// them) lies in box `b`, one bit per side: branch-free, two tests per axis for the eight cells.
+#[inline(always)]
+pub(super) fn sides_in(b: &IBox, lo: [i64; 3], hi: [i64; 3]) -> u8 {
+    let mut m = 0xFF;
+    for a in 0..3 {
+        let l = (b.lo[a] <= lo[a]) & (lo[a] < b.hi[a]);
+        let h = (b.lo[a] <= hi[a]) & (hi[a] < b.hi[a]);
+        m &= (SIDES_DOWN[a] & 0u8.wrapping_sub(u8::from(l)))
+            | (!SIDES_DOWN[a] & 0u8.wrapping_sub(u8::from(h)));
+    }
+    m
+}
+
+/// The sides of a vertex that are not repeats: side `n` repeats side `n & !same` ([`Sampler::nudges`]).
+#[inline(always)]
+pub(super) fn distinct_sides(same: usize) -> u8 {
+    (0..3).fold(0xFF, |m, a| {
+        m & (SIDES_DOWN[a] | 0u8.wrapping_sub(u8::from(same >> a & 1 == 0)))
+    })
+}
+
 impl<D: AsRef<[u8]>> Sampler<'_, D> {
     /// The corners of octant `o` of a leaf cell of value `value` when the leaf cells `around`
     /// its outer corner (side `n` of the corner; [`Sampler::nudges`]' `same` axes repeat a side)
@@ -137,16 +163,28 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             let side = down >> a & 1;
             m & (slab(a, 2 * side) | slab(a, 2 * side + 1))
         });
-        for (k, p) in positions.iter().enumerate() {
-            let mut mask = part[0][k & 1] & part[1][k >> 1 & 1] & part[2][k >> 2 & 1] & centre;
-            if whole >> k & 1 == 1 {
-                while mask != 0 {
-                    let e = mask.trailing_zeros() as usize;
-                    (levels[e], values[e]) = (whole_level[k], whole_value[k]);
-                    mask &= mask - 1;
+        // Every entry first takes its position's cell when that cell covers the whole position;
+        // the entries of the other positions are read or located below. A row along x holds
+        // two positions: `k` and, where x lies outside the own cell, `k | 1`.
+        for (z, &kz) in axis[2].out.iter().enumerate() {
+            for (y, &ky) in axis[1].out.iter().enumerate() {
+                let k = (ky | kz) & 6;
+                let (l0, v0) = (whole_level[k], whole_value[k]);
+                let (l1, v1) = (whole_level[k | 1], whole_value[k | 1]);
+                let row = 4 * y + 16 * z;
+                for (x, &kx) in axis[0].out.iter().enumerate() {
+                    let beyond = kx != 0;
+                    levels[row + x] = if beyond { l1 } else { l0 };
+                    values[row + x] = if beyond { v1 } else { v0 };
                 }
-                continue;
             }
+        }
+        let mut partial = !whole;
+        while partial != 0 {
+            let k = partial.trailing_zeros() as usize;
+            partial &= partial - 1;
+            let p = &positions[k];
+            let mut mask = part[0][k & 1] & part[1][k >> 1 & 1] & part[2][k >> 2 & 1] & centre;
             read |= mask;
             // The position's kd-tree leaf, when it holds all the position's cells.
             let leaf = p.map_or(u32::MAX, |p| {

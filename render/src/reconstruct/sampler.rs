@@ -22,7 +22,7 @@ use super::cache::BrickCache;
 use super::grid::{axes, index_in, Grid};
 use super::interp::{avg2, avg8, trilinear};
 use super::leaf_grid::LeafGrid;
-use super::mixed::holds;
+use super::mixed::{distinct_sides, holds, sides_in};
 
 /// The leaf cell at a point: the finest cell any brick holds there.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -997,28 +997,37 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         if let Some(block) = block {
             return Ok(Some(self.corners_from_block(&block, value, up)));
         }
-        // Side `n` of the outer corner, as in `corners_one_level`.
+        // Side `n` of the outer corner, as in `corners_one_level`: first the sides in `near`'s
+        // kd-tree leaf, read from its brick, then the others located.
+        let side = |n: usize| axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
         let mut around = [None::<LeafCell>; 8];
-        let mut one_level = true;
-        for n in 0..8 {
-            let m = n & !same;
-            around[n] = if m != n {
-                around[m]
-            } else {
-                let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
-                match near.and_then(|(c, b)| self.cell_in_leaf(&c, &b, f)) {
-                    Some(c) => Some(c),
-                    None => {
-                        let c = loc.locate_cell(f)?;
-                        if near.is_none() {
-                            near = c.map(|c| (c, self.tree.leaf_box(c.leaf)));
-                        }
-                        c
-                    }
-                }
-            };
-            one_level &= matches!(around[n], Some(c) if c.level == level);
+        let mut todo = distinct_sides(same);
+        if let Some((c, b)) = near {
+            let mut take = sides_in(&b, lo, hi) & todo;
+            todo &= !take;
+            while take != 0 {
+                let n = take.trailing_zeros() as usize;
+                take &= take - 1;
+                around[n] = self.cell_in_own_leaf(&c, side(n));
+                todo |= u8::from(around[n].is_none()) << n;
+            }
         }
+        while todo != 0 {
+            let n = todo.trailing_zeros() as usize;
+            todo &= todo - 1;
+            around[n] = loc.locate_cell(side(n))?;
+            if near.is_none() {
+                near = around[n].map(|c| (c, self.tree.leaf_box(c.leaf)));
+            }
+        }
+        if same != 0 {
+            for n in 1..8 {
+                around[n] = around[n & !same];
+            }
+        }
+        let one_level = around.iter().fold(true, |all, c| {
+            all & matches!(c, Some(c) if c.level == level)
+        });
         if one_level {
             let block = around.map(|c| c.map_or(0.0, |c| c.value));
             return Ok(Some(self.corners_from_block(&block, value, up)));
@@ -1099,6 +1108,12 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         if !holds(leaf_box, f) {
             return None;
         }
+        self.cell_in_own_leaf(c, f)
+    }
+
+    /// [`Self::cell_in_leaf`] for a finest cell `f` known to lie in leaf cell `c`'s kd-tree leaf.
+    #[inline(always)]
+    pub(super) fn cell_in_own_leaf(&self, c: &LeafCell, f: [i64; 3]) -> Option<LeafCell> {
         let t = self.tops[c.leaf as usize].as_ref()?;
         let cell = t.cell_of(&self.grid, f);
         let &value = t.values?.get(t.index(cell))?;

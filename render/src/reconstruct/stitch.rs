@@ -16,6 +16,7 @@ use crate::error::Result;
 
 use super::grid::axes;
 use super::interp::{avg8, lerp};
+use super::mixed::{distinct_sides, sides_in, SIDES_DOWN};
 use super::sampler::{LeafCell, Locate, Octant, Sampler, VertexMemo};
 
 /// What one octant evaluation has learnt while stitching its vertices: coarse octants
@@ -92,22 +93,6 @@ impl Stitches {
             self.leaves[self.num_leaves] = (c, leaf_box);
             self.num_leaves += 1;
         }
-    }
-
-    /// The leaf cell at finest cell `f` when it lies in a kd-tree leaf met so far whose brick
-    /// is read in place ([`Sampler::cell_in_leaf`]).
-    #[inline(always)]
-    pub(super) fn cell_in_leaves<D: AsRef<[u8]>>(
-        &self,
-        sampler: &Sampler<'_, D>,
-        f: [i64; 3],
-    ) -> Option<LeafCell> {
-        for (c, b) in &self.leaves[..self.num_leaves] {
-            if let Some(found) = sampler.cell_in_leaf(c, b, f) {
-                return Some(found);
-            }
-        }
-        None
     }
 }
 
@@ -192,18 +177,17 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         let t = axes(|a| ((v[a] - lo[a]) as f64 / s[a] as f64) as f32);
         let centre = usize::from(!key.octant & 7);
         let mut corners = [f32::NAN; 8];
-        for (n, slot) in corners.iter_mut().enumerate() {
-            let needed = (0..3).all(|a| {
-                if n >> a & 1 == 1 {
-                    t[a] != 0.0
-                } else {
-                    t[a] != 1.0
-                }
-            });
-            if !needed {
-                continue;
-            }
-            *slot = if n == centre {
+        // The corners of non-zero weight: on no axis on the upper side where `t` is 0, nor on
+        // the lower side where it is 1.
+        let mut needed = (0..3).fold(0xFFu8, |m, a| {
+            let zero = 0u8.wrapping_sub(u8::from(t[a] == 0.0));
+            let one = 0u8.wrapping_sub(u8::from(t[a] == 1.0));
+            m & !((!SIDES_DOWN[a] & zero) | (SIDES_DOWN[a] & one))
+        });
+        while needed != 0 {
+            let n = needed.trailing_zeros() as usize;
+            needed &= needed - 1;
+            corners[n] = if n == centre {
                 q.value
             } else {
                 let w = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
@@ -246,7 +230,8 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
     }
 
     /// [`Self::around_in`], reading cells from the kd-tree leaves `known` has met before
-    /// locating them, and remembering the leaves located.
+    /// locating them, and remembering the leaves located. Leaf by leaf: the sides in a leaf's
+    /// box are found at once ([`sides_in`]) and read from its brick.
     fn around_known<L: Locate>(
         &self,
         loc: &L,
@@ -254,24 +239,44 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         known: &mut Stitches,
     ) -> Result<Option<[LeafCell; 8]>> {
         let (lo, hi, same) = self.nudges(v);
+        let side = |n: usize| axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
         let mut out = [known.leaves[0].0; 8];
-        for n in 0..8 {
-            let m = n & !same;
-            if m != n {
-                out[n] = out[m];
-                continue;
-            }
-            let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
-            out[n] = match known.cell_in_leaves(self, f) {
-                Some(c) => c,
-                None => match loc.locate_cell(f)? {
+        let mut todo = distinct_sides(same);
+        let mut j = 0;
+        while todo != 0 {
+            let (c, b) = if j < known.num_leaves {
+                known.leaves[j]
+            } else {
+                // A side no leaf met so far holds: locate it, and read the rest of its leaf.
+                match loc.locate_cell(side(todo.trailing_zeros() as usize))? {
                     Some(c) => {
-                        known.add_leaf(c, self.leaf_box(c.leaf));
-                        c
+                        let b = self.leaf_box(c.leaf);
+                        known.add_leaf(c, b);
+                        (c, b)
                     }
                     None => return Ok(None),
-                },
+                }
             };
+            j += 1;
+            let mut take = sides_in(&b, lo, hi) & todo;
+            todo &= !take;
+            while take != 0 {
+                let n = take.trailing_zeros() as usize;
+                take &= take - 1;
+                let f = side(n);
+                out[n] = match self.cell_in_own_leaf(&c, f) {
+                    Some(x) => x,
+                    None => match loc.locate_cell(f)? {
+                        Some(x) => x,
+                        None => return Ok(None),
+                    },
+                };
+            }
+        }
+        if same != 0 {
+            for n in 1..8 {
+                out[n] = out[n & !same];
+            }
         }
         Ok(Some(out))
     }

@@ -956,7 +956,9 @@ mod tests {
                 visited += want.len();
             }
         }
-        assert!(visited > 20_000, "only {visited} visits");
+        // Enough visits for the comparison to mean something (18,420 with the centres' exact
+        // Morton order, 20,000 and more with the order of the quantized centres before).
+        assert!(visited > 15_000, "only {visited} visits");
     }
 
     /// What each ray of `rays` visits in a packet walk, as [`visits`] records it for one ray:
@@ -1046,7 +1048,8 @@ mod tests {
         let bvh = BvhBuilder::new().build(&refs, 1e-4, grid_boxes);
         let origin = Vec3A::new(-1.0, 4.5, 4.5);
         let plus = visited(&bvh, Ray::new(origin, Vec3A::X, 0.0, f32::INFINITY));
-        assert_eq!(plus.len(), 10);
+        // The ten boxes the ray crosses, and any others sharing a leaf with them.
+        assert!((0..10).all(|x| plus.contains(&(x + 40 + 400))), "{plus:?}");
         for d in [Vec3A::new(1.0, -0.0, 0.0), Vec3A::new(1.0, 0.0, -0.0)] {
             let ray = Ray::new(origin, d, 0.0, f32::INFINITY);
             assert_eq!(visited(&bvh, ray), plus, "{d}");

@@ -5,13 +5,12 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 
-use amr_render::bvh::{BuildMethod, BvhBuilder};
+use amr_render::bvh::{BoxRun, BuildMethod, BvhBuilder};
 use amr_render::camera::Camera;
 use amr_render::mapping::{open_mapped, PageRelease};
 use amr_render::shade::{render_frame, Lighting, RenderSettings};
 use amr_render::trace::{FieldSource, HybridTracer, Surface, VoxelSource};
 use amr_render::Reconstruction;
-use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::BvhBuildParams;
@@ -83,22 +82,16 @@ pub struct RawBuild {
 /// the time taken is the second value.
 fn voxel_boxes(src: &impl VoxelSource, refs: &[u64]) -> (Vec<Aabb>, Duration) {
     use rayon::prelude::*;
-    let pad = amr_render::trace::traverse::bvh_pad(&src.frame());
+    let grid = amr_render::trace::traverse::bvh_grid(&src.frame());
     let t = Instant::now();
     let mut boxes = vec![Aabb::empty(); refs.len()];
+    let mut codes = vec![0; refs.len()];
     boxes
         .par_chunks_mut(4096)
+        .zip(codes.par_chunks_mut(4096))
         .zip(refs.par_chunks(4096))
-        .for_each(|(out, refs)| {
-            let v = |p: [f64; 3], s: f64| {
-                Vec3A::new((p[0] + s) as f32, (p[1] + s) as f32, (p[2] + s) as f32)
-            };
-            let mut slots = out.iter_mut();
-            src.voxel_boxes(refs, &mut |lo, hi| {
-                if let Some(slot) = slots.next() {
-                    *slot = Aabb::new(v(lo, -pad), v(hi, pad));
-                }
-            });
+        .for_each(|((out, codes), refs)| {
+            src.voxel_boxes(refs, &mut BoxRun::new(out, codes, grid));
         });
     (boxes, t.elapsed())
 }

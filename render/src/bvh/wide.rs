@@ -28,17 +28,28 @@ pub struct WideBuilder {
 }
 
 impl WideBuilder {
-    /// A CWBVH over `boxes`; its `primitive_indices[i]` is the index in `boxes` of its primitive
-    /// `i`. The same boxes always give the same BVH.
+    /// A CWBVH over `boxes` ([`WideBuilder::build_coded`]), their centres' Morton codes taken
+    /// on a grid of `2^21` steps per axis over the centres' bounds.
     pub fn build(&mut self, boxes: &[Aabb]) -> CwBvh {
+        let mut codes = Vec::new();
+        centre_codes(boxes, &mut codes);
+        self.build_coded(boxes, &codes)
+    }
+
+    /// A CWBVH over `boxes`, which are sorted by `codes` (one Morton code per box, each axis's
+    /// bits three apart, x highest); its `primitive_indices[i]` is the index in `boxes` of its
+    /// primitive `i`. Only the bits in which the codes differ are sorted by (the lowest of them
+    /// when they are more than the keys hold beside the box indices). The same boxes and codes
+    /// always give the same BVH.
+    pub fn build_coded(&mut self, boxes: &[Aabb], codes: &[u64]) -> CwBvh {
         let n = boxes.len();
         if n == 0 {
             return CwBvh::default();
         }
         assert!(n <= u32::MAX as usize, "{n} boxes in one BVH");
+        assert_eq!(codes.len(), n, "one Morton code per box");
         let index_bits = (usize::BITS - (n - 1).leading_zeros()).max(1);
-        let axis_bits = ((64 - index_bits) / 3).min(21);
-        self.sort(boxes, index_bits, axis_bits);
+        self.sort(codes, index_bits);
         let index_mask = (1u64 << index_bits) - 1;
         self.sorted.clear();
         self.sorted
@@ -75,33 +86,30 @@ impl WideBuilder {
             + self.sorted.capacity() * size_of::<Aabb>()
     }
 
-    /// Fills `self.keys` with `code << index_bits | index`, sorted by code (then index): the
-    /// Morton code of each box's centre on a grid of `2^axis_bits` steps per axis over the
-    /// centres' bounds.
-    fn sort(&mut self, boxes: &[Aabb], index_bits: u32, axis_bits: u32) {
-        let mut lo = Vec3A::splat(f32::INFINITY);
-        let mut hi = Vec3A::splat(f32::NEG_INFINITY);
-        for b in boxes {
-            let c = b.min + b.max;
-            lo = lo.min(c);
-            hi = hi.max(c);
-        }
-        let steps = ((1u64 << axis_bits) - 1) as f32;
-        let scale = Vec3A::splat(steps) / (hi - lo).max(Vec3A::splat(f32::MIN_POSITIVE));
-        // Whole numbers below 2^21 plus 2^23 keep themselves in their low mantissa bits (a NaN's
-        // low bits are 0, what its conversion gave): no conversion to integers.
-        let magic = Vec3A::splat(8_388_608.0);
+    /// Fills `self.keys` with `code << index_bits | index`, sorted by code (then index), where
+    /// `code` is the bits of `codes[index]` in which the codes differ, as many as fit above
+    /// `index_bits` from the highest down.
+    fn sort(&mut self, codes: &[u64], index_bits: u32) {
+        let first = codes[0];
+        let differ = codes.iter().fold(0, |d, &c| d | (c ^ first));
+        let room = 64 - index_bits;
+        let (shift, bits) = match differ {
+            0 => (0, 0),
+            d => {
+                let (low, high) = (d.trailing_zeros(), 64 - d.leading_zeros());
+                (low.max(high.saturating_sub(room)), (high - low).min(room))
+            }
+        };
+        let mask = if bits == 0 {
+            0
+        } else {
+            u64::MAX >> (64 - bits)
+        };
         let mut counts = [[0u32; 256]; 8];
-        let digits = digits_above(index_bits);
+        let digits = bits.div_ceil(8) as usize;
         self.keys.clear();
-        self.keys.extend(boxes.iter().enumerate().map(|(i, b)| {
-            let q = ((b.min + b.max - lo) * scale)
-                .clamp(Vec3A::ZERO, Vec3A::splat(steps))
-                .floor()
-                + magic;
-            let code = spread(u64::from(q.x.to_bits())) << 2
-                | spread(u64::from(q.y.to_bits())) << 1
-                | spread(u64::from(q.z.to_bits()));
+        self.keys.extend(codes.iter().enumerate().map(|(i, &c)| {
+            let code = c >> shift & mask;
             count_digits(&mut counts, code, digits);
             code << index_bits | i as u64
         }));
@@ -110,13 +118,45 @@ impl WideBuilder {
     }
 }
 
-/// Each byte's bits spread three apart (bit `i` to bit `3 i`).
-const SPREAD_BYTE: [u32; 256] = {
-    let mut t = [0u32; 256];
+/// Writes to `codes` the Morton code of each box's centre on a grid of `2^21` steps per axis
+/// over the centres' bounds.
+pub fn centre_codes(boxes: &[Aabb], codes: &mut Vec<u64>) {
+    let mut lo = Vec3A::splat(f32::INFINITY);
+    let mut hi = Vec3A::splat(f32::NEG_INFINITY);
+    for b in boxes {
+        let c = b.min + b.max;
+        lo = lo.min(c);
+        hi = hi.max(c);
+    }
+    let steps = ((1u64 << 21) - 1) as f32;
+    let scale = Vec3A::splat(steps) / (hi - lo).max(Vec3A::splat(f32::MIN_POSITIVE));
+    // Whole numbers below 2^21 plus 2^23 keep themselves in their low mantissa bits (a NaN's
+    // low bits are 0, what its conversion gave): no conversion to integers.
+    let magic = Vec3A::splat(8_388_608.0);
+    codes.clear();
+    codes.extend(boxes.iter().map(|b| {
+        let q = ((b.min + b.max - lo) * scale)
+            .clamp(Vec3A::ZERO, Vec3A::splat(steps))
+            .floor()
+            + magic;
+        morton([q.x.to_bits(), q.y.to_bits(), q.z.to_bits()])
+    }));
+}
+
+/// The Morton code of grid step `q` (the low 21 bits of each axis): x's bits at `3 i + 2`, y's
+/// at `3 i + 1`, z's at `3 i`.
+#[inline(always)]
+pub fn morton(q: [u32; 3]) -> u64 {
+    spread(u64::from(q[0])) << 2 | spread(u64::from(q[1])) << 1 | spread(u64::from(q[2]))
+}
+
+/// Each 11-bit number's bits spread three apart (bit `i` to bit `3 i`): 8 KiB.
+const SPREAD_11: [u32; 2048] = {
+    let mut t = [0u32; 2048];
     let mut b = 0;
-    while b < 256 {
+    while b < 2048 {
         let mut i = 0;
-        while i < 8 {
+        while i < 11 {
             t[b] |= ((b as u32 >> i) & 1) << (3 * i);
             i += 1;
         }
@@ -125,30 +165,23 @@ const SPREAD_BYTE: [u32; 256] = {
     t
 };
 
-/// Spreads the low 21 bits of `v` three bits apart: a table look-up per byte.
+/// Spreads the low 21 bits of `v` three bits apart: two table look-ups.
 #[inline(always)]
 fn spread(v: u64) -> u64 {
     let x = v & 0x1f_ffff;
-    u64::from(SPREAD_BYTE[(x & 0xff) as usize])
-        | u64::from(SPREAD_BYTE[(x >> 8 & 0xff) as usize]) << 24
-        | u64::from(SPREAD_BYTE[(x >> 16) as usize]) << 48
+    u64::from(SPREAD_11[(x & 0x7ff) as usize]) | u64::from(SPREAD_11[(x >> 11) as usize]) << 33
 }
 
 /// Stable LSD radix sort of `keys` by their bits from `from` up, a byte at a time; bytes that
 /// are the same in every key are skipped.
 #[cfg(test)]
 fn radix_sort(keys: &mut Vec<u64>, tmp: &mut Vec<u64>, from: u32) {
-    let digits = digits_above(from);
+    let digits = (64 - from).div_ceil(8) as usize;
     let mut counts = [[0u32; 256]; 8];
     for &k in keys.iter() {
         count_digits(&mut counts, k >> from, digits);
     }
     radix_passes(keys, tmp, from, &counts[..digits]);
-}
-
-/// Bytes of a key above its low `from` bits.
-fn digits_above(from: u32) -> usize {
-    (64 - from).div_ceil(8) as usize
 }
 
 /// Counts each of the low `digits` bytes of `k` (a key shifted down to its sorted bits).

@@ -565,16 +565,11 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             let leaf = (r >> 32) as u32;
             let slot = &mut frames[leaf as usize % 16];
             let frame = match slot {
-                Some(f) if f.leaf == leaf => f,
-                _ => match self.box_frame(r) {
-                    Ok(f) => slot.insert(f),
-                    Err(e) => {
-                        out(Err(e));
-                        continue;
-                    }
-                },
+                Some(f) if f.leaf == leaf => Ok(&*f),
+                _ => self.box_frame(r).map(|f| &*slot.insert(f)),
             };
-            out(frame.voxel_box(r));
+            // One call of `out` and of `voxel_box`, which the compiler then puts inline.
+            out(frame.and_then(|f| f.voxel_box(r)));
         }
     }
 

@@ -14,6 +14,7 @@ use amr_format::AmrkFile;
 use thread_local::ThreadLocal;
 
 use crate::bvh::packet::{rays_of, Mask};
+use crate::bvh::BoxRun;
 use crate::error::{RenderError, Result};
 use crate::extract::current::CurrentVoxels;
 use crate::extract::nearest::NearestFaces;
@@ -337,19 +338,19 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         }
     }
 
-    fn voxel_boxes(&self, refs: &[u64], out: &mut dyn FnMut([f64; 3], [f64; 3])) {
+    fn voxel_boxes(&self, refs: &[u64], out: &mut BoxRun<'_>) {
         let Voxels::Octant(e) = &self.voxels else {
             for &r in refs {
                 let (lo, hi) = self.voxel_box(r);
-                out(lo, hi);
+                out.push(lo, hi);
             }
             return;
         };
         e.voxel_boxes(refs, |b| match b {
-            Ok((lo, hi)) => out(lo.map(|x| x as f64), hi.map(|x| x as f64)),
+            Ok((lo, hi)) => out.push_int(lo, hi),
             Err(err) => {
                 self.record(err);
-                out(Voxel::EMPTY.lo, Voxel::EMPTY.hi);
+                out.push(Voxel::EMPTY.lo, Voxel::EMPTY.hi);
             }
         });
     }

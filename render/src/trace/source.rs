@@ -1,6 +1,7 @@
 //! What the tracer needs from a volume: active voxels decoded from 64-bit refs, and point samples.
 
 use crate::bvh::packet::{rays_of, Mask};
+use crate::bvh::BoxRun;
 use crate::reconstruct::Grid;
 use crate::trace::octant::{intersect_voxel, VoxelHit};
 use crate::trace::ray::GridRay;
@@ -82,12 +83,12 @@ pub trait VoxelSource: Sync {
         (v.lo, v.hi)
     }
 
-    /// [`Self::voxel_box`] of each of `refs`, passed in order to `out`; sources may share work
+    /// [`Self::voxel_box`] of each of `refs`, pushed in order to `out`; sources may share work
     /// between neighbouring refs (the BVH build decodes all boxes through this).
-    fn voxel_boxes(&self, refs: &[u64], out: &mut dyn FnMut([f64; 3], [f64; 3])) {
+    fn voxel_boxes(&self, refs: &[u64], out: &mut BoxRun<'_>) {
         for &r in refs {
             let (lo, hi) = self.voxel_box(r);
-            out(lo, hi);
+            out.push(lo, hi);
         }
     }
 

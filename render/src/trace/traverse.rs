@@ -5,7 +5,7 @@ use glam::Vec3A;
 use obvhs::ray::Ray;
 
 use crate::bvh::packet::{rays_of, Mask, PACKET};
-use crate::bvh::{BvhBuilder, OctantBvh};
+use crate::bvh::{BoxGrid, BoxRun, BvhBuilder, OctantBvh};
 use crate::trace::last_hit::{self, Query};
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
@@ -52,11 +52,17 @@ pub fn bvh_pad(frame: &GridFrame) -> f64 {
     1e-5 * frame.extent.iter().fold(1.0f64, |m, &e| m.max(e))
 }
 
-/// Where the grid boxes of voxels go, one `(lo, hi)` at a time.
-type BoxSink<'a> = dyn FnMut([f64; 3], [f64; 3]) + 'a;
+/// How the BVH of a surface of `frame`'s grid stores its voxels' boxes: grown by [`bvh_pad`],
+/// their centres coded over the domain.
+pub fn bvh_grid(frame: &GridFrame) -> BoxGrid {
+    BoxGrid::new(
+        bvh_pad(frame),
+        frame.extent.iter().fold(1.0f64, |m, &e| m.max(e)),
+    )
+}
 
 /// The grid boxes of runs of voxels, from their refs.
-fn voxel_boxes<S: VoxelSource + ?Sized>(src: &S) -> impl Fn(&[u64], &mut BoxSink) + Sync + '_ {
+fn voxel_boxes<S: VoxelSource + ?Sized>(src: &S) -> impl Fn(&[u64], &mut BoxRun<'_>) + Sync + '_ {
     |refs, out| src.voxel_boxes(refs, out)
 }
 
@@ -85,8 +91,8 @@ impl Surface {
         builder: &mut BvhBuilder,
     ) {
         self.iso = iso;
-        let pad = bvh_pad(&src.frame());
-        builder.build_into(&mut self.bvh, refs, pad, voxel_boxes(src), || {
+        let grid = bvh_grid(&src.frame());
+        builder.build_into(&mut self.bvh, refs, grid, voxel_boxes(src), || {
             src.release_pages()
         });
     }
@@ -102,8 +108,8 @@ impl Surface {
             iso,
             bvh: OctantBvh::default(),
         };
-        let pad = bvh_pad(&src.frame());
-        builder.build_owned(&mut s.bvh, refs, pad, voxel_boxes(src), || {
+        let grid = bvh_grid(&src.frame());
+        builder.build_owned(&mut s.bvh, refs, grid, voxel_boxes(src), || {
             src.release_pages()
         });
         s

@@ -361,13 +361,6 @@ fn positive_zeros(ray: Ray) -> Ray {
     }
 }
 
-/// The direction octant (0 to 7) by which [`OctantBvh::traverse_packet`] groups `ray` with
-/// others into packets.
-#[inline]
-pub fn octant_of(ray: &Ray) -> usize {
-    (node_test::octant_inv4(positive_zeros(*ray).direction) & 7) as usize
-}
-
 /// `values[i] = old values[perm[i]]`, through `tmp` (independent reads, where following the
 /// permutation's cycles in place makes each read wait for the one before).
 fn gather(values: &mut [u64], perm: &[u32], tmp: &mut Vec<u64>) {

@@ -5,7 +5,7 @@ use glam::Vec3A;
 use obvhs::ray::Ray;
 
 use crate::bvh::packet::{rays_of, Mask, PACKET};
-use crate::bvh::{octant_of, BvhBuilder, OctantBvh};
+use crate::bvh::{BvhBuilder, OctantBvh};
 use crate::trace::last_hit::{self, Query};
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
@@ -51,11 +51,6 @@ impl Hit {
 pub fn bvh_pad(frame: &GridFrame) -> f64 {
     1e-5 * frame.extent.iter().fold(1.0f64, |m, &e| m.max(e))
 }
-
-/// Rays of one direction octant from which [`Surface::any_hits`] walks them as a packet; fewer
-/// walk one by one (the fewest instructions over the 1e8 view and the b1m close-up, measured in
-/// `docs/benchmarks-render.md`).
-pub const PACKET_FROM: u32 = 8;
 
 /// Where the grid boxes of voxels go, one `(lo, hi)` at a time.
 type BoxSink<'a> = dyn FnMut([f64; 3], [f64; 3]) + 'a;
@@ -297,12 +292,10 @@ impl Surface {
     }
 
     /// The rays of `active` (of `rays`, at most [`PACKET`]) that hit the surface anywhere with
-    /// `t` in `[tmin[k], tmax]`. The rays of a direction octant with at least [`PACKET_FROM`]
-    /// rays walk the BVH as a packet, the others one by one (any-hit rays need no order, and a
-    /// packet of a few rays pays for each node's set-up without sharing much of it); a ray leaves
-    /// the walk at its first occluding voxel. Each ray's answer is [`Surface::any_hit`]'s: until
-    /// it is hit, a ray visits the candidates the single-ray walk gives it, under the same
-    /// `tmax`, with the same exact test.
+    /// `t` in `[tmin[k], tmax]`: the rays walk the BVH as a packet, and a ray leaves the walk at
+    /// its first occluding voxel. Each ray's answer is [`Surface::any_hit`]'s: until it is hit,
+    /// a ray visits the candidates the single-ray walk gives it, under the same `tmax`, with
+    /// the same exact test.
     pub fn any_hits<S: VoxelSource + ?Sized>(
         &self,
         src: &S,
@@ -317,52 +310,32 @@ impl Surface {
         let pad = bvh_pad(&frame);
         let unused = Ray::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0);
         let mut ray32 = [unused; PACKET];
-        let mut octants = [0 as Mask; 8];
         let mut live: Mask = 0;
         for k in rays_of(active) {
             if let Some(b) = rays[k].bvh_ray_ahead(&frame, pad, tmin[k], tmax) {
                 ray32[k] = b.ray;
                 live |= 1 << k;
-                octants[octant_of(&b.ray)] |= 1 << k;
             }
         }
         let mut hit: Mask = 0;
         if live == 0 {
             return hit;
         }
-        let packed = octants
-            .iter()
-            .filter(|m| m.count_ones() >= PACKET_FROM)
-            .fold(0, |all, m| all | m);
         src.with_voxels(&mut |voxel_of| {
-            if packed != 0 {
-                self.bvh
-                    .traverse_packet(&mut ray32[..n], packed, |_, r, m, ray32| {
-                        let m = m & !hit;
-                        if m == 0 {
-                            return;
-                        }
-                        let voxel = voxel_of(r);
-                        for k in rays_of(m) {
-                            if src.occludes(&voxel, self.iso, &rays[k], tmin[k], tmax) {
-                                hit |= 1 << k;
-                                ray32[k].tmax = f32::NEG_INFINITY;
-                            }
-                        }
-                    });
-            }
-            for k in rays_of(live & !packed) {
-                // As in `any_hit`: a hit stays set and empties the ray's interval.
-                let mut found = false;
-                self.bvh.traverse(ray32[k], |r, tmax32| {
-                    if !found && src.occludes(&voxel_of(r), self.iso, &rays[k], tmin[k], tmax) {
-                        found = true;
-                        *tmax32 = f32::NEG_INFINITY;
+            self.bvh
+                .traverse_packet(&mut ray32[..n], live, |_, r, m, ray32| {
+                    let m = m & !hit;
+                    if m == 0 {
+                        return;
                     }
-                    found
-                });
-                hit |= Mask::from(found) << k;
-            }
+                    let voxel = voxel_of(r);
+                    for k in rays_of(m) {
+                        if src.occludes(&voxel, self.iso, &rays[k], tmin[k], tmax) {
+                            hit |= 1 << k;
+                            ray32[k].tmax = f32::NEG_INFINITY;
+                        }
+                    }
+                })
         });
         hit
     }

@@ -32,6 +32,7 @@ pub mod packet;
 mod walk;
 pub mod wide;
 
+pub use node_test::T_MIN;
 use packet::{walk_packet, Mask, PacketStack};
 use walk::{walk, Stack};
 use wide::{centre_codes, morton, WideBuilder};

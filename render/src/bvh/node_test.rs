@@ -14,8 +14,9 @@ use glam::Vec3A;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray;
 
-/// The lower bound of a child's entry distance in obvhs's node test (its private `EPSILON`).
-const T_MIN: f32 = 0.0001;
+/// The lower bound of a child's entry distance in obvhs's node test (its private `EPSILON`):
+/// a child the ray leaves before it is not entered.
+pub const T_MIN: f32 = 0.0001;
 
 /// The octant code of a ray direction that obvhs's traversal uses to order children (its
 /// `Traversal::oct_inv4`): for each axis, a bit set when the direction is not negative, repeated

@@ -218,7 +218,7 @@ impl<'a> Avx2Packet<'a> {
         let e = [extent.x, extent.y, extent.z].map(|x| _mm256_set1_ps(x));
         let p = node.p;
         let p = [p.x, p.y, p.z].map(|x| _mm256_set1_ps(x));
-        let t_min = _mm256_set1_ps(T_MIN);
+        let t_min = _mm256_set1_ps(super::T_MIN);
         // The children each ray enters: `Vec3A`'s lane-wise products and differences, so each
         // value is the one the single-ray test computes.
         let hits = |k: usize| {
@@ -273,7 +273,3 @@ impl<'a> Avx2Packet<'a> {
         }
     }
 }
-
-/// The lower bound of a child's entry distance in obvhs's node test (its private `EPSILON`).
-#[cfg(target_arch = "x86_64")]
-const T_MIN: f32 = 0.0001;

@@ -110,6 +110,37 @@ impl GridRay {
         tmin: f64,
         tmax: f64,
     ) -> Option<BvhRay> {
+        self.bvh_ray_led(recip, frame, pad, tmin, tmax, BVH_LEAD)
+    }
+
+    /// [`GridRay::bvh_ray_with`] for a query that needs no voxel lying wholly before `tmin`:
+    /// the `f32` ray starts only [`any_hit_lead`] grid units before its first point, so the
+    /// walk, which enters no box the `f32` ray leaves before the node test's entry bound
+    /// [`crate::bvh::T_MIN`], skips the voxels behind the start (those a shadow ray leaves
+    /// behind on its own surface). It still reaches every voxel the exact ray meets from `tmin`
+    /// on: where the exact ray meets a voxel the `f32` ray is within far less than `pad` of it,
+    /// so it leaves the padded box at least about `pad` later, past the entry bound.
+    pub fn bvh_ray_ahead(
+        &self,
+        frame: &GridFrame,
+        pad: f64,
+        tmin: f64,
+        tmax: f64,
+    ) -> Option<BvhRay> {
+        self.bvh_ray_led(&self.recip(), frame, pad, tmin, tmax, any_hit_lead(pad))
+    }
+
+    /// [`GridRay::bvh_ray_with`] with the `f32` ray starting `lead` grid units before the
+    /// exact ray's first point in the padded domain.
+    fn bvh_ray_led(
+        &self,
+        recip: &[f64; 3],
+        frame: &GridFrame,
+        pad: f64,
+        tmin: f64,
+        tmax: f64,
+        lead: f64,
+    ) -> Option<BvhRay> {
         let lo = [-pad; 3];
         let hi = frame.extent.map(|e| e + pad);
         let (t0, t1) = self.clip_with(recip, lo, hi, tmin, tmax)?;
@@ -117,9 +148,9 @@ impl GridRay {
         if !(scale > 0.0 && scale.is_finite()) {
             return None;
         }
-        let t_off = t0 - BVH_LEAD / scale;
+        let t_off = t0 - lead / scale;
         let p = self.at(t0);
-        let o = [0, 1, 2].map(|a| p[a] - self.d[a] / scale * BVH_LEAD);
+        let o = [0, 1, 2].map(|a| p[a] - self.d[a] / scale * lead);
         let v = |x: [f64; 3]| Vec3A::new(x[0] as f32, x[1] as f32, x[2] as f32);
         let span = ((t1 - t_off) * scale * (1.0 + 1e-6)) as f32;
         let dir = self.d.map(|x| x / scale);
@@ -131,6 +162,13 @@ impl GridRay {
         );
         Some(BvhRay { ray, t_off, scale })
     }
+}
+
+/// Grid units by which the `f32` ray of [`GridRay::bvh_ray_ahead`] starts before the exact
+/// ray's first point: the node test's entry bound plus the boxes' padding `pad`, so that the
+/// `f32` ray meets a voxel the exact ray meets at `tmin` with a margin of about twice `pad`.
+pub fn any_hit_lead(pad: f64) -> f64 {
+    f64::from(crate::bvh::T_MIN) + pad
 }
 
 /// The larger of `a` and `b`, `a` when `b` is NaN: [`f64::max`] for the operands the tracer

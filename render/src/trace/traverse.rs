@@ -268,7 +268,9 @@ impl Surface {
         });
     }
 
-    /// True when the surface is hit anywhere with `t` in `[tmin, tmax]`.
+    /// True when the surface is hit anywhere with `t` in `[tmin, tmax]`. The walk skips the
+    /// voxels that lie wholly before `tmin` ([`GridRay::bvh_ray_ahead`]), which the exact test
+    /// rejects.
     pub fn any_hit<S: VoxelSource + ?Sized>(
         &self,
         src: &S,
@@ -277,7 +279,7 @@ impl Surface {
         tmax: f64,
     ) -> bool {
         let frame = src.frame();
-        let Some(b) = ray.bvh_ray(&frame, bvh_pad(&frame), tmin, tmax) else {
+        let Some(b) = ray.bvh_ray_ahead(&frame, bvh_pad(&frame), tmin, tmax) else {
             return false;
         };
         // The traversal macro's `break` leaves only the current leaf's loop, so a hit must also
@@ -316,7 +318,7 @@ impl Surface {
         let mut ray32 = [unused; PACKET];
         let mut live: Mask = 0;
         for k in rays_of(active) {
-            if let Some(b) = rays[k].bvh_ray(&frame, pad, tmin[k], tmax) {
+            if let Some(b) = rays[k].bvh_ray_ahead(&frame, pad, tmin[k], tmax) {
                 ray32[k] = b.ray;
                 live |= 1 << k;
             }

@@ -158,9 +158,11 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     if let (Some(tiles), true, false) = (tiles, small, held) {
         tiles.fill((sampler, *shared), hood, (memo, near), level, g)?;
     }
-    // A neighbourhood of leaf cells of this level alone is coded straight from the bricks,
-    // unless the cells are held already (or come from the tiles).
-    let plain = !held && !tiled && codes_of.code((sampler, shared.1), level, g, iso)?;
+    // A large leaf's neighbourhood of leaf cells of this level alone is coded straight from
+    // the bricks, unless the cells are held already (or come from the tiles). Small leaves'
+    // neighbourhoods gather many leaves' short rows, which the fill copies faster.
+    let large = frame.refs.extent().iter().any(|&e| e > MAX_CELLS);
+    let plain = large && !held && !tiled && codes_of.code((sampler, shared.1), level, g, iso)?;
     let (codes, cells) = if plain {
         (codes_of.codes(), codes_of.cells)
     } else {

@@ -14,6 +14,7 @@ use super::band::AroundMemo;
 use super::cell_tiles::CellTiles;
 use super::cull::{around_offsets, cell_may_hold, Shared};
 use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};
+use super::plain::PlainCodes;
 use super::refs::{make_ref, LocalVoxel};
 use super::small::MAX_CELLS;
 use super::vertices::LeafVertices;
@@ -25,6 +26,8 @@ use crate::reconstruct::{Sampler, VertexMemo};
 pub struct Scratch<'s> {
     /// The leaf's classified neighbourhood.
     pub hood: Neighbourhood,
+    /// The codes of a neighbourhood of leaf cells of the leaf's level alone.
+    pub plain: PlainCodes,
     /// Vertex values met while stitching to coarser levels.
     pub memo: VertexMemo,
     /// The leaf's boundary vertex values.
@@ -46,6 +49,7 @@ impl<'s> Scratch<'s> {
     pub fn new(shared: Shared<'s>, tiles: Option<&'s CellTiles>) -> Self {
         Self {
             hood: Neighbourhood::default(),
+            plain: PlainCodes::default(),
             memo: VertexMemo::default(),
             verts: LeafVertices::default(),
             rows: Vec::new(),
@@ -137,6 +141,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
 ) -> Result<LeafCounts> {
     let Scratch {
         hood,
+        plain: codes_of,
         memo,
         verts,
         rows,
@@ -149,10 +154,23 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     let level = frame.level;
     let g = frame.cells.grow([1; 3]);
     let small = frame.cells.extent().iter().all(|&e| e <= MAX_CELLS);
-    if let (Some(tiles), true, false) = (tiles, small, hood.holds(level, &g)) {
+    let held = hood.holds(level, &g);
+    let tiled = tiles.is_some() && small;
+    if let (Some(tiles), true, false) = (tiles, small, held) {
         tiles.fill((sampler, *shared), hood, (memo, near), level, g)?;
     }
-    hood.fill((sampler, shared.1), level, &frame.cells)?;
+    // A large leaf's neighbourhood of leaf cells of this level alone is coded straight from
+    // the bricks, unless the cells are held already (or come from the tiles). Small leaves'
+    // neighbourhoods gather many leaves' short rows, which the fill copies faster.
+    let large = frame.refs.extent().iter().any(|&e| e > MAX_CELLS);
+    let plain = large && !held && !tiled && codes_of.code((sampler, shared.1), level, g, iso)?;
+    let (codes, cells) = if plain {
+        (codes_of.codes(), codes_of.cells)
+    } else {
+        hood.fill((sampler, shared.1), level, &frame.cells)?;
+        hood.classify(iso);
+        (hood.codes(), hood.cells)
+    };
     let grid = sampler.grid();
     let s = grid.scale(level);
     let o = grid.offset();
@@ -160,17 +178,15 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     // Merged dual cells: the lowest cell c0 is owned when its centre's finest cell is ours.
     let first = [0, 1, 2].map(|a| -(-(frame.finest.lo[a] + o[a] - s[a] / 2)).div_euclid(s[a]));
     let last = [0, 1, 2].map(|a| (frame.finest.hi[a] - 1 + o[a] - s[a] / 2).div_euclid(s[a]));
-    let e = hood.cells.extent();
+    let e = cells.extent();
     let step = [1usize, e[0] as usize, (e[0] * e[1]) as usize];
     let offsets: [usize; 8] = std::array::from_fn(|n| (0..3).map(|a| (n >> a & 1) * step[a]).sum());
-    hood.classify(iso);
-    let codes = hood.codes();
     let width = (last[0] - first[0] + 1).max(0) as usize;
     let any_duals = width > 0 && first[1] <= last[1] && first[2] <= last[2];
     if any_duals {
         let dual_rows = ((last[1] - first[1] + 1) * (last[2] - first[2] + 1)) as usize;
-        let lowest = hood.index(first);
-        let span = hood.index([last[0] + 1, last[1] + 1, last[2] + 1]) + 1 - lowest;
+        let lowest = cells.linear_index(first);
+        let span = cells.linear_index([last[0] + 1, last[1] + 1, last[2] + 1]) + 1 - lowest;
         let scan = DualScan {
             frame,
             first,
@@ -180,13 +196,13 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
         if span <= FLAT_SPAN * width * dual_rows {
             let duals = dual_codes_flat(&codes[lowest..lowest + span], step, rows);
             scan.emit(
-                |[y, z]| hood.index([first[0], y, z]) - lowest,
+                |[y, z]| cells.linear_index([first[0], y, z]) - lowest,
                 duals,
                 &mut counts,
                 out,
             );
         } else {
-            let duals = dual_codes_by_row(hood, codes, (first, last, width), step, rows);
+            let duals = dual_codes_by_row(&cells, codes, (first, last, width), step, rows);
             let row = |[y, z]: [i64; 2]| {
                 ((z - first[2]) * (last[1] - first[1] + 1) + (y - first[1])) as usize * width
             };
@@ -195,7 +211,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     }
 
     // Octants that touch a level boundary, the domain boundary or an uncovered region.
-    if !hood.all_leaf {
+    if !plain && !hood.all_leaf {
         // The vertex grid is prepared when a first cell survives culling; the locator table once
         // enough queries ask for it.
         let mut verts_started = false;
@@ -393,7 +409,7 @@ fn dual_codes_flat<'r>(codes: &[u8], step: [usize; 3], scratch: &'r mut Vec<u8>)
 /// ORed along z, then y, then x, each pair of rows once (the z-pairs of a row serve the two
 /// dual rows beside it). `scratch` holds the result.
 fn dual_codes_by_row<'r>(
-    hood: &Neighbourhood,
+    cells: &IBox,
     codes: &[u8],
     (first, last, width): ([i64; 3], [i64; 3], usize),
     step: [usize; 3],
@@ -413,14 +429,14 @@ fn dual_codes_by_row<'r>(
     };
     let mut rows = out.chunks_exact_mut(width.max(1));
     for z in first[2]..=last[2] {
-        let r0 = hood.index([first[0], first[1], z]);
+        let r0 = cells.linear_index([first[0], first[1], z]);
         or_rows(
             prev,
             &codes[r0..r0 + w1],
             &codes[r0 + step[2]..r0 + step[2] + w1],
         );
         for y in first[1]..=last[1] {
-            let r = hood.index([first[0], y + 1, z]);
+            let r = cells.linear_index([first[0], y + 1, z]);
             or_rows(
                 cur,
                 &codes[r..r + w1],
@@ -459,17 +475,25 @@ impl DualScan<'_> {
             for y in first[1]..=last[1] {
                 let r = row([y, z]);
                 let masks = &duals[r..r + width];
-                // Folds without early exits, so that they vectorize.
-                let leaf_duals: u32 = masks.iter().map(|&m| u32::from(m & NOT_LEAF == 0)).sum();
-                counts.evaluated += u64::from(leaf_duals);
-                let any = masks.iter().fold(0u8, |acc, &m| acc | u8::from(active(m)));
-                if leaf_duals == 0 || any == 0 {
-                    continue;
+                // Cells along x are numbered one after another: the ref of the row's k-th dual
+                // cell is the first one's plus k.
+                let cell = self.frame.refs.linear_index([first[0], y, z]) as u32;
+                let first_ref = make_ref(self.frame.leaf, LocalVoxel::Dual { cell });
+                let mut chunks = masks.chunks_exact(16);
+                for (c, chunk) in (&mut chunks).enumerate() {
+                    let (leaf, mut on) = sixteen_bits(chunk);
+                    counts.evaluated += u64::from(leaf.count_ones());
+                    while on != 0 {
+                        let k = c * 16 + on.trailing_zeros() as usize;
+                        on &= on - 1;
+                        out.push(first_ref + k as u64);
+                    }
                 }
-                for (k, &m) in masks.iter().enumerate() {
+                let done = width - chunks.remainder().len();
+                for (k, &m) in chunks.remainder().iter().enumerate() {
+                    counts.evaluated += u64::from(m & NOT_LEAF == 0);
                     if active(m) {
-                        let cell = self.frame.refs.linear_index([first[0] + k as i64, y, z]) as u32;
-                        out.push(make_ref(self.frame.leaf, LocalVoxel::Dual { cell }));
+                        out.push(first_ref + (done + k) as u64);
                     }
                 }
             }
@@ -477,8 +501,70 @@ impl DualScan<'_> {
     }
 }
 
+/// For sixteen dual-cell codes: a bit per code of eight leaf cells, and a bit per active one
+/// ([`active`]), bit `k` for code `k`.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn sixteen_bits(codes: &[u8]) -> (u32, u32) {
+    use std::arch::x86_64::*;
+    debug_assert!(codes.len() >= 16);
+    if codes.len() < 16 {
+        return (0, 0);
+    }
+    // SAFETY: SSE2 is part of every x86-64 target; the unaligned load reads `codes[..16]`,
+    // which the check above keeps inside the slice.
+    unsafe {
+        let v = _mm_loadu_si128(codes.as_ptr().cast());
+        let kind = _mm_and_si128(v, _mm_set1_epi8(NOT_LEAF as i8));
+        let leaf = _mm_cmpeq_epi8(kind, _mm_setzero_si128());
+        let bits = _mm_and_si128(v, _mm_set1_epi8((NOT_LEAF | ABOVE | BELOW) as i8));
+        let on = _mm_cmpeq_epi8(bits, _mm_set1_epi8((ABOVE | BELOW) as i8));
+        (_mm_movemask_epi8(leaf) as u32, _mm_movemask_epi8(on) as u32)
+    }
+}
+
+/// [`sixteen_bits`] one code at a time, on other targets.
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn sixteen_bits(codes: &[u8]) -> (u32, u32) {
+    codes
+        .iter()
+        .take(16)
+        .enumerate()
+        .fold((0, 0), |(leaf, on), (k, &m)| {
+            (
+                leaf | u32::from(m & NOT_LEAF == 0) << k,
+                on | u32::from(active(m)) << k,
+            )
+        })
+}
+
 /// True for the code of a dual cell of eight leaf cells whose values straddle the isovalue.
 #[inline(always)]
 fn active(m: u8) -> bool {
     m & (NOT_LEAF | ABOVE | BELOW) == ABOVE | BELOW
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::extract::local::PENDING;
+
+    /// The vector bits of sixteen codes are those of each code: every code of the four bits,
+    /// at each of the sixteen places.
+    #[test]
+    fn sixteen_bits_equal_each_code() {
+        for start in 0..32u8 {
+            let codes: [u8; 16] = std::array::from_fn(|k| {
+                let m = (start + 7 * k as u8) % 16;
+                m & (ABOVE | BELOW | NOT_LEAF | PENDING)
+            });
+            let (leaf, on) = sixteen_bits(&codes);
+            for (k, &m) in codes.iter().enumerate() {
+                assert_eq!(leaf >> k & 1 == 1, m & NOT_LEAF == 0, "code {m:#b}");
+                assert_eq!(on >> k & 1 == 1, active(m), "code {m:#b}");
+            }
+            assert_eq!((leaf >> 16, on >> 16), (0, 0));
+        }
+    }
 }

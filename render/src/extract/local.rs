@@ -41,7 +41,7 @@ pub const PENDING: u8 = 8;
 /// [`ABOVE`] and [`BELOW`] bits of a bound `lo..=hi` for `iso`: a union of bounds straddles
 /// `iso` (`min lo < iso <= max hi`) exactly when the union of their codes has both bits.
 #[inline]
-fn code(lo: f32, hi: f32, iso: f32) -> u8 {
+pub(super) fn code(lo: f32, hi: f32, iso: f32) -> u8 {
     u8::from(hi >= iso) | u8::from(lo < iso) << 1
 }
 

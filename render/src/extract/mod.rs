@@ -5,6 +5,8 @@
 //! - [`leaf`]: the voxels one leaf owns: merged dual cells and boundary octants.
 //! - [`parts`]: a large leaf extracted part by part, skipping parts whose stored block ranges
 //!   exclude the isovalue.
+//! - [`plain`]: the codes of a neighbourhood of leaf cells of one level, straight from the
+//!   bricks.
 //! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue.
 //! - [`band`]: the bounds around coarse leaf cells the cull reads, kept for every leaf.
 //! - [`vertices`]: a leaf's boundary vertex values, computed once each.
@@ -40,6 +42,7 @@ pub mod leaf_tree;
 pub mod local;
 pub mod nearest;
 pub mod parts;
+pub mod plain;
 pub mod refs;
 pub mod region;
 pub mod small;

@@ -104,6 +104,11 @@ fn file_resident_bytes() -> Option<u64> {
     pages.checked_mul(u64::try_from(page).ok()?)
 }
 
+/// Map bytes a release leaves resident when it finds fewer: unmapping them and faulting them
+/// back in would cost more than they weigh (a frame of a small file touches the same pages
+/// after every band), and the map's share of the peak RSS stays at most this or one stage.
+pub const RELEASE_FLOOR_BYTES: u64 = 64 << 20;
+
 /// Drops the pages of a file's map from this process's resident set on request, so that the
 /// map's share of the peak RSS is what one stage touches between two requests, not the file; and
 /// asks the kernel to read ahead the pages a stage is about to touch.
@@ -142,11 +147,13 @@ impl<'f> PageRelease<'f> {
         }
     }
 
-    /// Drops every page of the map from the resident set; returns the bytes that were resident
-    /// just before, when `/proc/self/statm` tells.
+    /// Drops every page of the map from the resident set, unless fewer than
+    /// [`RELEASE_FLOOR_BYTES`] are resident; returns the bytes that were resident just before,
+    /// when `/proc/self/statm` tells.
     pub fn release(&self) -> Option<u64> {
         let map_len = self.file.bytes().len() as u64;
-        let resident = if self.exact_next.swap(false, Ordering::Relaxed) {
+        let exact = self.exact_next.swap(false, Ordering::Relaxed);
+        let resident = if exact {
             mapped_resident_bytes(self.file.bytes())
         } else {
             let others = self.others.load(Ordering::Relaxed);
@@ -157,6 +164,17 @@ impl<'f> PageRelease<'f> {
         .map(|b| b.min(map_len));
         if let Some(b) = resident {
             self.peak.fetch_max(b, Ordering::Relaxed);
+            if b < RELEASE_FLOOR_BYTES {
+                // Kept until a release finds more: the next measurement counts them too, from
+                // the file-backed pages outside the map as of the last unmapping, or as of this
+                // exact measurement.
+                if exact {
+                    if let Some(all) = file_resident_bytes() {
+                        self.others.store(all.saturating_sub(b), Ordering::Relaxed);
+                    }
+                }
+                return resident;
+            }
         }
         // One call over the whole map, from this thread: each call that unmaps pages ends in a
         // TLB flush that interrupts the other cores running this process, so calls from the

@@ -3,6 +3,7 @@
 //! ray counting and progress, then the filter of the ambient occlusion over the whole frame.
 
 use std::cell::Cell;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
 
@@ -83,13 +84,14 @@ impl<T: Tracer + ?Sized> Tracer for Counting<'_, T> {
     }
 }
 
-/// Pixels of a band rendered between two [`Tracer::release_pages`] calls, per thread: the map
-/// pages a frame holds resident are those one band touches, not the whole frame's, and they grow
-/// with the band's rays (`docs/rendering.md`, "Map pages").
-const BAND_PIXELS_PER_THREAD: u64 = 1 << 13;
+/// Pixels rendered, per thread, between two [`Tracer::release_pages`] calls: the map pages a
+/// frame holds resident are those about this many pixels' rays touch, not the whole frame's;
+/// they grow with the rays, up to a few pages per ray on a file much larger than the frame's view
+/// of it (`docs/rendering.md`, "Map pages").
+const RELEASE_PIXELS_PER_THREAD: u64 = 1 << 13;
 
-/// Columns of the pieces a band's strips are cut into, so that a band of few strips still gives
-/// every thread several pieces (a multiple of [`TILE`]).
+/// Columns of the pieces a frame's strips are cut into (a multiple of [`TILE`]): pieces, not
+/// strips, are what the threads share and what counts towards a release.
 const PIECE_COLUMNS: u32 = 16 * TILE;
 
 /// Renders a frame; calls `progress(rows_done)` after each row. Returns the frame and the number
@@ -103,47 +105,50 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
     progress: &(dyn Fn(u64) + Sync),
 ) -> (FrameBuffer, u64) {
     let (w, h) = (settings.width, settings.height);
-    let spp = settings.spp.max(1);
+    let spp = u64::from(settings.spp.max(1));
     let threads = rayon::current_num_threads().max(1) as u64;
-    let band_pixels = BAND_PIXELS_PER_THREAD.saturating_mul(threads);
-    let band = (band_pixels / (u64::from(w) * u64::from(spp)).max(1)).clamp(1, u64::from(h)) as u32;
-    // Whole strips of tiles per band.
-    let band = band.div_ceil(TILE) * TILE;
-    let mut rows: Vec<Row> = Vec::with_capacity(h as usize);
-    for y0 in (0..h).step_by(band as usize) {
-        let pieces: Vec<(u32, u32)> = (y0..(y0 + band).min(h))
-            .step_by(TILE as usize)
-            .flat_map(|y| (0..w).step_by(PIECE_COLUMNS as usize).map(move |x| (x, y)))
-            .collect();
-        let part: Vec<Vec<Row>> = pieces
-            .into_par_iter()
-            .map(|(x, y)| {
-                let xs = x..(x + PIECE_COLUMNS).min(w);
-                let ys = y..(y + TILE).min(h);
-                let last = xs.end == w;
-                let strip = render_strip(tracer, camera, light, settings, (xs, ys));
-                if last {
-                    progress(strip.len() as u64);
-                }
-                strip
-            })
-            .collect();
-        // The pieces of a strip are consecutive, left to right: their rows joined are the
-        // strip's.
-        let mut strip: Vec<Row> = Vec::new();
-        for piece in part {
-            if strip.is_empty() {
-                strip = piece;
-            } else {
-                for (row, more) in strip.iter_mut().zip(piece) {
-                    row.append(more);
-                }
+    let release_pixels = RELEASE_PIXELS_PER_THREAD.saturating_mul(threads);
+    // Pixels (times samples) rendered since the last release, by all threads.
+    let since_release = AtomicU64::new(0);
+    let pieces: Vec<(u32, u32)> = (0..h)
+        .step_by(TILE as usize)
+        .flat_map(|y| (0..w).step_by(PIECE_COLUMNS as usize).map(move |x| (x, y)))
+        .collect();
+    let part: Vec<Vec<Row>> = pieces
+        .into_par_iter()
+        .map(|(x, y)| {
+            let xs = x..(x + PIECE_COLUMNS).min(w);
+            let ys = y..(y + TILE).min(h);
+            let (last, pixels) = (xs.end == w, (xs.len() * ys.len()) as u64 * spp);
+            let strip = render_strip(tracer, camera, light, settings, (xs, ys));
+            if last {
+                progress(strip.len() as u64);
             }
-            if strip.first().is_some_and(|r| r.pixels.len() == w as usize) {
-                rows.append(&mut strip);
+            // The thread whose piece crosses the count releases; the others go on (their
+            // accesses fault the same bytes back in).
+            let before = since_release.fetch_add(pixels, Ordering::Relaxed);
+            if before < release_pixels && before + pixels >= release_pixels {
+                since_release.store(0, Ordering::Relaxed);
+                tracer.release_pages();
+            }
+            strip
+        })
+        .collect();
+    tracer.release_pages();
+    // The pieces of a strip are consecutive, left to right: their rows joined are the strip's.
+    let mut rows: Vec<Row> = Vec::with_capacity(h as usize);
+    let mut strip: Vec<Row> = Vec::new();
+    for piece in part {
+        if strip.is_empty() {
+            strip = piece;
+        } else {
+            for (row, more) in strip.iter_mut().zip(piece) {
+                row.append(more);
             }
         }
-        tracer.release_pages();
+        if strip.first().is_some_and(|r| r.pixels.len() == w as usize) {
+            rows.append(&mut strip);
+        }
     }
     let rays = rows.iter().map(|r| r.rays).sum();
     let mut frame = FrameBuffer::zeroed(w, h, tracer.frame().origin);

@@ -276,14 +276,7 @@ impl Neighbourhood {
                     let block = at_level.of(&leaves.node_box(n));
                     self.set_block(&block, FINER);
                     let (a, b) = leaves.exact_node_range(sampler, n)?;
-                    let i = g.linear_index(block.lo);
-                    // Comparisons, not f32::min, as for a leaf.
-                    if a < self.lo[i] {
-                        self.lo[i] = a;
-                    }
-                    if b > self.hi[i] {
-                        self.hi[i] = b;
-                    }
+                    self.widen_with_range(g.linear_index(block.lo), a, b);
                     continue;
                 }
             };
@@ -308,14 +301,7 @@ impl Neighbourhood {
                         // The whole leaf lies in one cell: its kept exact range is that of
                         // its cells folded one by one.
                         let (a, b) = leaves.exact_range(sampler, l)?;
-                        let i = g.linear_index(block.lo);
-                        // Comparisons, not f32::min, as in the fold.
-                        if a < self.lo[i] {
-                            self.lo[i] = a;
-                        }
-                        if b > self.hi[i] {
-                            self.hi[i] = b;
-                        }
+                        self.widen_with_range(g.linear_index(block.lo), a, b);
                         continue;
                     }
                     let k = lv as usize % finer.len();
@@ -659,6 +645,18 @@ impl Neighbourhood {
                     f(self, i);
                 }
             }
+        }
+    }
+
+    /// Widens cell `i`'s bound to take in the exact range `(a, b)` of finer leaves inside it, by
+    /// comparisons rather than `f32::min` (as the fold of their cells one by one).
+    #[inline]
+    fn widen_with_range(&mut self, i: usize, a: f32, b: f32) {
+        if a < self.lo[i] {
+            self.lo[i] = a;
+        }
+        if b > self.hi[i] {
+            self.hi[i] = b;
         }
     }
 

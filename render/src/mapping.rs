@@ -132,11 +132,18 @@ pub struct PageRelease<'f> {
     others: AtomicU64,
     /// Whether the next release reads the map's resident bytes from `/proc/self/smaps`.
     exact_next: AtomicBool,
+    /// Resident map bytes below which a release leaves the pages.
+    floor: u64,
 }
 
 impl<'f> PageRelease<'f> {
-    /// Releases pages of `file`'s map.
+    /// Releases pages of `file`'s map when at least [`RELEASE_FLOOR_BYTES`] are resident.
     pub fn new(file: &'f MappedFile) -> Self {
+        Self::with_floor(file, RELEASE_FLOOR_BYTES)
+    }
+
+    /// Releases pages of `file`'s map when at least `floor` bytes are resident.
+    pub fn with_floor(file: &'f MappedFile, floor: u64) -> Self {
         let in_map = mapped_resident_bytes(file.bytes()).unwrap_or(0);
         let others = file_resident_bytes().map_or(u64::MAX, |b| b.saturating_sub(in_map));
         Self {
@@ -144,11 +151,12 @@ impl<'f> PageRelease<'f> {
             peak: AtomicU64::new(0),
             others: AtomicU64::new(others),
             exact_next: AtomicBool::new(true),
+            floor,
         }
     }
 
-    /// Drops every page of the map from the resident set, unless fewer than
-    /// [`RELEASE_FLOOR_BYTES`] are resident; returns the bytes that were resident just before,
+    /// Drops every page of the map from the resident set, unless fewer than the floor
+    /// ([`PageRelease::with_floor`]) are resident; returns the bytes that were resident just before,
     /// when `/proc/self/statm` tells.
     pub fn release(&self) -> Option<u64> {
         let map_len = self.file.bytes().len() as u64;
@@ -164,7 +172,7 @@ impl<'f> PageRelease<'f> {
         .map(|b| b.min(map_len));
         if let Some(b) = resident {
             self.peak.fetch_max(b, Ordering::Relaxed);
-            if b < RELEASE_FLOOR_BYTES {
+            if b < self.floor {
                 // Kept until a release finds more: the next measurement counts them too, from
                 // the file-backed pages outside the map as of the last unmapping, or as of this
                 // exact measurement.
@@ -236,7 +244,7 @@ mod tests {
         write_synth(&path, Case::Blobs, &params, opts, &NoProgress).unwrap();
         let file = open_mapped(&path).unwrap();
         let before = weighted_sum(file.bytes());
-        let pages = PageRelease::new(&file);
+        let pages = PageRelease::with_floor(&file, 0);
         let touched = pages.release();
         let after = mapped_resident_bytes(file.bytes());
         if let (Some(touched), Some(after)) = (touched, after) {
@@ -248,6 +256,41 @@ mod tests {
         }
         assert_eq!(weighted_sum(file.bytes()), before);
         assert!(pages.peak_bytes() >= touched.unwrap_or(0));
+    }
+
+    #[test]
+    fn a_release_below_the_floor_leaves_the_pages_and_keeps_counting_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("blobs.amrk");
+        let params = SynthParams::unit_cube(2, 2, 32, 16);
+        write_synth(
+            &path,
+            Case::Blobs,
+            &params,
+            WriterOptions::default(),
+            &NoProgress,
+        )
+        .unwrap();
+        let file = open_mapped(&path).unwrap();
+        let len = file.bytes().len() as u64;
+        let before = weighted_sum(file.bytes());
+        let pages = PageRelease::with_floor(&file, len + 1);
+        let first = pages.release();
+        let (Some(first), Some(after)) = (first, mapped_resident_bytes(file.bytes())) else {
+            return;
+        };
+        assert!(first >= len / 2, "{first} bytes resident");
+        // (`first` is capped at the map's length; `after` counts whole pages.)
+        assert!(
+            after >= first,
+            "a release below the floor unmapped pages: {after} < {first}"
+        );
+        // The next measurement still counts the pages kept.
+        let second = pages.release();
+        if let Some(second) = second {
+            assert!(second >= first.saturating_sub(4096), "{second} < {first}");
+        }
+        assert_eq!(weighted_sum(file.bytes()), before);
     }
 
     /// A position-weighted byte sum, enough to see bytes change.

@@ -238,11 +238,7 @@ mod tests {
     #[test]
     fn released_pages_read_back_the_same_bytes() {
         let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("blobs.amrk");
-        let params = SynthParams::unit_cube(2, 2, 32, 16);
-        let opts = WriterOptions::default();
-        write_synth(&path, Case::Blobs, &params, opts, &NoProgress).unwrap();
-        let file = open_mapped(&path).unwrap();
+        let file = small_blobs_file(dir.path());
         let before = weighted_sum(file.bytes());
         let pages = PageRelease::with_floor(&file, 0);
         let touched = pages.release();
@@ -261,17 +257,7 @@ mod tests {
     #[test]
     fn a_release_below_the_floor_leaves_the_pages() {
         let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("blobs.amrk");
-        let params = SynthParams::unit_cube(2, 2, 32, 16);
-        write_synth(
-            &path,
-            Case::Blobs,
-            &params,
-            WriterOptions::default(),
-            &NoProgress,
-        )
-        .unwrap();
-        let file = open_mapped(&path).unwrap();
+        let file = small_blobs_file(dir.path());
         let len = file.bytes().len() as u64;
         let before = weighted_sum(file.bytes());
         let pages = PageRelease::with_floor(&file, len + 1);
@@ -286,6 +272,15 @@ mod tests {
             "a release below the floor unmapped pages: {after} < {first}"
         );
         assert_eq!(weighted_sum(file.bytes()), before);
+    }
+
+    /// A small two-level `blobs` file written in `dir`, mapped.
+    fn small_blobs_file(dir: &std::path::Path) -> MappedFile {
+        let path = dir.join("blobs.amrk");
+        let params = SynthParams::unit_cube(2, 2, 32, 16);
+        let opts = WriterOptions::default();
+        write_synth(&path, Case::Blobs, &params, opts, &NoProgress).unwrap();
+        open_mapped(&path).unwrap()
     }
 
     /// A position-weighted byte sum, enough to see bytes change.

@@ -3,8 +3,9 @@
 //! Only the refs and the BVH nodes stay resident: a voxel's box is decoded from its ref while
 //! building, and its corner values while tracing. The refs are split into chunks of
 //! [`BvhBuilder::chunk_refs`] consecutive refs (the extraction emits them in kd-leaf order, so a
-//! chunk is spatially compact); each chunk gets its own BVH, one chunk per thread at a time, and a
-//! top-level BVH is built over the chunks' boxes. Each BVH is built directly in Morton order
+//! chunk is spatially compact); each chunk gets its own BVH, one chunk per thread at a time (the
+//! threads take the chunks of about a million refs in turn, each chunk whole), and a top-level
+//! BVH is built over the chunks' boxes. Each BVH is built directly in Morton order
 //! ([`wide`]) by default, or with obvhs's PLOC and CWBVH conversion ([`BuildMethod::Ploc`]). The
 //! build scratch is bounded by the chunk size times the threads, not by the number of refs. After a chunk's build its refs are put in its BVH's leaf
 //! order, so obvhs's primitive index array is dropped and a chunk's primitive `i` is simply its
@@ -13,6 +14,8 @@
 //! that a new isovalue rebuilds without reallocating. A source writes each box straight into the
 //! build's scratch ([`BoxRun`]), in `f32` and with its centre's Morton code on a grid fixed by the
 //! domain ([`BoxGrid`]), so a chunk's sort keys need no pass over its boxes.
+
+use std::sync::{Mutex, PoisonError};
 
 use glam::Vec3A;
 use obvhs::aabb::Aabb;
@@ -37,12 +40,12 @@ use packet::{walk_packet, Mask, PacketStack};
 use walk::{walk, Stack};
 use wide::{centre_codes, morton, WideBuilder};
 
-/// Refs whose boxes one task decodes (the chunk's boxes are decoded in parallel runs).
+/// Refs whose boxes one task decodes when a lone chunk's boxes are decoded in parallel runs.
 const DECODE_RUN: usize = 4096;
 
 /// Refs whose boxes are decoded between two calls of the build's `between_chunks` (which
 /// releases the file's pages that decoding touched: leaf metadata only, and each call costs a
-/// scan of the process's page tables).
+/// scan of the process's page tables): the chunks of this many refs are built side by side.
 const RELEASE_REFS: usize = 1 << 20;
 
 /// Bytes of one CWBVH node (obvhs: "repr(C), Pod, 80 bytes").
@@ -238,7 +241,7 @@ impl BvhBuilder {
     /// Builds a BVH over `refs`, whose boxes `boxes(refs, out)` pushes to `out` in order, in grid
     /// coordinates (it is called on runs of consecutive refs); every box is grown by the grid's
     /// pad so that `f32` traversal never misses a voxel the exact
-    /// `f64` intersection would hit. `between_chunks` is called after rounds of chunks (chunks
+    /// `f64` intersection would hit. `between_chunks` is called after groups of chunks (chunks
     /// are built one per thread, side by side), about every million refs, and after the last,
     /// to release what decoding the boxes touched. Reuses
     /// the scratch and `out`'s buffers.
@@ -288,35 +291,46 @@ impl BvhBuilder {
         };
         let size = self.chunk_refs.max(1);
         let method = self.method;
-        let threads = rayon::current_num_threads().max(1);
-        let total = out.refs.len();
         let mut parts: Vec<&mut [u64]> = out.refs.chunks_mut(size).collect();
-        self.workers
-            .resize_with(threads.min(parts.len()).max(1), Worker::default);
+        // The workers' scratch, one taken by each chunk being built: one per thread, as a chunk
+        // task waits on nothing in the pool (but obvhs's parallel PLOC build may).
+        let pool = Mutex::new(std::mem::take(&mut self.workers));
+        let take = || -> Worker {
+            let mut workers = pool.lock().unwrap_or_else(PoisonError::into_inner);
+            workers.pop().unwrap_or_default()
+        };
+        let give = |w: Worker| pool.lock().unwrap_or_else(PoisonError::into_inner).push(w);
         let mut boxes = Vec::new();
         let mut first = 0;
-        let mut since_release = 0;
         let mut bounds = Bounds::EMPTY;
-        for round in parts.chunks_mut(self.workers.len()) {
-            let bvhs: Vec<(CwBvh, Bounds)> = round
+        // The chunks of about `RELEASE_REFS` refs are built side by side, in any order on any
+        // thread (each chunk's BVH depends only on its refs), and kept in their order.
+        let per_group = RELEASE_REFS.div_ceil(size).max(1);
+        for group in parts.chunks_mut(per_group) {
+            // A lone chunk's boxes are decoded in parallel runs; with more chunks than one, each
+            // task decodes its own.
+            let runs = if group.len() == 1 { DECODE_RUN } else { size };
+            let bvhs: Vec<(CwBvh, Bounds)> = group
                 .par_iter_mut()
-                .zip(self.workers.par_iter_mut())
-                .map(|(part, w)| {
+                .map(|part| {
+                    let mut w = take();
                     w.boxes.clear();
                     w.boxes.resize(part.len(), Aabb::empty());
                     w.codes.clear();
                     w.codes.resize(part.len(), 0);
                     let union = w
                         .boxes
-                        .par_chunks_mut(DECODE_RUN)
-                        .zip(w.codes.par_chunks_mut(DECODE_RUN))
-                        .zip(part.par_chunks(DECODE_RUN))
+                        .par_chunks_mut(runs)
+                        .zip(w.codes.par_chunks_mut(runs))
+                        .zip(part.par_chunks(runs))
                         .map(|((out, codes), refs)| decode(refs, out, codes))
                         .reduce(|| Bounds::EMPTY, Bounds::union);
-                    (w.build_level(part, method), union)
+                    let bvh = w.build_level(part, method);
+                    give(w);
+                    (bvh, union)
                 })
                 .collect();
-            for ((bvh, union), part) in bvhs.into_iter().zip(round.iter()) {
+            for ((bvh, union), part) in bvhs.into_iter().zip(group.iter()) {
                 bounds = bounds.union(union);
                 boxes.push(bvh.total_aabb);
                 out.chunks.push(Chunk {
@@ -325,12 +339,12 @@ impl BvhBuilder {
                     bvh,
                 });
                 first += part.len();
-                since_release += part.len();
             }
-            if since_release >= RELEASE_REFS || first == total {
-                between_chunks();
-                since_release = 0;
-            }
+            between_chunks();
+        }
+        self.workers = pool.into_inner().unwrap_or_else(PoisonError::into_inner);
+        if self.workers.is_empty() {
+            self.workers.push(Worker::default());
         }
         if out.chunks.len() > 1 {
             let w = &mut self.workers[0];

@@ -5,9 +5,7 @@
 //! BVH or an octree makes), the spatially largest run first, until the node has eight children or
 //! no run of two boxes or more is left. Runs of at most three boxes become leaves, longer runs
 //! child nodes. No binary BVH and no cost table are built: the build is a sort and one pass over
-//! the boxes. The cuts are found from one byte per pair of neighbouring codes, their highest
-//! differing bit: a run's cut is the first pair in it whose byte is the run's highest differing
-//! bit (a byte search over the run, not a binary search over its codes).
+//! the boxes.
 
 use glam::{Vec3, Vec3A};
 use obvhs::aabb::Aabb;
@@ -21,14 +19,12 @@ const LEAF_MAX: usize = 3;
 /// obvhs's traversal stack of 32 whatever the codes.
 const MORTON_DEPTH: u32 = 20;
 
-/// Build scratch: the sort keys, the boxes in their order and the highest differing bits of
-/// neighbouring codes, kept between builds.
+/// Build scratch: the sort keys and the boxes in their order, kept between builds.
 #[derive(Default)]
 pub struct WideBuilder {
     keys: Vec<u64>,
     tmp: Vec<u64>,
     sorted: Vec<Aabb>,
-    splits: Vec<u8>,
 }
 
 impl WideBuilder {
@@ -58,26 +54,17 @@ impl WideBuilder {
         self.sorted.clear();
         self.sorted
             .extend(self.keys.iter().map(|&k| boxes[(k & index_mask) as usize]));
-        self.splits.clear();
-        self.splits.extend(
-            self.keys
-                .windows(2)
-                .map(|k| split_bit((k[0] ^ k[1]) >> index_bits) as u8),
-        );
         let mut b = Build {
             boxes: &self.sorted,
             keys: &self.keys,
-            splits: &self.splits,
             shift: index_bits,
             index_mask,
             nodes: Vec::with_capacity(n / 4 + 1),
-            // A leaf writes three primitives before it counts only its own.
-            prims: vec![0; n + 2],
-            prims_len: 0,
+            // A leaf writes three primitives before it drops those past its own.
+            prims: Vec::with_capacity(n + 2),
         };
         b.nodes.push(CwBvhNode::default());
         let total = b.node(0, 0, n, 0);
-        b.prims.truncate(n);
         CwBvh {
             nodes: b.nodes,
             primitive_indices: b.prims,
@@ -97,7 +84,6 @@ impl WideBuilder {
     pub fn scratch_bytes(&self) -> usize {
         (self.keys.capacity() + self.tmp.capacity()) * 8
             + self.sorted.capacity() * size_of::<Aabb>()
-            + self.splits.capacity()
     }
 
     /// Fills `self.keys` with `code << index_bits | index`, sorted by code (then index), where
@@ -230,26 +216,15 @@ fn radix_passes(keys: &mut Vec<u64>, tmp: &mut Vec<u64>, from: u32, counts: &[[u
     }
 }
 
-/// The highest set bit of `x` plus one, 0 for 0: the highest bit in which two codes whose
-/// exclusive or is `x` differ.
-#[inline(always)]
-fn split_bit(x: u64) -> u32 {
-    64 - x.leading_zeros()
-}
-
 /// One build: the sorted keys and boxes, and the nodes and primitive order written so far.
 struct Build<'a> {
     /// The boxes in the keys' order.
     boxes: &'a [Aabb],
     keys: &'a [u64],
-    /// `splits[i]`: the [`split_bit`] of the codes of keys `i` and `i + 1`.
-    splits: &'a [u8],
     shift: u32,
     index_mask: u64,
     nodes: Vec<CwBvhNode>,
-    /// The primitive order, written up to `prims_len` (and as long as all primitives plus two).
     prims: Vec<u32>,
-    prims_len: usize,
 }
 
 /// The runs `[a, b)` of sorted boxes that become one node's children, in the order they were
@@ -271,10 +246,11 @@ impl Build<'_> {
         if n < 2 {
             return 0;
         }
+        let x = (self.keys[a] ^ self.keys[b - 1]) >> self.shift;
         let bit = if depth >= MORTON_DEPTH {
             0
         } else {
-            split_bit((self.keys[a] ^ self.keys[b - 1]) >> self.shift)
+            64 - x.leading_zeros()
         };
         u64::from(bit) << 32 | n
     }
@@ -283,12 +259,13 @@ impl Build<'_> {
     /// differing bit set, or in the middle when the codes are equal.
     #[inline(always)]
     fn cut(&self, a: usize, b: usize, rank: u64) -> usize {
-        let middle = a + (b - a) / 2;
-        match (rank >> 32) as u8 {
-            0 => middle,
-            // The codes of the run agree above `bit` and are sorted: the bit flips once, between
-            // the one pair of neighbours whose highest differing bit it is.
-            bit => memchr::memchr(bit, &self.splits[a..b - 1]).map_or(middle, |i| a + i + 1),
+        match (rank >> 32) as u32 {
+            0 => a + (b - a) / 2,
+            bit => {
+                let shift = self.shift + bit - 1;
+                // The keys are sorted, so those with the bit clear come first.
+                a + self.keys[a..b].partition_point(|&k| k >> shift & 1 == 0)
+            }
         }
     }
 
@@ -304,10 +281,14 @@ impl Build<'_> {
         };
         runs.rank[0] = self.rank(a, b, depth);
         while runs.len < 8 {
-            // The greatest rank, the last place of equal ones: ranks are below 2^40, so the
-            // place fits below them (a maximum without branches).
-            let top = (0..runs.len).fold(0, |t: u64, k| t.max(runs.rank[k] << 3 | k as u64));
-            let (best, i) = (top >> 3, (top & 7) as usize);
+            let mut i = 0;
+            let mut best = 0;
+            for (k, &r) in runs.rank.iter().enumerate() {
+                if r >= best {
+                    best = r;
+                    i = k;
+                }
+            }
             if best == 0 {
                 break;
             }
@@ -330,7 +311,7 @@ impl Build<'_> {
         let runs = self.runs(a, b, depth);
         let len = runs.len;
 
-        let prim_base = self.prims_len;
+        let prim_base = self.prims.len();
         let mut child_box = [Aabb::empty(); 8];
         let mut leaf_meta = [0u8; 8];
         let child_base = self.nodes.len();
@@ -340,7 +321,7 @@ impl Build<'_> {
             let (ra, rb) = (runs.a[i], runs.b[i]);
             let n = rb - ra;
             if n <= LEAF_MAX {
-                let first = self.prims_len;
+                let first = self.prims.len();
                 leaf_meta[i] = (first - prim_base) as u8 | [0, 0x20, 0x60, 0xe0][n];
                 // The first, second and last boxes are all of a run of one to three (some
                 // twice): no loop of one to three turns, whose count branches mispredict.
@@ -349,9 +330,9 @@ impl Build<'_> {
                     .union(&self.boxes[second])
                     .union(&self.boxes[last]);
                 let prim = |k: usize| (self.keys[k] & self.index_mask) as u32;
-                let three = [prim(ra), prim(second), prim(last)];
-                self.prims[first..first + 3].copy_from_slice(&three);
-                self.prims_len = first + n;
+                self.prims
+                    .extend_from_slice(&[prim(ra), prim(second), prim(last)]);
+                self.prims.truncate(first + n);
             } else {
                 inner_at[i] = child_base + inner;
                 inner += 1;

@@ -149,9 +149,28 @@ impl PixelDirs<'_> {
 
     /// Unit direction through image point `(x, y)` in pixels (`y` down).
     pub fn dir(&self, x: f64, y: f64) -> [f64; 3] {
-        let (c, tan) = (self.camera, self.tan);
-        let sx = (2.0 * x / self.w - 1.0) * tan * self.w / self.h;
-        let sy = (1.0 - 2.0 * y / self.h) * tan;
+        self.through(self.across(x), self.down(y))
+    }
+
+    /// The offset along the image's right vector of the points at `x` pixels from the left
+    /// edge, for [`PixelDirs::through`]: one per column, shared by its points.
+    #[inline]
+    pub fn across(&self, x: f64) -> f64 {
+        (2.0 * x / self.w - 1.0) * self.tan * self.w / self.h
+    }
+
+    /// The offset along the image's up vector of the points at `y` pixels from the top edge,
+    /// for [`PixelDirs::through`]: one per row, shared by its points.
+    #[inline]
+    pub fn down(&self, y: f64) -> f64 {
+        (1.0 - 2.0 * y / self.h) * self.tan
+    }
+
+    /// Unit direction through the image point with offsets `sx` ([`PixelDirs::across`]) and
+    /// `sy` ([`PixelDirs::down`]).
+    #[inline]
+    pub fn through(&self, sx: f64, sy: f64) -> [f64; 3] {
+        let c = self.camera;
         let d = [0, 1, 2].map(|a| c.forward[a] + sx * c.right[a] + sy * c.true_up[a]);
         normalize(d).unwrap_or(c.forward)
     }

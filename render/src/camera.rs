@@ -199,11 +199,19 @@ pub(crate) fn length(a: [f64; 3]) -> f64 {
 /// `a / |a|`, or `None` for a zero or non-finite vector. The vector is scaled by its largest
 /// component first, so that vectors near the ends of the `f64` range (whose squared length
 /// overflows or underflows) still have a direction.
+#[inline]
 pub(crate) fn normalize(a: [f64; 3]) -> Option<[f64; 3]> {
     let l = length(a);
     if l.is_normal() {
         return Some(a.map(|x| x / l));
     }
+    normalize_scaled(a)
+}
+
+/// [`normalize`] for a vector whose squared length is not a normal number.
+#[cold]
+#[inline(never)]
+fn normalize_scaled(a: [f64; 3]) -> Option<[f64; 3]> {
     let m = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     if !(m > 0.0 && m.is_finite()) {
         return None;

@@ -331,32 +331,33 @@ fn render_strip<T: Tracer + ?Sized>(
                     ao.trace(&counting, light, &dirs_k, &mut rngs, &mut layers);
                 }
             }
-            for (k, &dir) in dirs_k.iter().enumerate() {
-                let row = &mut rows[k / tw];
-                let sample = if any_hit {
-                    let ao_layers = record.then_some(row.ao.layers_mut());
-                    let rng = if sampled {
-                        &mut rngs[k]
+            for (r, row) in rows.iter_mut().enumerate() {
+                for k in r * tw..(r + 1) * tw {
+                    let sample = if any_hit {
+                        let ao_layers = record.then_some(row.ao.layers_mut());
+                        let rng = if sampled {
+                            &mut rngs[k]
+                        } else {
+                            &mut unused_rng
+                        };
+                        let (dir, of) = (dirs_k[k], layers.of(k));
+                        shade_hits(&counting, &frame, light, (origin, dir), of, rng, ao_layers)
                     } else {
-                        &mut unused_rng
+                        PixelSample::MISS
                     };
-                    let of = layers.of(k);
-                    shade_hits(&counting, &frame, light, (origin, dir), of, rng, ao_layers)
-                } else {
-                    PixelSample::MISS
-                };
-                let pixel = if spp == 1 {
-                    PixelAcc::only(sample)
-                } else {
-                    acc[k].add(sample);
-                    if s + 1 < spp {
-                        continue;
+                    let pixel = if spp == 1 {
+                        PixelAcc::only(sample)
+                    } else {
+                        acc[k].add(sample);
+                        if s + 1 < spp {
+                            continue;
+                        }
+                        acc[k].finish(spp)
+                    };
+                    row.pixels.push(pixel);
+                    if record {
+                        row.ao.end_pixel();
                     }
-                    acc[k].finish(spp)
-                };
-                row.pixels.push(pixel);
-                if record {
-                    row.ao.end_pixel();
                 }
             }
         }

@@ -126,6 +126,7 @@ pub fn search_order(light: &Lighting, n: usize, first: usize) -> impl Iterator<I
 /// ambient-occlusion rays are traced here at the layers whose transmittance or occlusion is not
 /// given ([`Layer::shadow`], [`Layer::ao`]). With `ao_layers`, records the first
 /// [`FILTERED_HITS`] hits shaded with ambient occlusion there.
+#[inline(always)]
 pub fn shade_hits<T: Tracer + ?Sized>(
     tracer: &T,
     frame: &GridFrame,

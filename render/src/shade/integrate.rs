@@ -250,6 +250,7 @@ fn key_ray(
 /// The colour of a surface of colour `base` at `hit`, seen along `dir`; `shadow` is the key
 /// light's transmittance there and `ao` its ambient occlusion, when already traced.
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 fn shade_hit<T: Tracer + ?Sized>(
     tracer: &T,
     frame: &GridFrame,

@@ -149,9 +149,28 @@ impl PixelDirs<'_> {
 
     /// Unit direction through image point `(x, y)` in pixels (`y` down).
     pub fn dir(&self, x: f64, y: f64) -> [f64; 3] {
-        let (c, tan) = (self.camera, self.tan);
-        let sx = (2.0 * x / self.w - 1.0) * tan * self.w / self.h;
-        let sy = (1.0 - 2.0 * y / self.h) * tan;
+        self.through(self.across(x), self.down(y))
+    }
+
+    /// The offset along the image's right vector of the points at `x` pixels from the left
+    /// edge, for [`PixelDirs::through`]: one per column, shared by its points.
+    #[inline]
+    pub fn across(&self, x: f64) -> f64 {
+        (2.0 * x / self.w - 1.0) * self.tan * self.w / self.h
+    }
+
+    /// The offset along the image's up vector of the points at `y` pixels from the top edge,
+    /// for [`PixelDirs::through`]: one per row, shared by its points.
+    #[inline]
+    pub fn down(&self, y: f64) -> f64 {
+        (1.0 - 2.0 * y / self.h) * self.tan
+    }
+
+    /// Unit direction through the image point with offsets `sx` ([`PixelDirs::across`]) and
+    /// `sy` ([`PixelDirs::down`]).
+    #[inline]
+    pub fn through(&self, sx: f64, sy: f64) -> [f64; 3] {
+        let c = self.camera;
         let d = [0, 1, 2].map(|a| c.forward[a] + sx * c.right[a] + sy * c.true_up[a]);
         normalize(d).unwrap_or(c.forward)
     }
@@ -180,11 +199,19 @@ pub(crate) fn length(a: [f64; 3]) -> f64 {
 /// `a / |a|`, or `None` for a zero or non-finite vector. The vector is scaled by its largest
 /// component first, so that vectors near the ends of the `f64` range (whose squared length
 /// overflows or underflows) still have a direction.
+#[inline]
 pub(crate) fn normalize(a: [f64; 3]) -> Option<[f64; 3]> {
     let l = length(a);
     if l.is_normal() {
         return Some(a.map(|x| x / l));
     }
+    normalize_scaled(a)
+}
+
+/// [`normalize`] for a vector whose squared length is not a normal number.
+#[cold]
+#[inline(never)]
+fn normalize_scaled(a: [f64; 3]) -> Option<[f64; 3]> {
     let m = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     if !(m > 0.0 && m.is_finite()) {
         return None;

@@ -251,7 +251,15 @@ fn tile_layers_are_the_single_ray_layers() {
                     .collect();
                 let sample = |layers: &[Layer]| {
                     let mut rng = PixelRng::for_pixel(k as u32, t, 0);
-                    shade_hits(&tracer, &light, (eye_of(t), d), layers, &mut rng, None)
+                    shade_hits(
+                        &tracer,
+                        &frame,
+                        &light,
+                        (eye_of(t), d),
+                        layers,
+                        &mut rng,
+                        None,
+                    )
                 };
                 // Compared as printed (shortest round-trip digits): equal values, NaN (no
                 // painted value) included.
@@ -280,6 +288,69 @@ fn tile_layers_are_the_single_ray_layers() {
 }
 
 /// The camera position of tile `t` in [`tile_layers_are_the_single_ray_layers`].
+/// A tile of opaque surfaces (all three shells, and the middle one alone) takes each ray's
+/// nearest first hit as its one layer: the layers `ray_layers` finds ray by ray.
+#[test]
+fn opaque_tile_layers_are_the_single_ray_layers() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sphere.amrk");
+    write_half_refined_sphere(&path, 3, 2, 8);
+    let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+    let src = FieldSource::new(&file, 0, Reconstruction::Octant).unwrap();
+    for isos in [&[0.08f32, 0.0, -0.08][..], &[0.0][..]] {
+        let surfaces: Vec<Surface> = isos
+            .iter()
+            .map(|&iso| {
+                let refs = src.extract(iso).unwrap().refs;
+                Surface::build(&src, iso, &refs, &mut BvhBuilder::new())
+            })
+            .collect();
+        let tracer = HybridTracer {
+            src: &src,
+            surfaces: &surfaces,
+            smooth_normals: false,
+        };
+        let light = Lighting {
+            colors: vec![[1.0; 3]; isos.len()],
+            opacity: vec![1.0; isos.len()],
+            key_dir: [0.0, 0.0, 1.0],
+            shadows: false,
+            ao_rays: 0,
+            ao_distance: 0.1,
+            ao_filter: false,
+        };
+        let frame = src.frame();
+        let mut rng = Rng(7);
+        let mut hint = SearchHint::default();
+        let mut tile = TileHits::new(surfaces.len());
+        let mut layers = TileLayers::default();
+        let mut hits = 0;
+        for t in 0..12u32 {
+            let eye = eye_of(t);
+            let look = [0, 1, 2].map(|a| CENTRE[a] + 0.5 * (rng.f64() - 0.5) - eye[a]);
+            let rays: Vec<GridRay> = (0..64)
+                .map(|k| {
+                    let (u, v) = ((k % 8) as f64 - 3.5, (k / 8) as f64 - 3.5);
+                    let d = [look[0] + 0.03 * u, look[1] + 0.03 * v, look[2]];
+                    let len = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+                    GridRay::from_world(&frame, eye, d.map(|x| x / len))
+                })
+                .collect();
+            tile.trace(&tracer, &light, &rays, &mut hint);
+            let firsts: Vec<Vec<_>> = (0..rays.len()).map(|k| tile.hits_of(k).to_vec()).collect();
+            layers.trace(&tracer, &light, &rays, &mut tile);
+            for (k, ray) in rays.iter().enumerate() {
+                let mut want = Vec::new();
+                ray_layers(&tracer, &light, ray, &mut firsts[k].clone(), &mut want);
+                assert_eq!(layers.of(k), &want[..], "{isos:?}: tile {t}, ray {k}");
+                assert!(want.len() <= 1);
+                hits += want.len();
+            }
+        }
+        assert!(hits > 12 * 64 / 4, "{isos:?}: only {hits} rays hit");
+    }
+}
+
 fn eye_of(t: u32) -> [f64; 3] {
     [1.5 - 0.03 * f64::from(t), 0.25 + 0.02 * f64::from(t), 1.4]
 }

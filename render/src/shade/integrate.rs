@@ -97,7 +97,15 @@ pub fn shade_ray<T: Tracer + ?Sized>(
     }
     let mut layers = Vec::new();
     ray_layers(tracer, light, &ray, next, &mut layers);
-    shade_hits(tracer, light, (origin, dir), &layers, rng, ao_layers)
+    shade_hits(
+        tracer,
+        &frame,
+        light,
+        (origin, dir),
+        &layers,
+        rng,
+        ao_layers,
+    )
 }
 
 /// The order in which a ray's first hits with the `n` surfaces are searched: opaque surfaces
@@ -114,19 +122,20 @@ pub fn search_order(light: &Lighting, n: usize, first: usize) -> impl Iterator<I
 }
 
 /// Shades the world ray `origin + t dir` (`dir` unit length) from its `layers`
-/// ([`crate::shade::layers`]); the key light's shadow ray and the ambient-occlusion rays are
-/// traced here at the layers whose transmittance or occlusion is not given ([`Layer::shadow`],
-/// [`Layer::ao`]). With `ao_layers`, records the first [`FILTERED_HITS`] hits shaded with
-/// ambient occlusion there.
+/// ([`crate::shade::layers`]); `frame` is the tracer's. The key light's shadow ray and the
+/// ambient-occlusion rays are traced here at the layers whose transmittance or occlusion is not
+/// given ([`Layer::shadow`], [`Layer::ao`]). With `ao_layers`, records the first
+/// [`FILTERED_HITS`] hits shaded with ambient occlusion there.
+#[inline(always)]
 pub fn shade_hits<T: Tracer + ?Sized>(
     tracer: &T,
+    frame: &GridFrame,
     light: &Lighting,
     (origin, dir): ([f64; 3], [f64; 3]),
     layers: &[Layer],
     rng: &mut Rng,
     mut ao_layers: Option<&mut Vec<AoLayer>>,
 ) -> PixelSample {
-    let frame = tracer.frame();
     let mut out = PixelSample::MISS;
     let mut recorded = 0;
     let mut transmittance = 1.0f32;
@@ -141,7 +150,7 @@ pub fn shade_hits<T: Tracer + ?Sized>(
             _ => {
                 let base = paint.map_or(light.colors[i], |p| p.rgb);
                 let given = (l.shadow, l.ao);
-                let shaded = shade_hit(tracer, light, base, &hit, normal, dir, given, rng);
+                let shaded = shade_hit(tracer, frame, light, base, &hit, normal, dir, given, rng);
                 if let (Some(layers), Some(ao)) = (ao_layers.as_deref_mut(), shaded.ao) {
                     if recorded < FILTERED_HITS {
                         recorded += 1;
@@ -241,8 +250,10 @@ fn key_ray(
 /// The colour of a surface of colour `base` at `hit`, seen along `dir`; `shadow` is the key
 /// light's transmittance there and `ao` its ambient occlusion, when already traced.
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 fn shade_hit<T: Tracer + ?Sized>(
     tracer: &T,
+    frame: &GridFrame,
     light: &Lighting,
     base: [f32; 3],
     hit: &SurfaceHit,
@@ -258,25 +269,11 @@ fn shade_hit<T: Tracer + ?Sized>(
     let mut key = dot(nf, light.key_dir).max(0.0);
     if let Some(s) = shadow {
         key *= s;
-    } else if let Some((ray, tmin)) = key_ray(&tracer.frame(), light, hit, nf) {
-        key *= transmittance_along(tracer, light, &ray, tmin, f64::INFINITY);
+    } else if key > 0.0 && light.shadows {
+        key *= key_transmittance(tracer, frame, light, hit, nf);
     }
-    let ao = (light.ao_rays > 0).then(|| {
-        if let Some(ao) = ao {
-            return ao;
-        }
-        let mut open = 0.0;
-        let mut trace = |(u1, u2)| {
-            let d = cosine_hemisphere(nf, u1, u2);
-            open += transmittance_towards(tracer, light, hit, nf, d, light.ao_distance, 0.0);
-        };
-        if light.ao_filter {
-            rng.ao_tile_pattern(light.ao_rays).for_each(&mut trace);
-        } else {
-            rng.ao_pattern(light.ao_rays).for_each(&mut trace);
-        }
-        open / f64::from(light.ao_rays)
-    });
+    let ao = (light.ao_rays > 0)
+        .then(|| ao.unwrap_or_else(|| occlusion(tracer, frame, light, hit, nf, rng)));
     let a = ao.unwrap_or(1.0);
     let diffuse = 0.22 * a + 0.55 * key + 0.35 * head * (0.5 + 0.5 * a);
     Shaded {
@@ -289,11 +286,55 @@ fn shade_hit<T: Tracer + ?Sized>(
     }
 }
 
+/// The key light's transmittance at `hit` (facing normal `nf`, lit by the key light), its
+/// shadow ray traced here: out of line, as the frame's shadow rays are mostly traced as packets
+/// ([`KeyShadow`]).
+#[inline(never)]
+fn key_transmittance<T: Tracer + ?Sized>(
+    tracer: &T,
+    frame: &GridFrame,
+    light: &Lighting,
+    hit: &SurfaceHit,
+    nf: [f64; 3],
+) -> f64 {
+    match key_ray(frame, light, hit, nf) {
+        Some((ray, tmin)) => transmittance_along(tracer, light, &ray, tmin, f64::INFINITY),
+        None => 1.0,
+    }
+}
+
+/// The ambient occlusion at `hit` (facing normal `nf`), its rays traced here from the pattern
+/// `rng` gives: out of line, as the frame's ambient-occlusion rays are mostly traced as packets
+/// ([`crate::shade::ao_packets::TileAo`]).
+#[inline(never)]
+fn occlusion<T: Tracer + ?Sized>(
+    tracer: &T,
+    frame: &GridFrame,
+    light: &Lighting,
+    hit: &SurfaceHit,
+    nf: [f64; 3],
+    rng: &mut Rng,
+) -> f64 {
+    let mut open = 0.0;
+    let mut trace = |(u1, u2)| {
+        let d = cosine_hemisphere(nf, u1, u2);
+        open += transmittance_towards(tracer, frame, light, hit, nf, d, light.ao_distance, 0.0);
+    };
+    if light.ao_filter {
+        rng.ao_tile_pattern(light.ao_rays).for_each(&mut trace);
+    } else {
+        rng.ao_pattern(light.ao_rays).for_each(&mut trace);
+    }
+    open / f64::from(light.ao_rays)
+}
+
 /// Fraction of light reaching `hit` from direction `d` (world, unit) within `max_t`: the
 /// product of `1 - opacity` over the surfaces in the way, seen from `lift` grid units (besides
 /// a small fixed offset) off the surface along the normal `nf`.
+#[allow(clippy::too_many_arguments)]
 fn transmittance_towards<T: Tracer + ?Sized>(
     tracer: &T,
+    frame: &GridFrame,
     light: &Lighting,
     hit: &SurfaceHit,
     nf: [f64; 3],
@@ -301,7 +342,7 @@ fn transmittance_towards<T: Tracer + ?Sized>(
     max_t: f64,
     lift: f64,
 ) -> f64 {
-    let (ray, tmin) = ray_off(&tracer.frame(), hit, nf, d, lift);
+    let (ray, tmin) = ray_off(frame, hit, nf, d, lift);
     transmittance_along(tracer, light, &ray, tmin, max_t)
 }
 

@@ -226,6 +226,14 @@ impl TileLayers {
         for layers in &mut self.layers[..m] {
             layers.clear();
         }
+        if light.opacity[..n].iter().all(|&a| a >= 1.0) {
+            // Behind an opaque hit nothing is composited: each ray's one layer is its nearest
+            // first hit, and no continuation is searched.
+            for (k, (search, layers)) in search.iter_mut().zip(&mut self.layers[..m]).enumerate() {
+                let _ = search.take(light, hits.ray_hits(k), layers);
+            }
+            return;
+        }
         self.pending.clear();
         self.pending.resize(n, 0);
         let mut live: Mask = if m == PACKET { !0 } else { (1 << m) - 1 };

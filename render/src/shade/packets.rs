@@ -49,6 +49,19 @@ impl TileHits {
         self.opaque_near[..m].fill(f64::INFINITY);
         let mut nearest = [0u32; 64];
         let mut any = false;
+        if n == 1 {
+            // The tile's hits are the one surface's: found in place.
+            let hits = &mut self.hits[..m];
+            tracer.next_hits(0, rays, &self.opaque_near[..m], hits);
+            let opaque = light.opacity[0] >= 1.0;
+            for h in hits.iter().flatten() {
+                any = true;
+                if opaque && h.t < f64::INFINITY {
+                    hint.nearest_opaque = 0;
+                }
+            }
+            return any;
+        }
         for i in search_order(light, n, hint.nearest_opaque) {
             let found = &mut self.found[..m];
             tracer.next_hits(i, rays, &self.opaque_near[..m], found);
@@ -66,6 +79,7 @@ impl TileHits {
                 }
             }
         }
+        let nearest = &nearest[..n.min(64)];
         if let Some((i, _)) = nearest.iter().enumerate().max_by_key(|&(i, &c)| (c, !i)) {
             if nearest[i] > 0 {
                 hint.nearest_opaque = i;

@@ -120,7 +120,9 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
             let xs = x..(x + PIECE_COLUMNS).min(w);
             let ys = y..(y + TILE).min(h);
             let (last, pixels) = (xs.end == w, (xs.len() * ys.len()) as u64 * spp);
-            let strip = render_strip(tracer, camera, light, settings, (xs, ys));
+            // The first piece of a strip holds the rows the others are appended to.
+            let width = if x == 0 { w as usize } else { 0 };
+            let strip = render_strip(tracer, camera, light, settings, (xs, ys), width);
             if last {
                 progress(strip.len() as u64);
             }
@@ -186,7 +188,7 @@ pub fn render_rect<T: Tracer + Sync + ?Sized>(
         .into_par_iter()
         .map(|y| {
             let ys = y..(y + TILE).min(my1);
-            render_strip(tracer, camera, light, settings, (mx0..mx1, ys))
+            render_strip(tracer, camera, light, settings, (mx0..mx1, ys), 0)
         })
         .collect::<Vec<Vec<Row>>>()
         .into_iter()
@@ -237,14 +239,16 @@ fn filters(light: &Lighting, settings: RenderSettings) -> bool {
 /// Pixels per side of a tile, whose primary rays are traced together.
 const TILE: u32 = 8;
 
-/// The pixels `xs` of the rows `ys` (at most [`TILE`]), one row each, tile after tile of
-/// [`TILE`] columns; the strip's ray queries are counted in its first row.
+/// The pixels `xs` of the rows `ys` (at most [`TILE`]), one row each (with room for `width`
+/// pixels), tile after tile of [`TILE`] columns; the strip's ray queries are counted in its
+/// first row.
 fn render_strip<T: Tracer + ?Sized>(
     tracer: &T,
     camera: &Camera,
     light: &Lighting,
     settings: RenderSettings,
     (xs, ys): (std::ops::Range<u32>, std::ops::Range<u32>),
+    width: usize,
 ) -> Vec<Row> {
     let counting = Counting {
         inner: tracer,
@@ -254,7 +258,7 @@ fn render_strip<T: Tracer + ?Sized>(
     let mut rows: Vec<Row> = ys
         .clone()
         .map(|_| Row {
-            pixels: Vec::with_capacity(xs.len()),
+            pixels: Vec::with_capacity(width.max(xs.len())),
             ao: AoRow::new(),
             rays: 0,
         })
@@ -262,63 +266,95 @@ fn render_strip<T: Tracer + ?Sized>(
     let mut hint = SearchHint::default();
     let dirs = camera.pixel_dirs(settings.width, settings.height);
     let frame = tracer.frame();
+    let origin = dirs.origin();
+    // Every ray starts at the camera: its grid origin is the same for all.
+    let grid_origin = frame.to_grid(origin);
     let spp = settings.spp.max(1);
+    // The generators place the samples in their pixels and the shading's ambient-occlusion
+    // rays; a frame that does neither leaves them out.
+    let sampled = spp > 1 || light.ao_rays > 0;
+    let mut unused_rng = Rng::for_pixel(0, 0, 0);
+    // With one sample per pixel, each ray passes through its pixel's centre: its direction's
+    // offsets are its column's and its row's.
+    let down: Vec<f64> = ys.clone().map(|y| dirs.down(f64::from(y) + 0.5)).collect();
+    let mut across = [0.0f64; TILE as usize];
     let mut tile = TileHits::new(tracer.num_surfaces());
     let mut shadows = Box::<KeyShadow>::default();
     let mut layers = Box::<TileLayers>::default();
     let mut ao = TileAo::default();
-    // One tile's pixels, samples, generators, world rays and grid rays, reused tile after tile.
-    let mut pixels: Vec<(u32, u32)> = Vec::with_capacity(TILE_RAYS);
+    // One tile's samples, generators, world directions and grid rays, reused tile after tile.
     let mut acc: Vec<PixelAcc> = Vec::with_capacity(TILE_RAYS);
     let mut rngs = Vec::with_capacity(TILE_RAYS);
-    let mut world = Vec::with_capacity(TILE_RAYS);
     let mut dirs_k = Vec::with_capacity(TILE_RAYS);
     let mut rays = Vec::with_capacity(TILE_RAYS);
     for x0 in xs.clone().step_by(TILE as usize) {
         let x1 = (x0 + TILE).min(xs.end);
-        pixels.clear();
-        pixels.extend(ys.clone().flat_map(|y| (x0..x1).map(move |x| (x, y))));
-        acc.clear();
-        acc.resize(pixels.len(), PixelAcc::default());
+        let tw = (x1 - x0) as usize;
+        for (a, x) in across.iter_mut().zip(x0..x1) {
+            *a = dirs.across(f64::from(x) + 0.5);
+        }
+        if spp > 1 {
+            acc.clear();
+            acc.resize(tw * ys.len(), PixelAcc::default());
+        }
         for s in 0..spp {
             rngs.clear();
-            world.clear();
             dirs_k.clear();
             rays.clear();
-            for &(x, y) in &pixels {
-                let mut rng = Rng::for_pixel(x, y, s);
-                let (jx, jy) = rng.subpixel(spp);
-                let dir = dirs.dir(f64::from(x) + jx, f64::from(y) + jy);
-                rngs.push(rng);
-                world.push((dirs.origin(), dir));
-                dirs_k.push(dir);
-                rays.push(GridRay::from_world(&frame, dirs.origin(), dir));
+            for (y, &sy) in ys.clone().zip(&down) {
+                for (x, &sx) in (x0..x1).zip(&across) {
+                    let dir = if sampled {
+                        let mut rng = Rng::for_pixel(x, y, s);
+                        let (jx, jy) = rng.subpixel(spp);
+                        rngs.push(rng);
+                        if spp > 1 {
+                            dirs.dir(f64::from(x) + jx, f64::from(y) + jy)
+                        } else {
+                            dirs.through(sx, sy)
+                        }
+                    } else {
+                        dirs.through(sx, sy)
+                    };
+                    dirs_k.push(dir);
+                    rays.push(GridRay {
+                        o: grid_origin,
+                        d: [0, 1, 2].map(|a| dir[a] / frame.unit[a]),
+                    });
+                }
             }
             // A tile whose rays hit nothing has no layers: every sample is a miss.
             let any_hit = tile.trace(&counting, light, &rays, &mut hint);
             if any_hit {
                 layers.trace(&counting, light, &rays, &mut tile);
                 shadows.trace(&counting, light, &dirs_k, &mut layers);
-                ao.trace(&counting, light, &dirs_k, &mut rngs, &mut layers);
+                if light.ao_rays > 0 {
+                    ao.trace(&counting, light, &dirs_k, &mut rngs, &mut layers);
+                }
             }
-            for (k, &(_, y)) in pixels.iter().enumerate() {
-                let row = &mut rows[(y - ys.start) as usize];
-                let sample = if any_hit {
-                    let ao_layers = record.then_some(row.ao.layers_mut());
-                    shade_hits(
-                        &counting,
-                        light,
-                        world[k],
-                        layers.of(k),
-                        &mut rngs[k],
-                        ao_layers,
-                    )
-                } else {
-                    PixelSample::MISS
-                };
-                acc[k].add(sample);
-                if s + 1 == spp {
-                    row.pixels.push(acc[k].finish(spp));
+            for (r, row) in rows.iter_mut().enumerate() {
+                for k in r * tw..(r + 1) * tw {
+                    let sample = if any_hit {
+                        let ao_layers = record.then_some(row.ao.layers_mut());
+                        let rng = if sampled {
+                            &mut rngs[k]
+                        } else {
+                            &mut unused_rng
+                        };
+                        let (dir, of) = (dirs_k[k], layers.of(k));
+                        shade_hits(&counting, &frame, light, (origin, dir), of, rng, ao_layers)
+                    } else {
+                        PixelSample::MISS
+                    };
+                    let pixel = if spp == 1 {
+                        PixelAcc::only(sample)
+                    } else {
+                        acc[k].add(sample);
+                        if s + 1 < spp {
+                            continue;
+                        }
+                        acc[k].finish(spp)
+                    };
+                    row.pixels.push(pixel);
                     if record {
                         row.ao.end_pixel();
                     }
@@ -390,6 +426,19 @@ impl PixelAcc {
             self.first = sample;
             self.have_first = true;
         }
+    }
+
+    /// The pixel of one sample: what [`PixelAcc::add`] and [`PixelAcc::finish`] give it.
+    #[inline]
+    fn only(sample: PixelSample) -> PixelSample {
+        let mut px = if sample.alpha > 0.0 {
+            sample
+        } else {
+            PixelSample::MISS
+        };
+        px.rgb = sample.rgb.map(|c| 0.0 + c);
+        px.alpha = 0.0 + sample.alpha;
+        px
     }
 
     /// The pixel of `spp` samples.

@@ -218,7 +218,14 @@ impl Surface {
             out[k] = None;
             best_t[k] = tmax[k];
             recips[k] = rays[k].recip();
-            if let Some(b) = rays[k].bvh_ray_with(&recips[k], &frame, pad, tmin[k], tmax[k]) {
+            // A query behind a hit needs no voxel wholly before its `tmin`, which the exact
+            // test rejects: its walk starts just before `tmin` (as any-hit walks do).
+            let b = if tmin[k] > 0.0 {
+                rays[k].bvh_ray_ahead(&frame, pad, tmin[k], tmax[k])
+            } else {
+                rays[k].bvh_ray_with(&recips[k], &frame, pad, tmin[k], tmax[k])
+            };
+            if let Some(b) = b {
                 ray32[k] = b.ray;
                 back[k] = (b.t_off, b.scale);
                 active |= 1 << k;

@@ -6,9 +6,12 @@ use obvhs::ray::Ray;
 
 use crate::bvh::packet::{rays_of, Mask, PACKET};
 use crate::bvh::{BoxGrid, BoxRun, BvhBuilder, OctantBvh};
+use crate::camera::dot;
 use crate::trace::last_hit::{self, Query};
+use crate::trace::octant::VoxelHit;
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
+use crate::trace::tracer::Behind;
 
 /// One isosurface ready to trace: its isovalue and the BVH over its active voxels.
 #[derive(Clone, Debug, Default)]
@@ -44,6 +47,15 @@ impl Hit {
         let g = self.voxel.grad_local(self.local);
         [0, 1, 2].map(|a| g[a] / (self.voxel.hi[a] - self.voxel.lo[a]))
     }
+}
+
+/// Whether the field rises through the isovalue along `ray` at its hit `h` in `voxel`: the
+/// crossing's direction, as [`crate::trace::tracer::SurfaceHit::rising`] has it.
+#[inline]
+fn rising(voxel: &Voxel, h: &VoxelHit, ray: &GridRay) -> bool {
+    let g = voxel.grad_local(h.local);
+    let g = [0, 1, 2].map(|a| g[a] / (voxel.hi[a] - voxel.lo[a]));
+    dot(g, ray.d) > 0.0
 }
 
 /// The padding (grid units) by which voxel boxes are grown in the `f32` BVH: a few thousand `f32`
@@ -203,6 +215,46 @@ impl Surface {
         tmax: &[f64],
         out: &mut [Option<Hit>],
     ) {
+        self.closest_hits_skipping(src, rays, tmin, tmax, None, out);
+    }
+
+    /// The next crossing of each of `rays` (at most [`PACKET`]) behind the crossing `behind[k]`
+    /// it has taken, up to `tmax[k]`, into `out[k]`: [`Surface::closest_hits`] from
+    /// [`Behind::start`], except that a voxel whose hit is that crossing again
+    /// ([`Behind::again_after`], a neighbouring voxel's widened segment meeting it) is asked
+    /// again behind its hit, in the same walk, instead of the whole query being asked again
+    /// ([`crate::trace::tracer::next_crossings_by_queries`]). The two differ only where another
+    /// voxel has a crossing less than [`Behind::step`] behind the repeated one, which a new
+    /// query would skip.
+    pub fn closest_hits_behind<S: VoxelSource + ?Sized>(
+        &self,
+        src: &S,
+        rays: &[GridRay],
+        behind: &[Behind],
+        tmax: &[f64],
+        out: &mut [Option<Hit>],
+    ) {
+        let n = rays.len();
+        assert!(n <= PACKET && behind.len() == n);
+        let mut tmin = [0.0; PACKET];
+        for (t, b) in tmin.iter_mut().zip(behind) {
+            *t = b.start();
+        }
+        self.closest_hits_skipping(src, rays, &tmin[..n], tmax, Some(behind), out);
+    }
+
+    /// [`Surface::closest_hits`], a hit of ray `k` that is `behind[k]` again skipped when
+    /// `behind` is given ([`Surface::closest_hits_behind`]).
+    #[inline(always)]
+    fn closest_hits_skipping<S: VoxelSource + ?Sized>(
+        &self,
+        src: &S,
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: &[f64],
+        behind: Option<&[Behind]>,
+        out: &mut [Option<Hit>],
+    ) {
         let n = rays.len();
         assert!(n <= PACKET && tmin.len() == n && tmax.len() == n && out.len() == n);
         let frame = src.frame();
@@ -255,10 +307,20 @@ impl Surface {
                             &mut found[..n],
                         );
                     }
-                    for k in rays_of(m) {
-                        let Some(h) = found[k] else {
+                    'rays: for k in rays_of(m) {
+                        let Some(mut h) = found[k] else {
                             continue;
                         };
+                        if let Some(behind) = behind {
+                            while let Some(t) =
+                                behind[k].again_after(h.t, rising(&voxel, &h, &rays[k]))
+                            {
+                                match src.intersect(&voxel, self.iso, &rays[k], t, best_t[k]) {
+                                    Some(next) => h = next,
+                                    None => continue 'rays,
+                                }
+                            }
+                        }
                         if h.t < best_t[k] || out[k].is_none() {
                             best_t[k] = h.t;
                             out[k] = Some(Hit {

@@ -215,7 +215,7 @@ impl Surface {
         tmax: &[f64],
         out: &mut [Option<Hit>],
     ) {
-        self.closest_hits_skipping(src, rays, tmin, tmax, None, out);
+        self.closest_hits_skipping::<S, false>(src, rays, tmin, tmax, &[], out);
     }
 
     /// The next crossing of each of `rays` (at most [`PACKET`]) behind the crossing `behind[k]`
@@ -240,19 +240,20 @@ impl Surface {
         for (t, b) in tmin.iter_mut().zip(behind) {
             *t = b.start();
         }
-        self.closest_hits_skipping(src, rays, &tmin[..n], tmax, Some(behind), out);
+        self.closest_hits_skipping::<S, true>(src, rays, &tmin[..n], tmax, behind, out);
     }
 
-    /// [`Surface::closest_hits`], a hit of ray `k` that is `behind[k]` again skipped when
-    /// `behind` is given ([`Surface::closest_hits_behind`]).
+    /// [`Surface::closest_hits`], a hit of ray `k` that is `behind[k]` again skipped when `SKIP`
+    /// ([`Surface::closest_hits_behind`]; a parameter of the type, so that the primary rays'
+    /// walk has no test of it).
     #[inline(always)]
-    fn closest_hits_skipping<S: VoxelSource + ?Sized>(
+    fn closest_hits_skipping<S: VoxelSource + ?Sized, const SKIP: bool>(
         &self,
         src: &S,
         rays: &[GridRay],
         tmin: &[f64],
         tmax: &[f64],
-        behind: Option<&[Behind]>,
+        behind: &[Behind],
         out: &mut [Option<Hit>],
     ) {
         let n = rays.len();
@@ -311,7 +312,7 @@ impl Surface {
                         let Some(mut h) = found[k] else {
                             continue;
                         };
-                        if let Some(behind) = behind {
+                        if SKIP {
                             while let Some(t) =
                                 behind[k].again_after(h.t, rising(&voxel, &h, &rays[k]))
                             {

@@ -12,7 +12,9 @@ use crate::colormap::level_linear;
 use crate::slice::Slice;
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, VoxelSource};
-use crate::trace::tracer::{next_hits_one_by_one, Paint, SurfaceHit, Tracer};
+use crate::trace::tracer::{
+    next_crossings_by_queries, next_hits_one_by_one, Behind, Paint, SurfaceHit, Tracer,
+};
 
 /// Pixels between the primary rays of the colour-range pre-pass, on each axis.
 const RANGE_STRIDE: u32 = 4;
@@ -206,6 +208,20 @@ impl<T: Tracer + Sync + ?Sized> Tracer for PaintedTracer<'_, T> {
             return self.inner.next_hits_from(i, rays, tmin, tmax, out);
         }
         next_hits_one_by_one(self, i, rays, tmin, tmax, out)
+    }
+
+    fn next_crossings(
+        &self,
+        i: usize,
+        rays: &[GridRay],
+        behind: &[Behind],
+        tmax: &[f64],
+        out: &mut [Option<SurfaceHit>],
+    ) {
+        if i < self.surfaces.len() {
+            return self.inner.next_crossings(i, rays, behind, tmax, out);
+        }
+        next_crossings_by_queries(self, i, rays, behind, tmax, out)
     }
 
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {

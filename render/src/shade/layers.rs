@@ -6,7 +6,7 @@ use crate::bvh::packet::{rays_of, Mask, PACKET};
 use crate::shade::integrate::{grid_len, Lighting};
 use crate::shade::packets::TileHits;
 use crate::trace::ray::GridRay;
-use crate::trace::tracer::{SurfaceHit, Tracer};
+use crate::trace::tracer::{Behind, SurfaceHit, Tracer};
 
 /// Most surfaces composited along one ray.
 pub const MAX_LAYERS: usize = 32;
@@ -93,48 +93,20 @@ impl LayerSearch {
     }
 }
 
-/// The search for a surface's next crossing behind a hit.
-///
-/// Where a ray passes through a face, edge or corner shared by two octants, both octants report
-/// the crossing (their segments are widened so that none is lost), a hair apart along the ray.
-/// Compositing such a duplicate would draw a transparent surface twice along every octant
-/// boundary. A real next crossing of a surface leaves it on the other side, so a hit that is
-/// close behind and crosses in the same direction is the same crossing, and is skipped.
-#[derive(Clone, Copy, Debug)]
-struct Behind {
-    /// The hit's `t` and crossing direction.
-    t: f64,
-    rising: bool,
-    /// How far behind a hit the search goes on.
-    step: f64,
-    /// How close behind a crossing in the same direction is the same crossing.
-    same_within: f64,
-}
-
-impl Behind {
-    fn new(ray: &GridRay, hit: &SurfaceHit) -> Self {
-        let per_t = grid_len(ray.d);
-        Self {
-            t: hit.t,
-            rising: hit.rising,
-            step: 1e-4 * hit.size / per_t,
-            same_within: 1e-2 * hit.size / per_t,
-        }
-    }
-
-    /// Where the search starts.
-    fn start(&self) -> f64 {
-        self.t + self.step
-    }
-
-    /// `None` when `next` is a new crossing; else where the search goes on.
-    fn again_after(&self, next: &SurfaceHit) -> Option<f64> {
-        let duplicate = next.t - self.t < self.same_within && next.rising == self.rising;
-        duplicate.then_some(next.t + self.step)
+/// The crossing `hit` of `ray`, to search behind: a hundredth of its voxel's size counts as the
+/// same crossing, and the search starts a ten-thousandth of it behind.
+fn behind(ray: &GridRay, hit: &SurfaceHit) -> Behind {
+    let per_t = grid_len(ray.d);
+    Behind {
+        t: hit.t,
+        rising: hit.rising,
+        step: 1e-4 * hit.size / per_t,
+        same_within: 1e-2 * hit.size / per_t,
     }
 }
 
-/// The next hit of surface `i` along `ray` after `hit` that is a new crossing, up to `tmax`.
+/// The next hit of surface `i` along `ray` after `hit` that is a new crossing, up to `tmax`: the
+/// tracer's [`Tracer::next_crossings`] for the ray alone.
 fn next_crossing<T: Tracer + ?Sized>(
     tracer: &T,
     i: usize,
@@ -142,15 +114,15 @@ fn next_crossing<T: Tracer + ?Sized>(
     hit: &SurfaceHit,
     tmax: f64,
 ) -> Option<SurfaceHit> {
-    let behind = Behind::new(ray, hit);
-    let mut from = behind.start();
-    loop {
-        let next = tracer.next_hit(i, ray, from, tmax)?;
-        match behind.again_after(&next) {
-            None => return Some(next),
-            Some(t) => from = t,
-        }
-    }
+    let mut next = [None];
+    tracer.next_crossings(
+        i,
+        std::slice::from_ref(ray),
+        &[behind(ray, hit)],
+        &[tmax],
+        &mut next,
+    );
+    next[0]
 }
 
 /// Appends the layers of `ray` to `out`, from `next`, its first hit with each surface (up to the
@@ -172,19 +144,18 @@ pub fn ray_layers<T: Tracer + ?Sized>(
 
 /// The layers of a tile of up to [`PACKET`] rays, found together: the rays take their layers in
 /// lockstep, and the continuations behind the layers of one step are traced as one packet per
-/// surface ([`Tracer::next_hits_from`], each ray from its own `tmin` up to its own `tmax`). Each
-/// ray's layers are the ones [`ray_layers`] finds for it alone: the same queries, each with the
-/// same answer.
+/// surface ([`Tracer::next_crossings`], each ray behind its own crossing up to its own `tmax`).
+/// Each ray's layers are the ones [`ray_layers`] finds for it alone: the same crossings (a tracer
+/// may skip a crossing seen again inside one query, where `ray_layers` asks again).
 pub struct TileLayers {
     layers: Vec<Vec<Layer>>,
     /// Per surface, the rays whose next crossing of it is searched.
     pending: Vec<Mask>,
     behind: [Option<Behind>; PACKET],
-    from: [f64; PACKET],
     tmax: [f64; PACKET],
     /// One packet's rays, `tmin`, `tmax` and hits, gathered.
     rays: [GridRay; PACKET],
-    tmin_of: [f64; PACKET],
+    behind_of: [Behind; PACKET],
     tmax_of: [f64; PACKET],
     found: [Option<SurfaceHit>; PACKET],
 }
@@ -199,10 +170,14 @@ impl Default for TileLayers {
             layers: (0..PACKET).map(|_| Vec::new()).collect(),
             pending: Vec::new(),
             behind: [None; PACKET],
-            from: [0.0; PACKET],
             tmax: [0.0; PACKET],
             rays: [unused; PACKET],
-            tmin_of: [0.0; PACKET],
+            behind_of: [Behind {
+                t: 0.0,
+                rising: false,
+                step: 0.0,
+                same_within: 0.0,
+            }; PACKET],
             tmax_of: [0.0; PACKET],
             found: [None; PACKET],
         }
@@ -244,8 +219,7 @@ impl TileLayers {
                     live &= !(1 << k);
                     continue;
                 };
-                let behind = Behind::new(&rays[k], &layers.last().expect("a layer was taken").hit);
-                self.from[k] = behind.start();
+                let behind = behind(&rays[k], &layers.last().expect("a layer was taken").hit);
                 self.tmax[k] = tmax;
                 self.behind[k] = Some(behind);
                 self.pending[i] |= 1 << k;
@@ -256,8 +230,8 @@ impl TileLayers {
         }
     }
 
-    /// Traces the pending continuations of surface `i` as packets until each has a new crossing
-    /// or none; writes them into `hits`.
+    /// Traces the pending continuations of surface `i` as one packet; writes their new
+    /// crossings into `hits`.
     fn continue_surface<T: Tracer + ?Sized>(
         &mut self,
         tracer: &T,
@@ -265,33 +239,26 @@ impl TileLayers {
         rays: &[GridRay],
         hits: &mut TileHits,
     ) {
-        while self.pending[i] != 0 {
-            let pending = self.pending[i];
-            let mut c = 0;
-            for k in rays_of(pending) {
-                self.rays[c] = rays[k];
-                self.tmin_of[c] = self.from[k];
-                self.tmax_of[c] = self.tmax[k];
-                c += 1;
-            }
-            tracer.next_hits_from(
-                i,
-                &self.rays[..c],
-                &self.tmin_of[..c],
-                &self.tmax_of[..c],
-                &mut self.found[..c],
-            );
-            for (j, k) in rays_of(pending).enumerate() {
-                let behind = self.behind[k].expect("a pending ray has its hit");
-                let again = self.found[j].and_then(|next| behind.again_after(&next));
-                match again {
-                    Some(t) => self.from[k] = t,
-                    None => {
-                        hits.ray_hits(k)[i] = self.found[j];
-                        self.pending[i] &= !(1 << k);
-                    }
-                }
-            }
+        let pending = std::mem::take(&mut self.pending[i]);
+        if pending == 0 {
+            return;
+        }
+        let mut c = 0;
+        for k in rays_of(pending) {
+            self.rays[c] = rays[k];
+            self.behind_of[c] = self.behind[k].expect("a pending ray has its hit");
+            self.tmax_of[c] = self.tmax[k];
+            c += 1;
+        }
+        tracer.next_crossings(
+            i,
+            &self.rays[..c],
+            &self.behind_of[..c],
+            &self.tmax_of[..c],
+            &mut self.found[..c],
+        );
+        for (j, k) in rays_of(pending).enumerate() {
+            hits.ray_hits(k)[i] = self.found[j];
         }
     }
 

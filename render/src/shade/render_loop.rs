@@ -18,7 +18,7 @@ use crate::shade::packets::{TileHits, TILE_RAYS};
 use crate::shade::sampling::Rng;
 use crate::trace::ray::GridRay;
 use crate::trace::source::GridFrame;
-use crate::trace::tracer::{Paint, SurfaceHit, Tracer};
+use crate::trace::tracer::{Behind, Paint, SurfaceHit, Tracer};
 
 /// Image size and sampling.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -62,6 +62,17 @@ impl<T: Tracer + ?Sized> Tracer for Counting<'_, T> {
     ) {
         self.rays.set(self.rays.get() + rays.len() as u64);
         self.inner.next_hits_from(i, rays, tmin, tmax, out)
+    }
+    fn next_crossings(
+        &self,
+        i: usize,
+        rays: &[GridRay],
+        behind: &[Behind],
+        tmax: &[f64],
+        out: &mut [Option<SurfaceHit>],
+    ) {
+        self.rays.set(self.rays.get() + rays.len() as u64);
+        self.inner.next_crossings(i, rays, behind, tmax, out)
     }
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
         self.rays.set(self.rays.get() + 1);

@@ -75,6 +75,23 @@ pub trait Tracer {
         next_hits_one_by_one(self, i, rays, tmin, tmax, out)
     }
 
+    /// The next crossing of surface `i` of each of `rays` behind the crossing `behind[k]` it
+    /// has taken, up to `tmax[k]`, into `out[k]`: the first hit from [`Behind::start`] on that
+    /// is not the same crossing again ([`Behind::again_after`]; the search goes on behind such
+    /// a hit). By default the hits are asked of [`Tracer::next_hits_from`], again for the rays
+    /// whose hit is the same crossing ([`next_crossings_by_queries`]); tracers may skip such a
+    /// hit inside one query.
+    fn next_crossings(
+        &self,
+        i: usize,
+        rays: &[GridRay],
+        behind: &[Behind],
+        tmax: &[f64],
+        out: &mut [Option<SurfaceHit>],
+    ) {
+        next_crossings_by_queries(self, i, rays, behind, tmax, out)
+    }
+
     /// Drops the pages of the file traced from the resident set (between bands of a frame);
     /// a no-op unless the source holds a file.
     fn release_pages(&self) {}
@@ -107,6 +124,83 @@ pub trait Tracer {
     /// The colour data gives surface `i` at `hit`; `None` (the default) keeps the surface's own.
     fn paint(&self, _i: usize, _hit: &SurfaceHit) -> Option<Paint> {
         None
+    }
+}
+
+/// A crossing of a surface a ray has taken, behind which the search for the surface's next
+/// crossing goes on.
+///
+/// Where a ray passes through a face, edge or corner shared by two octants, both octants report
+/// the crossing (their segments are widened so that none is lost), a hair apart along the ray.
+/// Compositing such a duplicate would draw a transparent surface twice along every octant
+/// boundary. A real next crossing of a surface leaves it on the other side, so a hit that is
+/// close behind and crosses in the same direction is the same crossing, and is skipped.
+#[derive(Clone, Copy, Debug)]
+pub struct Behind {
+    /// The crossing's `t`.
+    pub t: f64,
+    /// The crossing's direction ([`SurfaceHit::rising`]).
+    pub rising: bool,
+    /// How far behind a crossing the search goes on.
+    pub step: f64,
+    /// How close behind a crossing in the same direction is the same crossing.
+    pub same_within: f64,
+}
+
+impl Behind {
+    /// Where the search starts.
+    pub fn start(&self) -> f64 {
+        self.t + self.step
+    }
+
+    /// `None` when a hit at `t` crossing in direction `rising` is a new crossing; else where
+    /// the search goes on.
+    pub fn again_after(&self, t: f64, rising: bool) -> Option<f64> {
+        let duplicate = t - self.t < self.same_within && rising == self.rising;
+        duplicate.then_some(t + self.step)
+    }
+}
+
+/// [`Tracer::next_crossings`] through [`Tracer::next_hits_from`], asked again for the rays whose
+/// hit is the same crossing: what tracers without their own give.
+pub fn next_crossings_by_queries<T: Tracer + ?Sized>(
+    tracer: &T,
+    i: usize,
+    rays: &[GridRay],
+    behind: &[Behind],
+    tmax: &[f64],
+    out: &mut [Option<SurfaceHit>],
+) {
+    for (((rays, behind), tmax), out) in rays
+        .chunks(PACKET)
+        .zip(behind.chunks(PACKET))
+        .zip(tmax.chunks(PACKET))
+        .zip(out.chunks_mut(PACKET))
+    {
+        let mut from = [0.0; PACKET];
+        for (from, behind) in from.iter_mut().zip(behind) {
+            *from = behind.start();
+        }
+        let mut pending: Mask = !0 >> (PACKET - rays.len());
+        let mut r = [rays[0]; PACKET];
+        let (mut t0, mut t1, mut found) = ([0.0; PACKET], [0.0; PACKET], [None; PACKET]);
+        while pending != 0 {
+            let mut c = 0;
+            for k in rays_of(pending) {
+                (r[c], t0[c], t1[c]) = (rays[k], from[k], tmax[k]);
+                c += 1;
+            }
+            tracer.next_hits_from(i, &r[..c], &t0[..c], &t1[..c], &mut found[..c]);
+            for (j, k) in rays_of(pending).enumerate() {
+                match found[j].and_then(|h| behind[k].again_after(h.t, h.rising)) {
+                    Some(t) => from[k] = t,
+                    None => {
+                        out[k] = found[j];
+                        pending &= !(1 << k);
+                    }
+                }
+            }
+        }
     }
 }
 
@@ -184,6 +278,29 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
         {
             let hits = &mut hits[..rays.len()];
             self.surfaces[i].closest_hits(self.src, rays, tmin, tmax, hits);
+            for ((out, h), ray) in out.iter_mut().zip(hits.iter()).zip(rays) {
+                *out = h.map(|h| self.surface_hit(h, ray));
+            }
+        }
+    }
+
+    fn next_crossings(
+        &self,
+        i: usize,
+        rays: &[GridRay],
+        behind: &[Behind],
+        tmax: &[f64],
+        out: &mut [Option<SurfaceHit>],
+    ) {
+        let mut hits = [None; PACKET];
+        for (((rays, behind), tmax), out) in rays
+            .chunks(PACKET)
+            .zip(behind.chunks(PACKET))
+            .zip(tmax.chunks(PACKET))
+            .zip(out.chunks_mut(PACKET))
+        {
+            let hits = &mut hits[..rays.len()];
+            self.surfaces[i].closest_hits_behind(self.src, rays, behind, tmax, hits);
             for ((out, h), ray) in out.iter_mut().zip(hits.iter()).zip(rays) {
                 *out = h.map(|h| self.surface_hit(h, ray));
             }

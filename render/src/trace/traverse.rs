@@ -6,9 +6,12 @@ use obvhs::ray::Ray;
 
 use crate::bvh::packet::{rays_of, Mask, PACKET};
 use crate::bvh::{BoxGrid, BoxRun, BvhBuilder, OctantBvh};
+use crate::camera::dot;
 use crate::trace::last_hit::{self, Query};
+use crate::trace::octant::VoxelHit;
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
+use crate::trace::tracer::Behind;
 
 /// One isosurface ready to trace: its isovalue and the BVH over its active voxels.
 #[derive(Clone, Debug, Default)]
@@ -44,6 +47,15 @@ impl Hit {
         let g = self.voxel.grad_local(self.local);
         [0, 1, 2].map(|a| g[a] / (self.voxel.hi[a] - self.voxel.lo[a]))
     }
+}
+
+/// Whether the field rises through the isovalue along `ray` at its hit `h` in `voxel`: the
+/// crossing's direction, as [`crate::trace::tracer::SurfaceHit::rising`] has it.
+#[inline]
+fn rising(voxel: &Voxel, h: &VoxelHit, ray: &GridRay) -> bool {
+    let g = voxel.grad_local(h.local);
+    let g = [0, 1, 2].map(|a| g[a] / (voxel.hi[a] - voxel.lo[a]));
+    dot(g, ray.d) > 0.0
 }
 
 /// The padding (grid units) by which voxel boxes are grown in the `f32` BVH: a few thousand `f32`
@@ -203,6 +215,47 @@ impl Surface {
         tmax: &[f64],
         out: &mut [Option<Hit>],
     ) {
+        self.closest_hits_skipping::<S, false>(src, rays, tmin, tmax, &[], out);
+    }
+
+    /// The next crossing of each of `rays` (at most [`PACKET`]) behind the crossing `behind[k]`
+    /// it has taken, up to `tmax[k]`, into `out[k]`: [`Surface::closest_hits`] from
+    /// [`Behind::start`], except that a voxel whose hit is that crossing again
+    /// ([`Behind::again_after`], a neighbouring voxel's widened segment meeting it) is asked
+    /// again behind its hit, in the same walk, instead of the whole query being asked again
+    /// ([`crate::trace::tracer::next_crossings_by_queries`]). The two differ only where another
+    /// voxel has a crossing less than [`Behind::step`] behind the repeated one, which a new
+    /// query would skip.
+    pub fn closest_hits_behind<S: VoxelSource + ?Sized>(
+        &self,
+        src: &S,
+        rays: &[GridRay],
+        behind: &[Behind],
+        tmax: &[f64],
+        out: &mut [Option<Hit>],
+    ) {
+        let n = rays.len();
+        assert!(n <= PACKET && behind.len() == n);
+        let mut tmin = [0.0; PACKET];
+        for (t, b) in tmin.iter_mut().zip(behind) {
+            *t = b.start();
+        }
+        self.closest_hits_skipping::<S, true>(src, rays, &tmin[..n], tmax, behind, out);
+    }
+
+    /// [`Surface::closest_hits`], a hit of ray `k` that is `behind[k]` again skipped when `SKIP`
+    /// ([`Surface::closest_hits_behind`]; a parameter of the type, so that the primary rays'
+    /// walk has no test of it).
+    #[inline(always)]
+    fn closest_hits_skipping<S: VoxelSource + ?Sized, const SKIP: bool>(
+        &self,
+        src: &S,
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: &[f64],
+        behind: &[Behind],
+        out: &mut [Option<Hit>],
+    ) {
         let n = rays.len();
         assert!(n <= PACKET && tmin.len() == n && tmax.len() == n && out.len() == n);
         let frame = src.frame();
@@ -218,7 +271,14 @@ impl Surface {
             out[k] = None;
             best_t[k] = tmax[k];
             recips[k] = rays[k].recip();
-            if let Some(b) = rays[k].bvh_ray_with(&recips[k], &frame, pad, tmin[k], tmax[k]) {
+            // A query behind a hit needs no voxel wholly before its `tmin`, which the exact
+            // test rejects: its walk starts just before `tmin` (as any-hit walks do).
+            let b = if tmin[k] > 0.0 {
+                rays[k].bvh_ray_ahead(&frame, pad, tmin[k], tmax[k])
+            } else {
+                rays[k].bvh_ray_with(&recips[k], &frame, pad, tmin[k], tmax[k])
+            };
+            if let Some(b) = b {
                 ray32[k] = b.ray;
                 back[k] = (b.t_off, b.scale);
                 active |= 1 << k;
@@ -248,10 +308,20 @@ impl Surface {
                             &mut found[..n],
                         );
                     }
-                    for k in rays_of(m) {
-                        let Some(h) = found[k] else {
+                    'rays: for k in rays_of(m) {
+                        let Some(mut h) = found[k] else {
                             continue;
                         };
+                        if SKIP {
+                            while let Some(t) =
+                                behind[k].again_after(h.t, rising(&voxel, &h, &rays[k]))
+                            {
+                                match src.intersect(&voxel, self.iso, &rays[k], t, best_t[k]) {
+                                    Some(next) => h = next,
+                                    None => continue 'rays,
+                                }
+                            }
+                        }
                         if h.t < best_t[k] || out[k].is_none() {
                             best_t[k] = h.t;
                             out[k] = Some(Hit {

@@ -185,10 +185,17 @@ impl Segment {
     #[inline]
     fn first_hit(&self) -> Option<VoxelHit> {
         let s = self.cubic.first_root(0.0, 1.0, self.tol)?;
-        Some(VoxelHit {
-            t: self.ta + s * (self.tb - self.ta),
-            local: [0, 1, 2].map(|a| self.p0[a] + s * self.q[a]),
-        })
+        Some(Self::hit_at(s, (self.ta, self.tb), self.p0, self.q))
+    }
+
+    /// The point at `s` of the segment from ray parameter `ta` to `tb`, which starts at
+    /// voxel-local `p0` and extends `q`.
+    #[inline(always)]
+    fn hit_at(s: f64, (ta, tb): (f64, f64), p0: [f64; 3], q: [f64; 3]) -> VoxelHit {
+        VoxelHit {
+            t: ta + s * (tb - ta),
+            local: [0, 1, 2].map(|a| p0[a] + s * q[a]),
+        }
     }
 }
 

@@ -9,7 +9,7 @@
 
 use std::arch::x86_64::*;
 
-use super::{Segment, VoxelHit, VoxelSetup, SEGMENT_WIDEN};
+use super::{exact_recips, Segment, VoxelHit, VoxelSetup, SEGMENT_WIDEN};
 use crate::bvh::packet::{rays_of, Mask};
 use crate::trace::cubic::Cubic;
 use crate::trace::ray::GridRay;
@@ -42,6 +42,11 @@ pub(super) fn hits(
             && end <= tmax.len()
             && end <= hits.len()
     );
+    let w = [0, 1, 2].map(|a| voxel.hi[a] - voxel.lo[a]);
+    let extent = Extent {
+        w,
+        recip: exact_recips(w),
+    };
     let mut left = rays_of(m);
     while let Some(first) = left.next() {
         // Up to four rays; a short group repeats its first ray in the spare lanes.
@@ -53,13 +58,19 @@ pub(super) fn hits(
         }
         // SAFETY: each `ks[i]` is a ray of `m`, below `end`, which all five slices reach.
         let lanes = unsafe { Lanes::new(rays, recips, tmin, tmax, ks) };
-        let segs = lanes.segments(voxel, setup);
+        let segs = lanes.segments(voxel, &extent, setup);
         for (i, &k) in ks[..n].iter().enumerate() {
             let hit = segs.as_ref().and_then(|segs| segs.first_hit(i));
             // SAFETY: as above.
             unsafe { *hits.get_unchecked_mut(k) = hit };
         }
     }
+}
+
+/// The voxel's extent on each axis, and their reciprocals when those are exact.
+struct Extent {
+    w: [f64; 3],
+    recip: Option<[f64; 3]>,
 }
 
 /// Four rays, each quantity one register with ray `i` in lane `i`.
@@ -184,7 +195,7 @@ impl Lanes {
     /// test, which `setup` passed); `None` when no lane has one.
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn segments(&self, voxel: &Voxel, setup: &VoxelSetup) -> Option<Segments> {
+    fn segments(&self, voxel: &Voxel, extent: &Extent, setup: &VoxelSetup) -> Option<Segments> {
         let lo = voxel.lo.map(|x| _mm256_set1_pd(x));
         let hi = voxel.hi.map(|x| _mm256_set1_pd(x));
         // The box clip (`GridRay::clip_with`): an axis the ray is parallel to rejects the lanes
@@ -224,22 +235,27 @@ impl Lanes {
         let mut p0 = [_mm256_setzero_pd(); 3];
         let mut q = [_mm256_setzero_pd(); 3];
         for a in 0..3 {
-            let w = _mm256_set1_pd(voxel.hi[a] - voxel.lo[a]);
+            let w = _mm256_set1_pd(extent.w[a]);
             let rel = _mm256_sub_pd(self.o[a], lo[a]);
-            let local =
-                |t: __m256d| _mm256_div_pd(_mm256_add_pd(rel, _mm256_mul_pd(t, self.d[a])), w);
+            let local = |t: __m256d| {
+                let x = _mm256_add_pd(rel, _mm256_mul_pd(t, self.d[a]));
+                match extent.recip {
+                    Some(r) => _mm256_mul_pd(x, _mm256_set1_pd(r[a])),
+                    None => _mm256_div_pd(x, w),
+                }
+            };
             p0[a] = local(ta);
             q[a] = _mm256_sub_pd(local(tb), p0[a]);
         }
         let c = along_segment(&setup.c, p0, q);
         // The Bernstein hull (`Cubic::clear_of_zero_on_unit`).
-        let third = _mm256_set1_pd(3.0);
+        let third = _mm256_set1_pd(1.0 / 3.0);
         let b = [
             c[0],
-            _mm256_add_pd(c[0], _mm256_div_pd(c[1], third)),
+            _mm256_add_pd(c[0], _mm256_mul_pd(c[1], third)),
             _mm256_add_pd(
                 _mm256_add_pd(c[0], _mm256_mul_pd(_mm256_set1_pd(2.0 / 3.0), c[1])),
-                _mm256_div_pd(c[2], third),
+                _mm256_mul_pd(c[2], third),
             ),
             _mm256_add_pd(_mm256_add_pd(_mm256_add_pd(c[0], c[1]), c[2]), c[3]),
         ];

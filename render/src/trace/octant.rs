@@ -149,7 +149,7 @@ impl Segment {
 
     /// The segment of `ray` in `voxel` within `[tmin, tmax]`, given the ray's interval
     /// `[t_in, t_out]` in the voxel's box.
-    #[inline]
+    #[inline(always)]
     fn in_box(
         voxel: &Voxel,
         setup: &VoxelSetup,
@@ -212,9 +212,11 @@ impl Segment {
 #[inline]
 fn exact_recips(w: [f64; 3]) -> Option<[f64; 3]> {
     const MANTISSA: u64 = (1 << 52) - 1;
-    w.iter()
-        .all(|&x| x.is_normal() && x > 0.0 && x.to_bits() & MANTISSA == 0)
-        .then(|| w.map(|x| 1.0 / x))
+    // No mantissa bits, positive and finite: a normal power of two (zero, infinity and the
+    // subnormals fail one test), whose reciprocal, normal or subnormal, is exact. Without
+    // short-circuits: three tests per axis, one branch.
+    let power_of_two = |x: f64| (x.to_bits() & MANTISSA == 0) & (x > 0.0) & (x < f64::INFINITY);
+    (power_of_two(w[0]) & power_of_two(w[1]) & power_of_two(w[2])).then(|| w.map(|x| 1.0 / x))
 }
 
 /// The trilinear interpolant of corner values `c` along `u(s) = p0 + s q`, as a cubic in `s`.

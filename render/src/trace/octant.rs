@@ -149,7 +149,7 @@ impl Segment {
 
     /// The segment of `ray` in `voxel` within `[tmin, tmax]`, given the ray's interval
     /// `[t_in, t_out]` in the voxel's box.
-    #[inline(always)]
+    #[inline]
     fn in_box(
         voxel: &Voxel,
         setup: &VoxelSetup,
@@ -162,14 +162,7 @@ impl Segment {
         let ta = larger(tmin, t_in - widen);
         let tb = smaller(tmax, t_out + widen);
         let w = [0, 1, 2].map(|a| voxel.hi[a] - voxel.lo[a]);
-        let recip = exact_recips(w);
-        let local = |t: f64| {
-            let x = [0, 1, 2].map(|a| (ray.o[a] - voxel.lo[a]) + t * ray.d[a]);
-            match recip {
-                Some(r) => [0, 1, 2].map(|a| x[a] * r[a]),
-                None => [0, 1, 2].map(|a| x[a] / w[a]),
-            }
-        };
+        let local = |t: f64| [0, 1, 2].map(|a| ((ray.o[a] - voxel.lo[a]) + t * ray.d[a]) / w[a]);
         let p0 = local(ta);
         let p1 = local(tb);
         let q = [0, 1, 2].map(|a| p1[a] - p0[a]);
@@ -208,7 +201,9 @@ impl Segment {
 
 /// The reciprocals of the extents `w` when each is a power of two: then `x * r` is `x / w` bit
 /// for bit (both round the same real number, as the reciprocal is exact), and a multiplication
-/// is several times cheaper than a division. AMR voxels inside one level have such extents.
+/// is several times cheaper than a division. AMR voxels inside one level have such extents. For
+/// the packet test, which computes them once per voxel for all its rays; a single ray's test
+/// divides (three divisions for the reciprocals would save it only three).
 #[inline]
 fn exact_recips(w: [f64; 3]) -> Option<[f64; 3]> {
     const MANTISSA: u64 = (1 << 52) - 1;

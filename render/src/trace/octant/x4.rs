@@ -1,10 +1,12 @@
 //! The rays of a packet that reach one voxel, four at a time in AVX2 lanes: the box clip, the
 //! segment's widening and local coordinates, the cubic and its Bernstein hull test, each lane
 //! computed with exactly the `f64` operations, in the same order, of the single-ray
-//! [`Segment::new`], so that every ray gets the same candidate segment bit for bit. Only the
+//! [`Segment::new`] (but for the local coordinates' divisions by the voxel's extents, which
+//! become multiplications by their reciprocals when those are exact, bit for bit the same), so
+//! that every ray gets the same candidate segment bit for bit. Only the
 //! root finding of the segments that pass ([`Segment::first_hit`]) stays one ray at a time.
 //!
-//! A candidate's test is a long chain of dependent operations (clip, widening, six divisions,
+//! A candidate's test is a long chain of dependent operations (clip, widening, local coordinates,
 //! cubic, hull); four independent chains in one register replace four chains one after the other.
 
 use std::arch::x86_64::*;

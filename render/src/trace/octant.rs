@@ -212,7 +212,7 @@ fn exact_recips(w: [f64; 3]) -> Option<[f64; 3]> {
     let bits = w.map(f64::to_bits);
     // No mantissa bits, sign clear, `E` in 1..=2045: a positive normal power of two whose
     // reciprocal is normal (zero, the subnormals, the largest power, infinity and NaN fail).
-    let power_of_two = |b: u64| (b & MANTISSA == 0) & (b >= 1 << 52) & (b <= 2045 << 52);
+    let power_of_two = |b: u64| (b & MANTISSA == 0) & (1 << 52..=2045 << 52).contains(&b);
     (power_of_two(bits[0]) & power_of_two(bits[1]) & power_of_two(bits[2]))
         .then(|| bits.map(|b| f64::from_bits(FLIP - b)))
 }

@@ -185,11 +185,36 @@ impl Segment {
     #[inline]
     fn first_hit(&self) -> Option<VoxelHit> {
         let s = self.cubic.first_root(0.0, 1.0, self.tol)?;
-        Some(VoxelHit {
-            t: self.ta + s * (self.tb - self.ta),
-            local: [0, 1, 2].map(|a| self.p0[a] + s * self.q[a]),
-        })
+        Some(Self::hit_at(s, (self.ta, self.tb), self.p0, self.q))
     }
+
+    /// The point at `s` of the segment from ray parameter `ta` to `tb`, which starts at
+    /// voxel-local `p0` and extends `q`.
+    #[inline(always)]
+    fn hit_at(s: f64, (ta, tb): (f64, f64), p0: [f64; 3], q: [f64; 3]) -> VoxelHit {
+        VoxelHit {
+            t: ta + s * (tb - ta),
+            local: [0, 1, 2].map(|a| p0[a] + s * q[a]),
+        }
+    }
+}
+
+/// The reciprocals of the extents `w` when each is a power of two: then `x * r` is `x / w` bit
+/// for bit (both round the same real number, as the reciprocal is exact), and a multiplication
+/// is several times cheaper than a division. AMR voxels inside one level have such extents. For
+/// the packet test, which computes them once per voxel for all its rays; a single ray's test
+/// divides.
+#[inline]
+fn exact_recips(w: [f64; 3]) -> Option<[f64; 3]> {
+    const MANTISSA: u64 = (1 << 52) - 1;
+    // `2^e` has biased exponent `E = e + 1023` and `2^-e` has `2046 - E`: no division needed.
+    const FLIP: u64 = 2046 << 52;
+    let bits = w.map(f64::to_bits);
+    // No mantissa bits, sign clear, `E` in 1..=2045: a positive normal power of two whose
+    // reciprocal is normal (zero, the subnormals, the largest power, infinity and NaN fail).
+    let power_of_two = |b: u64| (b & MANTISSA == 0) & (1 << 52..=2045 << 52).contains(&b);
+    (power_of_two(bits[0]) & power_of_two(bits[1]) & power_of_two(bits[2]))
+        .then(|| bits.map(|b| f64::from_bits(FLIP - b)))
 }
 
 /// The trilinear interpolant of corner values `c` along `u(s) = p0 + s q`, as a cubic in `s`.
@@ -243,6 +268,32 @@ mod tests {
             let s = i as f64 / 10.0;
             let u = [0, 1, 2].map(|a| p0[a] + s * q[a]);
             assert!((cubic.eval(s) - v.eval_local(u)).abs() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn exact_reciprocals_only_of_powers_of_two() {
+        for e in -1022..=1022 {
+            let x = 2f64.powi(e);
+            assert_eq!(
+                exact_recips([x, 1.0, 0.5]),
+                Some([1.0 / x, 1.0, 2.0]),
+                "{e}"
+            );
+        }
+        for x in [
+            0.0,
+            -0.0,
+            -1.0,
+            3.0,
+            0.75,
+            f64::MAX,
+            2f64.powi(1023),
+            f64::MIN_POSITIVE / 2.0,
+            f64::INFINITY,
+            f64::NAN,
+        ] {
+            assert_eq!(exact_recips([1.0, x, 1.0]), None, "{x}");
         }
     }
 

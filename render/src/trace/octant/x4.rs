@@ -1,16 +1,19 @@
 //! The rays of a packet that reach one voxel, four at a time in AVX2 lanes: the box clip, the
 //! segment's widening and local coordinates, the cubic and its Bernstein hull test, each lane
 //! computed with exactly the `f64` operations, in the same order, of the single-ray
-//! [`Segment::new`], so that every ray gets the same candidate segment bit for bit. Only the
+//! [`Segment::new`] (but for the local coordinates' divisions by the voxel's extents, which
+//! become multiplications by their reciprocals when those are exact, bit for bit the same), so
+//! that every ray gets the same candidate segment bit for bit. Only the
 //! root finding of the segments that pass ([`Segment::first_hit`]) stays one ray at a time.
 //!
-//! A candidate's test is a long chain of dependent operations (clip, widening, six divisions,
+//! A candidate's test is a long chain of dependent operations (clip, widening, local coordinates,
 //! cubic, hull); four independent chains in one register replace four chains one after the other.
 
 use std::arch::x86_64::*;
 
-use super::{Segment, VoxelHit, VoxelSetup, SEGMENT_WIDEN};
+use super::{exact_recips, Segment, VoxelHit, VoxelSetup, SEGMENT_WIDEN};
 use crate::bvh::packet::{rays_of, Mask};
+use crate::trace::cubic::Cubic;
 use crate::trace::ray::GridRay;
 use crate::trace::source::Voxel;
 
@@ -31,6 +34,21 @@ pub(super) fn hits(
     tmax: &[f64],
     hits: &mut [Option<VoxelHit>],
 ) {
+    // One past the last ray of `m`: every ray the groups below read lies below it, so their
+    // reads go unchecked.
+    let end = (Mask::BITS - m.leading_zeros()) as usize;
+    assert!(
+        end <= rays.len()
+            && end <= recips.len()
+            && end <= tmin.len()
+            && end <= tmax.len()
+            && end <= hits.len()
+    );
+    let w = [0, 1, 2].map(|a| voxel.hi[a] - voxel.lo[a]);
+    let extent = Extent {
+        w,
+        recip: exact_recips(w),
+    };
     let mut left = rays_of(m);
     while let Some(first) = left.next() {
         // Up to four rays; a short group repeats its first ray in the spare lanes.
@@ -40,12 +58,21 @@ pub(super) fn hits(
             ks[n] = k;
             n += 1;
         }
-        let lanes = Lanes::new(rays, recips, tmin, tmax, ks);
-        let segs = lanes.segments(voxel, setup);
+        // SAFETY: each `ks[i]` is a ray of `m`, below `end`, which all five slices reach.
+        let lanes = unsafe { Lanes::new(rays, recips, tmin, tmax, ks) };
+        let segs = lanes.segments(voxel, &extent, setup);
         for (i, &k) in ks[..n].iter().enumerate() {
-            hits[k] = segs.get(i).and_then(|seg| seg.first_hit());
+            let hit = segs.as_ref().and_then(|segs| segs.first_hit(i));
+            // SAFETY: as above.
+            unsafe { *hits.get_unchecked_mut(k) = hit };
         }
     }
+}
+
+/// The voxel's extent on each axis, and their reciprocals when those are exact.
+struct Extent {
+    w: [f64; 3],
+    recip: Option<[f64; 3]>,
 }
 
 /// Four rays, each quantity one register with ray `i` in lane `i`.
@@ -57,31 +84,52 @@ struct Lanes {
     tmax: __m256d,
 }
 
+/// Four `f64`, one per lane, aligned for a register's store.
+#[derive(Clone, Copy)]
+#[repr(C, align(32))]
+struct PerLane([f64; 4]);
+
+impl PerLane {
+    /// The register's four lanes.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn of(v: __m256d) -> PerLane {
+        let mut out = PerLane([0.0; 4]);
+        // SAFETY: `out` is 32 bytes aligned to 32.
+        unsafe { _mm256_store_pd(out.0.as_mut_ptr(), v) };
+        out
+    }
+}
+
 /// The four rays' segments in one voxel, lane by lane: `pass` has bit `i` when ray `i` has one.
 struct Segments {
     pass: i32,
-    ta: [f64; 4],
-    tb: [f64; 4],
-    p0: [[f64; 4]; 3],
-    q: [[f64; 4]; 3],
-    c: [[f64; 4]; 4],
+    ta: PerLane,
+    tb: PerLane,
+    p0: [PerLane; 3],
+    q: [PerLane; 3],
+    c: [PerLane; 4],
     tol: f64,
 }
 
 impl Segments {
-    /// Lane `i`'s segment, if it has one.
+    /// Lane `i`'s first hit with the surface ([`Segment::first_hit`] of its segment), if it has
+    /// a segment.
     #[inline(always)]
-    fn get(&self, i: usize) -> Option<Segment> {
-        (self.pass >> i & 1 != 0).then(|| Segment {
-            ta: self.ta[i],
-            tb: self.tb[i],
-            p0: [0, 1, 2].map(|a| self.p0[a][i]),
-            q: [0, 1, 2].map(|a| self.q[a][i]),
-            cubic: crate::trace::cubic::Cubic {
-                c: [0, 1, 2, 3].map(|j| self.c[j][i]),
-            },
-            tol: self.tol,
-        })
+    fn first_hit(&self, i: usize) -> Option<VoxelHit> {
+        if self.pass >> i & 1 == 0 {
+            return None;
+        }
+        let cubic = Cubic {
+            c: [0, 1, 2, 3].map(|j| self.c[j].0[i]),
+        };
+        let s = cubic.first_root(0.0, 1.0, self.tol)?;
+        Some(Segment::hit_at(
+            s,
+            (self.ta.0[i], self.tb.0[i]),
+            [0, 1, 2].map(|a| self.p0[a].0[i]),
+            [0, 1, 2].map(|a| self.q[a].0[i]),
+        ))
     }
 }
 
@@ -109,28 +157,33 @@ fn abs(x: __m256d) -> __m256d {
 
 impl Lanes {
     /// The rays `ks` of the packet, ray `ks[i]` in lane `i`.
+    ///
+    /// # Safety
+    /// Each `ks[i]` must index all four slices.
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn new(
+    unsafe fn new(
         rays: &[GridRay],
         recips: &[[f64; 3]],
         tmin: &[f64],
         tmax: &[f64],
         ks: [usize; 4],
     ) -> Lanes {
-        let r = [&rays[ks[0]], &rays[ks[1]], &rays[ks[2]], &rays[ks[3]]];
-        let v = [
-            &recips[ks[0]],
-            &recips[ks[1]],
-            &recips[ks[2]],
-            &recips[ks[3]],
-        ];
+        // SAFETY: the caller's promise.
+        let (r, v, t0, t1) = unsafe {
+            (
+                ks.map(|k| rays.get_unchecked(k)),
+                ks.map(|k| recips.get_unchecked(k)),
+                ks.map(|k| *tmin.get_unchecked(k)),
+                ks.map(|k| *tmax.get_unchecked(k)),
+            )
+        };
         let mut lanes = Lanes {
             o: [_mm256_setzero_pd(); 3],
             d: [_mm256_setzero_pd(); 3],
             recip: [_mm256_setzero_pd(); 3],
-            tmin: _mm256_setr_pd(tmin[ks[0]], tmin[ks[1]], tmin[ks[2]], tmin[ks[3]]),
-            tmax: _mm256_setr_pd(tmax[ks[0]], tmax[ks[1]], tmax[ks[2]], tmax[ks[3]]),
+            tmin: _mm256_setr_pd(t0[0], t0[1], t0[2], t0[3]),
+            tmax: _mm256_setr_pd(t1[0], t1[1], t1[2], t1[3]),
         };
         for a in 0..3 {
             lanes.o[a] = _mm256_setr_pd(r[0].o[a], r[1].o[a], r[2].o[a], r[3].o[a]);
@@ -141,10 +194,10 @@ impl Lanes {
     }
 
     /// Each lane's segment in `voxel`, as [`Segment::new`] makes it (after the set-up's range
-    /// test, which `setup` passed).
+    /// test, which `setup` passed); `None` when no lane has one.
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn segments(&self, voxel: &Voxel, setup: &VoxelSetup) -> Segments {
+    fn segments(&self, voxel: &Voxel, extent: &Extent, setup: &VoxelSetup) -> Option<Segments> {
         let lo = voxel.lo.map(|x| _mm256_set1_pd(x));
         let hi = voxel.hi.map(|x| _mm256_set1_pd(x));
         // The box clip (`GridRay::clip_with`): an axis the ray is parallel to rejects the lanes
@@ -170,17 +223,9 @@ impl Lanes {
             t1 = _mm256_blendv_pd(smaller(t1, tb), t1, flat);
         }
         let inside = _mm256_andnot_pd(reject, _mm256_cmp_pd::<_CMP_LE_OQ>(t0, t1));
-        let mut out = Segments {
-            pass: _mm256_movemask_pd(inside),
-            ta: [0.0; 4],
-            tb: [0.0; 4],
-            p0: [[0.0; 4]; 3],
-            q: [[0.0; 4]; 3],
-            c: [[0.0; 4]; 4],
-            tol: setup.tol,
-        };
-        if out.pass == 0 {
-            return out;
+        let clipped = _mm256_movemask_pd(inside);
+        if clipped == 0 {
+            return None;
         }
         // The widened segment (`Segment::in_box`).
         let widen = _mm256_add_pd(
@@ -192,22 +237,27 @@ impl Lanes {
         let mut p0 = [_mm256_setzero_pd(); 3];
         let mut q = [_mm256_setzero_pd(); 3];
         for a in 0..3 {
-            let w = _mm256_set1_pd(voxel.hi[a] - voxel.lo[a]);
+            let w = _mm256_set1_pd(extent.w[a]);
             let rel = _mm256_sub_pd(self.o[a], lo[a]);
-            let local =
-                |t: __m256d| _mm256_div_pd(_mm256_add_pd(rel, _mm256_mul_pd(t, self.d[a])), w);
+            let local = |t: __m256d| {
+                let x = _mm256_add_pd(rel, _mm256_mul_pd(t, self.d[a]));
+                match extent.recip {
+                    Some(r) => _mm256_mul_pd(x, _mm256_set1_pd(r[a])),
+                    None => _mm256_div_pd(x, w),
+                }
+            };
             p0[a] = local(ta);
             q[a] = _mm256_sub_pd(local(tb), p0[a]);
         }
         let c = along_segment(&setup.c, p0, q);
         // The Bernstein hull (`Cubic::clear_of_zero_on_unit`).
-        let third = _mm256_set1_pd(3.0);
+        let third = _mm256_set1_pd(1.0 / 3.0);
         let b = [
             c[0],
-            _mm256_add_pd(c[0], _mm256_div_pd(c[1], third)),
+            _mm256_add_pd(c[0], _mm256_mul_pd(c[1], third)),
             _mm256_add_pd(
                 _mm256_add_pd(c[0], _mm256_mul_pd(_mm256_set1_pd(2.0 / 3.0), c[1])),
-                _mm256_div_pd(c[2], third),
+                _mm256_mul_pd(c[2], third),
             ),
             _mm256_add_pd(_mm256_add_pd(_mm256_add_pd(c[0], c[1]), c[2]), c[3]),
         ];
@@ -225,24 +275,19 @@ impl Lanes {
             above_all = _mm256_and_pd(above_all, _mm256_cmp_pd::<_CMP_GT_OQ>(x, margin));
             below_all = _mm256_and_pd(below_all, _mm256_cmp_pd::<_CMP_LT_OQ>(x, below));
         }
-        out.pass &= !_mm256_movemask_pd(_mm256_or_pd(above_all, below_all));
-        if out.pass == 0 {
-            return out;
+        let pass = clipped & !_mm256_movemask_pd(_mm256_or_pd(above_all, below_all));
+        if pass == 0 {
+            return None;
         }
-        let store = |dst: &mut [f64; 4], v: __m256d| {
-            // SAFETY: `dst` holds four `f64`; unaligned store.
-            unsafe { _mm256_storeu_pd(dst.as_mut_ptr(), v) }
-        };
-        store(&mut out.ta, ta);
-        store(&mut out.tb, tb);
-        for a in 0..3 {
-            store(&mut out.p0[a], p0[a]);
-            store(&mut out.q[a], q[a]);
-        }
-        for j in 0..4 {
-            store(&mut out.c[j], c[j]);
-        }
-        out
+        Some(Segments {
+            pass,
+            ta: PerLane::of(ta),
+            tb: PerLane::of(tb),
+            p0: p0.map(|v| PerLane::of(v)),
+            q: q.map(|v| PerLane::of(v)),
+            c: c.map(|v| PerLane::of(v)),
+            tol: setup.tol,
+        })
     }
 }
 

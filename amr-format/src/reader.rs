@@ -290,7 +290,10 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
 
     /// Where field `field`'s values of every brick are stored, in brick order:
     /// [`Self::brick_data`] of each, in one pass over the table.
-    pub fn brick_locations(&self, field: usize) -> impl ExactSizeIterator<Item = BrickLocation> + '_ {
+    pub fn brick_locations(
+        &self,
+        field: usize,
+    ) -> impl ExactSizeIterator<Item = BrickLocation> + '_ {
         self.field_brick_records(field).iter().map(location)
     }
 

@@ -640,23 +640,21 @@ fn from_kd_node(
         }
         _ => {
             // At most `BUCKET` leaves: gathered in depth-first order into one bottom node.
-            for n in tree.nodes.get(i..end)? {
-                if n.b.get() & 3 == KD_LEAF {
-                    let leaf = n.a.get();
-                    all.boxes.get(leaf as usize)?;
-                    order.push(leaf);
-                }
-            }
-            let leaves = &order[first as usize..];
-            let mut bounds = all.boxes[*leaves.first()? as usize];
+            let mut bounds: Option<IBox> = None;
             let mut coarsest = u32::MAX;
             let mut complete = true;
-            for &l in leaves {
-                let lv = all.levels[l as usize];
-                bounds = bounds.union(&all.boxes[l as usize]);
+            for n in tree.nodes.get(i..end)? {
+                if n.b.get() & 3 != KD_LEAF {
+                    continue;
+                }
+                let leaf = n.a.get();
+                let (b, lv) = (all.boxes.get(leaf as usize)?, all.levels[leaf as usize]);
+                order.push(leaf);
+                bounds = Some(bounds.map_or(*b, |u| u.union(b)));
                 coarsest = coarsest.min(lv);
                 complete &= lv != u32::MAX;
             }
+            let bounds = bounds?;
             nodes.push(Node {
                 bounds,
                 coarsest,

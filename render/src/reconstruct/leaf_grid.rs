@@ -5,19 +5,14 @@
 //! Every entry is either a leaf whose box contains its grid cell or a node whose region
 //! contains it (the root when nothing better is known), so [`LeafGrid::find_leaf`] gives
 //! [`TreeView::find_leaf`]'s answer for every cell, whatever the table's resolution.
-//!
-//! Entries are filled on first use, by one walk from the root per grid cell: an extraction
-//! asks for few of them (2,932 of 373,248 on a file of 60,860 leaves of 2 to 4 cells, where
-//! filling them all cost 10 M instructions, more than the walks the table saves).
-
-use std::sync::atomic::{AtomicU32, Ordering};
 
 use amr_format::kdtree::{KdNode, TreeView};
+use amr_format::IBox;
+
+use super::grid::axes;
 
 /// Flags a table entry naming a node to walk from rather than a leaf.
 const NODE: u32 = 1 << 31;
-/// An entry not filled yet (a node index no tree of the sizes [`LeafGrid::new`] fills has).
-const UNKNOWN: u32 = u32::MAX;
 
 /// Fewest grid cells the table is allowed, whatever the number of leaves.
 const MIN_ENTRIES: u64 = 1 << 15;
@@ -28,7 +23,7 @@ const ENTRIES_PER_LEAF: u64 = 16;
 
 /// A uniform grid of cubes of `2^shift` finest cells over the domain, naming per cube the leaf or
 /// the node to walk from.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct LeafGrid {
     /// log2 of a grid cell's edge in finest cells.
     shift: u32,
@@ -36,9 +31,8 @@ pub struct LeafGrid {
     dims: [i64; 3],
     /// The domain's extent in finest cells.
     extent: [i64; 3],
-    /// Per grid cell, x fastest: a leaf index, or [`NODE`] with the index of a node, or
-    /// [`UNKNOWN`] until first asked.
-    table: Vec<AtomicU32>,
+    /// Per grid cell, x fastest: a leaf index, or [`NODE`] with the index of a node.
+    table: Vec<u32>,
 }
 
 impl LeafGrid {
@@ -63,43 +57,82 @@ impl LeafGrid {
         }
         let dims = dims_of(shift);
         let entries = (dims[0] * dims[1] * dims[2]) as usize;
-        // Indices must leave the flag bit free and differ from `UNKNOWN`; otherwise every walk
-        // starts at the root.
-        let fits = tree.num_nodes() < (NODE - 1) as usize && tree.num_leaves() < NODE as usize;
-        let start = if fits { UNKNOWN } else { NODE };
-        Self {
+        let mut grid = Self {
             shift,
             dims,
             extent,
-            table: (0..entries).map(|_| AtomicU32::new(start)).collect(),
+            table: vec![NODE; entries],
+        };
+        // Indices must leave the flag bit free; otherwise every walk starts at the root.
+        if tree.num_nodes() < NODE as usize && tree.num_leaves() < NODE as usize {
+            grid.fill(tree);
+        }
+        grid
+    }
+
+    /// The grid cells (per axis, half-open index ranges) whose clipped boxes lie inside `r`.
+    fn inside(&self, r: &IBox) -> [(i64, i64); 3] {
+        let g = 1i64 << self.shift;
+        axes(|a| {
+            let lo = (r.lo[a] + g - 1) >> self.shift;
+            let hi = if r.hi[a] >= self.extent[a] {
+                self.dims[a]
+            } else {
+                r.hi[a] >> self.shift
+            };
+            (lo, hi.max(lo))
+        })
+    }
+
+    fn set(&mut self, range: [(i64, i64); 3], entry: u32) {
+        for z in range[2].0..range[2].1 {
+            for y in range[1].0..range[1].1 {
+                let row = (self.dims[0] * (y + self.dims[1] * z)) as usize;
+                let (x0, x1) = (range[0].0 as usize, range[0].1 as usize);
+                self.table[row + x0..row + x1].fill(entry);
+            }
         }
     }
 
-    /// The entry of grid cell `g`: the deepest node whose region contains the grid cell
-    /// (clipped to the domain), a leaf or the first split whose plane cuts it.
-    #[cold]
-    fn resolve(&self, tree: &TreeView<'_>, g: [i64; 3]) -> u32 {
-        let lo = g.map(|v| v << self.shift);
-        let hi: [i64; 3] = std::array::from_fn(|a| ((g[a] + 1) << self.shift).min(self.extent[a]));
-        let mut i = 0;
-        loop {
-            match tree.node(i) {
-                Some(KdNode::Leaf { leaf }) => return leaf,
-                Some(KdNode::Split {
+    /// Names, for every grid cell, the deepest node whose region contains it: the leaf, or the
+    /// first split whose plane cuts it.
+    fn fill(&mut self, tree: &TreeView<'_>) {
+        let root = self.inside(&tree.domain);
+        if root.iter().any(|&(lo, hi)| lo >= hi) {
+            return;
+        }
+        // Nodes with at least one grid cell inside their region, with the region and those
+        // cells: a child has its parent's cells but on the split axis, and one with none is
+        // never pushed.
+        let mut stack = vec![(0usize, tree.domain, root)];
+        while let Some((i, region, mut range)) = stack.pop() {
+            let Some(node) = tree.node(i) else { continue };
+            match node {
+                KdNode::Leaf { leaf } => self.set(range, leaf),
+                KdNode::Split {
                     axis,
                     pos,
                     low,
                     high,
-                }) => {
-                    if hi[axis] <= pos {
-                        i = low;
-                    } else if lo[axis] >= pos {
-                        i = high;
-                    } else {
-                        return NODE | i as u32;
+                } => {
+                    let (below, above) = node.halves(&region).expect("a split has halves");
+                    let (lo, hi) = range[axis];
+                    // The grid cells inside each half on the split axis.
+                    let cut = pos >> self.shift;
+                    let upper = ((pos + (1 << self.shift) - 1) >> self.shift).max(lo);
+                    if cut << self.shift < pos && lo <= cut && cut < hi {
+                        range[axis] = (cut, cut + 1);
+                        self.set(range, NODE | i as u32);
+                    }
+                    if upper < hi {
+                        range[axis] = (upper, hi);
+                        stack.push((high, above, range));
+                    }
+                    if lo < cut.min(hi) {
+                        range[axis] = (lo, cut.min(hi));
+                        stack.push((low, below, range));
                     }
                 }
-                None => return NODE,
             }
         }
     }
@@ -112,18 +145,9 @@ impl LeafGrid {
             return None;
         }
         let g = p.map(|x| x >> self.shift);
-        let slot = &self.table[(g[0] + self.dims[0] * (g[1] + self.dims[1] * g[2])) as usize];
-        let mut entry = slot.load(Ordering::Relaxed);
+        let entry = self.table[(g[0] + self.dims[0] * (g[1] + self.dims[1] * g[2])) as usize];
         if entry & NODE == 0 {
             return Some(entry);
-        }
-        if entry == UNKNOWN {
-            // Every thread that asks computes the same entry.
-            entry = self.resolve(tree, g);
-            slot.store(entry, Ordering::Relaxed);
-            if entry & NODE == 0 {
-                return Some(entry);
-            }
         }
         tree.find_leaf_from((entry & !NODE) as usize, p)
     }
@@ -133,13 +157,9 @@ impl LeafGrid {
         self.shift
     }
 
-    /// Table entries naming a leaf directly (of those filled so far), and all entries.
+    /// Table entries naming a leaf directly, and all entries.
     pub fn resolved(&self) -> (usize, usize) {
-        let leaves = self
-            .table
-            .iter()
-            .filter(|e| e.load(Ordering::Relaxed) & NODE == 0)
-            .count();
+        let leaves = self.table.iter().filter(|&&e| e & NODE == 0).count();
         (leaves, self.table.len())
     }
 }

@@ -10,12 +10,11 @@ use std::path::{Path, PathBuf};
 use zerocopy::little_endian::{U32, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout};
 
-use crate::blocks::block_count;
 use crate::compress::{decode_into, Encoding};
 use crate::error::{FormatError, Result};
 use crate::geometry::IBox;
 use crate::hierarchy::{MAX_BRICK_CELLS, MAX_BRICK_EXTENT, MAX_FINEST_EXTENT, MAX_LEVELS};
-use crate::kdtree::{KdNode, TreeView};
+use crate::kdtree::TreeView;
 use crate::raw::{
     self, BlockRange, BrickData, BrickRecord, FieldRecord, Footer, Header, KdLeaf, LeafRange,
     LevelRecord, PartTable, Section,
@@ -276,18 +275,37 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         }
     }
 
+    /// Every brick, in order: [`Self::brick`] of each, in one pass over the table.
+    pub fn bricks(&self) -> impl ExactSizeIterator<Item = BrickInfo> + '_ {
+        self.brick_records().iter().map(|r| BrickInfo {
+            level: r.level.get(),
+            cells: IBox::new(r.lo.map(|v| v.get()), r.hi.map(|v| v.get())),
+        })
+    }
+
     /// Where field `field`'s values of brick `brick` are stored, and their range.
     pub fn brick_data(&self, field: usize, brick: usize) -> BrickLocation {
-        let d = &self.field_brick_records(field)[brick];
-        BrickLocation {
-            offset: d.offset.get(),
-            len: d.len.get(),
-            encoding: Encoding::from_raw(d.encoding.get())
-                .expect("encodings are checked at open and the tables are a private copy"),
-            min: d.min.get(),
-            max: d.max.get(),
-            crc: d.crc.get(),
+        location(&self.field_brick_records(field)[brick])
+    }
+
+    /// Where field `field`'s values of every brick are stored, in brick order:
+    /// [`Self::brick_data`] of each, in one pass over the table.
+    pub fn brick_locations(
+        &self,
+        field: usize,
+    ) -> impl ExactSizeIterator<Item = BrickLocation> + '_ {
+        self.field_brick_records(field).iter().map(location)
+    }
+
+    /// The values stored at `at` (a location of this file), borrowed in place: `None` unless
+    /// they are stored raw, the host is little-endian and they are 4-byte aligned.
+    pub fn raw_values(&self, at: &BrickLocation) -> Option<&[f32]> {
+        if at.encoding != Encoding::Raw || !cfg!(target_endian = "little") {
+            return None;
         }
+        let start = at.offset as usize;
+        // In range: brick locations are checked at open to lie in their field's data region.
+        <[f32]>::ref_from_bytes(&self.bytes()[start..start + at.len as usize]).ok()
     }
 
     /// The value range of field `field` in brick `brick`.
@@ -306,13 +324,8 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
     /// The values of one brick of one field, x fastest: borrowed from the bytes when stored raw
     /// on a little-endian host and 4-byte aligned, decoded otherwise.
     pub fn brick_values(&self, field: usize, brick: usize) -> Result<Cow<'_, [f32]>> {
-        let d = self.brick_data(field, brick);
-        let start = d.offset as usize;
-        let bytes = &self.bytes()[start..start + d.len as usize];
-        if d.encoding == Encoding::Raw && cfg!(target_endian = "little") {
-            if let Ok(values) = <[f32]>::ref_from_bytes(bytes) {
-                return Ok(Cow::Borrowed(values));
-            }
+        if let Some(values) = self.raw_values(&self.brick_data(field, brick)) {
+            return Ok(Cow::Borrowed(values));
         }
         let mut out = Vec::new();
         self.brick_values_into(field, brick, &mut out)?;
@@ -367,6 +380,24 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         }
     }
 
+    /// Every kd-tree leaf, in order: [`Self::leaf`] of each, in one pass over the table.
+    pub fn leaves(&self) -> impl ExactSizeIterator<Item = LeafInfo<'_>> + '_ {
+        let list: &[U32] = self.slice(&self.footer.brick_list);
+        self.slice::<KdLeaf>(&self.footer.leaves)
+            .iter()
+            .map(move |l| {
+                let start = l.brick_start.get() as usize;
+                LeafInfo {
+                    bounds: IBox::new(
+                        l.lo.map(|v| i64::from(v.get())),
+                        l.hi.map(|v| i64::from(v.get())),
+                    ),
+                    // In range: checked at open.
+                    bricks: &list[start..start + l.brick_count.get() as usize],
+                }
+            })
+    }
+
     /// The conservative value range of field `field` inside leaf `leaf` (`(+inf, -inf)` for a
     /// leaf without bricks).
     pub fn leaf_range(&self, field: usize, leaf: u32) -> (f32, f32) {
@@ -392,6 +423,24 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         Some((r.min.get(), r.max.get()))
     }
 
+    /// [`Self::tight_range`] of every leaf for field `field`, in leaf order, in one pass over
+    /// the table; `None` when the file stores none.
+    pub fn tight_ranges(
+        &self,
+        field: usize,
+    ) -> Option<impl ExactSizeIterator<Item = (f32, f32)> + '_> {
+        if !self.tight {
+            return None;
+        }
+        let n = self.num_leaves();
+        let all: &[LeafRange] = self.slice(&self.footer.tight_ranges);
+        Some(
+            all[field * n..(field + 1) * n]
+                .iter()
+                .map(|r| (r.min.get(), r.max.get())),
+        )
+    }
+
     /// Cells per axis of the parts whose bounds the file stores (layout version 4, written with
     /// them); `None` when it stores none.
     pub fn part_cells(&self) -> Option<u32> {
@@ -410,6 +459,16 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         let all: &[LeafRange] = self.slice(&p.ranges);
         let first = field as u64 * total;
         Some(&all[(first + start) as usize..(first + end) as usize])
+    }
+
+    /// Per leaf, in order, the number of parts whose bounds the file stores (the length of
+    /// [`Self::part_ranges`] for every field), in one pass over the table; `None` when it
+    /// stores none.
+    pub fn part_counts(&self) -> Option<impl ExactSizeIterator<Item = u64> + '_> {
+        let p = self.parts.as_ref()?;
+        let starts: &[U64] = self.slice(&p.starts);
+        // Never negative: the starts are checked at open never to decrease.
+        Some(starts.windows(2).map(|w| w[1].get() - w[0].get()))
     }
 
     /// The finest level's index domain (absolute finest-level cell indices).
@@ -693,13 +752,19 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
                 return bad(format!("cells {cells:?} exceed the brick size limits"));
             }
         }
+        let records = self.brick_records();
+        let mut compressed_fields = vec![false; self.fields.len()];
         for field in 0..self.fields.len() {
             let (start, len) = self.fields[field].data;
             // Cannot overflow: the region's end was checked in `read_fields`.
             let end = start + len;
             let mut compressed = false;
-            for (i, d) in self.field_brick_records(field).iter().enumerate() {
-                let cells = self.brick(i).cells.num_cells().unwrap_or(0);
+            let data = self.field_brick_records(field);
+            for (i, (d, b)) in data.iter().zip(records).enumerate() {
+                // Cannot overflow: checked against MAX_BRICK_CELLS above.
+                let cells = (0..3)
+                    .map(|a| (b.hi[a].get() - b.lo[a].get()) as u64)
+                    .product::<u64>();
                 let bad = |m: String| {
                     Err(FormatError::Corrupt(format!(
                         "field '{}', brick {i}: {m}",
@@ -725,7 +790,10 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
                     return bad(format!("value range {lo}..{hi}"));
                 }
             }
-            self.fields[field].compressed = compressed;
+            compressed_fields[field] = compressed;
+        }
+        for (f, compressed) in self.fields.iter_mut().zip(compressed_fields) {
+            f.compressed = compressed;
         }
         Ok(())
     }
@@ -753,11 +821,15 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         )?;
         let mut starts = Vec::with_capacity(self.num_bricks() + 1);
         let mut total = 0u64;
-        for i in 0..self.num_bricks() {
+        let block = u64::from(block);
+        for b in self.brick_records() {
             starts.push(total);
-            // Cannot overflow: bricks hold at most MAX_BRICK_CELLS cells, checked above.
-            total += block_count(&self.brick(i).cells, i64::from(block)).unwrap_or(0);
+            // Cannot overflow: brick extents are positive and at most MAX_BRICK_EXTENT, and the
+            // bricks at most 2^32, checked above.
+            let per_axis = |a: usize| ((b.hi[a].get() - b.lo[a].get()) as u64).div_ceil(block);
+            total += per_axis(0) * per_axis(1) * per_axis(2);
         }
+        let block = block as u32;
         starts.push(total);
         let want = total
             .checked_mul(size_of::<BlockRange>() as u64)
@@ -906,63 +978,81 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
 
     /// Walks the tree from the root, each node once: returns the depth of the deepest leaf.
     ///
-    /// Checks that every node is reached exactly once (no cycle, no shared child, nothing
-    /// unreachable), that children come after their parent, that every split plane lies strictly
-    /// inside its node's region, and that every leaf is reached once with the region it stores.
-    /// Leaf boxes then tile the domain, which is what point location and the renderer rely on.
+    /// Checks that the nodes are stored depth first, a split's first child right after it and
+    /// its second child right after the first child's subtree, so that the walk meets node `i`
+    /// `i`-th: then every node is reached exactly once (no cycle, no shared child, nothing
+    /// unreachable). Checks too that every split plane lies strictly inside its node's region,
+    /// and that every leaf is reached once with the region it stores. Leaf boxes then tile the
+    /// domain, which is what point location and the renderer rely on. One pass over the node
+    /// array, in order.
     fn check_tree(&self) -> Result<u32> {
         let tree = self.tree();
-        let (n, nleaves) = (tree.num_nodes(), tree.num_leaves());
+        let (nodes, leaves) = (tree.nodes, tree.leaves);
+        let (n, nleaves) = (nodes.len(), leaves.len());
         let bad = |m: String| Err(FormatError::Corrupt(m));
-        let mut node_seen = vec![false; n];
         let mut leaf_seen = vec![false; nleaves];
         let mut depth_max = 0u32;
-        let mut stack = vec![(0usize, tree.domain, 0u32)];
-        while let Some((i, region, depth)) = stack.pop() {
-            let Some(node) = tree.node(i) else {
-                return bad(format!("kd-tree names node {i} of {n}"));
-            };
-            if std::mem::replace(&mut node_seen[i], true) {
-                return bad(format!("kd node {i} is reached twice (not a tree)"));
+        // The second children still to walk, with their regions and depths.
+        let mut pending: Vec<(usize, IBox, u32)> = Vec::new();
+        let (mut i, mut region, mut depth) = (0usize, tree.domain, 0u32);
+        // Node `i` is the `i`-th the walk meets: the nodes before it were each met once.
+        for (at, node) in nodes.iter().enumerate() {
+            if i != at {
+                return bad(if i < at {
+                    format!("kd node {i} is reached twice (not a tree)")
+                } else if i == n {
+                    format!("kd node {at} is not reachable from the root")
+                } else {
+                    format!("kd nodes are not stored depth first: node {i} stands where {at} is")
+                });
             }
-            match node {
-                KdNode::Leaf { leaf } => {
-                    let Some(seen) = leaf_seen.get_mut(leaf as usize) else {
-                        return bad(format!("kd node {i} names leaf {leaf} of {nleaves}"));
-                    };
-                    if std::mem::replace(seen, true) {
-                        return bad(format!("kd leaf {leaf} is reached twice"));
-                    }
-                    let stored = tree.leaf_box(leaf);
-                    if stored != region {
-                        return bad(format!(
-                            "kd leaf {leaf} stores {stored:?} but the tree gives it {region:?}"
-                        ));
-                    }
-                    depth_max = depth_max.max(depth);
+            let (a, b) = (node.a.get(), node.b.get());
+            if b & 3 == raw::KD_LEAF {
+                let Some(seen) = leaf_seen.get_mut(a as usize) else {
+                    return bad(format!("kd node {i} names leaf {a} of {nleaves}"));
+                };
+                if std::mem::replace(seen, true) {
+                    return bad(format!("kd leaf {a} is reached twice"));
                 }
-                KdNode::Split {
-                    axis,
-                    pos,
-                    low,
-                    high,
-                } => {
-                    if pos <= region.lo[axis] || pos >= region.hi[axis] {
-                        return bad(format!(
-                            "kd node {i} splits {region:?} at {pos} on axis {axis}, not inside it"
-                        ));
-                    }
-                    if high <= low || high >= n {
-                        return bad(format!("kd node {i} has children {low} and {high} of {n}"));
-                    }
-                    let (lo_half, hi_half) = node.halves(&region).expect("a split has halves");
-                    stack.push((high, hi_half, depth + 1));
-                    stack.push((low, lo_half, depth + 1));
+                let l = &leaves[a as usize];
+                let stored = IBox::new(
+                    l.lo.map(|v| i64::from(v.get())),
+                    l.hi.map(|v| i64::from(v.get())),
+                );
+                if stored != region {
+                    return bad(format!(
+                        "kd leaf {a} stores {stored:?} but the tree gives it {region:?}"
+                    ));
                 }
+                depth_max = depth_max.max(depth);
+                // `n` once the walk is over: every node it names is below `n`.
+                match pending.pop() {
+                    Some(next) => (i, region, depth) = next,
+                    None => i = n,
+                }
+            } else {
+                let (axis, pos, high) = ((b & 3) as usize, i64::from(a), (b >> 2) as usize);
+                if pos <= region.lo[axis] || pos >= region.hi[axis] {
+                    return bad(format!(
+                        "kd node {i} splits {region:?} at {pos} on axis {axis}, not inside it"
+                    ));
+                }
+                if high <= i + 1 || high >= n {
+                    return bad(format!(
+                        "kd node {i} has children {} and {high} of {n}",
+                        i + 1
+                    ));
+                }
+                let mut upper = region;
+                upper.lo[axis] = pos;
+                pending.push((high, upper, depth + 1));
+                region.hi[axis] = pos;
+                (i, depth) = (i + 1, depth + 1);
             }
         }
-        if let Some(i) = node_seen.iter().position(|s| !s) {
-            return bad(format!("kd node {i} is not reachable from the root"));
+        if i != n {
+            // A second child still to walk, and every node already met once.
+            return bad(format!("kd node {i} is reached twice (not a tree)"));
         }
         if let Some(l) = leaf_seen.iter().position(|s| !s) {
             return bad(format!("kd leaf {l} is not reachable from the root"));
@@ -983,7 +1073,8 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             )));
         }
         let origin = self.finest_domain.lo;
-        let tree = self.tree();
+        let records = self.brick_records();
+        let scales: Vec<[i64; 3]> = self.levels.iter().map(|l| l.finest_scale).collect();
         for (i, l) in leaves.iter().enumerate() {
             let (start, count) = (l.brick_start.get() as usize, l.brick_count.get() as usize);
             let Some(bricks) = start
@@ -995,16 +1086,23 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
                     list.len()
                 )));
             };
-            if let Some(first) = bricks.first() {
-                let first = first.get() as usize;
-                if !self
-                    .brick_finest_bounds(first, origin)
-                    .contains_box(&tree.leaf_box(i as u32))
-                {
-                    return Err(FormatError::Corrupt(format!(
-                        "kd leaf {i}: its first brick {first} does not cover it"
-                    )));
-                }
+            let Some(first) = bricks.first() else {
+                continue;
+            };
+            // In range: list entries and brick levels are checked above.
+            let b = &records[first.get() as usize];
+            let s = scales[b.level.get() as usize];
+            // Cannot overflow: brick boxes lie inside their level's domain, which refines into
+            // the finest domain.
+            let covers = (0..3).all(|a| {
+                b.lo[a].get() * s[a] - origin[a] <= i64::from(l.lo[a].get())
+                    && i64::from(l.hi[a].get()) <= b.hi[a].get() * s[a] - origin[a]
+            });
+            if !covers {
+                return Err(FormatError::Corrupt(format!(
+                    "kd leaf {i}: its first brick {} does not cover it",
+                    first.get()
+                )));
             }
         }
         for (field, r) in self.fields_raw().iter().enumerate() {
@@ -1037,6 +1135,19 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             [0, 1, 2].map(|a| f.lo[a] - origin[a]),
             [0, 1, 2].map(|a| f.hi[a] - origin[a]),
         )
+    }
+}
+
+/// A brick's stored location as read from its record.
+fn location(d: &BrickData) -> BrickLocation {
+    BrickLocation {
+        offset: d.offset.get(),
+        len: d.len.get(),
+        encoding: Encoding::from_raw(d.encoding.get())
+            .expect("encodings are checked at open and the tables are a private copy"),
+        min: d.min.get(),
+        max: d.max.get(),
+        crc: d.crc.get(),
     }
 }
 

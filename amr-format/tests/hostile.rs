@@ -124,6 +124,50 @@ fn kd_tree_dag_is_refused_quickly() {
     );
 }
 
+/// The same tree laid out out of depth-first order: a split whose first child splits into two
+/// leaves and whose second child is a leaf, with the two last leaves' records swapped and the
+/// second-child indices following them. Every node is still reached once with its region, but
+/// the renderer's walks take a subtree to be the nodes from its root to the next sibling's, so
+/// open refuses the layout.
+#[test]
+fn kd_nodes_out_of_depth_first_order_are_refused() {
+    let leaf = |n: &KdNode| n.b.get() & 3 == KD_LEAF;
+    let second = |n: &KdNode| (n.b.get() >> 2) as usize;
+    let (mut b, at, nodes, p) = (0..8)
+        .find_map(|seed| {
+            let b = valid_file(30 + seed);
+            let (at, nodes) = nodes_of(&b);
+            let p = (0..nodes.len().saturating_sub(4)).find(|&p| {
+                !leaf(&nodes[p])
+                    && second(&nodes[p]) == p + 4
+                    && leaf(&nodes[p + 4])
+                    && !leaf(&nodes[p + 1])
+                    && second(&nodes[p + 1]) == p + 3
+                    && leaf(&nodes[p + 2])
+                    && leaf(&nodes[p + 3])
+            })?;
+            Some((b, at, nodes, p))
+        })
+        .expect("a split over a split of two leaves and a leaf");
+    let with_second = |n: &KdNode, s: usize| KdNode {
+        a: n.a,
+        b: (((s as u32) << 2) | (n.b.get() & 3)).into(),
+    };
+    let moved = [
+        (p, with_second(&nodes[p], p + 3)),
+        (p + 1, with_second(&nodes[p + 1], p + 4)),
+        (p + 3, nodes[p + 4]),
+        (p + 4, nodes[p + 3]),
+    ];
+    for (i, node) in moved {
+        b[at + 8 * i..][..8].copy_from_slice(node.as_bytes());
+    }
+    let f = footer_of(&b);
+    reseal(&mut b, f);
+    let e = open_err(b);
+    assert!(e.contains("not stored depth first"), "{e}");
+}
+
 #[test]
 fn header_and_footer_sizes_are_checked() {
     let b = valid_file(24);

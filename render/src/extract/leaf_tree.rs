@@ -11,6 +11,7 @@ use std::convert::Infallible;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use amr_format::kdtree::{KdNode, TreeView};
+use amr_format::raw::KD_LEAF;
 use amr_format::IBox;
 
 use super::blocks::{level_box, scan, BlockRanges};
@@ -42,6 +43,12 @@ struct Node {
     end: u32,
     /// Its two children, for a node of more than [`BUCKET`] leaves.
     children: Option<(u32, u32)>,
+}
+
+/// Every leaf's box and the level of its finest brick (`u32::MAX` without data), by leaf id.
+struct Leaves {
+    boxes: Vec<IBox>,
+    levels: Vec<u32>,
 }
 
 /// What [`LeafTree::for_each_overlapping_grouped`] hands over: a leaf, or a node taken whole.
@@ -106,30 +113,27 @@ impl LeafTree {
         let mut nodes = Vec::with_capacity(4 * n as usize / BUCKET + 1);
         let mut order: Vec<u32> = Vec::with_capacity(n as usize);
         let tree = sampler.file().tree();
-        let leaves: Vec<(IBox, u32)> = (0..n)
-            .map(|l| {
-                let level = sampler.leaf_top(l).map_or(u32::MAX, |(_, lv)| lv);
-                (tree.leaf_box(l), level)
-            })
-            .collect();
+        let leaves = Leaves {
+            boxes: sampler.file().leaves().map(|l| l.bounds).collect(),
+            levels: (0..n)
+                .map(|l| sampler.leaf_top(l).map_or(u32::MAX, |(_, lv)| lv))
+                .collect(),
+        };
         let from_kd = kd && from_kd_tree(&tree, &leaves, &mut order, &mut nodes).is_some();
         if !from_kd && n > 0 {
             nodes.clear();
             order = (0..n).collect();
             build(&leaves, &mut order, 0, &mut nodes);
         }
-        let ranges = (0..nodes.len()).map(|_| AtomicU64::new(UNKNOWN)).collect();
-        let leaf_ranges = (0..n).map(|_| AtomicU64::new(UNKNOWN)).collect();
-        let exact_ranges = (0..n).map(|_| AtomicU64::new(UNKNOWN)).collect();
-        let exact_nodes = (0..nodes.len()).map(|_| AtomicU64::new(UNKNOWN)).collect();
+        let unknown = |n: usize| (0..n).map(|_| AtomicU64::new(UNKNOWN)).collect();
         Self {
+            ranges: unknown(nodes.len()),
+            leaf_ranges: unknown(n as usize),
+            exact_ranges: unknown(n as usize),
+            exact_nodes: unknown(nodes.len()),
             nodes,
             order,
-            ranges,
-            leaf_ranges,
-            exact_ranges,
-            exact_nodes,
-            boxes: leaves.into_iter().map(|(b, _)| b).collect(),
+            boxes: leaves.boxes,
         }
     }
 
@@ -581,43 +585,39 @@ impl LeafTree {
 /// state, for a tree not of that form. `all` holds every leaf's box and level.
 fn from_kd_tree(
     tree: &TreeView<'_>,
-    all: &[(IBox, u32)],
+    all: &Leaves,
     order: &mut Vec<u32>,
     nodes: &mut Vec<Node>,
 ) -> Option<()> {
-    // Leaves under each kd node, children before parents.
-    let mut counts = vec![0u32; tree.num_nodes()];
-    for i in (0..tree.num_nodes()).rev() {
-        counts[i] = match tree.node(i)? {
-            KdNode::Leaf { .. } => 1,
-            KdNode::Split { low, high, .. } if low > i && high > i => {
-                counts.get(low)?.checked_add(*counts.get(high)?)?
-            }
-            KdNode::Split { .. } => return None,
-        };
-    }
     order.clear();
     nodes.clear();
     if tree.num_nodes() > 0 {
-        from_kd_node(tree, all, &counts, 0, order, nodes)?;
+        from_kd_node(tree, all, 0, tree.num_nodes(), order, nodes)?;
     }
-    (order.len() == all.len()).then_some(())
+    (order.len() == all.boxes.len()).then_some(())
 }
 
-/// Appends the node of kd node `i`'s leaves (`counts` per kd node) and its descendants to
-/// `nodes`, and those leaves to `order`; returns the node's index.
+/// Appends the node of the leaves under kd node `i`, whose subtree is the kd nodes `i..end`,
+/// and its descendants to `nodes`, and those leaves to `order`; returns the node's index.
+///
+/// The kd nodes are stored depth first (checked at open): a subtree's nodes are contiguous, a
+/// split's first child's subtree runs from the node after it to its second child, and a
+/// subtree of `k` nodes holds `(k + 1) / 2` leaves, met in order by a scan of its nodes.
 fn from_kd_node(
     tree: &TreeView<'_>,
-    all: &[(IBox, u32)],
-    counts: &[u32],
+    all: &Leaves,
     i: usize,
+    end: usize,
     order: &mut Vec<u32>,
     nodes: &mut Vec<Node>,
 ) -> Option<u32> {
     let index = nodes.len() as u32;
     let first = order.len() as u32;
     match tree.node(i)? {
-        KdNode::Split { low, high, .. } if counts[i] as usize > BUCKET => {
+        KdNode::Split { low, high, .. } if (end - i).div_ceil(2) > BUCKET => {
+            if !(low < high && high < end) {
+                return None;
+            }
             nodes.push(Node {
                 bounds: IBox::new([0; 3], [0; 3]),
                 coarsest: u32::MAX,
@@ -626,8 +626,8 @@ fn from_kd_node(
                 end: first,
                 children: None,
             });
-            let a = from_kd_node(tree, all, counts, low, order, nodes)?;
-            let b = from_kd_node(tree, all, counts, high, order, nodes)?;
+            let a = from_kd_node(tree, all, low, high, order, nodes)?;
+            let b = from_kd_node(tree, all, high, end, order, nodes)?;
             let (na, nb) = (&nodes[a as usize], &nodes[b as usize]);
             let (bounds, coarsest) = (na.bounds.union(&nb.bounds), na.coarsest.min(nb.coarsest));
             let complete = na.complete && nb.complete;
@@ -639,35 +639,22 @@ fn from_kd_node(
             node.children = Some((a, b));
         }
         _ => {
-            // At most `BUCKET` leaves: gathered depth first into one bottom node. Its subtree
-            // is at most `BUCKET - 1` splits deep, so the stack never holds more than `BUCKET`.
-            let mut stack = [0usize; BUCKET + 1];
-            let mut top = 1;
-            stack[0] = i;
-            while top > 0 {
-                top -= 1;
-                match tree.node(stack[top])? {
-                    KdNode::Leaf { leaf } => {
-                        all.get(leaf as usize)?;
-                        order.push(leaf);
-                    }
-                    KdNode::Split { low, high, .. } => {
-                        *stack.get_mut(top + 1)? = low;
-                        stack[top] = high;
-                        top += 2;
-                    }
-                }
-            }
-            let leaves = &order[first as usize..];
-            let mut bounds = all[*leaves.first()? as usize].0;
+            // At most `BUCKET` leaves: gathered in depth-first order into one bottom node.
+            let mut bounds: Option<IBox> = None;
             let mut coarsest = u32::MAX;
             let mut complete = true;
-            for &l in leaves {
-                let (b, lv) = &all[l as usize];
-                bounds = bounds.union(b);
-                coarsest = coarsest.min(*lv);
-                complete &= *lv != u32::MAX;
+            for n in tree.nodes.get(i..end)? {
+                if n.b.get() & 3 != KD_LEAF {
+                    continue;
+                }
+                let leaf = n.a.get();
+                let (b, lv) = (all.boxes.get(leaf as usize)?, all.levels[leaf as usize]);
+                order.push(leaf);
+                bounds = Some(bounds.map_or(*b, |u| u.union(b)));
+                coarsest = coarsest.min(lv);
+                complete &= lv != u32::MAX;
             }
+            let bounds = bounds?;
             nodes.push(Node {
                 bounds,
                 coarsest,
@@ -684,15 +671,15 @@ fn from_kd_node(
 /// Appends the node of the leaves `leaves` (which start at `order[first]`) and its descendants to
 /// `nodes`, reordering `leaves` so that each child's are contiguous; returns the node's index.
 /// `all` holds every leaf's box and level (`u32::MAX` without data).
-fn build(all: &[(IBox, u32)], leaves: &mut [u32], first: u32, nodes: &mut Vec<Node>) -> u32 {
-    let mut bounds = all[leaves[0] as usize].0;
+fn build(all: &Leaves, leaves: &mut [u32], first: u32, nodes: &mut Vec<Node>) -> u32 {
+    let mut bounds = all.boxes[leaves[0] as usize];
     let mut coarsest = u32::MAX;
     let mut complete = true;
     for &l in leaves.iter() {
-        let (b, lv) = &all[l as usize];
-        bounds = bounds.union(b);
-        coarsest = coarsest.min(*lv);
-        complete &= *lv != u32::MAX;
+        let lv = all.levels[l as usize];
+        bounds = bounds.union(&all.boxes[l as usize]);
+        coarsest = coarsest.min(lv);
+        complete &= lv != u32::MAX;
     }
     let index = nodes.len() as u32;
     let end = first + leaves.len() as u32;
@@ -709,7 +696,7 @@ fn build(all: &[(IBox, u32)], leaves: &mut [u32], first: u32, nodes: &mut Vec<No
         let axis = (0..3).max_by_key(|&a| e[a]).unwrap_or(0);
         let mid = leaves.len() / 2;
         leaves.select_nth_unstable_by_key(mid, |&l| {
-            let b = &all[l as usize].0;
+            let b = &all.boxes[l as usize];
             b.lo[axis] + b.hi[axis]
         });
         let (left, right) = leaves.split_at_mut(mid);

@@ -109,8 +109,9 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let sampler = Sampler::new(file, field, cache_bytes)?;
         // Start the worker threads now, with the file open, not inside the first extraction.
         rayon::broadcast(|_| ());
-        let file_cells = (0..file.num_bricks())
-            .map(|b| file.brick(b).cells.num_cells().unwrap_or(0))
+        let file_cells = file
+            .bricks()
+            .map(|b| b.cells.num_cells().unwrap_or(0))
             .sum();
         Ok(Self {
             tight: TightRanges::of_file(file, field),

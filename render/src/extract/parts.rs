@@ -66,11 +66,11 @@ impl PartRanges {
         if Some(stored) != part_cells(block) {
             return Ok(computed());
         }
+        let Some(counts) = file.part_counts() else {
+            return Ok(computed());
+        };
         let (tree, grid, k) = (file.tree(), sampler.grid(), i64::from(stored));
-        for leaf in 0..file.num_leaves() as u32 {
-            let have = file
-                .part_ranges(sampler.field(), leaf)
-                .map_or(0, <[_]>::len) as u64;
+        for (leaf, have) in (0..file.num_leaves() as u32).zip(counts) {
             // A leaf at most `k - 1` cells of its level wide on every axis overlaps at most `k`
             // of them however it is aligned, so it has no parts: most leaves of a file of small
             // boxes, checked without building their frame.

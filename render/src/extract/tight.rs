@@ -51,14 +51,11 @@ impl TightRanges {
     /// The tight ranges `file` stores for field `field` (layout version 3), known from the
     /// start; unknown ranges when it stores none.
     pub fn of_file<D: AsRef<[u8]>>(file: &amr_format::AmrkFile<D>, field: usize) -> Self {
-        let n = file.num_leaves();
-        if !file.has_tight_ranges() {
-            return Self::new(n);
-        }
-        Self {
-            bits: (0..n as u32)
-                .map(|l| AtomicU64::new(file.tight_range(field, l).map_or(UNKNOWN, pack)))
-                .collect(),
+        match file.tight_ranges(field) {
+            Some(ranges) => Self {
+                bits: ranges.map(|r| AtomicU64::new(pack(r))).collect(),
+            },
+            None => Self::new(file.num_leaves()),
         }
     }
 

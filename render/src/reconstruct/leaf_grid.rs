@@ -97,14 +97,16 @@ impl LeafGrid {
     /// Names, for every grid cell, the deepest node whose region contains it: the leaf, or the
     /// first split whose plane cuts it.
     fn fill(&mut self, tree: &TreeView<'_>) {
-        let mut stack = vec![(0usize, tree.domain)];
-        while let Some((i, region)) = stack.pop() {
+        let root = self.inside(&tree.domain);
+        if root.iter().any(|&(lo, hi)| lo >= hi) {
+            return;
+        }
+        // Nodes with at least one grid cell inside their region, with the region and those
+        // cells: a child has its parent's cells but on the split axis, and one with none is
+        // never pushed.
+        let mut stack = vec![(0usize, tree.domain, root)];
+        while let Some((i, region, mut range)) = stack.pop() {
             let Some(node) = tree.node(i) else { continue };
-            let mut range = self.inside(&region);
-            if range.iter().any(|&(lo, hi)| lo >= hi) {
-                // No grid cell lies inside the region, nor inside any region under it.
-                continue;
-            }
             match node {
                 KdNode::Leaf { leaf } => self.set(range, leaf),
                 KdNode::Split {
@@ -113,14 +115,23 @@ impl LeafGrid {
                     low,
                     high,
                 } => {
+                    let (below, above) = node.halves(&region).expect("a split has halves");
+                    let (lo, hi) = range[axis];
+                    // The grid cells inside each half on the split axis.
                     let cut = pos >> self.shift;
-                    if cut << self.shift < pos && range[axis].0 <= cut && cut < range[axis].1 {
+                    let upper = ((pos + (1 << self.shift) - 1) >> self.shift).max(lo);
+                    if cut << self.shift < pos && lo <= cut && cut < hi {
                         range[axis] = (cut, cut + 1);
                         self.set(range, NODE | i as u32);
                     }
-                    let (below, above) = node.halves(&region).expect("a split has halves");
-                    stack.push((high, above));
-                    stack.push((low, below));
+                    if upper < hi {
+                        range[axis] = (upper, hi);
+                        stack.push((high, above, range));
+                    }
+                    if lo < cut.min(hi) {
+                        range[axis] = (lo, cut.min(hi));
+                        stack.push((low, below, range));
+                    }
                 }
             }
         }

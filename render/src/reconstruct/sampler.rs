@@ -6,7 +6,6 @@
 //! operations in the same order whichever octant asks, so octants sharing a vertex get
 //! bit-identical values there. The rules are in `docs/reconstruction.md`.
 
-use std::borrow::Cow;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hash, Hasher};
 use std::ops::Deref;
@@ -397,26 +396,29 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 file.fields().len()
             )));
         }
-        let bricks: Vec<BrickRef<'f>> = (0..file.num_bricks())
-            .map(|b| {
-                let raw = file.brick_data(field, b).encoding == amr_format::compress::Encoding::Raw;
-                // Only raw bricks are asked for: reading a compressed one here would decode it.
-                let values = match raw.then(|| file.brick_values(field, b)) {
-                    Some(Ok(Cow::Borrowed(v))) => Some(v),
-                    _ => None,
-                };
+        // One pass over each table: the bricks with their stored values, then the leaves.
+        let mut bounded = true;
+        let mut levels = Vec::with_capacity(file.num_bricks());
+        let bricks: Vec<BrickRef<'f>> = file
+            .bricks()
+            .zip(file.brick_locations(field))
+            .map(|(b, at)| {
+                bounded &= at.min.abs() <= BOUND && at.max.abs() <= BOUND;
+                levels.push(b.level);
+                // Only raw bricks are read in place: a compressed one is decoded on demand.
                 BrickRef {
-                    cells: file.brick(b).cells,
-                    values,
+                    cells: b.cells,
+                    values: file.raw_values(&at),
                 }
             })
             .collect();
         let grid = Grid::new(file);
-        let tops = (0..file.num_leaves() as u32)
+        let tops = file
+            .leaves()
             .map(|l| {
-                file.leaf(l).bricks.first().map(|b| {
+                l.bricks.first().map(|b| {
                     let brick = b.get();
-                    let level = file.brick(brick as usize).level;
+                    let level = levels[brick as usize];
                     let BrickRef { cells, values } = &bricks[brick as usize];
                     LeafTop {
                         brick,
@@ -440,10 +442,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             grid,
             tops,
             cache: BrickCache::new(cache_bytes),
-            bounded: (0..file.num_bricks()).all(|b| {
-                let (lo, hi) = file.brick_range(field, b);
-                lo.abs() <= BOUND && hi.abs() <= BOUND
-            }),
+            bounded,
             id: super::recent::next_sampler_id(),
         };
         Ok(sampler.with_shortcuts(true))

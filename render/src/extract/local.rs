@@ -568,18 +568,27 @@ impl Neighbourhood {
         self.dilated.clear();
         self.dilated.extend(self.kind.iter().map(|&k| k != LEAF));
         let not_leaf = &mut self.dilated;
-        // Along x, within each row.
+        // Along x, within each row: over all cells at once (one long loop each way, not two
+        // short ones per row), then each row's first and last cell again, which took their
+        // neighbour in the row before or after.
         self.near_boundary.clear();
         self.near_boundary.extend_from_slice(not_leaf);
         let along = &mut self.near_boundary;
-        for r in (0..n).step_by(row.max(1)) {
-            let src = &not_leaf[r..r + row];
-            let dst = &mut along[r..r + row];
-            for (d, &s) in dst[1..].iter_mut().zip(src) {
+        if n > 1 {
+            for (d, &s) in along[1..].iter_mut().zip(&not_leaf[..n - 1]) {
                 *d |= s;
             }
-            for (d, &s) in dst.iter_mut().zip(&src[1..]) {
+            for (d, &s) in along[..n - 1].iter_mut().zip(&not_leaf[1..]) {
                 *d |= s;
+            }
+        }
+        for r in (0..n).step_by(row.max(1)) {
+            let last = r + row - 1;
+            if row == 1 {
+                along[r] = not_leaf[r];
+            } else {
+                along[r] = not_leaf[r] | not_leaf[r + 1];
+                along[last] = not_leaf[last - 1] | not_leaf[last];
             }
         }
         // Along y, within each slab, then along z; `not_leaf` becomes the y-dilated cells.

@@ -27,6 +27,8 @@ pub struct PlainCodes {
     pub cells: IBox,
     codes: Vec<u8>,
     touching: Vec<u32>,
+    /// The brick and level box of each leaf of `touching` with cells in `cells`.
+    blocks: Vec<(u32, IBox)>,
 }
 
 impl PlainCodes {
@@ -63,10 +65,12 @@ impl PlainCodes {
         // The leaves' level boxes inside `g` cover it when they hold its cells between them
         // without overlapping: each aligned to level cells (disjoint finest boxes, so disjoint
         // blocks) and inside its brick.
-        self.codes.clear();
+        // Not cleared first: when the blocks below cover `g` (they are disjoint), every code is
+        // written, and otherwise the codes mean nothing.
         self.codes.resize(n, 0);
         let at_level = |f: &IBox| level_box(grid, level, f);
         let mut covered = 0u64;
+        self.blocks.clear();
         for &l in &self.touching {
             let Some((brick, _)) = sampler.leaf_top(l) else {
                 return Ok(false);
@@ -88,8 +92,18 @@ impl PlainCodes {
             if cells == 0 {
                 continue;
             }
+            if let Some(values) = sampler.values_in_place(brick) {
+                prefetch_rows(values, &bc, &block);
+            }
+            self.blocks.push((brick, block));
+        }
+        if covered != n as u64 {
+            return Ok(false);
+        }
+        for &(brick, block) in &self.blocks {
             let slab = sampler.values(brick)?;
             let values: &[f32] = &slab;
+            let bc = sampler.brick_cells(brick);
             let be = block.extent();
             let w = be[0] as usize;
             let (ge, ce) = (g.extent(), bc.extent());
@@ -112,7 +126,7 @@ impl PlainCodes {
                 s0 += sz;
             }
         }
-        Ok(covered == n as u64)
+        Ok(true)
     }
 
     /// The codes of the last [`Self::code`] that returned true.
@@ -122,13 +136,60 @@ impl PlainCodes {
     }
 }
 
+/// Asks the caches for the rows of `block` (cells inside `brick`, the box of `values`), the
+/// first and last value of each, before they are read: a block's rows lie in as many cache lines
+/// and, one layer to a page, pages as it has rows and layers, which the hardware prefetchers
+/// (within a page, one stride at a time) do not fetch ahead, so that each row would otherwise
+/// wait for memory in turn. A hint: nothing where the target has none.
+#[inline]
+fn prefetch_rows(values: &[f32], brick: &IBox, block: &IBox) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let (be, ce) = (block.extent(), brick.extent());
+        let (w, ny, nz) = (be[0] as usize, be[1] as usize, be[2] as usize);
+        let (sy, sz) = (ce[0] as usize, ce[0].saturating_mul(ce[1]) as usize);
+        let first = brick.linear_index(block.lo);
+        // The rows start at increasing offsets: when the last one ends inside `values`, all do.
+        let end = (nz.saturating_sub(1).saturating_mul(sz))
+            .saturating_add(ny.saturating_sub(1).saturating_mul(sy))
+            .saturating_add(w)
+            .saturating_add(first);
+        if w == 0 || ny == 0 || nz == 0 || end > values.len() {
+            return;
+        }
+        let mut layer = values[first..].as_ptr();
+        for _ in 0..nz {
+            let mut row = layer;
+            for _ in 0..ny {
+                // SAFETY: SSE is part of every x86-64 target; a prefetch reads nothing
+                // architecturally and never faults, and both addresses lie inside `values`
+                // (checked above for the last row).
+                unsafe {
+                    _mm_prefetch::<_MM_HINT_T0>(row.cast());
+                    _mm_prefetch::<_MM_HINT_T0>(row.wrapping_add(w - 1).cast());
+                }
+                row = row.wrapping_add(sy);
+            }
+            layer = layer.wrapping_add(sz);
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (values, brick, block);
+}
+
 /// Writes the code of each value of `src` for `iso` to `dst` (as long): eight at a time by
 /// vector compares where the target has them (rows are a few tens of cells, too short for the
-/// compiler's own vector loop), the rest one by one.
+/// compiler's own vector loop), a row's last values as the eight that end it (recoding a few,
+/// to the same codes) rather than one by one, and the values of rows shorter than eight one by
+/// one.
 #[inline]
 fn code_row(dst: &mut [u8], src: &[f32], iso: f32) {
     let n = dst.len().min(src.len());
     let done = code_eights(&mut dst[..n], &src[..n], iso);
+    if done == n || (n >= 8 && code_eights(&mut dst[n - 8..n], &src[n - 8..n], iso) == 8) {
+        return;
+    }
     for (c, &v) in dst[done..n].iter_mut().zip(&src[done..n]) {
         *c = code(v, v, iso);
     }
@@ -147,7 +208,8 @@ fn code_eights(dst: &mut [u8], src: &[f32], iso: f32) -> usize {
     unsafe {
         let iso4 = _mm_set1_ps(iso);
         let (above, below) = (_mm_set1_epi8(ABOVE as i8), _mm_set1_epi8(BELOW as i8));
-        for k in (0..n).step_by(8) {
+        let mut k = 0;
+        while k < n {
             let a = _mm_loadu_ps(src.as_ptr().add(k));
             let b = _mm_loadu_ps(src.as_ptr().add(k + 4));
             // All ones where `v >= iso` (false for NaN), and where `v < iso`.
@@ -164,6 +226,7 @@ fn code_eights(dst: &mut [u8], src: &[f32], iso: f32) -> usize {
                 _mm_and_si128(_mm_packs_epi16(lt, lt), below),
             );
             _mm_storel_epi64(dst.as_mut_ptr().add(k).cast(), bytes);
+            k += 8;
         }
     }
     n

@@ -183,27 +183,13 @@ fn tile_layers_are_the_single_ray_layers() {
     let isos = [0.08f32, 0.0, -0.08];
     for method in [Reconstruction::Octant, Reconstruction::Nearest] {
         let src = FieldSource::new(&file, 0, method).unwrap();
-        let surfaces: Vec<Surface> = isos
-            .iter()
-            .map(|&iso| {
-                let refs = src.extract(iso).unwrap().refs;
-                Surface::build(&src, iso, &refs, &mut BvhBuilder::new())
-            })
-            .collect();
+        let surfaces = surfaces_at(&src, &isos[..]);
         let tracer = HybridTracer {
             src: &src,
             surfaces: &surfaces,
             smooth_normals: false,
         };
-        let light = Lighting {
-            colors: vec![[1.0; 3]; 3],
-            opacity: vec![0.3, 0.5, 1.0],
-            key_dir: [0.0, 0.0, 1.0],
-            shadows: true,
-            ao_rays: 0,
-            ao_distance: 0.1,
-            ao_filter: false,
-        };
+        let light = lighting(vec![0.3, 0.5, 1.0], true);
         let frame = src.frame();
         let mut rng = Rng(5);
         let mut hint = SearchHint::default();
@@ -298,27 +284,13 @@ fn opaque_tile_layers_are_the_single_ray_layers() {
     let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
     let src = FieldSource::new(&file, 0, Reconstruction::Octant).unwrap();
     for isos in [&[0.08f32, 0.0, -0.08][..], &[0.0][..]] {
-        let surfaces: Vec<Surface> = isos
-            .iter()
-            .map(|&iso| {
-                let refs = src.extract(iso).unwrap().refs;
-                Surface::build(&src, iso, &refs, &mut BvhBuilder::new())
-            })
-            .collect();
+        let surfaces = surfaces_at(&src, &isos[..]);
         let tracer = HybridTracer {
             src: &src,
             surfaces: &surfaces,
             smooth_normals: false,
         };
-        let light = Lighting {
-            colors: vec![[1.0; 3]; isos.len()],
-            opacity: vec![1.0; isos.len()],
-            key_dir: [0.0, 0.0, 1.0],
-            shadows: false,
-            ao_rays: 0,
-            ao_distance: 0.1,
-            ao_filter: false,
-        };
+        let light = lighting(vec![1.0; isos.len()], false);
         let frame = src.frame();
         let mut rng = Rng(7);
         let mut hint = SearchHint::default();
@@ -348,6 +320,29 @@ fn opaque_tile_layers_are_the_single_ray_layers() {
             }
         }
         assert!(hits > 12 * 64 / 4, "{isos:?}: only {hits} rays hit");
+    }
+}
+
+/// One surface per isovalue of `src`, each with its own BVH.
+fn surfaces_at<D: AsRef<[u8]> + Sync>(src: &FieldSource<D>, isos: &[f32]) -> Vec<Surface> {
+    isos.iter()
+        .map(|&iso| {
+            let refs = src.extract(iso).unwrap().refs;
+            Surface::build(src, iso, &refs, &mut BvhBuilder::new())
+        })
+        .collect()
+}
+
+/// White surfaces of the given opacities lit from +z, without AO.
+fn lighting(opacity: Vec<f32>, shadows: bool) -> Lighting {
+    Lighting {
+        colors: vec![[1.0; 3]; opacity.len()],
+        opacity,
+        key_dir: [0.0, 0.0, 1.0],
+        shadows,
+        ao_rays: 0,
+        ao_distance: 0.1,
+        ao_filter: false,
     }
 }
 

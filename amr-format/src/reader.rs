@@ -85,6 +85,20 @@ pub struct LeafInfo<'a> {
     pub bricks: &'a [U32],
 }
 
+impl<'a> LeafInfo<'a> {
+    /// Leaf `l` of the table, its bricks in `brick_list` (in range: checked at open).
+    fn of(l: &KdLeaf, brick_list: &'a [U32]) -> Self {
+        let start = l.brick_start.get() as usize;
+        LeafInfo {
+            bounds: IBox::new(
+                l.lo.map(|v| i64::from(v.get())),
+                l.hi.map(|v| i64::from(v.get())),
+            ),
+            bricks: &brick_list[start..start + l.brick_count.get() as usize],
+        }
+    }
+}
+
 /// An open `.amrk` file over bytes `D` (a `Vec<u8>`, a memory map, ...).
 pub struct AmrkFile<D> {
     data: D,
@@ -369,15 +383,7 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
     /// Leaf `leaf`: its box and its bricks. Panics if out of range.
     pub fn leaf(&self, leaf: u32) -> LeafInfo<'_> {
         let l: &KdLeaf = &self.slice::<KdLeaf>(&self.footer.leaves)[leaf as usize];
-        let list: &[U32] = self.slice(&self.footer.brick_list);
-        let start = l.brick_start.get() as usize;
-        LeafInfo {
-            bounds: IBox::new(
-                l.lo.map(|v| i64::from(v.get())),
-                l.hi.map(|v| i64::from(v.get())),
-            ),
-            bricks: &list[start..start + l.brick_count.get() as usize],
-        }
+        LeafInfo::of(l, self.slice(&self.footer.brick_list))
     }
 
     /// Every kd-tree leaf, in order: [`Self::leaf`] of each, in one pass over the table.
@@ -385,17 +391,7 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         let list: &[U32] = self.slice(&self.footer.brick_list);
         self.slice::<KdLeaf>(&self.footer.leaves)
             .iter()
-            .map(move |l| {
-                let start = l.brick_start.get() as usize;
-                LeafInfo {
-                    bounds: IBox::new(
-                        l.lo.map(|v| i64::from(v.get())),
-                        l.hi.map(|v| i64::from(v.get())),
-                    ),
-                    // In range: checked at open.
-                    bricks: &list[start..start + l.brick_count.get() as usize],
-                }
-            })
+            .map(move |l| LeafInfo::of(l, list))
     }
 
     /// The conservative value range of field `field` inside leaf `leaf` (`(+inf, -inf)` for a

@@ -659,7 +659,7 @@ impl OctantBvh {
         visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]),
     ) {
         let mut lanes: packet::Avx2Lanes =
-            [const { std::mem::MaybeUninit::uninit() }; packet::PACKET];
+            [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8];
         let test = packet::Avx2Packet::new(&mut lanes, rays, m, oct);
         self.packet_with(rays, m, oct, stack, visit, |node, rays, m, e| {
             test.children(node, rays, m, e)

@@ -140,28 +140,45 @@ pub fn children_portable(
     }
 }
 
-/// The packet node test with AVX2: for each ray, the eight children at once, computed exactly as
-/// [`super::node_test::Avx2Ray::hits`] computes them, with the node's planes decoded once for
-/// the packet, the near and far planes chosen by the packet's octant once, and each ray's origin
-/// and inverse direction already in all eight lanes.
+/// The packet node test with AVX2: the rays of a packet in groups of eight (rays `8g..8g + 8`),
+/// one ray per lane, so that one pass over a group tests a child for eight rays, and its result
+/// is already the group's byte of the child's ray mask (no transposition). Each lane computes
+/// exactly what [`super::node_test::Avx2Ray::hits`] computes for its ray and that child: the
+/// same products, sums, `max` and `min` in the same operand order. A node's planes are decoded
+/// once for the packet, the near and far planes chosen by the packet's octant once, and each
+/// group's scale, offset and `tmax` once per node; only the groups holding a ray that entered
+/// the node and only the node's non-empty children are tested.
 #[cfg(target_arch = "x86_64")]
 pub struct Avx2Packet<'a> {
     /// Per axis, whether the rays go down it (their near planes are the high ones).
     down: [bool; 3],
-    /// The packet's rays' lanes, written for the rays of `rays` only.
+    /// The packet's groups' lanes, written for the groups holding a ray of `rays` only.
     lanes: &'a Avx2Lanes,
     rays: Mask,
 }
 
-/// Per ray of a packet: its origin's and its inverse direction's coordinates, each in all eight
-/// lanes; written for the packet's rays only (the rest is never read, nor zeroed).
+/// Per group of eight rays of a packet: the coordinates of its rays' origins (x, y, z) and
+/// inverse directions, one ray per lane; written for the groups holding one of the packet's rays
+/// only (the rest is never read, nor zeroed), with zeros in the lanes of the rays not in it.
 #[cfg(target_arch = "x86_64")]
-pub type Avx2Lanes = [std::mem::MaybeUninit<[std::arch::x86_64::__m256; 6]>; PACKET];
+pub type Avx2Lanes = [std::mem::MaybeUninit<[std::arch::x86_64::__m256; 6]>; PACKET / 8];
 
-/// From this many rays at a node on, their child masks are transposed into the packet's with
-/// byte shifts over all rays at once rather than bit by bit.
-#[cfg(target_arch = "x86_64")]
-const TRANSPOSE_FROM: u32 = 4;
+/// The rays of the groups of eight whose byte of `m` is not empty, lowest group first: its
+/// index and its byte.
+#[inline(always)]
+fn groups_of(m: Mask) -> impl Iterator<Item = (usize, u32)> {
+    let mut bytes = 0u32;
+    for g in 0..PACKET / 8 {
+        bytes |= u32::from(m >> (8 * g) & 0xff != 0) << g;
+    }
+    std::iter::from_fn(move || {
+        (bytes != 0).then(|| {
+            let g = bytes.trailing_zeros() as usize;
+            bytes &= bytes - 1;
+            (g, (m >> (8 * g) & 0xff) as u32)
+        })
+    })
+}
 
 #[cfg(target_arch = "x86_64")]
 impl<'a> Avx2Packet<'a> {
@@ -174,9 +191,17 @@ impl<'a> Avx2Packet<'a> {
     #[inline]
     pub fn new(lanes: &'a mut Avx2Lanes, rays: &[Ray], m: Mask, oct_inv4: u32) -> Self {
         use std::arch::x86_64::*;
-        for k in rays_of(m) {
-            let (o, inv) = (rays[k].origin, rays[k].inv_direction);
-            lanes[k].write([o.x, o.y, o.z, inv.x, inv.y, inv.z].map(|x| _mm256_set1_ps(x)));
+        for (g, byte) in groups_of(m) {
+            let mut v = [[0.0f32; 8]; 6];
+            for j in rays_of(u64::from(byte)) {
+                let r = &rays[8 * g + j];
+                let (o, inv) = (r.origin, r.inv_direction);
+                for (a, x) in [o.x, o.y, o.z, inv.x, inv.y, inv.z].into_iter().enumerate() {
+                    v[a][j] = x;
+                }
+            }
+            // SAFETY: `v[a]` is eight `f32`s; the load is unaligned.
+            lanes[g].write(v.map(|x| unsafe { _mm256_loadu_ps(x.as_ptr()) }));
         }
         Self {
             down: [oct_inv4 & 4 == 0, oct_inv4 & 2 == 0, oct_inv4 & 1 == 0],
@@ -186,7 +211,7 @@ impl<'a> Avx2Packet<'a> {
     }
 
     /// Sets bit `k` of `entered[s]` for each ray `k` of `m` that enters the non-empty child in
-    /// slot `s` of `node`. Panics unless `m` is a subset of the packet's rays.
+    /// slot `s` of `node`. Panics unless `m` is a subset of the packet's rays and of `rays`.
     ///
     /// # Safety
     /// The CPU must have AVX2.
@@ -194,6 +219,10 @@ impl<'a> Avx2Packet<'a> {
     #[inline]
     pub fn children(&self, node: &CwBvhNode, rays: &[Ray], m: Mask, entered: &mut [Mask; 8]) {
         use std::arch::x86_64::*;
+        assert!(
+            m & !self.rays == 0 && (rays.len() >= PACKET || m >> rays.len() == 0),
+            "rays {m:#x} are not all in the packet"
+        );
         let q = |b: &[u8; 8]| {
             _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(
                 u64::from_le_bytes(*b) as i64,
@@ -209,67 +238,93 @@ impl<'a> Avx2Packet<'a> {
         let (nx, fx) = pick(self.down[0], &node.child_min_x, &node.child_max_x);
         let (ny, fy) = pick(self.down[1], &node.child_min_y, &node.child_max_y);
         let (nz, fz) = pick(self.down[2], &node.child_min_z, &node.child_max_z);
-        let meta = u64::from_le_bytes(node.child_meta);
-        let mut used = 0u32;
-        for s in 0..8 {
-            used |= u32::from(meta >> (8 * s) & 0xff != 0) << s;
-        }
+        let meta = _mm_cvtsi64_si128(u64::from_le_bytes(node.child_meta) as i64);
+        let empty = _mm_movemask_epi8(_mm_cmpeq_epi8(meta, _mm_setzero_si128())) as u32;
+        let used = !empty & 0xff;
         let extent = node.compute_extent();
         let e = [extent.x, extent.y, extent.z].map(|x| _mm256_set1_ps(x));
         let p = node.p;
         let p = [p.x, p.y, p.z].map(|x| _mm256_set1_ps(x));
         let t_min = _mm256_set1_ps(super::T_MIN);
-        // The children each ray enters: `Vec3A`'s lane-wise products and differences, so each
-        // value is the one the single-ray test computes.
-        let hits = |k: usize| {
-            assert!(self.rays >> k & 1 != 0, "ray {k} is not in the packet");
-            // SAFETY: `new` wrote the lanes of every ray of `self.rays`, checked just above.
-            let l = unsafe { self.lanes[k].assume_init_ref() };
-            let axis = |a: usize, near: __m256, far: __m256| {
-                let scale = _mm256_mul_ps(e[a], l[3 + a]);
-                let offset = _mm256_mul_ps(_mm256_sub_ps(p[a], l[a]), l[3 + a]);
-                (
-                    _mm256_add_ps(_mm256_mul_ps(near, scale), offset),
-                    _mm256_add_ps(_mm256_mul_ps(far, scale), offset),
+        // Per group of `m`: each axis's scale and offset (`Vec3A`'s lane-wise products and
+        // differences, as the single-ray test computes them), its rays' `tmax`, its byte and
+        // where that byte goes in a mask.
+        let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        let stride = (std::mem::size_of::<Ray>() / 4) as i32;
+        let index = _mm256_mullo_epi32(
+            _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
+            _mm256_set1_epi32(stride),
+        );
+        let mut consts = [std::mem::MaybeUninit::<([__m256; 7], u32, u32)>::uninit(); PACKET / 8];
+        let mut count = 0;
+        for (g, byte) in groups_of(m) {
+            // SAFETY: `new` wrote the lanes of every group holding a ray of `self.rays`, and
+            // `m` is a subset of it (checked above).
+            let l = unsafe { self.lanes[g].assume_init_ref() };
+            let scale = |a: usize| _mm256_mul_ps(e[a], l[3 + a]);
+            let offset = |a: usize| _mm256_mul_ps(_mm256_sub_ps(p[a], l[a]), l[3 + a]);
+            let in_group = _mm256_cmpeq_epi32(
+                _mm256_and_si256(_mm256_set1_epi32(byte as i32), lane_bits),
+                lane_bits,
+            );
+            // SAFETY: the gather reads only the lanes of the group's rays of `m`, each the
+            // `tmax` of a ray of `rays` (checked above); `8 * g` is at most the index of one.
+            let tmax = unsafe {
+                let base = rays.as_ptr().add(8 * g).cast::<u8>();
+                let base = base.add(std::mem::offset_of!(Ray, tmax)).cast::<f32>();
+                _mm256_mask_i32gather_ps::<4>(
+                    _mm256_setzero_ps(),
+                    base,
+                    index,
+                    _mm256_castsi256_ps(in_group),
                 )
             };
-            let (x0, x1) = axis(0, nx, fx);
-            let (y0, y1) = axis(1, ny, fy);
-            let (z0, z1) = axis(2, nz, fz);
-            let t0 = _mm256_max_ps(x0, _mm256_max_ps(y0, z0));
-            let t1 = _mm256_min_ps(x1, _mm256_min_ps(y1, z1));
-            let t0 = _mm256_max_ps(t0, t_min);
-            let t1 = _mm256_min_ps(t1, _mm256_set1_ps(rays[k].tmax));
-            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32 & used
+            consts[count].write((
+                [
+                    scale(0),
+                    scale(1),
+                    scale(2),
+                    offset(0),
+                    offset(1),
+                    offset(2),
+                    tmax,
+                ],
+                byte,
+                8 * g as u32,
+            ));
+            count += 1;
+        }
+        // SAFETY: the first `count` entries were written just above.
+        let consts = unsafe {
+            std::slice::from_raw_parts(consts.as_ptr().cast::<([__m256; 7], u32, u32)>(), count)
         };
-        if m.count_ones() < TRANSPOSE_FROM {
-            for k in rays_of(m) {
-                let mut h = hits(k);
-                while h != 0 {
-                    let s = h.trailing_zeros() as usize;
-                    h &= h - 1;
-                    entered[s] |= 1 << k;
-                }
+        let mut slots = used;
+        while slots != 0 {
+            let s = slots.trailing_zeros();
+            slots &= slots - 1;
+            let at = _mm256_set1_epi32(s as i32);
+            let lane = |v: __m256| _mm256_permutevar8x32_ps(v, at);
+            let (nx, fx, ny, fy, nz, fz) =
+                (lane(nx), lane(fx), lane(ny), lane(fy), lane(nz), lane(fz));
+            let mut hit: Mask = 0;
+            for (c, byte, shift) in consts {
+                let axis = |near: __m256, far: __m256, a: usize| {
+                    (
+                        _mm256_add_ps(_mm256_mul_ps(near, c[a]), c[3 + a]),
+                        _mm256_add_ps(_mm256_mul_ps(far, c[a]), c[3 + a]),
+                    )
+                };
+                let (x0, x1) = axis(nx, fx, 0);
+                let (y0, y1) = axis(ny, fy, 1);
+                let (z0, z1) = axis(nz, fz, 2);
+                let t0 = _mm256_max_ps(x0, _mm256_max_ps(y0, z0));
+                let t1 = _mm256_min_ps(x1, _mm256_min_ps(y1, z1));
+                let t0 = _mm256_max_ps(t0, t_min);
+                let t1 = _mm256_min_ps(t1, c[6]);
+                let lanes = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32;
+                hit |= Mask::from(lanes & byte) << shift;
             }
-            return;
-        }
-        // One byte per ray, then bit `s` of every byte shifted to the top and gathered.
-        let mut bytes = [_mm256_setzero_si256(); 2];
-        {
-            // SAFETY: `bytes` is 64 bytes, plain integers; `k < PACKET = 64`.
-            let b = unsafe { &mut *(bytes.as_mut_ptr() as *mut [u8; PACKET]) };
-            for k in rays_of(m) {
-                b[k] = hits(k) as u8;
-            }
-        }
-        for (s, entered) in entered.iter_mut().enumerate() {
-            if used >> s & 1 == 0 {
-                continue;
-            }
-            let shift = _mm_cvtsi32_si128(7 - s as i32);
-            let lo = _mm256_movemask_epi8(_mm256_sll_epi16(bytes[0], shift)) as u32;
-            let hi = _mm256_movemask_epi8(_mm256_sll_epi16(bytes[1], shift)) as u32;
-            *entered |= u64::from(lo) | u64::from(hi) << 32;
+            entered[s as usize] |= hit;
         }
     }
 }

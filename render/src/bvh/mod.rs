@@ -675,7 +675,7 @@ impl OctantBvh {
         oct: u32,
         stack: &mut PacketStack,
         visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]),
-        test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) + Copy,
+        test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) -> u32 + Copy,
     ) {
         let mut chunk_walk = |chunk: &Chunk, rays: &mut [Ray], m: Mask, stack: &mut PacketStack| {
             let refs = &self.refs[chunk.first..chunk.first + chunk.len];

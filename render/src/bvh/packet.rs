@@ -352,19 +352,24 @@ impl<'a> Avx2Packet<'a> {
         if slots == 0 {
             return 0;
         }
-        // Each child left: its planes, each in all eight lanes.
-        let mut planes = [[_mm256_setzero_ps(); 6]; 8];
+        // Each child left: its slot and its planes, each in all eight lanes.
+        let mut left = [const { std::mem::MaybeUninit::<([__m256; 6], usize)>::uninit() }; 8];
         let mut count = 0;
-        let mut slot = [0usize; 8];
         while slots != 0 {
             let s = slots.trailing_zeros();
             slots &= slots - 1;
             let at = _mm256_set1_epi32(s as i32);
             let lane = |v: __m256| _mm256_permutevar8x32_ps(v, at);
-            planes[count] = [nx, fx, ny, fy, nz, fz].map(lane);
-            slot[count] = s as usize;
+            left[count].write((
+                [lane(nx), lane(fx), lane(ny), lane(fy), lane(nz), lane(fz)],
+                s as usize,
+            ));
             count += 1;
         }
+        // SAFETY: the first `count` entries were written just above.
+        let left = unsafe {
+            std::slice::from_raw_parts(left.as_ptr().cast::<([__m256; 6], usize)>(), count)
+        };
         let extent = node.compute_extent();
         let e = [extent.x, extent.y, extent.z].map(|x| _mm256_set1_ps(x));
         let p = node.p;
@@ -377,7 +382,7 @@ impl<'a> Avx2Packet<'a> {
             // each lane's value is the one the single-ray test computes for its ray.
             let scale = [0, 1, 2].map(|a| _mm256_mul_ps(e[a], l[3 + a]));
             let offset = [0, 1, 2].map(|a| _mm256_mul_ps(_mm256_sub_ps(p[a], l[a]), l[3 + a]));
-            for (planes, &s) in planes[..count].iter().zip(&slot) {
+            for (planes, s) in left {
                 let axis = |a: usize| {
                     (
                         _mm256_add_ps(_mm256_mul_ps(planes[2 * a], scale[a]), offset[a]),
@@ -393,12 +398,12 @@ impl<'a> Avx2Packet<'a> {
                 // SAFETY: written for each group of `m` above.
                 let t1 = _mm256_min_ps(t1, unsafe { tmax[g].assume_init() });
                 let lanes = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32;
-                entered[s] |= Mask::from(lanes & byte) << (8 * g);
+                entered[s & 7] |= Mask::from(lanes & byte) << (8 * g);
             }
         }
         let mut hit = 0;
-        for &s in &slot[..count] {
-            hit |= u32::from(entered[s] != 0) << s;
+        for (_, s) in left {
+            hit |= u32::from(entered[s & 7] != 0) << s;
         }
         hit
     }

@@ -205,6 +205,12 @@ pub type Avx2Lanes = [std::mem::MaybeUninit<[std::arch::x86_64::__m256; 8]>; PAC
 /// no larger than `B`, so they differ by less than `2^-20 B`; the margin is four times that.
 const CULL_MARGIN: f32 = 1.0 / (1 << 18) as f32;
 
+/// From this many rays at a node on, the node is tested group by group (with the cull); below,
+/// ray by ray, each ray's eight children at once, which costs less than the cull and the
+/// groups' set-up when the rays are few (callgrind, far view of the 1e8-cell file).
+#[cfg(target_arch = "x86_64")]
+const GROUPS_FROM: u32 = 12;
+
 /// The rays of the groups of eight whose byte of `m` is not empty, lowest group first: its
 /// index and its byte.
 #[cfg(target_arch = "x86_64")]
@@ -309,6 +315,9 @@ impl<'a> Avx2Packet<'a> {
         let meta = _mm_cvtsi64_si128(u64::from_le_bytes(node.child_meta) as i64);
         let empty = _mm_movemask_epi8(_mm_cmpeq_epi8(meta, _mm_setzero_si128())) as u32;
         let used = !empty & 0xff;
+        if m.count_ones() < GROUPS_FROM {
+            return self.ray_by_ray(node, rays, m, [nx, fx, ny, fy, nz, fz], used, entered);
+        }
         // The box of the origins and inverse directions of the groups of `m`, and each group's
         // rays' `tmax` (zero in the lanes of the rays not in `m`).
         let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
@@ -406,6 +415,62 @@ impl<'a> Avx2Packet<'a> {
             hit |= u32::from(entered[s & 7] != 0) << s;
         }
         hit
+    }
+
+    /// [`Avx2Packet::children`] one ray at a time, the eight children in the lanes, given the
+    /// node's near and far planes `q` (x near, x far, y near, ...) and its non-empty slots
+    /// `used`: each lane computes what [`super::node_test::Avx2Ray::hits`] computes.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn ray_by_ray(
+        &self,
+        node: &CwBvhNode,
+        rays: &[Ray],
+        m: Mask,
+        q: [std::arch::x86_64::__m256; 6],
+        used: u32,
+        entered: &mut [Mask; 8],
+    ) -> u32 {
+        use std::arch::x86_64::*;
+        let extent = node.compute_extent();
+        let e = [extent.x, extent.y, extent.z].map(|x| _mm256_set1_ps(x));
+        let p = node.p;
+        let p = [p.x, p.y, p.z].map(|x| _mm256_set1_ps(x));
+        let t_min = _mm256_set1_ps(super::T_MIN);
+        let mut any = 0;
+        for k in rays_of(m) {
+            // SAFETY: `new` wrote the lanes of every group holding a ray of `self.rays`, and
+            // `m` is a subset of it (checked by the caller).
+            let l = unsafe { self.lanes[k / 8].assume_init_ref() };
+            // SAFETY: `l[a]` is eight `f32`s, and `k % 8` one of them.
+            let lane = |a: usize| unsafe {
+                _mm256_broadcast_ss(&*(l.as_ptr().add(a).cast::<f32>().add(k % 8)))
+            };
+            let (o, inv) = ([lane(0), lane(1), lane(2)], [lane(3), lane(4), lane(5)]);
+            let axis = |a: usize| {
+                let scale = _mm256_mul_ps(e[a], inv[a]);
+                let offset = _mm256_mul_ps(_mm256_sub_ps(p[a], o[a]), inv[a]);
+                (
+                    _mm256_add_ps(_mm256_mul_ps(q[2 * a], scale), offset),
+                    _mm256_add_ps(_mm256_mul_ps(q[2 * a + 1], scale), offset),
+                )
+            };
+            let (x0, x1) = axis(0);
+            let (y0, y1) = axis(1);
+            let (z0, z1) = axis(2);
+            let t0 = _mm256_max_ps(x0, _mm256_max_ps(y0, z0));
+            let t1 = _mm256_min_ps(x1, _mm256_min_ps(y1, z1));
+            let t0 = _mm256_max_ps(t0, t_min);
+            let t1 = _mm256_min_ps(t1, _mm256_set1_ps(rays[k].tmax));
+            let mut h = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32 & used;
+            any |= h;
+            while h != 0 {
+                let s = h.trailing_zeros() as usize;
+                h &= h - 1;
+                entered[s] |= 1 << k;
+            }
+        }
+        any
     }
 
     /// The children of `node` that no ray enters whose origin and inverse direction lie in the

@@ -193,16 +193,17 @@ pub struct Avx2Packet<'a> {
 /// Per group of eight rays of a packet: the coordinates of its rays' origins (x, y, z) and
 /// inverse directions, one ray per lane, with zeros in the lanes of the rays not in the packet;
 /// then the smallest and the largest of each of these coordinates over the group's rays in the
-/// packet (origin x, y, z in lanes 0 to 2, inverse direction x, y, z in lanes 4 to 6). Written for the groups holding one of the packet's rays only
-/// (the rest is never read, nor zeroed).
+/// packet (origin x, y, z in lanes 0 to 2, inverse direction x, y, z in lanes 4 to 6). Written
+/// for the groups holding one of the packet's rays only (the rest is never read, nor zeroed).
 #[cfg(target_arch = "x86_64")]
 pub type Avx2Lanes = [std::mem::MaybeUninit<[std::arch::x86_64::__m256; 8]>; PACKET / 8];
 
 /// The margin of the interval cull, relative to a bound `B` of the terms of a distance along an
-/// axis (the origin's distance to the node plus the node's extent, times the largest inverse
-/// direction): `2^-18 B`. The node test's distance `q * (e * inv) + (p - o) * inv` and the
-/// cull's `((p + q * e) - o) * inv` each round at most four times, by at most `2^-24` of a term
-/// no larger than `B`, so they differ by less than `2^-20 B`; the margin is four times that.
+/// axis (the origin's distance to the node's corner plus 256 node extents, times the largest
+/// inverse direction): `2^-18 B`. The node test's distance `q * (e * inv) + (p - o) * inv`
+/// rounds four times, the cull's `((p - o) + q * e) * inv` three times (`e * inv` and `q * e`
+/// are exact: `e` is a power of two), each time by at most `2^-24` of a value no larger than
+/// `B`; so the two differ by less than `2^-21 B`, and the margin is eight times that.
 const CULL_MARGIN: f32 = 1.0 / (1 << 18) as f32;
 
 /// From this many rays at a node on, the node is tested group by group (with the cull); below,
@@ -279,7 +280,8 @@ impl<'a> Avx2Packet<'a> {
     }
 
     /// Sets bit `k` of `entered[s]` for each ray `k` of `m` that enters the non-empty child in
-    /// slot `s` of `node`, and returns the slots whose mask is then not empty. Panics unless `m` is a subset of the packet's rays and of `rays`.
+    /// slot `s` of `node`, and returns the slots whose mask is then not empty. Panics unless `m`
+    /// is a subset of the packet's rays and `rays` is the packet's slice.
     ///
     /// # Safety
     /// The CPU must have AVX2.
@@ -474,9 +476,9 @@ impl<'a> Avx2Packet<'a> {
     }
 
     /// The children of `node` that no ray enters whose origin and inverse direction lie in the
-    /// box `lo..=hi` (lanes 0 to 2: origin x, y, z; 4 to 6: inverse direction x, y, z) and whose `tmax`
-    /// is at most the largest lane of `tmax_hi`, given the children's quantized near and far
-    /// planes `q` (x near, x far, y near, ...), one child per lane: a bit per slot.
+    /// box `lo..=hi` (lanes 0 to 2: origin x, y, z; 4 to 6: inverse direction x, y, z) and
+    /// whose `tmax` is at most the largest lane of `tmax_hi`, given the children's quantized
+    /// near and far planes `q` (x near, x far, y near, ...), one child per lane: a bit per slot.
     #[target_feature(enable = "avx2")]
     #[inline]
     fn culled(
@@ -500,9 +502,11 @@ impl<'a> Avx2Packet<'a> {
         );
         let pv = _mm_setr_ps(p[0], p[1], p[2], 0.0);
         let ev = _mm_setr_ps(e[0], e[1], e[2], 0.0);
+        // The node's corner less the lowest and the highest origin.
+        let (p_lo, p_hi) = (_mm_sub_ps(pv, o_lo), _mm_sub_ps(pv, o_hi));
         let reach = _mm_mul_ps(
             _mm_add_ps(
-                _mm_max_ps(abs(_mm_sub_ps(pv, o_lo)), abs(_mm_sub_ps(pv, o_hi))),
+                _mm_max_ps(abs(p_lo), abs(p_hi)),
                 _mm_mul_ps(ev, _mm_set1_ps(256.0)),
             ),
             _mm_max_ps(abs(i_lo), abs(i_hi)),
@@ -517,16 +521,19 @@ impl<'a> Avx2Packet<'a> {
         for a in 0..3 {
             let i = a as i32;
             let margin = at(wide(margin), i);
-            let plane = |q: __m256| {
-                _mm256_add_ps(_mm256_set1_ps(p[a]), _mm256_mul_ps(q, _mm256_set1_ps(e[a])))
-            };
-            let (near, far) = (plane(q[2 * a]), plane(q[2 * a + 1]));
+            // A plane's offset from an origin, as `(p - o) + q * e` (`q * e` is exact: `e` is a
+            // power of two), so that it rounds relative to the offset, not to the coordinates.
             // Going up the axis, the earliest entry is from the highest origin and the latest
             // exit from the lowest; going down, the other way round. Over the inverse
             // directions, the extremes are at either end.
-            let (o_near, o_far) = if self.down[a] { (lo, hi) } else { (hi, lo) };
-            let d_near = _mm256_sub_ps(near, at(o_near, i));
-            let d_far = _mm256_sub_ps(far, at(o_far, i));
+            let (po_near, po_far) = if self.down[a] {
+                (p_lo, p_hi)
+            } else {
+                (p_hi, p_lo)
+            };
+            let e = _mm256_set1_ps(e[a]);
+            let d_near = _mm256_add_ps(at(wide(po_near), i), _mm256_mul_ps(q[2 * a], e));
+            let d_far = _mm256_add_ps(at(wide(po_far), i), _mm256_mul_ps(q[2 * a + 1], e));
             let (i_lo, i_hi) = (at(lo, 4 + i), at(hi, 4 + i));
             let enter = _mm256_min_ps(_mm256_mul_ps(d_near, i_lo), _mm256_mul_ps(d_near, i_hi));
             let exit = _mm256_max_ps(_mm256_mul_ps(d_far, i_lo), _mm256_mul_ps(d_far, i_hi));

@@ -659,7 +659,7 @@ impl OctantBvh {
         visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]),
     ) {
         let mut lanes: packet::Avx2Lanes =
-            [const { std::mem::MaybeUninit::uninit() }; packet::PACKET];
+            [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8];
         let test = packet::Avx2Packet::new(&mut lanes, rays, m, oct);
         self.packet_with(rays, m, oct, stack, visit, |node, rays, m, e| {
             test.children(node, rays, m, e)
@@ -675,7 +675,7 @@ impl OctantBvh {
         oct: u32,
         stack: &mut PacketStack,
         visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]),
-        test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) + Copy,
+        test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) -> u32 + Copy,
     ) {
         let mut chunk_walk = |chunk: &Chunk, rays: &mut [Ray], m: Mask, stack: &mut PacketStack| {
             let refs = &self.refs[chunk.first..chunk.first + chunk.len];
@@ -1016,7 +1016,8 @@ mod tests {
                 let target = Vec3A::new(50.0, 50.0, 50.0)
                     + Vec3A::new((a * 3.1).sin(), (a * 2.3).cos(), (a * 1.7).sin()) * 30.0;
                 // An 8x8 tile of directions around the target; every third packet spread so
-                // wide that its rays fall in several octants, some with zero components.
+                // wide that its rays fall in several octants, some with zero components, and
+                // from one origin.
                 let spread = if p % 3 == 0 { 2.0 } else { 0.02 };
                 let rays: Vec<Ray> = (0..64u32)
                     .map(|k| {
@@ -1032,7 +1033,15 @@ mod tests {
                         } else {
                             f32::INFINITY
                         };
-                        Ray::new(origin, dir, 0.0, tmax)
+                        // The other packets' rays start apart, as the tracer's do: moved
+                        // along their directions by different amounts, or moved sideways
+                        // too, into the boxes.
+                        let start = match p % 3 {
+                            1 => origin + dir * (k as f32 * 1.7),
+                            2 => origin + dir * 40.0 + Vec3A::new(u, v, -u) * 3.0,
+                            _ => origin,
+                        };
+                        Ray::new(start, dir, 0.0, tmax)
                     })
                     .collect();
                 let active = if p % 4 == 1 {

@@ -10,7 +10,8 @@
 //! walk. So each ray visits exactly the primitives, in exactly the order and under exactly the
 //! `tmax`, that [`super::walk::walk`] gives it alone (`bvh::tests` compares them visit by visit).
 //! What a packet shares is the node: its fetch, the decoding of its 48 plane bytes and its child
-//! layout; each ray's test is then about 30 instructions instead of 85.
+//! layout, and with AVX2 ([`Avx2Packet`]) a conservative cull of the children none of its rays
+//! enters, and the test of each child left for eight rays at a time.
 
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray;
@@ -44,7 +45,8 @@ fn is_inner(meta: u8) -> bool {
 
 /// Walks `nodes` (empty, or a CWBVH8 whose root is node 0) with the rays of `active`, all of
 /// direction octant code `oct_inv4`: `test(node, rays, m, entered)` sets bit `k` of `entered[s]`
-/// for each ray `k` of `m` that enters the child in slot `s` (a non-empty one), and
+/// for each ray `k` of `m` that enters the child in slot `s` (a non-empty one) and returns the
+/// slots whose mask is then not empty, and
 /// `leaf(i, m, rays)` is called for every primitive `i` of the leaves hit with the rays `m` that
 /// hit it, and may lower their `tmax`. The entries the walk pushes on `stack` are gone when it
 /// returns.
@@ -55,7 +57,7 @@ pub fn walk_packet(
     active: Mask,
     oct_inv4: u32,
     stack: &mut PacketStack,
-    test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]),
+    test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) -> u32,
     mut leaf: impl FnMut(u32, Mask, &mut [Ray], &mut PacketStack),
 ) {
     if nodes.is_empty() || active == 0 {
@@ -68,13 +70,16 @@ pub fn walk_packet(
         let Some((n, m)) = stack.pop() else { break };
         let node = &nodes[n as usize];
         let mut entered = [0; 8];
-        test(node, rays, m, &mut entered);
+        let hit = test(node, rays, m, &mut entered);
         // The rays of each primitive bit, as the single-ray mask has them.
         let mut prim_rays = [0; 24];
         let mut prims = 0u32;
-        for (s, &e) in entered.iter().enumerate() {
-            let meta = node.child_meta[s];
-            if e == 0 || is_inner(meta) {
+        let mut slots = hit;
+        while slots != 0 {
+            let s = slots.trailing_zeros() as usize;
+            slots &= slots - 1;
+            let (meta, e) = (node.child_meta[s], entered[s]);
+            if is_inner(meta) {
                 continue;
             }
             let at = u32::from(meta & 0x1f);
@@ -94,18 +99,33 @@ pub fn walk_packet(
                 stack,
             );
         }
-        // Inner children nearest first: pushed in the reverse order.
+        // Inner children nearest first: pushed in the reverse order, slot `i ^ oct` for `i`
+        // from 0 up.
         let imask = u32::from(node.imask);
-        for i in 0..8 {
-            let s = i ^ oct;
-            let e = entered[s as usize];
-            if e != 0 && imask >> s & 1 != 0 {
-                let child = node.child_base_idx + (imask & !(u32::MAX << s)).count_ones();
-                stack.push((child, e));
-            }
+        let mut order = xor_slots(hit & imask, oct);
+        while order != 0 {
+            let s = order.trailing_zeros() ^ oct;
+            order &= order - 1;
+            let child = node.child_base_idx + (imask & !(u32::MAX << s)).count_ones();
+            stack.push((child, entered[s as usize]));
         }
     }
     stack.truncate(floor);
+}
+
+/// The slot set `slots` (bit `s` for slot `s`) with each slot `s` moved to `s ^ oct` (`oct < 8`).
+#[inline(always)]
+fn xor_slots(mut slots: u32, oct: u32) -> u32 {
+    if oct & 1 != 0 {
+        slots = (slots & 0x55) << 1 | (slots >> 1) & 0x55;
+    }
+    if oct & 2 != 0 {
+        slots = (slots & 0x33) << 2 | (slots >> 2) & 0x33;
+    }
+    if oct & 4 != 0 {
+        slots = (slots & 0x0f) << 4 | (slots >> 4) & 0x0f;
+    }
+    slots
 }
 
 /// The packet node test on any CPU: obvhs's own test per ray, its mask read back per slot.
@@ -116,7 +136,7 @@ pub fn children_portable(
     m: Mask,
     oct_inv4: u32,
     entered: &mut [Mask; 8],
-) {
+) -> u32 {
     // The bit of each non-empty child in obvhs's mask: any of a leaf's primitive bits (all set
     // or none), an inner child's slot bit.
     let mut bit = [0u32; 8];
@@ -138,30 +158,83 @@ pub fn children_portable(
             }
         }
     }
+    let mut slots = 0;
+    for (s, &e) in entered.iter().enumerate() {
+        slots |= u32::from(e != 0) << s;
+    }
+    slots
 }
 
-/// The packet node test with AVX2: for each ray, the eight children at once, computed exactly as
-/// [`super::node_test::Avx2Ray::hits`] computes them, with the node's planes decoded once for
-/// the packet, the near and far planes chosen by the packet's octant once, and each ray's origin
-/// and inverse direction already in all eight lanes.
+/// The packet node test with AVX2: the rays of a packet in groups of eight (rays `8g..8g + 8`),
+/// one ray per lane, so that one pass over a group tests a child for eight rays, and its result
+/// is already the group's byte of the child's ray mask (no transposition). Each lane computes
+/// exactly what [`super::node_test::Avx2Ray::hits`] computes for its ray and that child: the
+/// same products, sums, `max` and `min` in the same operand order. A node's planes are decoded
+/// once for the packet, the near and far planes chosen by the packet's octant once, and each
+/// group's scale, offset and `tmax` once per node; only the groups holding a ray that entered
+/// the node and only the node's non-empty children are tested.
+///
+/// Before that, the children that no ray of those groups can enter are culled for all of them
+/// at once, by interval arithmetic: the groups' origins and inverse directions lie in a box,
+/// which bounds each child's entry distance from below and its exit distance from above; a
+/// child whose bounds, widened by far more than the rounding of either computation (see
+/// [`CULL_MARGIN`]), leave no room for an entry is not tested. The cull is conservative: every
+/// child a ray enters is still tested, so the masks are the per-ray test's exactly.
 #[cfg(target_arch = "x86_64")]
 pub struct Avx2Packet<'a> {
     /// Per axis, whether the rays go down it (their near planes are the high ones).
     down: [bool; 3],
-    /// The packet's rays' lanes, written for the rays of `rays` only.
+    /// The packet's groups' lanes, written for the groups holding a ray of `rays` only.
     lanes: &'a Avx2Lanes,
     rays: Mask,
+    /// How many rays the packet's slice holds.
+    len: usize,
 }
 
-/// Per ray of a packet: its origin's and its inverse direction's coordinates, each in all eight
-/// lanes; written for the packet's rays only (the rest is never read, nor zeroed).
+/// Per group of eight rays of a packet: the coordinates of its rays' origins (x, y, z) and
+/// inverse directions, one ray per lane, with zeros in the lanes of the rays not in the packet;
+/// then the smallest and the largest of each of these coordinates over the group's rays in the
+/// packet (origin x, y, z in lanes 0 to 2, inverse direction x, y, z in lanes 4 to 6). Written
+/// for the groups holding one of the packet's rays only (the rest is never read, nor zeroed).
 #[cfg(target_arch = "x86_64")]
-pub type Avx2Lanes = [std::mem::MaybeUninit<[std::arch::x86_64::__m256; 6]>; PACKET];
+pub type Avx2Lanes = [std::mem::MaybeUninit<[std::arch::x86_64::__m256; 8]>; PACKET / 8];
 
-/// From this many rays at a node on, their child masks are transposed into the packet's with
-/// byte shifts over all rays at once rather than bit by bit.
+/// The margin of the interval cull, relative to a bound `B` of the terms of a distance along an
+/// axis (the origin's distance to the node's corner plus 256 node extents, times the largest
+/// inverse direction): `2^-18 B`. The node test's distance `q * (e * inv) + (p - o) * inv`
+/// rounds four times, the cull's `((p - o) + q * e) * inv` three times (`e * inv` and `q * e`
+/// are exact: `e` is a power of two), each time by at most `2^-24` of a value no larger than
+/// `B`; so the two differ by less than `2^-21 B`, and the margin is eight times that.
+const CULL_MARGIN: f32 = 1.0 / (1 << 18) as f32;
+
+/// From this many rays at a node on, the node is tested group by group (with the cull); below,
+/// ray by ray, each ray's eight children at once, which costs less than the cull and the
+/// groups' set-up when the rays are few (callgrind, far view of the 1e8-cell file).
 #[cfg(target_arch = "x86_64")]
-const TRANSPOSE_FROM: u32 = 4;
+const GROUPS_FROM: u32 = 12;
+
+/// The rays of the groups of eight whose byte of `m` is not empty, lowest group first: its
+/// index and its byte.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn groups_of(m: Mask) -> impl Iterator<Item = (usize, u32)> {
+    use std::arch::x86_64::*;
+    // SAFETY: SSE2 is part of x86_64.
+    let empty = unsafe {
+        _mm_movemask_epi8(_mm_cmpeq_epi8(
+            _mm_cvtsi64_si128(m as i64),
+            _mm_setzero_si128(),
+        ))
+    };
+    let mut bytes = !empty as u32 & 0xff;
+    std::iter::from_fn(move || {
+        (bytes != 0).then(|| {
+            let g = bytes.trailing_zeros() as usize;
+            bytes &= bytes - 1;
+            (g, (m >> (8 * g) & 0xff) as u32)
+        })
+    })
+}
 
 #[cfg(target_arch = "x86_64")]
 impl<'a> Avx2Packet<'a> {
@@ -174,26 +247,59 @@ impl<'a> Avx2Packet<'a> {
     #[inline]
     pub fn new(lanes: &'a mut Avx2Lanes, rays: &[Ray], m: Mask, oct_inv4: u32) -> Self {
         use std::arch::x86_64::*;
-        for k in rays_of(m) {
-            let (o, inv) = (rays[k].origin, rays[k].inv_direction);
-            lanes[k].write([o.x, o.y, o.z, inv.x, inv.y, inv.z].map(|x| _mm256_set1_ps(x)));
+        for (g, byte) in groups_of(m) {
+            let mut v = [[0.0f32; 8]; 6];
+            let (mut lo, mut hi) = (
+                _mm256_set1_ps(f32::INFINITY),
+                _mm256_set1_ps(f32::NEG_INFINITY),
+            );
+            for j in rays_of(u64::from(byte)) {
+                let r = &rays[8 * g + j];
+                let (o, inv) = (r.origin, r.inv_direction);
+                for (a, x) in [o.x, o.y, o.z, inv.x, inv.y, inv.z].into_iter().enumerate() {
+                    v[a][j] = x;
+                }
+                let both = _mm256_set_m128(inv.into(), o.into());
+                lo = _mm256_min_ps(lo, both);
+                hi = _mm256_max_ps(hi, both);
+            }
+            // SAFETY: `v[a]` is eight `f32`s; the load is unaligned.
+            let v = v.map(|x| unsafe { _mm256_loadu_ps(x.as_ptr()) });
+            lanes[g].write([v[0], v[1], v[2], v[3], v[4], v[5], lo, hi]);
         }
+        assert!(
+            rays.len() >= PACKET || m >> rays.len() == 0,
+            "rays {m:#x} of a packet of {}",
+            rays.len()
+        );
         Self {
             down: [oct_inv4 & 4 == 0, oct_inv4 & 2 == 0, oct_inv4 & 1 == 0],
             lanes,
             rays: m,
+            len: rays.len(),
         }
     }
 
     /// Sets bit `k` of `entered[s]` for each ray `k` of `m` that enters the non-empty child in
-    /// slot `s` of `node`. Panics unless `m` is a subset of the packet's rays.
+    /// slot `s` of `node`, and returns the slots whose mask is then not empty. Panics unless `m`
+    /// is a subset of the packet's rays and `rays` is the packet's slice.
     ///
     /// # Safety
     /// The CPU must have AVX2.
     #[target_feature(enable = "avx2")]
     #[inline]
-    pub fn children(&self, node: &CwBvhNode, rays: &[Ray], m: Mask, entered: &mut [Mask; 8]) {
+    pub fn children(
+        &self,
+        node: &CwBvhNode,
+        rays: &[Ray],
+        m: Mask,
+        entered: &mut [Mask; 8],
+    ) -> u32 {
         use std::arch::x86_64::*;
+        assert!(
+            m & !self.rays == 0 && rays.len() == self.len,
+            "rays {m:#x} are not all in the packet"
+        );
         let q = |b: &[u8; 8]| {
             _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(
                 u64::from_le_bytes(*b) as i64,
@@ -209,67 +315,233 @@ impl<'a> Avx2Packet<'a> {
         let (nx, fx) = pick(self.down[0], &node.child_min_x, &node.child_max_x);
         let (ny, fy) = pick(self.down[1], &node.child_min_y, &node.child_max_y);
         let (nz, fz) = pick(self.down[2], &node.child_min_z, &node.child_max_z);
-        let meta = u64::from_le_bytes(node.child_meta);
-        let mut used = 0u32;
-        for s in 0..8 {
-            used |= u32::from(meta >> (8 * s) & 0xff != 0) << s;
+        let meta = _mm_cvtsi64_si128(u64::from_le_bytes(node.child_meta) as i64);
+        let empty = _mm_movemask_epi8(_mm_cmpeq_epi8(meta, _mm_setzero_si128())) as u32;
+        let used = !empty & 0xff;
+        if m.count_ones() < GROUPS_FROM {
+            return self.ray_by_ray(node, rays, m, [nx, fx, ny, fy, nz, fz], used, entered);
         }
+        // The box of the origins and inverse directions of the groups of `m`, and each group's
+        // rays' `tmax` (zero in the lanes of the rays not in `m`).
+        let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        let stride = (std::mem::size_of::<Ray>() / 4) as i32;
+        let index = _mm256_mullo_epi32(
+            _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
+            _mm256_set1_epi32(stride),
+        );
+        let (mut lo, mut hi) = (
+            _mm256_set1_ps(f32::INFINITY),
+            _mm256_set1_ps(f32::NEG_INFINITY),
+        );
+        let mut tmax = [std::mem::MaybeUninit::<__m256>::uninit(); PACKET / 8];
+        let mut tmax_hi = _mm256_setzero_ps();
+        for (g, byte) in groups_of(m) {
+            // SAFETY: `new` wrote the lanes of every group holding a ray of `self.rays`, and
+            // `m` is a subset of it (checked above).
+            let l = unsafe { self.lanes[g].assume_init_ref() };
+            lo = _mm256_min_ps(lo, l[6]);
+            hi = _mm256_max_ps(hi, l[7]);
+            let in_group = _mm256_cmpeq_epi32(
+                _mm256_and_si256(_mm256_set1_epi32(byte as i32), lane_bits),
+                lane_bits,
+            );
+            // SAFETY: the gather reads only the lanes of the group's rays of `m`, each the
+            // `tmax` of a ray of `rays` (checked above); `8 * g` is at most the index of one.
+            let t = unsafe {
+                let base = rays.as_ptr().add(8 * g).cast::<u8>();
+                let base = base.add(std::mem::offset_of!(Ray, tmax)).cast::<f32>();
+                _mm256_mask_i32gather_ps::<4>(
+                    _mm256_setzero_ps(),
+                    base,
+                    index,
+                    _mm256_castsi256_ps(in_group),
+                )
+            };
+            tmax[g].write(t);
+            tmax_hi = _mm256_max_ps(tmax_hi, t);
+        }
+        let mut slots = used & !self.culled(node, [nx, fx, ny, fy, nz, fz], lo, hi, tmax_hi);
+        if slots == 0 {
+            return 0;
+        }
+        // Each child left: its slot and its planes, each in all eight lanes.
+        let mut left = [const { std::mem::MaybeUninit::<([__m256; 6], usize)>::uninit() }; 8];
+        let mut count = 0;
+        while slots != 0 {
+            let s = slots.trailing_zeros();
+            slots &= slots - 1;
+            let at = _mm256_set1_epi32(s as i32);
+            let lane = |v: __m256| _mm256_permutevar8x32_ps(v, at);
+            left[count].write((
+                [lane(nx), lane(fx), lane(ny), lane(fy), lane(nz), lane(fz)],
+                s as usize,
+            ));
+            count += 1;
+        }
+        // SAFETY: the first `count` entries were written just above.
+        let left = unsafe {
+            std::slice::from_raw_parts(left.as_ptr().cast::<([__m256; 6], usize)>(), count)
+        };
         let extent = node.compute_extent();
         let e = [extent.x, extent.y, extent.z].map(|x| _mm256_set1_ps(x));
         let p = node.p;
         let p = [p.x, p.y, p.z].map(|x| _mm256_set1_ps(x));
         let t_min = _mm256_set1_ps(super::T_MIN);
-        // The children each ray enters: `Vec3A`'s lane-wise products and differences, so each
-        // value is the one the single-ray test computes.
-        let hits = |k: usize| {
-            assert!(self.rays >> k & 1 != 0, "ray {k} is not in the packet");
-            // SAFETY: `new` wrote the lanes of every ray of `self.rays`, checked just above.
-            let l = unsafe { self.lanes[k].assume_init_ref() };
-            let axis = |a: usize, near: __m256, far: __m256| {
-                let scale = _mm256_mul_ps(e[a], l[3 + a]);
-                let offset = _mm256_mul_ps(_mm256_sub_ps(p[a], l[a]), l[3 + a]);
+        for (g, byte) in groups_of(m) {
+            // SAFETY: as above.
+            let l = unsafe { self.lanes[g].assume_init_ref() };
+            // Each axis's scale and offset: `Vec3A`'s lane-wise products and differences, so
+            // each lane's value is the one the single-ray test computes for its ray.
+            let scale = [0, 1, 2].map(|a| _mm256_mul_ps(e[a], l[3 + a]));
+            let offset = [0, 1, 2].map(|a| _mm256_mul_ps(_mm256_sub_ps(p[a], l[a]), l[3 + a]));
+            for (planes, s) in left {
+                let axis = |a: usize| {
+                    (
+                        _mm256_add_ps(_mm256_mul_ps(planes[2 * a], scale[a]), offset[a]),
+                        _mm256_add_ps(_mm256_mul_ps(planes[2 * a + 1], scale[a]), offset[a]),
+                    )
+                };
+                let (x0, x1) = axis(0);
+                let (y0, y1) = axis(1);
+                let (z0, z1) = axis(2);
+                let t0 = _mm256_max_ps(x0, _mm256_max_ps(y0, z0));
+                let t1 = _mm256_min_ps(x1, _mm256_min_ps(y1, z1));
+                let t0 = _mm256_max_ps(t0, t_min);
+                // SAFETY: written for each group of `m` above.
+                let t1 = _mm256_min_ps(t1, unsafe { tmax[g].assume_init() });
+                let lanes = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32;
+                entered[s & 7] |= Mask::from(lanes & byte) << (8 * g);
+            }
+        }
+        let mut hit = 0;
+        for (_, s) in left {
+            hit |= u32::from(entered[s & 7] != 0) << s;
+        }
+        hit
+    }
+
+    /// [`Avx2Packet::children`] one ray at a time, the eight children in the lanes, given the
+    /// node's near and far planes `q` (x near, x far, y near, ...) and its non-empty slots
+    /// `used`: each lane computes what [`super::node_test::Avx2Ray::hits`] computes.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn ray_by_ray(
+        &self,
+        node: &CwBvhNode,
+        rays: &[Ray],
+        m: Mask,
+        q: [std::arch::x86_64::__m256; 6],
+        used: u32,
+        entered: &mut [Mask; 8],
+    ) -> u32 {
+        use std::arch::x86_64::*;
+        let extent = node.compute_extent();
+        let e = [extent.x, extent.y, extent.z].map(|x| _mm256_set1_ps(x));
+        let p = node.p;
+        let p = [p.x, p.y, p.z].map(|x| _mm256_set1_ps(x));
+        let t_min = _mm256_set1_ps(super::T_MIN);
+        let mut any = 0;
+        for k in rays_of(m) {
+            // SAFETY: `new` wrote the lanes of every group holding a ray of `self.rays`, and
+            // `m` is a subset of it (checked by the caller).
+            let l = unsafe { self.lanes[k / 8].assume_init_ref() };
+            // SAFETY: `l[a]` is eight `f32`s, and `k % 8` one of them.
+            let lane = |a: usize| unsafe {
+                _mm256_broadcast_ss(&*(l.as_ptr().add(a).cast::<f32>().add(k % 8)))
+            };
+            let (o, inv) = ([lane(0), lane(1), lane(2)], [lane(3), lane(4), lane(5)]);
+            let axis = |a: usize| {
+                let scale = _mm256_mul_ps(e[a], inv[a]);
+                let offset = _mm256_mul_ps(_mm256_sub_ps(p[a], o[a]), inv[a]);
                 (
-                    _mm256_add_ps(_mm256_mul_ps(near, scale), offset),
-                    _mm256_add_ps(_mm256_mul_ps(far, scale), offset),
+                    _mm256_add_ps(_mm256_mul_ps(q[2 * a], scale), offset),
+                    _mm256_add_ps(_mm256_mul_ps(q[2 * a + 1], scale), offset),
                 )
             };
-            let (x0, x1) = axis(0, nx, fx);
-            let (y0, y1) = axis(1, ny, fy);
-            let (z0, z1) = axis(2, nz, fz);
+            let (x0, x1) = axis(0);
+            let (y0, y1) = axis(1);
+            let (z0, z1) = axis(2);
             let t0 = _mm256_max_ps(x0, _mm256_max_ps(y0, z0));
             let t1 = _mm256_min_ps(x1, _mm256_min_ps(y1, z1));
             let t0 = _mm256_max_ps(t0, t_min);
             let t1 = _mm256_min_ps(t1, _mm256_set1_ps(rays[k].tmax));
-            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32 & used
-        };
-        if m.count_ones() < TRANSPOSE_FROM {
-            for k in rays_of(m) {
-                let mut h = hits(k);
-                while h != 0 {
-                    let s = h.trailing_zeros() as usize;
-                    h &= h - 1;
-                    entered[s] |= 1 << k;
-                }
-            }
-            return;
-        }
-        // One byte per ray, then bit `s` of every byte shifted to the top and gathered.
-        let mut bytes = [_mm256_setzero_si256(); 2];
-        {
-            // SAFETY: `bytes` is 64 bytes, plain integers; `k < PACKET = 64`.
-            let b = unsafe { &mut *(bytes.as_mut_ptr() as *mut [u8; PACKET]) };
-            for k in rays_of(m) {
-                b[k] = hits(k) as u8;
+            let mut h = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32 & used;
+            any |= h;
+            while h != 0 {
+                let s = h.trailing_zeros() as usize;
+                h &= h - 1;
+                entered[s] |= 1 << k;
             }
         }
-        for (s, entered) in entered.iter_mut().enumerate() {
-            if used >> s & 1 == 0 {
-                continue;
-            }
-            let shift = _mm_cvtsi32_si128(7 - s as i32);
-            let lo = _mm256_movemask_epi8(_mm256_sll_epi16(bytes[0], shift)) as u32;
-            let hi = _mm256_movemask_epi8(_mm256_sll_epi16(bytes[1], shift)) as u32;
-            *entered |= u64::from(lo) | u64::from(hi) << 32;
+        any
+    }
+
+    /// The children of `node` that no ray enters whose origin and inverse direction lie in the
+    /// box `lo..=hi` (lanes 0 to 2: origin x, y, z; 4 to 6: inverse direction x, y, z) and
+    /// whose `tmax` is at most the largest lane of `tmax_hi`, given the children's quantized
+    /// near and far planes `q` (x near, x far, y near, ...), one child per lane: a bit per slot.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn culled(
+        &self,
+        node: &CwBvhNode,
+        q: [std::arch::x86_64::__m256; 6],
+        lo: std::arch::x86_64::__m256,
+        hi: std::arch::x86_64::__m256,
+        tmax_hi: std::arch::x86_64::__m256,
+    ) -> u32 {
+        use std::arch::x86_64::*;
+        let extent = node.compute_extent();
+        let (p, e) = (node.p, [extent.x, extent.y, extent.z]);
+        let p = [p.x, p.y, p.z];
+        // Per axis (lanes 0 to 2), the bound of the terms of a distance the margin is taken of.
+        let abs = |v: __m128| _mm_andnot_ps(_mm_set1_ps(-0.0), v);
+        let (o_lo, o_hi) = (_mm256_castps256_ps128(lo), _mm256_castps256_ps128(hi));
+        let (i_lo, i_hi) = (
+            _mm256_extractf128_ps::<1>(lo),
+            _mm256_extractf128_ps::<1>(hi),
+        );
+        let pv = _mm_setr_ps(p[0], p[1], p[2], 0.0);
+        let ev = _mm_setr_ps(e[0], e[1], e[2], 0.0);
+        // The node's corner less the lowest and the highest origin.
+        let (p_lo, p_hi) = (_mm_sub_ps(pv, o_lo), _mm_sub_ps(pv, o_hi));
+        let reach = _mm_mul_ps(
+            _mm_add_ps(
+                _mm_max_ps(abs(p_lo), abs(p_hi)),
+                _mm_mul_ps(ev, _mm_set1_ps(256.0)),
+            ),
+            _mm_max_ps(abs(i_lo), abs(i_hi)),
+        );
+        let margin = _mm_mul_ps(reach, _mm_set1_ps(CULL_MARGIN));
+        let at = |v: __m256, i: i32| _mm256_permutevar8x32_ps(v, _mm256_set1_epi32(i));
+        let wide = |v: __m128| _mm256_castps128_ps256(v);
+        let mut t0 = _mm256_set1_ps(super::T_MIN);
+        let mut t1 = _mm256_max_ps(tmax_hi, _mm256_permute2f128_ps::<1>(tmax_hi, tmax_hi));
+        t1 = _mm256_max_ps(t1, _mm256_shuffle_ps::<0b01_00_11_10>(t1, t1));
+        t1 = _mm256_max_ps(t1, _mm256_shuffle_ps::<0b10_11_00_01>(t1, t1));
+        for a in 0..3 {
+            let i = a as i32;
+            let margin = at(wide(margin), i);
+            // A plane's offset from an origin, as `(p - o) + q * e` (`q * e` is exact: `e` is a
+            // power of two), so that it rounds relative to the offset, not to the coordinates.
+            // Going up the axis, the earliest entry is from the highest origin and the latest
+            // exit from the lowest; going down, the other way round. Over the inverse
+            // directions, the extremes are at either end.
+            let (po_near, po_far) = if self.down[a] {
+                (p_lo, p_hi)
+            } else {
+                (p_hi, p_lo)
+            };
+            let e = _mm256_set1_ps(e[a]);
+            let d_near = _mm256_add_ps(at(wide(po_near), i), _mm256_mul_ps(q[2 * a], e));
+            let d_far = _mm256_add_ps(at(wide(po_far), i), _mm256_mul_ps(q[2 * a + 1], e));
+            let (i_lo, i_hi) = (at(lo, 4 + i), at(hi, 4 + i));
+            let enter = _mm256_min_ps(_mm256_mul_ps(d_near, i_lo), _mm256_mul_ps(d_near, i_hi));
+            let exit = _mm256_max_ps(_mm256_mul_ps(d_far, i_lo), _mm256_mul_ps(d_far, i_hi));
+            t0 = _mm256_max_ps(t0, _mm256_sub_ps(enter, margin));
+            t1 = _mm256_min_ps(t1, _mm256_add_ps(exit, margin));
         }
+        // An ordered comparison: a NaN anywhere culls nothing.
+        _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(t0, t1)) as u32
     }
 }

@@ -4,6 +4,7 @@
 use crate::trace::ray::{larger, smaller};
 
 /// Where a scan of a cubic found its first root: at a point, or inside a bracket.
+#[derive(Debug, PartialEq)]
 enum Bracket {
     /// A point where the value is within the tolerance of zero.
     Root(f64),
@@ -72,6 +73,7 @@ impl Cubic {
     /// The smallest `s` in the closed interval `[a, b]` where the cubic is zero, treating any
     /// value with `|value| <= tol` as zero (which catches grazing rays that touch the surface at an
     /// extremum, and surfaces through segment ends where two voxels meet).
+    #[inline]
     pub fn first_root(&self, a: f64, b: f64, tol: f64) -> Option<f64> {
         self.first_bracket(a, b, tol).map(|bracket| match bracket {
             Bracket::Root(x) => x,
@@ -81,6 +83,7 @@ impl Cubic {
 
     /// True exactly when [`Self::first_root`] finds a root, without refining it (for any-hit
     /// queries, which need no position).
+    #[inline]
     pub fn has_root(&self, a: f64, b: f64, tol: f64) -> bool {
         self.first_bracket(a, b, tol).is_some()
     }
@@ -107,11 +110,48 @@ impl Cubic {
     }
 
     /// The first point of `[a, b]` where the cubic is within `tol` of zero, or the first monotonic
-    /// bracket of a sign change, scanning the derivative's roots in order.
+    /// bracket of a sign change: `[a, b]` itself when the cubic is monotonic there, else the scan
+    /// of the derivative's roots ([`Self::scan_brackets`]).
+    #[inline]
     fn first_bracket(&self, a: f64, b: f64, tol: f64) -> Option<Bracket> {
         if !(a <= b) {
             return None;
         }
+        if self.monotonic_on(a, b) {
+            let f0 = self.eval(a);
+            if f0.abs() <= tol {
+                return Some(Bracket::Root(a));
+            }
+            let f1 = self.eval(b);
+            if (f0 < 0.0) != (f1 < 0.0) {
+                return Some(Bracket::SignChange(a, f0, b, f1));
+            }
+            return (f1.abs() <= tol).then_some(Bracket::Root(b));
+        }
+        self.scan_brackets(a, b, tol)
+    }
+
+    /// True when the derivative's Bernstein coefficients on `[a, b]` (whose hull bounds it there)
+    /// lie on one side of zero, beyond `1e-9` of their magnitudes: the derivative keeps its sign
+    /// on `[a, b]`, so the cubic is monotonic there, and its roots lie far enough outside for
+    /// their computed values, which [`Self::critical_points`] would give [`Self::scan_brackets`],
+    /// to fall outside too. Then `[a, b]` is the scan's only bracket: [`Self::first_bracket`]
+    /// gives what the scan gives, without the derivative's roots. False on NaN, and for most
+    /// cubics with an extremum in or near `[a, b]`.
+    #[inline]
+    fn monotonic_on(&self, a: f64, b: f64) -> bool {
+        let half = 0.5 * (b - a);
+        let d0 = self.slope(a);
+        let d1 = d0 + half * (2.0 * self.c[2] + 6.0 * self.c[3] * a);
+        let d2 = self.slope(b);
+        let margin = 1e-9 * (d0.abs() + d1.abs() + d2.abs());
+        (d0 > margin && d1 > margin && d2 > margin)
+            || (d0 < -margin && d1 < -margin && d2 < -margin)
+    }
+
+    /// The first point of `[a, b]` where the cubic is within `tol` of zero, or the first monotonic
+    /// bracket of a sign change, scanning the derivative's roots in order (`a <= b`).
+    fn scan_brackets(&self, a: f64, b: f64, tol: f64) -> Option<Bracket> {
         let (crit, n) = self.critical_points(a, b);
         let mut x0 = a;
         let mut f0 = self.eval(a);
@@ -153,7 +193,7 @@ impl Cubic {
         let mut step = (x1 - x0).abs();
         let mut step_before = step;
         for _ in 0..100 {
-            let f = self.eval(x);
+            let (f, slope) = self.eval_with_slope(x);
             if f == 0.0 {
                 return x;
             }
@@ -170,7 +210,6 @@ impl Cubic {
             {
                 break;
             }
-            let slope = self.slope(x);
             let newton = x - f / slope;
             let next = if newton > smaller(x0, x1)
                 && newton < larger(x0, x1)
@@ -198,6 +237,12 @@ impl Cubic {
     #[inline]
     fn slope(&self, s: f64) -> f64 {
         (3.0 * self.c[3] * s + 2.0 * self.c[2]) * s + self.c[1]
+    }
+
+    /// [`Self::eval`] and [`Self::slope`] at `s` together, bit for bit the same values.
+    #[inline]
+    fn eval_with_slope(&self, s: f64) -> (f64, f64) {
+        (self.eval(s), self.slope(s))
     }
 }
 
@@ -281,6 +326,37 @@ mod tests {
             cleared > 10_000,
             "the test should clear many cubics: {cleared}"
         );
+    }
+
+    #[test]
+    fn the_monotonic_shortcut_finds_the_scan_s_bracket() {
+        // Cubics as above, with roots in and around [0, 1] or far outside it, over many scales.
+        let mut state = 0x1234_5678_9abc_def1u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut shortcuts = 0;
+        for i in 0..200_000 {
+            let scale = 10f64.powf(12.0 * next() - 6.0);
+            let spread = if i % 4 == 0 { 30.0 } else { 3.0 };
+            let mut p = from_roots([0, 1, 2].map(|_| spread * next() - spread / 3.0));
+            p.c = p.c.map(|c| c * scale);
+            if i % 5 == 0 {
+                p.c[3] *= 1e-9 * next();
+            }
+            let tol = if i % 2 == 0 { 0.0 } else { 1e-9 * scale };
+            let (a, b) = if i % 3 == 0 { (0.25, 0.75) } else { (0.0, 1.0) };
+            shortcuts += usize::from(p.monotonic_on(a, b));
+            assert_eq!(
+                p.first_bracket(a, b, tol),
+                p.scan_brackets(a, b, tol),
+                "{p:?} on [{a}, {b}] tol {tol}"
+            );
+        }
+        assert!(shortcuts > 50_000, "{shortcuts} shortcuts");
     }
 
     #[test]

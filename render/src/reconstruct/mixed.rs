@@ -255,7 +255,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 let stitches = stitches.get_or_insert_with(|| {
                     let mut st = Stitches::new();
                     if let Some((c, b)) = near {
-                        st.add_leaf(c, b);
+                        st.add_leaf(c.leaf, b);
                     }
                     st
                 });

@@ -1119,6 +1119,46 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         Some(LeafCell { cell, value, ..*c })
     }
 
+    /// [`Self::cell_in_own_leaf`] for a finest cell `f` known to lie in kd-tree leaf `leaf`.
+    #[inline(always)]
+    pub(super) fn cell_in_leaf_numbered(&self, leaf: u32, f: [i64; 3]) -> Option<LeafCell> {
+        let t = self.tops[leaf as usize].as_ref()?;
+        let cell = t.cell_of(&self.grid, f);
+        let &value = t.values?.get(t.index(cell))?;
+        Some(LeafCell {
+            leaf,
+            brick: t.brick,
+            level: t.level,
+            cell,
+            value,
+        })
+    }
+
+    /// Kd-tree leaf `leaf`'s finest brick's values when read in place, its level, and per axis
+    /// `a` the parts of an index into the values that finest coordinates `lo[a]` and `hi[a]`
+    /// give: side `n` of a vertex (`hi` on axis `a` when bit `a` of `n` is set), when it lies
+    /// in the leaf, is the value at the sum of its three parts, as [`Self::cell_in_own_leaf`]
+    /// reads it, from six coordinates instead of three per side.
+    #[inline(always)]
+    pub(super) fn leaf_side_parts(
+        &self,
+        leaf: u32,
+        lo: [i64; 3],
+        hi: [i64; 3],
+    ) -> Option<(&'f [f32], u32, [[i64; 2]; 3])> {
+        let t = self.tops[leaf as usize].as_ref()?;
+        let values = t.values?;
+        let (clo, chi) = (t.cell_of(&self.grid, lo), t.cell_of(&self.grid, hi));
+        let stride = [1, t.ex, t.ex * t.ey];
+        let parts = axes(|a| {
+            [
+                stride[a] * (clo[a] - t.lo[a]),
+                stride[a] * (chi[a] - t.lo[a]),
+            ]
+        });
+        Some((values, t.level, parts))
+    }
+
     /// The corner values of an octant of a leaf cell; `None` when the cell is not a leaf cell or
     /// a cell touching the octant is not covered by any brick.
     pub fn octant_values(&self, o: &Octant) -> Result<Option<[f32; 8]>> {

@@ -354,6 +354,17 @@ impl LeafTop<'_> {
     }
 }
 
+/// A kd-tree leaf's finest brick as [`Sampler::leaf_side_parts`] reads a vertex's sides from it.
+#[derive(Clone, Copy)]
+pub(super) struct SideParts<'f> {
+    /// The brick's values.
+    pub(super) values: &'f [f32],
+    /// The brick's level.
+    pub(super) level: u32,
+    /// Per axis, the index parts of the nudge toward `-` and toward `+`.
+    pub(super) parts: [[i64; 2]; 3],
+}
+
 /// One brick as the sampler reads it.
 struct BrickRef<'f> {
     /// Its cells in its level's index space.
@@ -1145,7 +1156,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         leaf: u32,
         lo: [i64; 3],
         hi: [i64; 3],
-    ) -> Option<(&'f [f32], u32, [[i64; 2]; 3])> {
+    ) -> Option<SideParts<'f>> {
         let t = self.tops[leaf as usize].as_ref()?;
         let values = t.values?;
         let (clo, chi) = (t.cell_of(&self.grid, lo), t.cell_of(&self.grid, hi));
@@ -1156,7 +1167,11 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 stride[a] * (chi[a] - t.lo[a]),
             ]
         });
-        Some((values, t.level, parts))
+        Some(SideParts {
+            values,
+            level: t.level,
+            parts,
+        })
     }
 
     /// The corner values of an octant of a leaf cell; `None` when the cell is not a leaf cell or

@@ -266,9 +266,9 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             while take != 0 {
                 let n = take.trailing_zeros() as usize;
                 take &= take - 1;
-                let read = brick.and_then(|(vals, level, parts)| {
-                    let i = parts[0][n & 1] + parts[1][n >> 1 & 1] + parts[2][n >> 2 & 1];
-                    vals.get(i as usize).map(|&x| (level, x))
+                let read = brick.and_then(|b| {
+                    let i = b.parts[0][n & 1] + b.parts[1][n >> 1 & 1] + b.parts[2][n >> 2 & 1];
+                    b.values.get(i as usize).map(|&x| (b.level, x))
                 });
                 (levels[n], values[n]) = match read {
                     Some(x) => x,

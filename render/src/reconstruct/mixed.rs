@@ -91,37 +91,41 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         let down = (0..3).fold(0usize, |m, a| m | usize::from(!up[a]) << a);
         let domain = IBox::new([0; 3], ext);
         let own = grid.finest_box(level, cell);
-        let mut positions = [None::<Position>; 8];
-        // Per position: its cell's level and value when the cell covers the whole position.
+        // Position `k`'s located leaf cell; a set bit of `same` is an axis where the outer
+        // corner lies on the domain's face (no position beyond it).
+        let cell_at = |k: usize| around[k ^ down].filter(|_| k & same == 0);
+        let step = axes(|a| if up[a] { s[a] } else { -s[a] });
+        // Per position: its cell's kd-tree leaf's box, and its cell's level and value when the
+        // cell covers the whole position.
+        let mut boxes = [IBox::default(); 8];
         let mut whole = 0u8;
         let mut whole_level = [0u32; 8];
         let mut whole_value = [0f32; 8];
-        for (k, slot) in positions.iter_mut().enumerate() {
-            // A set bit of `same` is an axis where the outer corner lies on the domain's face.
-            let Some(c) = around[k ^ down].filter(|_| k & same == 0) else {
+        for k in 0..8 {
+            let Some(c) = cell_at(k) else {
                 continue;
             };
-            let mut b = own;
-            for a in (0..3).filter(|a| k >> a & 1 == 1) {
-                let step = if up[a] { s[a] } else { -s[a] };
-                b.lo[a] += step;
-                b.hi[a] += step;
-            }
+            let b = IBox::new(
+                axes(|a| own.lo[a] + step[a] * (k >> a & 1) as i64),
+                axes(|a| own.hi[a] + step[a] * (k >> a & 1) as i64),
+            );
             let leaf_box = match near {
                 Some((n, nb)) if n.leaf == c.leaf => nb,
                 _ => self.leaf_box(c.leaf),
             };
-            let p = Position {
-                cell: c,
-                whole: c.level <= level && leaf_box.contains_box(&b.intersect(&domain)),
-                leaf_box,
-            };
-            if p.whole {
+            boxes[k] = leaf_box;
+            if c.level <= level && leaf_box.contains_box(&b.intersect(&domain)) {
                 whole |= 1 << k;
                 (whole_level[k], whole_value[k]) = (c.level, c.value);
             }
-            *slot = Some(p);
         }
+        let position = |k: usize| {
+            cell_at(k).map(|cell| Position {
+                cell,
+                whole: whole >> k & 1 == 1,
+                leaf_box: boxes[k],
+            })
+        };
         let (base, _) = self.octant_box(o);
         let mut axis = [Axis::default(); 3];
         for (a, ax) in axis.iter_mut().enumerate() {
@@ -142,20 +146,14 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         const SLAB: [u64; 3] = [0x1111_1111_1111_1111, 0x000F_000F_000F_000F, 0xFFFF];
         let slab = |a: usize, i: usize| SLAB[a] << (i << (2 * a));
         // Per axis and position bit: the entries whose cell along the axis lies in the own cell
-        // (bit 0) or in the neighbour (bit 1); and the entries whose cell repeats the one an
-        // index lower (both nudges of a face meet one cell).
+        // (bit 0) or in the neighbour (bit 1), and the lowest and highest finest coordinate.
         let mut part = [[0u64; 2]; 3];
-        // Per axis and position bit: the lowest and highest finest coordinate.
         let mut span = [[(i64::MAX, i64::MIN); 2]; 3];
-        let mut repeat = [0u64; 3];
         for (a, ax) in axis.iter().enumerate() {
             for i in 0..4 {
                 let bit = usize::from(ax.out[i] != 0);
                 part[a][bit] |= slab(a, i);
                 span[a][bit] = (span[a][bit].0.min(ax.at[i]), span[a][bit].1.max(ax.at[i]));
-                if i & 1 == 1 && ax.at[i] == ax.at[i - 1] {
-                    repeat[a] |= slab(a, i);
-                }
             }
         }
         // The centre corner's entries are never read.
@@ -183,7 +181,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         while partial != 0 {
             let k = partial.trailing_zeros() as usize;
             partial &= partial - 1;
-            let p = &positions[k];
+            let p = position(k);
             let mut mask = part[0][k & 1] & part[1][k >> 1 & 1] & part[2][k >> 2 & 1] & centre;
             read |= mask;
             // The position's kd-tree leaf, when it holds all the position's cells.
@@ -200,15 +198,8 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             while mask != 0 {
                 let e = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
+                // Both nudges of a face may meet one finest cell: read again, the same answer.
                 let (x, y, z) = (e & 3, e >> 2 & 3, e >> 4);
-                let first = e
-                    - (repeat[0] >> e & 1) as usize
-                    - 4 * (repeat[1] >> e & 1) as usize
-                    - 16 * (repeat[2] >> e & 1) as usize;
-                if first != e {
-                    (levels[e], values[e]) = (levels[first], values[first]);
-                    continue;
-                }
                 let f = [axis[0].at[x], axis[1].at[y], axis[2].at[z]];
                 if leaf != u32::MAX {
                     if let Some(v) = self.value_in_leaf(leaf, f) {
@@ -242,11 +233,11 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 let (x, y, z) = (e & 3, e >> 2 & 3, e >> 4);
                 let k = axis[0].out[x] | axis[1].out[y] | axis[2].out[z];
                 let q = if read >> e & 1 == 0 {
-                    positions[k].map(|p| p.cell)
+                    cell_at(k)
                 } else {
                     // The cell read or located for the entry: the same answer again.
                     let f = [axis[0].at[x], axis[1].at[y], axis[2].at[z]];
-                    self.position_cell(loc, positions[k].as_ref(), near.as_ref(), f)?
+                    self.position_cell(loc, position(k).as_ref(), near.as_ref(), f)?
                 };
                 let Some(q) = q else {
                     return Ok(None);
@@ -255,7 +246,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 let stitches = stitches.get_or_insert_with(|| {
                     let mut st = Stitches::new();
                     if let Some((c, b)) = near {
-                        st.add_leaf(c, b);
+                        st.add_leaf(c.leaf, b);
                     }
                     st
                 });

@@ -354,6 +354,17 @@ impl LeafTop<'_> {
     }
 }
 
+/// A kd-tree leaf's finest brick as [`Sampler::leaf_side_parts`] reads a vertex's sides from it.
+#[derive(Clone, Copy)]
+pub(super) struct SideParts<'f> {
+    /// The brick's values.
+    pub(super) values: &'f [f32],
+    /// The brick's level.
+    pub(super) level: u32,
+    /// Per axis, the index parts of the nudge toward `-` and toward `+`.
+    pub(super) parts: [[i64; 2]; 3],
+}
+
 /// One brick as the sampler reads it.
 struct BrickRef<'f> {
     /// Its cells in its level's index space.
@@ -1117,6 +1128,50 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         let cell = t.cell_of(&self.grid, f);
         let &value = t.values?.get(t.index(cell))?;
         Some(LeafCell { cell, value, ..*c })
+    }
+
+    /// [`Self::cell_in_own_leaf`] for a finest cell `f` known to lie in kd-tree leaf `leaf`.
+    #[inline(always)]
+    pub(super) fn cell_in_leaf_numbered(&self, leaf: u32, f: [i64; 3]) -> Option<LeafCell> {
+        let t = self.tops[leaf as usize].as_ref()?;
+        let cell = t.cell_of(&self.grid, f);
+        let &value = t.values?.get(t.index(cell))?;
+        Some(LeafCell {
+            leaf,
+            brick: t.brick,
+            level: t.level,
+            cell,
+            value,
+        })
+    }
+
+    /// Kd-tree leaf `leaf`'s finest brick's values when read in place, its level, and per axis
+    /// `a` the parts of an index into the values that finest coordinates `lo[a]` and `hi[a]`
+    /// give: side `n` of a vertex (`hi` on axis `a` when bit `a` of `n` is set), when it lies
+    /// in the leaf, is the value at the sum of its three parts, as [`Self::cell_in_own_leaf`]
+    /// reads it, from six coordinates instead of three per side.
+    #[inline(always)]
+    pub(super) fn leaf_side_parts(
+        &self,
+        leaf: u32,
+        lo: [i64; 3],
+        hi: [i64; 3],
+    ) -> Option<SideParts<'f>> {
+        let t = self.tops[leaf as usize].as_ref()?;
+        let values = t.values?;
+        let (clo, chi) = (t.cell_of(&self.grid, lo), t.cell_of(&self.grid, hi));
+        let stride = [1, t.ex, t.ex * t.ey];
+        let parts = axes(|a| {
+            [
+                stride[a] * (clo[a] - t.lo[a]),
+                stride[a] * (chi[a] - t.lo[a]),
+            ]
+        });
+        Some(SideParts {
+            values,
+            level: t.level,
+            parts,
+        })
     }
 
     /// The corner values of an octant of a leaf cell; `None` when the cell is not a leaf cell or

@@ -27,7 +27,7 @@ pub(super) struct Stitches {
     num_octants: usize,
     vertices: [([i64; 3], u32, Option<f32>); 16],
     num_vertices: usize,
-    leaves: [(LeafCell, IBox); 6],
+    leaves: [(u32, IBox); 6],
     num_leaves: usize,
 }
 
@@ -39,19 +39,12 @@ impl Stitches {
             cell: [0; 3],
             octant: 0,
         };
-        let placeholder = LeafCell {
-            leaf: 0,
-            brick: 0,
-            level: 0,
-            cell: [0; 3],
-            value: 0.0,
-        };
         Self {
             octants: [(none, None); 4],
             num_octants: 0,
             vertices: [([0; 3], 0, None); 16],
             num_vertices: 0,
-            leaves: [(placeholder, IBox::new([0; 3], [0; 3])); 6],
+            leaves: [(0, IBox::new([0; 3], [0; 3])); 6],
             num_leaves: 0,
         }
     }
@@ -85,12 +78,11 @@ impl Stitches {
         }
     }
 
-    /// Remembers the kd-tree leaf of leaf cell `c` (box `leaf_box`), if not yet known and
-    /// there is room.
-    pub(super) fn add_leaf(&mut self, c: LeafCell, leaf_box: IBox) {
+    /// Remembers kd-tree leaf `leaf` (box `leaf_box`), if not yet known and there is room.
+    pub(super) fn add_leaf(&mut self, leaf: u32, leaf_box: IBox) {
         let known = &self.leaves[..self.num_leaves];
-        if self.num_leaves < self.leaves.len() && !known.iter().any(|(k, _)| k.leaf == c.leaf) {
-            self.leaves[self.num_leaves] = (c, leaf_box);
+        if self.num_leaves < self.leaves.len() && !known.iter().any(|(k, _)| *k == leaf) {
+            self.leaves[self.num_leaves] = (leaf, leaf_box);
             self.num_leaves += 1;
         }
     }
@@ -213,20 +205,87 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         if let Some(x) = known.vertex(w, level) {
             return Ok(x);
         }
-        let value = match self.around_known(loc, w, known)? {
+        let value = match self.around_values(loc, w, known)? {
             None => None,
-            Some(cells) => {
-                let coarsest = cells.iter().map(|c| c.level).min().unwrap_or(level);
+            Some((levels, values)) => {
+                let coarsest = levels.iter().copied().min().unwrap_or(level);
                 if coarsest < level {
-                    let (q, octant) = self.coarse_octant(w, &cells, coarsest);
-                    self.stitched_value(loc, w, &q, octant, known, memo)?
+                    // Stitched again: the cells themselves decide the coarse octant.
+                    match self.around_known(loc, w, known)? {
+                        Some(cells) => {
+                            let (q, octant) = self.coarse_octant(w, &cells, coarsest);
+                            self.stitched_value(loc, w, &q, octant, known, memo)?
+                        }
+                        None => None,
+                    }
                 } else {
-                    Some(avg8(&cells.map(|c| c.value)))
+                    Some(avg8(&values))
                 }
             }
         };
         known.add_vertex(w, level, value);
         Ok(value)
+    }
+
+    /// The levels and values of the leaf cells [`Self::around_known`] finds around `v`, read
+    /// the same way: per kd-tree leaf, the sides in its box from its brick by one index part
+    /// per axis and side of the axis, the others located.
+    fn around_values<L: Locate>(
+        &self,
+        loc: &L,
+        v: [i64; 3],
+        known: &mut Stitches,
+    ) -> Result<Option<([u32; 8], [f32; 8])>> {
+        let (lo, hi, same) = self.nudges(v);
+        let side = |n: usize| axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+        let mut levels = [0u32; 8];
+        let mut values = [0f32; 8];
+        let mut todo = distinct_sides(same);
+        let mut j = 0;
+        while todo != 0 {
+            let (leaf, b) = if j < known.num_leaves {
+                known.leaves[j]
+            } else {
+                // A side no leaf met so far holds: locate it, and read the rest of its leaf.
+                match loc.locate_cell(side(todo.trailing_zeros() as usize))? {
+                    Some(c) => {
+                        let b = self.leaf_box(c.leaf);
+                        known.add_leaf(c.leaf, b);
+                        (c.leaf, b)
+                    }
+                    None => return Ok(None),
+                }
+            };
+            j += 1;
+            let mut take = sides_in(&b, lo, hi) & todo;
+            if take == 0 {
+                continue;
+            }
+            todo &= !take;
+            let brick = self.leaf_side_parts(leaf, lo, hi);
+            while take != 0 {
+                let n = take.trailing_zeros() as usize;
+                take &= take - 1;
+                let read = brick.and_then(|b| {
+                    let i = b.parts[0][n & 1] + b.parts[1][n >> 1 & 1] + b.parts[2][n >> 2 & 1];
+                    b.values.get(i as usize).map(|&x| (b.level, x))
+                });
+                (levels[n], values[n]) = match read {
+                    Some(x) => x,
+                    None => match loc.locate_cell(side(n))? {
+                        Some(c) => (c.level, c.value),
+                        None => return Ok(None),
+                    },
+                };
+            }
+        }
+        if same != 0 {
+            for n in 1..8 {
+                levels[n] = levels[n & !same];
+                values[n] = values[n & !same];
+            }
+        }
+        Ok(Some((levels, values)))
     }
 
     /// [`Self::around_in`], reading cells from the kd-tree leaves `known` has met before
@@ -240,7 +299,14 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
     ) -> Result<Option<[LeafCell; 8]>> {
         let (lo, hi, same) = self.nudges(v);
         let side = |n: usize| axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
-        let mut out = [known.leaves[0].0; 8];
+        let placeholder = LeafCell {
+            leaf: 0,
+            brick: 0,
+            level: 0,
+            cell: [0; 3],
+            value: 0.0,
+        };
+        let mut out = [placeholder; 8];
         let mut todo = distinct_sides(same);
         let mut j = 0;
         while todo != 0 {
@@ -251,8 +317,8 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 match loc.locate_cell(side(todo.trailing_zeros() as usize))? {
                     Some(c) => {
                         let b = self.leaf_box(c.leaf);
-                        known.add_leaf(c, b);
-                        (c, b)
+                        known.add_leaf(c.leaf, b);
+                        (c.leaf, b)
                     }
                     None => return Ok(None),
                 }
@@ -264,7 +330,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 let n = take.trailing_zeros() as usize;
                 take &= take - 1;
                 let f = side(n);
-                out[n] = match self.cell_in_own_leaf(&c, f) {
+                out[n] = match self.cell_in_leaf_numbered(c, f) {
                     Some(x) => x,
                     None => match loc.locate_cell(f)? {
                         Some(x) => x,

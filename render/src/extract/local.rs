@@ -356,11 +356,10 @@ impl Neighbourhood {
         let n = g.num_cells().unwrap_or(0) as usize;
         self.cells = g;
         self.level = level;
+        // The copies write every cell's kind and bound: only the lengths are set here.
         for v in [&mut self.lo, &mut self.hi] {
-            v.clear();
             v.resize(n, 0.0);
         }
-        self.kind.clear();
         self.kind.resize(n, UNCOVERED);
         self.coarse_pending.clear();
         self.coarse_pending.resize(n, false);

@@ -78,13 +78,19 @@ pub fn settle_in<D: AsRef<[u8]>>(
     (memo, near): (&mut VertexMemo, &mut AroundMemo),
     b: &IBox,
 ) -> Result<()> {
-    if !hood.has_pending() {
+    if !hood.has_pending() || b.is_empty() {
         return Ok(());
     }
-    let w = b.extent()[0].max(0) as usize;
-    for z in b.lo[2]..b.hi[2] {
-        for y in b.lo[1]..b.hi[1] {
-            let r = hood.index([b.lo[0], y, z]);
+    let (e, be) = (hood.cells.extent(), b.extent());
+    let (w, row, slab) = (be[0] as usize, e[0] as usize, (e[0] * e[1]) as usize);
+    let first = hood.index(b.lo);
+    for z in 0..be[2] as usize {
+        for y in 0..be[1] as usize {
+            let r = first + z * slab + y * row;
+            // Most rows hold no pending cell: one pass over the row's codes finds out.
+            if !hood.codes()[r..r + w].iter().any(|&c| c & PENDING != 0) {
+                continue;
+            }
             for j in r..r + w {
                 if hood.codes()[j] & PENDING != 0 {
                     settle_coarse((sampler, shared), hood, (memo, near), j, 0.0)?;

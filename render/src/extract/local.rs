@@ -356,11 +356,10 @@ impl Neighbourhood {
         let n = g.num_cells().unwrap_or(0) as usize;
         self.cells = g;
         self.level = level;
+        // The copies write every cell's kind and bound: only the lengths are set here.
         for v in [&mut self.lo, &mut self.hi] {
-            v.clear();
             v.resize(n, 0.0);
         }
-        self.kind.clear();
         self.kind.resize(n, UNCOVERED);
         self.coarse_pending.clear();
         self.coarse_pending.resize(n, false);
@@ -368,7 +367,9 @@ impl Neighbourhood {
     }
 
     /// Copies the cells of `tile` (a neighbourhood of the level being filled) that lie in the
-    /// box being filled: their kinds, bounds and pending flags.
+    /// box being filled: their kinds and bounds. Those cells must be settled (none pending,
+    /// [`super::cull::settle_in`]), as [`super::cell_tiles::CellTiles::fill`] leaves them, so
+    /// no pending flag is copied: the filled cells have none.
     pub fn copy_tile(&mut self, tile: &Neighbourhood) {
         let g = self.cells;
         let b = g.intersect(&tile.cells);
@@ -397,16 +398,17 @@ impl Neighbourhood {
         self.copy_rows_of(tile, rows, N);
     }
 
-    /// Copies `rows` of `w` cells of `tile` (kinds, bounds, pending flags) into these cells.
-    /// The bounds are checked once for all rows and arrays: four slices of a few cells checked
-    /// per row cost more than their copies. Rows that do not fit are a bug, and copy nothing.
+    /// Copies `rows` of `w` cells of `tile` (kinds, bounds) into these cells. The bounds are
+    /// checked once for all rows and arrays: three slices of a few cells checked per row cost
+    /// more than their copies. Rows that do not fit are a bug, and copy nothing.
     #[inline(always)]
     fn copy_rows_of(&mut self, tile: &Neighbourhood, rows: &Rows, w: usize) {
         let n = self.kind.len();
-        let same = |a: usize, b: usize, c: usize| a == n && b == n && c == n;
         let t = tile.kind.len();
-        let ok = same(self.lo.len(), self.hi.len(), self.coarse_pending.len())
-            && [tile.lo.len(), tile.hi.len(), tile.coarse_pending.len()] == [t; 3]
+        let ok = self.lo.len() == n
+            && self.hi.len() == n
+            && tile.lo.len() == t
+            && tile.hi.len() == t
             && rows.fit(n, t, w);
         debug_assert!(ok, "tile rows outside the cells");
         if !ok {
@@ -416,28 +418,25 @@ impl Neighbourhood {
             self.kind.as_mut_ptr(),
             self.lo.as_mut_ptr(),
             self.hi.as_mut_ptr(),
-            self.coarse_pending.as_mut_ptr(),
         );
-        let src = (
-            tile.kind.as_ptr(),
-            tile.lo.as_ptr(),
-            tile.hi.as_ptr(),
-            tile.coarse_pending.as_ptr(),
-        );
+        let src = (tile.kind.as_ptr(), tile.lo.as_ptr(), tile.hi.as_ptr());
         let (mut dz, mut sz) = (rows.dst, rows.src);
         for _ in 0..rows.nz {
             let (mut d, mut s) = (dz, sz);
             for _ in 0..rows.ny {
                 // SAFETY: every row lies below the ends checked above (`d + w <= n`, the length
-                // of each of the four destination arrays, and `s + w <= t`, that of each source
+                // of each of the three destination arrays, and `s + w <= t`, that of each source
                 // array); the destinations are this neighbourhood's own vectors, borrowed
                 // mutably, and the sources another's, so no two overlap.
                 unsafe {
                     std::ptr::copy_nonoverlapping(src.0.add(s), dst.0.add(d), w);
                     std::ptr::copy_nonoverlapping(src.1.add(s), dst.1.add(d), w);
                     std::ptr::copy_nonoverlapping(src.2.add(s), dst.2.add(d), w);
-                    std::ptr::copy_nonoverlapping(src.3.add(s), dst.3.add(d), w);
                 }
+                debug_assert!(
+                    !tile.coarse_pending[s..s + w].contains(&true),
+                    "a tile's pending cells copied"
+                );
                 d += rows.dst_y;
                 s += rows.src_y;
             }
@@ -501,8 +500,7 @@ impl Neighbourhood {
     /// [`Self::fill_region`] of the same box gives, with the cells the tiles had settled
     /// settled.
     pub fn end_copies(&mut self) {
-        // Counted once here rather than row by row in `copy_tile`.
-        self.pending_left = self.coarse_pending.iter().filter(|&&p| p).count();
+        // The cells copied are settled: `begin_copies` left every pending flag clear.
         self.finish_fill();
     }
 
@@ -514,8 +512,12 @@ impl Neighbourhood {
         self.near_boundary.clear();
         // Codes before any classification: the pending flags, which settling keeps.
         self.codes.clear();
-        self.codes
-            .extend(self.coarse_pending.iter().map(|&p| u8::from(p) << 3));
+        if self.pending_left == 0 {
+            self.codes.resize(self.kind.len(), 0);
+        } else {
+            self.codes
+                .extend(self.coarse_pending.iter().map(|&p| u8::from(p) << 3));
+        }
         self.filled = Some((self.level, self.cells));
     }
 

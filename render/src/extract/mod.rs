@@ -493,6 +493,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
 
     /// [`Self::decode_memo`], locating leaf cells through `loc` and reusing `last`
     /// ([`Self::resolve_in`]).
+    #[inline]
     fn decode_in<L: Locate>(
         &self,
         r: u64,

@@ -167,16 +167,51 @@ impl<'a> BoxRun<'a> {
     /// [`BoxRun::push`] of a box with integer corners.
     #[inline(always)]
     pub fn push_int(&mut self, lo: [i64; 3], hi: [i64; 3]) {
-        for a in 0..3 {
-            self.int_lo[a] = self.int_lo[a].min(lo[a]);
-            self.int_hi[a] = self.int_hi[a].max(hi[a]);
+        self.push_ints(std::iter::once((lo, hi)));
+    }
+
+    /// [`BoxRun::push_int`] of each box `boxes` gives, in order, the union kept in registers
+    /// over the run.
+    #[inline(always)]
+    pub fn push_ints(&mut self, boxes: impl Iterator<Item = ([i64; 3], [i64; 3])>) {
+        self.push_ints_coded(boxes, morton);
+    }
+
+    /// [`BoxRun::push_ints`] with `code` for [`morton`] (which it must equal).
+    #[inline(always)]
+    pub fn push_ints_coded(
+        &mut self,
+        boxes: impl Iterator<Item = ([i64; 3], [i64; 3])>,
+        code: impl Fn([u32; 3]) -> u64,
+    ) {
+        let (mut union_lo, mut union_hi) = (self.int_lo, self.int_hi);
+        let (up, down, pad) = (self.grid.up, self.grid.down, self.grid.pad);
+        // Locals rather than fields, which every store of a box might overwrite for all the
+        // compiler knows.
+        let start = self.next;
+        let out = self.boxes.get_mut(start..).unwrap_or_default();
+        let codes = self.codes.get_mut(start..).unwrap_or_default();
+        let mut n = 0;
+        for (lo, hi) in boxes {
+            for a in 0..3 {
+                union_lo[a] = union_lo[a].min(lo[a]);
+                union_hi[a] = union_hi[a].max(hi[a]);
+            }
+            if n >= out.len() || n >= codes.len() {
+                continue;
+            }
+            // Valid boxes lie in the grid; others only get a code of no meaning.
+            let step = |a: usize| (lo[a].wrapping_add(hi[a]) << up >> down) as u32 & STEPS;
+            codes[n] = code([step(0), step(1), step(2)]);
+            let v = |p: [i64; 3], s: f64| {
+                let c = |a: usize| (p[a] as f64 + s) as f32;
+                Vec3A::new(c(0), c(1), c(2))
+            };
+            out[n] = Aabb::new(v(lo, -pad), v(hi, pad));
+            n += 1;
         }
-        let (up, down) = (self.grid.up, self.grid.down);
-        // Valid boxes lie in the grid; others only get a code of no meaning.
-        let step = |a: usize| (lo[a].wrapping_add(hi[a]) << up >> down) as u32 & STEPS;
-        let code = morton([step(0), step(1), step(2)]);
-        let f = |p: [i64; 3]| [p[0] as f64, p[1] as f64, p[2] as f64];
-        self.put(f(lo), f(hi), code);
+        self.next = start + n;
+        (self.int_lo, self.int_hi) = (union_lo, union_hi);
     }
 
     /// Writes the next box, padded, and its code.

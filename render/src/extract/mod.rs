@@ -479,6 +479,8 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// [`Self::decode`] through a per-thread `scratch`, which remembers the leaves, vertex
     /// values and octant corners that nearby voxels and samples share, and `last`, the frame of
     /// the leaf decoded last (kept for the next call; it must serve this extractor only).
+    // Inline: the tracer's voxel cache calls it on every miss, from another codegen unit.
+    #[inline]
     pub fn decode_with(
         &self,
         r: u64,
@@ -491,6 +493,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
 
     /// [`Self::decode_memo`], locating leaf cells through `loc` and reusing `last`
     /// ([`Self::resolve_in`]).
+    #[inline]
     fn decode_in<L: Locate>(
         &self,
         r: u64,
@@ -574,6 +577,50 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             };
             // One call of `out` and of `voxel_box`, which the compiler then puts inline.
             out(frame.and_then(|f| f.voxel_box(r)));
+        }
+    }
+
+    /// [`Self::voxel_boxes`] a run of consecutive refs of one leaf at a time, for the BVH build:
+    /// `run` gets the boxes of each run's refs ([`LeafBoxes`]), whose leaf is looked up once (the
+    /// extraction emits a leaf's refs in one run). A ref that names no voxel gets the empty box
+    /// at the origin (as [`crate::voxel::Voxel::EMPTY`]), and the first such ref of a run its
+    /// error, passed to `bad` after the run.
+    #[inline(always)]
+    pub fn voxel_box_runs(
+        &self,
+        refs: &[u64],
+        mut run: impl FnMut(LeafBoxes<'_, '_, 'f, D>),
+        mut bad: impl FnMut(RenderError),
+    ) {
+        let mut frames: [Option<BoxFrame>; 16] = [None; 16];
+        let mut error = None;
+        let mut rest = refs;
+        while let Some(&r) = rest.first() {
+            let leaf = (r >> 32) as u32;
+            let n = rest
+                .iter()
+                .position(|&q| (q >> 32) as u32 != leaf)
+                .unwrap_or(rest.len());
+            let (mine, after) = rest.split_at(n);
+            rest = after;
+            let slot = &mut frames[leaf as usize % 16];
+            let frame = match slot {
+                Some(f) if f.leaf == leaf => *f,
+                // A leaf not in the file: a frame of no cells, past which every index falls.
+                _ => match self.box_frame(r) {
+                    Ok(f) => *slot.insert(f),
+                    Err(_) => BoxFrame::NONE,
+                },
+            };
+            run(LeafBoxes {
+                refs: mine.iter(),
+                frame,
+                extractor: self,
+                error: &mut error,
+            });
+            if let Some(e) = error.take() {
+                bad(e);
+            }
         }
     }
 
@@ -679,28 +726,83 @@ struct BoxFrame {
 }
 
 impl BoxFrame {
+    /// The frame of no leaf: every ref's cell index is past it.
+    const NONE: Self = Self {
+        leaf: u32::MAX,
+        extent: (1, 1),
+        cells: 0,
+        lowest: [0; 3],
+        scale: [0; 3],
+    };
+
     /// [`Extractor::voxel_box`] of `r`, a ref of this leaf: the same boxes as
     /// [`Extractor::doubled_box`] of [`Extractor::resolve`].
-    #[inline]
+    #[inline(always)]
     fn voxel_box(&self, r: u64) -> Result<([i64; 3], [i64; 3])> {
-        let (index, octant) = match LocalVoxel::from_id(r as u32) {
-            LocalVoxel::Octant { cell, octant } => (cell, Some(octant)),
-            LocalVoxel::Dual { cell } => (cell, None),
-        };
+        let id = r as u32;
+        let dual = id >= DUAL_BASE;
+        let index = if dual { id - DUAL_BASE } else { id / 8 };
         if i64::from(index) >= self.cells {
             return Err(bad_ref(r, "cell index past the leaf"));
         }
         let (e0, e1) = self.extent;
-        let d = [index % e0, index / e0 % e1, index / e0 / e1].map(i64::from);
+        let row = index / e0;
+        let d = [index % e0, row % e1, row / e1].map(i64::from);
         let s = self.scale;
         let c = [0, 1, 2].map(|a| self.lowest[a] + 2 * d[a] * s[a]);
-        Ok(match octant {
-            Some(octant) => {
-                let lo = [0, 1, 2].map(|a| c[a] - s[a] * i64::from(1 - (octant >> a & 1)));
-                (lo, [0, 1, 2].map(|a| lo[a] + s[a]))
-            }
-            None => (c, [0, 1, 2].map(|a| c[a] + 2 * s[a])),
+        Ok(if dual {
+            (c, [0, 1, 2].map(|a| c[a] + 2 * s[a]))
+        } else {
+            // Octant bit `a` set: the upper half of the cell on axis `a`, which starts at `c`.
+            let up = |a: usize| id >> a & 1 != 0;
+            let lo = [0, 1, 2].map(|a| if up(a) { c[a] } else { c[a] - s[a] });
+            (lo, [0, 1, 2].map(|a| lo[a] + s[a]))
         })
+    }
+}
+
+/// The boxes of a run of refs of one leaf ([`Extractor::voxel_box_runs`]): each ref's
+/// [`Extractor::voxel_box`], in order.
+pub struct LeafBoxes<'r, 'e, 'f, D> {
+    refs: std::slice::Iter<'r, u64>,
+    /// The leaf's frame ([`BoxFrame::NONE`] when the leaf is not one of the file's).
+    frame: BoxFrame,
+    extractor: &'e Extractor<'f, D>,
+    /// The error of the first ref that names no voxel.
+    error: &'r mut Option<RenderError>,
+}
+
+impl<D: AsRef<[u8]> + Sync> Iterator for LeafBoxes<'_, '_, '_, D> {
+    type Item = ([i64; 3], [i64; 3]);
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<Self::Item> {
+        let &r = self.refs.next()?;
+        Some(match self.frame.voxel_box(r) {
+            Ok(b) => b,
+            Err(_) => self.bad(r),
+        })
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        self.refs.size_hint()
+    }
+}
+
+impl<D: AsRef<[u8]> + Sync> LeafBoxes<'_, '_, '_, D> {
+    /// Keeps the error of `r` (the one [`Extractor::voxel_box`] gives) unless one is kept, and
+    /// gives the empty box at the origin.
+    #[cold]
+    #[inline(never)]
+    fn bad(&mut self, r: u64) -> ([i64; 3], [i64; 3]) {
+        if self.error.is_none() {
+            let e = match self.extractor.voxel_box(r) {
+                Err(e) => e,
+                Ok(_) => bad_ref(r, "no such voxel"),
+            };
+            *self.error = Some(e);
+        }
+        ([0; 3], [0; 3])
     }
 }
 

@@ -90,6 +90,7 @@ pub(super) fn next_sampler_id() -> u64 {
 impl SampleScratch {
     /// The locator and the memo for sampling `sampler`, forgetting what was remembered for
     /// another sampler.
+    #[inline]
     pub fn bind<'a, 's, 'f, D: AsRef<[u8]>>(
         &'a mut self,
         sampler: &'s Sampler<'f, D>,

@@ -14,6 +14,8 @@ use amr_format::AmrkFile;
 use thread_local::ThreadLocal;
 
 use crate::bvh::packet::{rays_of, Mask};
+#[cfg(target_arch = "x86_64")]
+use crate::bvh::wide::morton_bmi2;
 use crate::bvh::BoxRun;
 use crate::error::{RenderError, Result};
 use crate::extract::current::CurrentVoxels;
@@ -281,6 +283,29 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     }
 }
 
+impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
+    /// [`VoxelSource::voxel_boxes`] of the octant method's voxels.
+    #[inline(always)]
+    fn octant_boxes(&self, e: &Extractor<'f, D>, refs: &[u64], out: &mut BoxRun<'_>) {
+        e.voxel_box_runs(refs, |boxes| out.push_ints(boxes), |err| self.record(err));
+    }
+
+    /// [`Self::octant_boxes`] compiled for AVX2 and BMI2 (variable shifts without a count
+    /// register, Morton codes by bit deposit): the same boxes and codes in fewer instructions.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,bmi2")]
+    fn octant_boxes_v3(&self, e: &Extractor<'f, D>, refs: &[u64], out: &mut BoxRun<'_>) {
+        /// One run's boxes, the loop compiled for AVX2 and BMI2.
+        #[target_feature(enable = "avx2,bmi2")]
+        fn push<I: Iterator<Item = ([i64; 3], [i64; 3])>>(out: &mut BoxRun<'_>, boxes: I) {
+            // SAFETY: this function runs only where the CPU has BMI2.
+            out.push_ints_coded(boxes, |q| unsafe { morton_bmi2(q) });
+        }
+        // A closure in this function has its target features: `push` is safe to call there.
+        e.voxel_box_runs(refs, |boxes| push(out, boxes), |err| self.record(err));
+    }
+}
+
 impl<D: AsRef<[u8]> + Sync> FieldSource<'_, D> {
     /// [`VoxelSource::gradient`] taking the components `given` has as they are. Kept out of
     /// line: most smooth normals never sample.
@@ -346,13 +371,15 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
             }
             return;
         };
-        e.voxel_boxes(refs, |b| match b {
-            Ok((lo, hi)) => out.push_int(lo, hi),
-            Err(err) => {
-                self.record(err);
-                out.push(Voxel::EMPTY.lo, Voxel::EMPTY.hi);
-            }
-        });
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("bmi2")
+        {
+            // SAFETY: the CPU has AVX2 and BMI2, checked just above.
+            unsafe { self.octant_boxes_v3(e, refs, out) };
+            return;
+        }
+        self.octant_boxes(e, refs, out);
     }
 
     fn sample(&self, p: [f64; 3]) -> Option<(f32, u32)> {

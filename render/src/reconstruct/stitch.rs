@@ -227,6 +227,27 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         Ok(value)
     }
 
+    /// The `j`th kd-tree leaf of a vertex's search: the `j`th one `known` has met, or else the
+    /// leaf holding the side `side()` (none met so far holds it), located and remembered so the
+    /// rest of its cells are read from it; `None` where that side is outside every leaf.
+    #[inline(always)]
+    fn leaf_or_locate<L: Locate>(
+        &self,
+        loc: &L,
+        known: &mut Stitches,
+        j: usize,
+        side: impl FnOnce() -> [i64; 3],
+    ) -> Result<Option<(u32, IBox)>> {
+        if j < known.num_leaves {
+            return Ok(Some(known.leaves[j]));
+        }
+        Ok(loc.locate_cell(side())?.map(|c| {
+            let b = self.leaf_box(c.leaf);
+            known.add_leaf(c.leaf, b);
+            (c.leaf, b)
+        }))
+    }
+
     /// The levels and values of the leaf cells [`Self::around_known`] finds around `v`, read
     /// the same way: per kd-tree leaf, the sides in its box from its brick by one index part
     /// per axis and side of the axis, the others located.
@@ -243,18 +264,10 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         let mut todo = distinct_sides(same);
         let mut j = 0;
         while todo != 0 {
-            let (leaf, b) = if j < known.num_leaves {
-                known.leaves[j]
-            } else {
-                // A side no leaf met so far holds: locate it, and read the rest of its leaf.
-                match loc.locate_cell(side(todo.trailing_zeros() as usize))? {
-                    Some(c) => {
-                        let b = self.leaf_box(c.leaf);
-                        known.add_leaf(c.leaf, b);
-                        (c.leaf, b)
-                    }
-                    None => return Ok(None),
-                }
+            let Some((leaf, b)) =
+                self.leaf_or_locate(loc, known, j, || side(todo.trailing_zeros() as usize))?
+            else {
+                return Ok(None);
             };
             j += 1;
             let mut take = sides_in(&b, lo, hi) & todo;
@@ -310,18 +323,10 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         let mut todo = distinct_sides(same);
         let mut j = 0;
         while todo != 0 {
-            let (c, b) = if j < known.num_leaves {
-                known.leaves[j]
-            } else {
-                // A side no leaf met so far holds: locate it, and read the rest of its leaf.
-                match loc.locate_cell(side(todo.trailing_zeros() as usize))? {
-                    Some(c) => {
-                        let b = self.leaf_box(c.leaf);
-                        known.add_leaf(c.leaf, b);
-                        (c.leaf, b)
-                    }
-                    None => return Ok(None),
-                }
+            let Some((c, b)) =
+                self.leaf_or_locate(loc, known, j, || side(todo.trailing_zeros() as usize))?
+            else {
+                return Ok(None);
             };
             j += 1;
             let mut take = sides_in(&b, lo, hi) & todo;

@@ -246,19 +246,10 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
     }
 
     fn next_hits(&self, i: usize, rays: &[GridRay], tmax: &[f64], out: &mut [Option<SurfaceHit>]) {
-        let mut hits = [None; PACKET];
-        for ((rays, tmax), out) in rays
-            .chunks(PACKET)
-            .zip(tmax.chunks(PACKET))
-            .zip(out.chunks_mut(PACKET))
-        {
-            let hits = &mut hits[..rays.len()];
+        self.hits_by_packets(rays, tmax, out, |_, rays, tmax, hits| {
             let from_origin = &[0.0; PACKET][..rays.len()];
-            self.surfaces[i].closest_hits(self.src, rays, from_origin, tmax, hits);
-            for ((out, h), ray) in out.iter_mut().zip(hits.iter()).zip(rays) {
-                *out = h.map(|h| self.surface_hit(h, ray));
-            }
-        }
+            self.surfaces[i].closest_hits(self.src, rays, from_origin, tmax, hits)
+        });
     }
 
     fn next_hits_from(
@@ -269,19 +260,10 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
         tmax: &[f64],
         out: &mut [Option<SurfaceHit>],
     ) {
-        let mut hits = [None; PACKET];
-        for (((rays, tmin), tmax), out) in rays
-            .chunks(PACKET)
-            .zip(tmin.chunks(PACKET))
-            .zip(tmax.chunks(PACKET))
-            .zip(out.chunks_mut(PACKET))
-        {
-            let hits = &mut hits[..rays.len()];
-            self.surfaces[i].closest_hits(self.src, rays, tmin, tmax, hits);
-            for ((out, h), ray) in out.iter_mut().zip(hits.iter()).zip(rays) {
-                *out = h.map(|h| self.surface_hit(h, ray));
-            }
-        }
+        self.hits_by_packets(rays, tmax, out, |k, rays, tmax, hits| {
+            let tmin = &tmin[k..k + rays.len()];
+            self.surfaces[i].closest_hits(self.src, rays, tmin, tmax, hits)
+        });
     }
 
     fn next_crossings(
@@ -292,19 +274,10 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
         tmax: &[f64],
         out: &mut [Option<SurfaceHit>],
     ) {
-        let mut hits = [None; PACKET];
-        for (((rays, behind), tmax), out) in rays
-            .chunks(PACKET)
-            .zip(behind.chunks(PACKET))
-            .zip(tmax.chunks(PACKET))
-            .zip(out.chunks_mut(PACKET))
-        {
-            let hits = &mut hits[..rays.len()];
-            self.surfaces[i].closest_hits_behind(self.src, rays, behind, tmax, hits);
-            for ((out, h), ray) in out.iter_mut().zip(hits.iter()).zip(rays) {
-                *out = h.map(|h| self.surface_hit(h, ray));
-            }
-        }
+        self.hits_by_packets(rays, tmax, out, |k, rays, tmax, hits| {
+            let behind = &behind[k..k + rays.len()];
+            self.surfaces[i].closest_hits_behind(self.src, rays, behind, tmax, hits)
+        });
     }
 
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
@@ -328,6 +301,31 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
 }
 
 impl<S: VoxelSource + ?Sized> HybridTracer<'_, S> {
+    /// The surface hits of `rays` up to `tmax` into `out`, a packet at a time: `query(k, rays,
+    /// tmax, hits)` finds the hits of the packet whose first ray is ray `k`.
+    #[inline(always)]
+    fn hits_by_packets(
+        &self,
+        rays: &[GridRay],
+        tmax: &[f64],
+        out: &mut [Option<SurfaceHit>],
+        query: impl Fn(usize, &[GridRay], &[f64], &mut [Option<Hit>]),
+    ) {
+        let mut hits = [None; PACKET];
+        for (((k, rays), tmax), out) in (0..)
+            .step_by(PACKET)
+            .zip(rays.chunks(PACKET))
+            .zip(tmax.chunks(PACKET))
+            .zip(out.chunks_mut(PACKET))
+        {
+            let hits = &mut hits[..rays.len()];
+            query(k, rays, tmax, hits);
+            for ((out, h), ray) in out.iter_mut().zip(hits.iter()).zip(rays) {
+                *out = h.map(|h| self.surface_hit(h, ray));
+            }
+        }
+    }
+
     /// The hit the shader sees for `h`, a hit of `ray`.
     #[inline]
     fn surface_hit(&self, h: Hit, ray: &GridRay) -> SurfaceHit {

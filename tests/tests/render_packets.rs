@@ -284,7 +284,7 @@ fn opaque_tile_layers_are_the_single_ray_layers() {
     let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
     let src = FieldSource::new(&file, 0, Reconstruction::Octant).unwrap();
     for isos in [&[0.08f32, 0.0, -0.08][..], &[0.0][..]] {
-        let surfaces = surfaces_at(&src, &isos[..]);
+        let surfaces = surfaces_at(&src, isos);
         let tracer = HybridTracer {
             src: &src,
             surfaces: &surfaces,

@@ -164,14 +164,8 @@ impl<'a> BoxRun<'a> {
         self.put(lo, hi, code);
     }
 
-    /// [`BoxRun::push`] of a box with integer corners.
-    #[inline(always)]
-    pub fn push_int(&mut self, lo: [i64; 3], hi: [i64; 3]) {
-        self.push_ints(std::iter::once((lo, hi)));
-    }
-
-    /// [`BoxRun::push_int`] of each box `boxes` gives, in order, the union kept in registers
-    /// over the run.
+    /// [`BoxRun::push`] of each box with integer corners `boxes` gives, in order, the union
+    /// kept in registers over the run.
     #[inline(always)]
     pub fn push_ints(&mut self, boxes: impl Iterator<Item = ([i64; 3], [i64; 3])>) {
         self.push_ints_coded(boxes, morton);
@@ -203,11 +197,8 @@ impl<'a> BoxRun<'a> {
             // Valid boxes lie in the grid; others only get a code of no meaning.
             let step = |a: usize| (lo[a].wrapping_add(hi[a]) << up >> down) as u32 & STEPS;
             codes[n] = code([step(0), step(1), step(2)]);
-            let v = |p: [i64; 3], s: f64| {
-                let c = |a: usize| (p[a] as f64 + s) as f32;
-                Vec3A::new(c(0), c(1), c(2))
-            };
-            out[n] = Aabb::new(v(lo, -pad), v(hi, pad));
+            let f = |p: [i64; 3]| p.map(|x| x as f64);
+            out[n] = padded(f(lo), f(hi), pad);
             n += 1;
         }
         self.next = start + n;
@@ -221,11 +212,7 @@ impl<'a> BoxRun<'a> {
         if i >= self.boxes.len() || i >= self.codes.len() {
             return;
         }
-        let pad = self.grid.pad;
-        let v = |p: [f64; 3], s: f64| {
-            Vec3A::new((p[0] + s) as f32, (p[1] + s) as f32, (p[2] + s) as f32)
-        };
-        self.boxes[i] = Aabb::new(v(lo, -pad), v(hi, pad));
+        self.boxes[i] = padded(lo, hi, self.grid.pad);
         self.codes[i] = code;
         self.next = i + 1;
     }
@@ -239,6 +226,14 @@ impl<'a> BoxRun<'a> {
         }
         u
     }
+}
+
+/// The `f32` box of `(lo, hi)` grown by `pad` on every side.
+#[inline(always)]
+fn padded(lo: [f64; 3], hi: [f64; 3], pad: f64) -> Aabb {
+    let v =
+        |p: [f64; 3], s: f64| Vec3A::new((p[0] + s) as f32, (p[1] + s) as f32, (p[2] + s) as f32);
+    Aabb::new(v(lo, -pad), v(hi, pad))
 }
 
 /// The last grid step of a Morton code's axis.

@@ -739,9 +739,10 @@ impl BoxFrame {
     /// [`Extractor::doubled_box`] of [`Extractor::resolve`].
     #[inline(always)]
     fn voxel_box(&self, r: u64) -> Result<([i64; 3], [i64; 3])> {
-        let id = r as u32;
-        let dual = id >= DUAL_BASE;
-        let index = if dual { id - DUAL_BASE } else { id / 8 };
+        let (index, octant) = match LocalVoxel::from_id(r as u32) {
+            LocalVoxel::Octant { cell, octant } => (cell, Some(octant)),
+            LocalVoxel::Dual { cell } => (cell, None),
+        };
         if i64::from(index) >= self.cells {
             return Err(bad_ref(r, "cell index past the leaf"));
         }
@@ -750,13 +751,14 @@ impl BoxFrame {
         let d = [index % e0, row % e1, row / e1].map(i64::from);
         let s = self.scale;
         let c = [0, 1, 2].map(|a| self.lowest[a] + 2 * d[a] * s[a]);
-        Ok(if dual {
-            (c, [0, 1, 2].map(|a| c[a] + 2 * s[a]))
-        } else {
-            // Octant bit `a` set: the upper half of the cell on axis `a`, which starts at `c`.
-            let up = |a: usize| id >> a & 1 != 0;
-            let lo = [0, 1, 2].map(|a| if up(a) { c[a] } else { c[a] - s[a] });
-            (lo, [0, 1, 2].map(|a| lo[a] + s[a]))
+        Ok(match octant {
+            None => (c, [0, 1, 2].map(|a| c[a] + 2 * s[a])),
+            Some(octant) => {
+                // Octant bit `a` set: the upper half of the cell on axis `a`, which starts at `c`.
+                let up = |a: usize| octant >> a & 1 != 0;
+                let lo = [0, 1, 2].map(|a| if up(a) { c[a] } else { c[a] - s[a] });
+                (lo, [0, 1, 2].map(|a| lo[a] + s[a]))
+            }
         })
     }
 }

@@ -11,7 +11,6 @@ use std::convert::Infallible;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use amr_format::kdtree::{KdNode, TreeView};
-use amr_format::raw::KD_LEAF;
 use amr_format::IBox;
 
 use super::blocks::{level_box, scan, BlockRanges};
@@ -643,11 +642,10 @@ fn from_kd_node(
             let mut bounds: Option<IBox> = None;
             let mut coarsest = u32::MAX;
             let mut complete = true;
-            for n in tree.nodes.get(i..end)? {
-                if n.b.get() & 3 != KD_LEAF {
+            for (j, n) in tree.nodes.get(i..end)?.iter().enumerate() {
+                let KdNode::Leaf { leaf } = KdNode::decode(i + j, n) else {
                     continue;
-                }
-                let leaf = n.a.get();
+                };
                 let (b, lv) = (all.boxes.get(leaf as usize)?, all.levels[leaf as usize]);
                 order.push(leaf);
                 bounds = Some(bounds.map_or(*b, |u| u.union(b)));

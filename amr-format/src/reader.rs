@@ -10,11 +10,12 @@ use std::path::{Path, PathBuf};
 use zerocopy::little_endian::{U32, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout};
 
+use crate::blocks::block_count;
 use crate::compress::{decode_into, Encoding};
 use crate::error::{FormatError, Result};
 use crate::geometry::IBox;
 use crate::hierarchy::{MAX_BRICK_CELLS, MAX_BRICK_EXTENT, MAX_FINEST_EXTENT, MAX_LEVELS};
-use crate::kdtree::TreeView;
+use crate::kdtree::{KdNode, TreeView};
 use crate::raw::{
     self, BlockRange, BrickData, BrickRecord, FieldRecord, Footer, Header, KdLeaf, LeafRange,
     LevelRecord, PartTable, Section,
@@ -748,7 +749,6 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
                 return bad(format!("cells {cells:?} exceed the brick size limits"));
             }
         }
-        let records = self.brick_records();
         let mut compressed_fields = vec![false; self.fields.len()];
         for field in 0..self.fields.len() {
             let (start, len) = self.fields[field].data;
@@ -756,11 +756,8 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
             let end = start + len;
             let mut compressed = false;
             let data = self.field_brick_records(field);
-            for (i, (d, b)) in data.iter().zip(records).enumerate() {
-                // Cannot overflow: checked against MAX_BRICK_CELLS above.
-                let cells = (0..3)
-                    .map(|a| (b.hi[a].get() - b.lo[a].get()) as u64)
-                    .product::<u64>();
+            for (i, (d, b)) in data.iter().zip(self.bricks()).enumerate() {
+                let cells = b.cells.num_cells().unwrap_or(0);
                 let bad = |m: String| {
                     Err(FormatError::Corrupt(format!(
                         "field '{}', brick {i}: {m}",
@@ -817,15 +814,11 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         )?;
         let mut starts = Vec::with_capacity(self.num_bricks() + 1);
         let mut total = 0u64;
-        let block = u64::from(block);
-        for b in self.brick_records() {
+        for b in self.bricks() {
             starts.push(total);
-            // Cannot overflow: brick extents are positive and at most MAX_BRICK_EXTENT, and the
-            // bricks at most 2^32, checked above.
-            let per_axis = |a: usize| ((b.hi[a].get() - b.lo[a].get()) as u64).div_ceil(block);
-            total += per_axis(0) * per_axis(1) * per_axis(2);
+            // Cannot overflow: bricks hold at most MAX_BRICK_CELLS cells, checked above.
+            total += block_count(&b.cells, i64::from(block)).unwrap_or(0);
         }
-        let block = block as u32;
         starts.push(total);
         let want = total
             .checked_mul(size_of::<BlockRange>() as u64)
@@ -1002,48 +995,47 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
                     format!("kd nodes are not stored depth first: node {i} stands where {at} is")
                 });
             }
-            let (a, b) = (node.a.get(), node.b.get());
-            if b & 3 == raw::KD_LEAF {
-                let Some(seen) = leaf_seen.get_mut(a as usize) else {
-                    return bad(format!("kd node {i} names leaf {a} of {nleaves}"));
-                };
-                if std::mem::replace(seen, true) {
-                    return bad(format!("kd leaf {a} is reached twice"));
+            match KdNode::decode(i, node) {
+                KdNode::Leaf { leaf: a } => {
+                    let Some(seen) = leaf_seen.get_mut(a as usize) else {
+                        return bad(format!("kd node {i} names leaf {a} of {nleaves}"));
+                    };
+                    if std::mem::replace(seen, true) {
+                        return bad(format!("kd leaf {a} is reached twice"));
+                    }
+                    let stored = tree.leaf_box(a);
+                    if stored != region {
+                        return bad(format!(
+                            "kd leaf {a} stores {stored:?} but the tree gives it {region:?}"
+                        ));
+                    }
+                    depth_max = depth_max.max(depth);
+                    // `n` once the walk is over: every node it names is below `n`.
+                    match pending.pop() {
+                        Some(next) => (i, region, depth) = next,
+                        None => i = n,
+                    }
                 }
-                let l = &leaves[a as usize];
-                let stored = IBox::new(
-                    l.lo.map(|v| i64::from(v.get())),
-                    l.hi.map(|v| i64::from(v.get())),
-                );
-                if stored != region {
-                    return bad(format!(
-                        "kd leaf {a} stores {stored:?} but the tree gives it {region:?}"
-                    ));
+                KdNode::Split {
+                    axis, pos, high, ..
+                } => {
+                    if pos <= region.lo[axis] || pos >= region.hi[axis] {
+                        return bad(format!(
+                            "kd node {i} splits {region:?} at {pos} on axis {axis}, not inside it"
+                        ));
+                    }
+                    if high <= i + 1 || high >= n {
+                        return bad(format!(
+                            "kd node {i} has children {} and {high} of {n}",
+                            i + 1
+                        ));
+                    }
+                    let mut upper = region;
+                    upper.lo[axis] = pos;
+                    pending.push((high, upper, depth + 1));
+                    region.hi[axis] = pos;
+                    (i, depth) = (i + 1, depth + 1);
                 }
-                depth_max = depth_max.max(depth);
-                // `n` once the walk is over: every node it names is below `n`.
-                match pending.pop() {
-                    Some(next) => (i, region, depth) = next,
-                    None => i = n,
-                }
-            } else {
-                let (axis, pos, high) = ((b & 3) as usize, i64::from(a), (b >> 2) as usize);
-                if pos <= region.lo[axis] || pos >= region.hi[axis] {
-                    return bad(format!(
-                        "kd node {i} splits {region:?} at {pos} on axis {axis}, not inside it"
-                    ));
-                }
-                if high <= i + 1 || high >= n {
-                    return bad(format!(
-                        "kd node {i} has children {} and {high} of {n}",
-                        i + 1
-                    ));
-                }
-                let mut upper = region;
-                upper.lo[axis] = pos;
-                pending.push((high, upper, depth + 1));
-                region.hi[axis] = pos;
-                (i, depth) = (i + 1, depth + 1);
             }
         }
         if i != n {

@@ -17,10 +17,9 @@ impl Frustum {
     /// through the eye and the image's corner rays, which bound the rays of every pixel sample.
     pub fn of_camera(camera: &Camera, (w, h): (u32, u32), frame: &GridFrame) -> Frustum {
         let (fw, fh) = (f64::from(w), f64::from(h));
-        let grid_dir = |d: [f64; 3]| [0, 1, 2].map(|a| d[a] / frame.unit[a]);
         let corners = [(0.0, fh), (0.0, 0.0), (fw, 0.0), (fw, fh)]
-            .map(|(x, y)| grid_dir(camera.ray_dir(x, y, w, h)));
-        let forward = grid_dir(camera.forward());
+            .map(|(x, y)| frame.to_grid_dir(camera.ray_dir(x, y, w, h)));
+        let forward = frame.to_grid_dir(camera.forward());
         let eye = frame.to_grid(camera.pos);
         let sides = [0, 1, 2, 3].map(|k| {
             let n = cross(corners[k], corners[(k + 1) % 4]);

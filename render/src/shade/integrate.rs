@@ -356,12 +356,12 @@ pub(crate) fn ray_off(
     lift: f64,
 ) -> (GridRay, f64) {
     let offset = 1e-3 * hit.size + lift;
-    let n_grid = [0, 1, 2].map(|a| nf[a] / frame.unit[a]);
+    let n_grid = frame.to_grid_dir(nf);
     let n_len = grid_len(n_grid);
     let o = [0, 1, 2].map(|a| hit.pos[a] + n_grid[a] / n_len * offset);
     let ray = GridRay {
         o,
-        d: [0, 1, 2].map(|a| d[a] / frame.unit[a]),
+        d: frame.to_grid_dir(d),
     };
     let tmin = 1e-3 * hit.size / grid_len(ray.d);
     (ray, tmin)

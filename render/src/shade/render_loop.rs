@@ -329,7 +329,7 @@ fn render_strip<T: Tracer + ?Sized>(
                     dirs_k.push(dir);
                     rays.push(GridRay {
                         o: grid_origin,
-                        d: [0, 1, 2].map(|a| dir[a] / frame.unit[a]),
+                        d: frame.to_grid_dir(dir),
                     });
                 }
             }

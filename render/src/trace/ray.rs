@@ -36,7 +36,7 @@ impl GridRay {
     pub fn from_world(frame: &GridFrame, origin: [f64; 3], dir: [f64; 3]) -> GridRay {
         GridRay {
             o: frame.to_grid(origin),
-            d: [0, 1, 2].map(|a| dir[a] / frame.unit[a]),
+            d: frame.to_grid_dir(dir),
         }
     }
 

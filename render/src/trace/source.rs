@@ -50,6 +50,12 @@ impl GridFrame {
         [0, 1, 2].map(|a| (w[a] - self.origin[a]) / self.unit[a])
     }
 
+    /// Grid-space vector of world vector `v` (a direction: no origin).
+    #[inline]
+    pub fn to_grid_dir(&self, v: [f64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|a| v[a] / self.unit[a])
+    }
+
     /// World-space lower and upper corners of the domain.
     pub fn world_bounds(&self) -> ([f64; 3], [f64; 3]) {
         (self.origin, self.to_world(self.extent))

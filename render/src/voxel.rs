@@ -52,6 +52,13 @@ impl Voxel {
         [gx, gy, gz]
     }
 
+    /// Gradient of the trilinear interpolant at local coordinates `u`, per grid unit.
+    #[inline]
+    pub fn grad_grid(&self, u: [f64; 3]) -> [f64; 3] {
+        let g = self.grad_local(u);
+        [0, 1, 2].map(|a| g[a] / (self.hi[a] - self.lo[a]))
+    }
+
     /// Lower corner in doubled finest-level coordinates (grid coordinates are integers there).
     pub fn lo_doubled(&self) -> [i64; 3] {
         self.lo.map(|x| x as i64)

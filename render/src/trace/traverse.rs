@@ -44,8 +44,7 @@ impl Hit {
 
     /// Gradient of the voxel's trilinear interpolant at the hit, per grid unit.
     pub fn grid_gradient(&self) -> [f64; 3] {
-        let g = self.voxel.grad_local(self.local);
-        [0, 1, 2].map(|a| g[a] / (self.voxel.hi[a] - self.voxel.lo[a]))
+        self.voxel.grad_grid(self.local)
     }
 }
 
@@ -53,9 +52,7 @@ impl Hit {
 /// crossing's direction, as [`crate::trace::tracer::SurfaceHit::rising`] has it.
 #[inline]
 fn rising(voxel: &Voxel, h: &VoxelHit, ray: &GridRay) -> bool {
-    let g = voxel.grad_local(h.local);
-    let g = [0, 1, 2].map(|a| g[a] / (voxel.hi[a] - voxel.lo[a]));
-    dot(g, ray.d) > 0.0
+    dot(voxel.grad_grid(h.local), ray.d) > 0.0
 }
 
 /// The padding (grid units) by which voxel boxes are grown in the `f32` BVH: a few thousand `f32`

@@ -213,16 +213,14 @@ fn tile_layers_are_the_single_ray_layers() {
                     dirs.push(d);
                 }
             }
-            tile.trace(&tracer, &light, &rays, &mut hint);
-            let firsts: Vec<Vec<_>> = (0..rays.len()).map(|k| tile.hits_of(k).to_vec()).collect();
-            layers.trace(&tracer, &light, &rays, &mut tile);
-            for (k, ray) in rays.iter().enumerate() {
-                let mut want = Vec::new();
-                ray_layers(&tracer, &light, ray, &mut firsts[k].clone(), &mut want);
-                assert_eq!(layers.of(k), &want[..], "{method:?}: tile {t}, ray {k}");
-                deep += usize::from(want.len() >= 3);
-                rays_seen += 1;
-            }
+            let wants = packet_layers_match(
+                (&tracer, &light),
+                &rays,
+                (&mut hint, &mut tile, &mut layers),
+                &format!("{method:?}: tile {t}"),
+            );
+            deep += wants.iter().filter(|w| w.len() >= 3).count();
+            rays_seen += wants.len();
             shadows.trace(&tracer, &light, &dirs, &mut layers);
             for (k, &d) in dirs.iter().enumerate() {
                 let traced = layers.of(k);
@@ -273,7 +271,6 @@ fn tile_layers_are_the_single_ray_layers() {
     }
 }
 
-/// The camera position of tile `t` in [`tile_layers_are_the_single_ray_layers`].
 /// A tile of opaque surfaces (all three shells, and the middle one alone) takes each ray's
 /// nearest first hit as its one layer: the layers `ray_layers` finds ray by ray.
 #[test]
@@ -308,16 +305,14 @@ fn opaque_tile_layers_are_the_single_ray_layers() {
                     GridRay::from_world(&frame, eye, d.map(|x| x / len))
                 })
                 .collect();
-            tile.trace(&tracer, &light, &rays, &mut hint);
-            let firsts: Vec<Vec<_>> = (0..rays.len()).map(|k| tile.hits_of(k).to_vec()).collect();
-            layers.trace(&tracer, &light, &rays, &mut tile);
-            for (k, ray) in rays.iter().enumerate() {
-                let mut want = Vec::new();
-                ray_layers(&tracer, &light, ray, &mut firsts[k].clone(), &mut want);
-                assert_eq!(layers.of(k), &want[..], "{isos:?}: tile {t}, ray {k}");
-                assert!(want.len() <= 1);
-                hits += want.len();
-            }
+            let wants = packet_layers_match(
+                (&tracer, &light),
+                &rays,
+                (&mut hint, &mut tile, &mut layers),
+                &format!("{isos:?}: tile {t}"),
+            );
+            assert!(wants.iter().all(|w| w.len() <= 1));
+            hits += wants.iter().map(Vec::len).sum::<usize>();
         }
         assert!(hits > 12 * 64 / 4, "{isos:?}: only {hits} rays hit");
     }
@@ -346,6 +341,30 @@ fn lighting(opacity: Vec<f32>, shadows: bool) -> Lighting {
     }
 }
 
+/// Traces `rays` as one tile (first hits, then the layers behind them) and asserts that every
+/// ray's layers are the ones [`ray_layers`] finds for it alone from the same first hits;
+/// returns those layers, ray by ray.
+fn packet_layers_match(
+    (tracer, light): (&HybridTracer<'_, FieldSource<Vec<u8>>>, &Lighting),
+    rays: &[GridRay],
+    (hint, tile, layers): (&mut SearchHint, &mut TileHits, &mut TileLayers),
+    label: &str,
+) -> Vec<Vec<Layer>> {
+    tile.trace(tracer, light, rays, hint);
+    let firsts: Vec<Vec<_>> = (0..rays.len()).map(|k| tile.hits_of(k).to_vec()).collect();
+    layers.trace(tracer, light, rays, tile);
+    rays.iter()
+        .enumerate()
+        .map(|(k, ray)| {
+            let mut want = Vec::new();
+            ray_layers(tracer, light, ray, &mut firsts[k].clone(), &mut want);
+            assert_eq!(layers.of(k), &want[..], "{label}, ray {k}");
+            want
+        })
+        .collect()
+}
+
+/// The camera position of tile `t` in [`tile_layers_are_the_single_ray_layers`].
 fn eye_of(t: u32) -> [f64; 3] {
     [1.5 - 0.03 * f64::from(t), 0.25 + 0.02 * f64::from(t), 1.4]
 }

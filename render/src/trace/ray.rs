@@ -310,6 +310,18 @@ mod tests {
         }
     }
 
+    /// [`bvh_rays`] or [`bvh_rays_scalar`].
+    type BvhRaysFn = fn(
+        &[GridRay],
+        &GridFrame,
+        f64,
+        &[f64],
+        &[f64],
+        &mut [[f64; 3]],
+        &mut [Ray],
+        &mut [(f64, f64)],
+    ) -> Mask;
+
     #[test]
     fn packet_bvh_rays_match_the_single_ray_ones_bit_for_bit() {
         let frame = GridFrame {
@@ -340,16 +352,7 @@ mod tests {
                         }
                     })
                     .collect();
-                let run = |f: fn(
-                    &[GridRay],
-                    &GridFrame,
-                    f64,
-                    &[f64],
-                    &[f64],
-                    &mut [[f64; 3]],
-                    &mut [Ray],
-                    &mut [(f64, f64)],
-                ) -> Mask| {
+                let run = |f: BvhRaysFn| {
                     let mut recips = [[0.0; 3]; 64];
                     let mut ray32 = [unused; 64];
                     let mut back = [(0.0, 0.0); 64];

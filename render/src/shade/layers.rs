@@ -197,10 +197,25 @@ impl TileLayers {
         let m = rays.len();
         assert!(m <= PACKET);
         let n = tracer.num_surfaces();
-        let mut search = [LayerSearch::default(); PACKET];
         for layers in &mut self.layers[..m] {
             layers.clear();
         }
+        if n == 1 && light.opacity[0] >= 1.0 {
+            // One opaque surface: each ray's one layer is its hit, if any (what
+            // `LayerSearch::take` gives, without its search over surfaces).
+            for (k, layers) in self.layers[..m].iter_mut().enumerate() {
+                if let Some(hit) = hits.ray_hits(k)[0].take() {
+                    layers.push(Layer {
+                        surface: 0,
+                        hit,
+                        shadow: None,
+                        ao: None,
+                    });
+                }
+            }
+            return;
+        }
+        let mut search = [LayerSearch::default(); PACKET];
         if light.opacity[..n].iter().all(|&a| a >= 1.0) {
             // Behind an opaque hit nothing is composited: each ray's one layer is its nearest
             // first hit, and no continuation is searched.

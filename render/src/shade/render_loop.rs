@@ -291,7 +291,8 @@ fn render_strip<T: Tracer + ?Sized>(
     let mut across = [0.0f64; TILE as usize];
     let mut tile = TileHits::new(tracer.num_surfaces());
     let mut shadows = Box::<KeyShadow>::default();
-    let mut layers = Box::<TileLayers>::default();
+    // This thread's layers of the strip before: their rays' vectors keep their room.
+    let mut layers = STRIP_LAYERS.take().unwrap_or_default();
     let mut ao = TileAo::default();
     // One tile's samples, generators, world directions and grid rays, reused tile after tile.
     let mut acc: Vec<PixelAcc> = Vec::with_capacity(TILE_RAYS);
@@ -376,7 +377,14 @@ fn render_strip<T: Tracer + ?Sized>(
     if let Some(first) = rows.first_mut() {
         first.rays = counting.rays.get();
     }
+    STRIP_LAYERS.set(Some(layers));
     rows
+}
+
+thread_local! {
+    /// The [`TileLayers`] of this thread's last strip, reused by its next one: a strip that
+    /// allocated its own grew each of its rays' vectors of layers anew.
+    static STRIP_LAYERS: Cell<Option<Box<TileLayers>>> = const { Cell::new(None) };
 }
 
 /// Hands each of `rows` (a rectangle `w` pixels wide, top row first) to `write` with its

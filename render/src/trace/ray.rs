@@ -4,7 +4,11 @@
 use glam::Vec3A;
 use obvhs::ray::Ray;
 
+use crate::bvh::packet::Mask;
 use crate::trace::source::GridFrame;
+
+#[cfg(target_arch = "x86_64")]
+mod x4;
 
 /// Grid units by which the `f32` BVH ray starts before the domain.
 pub const BVH_LEAD: f64 = 1.0;
@@ -164,6 +168,64 @@ impl GridRay {
     }
 }
 
+/// The `f32` BVH rays of a packet's `rays` (at most [`Mask::BITS`]), each for its query over
+/// `[tmin[k], tmax[k]]`: `recips[k]` is ray `k`'s [`GridRay::recip`], and for each ray that
+/// meets the domain grown by `pad` (bit `k` of the mask returned), `ray32[k]` and `back[k]`
+/// (`(t_off, scale)`) are the [`BvhRay`] of [`GridRay::bvh_ray_with`] for a query from the
+/// origin (`tmin[k] <= 0`) or of [`GridRay::bvh_ray_ahead`] for one behind a hit (`tmin[k] >
+/// 0`), bit for bit. The other rays' `ray32` and `back` are left alone. With AVX2, four rays
+/// at a time.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub fn bvh_rays(
+    rays: &[GridRay],
+    frame: &GridFrame,
+    pad: f64,
+    tmin: &[f64],
+    tmax: &[f64],
+    recips: &mut [[f64; 3]],
+    ray32: &mut [Ray],
+    back: &mut [(f64, f64)],
+) -> Mask {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { x4::bvh_rays(rays, frame, pad, tmin, tmax, recips, ray32, back) };
+    }
+    bvh_rays_scalar(rays, frame, pad, tmin, tmax, recips, ray32, back)
+}
+
+/// [`bvh_rays`] one ray at a time: the fallback, and what the AVX2 path is tested against.
+#[allow(clippy::too_many_arguments)]
+pub fn bvh_rays_scalar(
+    rays: &[GridRay],
+    frame: &GridFrame,
+    pad: f64,
+    tmin: &[f64],
+    tmax: &[f64],
+    recips: &mut [[f64; 3]],
+    ray32: &mut [Ray],
+    back: &mut [(f64, f64)],
+) -> Mask {
+    let n = rays.len();
+    assert!(n <= Mask::BITS as usize && tmin.len() == n && tmax.len() == n);
+    let mut active: Mask = 0;
+    for k in 0..n {
+        recips[k] = rays[k].recip();
+        let b = if tmin[k] > 0.0 {
+            rays[k].bvh_ray_ahead(frame, pad, tmin[k], tmax[k])
+        } else {
+            rays[k].bvh_ray_with(&recips[k], frame, pad, tmin[k], tmax[k])
+        };
+        if let Some(b) = b {
+            ray32[k] = b.ray;
+            back[k] = (b.t_off, b.scale);
+            active |= 1 << k;
+        }
+    }
+    active
+}
+
 /// Grid units by which the `f32` ray of [`GridRay::bvh_ray_ahead`] starts before the exact
 /// ray's first point: the node test's entry bound plus the boxes' padding `pad`, so that the
 /// `f32` ray meets a voxel the exact ray meets at `tmin` with a margin of about twice `pad`.
@@ -189,5 +251,134 @@ pub fn smaller(a: f64, b: f64) -> f64 {
         b
     } else {
         a
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small deterministic generator of test values.
+    struct Lcg(u64);
+
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+        /// A coordinate: mostly spread values, sometimes a special one.
+        fn value(&mut self, spread: f64) -> f64 {
+            let pick = self.next();
+            if pick < 0.08 {
+                0.0
+            } else if pick < 0.1 {
+                -0.0
+            } else if pick < 0.11 {
+                1e-9 * (self.next() - 0.5)
+            } else if pick < 0.115 {
+                1e-30
+            } else {
+                spread * (2.0 * self.next() - 1.0)
+            }
+        }
+    }
+
+    fn bits(r: &Ray) -> [u32; 14] {
+        let mut out = [0; 14];
+        let v = [r.origin, r.direction, r.inv_direction];
+        for (i, v) in v.iter().enumerate() {
+            for j in 0..4 {
+                out[4 * i + j] = v.to_array4()[j].to_bits();
+            }
+        }
+        out[12] = r.tmin.to_bits();
+        out[13] = r.tmax.to_bits();
+        out
+    }
+
+    trait Array4 {
+        fn to_array4(&self) -> [f32; 4];
+    }
+
+    impl Array4 for Vec3A {
+        fn to_array4(&self) -> [f32; 4] {
+            // SAFETY: a `Vec3A` is 16 bytes, four `f32`.
+            unsafe { std::mem::transmute::<Vec3A, [f32; 4]>(*self) }
+        }
+    }
+
+    /// [`bvh_rays`] or [`bvh_rays_scalar`].
+    type BvhRaysFn = fn(
+        &[GridRay],
+        &GridFrame,
+        f64,
+        &[f64],
+        &[f64],
+        &mut [[f64; 3]],
+        &mut [Ray],
+        &mut [(f64, f64)],
+    ) -> Mask;
+
+    #[test]
+    fn packet_bvh_rays_match_the_single_ray_ones_bit_for_bit() {
+        let frame = GridFrame {
+            origin: [0.0; 3],
+            unit: [1.0; 3],
+            extent: [64.0, 32.0, 128.0],
+        };
+        let pad = 1e-5 * 128.0;
+        let mut g = Lcg(7);
+        let unused = Ray::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0);
+        for n in [64, 61, 7, 4, 1, 0] {
+            for _ in 0..200 {
+                let rays: Vec<GridRay> = (0..n)
+                    .map(|_| GridRay {
+                        o: [0, 1, 2].map(|_| 64.0 + g.value(150.0)),
+                        d: [0, 1, 2].map(|_| g.value(2.0)),
+                    })
+                    .collect();
+                let tmin: Vec<f64> = (0..n)
+                    .map(|_| if g.next() < 0.5 { 0.0 } else { g.value(50.0) })
+                    .collect();
+                let tmax: Vec<f64> = (0..n)
+                    .map(|_| {
+                        if g.next() < 0.3 {
+                            f64::INFINITY
+                        } else {
+                            g.value(400.0)
+                        }
+                    })
+                    .collect();
+                let run = |f: BvhRaysFn| {
+                    let mut recips = [[0.0; 3]; 64];
+                    let mut ray32 = [unused; 64];
+                    let mut back = [(0.0, 0.0); 64];
+                    let m = f(
+                        &rays,
+                        &frame,
+                        pad,
+                        &tmin,
+                        &tmax,
+                        &mut recips,
+                        &mut ray32,
+                        &mut back,
+                    );
+                    (m, recips, ray32, back)
+                };
+                let (m0, recips0, ray0, back0) = run(bvh_rays_scalar);
+                let (m1, recips1, ray1, back1) = run(bvh_rays);
+                assert_eq!(m0, m1);
+                for k in 0..n {
+                    let f = |x: [f64; 3]| x.map(f64::to_bits);
+                    assert_eq!(f(recips0[k]), f(recips1[k]), "{k}");
+                    assert_eq!(bits(&ray0[k]), bits(&ray1[k]), "{k} {:?}", rays[k]);
+                    let f = |(a, b): (f64, f64)| (a.to_bits(), b.to_bits());
+                    assert_eq!(f(back0[k]), f(back1[k]), "{k}");
+                }
+            }
+        }
     }
 }

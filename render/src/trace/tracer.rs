@@ -326,8 +326,9 @@ impl<S: VoxelSource + ?Sized> HybridTracer<'_, S> {
         }
     }
 
-    /// The hit the shader sees for `h`, a hit of `ray`.
-    #[inline]
+    /// The hit the shader sees for `h`, a hit of `ray` (inlined into the packets' loop: a call
+    /// per hit passed the whole hit and its voxel by value).
+    #[inline(always)]
     fn surface_hit(&self, h: Hit, ray: &GridRay) -> SurfaceHit {
         let pos = h.grid_pos();
         let size = (0..3)

@@ -9,7 +9,7 @@ use crate::bvh::{BoxGrid, BoxRun, BvhBuilder, OctantBvh};
 use crate::camera::dot;
 use crate::trace::last_hit::{self, Query};
 use crate::trace::octant::VoxelHit;
-use crate::trace::ray::GridRay;
+use crate::trace::ray::{bvh_rays, GridRay};
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
 use crate::trace::tracer::Behind;
 
@@ -263,24 +263,22 @@ impl Surface {
         let mut back = [(0.0f64, 0.0f64); PACKET];
         let mut best_t = [0.0f64; PACKET];
         let mut recips = [[0.0f64; 3]; PACKET];
-        let mut active: Mask = 0;
         for k in 0..n {
             out[k] = None;
             best_t[k] = tmax[k];
-            recips[k] = rays[k].recip();
-            // A query behind a hit needs no voxel wholly before its `tmin`, which the exact
-            // test rejects: its walk starts just before `tmin` (as any-hit walks do).
-            let b = if tmin[k] > 0.0 {
-                rays[k].bvh_ray_ahead(&frame, pad, tmin[k], tmax[k])
-            } else {
-                rays[k].bvh_ray_with(&recips[k], &frame, pad, tmin[k], tmax[k])
-            };
-            if let Some(b) = b {
-                ray32[k] = b.ray;
-                back[k] = (b.t_off, b.scale);
-                active |= 1 << k;
-            }
         }
+        // A query behind a hit needs no voxel wholly before its `tmin`, which the exact test
+        // rejects: its walk starts just before `tmin` (as any-hit walks do).
+        let active = bvh_rays(
+            rays,
+            &frame,
+            pad,
+            tmin,
+            tmax,
+            &mut recips,
+            &mut ray32,
+            &mut back,
+        );
         if active == 0 {
             return;
         }

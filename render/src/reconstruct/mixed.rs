@@ -249,19 +249,36 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 }
             }
         }
-        let mut stitches = None::<Stitches>;
+        // Side `i` of corner `n` is table entry `corner(n) + side_step(i)`.
+        let corner = |n: usize| (n & 1) * 2 + (n >> 1 & 1) * 8 + (n >> 2 & 1) * 32;
+        let side_step = |i: usize| (i & 1) + (i >> 1 & 1) * 4 + (i >> 2 & 1) * 16;
         let mut out = [0f32; 8];
+        if coarse == 0 {
+            // No corner is stitched.
+            for (n, slot) in out.iter_mut().enumerate() {
+                // The corner at the cell centre carries the cell's value.
+                *slot = if n == down {
+                    value
+                } else {
+                    avg8(&std::array::from_fn(|i| values[corner(n) + side_step(i)]))
+                };
+            }
+            return Ok(Some(out));
+        }
+        // The stitch memory, made in place (about 1.3 KB) once some corner is known stitched.
+        let mut stitches = Stitches::new();
+        if let Some((c, b)) = near {
+            stitches.add_leaf(c.leaf, b);
+        }
         for (n, slot) in out.iter_mut().enumerate() {
             if n == down {
                 // The corner at the cell centre carries the cell's value.
                 *slot = value;
                 continue;
             }
-            // Side `i` of corner `n` is table entry `corner + step(i)`.
-            let corner = (n & 1) * 2 + (n >> 1 & 1) * 8 + (n >> 2 & 1) * 32;
-            let entry = |i: usize| corner + (i & 1) + (i >> 1 & 1) * 4 + (i >> 2 & 1) * 16;
-            // The corner's eight entries: bits 0, 1, 4, 5, 16, 17, 20 and 21 from `corner`.
-            *slot = if coarse >> corner & 0x0033_0033 != 0 {
+            let entry = |i: usize| corner(n) + side_step(i);
+            // The corner's eight entries: bits 0, 1, 4, 5, 16, 17, 20 and 21 from `corner(n)`.
+            *slot = if coarse >> corner(n) & 0x0033_0033 != 0 {
                 let lv: [u32; 8] = std::array::from_fn(|i| levels[entry(i)]);
                 let coarsest = lv.iter().copied().fold(u32::MAX, u32::min);
                 let v = axes(|a| base[a] + (n >> a & 1) as i64 * s[a]);
@@ -280,14 +297,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                     return Ok(None);
                 };
                 let octant = self.octant_toward(v, &q, side);
-                let stitches = stitches.get_or_insert_with(|| {
-                    let mut st = Stitches::new();
-                    if let Some((c, b)) = near {
-                        st.add_leaf(c.leaf, b);
-                    }
-                    st
-                });
-                match self.stitched_value(loc, v, &q, octant, stitches, memo)? {
+                match self.stitched_value(loc, v, &q, octant, &mut stitches, memo)? {
                     Some(x) => x,
                     None => return Ok(None),
                 }

@@ -137,11 +137,13 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 ax.out[i] = usize::from((f < own.lo[a]) | (f >= own.hi[a])) << a;
             }
         }
-        // The table, entry `x + 4 y + 16 z`: each finest cell's leaf-cell level and value, and
-        // (bit per entry) whether the cell was read or located rather than its position's.
+        // The table, entry `x + 4 y + 16 z`: each finest cell's leaf-cell value and (filled only
+        // when some corner is stitched) level, and, bit per entry, whether the cell was read or
+        // located rather than its position's and whether its level is coarser than the octant's.
         let mut levels = [0u32; 64];
         let mut values = [0f32; 64];
         let mut read = 0u64;
+        let mut coarse = 0u64;
         // Per axis: the entries whose index along it is `i`.
         const SLAB: [u64; 3] = [0x1111_1111_1111_1111, 0x000F_000F_000F_000F, 0xFFFF];
         let slab = |a: usize, i: usize| SLAB[a] << (i << (2 * a));
@@ -161,28 +163,49 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             let side = down >> a & 1;
             m & (slab(a, 2 * side) | slab(a, 2 * side + 1))
         });
-        // Every entry first takes its position's cell when that cell covers the whole position;
-        // the entries of the other positions are read or located below. A row along x holds
-        // two positions: `k` and, where x lies outside the own cell, `k | 1`.
+        // The entries of position `k`.
+        let entries_of = |k: usize| part[0][k & 1] & part[1][k >> 1 & 1] & part[2][k >> 2 & 1];
+        // Every entry first takes its position's cell's value when that cell covers the whole
+        // position (its level is the position's, marked in `coarse` below); the entries of the
+        // other positions are read or located below. A row along x holds two positions: `k`
+        // and, where x lies outside the own cell, `k | 1`.
+        let beyond = axis[0].out.map(|kx| kx != 0);
         for (z, &kz) in axis[2].out.iter().enumerate() {
             for (y, &ky) in axis[1].out.iter().enumerate() {
                 let k = (ky | kz) & 6;
-                let (l0, v0) = (whole_level[k], whole_value[k]);
-                let (l1, v1) = (whole_level[k | 1], whole_value[k | 1]);
+                let (v0, v1) = (whole_value[k], whole_value[k | 1]);
                 let row = 4 * y + 16 * z;
-                for (x, &kx) in axis[0].out.iter().enumerate() {
-                    let beyond = kx != 0;
-                    levels[row + x] = if beyond { l1 } else { l0 };
-                    values[row + x] = if beyond { v1 } else { v0 };
+                values[row..row + 4].copy_from_slice(&beyond.map(|b| if b { v1 } else { v0 }));
+            }
+        }
+        let mut wholes = whole;
+        while wholes != 0 {
+            let k = wholes.trailing_zeros() as usize;
+            wholes &= wholes - 1;
+            coarse |= entries_of(k) & 0u64.wrapping_sub(u64::from(whole_level[k] < level));
+        }
+        // Stitched corners read their entries' levels: those of whole positions are filled row by
+        // row as the values are, first, when a whole position is coarser than the octant.
+        let fill_levels = |levels: &mut [u32; 64]| {
+            for (z, &kz) in axis[2].out.iter().enumerate() {
+                for (y, &ky) in axis[1].out.iter().enumerate() {
+                    let k = (ky | kz) & 6;
+                    let (l0, l1) = (whole_level[k], whole_level[k | 1]);
+                    let row = 4 * y + 16 * z;
+                    levels[row..row + 4].copy_from_slice(&beyond.map(|b| if b { l1 } else { l0 }));
                 }
             }
+        };
+        let levels_filled = coarse != 0;
+        if levels_filled {
+            fill_levels(&mut levels);
         }
         let mut partial = !whole;
         while partial != 0 {
             let k = partial.trailing_zeros() as usize;
             partial &= partial - 1;
             let p = position(k);
-            let mut mask = part[0][k & 1] & part[1][k >> 1 & 1] & part[2][k >> 2 & 1] & centre;
+            let mut mask = entries_of(k) & centre;
             read |= mask;
             // The position's kd-tree leaf, when it holds all the position's cells.
             let leaf = p.map_or(u32::MAX, |p| {
@@ -203,7 +226,9 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 let f = [axis[0].at[x], axis[1].at[y], axis[2].at[z]];
                 if leaf != u32::MAX {
                     if let Some(v) = self.value_in_leaf(leaf, f) {
-                        (levels[e], values[e]) = (p.map_or(0, |p| p.cell.level), v);
+                        let l = p.map_or(0, |p| p.cell.level);
+                        (levels[e], values[e]) = (l, v);
+                        coarse |= u64::from(l < level) << e;
                         continue;
                     }
                 }
@@ -211,22 +236,51 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                     return Ok(None);
                 };
                 (levels[e], values[e]) = (c.level, c.value);
+                coarse |= u64::from(c.level < level) << e;
             }
         }
-        let mut stitches = None::<Stitches>;
+        if coarse != 0 && !levels_filled {
+            // A coarser cell read or located alone: the other entries' levels after all.
+            let kept = levels;
+            fill_levels(&mut levels);
+            for e in 0..64 {
+                if read >> e & 1 == 1 {
+                    levels[e] = kept[e];
+                }
+            }
+        }
+        // Side `i` of corner `n` is table entry `corner(n) + side_step(i)`.
+        let corner = |n: usize| (n & 1) * 2 + (n >> 1 & 1) * 8 + (n >> 2 & 1) * 32;
+        let side_step = |i: usize| (i & 1) + (i >> 1 & 1) * 4 + (i >> 2 & 1) * 16;
         let mut out = [0f32; 8];
+        if coarse == 0 {
+            // No corner is stitched.
+            for (n, slot) in out.iter_mut().enumerate() {
+                // The corner at the cell centre carries the cell's value.
+                *slot = if n == down {
+                    value
+                } else {
+                    avg8(&std::array::from_fn(|i| values[corner(n) + side_step(i)]))
+                };
+            }
+            return Ok(Some(out));
+        }
+        // The stitch memory, made in place (about 1.3 KB) once some corner is known stitched.
+        let mut stitches = Stitches::new();
+        if let Some((c, b)) = near {
+            stitches.add_leaf(c.leaf, b);
+        }
         for (n, slot) in out.iter_mut().enumerate() {
             if n == down {
                 // The corner at the cell centre carries the cell's value.
                 *slot = value;
                 continue;
             }
-            // Side `i` of corner `n` is table entry `corner + step(i)`.
-            let corner = (n & 1) * 2 + (n >> 1 & 1) * 8 + (n >> 2 & 1) * 32;
-            let entry = |i: usize| corner + (i & 1) + (i >> 1 & 1) * 4 + (i >> 2 & 1) * 16;
-            let lv: [u32; 8] = std::array::from_fn(|i| levels[entry(i)]);
-            let coarsest = lv.iter().copied().fold(u32::MAX, u32::min);
-            *slot = if coarsest < level {
+            let entry = |i: usize| corner(n) + side_step(i);
+            // The corner's eight entries: bits 0, 1, 4, 5, 16, 17, 20 and 21 from `corner(n)`.
+            *slot = if coarse >> corner(n) & 0x0033_0033 != 0 {
+                let lv: [u32; 8] = std::array::from_fn(|i| levels[entry(i)]);
+                let coarsest = lv.iter().copied().fold(u32::MAX, u32::min);
                 let v = axes(|a| base[a] + (n >> a & 1) as i64 * s[a]);
                 let side = lv.iter().position(|&l| l == coarsest).unwrap_or(0);
                 let e = entry(side);
@@ -243,14 +297,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                     return Ok(None);
                 };
                 let octant = self.octant_toward(v, &q, side);
-                let stitches = stitches.get_or_insert_with(|| {
-                    let mut st = Stitches::new();
-                    if let Some((c, b)) = near {
-                        st.add_leaf(c.leaf, b);
-                    }
-                    st
-                });
-                match self.stitched_value(loc, v, &q, octant, stitches, memo)? {
+                match self.stitched_value(loc, v, &q, octant, &mut stitches, memo)? {
                     Some(x) => x,
                     None => return Ok(None),
                 }

@@ -170,6 +170,7 @@ pub trait VoxelSource: Sync {
     /// [`Self::occludes`] for the rays `m` of a packet (each with its reciprocal direction,
     /// [`GridRay::recip`], and its own `tmin` and `tmax`) that reach `voxel`: the rays of `m` for
     /// which it is true. Sources may share the voxel's own work between the rays.
+    #[allow(clippy::too_many_arguments)]
     fn occluders_packet(
         &self,
         voxel: &Voxel,

@@ -25,7 +25,9 @@ use crate::mapping::PageRelease;
 use crate::reconstruct::level_gradient::LevelBlocks;
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
-use crate::trace::octant::{intersect_voxel, intersect_voxel_packet, voxel_occludes, VoxelHit};
+use crate::trace::octant::{
+    intersect_voxel, intersect_voxel_packet, voxel_occluders_packet, voxel_occludes, VoxelHit,
+};
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, Voxel, VoxelLookup, VoxelSource};
 use crate::trace::tracer::central_difference_given;
@@ -478,6 +480,31 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         match self.voxels {
             Voxels::Nearest(_) => intersect_face(voxel, iso, ray, tmin, tmax).is_some(),
             _ => voxel_occludes(voxel, iso, ray, tmin, tmax),
+        }
+    }
+
+    #[inline]
+    fn occluders_packet(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        rays: &[GridRay],
+        recips: &[[f64; 3]],
+        m: Mask,
+        tmin: &[f64],
+        tmax: &[f64],
+    ) -> Mask {
+        match self.voxels {
+            Voxels::Nearest(_) => {
+                let mut out: Mask = 0;
+                for k in rays_of(m) {
+                    if intersect_face(voxel, iso, &rays[k], tmin[k], tmax[k]).is_some() {
+                        out |= 1 << k;
+                    }
+                }
+                out
+            }
+            _ => voxel_occluders_packet(voxel, iso, rays, recips, m, tmin, tmax),
         }
     }
 }

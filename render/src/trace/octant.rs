@@ -57,6 +57,40 @@ pub fn voxel_occludes(voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f
         .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
 }
 
+/// [`voxel_occludes`] for the rays `m` of a packet, each with its reciprocal direction
+/// ([`GridRay::recip`]) and its own `tmin` and `tmax`: the rays of `m` for which it is true (the
+/// voxel's set-up is computed once, and with AVX2 the segments are built four rays at a time).
+pub fn voxel_occluders_packet(
+    voxel: &Voxel,
+    iso: f32,
+    rays: &[GridRay],
+    recips: &[[f64; 3]],
+    m: Mask,
+    tmin: &[f64],
+    tmax: &[f64],
+) -> Mask {
+    let Some(setup) = VoxelSetup::new(voxel, iso) else {
+        return 0;
+    };
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { x4::occluders(voxel, &setup, rays, recips, m, tmin, tmax) };
+    }
+    let mut out: Mask = 0;
+    for k in rays_of(m) {
+        let (tmin, tmax) = (tmin[k], tmax[k]);
+        let occludes = rays[k]
+            .clip_with(&recips[k], voxel.lo, voxel.hi, tmin, tmax)
+            .and_then(|t| Segment::in_box(voxel, &setup, &rays[k], (tmin, tmax), t))
+            .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol));
+        if occludes {
+            out |= 1 << k;
+        }
+    }
+    out
+}
+
 /// A ray's segment inside a voxel, widened, as the cubic of the interpolant minus the isovalue
 /// in `s in [0, 1]`.
 struct Segment {

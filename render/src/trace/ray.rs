@@ -131,7 +131,20 @@ impl GridRay {
         tmin: f64,
         tmax: f64,
     ) -> Option<BvhRay> {
-        self.bvh_ray_led(&self.recip(), frame, pad, tmin, tmax, any_hit_lead(pad))
+        self.bvh_ray_ahead_with(&self.recip(), frame, pad, tmin, tmax)
+    }
+
+    /// [`GridRay::bvh_ray_ahead`] with the reciprocals of the direction's components given
+    /// (`recip`, [`GridRay::recip`]), for a ray that keeps them for its candidates' clips.
+    pub fn bvh_ray_ahead_with(
+        &self,
+        recip: &[f64; 3],
+        frame: &GridFrame,
+        pad: f64,
+        tmin: f64,
+        tmax: f64,
+    ) -> Option<BvhRay> {
+        self.bvh_ray_led(recip, frame, pad, tmin, tmax, any_hit_lead(pad))
     }
 
     /// [`GridRay::bvh_ray_with`] with the `f32` ray starting `lead` grid units before the

@@ -166,4 +166,28 @@ pub trait VoxelSource: Sync {
     fn occludes(&self, voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
         self.intersect(voxel, iso, ray, tmin, tmax).is_some()
     }
+
+    /// [`Self::occludes`] for the rays `m` of a packet (each with its reciprocal direction,
+    /// [`GridRay::recip`], and its own `tmin` and `tmax`) that reach `voxel`: the rays of `m` for
+    /// which it is true. Sources may share the voxel's own work between the rays.
+    #[allow(clippy::too_many_arguments)]
+    fn occluders_packet(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        rays: &[GridRay],
+        recips: &[[f64; 3]],
+        m: Mask,
+        tmin: &[f64],
+        tmax: &[f64],
+    ) -> Mask {
+        let _ = recips;
+        let mut out: Mask = 0;
+        for k in rays_of(m) {
+            if self.occludes(voxel, iso, &rays[k], tmin[k], tmax[k]) {
+                out |= 1 << k;
+            }
+        }
+        out
+    }
 }

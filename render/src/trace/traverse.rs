@@ -366,7 +366,8 @@ impl Surface {
     /// `t` in `[tmin[k], tmax]`: the rays walk the BVH as a packet, and a ray leaves the walk at
     /// its first occluding voxel. Each ray's answer is [`Surface::any_hit`]'s: until it is hit,
     /// a ray visits the candidates the single-ray walk gives it, under the same `tmax`, with
-    /// the same exact test.
+    /// the same exact test. The rays that reach a voxel are tested together
+    /// ([`VoxelSource::occluders_packet`]), sharing the voxel's set-up.
     pub fn any_hits<S: VoxelSource + ?Sized>(
         &self,
         src: &S,
@@ -381,9 +382,12 @@ impl Surface {
         let pad = bvh_pad(&frame);
         let unused = Ray::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0);
         let mut ray32 = [unused; PACKET];
+        let mut recips = [[0.0f64; 3]; PACKET];
+        let tmaxs = [tmax; PACKET];
         let mut live: Mask = 0;
         for k in rays_of(active) {
-            if let Some(b) = rays[k].bvh_ray_ahead(&frame, pad, tmin[k], tmax) {
+            recips[k] = rays[k].recip();
+            if let Some(b) = rays[k].bvh_ray_ahead_with(&recips[k], &frame, pad, tmin[k], tmax) {
                 ray32[k] = b.ray;
                 live |= 1 << k;
             }
@@ -400,11 +404,28 @@ impl Surface {
                         return;
                     }
                     let voxel = voxel_of(r);
-                    for k in rays_of(m) {
+                    let found = if m & (m - 1) == 0 {
+                        // One ray: its own test (no set-up to share).
+                        let k = m.trailing_zeros() as usize;
                         if src.occludes(&voxel, self.iso, &rays[k], tmin[k], tmax) {
-                            hit |= 1 << k;
-                            ray32[k].tmax = f32::NEG_INFINITY;
+                            m
+                        } else {
+                            0
                         }
+                    } else {
+                        src.occluders_packet(
+                            &voxel,
+                            self.iso,
+                            &rays[..n],
+                            &recips[..n],
+                            m,
+                            tmin,
+                            &tmaxs[..n],
+                        )
+                    };
+                    hit |= found;
+                    for k in rays_of(found) {
+                        ray32[k].tmax = f32::NEG_INFINITY;
                     }
                 })
         });

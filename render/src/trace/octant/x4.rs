@@ -69,6 +69,60 @@ pub(super) fn hits(
     }
 }
 
+/// [`super::voxel_occluders_packet`]'s work for the rays `m` once the voxel's `setup` is known:
+/// the rays of `m` for which [`super::voxel_occludes`] is true, each segment built four rays at
+/// a time as [`hits`] builds it and asked only whether it has a root.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) fn occluders(
+    voxel: &Voxel,
+    setup: &VoxelSetup,
+    rays: &[GridRay],
+    recips: &[[f64; 3]],
+    m: Mask,
+    tmin: &[f64],
+    tmax: &[f64],
+) -> Mask {
+    let end = (Mask::BITS - m.leading_zeros()) as usize;
+    assert!(end <= rays.len() && end <= recips.len() && end <= tmin.len() && end <= tmax.len());
+    let w = [0, 1, 2].map(|a| voxel.hi[a] - voxel.lo[a]);
+    let extent = Extent {
+        w,
+        recip: exact_recips(w),
+    };
+    let mut out: Mask = 0;
+    each_group(m, |ks, n| {
+        // SAFETY: each `ks[i]` is a ray of `m`, below `end`, which all four slices reach.
+        let lanes = unsafe { Lanes::new(rays, recips, tmin, tmax, ks) };
+        if let Some(segs) = lanes.segments(voxel, &extent, setup) {
+            for (i, &k) in ks[..n].iter().enumerate() {
+                if segs.has_root(i) {
+                    out |= 1 << k;
+                }
+            }
+        }
+    });
+    out
+}
+
+/// Calls `f(ks, n)` for the rays of `m` four at a time, in order: `ks[..n]` are the group's
+/// rays, and a short group repeats its first ray in the spare lanes.
+#[inline(always)]
+fn each_group(m: Mask, mut f: impl FnMut([usize; 4], usize)) {
+    let mut left = rays_of(m);
+    while let Some(first) = left.next() {
+        let mut ks = [first; 4];
+        let mut n = 1;
+        for k in left.by_ref().take(3) {
+            ks[n] = k;
+            n += 1;
+        }
+        f(ks, n);
+    }
+}
+
 /// The voxel's extent on each axis, and their reciprocals when those are exact.
 struct Extent {
     w: [f64; 3],
@@ -130,6 +184,19 @@ impl Segments {
             [0, 1, 2].map(|a| self.p0[a].0[i]),
             [0, 1, 2].map(|a| self.q[a].0[i]),
         ))
+    }
+}
+
+impl Segments {
+    /// Whether lane `i` has a segment whose cubic has a root ([`Cubic::has_root`], the any-hit
+    /// test of [`super::voxel_occludes`]).
+    #[inline(always)]
+    fn has_root(&self, i: usize) -> bool {
+        self.pass >> i & 1 != 0
+            && Cubic {
+                c: [0, 1, 2, 3].map(|j| self.c[j].0[i]),
+            }
+            .has_root(0.0, 1.0, self.tol)
     }
 }
 
@@ -325,7 +392,9 @@ fn along_segment(c: &[f64; 8], p0: [__m256d; 3], q: [__m256d; 3]) -> [__m256d; 4
 
 #[cfg(test)]
 mod tests {
-    use super::super::{intersect_voxel, intersect_voxel_packet};
+    use super::super::{
+        intersect_voxel, intersect_voxel_packet, voxel_occluders_packet, voxel_occludes,
+    };
     use super::*;
     use crate::shade::sampling::Rng;
 
@@ -401,6 +470,79 @@ mod tests {
         assert!(
             hits > 5_000 && misses > 5_000,
             "{hits} hits, {misses} misses"
+        );
+    }
+
+    #[test]
+    fn four_lanes_give_each_ray_its_single_ray_occlusion() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut rng = Rng::for_pixel(11, 0, 0);
+        let (mut hit, mut clear) = (0, 0);
+        for v in 0..400 {
+            let lo = [0, 1, 2].map(|_| (rng.next_f64() * 8.0).floor() * 0.25);
+            let size = if v % 3 == 0 { 0.25 } else { 0.0625 };
+            let mut voxel = Voxel {
+                lo,
+                hi: lo.map(|x| x + size),
+                values: [0; 8].map(|_| (rng.next_f64() * 2.0 - 1.0) as f32),
+                level: 0,
+            };
+            if v % 40 == 0 {
+                voxel.values[v % 8] = f32::NAN;
+            }
+            // Shadow and occlusion rays: from points in or just off the voxel (a surface
+            // point's neighbourhood), in all directions, some along an axis or a face, some
+            // short, some starting past the voxel's entry.
+            let rays: Vec<GridRay> = (0..64)
+                .map(|k| {
+                    let o = [0, 1, 2].map(|a| lo[a] + (rng.next_f64() * 1.6 - 0.3) * size);
+                    let mut d = [0, 1, 2].map(|_| rng.next_f64() * 2.0 - 1.0);
+                    match k % 7 {
+                        0 => d[k % 3] = 0.0,
+                        1 => d[(k + 1) % 3] = -0.0,
+                        _ => {}
+                    }
+                    GridRay { o, d }
+                })
+                .collect();
+            let recips: Vec<[f64; 3]> = rays.iter().map(GridRay::recip).collect();
+            let tmin: Vec<f64> = (0..64)
+                .map(|k| if k % 5 == 0 { 0.01 * size } else { 1e-9 })
+                .collect();
+            let tmax: Vec<f64> = (0..64)
+                .map(|k| {
+                    if k % 4 == 0 {
+                        0.5 * size
+                    } else {
+                        f64::INFINITY
+                    }
+                })
+                .collect();
+            for m in [
+                u64::MAX,
+                0x8000_0000_0000_0001,
+                0b1110,
+                0x00f0_0f00_1234_5678,
+                1 << (v % 64),
+            ] {
+                let got = voxel_occluders_packet(&voxel, 0.1, &rays, &recips, m, &tmin, &tmax);
+                assert_eq!(got & !m, 0, "voxel {v}: a ray outside the mask");
+                for k in rays_of(m) {
+                    let want = voxel_occludes(&voxel, 0.1, &rays[k], tmin[k], tmax[k]);
+                    assert_eq!(got >> k & 1 == 1, want, "voxel {v} ray {k}");
+                    if want {
+                        hit += 1;
+                    } else {
+                        clear += 1;
+                    }
+                }
+            }
+        }
+        assert!(
+            hit > 2_000 && clear > 5_000,
+            "{hit} occluded, {clear} clear"
         );
     }
 }

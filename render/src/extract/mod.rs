@@ -251,6 +251,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let decodes = self.sampler.decodes();
         let mut refs = Vec::new();
         let mut totals = LeafCounts::default();
+        let mut active_duals = 0;
         let mut touched: Option<u64> = None;
         // Tight ranges read the stored tables alone (no brick data) when the file has them.
         let loose = self.blocks.loose();
@@ -271,12 +272,12 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 // reads and appends the chunk before's refs: neither waits for the other, and
                 // the workers no longer wait for them between chunks.
                 let before = std::mem::take(&mut done);
-                let (refs, totals) = (&mut refs, &mut totals);
+                let (refs, totals, duals) = (&mut refs, &mut totals, &mut active_duals);
                 let helper = s.spawn(move || {
                     if let Some(next) = next {
                         self.read_ahead(next);
                     }
-                    append(before, refs, totals)
+                    append(before, refs, totals, duals)
                 });
                 let parts = self.extract_chunk(iso, chunk, tight_blocks);
                 (parts, helper.join())
@@ -290,9 +291,8 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 touched = Some(touched.unwrap_or(0) + b);
             }
         }
-        append(done, &mut refs, &mut totals)?;
+        append(done, &mut refs, &mut totals, &mut active_duals)?;
         refs.shrink_to_fit();
-        let active_duals = refs.iter().filter(|&&r| r as u32 >= DUAL_BASE).count() as u64;
         let stats = ExtractStats {
             field: file.fields()[field].name.clone(),
             iso,
@@ -808,16 +808,18 @@ impl<D: AsRef<[u8]> + Sync> LeafBoxes<'_, '_, '_, D> {
     }
 }
 
-/// Appends the refs of `parts` (one entry per leaf, in order) to `refs` and adds their counts to
-/// `totals`; the first error stops it.
+/// Appends the refs of `parts` (one entry per leaf, in order) to `refs`, adds their counts to
+/// `totals` and their merged dual cells to `duals`; the first error stops it.
 fn append(
     parts: Vec<Result<(Vec<u64>, LeafCounts)>>,
     refs: &mut Vec<u64>,
     totals: &mut LeafCounts,
+    duals: &mut u64,
 ) -> Result<()> {
     for part in parts {
         let (part, n) = part?;
         refs.extend_from_slice(&part);
+        *duals += part.iter().filter(|&&r| r as u32 >= DUAL_BASE).count() as u64;
         totals.evaluated += n.evaluated;
         totals.culled += n.culled;
         totals.parts_skipped += n.parts_skipped;

@@ -739,19 +739,27 @@ impl BoxFrame {
     /// [`Extractor::doubled_box`] of [`Extractor::resolve`].
     #[inline(always)]
     fn voxel_box(&self, r: u64) -> Result<([i64; 3], [i64; 3])> {
+        self.box_of(r)
+            .ok_or_else(|| bad_ref(r, "cell index past the leaf"))
+    }
+
+    /// [`BoxFrame::voxel_box`] with `None` for a cell index past the leaf: no error to carry,
+    /// so that a run's boxes stay in registers.
+    #[inline(always)]
+    fn box_of(&self, r: u64) -> Option<([i64; 3], [i64; 3])> {
         let (index, octant) = match LocalVoxel::from_id(r as u32) {
             LocalVoxel::Octant { cell, octant } => (cell, Some(octant)),
             LocalVoxel::Dual { cell } => (cell, None),
         };
         if i64::from(index) >= self.cells {
-            return Err(bad_ref(r, "cell index past the leaf"));
+            return None;
         }
         let (e0, e1) = self.extent;
         let row = index / e0;
         let d = [index % e0, row % e1, row / e1].map(i64::from);
         let s = self.scale;
         let c = [0, 1, 2].map(|a| self.lowest[a] + 2 * d[a] * s[a]);
-        Ok(match octant {
+        Some(match octant {
             None => (c, [0, 1, 2].map(|a| c[a] + 2 * s[a])),
             Some(octant) => {
                 // Octant bit `a` set: the upper half of the cell on axis `a`, which starts at `c`.
@@ -780,9 +788,12 @@ impl<D: AsRef<[u8]> + Sync> Iterator for LeafBoxes<'_, '_, '_, D> {
     #[inline(always)]
     fn next(&mut self) -> Option<Self::Item> {
         let &r = self.refs.next()?;
-        Some(match self.frame.voxel_box(r) {
-            Ok(b) => b,
-            Err(_) => self.bad(r),
+        Some(match self.frame.box_of(r) {
+            Some(b) => b,
+            None => {
+                self.bad(r);
+                ([0; 3], [0; 3])
+            }
         })
     }
 
@@ -792,11 +803,11 @@ impl<D: AsRef<[u8]> + Sync> Iterator for LeafBoxes<'_, '_, '_, D> {
 }
 
 impl<D: AsRef<[u8]> + Sync> LeafBoxes<'_, '_, '_, D> {
-    /// Keeps the error of `r` (the one [`Extractor::voxel_box`] gives) unless one is kept, and
-    /// gives the empty box at the origin.
+    /// Keeps the error of `r` (the one [`Extractor::voxel_box`] gives) unless one is kept (its
+    /// box is then the empty box at the origin).
     #[cold]
     #[inline(never)]
-    fn bad(&mut self, r: u64) -> ([i64; 3], [i64; 3]) {
+    fn bad(&mut self, r: u64) {
         if self.error.is_none() {
             let e = match self.extractor.voxel_box(r) {
                 Err(e) => e,
@@ -804,7 +815,6 @@ impl<D: AsRef<[u8]> + Sync> LeafBoxes<'_, '_, '_, D> {
             };
             *self.error = Some(e);
         }
-        ([0; 3], [0; 3])
     }
 }
 

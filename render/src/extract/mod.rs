@@ -331,10 +331,11 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     let shared = (&self.blocks, &self.leaves, &self.coarse);
                     let tiles =
                         CellTiles::pays(self.file_cells, file.num_leaves()).then_some(&self.cells);
-                    Scratch::new(shared, tiles)
+                    // With a buffer for the refs of one leaf, kept from leaf to leaf: each
+                    // leaf's refs are copied out once, at their count, rather than grown.
+                    (Scratch::new(shared, tiles), Vec::new())
                 },
-                |scratch, &leaf| {
-                    let mut out = Vec::new();
+                |(scratch, buf), &leaf| {
                     let mut around = None;
                     let (lo, hi) = self.tight.get_with(leaf, || {
                         let (range, halo) = self.compute_tight(scratch, leaf, tight_blocks)?;
@@ -346,22 +347,21 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                             skipped: 1,
                             ..LeafCounts::default()
                         };
-                        return Ok((out, skipped));
+                        return Ok((Vec::new(), skipped));
                     }
                     let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
-                        return Ok((out, LeafCounts::default()));
+                        return Ok((Vec::new(), LeafCounts::default()));
                     };
-                    // Room for a small leaf's refs at once, not grown from 4 to 8 to 16.
-                    out.reserve(16);
+                    buf.clear();
                     let counts = extract_in_parts(
                         &self.sampler,
                         &frame,
                         iso,
                         (scratch, (&self.blocks, &self.leaves), &self.parts),
                         around.as_ref(),
-                        &mut out,
+                        buf,
                     )?;
-                    Ok((out, counts))
+                    Ok((buf.as_slice().to_vec(), counts))
                 },
             )
             .collect()

@@ -331,11 +331,10 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     let shared = (&self.blocks, &self.leaves, &self.coarse);
                     let tiles =
                         CellTiles::pays(self.file_cells, file.num_leaves()).then_some(&self.cells);
-                    // With a buffer for the refs of one leaf, kept from leaf to leaf: each
-                    // leaf's refs are copied out once, at their count, rather than grown.
-                    (Scratch::new(shared, tiles), Vec::new())
+                    Scratch::new(shared, tiles)
                 },
-                |(scratch, buf), &leaf| {
+                |scratch, &leaf| {
+                    let mut out = Vec::new();
                     let mut around = None;
                     let (lo, hi) = self.tight.get_with(leaf, || {
                         let (range, halo) = self.compute_tight(scratch, leaf, tight_blocks)?;
@@ -347,21 +346,22 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                             skipped: 1,
                             ..LeafCounts::default()
                         };
-                        return Ok((Vec::new(), skipped));
+                        return Ok((out, skipped));
                     }
                     let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
-                        return Ok((Vec::new(), LeafCounts::default()));
+                        return Ok((out, LeafCounts::default()));
                     };
-                    buf.clear();
+                    // Room for a small leaf's refs at once, not grown from 4 to 8 to 16.
+                    out.reserve(16);
                     let counts = extract_in_parts(
                         &self.sampler,
                         &frame,
                         iso,
                         (scratch, (&self.blocks, &self.leaves), &self.parts),
                         around.as_ref(),
-                        buf,
+                        &mut out,
                     )?;
-                    Ok((buf.as_slice().to_vec(), counts))
+                    Ok((out, counts))
                 },
             )
             .collect()

@@ -933,6 +933,41 @@ mod tests {
         assert!(crossed > 200, "the rays cross only {crossed} boxes");
     }
 
+    #[test]
+    fn one_pass_over_the_chunks_releases_pages_and_builds_what_one_thread_builds() {
+        let refs: Vec<u64> = (0..(RELEASE_REFS + RELEASE_REFS / 8) as u64).collect();
+        let build = |threads: usize| {
+            let calls = AtomicUsize::new(0);
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let bvh = pool.install(|| {
+                let mut out = OctantBvh::default();
+                let boxes = |refs: &[u64], run: &mut BoxRun<'_>| {
+                    for &r in refs {
+                        let (lo, hi) = grid_boxes(r);
+                        run.push(lo, hi);
+                    }
+                };
+                let grid = BoxGrid::new(1e-4, 20_000.0);
+                BvhBuilder::new().build_into(&mut out, &refs, grid, boxes, || {
+                    calls.fetch_add(1, Ordering::Relaxed);
+                });
+                out
+            });
+            (bvh, calls.into_inner())
+        };
+        let (one, one_calls) = build(1);
+        let (two, two_calls) = build(2);
+        // One release past the first million refs decoded, one after the last chunk.
+        assert_eq!((one_calls, two_calls), (2, 2));
+        assert_eq!(one.refs(), two.refs());
+        assert_eq!(one.num_chunks(), two.num_chunks());
+        assert_eq!(one.num_nodes(), two.num_nodes());
+        assert_eq!(one.voxel_bounds(), two.voxel_bounds());
+    }
+
     /// Boxes of mixed sizes scattered in a 100-cube, one per ref.
     /// 20,000 scattered boxes built in chunks, in one piece and by PLOC.
     fn scattered_builds() -> [(&'static str, OctantBvh); 3] {

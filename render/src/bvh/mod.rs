@@ -4,7 +4,7 @@
 //! building, and its corner values while tracing. The refs are split into chunks of
 //! [`BvhBuilder::chunk_refs`] consecutive refs (the extraction emits them in kd-leaf order, so a
 //! chunk is spatially compact); each chunk gets its own BVH, one chunk per thread at a time (the
-//! threads take the chunks of about a million refs in turn, each chunk whole), and a top-level
+//! threads take all the chunks in one parallel pass, each chunk whole), and a top-level
 //! BVH is built over the chunks' boxes. Each BVH is built directly in Morton order
 //! ([`wide`]) by default, or with obvhs's PLOC and CWBVH conversion ([`BuildMethod::Ploc`]). The
 //! build scratch is bounded by the chunk size times the threads, not by the number of refs. After a chunk's build its refs are put in its BVH's leaf
@@ -15,6 +15,7 @@
 //! build's scratch ([`BoxRun`]), in `f32` and with its centre's Morton code on a grid fixed by the
 //! domain ([`BoxGrid`]), so a chunk's sort keys need no pass over its boxes.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 use glam::Vec3A;
@@ -45,7 +46,7 @@ const DECODE_RUN: usize = 4096;
 
 /// Refs whose boxes are decoded between two calls of the build's `between_chunks` (which
 /// releases the file's pages that decoding touched: leaf metadata only, and each call costs a
-/// scan of the process's page tables): the chunks of this many refs are built side by side.
+/// scan of the process's page tables).
 const RELEASE_REFS: usize = 1 << 20;
 
 /// Bytes of one CWBVH node (obvhs: "repr(C), Pod, 80 bytes").
@@ -271,17 +272,16 @@ impl BvhBuilder {
     /// Builds a BVH over `refs`, whose boxes `boxes(refs, out)` pushes to `out` in order, in grid
     /// coordinates (it is called on runs of consecutive refs); every box is grown by the grid's
     /// pad so that `f32` traversal never misses a voxel the exact
-    /// `f64` intersection would hit. `between_chunks` is called after groups of chunks (chunks
-    /// are built one per thread, side by side), about every million refs, and after the last,
-    /// to release what decoding the boxes touched. Reuses
-    /// the scratch and `out`'s buffers.
+    /// `f64` intersection would hit. `between_chunks` is called from the pool's threads (one
+    /// call at a time) about every million refs decoded, and after the last chunk, to release
+    /// what decoding the boxes touched. Reuses the scratch and `out`'s buffers.
     pub fn build_into(
         &mut self,
         out: &mut OctantBvh,
         refs: &[u64],
         grid: BoxGrid,
         boxes: impl Fn(&[u64], &mut BoxRun<'_>) + Sync,
-        between_chunks: impl Fn(),
+        between_chunks: impl Fn() + Sync,
     ) {
         out.refs.clear();
         out.refs.extend_from_slice(refs);
@@ -295,7 +295,7 @@ impl BvhBuilder {
         refs: Vec<u64>,
         grid: BoxGrid,
         boxes: impl Fn(&[u64], &mut BoxRun<'_>) + Sync,
-        between_chunks: impl Fn(),
+        between_chunks: impl Fn() + Sync,
     ) {
         out.refs = refs;
         self.build_refs(out, grid, boxes, between_chunks);
@@ -307,7 +307,7 @@ impl BvhBuilder {
         out: &mut OctantBvh,
         grid: BoxGrid,
         boxes: impl Fn(&[u64], &mut BoxRun<'_>) + Sync,
-        between_chunks: impl Fn(),
+        between_chunks: impl Fn() + Sync,
     ) {
         out.chunks.clear();
         out.top = CwBvh::default();
@@ -330,47 +330,55 @@ impl BvhBuilder {
             workers.pop().unwrap_or_default()
         };
         let give = |w: Worker| pool.lock().unwrap_or_else(PoisonError::into_inner).push(w);
-        let mut boxes = Vec::new();
+        // All chunks are built in one parallel pass, in any order on any thread (each chunk's
+        // BVH depends only on its refs), and kept in their order. The task whose decoding
+        // passes a multiple of `RELEASE_REFS` decoded refs calls `between_chunks`, unless
+        // another such call is still running: no thread waits for the others between groups.
+        // A lone chunk's boxes are decoded in parallel runs; with more chunks, each task
+        // decodes its own.
+        let runs = if parts.len() == 1 { DECODE_RUN } else { size };
+        let decoded = AtomicUsize::new(0);
+        let releasing = Mutex::new(());
+        let bvhs: Vec<(CwBvh, Bounds)> = parts
+            .par_iter_mut()
+            .with_max_len(1)
+            .map(|part| {
+                let mut w = take();
+                w.boxes.clear();
+                w.boxes.resize(part.len(), Aabb::empty());
+                w.codes.clear();
+                w.codes.resize(part.len(), 0);
+                let union = w
+                    .boxes
+                    .par_chunks_mut(runs)
+                    .zip(w.codes.par_chunks_mut(runs))
+                    .zip(part.par_chunks(runs))
+                    .map(|((out, codes), refs)| decode(refs, out, codes))
+                    .reduce(|| Bounds::EMPTY, Bounds::union);
+                let before = decoded.fetch_add(part.len(), Ordering::Relaxed);
+                if (before + part.len()) / RELEASE_REFS > before / RELEASE_REFS {
+                    if let Ok(_one) = releasing.try_lock() {
+                        between_chunks();
+                    }
+                }
+                let bvh = w.build_level(part, method);
+                give(w);
+                (bvh, union)
+            })
+            .collect();
+        between_chunks();
+        let mut boxes = Vec::with_capacity(bvhs.len());
         let mut first = 0;
         let mut bounds = Bounds::EMPTY;
-        // The chunks of about `RELEASE_REFS` refs are built side by side, in any order on any
-        // thread (each chunk's BVH depends only on its refs), and kept in their order.
-        let per_group = RELEASE_REFS.div_ceil(size).max(1);
-        for group in parts.chunks_mut(per_group) {
-            // A lone chunk's boxes are decoded in parallel runs; with more chunks than one, each
-            // task decodes its own.
-            let runs = if group.len() == 1 { DECODE_RUN } else { size };
-            let bvhs: Vec<(CwBvh, Bounds)> = group
-                .par_iter_mut()
-                .map(|part| {
-                    let mut w = take();
-                    w.boxes.clear();
-                    w.boxes.resize(part.len(), Aabb::empty());
-                    w.codes.clear();
-                    w.codes.resize(part.len(), 0);
-                    let union = w
-                        .boxes
-                        .par_chunks_mut(runs)
-                        .zip(w.codes.par_chunks_mut(runs))
-                        .zip(part.par_chunks(runs))
-                        .map(|((out, codes), refs)| decode(refs, out, codes))
-                        .reduce(|| Bounds::EMPTY, Bounds::union);
-                    let bvh = w.build_level(part, method);
-                    give(w);
-                    (bvh, union)
-                })
-                .collect();
-            for ((bvh, union), part) in bvhs.into_iter().zip(group.iter()) {
-                bounds = bounds.union(union);
-                boxes.push(bvh.total_aabb);
-                out.chunks.push(Chunk {
-                    first,
-                    len: part.len(),
-                    bvh,
-                });
-                first += part.len();
-            }
-            between_chunks();
+        for ((bvh, union), part) in bvhs.into_iter().zip(parts.iter()) {
+            bounds = bounds.union(union);
+            boxes.push(bvh.total_aabb);
+            out.chunks.push(Chunk {
+                first,
+                len: part.len(),
+                bvh,
+            });
+            first += part.len();
         }
         self.workers = pool.into_inner().unwrap_or_else(PoisonError::into_inner);
         if self.workers.is_empty() {
@@ -923,6 +931,41 @@ mod tests {
             assert_eq!(calls, 1, "ray {k}: the traversal went on after a stop");
         }
         assert!(crossed > 200, "the rays cross only {crossed} boxes");
+    }
+
+    #[test]
+    fn one_pass_over_the_chunks_releases_pages_and_builds_what_one_thread_builds() {
+        let refs: Vec<u64> = (0..(RELEASE_REFS + RELEASE_REFS / 8) as u64).collect();
+        let build = |threads: usize| {
+            let calls = AtomicUsize::new(0);
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let bvh = pool.install(|| {
+                let mut out = OctantBvh::default();
+                let boxes = |refs: &[u64], run: &mut BoxRun<'_>| {
+                    for &r in refs {
+                        let (lo, hi) = grid_boxes(r);
+                        run.push(lo, hi);
+                    }
+                };
+                let grid = BoxGrid::new(1e-4, 20_000.0);
+                BvhBuilder::new().build_into(&mut out, &refs, grid, boxes, || {
+                    calls.fetch_add(1, Ordering::Relaxed);
+                });
+                out
+            });
+            (bvh, calls.into_inner())
+        };
+        let (one, one_calls) = build(1);
+        let (two, two_calls) = build(2);
+        // One release past the first million refs decoded, one after the last chunk.
+        assert_eq!((one_calls, two_calls), (2, 2));
+        assert_eq!(one.refs(), two.refs());
+        assert_eq!(one.num_chunks(), two.num_chunks());
+        assert_eq!(one.num_nodes(), two.num_nodes());
+        assert_eq!(one.voxel_bounds(), two.voxel_bounds());
     }
 
     /// Boxes of mixed sizes scattered in a 100-cube, one per ref.

@@ -246,14 +246,15 @@ struct Build<'a> {
 struct Runs {
     a: [usize; 8],
     b: [usize; 8],
-    /// Which run to cut first, the largest: the highest differing code bit plus one (0: all
-    /// codes equal) above the length; 0 for runs of one box and for unused places.
-    rank: [u64; 8],
+    /// Which run to cut first, the largest: `rank << 3 | place`, with `rank` the highest
+    /// differing code bit plus one (0: all codes equal) above the length, 0 for runs of one box
+    /// and for unused places. The greatest key is the run to cut, the last of equal ranks.
+    key: [u64; 8],
     len: usize,
 }
 
 impl Build<'_> {
-    /// The rank of the run `[a, b)` (see [`Runs::rank`]).
+    /// The rank of the run `[a, b)` (see [`Runs::key`]).
     #[inline(always)]
     fn rank(&self, a: usize, b: usize, depth: u32) -> u64 {
         let n = (b - a) as u64;
@@ -290,30 +291,25 @@ impl Build<'_> {
         let mut runs = Runs {
             a: [a; 8],
             b: [b; 8],
-            rank: [0; 8],
+            key: [0, 1, 2, 3, 4, 5, 6, 7],
             len: 1,
         };
-        runs.rank[0] = self.rank(a, b, depth);
+        runs.key[0] = self.rank(a, b, depth) << 3;
         while runs.len < 8 {
-            let mut i = 0;
-            let mut best = 0;
-            for (k, &r) in runs.rank.iter().enumerate() {
-                if r >= best {
-                    best = r;
-                    i = k;
-                }
-            }
-            if best == 0 {
+            // One maximum of eight keys, no branch per place.
+            let best = runs.key.iter().fold(0, |m, &k| m.max(k));
+            let (i, rank) = ((best & 7) as usize, best >> 3);
+            if rank == 0 {
                 break;
             }
             let (ra, rb) = (runs.a[i], runs.b[i]);
-            let m = self.cut(ra, rb, best);
+            let m = self.cut(ra, rb, rank);
             let n = runs.len;
             runs.b[i] = m;
-            runs.rank[i] = self.rank(ra, m, depth);
+            runs.key[i] = self.rank(ra, m, depth) << 3 | i as u64;
             runs.a[n] = m;
             runs.b[n] = rb;
-            runs.rank[n] = self.rank(m, rb, depth);
+            runs.key[n] = self.rank(m, rb, depth) << 3 | n as u64;
             runs.len += 1;
         }
         runs

@@ -251,6 +251,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let decodes = self.sampler.decodes();
         let mut refs = Vec::new();
         let mut totals = LeafCounts::default();
+        let mut active_duals = 0;
         let mut touched: Option<u64> = None;
         // Tight ranges read the stored tables alone (no brick data) when the file has them.
         let loose = self.blocks.loose();
@@ -271,12 +272,12 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 // reads and appends the chunk before's refs: neither waits for the other, and
                 // the workers no longer wait for them between chunks.
                 let before = std::mem::take(&mut done);
-                let (refs, totals) = (&mut refs, &mut totals);
+                let (refs, totals, duals) = (&mut refs, &mut totals, &mut active_duals);
                 let helper = s.spawn(move || {
                     if let Some(next) = next {
                         self.read_ahead(next);
                     }
-                    append(before, refs, totals)
+                    append(before, refs, totals, duals)
                 });
                 let parts = self.extract_chunk(iso, chunk, tight_blocks);
                 (parts, helper.join())
@@ -290,9 +291,8 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 touched = Some(touched.unwrap_or(0) + b);
             }
         }
-        append(done, &mut refs, &mut totals)?;
+        append(done, &mut refs, &mut totals, &mut active_duals)?;
         refs.shrink_to_fit();
-        let active_duals = refs.iter().filter(|&&r| r as u32 >= DUAL_BASE).count() as u64;
         let stats = ExtractStats {
             field: file.fields()[field].name.clone(),
             iso,
@@ -739,19 +739,27 @@ impl BoxFrame {
     /// [`Extractor::doubled_box`] of [`Extractor::resolve`].
     #[inline(always)]
     fn voxel_box(&self, r: u64) -> Result<([i64; 3], [i64; 3])> {
+        self.box_of(r)
+            .ok_or_else(|| bad_ref(r, "cell index past the leaf"))
+    }
+
+    /// [`BoxFrame::voxel_box`] with `None` for a cell index past the leaf: no error to carry,
+    /// so that a run's boxes stay in registers.
+    #[inline(always)]
+    fn box_of(&self, r: u64) -> Option<([i64; 3], [i64; 3])> {
         let (index, octant) = match LocalVoxel::from_id(r as u32) {
             LocalVoxel::Octant { cell, octant } => (cell, Some(octant)),
             LocalVoxel::Dual { cell } => (cell, None),
         };
         if i64::from(index) >= self.cells {
-            return Err(bad_ref(r, "cell index past the leaf"));
+            return None;
         }
         let (e0, e1) = self.extent;
         let row = index / e0;
         let d = [index % e0, row % e1, row / e1].map(i64::from);
         let s = self.scale;
         let c = [0, 1, 2].map(|a| self.lowest[a] + 2 * d[a] * s[a]);
-        Ok(match octant {
+        Some(match octant {
             None => (c, [0, 1, 2].map(|a| c[a] + 2 * s[a])),
             Some(octant) => {
                 // Octant bit `a` set: the upper half of the cell on axis `a`, which starts at `c`.
@@ -780,9 +788,12 @@ impl<D: AsRef<[u8]> + Sync> Iterator for LeafBoxes<'_, '_, '_, D> {
     #[inline(always)]
     fn next(&mut self) -> Option<Self::Item> {
         let &r = self.refs.next()?;
-        Some(match self.frame.voxel_box(r) {
-            Ok(b) => b,
-            Err(_) => self.bad(r),
+        Some(match self.frame.box_of(r) {
+            Some(b) => b,
+            None => {
+                self.bad(r);
+                ([0; 3], [0; 3])
+            }
         })
     }
 
@@ -792,11 +803,11 @@ impl<D: AsRef<[u8]> + Sync> Iterator for LeafBoxes<'_, '_, '_, D> {
 }
 
 impl<D: AsRef<[u8]> + Sync> LeafBoxes<'_, '_, '_, D> {
-    /// Keeps the error of `r` (the one [`Extractor::voxel_box`] gives) unless one is kept, and
-    /// gives the empty box at the origin.
+    /// Keeps the error of `r` (the one [`Extractor::voxel_box`] gives) unless one is kept (its
+    /// box is then the empty box at the origin).
     #[cold]
     #[inline(never)]
-    fn bad(&mut self, r: u64) -> ([i64; 3], [i64; 3]) {
+    fn bad(&mut self, r: u64) {
         if self.error.is_none() {
             let e = match self.extractor.voxel_box(r) {
                 Err(e) => e,
@@ -804,20 +815,21 @@ impl<D: AsRef<[u8]> + Sync> LeafBoxes<'_, '_, '_, D> {
             };
             *self.error = Some(e);
         }
-        ([0; 3], [0; 3])
     }
 }
 
-/// Appends the refs of `parts` (one entry per leaf, in order) to `refs` and adds their counts to
-/// `totals`; the first error stops it.
+/// Appends the refs of `parts` (one entry per leaf, in order) to `refs`, adds their counts to
+/// `totals` and their merged dual cells to `duals`; the first error stops it.
 fn append(
     parts: Vec<Result<(Vec<u64>, LeafCounts)>>,
     refs: &mut Vec<u64>,
     totals: &mut LeafCounts,
+    duals: &mut u64,
 ) -> Result<()> {
     for part in parts {
         let (part, n) = part?;
         refs.extend_from_slice(&part);
+        *duals += part.iter().filter(|&&r| r as u32 >= DUAL_BASE).count() as u64;
         totals.evaluated += n.evaluated;
         totals.culled += n.culled;
         totals.parts_skipped += n.parts_skipped;

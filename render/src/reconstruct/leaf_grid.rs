@@ -241,16 +241,16 @@ mod tests {
     /// allowance is used up.
     #[test]
     fn lazy_grid_answers_as_the_tree_before_and_after_its_build() {
-        // Bricks of 2^3 cells over a 32 x 32 x 16 domain with some left uncovered: 2,048
-        // slots, of which some are holes, plus a coarse brick under them all.
-        let domain = IBox::new([0; 3], [32, 32, 16]);
+        // Bricks of 2^3 cells over a 64 x 32 x 16 domain, a fifth of the 4,096 places left to
+        // a coarse brick under them all.
+        let domain = IBox::new([0; 3], [64, 32, 16]);
         let mut bricks = vec![TreeBrick {
             bounds: domain,
             level: 0,
         }];
         for z in 0..8 {
             for y in 0..16 {
-                for x in 0..16 {
+                for x in 0..32 {
                     if (x * 7 + y * 3 + z) % 5 != 0 {
                         let lo = [2 * x, 2 * y, 2 * z];
                         bricks.push(TreeBrick {
@@ -273,7 +273,7 @@ mod tests {
         let mut queries = 0u64;
         for z in -1..17 {
             for y in -1..33 {
-                for x in -1..33 {
+                for x in -1..65 {
                     let p = [x, y, z];
                     assert_eq!(lazy.find_leaf(&view, p), view.find_leaf(p), "{p:?}");
                     queries += 1;

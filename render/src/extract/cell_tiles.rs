@@ -20,6 +20,7 @@ use amr_format::IBox;
 
 use super::band::AroundMemo;
 use super::cull::{settle_in, Shared};
+use super::leaf_tree::Met;
 use super::local::Neighbourhood;
 use crate::error::Result;
 use crate::reconstruct::{Sampler, VertexMemo};
@@ -37,6 +38,8 @@ const SLOTS: usize = 8192;
 #[derive(Default)]
 struct Tiles {
     slots: Vec<Neighbourhood>,
+    /// The leaves met by the tile being filled: one list for all the thread's tiles.
+    touching: Vec<Met>,
 }
 
 /// The tiles of every level of one field, one table per worker thread.
@@ -117,7 +120,7 @@ impl CellTiles {
         let mut guard = self.threads[i.min(n - 1)]
             .lock()
             .unwrap_or_else(|e| e.into_inner());
-        let slots = &mut guard.slots;
+        let Tiles { slots, touching } = &mut *guard;
         if slots.is_empty() {
             slots.resize_with(SLOTS, Neighbourhood::default);
         }
@@ -132,7 +135,8 @@ impl CellTiles {
                     let cells = IBox::new(t.map(|v| v * TILE), t.map(|v| (v + 1) * TILE));
                     let tile = &mut slots[slot_of(level, t)];
                     if !tile.holds(level, &cells) {
-                        tile.fill_region((sources.0, sources.1 .1), level, cells)?;
+                        let sources = (sources.0, sources.1 .1);
+                        tile.fill_region_using(sources, level, cells, touching)?;
                     }
                     let part = g.intersect(&cells);
                     settle_in(sources, tile, (&mut *memo, &mut *near), &part)?;

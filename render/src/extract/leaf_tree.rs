@@ -90,6 +90,9 @@ pub struct LeafTree {
     exact_nodes: Vec<AtomicU64>,
     /// Per leaf, its box.
     boxes: Vec<IBox>,
+    /// The boxes of the leaves of `order`, in its order: a bottom node's leaves' boxes are
+    /// read one after another, without going through the leaf ids.
+    ordered: Vec<IBox>,
 }
 
 impl LeafTree {
@@ -125,7 +128,9 @@ impl LeafTree {
             build(&leaves, &mut order, 0, &mut nodes);
         }
         let unknown = |n: usize| (0..n).map(|_| AtomicU64::new(UNKNOWN)).collect();
+        let ordered = order.iter().map(|&l| leaves.boxes[l as usize]).collect();
         Self {
+            ordered,
             ranges: unknown(nodes.len()),
             leaf_ranges: unknown(n as usize),
             exact_ranges: unknown(n as usize),
@@ -193,15 +198,17 @@ impl LeafTree {
     ) {
         // Its own loop rather than `walk`, as in `exact_range_over`: through `walk` the fills
         // of `tiny`'s level-2 tiles, where no node is taken whole, cost 18 % more.
+        // A child is tested before it is pushed: only nodes overlapping `region` are taken.
         let mut stack = [0u32; 64];
-        let mut top = usize::from(!self.nodes.is_empty());
+        let mut top = usize::from(
+            self.nodes
+                .first()
+                .is_some_and(|n| n.bounds.overlaps(region)),
+        );
         while top > 0 {
             top -= 1;
             let i = stack[top];
             let node = &self.nodes[i as usize];
-            if !node.bounds.overlaps(region) {
-                continue;
-            }
             // `whole` first: it fails fast where nodes are never taken whole.
             if whole(&node.bounds, node.coarsest, node.complete)
                 && region.contains_box(&node.bounds)
@@ -212,13 +219,19 @@ impl LeafTree {
             match node.children {
                 // The tree is balanced: its depth stays far below the stack's size.
                 Some((a, b)) if top + 2 <= stack.len() => {
-                    stack[top] = b;
-                    stack[top + 1] = a;
-                    top += 2;
+                    if self.nodes[b as usize].bounds.overlaps(region) {
+                        stack[top] = b;
+                        top += 1;
+                    }
+                    if self.nodes[a as usize].bounds.overlaps(region) {
+                        stack[top] = a;
+                        top += 1;
+                    }
                 }
                 _ => {
-                    for &l in self.leaves(node) {
-                        if self.boxes[l as usize].overlaps(region) {
+                    let (first, end) = (node.first as usize, node.end as usize);
+                    for (&l, b) in self.order[first..end].iter().zip(&self.ordered[first..end]) {
+                        if b.overlaps(region) {
                             f(Met::Leaf(l));
                         }
                     }
@@ -245,20 +258,35 @@ impl LeafTree {
             true => b.overlaps(region),
             false => b.touches(region),
         };
-        let Ok(()) = self.walk::<Infallible>(|at| {
-            Ok(match at {
-                At::Node(_, node) if !meets(&node.bounds) => Visit::Skip,
-                At::Node(..) => Visit::Enter,
-                At::Leaves(node) => {
-                    for &l in self.leaves(node) {
-                        if meets(&self.boxes[l as usize]) {
+        // Its own loop rather than `walk`, as in `exact_range_over`; a child is tested before
+        // it is pushed, so that only nodes meeting `region` are taken from the stack.
+        let mut stack = [0u32; 64];
+        let mut top = usize::from(self.nodes.first().is_some_and(|n| meets(&n.bounds)));
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            match node.children {
+                // The tree is balanced: its depth stays far below the stack's size.
+                Some((a, b)) if top + 2 <= stack.len() => {
+                    if meets(&self.nodes[b as usize].bounds) {
+                        stack[top] = b;
+                        top += 1;
+                    }
+                    if meets(&self.nodes[a as usize].bounds) {
+                        stack[top] = a;
+                        top += 1;
+                    }
+                }
+                _ => {
+                    let (first, end) = (node.first as usize, node.end as usize);
+                    for (&l, b) in self.order[first..end].iter().zip(&self.ordered[first..end]) {
+                        if meets(b) {
                             f(l);
                         }
                     }
-                    Visit::Skip
                 }
-            })
-        });
+            }
+        }
     }
 
     /// Walks the tree depth first, the first child first: `visit` is called with each node
@@ -320,15 +348,17 @@ impl LeafTree {
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         // Its own loop rather than `walk`: through `walk` this query cost 7 % more of `big`'s
         // whole extraction (callgrind, 199.0 -> 213.2 M instructions at iso 10).
+        // A child is tested before it is pushed: only nodes overlapping `region` are taken.
         let mut stack = [0u32; 64];
-        let mut top = usize::from(!self.nodes.is_empty());
+        let mut top = usize::from(
+            self.nodes
+                .first()
+                .is_some_and(|n| n.bounds.overlaps(region)),
+        );
         while top > 0 {
             top -= 1;
             let i = stack[top];
             let node = &self.nodes[i as usize];
-            if !node.bounds.overlaps(region) {
-                continue;
-            }
             if node.coarsest >= level && region.contains_box(&node.bounds) {
                 let (a, b) = self.exact_node_range(sampler, i)?;
                 lo = lo.min(a);
@@ -338,13 +368,19 @@ impl LeafTree {
             match node.children {
                 // The tree is balanced: its depth stays far below the stack's size.
                 Some((a, b)) if top + 2 <= stack.len() => {
-                    stack[top] = b;
-                    stack[top + 1] = a;
-                    top += 2;
+                    if self.nodes[b as usize].bounds.overlaps(region) {
+                        stack[top] = b;
+                        top += 1;
+                    }
+                    if self.nodes[a as usize].bounds.overlaps(region) {
+                        stack[top] = a;
+                        top += 1;
+                    }
                 }
                 _ => {
-                    for &l in &self.order[node.first as usize..node.end as usize] {
-                        let leaf_box = &self.boxes[l as usize];
+                    let (first, end) = (node.first as usize, node.end as usize);
+                    let leaves = self.order[first..end].iter().zip(&self.ordered[first..end]);
+                    for (&l, leaf_box) in leaves {
                         if !leaf_box.overlaps(region) {
                             continue;
                         }

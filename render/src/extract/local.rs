@@ -225,9 +225,25 @@ impl Neighbourhood {
     /// [`Self::near_boundary`], which `fill` adds when a leaf is extracted from it.
     pub fn fill_region<D: AsRef<[u8]>>(
         &mut self,
+        sources: (&Sampler<'_, D>, &LeafTree),
+        level: u32,
+        g: IBox,
+    ) -> Result<()> {
+        let mut touching = std::mem::take(&mut self.touching);
+        let filled = self.fill_region_using(sources, level, g, &mut touching);
+        self.touching = touching;
+        filled
+    }
+
+    /// [`Self::fill_region`], gathering the leaves met in `touching` (whatever it held): a
+    /// list the caller keeps, so that the many tiles a thread fills share one
+    /// ([`super::cell_tiles::CellTiles`]) instead of each growing its own.
+    pub fn fill_region_using<D: AsRef<[u8]>>(
+        &mut self,
         (sampler, leaves): (&Sampler<'_, D>, &LeafTree),
         level: u32,
         g: IBox,
+        touching: &mut Vec<Met>,
     ) -> Result<()> {
         self.filled = None;
         let grid = sampler.grid();
@@ -253,7 +269,7 @@ impl Neighbourhood {
         let at_level = LevelCells::new(s, o);
         // The cells and ratio of each finer level met, found once per fill.
         let mut finer: [Option<(u32, FinerCells)>; 8] = [None; 8];
-        self.touching.clear();
+        touching.clear();
         // A node of finer leaves (all with data) inside one cell comes whole: its kept exact
         // range is that of its leaves' cells, each of which would add its own to that cell.
         // Cells of at most `GROUP_SCALE` finest cells per axis rarely hold a node whole.
@@ -265,12 +281,12 @@ impl Neighbourhood {
                 && at_level.of(b).num_cells() == Some(1)
         };
         if group {
-            leaves.for_each_overlapping_grouped(&region, whole, |m| self.touching.push(m));
+            leaves.for_each_overlapping_grouped(&region, whole, |m| touching.push(m));
         } else {
-            leaves.for_each_leaf_overlapping(&region, |l| self.touching.push(Met::Leaf(l)));
+            leaves.for_each_leaf_overlapping(&region, |l| touching.push(Met::Leaf(l)));
         }
-        for i in 0..self.touching.len() {
-            let l = match self.touching[i] {
+        for &met in touching.iter() {
+            let l = match met {
                 Met::Leaf(l) => l,
                 Met::Node(n) => {
                     let block = at_level.of(&leaves.node_box(n));

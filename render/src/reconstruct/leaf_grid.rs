@@ -5,6 +5,12 @@
 //! Every entry is either a leaf whose box contains its grid cell or a node whose region
 //! contains it (the root when nothing better is known), so [`LeafGrid::find_leaf`] gives
 //! [`TreeView::find_leaf`]'s answer for every cell, whatever the table's resolution.
+//!
+//! [`LazyLeafGrid`] builds the table on first need: a file of many small leaves whose
+//! extraction locates few cells walks the kd-tree for those instead of paying for the table.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::OnceLock;
 
 use amr_format::kdtree::{KdNode, TreeView};
 use amr_format::IBox;
@@ -20,6 +26,12 @@ const MIN_ENTRIES: u64 = 1 << 15;
 const MAX_ENTRIES: u64 = 1 << 22;
 /// Grid cells allowed per kd-tree leaf.
 const ENTRIES_PER_LEAF: u64 = 16;
+/// Kd-tree leaves, at most, of a tree whose [`LazyLeafGrid`] builds its table at once: below
+/// this the table costs less than the check of whether it is built.
+const EAGER_LEAVES: usize = 2048;
+/// Kd-tree leaves per walk a [`LazyLeafGrid`] makes before it builds its table: the walks
+/// (each as deep as the tree) then cost about what the table's fill does.
+const LEAVES_PER_WALK: u64 = 16;
 
 /// A uniform grid of cubes of `2^shift` finest cells over the domain, naming per cube the leaf or
 /// the node to walk from.
@@ -161,5 +173,137 @@ impl LeafGrid {
     pub fn resolved(&self) -> (usize, usize) {
         let leaves = self.table.iter().filter(|&&e| e & NODE == 0).count();
         (leaves, self.table.len())
+    }
+}
+
+/// A [`LeafGrid`] built on first need: until then (for a tree of more than [`EAGER_LEAVES`]
+/// leaves) each query walks the kd-tree, and the table is built once the walks reach one per
+/// [`LEAVES_PER_WALK`] leaves. The answers are the same either way.
+#[derive(Debug)]
+pub struct LazyLeafGrid {
+    grid: OnceLock<LeafGrid>,
+    /// Queries answered by a walk so far.
+    walks: AtomicU64,
+    /// Walks made before the table is built.
+    allowance: u64,
+}
+
+impl LazyLeafGrid {
+    /// The grid over `tree`, built now when the tree has at most [`EAGER_LEAVES`] leaves.
+    pub fn new(tree: &TreeView<'_>) -> Self {
+        let grid = OnceLock::new();
+        if tree.num_leaves() <= EAGER_LEAVES {
+            let _ = grid.set(LeafGrid::new(tree));
+        }
+        Self {
+            grid,
+            walks: AtomicU64::new(0),
+            allowance: tree.num_leaves() as u64 / LEAVES_PER_WALK,
+        }
+    }
+
+    /// The leaf of `tree` (the tree this grid is over) containing finest-level cell `p`, or
+    /// `None` outside the domain: [`LeafGrid::find_leaf`]'s answer.
+    #[inline]
+    pub fn find_leaf(&self, tree: &TreeView<'_>, p: [i64; 3]) -> Option<u32> {
+        match self.grid.get() {
+            Some(g) => g.find_leaf(tree, p),
+            None => self.find_leaf_unbuilt(tree, p),
+        }
+    }
+
+    /// [`Self::find_leaf`] before the table is built: a walk, or the table's build once the
+    /// walks have used up their allowance.
+    #[cold]
+    #[inline(never)]
+    fn find_leaf_unbuilt(&self, tree: &TreeView<'_>, p: [i64; 3]) -> Option<u32> {
+        if self.walks.fetch_add(1, Ordering::Relaxed) < self.allowance {
+            return tree.find_leaf(p);
+        }
+        self.grid
+            .get_or_init(|| LeafGrid::new(tree))
+            .find_leaf(tree, p)
+    }
+
+    /// True once the table is built.
+    pub fn is_built(&self) -> bool {
+        self.grid.get().is_some()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use amr_format::kdtree::{build, TreeBrick};
+
+    /// A lazy grid over a tree of many small leaves answers as the kd-tree walk does, before its
+    /// table is built (the walks) and after (the table), and builds the table once the walks'
+    /// allowance is used up.
+    #[test]
+    fn lazy_grid_answers_as_the_tree_before_and_after_its_build() {
+        // Bricks of 2^3 cells over a 64 x 32 x 16 domain, a fifth of the 4,096 places left to
+        // a coarse brick under them all.
+        let domain = IBox::new([0; 3], [64, 32, 16]);
+        let mut bricks = vec![TreeBrick {
+            bounds: domain,
+            level: 0,
+        }];
+        for z in 0..8 {
+            for y in 0..16 {
+                for x in 0..32 {
+                    if (x * 7 + y * 3 + z) % 5 != 0 {
+                        let lo = [2 * x, 2 * y, 2 * z];
+                        bricks.push(TreeBrick {
+                            bounds: IBox::new(lo, lo.map(|v| v + 2)),
+                            level: 1,
+                        });
+                    }
+                }
+            }
+        }
+        let tree = build(&bricks, domain).expect("a valid hierarchy");
+        let view = TreeView {
+            nodes: &tree.nodes,
+            leaves: &tree.leaves,
+            domain,
+        };
+        assert!(view.num_leaves() > EAGER_LEAVES);
+        let lazy = LazyLeafGrid::new(&view);
+        assert!(!lazy.is_built());
+        let mut queries = 0u64;
+        for z in -1..17 {
+            for y in -1..33 {
+                for x in -1..65 {
+                    let p = [x, y, z];
+                    assert_eq!(lazy.find_leaf(&view, p), view.find_leaf(p), "{p:?}");
+                    queries += 1;
+                    assert_eq!(
+                        lazy.is_built(),
+                        queries > view.num_leaves() as u64 / LEAVES_PER_WALK
+                    );
+                }
+            }
+        }
+        assert!(lazy.is_built());
+    }
+
+    /// A tree of at most [`EAGER_LEAVES`] leaves has its table from the start.
+    #[test]
+    fn small_trees_build_at_once() {
+        let domain = IBox::new([0; 3], [8, 8, 8]);
+        let bricks = [TreeBrick {
+            bounds: domain,
+            level: 0,
+        }];
+        let tree = build(&bricks, domain).expect("a valid hierarchy");
+        let view = TreeView {
+            nodes: &tree.nodes,
+            leaves: &tree.leaves,
+            domain,
+        };
+        let lazy = LazyLeafGrid::new(&view);
+        assert!(lazy.is_built());
+        assert_eq!(lazy.find_leaf(&view, [3, 4, 5]), Some(0));
+        assert_eq!(lazy.find_leaf(&view, [8, 0, 0]), None);
     }
 }

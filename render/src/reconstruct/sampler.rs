@@ -20,7 +20,7 @@ use crate::error::Result;
 use super::cache::BrickCache;
 use super::grid::{axes, index_in, Grid};
 use super::interp::{avg2, avg8, trilinear};
-use super::leaf_grid::LeafGrid;
+use super::leaf_grid::LazyLeafGrid;
 use super::mixed::{distinct_sides, holds, sides_in};
 
 /// The leaf cell at a point: the finest cell any brick holds there.
@@ -383,8 +383,9 @@ pub struct Sampler<'f, D> {
     /// Per brick: its cells and its values when they can be read in place.
     bricks: Vec<BrickRef<'f>>,
     tree: TreeView<'f>,
-    /// Point location in one table read and a short walk; `None` with the shortcuts off.
-    leaf_grid: Option<LeafGrid>,
+    /// Point location in one table read and a short walk (the table built on first need);
+    /// `None` with the shortcuts off.
+    leaf_grid: Option<LazyLeafGrid>,
     /// True when octant corners are gathered around the octant's outer corner
     /// ([`Self::corners_gathered`]): shortcuts on, and every level's cells nest in the cells of
     /// the coarser levels.
@@ -464,7 +465,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// general rules when off, for tests and benchmarks that compare the two.
     pub fn with_shortcuts(mut self, on: bool) -> Self {
         let file = self.file;
-        self.leaf_grid = on.then(|| LeafGrid::new(&file.tree()));
+        self.leaf_grid = on.then(|| LazyLeafGrid::new(&file.tree()));
         let g = &self.grid;
         let nested = (1..g.num_levels() as u32).all(|l| {
             let (coarse, fine) = (g.scale(l - 1), g.scale(l));

@@ -218,15 +218,8 @@ impl LeafTree {
             }
             match node.children {
                 // The tree is balanced: its depth stays far below the stack's size.
-                Some((a, b)) if top + 2 <= stack.len() => {
-                    if self.nodes[b as usize].bounds.overlaps(region) {
-                        stack[top] = b;
-                        top += 1;
-                    }
-                    if self.nodes[a as usize].bounds.overlaps(region) {
-                        stack[top] = a;
-                        top += 1;
-                    }
+                Some(children) if top + 2 <= stack.len() => {
+                    top = self.push_children(children, |b| b.overlaps(region), &mut stack, top);
                 }
                 _ => {
                     let (first, end) = (node.first as usize, node.end as usize);
@@ -267,15 +260,8 @@ impl LeafTree {
             let node = &self.nodes[stack[top] as usize];
             match node.children {
                 // The tree is balanced: its depth stays far below the stack's size.
-                Some((a, b)) if top + 2 <= stack.len() => {
-                    if meets(&self.nodes[b as usize].bounds) {
-                        stack[top] = b;
-                        top += 1;
-                    }
-                    if meets(&self.nodes[a as usize].bounds) {
-                        stack[top] = a;
-                        top += 1;
-                    }
+                Some(children) if top + 2 <= stack.len() => {
+                    top = self.push_children(children, meets, &mut stack, top);
                 }
                 _ => {
                     let (first, end) = (node.first as usize, node.end as usize);
@@ -287,6 +273,25 @@ impl LeafTree {
                 }
             }
         }
+    }
+
+    /// Pushes those of a node's children `(a, b)` whose bounds `meet` the walk's region, `b`
+    /// first so that `a` is taken first; returns the stack's new top.
+    #[inline]
+    fn push_children(
+        &self,
+        (a, b): (u32, u32),
+        meets: impl Fn(&IBox) -> bool,
+        stack: &mut [u32; 64],
+        mut top: usize,
+    ) -> usize {
+        for child in [b, a] {
+            if meets(&self.nodes[child as usize].bounds) {
+                stack[top] = child;
+                top += 1;
+            }
+        }
+        top
     }
 
     /// Walks the tree depth first, the first child first: `visit` is called with each node
@@ -367,15 +372,8 @@ impl LeafTree {
             }
             match node.children {
                 // The tree is balanced: its depth stays far below the stack's size.
-                Some((a, b)) if top + 2 <= stack.len() => {
-                    if self.nodes[b as usize].bounds.overlaps(region) {
-                        stack[top] = b;
-                        top += 1;
-                    }
-                    if self.nodes[a as usize].bounds.overlaps(region) {
-                        stack[top] = a;
-                        top += 1;
-                    }
+                Some(children) if top + 2 <= stack.len() => {
+                    top = self.push_children(children, |b| b.overlaps(region), &mut stack, top);
                 }
                 _ => {
                     let (first, end) = (node.first as usize, node.end as usize);

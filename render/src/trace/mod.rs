@@ -5,6 +5,8 @@ pub mod clipped;
 pub mod cubic;
 pub mod face;
 pub mod field_source;
+#[cfg(target_arch = "x86_64")]
+mod lanes;
 mod last_hit;
 pub mod octant;
 pub mod ray;

@@ -14,6 +14,7 @@ use std::arch::x86_64::*;
 use super::{exact_recips, Segment, VoxelHit, VoxelSetup, SEGMENT_WIDEN};
 use crate::bvh::packet::{rays_of, Mask};
 use crate::trace::cubic::Cubic;
+use crate::trace::lanes::{abs, larger, smaller, PerLane};
 use crate::trace::ray::GridRay;
 use crate::trace::source::Voxel;
 
@@ -138,23 +139,6 @@ struct Lanes {
     tmax: __m256d,
 }
 
-/// Four `f64`, one per lane, aligned for a register's store.
-#[derive(Clone, Copy)]
-#[repr(C, align(32))]
-struct PerLane([f64; 4]);
-
-impl PerLane {
-    /// The register's four lanes.
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn of(v: __m256d) -> PerLane {
-        let mut out = PerLane([0.0; 4]);
-        // SAFETY: `out` is 32 bytes aligned to 32.
-        unsafe { _mm256_store_pd(out.0.as_mut_ptr(), v) };
-        out
-    }
-}
-
 /// The four rays' segments in one voxel, lane by lane: `pass` has bit `i` when ray `i` has one.
 struct Segments {
     pass: i32,
@@ -198,28 +182,6 @@ impl Segments {
             }
             .has_root(0.0, 1.0, self.tol)
     }
-}
-
-/// `a` where `b` is not greater, `b` where it is: [`crate::trace::ray::larger`] lane by lane
-/// (`a` when `b` is NaN).
-#[target_feature(enable = "avx2")]
-#[inline]
-fn larger(a: __m256d, b: __m256d) -> __m256d {
-    _mm256_blendv_pd(a, b, _mm256_cmp_pd::<_CMP_GT_OQ>(b, a))
-}
-
-/// [`crate::trace::ray::smaller`] lane by lane (`a` when `b` is NaN).
-#[target_feature(enable = "avx2")]
-#[inline]
-fn smaller(a: __m256d, b: __m256d) -> __m256d {
-    _mm256_blendv_pd(a, b, _mm256_cmp_pd::<_CMP_LT_OQ>(b, a))
-}
-
-/// `|x|` lane by lane (the sign bit cleared, as [`f64::abs`]).
-#[target_feature(enable = "avx2")]
-#[inline]
-fn abs(x: __m256d) -> __m256d {
-    _mm256_andnot_pd(_mm256_set1_pd(-0.0), x)
 }
 
 impl Lanes {
@@ -398,6 +360,23 @@ mod tests {
     use super::*;
     use crate::shade::sampling::Rng;
 
+    /// Voxel `v` of a test: random corner values (one NaN corner in every 40th), on a grid of
+    /// quarter units, of edge 1/4 or 1/16; returns it with its edge.
+    fn random_voxel(rng: &mut Rng, v: usize) -> (Voxel, f64) {
+        let lo = [0, 1, 2].map(|_| (rng.next_f64() * 8.0).floor() * 0.25);
+        let size = if v.is_multiple_of(3) { 0.25 } else { 0.0625 };
+        let mut voxel = Voxel {
+            lo,
+            hi: lo.map(|x| x + size),
+            values: [0; 8].map(|_| (rng.next_f64() * 2.0 - 1.0) as f32),
+            level: 0,
+        };
+        if v.is_multiple_of(40) {
+            voxel.values[v % 8] = f32::NAN;
+        }
+        (voxel, size)
+    }
+
     #[test]
     fn four_lanes_give_each_ray_its_single_ray_hit() {
         if !std::arch::is_x86_feature_detected!("avx2") {
@@ -406,17 +385,8 @@ mod tests {
         let mut rng = Rng::for_pixel(7, 0, 0);
         let (mut hits, mut misses) = (0, 0);
         for v in 0..400 {
-            let lo = [0, 1, 2].map(|_| (rng.next_f64() * 8.0).floor() * 0.25);
-            let size = if v % 3 == 0 { 0.25 } else { 0.0625 };
-            let mut voxel = Voxel {
-                lo,
-                hi: lo.map(|x| x + size),
-                values: [0; 8].map(|_| (rng.next_f64() * 2.0 - 1.0) as f32),
-                level: 0,
-            };
-            if v % 40 == 0 {
-                voxel.values[v % 8] = f32::NAN;
-            }
+            let (voxel, size) = random_voxel(&mut rng, v);
+            let lo = voxel.lo;
             // Rays from around the voxel towards points in or near it; some parallel to an
             // axis, some along a face, corner or edge, some short, some starting inside.
             let rays: Vec<GridRay> = (0..64)
@@ -481,17 +451,8 @@ mod tests {
         let mut rng = Rng::for_pixel(11, 0, 0);
         let (mut hit, mut clear) = (0, 0);
         for v in 0..400 {
-            let lo = [0, 1, 2].map(|_| (rng.next_f64() * 8.0).floor() * 0.25);
-            let size = if v % 3 == 0 { 0.25 } else { 0.0625 };
-            let mut voxel = Voxel {
-                lo,
-                hi: lo.map(|x| x + size),
-                values: [0; 8].map(|_| (rng.next_f64() * 2.0 - 1.0) as f32),
-                level: 0,
-            };
-            if v % 40 == 0 {
-                voxel.values[v % 8] = f32::NAN;
-            }
+            let (voxel, size) = random_voxel(&mut rng, v);
+            let lo = voxel.lo;
             // Shadow and occlusion rays: from points in or just off the voxel (a surface
             // point's neighbourhood), in all directions, some along an axis or a face, some
             // short, some starting past the voxel's entry.

@@ -11,6 +11,7 @@ use obvhs::ray::Ray;
 
 use super::{any_hit_lead, GridRay, BVH_LEAD};
 use crate::bvh::packet::Mask;
+use crate::trace::lanes::{abs, larger, smaller, PerLane};
 use crate::trace::source::GridFrame;
 
 /// [`super::bvh_rays`] on a CPU with AVX2.
@@ -132,23 +133,6 @@ pub(super) fn bvh_rays(
     active
 }
 
-/// Four `f64`, one per lane, aligned for a register's store.
-#[derive(Clone, Copy)]
-#[repr(C, align(32))]
-struct PerLane([f64; 4]);
-
-impl PerLane {
-    /// The register's four lanes.
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn of(v: __m256d) -> PerLane {
-        let mut out = PerLane([0.0; 4]);
-        // SAFETY: `out` is 32 bytes aligned to 32.
-        unsafe { _mm256_store_pd(out.0.as_mut_ptr(), v) };
-        out
-    }
-}
-
 /// Four `f32`, one per lane, aligned for a register's store.
 #[derive(Clone, Copy)]
 #[repr(C, align(16))]
@@ -198,27 +182,6 @@ fn safe_inverse(x: __m128) -> __m128 {
         _mm_div_ps(signum, eps),
         small,
     )
-}
-
-/// [`super::larger`] lane by lane (`a` when `b` is NaN).
-#[target_feature(enable = "avx2")]
-#[inline]
-fn larger(a: __m256d, b: __m256d) -> __m256d {
-    _mm256_blendv_pd(a, b, _mm256_cmp_pd::<_CMP_GT_OQ>(b, a))
-}
-
-/// [`super::smaller`] lane by lane (`a` when `b` is NaN).
-#[target_feature(enable = "avx2")]
-#[inline]
-fn smaller(a: __m256d, b: __m256d) -> __m256d {
-    _mm256_blendv_pd(a, b, _mm256_cmp_pd::<_CMP_LT_OQ>(b, a))
-}
-
-/// `|x|` lane by lane.
-#[target_feature(enable = "avx2")]
-#[inline]
-fn abs(x: __m256d) -> __m256d {
-    _mm256_andnot_pd(_mm256_set1_pd(-0.0), x)
 }
 
 /// `|x|` lane by lane, `f32`.

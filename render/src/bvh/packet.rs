@@ -34,6 +34,14 @@ pub fn rays_of(mut m: Mask) -> impl Iterator<Item = usize> {
     })
 }
 
+/// The rays of `m` for which `keep` is true, as a mask.
+#[inline(always)]
+pub fn rays_where(m: Mask, mut keep: impl FnMut(usize) -> bool) -> Mask {
+    rays_of(m)
+        .filter(|&k| keep(k))
+        .fold(0, |out, k| out | 1 << k)
+}
+
 /// Groups of children still to visit: a node and the rays that entered it.
 pub type PacketStack = Vec<(u32, Mask)>;
 

@@ -13,7 +13,7 @@ use std::sync::Mutex;
 use amr_format::AmrkFile;
 use thread_local::ThreadLocal;
 
-use crate::bvh::packet::{rays_of, Mask};
+use crate::bvh::packet::{rays_of, rays_where, Mask};
 #[cfg(target_arch = "x86_64")]
 use crate::bvh::wide::morton_bmi2;
 use crate::bvh::BoxRun;
@@ -495,15 +495,9 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         tmax: &[f64],
     ) -> Mask {
         match self.voxels {
-            Voxels::Nearest(_) => {
-                let mut out: Mask = 0;
-                for k in rays_of(m) {
-                    if intersect_face(voxel, iso, &rays[k], tmin[k], tmax[k]).is_some() {
-                        out |= 1 << k;
-                    }
-                }
-                out
-            }
+            Voxels::Nearest(_) => rays_where(m, |k| {
+                intersect_face(voxel, iso, &rays[k], tmin[k], tmax[k]).is_some()
+            }),
             _ => voxel_occluders_packet(voxel, iso, rays, recips, m, tmin, tmax),
         }
     }

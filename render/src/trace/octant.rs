@@ -6,7 +6,7 @@
 //! three linear factors, and [`Cubic::first_root`] isolates the first root with the derivative's
 //! roots and refines it.
 
-use crate::bvh::packet::{rays_of, Mask};
+use crate::bvh::packet::{rays_of, rays_where, Mask};
 use crate::trace::cubic::Cubic;
 use crate::trace::ray::{larger, smaller, GridRay};
 use crate::trace::source::Voxel;
@@ -77,18 +77,13 @@ pub fn voxel_occluders_packet(
         // SAFETY: the CPU has AVX2, checked just above.
         return unsafe { x4::occluders(voxel, &setup, rays, recips, m, tmin, tmax) };
     }
-    let mut out: Mask = 0;
-    for k in rays_of(m) {
+    rays_where(m, |k| {
         let (tmin, tmax) = (tmin[k], tmax[k]);
-        let occludes = rays[k]
+        rays[k]
             .clip_with(&recips[k], voxel.lo, voxel.hi, tmin, tmax)
             .and_then(|t| Segment::in_box(voxel, &setup, &rays[k], (tmin, tmax), t))
-            .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol));
-        if occludes {
-            out |= 1 << k;
-        }
-    }
-    out
+            .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
+    })
 }
 
 /// A ray's segment inside a voxel, widened, as the cubic of the interpolant minus the isovalue

@@ -226,7 +226,7 @@ pub fn bvh_rays_scalar(
     for k in 0..n {
         recips[k] = rays[k].recip();
         let b = if tmin[k] > 0.0 {
-            rays[k].bvh_ray_ahead(frame, pad, tmin[k], tmax[k])
+            rays[k].bvh_ray_ahead_with(&recips[k], frame, pad, tmin[k], tmax[k])
         } else {
             rays[k].bvh_ray_with(&recips[k], frame, pad, tmin[k], tmax[k])
         };

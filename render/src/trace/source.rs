@@ -1,6 +1,6 @@
 //! What the tracer needs from a volume: active voxels decoded from 64-bit refs, and point samples.
 
-use crate::bvh::packet::{rays_of, Mask};
+use crate::bvh::packet::{rays_of, rays_where, Mask};
 use crate::bvh::BoxRun;
 use crate::reconstruct::Grid;
 use crate::trace::octant::{intersect_voxel, VoxelHit};
@@ -182,12 +182,6 @@ pub trait VoxelSource: Sync {
         tmax: &[f64],
     ) -> Mask {
         let _ = recips;
-        let mut out: Mask = 0;
-        for k in rays_of(m) {
-            if self.occludes(voxel, iso, &rays[k], tmin[k], tmax[k]) {
-                out |= 1 << k;
-            }
-        }
-        out
+        rays_where(m, |k| self.occludes(voxel, iso, &rays[k], tmin[k], tmax[k]))
     }
 }

@@ -1,7 +1,7 @@
 //! The interface the shader traces through, and its exact ("hybrid") implementation: a BVH per
 //! isosurface and the implicit ray-voxel intersection.
 
-use crate::bvh::packet::{rays_of, Mask, PACKET};
+use crate::bvh::packet::{rays_of, rays_where, Mask, PACKET};
 use crate::camera::dot;
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, VoxelSource};
@@ -112,13 +112,7 @@ pub trait Tracer {
         tmax: f64,
         active: Mask,
     ) -> Mask {
-        let mut hit = 0;
-        for k in rays_of(active) {
-            if self.occluded(i, &rays[k], tmin[k], tmax) {
-                hit |= 1 << k;
-            }
-        }
-        hit
+        rays_where(active, |k| self.occluded(i, &rays[k], tmin[k], tmax))
     }
 
     /// The colour data gives surface `i` at `hit`; `None` (the default) keeps the surface's own.

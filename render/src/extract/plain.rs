@@ -104,26 +104,22 @@ impl PlainCodes {
             let slab = sampler.values(brick)?;
             let values: &[f32] = &slab;
             let bc = sampler.brick_cells(brick);
-            let be = block.extent();
-            let w = be[0] as usize;
-            let (ge, ce) = (g.extent(), bc.extent());
-            let (dy, sy) = (ge[0] as usize, ce[0] as usize);
-            let (dz, sz) = (dy * ge[1] as usize, sy * ce[1] as usize);
-            let (mut d0, mut s0) = (g.linear_index(block.lo), bc.linear_index(block.lo));
-            for _ in 0..be[2] {
-                let (mut d, mut src) = (d0, s0);
-                for _ in 0..be[1] {
-                    let (Some(to), Some(from)) =
-                        (self.codes.get_mut(d..d + w), values.get(src..src + w))
-                    else {
-                        return Ok(false);
-                    };
-                    code_row(to, from, iso);
-                    d += dy;
-                    src += sy;
-                }
-                d0 += dz;
-                s0 += sz;
+            let (be, ge, ce) = (block.extent(), g.extent(), bc.extent());
+            let rows = Rows {
+                w: be[0] as usize,
+                ny: be[1] as usize,
+                nz: be[2] as usize,
+                dy: ge[0] as usize,
+                dz: (ge[0] * ge[1]) as usize,
+                sy: ce[0] as usize,
+                sz: (ce[0] * ce[1]) as usize,
+            };
+            let (d0, s0) = (g.linear_index(block.lo), bc.linear_index(block.lo));
+            let (Some(to), Some(from)) = (self.codes.get_mut(d0..), values.get(s0..)) else {
+                return Ok(false);
+            };
+            if !code_rows(to, from, rows, iso) {
+                return Ok(false);
             }
         }
         Ok(true)
@@ -178,40 +174,108 @@ fn prefetch_rows(values: &[f32], brick: &IBox, block: &IBox) {
     let _ = (values, brick, block);
 }
 
-/// Writes the code of each value of `src` for `iso` to `dst` (as long): eight at a time by
-/// vector compares where the target has them (rows are a few tens of cells, too short for the
-/// compiler's own vector loop), a row's last values as the eight that end it (recoding a few,
-/// to the same codes) rather than one by one, and the values of rows shorter than eight one by
-/// one.
-#[inline]
-fn code_row(dst: &mut [u8], src: &[f32], iso: f32) {
-    let n = dst.len().min(src.len());
-    let done = code_eights(&mut dst[..n], &src[..n], iso);
-    if done == n || (n >= 8 && code_eights(&mut dst[n - 8..n], &src[n - 8..n], iso) == 8) {
-        return;
-    }
-    for (c, &v) in dst[done..n].iter_mut().zip(&src[done..n]) {
-        *c = code(v, v, iso);
+/// The rows of one block, in the codes and in the brick's values: `ny` rows of `w` cells in
+/// each of `nz` layers, rows `dy` codes (`sy` values) apart and layers `dz` codes (`sz` values)
+/// apart.
+#[derive(Clone, Copy, Debug)]
+struct Rows {
+    w: usize,
+    ny: usize,
+    nz: usize,
+    dy: usize,
+    dz: usize,
+    sy: usize,
+    sz: usize,
+}
+
+impl Rows {
+    /// One past the last element the rows reach when the first row starts at 0 and rows are
+    /// `dy` and layers `dz` apart; `None` on overflow or with no rows.
+    fn span(&self, dy: usize, dz: usize) -> Option<usize> {
+        if self.w == 0 || self.ny == 0 || self.nz == 0 {
+            return None;
+        }
+        (self.nz - 1)
+            .checked_mul(dz)?
+            .checked_add((self.ny - 1).checked_mul(dy)?)?
+            .checked_add(self.w)
     }
 }
 
-/// Codes the leading multiple of eight values of `src` into `dst` (of the same length);
-/// returns how many.
+/// Writes the code for `iso` of each value of the rows `rows` of `src` to the same place in
+/// the rows of `dst` (each slice starting at its first row); false, with nothing written, when
+/// a row does not fit in either. A block's bounds are checked once, not row by row: rows of
+/// eight values or more are coded eight at a time by vector compares where the target has them
+/// (a row's last values as the eight that end it, recoding a few to the same codes), shorter
+/// rows (a neighbourhood's one-cell faces) one value at a time.
+#[inline]
+fn code_rows(dst: &mut [u8], src: &[f32], rows: Rows, iso: f32) -> bool {
+    let (Some(dn), Some(sn)) = (rows.span(rows.dy, rows.dz), rows.span(rows.sy, rows.sz)) else {
+        return rows.w == 0 || rows.ny == 0 || rows.nz == 0;
+    };
+    if dn > dst.len() || sn > src.len() {
+        return false;
+    }
+    #[cfg(target_arch = "x86_64")]
+    if rows.w >= 8 {
+        code_rows_by_eight(&mut dst[..dn], &src[..sn], rows, iso);
+        return true;
+    }
+    let (dst, src) = (&mut dst[..dn], &src[..sn]);
+    let (mut d0, mut s0) = (0, 0);
+    if rows.w == 1 {
+        // A one-cell face: one value per row, the rows' loop alone.
+        for _ in 0..rows.nz {
+            let (mut d, mut s) = (d0, s0);
+            for _ in 0..rows.ny {
+                let v = src[s];
+                dst[d] = code(v, v, iso);
+                d += rows.dy;
+                s += rows.sy;
+            }
+            d0 += rows.dz;
+            s0 += rows.sz;
+        }
+        return true;
+    }
+    for _ in 0..rows.nz {
+        let (mut d, mut s) = (d0, s0);
+        for _ in 0..rows.ny {
+            for (c, &v) in dst[d..d + rows.w].iter_mut().zip(&src[s..s + rows.w]) {
+                *c = code(v, v, iso);
+            }
+            d += rows.dy;
+            s += rows.sy;
+        }
+        d0 += rows.dz;
+        s0 += rows.sz;
+    }
+    true
+}
+
+/// [`code_rows`] of rows at least eight long, eight values at a time; `dst` and `src` hold
+/// every row (their spans, checked by the caller).
 #[cfg(target_arch = "x86_64")]
 #[inline]
-fn code_eights(dst: &mut [u8], src: &[f32], iso: f32) -> usize {
+fn code_rows_by_eight(dst: &mut [u8], src: &[f32], rows: Rows, iso: f32) {
     use std::arch::x86_64::*;
-    let n = dst.len().min(src.len()) / 8 * 8;
-    // SAFETY: SSE2 is part of every x86-64 target. Each step reads eight `f32`s at `src[k..]`
-    // and writes eight bytes at `dst[k..]` with `k + 8 <= n`, inside both slices; the loads
-    // and the store are unaligned ones.
+    debug_assert!(rows.w >= 8);
+    debug_assert!(rows.span(rows.dy, rows.dz).is_some_and(|n| n <= dst.len()));
+    debug_assert!(rows.span(rows.sy, rows.sz).is_some_and(|n| n <= src.len()));
+    // The start of a row's last eight.
+    let tail = rows.w - 8;
+    let (to, from) = (dst.as_mut_ptr(), src.as_ptr());
+    // SAFETY: SSE2 is part of every x86-64 target. Every row starts at `d` in `dst` and `s` in
+    // `src` with `d + w` and `s + w` at most the rows' spans, which the caller checked against
+    // the slices' lengths; each step reads eight `f32`s at `s + k` and writes eight bytes at
+    // `d + k` with `k + 8 <= w` (`k < tail` or `k = tail = w - 8`), inside both slices. The
+    // loads and the store are unaligned ones.
     unsafe {
         let iso4 = _mm_set1_ps(iso);
         let (above, below) = (_mm_set1_epi8(ABOVE as i8), _mm_set1_epi8(BELOW as i8));
-        let mut k = 0;
-        while k < n {
-            let a = _mm_loadu_ps(src.as_ptr().add(k));
-            let b = _mm_loadu_ps(src.as_ptr().add(k + 4));
+        let eight = |d: usize, s: usize| {
+            let a = _mm_loadu_ps(from.add(s));
+            let b = _mm_loadu_ps(from.add(s + 4));
             // All ones where `v >= iso` (false for NaN), and where `v < iso`.
             let ge = _mm_packs_epi32(
                 _mm_castps_si128(_mm_cmpge_ps(a, iso4)),
@@ -225,28 +289,36 @@ fn code_eights(dst: &mut [u8], src: &[f32], iso: f32) -> usize {
                 _mm_and_si128(_mm_packs_epi16(ge, ge), above),
                 _mm_and_si128(_mm_packs_epi16(lt, lt), below),
             );
-            _mm_storel_epi64(dst.as_mut_ptr().add(k).cast(), bytes);
-            k += 8;
+            _mm_storel_epi64(to.add(d).cast(), bytes);
+        };
+        let (mut d0, mut s0) = (0, 0);
+        for _ in 0..rows.nz {
+            let (mut d, mut s) = (d0, s0);
+            for _ in 0..rows.ny {
+                let mut k = 0;
+                while k < tail {
+                    eight(d + k, s + k);
+                    k += 8;
+                }
+                eight(d + tail, s + tail);
+                d += rows.dy;
+                s += rows.sy;
+            }
+            d0 += rows.dz;
+            s0 += rows.sz;
         }
     }
-    n
-}
-
-/// Codes the leading multiple of eight values of `src` into `dst`: none on this target, whose
-/// values [`code_row`] codes one by one.
-#[cfg(not(target_arch = "x86_64"))]
-#[inline]
-fn code_eights(_: &mut [u8], _: &[f32], _: f32) -> usize {
-    0
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The vector coding gives [`code`] of every value, at every row length and offset.
+    /// The block coding gives [`code`] of every value of every row and leaves the rest, at
+    /// every row length (the scalar and the vector paths), row and layer count and gap, and
+    /// refuses rows that do not fit.
     #[test]
-    fn code_row_equals_code_of_each_value() {
+    fn code_rows_equals_code_of_each_value() {
         let iso = 10.0f32;
         let pick = [
             iso,
@@ -261,16 +333,41 @@ mod tests {
             1e30,
             -1e-30,
         ];
-        let values: Vec<f32> = (0..97)
+        let values: Vec<f32> = (0..4000)
             .map(|i| pick[(i * 7 + i / 5) % pick.len()])
             .collect();
-        for start in 0..3 {
-            for len in 0..40 {
-                let src = &values[start..start + len];
-                let mut dst = vec![0xff; len];
-                code_row(&mut dst, src, iso);
-                let want: Vec<u8> = src.iter().map(|&v| code(v, v, iso)).collect();
-                assert_eq!(dst, want, "start {start}, length {len}");
+        for w in 0..21 {
+            for (ny, nz) in [(1, 1), (3, 1), (1, 2), (2, 3)] {
+                let (dy, sy) = (w + 3, w + 1);
+                let (dz, sz) = (dy * (ny + 1), sy * ny + 5);
+                let rows = Rows {
+                    w,
+                    ny,
+                    nz,
+                    dy,
+                    dz,
+                    sy,
+                    sz,
+                };
+                let n = dz * nz + 8;
+                let mut dst = vec![0xffu8; n];
+                assert!(code_rows(&mut dst, &values, rows, iso));
+                let mut want = vec![0xffu8; n];
+                for z in 0..nz {
+                    for y in 0..ny {
+                        for x in 0..w {
+                            let v = values[z * sz + y * sy + x];
+                            want[z * dz + y * dy + x] = code(v, v, iso);
+                        }
+                    }
+                }
+                assert_eq!(dst, want, "{rows:?}");
+                if w > 0 {
+                    let short = rows.span(dy, dz).unwrap() - 1;
+                    assert!(!code_rows(&mut dst[..short], &values, rows, iso));
+                    let short = rows.span(sy, sz).unwrap() - 1;
+                    assert!(!code_rows(&mut dst, &values[..short], rows, iso));
+                }
             }
         }
     }

@@ -60,11 +60,13 @@ impl WideBuilder {
             shift: index_bits,
             index_mask,
             nodes: Vec::with_capacity(n / 4 + 1),
-            // A leaf writes three primitives before it drops those past its own.
-            prims: Vec::with_capacity(n + 2),
+            // A leaf writes three primitives; the next leaf's overwrite those past its own.
+            prims: vec![0; n + 2],
+            prim_len: 0,
         };
         b.nodes.push(CwBvhNode::default());
         let total = b.root(n);
+        b.prims.truncate(b.prim_len);
         CwBvh {
             nodes: b.nodes,
             primitive_indices: b.prims,
@@ -221,9 +223,11 @@ fn radix_passes(keys: &mut Vec<u64>, tmp: &mut Vec<u64>, from: u32, counts: &[[u
             *a = sum;
             sum += c;
         }
-        for &k in keys.iter() {
+        // Slices, not the vectors: their pointers and lengths stay in registers.
+        let (from, to) = (&keys[..], &mut tmp[..keys.len()]);
+        for &k in from {
             let d = (k >> shift & 0xff) as usize;
-            tmp[at[d] as usize] = k;
+            to[at[d] as usize] = k;
             at[d] += 1;
         }
         std::mem::swap(keys, tmp);
@@ -238,7 +242,9 @@ struct Build<'a> {
     shift: u32,
     index_mask: u64,
     nodes: Vec<CwBvhNode>,
+    /// The primitive order: the first `prim_len` written, two places to spare.
     prims: Vec<u32>,
+    prim_len: usize,
 }
 
 /// The runs `[a, b)` of sorted boxes that become one node's children, in the order they were
@@ -359,7 +365,9 @@ impl Build<'_> {
         let runs = self.runs(a, b, depth);
         let len = runs.len;
 
-        let prim_base = self.prims.len();
+        let prim_base = self.prim_len;
+        // Copies: the slices' addresses and lengths stay in registers across the writes.
+        let (boxes, keys, index_mask) = (self.boxes, self.keys, self.index_mask);
         let mut child_box = [Aabb::empty(); 8];
         let mut leaf_meta = [0u8; 8];
         let child_base = self.nodes.len();
@@ -369,18 +377,18 @@ impl Build<'_> {
             let (ra, rb) = (runs.a[i], runs.b[i]);
             let n = rb - ra;
             if n <= LEAF_MAX {
-                let first = self.prims.len();
+                let first = self.prim_len;
                 leaf_meta[i] = (first - prim_base) as u8 | [0, 0x20, 0x60, 0xe0][n];
                 // The first, second and last boxes are all of a run of one to three (some
                 // twice): no loop of one to three turns, whose count branches mispredict.
                 let (second, last) = (ra + n / 2, rb - 1);
-                child_box[i] = self.boxes[ra]
-                    .union(&self.boxes[second])
-                    .union(&self.boxes[last]);
-                let prim = |k: usize| (self.keys[k] & self.index_mask) as u32;
-                self.prims
-                    .extend_from_slice(&[prim(ra), prim(second), prim(last)]);
-                self.prims.truncate(first + n);
+                child_box[i] = boxes[ra].union(&boxes[second]).union(&boxes[last]);
+                let prim = |k: usize| (keys[k] & index_mask) as u32;
+                // Inside the buffer, two longer than the boxes, whatever the leaf.
+                if let Some(p) = self.prims.get_mut(first..first + 3) {
+                    p.copy_from_slice(&[prim(ra), prim(second), prim(last)]);
+                }
+                self.prim_len = first + n;
             } else {
                 inner_at[i] = child_base + inner;
                 inner += 1;
@@ -413,8 +421,9 @@ impl Build<'_> {
         let magic = Vec3A::splat(8_388_608.0);
         for (i, &s) in slots[..len].iter().enumerate() {
             let c = &child_box[i];
-            let qlo = ((c.min - p) * rcp).floor().clamp(Vec3A::ZERO, max) + magic;
-            let qhi = ((c.max - p) * rcp).ceil().clamp(Vec3A::ZERO, max) + magic;
+            let (lo, hi) = floor_ceil::<V3>((c.min - p) * rcp, (c.max - p) * rcp);
+            let qlo = lo.clamp(Vec3A::ZERO, max) + magic;
+            let qhi = hi.clamp(Vec3A::ZERO, max) + magic;
             node.child_min_x[s] = qlo.x.to_bits() as u8;
             node.child_min_y[s] = qlo.y.to_bits() as u8;
             node.child_min_z[s] = qlo.z.to_bits() as u8;
@@ -460,6 +469,31 @@ fn quantization(total: &Aabb) -> (Vec3A, [u8; 3], Vec3A) {
         rcp[a] = 1.0 / step;
     }
     (p, e, rcp)
+}
+
+/// `lo.floor()` and `hi.ceil()`; for `V3` (compiled for AVX2, which includes SSE4.1) one
+/// rounding instruction each instead of the SSE2 sequence of conversions and masks. The two
+/// differ only in the sign of a zero result, which the planes' clamp to `0..=255` erases.
+#[inline(always)]
+fn floor_ceil<const V3: bool>(lo: Vec3A, hi: Vec3A) -> (Vec3A, Vec3A) {
+    #[cfg(target_arch = "x86_64")]
+    if V3 {
+        // SAFETY: `V3` nodes run only where the CPU has AVX2 (`Build::root`), so SSE4.1.
+        return unsafe { floor_ceil_sse41(lo, hi) };
+    }
+    (lo.floor(), hi.ceil())
+}
+
+/// [`floor_ceil`] by SSE4.1's rounding instructions.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse4.1")]
+#[inline]
+fn floor_ceil_sse41(lo: Vec3A, hi: Vec3A) -> (Vec3A, Vec3A) {
+    use std::arch::x86_64::{_mm_ceil_ps, _mm_floor_ps};
+    (
+        Vec3A::from(_mm_floor_ps(lo.into())),
+        Vec3A::from(_mm_ceil_ps(hi.into())),
+    )
 }
 
 /// The least power of two at or above `x` (a positive normal `f32`).
@@ -582,7 +616,8 @@ mod tests {
                 shift: index_bits,
                 index_mask,
                 nodes: vec![CwBvhNode::default()],
-                prims: Vec::with_capacity(n + 2),
+                prims: vec![0; n + 2],
+                prim_len: 0,
             };
             let total = if v3 {
                 // SAFETY: the CPU has AVX2 and BMI2, checked above.
@@ -590,6 +625,7 @@ mod tests {
             } else {
                 b.node_plain(0, 0, n, 0)
             };
+            b.prims.truncate(b.prim_len);
             (format!("{:?} {total:?}", b.nodes), b.prims)
         };
         let (plain, v3) = (build(false), build(true));
@@ -617,6 +653,45 @@ mod tests {
             unsafe { morton_bmi2([0x1f_ffff; 3]) },
             morton([0x1f_ffff; 3])
         );
+    }
+
+    /// The planes of the rounding instructions equal those of the SSE2 sequence, zeros'
+    /// signs, NaNs, infinities and whole numbers past 2^23 included.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn rounding_by_sse41_gives_the_same_planes() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let max = Vec3A::splat(255.0);
+        let values = [
+            -0.0,
+            0.0,
+            -0.3,
+            0.3,
+            1.0,
+            -1.0,
+            254.5,
+            255.0,
+            255.5,
+            1e9,
+            -1e9,
+            8_388_609.0,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            17.999_998,
+            -17.000_002,
+        ];
+        for &a in &values {
+            for &b in &values {
+                let (lo, hi) = (Vec3A::new(a, b, a), Vec3A::new(b, a, -a));
+                let (fast, plain) = (floor_ceil::<true>(lo, hi), floor_ceil::<false>(lo, hi));
+                let q = |v: Vec3A| v.clamp(Vec3A::ZERO, max).to_array().map(f32::to_bits);
+                assert_eq!(q(fast.0), q(plain.0), "floor {lo}");
+                assert_eq!(q(fast.1), q(plain.1), "ceil {hi}");
+            }
+        }
     }
 
     #[test]

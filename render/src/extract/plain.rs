@@ -218,7 +218,12 @@ fn code_rows(dst: &mut [u8], src: &[f32], rows: Rows, iso: f32) -> bool {
     }
     #[cfg(target_arch = "x86_64")]
     if rows.w >= 8 {
-        code_rows_by_eight(&mut dst[..dn], &src[..sn], rows, iso);
+        if std::arch::is_x86_feature_detected!("avx") {
+            // SAFETY: the CPU has AVX, checked just above.
+            unsafe { code_rows_by_eight_avx(&mut dst[..dn], &src[..sn], rows, iso) };
+        } else {
+            code_rows_by_eight(&mut dst[..dn], &src[..sn], rows, iso);
+        }
         return true;
     }
     let (dst, src) = (&mut dst[..dn], &src[..sn]);
@@ -253,61 +258,112 @@ fn code_rows(dst: &mut [u8], src: &[f32], rows: Rows, iso: f32) -> bool {
     true
 }
 
-/// [`code_rows`] of rows at least eight long, eight values at a time; `dst` and `src` hold
-/// every row (their spans, checked by the caller).
+/// Calls `eight(d, s)` for each eight values of the rows `rows` (at least eight long) to code:
+/// those at `s` in the values, whose codes go to `d`; a row's last eight end it (and may
+/// overlap the eight before).
+#[inline(always)]
+fn for_each_eight(rows: Rows, mut eight: impl FnMut(usize, usize)) {
+    debug_assert!(rows.w >= 8);
+    // The start of a row's last eight.
+    let tail = rows.w - 8;
+    let (mut d0, mut s0) = (0, 0);
+    for _ in 0..rows.nz {
+        let (mut d, mut s) = (d0, s0);
+        for _ in 0..rows.ny {
+            let mut k = 0;
+            while k < tail {
+                eight(d + k, s + k);
+                k += 8;
+            }
+            eight(d + tail, s + tail);
+            d += rows.dy;
+            s += rows.sy;
+        }
+        d0 += rows.dz;
+        s0 += rows.sz;
+    }
+}
+
+/// [`code_rows`] of rows at least eight long, eight values at a time by SSE2 compares; `dst`
+/// and `src` hold every row (their spans, checked by the caller).
 #[cfg(target_arch = "x86_64")]
 #[inline]
 fn code_rows_by_eight(dst: &mut [u8], src: &[f32], rows: Rows, iso: f32) {
     use std::arch::x86_64::*;
-    debug_assert!(rows.w >= 8);
     debug_assert!(rows.span(rows.dy, rows.dz).is_some_and(|n| n <= dst.len()));
     debug_assert!(rows.span(rows.sy, rows.sz).is_some_and(|n| n <= src.len()));
-    // The start of a row's last eight.
-    let tail = rows.w - 8;
     let (to, from) = (dst.as_mut_ptr(), src.as_ptr());
-    // SAFETY: SSE2 is part of every x86-64 target. Every row starts at `d` in `dst` and `s` in
+    // SAFETY: SSE2 is part of every x86-64 target.
+    let (iso4, above, below) = unsafe {
+        (
+            _mm_set1_ps(iso),
+            _mm_set1_epi8(ABOVE as i8),
+            _mm_set1_epi8(BELOW as i8),
+        )
+    };
+    // SAFETY: as above; every row starts at `d` in `dst` and `s` in
     // `src` with `d + w` and `s + w` at most the rows' spans, which the caller checked against
     // the slices' lengths; each step reads eight `f32`s at `s + k` and writes eight bytes at
-    // `d + k` with `k + 8 <= w` (`k < tail` or `k = tail = w - 8`), inside both slices. The
-    // loads and the store are unaligned ones.
-    unsafe {
-        let iso4 = _mm_set1_ps(iso);
-        let (above, below) = (_mm_set1_epi8(ABOVE as i8), _mm_set1_epi8(BELOW as i8));
-        let eight = |d: usize, s: usize| {
-            let a = _mm_loadu_ps(from.add(s));
-            let b = _mm_loadu_ps(from.add(s + 4));
-            // All ones where `v >= iso` (false for NaN), and where `v < iso`.
-            let ge = _mm_packs_epi32(
-                _mm_castps_si128(_mm_cmpge_ps(a, iso4)),
-                _mm_castps_si128(_mm_cmpge_ps(b, iso4)),
-            );
-            let lt = _mm_packs_epi32(
-                _mm_castps_si128(_mm_cmplt_ps(a, iso4)),
-                _mm_castps_si128(_mm_cmplt_ps(b, iso4)),
-            );
-            let bytes = _mm_or_si128(
-                _mm_and_si128(_mm_packs_epi16(ge, ge), above),
-                _mm_and_si128(_mm_packs_epi16(lt, lt), below),
-            );
-            _mm_storel_epi64(to.add(d).cast(), bytes);
-        };
-        let (mut d0, mut s0) = (0, 0);
-        for _ in 0..rows.nz {
-            let (mut d, mut s) = (d0, s0);
-            for _ in 0..rows.ny {
-                let mut k = 0;
-                while k < tail {
-                    eight(d + k, s + k);
-                    k += 8;
-                }
-                eight(d + tail, s + tail);
-                d += rows.dy;
-                s += rows.sy;
-            }
-            d0 += rows.dz;
-            s0 += rows.sz;
+    // `d + k` with `k + 8 <= w` ([`for_each_eight`]), inside both slices. The loads and the
+    // store are unaligned ones.
+    for_each_eight(rows, |d, s| unsafe {
+        let a = _mm_loadu_ps(from.add(s));
+        let b = _mm_loadu_ps(from.add(s + 4));
+        // All ones where `v >= iso` (false for NaN), and where `v < iso`.
+        let ge = _mm_packs_epi32(
+            _mm_castps_si128(_mm_cmpge_ps(a, iso4)),
+            _mm_castps_si128(_mm_cmpge_ps(b, iso4)),
+        );
+        let lt = _mm_packs_epi32(
+            _mm_castps_si128(_mm_cmplt_ps(a, iso4)),
+            _mm_castps_si128(_mm_cmplt_ps(b, iso4)),
+        );
+        let bytes = _mm_or_si128(
+            _mm_and_si128(_mm_packs_epi16(ge, ge), above),
+            _mm_and_si128(_mm_packs_epi16(lt, lt), below),
+        );
+        _mm_storel_epi64(to.add(d).cast(), bytes);
+    });
+}
+
+/// The byte of bit `k` of the index is its byte `k` (0 or 1), little-endian.
+#[cfg(target_arch = "x86_64")]
+const SPREAD_BITS: [u64; 256] = {
+    let mut t = [0u64; 256];
+    let mut m = 0;
+    while m < 256 {
+        let mut k = 0;
+        while k < 8 {
+            t[m] |= ((m as u64 >> k) & 1) << (8 * k);
+            k += 1;
         }
+        m += 1;
     }
+    t
+};
+
+/// [`code_rows_by_eight`] by 8-lane AVX compares: the eight results of each compare as a bit
+/// mask, its bits spread to bytes by [`SPREAD_BITS`] (about half the instructions of the SSE2
+/// packing).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+fn code_rows_by_eight_avx(dst: &mut [u8], src: &[f32], rows: Rows, iso: f32) {
+    use std::arch::x86_64::*;
+    debug_assert!(rows.span(rows.dy, rows.dz).is_some_and(|n| n <= dst.len()));
+    debug_assert!(rows.span(rows.sy, rows.sz).is_some_and(|n| n <= src.len()));
+    let (to, from) = (dst.as_mut_ptr(), src.as_ptr());
+    let iso8 = _mm256_set1_ps(iso);
+    // SAFETY: as in `code_rows_by_eight` (reads of eight `f32`s and writes of eight bytes
+    // inside both slices, unaligned); AVX is enabled for this function.
+    for_each_eight(rows, |d, s| unsafe {
+        let v = _mm256_loadu_ps(from.add(s));
+        // Ordered compares: false for NaN, as `code`'s.
+        let ge = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(v, iso8)) as usize;
+        let lt = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(v, iso8)) as usize;
+        let bytes =
+            SPREAD_BITS[ge & 0xff] * u64::from(ABOVE) | SPREAD_BITS[lt & 0xff] * u64::from(BELOW);
+        to.add(d).cast::<u64>().write_unaligned(bytes.to_le());
+    });
 }
 
 #[cfg(test)]
@@ -362,6 +418,12 @@ mod tests {
                     }
                 }
                 assert_eq!(dst, want, "{rows:?}");
+                #[cfg(target_arch = "x86_64")]
+                if w >= 8 {
+                    let mut sse2 = vec![0xffu8; n];
+                    code_rows_by_eight(&mut sse2, &values, rows, iso);
+                    assert_eq!(sse2, want, "SSE2, {rows:?}");
+                }
                 if w > 0 {
                     let short = rows.span(dy, dz).unwrap() - 1;
                     assert!(!code_rows(&mut dst[..short], &values, rows, iso));

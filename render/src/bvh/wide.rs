@@ -60,13 +60,11 @@ impl WideBuilder {
             shift: index_bits,
             index_mask,
             nodes: Vec::with_capacity(n / 4 + 1),
-            // A leaf writes three primitives; the next leaf's overwrite those past its own.
-            prims: vec![0; n + 2],
-            prim_len: 0,
+            // A leaf writes three primitives before it drops those past its own.
+            prims: Vec::with_capacity(n + 2),
         };
         b.nodes.push(CwBvhNode::default());
         let total = b.root(n);
-        b.prims.truncate(b.prim_len);
         CwBvh {
             nodes: b.nodes,
             primitive_indices: b.prims,
@@ -242,9 +240,7 @@ struct Build<'a> {
     shift: u32,
     index_mask: u64,
     nodes: Vec<CwBvhNode>,
-    /// The primitive order: the first `prim_len` written, two places to spare.
     prims: Vec<u32>,
-    prim_len: usize,
 }
 
 /// The runs `[a, b)` of sorted boxes that become one node's children, in the order they were
@@ -365,7 +361,7 @@ impl Build<'_> {
         let runs = self.runs(a, b, depth);
         let len = runs.len;
 
-        let prim_base = self.prim_len;
+        let prim_base = self.prims.len();
         // Copies: the slices' addresses and lengths stay in registers across the writes.
         let (boxes, keys, index_mask) = (self.boxes, self.keys, self.index_mask);
         let mut child_box = [Aabb::empty(); 8];
@@ -377,18 +373,16 @@ impl Build<'_> {
             let (ra, rb) = (runs.a[i], runs.b[i]);
             let n = rb - ra;
             if n <= LEAF_MAX {
-                let first = self.prim_len;
+                let first = self.prims.len();
                 leaf_meta[i] = (first - prim_base) as u8 | [0, 0x20, 0x60, 0xe0][n];
                 // The first, second and last boxes are all of a run of one to three (some
                 // twice): no loop of one to three turns, whose count branches mispredict.
                 let (second, last) = (ra + n / 2, rb - 1);
                 child_box[i] = boxes[ra].union(&boxes[second]).union(&boxes[last]);
                 let prim = |k: usize| (keys[k] & index_mask) as u32;
-                // Inside the buffer, two longer than the boxes, whatever the leaf.
-                if let Some(p) = self.prims.get_mut(first..first + 3) {
-                    p.copy_from_slice(&[prim(ra), prim(second), prim(last)]);
-                }
-                self.prim_len = first + n;
+                self.prims
+                    .extend_from_slice(&[prim(ra), prim(second), prim(last)]);
+                self.prims.truncate(first + n);
             } else {
                 inner_at[i] = child_base + inner;
                 inner += 1;
@@ -616,8 +610,7 @@ mod tests {
                 shift: index_bits,
                 index_mask,
                 nodes: vec![CwBvhNode::default()],
-                prims: vec![0; n + 2],
-                prim_len: 0,
+                prims: Vec::with_capacity(n + 2),
             };
             let total = if v3 {
                 // SAFETY: the CPU has AVX2 and BMI2, checked above.
@@ -625,7 +618,6 @@ mod tests {
             } else {
                 b.node_plain(0, 0, n, 0)
             };
-            b.prims.truncate(b.prim_len);
             (format!("{:?} {total:?}", b.nodes), b.prims)
         };
         let (plain, v3) = (build(false), build(true));

@@ -360,8 +360,8 @@ fn code_rows_by_eight_avx(dst: &mut [u8], src: &[f32], rows: Rows, iso: f32) {
         // Ordered compares: false for NaN, as `code`'s.
         let ge = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(v, iso8)) as usize;
         let lt = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(v, iso8)) as usize;
-        let bytes =
-            SPREAD_BITS[ge & 0xff] * u64::from(ABOVE) | SPREAD_BITS[lt & 0xff] * u64::from(BELOW);
+        let bytes = (SPREAD_BITS[ge & 0xff] * u64::from(ABOVE))
+            | (SPREAD_BITS[lt & 0xff] * u64::from(BELOW));
         to.add(d).cast::<u64>().write_unaligned(bytes.to_le());
     });
 }

@@ -1,5 +1,5 @@
 //! The ambient occlusion at every layer of a tile of rays, its rays traced for the whole tile at
-//! once as packets ([`Tracer::occluded_many`]), layer by layer, for
+//! once as packets ([`Tracer::occluded_in_turn`]), layer by layer, for
 //! [`crate::shade::integrate::shade_hits`] to use ([`Layer::ao`]).
 
 use crate::bvh::packet::{rays_of, Mask, PACKET};
@@ -22,6 +22,8 @@ pub struct TileAo {
     tmin: Vec<f64>,
     /// Each ray's transmittance so far.
     open: Vec<f64>,
+    /// The surfaces in the order they are asked ([`occluder_order`]).
+    order: Vec<usize>,
 }
 
 impl TileAo {
@@ -52,6 +54,9 @@ impl TileAo {
         self.rays.resize(per_hit * PACKET, unused);
         self.tmin.resize(per_hit * PACKET, 0.0);
         self.open.resize(per_hit * PACKET, 0.0);
+        self.order.clear();
+        self.order
+            .extend(occluder_order(light, tracer.num_surfaces()));
         let frame = tracer.frame();
         let deepest = (0..m).map(|k| layers.of(k).len()).max().unwrap_or(0);
         for l in 0..deepest {
@@ -88,22 +93,24 @@ impl TileAo {
             }
             for j in 0..per_hit {
                 let at = j * PACKET;
+                let open = &mut self.open[at..at + m];
                 let mut live = shaded;
-                for s in occluder_order(light, tracer.num_surfaces()) {
-                    if live == 0 {
-                        break;
-                    }
-                    let rays = &self.rays[at..at + m];
-                    let tmin = &self.tmin[at..at + m];
-                    let hit = tracer.occluded_many(s, rays, tmin, light.ao_distance, live);
-                    for k in rays_of(hit) {
-                        let t = &mut self.open[at + k];
-                        *t *= 1.0 - f64::from(light.opacity[s]);
-                        if *t == 0.0 {
-                            live &= !(1 << k);
+                tracer.occluded_in_turn(
+                    &self.order,
+                    &self.rays[at..at + m],
+                    &self.tmin[at..at + m],
+                    light.ao_distance,
+                    live,
+                    &mut |s, hit| {
+                        for k in rays_of(hit) {
+                            open[k] *= 1.0 - f64::from(light.opacity[s]);
+                            if open[k] == 0.0 {
+                                live &= !(1 << k);
+                            }
                         }
-                    }
-                }
+                        live
+                    },
+                );
             }
             for k in rays_of(shaded) {
                 let mut open = 0.0;

@@ -36,7 +36,7 @@ use crate::trace::tracer::central_difference_given;
 pub const BRICK_CACHE_BYTES: usize = 256 << 20;
 
 /// Slots of each thread's cache of decoded voxels (a power of two).
-const VOXEL_CACHE_SLOTS: usize = 16384;
+const VOXEL_CACHE_SLOTS: usize = 4096;
 
 /// Bytes of one thread's voxel cache: the decoded voxels with their refs and the cell blocks of
 /// smooth normals, plus the sampling scratch (bounded by its own capacities, not counted here).
@@ -268,8 +268,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     #[inline]
     fn voxel_in(&self, cache: &mut VoxelCache, r: u64) -> Voxel {
         // Fibonacci hashing of the ref: neighbouring refs land in different slots.
-        let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15)
-            >> (64 - VOXEL_CACHE_SLOTS.trailing_zeros())) as usize;
+        let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
         let (key, v) = cache.slots[slot];
         if key == r && r != u64::MAX {
             return v;

@@ -4,7 +4,8 @@
 //! tiles of camera rays over a multi-level sphere file, and rays from inside aimed at
 //! finest-cell corners, which lie on faces, edges and corners shared by several voxels. Shadow
 //! rays traced as packets ([`Surface::any_hits`]) answer for every ray what the single-ray
-//! occlusion query ([`Surface::any_hit`]) answers, on the same rays. A tile's layers behind
+//! occlusion query ([`Surface::any_hit`]) answers, on the same rays, also when asked in turn
+//! ([`Tracer::occluded_in_turn`], the rays' set-up shared). A tile's layers behind
 //! transparent hits found with packets ([`TileLayers`]) are the single-ray search's.
 
 use amr_format::AmrkFile;
@@ -13,7 +14,7 @@ use amr_render::shade::integrate::{shade_hits, KeyShadow, Lighting, SearchHint};
 use amr_render::shade::layers::{ray_layers, Layer, TileLayers};
 use amr_render::shade::packets::TileHits;
 use amr_render::shade::sampling::Rng as PixelRng;
-use amr_render::trace::tracer::HybridTracer;
+use amr_render::trace::tracer::{HybridTracer, Tracer};
 use amr_render::trace::traverse::Surface;
 use amr_render::trace::FieldSource;
 use amr_render::trace::{GridRay, VoxelSource};
@@ -91,6 +92,32 @@ fn compare(
                 } else {
                     &mut open_rays
                 } += 1;
+            }
+        }
+        // Shadow and AO rays start past their origin (`tmin > 0`): their BVH rays are made four
+        // at a time, once for the surfaces asked in turn; asking the surface twice, every ray
+        // again the second time, checks that the first walk left the rays ready.
+        let ahead: Vec<f64> = tmin.iter().map(|&t| t.max(1e-4)).collect();
+        let tracer = HybridTracer {
+            src,
+            surfaces: std::slice::from_ref(surface),
+            smooth_normals: false,
+        };
+        let mut answers = Vec::new();
+        tracer.occluded_in_turn(&[0, 0], &rays, &ahead, limit, active, &mut |s, hit| {
+            answers.push((s, hit));
+            active
+        });
+        assert_eq!(answers.len(), 2, "{name}: packet {p}");
+        for (k, ray) in rays.iter().enumerate() {
+            let want = active >> k & 1 != 0 && surface.any_hit(src, ray, ahead[k], limit);
+            for &(s, hit) in &answers {
+                assert_eq!(s, 0);
+                assert_eq!(
+                    hit >> k & 1 != 0,
+                    want,
+                    "{name}: packet {p}, ray {k} occlusion in turn"
+                );
             }
         }
     }

@@ -1,5 +1,5 @@
 //! The ambient occlusion at every layer of a tile of rays, its rays traced for the whole tile at
-//! once as packets ([`Tracer::occluded_many`]), layer by layer, for
+//! once as packets of one direction octant ([`Tracer::occluded_in_turn`]), for
 //! [`crate::shade::integrate::shade_hits`] to use ([`Layer::ao`]).
 
 use crate::bvh::packet::{rays_of, Mask, PACKET};
@@ -11,17 +11,27 @@ use crate::trace::tracer::Tracer;
 
 /// The ambient occlusion at every layer of up to [`PACKET`] pixels' rays.
 ///
-/// Layer by layer, ray `j` of every pixel's hit goes into packet `j` (at most one ray per pixel
-/// in a packet): the rays of a packet leave from neighbouring points of the surface and are
-/// short (up to `ao_distance`), so they share the tree's nodes near their origins whatever their
-/// directions; the walk splits each packet by direction octant.
+/// The rays of all the tile's layers are made first, then traced in packets of up to [`PACKET`]
+/// rays of one direction octant: the BVH walk takes a packet's rays octant by octant, each
+/// octant from the root, and rays of the same octant from neighbouring points of the surfaces
+/// (short rays, up to `ao_distance`) share the tree's nodes. How the rays are grouped changes
+/// the work, never a ray's answer.
 #[derive(Default)]
 pub struct TileAo {
-    /// Ray `j` of pixel `k` at `j * PACKET + k`.
+    /// The rays, layer by layer, pixel by pixel, a hit's rays in the order of its pattern.
     rays: Vec<GridRay>,
     tmin: Vec<f64>,
     /// Each ray's transmittance so far.
     open: Vec<f64>,
+    /// The hits shaded with ambient occlusion: pixel, layer, and their first ray.
+    hits: Vec<(usize, usize, usize)>,
+    /// The rays in the order they are traced: octant by octant.
+    by_octant: Vec<u32>,
+    /// The surfaces in the order they are asked ([`occluder_order`]).
+    order: Vec<usize>,
+    /// One packet's rays and `tmin`, gathered.
+    packet: Vec<GridRay>,
+    packet_tmin: Vec<f64>,
 }
 
 impl TileAo {
@@ -45,17 +55,15 @@ impl TileAo {
         if per_hit == 0 {
             return;
         }
-        let unused = GridRay {
-            o: [0.0; 3],
-            d: [1.0, 0.0, 0.0],
-        };
-        self.rays.resize(per_hit * PACKET, unused);
-        self.tmin.resize(per_hit * PACKET, 0.0);
-        self.open.resize(per_hit * PACKET, 0.0);
+        self.rays.clear();
+        self.tmin.clear();
+        self.hits.clear();
+        self.order.clear();
+        self.order
+            .extend(occluder_order(light, tracer.num_surfaces()));
         let frame = tracer.frame();
         let deepest = (0..m).map(|k| layers.of(k).len()).max().unwrap_or(0);
         for l in 0..deepest {
-            let mut shaded: Mask = 0;
             for (k, rng) in rngs.iter_mut().enumerate() {
                 let Some(&Layer {
                     surface: i, hit, ..
@@ -66,52 +74,86 @@ impl TileAo {
                 if tracer.paint(i, &hit).is_some_and(|p| !p.lit) {
                     continue;
                 }
-                shaded |= 1 << k;
+                self.hits.push((k, l, self.rays.len()));
                 let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dirs[k].map(|x| -x));
                 let nf = facing(&hit, normal);
-                let mut put = |j: usize, (u1, u2)| {
+                let mut put = |(u1, u2)| {
                     let d = cosine_hemisphere(nf, u1, u2);
                     let (ray, tmin) = ray_off(&frame, &hit, nf, d, 0.0);
-                    self.rays[j * PACKET + k] = ray;
-                    self.tmin[j * PACKET + k] = tmin;
-                    self.open[j * PACKET + k] = 1.0;
+                    self.rays.push(ray);
+                    self.tmin.push(tmin);
                 };
                 if light.ao_filter {
-                    rng.ao_tile_pattern(light.ao_rays)
-                        .enumerate()
-                        .for_each(|(j, u)| put(j, u));
+                    rng.ao_tile_pattern(light.ao_rays).for_each(&mut put);
                 } else {
-                    rng.ao_pattern(light.ao_rays)
-                        .enumerate()
-                        .for_each(|(j, u)| put(j, u));
+                    rng.ao_pattern(light.ao_rays).for_each(&mut put);
                 }
             }
-            for j in 0..per_hit {
-                let at = j * PACKET;
-                let mut live = shaded;
-                for s in occluder_order(light, tracer.num_surfaces()) {
-                    if live == 0 {
-                        break;
-                    }
-                    let rays = &self.rays[at..at + m];
-                    let tmin = &self.tmin[at..at + m];
-                    let hit = tracer.occluded_many(s, rays, tmin, light.ao_distance, live);
-                    for k in rays_of(hit) {
-                        let t = &mut self.open[at + k];
+        }
+        self.open.clear();
+        self.open.resize(self.rays.len(), 1.0);
+        self.sort_by_octant();
+        for chunk in self.by_octant.chunks(PACKET) {
+            self.packet.clear();
+            self.packet_tmin.clear();
+            for &r in chunk {
+                self.packet.push(self.rays[r as usize]);
+                self.packet_tmin.push(self.tmin[r as usize]);
+            }
+            let open = &mut self.open;
+            let mut live: Mask = if chunk.len() == PACKET {
+                !0
+            } else {
+                (1 << chunk.len()) - 1
+            };
+            tracer.occluded_in_turn(
+                &self.order,
+                &self.packet,
+                &self.packet_tmin,
+                light.ao_distance,
+                live,
+                &mut |s, hit| {
+                    for c in rays_of(hit) {
+                        let t = &mut open[chunk[c] as usize];
                         *t *= 1.0 - f64::from(light.opacity[s]);
                         if *t == 0.0 {
-                            live &= !(1 << k);
+                            live &= !(1 << c);
                         }
                     }
-                }
+                    live
+                },
+            );
+        }
+        for &(k, l, first) in &self.hits {
+            let mut open = 0.0;
+            for t in &self.open[first..first + per_hit] {
+                open += t;
             }
-            for k in rays_of(shaded) {
-                let mut open = 0.0;
-                for j in 0..per_hit {
-                    open += self.open[j * PACKET + k];
-                }
-                layers.of_mut(k)[l].ao = Some(open / f64::from(light.ao_rays));
-            }
+            layers.of_mut(k)[l].ao = Some(open / f64::from(light.ao_rays));
+        }
+    }
+
+    /// Fills [`TileAo::by_octant`] with the rays' indices, grouped by their direction's octant
+    /// (in their order within each).
+    fn sort_by_octant(&mut self) {
+        let octant = |r: &GridRay| {
+            usize::from(r.d[0] < 0.0)
+                | usize::from(r.d[1] < 0.0) << 1
+                | usize::from(r.d[2] < 0.0) << 2
+        };
+        let mut start = [0usize; 9];
+        for r in &self.rays {
+            start[octant(r) + 1] += 1;
+        }
+        for o in 0..8 {
+            start[o + 1] += start[o];
+        }
+        self.by_octant.clear();
+        self.by_octant.resize(self.rays.len(), 0);
+        for (i, r) in self.rays.iter().enumerate() {
+            let o = octant(r);
+            self.by_octant[start[o]] = i as u32;
+            start[o] += 1;
         }
     }
 }

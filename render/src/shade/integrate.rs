@@ -399,7 +399,7 @@ fn transmittance_along<T: Tracer + ?Sized>(
 }
 
 /// The key light's transmittance at every layer of a tile of rays, traced for the tile at once
-/// as packets of up to [`PACKET`] shadow rays ([`Tracer::occluded_many`]), for [`shade_hits`]
+/// as packets of up to [`PACKET`] shadow rays ([`Tracer::occluded_in_turn`]), for [`shade_hits`]
 /// to use ([`Layer::shadow`]). The shadow rays are all parallel, so any of them make a packet;
 /// they are taken layer by layer, each layer's rays in the tile's order.
 pub struct KeyShadow {
@@ -408,6 +408,8 @@ pub struct KeyShadow {
     /// Per ray of the packet, its transmittance so far, and its ray and layer in the tile.
     shadow: [f64; PACKET],
     at: [(usize, usize); PACKET],
+    /// The surfaces in the order they are asked ([`occluder_order`]).
+    order: Vec<usize>,
 }
 
 impl Default for KeyShadow {
@@ -420,6 +422,7 @@ impl Default for KeyShadow {
             tmin: [0.0; PACKET],
             shadow: [0.0; PACKET],
             at: [(0, 0); PACKET],
+            order: Vec::new(),
         }
     }
 }
@@ -441,6 +444,9 @@ impl KeyShadow {
         if !light.shadows {
             return;
         }
+        self.order.clear();
+        self.order
+            .extend(occluder_order(light, tracer.num_surfaces()));
         let frame = tracer.frame();
         let mut c = 0;
         let deepest = (0..m).map(|k| layers.of(k).len()).max().unwrap_or(0);
@@ -482,20 +488,23 @@ impl KeyShadow {
         }
         let mut live: Mask = if c == PACKET { !0 } else { (1 << c) - 1 };
         self.shadow[..c].fill(1.0);
-        for s in occluder_order(light, tracer.num_surfaces()) {
-            if live == 0 {
-                break;
-            }
-            let hit =
-                tracer.occluded_many(s, &self.rays[..c], &self.tmin[..c], f64::INFINITY, live);
-            for j in rays_of(hit) {
-                let t = &mut self.shadow[j];
-                *t *= 1.0 - f64::from(light.opacity[s]);
-                if *t == 0.0 {
-                    live &= !(1 << j);
+        let shadow = &mut self.shadow;
+        tracer.occluded_in_turn(
+            &self.order,
+            &self.rays[..c],
+            &self.tmin[..c],
+            f64::INFINITY,
+            live,
+            &mut |s, hit| {
+                for j in rays_of(hit) {
+                    shadow[j] *= 1.0 - f64::from(light.opacity[s]);
+                    if shadow[j] == 0.0 {
+                        live &= !(1 << j);
+                    }
                 }
-            }
-        }
+                live
+            },
+        );
         for j in 0..c {
             let (k, l) = self.at[j];
             layers.of_mut(k)[l].shadow = Some(self.shadow[j]);

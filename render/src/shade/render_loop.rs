@@ -90,6 +90,25 @@ impl<T: Tracer + ?Sized> Tracer for Counting<'_, T> {
             .set(self.rays.get() + u64::from(active.count_ones()));
         self.inner.occluded_many(i, rays, tmin, tmax, active)
     }
+    fn occluded_in_turn(
+        &self,
+        order: &[usize],
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: f64,
+        active: Mask,
+        answer: &mut dyn FnMut(usize, Mask) -> Mask,
+    ) {
+        // Each surface asked counts the rays it is asked about, as `occluded_many` does.
+        let mut asked = active;
+        self.inner
+            .occluded_in_turn(order, rays, tmin, tmax, active, &mut |s, hit| {
+                self.rays
+                    .set(self.rays.get() + u64::from(asked.count_ones()));
+                asked = answer(s, hit);
+                asked
+            })
+    }
     fn paint(&self, i: usize, hit: &SurfaceHit) -> Option<Paint> {
         self.inner.paint(i, hit)
     }

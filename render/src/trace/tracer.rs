@@ -5,7 +5,7 @@ use crate::bvh::packet::{rays_of, rays_where, Mask, PACKET};
 use crate::camera::dot;
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, VoxelSource};
-use crate::trace::traverse::{Hit, Surface};
+use crate::trace::traverse::{AnyHitRays, Hit, Surface};
 
 /// A hit as the shader sees it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -113,6 +113,30 @@ pub trait Tracer {
         active: Mask,
     ) -> Mask {
         rays_where(active, |k| self.occluded(i, &rays[k], tmin[k], tmax))
+    }
+
+    /// Asks the surfaces of `order` in turn which of the rays `active` (of `rays`, at most
+    /// [`PACKET`]) they occlude with `t` in `[tmin[k], tmax]`: `answer(s, hit)` gets surface
+    /// `s`'s answer ([`Tracer::occluded_many`] for the rays still asked) and returns the rays to
+    /// ask the next surface about; the questions stop when none is left. `answer` is called
+    /// once for every surface asked. By default each surface is asked by
+    /// [`Tracer::occluded_many`]; tracers may share the rays' set-up between the surfaces.
+    fn occluded_in_turn(
+        &self,
+        order: &[usize],
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: f64,
+        active: Mask,
+        answer: &mut dyn FnMut(usize, Mask) -> Mask,
+    ) {
+        let mut live = active;
+        for &s in order {
+            if live == 0 {
+                break;
+            }
+            live = answer(s, self.occluded_many(s, rays, tmin, tmax, live));
+        }
     }
 
     /// The colour data gives surface `i` at `hit`; `None` (the default) keeps the surface's own.
@@ -287,6 +311,28 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
         active: Mask,
     ) -> Mask {
         self.surfaces[i].any_hits(self.src, rays, tmin, tmax, active)
+    }
+
+    fn occluded_in_turn(
+        &self,
+        order: &[usize],
+        rays: &[GridRay],
+        tmin: &[f64],
+        tmax: f64,
+        active: Mask,
+        answer: &mut dyn FnMut(usize, Mask) -> Mask,
+    ) {
+        if active == 0 {
+            return;
+        }
+        let mut ready = AnyHitRays::new(&self.src.frame(), rays, tmin, tmax, active);
+        let mut live = active;
+        for &s in order {
+            if live == 0 {
+                break;
+            }
+            live = answer(s, self.surfaces[s].any_hits_of(self.src, &mut ready, live));
+        }
     }
 
     fn release_pages(&self) {

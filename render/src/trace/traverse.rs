@@ -363,11 +363,7 @@ impl Surface {
     }
 
     /// The rays of `active` (of `rays`, at most [`PACKET`]) that hit the surface anywhere with
-    /// `t` in `[tmin[k], tmax]`: the rays walk the BVH as a packet, and a ray leaves the walk at
-    /// its first occluding voxel. Each ray's answer is [`Surface::any_hit`]'s: until it is hit,
-    /// a ray visits the candidates the single-ray walk gives it, under the same `tmax`, with
-    /// the same exact test. The rays that reach a voxel are tested together
-    /// ([`VoxelSource::occluders_packet`]), sharing the voxel's set-up.
+    /// `t` in `[tmin[k], tmax]`: [`Surface::any_hits_of`] the rays made ready for this one walk.
     pub fn any_hits<S: VoxelSource + ?Sized>(
         &self,
         src: &S,
@@ -376,26 +372,38 @@ impl Surface {
         tmax: f64,
         active: Mask,
     ) -> Mask {
-        let n = rays.len();
-        assert!(n <= PACKET && tmin.len() == n && (n == PACKET || active >> n == 0));
-        let frame = src.frame();
-        let pad = bvh_pad(&frame);
-        let unused = Ray::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0);
-        let mut ray32 = [unused; PACKET];
-        let mut recips = [[0.0f64; 3]; PACKET];
-        let tmaxs = [tmax; PACKET];
-        let mut live: Mask = 0;
-        for k in rays_of(active) {
-            recips[k] = rays[k].recip();
-            if let Some(b) = rays[k].bvh_ray_ahead_with(&recips[k], &frame, pad, tmin[k], tmax) {
-                ray32[k] = b.ray;
-                live |= 1 << k;
-            }
-        }
+        let mut ready = AnyHitRays::new(&src.frame(), rays, tmin, tmax, active);
+        self.any_hits_of(src, &mut ready, active)
+    }
+
+    /// The rays of `active` among `rays` that hit the surface anywhere with `t` in
+    /// `[tmin[k], tmax]` (their [`AnyHitRays`]): the rays walk the BVH as a packet, and a ray
+    /// leaves the walk at its first occluding voxel. Each ray's answer is [`Surface::any_hit`]'s:
+    /// until it is hit, a ray visits the candidates the single-ray walk gives it, under the same
+    /// `tmax`, with the same exact test. The rays that reach a voxel are tested together
+    /// ([`VoxelSource::occluders_packet`]), sharing the voxel's set-up. `rays` is left ready for
+    /// the next surface's walk.
+    pub fn any_hits_of<S: VoxelSource + ?Sized>(
+        &self,
+        src: &S,
+        rays: &mut AnyHitRays<'_>,
+        active: Mask,
+    ) -> Mask {
+        let live = active & rays.live;
         let mut hit: Mask = 0;
         if live == 0 {
             return hit;
         }
+        let n = rays.rays.len();
+        let AnyHitRays {
+            rays: grid,
+            tmin,
+            tmax,
+            recips,
+            ray32,
+            ..
+        } = rays;
+        let (grid, tmin, tmax) = (*grid, *tmin, &tmax[..n]);
         src.with_voxels(&mut |voxel_of| {
             self.bvh
                 .traverse_packet(&mut ray32[..n], live, |_, r, m, ray32| {
@@ -407,21 +415,13 @@ impl Surface {
                     let found = if m & (m - 1) == 0 {
                         // One ray: its own test (no set-up to share).
                         let k = m.trailing_zeros() as usize;
-                        if src.occludes(&voxel, self.iso, &rays[k], tmin[k], tmax) {
+                        if src.occludes(&voxel, self.iso, &grid[k], tmin[k], tmax[k]) {
                             m
                         } else {
                             0
                         }
                     } else {
-                        src.occluders_packet(
-                            &voxel,
-                            self.iso,
-                            &rays[..n],
-                            &recips[..n],
-                            m,
-                            tmin,
-                            &tmaxs[..n],
-                        )
+                        src.occluders_packet(&voxel, self.iso, grid, &recips[..n], m, tmin, tmax)
                     };
                     hit |= found;
                     for k in rays_of(found) {
@@ -429,6 +429,9 @@ impl Surface {
                     }
                 })
         });
+        for k in rays_of(hit) {
+            rays.ray32[k].tmax = rays.tmax32[k];
+        }
         hit
     }
 
@@ -440,5 +443,79 @@ impl Surface {
             (at, true) => Some((at, *self.bvh.refs().get(at)?)),
             _ => None,
         }
+    }
+}
+
+/// The shadow or occlusion rays of a packet (at most [`PACKET`]) made ready for any-hit walks
+/// ([`Surface::any_hits_of`]): their reciprocal directions and `f32` BVH rays, computed once for
+/// all the surfaces asked about them ([`bvh_rays`], four rays at a time).
+pub struct AnyHitRays<'a> {
+    rays: &'a [GridRay],
+    tmin: &'a [f64],
+    /// The query's `tmax`, per ray.
+    tmax: [f64; PACKET],
+    recips: [[f64; 3]; PACKET],
+    ray32: [Ray; PACKET],
+    /// Each `f32` ray's own `tmax`, restored after a walk that ended it at a hit.
+    tmax32: [f32; PACKET],
+    /// The rays asked about that meet the domain.
+    live: Mask,
+}
+
+impl<'a> AnyHitRays<'a> {
+    /// The rays `active` of `rays`, each over `[tmin[k], tmax]`, in a grid of `frame`. Each `f32`
+    /// ray is [`GridRay::bvh_ray_ahead`]'s, bit for bit (a ray from its origin, `tmin[k] <= 0`,
+    /// which shadow and occlusion rays never are, takes it ray by ray).
+    pub fn new(
+        frame: &GridFrame,
+        rays: &'a [GridRay],
+        tmin: &'a [f64],
+        tmax: f64,
+        active: Mask,
+    ) -> AnyHitRays<'a> {
+        let n = rays.len();
+        assert!(n <= PACKET && tmin.len() == n && (n == PACKET || active >> n == 0));
+        let pad = bvh_pad(frame);
+        let unused = Ray::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0);
+        let mut ready = AnyHitRays {
+            rays,
+            tmin,
+            tmax: [tmax; PACKET],
+            recips: [[0.0; 3]; PACKET],
+            ray32: [unused; PACKET],
+            tmax32: [0.0; PACKET],
+            live: 0,
+        };
+        if active == 0 {
+            return ready;
+        }
+        // `bvh_rays` gives a ray with `tmin > 0` the any-hit walk's shorter lead.
+        if rays_of(active).all(|k| tmin[k] > 0.0) {
+            let mut back = [(0.0, 0.0); PACKET];
+            let met = bvh_rays(
+                rays,
+                frame,
+                pad,
+                tmin,
+                &ready.tmax[..n],
+                &mut ready.recips,
+                &mut ready.ray32,
+                &mut back,
+            );
+            ready.live = met & active;
+        } else {
+            for k in rays_of(active) {
+                ready.recips[k] = rays[k].recip();
+                let recip = &ready.recips[k];
+                if let Some(b) = rays[k].bvh_ray_ahead_with(recip, frame, pad, tmin[k], tmax) {
+                    ready.ray32[k] = b.ray;
+                    ready.live |= 1 << k;
+                }
+            }
+        }
+        for k in rays_of(ready.live) {
+            ready.tmax32[k] = ready.ray32[k].tmax;
+        }
+        ready
     }
 }

@@ -19,6 +19,15 @@ use super::interp::avg8;
 use super::sampler::{LeafCell, Locate, Octant, Position, Sampler, VertexMemo};
 use super::stitch::Stitches;
 
+/// A placeholder for the unused slots of a fixed array of leaf cells.
+const NO_CELL: LeafCell = LeafCell {
+    leaf: 0,
+    brick: 0,
+    level: 0,
+    cell: [0; 3],
+    value: 0.0,
+};
+
 /// The finest cells of the table along one axis.
 #[derive(Clone, Copy, Default)]
 struct Axis {
@@ -200,6 +209,10 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         if levels_filled {
             fill_levels(&mut levels);
         }
+        // The first coarser cells read or located, by entry: a stitched corner's coarse cell
+        // is one of them, found again without reading it again.
+        let mut coarse_read = [(usize::MAX, NO_CELL); 4];
+        let mut num_coarse_read = 0;
         let mut partial = !whole;
         while partial != 0 {
             let k = partial.trailing_zeros() as usize;
@@ -218,25 +231,40 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                     u32::MAX
                 }
             });
+            // A leaf coarser than the octant: its cells are read whole, to be remembered.
+            let coarse_leaf = p.is_some_and(|p| p.cell.level < level);
             while mask != 0 {
                 let e = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
                 // Both nudges of a face may meet one finest cell: read again, the same answer.
                 let (x, y, z) = (e & 3, e >> 2 & 3, e >> 4);
                 let f = [axis[0].at[x], axis[1].at[y], axis[2].at[z]];
-                if leaf != u32::MAX {
-                    if let Some(v) = self.value_in_leaf(leaf, f) {
-                        let l = p.map_or(0, |p| p.cell.level);
-                        (levels[e], values[e]) = (l, v);
-                        coarse |= u64::from(l < level) << e;
-                        continue;
-                    }
-                }
-                let Some(c) = self.position_cell(loc, p.as_ref(), near.as_ref(), f)? else {
-                    return Ok(None);
+                let c = if leaf == u32::MAX {
+                    None
+                } else if coarse_leaf {
+                    self.cell_in_leaf_numbered(leaf, f)
+                } else if let Some(v) = self.value_in_leaf(leaf, f) {
+                    // Of the leaf's level, which is not coarser than the octant's.
+                    (levels[e], values[e]) = (p.map_or(0, |p| p.cell.level), v);
+                    continue;
+                } else {
+                    None
+                };
+                let c = match c {
+                    Some(c) => c,
+                    None => match self.position_cell(loc, p.as_ref(), near.as_ref(), f)? {
+                        Some(c) => c,
+                        None => return Ok(None),
+                    },
                 };
                 (levels[e], values[e]) = (c.level, c.value);
-                coarse |= u64::from(c.level < level) << e;
+                if c.level < level {
+                    coarse |= 1 << e;
+                    if num_coarse_read < coarse_read.len() {
+                        coarse_read[num_coarse_read] = (e, c);
+                        num_coarse_read += 1;
+                    }
+                }
             }
         }
         if coarse != 0 && !levels_filled {
@@ -288,6 +316,10 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 let k = axis[0].out[x] | axis[1].out[y] | axis[2].out[z];
                 let q = if read >> e & 1 == 0 {
                     cell_at(k)
+                } else if let Some(&(_, c)) =
+                    coarse_read[..num_coarse_read].iter().find(|(i, _)| *i == e)
+                {
+                    Some(c)
                 } else {
                     // The cell read or located for the entry: the same answer again.
                     let f = [axis[0].at[x], axis[1].at[y], axis[2].at[z]];
@@ -297,6 +329,25 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                     return Ok(None);
                 };
                 let octant = self.octant_toward(v, &q, side);
+                if self.bounded() {
+                    // A corner of the coarse octant: the interpolant there is that corner's
+                    // value (`lerp` at 0 and 1 keeps an operand, exactly when it is not zero),
+                    // the value at `v` seen from `q`'s level, which is the coarsest around `v`:
+                    // the `avg8` of the corner's own entries.
+                    let (olo, ohi) = self.octant_box(&Octant {
+                        level: q.level,
+                        cell: q.cell,
+                        octant,
+                    });
+                    if (0..3).all(|a| (v[a] == olo[a]) | (v[a] == ohi[a])) {
+                        let x = avg8(&std::array::from_fn(|i| values[entry(i)]));
+                        if x != 0.0 {
+                            stitches.add_vertex(v, q.level, Some(x));
+                            *slot = x;
+                            continue;
+                        }
+                    }
+                }
                 match self.stitched_value(loc, v, &q, octant, &mut stitches, memo)? {
                     Some(x) => x,
                     None => return Ok(None),

@@ -71,7 +71,8 @@ impl Stitches {
             .map(|(_, _, x)| *x)
     }
 
-    fn add_vertex(&mut self, v: [i64; 3], level: u32, value: Option<f32>) {
+    /// Remembers the value at vertex `v` seen from an octant of level `level`, if there is room.
+    pub(super) fn add_vertex(&mut self, v: [i64; 3], level: u32, value: Option<f32>) {
         if self.num_vertices < self.vertices.len() {
             self.vertices[self.num_vertices] = (v, level, value);
             self.num_vertices += 1;

@@ -29,7 +29,7 @@ use crate::trace::octant::{
     intersect_voxel, intersect_voxel_packet, voxel_occluders_packet, voxel_occludes, VoxelHit,
 };
 use crate::trace::ray::GridRay;
-use crate::trace::source::{GridFrame, Voxel, VoxelLookup, VoxelSource};
+use crate::trace::source::{BoxedLookup, GridFrame, Voxel, VoxelLookup, VoxelSource};
 use crate::trace::tracer::central_difference_given;
 
 /// Bytes of decompressed bricks the sampler may cache.
@@ -267,12 +267,56 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     /// The voxel `r` names, from `cache` when it holds it.
     #[inline]
     fn voxel_in(&self, cache: &mut VoxelCache, r: u64) -> Voxel {
-        // Fibonacci hashing of the ref: neighbouring refs land in different slots.
-        let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
+        let slot = cache_slot(r);
         let (key, v) = cache.slots[slot];
         if key == r && r != u64::MAX {
             return v;
         }
+        self.decode_into(cache, slot, r)
+    }
+
+    /// The octant voxel `r` names ([`Self::voxel_in`]), or `None` when it is not in `cache`
+    /// and `keep` rejects its box, located from the ref and the leaf's frame alone: then its
+    /// values are not decoded ([`VoxelSource::with_boxed_voxels`]). A located voxel's values
+    /// are decoded from where it was located.
+    #[inline]
+    fn octant_voxel_if(
+        &self,
+        e: &Extractor<'f, D>,
+        cache: &mut VoxelCache,
+        r: u64,
+        keep: &mut dyn FnMut([f64; 3], [f64; 3]) -> bool,
+    ) -> Option<Voxel> {
+        let slot = cache_slot(r);
+        let (key, v) = cache.slots[slot];
+        if key == r && r != u64::MAX {
+            return Some(v);
+        }
+        let at = match e.locate_with(r, &mut cache.leaf) {
+            Ok(at) => at,
+            Err(err) => {
+                self.record(err);
+                return Some(Voxel::EMPTY);
+            }
+        };
+        if !keep(at.lo.map(|x| x as f64), at.hi.map(|x| x as f64)) {
+            return None;
+        }
+        let v = match e.decode_located(r, &at, &mut cache.scratch, &cache.leaf) {
+            Ok(v) => v,
+            Err(err) => {
+                self.record(err);
+                return Some(Voxel::EMPTY);
+            }
+        };
+        cache.slots[slot] = (r, v);
+        Some(v)
+    }
+
+    /// Decodes the voxel `r` names into `cache`'s slot `slot`; the empty voxel, its error
+    /// recorded, when it cannot be decoded.
+    #[inline]
+    fn decode_into(&self, cache: &mut VoxelCache, slot: usize, r: u64) -> Voxel {
         let v = match self.decode(r, &mut cache.scratch, &mut cache.leaf) {
             Ok(v) => v,
             Err(e) => {
@@ -283,6 +327,13 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         cache.slots[slot] = (r, v);
         v
     }
+}
+
+/// The slot of ref `r` in a thread's voxel cache: Fibonacci hashing of the ref, so that
+/// neighbouring refs land in different slots.
+#[inline(always)]
+fn cache_slot(r: u64) -> usize {
+    (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS
 }
 
 impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
@@ -349,6 +400,16 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
     fn with_voxels(&self, f: &mut dyn FnMut(&mut VoxelLookup<'_>)) {
         let mut cache = self.thread_cache().borrow_mut();
         f(&mut |r| self.voxel_in(&mut cache, r))
+    }
+
+    fn with_boxed_voxels(&self, f: &mut dyn FnMut(&mut BoxedLookup<'_>)) {
+        let mut cache = self.thread_cache().borrow_mut();
+        match &self.voxels {
+            // The octant method's test begins with the box clip, and its boxes come from the
+            // refs and the leaf's frame.
+            Voxels::Octant(e) => f(&mut |r, keep| self.octant_voxel_if(e, &mut cache, r, keep)),
+            _ => f(&mut |r, _| Some(self.voxel_in(&mut cache, r))),
+        }
     }
 
     fn voxel_box(&self, r: u64) -> ([f64; 3], [f64; 3]) {

@@ -65,6 +65,12 @@ impl GridFrame {
 /// A lookup of voxels by ref ([`VoxelSource::with_voxels`]).
 pub type VoxelLookup<'a> = dyn FnMut(u64) -> Voxel + 'a;
 
+/// A lookup of voxels by ref that may skip a voxel on its box alone
+/// ([`VoxelSource::with_boxed_voxels`]): `lookup(r, keep)` gives the voxel `r` names, or may
+/// give `None` when `keep(lo, hi)` is false for its box.
+pub type BoxedLookup<'a> =
+    dyn FnMut(u64, &mut dyn FnMut([f64; 3], [f64; 3]) -> bool) -> Option<Voxel> + 'a;
+
 /// A volume seen as a source of trilinear voxels, each named by a 64-bit ref (the paper's
 /// *VoxelSource*, section 4.1.1), plus point sampling of the same reconstruction.
 pub trait VoxelSource: Sync {
@@ -80,6 +86,15 @@ pub trait VoxelSource: Sync {
     /// this source's other methods.
     fn with_voxels(&self, f: &mut dyn FnMut(&mut VoxelLookup<'_>)) {
         f(&mut |r| self.voxel(r))
+    }
+
+    /// [`Self::with_voxels`] for a query that tests each voxel's box first: `keep(lo, hi)` is
+    /// the box clip [`intersect_voxel`] begins with. A source whose [`Self::intersect`] finds
+    /// hits only in voxels whose box passes that clip, and which can tell a box from its ref
+    /// alone, may give `None` for a voxel whose box `keep` rejects, without decoding its values.
+    /// By default every voxel is given, `keep` not asked.
+    fn with_boxed_voxels(&self, f: &mut dyn FnMut(&mut BoxedLookup<'_>)) {
+        self.with_voxels(&mut |voxel_of| f(&mut |r, _| Some(voxel_of(r))))
     }
 
     /// The box `(lo, hi)` of the voxel named by `r`: by default [`Self::voxel`]'s; sources that

@@ -283,15 +283,27 @@ impl Surface {
             return;
         }
         let mut found = [None; PACKET];
-        src.with_voxels(&mut |voxel_of| {
+        src.with_boxed_voxels(&mut |voxel_of| {
             self.bvh
                 .traverse_packet(&mut ray32[..n], active, |_, r, m, ray32| {
-                    let voxel = voxel_of(r);
-                    if m & (m - 1) == 0 {
-                        // One ray: its own test, inlined (most candidates of a far view).
+                    let voxel = if m & (m - 1) == 0 {
+                        // One ray: its own test, inlined (most candidates of a far view), the
+                        // box clip it begins with first, before the voxel's values are decoded
+                        // (about a third of a far view's candidates fail it: their leaf's box
+                        // met the ray, their own does not).
                         let k = m.trailing_zeros() as usize;
-                        found[k] = src.intersect(&voxel, self.iso, &rays[k], tmin[k], best_t[k]);
+                        let (ray, recip, t0, t1) = (&rays[k], &recips[k], tmin[k], best_t[k]);
+                        let Some(voxel) = voxel_of(r, &mut |lo, hi| {
+                            ray.clip_with(recip, lo, hi, t0, t1).is_some()
+                        }) else {
+                            return;
+                        };
+                        found[k] = src.intersect(&voxel, self.iso, ray, t0, t1);
+                        voxel
                     } else {
+                        let Some(voxel) = voxel_of(r, &mut |_, _| true) else {
+                            return;
+                        };
                         src.intersect_packet(
                             &voxel,
                             self.iso,
@@ -302,7 +314,8 @@ impl Surface {
                             &best_t[..n],
                             &mut found[..n],
                         );
-                    }
+                        voxel
+                    };
                     'rays: for k in rays_of(m) {
                         let Some(mut h) = found[k] else {
                             continue;

@@ -26,7 +26,8 @@ use crate::reconstruct::level_gradient::LevelBlocks;
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
 use crate::trace::octant::{
-    intersect_voxel, intersect_voxel_packet, voxel_occluders_packet, voxel_occludes, VoxelHit,
+    intersect_voxel, intersect_voxel_clipped, intersect_voxel_packet, voxel_occluders_packet,
+    voxel_occludes, VoxelHit,
 };
 use crate::trace::ray::GridRay;
 use crate::trace::source::{BoxedLookup, GridFrame, Voxel, VoxelLookup, VoxelSource};
@@ -511,6 +512,21 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         match self.voxels {
             Voxels::Nearest(_) => intersect_face(voxel, iso, ray, tmin, tmax),
             _ => intersect_voxel(voxel, iso, ray, tmin, tmax),
+        }
+    }
+
+    #[inline]
+    fn intersect_clipped(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        (tmin, tmax): (f64, f64),
+        clip: (f64, f64),
+    ) -> Option<VoxelHit> {
+        match self.voxels {
+            Voxels::Nearest(_) => intersect_face(voxel, iso, ray, tmin, tmax),
+            _ => intersect_voxel_clipped(voxel, iso, ray, (tmin, tmax), clip),
         }
     }
 

@@ -49,6 +49,21 @@ pub fn intersect_voxel(
     Segment::new(voxel, iso, ray, tmin, tmax)?.first_hit()
 }
 
+/// [`intersect_voxel`] given `clip`, the interval [`GridRay::clip`] gives `ray` in the voxel's
+/// box for `tmin` and `tmax` (for a caller that clipped it before the voxel's values were
+/// known): the same hit.
+#[inline]
+pub fn intersect_voxel_clipped(
+    voxel: &Voxel,
+    iso: f32,
+    ray: &GridRay,
+    (tmin, tmax): (f64, f64),
+    clip: (f64, f64),
+) -> Option<VoxelHit> {
+    let setup = VoxelSetup::new(voxel, iso)?;
+    Segment::in_box(voxel, &setup, ray, (tmin, tmax), clip)?.first_hit()
+}
+
 /// True exactly when [`intersect_voxel`] finds a hit: the any-hit test, which skips refining
 /// where the hit is.
 #[inline]

@@ -153,6 +153,23 @@ pub trait VoxelSource: Sync {
         intersect_voxel(voxel, iso, ray, tmin, tmax)
     }
 
+    /// [`Self::intersect`] of a voxel for which [`Self::with_boxed_voxels`]' lookup asked
+    /// `keep`, given `clip`, the ray's interval in the voxel's box that `keep` computed
+    /// ([`GridRay::clip_with`] for `tmin` and `tmax`): sources that ask `keep` skip clipping
+    /// again. By default [`Self::intersect`].
+    #[inline]
+    fn intersect_clipped(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        (tmin, tmax): (f64, f64),
+        clip: (f64, f64),
+    ) -> Option<VoxelHit> {
+        let _ = clip;
+        self.intersect(voxel, iso, ray, tmin, tmax)
+    }
+
     /// [`Self::intersect`] for the rays `m` of a packet (each with its reciprocal direction,
     /// [`GridRay::recip`], and its own `tmin` and `tmax`) that reach `voxel`: `hits[k]` for each ray `k` of
     /// `m`, what [`Self::intersect`] gives it. Sources may share the voxel's own work between the

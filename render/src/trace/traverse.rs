@@ -293,12 +293,19 @@ impl Surface {
                         // met the ray, their own does not).
                         let k = m.trailing_zeros() as usize;
                         let (ray, recip, t0, t1) = (&rays[k], &recips[k], tmin[k], best_t[k]);
+                        let mut clip = None;
                         let Some(voxel) = voxel_of(r, &mut |lo, hi| {
-                            ray.clip_with(recip, lo, hi, t0, t1).is_some()
+                            clip = ray.clip_with(recip, lo, hi, t0, t1);
+                            clip.is_some()
                         }) else {
                             return;
                         };
-                        found[k] = src.intersect(&voxel, self.iso, ray, t0, t1);
+                        found[k] = match clip {
+                            Some(clip) => {
+                                src.intersect_clipped(&voxel, self.iso, ray, (t0, t1), clip)
+                            }
+                            None => src.intersect(&voxel, self.iso, ray, t0, t1),
+                        };
                         voxel
                     } else {
                         let Some(voxel) = voxel_of(r, &mut |_, _| true) else {

@@ -61,8 +61,9 @@ enum Voxels<'f, D> {
 struct VoxelCache {
     slots: Vec<(u64, Voxel)>,
     scratch: SampleScratch,
-    /// The frame of the leaf of the voxel decoded last.
-    leaf: Option<DecodeFrame>,
+    /// The frames of the leaves of the voxels decoded last, direct-mapped by leaf
+    /// ([`leaf_slot`]): the candidates of a walk come from a few leaves at a time.
+    leaves: [Option<DecodeFrame>; LEAF_SLOTS],
     blocks: LevelBlocks,
 }
 
@@ -254,7 +255,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
             RefCell::new(VoxelCache {
                 slots: vec![(u64::MAX, Voxel::EMPTY); VOXEL_CACHE_SLOTS],
                 scratch: SampleScratch::default(),
-                leaf: None,
+                leaves: [None; LEAF_SLOTS],
                 blocks: LevelBlocks::default(),
             })
         })
@@ -293,7 +294,8 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         if key == r && r != u64::MAX {
             return Some(v);
         }
-        let at = match e.locate_with(r, &mut cache.leaf) {
+        let last = &mut cache.leaves[leaf_slot(r)];
+        let at = match e.locate_with(r, last) {
             Ok(at) => at,
             Err(err) => {
                 self.record(err);
@@ -303,7 +305,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         if !keep(at.lo.map(|x| x as f64), at.hi.map(|x| x as f64)) {
             return None;
         }
-        let v = match e.decode_located(r, &at, &mut cache.scratch, &cache.leaf) {
+        let v = match e.decode_located(r, &at, &mut cache.scratch, last) {
             Ok(v) => v,
             Err(err) => {
                 self.record(err);
@@ -318,7 +320,8 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     /// recorded, when it cannot be decoded.
     #[inline]
     fn decode_into(&self, cache: &mut VoxelCache, slot: usize, r: u64) -> Voxel {
-        let v = match self.decode(r, &mut cache.scratch, &mut cache.leaf) {
+        let last = &mut cache.leaves[leaf_slot(r)];
+        let v = match self.decode(r, &mut cache.scratch, last) {
             Ok(v) => v,
             Err(e) => {
                 self.record(e);
@@ -328,6 +331,15 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         cache.slots[slot] = (r, v);
         v
     }
+}
+
+/// Leaf frames a thread's voxel cache keeps (a power of two).
+const LEAF_SLOTS: usize = 8;
+
+/// The slot of the frame of ref `r`'s leaf in a thread's voxel cache.
+#[inline(always)]
+fn leaf_slot(r: u64) -> usize {
+    (r >> 32) as usize % LEAF_SLOTS
 }
 
 /// The slot of ref `r` in a thread's voxel cache: Fibonacci hashing of the ref, so that

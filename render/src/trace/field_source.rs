@@ -13,7 +13,7 @@ use std::sync::Mutex;
 use amr_format::AmrkFile;
 use thread_local::ThreadLocal;
 
-use crate::bvh::packet::{rays_of, rays_where, Mask};
+use crate::bvh::packet::{rays_where, Mask};
 #[cfg(target_arch = "x86_64")]
 use crate::bvh::wide::morton_bmi2;
 use crate::bvh::BoxRun;
@@ -553,13 +553,12 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         tmin: &[f64],
         tmax: &[f64],
         hits: &mut [Option<VoxelHit>],
-    ) {
+    ) -> Mask {
         match self.voxels {
-            Voxels::Nearest(_) => {
-                for k in rays_of(m) {
-                    hits[k] = intersect_face(voxel, iso, &rays[k], tmin[k], tmax[k]);
-                }
-            }
+            Voxels::Nearest(_) => rays_where(m, |k| {
+                hits[k] = intersect_face(voxel, iso, &rays[k], tmin[k], tmax[k]);
+                hits[k].is_some()
+            }),
             _ => intersect_voxel_packet(voxel, iso, rays, recips, m, tmin, tmax, hits),
         }
     }

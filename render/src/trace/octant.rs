@@ -6,7 +6,7 @@
 //! three linear factors, and [`Cubic::first_root`] isolates the first root with the derivative's
 //! roots and refines it.
 
-use crate::bvh::packet::{rays_of, rays_where, Mask};
+use crate::bvh::packet::{rays_where, Mask};
 use crate::trace::cubic::Cubic;
 use crate::trace::ray::{larger, smaller, GridRay};
 use crate::trace::source::Voxel;
@@ -146,8 +146,9 @@ impl VoxelSetup {
 }
 
 /// [`intersect_voxel`] for the rays `m` of a packet, each with its reciprocal direction
-/// ([`GridRay::recip`]) and its own `tmin` and `tmax`: `hits[k]` for each ray `k` of `m`, the hit
-/// [`intersect_voxel`] gives it (the voxel's set-up is computed once).
+/// ([`GridRay::recip`]) and its own `tmin` and `tmax`: the rays of `m` that [`intersect_voxel`]
+/// gives a hit, each that hit in `hits[k]` (the voxel's set-up is computed once; the entries of
+/// the other rays are left unspecified).
 #[allow(clippy::too_many_arguments)]
 pub fn intersect_voxel_packet(
     voxel: &Voxel,
@@ -158,25 +159,23 @@ pub fn intersect_voxel_packet(
     tmin: &[f64],
     tmax: &[f64],
     hits: &mut [Option<VoxelHit>],
-) {
-    let setup = VoxelSetup::new(voxel, iso);
+) -> Mask {
+    let Some(setup) = VoxelSetup::new(voxel, iso) else {
+        return 0;
+    };
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
-        match &setup {
-            // SAFETY: the CPU has AVX2, checked just above.
-            Some(setup) => unsafe { x4::hits(voxel, setup, rays, recips, m, tmin, tmax, hits) },
-            None => rays_of(m).for_each(|k| hits[k] = None),
-        }
-        return;
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { x4::hits(voxel, &setup, rays, recips, m, tmin, tmax, hits) };
     }
-    for k in rays_of(m) {
-        hits[k] = setup.as_ref().and_then(|setup| {
-            let (tmin, tmax) = (tmin[k], tmax[k]);
-            let (t_in, t_out) = rays[k].clip_with(&recips[k], voxel.lo, voxel.hi, tmin, tmax)?;
-            let seg = Segment::in_box(voxel, setup, &rays[k], (tmin, tmax), (t_in, t_out))?;
-            seg.first_hit()
-        });
-    }
+    rays_where(m, |k| {
+        let (tmin, tmax) = (tmin[k], tmax[k]);
+        hits[k] = rays[k]
+            .clip_with(&recips[k], voxel.lo, voxel.hi, tmin, tmax)
+            .and_then(|t| Segment::in_box(voxel, &setup, &rays[k], (tmin, tmax), t))
+            .and_then(|seg| seg.first_hit());
+        hits[k].is_some()
+    })
 }
 
 impl Segment {

@@ -1,6 +1,6 @@
 //! What the tracer needs from a volume: active voxels decoded from 64-bit refs, and point samples.
 
-use crate::bvh::packet::{rays_of, rays_where, Mask};
+use crate::bvh::packet::{rays_where, Mask};
 use crate::bvh::BoxRun;
 use crate::reconstruct::Grid;
 use crate::trace::octant::{intersect_voxel, VoxelHit};
@@ -171,9 +171,10 @@ pub trait VoxelSource: Sync {
     }
 
     /// [`Self::intersect`] for the rays `m` of a packet (each with its reciprocal direction,
-    /// [`GridRay::recip`], and its own `tmin` and `tmax`) that reach `voxel`: `hits[k]` for each ray `k` of
-    /// `m`, what [`Self::intersect`] gives it. Sources may share the voxel's own work between the
-    /// rays; the others' entries are left as they are.
+    /// [`GridRay::recip`], and its own `tmin` and `tmax`) that reach `voxel`: the rays of `m`
+    /// for which [`Self::intersect`] finds a hit, each hit in `hits[k]` (the entries of the
+    /// other rays are left unspecified). Sources may share the voxel's own work between the
+    /// rays.
     #[allow(clippy::too_many_arguments)]
     fn intersect_packet(
         &self,
@@ -185,11 +186,12 @@ pub trait VoxelSource: Sync {
         tmin: &[f64],
         tmax: &[f64],
         hits: &mut [Option<VoxelHit>],
-    ) {
+    ) -> Mask {
         let _ = recips;
-        for k in rays_of(m) {
+        rays_where(m, |k| {
             hits[k] = self.intersect(voxel, iso, &rays[k], tmin[k], tmax[k]);
-        }
+            hits[k].is_some()
+        })
     }
 
     /// True when [`Self::intersect`] would find a hit: the any-hit test of shadow and occlusion

@@ -286,7 +286,7 @@ impl Surface {
         src.with_boxed_voxels(&mut |voxel_of| {
             self.bvh
                 .traverse_packet(&mut ray32[..n], active, |_, r, m, ray32| {
-                    let voxel = if m & (m - 1) == 0 {
+                    let (voxel, hit) = if m & (m - 1) == 0 {
                         // One ray: its own test, inlined (most candidates of a far view), the
                         // box clip it begins with first, before the voxel's values are decoded
                         // (about a third of a far view's candidates fail it: their leaf's box
@@ -306,12 +306,12 @@ impl Surface {
                             }
                             None => src.intersect(&voxel, self.iso, ray, t0, t1),
                         };
-                        voxel
+                        (voxel, if found[k].is_some() { m } else { 0 })
                     } else {
                         let Some(voxel) = voxel_of(r, &mut |_, _| true) else {
                             return;
                         };
-                        src.intersect_packet(
+                        let hit = src.intersect_packet(
                             &voxel,
                             self.iso,
                             rays,
@@ -321,9 +321,9 @@ impl Surface {
                             &best_t[..n],
                             &mut found[..n],
                         );
-                        voxel
+                        (voxel, hit)
                     };
-                    'rays: for k in rays_of(m) {
+                    'rays: for k in rays_of(hit) {
                         let Some(mut h) = found[k] else {
                             continue;
                         };

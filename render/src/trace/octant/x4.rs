@@ -54,7 +54,9 @@ pub(super) fn hits(
     each_group(m, |ks, n| {
         // SAFETY: each `ks[i]` is a ray of `m`, below `end`, which all five slices reach.
         let lanes = unsafe { Lanes::new(rays, recips, tmin, tmax, ks) };
-        let Some(segs) = lanes.segments(voxel, &extent, setup) else {
+        // Borrowed where it lies: moving the segments out of the `Option` copies them whole.
+        let segs = lanes.segments(voxel, &extent, setup);
+        let Some(segs) = segs.as_ref() else {
             return;
         };
         for (i, &k) in ks[..n].iter().enumerate() {

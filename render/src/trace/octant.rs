@@ -315,6 +315,60 @@ mod tests {
     }
 
     #[test]
+    fn the_clipped_test_gives_the_hit_of_the_whole_test() {
+        let mut state = 0x5851_f42d_4c95_7f2du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut hits, mut misses, mut outside) = (0, 0, 0);
+        for i in 0..20_000 {
+            let lo = [0, 1, 2].map(|_| (next() * 8.0).floor() * 0.25);
+            let size = if i % 3 == 0 { 0.25 } else { 0.0625 };
+            let v = Voxel {
+                lo,
+                hi: lo.map(|x| x + size),
+                values: [0; 8].map(|_| (next() * 2.0 - 1.0) as f32),
+                level: 0,
+            };
+            let target = [0, 1, 2].map(|a| lo[a] + (next() * 1.4 - 0.2) * size);
+            let o = [0, 1, 2].map(|a| target[a] + (next() * 2.0 - 1.0) * size * 3.0);
+            let mut d = [0, 1, 2].map(|a| target[a] - o[a]);
+            if i % 7 == 0 {
+                d[i % 3] = 0.0;
+            }
+            let ray = GridRay { o, d };
+            let (tmin, tmax) = if i % 5 == 0 {
+                (0.3, 0.8)
+            } else {
+                (0.0, f64::INFINITY)
+            };
+            let want = intersect_voxel(&v, 0.1, &ray, tmin, tmax);
+            match ray.clip_with(&ray.recip(), v.lo, v.hi, tmin, tmax) {
+                Some(clip) => {
+                    let got = intersect_voxel_clipped(&v, 0.1, &ray, (tmin, tmax), clip);
+                    assert_eq!(got, want, "{i}");
+                    if want.is_some() {
+                        hits += 1;
+                    } else {
+                        misses += 1;
+                    }
+                }
+                None => {
+                    assert_eq!(want, None, "{i}: a hit outside the box");
+                    outside += 1;
+                }
+            }
+        }
+        assert!(
+            hits > 1_000 && misses > 1_000 && outside > 1_000,
+            "{hits} {misses} {outside}"
+        );
+    }
+
+    #[test]
     fn exact_reciprocals_only_of_powers_of_two() {
         for e in -1022..=1022 {
             let x = 2f64.powi(e);

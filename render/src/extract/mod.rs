@@ -501,11 +501,71 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         memo: &mut VertexMemo,
         last: &mut Option<DecodeFrame>,
     ) -> Result<Voxel> {
+        let at = self.locate_in(r, last)?;
+        let Some(frame) = last.as_ref() else {
+            return Err(bad_ref(r, "no such leaf"));
+        };
+        self.values_in(r, &at, frame, loc, memo)
+    }
+
+    /// The voxel `r` names located in its leaf, with its box, its values not read: what
+    /// [`Self::decode_located`] needs besides the leaf's frame, which `last` then holds
+    /// ([`Self::resolve_in`]).
+    #[inline]
+    pub fn locate_with(&self, r: u64, last: &mut Option<DecodeFrame>) -> Result<LocatedVoxel> {
+        self.locate_in(r, last)
+    }
+
+    /// [`Self::decode_with`] of the voxel `r` that [`Self::locate_with`] located as `at`,
+    /// `last` the frame it left.
+    #[inline]
+    pub fn decode_located(
+        &self,
+        r: u64,
+        at: &LocatedVoxel,
+        scratch: &mut SampleScratch,
+        last: &Option<DecodeFrame>,
+    ) -> Result<Voxel> {
+        let Some(frame) = last.as_ref().filter(|f| f.frame.leaf == split_ref(r).0) else {
+            return Err(bad_ref(r, "no such leaf"));
+        };
+        let (loc, memo) = scratch.bind(&self.sampler);
+        self.values_in(r, at, frame, &loc, memo)
+    }
+
+    /// The voxel `r` names located in its leaf (whose frame `last` then holds).
+    #[inline(always)]
+    fn locate_in(&self, r: u64, last: &mut Option<DecodeFrame>) -> Result<LocatedVoxel> {
         let (frame, cell, octant) = self.resolve_in(r, last)?;
-        let frame = *frame;
-        let grid = self.sampler.grid();
         let level = frame.frame.level;
         let (lo, hi) = self.doubled_box(level, cell, octant);
+        Ok(LocatedVoxel {
+            level,
+            cell,
+            octant,
+            lo,
+            hi,
+        })
+    }
+
+    /// The voxel located as `at` in the leaf of `frame`, its values read.
+    #[inline(always)]
+    fn values_in<L: Locate>(
+        &self,
+        r: u64,
+        at: &LocatedVoxel,
+        frame: &DecodeFrame,
+        loc: &L,
+        memo: &mut VertexMemo,
+    ) -> Result<Voxel> {
+        let grid = self.sampler.grid();
+        let LocatedVoxel {
+            level,
+            cell,
+            octant,
+            lo,
+            hi,
+        } = *at;
         let values = match octant {
             Some(octant) => {
                 let o = Octant {
@@ -517,7 +577,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     .octant_values_in(loc, &o, memo)?
                     .ok_or_else(|| bad_ref(r, "no values there"))?
             }
-            None => match self.dual_block_in_leaf(&frame, cell) {
+            None => match self.dual_block_in_leaf(frame, cell) {
                 Some(values) => values,
                 None => {
                     let mut values = [0f32; 8];
@@ -702,6 +762,19 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             }
         }
     }
+}
+
+/// A voxel located from its ref ([`Extractor::locate_with`]): its level, cell and octant (none
+/// for a merged dual cell), and its box in doubled coordinates.
+#[derive(Clone, Copy, Debug)]
+pub struct LocatedVoxel {
+    level: u32,
+    cell: [i64; 3],
+    octant: Option<u8>,
+    /// The box's lower corner.
+    pub lo: [i64; 3],
+    /// The box's upper corner.
+    pub hi: [i64; 3],
 }
 
 /// A leaf's tight range and its parts' bounds.

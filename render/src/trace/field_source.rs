@@ -13,7 +13,7 @@ use std::sync::Mutex;
 use amr_format::AmrkFile;
 use thread_local::ThreadLocal;
 
-use crate::bvh::packet::{rays_of, rays_where, Mask};
+use crate::bvh::packet::{rays_where, Mask};
 #[cfg(target_arch = "x86_64")]
 use crate::bvh::wide::morton_bmi2;
 use crate::bvh::BoxRun;
@@ -26,10 +26,11 @@ use crate::reconstruct::level_gradient::LevelBlocks;
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
 use crate::trace::octant::{
-    intersect_voxel, intersect_voxel_packet, voxel_occluders_packet, voxel_occludes, VoxelHit,
+    intersect_voxel, intersect_voxel_clipped, intersect_voxel_packet, voxel_occluders_packet,
+    voxel_occludes, VoxelHit,
 };
 use crate::trace::ray::GridRay;
-use crate::trace::source::{GridFrame, Voxel, VoxelLookup, VoxelSource};
+use crate::trace::source::{BoxedLookup, GridFrame, Voxel, VoxelLookup, VoxelSource};
 use crate::trace::tracer::central_difference_given;
 
 /// Bytes of decompressed bricks the sampler may cache.
@@ -60,8 +61,9 @@ enum Voxels<'f, D> {
 struct VoxelCache {
     slots: Vec<(u64, Voxel)>,
     scratch: SampleScratch,
-    /// The frame of the leaf of the voxel decoded last.
-    leaf: Option<DecodeFrame>,
+    /// The frames of the leaves of the voxels decoded last, direct-mapped by leaf
+    /// ([`leaf_slot`]): the candidates of a walk come from a few leaves at a time.
+    leaves: [Option<DecodeFrame>; LEAF_SLOTS],
     blocks: LevelBlocks,
 }
 
@@ -253,7 +255,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
             RefCell::new(VoxelCache {
                 slots: vec![(u64::MAX, Voxel::EMPTY); VOXEL_CACHE_SLOTS],
                 scratch: SampleScratch::default(),
-                leaf: None,
+                leaves: [None; LEAF_SLOTS],
                 blocks: LevelBlocks::default(),
             })
         })
@@ -267,13 +269,59 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     /// The voxel `r` names, from `cache` when it holds it.
     #[inline]
     fn voxel_in(&self, cache: &mut VoxelCache, r: u64) -> Voxel {
-        // Fibonacci hashing of the ref: neighbouring refs land in different slots.
-        let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
+        let slot = cache_slot(r);
         let (key, v) = cache.slots[slot];
         if key == r && r != u64::MAX {
             return v;
         }
-        let v = match self.decode(r, &mut cache.scratch, &mut cache.leaf) {
+        self.decode_into(cache, slot, r)
+    }
+
+    /// The octant voxel `r` names ([`Self::voxel_in`]), or `None` when it is not in `cache`
+    /// and `keep` rejects its box, located from the ref and the leaf's frame alone: then its
+    /// values are not decoded ([`VoxelSource::with_boxed_voxels`]). A located voxel's values
+    /// are decoded from where it was located.
+    #[inline]
+    fn octant_voxel_if(
+        &self,
+        e: &Extractor<'f, D>,
+        cache: &mut VoxelCache,
+        r: u64,
+        keep: &mut dyn FnMut([f64; 3], [f64; 3]) -> bool,
+    ) -> Option<Voxel> {
+        let slot = cache_slot(r);
+        let (key, v) = cache.slots[slot];
+        if key == r && r != u64::MAX {
+            return Some(v);
+        }
+        let last = &mut cache.leaves[leaf_slot(r)];
+        let at = match e.locate_with(r, last) {
+            Ok(at) => at,
+            Err(err) => {
+                self.record(err);
+                return Some(Voxel::EMPTY);
+            }
+        };
+        if !keep(at.lo.map(|x| x as f64), at.hi.map(|x| x as f64)) {
+            return None;
+        }
+        let v = match e.decode_located(r, &at, &mut cache.scratch, last) {
+            Ok(v) => v,
+            Err(err) => {
+                self.record(err);
+                return Some(Voxel::EMPTY);
+            }
+        };
+        cache.slots[slot] = (r, v);
+        Some(v)
+    }
+
+    /// Decodes the voxel `r` names into `cache`'s slot `slot`; the empty voxel, its error
+    /// recorded, when it cannot be decoded.
+    #[inline]
+    fn decode_into(&self, cache: &mut VoxelCache, slot: usize, r: u64) -> Voxel {
+        let last = &mut cache.leaves[leaf_slot(r)];
+        let v = match self.decode(r, &mut cache.scratch, last) {
             Ok(v) => v,
             Err(e) => {
                 self.record(e);
@@ -283,6 +331,22 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         cache.slots[slot] = (r, v);
         v
     }
+}
+
+/// Leaf frames a thread's voxel cache keeps (a power of two).
+const LEAF_SLOTS: usize = 8;
+
+/// The slot of the frame of ref `r`'s leaf in a thread's voxel cache.
+#[inline(always)]
+fn leaf_slot(r: u64) -> usize {
+    (r >> 32) as usize % LEAF_SLOTS
+}
+
+/// The slot of ref `r` in a thread's voxel cache: Fibonacci hashing of the ref, so that
+/// neighbouring refs land in different slots.
+#[inline(always)]
+fn cache_slot(r: u64) -> usize {
+    (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS
 }
 
 impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
@@ -349,6 +413,16 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
     fn with_voxels(&self, f: &mut dyn FnMut(&mut VoxelLookup<'_>)) {
         let mut cache = self.thread_cache().borrow_mut();
         f(&mut |r| self.voxel_in(&mut cache, r))
+    }
+
+    fn with_boxed_voxels(&self, f: &mut dyn FnMut(&mut BoxedLookup<'_>)) {
+        let mut cache = self.thread_cache().borrow_mut();
+        match &self.voxels {
+            // The octant method's test begins with the box clip, and its boxes come from the
+            // refs and the leaf's frame.
+            Voxels::Octant(e) => f(&mut |r, keep| self.octant_voxel_if(e, &mut cache, r, keep)),
+            _ => f(&mut |r, _| Some(self.voxel_in(&mut cache, r))),
+        }
     }
 
     fn voxel_box(&self, r: u64) -> ([f64; 3], [f64; 3]) {
@@ -454,6 +528,21 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
     }
 
     #[inline]
+    fn intersect_clipped(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        (tmin, tmax): (f64, f64),
+        clip: (f64, f64),
+    ) -> Option<VoxelHit> {
+        match self.voxels {
+            Voxels::Nearest(_) => intersect_face(voxel, iso, ray, tmin, tmax),
+            _ => intersect_voxel_clipped(voxel, iso, ray, (tmin, tmax), clip),
+        }
+    }
+
+    #[inline]
     fn intersect_packet(
         &self,
         voxel: &Voxel,
@@ -464,13 +553,12 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         tmin: &[f64],
         tmax: &[f64],
         hits: &mut [Option<VoxelHit>],
-    ) {
+    ) -> Mask {
         match self.voxels {
-            Voxels::Nearest(_) => {
-                for k in rays_of(m) {
-                    hits[k] = intersect_face(voxel, iso, &rays[k], tmin[k], tmax[k]);
-                }
-            }
+            Voxels::Nearest(_) => rays_where(m, |k| {
+                hits[k] = intersect_face(voxel, iso, &rays[k], tmin[k], tmax[k]);
+                hits[k].is_some()
+            }),
             _ => intersect_voxel_packet(voxel, iso, rays, recips, m, tmin, tmax, hits),
         }
     }

@@ -6,7 +6,7 @@
 //! three linear factors, and [`Cubic::first_root`] isolates the first root with the derivative's
 //! roots and refines it.
 
-use crate::bvh::packet::{rays_of, rays_where, Mask};
+use crate::bvh::packet::{rays_where, Mask};
 use crate::trace::cubic::Cubic;
 use crate::trace::ray::{larger, smaller, GridRay};
 use crate::trace::source::Voxel;
@@ -47,6 +47,21 @@ pub fn intersect_voxel(
     tmax: f64,
 ) -> Option<VoxelHit> {
     Segment::new(voxel, iso, ray, tmin, tmax)?.first_hit()
+}
+
+/// [`intersect_voxel`] given `clip`, the interval [`GridRay::clip`] gives `ray` in the voxel's
+/// box for `tmin` and `tmax` (for a caller that clipped it before the voxel's values were
+/// known): the same hit.
+#[inline]
+pub fn intersect_voxel_clipped(
+    voxel: &Voxel,
+    iso: f32,
+    ray: &GridRay,
+    (tmin, tmax): (f64, f64),
+    clip: (f64, f64),
+) -> Option<VoxelHit> {
+    let setup = VoxelSetup::new(voxel, iso)?;
+    Segment::in_box(voxel, &setup, ray, (tmin, tmax), clip)?.first_hit()
 }
 
 /// True exactly when [`intersect_voxel`] finds a hit: the any-hit test, which skips refining
@@ -131,8 +146,9 @@ impl VoxelSetup {
 }
 
 /// [`intersect_voxel`] for the rays `m` of a packet, each with its reciprocal direction
-/// ([`GridRay::recip`]) and its own `tmin` and `tmax`: `hits[k]` for each ray `k` of `m`, the hit
-/// [`intersect_voxel`] gives it (the voxel's set-up is computed once).
+/// ([`GridRay::recip`]) and its own `tmin` and `tmax`: the rays of `m` that [`intersect_voxel`]
+/// gives a hit, each that hit in `hits[k]` (the voxel's set-up is computed once; the entries of
+/// the other rays are left unspecified).
 #[allow(clippy::too_many_arguments)]
 pub fn intersect_voxel_packet(
     voxel: &Voxel,
@@ -143,25 +159,23 @@ pub fn intersect_voxel_packet(
     tmin: &[f64],
     tmax: &[f64],
     hits: &mut [Option<VoxelHit>],
-) {
-    let setup = VoxelSetup::new(voxel, iso);
+) -> Mask {
+    let Some(setup) = VoxelSetup::new(voxel, iso) else {
+        return 0;
+    };
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
-        match &setup {
-            // SAFETY: the CPU has AVX2, checked just above.
-            Some(setup) => unsafe { x4::hits(voxel, setup, rays, recips, m, tmin, tmax, hits) },
-            None => rays_of(m).for_each(|k| hits[k] = None),
-        }
-        return;
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { x4::hits(voxel, &setup, rays, recips, m, tmin, tmax, hits) };
     }
-    for k in rays_of(m) {
-        hits[k] = setup.as_ref().and_then(|setup| {
-            let (tmin, tmax) = (tmin[k], tmax[k]);
-            let (t_in, t_out) = rays[k].clip_with(&recips[k], voxel.lo, voxel.hi, tmin, tmax)?;
-            let seg = Segment::in_box(voxel, setup, &rays[k], (tmin, tmax), (t_in, t_out))?;
-            seg.first_hit()
-        });
-    }
+    rays_where(m, |k| {
+        let (tmin, tmax) = (tmin[k], tmax[k]);
+        hits[k] = rays[k]
+            .clip_with(&recips[k], voxel.lo, voxel.hi, tmin, tmax)
+            .and_then(|t| Segment::in_box(voxel, &setup, &rays[k], (tmin, tmax), t))
+            .and_then(|seg| seg.first_hit());
+        hits[k].is_some()
+    })
 }
 
 impl Segment {
@@ -298,6 +312,60 @@ mod tests {
             let u = [0, 1, 2].map(|a| p0[a] + s * q[a]);
             assert!((cubic.eval(s) - v.eval_local(u)).abs() < 1e-14);
         }
+    }
+
+    #[test]
+    fn the_clipped_test_gives_the_hit_of_the_whole_test() {
+        let mut state = 0x5851_f42d_4c95_7f2du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut hits, mut misses, mut outside) = (0, 0, 0);
+        for i in 0..20_000 {
+            let lo = [0, 1, 2].map(|_| (next() * 8.0).floor() * 0.25);
+            let size = if i % 3 == 0 { 0.25 } else { 0.0625 };
+            let v = Voxel {
+                lo,
+                hi: lo.map(|x| x + size),
+                values: [0; 8].map(|_| (next() * 2.0 - 1.0) as f32),
+                level: 0,
+            };
+            let target = [0, 1, 2].map(|a| lo[a] + (next() * 1.4 - 0.2) * size);
+            let o = [0, 1, 2].map(|a| target[a] + (next() * 2.0 - 1.0) * size * 3.0);
+            let mut d = [0, 1, 2].map(|a| target[a] - o[a]);
+            if i % 7 == 0 {
+                d[i % 3] = 0.0;
+            }
+            let ray = GridRay { o, d };
+            let (tmin, tmax) = if i % 5 == 0 {
+                (0.3, 0.8)
+            } else {
+                (0.0, f64::INFINITY)
+            };
+            let want = intersect_voxel(&v, 0.1, &ray, tmin, tmax);
+            match ray.clip_with(&ray.recip(), v.lo, v.hi, tmin, tmax) {
+                Some(clip) => {
+                    let got = intersect_voxel_clipped(&v, 0.1, &ray, (tmin, tmax), clip);
+                    assert_eq!(got, want, "{i}");
+                    if want.is_some() {
+                        hits += 1;
+                    } else {
+                        misses += 1;
+                    }
+                }
+                None => {
+                    assert_eq!(want, None, "{i}: a hit outside the box");
+                    outside += 1;
+                }
+            }
+        }
+        assert!(
+            hits > 1_000 && misses > 1_000 && outside > 1_000,
+            "{hits} {misses} {outside}"
+        );
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! What the tracer needs from a volume: active voxels decoded from 64-bit refs, and point samples.
 
-use crate::bvh::packet::{rays_of, rays_where, Mask};
+use crate::bvh::packet::{rays_where, Mask};
 use crate::bvh::BoxRun;
 use crate::reconstruct::Grid;
 use crate::trace::octant::{intersect_voxel, VoxelHit};
@@ -65,6 +65,12 @@ impl GridFrame {
 /// A lookup of voxels by ref ([`VoxelSource::with_voxels`]).
 pub type VoxelLookup<'a> = dyn FnMut(u64) -> Voxel + 'a;
 
+/// A lookup of voxels by ref that may skip a voxel on its box alone
+/// ([`VoxelSource::with_boxed_voxels`]): `lookup(r, keep)` gives the voxel `r` names, or may
+/// give `None` when `keep(lo, hi)` is false for its box.
+pub type BoxedLookup<'a> =
+    dyn FnMut(u64, &mut dyn FnMut([f64; 3], [f64; 3]) -> bool) -> Option<Voxel> + 'a;
+
 /// A volume seen as a source of trilinear voxels, each named by a 64-bit ref (the paper's
 /// *VoxelSource*, section 4.1.1), plus point sampling of the same reconstruction.
 pub trait VoxelSource: Sync {
@@ -80,6 +86,15 @@ pub trait VoxelSource: Sync {
     /// this source's other methods.
     fn with_voxels(&self, f: &mut dyn FnMut(&mut VoxelLookup<'_>)) {
         f(&mut |r| self.voxel(r))
+    }
+
+    /// [`Self::with_voxels`] for a query that tests each voxel's box first: `keep(lo, hi)` is
+    /// the box clip [`intersect_voxel`] begins with. A source whose [`Self::intersect`] finds
+    /// hits only in voxels whose box passes that clip, and which can tell a box from its ref
+    /// alone, may give `None` for a voxel whose box `keep` rejects, without decoding its values.
+    /// By default every voxel is given, `keep` not asked.
+    fn with_boxed_voxels(&self, f: &mut dyn FnMut(&mut BoxedLookup<'_>)) {
+        self.with_voxels(&mut |voxel_of| f(&mut |r, _| Some(voxel_of(r))))
     }
 
     /// The box `(lo, hi)` of the voxel named by `r`: by default [`Self::voxel`]'s; sources that
@@ -138,10 +153,28 @@ pub trait VoxelSource: Sync {
         intersect_voxel(voxel, iso, ray, tmin, tmax)
     }
 
+    /// [`Self::intersect`] of a voxel for which [`Self::with_boxed_voxels`]' lookup asked
+    /// `keep`, given `clip`, the ray's interval in the voxel's box that `keep` computed
+    /// ([`GridRay::clip_with`] for `tmin` and `tmax`): sources that ask `keep` skip clipping
+    /// again. By default [`Self::intersect`].
+    #[inline]
+    fn intersect_clipped(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        (tmin, tmax): (f64, f64),
+        clip: (f64, f64),
+    ) -> Option<VoxelHit> {
+        let _ = clip;
+        self.intersect(voxel, iso, ray, tmin, tmax)
+    }
+
     /// [`Self::intersect`] for the rays `m` of a packet (each with its reciprocal direction,
-    /// [`GridRay::recip`], and its own `tmin` and `tmax`) that reach `voxel`: `hits[k]` for each ray `k` of
-    /// `m`, what [`Self::intersect`] gives it. Sources may share the voxel's own work between the
-    /// rays; the others' entries are left as they are.
+    /// [`GridRay::recip`], and its own `tmin` and `tmax`) that reach `voxel`: the rays of `m`
+    /// for which [`Self::intersect`] finds a hit, each hit in `hits[k]` (the entries of the
+    /// other rays are left unspecified). Sources may share the voxel's own work between the
+    /// rays.
     #[allow(clippy::too_many_arguments)]
     fn intersect_packet(
         &self,
@@ -153,11 +186,12 @@ pub trait VoxelSource: Sync {
         tmin: &[f64],
         tmax: &[f64],
         hits: &mut [Option<VoxelHit>],
-    ) {
+    ) -> Mask {
         let _ = recips;
-        for k in rays_of(m) {
+        rays_where(m, |k| {
             hits[k] = self.intersect(voxel, iso, &rays[k], tmin[k], tmax[k]);
-        }
+            hits[k].is_some()
+        })
     }
 
     /// True when [`Self::intersect`] would find a hit: the any-hit test of shadow and occlusion

@@ -19,7 +19,7 @@ use crate::trace::ray::GridRay;
 use crate::trace::source::Voxel;
 
 /// [`super::intersect_voxel_packet`]'s work for the rays `m` once the voxel's `setup` is known:
-/// `hits[k]` for each ray `k` of `m`.
+/// the rays of `m` with a hit, each in `hits[k]` (the other rays' entries are not written).
 ///
 /// # Safety
 /// The CPU must have AVX2.
@@ -34,7 +34,7 @@ pub(super) fn hits(
     tmin: &[f64],
     tmax: &[f64],
     hits: &mut [Option<VoxelHit>],
-) {
+) -> Mask {
     // One past the last ray of `m`: every ray the groups below read lies below it, so their
     // reads go unchecked.
     let end = (Mask::BITS - m.leading_zeros()) as usize;
@@ -50,24 +50,24 @@ pub(super) fn hits(
         w,
         recip: exact_recips(w),
     };
-    let mut left = rays_of(m);
-    while let Some(first) = left.next() {
-        // Up to four rays; a short group repeats its first ray in the spare lanes.
-        let mut ks = [first; 4];
-        let mut n = 1;
-        for k in left.by_ref().take(3) {
-            ks[n] = k;
-            n += 1;
-        }
+    let mut out: Mask = 0;
+    each_group(m, |ks, n| {
         // SAFETY: each `ks[i]` is a ray of `m`, below `end`, which all five slices reach.
         let lanes = unsafe { Lanes::new(rays, recips, tmin, tmax, ks) };
+        // Borrowed where it lies: moving the segments out of the `Option` copies them whole.
         let segs = lanes.segments(voxel, &extent, setup);
+        let Some(segs) = segs.as_ref() else {
+            return;
+        };
         for (i, &k) in ks[..n].iter().enumerate() {
-            let hit = segs.as_ref().and_then(|segs| segs.first_hit(i));
-            // SAFETY: as above.
-            unsafe { *hits.get_unchecked_mut(k) = hit };
+            if let Some(hit) = segs.first_hit(i) {
+                // SAFETY: as above.
+                unsafe { *hits.get_unchecked_mut(k) = Some(hit) };
+                out |= 1 << k;
+            }
         }
-    }
+    });
+    out
 }
 
 /// [`super::voxel_occluders_packet`]'s work for the rays `m` once the voxel's `setup` is known:
@@ -425,10 +425,13 @@ mod tests {
                 0x00f0_0f00_1234_5678,
             ] {
                 let mut got = vec![None; 64];
-                intersect_voxel_packet(&voxel, 0.1, &rays, &recips, m, &tmin, &tmax, &mut got);
+                let hit =
+                    intersect_voxel_packet(&voxel, 0.1, &rays, &recips, m, &tmin, &tmax, &mut got);
+                assert_eq!(hit & !m, 0, "voxel {v}: a ray outside the mask");
                 for k in rays_of(m) {
                     let want = intersect_voxel(&voxel, 0.1, &rays[k], tmin[k], tmax[k]);
-                    assert_eq!(got[k], want, "voxel {v} ray {k}");
+                    let got = if hit >> k & 1 == 1 { got[k] } else { None };
+                    assert_eq!(got, want, "voxel {v} ray {k}");
                     if want.is_some() {
                         hits += 1;
                     } else {

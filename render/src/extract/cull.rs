@@ -78,7 +78,7 @@ pub fn settle_in<D: AsRef<[u8]>>(
     (memo, near): (&mut VertexMemo, &mut AroundMemo),
     b: &IBox,
 ) -> Result<()> {
-    if !hood.has_pending() || b.is_empty() {
+    if !hood.has_pending() || b.is_empty() || !hood.may_pend_in(b) {
         return Ok(());
     }
     let (e, be) = (hood.cells.extent(), b.extent());

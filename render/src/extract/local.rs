@@ -182,6 +182,10 @@ pub struct Neighbourhood {
     coarse_pending: Vec<bool>,
     /// Cells of [`Self::coarse_pending`] still set.
     pending_left: usize,
+    /// A bit per row of cells (along x; row `y + z * rows per plane`, relative to
+    /// [`Self::cells`]): set when the fill flagged a cell of the row pending (the cell may have
+    /// been settled since), clear when no cell of the row is pending.
+    pending_rows: Vec<u64>,
     /// Per cell, for the isovalue of the last [`Self::classify`]: [`ABOVE`], [`BELOW`],
     /// [`NOT_LEAF`] and [`PENDING`] bits.
     codes: Vec<u8>,
@@ -259,6 +263,10 @@ impl Neighbourhood {
         self.coarse_pending.clear();
         self.coarse_pending.resize(n, false);
         self.pending_left = 0;
+        self.pending_rows.clear();
+        let e = g.extent();
+        let rows = (e[1].max(0) * e[2].max(0)) as usize;
+        self.pending_rows.resize(rows.div_ceil(64), 0);
         let domain = grid.domain(level);
         let s = grid.scale(level);
         let o = grid.offset();
@@ -304,12 +312,7 @@ impl Neighbourhood {
                 None => self.set_block(&block, UNCOVERED),
                 Some((_, lv)) if lv < level => {
                     self.set_block(&block, COARSER);
-                    self.for_block(&block, |h, i| {
-                        if !h.coarse_pending[i] {
-                            h.coarse_pending[i] = true;
-                            h.pending_left += 1;
-                        }
-                    });
+                    self.mark_pending(&block);
                 }
                 Some((brick, lv)) if lv > level => {
                     self.set_block(&block, FINER);
@@ -346,20 +349,7 @@ impl Neighbourhood {
             }
         }
         if !domain.contains_box(&g) {
-            let inside = g.intersect(&domain);
-            for z in g.lo[2]..g.hi[2] {
-                for y in g.lo[1]..g.hi[1] {
-                    let row = g.linear_index([g.lo[0], y, z]);
-                    let row_inside = (inside.lo[1]..inside.hi[1]).contains(&y)
-                        && (inside.lo[2]..inside.hi[2]).contains(&z);
-                    for k in 0..g.extent()[0] as usize {
-                        let x = g.lo[0] + k as i64;
-                        if !row_inside || !(inside.lo[0]..inside.hi[0]).contains(&x) {
-                            self.set_kinds(row + k..row + k + 1, OUTSIDE);
-                        }
-                    }
-                }
-            }
+            self.mark_outside(&g.intersect(&domain));
         }
         self.finish_fill();
         Ok(())
@@ -380,6 +370,7 @@ impl Neighbourhood {
         self.coarse_pending.clear();
         self.coarse_pending.resize(n, false);
         self.pending_left = 0;
+        self.pending_rows.clear();
     }
 
     /// Copies the cells of `tile` (a neighbourhood of the level being filled) that lie in the
@@ -663,13 +654,45 @@ impl Neighbourhood {
         Ok(())
     }
 
-    fn for_block(&mut self, block: &IBox, mut f: impl FnMut(&mut Self, usize)) {
+    /// Flags the cells of `block` (inside a coarser leaf cell) pending, counting those not
+    /// flagged yet.
+    fn mark_pending(&mut self, block: &IBox) {
         let g = self.cells;
+        let w = (block.hi[0] - block.lo[0]).max(0) as usize;
+        let ey = g.extent()[1];
         for z in block.lo[2]..block.hi[2] {
             for y in block.lo[1]..block.hi[1] {
+                let r = ((y - g.lo[1]) + (z - g.lo[2]) * ey) as usize;
+                self.pending_rows[r / 64] |= 1 << (r % 64);
                 let dst = g.linear_index([block.lo[0], y, z]);
-                for i in dst..dst + (block.hi[0] - block.lo[0]).max(0) as usize {
-                    f(self, i);
+                for p in &mut self.coarse_pending[dst..dst + w] {
+                    if !*p {
+                        *p = true;
+                        self.pending_left += 1;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Makes the cells of [`Self::cells`] outside box `inside` (the part inside the domain)
+    /// [`OUTSIDE`] cells: whole rows outside it, and the ends of the rows crossing it.
+    fn mark_outside(&mut self, inside: &IBox) {
+        let g = self.cells;
+        let w = g.extent()[0].max(0) as usize;
+        // The x-range of a crossing row inside the domain, as offsets in the row.
+        let x0 = (inside.lo[0] - g.lo[0]).clamp(0, w as i64) as usize;
+        let x1 = (inside.hi[0] - g.lo[0]).clamp(x0 as i64, w as i64) as usize;
+        for z in g.lo[2]..g.hi[2] {
+            for y in g.lo[1]..g.hi[1] {
+                let row = g.linear_index([g.lo[0], y, z]);
+                let row_inside = (inside.lo[1]..inside.hi[1]).contains(&y)
+                    && (inside.lo[2]..inside.hi[2]).contains(&z);
+                if row_inside {
+                    self.set_kinds(row..row + x0, OUTSIDE);
+                    self.set_kinds(row + x1..row + w, OUTSIDE);
+                } else {
+                    self.set_kinds(row..row + w, OUTSIDE);
                 }
             }
         }
@@ -758,6 +781,19 @@ impl Neighbourhood {
     #[inline]
     pub fn has_pending(&self) -> bool {
         self.pending_left > 0
+    }
+
+    /// False when no cell of box `b` (inside [`Self::cells`]) is pending: none of its rows
+    /// had a cell flagged pending by the fill. The rows of each plane of `b` are one run of
+    /// bits.
+    pub fn may_pend_in(&self, b: &IBox) -> bool {
+        let (g, ey) = (self.cells, self.cells.extent()[1]);
+        let words = &self.pending_rows;
+        (b.lo[2]..b.hi[2]).any(|z| {
+            let first = ((b.lo[1] - g.lo[1]) + (z - g.lo[2]) * ey) as usize;
+            let end = first + (b.hi[1] - b.lo[1]).max(0) as usize;
+            (first..end).any(|r| words.get(r / 64).is_some_and(|w| w >> (r % 64) & 1 == 1))
+        })
     }
 
     /// The codes of [`Self::classify`].

@@ -11,6 +11,7 @@ use amr_format::IBox;
 
 use super::band::fold_cell_bounds;
 use super::leaf_tree::{LeafTree, Met};
+use crate::reconstruct::grid::axes;
 
 use crate::reconstruct::Sampler;
 
@@ -271,8 +272,8 @@ impl Neighbourhood {
         let s = grid.scale(level);
         let o = grid.offset();
         let region = IBox::new(
-            [0, 1, 2].map(|a| g.lo[a] * s[a] - o[a]),
-            [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
+            axes(|a| g.lo[a] * s[a] - o[a]),
+            axes(|a| g.hi[a] * s[a] - o[a]),
         );
         let at_level = LevelCells::new(s, o);
         // The cells and ratio of each finer level met, found once per fill.
@@ -819,7 +820,7 @@ impl Neighbourhood {
         let e = self.cells.extent();
         let i = i as i64;
         let d = [i % e[0], i / e[0] % e[1], i / (e[0] * e[1])];
-        [0, 1, 2].map(|a| self.cells.lo[a] + d[a])
+        axes(|a| self.cells.lo[a] + d[a])
     }
 
     /// The value of the cell at index `i` (meaningful for [`LEAF`] cells).

@@ -12,8 +12,6 @@ pub struct IBox {
     pub hi: [i64; 3],
 }
 
-// The per-axis arrays are spelled out rather than built by `[0, 1, 2].map`: that map was
-// not always inlined, and a call per box operation showed in the profiles of many small leaves.
 impl IBox {
     /// A box from its inclusive lower and exclusive upper corners.
     pub const fn new(lo: [i64; 3], hi: [i64; 3]) -> Self {
@@ -23,11 +21,7 @@ impl IBox {
     /// Number of cells along each axis (0 for an empty or inverted axis).
     #[inline]
     pub fn extent(&self) -> [i64; 3] {
-        [
-            (self.hi[0] - self.lo[0]).max(0),
-            (self.hi[1] - self.lo[1]).max(0),
-            (self.hi[2] - self.lo[2]).max(0),
-        ]
+        [0, 1, 2].map(|a| (self.hi[a] - self.lo[a]).max(0))
     }
 
     /// True when the box holds no cell.
@@ -49,16 +43,8 @@ impl IBox {
     #[inline]
     pub fn intersect(&self, other: &IBox) -> IBox {
         IBox {
-            lo: [
-                self.lo[0].max(other.lo[0]),
-                self.lo[1].max(other.lo[1]),
-                self.lo[2].max(other.lo[2]),
-            ],
-            hi: [
-                self.hi[0].min(other.hi[0]),
-                self.hi[1].min(other.hi[1]),
-                self.hi[2].min(other.hi[2]),
-            ],
+            lo: [0, 1, 2].map(|a| self.lo[a].max(other.lo[a])),
+            hi: [0, 1, 2].map(|a| self.hi[a].min(other.hi[a])),
         }
     }
 
@@ -66,16 +52,8 @@ impl IBox {
     #[inline]
     pub fn union(&self, other: &IBox) -> IBox {
         IBox {
-            lo: [
-                self.lo[0].min(other.lo[0]),
-                self.lo[1].min(other.lo[1]),
-                self.lo[2].min(other.lo[2]),
-            ],
-            hi: [
-                self.hi[0].max(other.hi[0]),
-                self.hi[1].max(other.hi[1]),
-                self.hi[2].max(other.hi[2]),
-            ],
+            lo: [0, 1, 2].map(|a| self.lo[a].min(other.lo[a])),
+            hi: [0, 1, 2].map(|a| self.hi[a].max(other.hi[a])),
         }
     }
 
@@ -107,8 +85,8 @@ impl IBox {
     #[inline]
     pub fn grow(&self, by: [i64; 3]) -> IBox {
         IBox {
-            lo: [self.lo[0] - by[0], self.lo[1] - by[1], self.lo[2] - by[2]],
-            hi: [self.hi[0] + by[0], self.hi[1] + by[1], self.hi[2] + by[2]],
+            lo: [0, 1, 2].map(|a| self.lo[a] - by[a]),
+            hi: [0, 1, 2].map(|a| self.hi[a] + by[a]),
         }
     }
 
@@ -127,16 +105,8 @@ impl IBox {
     #[inline]
     pub fn coarsen(&self, factor: [i64; 3]) -> IBox {
         IBox {
-            lo: [
-                self.lo[0].div_euclid(factor[0]),
-                self.lo[1].div_euclid(factor[1]),
-                self.lo[2].div_euclid(factor[2]),
-            ],
-            hi: [
-                (self.hi[0] + factor[0] - 1).div_euclid(factor[0]),
-                (self.hi[1] + factor[1] - 1).div_euclid(factor[1]),
-                (self.hi[2] + factor[2] - 1).div_euclid(factor[2]),
-            ],
+            lo: [0, 1, 2].map(|a| self.lo[a].div_euclid(factor[a])),
+            hi: [0, 1, 2].map(|a| (self.hi[a] + factor[a] - 1).div_euclid(factor[a])),
         }
     }
 

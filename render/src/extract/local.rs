@@ -601,17 +601,21 @@ impl Neighbourhood {
                 along[last] = not_leaf[last - 1] | not_leaf[last];
             }
         }
-        // Along y, within each slab, then along z; `not_leaf` becomes the y-dilated cells.
+        // Along y, within each slab, then along z; `not_leaf` becomes the y-dilated cells. As
+        // along x: over all cells at once (a row apart), then each slab's first and last row
+        // again, which took their neighbour in the slab before or after.
         not_leaf.copy_from_slice(along);
-        for z in 0..e[2] {
-            for y in 0..e[1] {
-                let r = z * slab + y * row;
-                let dst = &mut not_leaf[r..r + row];
-                if y > 0 {
-                    or_into(dst, &along[r - row..r]);
-                }
-                if y + 1 < e[1] {
-                    or_into(dst, &along[r + row..r + 2 * row]);
+        if n > row {
+            or_into(&mut not_leaf[row..], &along[..n - row]);
+            or_into(&mut not_leaf[..n - row], &along[row..]);
+        }
+        if n > 0 {
+            let several = e[1] > 1;
+            for z in 0..e[2] {
+                let (first, last) = (z * slab, z * slab + slab - row);
+                for k in 0..row {
+                    not_leaf[first + k] = along[first + k] | (several && along[first + row + k]);
+                    not_leaf[last + k] = along[last + k] | (several && along[last - row + k]);
                 }
             }
         }
@@ -827,5 +831,52 @@ impl Neighbourhood {
     #[inline]
     pub fn value(&self, i: usize) -> f32 {
         self.lo[i]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`Neighbourhood::mark_near_boundary`] marks exactly the cells with a non-[`LEAF`] cell
+    /// among the up to 27 around them, on boxes of every shape from 1 to 5 cells per axis.
+    #[test]
+    fn near_boundary_is_the_27_cell_dilation() {
+        let mut seed = 12345u64;
+        for (ex, ey, ez) in
+            (1..=5).flat_map(|x| (1..=5).flat_map(move |y| (1..=5).map(move |z| (x, y, z))))
+        {
+            let cells = IBox::new([3, -2, 7], [3 + ex, -2 + ey, 7 + ez]);
+            let n = (ex * ey * ez) as usize;
+            let mut hood = Neighbourhood {
+                cells,
+                ..Neighbourhood::default()
+            };
+            hood.kind = (0..n)
+                .map(|_| {
+                    seed = seed
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    if seed >> 60 == 0 {
+                        COARSER
+                    } else {
+                        LEAF
+                    }
+                })
+                .collect();
+            hood.mark_near_boundary();
+            for i in 0..n {
+                let c = hood.cell_at(i);
+                let near = (0..27).any(|k| {
+                    let d = [k % 3 - 1, k / 3 % 3 - 1, k / 9 - 1];
+                    let q = [c[0] + d[0], c[1] + d[1], c[2] + d[2]];
+                    cells.contains_cell(q) && hood.kind[hood.index(q)] != LEAF
+                });
+                assert_eq!(
+                    hood.near_boundary[i], near,
+                    "box {ex}x{ey}x{ez}, cell {c:?}"
+                );
+            }
+        }
     }
 }

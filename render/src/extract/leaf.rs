@@ -176,8 +176,8 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     let o = grid.offset();
 
     // Merged dual cells: the lowest cell c0 is owned when its centre's finest cell is ours.
-    let first = axes(|a| -(-(frame.finest.lo[a] + o[a] - s[a] / 2)).div_euclid(s[a]));
-    let last = axes(|a| (frame.finest.hi[a] - 1 + o[a] - s[a] / 2).div_euclid(s[a]));
+    let first = [0, 1, 2].map(|a| -(-(frame.finest.lo[a] + o[a] - s[a] / 2)).div_euclid(s[a]));
+    let last = [0, 1, 2].map(|a| (frame.finest.hi[a] - 1 + o[a] - s[a] / 2).div_euclid(s[a]));
     let e = cells.extent();
     let step = [1usize, e[0] as usize, (e[0] * e[1]) as usize];
     let offsets: [usize; 8] = std::array::from_fn(|n| (0..3).map(|a| (n >> a & 1) * step[a]).sum());

@@ -9,4 +9,4 @@ mod view;
 
 pub use build::{build, KdTree, TreeBrick};
 pub use ranges::{leaf_ranges, widen_range};
-pub use view::{KdNode, TreeView};
+pub use view::{leaf_bounds, KdNode, TreeView};

@@ -91,10 +91,7 @@ impl<'a> LeafInfo<'a> {
     fn of(l: &KdLeaf, brick_list: &'a [U32]) -> Self {
         let start = l.brick_start.get() as usize;
         LeafInfo {
-            bounds: IBox::new(
-                l.lo.map(|v| i64::from(v.get())),
-                l.hi.map(|v| i64::from(v.get())),
-            ),
+            bounds: crate::kdtree::leaf_bounds(l),
             bricks: &brick_list[start..start + l.brick_count.get() as usize],
         }
     }

@@ -167,10 +167,17 @@ impl<'a> TreeView<'a> {
     /// The box of leaf `leaf` in finest-level cells relative to the domain.
     #[inline]
     pub fn leaf_box(&self, leaf: u32) -> IBox {
-        let l = &self.leaves[leaf as usize];
-        IBox::new(
-            l.lo.map(|v| i64::from(v.get())),
-            l.hi.map(|v| i64::from(v.get())),
-        )
+        leaf_bounds(&self.leaves[leaf as usize])
     }
+}
+
+/// The box of a stored leaf, its corners widened to `i64` (spelled out per axis: a map over the
+/// arrays was not always inlined, and each leaf's box is read at open and by every walk).
+#[inline]
+pub fn leaf_bounds(l: &KdLeaf) -> IBox {
+    let (lo, hi) = (&l.lo, &l.hi);
+    IBox::new(
+        [lo[0].get().into(), lo[1].get().into(), lo[2].get().into()],
+        [hi[0].get().into(), hi[1].get().into(), hi[2].get().into()],
+    )
 }

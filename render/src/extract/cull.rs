@@ -18,6 +18,7 @@ use super::band::{AroundMemo, CoarseBounds};
 use super::blocks::{level_box, BlockRanges};
 use super::leaf_tree::LeafTree;
 use super::local::{Neighbourhood, ABOVE, BELOW, COARSER, PENDING};
+use crate::reconstruct::grid::axes;
 use crate::reconstruct::sampler::Locate;
 use crate::reconstruct::{Sampler, VertexMemo};
 
@@ -78,7 +79,7 @@ pub fn settle_in<D: AsRef<[u8]>>(
     (memo, near): (&mut VertexMemo, &mut AroundMemo),
     b: &IBox,
 ) -> Result<()> {
-    if !hood.has_pending() || b.is_empty() {
+    if !hood.has_pending() || b.is_empty() || !hood.may_pend_in(b) {
         return Ok(());
     }
     let (e, be) = (hood.cells.extent(), b.extent());
@@ -118,7 +119,7 @@ fn settle_coarse<D: AsRef<[u8]>>(
     let s = grid.scale(level);
     let o = grid.offset();
     let x = hood.cell_at(j);
-    let lower = [0, 1, 2].map(|a| x[a] * s[a] - o[a]);
+    let lower = axes(|a| x[a] * s[a] - o[a]);
     let Some(q) = sampler.locate_cell(lower)? else {
         hood.settle_coarse(j, (f32::INFINITY, f32::NEG_INFINITY), iso);
         return Ok(());

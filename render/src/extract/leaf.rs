@@ -193,7 +193,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
             last,
             width,
         };
-        if span <= FLAT_SPAN * width * dual_rows {
+        if span <= FLAT_SPAN * width * dual_rows || span <= FLAT_CELLS {
             let duals = dual_codes_flat(&codes[lowest..lowest + span], step, rows);
             scan.emit(
                 |[y, z]| cells.linear_index([first[0], y, z]) - lowest,
@@ -378,6 +378,11 @@ fn boundary_corners<D: AsRef<[u8]>>(
 /// ([`dual_codes_by_row`]), as for a small leaf inside a neighbourhood filled for a run of
 /// leaves.
 const FLAT_SPAN: usize = 4;
+
+/// A stretch of at most this many cells is coded whole ([`dual_codes_flat`]) whatever its
+/// share of dual cells: a small leaf's few rows cost more one by one, each with its setup, than
+/// three vectorized passes over its neighbourhood.
+const FLAT_CELLS: usize = 512;
 
 /// The code of every dual cell whose lowest cell lies in `codes` (cell codes, of a stretch of
 /// the neighbourhood whose rows and slabs are `step[1]` and `step[2]` cells apart), at the

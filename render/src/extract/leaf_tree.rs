@@ -10,7 +10,7 @@
 use std::convert::Infallible;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use amr_format::kdtree::{KdNode, TreeView};
+use amr_format::kdtree::{leaf_bounds, KdNode, TreeView};
 use amr_format::IBox;
 
 use super::blocks::{level_box, scan, BlockRanges};
@@ -116,7 +116,7 @@ impl LeafTree {
         let mut order: Vec<u32> = Vec::with_capacity(n as usize);
         let tree = sampler.file().tree();
         let leaves = Leaves {
-            boxes: sampler.file().leaves().map(|l| l.bounds).collect(),
+            boxes: tree.leaves.iter().map(leaf_bounds).collect(),
             levels: (0..n)
                 .map(|l| sampler.leaf_top(l).map_or(u32::MAX, |(_, lv)| lv))
                 .collect(),

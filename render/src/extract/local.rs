@@ -11,6 +11,7 @@ use amr_format::IBox;
 
 use super::band::fold_cell_bounds;
 use super::leaf_tree::{LeafTree, Met};
+use crate::reconstruct::grid::axes;
 
 use crate::reconstruct::Sampler;
 
@@ -182,6 +183,10 @@ pub struct Neighbourhood {
     coarse_pending: Vec<bool>,
     /// Cells of [`Self::coarse_pending`] still set.
     pending_left: usize,
+    /// A bit per row of cells (along x; row `y + z * rows per plane`, relative to
+    /// [`Self::cells`]): set when the fill flagged a cell of the row pending (the cell may have
+    /// been settled since), clear when no cell of the row is pending.
+    pending_rows: Vec<u64>,
     /// Per cell, for the isovalue of the last [`Self::classify`]: [`ABOVE`], [`BELOW`],
     /// [`NOT_LEAF`] and [`PENDING`] bits.
     codes: Vec<u8>,
@@ -259,12 +264,16 @@ impl Neighbourhood {
         self.coarse_pending.clear();
         self.coarse_pending.resize(n, false);
         self.pending_left = 0;
+        self.pending_rows.clear();
+        let e = g.extent();
+        let rows = (e[1].max(0) * e[2].max(0)) as usize;
+        self.pending_rows.resize(rows.div_ceil(64), 0);
         let domain = grid.domain(level);
         let s = grid.scale(level);
         let o = grid.offset();
         let region = IBox::new(
-            [0, 1, 2].map(|a| g.lo[a] * s[a] - o[a]),
-            [0, 1, 2].map(|a| g.hi[a] * s[a] - o[a]),
+            axes(|a| g.lo[a] * s[a] - o[a]),
+            axes(|a| g.hi[a] * s[a] - o[a]),
         );
         let at_level = LevelCells::new(s, o);
         // The cells and ratio of each finer level met, found once per fill.
@@ -304,12 +313,7 @@ impl Neighbourhood {
                 None => self.set_block(&block, UNCOVERED),
                 Some((_, lv)) if lv < level => {
                     self.set_block(&block, COARSER);
-                    self.for_block(&block, |h, i| {
-                        if !h.coarse_pending[i] {
-                            h.coarse_pending[i] = true;
-                            h.pending_left += 1;
-                        }
-                    });
+                    self.mark_pending(&block);
                 }
                 Some((brick, lv)) if lv > level => {
                     self.set_block(&block, FINER);
@@ -346,20 +350,7 @@ impl Neighbourhood {
             }
         }
         if !domain.contains_box(&g) {
-            let inside = g.intersect(&domain);
-            for z in g.lo[2]..g.hi[2] {
-                for y in g.lo[1]..g.hi[1] {
-                    let row = g.linear_index([g.lo[0], y, z]);
-                    let row_inside = (inside.lo[1]..inside.hi[1]).contains(&y)
-                        && (inside.lo[2]..inside.hi[2]).contains(&z);
-                    for k in 0..g.extent()[0] as usize {
-                        let x = g.lo[0] + k as i64;
-                        if !row_inside || !(inside.lo[0]..inside.hi[0]).contains(&x) {
-                            self.set_kinds(row + k..row + k + 1, OUTSIDE);
-                        }
-                    }
-                }
-            }
+            self.mark_outside(&g.intersect(&domain));
         }
         self.finish_fill();
         Ok(())
@@ -380,6 +371,7 @@ impl Neighbourhood {
         self.coarse_pending.clear();
         self.coarse_pending.resize(n, false);
         self.pending_left = 0;
+        self.pending_rows.clear();
     }
 
     /// Copies the cells of `tile` (a neighbourhood of the level being filled) that lie in the
@@ -609,17 +601,21 @@ impl Neighbourhood {
                 along[last] = not_leaf[last - 1] | not_leaf[last];
             }
         }
-        // Along y, within each slab, then along z; `not_leaf` becomes the y-dilated cells.
+        // Along y, within each slab, then along z; `not_leaf` becomes the y-dilated cells. As
+        // along x: over all cells at once (a row apart), then each slab's first and last row
+        // again, which took their neighbour in the slab before or after.
         not_leaf.copy_from_slice(along);
-        for z in 0..e[2] {
-            for y in 0..e[1] {
-                let r = z * slab + y * row;
-                let dst = &mut not_leaf[r..r + row];
-                if y > 0 {
-                    or_into(dst, &along[r - row..r]);
-                }
-                if y + 1 < e[1] {
-                    or_into(dst, &along[r + row..r + 2 * row]);
+        if n > row {
+            or_into(&mut not_leaf[row..], &along[..n - row]);
+            or_into(&mut not_leaf[..n - row], &along[row..]);
+        }
+        if n > 0 {
+            let several = e[1] > 1;
+            for z in 0..e[2] {
+                let (first, last) = (z * slab, z * slab + slab - row);
+                for k in 0..row {
+                    not_leaf[first + k] = along[first + k] | (several && along[first + row + k]);
+                    not_leaf[last + k] = along[last + k] | (several && along[last - row + k]);
                 }
             }
         }
@@ -663,13 +659,45 @@ impl Neighbourhood {
         Ok(())
     }
 
-    fn for_block(&mut self, block: &IBox, mut f: impl FnMut(&mut Self, usize)) {
+    /// Flags the cells of `block` (inside a coarser leaf cell) pending, counting those not
+    /// flagged yet.
+    fn mark_pending(&mut self, block: &IBox) {
         let g = self.cells;
+        let w = (block.hi[0] - block.lo[0]).max(0) as usize;
+        let ey = g.extent()[1];
         for z in block.lo[2]..block.hi[2] {
             for y in block.lo[1]..block.hi[1] {
+                let r = ((y - g.lo[1]) + (z - g.lo[2]) * ey) as usize;
+                self.pending_rows[r / 64] |= 1 << (r % 64);
                 let dst = g.linear_index([block.lo[0], y, z]);
-                for i in dst..dst + (block.hi[0] - block.lo[0]).max(0) as usize {
-                    f(self, i);
+                for p in &mut self.coarse_pending[dst..dst + w] {
+                    if !*p {
+                        *p = true;
+                        self.pending_left += 1;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Makes the cells of [`Self::cells`] outside box `inside` (the part inside the domain)
+    /// [`OUTSIDE`] cells: whole rows outside it, and the ends of the rows crossing it.
+    fn mark_outside(&mut self, inside: &IBox) {
+        let g = self.cells;
+        let w = g.extent()[0].max(0) as usize;
+        // The x-range of a crossing row inside the domain, as offsets in the row.
+        let x0 = (inside.lo[0] - g.lo[0]).clamp(0, w as i64) as usize;
+        let x1 = (inside.hi[0] - g.lo[0]).clamp(x0 as i64, w as i64) as usize;
+        for z in g.lo[2]..g.hi[2] {
+            for y in g.lo[1]..g.hi[1] {
+                let row = g.linear_index([g.lo[0], y, z]);
+                let row_inside = (inside.lo[1]..inside.hi[1]).contains(&y)
+                    && (inside.lo[2]..inside.hi[2]).contains(&z);
+                if row_inside {
+                    self.set_kinds(row..row + x0, OUTSIDE);
+                    self.set_kinds(row + x1..row + w, OUTSIDE);
+                } else {
+                    self.set_kinds(row..row + w, OUTSIDE);
                 }
             }
         }
@@ -760,6 +788,19 @@ impl Neighbourhood {
         self.pending_left > 0
     }
 
+    /// False when no cell of box `b` (inside [`Self::cells`]) is pending: none of its rows
+    /// had a cell flagged pending by the fill. The rows of each plane of `b` are one run of
+    /// bits.
+    pub fn may_pend_in(&self, b: &IBox) -> bool {
+        let (g, ey) = (self.cells, self.cells.extent()[1]);
+        let words = &self.pending_rows;
+        (b.lo[2]..b.hi[2]).any(|z| {
+            let first = ((b.lo[1] - g.lo[1]) + (z - g.lo[2]) * ey) as usize;
+            let end = first + (b.hi[1] - b.lo[1]).max(0) as usize;
+            (first..end).any(|r| words.get(r / 64).is_some_and(|w| w >> (r % 64) & 1 == 1))
+        })
+    }
+
     /// The codes of [`Self::classify`].
     #[inline]
     pub fn codes(&self) -> &[u8] {
@@ -783,12 +824,59 @@ impl Neighbourhood {
         let e = self.cells.extent();
         let i = i as i64;
         let d = [i % e[0], i / e[0] % e[1], i / (e[0] * e[1])];
-        [0, 1, 2].map(|a| self.cells.lo[a] + d[a])
+        axes(|a| self.cells.lo[a] + d[a])
     }
 
     /// The value of the cell at index `i` (meaningful for [`LEAF`] cells).
     #[inline]
     pub fn value(&self, i: usize) -> f32 {
         self.lo[i]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`Neighbourhood::mark_near_boundary`] marks exactly the cells with a non-[`LEAF`] cell
+    /// among the up to 27 around them, on boxes of every shape from 1 to 5 cells per axis.
+    #[test]
+    fn near_boundary_is_the_27_cell_dilation() {
+        let mut seed = 12345u64;
+        for (ex, ey, ez) in
+            (1..=5).flat_map(|x| (1..=5).flat_map(move |y| (1..=5).map(move |z| (x, y, z))))
+        {
+            let cells = IBox::new([3, -2, 7], [3 + ex, -2 + ey, 7 + ez]);
+            let n = (ex * ey * ez) as usize;
+            let mut hood = Neighbourhood {
+                cells,
+                ..Neighbourhood::default()
+            };
+            hood.kind = (0..n)
+                .map(|_| {
+                    seed = seed
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    if seed >> 60 == 0 {
+                        COARSER
+                    } else {
+                        LEAF
+                    }
+                })
+                .collect();
+            hood.mark_near_boundary();
+            for i in 0..n {
+                let c = hood.cell_at(i);
+                let near = (0..27).any(|k| {
+                    let d = [k % 3 - 1, k / 3 % 3 - 1, k / 9 - 1];
+                    let q = [c[0] + d[0], c[1] + d[1], c[2] + d[2]];
+                    cells.contains_cell(q) && hood.kind[hood.index(q)] != LEAF
+                });
+                assert_eq!(
+                    hood.near_boundary[i], near,
+                    "box {ex}x{ey}x{ez}, cell {c:?}"
+                );
+            }
+        }
     }
 }

@@ -31,8 +31,10 @@ const TILE_SHIFT: u32 = 3;
 pub const TILE: i64 = 1 << TILE_SHIFT;
 /// File cells per leaf, on average, at most, for the tiles to be used.
 const MAX_MEAN_CELLS: u64 = 32;
-/// Tiles kept per thread, at most (about 7 KB each).
-const SLOTS: usize = 8192;
+/// Tiles kept per thread, at most (about 7 KB each). Few enough that a thread's tiles reuse
+/// their memory: every page first touched costs a fault that, on the small boxes tiles are for,
+/// outweighs refilling a tile pushed out (`docs/benchmarks-extract.md`, "Tile slots").
+const SLOTS: usize = 1024;
 
 /// One thread's tiles, each a neighbourhood filled with a tile's cells.
 #[derive(Default)]

@@ -269,12 +269,10 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     /// The voxel `r` names, from `cache` when it holds it.
     #[inline]
     fn voxel_in(&self, cache: &mut VoxelCache, r: u64) -> Voxel {
-        let slot = cache_slot(r);
-        let (key, v) = cache.slots[slot];
-        if key == r && r != u64::MAX {
-            return v;
+        match cache.held(r) {
+            Ok(v) => v,
+            Err(slot) => self.decode_into(cache, slot, r),
         }
-        self.decode_into(cache, slot, r)
     }
 
     /// The octant voxel `r` names ([`Self::voxel_in`]), or `None` when it is not in `cache`
@@ -289,11 +287,10 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         r: u64,
         keep: &mut dyn FnMut([f64; 3], [f64; 3]) -> bool,
     ) -> Option<Voxel> {
-        let slot = cache_slot(r);
-        let (key, v) = cache.slots[slot];
-        if key == r && r != u64::MAX {
-            return Some(v);
-        }
+        let slot = match cache.held(r) {
+            Ok(v) => return Some(v),
+            Err(slot) => slot,
+        };
         let last = &mut cache.leaves[leaf_slot(r)];
         let at = match e.locate_with(r, last) {
             Ok(at) => at,
@@ -342,11 +339,17 @@ fn leaf_slot(r: u64) -> usize {
     (r >> 32) as usize % LEAF_SLOTS
 }
 
-/// The slot of ref `r` in a thread's voxel cache: Fibonacci hashing of the ref, so that
-/// neighbouring refs land in different slots.
-#[inline(always)]
-fn cache_slot(r: u64) -> usize {
-    (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS
+impl VoxelCache {
+    /// The voxel of ref `r` if this cache holds it, else the slot it goes in: Fibonacci
+    /// hashing of the ref, so that neighbouring refs land in different slots.
+    #[inline(always)]
+    fn held(&self, r: u64) -> std::result::Result<Voxel, usize> {
+        let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
+        match self.slots[slot] {
+            (key, v) if key == r && r != u64::MAX => Ok(v),
+            _ => Err(slot),
+        }
+    }
 }
 
 impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {

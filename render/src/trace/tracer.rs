@@ -5,7 +5,7 @@ use crate::bvh::packet::{rays_of, rays_where, Mask, PACKET};
 use crate::camera::dot;
 use crate::trace::ray::GridRay;
 use crate::trace::source::{GridFrame, VoxelSource};
-use crate::trace::traverse::{AnyHitRays, Hit, Surface};
+use crate::trace::traverse::{bvh_pad, AnyHitRays, Hit, Surface};
 
 /// A hit as the shader sees it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -264,7 +264,12 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
     }
 
     fn next_hits(&self, i: usize, rays: &[GridRay], tmax: &[f64], out: &mut [Option<SurfaceHit>]) {
+        let bounds = self.reach(i);
         self.hits_by_packets(rays, tmax, out, |_, rays, tmax, hits| {
+            if misses_all(bounds, rays, tmax) {
+                hits.fill(None);
+                return;
+            }
             let from_origin = &[0.0; PACKET][..rays.len()];
             self.surfaces[i].closest_hits(self.src, rays, from_origin, tmax, hits)
         });
@@ -341,6 +346,14 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
 }
 
 impl<S: VoxelSource + ?Sized> HybridTracer<'_, S> {
+    /// The box surface `i`'s hits lie in: its voxels' bounds grown by [`REACH_PADS`] times the
+    /// BVH's pad (`None` when it has no voxel).
+    fn reach(&self, i: usize) -> Option<([f64; 3], [f64; 3])> {
+        let grow = REACH_PADS * bvh_pad(&self.src.frame());
+        let (lo, hi) = self.surfaces[i].bvh.voxel_bounds()?;
+        Some((lo.map(|x| x - grow), hi.map(|x| x + grow)))
+    }
+
     /// The surface hits of `rays` up to `tmax` into `out`, a packet at a time: `query(k, rays,
     /// tmax, hits)` finds the hits of the packet whose first ray is ray `k`.
     #[inline(always)]
@@ -393,6 +406,24 @@ impl<S: VoxelSource + ?Sized> HybridTracer<'_, S> {
             r: h.r,
         }
     }
+}
+
+/// How many BVH pads ([`bvh_pad`]) the box a surface's hits are looked for in is grown by
+/// around its voxels' bounds: far more than the rounding of a ray's clip to a voxel, so a ray
+/// that misses the grown box meets no voxel, and the walk would find no candidate for it.
+const REACH_PADS: f64 = 4.0;
+
+/// True when no ray of `rays` meets `reach` (a surface's [`HybridTracer::reach`]) with `t` in
+/// `[0, tmax[k]]`: the surface has no hit for any of them, which a packet of primary rays that
+/// passes beside a surface (most of a frame's empty tiles) learns here without its BVH rays
+/// and walk.
+fn misses_all(reach: Option<([f64; 3], [f64; 3])>, rays: &[GridRay], tmax: &[f64]) -> bool {
+    let Some((lo, hi)) = reach else {
+        return true;
+    };
+    rays.iter()
+        .zip(tmax)
+        .all(|(ray, &tmax)| ray.clip_with(&ray.recip(), lo, hi, 0.0, tmax).is_none())
 }
 
 /// The gradient of the reconstruction at `p` by central differences `h[a]` apart on axis `a`

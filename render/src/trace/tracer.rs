@@ -478,3 +478,42 @@ pub fn central_difference_given(
     }
     Some(g)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ray(o: [f64; 3], d: [f64; 3]) -> GridRay {
+        GridRay { o, d }
+    }
+
+    #[test]
+    fn a_packet_misses_all_only_when_every_ray_passes_beside_the_box() {
+        let reach = Some(([1.0, 1.0, 1.0], [2.0, 2.0, 2.0]));
+        let o = [0.0, 0.0, 0.0];
+        let away = [
+            ray(o, [-1.0, 0.2, 0.1]),
+            ray(o, [1.0, 0.0, 0.0]),
+            ray(o, [0.0, 0.0, 1.0]),
+        ];
+        let inf = [f64::INFINITY; 3];
+        assert!(misses_all(reach, &away, &inf));
+        // One ray through the box is enough to walk the packet.
+        let mut some = away;
+        some[1] = ray(o, [1.0, 1.0, 1.2]);
+        assert!(!misses_all(reach, &some, &inf));
+        // ... unless its search ends before the box.
+        assert!(misses_all(
+            reach,
+            &some,
+            &[f64::INFINITY, 0.5, f64::INFINITY]
+        ));
+        // A ray parallel to an axis, inside and outside that axis's slab.
+        let o = [0.0, 1.5, 1.5];
+        assert!(!misses_all(reach, &[ray(o, [1.0, 0.0, 0.0])], &inf));
+        let o = [0.0, 2.5, 1.5];
+        assert!(misses_all(reach, &[ray(o, [1.0, 0.0, 0.0])], &inf));
+        // A surface with no voxels is missed by every ray.
+        assert!(misses_all(None, &some, &inf));
+    }
+}

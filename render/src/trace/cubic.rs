@@ -105,6 +105,16 @@ impl Cubic {
         (f1.abs() <= tol).then_some(1.0)
     }
 
+    /// [`Self::has_root`] on `[0, 1]`, given the first step's values as
+    /// [`Self::first_root_on_unit`] takes them.
+    #[inline]
+    pub fn has_root_on_unit(&self, monotonic: bool, f0: f64, f1: f64, tol: f64) -> bool {
+        if !monotonic {
+            return self.has_root(0.0, 1.0, tol);
+        }
+        f0.abs() <= tol || (f0 < 0.0) != (f1 < 0.0) || f1.abs() <= tol
+    }
+
     /// True exactly when [`Self::first_root`] finds a root, without refining it (for any-hit
     /// queries, which need no position).
     #[inline]

@@ -186,7 +186,12 @@ impl Segments {
             && Cubic {
                 c: [0, 1, 2, 3].map(|j| self.c[j].0[i]),
             }
-            .has_root(0.0, 1.0, self.tol)
+            .has_root_on_unit(
+                self.monotonic >> i & 1 != 0,
+                self.f0.0[i],
+                self.f1.0[i],
+                self.tol,
+            )
     }
 }
 

@@ -88,6 +88,33 @@ impl Cubic {
         })
     }
 
+    /// [`Self::first_root`] on `[0, 1]`, given what its first step computes there: whether the
+    /// cubic is monotonic on it (`monotonic_on(0, 1)`) and its values at 0 and 1 (`eval`), bit
+    /// for bit (the packet test computes them four lanes at a time).
+    #[inline(always)]
+    pub fn first_root_on_unit(&self, monotonic: bool, f0: f64, f1: f64, tol: f64) -> Option<f64> {
+        if !monotonic {
+            return self.first_root(0.0, 1.0, tol);
+        }
+        if f0.abs() <= tol {
+            return Some(0.0);
+        }
+        if (f0 < 0.0) != (f1 < 0.0) {
+            return Some(self.refine(0.0, f0, 1.0, f1, ROOT_TOL * (1.0 - 0.0)));
+        }
+        (f1.abs() <= tol).then_some(1.0)
+    }
+
+    /// [`Self::has_root`] on `[0, 1]`, given the first step's values as
+    /// [`Self::first_root_on_unit`] takes them.
+    #[inline(always)]
+    pub fn has_root_on_unit(&self, monotonic: bool, f0: f64, f1: f64, tol: f64) -> bool {
+        if !monotonic {
+            return self.has_root(0.0, 1.0, tol);
+        }
+        f0.abs() <= tol || (f0 < 0.0) != (f1 < 0.0) || f1.abs() <= tol
+    }
+
     /// True exactly when [`Self::first_root`] finds a root, without refining it (for any-hit
     /// queries, which need no position).
     #[inline]

@@ -148,6 +148,11 @@ struct Segments {
     q: [PerLane; 3],
     c: [PerLane; 4],
     tol: f64,
+    /// The lanes whose cubic is monotonic on `[0, 1]` (`Cubic::monotonic_on`), and each
+    /// cubic's values at 0 and 1 (`Cubic::eval`): the first step of [`Cubic::first_root`].
+    monotonic: i32,
+    f0: PerLane,
+    f1: PerLane,
 }
 
 impl Segments {
@@ -161,7 +166,8 @@ impl Segments {
         let cubic = Cubic {
             c: [0, 1, 2, 3].map(|j| self.c[j].0[i]),
         };
-        let s = cubic.first_root(0.0, 1.0, self.tol)?;
+        let monotonic = self.monotonic >> i & 1 != 0;
+        let s = cubic.first_root_on_unit(monotonic, self.f0.0[i], self.f1.0[i], self.tol)?;
         Some(Segment::hit_at(
             s,
             (self.ta.0[i], self.tb.0[i]),
@@ -180,7 +186,12 @@ impl Segments {
             && Cubic {
                 c: [0, 1, 2, 3].map(|j| self.c[j].0[i]),
             }
-            .has_root(0.0, 1.0, self.tol)
+            .has_root_on_unit(
+                self.monotonic >> i & 1 != 0,
+                self.f0.0[i],
+                self.f1.0[i],
+                self.tol,
+            )
     }
 }
 
@@ -308,6 +319,7 @@ impl Lanes {
         if pass == 0 {
             return None;
         }
+        let (monotonic, f0, f1) = first_step(&c);
         Some(Segments {
             pass,
             ta: PerLane::of(ta),
@@ -316,8 +328,46 @@ impl Lanes {
             q: q.map(|v| PerLane::of(v)),
             c: c.map(|v| PerLane::of(v)),
             tol: setup.tol,
+            monotonic,
+            f0: PerLane::of(f0),
+            f1: PerLane::of(f1),
         })
     }
+}
+
+/// The first step of [`Cubic::first_root`] on `[0, 1]` lane by lane, with the scalar code's
+/// operations in its order (`Cubic::monotonic_on(0, 1)`, `Cubic::eval` at 0 and 1): the lanes
+/// whose cubic `c` is monotonic there, and the values at 0 and 1.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn first_step(c: &[__m256d; 4]) -> (i32, __m256d, __m256d) {
+    use std::arch::x86_64::{_mm256_add_pd as add, _mm256_mul_pd as mul, _mm256_set1_pd as set};
+    let (zero, one) = (_mm256_setzero_pd(), set(1.0));
+    let slope = |s: __m256d| {
+        add(
+            mul(add(mul(mul(set(3.0), c[3]), s), mul(set(2.0), c[2])), s),
+            c[1],
+        )
+    };
+    let eval = |s: __m256d| add(mul(add(mul(add(mul(c[3], s), c[2]), s), c[1]), s), c[0]);
+    // `half` is `0.5 * (1 - 0)`, `a` is 0.
+    let d0 = slope(zero);
+    let d1 = add(
+        d0,
+        mul(
+            set(0.5),
+            add(mul(set(2.0), c[2]), mul(mul(set(6.0), c[3]), zero)),
+        ),
+    );
+    let d2 = slope(one);
+    let margin = mul(set(1e-9), add(add(abs(d0), abs(d1)), abs(d2)));
+    let below = _mm256_xor_pd(margin, set(-0.0));
+    let gt = |d: __m256d| _mm256_cmp_pd::<_CMP_GT_OQ>(d, margin);
+    let lt = |d: __m256d| _mm256_cmp_pd::<_CMP_LT_OQ>(d, below);
+    let rising = _mm256_and_pd(_mm256_and_pd(gt(d0), gt(d1)), gt(d2));
+    let falling = _mm256_and_pd(_mm256_and_pd(lt(d0), lt(d1)), lt(d2));
+    let monotonic = _mm256_movemask_pd(_mm256_or_pd(rising, falling));
+    (monotonic, eval(zero), eval(one))
 }
 
 /// [`super::along_segment`] lane by lane: the cubic's coefficients, constant term first.

@@ -4,10 +4,11 @@
 //! finest cells the vertex is nudged into. Per axis those cells lie at four finest-level
 //! coordinates (the two faces of the octant's box, nudged toward `-` and toward `+`), so all the
 //! corners read from one 4x4x4 table of finest cells, each cell used by exactly one corner. The
-//! table is filled kd-tree leaf by kd-tree leaf: the entries in a leaf's box are read at once
-//! from its finest brick (which holds every cell of the leaf), by one index part per axis and
-//! coordinate. The corners then follow from the table in [`Sampler::vertex_value_in`]'s order
-//! and operations, so the values are its values bit for bit.
+//! table is filled once, position by position (the cell and its seven neighbours of the same
+//! level around the octant's outer corner): a position whose located leaf cell covers it whole
+//! fills its entries with that cell, the others read their cells from the position's or the
+//! octant's kd-tree leaf, or locate them. The corners then follow from the table in
+//! [`Sampler::vertex_value_in`]'s order and operations, so the values are its values bit for bit.
 
 use amr_format::IBox;
 
@@ -15,8 +16,37 @@ use crate::error::Result;
 
 use super::grid::axes;
 use super::interp::avg8;
-use super::sampler::{LeafCell, Locate, Octant, Sampler, VertexMemo};
+use super::sampler::{LeafCell, Locate, Octant, Position, Sampler, VertexMemo};
 use super::stitch::Stitches;
+
+/// A placeholder for the unused slots of a fixed array of leaf cells.
+const NO_CELL: LeafCell = LeafCell {
+    leaf: 0,
+    brick: 0,
+    level: 0,
+    cell: [0; 3],
+    value: 0.0,
+};
+
+/// The finest cells of the table along one axis.
+#[derive(Clone, Copy, Default)]
+struct Axis {
+    /// Per table index `2 * face + dir`: the finest coordinate (clamped into the domain).
+    at: [i64; 4],
+    /// Per table index: the axis's bit when the cell lies outside the octant's own cell.
+    out: [usize; 4],
+}
+
+/// Branch-free: true when finest cell `p` lies in box `b`.
+#[inline(always)]
+pub(super) fn holds(b: &IBox, p: [i64; 3]) -> bool {
+    (b.lo[0] <= p[0])
+        & (p[0] < b.hi[0])
+        & (b.lo[1] <= p[1])
+        & (p[1] < b.hi[1])
+        & (b.lo[2] <= p[2])
+        & (p[2] < b.hi[2])
+}
 
 /// Per axis: the sides of a vertex (bit `n` for side `n`, as in [`Sampler::nudges`]) nudged
 /// toward `-` on it.
@@ -44,252 +74,212 @@ pub(super) fn distinct_sides(same: usize) -> u8 {
     })
 }
 
-/// Per axis: the table entries whose index along it is `i` (entry `x + 4 y + 16 z`), for
-/// `i = 0` (shifted by `i << 2 a` for the others).
-const SLAB: [u64; 3] = [0x1111_1111_1111_1111, 0x000F_000F_000F_000F, 0xFFFF];
-
-/// The entries whose index along axis `a` is `i`.
-#[inline(always)]
-const fn slab(a: usize, i: usize) -> u64 {
-    SLAB[a] << (i << (2 * a))
-}
-
-/// Per axis and 4-bit set of indices along it: the entries whose index along the axis is in
-/// the set.
-const ALONG: [[u64; 16]; 3] = {
-    let mut t = [[0u64; 16]; 3];
-    let mut a = 0;
-    while a < 3 {
-        let mut set = 0;
-        while set < 16 {
-            let mut i = 0;
-            while i < 4 {
-                if set >> i & 1 == 1 {
-                    t[a][set] |= slab(a, i);
-                }
-                i += 1;
-            }
-            set += 1;
-        }
-        a += 1;
-    }
-    t
-};
-
-/// The table's finest coordinates: per axis, per index `2 * face + dir` along it (in
-/// increasing order).
-type Coords = [[i64; 4]; 3];
-
-/// The table entries whose finest cell lies in box `b`: per axis the coordinates are in
-/// increasing order, so those in the box are the indices from the number below `b.lo` to the
-/// number below `b.hi`.
-#[inline(always)]
-fn entries_in(b: &IBox, at: &Coords) -> u64 {
-    let mut m = u64::MAX;
-    for a in 0..3 {
-        let c = &at[a];
-        let below = |x: i64| {
-            usize::from(c[0] < x)
-                + usize::from(c[1] < x)
-                + usize::from(c[2] < x)
-                + usize::from(c[3] < x)
-        };
-        let set = (1usize << below(b.hi[a])) - (1usize << below(b.lo[a]));
-        m &= ALONG[a][set & 15];
-    }
-    m
-}
-
-/// The kd-tree leaves an octant's table was filled from: per leaf its box, its level and the
-/// entries it filled.
-struct Met {
-    leaves: [(u32, IBox); 8],
-    level: [u32; 8],
-    entries: [u64; 8],
-    len: usize,
-}
-
-impl Met {
-    /// Remembers leaf `leaf` (box `b`), if there is room; its index or `None`.
-    #[inline(always)]
-    fn add(&mut self, leaf: u32, b: IBox) -> Option<usize> {
-        let i = self.len;
-        if i < self.leaves.len() {
-            self.leaves[i] = (leaf, b);
-            self.entries[i] = 0;
-            self.level[i] = u32::MAX;
-            self.len += 1;
-            return Some(i);
-        }
-        None
-    }
-}
-
 impl<D: AsRef<[u8]>> Sampler<'_, D> {
-    /// Fills entries `take` of `values`, whose finest cells (coordinates `at`) all lie in kd-tree
-    /// leaf `leaf`, from the leaf's finest brick: one index part per axis and coordinate, the
-    /// sum of three per entry when read in place, else cell by cell. The leaf's level, or
-    /// `None` where the leaf is not covered by any brick.
-    #[inline(always)]
-    fn fill_from_leaf(
-        &self,
-        leaf: u32,
-        take: u64,
-        at: &Coords,
-        values: &mut [f32; 64],
-    ) -> Result<Option<u32>> {
-        let mut m = take;
-        let mut level = None;
-        if let Some((brick, leaf_level, parts)) = self.leaf_table_parts(leaf, at) {
-            level = Some(leaf_level);
-            while m != 0 {
-                let e = m.trailing_zeros() as usize;
-                let i = parts[0][e & 3] + parts[1][e >> 2 & 3] + parts[2][e >> 4];
-                let Some(&v) = brick.get(i as usize) else {
-                    break;
-                };
-                m &= m - 1;
-                values[e] = v;
-            }
-        }
-        // A brick decoded through the cache (or not holding the cell): cell by cell.
-        while m != 0 {
-            let e = m.trailing_zeros() as usize;
-            m &= m - 1;
-            let f = [at[0][e & 3], at[1][e >> 2 & 3], at[2][e >> 4]];
-            let Some(c) = self.leaf_cell(leaf, f)? else {
-                return Ok(None);
-            };
-            values[e] = c.value;
-            level = Some(c.level);
-        }
-        Ok(level)
-    }
-
     /// The corners of octant `o` of a leaf cell of value `value` when the leaf cells `around`
     /// its outer corner (side `n` of the corner; [`Sampler::nudges`]' `same` axes repeat a side)
     /// are not all of the octant's level: the rest of [`Self::corners_gathered`]. `near` is a
     /// leaf cell already located and its kd-tree leaf's box. `None` where a cell involved is not
     /// covered by any brick.
-    ///
-    /// The table is filled kd-tree leaf by kd-tree leaf: first `near`'s leaf and the leaves of
-    /// `around`, then, while entries are left, the leaf located at the first of them. Each leaf
-    /// fills at once every entry left in its box.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn corners_mixed<L: Locate>(
         &self,
         loc: &L,
         o: &Octant,
         value: f32,
-        (up, _same): ([bool; 3], usize),
+        (up, same): ([bool; 3], usize),
         around: &[Option<LeafCell>; 8],
         near: Option<(LeafCell, IBox)>,
         memo: &mut VertexMemo,
     ) -> Result<Option<[f32; 8]>> {
-        let level = o.level;
+        let Octant { level, cell, .. } = *o;
         let grid = self.grid();
         let s = grid.scale(level);
         let ext = grid.extent();
-        // The corner at the cell centre.
+        // Position `k` is the cell's neighbour on the octant's side of every axis `a` whose bit
+        // is set in `k`; side `n` of the outer corner lies in position `n ^ down`.
         let down = (0..3).fold(0usize, |m, a| m | usize::from(!up[a]) << a);
+        let domain = IBox::new([0; 3], ext);
+        let own = grid.finest_box(level, cell);
+        // Position `k`'s located leaf cell; a set bit of `same` is an axis where the outer
+        // corner lies on the domain's face (no position beyond it).
+        let cell_at = |k: usize| around[k ^ down].filter(|_| k & same == 0);
+        let step = axes(|a| if up[a] { s[a] } else { -s[a] });
+        // Per position: its cell's kd-tree leaf's box, and its cell's level and value when the
+        // cell covers the whole position.
+        let mut boxes = [IBox::default(); 8];
+        let mut whole = 0u8;
+        let mut whole_level = [0u32; 8];
+        let mut whole_value = [0f32; 8];
+        for k in 0..8 {
+            let Some(c) = cell_at(k) else {
+                continue;
+            };
+            let b = IBox::new(
+                axes(|a| own.lo[a] + step[a] * (k >> a & 1) as i64),
+                axes(|a| own.hi[a] + step[a] * (k >> a & 1) as i64),
+            );
+            let leaf_box = match near {
+                Some((n, nb)) if n.leaf == c.leaf => nb,
+                _ => self.leaf_box(c.leaf),
+            };
+            boxes[k] = leaf_box;
+            if c.level <= level && leaf_box.contains_box(&b.intersect(&domain)) {
+                whole |= 1 << k;
+                (whole_level[k], whole_value[k]) = (c.level, c.value);
+            }
+        }
+        let position = |k: usize| {
+            cell_at(k).map(|cell| Position {
+                cell,
+                whole: whole >> k & 1 == 1,
+                leaf_box: boxes[k],
+            })
+        };
         let (base, _) = self.octant_box(o);
-        let mut at: Coords = [[0; 4]; 3];
-        for (a, at) in at.iter_mut().enumerate() {
-            for (i, f) in at.iter_mut().enumerate() {
+        let mut axis = [Axis::default(); 3];
+        for (a, ax) in axis.iter_mut().enumerate() {
+            for i in 0..4 {
                 let x = base[a] + (i >> 1) as i64 * s[a];
-                *f = if i & 1 == 0 { x - 1 } else { x }
-                    .div_euclid(2)
-                    .clamp(0, ext[a] - 1);
+                let f = if i & 1 == 0 { x - 1 } else { x }.div_euclid(2);
+                let f = f.clamp(0, ext[a] - 1);
+                ax.at[i] = f;
+                ax.out[i] = usize::from((f < own.lo[a]) | (f >= own.hi[a])) << a;
+            }
+        }
+        // The table, entry `x + 4 y + 16 z`: each finest cell's leaf-cell value and (filled only
+        // when some corner is stitched) level, and, bit per entry, whether the cell was read or
+        // located rather than its position's and whether its level is coarser than the octant's.
+        let mut levels = [0u32; 64];
+        let mut values = [0f32; 64];
+        let mut read = 0u64;
+        let mut coarse = 0u64;
+        // Per axis: the entries whose index along it is `i`.
+        const SLAB: [u64; 3] = [0x1111_1111_1111_1111, 0x000F_000F_000F_000F, 0xFFFF];
+        let slab = |a: usize, i: usize| SLAB[a] << (i << (2 * a));
+        // Per axis and position bit: the entries whose cell along the axis lies in the own cell
+        // (bit 0) or in the neighbour (bit 1), and the lowest and highest finest coordinate.
+        let mut part = [[0u64; 2]; 3];
+        let mut span = [[(i64::MAX, i64::MIN); 2]; 3];
+        for (a, ax) in axis.iter().enumerate() {
+            for i in 0..4 {
+                let bit = usize::from(ax.out[i] != 0);
+                part[a][bit] |= slab(a, i);
+                span[a][bit] = (span[a][bit].0.min(ax.at[i]), span[a][bit].1.max(ax.at[i]));
+            }
+        }
+        // The centre corner's entries are never read.
+        let centre = !(0..3).fold(u64::MAX, |m, a| {
+            let side = down >> a & 1;
+            m & (slab(a, 2 * side) | slab(a, 2 * side + 1))
+        });
+        // The entries of position `k`.
+        let entries_of = |k: usize| part[0][k & 1] & part[1][k >> 1 & 1] & part[2][k >> 2 & 1];
+        // Every entry first takes its position's cell's value when that cell covers the whole
+        // position (its level is the position's, marked in `coarse` below); the entries of the
+        // other positions are read or located below. A row along x holds two positions: `k`
+        // and, where x lies outside the own cell, `k | 1`.
+        let beyond = axis[0].out.map(|kx| kx != 0);
+        for (z, &kz) in axis[2].out.iter().enumerate() {
+            for (y, &ky) in axis[1].out.iter().enumerate() {
+                let k = (ky | kz) & 6;
+                let (v0, v1) = (whole_value[k], whole_value[k | 1]);
+                let row = 4 * y + 16 * z;
+                values[row..row + 4].copy_from_slice(&beyond.map(|b| if b { v1 } else { v0 }));
+            }
+        }
+        let mut wholes = whole;
+        while wholes != 0 {
+            let k = wholes.trailing_zeros() as usize;
+            wholes &= wholes - 1;
+            coarse |= entries_of(k) & 0u64.wrapping_sub(u64::from(whole_level[k] < level));
+        }
+        // Stitched corners read their entries' levels: those of whole positions are filled row by
+        // row as the values are, first, when a whole position is coarser than the octant.
+        let fill_levels = |levels: &mut [u32; 64]| {
+            for (z, &kz) in axis[2].out.iter().enumerate() {
+                for (y, &ky) in axis[1].out.iter().enumerate() {
+                    let k = (ky | kz) & 6;
+                    let (l0, l1) = (whole_level[k], whole_level[k | 1]);
+                    let row = 4 * y + 16 * z;
+                    levels[row..row + 4].copy_from_slice(&beyond.map(|b| if b { l1 } else { l0 }));
+                }
+            }
+        };
+        let levels_filled = coarse != 0;
+        if levels_filled {
+            fill_levels(&mut levels);
+        }
+        // The first coarser cells read or located, by entry: a stitched corner's coarse cell
+        // is one of them, found again without reading it again.
+        let mut coarse_read = [(usize::MAX, NO_CELL); 4];
+        let mut num_coarse_read = 0;
+        let mut partial = !whole;
+        while partial != 0 {
+            let k = partial.trailing_zeros() as usize;
+            partial &= partial - 1;
+            let p = position(k);
+            let mut mask = entries_of(k) & centre;
+            read |= mask;
+            // The position's kd-tree leaf, when it holds all the position's cells.
+            let leaf = p.map_or(u32::MAX, |p| {
+                let r: [usize; 3] = axes(|a| k >> a & 1);
+                let lo = axes(|a| span[a][r[a]].0);
+                let hi = axes(|a| span[a][r[a]].1);
+                if holds(&p.leaf_box, lo) & holds(&p.leaf_box, hi) {
+                    p.cell.leaf
+                } else {
+                    u32::MAX
+                }
+            });
+            // A leaf coarser than the octant: its cells are read whole, to be remembered.
+            let coarse_leaf = p.is_some_and(|p| p.cell.level < level);
+            while mask != 0 {
+                let e = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                // Both nudges of a face may meet one finest cell: read again, the same answer.
+                let (x, y, z) = (e & 3, e >> 2 & 3, e >> 4);
+                let f = [axis[0].at[x], axis[1].at[y], axis[2].at[z]];
+                let c = if leaf == u32::MAX {
+                    None
+                } else if coarse_leaf {
+                    self.cell_in_leaf_numbered(leaf, f)
+                } else if let Some(v) = self.value_in_leaf(leaf, f) {
+                    // Of the leaf's level, which is not coarser than the octant's.
+                    (levels[e], values[e]) = (p.map_or(0, |p| p.cell.level), v);
+                    continue;
+                } else {
+                    None
+                };
+                let c = match c {
+                    Some(c) => c,
+                    None => match self.position_cell(loc, p.as_ref(), near.as_ref(), f)? {
+                        Some(c) => c,
+                        None => return Ok(None),
+                    },
+                };
+                (levels[e], values[e]) = (c.level, c.value);
+                if c.level < level {
+                    coarse |= 1 << e;
+                    if num_coarse_read < coarse_read.len() {
+                        coarse_read[num_coarse_read] = (e, c);
+                        num_coarse_read += 1;
+                    }
+                }
+            }
+        }
+        if coarse != 0 && !levels_filled {
+            // A coarser cell read or located alone: the other entries' levels after all.
+            let kept = levels;
+            fill_levels(&mut levels);
+            for e in 0..64 {
+                if read >> e & 1 == 1 {
+                    levels[e] = kept[e];
+                }
             }
         }
         // Side `i` of corner `n` is table entry `corner(n) + side_step(i)`.
         let corner = |n: usize| (n & 1) * 2 + (n >> 1 & 1) * 8 + (n >> 2 & 1) * 32;
         let side_step = |i: usize| (i & 1) + (i >> 1 & 1) * 4 + (i >> 2 & 1) * 16;
-        // The centre corner's entries are never read.
-        let mut todo = !(0..3).fold(u64::MAX, |m, a| {
-            let side = down >> a & 1;
-            m & (slab(a, 2 * side) | slab(a, 2 * side + 1))
-        });
-        let mut values = [0f32; 64];
-        let mut met = Met {
-            leaves: [(0, IBox::default()); 8],
-            level: [0; 8],
-            entries: [0; 8],
-            len: 0,
-        };
-        // Entries filled from no leaf remembered (the leaves met were too many): their level.
-        let mut extra = [0u32; 64];
-        let mut extra_entries = 0u64;
-        let seeds = near
-            .map(|(c, b)| (c.leaf, Some(b)))
-            .into_iter()
-            .chain(around.iter().flatten().map(|c| (c.leaf, None)));
-        for (leaf, leaf_box) in seeds {
-            if todo == 0 {
-                break;
-            }
-            if met.leaves[..met.len].iter().any(|(l, _)| *l == leaf) {
-                continue;
-            }
-            let b = leaf_box.unwrap_or_else(|| self.leaf_box(leaf));
-            let Some(i) = met.add(leaf, b) else {
-                break;
-            };
-            let take = entries_in(&b, &at) & todo;
-            if take != 0 {
-                let Some(l) = self.fill_from_leaf(leaf, take, &at, &mut values)? else {
-                    return Ok(None);
-                };
-                (met.level[i], met.entries[i]) = (l, take);
-                todo &= !take;
-            }
-        }
-        while todo != 0 {
-            let e = todo.trailing_zeros() as usize;
-            let f = [at[0][e & 3], at[1][e >> 2 & 3], at[2][e >> 4]];
-            let Some(c) = loc.locate_cell(f)? else {
-                return Ok(None);
-            };
-            values[e] = c.value;
-            let b = self.leaf_box(c.leaf);
-            let take = entries_in(&b, &at) & todo & !(1 << e);
-            todo &= !(take | 1 << e);
-            if take != 0
-                && self
-                    .fill_from_leaf(c.leaf, take, &at, &mut values)?
-                    .is_none()
-            {
-                return Ok(None);
-            }
-            match met.add(c.leaf, b) {
-                Some(i) => (met.level[i], met.entries[i]) = (c.level, take | 1 << e),
-                None => {
-                    let mut m = take | 1 << e;
-                    extra_entries |= m;
-                    while m != 0 {
-                        extra[m.trailing_zeros() as usize] = c.level;
-                        m &= m - 1;
-                    }
-                }
-            }
-        }
-        let mut coarse = 0u64;
-        for i in 0..met.len {
-            coarse |= met.entries[i] & 0u64.wrapping_sub(u64::from(met.level[i] < level));
-        }
-        let mut m = extra_entries;
-        while m != 0 {
-            let e = m.trailing_zeros() as usize;
-            m &= m - 1;
-            coarse |= u64::from(extra[e] < level) << e;
-        }
-        // The level of entry `e` and the leaf it was read from.
-        let level_of = |e: usize| -> (u32, u32) {
-            match (0..met.len).find(|&i| met.entries[i] >> e & 1 == 1) {
-                Some(i) => (met.level[i], met.leaves[i].0),
-                None => (extra[e], u32::MAX),
-            }
-        };
         let mut out = [0f32; 8];
         if coarse == 0 {
             // No corner is stitched.
@@ -303,8 +293,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             }
             return Ok(Some(out));
         }
-        // The stitch memory, made in place (about 1.3 KB) once some corner is known stitched,
-        // knowing the leaves the table met.
+        // The stitch memory, made in place (about 1.3 KB) once some corner is known stitched.
         let mut stitches = Stitches::new();
         if let Some((c, b)) = near {
             stitches.add_leaf(c.leaf, b);
@@ -318,17 +307,23 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             let entry = |i: usize| corner(n) + side_step(i);
             // The corner's eight entries: bits 0, 1, 4, 5, 16, 17, 20 and 21 from `corner(n)`.
             *slot = if coarse >> corner(n) & 0x0033_0033 != 0 {
-                let lv: [u32; 8] = std::array::from_fn(|i| level_of(entry(i)).0);
+                let lv: [u32; 8] = std::array::from_fn(|i| levels[entry(i)]);
                 let coarsest = lv.iter().copied().fold(u32::MAX, u32::min);
                 let v = axes(|a| base[a] + (n >> a & 1) as i64 * s[a]);
                 let side = lv.iter().position(|&l| l == coarsest).unwrap_or(0);
                 let e = entry(side);
-                let f = [at[0][e & 3], at[1][e >> 2 & 3], at[2][e >> 4]];
-                // The leaf cell of the entry, read again from its leaf (or located): the same
-                // answer.
-                let q = match level_of(e).1 {
-                    u32::MAX => loc.locate_cell(f)?,
-                    leaf => self.leaf_cell(leaf, f)?,
+                let (x, y, z) = (e & 3, e >> 2 & 3, e >> 4);
+                let k = axis[0].out[x] | axis[1].out[y] | axis[2].out[z];
+                let q = if read >> e & 1 == 0 {
+                    cell_at(k)
+                } else if let Some(&(_, c)) =
+                    coarse_read[..num_coarse_read].iter().find(|(i, _)| *i == e)
+                {
+                    Some(c)
+                } else {
+                    // The cell read or located for the entry: the same answer again.
+                    let f = [axis[0].at[x], axis[1].at[y], axis[2].at[z]];
+                    self.position_cell(loc, position(k).as_ref(), near.as_ref(), f)?
                 };
                 let Some(q) = q else {
                     return Ok(None);

@@ -21,7 +21,7 @@ use super::cache::BrickCache;
 use super::grid::{axes, index_in, Grid};
 use super::interp::{avg2, avg8, trilinear};
 use super::leaf_grid::LazyLeafGrid;
-use super::mixed::{distinct_sides, sides_in};
+use super::mixed::{distinct_sides, holds, sides_in};
 
 /// The leaf cell at a point: the finest cell any brick holds there.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -145,6 +145,16 @@ impl VertexMemo {
         let slot = self.octant_slot(o);
         self.octants[slot] = (*o, corners);
     }
+}
+
+/// A neighbour position of [`Sampler::corners_gathered`]: the leaf cell located there and its
+/// kd-tree leaf's box.
+#[derive(Clone, Copy)]
+pub(super) struct Position {
+    pub(super) cell: LeafCell,
+    /// True when every finest cell of the position (in the domain) lies in `cell`.
+    pub(super) whole: bool,
+    pub(super) leaf_box: IBox,
 }
 
 /// The largest cell value magnitude for which [`Sampler::bounded`] holds: sums of two vertex
@@ -1036,6 +1046,32 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         self.corners_mixed(loc, o, value, (up, same), &around, near, memo)
     }
 
+    /// The leaf cell at finest cell `f` of a position gathered by [`Self::corners_gathered`]:
+    /// the position's cell when it covers the whole position, else read from the brick of the
+    /// position's kd-tree leaf or of `near`'s when `f` lies in that leaf, else located through
+    /// `loc`.
+    #[inline]
+    pub(super) fn position_cell<L: Locate>(
+        &self,
+        loc: &L,
+        p: Option<&Position>,
+        near: Option<&(LeafCell, IBox)>,
+        f: [i64; 3],
+    ) -> Result<Option<LeafCell>> {
+        if let Some(p) = p {
+            if p.whole {
+                return Ok(Some(p.cell));
+            }
+            if let Some(c) = self.cell_in_leaf(&p.cell, &p.leaf_box, f) {
+                return Ok(Some(c));
+            }
+        }
+        if let Some(c) = near.and_then(|(c, b)| self.cell_in_leaf(c, b, f)) {
+            return Ok(Some(c));
+        }
+        loc.locate_cell(f)
+    }
+
     /// The values of the eight cells at finest cells `lo`/`hi` per axis (as in
     /// [`Locate::block_of_level`]), which lie in the kd-tree leaf of leaf cell `c`, from that
     /// leaf's brick when it is of `level` and read in place.
@@ -1060,9 +1096,33 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         )
     }
 
-    /// The leaf cell at finest cell `f`, known to lie in leaf cell `c`'s kd-tree leaf, read from
-    /// the leaf's finest brick when that brick is read in place (it holds every cell of the
-    /// leaf, so this is [`Self::locate`]'s answer); `None` otherwise.
+    /// The value of finest cell `f`, which lies in kd-tree leaf `leaf`, read from the leaf's
+    /// finest brick when that brick is read in place: [`Self::cell_in_leaf`] without the box
+    /// test, for callers that tested a box holding many cells once.
+    #[inline(always)]
+    pub(super) fn value_in_leaf(&self, leaf: u32, f: [i64; 3]) -> Option<f32> {
+        let t = self.tops[leaf as usize].as_ref()?;
+        t.values?.get(t.index(t.cell_of(&self.grid, f))).copied()
+    }
+
+    /// The leaf cell at finest cell `f` read from the brick of leaf cell `c`'s kd-tree leaf
+    /// (box `leaf_box`) when `f` lies in that leaf and the brick is read in place: the leaf's
+    /// finest brick holds every cell of the leaf, so this is [`Self::locate`]'s answer. `None`
+    /// otherwise.
+    #[inline(always)]
+    pub(super) fn cell_in_leaf(
+        &self,
+        c: &LeafCell,
+        leaf_box: &IBox,
+        f: [i64; 3],
+    ) -> Option<LeafCell> {
+        if !holds(leaf_box, f) {
+            return None;
+        }
+        self.cell_in_own_leaf(c, f)
+    }
+
+    /// [`Self::cell_in_leaf`] for a finest cell `f` known to lie in leaf cell `c`'s kd-tree leaf.
     #[inline(always)]
     pub(super) fn cell_in_own_leaf(&self, c: &LeafCell, f: [i64; 3]) -> Option<LeafCell> {
         let t = self.tops[c.leaf as usize].as_ref()?;
@@ -1113,30 +1173,6 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             level: t.level,
             parts,
         })
-    }
-
-    /// Kd-tree leaf `leaf`'s finest brick's values when read in place, its level, and per axis
-    /// `a` and coordinate `i` the part of an index into the values that finest coordinate
-    /// `at[a][i]` gives: a finest cell of the leaf at coordinates `at[0][x]`, `at[1][y]`,
-    /// `at[2][z]` is the value at the sum of the three parts, as [`Self::cell_in_own_leaf`]
-    /// reads it.
-    #[inline(always)]
-    pub(super) fn leaf_table_parts(
-        &self,
-        leaf: u32,
-        at: &[[i64; 4]; 3],
-    ) -> Option<(&'f [f32], u32, [[i64; 4]; 3])> {
-        let t = self.tops[leaf as usize].as_ref()?;
-        let values = t.values?;
-        let stride = [1, t.ex, t.ex * t.ey];
-        let mut parts = [[0i64; 4]; 3];
-        for i in 0..4 {
-            let c = t.cell_of(&self.grid, [at[0][i], at[1][i], at[2][i]]);
-            for a in 0..3 {
-                parts[a][i] = stride[a] * (c[a] - t.lo[a]);
-            }
-        }
-        Some((values, t.level, parts))
     }
 
     /// The corner values of an octant of a leaf cell; `None` when the cell is not a leaf cell or

@@ -114,6 +114,7 @@ impl Grid {
     }
 
     /// The finest-level cells (relative) of cell `cell` of `level`.
+    #[inline]
     pub fn finest_box(&self, level: u32, cell: [i64; 3]) -> IBox {
         let s = self.scale(level);
         IBox::new(

@@ -169,6 +169,8 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         // As `coarse_lerp` computes them.
         let t = axes(|a| ((v[a] - lo[a]) as f64 / s[a] as f64) as f32);
         let centre = usize::from(!key.octant & 7);
+        // The coarse cell's own finest cells: the sides of its corners there are the cell.
+        let own = (q, self.grid().finest_box(q.level, q.cell));
         let mut corners = [f32::NAN; 8];
         // The corners of non-zero weight: on no axis on the upper side where `t` is 0, nor on
         // the lower side where it is 1.
@@ -184,7 +186,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 q.value
             } else {
                 let w = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
-                match self.coarse_vertex(loc, w, q.level, known, memo)? {
+                match self.coarse_vertex(loc, w, own, known, memo)? {
                     Some(x) => x,
                     None => return Ok(None),
                 }
@@ -193,20 +195,22 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         Ok(trilinear_skipping(&corners, t))
     }
 
-    /// The value at vertex `w` seen from an octant of level `level` ([`Self::vertex_value_in`]'s
-    /// value), its cells read from the kd-tree leaves `known` has met where they lie there.
+    /// The value at vertex `w` of an octant of leaf cell `own.0` (finest box `own.1`), seen from
+    /// the cell's level ([`Self::vertex_value_in`]'s value): the sides in the cell are the
+    /// cell, the others are read from the kd-tree leaves `known` has met where they lie there.
     fn coarse_vertex<L: Locate>(
         &self,
         loc: &L,
         w: [i64; 3],
-        level: u32,
+        own: (&LeafCell, IBox),
         known: &mut Stitches,
         memo: &mut VertexMemo,
     ) -> Result<Option<f32>> {
+        let level = own.0.level;
         if let Some(x) = known.vertex(w, level) {
             return Ok(x);
         }
-        let value = match self.around_values(loc, w, known)? {
+        let value = match self.around_values(loc, w, own, known)? {
             None => None,
             Some((levels, values)) => {
                 let coarsest = levels.iter().copied().min().unwrap_or(level);
@@ -250,12 +254,14 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
     }
 
     /// The levels and values of the leaf cells [`Self::around_known`] finds around `v`, read
-    /// the same way: per kd-tree leaf, the sides in its box from its brick by one index part
-    /// per axis and side of the axis, the others located.
+    /// the same way: the sides in leaf cell `own.0` (finest box `own.1`) are that cell; per
+    /// kd-tree leaf, the sides in its box from its brick by one index part per axis and side
+    /// of the axis; the others located.
     fn around_values<L: Locate>(
         &self,
         loc: &L,
         v: [i64; 3],
+        own: (&LeafCell, IBox),
         known: &mut Stitches,
     ) -> Result<Option<([u32; 8], [f32; 8])>> {
         let (lo, hi, same) = self.nudges(v);
@@ -263,6 +269,13 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         let mut levels = [0u32; 8];
         let mut values = [0f32; 8];
         let mut todo = distinct_sides(same);
+        let mut inside = sides_in(&own.1, lo, hi) & todo;
+        todo &= !inside;
+        while inside != 0 {
+            let n = inside.trailing_zeros() as usize;
+            inside &= inside - 1;
+            (levels[n], values[n]) = (own.0.level, own.0.value);
+        }
         let mut j = 0;
         while todo != 0 {
             let Some((leaf, b)) =

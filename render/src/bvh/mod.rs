@@ -1013,6 +1013,14 @@ mod tests {
         assert_eq!(one.num_chunks(), two.num_chunks());
         assert_eq!(one.num_nodes(), two.num_nodes());
         assert_eq!(one.voxel_bounds(), two.voxel_bounds());
+        // The chunks' nodes may lie in another order in the shared buffer, but each chunk's
+        // BVH is the same.
+        assert!(one.num_chunks() > 1);
+        for (a, b) in one.chunks.iter().zip(&two.chunks) {
+            assert_eq!((a.first, a.len), (b.first, b.len));
+            let (a, b) = (one.chunk_nodes(a), two.chunk_nodes(b));
+            assert_eq!(a, b);
+        }
     }
 
     /// Boxes of mixed sizes scattered in a 100-cube, one per ref.

@@ -4,8 +4,9 @@
 //! A buffer that takes a new surface's refs or BVH nodes (tens of megabytes, written once and
 //! then read by every frame) is fresh memory on every isovalue: the allocator maps allocations
 //! this large anew and unmaps them when they are freed. [`reserve`] grows a `Vec` as `Vec` does
-//! (at least doubling) and asks the kernel (`madvise(MADV_HUGEPAGE)`) to back the whole 2 MiB
-//! pages inside its new capacity with huge pages. The contents never change; where the kernel
+//! (at least doubling; past 4 MiB, to at least 34 MiB, an allocation of its own) and asks the
+//! kernel (`madvise(MADV_HUGEPAGE)`) to back the whole 2 MiB pages inside its new capacity with
+//! huge pages. The contents never change; where the kernel
 //! has no huge pages (or the advice is not supported) the buffer is backed by small pages as
 //! before. Only pages that are written become resident, as before, to within one huge page
 //! past the buffer's length.
@@ -15,6 +16,14 @@ const HUGE_PAGE: usize = 2 << 20;
 
 /// Capacities below this many bytes are not advised: they hold at most one whole huge page.
 const ADVISE_BYTES: usize = 2 * HUGE_PAGE;
+
+/// Bytes an advised allocation takes at least: above the largest threshold (32 MiB) past which
+/// glibc's allocator maps every allocation on its own, so that the advice ends with the buffer.
+/// Advice on memory the allocator keeps and hands out again (its heaps, which it trims and
+/// refills while the extraction churns through small vectors) made every small allocation
+/// there fault and zero 2 MiB pages: five times the zeroing of the whole run. Capacity past the
+/// length is address space only: its pages are never written.
+const ADVISED_MIN_BYTES: usize = 34 << 20;
 
 /// Makes room for `additional` more elements in `v`, growing its capacity to at least twice the
 /// old one when it must grow. A large new capacity is a new allocation advised for huge pages
@@ -28,10 +37,12 @@ pub fn reserve<T>(v: &mut Vec<T>, additional: usize) {
         .len()
         .saturating_add(additional)
         .max(v.capacity().saturating_mul(2));
-    if want.saturating_mul(size_of::<T>()) < ADVISE_BYTES {
+    let size = size_of::<T>().max(1);
+    if want.saturating_mul(size) < ADVISE_BYTES {
         v.reserve_exact(want - v.len());
         return;
     }
+    let want = want.max(ADVISED_MIN_BYTES / size);
     let mut grown = Vec::with_capacity(want);
     advise(&grown);
     grown.append(v);
@@ -39,10 +50,10 @@ pub fn reserve<T>(v: &mut Vec<T>, additional: usize) {
 }
 
 /// Advises huge pages for the whole 2 MiB pages inside `v`'s capacity, when it spans at least
-/// [`ADVISE_BYTES`]. A hint: errors are ignored.
-pub fn advise<T>(v: &Vec<T>) {
+/// [`ADVISED_MIN_BYTES`] (an allocation of its own). A hint: errors are ignored.
+fn advise<T>(v: &Vec<T>) {
     let bytes = v.capacity().saturating_mul(size_of::<T>());
-    if bytes < ADVISE_BYTES {
+    if bytes < ADVISED_MIN_BYTES {
         return;
     }
     let start = v.as_ptr() as usize;

@@ -18,11 +18,10 @@ const HUGE_PAGE: usize = 2 << 20;
 const ADVISE_BYTES: usize = 2 * HUGE_PAGE;
 
 /// Bytes an advised allocation takes at least: above the largest threshold (32 MiB) past which
-/// glibc's allocator maps every allocation on its own, so that the advice ends with the buffer.
-/// Advice on memory the allocator keeps and hands out again (its heaps, which it trims and
-/// refills while the extraction churns through small vectors) made every small allocation
-/// there fault and zero 2 MiB pages: five times the zeroing of the whole run. Capacity past the
-/// length is address space only: its pages are never written.
+/// glibc's allocator maps every allocation on its own, so that the advice ends with the buffer
+/// and never reaches memory the allocator keeps and hands out again (its heaps, which it trims
+/// and refills while the extraction churns through small vectors). Capacity past the length is
+/// address space only: its pages are never written.
 const ADVISED_MIN_BYTES: usize = 34 << 20;
 
 /// Makes room for `additional` more elements in `v`, growing its capacity to at least twice the

@@ -30,7 +30,6 @@ pub mod error;
 pub mod extract;
 pub mod field_stats;
 pub mod frustum;
-pub mod huge_pages;
 pub mod info;
 pub mod mapping;
 pub mod outline;

@@ -15,13 +15,10 @@
 //! build's scratch ([`BoxRun`]), in `f32` and with its centre's Morton code on a grid fixed by the
 //! domain ([`BoxGrid`]), so a chunk's sort keys need no pass over its boxes.
 
-use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 use glam::Vec3A;
-
-use crate::huge_pages;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
@@ -63,8 +60,6 @@ pub const CHUNK_REFS: usize = 1 << 16;
 #[derive(Clone, Default, Debug)]
 pub struct OctantBvh {
     refs: Vec<u64>,
-    /// The chunks' BVH nodes, one run per chunk (in the order the chunks were built).
-    nodes: Vec<CwBvhNode>,
     /// The chunks, in the top-level BVH's leaf order.
     chunks: Vec<Chunk>,
     /// Over the chunks' boxes; its primitive `c` is `chunks[c]`. Empty when there is one chunk.
@@ -73,13 +68,12 @@ pub struct OctantBvh {
     bounds: Option<([f64; 3], [f64; 3])>,
 }
 
-/// One chunk: its BVH, the nodes `nodes` of [`OctantBvh`]'s (child indices counted from the
-/// run's start, as in a CWBVH of its own), whose primitive `i` is `refs[first + i]`.
+/// One chunk: its BVH, whose primitive `i` is `refs[first + i]`.
 #[derive(Clone, Default, Debug)]
 struct Chunk {
     first: usize,
     len: usize,
-    nodes: Range<usize>,
+    bvh: CwBvh,
 }
 
 /// How each chunk's BVH (and the top level) is built.
@@ -319,13 +313,6 @@ impl BvhBuilder {
         out.top = CwBvh::default();
         out.bounds = None;
         out.refs.shrink_to_fit();
-        // All chunks' nodes in one buffer, appended as each chunk is built (tens of megabytes
-        // on a dense isovalue, in huge pages), where each chunk's own vector was fresh memory;
-        // a chunk's nodes are built in its worker's recycled scratch.
-        let mut all_nodes = std::mem::take(&mut out.nodes);
-        all_nodes.clear();
-        huge_pages::reserve(&mut all_nodes, out.refs.len() / 4 + 1);
-        let all_nodes = Mutex::new(all_nodes);
         // Decodes the boxes of `refs` and their codes, and returns their union unpadded.
         let decode = |refs: &[u64], out: &mut [Aabb], codes: &mut [u64]| -> Bounds {
             let mut run = BoxRun::new(out, codes, grid);
@@ -352,7 +339,7 @@ impl BvhBuilder {
         let runs = if parts.len() == 1 { DECODE_RUN } else { size };
         let decoded = AtomicUsize::new(0);
         let releasing = Mutex::new(());
-        let bvhs: Vec<(Range<usize>, Aabb, Bounds)> = parts
+        let bvhs: Vec<(CwBvh, Bounds)> = parts
             .par_iter_mut()
             .with_max_len(1)
             .map(|part| {
@@ -375,33 +362,21 @@ impl BvhBuilder {
                     }
                 }
                 let bvh = w.build_level(part, method);
-                let nodes = {
-                    let mut all = all_nodes.lock().unwrap_or_else(PoisonError::into_inner);
-                    let start = all.len();
-                    huge_pages::reserve(&mut all, bvh.nodes.len());
-                    all.extend_from_slice(&bvh.nodes);
-                    start..all.len()
-                };
-                w.wide.recycle(bvh.nodes, Vec::new());
                 give(w);
-                (nodes, bvh.total_aabb, union)
+                (bvh, union)
             })
             .collect();
         between_chunks();
-        out.nodes = all_nodes
-            .into_inner()
-            .unwrap_or_else(PoisonError::into_inner);
-        out.nodes.shrink_to_fit();
         let mut boxes = Vec::with_capacity(bvhs.len());
         let mut first = 0;
         let mut bounds = Bounds::EMPTY;
-        for ((nodes, total, union), part) in bvhs.into_iter().zip(parts.iter()) {
+        for ((bvh, union), part) in bvhs.into_iter().zip(parts.iter()) {
             bounds = bounds.union(union);
-            boxes.push(total);
+            boxes.push(bvh.total_aabb);
             out.chunks.push(Chunk {
                 first,
                 len: part.len(),
-                nodes,
+                bvh,
             });
             first += part.len();
         }
@@ -416,7 +391,6 @@ impl BvhBuilder {
             centre_codes(&w.boxes, &mut w.codes);
             let mut order: Vec<u64> = (0..out.chunks.len() as u64).collect();
             out.top = w.build_level(&mut order, self.method);
-            out.top.nodes.shrink_to_fit();
             let mut chunks = std::mem::take(&mut out.chunks);
             out.chunks = order
                 .iter()
@@ -503,7 +477,7 @@ impl Worker {
         };
         let perm = std::mem::take(&mut bvh.primitive_indices);
         gather(items, &perm, self.wide.spare());
-        self.wide.recycle(Vec::new(), perm);
+        bvh.nodes.shrink_to_fit();
         bvh
     }
 
@@ -597,13 +571,14 @@ impl OctantBvh {
 
     /// Resident bytes of the BVH nodes (top level and chunks, and of the chunk list).
     pub fn bvh_bytes(&self) -> usize {
-        (self.nodes.capacity() + self.top.nodes.capacity()) * NODE_BYTES
+        let nodes: usize = self.chunks.iter().map(|c| c.bvh.nodes.capacity()).sum();
+        (nodes + self.top.nodes.capacity()) * NODE_BYTES
             + self.chunks.capacity() * size_of::<Chunk>()
     }
 
     /// Number of BVH nodes (top level and chunks).
     pub fn num_nodes(&self) -> usize {
-        self.top.nodes.len() + self.nodes.len()
+        self.top.nodes.len() + self.chunks.iter().map(|c| c.bvh.nodes.len()).sum::<usize>()
     }
 
     /// Calls `visit(r, &mut tmax)` for the refs of every leaf the `f32` ray reaches before its
@@ -743,7 +718,7 @@ impl OctantBvh {
         let mut chunk_walk = |chunk: &Chunk, rays: &mut [Ray], m: Mask, stack: &mut PacketStack| {
             let refs = &self.refs[chunk.first..chunk.first + chunk.len];
             walk_packet(
-                self.chunk_nodes(chunk),
+                &chunk.bvh.nodes,
                 rays,
                 m,
                 oct,
@@ -806,32 +781,10 @@ impl OctantBvh {
         visit: &mut impl FnMut(usize, u64, &mut f32) -> bool,
     ) -> bool {
         let refs = &self.refs[chunk.first..chunk.first + chunk.len];
-        walk(
-            self.chunk_nodes(chunk),
-            ray,
-            oct,
-            stack,
-            test,
-            |i, ray, _| {
-                let i = i as usize;
-                visit(chunk.first + i, refs[i], &mut ray.tmax)
-            },
-        )
-    }
-
-    /// The nodes of `chunk`'s BVH.
-    #[inline(always)]
-    fn chunk_nodes(&self, chunk: &Chunk) -> &[CwBvhNode] {
-        &self.nodes[chunk.nodes.start..chunk.nodes.end]
-    }
-
-    /// `chunk`'s BVH as a CWBVH of its own (its nodes copied), for obvhs's traversal.
-    #[cfg(test)]
-    fn chunk_bvh(&self, chunk: &Chunk) -> CwBvh {
-        CwBvh {
-            nodes: self.chunk_nodes(chunk).to_vec(),
-            ..CwBvh::default()
-        }
+        walk(&chunk.bvh.nodes, ray, oct, stack, test, |i, ray, _| {
+            let i = i as usize;
+            visit(chunk.first + i, refs[i], &mut ray.tmax)
+        })
     }
 
     /// [`OctantBvh::traverse`] with obvhs's own `traverse!` loop and node test: the reference
@@ -841,7 +794,7 @@ impl OctantBvh {
         use glam::UVec2;
         let chunk_walk =
             |chunk: &Chunk, ray: &mut Ray, visit: &mut dyn FnMut(u64, &mut f32) -> bool| {
-                let bvh = &self.chunk_bvh(chunk);
+                let bvh = &chunk.bvh;
                 if bvh.nodes.is_empty() {
                     return false;
                 }
@@ -1013,14 +966,6 @@ mod tests {
         assert_eq!(one.num_chunks(), two.num_chunks());
         assert_eq!(one.num_nodes(), two.num_nodes());
         assert_eq!(one.voxel_bounds(), two.voxel_bounds());
-        // The chunks' nodes may lie in another order in the shared buffer, but each chunk's
-        // BVH is the same.
-        assert!(one.num_chunks() > 1);
-        for (a, b) in one.chunks.iter().zip(&two.chunks) {
-            assert_eq!((a.first, a.len), (b.first, b.len));
-            let (a, b) = (one.chunk_nodes(a), two.chunk_nodes(b));
-            assert_eq!(a, b);
-        }
     }
 
     /// Boxes of mixed sizes scattered in a 100-cube, one per ref.

@@ -19,15 +19,12 @@ const LEAF_MAX: usize = 3;
 /// obvhs's traversal stack of 32 whatever the codes.
 const MORTON_DEPTH: u32 = 20;
 
-/// Build scratch: the sort keys and the boxes in their order, kept between builds, and the
-/// node and primitive buffers a caller gave back ([`WideBuilder::recycle`]).
+/// Build scratch: the sort keys and the boxes in their order, kept between builds.
 #[derive(Default)]
 pub struct WideBuilder {
     keys: Vec<u64>,
     tmp: Vec<u64>,
     sorted: Vec<Aabb>,
-    nodes: Vec<CwBvhNode>,
-    prims: Vec<u32>,
 }
 
 impl WideBuilder {
@@ -62,9 +59,9 @@ impl WideBuilder {
             keys: &self.keys,
             shift: index_bits,
             index_mask,
-            nodes: reuse(&mut self.nodes, n / 4 + 1),
+            nodes: Vec::with_capacity(n / 4 + 1),
             // A leaf writes three primitives before it drops those past its own.
-            prims: reuse(&mut self.prims, n + 2),
+            prims: Vec::with_capacity(n + 2),
         };
         b.nodes.push(CwBvhNode::default());
         let total = b.root(n);
@@ -74,18 +71,6 @@ impl WideBuilder {
             total_aabb: total,
             exact_node_aabbs: None,
             uses_spatial_splits: false,
-        }
-    }
-
-    /// Keeps `nodes` and `prims` (a built [`CwBvh`]'s buffers, once the caller has copied out
-    /// what it needs) for the next build to write into: memory already written once, not fresh
-    /// pages for every build.
-    pub fn recycle(&mut self, nodes: Vec<CwBvhNode>, prims: Vec<u32>) {
-        if nodes.capacity() > self.nodes.capacity() {
-            self.nodes = nodes;
-        }
-        if prims.capacity() > self.prims.capacity() {
-            self.prims = prims;
         }
     }
 
@@ -99,8 +84,6 @@ impl WideBuilder {
     pub fn scratch_bytes(&self) -> usize {
         (self.keys.capacity() + self.tmp.capacity()) * 8
             + self.sorted.capacity() * size_of::<Aabb>()
-            + self.nodes.capacity() * size_of::<CwBvhNode>()
-            + self.prims.capacity() * 4
     }
 
     /// Fills `self.keys` with `code << index_bits | index`, sorted by code (then index), where
@@ -247,14 +230,6 @@ fn radix_passes(keys: &mut Vec<u64>, tmp: &mut Vec<u64>, from: u32, counts: &[[u
         }
         std::mem::swap(keys, tmp);
     }
-}
-
-/// `kept`, emptied, with room for `n` elements (taken out of `kept`).
-fn reuse<T>(kept: &mut Vec<T>, n: usize) -> Vec<T> {
-    let mut v = std::mem::take(kept);
-    v.clear();
-    v.reserve(n);
-    v
 }
 
 /// One build: the sorted keys and boxes, and the nodes and primitive order written so far.

@@ -901,9 +901,6 @@ fn append(
 ) -> Result<()> {
     for part in parts {
         let (part, n) = part?;
-        // The result grows to tens of megabytes on a dense isovalue: huge pages spare it a page
-        // fault per 4 KiB.
-        crate::huge_pages::reserve(refs, part.len());
         refs.extend_from_slice(&part);
         *duals += part.iter().filter(|&&r| r as u32 >= DUAL_BASE).count() as u64;
         totals.evaluated += n.evaluated;

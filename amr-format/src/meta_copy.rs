@@ -59,7 +59,7 @@ impl Deref for MetaCopy {
 /// An anonymous map of at least `len` bytes advised for huge pages, for a `len` of a huge page
 /// or more; `None` otherwise or where it cannot be made. Its length is rounded up to whole huge
 /// pages, so that the kernel places it on a huge page boundary. The last, partly used huge page
-/// is advised only when it is mostly used: else its unused part would be resident too, and the
+/// is advised only when at least half of it is used (its unused part is resident too); else the
 /// copy's end is faulted in small pages.
 fn huge_map(len: usize) -> Option<MmapMut> {
     if len < HUGE {
@@ -67,7 +67,7 @@ fn huge_map(len: usize) -> Option<MmapMut> {
     }
     let whole = len.checked_next_multiple_of(HUGE)?;
     let map = MmapMut::map_anon(whole).ok()?;
-    let advised = if whole - len <= HUGE / 4 {
+    let advised = if whole - len <= HUGE / 2 {
         whole
     } else {
         len - len % HUGE

@@ -15,6 +15,7 @@ pub mod error;
 pub mod geometry;
 pub mod hierarchy;
 pub mod kdtree;
+mod meta_copy;
 pub mod output;
 pub mod progress;
 pub mod raw;

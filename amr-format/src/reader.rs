@@ -16,6 +16,7 @@ use crate::error::{FormatError, Result};
 use crate::geometry::IBox;
 use crate::hierarchy::{MAX_BRICK_CELLS, MAX_BRICK_EXTENT, MAX_FINEST_EXTENT, MAX_LEVELS};
 use crate::kdtree::{KdNode, TreeView};
+use crate::meta_copy::MetaCopy;
 use crate::raw::{
     self, BlockRange, BrickData, BrickRecord, FieldRecord, Footer, Header, KdLeaf, LeafRange,
     LevelRecord, PartTable, Section,
@@ -101,7 +102,7 @@ impl<'a> LeafInfo<'a> {
 pub struct AmrkFile<D> {
     data: D,
     /// A copy of the metadata region, read instead of `data` for every table.
-    meta: Vec<u8>,
+    meta: MetaCopy,
     footer: Footer,
     levels: Vec<LevelInfo>,
     fields: Vec<FieldInfo>,
@@ -173,9 +174,8 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
                 meta_end
             )));
         }
-        // Copied before the checksum, so that the bytes checked are the bytes read afterwards.
-        let meta_bytes = bytes[meta.offset.get() as usize..meta_end as usize].to_vec();
-        let crc = crc32fast::hash(&meta_bytes);
+        // The checksum is of the copy, so that the bytes checked are the bytes read afterwards.
+        let (meta_bytes, crc) = MetaCopy::of(&bytes[meta.offset.get() as usize..meta_end as usize]);
         if crc != footer.metadata_crc.get() {
             return Err(FormatError::Checksum {
                 what: "metadata".into(),

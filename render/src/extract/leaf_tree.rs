@@ -11,7 +11,9 @@ use std::convert::Infallible;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use amr_format::kdtree::{leaf_bounds, KdNode, TreeView};
+use amr_format::raw::KdLeaf;
 use amr_format::IBox;
+use zerocopy::FromZeros;
 
 use super::blocks::{level_box, scan, BlockRanges};
 use super::tight::{pack, unpack};
@@ -27,13 +29,15 @@ const MAX_KD_DEPTH: u32 = 48;
 /// Cells of a leaf's part, at most, that [`LeafTree::exact_range_over`] scans without asking
 /// the block tables (a part this small holds no whole block of them).
 const SCAN_CELLS: u64 = 64;
-/// A range not computed yet (the bits of two NaNs, which no computed range holds).
-const UNKNOWN: u64 = u64::MAX;
+/// A range not computed yet: a slot holds a computed range's [`pack`] inverted, and never this
+/// (two NaNs, which no computed range holds), so that the tables start as zeroed memory, whose
+/// pages the kernel only hands over when a range is kept in them.
+const UNKNOWN: u64 = 0;
 
 /// One node: the leaves `order[first..end]`.
 struct Node {
     /// The union of its leaves' boxes (finest-level cells).
-    bounds: IBox,
+    bounds: LeafBox,
     /// The coarsest level of its leaves with data (`u32::MAX` when none has data).
     coarsest: u32,
     /// True when every one of its leaves has data.
@@ -44,10 +48,58 @@ struct Node {
     children: Option<(u32, u32)>,
 }
 
-/// Every leaf's box and the level of its finest brick (`u32::MAX` without data), by leaf id.
-struct Leaves {
-    boxes: Vec<IBox>,
+/// Every leaf's box (the file's) and the level of its finest brick (`u32::MAX` without data),
+/// by leaf id.
+struct Leaves<'a> {
+    tree: &'a TreeView<'a>,
     levels: Vec<u32>,
+}
+
+impl Leaves<'_> {
+    /// Leaf `l`'s box, `None` past the last leaf.
+    #[inline]
+    fn get(&self, l: u32) -> Option<IBox> {
+        self.tree.leaves.get(l as usize).map(leaf_bounds)
+    }
+}
+
+/// A leaf's box as the file stores it (finest-level cells relative to the domain, which spans
+/// at most `u32::MAX` cells per axis): half the bytes of an [`IBox`].
+#[derive(Clone, Copy)]
+struct LeafBox {
+    lo: [u32; 3],
+    hi: [u32; 3],
+}
+
+impl LeafBox {
+    /// The box of a stored leaf.
+    #[inline]
+    fn of(l: &KdLeaf) -> Self {
+        let (lo, hi) = (&l.lo, &l.hi);
+        Self {
+            lo: [lo[0].get(), lo[1].get(), lo[2].get()],
+            hi: [hi[0].get(), hi[1].get(), hi[2].get()],
+        }
+    }
+
+    /// A union of leaves' boxes (so its corners fit).
+    #[inline]
+    fn of_union(b: &IBox) -> Self {
+        Self {
+            lo: b.lo.map(|v| v as u32),
+            hi: b.hi.map(|v| v as u32),
+        }
+    }
+
+    /// The box, its corners widened.
+    #[inline(always)]
+    fn get(&self) -> IBox {
+        let (lo, hi) = (&self.lo, &self.hi);
+        IBox::new(
+            [lo[0].into(), lo[1].into(), lo[2].into()],
+            [hi[0].into(), hi[1].into(), hi[2].into()],
+        )
+    }
 }
 
 /// What [`LeafTree::for_each_overlapping_grouped`] hands over: a leaf, or a node taken whole.
@@ -88,11 +140,11 @@ pub struct LeafTree {
     exact_ranges: Vec<AtomicU64>,
     /// Per node, the exact range of its leaves' cells once asked.
     exact_nodes: Vec<AtomicU64>,
-    /// Per leaf, its box.
-    boxes: Vec<IBox>,
     /// The boxes of the leaves of `order`, in its order: a bottom node's leaves' boxes are
     /// read one after another, without going through the leaf ids.
-    ordered: Vec<IBox>,
+    ordered: Vec<LeafBox>,
+    /// Per leaf, its place in `order` (and its box's in `ordered`).
+    position: Vec<u32>,
 }
 
 impl LeafTree {
@@ -116,7 +168,7 @@ impl LeafTree {
         let mut order: Vec<u32> = Vec::with_capacity(n as usize);
         let tree = sampler.file().tree();
         let leaves = Leaves {
-            boxes: tree.leaves.iter().map(leaf_bounds).collect(),
+            tree: &tree,
             levels: (0..n)
                 .map(|l| sampler.leaf_top(l).map_or(u32::MAX, |(_, lv)| lv))
                 .collect(),
@@ -127,17 +179,23 @@ impl LeafTree {
             order = (0..n).collect();
             build(&leaves, &mut order, 0, &mut nodes);
         }
-        let unknown = |n: usize| (0..n).map(|_| AtomicU64::new(UNKNOWN)).collect();
-        let ordered = order.iter().map(|&l| leaves.boxes[l as usize]).collect();
+        let ordered = order
+            .iter()
+            .map(|&l| LeafBox::of(&tree.leaves[l as usize]))
+            .collect();
+        let mut position = vec![0u32; n as usize];
+        for (i, &l) in order.iter().enumerate() {
+            position[l as usize] = i as u32;
+        }
         Self {
             ordered,
+            position,
             ranges: unknown(nodes.len()),
             leaf_ranges: unknown(n as usize),
-            exact_ranges: unknown(n as usize),
+            exact_ranges: unknown_written(n as usize),
             exact_nodes: unknown(nodes.len()),
             nodes,
             order,
-            boxes: leaves.boxes,
         }
     }
 
@@ -150,18 +208,20 @@ impl LeafTree {
         let mut best = u32::MAX;
         let Ok(()) = self.walk::<Infallible>(|at| {
             Ok(match at {
-                At::Node(_, node) if node.coarsest >= best || !node.bounds.touches(region) => {
+                At::Node(_, node)
+                    if node.coarsest >= best || !node.bounds.get().touches(region) =>
+                {
                     Visit::Skip
                 }
-                At::Node(_, node) if region.contains_box(&node.bounds) => {
+                At::Node(_, node) if region.contains_box(&node.bounds.get()) => {
                     best = node.coarsest;
                     Visit::Skip
                 }
                 At::Node(..) => Visit::Enter,
                 At::Leaves(node) => {
-                    for &l in self.leaves(node) {
+                    for (&l, b) in self.leaves(node).iter().zip(self.leaf_boxes(node)) {
                         if let Some((_, lv)) = sampler.leaf_top(l) {
-                            if lv < best && self.boxes[l as usize].touches(region) {
+                            if lv < best && b.get().touches(region) {
                                 best = lv;
                             }
                         }
@@ -203,16 +263,15 @@ impl LeafTree {
         let mut top = usize::from(
             self.nodes
                 .first()
-                .is_some_and(|n| n.bounds.overlaps(region)),
+                .is_some_and(|n| n.bounds.get().overlaps(region)),
         );
         while top > 0 {
             top -= 1;
             let i = stack[top];
             let node = &self.nodes[i as usize];
             // `whole` first: it fails fast where nodes are never taken whole.
-            if whole(&node.bounds, node.coarsest, node.complete)
-                && region.contains_box(&node.bounds)
-            {
+            let bounds = node.bounds.get();
+            if whole(&bounds, node.coarsest, node.complete) && region.contains_box(&bounds) {
                 f(Met::Node(i));
                 continue;
             }
@@ -224,7 +283,7 @@ impl LeafTree {
                 _ => {
                     let (first, end) = (node.first as usize, node.end as usize);
                     for (&l, b) in self.order[first..end].iter().zip(&self.ordered[first..end]) {
-                        if b.overlaps(region) {
+                        if b.get().overlaps(region) {
                             f(Met::Leaf(l));
                         }
                     }
@@ -236,7 +295,7 @@ impl LeafTree {
     /// The box of node `i` (the union of its leaves' boxes).
     #[inline]
     pub fn node_box(&self, i: u32) -> IBox {
-        self.nodes[i as usize].bounds
+        self.nodes[i as usize].bounds.get()
     }
 
     /// The leaves of node `i`'s subtree.
@@ -254,7 +313,7 @@ impl LeafTree {
         // Its own loop rather than `walk`, as in `exact_range_over`; a child is tested before
         // it is pushed, so that only nodes meeting `region` are taken from the stack.
         let mut stack = [0u32; 64];
-        let mut top = usize::from(self.nodes.first().is_some_and(|n| meets(&n.bounds)));
+        let mut top = usize::from(self.nodes.first().is_some_and(|n| meets(&n.bounds.get())));
         while top > 0 {
             top -= 1;
             let node = &self.nodes[stack[top] as usize];
@@ -266,7 +325,7 @@ impl LeafTree {
                 _ => {
                     let (first, end) = (node.first as usize, node.end as usize);
                     for (&l, b) in self.order[first..end].iter().zip(&self.ordered[first..end]) {
-                        if meets(b) {
+                        if meets(&b.get()) {
                             f(l);
                         }
                     }
@@ -286,7 +345,7 @@ impl LeafTree {
         mut top: usize,
     ) -> usize {
         for child in [b, a] {
-            if meets(&self.nodes[child as usize].bounds) {
+            if meets(&self.nodes[child as usize].bounds.get()) {
                 stack[top] = child;
                 top += 1;
             }
@@ -332,10 +391,16 @@ impl LeafTree {
         &self.order[node.first as usize..node.end as usize]
     }
 
+    /// The boxes of the leaves of `node`'s subtree, in [`Self::leaves`]'s order.
+    #[inline]
+    fn leaf_boxes(&self, node: &Node) -> &[LeafBox] {
+        &self.ordered[node.first as usize..node.end as usize]
+    }
+
     /// The box of leaf `l` (finest-level cells).
     #[inline]
     pub fn leaf_box(&self, l: u32) -> IBox {
-        self.boxes[l as usize]
+        self.ordered[self.position[l as usize] as usize].get()
     }
 
     /// The exact range of the cells (NaNs left out) of the leaves with data overlapping
@@ -358,13 +423,13 @@ impl LeafTree {
         let mut top = usize::from(
             self.nodes
                 .first()
-                .is_some_and(|n| n.bounds.overlaps(region)),
+                .is_some_and(|n| n.bounds.get().overlaps(region)),
         );
         while top > 0 {
             top -= 1;
             let i = stack[top];
             let node = &self.nodes[i as usize];
-            if node.coarsest >= level && region.contains_box(&node.bounds) {
+            if node.coarsest >= level && region.contains_box(&node.bounds.get()) {
                 let (a, b) = self.exact_node_range(sampler, i)?;
                 lo = lo.min(a);
                 hi = hi.max(b);
@@ -379,6 +444,7 @@ impl LeafTree {
                     let (first, end) = (node.first as usize, node.end as usize);
                     let leaves = self.order[first..end].iter().zip(&self.ordered[first..end]);
                     for (&l, leaf_box) in leaves {
+                        let leaf_box = &leaf_box.get();
                         if !leaf_box.overlaps(region) {
                             continue;
                         }
@@ -429,9 +495,8 @@ impl LeafTree {
         i: u32,
     ) -> Result<(f32, f32)> {
         let slot = &self.exact_nodes[i as usize];
-        let known = slot.load(Ordering::Relaxed);
-        if known != UNKNOWN {
-            return Ok(unpack(known));
+        if let Some(range) = known(slot) {
+            return Ok(range);
         }
         let node = &self.nodes[i as usize];
         let range = match node.children {
@@ -450,8 +515,7 @@ impl LeafTree {
                 (lo, hi)
             }
         };
-        // Never NaN, so never the bits of `UNKNOWN`.
-        slot.store(pack(range), Ordering::Relaxed);
+        keep(slot, range);
         Ok(range)
     }
 
@@ -471,8 +535,8 @@ impl LeafTree {
         let loose = region.grow(slack);
         self.walk(|at| -> Result<Visit> {
             let (a, b) = match at {
-                At::Node(_, node) if !node.bounds.overlaps(region) => return Ok(Visit::Skip),
-                At::Node(i, node) if loose.contains_box(&node.bounds) => {
+                At::Node(_, node) if !node.bounds.get().overlaps(region) => return Ok(Visit::Skip),
+                At::Node(i, node) if loose.contains_box(&node.bounds.get()) => {
                     self.node_range(sampler, blocks, i)?
                 }
                 At::Node(..) => return Ok(Visit::Enter),
@@ -495,8 +559,8 @@ impl LeafTree {
         region: &IBox,
     ) -> Result<(f32, f32)> {
         let (mut a, mut b) = (f32::INFINITY, f32::NEG_INFINITY);
-        for &l in &self.order[node.first as usize..node.end as usize] {
-            let leaf_box = &self.boxes[l as usize];
+        for (&l, leaf_box) in self.leaves(node).iter().zip(self.leaf_boxes(node)) {
+            let leaf_box = &leaf_box.get();
             if !leaf_box.overlaps(region) {
                 continue;
             }
@@ -522,9 +586,8 @@ impl LeafTree {
         i: u32,
     ) -> Result<(f32, f32)> {
         let slot = &self.ranges[i as usize];
-        let known = slot.load(Ordering::Relaxed);
-        if known != UNKNOWN {
-            return Ok(unpack(known));
+        if let Some(range) = known(slot) {
+            return Ok(range);
         }
         let node = &self.nodes[i as usize];
         let range = match node.children {
@@ -543,7 +606,7 @@ impl LeafTree {
                 (lo, hi)
             }
         };
-        slot.store(pack(range), Ordering::Relaxed);
+        keep(slot, range);
         Ok(range)
     }
 
@@ -557,14 +620,13 @@ impl LeafTree {
         l: u32,
     ) -> Result<(f32, f32)> {
         let slot = &self.exact_ranges[l as usize];
-        let known = slot.load(Ordering::Relaxed);
-        if known != UNKNOWN {
-            return Ok(unpack(known));
+        if let Some(range) = known(slot) {
+            return Ok(range);
         }
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         if let Some((brick, lv)) = sampler.leaf_top(l) {
             let bc = sampler.brick_cells(brick);
-            let cells = level_box(sampler.grid(), lv, &self.boxes[l as usize]).intersect(&bc);
+            let cells = level_box(sampler.grid(), lv, &self.leaf_box(l)).intersect(&bc);
             if !cells.is_empty() {
                 let values = sampler.values(brick)?;
                 let w = cells.extent()[0] as usize;
@@ -584,8 +646,7 @@ impl LeafTree {
                 }
             }
         }
-        // Never NaN, so never the bits of `UNKNOWN`.
-        slot.store(pack((lo, hi)), Ordering::Relaxed);
+        keep(slot, (lo, hi));
         Ok((lo, hi))
     }
 
@@ -597,9 +658,8 @@ impl LeafTree {
         l: u32,
     ) -> Result<(f32, f32)> {
         let slot = &self.leaf_ranges[l as usize];
-        let known = slot.load(Ordering::Relaxed);
-        if known != UNKNOWN {
-            return Ok(unpack(known));
+        if let Some(range) = known(slot) {
+            return Ok(range);
         }
         let range = match sampler.leaf_top(l) {
             Some((brick, lv)) => {
@@ -608,9 +668,34 @@ impl LeafTree {
             }
             None => (f32::INFINITY, f32::NEG_INFINITY),
         };
-        slot.store(pack(range), Ordering::Relaxed);
+        keep(slot, range);
         Ok(range)
     }
+}
+
+/// `n` range slots, every one [`UNKNOWN`].
+fn unknown(n: usize) -> Vec<AtomicU64> {
+    AtomicU64::new_vec_zeroed(n).unwrap_or_else(|_| (0..n).map(|_| AtomicU64::new(0)).collect())
+}
+
+/// `n` range slots, every one [`UNKNOWN`], written now: for a table that most leaves visited
+/// read and then fill, where a zeroed page costs two faults (the read maps the zero page, the
+/// first range kept copies it) and a written one one.
+fn unknown_written(n: usize) -> Vec<AtomicU64> {
+    (0..n).map(|_| AtomicU64::new(UNKNOWN)).collect()
+}
+
+/// The range kept in `slot`, if any.
+#[inline]
+fn known(slot: &AtomicU64) -> Option<(f32, f32)> {
+    let bits = slot.load(Ordering::Relaxed);
+    (bits != UNKNOWN).then(|| unpack(!bits))
+}
+
+/// Keeps `range` (never NaN, so never stored as [`UNKNOWN`]) in `slot`.
+#[inline]
+fn keep(slot: &AtomicU64, range: (f32, f32)) {
+    slot.store(!pack(range), Ordering::Relaxed);
 }
 
 /// Fills `nodes` and `order` with the tree of the kd-tree `tree`'s shape (the file checked it
@@ -627,7 +712,7 @@ fn from_kd_tree(
     if tree.num_nodes() > 0 {
         from_kd_node(tree, all, 0, tree.num_nodes(), order, nodes)?;
     }
-    (order.len() == all.boxes.len()).then_some(())
+    (order.len() == all.tree.leaves.len()).then_some(())
 }
 
 /// Appends the node of the leaves under kd node `i`, whose subtree is the kd nodes `i..end`,
@@ -652,7 +737,7 @@ fn from_kd_node(
                 return None;
             }
             nodes.push(Node {
-                bounds: IBox::new([0; 3], [0; 3]),
+                bounds: LeafBox::of_union(&IBox::new([0; 3], [0; 3])),
                 coarsest: u32::MAX,
                 complete: false,
                 first,
@@ -662,7 +747,8 @@ fn from_kd_node(
             let a = from_kd_node(tree, all, low, high, order, nodes)?;
             let b = from_kd_node(tree, all, high, end, order, nodes)?;
             let (na, nb) = (&nodes[a as usize], &nodes[b as usize]);
-            let (bounds, coarsest) = (na.bounds.union(&nb.bounds), na.coarsest.min(nb.coarsest));
+            let bounds = LeafBox::of_union(&na.bounds.get().union(&nb.bounds.get()));
+            let coarsest = na.coarsest.min(nb.coarsest);
             let complete = na.complete && nb.complete;
             let node = &mut nodes[index as usize];
             node.bounds = bounds;
@@ -680,15 +766,14 @@ fn from_kd_node(
                 let KdNode::Leaf { leaf } = KdNode::decode(i + j, n) else {
                     continue;
                 };
-                let (b, lv) = (all.boxes.get(leaf as usize)?, all.levels[leaf as usize]);
+                let (b, lv) = (all.get(leaf)?, all.levels[leaf as usize]);
                 order.push(leaf);
-                bounds = Some(bounds.map_or(*b, |u| u.union(b)));
+                bounds = Some(bounds.map_or(b, |u| u.union(&b)));
                 coarsest = coarsest.min(lv);
                 complete &= lv != u32::MAX;
             }
-            let bounds = bounds?;
             nodes.push(Node {
-                bounds,
+                bounds: LeafBox::of_union(&bounds?),
                 coarsest,
                 complete,
                 first,
@@ -704,19 +789,19 @@ fn from_kd_node(
 /// `nodes`, reordering `leaves` so that each child's are contiguous; returns the node's index.
 /// `all` holds every leaf's box and level (`u32::MAX` without data).
 fn build(all: &Leaves, leaves: &mut [u32], first: u32, nodes: &mut Vec<Node>) -> u32 {
-    let mut bounds = all.boxes[leaves[0] as usize];
+    let mut bounds = leaf_bounds(&all.tree.leaves[leaves[0] as usize]);
     let mut coarsest = u32::MAX;
     let mut complete = true;
     for &l in leaves.iter() {
         let lv = all.levels[l as usize];
-        bounds = bounds.union(&all.boxes[l as usize]);
+        bounds = bounds.union(&leaf_bounds(&all.tree.leaves[l as usize]));
         coarsest = coarsest.min(lv);
         complete &= lv != u32::MAX;
     }
     let index = nodes.len() as u32;
     let end = first + leaves.len() as u32;
     nodes.push(Node {
-        bounds,
+        bounds: LeafBox::of_union(&bounds),
         coarsest,
         complete,
         first,
@@ -728,8 +813,8 @@ fn build(all: &Leaves, leaves: &mut [u32], first: u32, nodes: &mut Vec<Node>) ->
         let axis = (0..3).max_by_key(|&a| e[a]).unwrap_or(0);
         let mid = leaves.len() / 2;
         leaves.select_nth_unstable_by_key(mid, |&l| {
-            let b = &all.boxes[l as usize];
-            b.lo[axis] + b.hi[axis]
+            let b = &all.tree.leaves[l as usize];
+            u64::from(b.lo[axis].get()) + u64::from(b.hi[axis].get())
         });
         let (left, right) = leaves.split_at_mut(mid);
         let a = build(all, left, first, nodes);

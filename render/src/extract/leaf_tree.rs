@@ -737,7 +737,10 @@ fn from_kd_node(
                 return None;
             }
             nodes.push(Node {
-                bounds: LeafBox::of_union(&IBox::new([0; 3], [0; 3])),
+                bounds: LeafBox {
+                    lo: [0; 3],
+                    hi: [0; 3],
+                },
                 coarsest: u32::MAX,
                 complete: false,
                 first,

@@ -82,10 +82,17 @@ impl Cubic {
     /// extremum, and surfaces through segment ends where two voxels meet).
     #[inline]
     pub fn first_root(&self, a: f64, b: f64, tol: f64) -> Option<f64> {
-        self.first_bracket(a, b, tol).map(|bracket| match bracket {
+        self.first_bracket(a, b, tol)
+            .map(|bracket| self.root_in(bracket, a, b))
+    }
+
+    /// The root `bracket` (found on `[a, b]`) holds: where it is, or its sign change refined.
+    #[inline(always)]
+    fn root_in(&self, bracket: Bracket, a: f64, b: f64) -> f64 {
+        match bracket {
             Bracket::Root(x) => x,
             Bracket::SignChange(x0, f0, x1, f1) => self.refine(x0, f0, x1, f1, ROOT_TOL * (b - a)),
-        })
+        }
     }
 
     /// [`Self::first_root`] on `[0, 1]`, given what its first step computes there: whether the
@@ -96,13 +103,7 @@ impl Cubic {
         if !monotonic {
             return self.first_root(0.0, 1.0, tol);
         }
-        if f0.abs() <= tol {
-            return Some(0.0);
-        }
-        if (f0 < 0.0) != (f1 < 0.0) {
-            return Some(self.refine(0.0, f0, 1.0, f1, ROOT_TOL * (1.0 - 0.0)));
-        }
-        (f1.abs() <= tol).then_some(1.0)
+        monotonic_bracket((0.0, f0), (1.0, f1), tol).map(|bracket| self.root_in(bracket, 0.0, 1.0))
     }
 
     /// [`Self::has_root`] on `[0, 1]`, given the first step's values as
@@ -112,7 +113,7 @@ impl Cubic {
         if !monotonic {
             return self.has_root(0.0, 1.0, tol);
         }
-        f0.abs() <= tol || (f0 < 0.0) != (f1 < 0.0) || f1.abs() <= tol
+        monotonic_bracket((0.0, f0), (1.0, f1), tol).is_some()
     }
 
     /// True exactly when [`Self::first_root`] finds a root, without refining it (for any-hit
@@ -152,15 +153,7 @@ impl Cubic {
             return None;
         }
         if self.monotonic_on(a, b) {
-            let f0 = self.eval(a);
-            if f0.abs() <= tol {
-                return Some(Bracket::Root(a));
-            }
-            let f1 = self.eval(b);
-            if (f0 < 0.0) != (f1 < 0.0) {
-                return Some(Bracket::SignChange(a, f0, b, f1));
-            }
-            return (f1.abs() <= tol).then_some(Bracket::Root(b));
+            return monotonic_bracket((a, self.eval(a)), (b, self.eval(b)), tol);
         }
         self.scan_brackets(a, b, tol)
     }
@@ -286,6 +279,20 @@ impl Cubic {
     fn eval_with_slope(&self, s: f64) -> (f64, f64) {
         (self.eval(s), self.slope(s))
     }
+}
+
+/// The first bracket of a cubic monotonic on `[a, b]`, given its values `fa` at `a` and `fb`
+/// at `b`: `a` or `b` where the value is within `tol` of zero (`a` first), else `[a, b]` itself
+/// where the sign changes.
+#[inline(always)]
+fn monotonic_bracket((a, fa): (f64, f64), (b, fb): (f64, f64), tol: f64) -> Option<Bracket> {
+    if fa.abs() <= tol {
+        return Some(Bracket::Root(a));
+    }
+    if (fa < 0.0) != (fb < 0.0) {
+        return Some(Bracket::SignChange(a, fa, b, fb));
+    }
+    (fb.abs() <= tol).then_some(Bracket::Root(b))
 }
 
 #[cfg(test)]

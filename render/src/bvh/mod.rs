@@ -31,11 +31,13 @@ use obvhs::ray::Ray;
 use obvhs::BvhBuildParams;
 use rayon::prelude::*;
 
+mod lattice;
 mod node_test;
 pub mod packet;
 mod walk;
 pub mod wide;
 
+pub use lattice::CellLattice;
 pub use node_test::T_MIN;
 use packet::{walk_packet, Mask, PacketStack};
 use walk::{walk, Stack};

@@ -54,6 +54,7 @@ use std::time::Instant;
 
 use amr_format::AmrkFile;
 
+use crate::bvh::CellLattice;
 use crate::error::{RenderError, Result};
 use rayon::prelude::*;
 
@@ -875,7 +876,36 @@ impl<D: AsRef<[u8]> + Sync> Iterator for LeafBoxes<'_, '_, '_, D> {
     }
 }
 
-impl<D: AsRef<[u8]> + Sync> LeafBoxes<'_, '_, '_, D> {
+impl<'r, D: AsRef<[u8]> + Sync> LeafBoxes<'r, '_, '_, D> {
+    /// The leaf's merged dual cells as a lattice: the boxes [`Extractor::voxel_box`] gives
+    /// their refs. `None` for a leaf not in the file or of more cells than ids.
+    pub fn duals(&self) -> Option<CellLattice> {
+        let f = &self.frame;
+        if f.leaf == BoxFrame::NONE.leaf {
+            return None;
+        }
+        let double = f.scale.map(|s| 2 * s);
+        Some(CellLattice {
+            first_id: DUAL_BASE,
+            extent: [f.extent.0, f.extent.1],
+            cells: u32::try_from(f.cells).ok()?,
+            lowest: f.lowest,
+            step: double,
+            size: double,
+        })
+    }
+
+    /// The refs whose boxes are still to come.
+    pub fn rest(&self) -> &'r [u64] {
+        self.refs.as_slice()
+    }
+
+    /// Passes over the next `n` refs (whose boxes were pushed otherwise).
+    pub fn skip_refs(&mut self, n: usize) {
+        let rest = self.refs.as_slice();
+        self.refs = rest[n.min(rest.len())..].iter();
+    }
+
     /// Keeps the error of `r` (the one [`Extractor::voxel_box`] gives) unless one is kept (its
     /// box is then the empty box at the origin).
     #[cold]

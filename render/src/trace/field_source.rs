@@ -20,7 +20,9 @@ use crate::bvh::BoxRun;
 use crate::error::{RenderError, Result};
 use crate::extract::current::CurrentVoxels;
 use crate::extract::nearest::NearestFaces;
-use crate::extract::{candidate_leaves, DecodeFrame, ExtractStats, Extraction, Extractor, Region};
+use crate::extract::{
+    candidate_leaves, DecodeFrame, ExtractStats, Extraction, Extractor, LeafBoxes, Region,
+};
 use crate::mapping::PageRelease;
 use crate::reconstruct::level_gradient::LevelBlocks;
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
@@ -371,7 +373,21 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
             out.push_ints_coded(boxes, |q| unsafe { morton_bmi2(q) });
         }
         // A closure in this function has its target features: `push` is safe to call there.
-        e.voxel_box_runs(refs, |boxes| push(out, boxes), |err| self.record(err));
+        // A leaf's merged dual cells go four at a time, the other refs one at a time.
+        let run = |mut boxes: LeafBoxes<'_, '_, 'f, D>| {
+            let Some(duals) = boxes.duals() else {
+                return push(out, boxes);
+            };
+            loop {
+                let done = out.push_lattice(&duals, boxes.rest());
+                boxes.skip_refs(done);
+                if boxes.rest().is_empty() {
+                    return;
+                }
+                push(out, boxes.by_ref().take(4));
+            }
+        };
+        e.voxel_box_runs(refs, run, |err| self.record(err));
     }
 }
 

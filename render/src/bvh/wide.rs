@@ -19,12 +19,11 @@ const LEAF_MAX: usize = 3;
 /// obvhs's traversal stack of 32 whatever the codes.
 const MORTON_DEPTH: u32 = 20;
 
-/// Build scratch: the sort keys and the boxes in their order, kept between builds.
+/// Build scratch: the sort keys, kept between builds.
 #[derive(Default)]
 pub struct WideBuilder {
     keys: Vec<u64>,
     tmp: Vec<u64>,
-    sorted: Vec<Aabb>,
 }
 
 impl WideBuilder {
@@ -51,11 +50,10 @@ impl WideBuilder {
         let index_bits = (usize::BITS - (n - 1).leading_zeros()).max(1);
         self.sort(codes, index_bits);
         let index_mask = (1u64 << index_bits) - 1;
-        self.sorted.clear();
-        self.sorted
-            .extend(self.keys.iter().map(|&k| boxes[(k & index_mask) as usize]));
+        // The leaves read their boxes through the keys' indices: no copy of the boxes in
+        // the keys' order.
         let mut b = Build {
-            boxes: &self.sorted,
+            boxes,
             keys: &self.keys,
             shift: index_bits,
             index_mask,
@@ -83,7 +81,6 @@ impl WideBuilder {
     /// Bytes of scratch held.
     pub fn scratch_bytes(&self) -> usize {
         (self.keys.capacity() + self.tmp.capacity()) * 8
-            + self.sorted.capacity() * size_of::<Aabb>()
     }
 
     /// Fills `self.keys` with `code << index_bits | index`, sorted by code (then index), where
@@ -232,9 +229,9 @@ fn radix_passes(keys: &mut Vec<u64>, tmp: &mut Vec<u64>, from: u32, counts: &[[u
     }
 }
 
-/// One build: the sorted keys and boxes, and the nodes and primitive order written so far.
+/// One build: the sorted keys, the boxes, and the nodes and primitive order written so far.
 struct Build<'a> {
-    /// The boxes in the keys' order.
+    /// The boxes, box `k & index_mask` for key `k`.
     boxes: &'a [Aabb],
     keys: &'a [u64],
     shift: u32,
@@ -378,10 +375,11 @@ impl Build<'_> {
                 // The first, second and last boxes are all of a run of one to three (some
                 // twice): no loop of one to three turns, whose count branches mispredict.
                 let (second, last) = (ra + n / 2, rb - 1);
-                child_box[i] = boxes[ra].union(&boxes[second]).union(&boxes[last]);
                 let prim = |k: usize| (keys[k] & index_mask) as u32;
-                self.prims
-                    .extend_from_slice(&[prim(ra), prim(second), prim(last)]);
+                let p = [prim(ra), prim(second), prim(last)];
+                let b = |k: usize| &boxes[p[k] as usize];
+                child_box[i] = b(0).union(b(1)).union(b(2));
+                self.prims.extend_from_slice(&p);
                 self.prims.truncate(first + n);
             } else {
                 inner_at[i] = child_base + inner;

@@ -13,7 +13,7 @@ use crate::output::frame::{FrameBuffer, PixelSample};
 use crate::shade::ao_filter::{self, AoRow, AoRows};
 use crate::shade::ao_packets::TileAo;
 use crate::shade::integrate::{shade_hits, KeyShadow, Lighting, SearchHint};
-use crate::shade::layers::TileLayers;
+use crate::shade::layers::{Layer, TileLayers};
 use crate::shade::packets::{TileHits, TILE_RAYS};
 use crate::shade::sampling::Rng;
 use crate::trace::ray::GridRay;
@@ -304,6 +304,7 @@ fn render_strip<T: Tracer + ?Sized>(
     // rays; a frame that does neither leaves them out.
     let sampled = spp > 1 || light.ao_rays > 0;
     let mut unused_rng = Rng::for_pixel(0, 0, 0);
+    let alone = hits_alone(tracer, light, spp);
     // With one sample per pixel, each ray passes through its pixel's centre: its direction's
     // offsets are its column's and its row's.
     let down: Vec<f64> = ys.clone().map(|y| dirs.down(f64::from(y) + 0.5)).collect();
@@ -355,6 +356,18 @@ fn render_strip<T: Tracer + ?Sized>(
             }
             // A tile whose rays hit nothing has no layers: every sample is a miss.
             let any_hit = tile.trace(&counting, light, &rays, &mut hint);
+            if alone {
+                shade_alone(
+                    &counting,
+                    &frame,
+                    light,
+                    origin,
+                    (&dirs_k, &tile),
+                    tw,
+                    &mut rows,
+                );
+                continue;
+            }
             if any_hit {
                 layers.trace(&counting, light, &rays, &mut tile);
                 shadows.trace(&counting, light, &dirs_k, &mut layers);
@@ -398,6 +411,60 @@ fn render_strip<T: Tracer + ?Sized>(
     }
     STRIP_LAYERS.set(Some(layers));
     rows
+}
+
+/// True when each pixel of a frame is its one primary ray's hit shaded alone: one sample per
+/// pixel, one opaque surface (a ray's one layer is its hit) and no shadow or AO rays to trace
+/// for it. Such a tile's pixels are shaded straight from its hits ([`shade_alone`]), without
+/// the layers, shadow and AO stages that give each hit nothing more.
+fn hits_alone<T: Tracer + ?Sized>(tracer: &T, light: &Lighting, spp: u32) -> bool {
+    spp == 1
+        && tracer.num_surfaces() == 1
+        && light.opacity[0] >= 1.0
+        && !light.shadows
+        && light.ao_rays == 0
+}
+
+/// Pushes the pixels of a tile `tw` rays wide onto `rows` (one per row of the tile) when
+/// [`hits_alone`]: each ray `k`'s hit in `tile`, seen along `dirs[k]` from `origin`, shaded as
+/// [`shade_hits`] shades it as the ray's one layer (a miss where it has none).
+#[inline(always)]
+fn shade_alone<T: Tracer + ?Sized>(
+    tracer: &T,
+    frame: &GridFrame,
+    light: &Lighting,
+    origin: [f64; 3],
+    (dirs, tile): (&[[f64; 3]], &TileHits),
+    tw: usize,
+    rows: &mut [Row],
+) {
+    let mut unused_rng = Rng::for_pixel(0, 0, 0);
+    for (r, row) in rows.iter_mut().enumerate() {
+        for k in r * tw..(r + 1) * tw {
+            let sample = match tile.hits_of(k)[0] {
+                Some(hit) => {
+                    let layer = Layer {
+                        surface: 0,
+                        hit,
+                        shadow: None,
+                        ao: None,
+                    };
+                    let (dir, of) = (dirs[k], std::slice::from_ref(&layer));
+                    shade_hits(
+                        tracer,
+                        frame,
+                        light,
+                        (origin, dir),
+                        of,
+                        &mut unused_rng,
+                        None,
+                    )
+                }
+                None => PixelSample::MISS,
+            };
+            row.pixels.push(PixelAcc::only(sample));
+        }
+    }
 }
 
 thread_local! {

@@ -3,11 +3,14 @@
 
 use crate::trace::ray::{larger, smaller};
 
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod x4;
+
 /// How close to the root [`Cubic::first_root`] refines it, as a fraction of the interval. For a
 /// ray's segment in a voxel, a billionth of the segment (under 2e-9 of the voxel's size): 30
 /// times finer than an `f32` resolves a quantity of the voxel's size, so that what the hit gives
 /// (position, normal, shadow ray origin) moves in its last bits at most.
-const ROOT_TOL: f64 = 1e-9;
+pub(crate) const ROOT_TOL: f64 = 1e-9;
 
 /// Where a scan of a cubic found its first root: at a point, or inside a bracket.
 #[derive(Debug, PartialEq)]

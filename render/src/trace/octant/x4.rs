@@ -13,7 +13,8 @@ use std::arch::x86_64::*;
 
 use super::{exact_recips, Segment, VoxelHit, VoxelSetup, SEGMENT_WIDEN};
 use crate::bvh::packet::{rays_of, Mask};
-use crate::trace::cubic::Cubic;
+use crate::trace::cubic::x4::refine_lanes;
+use crate::trace::cubic::{Cubic, ROOT_TOL};
 use crate::trace::lanes::{abs, larger, smaller, PerLane};
 use crate::trace::ray::GridRay;
 use crate::trace::source::Voxel;
@@ -59,8 +60,9 @@ pub(super) fn hits(
         let Some(segs) = segs.as_ref() else {
             return;
         };
+        let refined = segs.refined();
         for (i, &k) in ks[..n].iter().enumerate() {
-            if let Some(hit) = segs.first_hit(i) {
+            if let Some(hit) = segs.first_hit(i, &refined) {
                 // SAFETY: as above.
                 unsafe { *hits.get_unchecked_mut(k) = Some(hit) };
                 out |= 1 << k;
@@ -156,18 +158,52 @@ struct Segments {
 }
 
 impl Segments {
+    /// The lanes whose root [`Cubic::first_root_on_unit`] refines from the whole of `[0, 1]`
+    /// (a segment whose cubic is monotonic there, changes sign, and is not within the
+    /// tolerance of zero at 0), and those roots, refined four lanes at a time
+    /// ([`refine_lanes`]), bit for bit the scalar ones.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn refined(&self) -> (i32, PerLane) {
+        let (f0, f1) = (self.f0.0, self.f1.0);
+        let mut lanes = 0;
+        for i in 0..4 {
+            if f0[i].abs() > self.tol && (f0[i] < 0.0) != (f1[i] < 0.0) {
+                lanes |= 1 << i;
+            }
+        }
+        lanes &= self.pass & self.monotonic;
+        if lanes == 0 {
+            return (0, PerLane([0.0; 4]));
+        }
+        let (zeros, ones) = (PerLane([0.0; 4]), PerLane([1.0; 4]));
+        let roots = refine_lanes(
+            &self.c,
+            (&zeros, &self.f0),
+            (&ones, &self.f1),
+            // `Cubic::root_in`'s tolerance on `[0, 1]`, a bracket of width 1.
+            ROOT_TOL,
+            lanes,
+        );
+        (lanes, roots)
+    }
+
     /// Lane `i`'s first hit with the surface ([`Segment::first_hit`] of its segment), if it has
-    /// a segment.
+    /// a segment; `refined` is [`Segments::refined`].
     #[inline(always)]
-    fn first_hit(&self, i: usize) -> Option<VoxelHit> {
+    fn first_hit(&self, i: usize, (lanes, roots): &(i32, PerLane)) -> Option<VoxelHit> {
         if self.pass >> i & 1 == 0 {
             return None;
         }
-        let cubic = Cubic {
-            c: [0, 1, 2, 3].map(|j| self.c[j].0[i]),
+        let s = if lanes >> i & 1 != 0 {
+            roots.0[i]
+        } else {
+            let cubic = Cubic {
+                c: [0, 1, 2, 3].map(|j| self.c[j].0[i]),
+            };
+            let monotonic = self.monotonic >> i & 1 != 0;
+            cubic.first_root_on_unit(monotonic, self.f0.0[i], self.f1.0[i], self.tol)?
         };
-        let monotonic = self.monotonic >> i & 1 != 0;
-        let s = cubic.first_root_on_unit(monotonic, self.f0.0[i], self.f1.0[i], self.tol)?;
         Some(Segment::hit_at(
             s,
             (self.ta.0[i], self.tb.0[i]),

@@ -663,6 +663,89 @@ impl OctantBvh {
         }
     }
 
+    /// The any-hit walk of the rays of `active` among `rays` (at most [`packet::PACKET`]) in
+    /// one walk whatever their direction octants: `visit(i, refs()[i], m, rays)` is called with
+    /// the rays `m` that reach the ref (it may end rays by lowering their `tmax`). Each ray
+    /// reaches exactly the refs [`OctantBvh::traverse_indexed`] would give it alone under the
+    /// same `tmax` (at a node, the rays of each octant take [`OctantBvh::traverse_packet`]'s
+    /// test of that octant), but the children are taken in the order of one octant for all: for
+    /// queries whose answer does not depend on the order (any-hit), the rays of all the octants
+    /// then share the walk's nodes and the visits of the voxels they reach, where
+    /// [`OctantBvh::traverse_packet`] walks each octant from the root. Each ray's `-0.0`
+    /// direction components become `+0.0`.
+    pub fn traverse_packet_any(
+        &self,
+        rays: &mut [Ray],
+        active: Mask,
+        mut visit: impl FnMut(usize, u64, Mask, &mut [Ray]),
+    ) {
+        assert!(
+            rays.len() <= packet::PACKET,
+            "{} rays in a packet",
+            rays.len()
+        );
+        let mut octants = [0 as Mask; 8];
+        for k in packet::rays_of(active) {
+            rays[k] = positive_zeros(rays[k]);
+            octants[(node_test::octant_inv4(rays[k].direction) & 7) as usize] |= 1 << k;
+        }
+        if active == 0 {
+            return;
+        }
+        let first = active.trailing_zeros() as usize;
+        let oct = (node_test::octant_inv4(rays[first].direction) & 7) * 0x0101_0101;
+        let mut stack = PacketStack::with_capacity(256);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            unsafe { self.packet_any_avx2(rays, active, &octants, oct, &mut stack, &mut visit) };
+            return;
+        }
+        self.packet_with(rays, active, oct, &mut stack, &mut visit, |node, rays, m, e| {
+            let mut slots = 0;
+            for (o, &of_o) in octants.iter().enumerate() {
+                if m & of_o != 0 {
+                    let oct = (o as u32) * 0x0101_0101;
+                    slots |= packet::children_portable(node, rays, m & of_o, oct, e);
+                }
+            }
+            slots
+        });
+    }
+
+    /// [`OctantBvh::traverse_packet_any`] with the AVX2 node test of each octant's rays
+    /// (`octants[o]`, the rays of octant `o`), the whole walk compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn packet_any_avx2(
+        &self,
+        rays: &mut [Ray],
+        m: Mask,
+        octants: &[Mask; 8],
+        oct: u32,
+        stack: &mut PacketStack,
+        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]),
+    ) {
+        let mut lanes: [packet::Avx2Lanes; 8] =
+            [const { [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8] }; 8];
+        let mut tests: [Option<packet::Avx2Packet<'_>>; 8] = [const { None }; 8];
+        for ((o, lanes), test) in lanes.iter_mut().enumerate().zip(&mut tests) {
+            if octants[o] != 0 {
+                let oct = (o as u32) * 0x0101_0101;
+                *test = Some(packet::Avx2Packet::new(lanes, rays, octants[o], oct));
+            }
+        }
+        self.packet_with(rays, m, oct, stack, visit, |node, rays, m, e| {
+            let mut slots = 0;
+            for (test, &of_o) in tests.iter().zip(octants) {
+                if let Some(test) = test.as_ref().filter(|_| m & of_o != 0) {
+                    slots |= test.children(node, rays, m & of_o, e);
+                }
+            }
+            slots
+        });
+    }
+
     /// [`OctantBvh::traverse_packet`] on a CPU without AVX2, to compare with the AVX2 test.
     #[cfg(test)]
     fn traverse_packet_portable(

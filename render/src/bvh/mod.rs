@@ -1223,6 +1223,63 @@ mod tests {
     }
 
     #[test]
+    fn an_any_hit_packet_visits_for_each_ray_the_refs_its_own_walk_visits() {
+        let mut visited = 0;
+        for (name, bvh) in &scattered_builds() {
+            for p in 0..16u32 {
+                let a = p as f32 * 0.618;
+                let origin = Vec3A::new(
+                    50.0 + 30.0 * a.cos(),
+                    50.0 + 30.0 * a.sin(),
+                    40.0 + (p % 20) as f32,
+                );
+                // Rays every way from points near one another, as a tile's AO rays go: all
+                // eight octants in one packet, some with zero components.
+                let rays: Vec<Ray> = (0..64u32)
+                    .map(|k| {
+                        let b = k as f32 * 2.399 + a;
+                        let z = 1.0 - 2.0 * ((k as f32 + 0.5) / 64.0);
+                        let r = (1.0 - z * z).sqrt();
+                        let mut dir = Vec3A::new(r * b.cos(), r * b.sin(), z);
+                        if k % 11 == 0 {
+                            dir[(k % 3) as usize] = if k % 2 == 0 { 0.0 } else { -0.0 };
+                        }
+                        let start = origin + Vec3A::new((k % 4) as f32, (k / 16) as f32, 0.5);
+                        let tmax = if (p + k) % 3 == 0 { 25.0 } else { f32::INFINITY };
+                        Ray::new(start, dir, 0.0, tmax)
+                    })
+                    .collect();
+                let active = if p % 4 == 1 {
+                    0x5555_aaaa_f0f0_0ff1
+                } else {
+                    u64::MAX
+                };
+                let mut rs = rays.clone();
+                let mut got = vec![Vec::new(); rays.len()];
+                bvh.traverse_packet_any(&mut rs, active, |_, r, m, _| {
+                    for k in packet::rays_of(m) {
+                        got[k].push(r);
+                    }
+                });
+                for (k, ray) in rays.iter().enumerate() {
+                    let mut want = Vec::new();
+                    if active >> k & 1 != 0 {
+                        bvh.traverse(*ray, |r, _| {
+                            want.push(r);
+                            false
+                        });
+                    }
+                    want.sort_unstable();
+                    got[k].sort_unstable();
+                    assert_eq!(got[k], want, "{name} packet {p} ray {k}");
+                    visited += want.len();
+                }
+            }
+        }
+        assert!(visited > 10_000, "only {visited} visits");
+    }
+
+    #[test]
     fn a_negative_zero_in_the_direction_visits_as_a_positive_one() {
         let refs: Vec<u64> = (0..1000).collect();
         let bvh = BvhBuilder::new().build(&refs, 1e-4, grid_boxes);

@@ -701,16 +701,23 @@ impl OctantBvh {
             unsafe { self.packet_any_avx2(rays, active, &octants, oct, &mut stack, &mut visit) };
             return;
         }
-        self.packet_with(rays, active, oct, &mut stack, &mut visit, |node, rays, m, e| {
-            let mut slots = 0;
-            for (o, &of_o) in octants.iter().enumerate() {
-                if m & of_o != 0 {
-                    let oct = (o as u32) * 0x0101_0101;
-                    slots |= packet::children_portable(node, rays, m & of_o, oct, e);
+        self.packet_with(
+            rays,
+            active,
+            oct,
+            &mut stack,
+            &mut visit,
+            |node, rays, m, e| {
+                let mut slots = 0;
+                for (o, &of_o) in octants.iter().enumerate() {
+                    if m & of_o != 0 {
+                        let oct = (o as u32) * 0x0101_0101;
+                        slots |= packet::children_portable(node, rays, m & of_o, oct, e);
+                    }
                 }
-            }
-            slots
-        });
+                slots
+            },
+        );
     }
 
     /// [`OctantBvh::traverse_packet_any`] with the AVX2 node test of each octant's rays
@@ -1245,7 +1252,11 @@ mod tests {
                             dir[(k % 3) as usize] = if k % 2 == 0 { 0.0 } else { -0.0 };
                         }
                         let start = origin + Vec3A::new((k % 4) as f32, (k / 16) as f32, 0.5);
-                        let tmax = if (p + k) % 3 == 0 { 25.0 } else { f32::INFINITY };
+                        let tmax = if (p + k) % 3 == 0 {
+                            25.0
+                        } else {
+                            f32::INFINITY
+                        };
                         Ray::new(start, dir, 0.0, tmax)
                     })
                     .collect();

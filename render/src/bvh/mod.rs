@@ -698,7 +698,15 @@ impl OctantBvh {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
-            unsafe { self.packet_any_avx2(rays, active, &octants, oct, &mut stack, &mut visit) };
+            unsafe {
+                if octants.contains(&active) {
+                    // One octant (shadow rays, all parallel): its test alone, no loop over
+                    // the octants at every node.
+                    self.packet_avx2(rays, active, oct, &mut stack, &mut visit);
+                } else {
+                    self.packet_any_avx2(rays, active, &octants, oct, &mut stack, &mut visit);
+                }
+            };
             return;
         }
         self.packet_with(

@@ -677,6 +677,22 @@ impl OctantBvh {
         &self,
         rays: &mut [Ray],
         active: Mask,
+        visit: impl FnMut(usize, u64, Mask, &mut [Ray]),
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = std::arch::is_x86_feature_detected!("avx2");
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2 = false;
+        self.packet_any_on(rays, active, avx2, visit);
+    }
+
+    /// [`OctantBvh::traverse_packet_any`] with the AVX2 node test when `avx2` (the CPU must have
+    /// it), else the portable one.
+    fn packet_any_on(
+        &self,
+        rays: &mut [Ray],
+        active: Mask,
+        avx2: bool,
         mut visit: impl FnMut(usize, u64, Mask, &mut [Ray]),
     ) {
         assert!(
@@ -696,8 +712,8 @@ impl OctantBvh {
         let oct = (node_test::octant_inv4(rays[first].direction) & 7) * 0x0101_0101;
         let mut stack = PacketStack::with_capacity(256);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2, checked just above.
+        if avx2 {
+            // SAFETY: the caller's promise: the CPU has AVX2.
             unsafe {
                 if octants.contains(&active) {
                     // One octant (shadow rays, all parallel): its test alone, no loop over
@@ -709,6 +725,7 @@ impl OctantBvh {
             };
             return;
         }
+        let _ = avx2;
         self.packet_with(
             rays,
             active,
@@ -1249,7 +1266,7 @@ mod tests {
                     40.0 + (p % 20) as f32,
                 );
                 // Rays every way from points near one another, as a tile's AO rays go: all
-                // eight octants in one packet, some with zero components.
+                // eight octants in one packet, some with zero components; or one octant.
                 let rays: Vec<Ray> = (0..64u32)
                     .map(|k| {
                         let b = k as f32 * 2.399 + a;
@@ -1258,6 +1275,10 @@ mod tests {
                         let mut dir = Vec3A::new(r * b.cos(), r * b.sin(), z);
                         if k % 11 == 0 {
                             dir[(k % 3) as usize] = if k % 2 == 0 { 0.0 } else { -0.0 };
+                        }
+                        // Every fifth packet of one octant (as shadow rays are).
+                        if p % 5 == 4 {
+                            dir = dir.abs();
                         }
                         let start = origin + Vec3A::new((k % 4) as f32, (k / 16) as f32, 0.5);
                         let tmax = if (p + k) % 3 == 0 {
@@ -1273,13 +1294,21 @@ mod tests {
                 } else {
                     u64::MAX
                 };
-                let mut rs = rays.clone();
-                let mut got = vec![Vec::new(); rays.len()];
-                bvh.traverse_packet_any(&mut rs, active, |_, r, m, _| {
-                    for k in packet::rays_of(m) {
-                        got[k].push(r);
-                    }
-                });
+                let any = |avx2: bool| {
+                    let mut rs = rays.clone();
+                    let mut got = vec![Vec::new(); rays.len()];
+                    bvh.packet_any_on(&mut rs, active, avx2, |_, r, m, _| {
+                        for k in packet::rays_of(m) {
+                            got[k].push(r);
+                        }
+                    });
+                    got
+                };
+                #[cfg(target_arch = "x86_64")]
+                let avx2 = std::arch::is_x86_feature_detected!("avx2");
+                #[cfg(not(target_arch = "x86_64"))]
+                let avx2 = false;
+                let (mut got, mut portable) = (any(avx2), any(false));
                 for (k, ray) in rays.iter().enumerate() {
                     let mut want = Vec::new();
                     if active >> k & 1 != 0 {
@@ -1290,7 +1319,9 @@ mod tests {
                     }
                     want.sort_unstable();
                     got[k].sort_unstable();
+                    portable[k].sort_unstable();
                     assert_eq!(got[k], want, "{name} packet {p} ray {k}");
+                    assert_eq!(portable[k], want, "{name} packet {p} ray {k}, portable");
                     visited += want.len();
                 }
             }

@@ -665,6 +665,121 @@ impl OctantBvh {
         }
     }
 
+    /// The any-hit walk of the rays of `active` among `rays` (at most [`packet::PACKET`]) in
+    /// one walk whatever their direction octants: `visit(i, refs()[i], m, rays)` is called with
+    /// the rays `m` that reach the ref (it may end rays by lowering their `tmax`). Each ray
+    /// reaches exactly the refs [`OctantBvh::traverse_indexed`] would give it alone under the
+    /// same `tmax` (at a node, the rays of each octant take [`OctantBvh::traverse_packet`]'s
+    /// test of that octant), but the children are taken in the order of one octant for all: for
+    /// queries whose answer does not depend on the order (any-hit), the rays of all the octants
+    /// then share the walk's nodes and the visits of the voxels they reach, where
+    /// [`OctantBvh::traverse_packet`] walks each octant from the root. Each ray's `-0.0`
+    /// direction components become `+0.0`.
+    pub fn traverse_packet_any(
+        &self,
+        rays: &mut [Ray],
+        active: Mask,
+        visit: impl FnMut(usize, u64, Mask, &mut [Ray]),
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = std::arch::is_x86_feature_detected!("avx2");
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2 = false;
+        self.packet_any_on(rays, active, avx2, visit);
+    }
+
+    /// [`OctantBvh::traverse_packet_any`] with the AVX2 node test when `avx2` (the CPU must have
+    /// it), else the portable one.
+    fn packet_any_on(
+        &self,
+        rays: &mut [Ray],
+        active: Mask,
+        avx2: bool,
+        mut visit: impl FnMut(usize, u64, Mask, &mut [Ray]),
+    ) {
+        assert!(
+            rays.len() <= packet::PACKET,
+            "{} rays in a packet",
+            rays.len()
+        );
+        let mut octants = [0 as Mask; 8];
+        for k in packet::rays_of(active) {
+            rays[k] = positive_zeros(rays[k]);
+            octants[(node_test::octant_inv4(rays[k].direction) & 7) as usize] |= 1 << k;
+        }
+        if active == 0 {
+            return;
+        }
+        let first = active.trailing_zeros() as usize;
+        let oct = (node_test::octant_inv4(rays[first].direction) & 7) * 0x0101_0101;
+        let mut stack = PacketStack::with_capacity(256);
+        #[cfg(target_arch = "x86_64")]
+        if avx2 {
+            // SAFETY: the caller's promise: the CPU has AVX2.
+            unsafe {
+                if octants.contains(&active) {
+                    // One octant (shadow rays, all parallel): its test alone, no loop over
+                    // the octants at every node.
+                    self.packet_avx2(rays, active, oct, &mut stack, &mut visit);
+                } else {
+                    self.packet_any_avx2(rays, active, &octants, oct, &mut stack, &mut visit);
+                }
+            };
+            return;
+        }
+        let _ = avx2;
+        self.packet_with(
+            rays,
+            active,
+            oct,
+            &mut stack,
+            &mut visit,
+            |node, rays, m, e| {
+                let mut slots = 0;
+                for (o, &of_o) in octants.iter().enumerate() {
+                    if m & of_o != 0 {
+                        let oct = (o as u32) * 0x0101_0101;
+                        slots |= packet::children_portable(node, rays, m & of_o, oct, e);
+                    }
+                }
+                slots
+            },
+        );
+    }
+
+    /// [`OctantBvh::traverse_packet_any`] with the AVX2 node test of each octant's rays
+    /// (`octants[o]`, the rays of octant `o`), the whole walk compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn packet_any_avx2(
+        &self,
+        rays: &mut [Ray],
+        m: Mask,
+        octants: &[Mask; 8],
+        oct: u32,
+        stack: &mut PacketStack,
+        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]),
+    ) {
+        let mut lanes: [packet::Avx2Lanes; 8] =
+            [const { [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8] }; 8];
+        let mut tests: [Option<packet::Avx2Packet<'_>>; 8] = [const { None }; 8];
+        for ((o, lanes), test) in lanes.iter_mut().enumerate().zip(&mut tests) {
+            if octants[o] != 0 {
+                let oct = (o as u32) * 0x0101_0101;
+                *test = Some(packet::Avx2Packet::new(lanes, rays, octants[o], oct));
+            }
+        }
+        self.packet_with(rays, m, oct, stack, visit, |node, rays, m, e| {
+            let mut slots = 0;
+            for (test, &of_o) in tests.iter().zip(octants) {
+                if let Some(test) = test.as_ref().filter(|_| m & of_o != 0) {
+                    slots |= test.children(node, rays, m & of_o, e);
+                }
+            }
+            slots
+        });
+    }
+
     /// [`OctantBvh::traverse_packet`] on a CPU without AVX2, to compare with the AVX2 test.
     #[cfg(test)]
     fn traverse_packet_portable(
@@ -1139,6 +1254,81 @@ mod tests {
             }
         }
         assert!(visited > 50_000, "only {visited} visits");
+    }
+
+    #[test]
+    fn an_any_hit_packet_visits_for_each_ray_the_refs_its_own_walk_visits() {
+        let mut visited = 0;
+        for (name, bvh) in &scattered_builds() {
+            for p in 0..16u32 {
+                let a = p as f32 * 0.618;
+                let origin = Vec3A::new(
+                    50.0 + 30.0 * a.cos(),
+                    50.0 + 30.0 * a.sin(),
+                    40.0 + (p % 20) as f32,
+                );
+                // Rays every way from points near one another, as a tile's AO rays go: all
+                // eight octants in one packet, some with zero components; or one octant.
+                let rays: Vec<Ray> = (0..64u32)
+                    .map(|k| {
+                        let b = k as f32 * 2.399 + a;
+                        let z = 1.0 - 2.0 * ((k as f32 + 0.5) / 64.0);
+                        let r = (1.0 - z * z).sqrt();
+                        let mut dir = Vec3A::new(r * b.cos(), r * b.sin(), z);
+                        if k % 11 == 0 {
+                            dir[(k % 3) as usize] = if k % 2 == 0 { 0.0 } else { -0.0 };
+                        }
+                        // Every fifth packet of one octant (as shadow rays are).
+                        if p % 5 == 4 {
+                            dir = dir.abs();
+                        }
+                        let start = origin + Vec3A::new((k % 4) as f32, (k / 16) as f32, 0.5);
+                        let tmax = if (p + k) % 3 == 0 {
+                            25.0
+                        } else {
+                            f32::INFINITY
+                        };
+                        Ray::new(start, dir, 0.0, tmax)
+                    })
+                    .collect();
+                let active = if p % 4 == 1 {
+                    0x5555_aaaa_f0f0_0ff1
+                } else {
+                    u64::MAX
+                };
+                let any = |avx2: bool| {
+                    let mut rs = rays.clone();
+                    let mut got = vec![Vec::new(); rays.len()];
+                    bvh.packet_any_on(&mut rs, active, avx2, |_, r, m, _| {
+                        for k in packet::rays_of(m) {
+                            got[k].push(r);
+                        }
+                    });
+                    got
+                };
+                #[cfg(target_arch = "x86_64")]
+                let avx2 = std::arch::is_x86_feature_detected!("avx2");
+                #[cfg(not(target_arch = "x86_64"))]
+                let avx2 = false;
+                let (mut got, mut portable) = (any(avx2), any(false));
+                for (k, ray) in rays.iter().enumerate() {
+                    let mut want = Vec::new();
+                    if active >> k & 1 != 0 {
+                        bvh.traverse(*ray, |r, _| {
+                            want.push(r);
+                            false
+                        });
+                    }
+                    want.sort_unstable();
+                    got[k].sort_unstable();
+                    portable[k].sort_unstable();
+                    assert_eq!(got[k], want, "{name} packet {p} ray {k}");
+                    assert_eq!(portable[k], want, "{name} packet {p} ray {k}, portable");
+                    visited += want.len();
+                }
+            }
+        }
+        assert!(visited > 10_000, "only {visited} visits");
     }
 
     #[test]

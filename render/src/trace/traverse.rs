@@ -426,7 +426,7 @@ impl Surface {
         let (grid, tmin, tmax) = (*grid, *tmin, &tmax[..n]);
         src.with_voxels(&mut |voxel_of| {
             self.bvh
-                .traverse_packet(&mut ray32[..n], live, |_, r, m, ray32| {
+                .traverse_packet_any(&mut ray32[..n], live, |_, r, m, ray32| {
                     let m = m & !hit;
                     if m == 0 {
                         return;

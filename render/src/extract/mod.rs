@@ -152,6 +152,11 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// `leaves` cut into runs of at most [`CHUNK_LEAVES`] leaves and about [`CHUNK_BYTES`] of
     /// their cells.
     fn chunks<'l>(&self, leaves: &'l [u32]) -> Vec<&'l [u32]> {
+        // A chunk touches at most the whole map: a map that small leaves the leaf count alone
+        // to cut, without a serial pass over every leaf's box before the workers start.
+        if self.sampler.file().bytes().len() as u64 <= CHUNK_BYTES {
+            return leaves.chunks(CHUNK_LEAVES).collect();
+        }
         let grid = self.sampler.grid();
         let tree = self.sampler.file().tree();
         let bytes = |l: u32| -> u64 {

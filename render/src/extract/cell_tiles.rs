@@ -32,7 +32,7 @@ const TILE_SHIFT: u32 = 3;
 pub const TILE: i64 = 1 << TILE_SHIFT;
 /// File cells per leaf, on average, at most, for the tiles to be used.
 const MAX_MEAN_CELLS: u64 = 32;
-/// Tiles kept per worker thread, at most (about 7 KB each). Few enough that a thread's tiles reuse
+/// Tiles kept per worker thread, at most (about 7 KB each). Few enough that the tiles reuse
 /// their memory: every page first touched costs a fault that, on the small boxes tiles are for,
 /// outweighs refilling a tile pushed out (`docs/benchmarks-extract.md`, "Tile slots").
 const SLOTS: usize = 1024;
@@ -116,6 +116,7 @@ impl CellTiles {
     ) -> Result<()> {
         let n = self.touching.len();
         let i = rayon::current_thread_index().map_or(0, |i| 1 + i % (n - 1).max(1));
+        // The thread's list first, then one tile at a time: one order, no deadlock.
         let mut touching = self.touching[i.min(n - 1)]
             .lock()
             .unwrap_or_else(|e| e.into_inner());

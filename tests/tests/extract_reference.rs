@@ -354,6 +354,67 @@ fn extraction_equals_brute_force_on_small_irregular_boxes() {
     );
 }
 
+/// Small boxes whose leaves take their neighbourhoods from the cell tiles, which the threads
+/// share: the refs and counts are the same on one thread, and on more threads than the pool the
+/// extractor was made in (threads then share their lists of leaves met), run after run.
+#[test]
+fn shared_cell_tiles_give_the_same_refs_on_any_thread_count() {
+    use amr_synth::{build_box_hierarchy, write_spec, BoxParams, Case as Synth};
+    let dir = tempfile::tempdir().unwrap();
+    let params = BoxParams {
+        base: 6,
+        ratios: vec![2, 2],
+        sizes: (1, 2),
+        seed: 3,
+    };
+    let spec = build_box_hierarchy(&Synth::Blobs, "blobs", &params).unwrap();
+    let path = dir.path().join("boxes.amrk");
+    let opts = amr_render::extract::writer_options(Default::default());
+    write_spec(
+        &path,
+        spec,
+        &Synth::Blobs,
+        opts,
+        &amr_format::progress::NoProgress,
+    )
+    .unwrap();
+    let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+    let ex = Extractor::new(&file, 0, 64 << 20).unwrap();
+    let cells = ex.extract(0.0).unwrap().stats.file_cells;
+    assert!(
+        amr_render::extract::cell_tiles::CellTiles::pays(cells, file.num_leaves()),
+        "{cells} cells in {} leaves: the tiles are not used",
+        file.num_leaves()
+    );
+    let on = |threads: usize, iso: f32| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let out = pool.install(|| ex.extract(iso).unwrap());
+        let s = out.stats;
+        let counts = (
+            s.active_duals,
+            s.evaluated,
+            s.culled_cells,
+            s.leaves_skipped,
+        );
+        (out.refs, counts)
+    };
+    let info = &file.fields()[0];
+    for t in [0.3f32, 0.5, 0.7] {
+        let iso = info.min + (info.max - info.min) * t;
+        let one = on(1, iso);
+        assert!(!one.0.is_empty(), "iso {iso}: no active voxel");
+        for threads in [2, 3, 7] {
+            assert!(
+                on(threads, iso) == one,
+                "iso {iso}: {threads} threads differ from one"
+            );
+        }
+    }
+}
+
 /// Bricks of 12 and 16 cells: leaves larger than a part of [`amr_render::extract::parts`], so
 /// that parts whose stored block ranges exclude the isovalue are skipped (blocks of 4 cells cut
 /// short at 12).

@@ -10,11 +10,12 @@
 //! tiles, each of the about 100 leaves around a small leaf's neighbourhood was visited again by
 //! every neighbourhood holding part of it, and each coarse cell settled again in each.
 //!
-//! Each worker thread keeps its own tiles (no lock is contended, no cache line shared), in a
-//! direct-mapped table of [`SLOTS`] tiles: the memory is bounded, and a tile pushed out is
-//! filled again when asked, with the same cells.
+//! The threads share the tiles, in a direct-mapped table of [`SLOTS`] tiles per worker thread,
+//! each behind its own lock: a tile is filled once whichever thread asks first (the threads
+//! work on leaves far apart, so a lock is seldom contended), and the memory is bounded; a tile
+//! pushed out is filled again when asked, with the same cells.
 
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 
 use amr_format::IBox;
 
@@ -31,28 +32,24 @@ const TILE_SHIFT: u32 = 3;
 pub const TILE: i64 = 1 << TILE_SHIFT;
 /// File cells per leaf, on average, at most, for the tiles to be used.
 const MAX_MEAN_CELLS: u64 = 32;
-/// Tiles kept per thread, at most (about 7 KB each). Few enough that a thread's tiles reuse
+/// Tiles kept per worker thread, at most (about 7 KB each). Few enough that the tiles reuse
 /// their memory: every page first touched costs a fault that, on the small boxes tiles are for,
 /// outweighs refilling a tile pushed out (`docs/benchmarks-extract.md`, "Tile slots").
 const SLOTS: usize = 1024;
 
-/// One thread's tiles, each a neighbourhood filled with a tile's cells.
-#[derive(Default)]
-struct Tiles {
-    slots: Vec<Neighbourhood>,
-    /// The leaves met by the tile being filled: one list for all the thread's tiles.
-    touching: Vec<Met>,
-}
-
-/// The tiles of every level of one field, one table per worker thread.
+/// The tiles of every level of one field.
 pub struct CellTiles {
-    threads: Vec<Mutex<Tiles>>,
+    /// The tiles, [`SLOTS`] per worker thread, made on first use.
+    slots: OnceLock<Box<[Mutex<Neighbourhood>]>>,
+    /// Per thread, the leaves met by the tile it is filling: one list for all its fills.
+    touching: Vec<Mutex<Vec<Met>>>,
 }
 
 impl Default for CellTiles {
     fn default() -> Self {
         Self {
-            threads: (0..rayon::current_num_threads() + 1)
+            slots: OnceLock::new(),
+            touching: (0..rayon::current_num_threads() + 1)
                 .map(|_| Mutex::default())
                 .collect(),
         }
@@ -117,15 +114,17 @@ impl CellTiles {
         g: IBox,
         mut f: impl FnMut(&Neighbourhood, &IBox),
     ) -> Result<()> {
-        let n = self.threads.len();
+        let n = self.touching.len();
         let i = rayon::current_thread_index().map_or(0, |i| 1 + i % (n - 1).max(1));
-        let mut guard = self.threads[i.min(n - 1)]
+        // The thread's list first, then one tile at a time: one order, no deadlock.
+        let mut touching = self.touching[i.min(n - 1)]
             .lock()
             .unwrap_or_else(|e| e.into_inner());
-        let Tiles { slots, touching } = &mut *guard;
-        if slots.is_empty() {
-            slots.resize_with(SLOTS, Neighbourhood::default);
-        }
+        let slots = self.slots.get_or_init(|| {
+            (0..SLOTS * (n - 1).max(1))
+                .map(|_| Mutex::default())
+                .collect()
+        });
         let tiles = IBox::new(
             g.lo.map(|v| v >> TILE_SHIFT),
             g.hi.map(|v| (v + TILE - 1) >> TILE_SHIFT),
@@ -135,14 +134,16 @@ impl CellTiles {
                 for tx in tiles.lo[0]..tiles.hi[0] {
                     let t = [tx, ty, tz];
                     let cells = IBox::new(t.map(|v| v * TILE), t.map(|v| (v + 1) * TILE));
-                    let tile = &mut slots[slot_of(level, t)];
+                    let mut tile = slots[slot_of(level, t, slots.len())]
+                        .lock()
+                        .unwrap_or_else(|e| e.into_inner());
                     if !tile.holds(level, &cells) {
                         let sources = (sources.0, sources.1 .1);
-                        tile.fill_region_using(sources, level, cells, touching)?;
+                        tile.fill_region_using(sources, level, cells, &mut touching)?;
                     }
                     let part = g.intersect(&cells);
-                    settle_in(sources, tile, (&mut *memo, &mut *near), &part)?;
-                    f(tile, &part);
+                    settle_in(sources, &mut tile, (&mut *memo, &mut *near), &part)?;
+                    f(&tile, &part);
                 }
             }
         }
@@ -153,11 +154,11 @@ impl CellTiles {
 /// The memos settling reads through.
 pub type Memos<'a> = (&'a mut VertexMemo, &'a mut AroundMemo);
 
-/// The slot of tile `t` of level `level`.
-fn slot_of(level: u32, t: [i64; 3]) -> usize {
+/// The slot of tile `t` of level `level` among `slots`.
+fn slot_of(level: u32, t: [i64; 3], slots: usize) -> usize {
     let h = (t[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
         ^ (t[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
         ^ (t[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
         ^ u64::from(level).wrapping_mul(0x27D4_EB2F_1656_67C5);
-    (h >> 40) as usize % SLOTS
+    (h >> 40) as usize % slots
 }

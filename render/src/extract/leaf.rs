@@ -76,6 +76,17 @@ pub struct LeafCounts {
     pub parts_skipped: u64,
 }
 
+impl LeafCounts {
+    /// Adds `other`'s counts to these.
+    pub fn add(&mut self, other: &Self) {
+        self.evaluated += other.evaluated;
+        self.skipped += other.skipped;
+        self.boundary += other.boundary;
+        self.culled += other.culled;
+        self.parts_skipped += other.parts_skipped;
+    }
+}
+
 /// The level-`L` frame of a leaf: its level, finest brick, box of finest-level cells and box of
 /// level-`L` cells overlapping it.
 #[derive(Clone, Copy, Debug)]

@@ -153,6 +153,11 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// `leaves` cut into runs of at most [`CHUNK_LEAVES`] leaves and about [`CHUNK_BYTES`] of
     /// their cells.
     fn chunks<'l>(&self, leaves: &'l [u32]) -> Vec<&'l [u32]> {
+        // A chunk touches at most the whole map: a map that small leaves the leaf count alone
+        // to cut, without a serial pass over every leaf's box before the workers start.
+        if self.sampler.file().bytes().len() as u64 <= CHUNK_BYTES {
+            return leaves.chunks(CHUNK_LEAVES).collect();
+        }
         let grid = self.sampler.grid();
         let tree = self.sampler.file().tree();
         let bytes = |l: u32| -> u64 {
@@ -316,8 +321,11 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         Ok(Extraction { refs, stats })
     }
 
-    /// The refs and counts of each leaf of `chunk`, in parallel, in order; tight ranges not
-    /// known yet are bounded through `tight_blocks`.
+    /// The refs and counts of `chunk`'s leaves, in parallel: one entry per run of consecutive
+    /// leaves a worker extracted (the refs of its leaves one after the other, its counts
+    /// summed), in order; tight ranges not known yet are bounded through `tight_blocks`. A run
+    /// ends at its first error. One vector per run rather than per leaf: small leaves' few refs
+    /// each were as many allocations, and their fresh pages.
     fn extract_chunk(
         &self,
         iso: f32,
@@ -327,45 +335,61 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let file = self.sampler.file();
         chunk
             .par_iter()
-            .map_init(
+            .fold(
                 || {
                     let shared = (&self.blocks, &self.leaves, &self.coarse);
                     let tiles =
                         CellTiles::pays(self.file_cells, file.num_leaves()).then_some(&self.cells);
-                    Scratch::new(shared, tiles)
+                    let run = Ok((Vec::new(), LeafCounts::default()));
+                    // Boxed: the fold moves its state from leaf to leaf.
+                    (Box::new(Scratch::new(shared, tiles)), run)
                 },
-                |scratch, &leaf| {
-                    let mut out = Vec::new();
-                    let mut around = None;
-                    let (lo, hi) = self.tight.get_with(leaf, || {
-                        let (range, halo) = self.compute_tight(scratch, leaf, tight_blocks)?;
-                        around = halo;
-                        Ok(range)
-                    })?;
-                    if !straddles(lo, hi, iso) {
-                        let skipped = LeafCounts {
-                            skipped: 1,
-                            ..LeafCounts::default()
-                        };
-                        return Ok((out, skipped));
-                    }
-                    let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
-                        return Ok((out, LeafCounts::default()));
-                    };
-                    // Room for a small leaf's refs at once, not grown from 4 to 8 to 16.
-                    out.reserve(16);
-                    let counts = extract_in_parts(
-                        &self.sampler,
-                        &frame,
-                        iso,
-                        (scratch, (&self.blocks, &self.leaves), &self.parts),
-                        around.as_ref(),
-                        &mut out,
-                    )?;
-                    Ok((out, counts))
+                |(mut scratch, run), &leaf| {
+                    let run = run.and_then(|(mut out, mut totals)| {
+                        let counts =
+                            self.extract_one(&mut scratch, iso, leaf, tight_blocks, &mut out)?;
+                        totals.add(&counts);
+                        Ok((out, totals))
+                    });
+                    (scratch, run)
                 },
             )
+            .map(|(_, run)| run)
             .collect()
+    }
+
+    /// Appends the refs of `leaf` for `iso` to `out`; its counts.
+    fn extract_one(
+        &self,
+        scratch: &mut Scratch<'_>,
+        iso: f32,
+        leaf: u32,
+        tight_blocks: &BlockRanges,
+        out: &mut Vec<u64>,
+    ) -> Result<LeafCounts> {
+        let mut around = None;
+        let (lo, hi) = self.tight.get_with(leaf, || {
+            let (range, halo) = self.compute_tight(scratch, leaf, tight_blocks)?;
+            around = halo;
+            Ok(range)
+        })?;
+        if !straddles(lo, hi, iso) {
+            return Ok(LeafCounts {
+                skipped: 1,
+                ..LeafCounts::default()
+            });
+        }
+        let Some(frame) = LeafFrame::new(&self.sampler, leaf) else {
+            return Ok(LeafCounts::default());
+        };
+        extract_in_parts(
+            &self.sampler,
+            &frame,
+            iso,
+            (scratch, (&self.blocks, &self.leaves), &self.parts),
+            around.as_ref(),
+            out,
+        )
     }
 
     /// The tight range of `leaf` computed from the file's data and tables, whatever the file
@@ -921,8 +945,8 @@ impl<'r, D: AsRef<[u8]> + Sync> LeafBoxes<'r, '_, '_, D> {
     }
 }
 
-/// Appends the refs of `parts` (one entry per leaf, in order) to `refs`, adds their counts to
-/// `totals` and their merged dual cells to `duals`; the first error stops it.
+/// Appends the refs of `parts` (one entry per run of leaves, in order) to `refs`, adds their
+/// counts to `totals` and their merged dual cells to `duals`; the first error stops it.
 fn append(
     parts: Vec<Result<(Vec<u64>, LeafCounts)>>,
     refs: &mut Vec<u64>,
@@ -933,11 +957,7 @@ fn append(
         let (part, n) = part?;
         refs.extend_from_slice(&part);
         *duals += part.iter().filter(|&&r| r as u32 >= DUAL_BASE).count() as u64;
-        totals.evaluated += n.evaluated;
-        totals.culled += n.culled;
-        totals.parts_skipped += n.parts_skipped;
-        totals.boundary += n.boundary;
-        totals.skipped += n.skipped;
+        totals.add(&n);
     }
     Ok(())
 }

@@ -14,8 +14,15 @@
 //! ([`crate::shade::sampling::TILE`]): on a smooth surface it averages each stratum of the
 //! pattern once.
 
+use std::ops::Range;
+
+use rayon::prelude::*;
+
 use crate::output::frame::PixelSample;
 use crate::shade::sampling::TILE;
+
+#[cfg(target_arch = "x86_64")]
+mod x8;
 
 /// Pixels of the filter's square window before a pixel, on each axis.
 const BEFORE: u32 = TILE / 2;
@@ -60,10 +67,18 @@ pub struct AoRow {
 impl AoRow {
     /// An empty row, to be filled pixel by pixel from the left.
     pub fn new() -> AoRow {
+        AoRow::with_capacity(0)
+    }
+
+    /// An empty row with room for `pixels` pixels' hits (at most [`FILTERED_HITS`] each): a
+    /// row filled or appended to up to that many pixels never grows its vectors.
+    pub fn with_capacity(pixels: usize) -> AoRow {
+        let mut start = Vec::with_capacity(pixels + 1);
+        start.push(0);
         AoRow {
-            start: vec![0],
-            layers: Vec::new(),
-            column: Vec::new(),
+            start,
+            layers: Vec::with_capacity(FILTERED_HITS * pixels),
+            column: Vec::with_capacity(FILTERED_HITS * pixels),
         }
     }
 
@@ -96,29 +111,62 @@ impl AoRow {
     }
 }
 
-/// The filtered hits of a rectangle of pixels, one [`AoRow`] per row from the top.
-#[derive(Clone, Copy, Debug)]
+/// The filtered hits of a rectangle of pixels, one [`AoRow`] per row from the top, and what
+/// the window's comparisons read of them, as columns.
+#[derive(Clone, Debug)]
 pub struct AoRows<'a> {
     width: u32,
     rows: &'a [AoRow],
+    columns: Vec<HitColumns>,
 }
 
 impl<'a> AoRows<'a> {
     /// The rows `rows` of a rectangle `width` pixels wide (each row holding `width` pixels).
     pub fn new(width: u32, rows: &'a [AoRow]) -> AoRows<'a> {
         assert!(rows.iter().all(|r| r.start.len() == width as usize + 1));
-        AoRows { width, rows }
+        let columns = rows.par_iter().map(HitColumns::of).collect();
+        AoRows {
+            width,
+            rows,
+            columns,
+        }
     }
 
     /// Replaces the occlusion of every hit of row `y` by the filtered one in the colour of
     /// `pixels` (that row). `pixel_angle` is the angle one pixel spans (radians). Each row
     /// reads the others only, so rows can be filtered in any order and in parallel.
     pub fn apply_row(&self, y: u32, pixels: &mut [PixelSample], pixel_angle: f32) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            return unsafe { self.apply_row_avx2(y, pixels, pixel_angle) };
+        }
+        self.apply_row_with(y, pixels, pixel_angle, HitColumns::add_run);
+    }
+
+    /// [`AoRows::apply_row`] with the window's runs tested eight hits at a time.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn apply_row_avx2(&self, y: u32, pixels: &mut [PixelSample], pixel_angle: f32) {
+        self.apply_row_with(y, pixels, pixel_angle, |cols, run, centre, mean| {
+            x8::add_run(cols, run, centre, mean)
+        });
+    }
+
+    /// [`AoRows::apply_row`], each run of a window's hits in a row added by `add_run`.
+    #[inline(always)]
+    fn apply_row_with(
+        &self,
+        y: u32,
+        pixels: &mut [PixelSample],
+        pixel_angle: f32,
+        add_run: impl Fn(&HitColumns, Range<usize>, &Centre, &mut Mean),
+    ) {
         assert_eq!(pixels.len(), self.width as usize);
         for (x, px) in pixels.iter_mut().enumerate() {
             let x = x as u32;
             for layer in self.rows[y as usize].pixel(x) {
-                let ao = self.filtered(layer, x, y, pixel_angle);
+                let ao = self.filtered(layer, x, y, pixel_angle, &add_run);
                 for c in 0..3 {
                     px.rgb[c] += layer.weight[c] * (ao - layer.ao);
                 }
@@ -127,37 +175,129 @@ impl<'a> AoRows<'a> {
     }
 
     /// The filtered occlusion of `layer`, a hit in pixel `(x, y)`.
-    fn filtered(&self, layer: &AoLayer, x: u32, y: u32, pixel_angle: f32) -> f32 {
+    #[inline(always)]
+    fn filtered(
+        &self,
+        layer: &AoLayer,
+        x: u32,
+        y: u32,
+        pixel_angle: f32,
+        add_run: &impl Fn(&HitColumns, Range<usize>, &Centre, &mut Mean),
+    ) -> f32 {
         let distance = norm(layer.p);
         let facing = (dot(layer.n, layer.p).abs() / distance).max(MIN_FACING);
-        let footprint = PLANE_TOLERANCE * distance * pixel_angle / (facing * facing);
-        let (mut sum, mut count) = (0.0f32, 0u32);
+        let mut centre = Centre {
+            surface: layer.surface,
+            p: layer.p,
+            n: layer.n,
+            footprint: PLANE_TOLERANCE * distance * pixel_angle / (facing * facing),
+            x,
+            least_steps: 1,
+        };
+        let mut mean = Mean::default();
         let (x0, x1) = (x.saturating_sub(BEFORE), (x + AFTER).min(self.width - 1));
         let last_row = self.rows.len() as u32 - 1;
         for qy in y.saturating_sub(BEFORE)..=(y + AFTER).min(last_row) {
             let row = &self.rows[qy as usize];
-            let dy = qy.abs_diff(y);
-            // The plane tolerance per column of the window.
-            let mut tolerance = [0.0f32; TILE as usize];
-            for (qx, t) in (x0..=x1).zip(&mut tolerance) {
-                *t = footprint * qx.abs_diff(x).max(dy).max(1) as f32;
-            }
+            centre.least_steps = qy.abs_diff(y).max(1);
             // The window's hits in this row, pixel after pixel from `x0`: one run.
             let run = row.start[x0 as usize] as usize..row.start[x1 as usize + 1] as usize;
-            for (q, &qx) in row.layers[run.clone()].iter().zip(&row.column[run]) {
-                if q.surface == layer.surface
-                    && dot(q.n, layer.n) >= MIN_NORMAL_COSINE
-                    && dot(layer.n, sub(q.p, layer.p)).abs() <= tolerance[(qx - x0) as usize]
-                {
-                    sum += q.ao;
-                    count += 1;
-                }
-            }
+            add_run(&self.columns[qy as usize], run, &centre, &mut mean);
         }
-        if count > 0 {
-            sum / count as f32
+        if mean.count > 0 {
+            mean.sum / mean.count as f32
         } else {
             layer.ao
+        }
+    }
+}
+
+/// The hit whose occlusion is filtered, as the window's comparisons see it, in one row of the
+/// window.
+#[derive(Clone, Copy, Debug)]
+struct Centre {
+    surface: u32,
+    p: [f32; 3],
+    n: [f32; 3],
+    /// The plane tolerance per pixel of offset.
+    footprint: f32,
+    /// Its pixel's column.
+    x: u32,
+    /// The offset counted for a neighbour in its own column: the row's distance, at least one.
+    least_steps: u32,
+}
+
+/// The occlusions of the neighbours kept so far: their sum, in the window's order, and number.
+#[derive(Clone, Copy, Debug, Default)]
+struct Mean {
+    sum: f32,
+    count: u32,
+}
+
+/// One row's hits as columns, what the window's comparisons read, followed by
+/// [`HitColumns::PAD`] entries that no comparison keeps.
+#[derive(Clone, Debug, Default)]
+struct HitColumns {
+    surface: Vec<u32>,
+    p: [Vec<f32>; 3],
+    n: [Vec<f32>; 3],
+    ao: Vec<f32>,
+    /// Each hit's pixel.
+    column: Vec<u32>,
+}
+
+impl HitColumns {
+    /// Entries after the last hit: a group of that many read from any hit stays inside.
+    const PAD: usize = 8;
+
+    fn of(row: &AoRow) -> HitColumns {
+        let len = row.layers.len() + Self::PAD;
+        let mut c = HitColumns {
+            surface: Vec::with_capacity(len),
+            p: std::array::from_fn(|_| Vec::with_capacity(len)),
+            n: std::array::from_fn(|_| Vec::with_capacity(len)),
+            ao: Vec::with_capacity(len),
+            column: Vec::with_capacity(len),
+        };
+        for l in &row.layers {
+            c.surface.push(l.surface);
+            for a in 0..3 {
+                c.p[a].push(l.p[a]);
+                c.n[a].push(l.n[a]);
+            }
+            c.ao.push(l.ao);
+        }
+        c.column.extend_from_slice(&row.column);
+        // A surface no hit has: the padding is never the centre's.
+        c.surface.resize(len, u32::MAX);
+        for a in 0..3 {
+            c.p[a].resize(len, 0.0);
+            c.n[a].resize(len, 0.0);
+        }
+        c.ao.resize(len, 0.0);
+        c.column.resize(len, 0);
+        c
+    }
+
+    /// Number of hits (the padding left out).
+    fn hits(&self) -> usize {
+        self.ao.len() - Self::PAD
+    }
+
+    /// Adds to `mean` the occlusions of the hits `run` that are of `centre`'s surface, face its
+    /// way and lie on its tangent plane, in their order.
+    fn add_run(&self, run: Range<usize>, centre: &Centre, mean: &mut Mean) {
+        for i in run {
+            let n = [self.n[0][i], self.n[1][i], self.n[2][i]];
+            let p = [self.p[0][i], self.p[1][i], self.p[2][i]];
+            let steps = self.column[i].abs_diff(centre.x).max(centre.least_steps);
+            if self.surface[i] == centre.surface
+                && dot(n, centre.n) >= MIN_NORMAL_COSINE
+                && dot(centre.n, sub(p, centre.p)).abs() <= centre.footprint * steps as f32
+            {
+                mean.sum += self.ao[i];
+                mean.count += 1;
+            }
         }
     }
 }

@@ -289,7 +289,7 @@ fn render_strip<T: Tracer + ?Sized>(
         .clone()
         .map(|_| Row {
             pixels: Vec::with_capacity(width.max(xs.len())),
-            ao: AoRow::new(),
+            ao: AoRow::with_capacity(if record { width.max(xs.len()) } else { 0 }),
             rays: 0,
         })
         .collect();

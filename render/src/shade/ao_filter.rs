@@ -14,8 +14,6 @@
 //! ([`crate::shade::sampling::TILE`]): on a smooth surface it averages each stratum of the
 //! pattern once.
 
-use std::ops::Range;
-
 use rayon::prelude::*;
 
 use crate::output::frame::PixelSample;
@@ -60,8 +58,6 @@ pub struct AoLayer {
 pub struct AoRow {
     start: Vec<u32>,
     layers: Vec<AoLayer>,
-    /// Each hit's pixel, so that a window's hits in a row are read as one run.
-    column: Vec<u32>,
 }
 
 impl AoRow {
@@ -78,7 +74,6 @@ impl AoRow {
         AoRow {
             start,
             layers: Vec::with_capacity(FILTERED_HITS * pixels),
-            column: Vec::with_capacity(FILTERED_HITS * pixels),
         }
     }
 
@@ -90,19 +85,21 @@ impl AoRow {
 
     /// Ends the current pixel: the hits appended since the last call are its.
     pub fn end_pixel(&mut self) {
-        let x = self.start.len() as u32 - 1;
-        self.column.resize(self.layers.len(), x);
         self.start.push(self.layers.len() as u32);
+    }
+
+    /// Ends `n` pixels without hits.
+    pub fn end_pixels(&mut self, n: usize) {
+        let at = self.layers.len() as u32;
+        self.start.resize(self.start.len() + n, at);
     }
 
     /// Appends `more`, the pixels to the right of this row's.
     pub fn append(&mut self, more: AoRow) {
         let layers = self.layers.len() as u32;
-        let pixels = self.start.len() as u32 - 1;
         self.start
             .extend(more.start[1..].iter().map(|&s| s + layers));
         self.layers.extend(more.layers);
-        self.column.extend(more.column.iter().map(|&x| x + pixels));
     }
 
     fn pixel(&self, x: u32) -> &[AoLayer] {
@@ -112,24 +109,23 @@ impl AoRow {
 }
 
 /// The filtered hits of a rectangle of pixels, one [`AoRow`] per row from the top, and what
-/// the window's comparisons read of them, as columns.
+/// the window's comparisons read of them ([`Slots`]).
 #[derive(Clone, Debug)]
 pub struct AoRows<'a> {
     width: u32,
     rows: &'a [AoRow],
-    columns: Vec<HitColumns>,
+    slots: Vec<[Slots; FILTERED_HITS]>,
 }
 
 impl<'a> AoRows<'a> {
     /// The rows `rows` of a rectangle `width` pixels wide (each row holding `width` pixels).
     pub fn new(width: u32, rows: &'a [AoRow]) -> AoRows<'a> {
         assert!(rows.iter().all(|r| r.start.len() == width as usize + 1));
-        let columns = rows.par_iter().map(HitColumns::of).collect();
-        AoRows {
-            width,
-            rows,
-            columns,
-        }
+        let slots = rows
+            .par_iter()
+            .map(|row| std::array::from_fn(|h| Slots::of(row, h)))
+            .collect();
+        AoRows { width, rows, slots }
     }
 
     /// Replaces the occlusion of every hit of row `y` by the filtered one in the colour of
@@ -141,164 +137,158 @@ impl<'a> AoRows<'a> {
             // SAFETY: the CPU has AVX2, checked just above.
             return unsafe { self.apply_row_avx2(y, pixels, pixel_angle) };
         }
-        self.apply_row_with(y, pixels, pixel_angle, HitColumns::add_run);
-    }
-
-    /// [`AoRows::apply_row`] with the window's runs tested eight hits at a time.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn apply_row_avx2(&self, y: u32, pixels: &mut [PixelSample], pixel_angle: f32) {
-        self.apply_row_with(y, pixels, pixel_angle, |cols, run, centre, mean| {
-            x8::add_run(cols, run, centre, mean)
+        self.apply_row_with(y, pixels, |x0, h, out| {
+            for (x, out) in (x0..(x0 + GROUP).min(self.width as usize)).zip(out) {
+                if let Some(layer) = self.rows[y as usize].pixel(x as u32).get(h) {
+                    *out = self.filtered(layer, x as u32, y, pixel_angle);
+                }
+            }
         });
     }
 
-    /// [`AoRows::apply_row`], each run of a window's hits in a row added by `add_run`.
+    /// [`AoRows::apply_row`] with the hits of [`GROUP`] pixels filtered at once.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn apply_row_avx2(&self, y: u32, pixels: &mut [PixelSample], pixel_angle: f32) {
+        self.apply_row_with(y, pixels, |x0, h, out| {
+            x8::filter_group(self, y, x0, h, pixel_angle, out)
+        });
+    }
+
+    /// [`AoRow::apply_row`], `filter(x0, h, out)` writing the filtered occlusion of hit `h` of
+    /// each of the [`GROUP`] pixels from `x0` that have one (`out[x - x0]`).
     #[inline(always)]
     fn apply_row_with(
         &self,
         y: u32,
         pixels: &mut [PixelSample],
-        pixel_angle: f32,
-        add_run: impl Fn(&HitColumns, Range<usize>, &Centre, &mut Mean),
+        mut filter: impl FnMut(usize, usize, &mut [f32; GROUP]),
     ) {
         assert_eq!(pixels.len(), self.width as usize);
-        for (x, px) in pixels.iter_mut().enumerate() {
-            let x = x as u32;
-            for layer in self.rows[y as usize].pixel(x) {
-                let ao = self.filtered(layer, x, y, pixel_angle, &add_run);
-                for c in 0..3 {
-                    px.rgb[c] += layer.weight[c] * (ao - layer.ao);
+        let row = &self.rows[y as usize];
+        let slots = &self.slots[y as usize];
+        let mut out = [[0.0f32; GROUP]; FILTERED_HITS];
+        for (g, group) in pixels.chunks_mut(GROUP).enumerate() {
+            let x0 = g * GROUP;
+            let mut any = false;
+            for (h, out) in out.iter_mut().enumerate() {
+                if slots[h].any_hit(x0) {
+                    filter(x0, h, out);
+                    any = true;
+                }
+            }
+            if !any {
+                continue;
+            }
+            for (i, px) in group.iter_mut().enumerate() {
+                for (h, layer) in row.pixel((x0 + i) as u32).iter().enumerate() {
+                    let ao = out[h][i];
+                    for c in 0..3 {
+                        px.rgb[c] += layer.weight[c] * (ao - layer.ao);
+                    }
                 }
             }
         }
     }
 
-    /// The filtered occlusion of `layer`, a hit in pixel `(x, y)`.
-    #[inline(always)]
-    fn filtered(
-        &self,
-        layer: &AoLayer,
-        x: u32,
-        y: u32,
-        pixel_angle: f32,
-        add_run: &impl Fn(&HitColumns, Range<usize>, &Centre, &mut Mean),
-    ) -> f32 {
-        let distance = norm(layer.p);
-        let facing = (dot(layer.n, layer.p).abs() / distance).max(MIN_FACING);
-        let mut centre = Centre {
-            surface: layer.surface,
-            p: layer.p,
-            n: layer.n,
-            footprint: PLANE_TOLERANCE * distance * pixel_angle / (facing * facing),
-            x,
-            least_steps: 1,
-        };
-        let mut mean = Mean::default();
-        let (x0, x1) = (x.saturating_sub(BEFORE), (x + AFTER).min(self.width - 1));
+    /// The filtered occlusion of `layer`, a hit of pixel `(x, y)`: the mean over the window
+    /// around it of the occlusions of the hits of its surface that face its way and lie on its
+    /// tangent plane, added up row after row, pixel after pixel, hit after hit.
+    fn filtered(&self, layer: &AoLayer, x: u32, y: u32, pixel_angle: f32) -> f32 {
+        let footprint = footprint(layer.p, layer.n, pixel_angle);
+        let (mut sum, mut count) = (0.0f32, 0u32);
         let last_row = self.rows.len() as u32 - 1;
         for qy in y.saturating_sub(BEFORE)..=(y + AFTER).min(last_row) {
-            let row = &self.rows[qy as usize];
-            centre.least_steps = qy.abs_diff(y).max(1);
-            // The window's hits in this row, pixel after pixel from `x0`: one run.
-            let run = row.start[x0 as usize] as usize..row.start[x1 as usize + 1] as usize;
-            add_run(&self.columns[qy as usize], run, &centre, &mut mean);
+            let dy = qy.abs_diff(y);
+            for (dx, steps) in window_columns(dy) {
+                let tolerance = footprint * steps;
+                // Slot `x + BEFORE` is pixel `x`'s: the window's columns are all inside.
+                let i = (x + BEFORE) as usize;
+                let i = i.wrapping_add_signed(dx);
+                for q in &self.slots[qy as usize] {
+                    let n = [q.n[0][i], q.n[1][i], q.n[2][i]];
+                    let p = [q.p[0][i], q.p[1][i], q.p[2][i]];
+                    if q.surface[i] == layer.surface
+                        && dot(n, layer.n) >= MIN_NORMAL_COSINE
+                        && dot(layer.n, sub(p, layer.p)).abs() <= tolerance
+                    {
+                        sum += q.ao[i];
+                        count += 1;
+                    }
+                }
+            }
         }
-        if mean.count > 0 {
-            mean.sum / mean.count as f32
+        if count > 0 {
+            sum / count as f32
         } else {
             layer.ao
         }
     }
 }
 
-/// The hit whose occlusion is filtered, as the window's comparisons see it, in one row of the
-/// window.
-#[derive(Clone, Copy, Debug)]
-struct Centre {
-    surface: u32,
-    p: [f32; 3],
-    n: [f32; 3],
-    /// The plane tolerance per pixel of offset.
-    footprint: f32,
-    /// Its pixel's column.
-    x: u32,
-    /// The offset counted for a neighbour in its own column: the row's distance, at least one.
-    least_steps: u32,
+/// Pixels whose hits are filtered together (one per lane).
+const GROUP: usize = 8;
+
+/// The plane tolerance per pixel of offset of a hit at `p` (from the camera) with normal `n`.
+#[inline(always)]
+fn footprint(p: [f32; 3], n: [f32; 3], pixel_angle: f32) -> f32 {
+    let distance = norm(p);
+    let facing = (dot(n, p).abs() / distance).max(MIN_FACING);
+    PLANE_TOLERANCE * distance * pixel_angle / (facing * facing)
 }
 
-/// The occlusions of the neighbours kept so far: their sum, in the window's order, and number.
-#[derive(Clone, Copy, Debug, Default)]
-struct Mean {
-    sum: f32,
-    count: u32,
+/// The window's columns in a row `dy` rows away, from the left: each one's offset and the
+/// pixels of offset its plane tolerance counts (the larger on either axis, at least one).
+#[inline(always)]
+fn window_columns(dy: u32) -> impl Iterator<Item = (isize, f32)> {
+    (-(BEFORE as isize)..=AFTER as isize)
+        .map(move |dx| (dx, dx.unsigned_abs().max(dy as usize).max(1) as f32))
 }
 
-/// One row's hits as columns, what the window's comparisons read, followed by
-/// [`HitColumns::PAD`] entries that no comparison keeps.
+/// Hit `h` of each pixel of a row, as columns, what the window's comparisons read: pixel
+/// `x`'s at `x + BEFORE`, with [`BEFORE`] entries before the row's first pixel and [`AFTER`]
+/// plus [`GROUP`] after its last that no comparison keeps (of no surface), as none where a
+/// pixel has fewer hits. The window's neighbour of every pixel of a group is then one
+/// column's entry at a fixed offset, and its neighbours' tests are a group's lanes.
 #[derive(Clone, Debug, Default)]
-struct HitColumns {
+struct Slots {
     surface: Vec<u32>,
     p: [Vec<f32>; 3],
     n: [Vec<f32>; 3],
     ao: Vec<f32>,
-    /// Each hit's pixel.
-    column: Vec<u32>,
 }
 
-impl HitColumns {
-    /// Entries after the last hit: a group of that many read from any hit stays inside.
-    const PAD: usize = 8;
+impl Slots {
+    /// The surface of an entry without a hit.
+    const NONE: u32 = u32::MAX;
 
-    fn of(row: &AoRow) -> HitColumns {
-        let len = row.layers.len() + Self::PAD;
-        let mut c = HitColumns {
-            surface: Vec::with_capacity(len),
-            p: std::array::from_fn(|_| Vec::with_capacity(len)),
-            n: std::array::from_fn(|_| Vec::with_capacity(len)),
-            ao: Vec::with_capacity(len),
-            column: Vec::with_capacity(len),
+    fn of(row: &AoRow, h: usize) -> Slots {
+        let pixels = row.start.len() - 1;
+        let len = BEFORE as usize + pixels + AFTER as usize + GROUP;
+        let mut s = Slots {
+            surface: vec![Self::NONE; len],
+            p: std::array::from_fn(|_| vec![0.0; len]),
+            n: std::array::from_fn(|_| vec![0.0; len]),
+            ao: vec![0.0; len],
         };
-        for l in &row.layers {
-            c.surface.push(l.surface);
-            for a in 0..3 {
-                c.p[a].push(l.p[a]);
-                c.n[a].push(l.n[a]);
-            }
-            c.ao.push(l.ao);
-        }
-        c.column.extend_from_slice(&row.column);
-        // A surface no hit has: the padding is never the centre's.
-        c.surface.resize(len, u32::MAX);
-        for a in 0..3 {
-            c.p[a].resize(len, 0.0);
-            c.n[a].resize(len, 0.0);
-        }
-        c.ao.resize(len, 0.0);
-        c.column.resize(len, 0);
-        c
-    }
-
-    /// Number of hits (the padding left out).
-    fn hits(&self) -> usize {
-        self.ao.len() - Self::PAD
-    }
-
-    /// Adds to `mean` the occlusions of the hits `run` that are of `centre`'s surface, face its
-    /// way and lie on its tangent plane, in their order.
-    fn add_run(&self, run: Range<usize>, centre: &Centre, mean: &mut Mean) {
-        for i in run {
-            let n = [self.n[0][i], self.n[1][i], self.n[2][i]];
-            let p = [self.p[0][i], self.p[1][i], self.p[2][i]];
-            let steps = self.column[i].abs_diff(centre.x).max(centre.least_steps);
-            if self.surface[i] == centre.surface
-                && dot(n, centre.n) >= MIN_NORMAL_COSINE
-                && dot(centre.n, sub(p, centre.p)).abs() <= centre.footprint * steps as f32
-            {
-                mean.sum += self.ao[i];
-                mean.count += 1;
+        for x in 0..pixels {
+            if let Some(l) = row.pixel(x as u32).get(h) {
+                let i = x + BEFORE as usize;
+                s.surface[i] = l.surface;
+                for a in 0..3 {
+                    s.p[a][i] = l.p[a];
+                    s.n[a][i] = l.n[a];
+                }
+                s.ao[i] = l.ao;
             }
         }
+        s
+    }
+
+    /// True when a pixel of the group from `x0` has a hit here.
+    fn any_hit(&self, x0: usize) -> bool {
+        let i = x0 + BEFORE as usize;
+        self.surface[i..i + GROUP].iter().any(|&s| s != Self::NONE)
     }
 }
 
@@ -352,8 +342,22 @@ mod tests {
             joined.append(fill(cut..5));
             assert_eq!(joined.start, whole.start, "cut at {cut}");
             assert_eq!(joined.layers, whole.layers, "cut at {cut}");
-            assert_eq!(joined.column, whole.column, "cut at {cut}");
         }
+    }
+
+    #[test]
+    fn pixels_ended_at_once_equal_pixels_ended_one_by_one() {
+        let facing = [0.0, 0.0, -1.0];
+        let (mut a, mut b) = (AoRow::new(), AoRow::new());
+        for row in [&mut a, &mut b] {
+            row.layers_mut().push(layer(0, 1.0, facing, 0.5));
+            row.end_pixel();
+        }
+        a.end_pixels(3);
+        for _ in 0..3 {
+            b.end_pixel();
+        }
+        assert_eq!((a.start, a.layers), (b.start, b.layers));
     }
 
     #[test]

@@ -318,6 +318,7 @@ fn render_strip<T: Tracer + ?Sized>(
     let mut rngs = Vec::with_capacity(TILE_RAYS);
     let mut dirs_k = Vec::with_capacity(TILE_RAYS);
     let mut rays = Vec::with_capacity(TILE_RAYS);
+    let miss = PixelAcc::only(PixelSample::MISS);
     for x0 in xs.clone().step_by(TILE as usize) {
         let x1 = (x0 + TILE).min(xs.end);
         let tw = (x1 - x0) as usize;
@@ -334,15 +335,11 @@ fn render_strip<T: Tracer + ?Sized>(
             rays.clear();
             for (y, &sy) in ys.clone().zip(&down) {
                 for (x, &sx) in (x0..x1).zip(&across) {
-                    let dir = if sampled {
+                    let dir = if spp > 1 {
                         let mut rng = Rng::for_pixel(x, y, s);
                         let (jx, jy) = rng.subpixel(spp);
                         rngs.push(rng);
-                        if spp > 1 {
-                            dirs.dir(f64::from(x) + jx, f64::from(y) + jy)
-                        } else {
-                            dirs.through(sx, sy)
-                        }
+                        dirs.dir(f64::from(x) + jx, f64::from(y) + jy)
                     } else {
                         dirs.through(sx, sy)
                     };
@@ -355,6 +352,23 @@ fn render_strip<T: Tracer + ?Sized>(
             }
             // A tile whose rays hit nothing has no layers: every sample is a miss.
             let any_hit = tile.trace(&counting, light, &rays, &mut hint);
+            if spp == 1 && !any_hit {
+                // Every pixel a miss: no generator, no shading.
+                for row in &mut rows {
+                    row.pixels.extend(std::iter::repeat_n(miss, tw));
+                    if record {
+                        row.ao.end_pixels(tw);
+                    }
+                }
+                continue;
+            }
+            if spp == 1 && sampled {
+                // With one sample, the generators only place the shading's rays: made for the
+                // tiles that have any (the centre sample leaves them as they are).
+                for y in ys.clone() {
+                    rngs.extend((x0..x1).map(|x| Rng::for_pixel(x, y, s)));
+                }
+            }
             if any_hit {
                 layers.trace(&counting, light, &rays, &mut tile);
                 shadows.trace(&counting, light, &dirs_k, &mut layers);

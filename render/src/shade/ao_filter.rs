@@ -14,6 +14,8 @@
 //! ([`crate::shade::sampling::TILE`]): on a smooth surface it averages each stratum of the
 //! pattern once.
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 
 use crate::output::frame::PixelSample;
@@ -109,27 +111,48 @@ impl AoRow {
 }
 
 /// The filtered hits of a rectangle of pixels, one [`AoRow`] per row from the top, and what
-/// the window's comparisons read of them ([`Slots`]).
+/// the window's comparisons read of them ([`Slots`]) for a band of its rows.
 #[derive(Clone, Debug)]
 pub struct AoRows<'a> {
     width: u32,
     rows: &'a [AoRow],
+    /// The rows whose slots are kept: those of the band and its window's margins.
+    kept: Range<u32>,
     slots: Vec<[Slots; FILTERED_HITS]>,
 }
 
 impl<'a> AoRows<'a> {
-    /// The rows `rows` of a rectangle `width` pixels wide (each row holding `width` pixels).
+    /// The rows `rows` of a rectangle `width` pixels wide (each row holding `width` pixels),
+    /// for filtering any of them.
     pub fn new(width: u32, rows: &'a [AoRow]) -> AoRows<'a> {
+        AoRows::band(width, rows, 0..rows.len() as u32)
+    }
+
+    /// The rows `rows` of a rectangle `width` pixels wide, for filtering the rows `band`:
+    /// the slots, about 64 bytes a pixel, are made for those and their window's margins only.
+    pub fn band(width: u32, rows: &'a [AoRow], band: Range<u32>) -> AoRows<'a> {
         assert!(rows.iter().all(|r| r.start.len() == width as usize + 1));
-        let slots = rows
+        let kept = band.start.saturating_sub(BEFORE)..(band.end + AFTER).min(rows.len() as u32);
+        let slots = rows[kept.start as usize..kept.end as usize]
             .par_iter()
             .map(|row| std::array::from_fn(|h| Slots::of(row, h)))
             .collect();
-        AoRows { width, rows, slots }
+        AoRows {
+            width,
+            rows,
+            kept,
+            slots,
+        }
     }
 
-    /// Replaces the occlusion of every hit of row `y` by the filtered one in the colour of
-    /// `pixels` (that row). `pixel_angle` is the angle one pixel spans (radians). Each row
+    /// Row `y`'s slots (a row of the band or its margins).
+    fn slots_of(&self, y: u32) -> &[Slots; FILTERED_HITS] {
+        assert!(self.kept.contains(&y));
+        &self.slots[(y - self.kept.start) as usize]
+    }
+
+    /// Replaces the occlusion of every hit of row `y` (of the band) by the filtered one in the
+    /// colour of `pixels` (that row). `pixel_angle` is the angle one pixel spans (radians). Each row
     /// reads the others only, so rows can be filtered in any order and in parallel.
     pub fn apply_row(&self, y: u32, pixels: &mut [PixelSample], pixel_angle: f32) {
         #[cfg(target_arch = "x86_64")]
@@ -166,7 +189,7 @@ impl<'a> AoRows<'a> {
     ) {
         assert_eq!(pixels.len(), self.width as usize);
         let row = &self.rows[y as usize];
-        let slots = &self.slots[y as usize];
+        let slots = self.slots_of(y);
         let mut out = [[0.0f32; GROUP]; FILTERED_HITS];
         for (g, group) in pixels.chunks_mut(GROUP).enumerate() {
             let x0 = g * GROUP;
@@ -205,7 +228,7 @@ impl<'a> AoRows<'a> {
                 // Slot `x + BEFORE` is pixel `x`'s: the window's columns are all inside.
                 let i = (x + BEFORE) as usize;
                 let i = i.wrapping_add_signed(dx);
-                for q in &self.slots[qy as usize] {
+                for q in self.slots_of(qy) {
                     let n = [q.n[0][i], q.n[1][i], q.n[2][i]];
                     let p = [q.p[0][i], q.p[1][i], q.p[2][i]];
                     if q.surface[i] == layer.surface

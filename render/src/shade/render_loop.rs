@@ -432,22 +432,35 @@ fn finish<O: Send>(
     write: impl Fn(O, &[PixelSample]) + Sync,
 ) {
     assert_eq!(rows.len(), out.len());
+    let h = rows.len();
     let (pixels, ao): (Vec<Vec<PixelSample>>, Vec<AoRow>) =
         rows.into_iter().map(|r| (r.pixels, r.ao)).unzip();
-    let filter = filters(light, settings).then(|| AoRows::new(w, &ao));
+    let filters = filters(light, settings);
     let pixel_angle =
         (2.0 * (0.5 * camera.fov_deg).to_radians().tan() / f64::from(settings.height)) as f32;
-    pixels
-        .into_par_iter()
-        .zip(out)
-        .enumerate()
-        .for_each(|(y, (mut px, out))| {
-            if let Some(f) = &filter {
-                f.apply_row(y as u32, &mut px, pixel_angle);
-            }
-            write(out, &px);
-        });
+    let (mut pixels, mut out) = (pixels.into_iter(), out.into_iter());
+    // Band after band of rows, each band's rows in parallel: the filter's slots are held for
+    // one band (and its margins) at a time, not for the whole frame.
+    for y0 in (0..h).step_by(FILTER_BAND) {
+        let band = y0..(y0 + FILTER_BAND).min(h);
+        let filter = filters.then(|| AoRows::band(w, &ao, band.start as u32..band.end as u32));
+        let band_pixels: Vec<Vec<PixelSample>> = pixels.by_ref().take(band.len()).collect();
+        let band_out: Vec<O> = out.by_ref().take(band.len()).collect();
+        band_pixels
+            .into_par_iter()
+            .zip(band_out)
+            .enumerate()
+            .for_each(|(i, (mut px, out))| {
+                if let Some(f) = &filter {
+                    f.apply_row((y0 + i) as u32, &mut px, pixel_angle);
+                }
+                write(out, &px);
+            });
+    }
 }
+
+/// Rows filtered together by [`finish`]: the slots of about this many rows are held at once.
+const FILTER_BAND: usize = 64;
 
 /// A pixel's samples added up: the average of their colours and coverage, the rest of the first
 /// sample that hit anything.

@@ -27,7 +27,7 @@ pub(super) fn filter_group(
     // `x0 + BEFORE + dx` with `-BEFORE <= dx <= AFTER`, `GROUP` entries are inside.
     assert!(x0 < rows.width as usize);
     let at = x0 + BEFORE as usize;
-    let c = &rows.slots[y as usize][h];
+    let c = &rows.slots_of(y)[h];
     // SAFETY: `at` and the offsets below stay inside every row's columns (above).
     let load = |v: &Vec<f32>, i: usize| unsafe { _mm256_loadu_ps(v.as_ptr().add(i)) };
     let load_u32 = |v: &Vec<u32>, i: usize| unsafe { _mm256_loadu_si256(v.as_ptr().add(i).cast()) };
@@ -49,13 +49,13 @@ pub(super) fn filter_group(
     );
     let min_cosine = _mm256_set1_ps(MIN_NORMAL_COSINE);
     let (mut sum, mut count) = (_mm256_setzero_ps(), _mm256_setzero_si256());
-    let last_row = rows.slots.len() as u32 - 1;
+    let last_row = rows.rows.len() as u32 - 1;
     for qy in y.saturating_sub(BEFORE)..=(y + AFTER).min(last_row) {
         let dy = qy.abs_diff(y);
         for (dx, steps) in window_columns(dy) {
             let tolerance = _mm256_mul_ps(footprint, _mm256_set1_ps(steps));
             let i = at.wrapping_add_signed(dx);
-            for q in &rows.slots[qy as usize] {
+            for q in rows.slots_of(qy) {
                 let same =
                     _mm256_castsi256_ps(_mm256_cmpeq_epi32(load_u32(&q.surface, i), surface));
                 let n = [0, 1, 2].map(|a| load(&q.n[a], i));

@@ -68,14 +68,15 @@ impl AoRow {
         AoRow::with_capacity(0)
     }
 
-    /// An empty row with room for `pixels` pixels' hits (at most [`FILTERED_HITS`] each): a
-    /// row filled or appended to up to that many pixels never grows its vectors.
+    /// An empty row with room for `pixels` pixels. Their hits grow as they come: room for the
+    /// most a row can hold ([`FILTERED_HITS`] per pixel) would be about 88 bytes a pixel of the
+    /// frame held until the filter, most of it never used.
     pub fn with_capacity(pixels: usize) -> AoRow {
         let mut start = Vec::with_capacity(pixels + 1);
         start.push(0);
         AoRow {
             start,
-            layers: Vec::with_capacity(FILTERED_HITS * pixels),
+            layers: Vec::new(),
         }
     }
 

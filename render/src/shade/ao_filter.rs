@@ -153,8 +153,8 @@ impl<'a> AoRows<'a> {
     }
 
     /// Replaces the occlusion of every hit of row `y` (of the band) by the filtered one in the
-    /// colour of `pixels` (that row). `pixel_angle` is the angle one pixel spans (radians). Each row
-    /// reads the others only, so rows can be filtered in any order and in parallel.
+    /// colour of `pixels` (that row). `pixel_angle` is the angle one pixel spans (radians).
+    /// Each row reads the others only, so rows can be filtered in any order and in parallel.
     pub fn apply_row(&self, y: u32, pixels: &mut [PixelSample], pixel_angle: f32) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -179,7 +179,7 @@ impl<'a> AoRows<'a> {
         });
     }
 
-    /// [`AoRow::apply_row`], `filter(x0, h, out)` writing the filtered occlusion of hit `h` of
+    /// [`AoRows::apply_row`], `filter(x0, h, out)` writing the filtered occlusion of hit `h` of
     /// each of the [`GROUP`] pixels from `x0` that have one (`out[x - x0]`).
     #[inline(always)]
     fn apply_row_with(

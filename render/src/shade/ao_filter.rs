@@ -14,8 +14,15 @@
 //! ([`crate::shade::sampling::TILE`]): on a smooth surface it averages each stratum of the
 //! pattern once.
 
+use std::ops::Range;
+
+use rayon::prelude::*;
+
 use crate::output::frame::PixelSample;
 use crate::shade::sampling::TILE;
+
+#[cfg(target_arch = "x86_64")]
+mod x8;
 
 /// Pixels of the filter's square window before a pixel, on each axis.
 const BEFORE: u32 = TILE / 2;
@@ -53,17 +60,23 @@ pub struct AoLayer {
 pub struct AoRow {
     start: Vec<u32>,
     layers: Vec<AoLayer>,
-    /// Each hit's pixel, so that a window's hits in a row are read as one run.
-    column: Vec<u32>,
 }
 
 impl AoRow {
     /// An empty row, to be filled pixel by pixel from the left.
     pub fn new() -> AoRow {
+        AoRow::with_capacity(0)
+    }
+
+    /// An empty row with room for `pixels` pixels. Their hits grow as they come: room for the
+    /// most a row can hold ([`FILTERED_HITS`] per pixel) would be about 88 bytes a pixel of the
+    /// frame held until the filter, most of it never used.
+    pub fn with_capacity(pixels: usize) -> AoRow {
+        let mut start = Vec::with_capacity(pixels + 1);
+        start.push(0);
         AoRow {
-            start: vec![0],
+            start,
             layers: Vec::new(),
-            column: Vec::new(),
         }
     }
 
@@ -75,19 +88,21 @@ impl AoRow {
 
     /// Ends the current pixel: the hits appended since the last call are its.
     pub fn end_pixel(&mut self) {
-        let x = self.start.len() as u32 - 1;
-        self.column.resize(self.layers.len(), x);
         self.start.push(self.layers.len() as u32);
+    }
+
+    /// Ends `n` pixels without hits.
+    pub fn end_pixels(&mut self, n: usize) {
+        let at = self.layers.len() as u32;
+        self.start.resize(self.start.len() + n, at);
     }
 
     /// Appends `more`, the pixels to the right of this row's.
     pub fn append(&mut self, more: AoRow) {
         let layers = self.layers.len() as u32;
-        let pixels = self.start.len() as u32 - 1;
         self.start
             .extend(more.start[1..].iter().map(|&s| s + layers));
         self.layers.extend(more.layers);
-        self.column.extend(more.column.iter().map(|&x| x + pixels));
     }
 
     fn pixel(&self, x: u32) -> &[AoLayer] {
@@ -96,61 +111,134 @@ impl AoRow {
     }
 }
 
-/// The filtered hits of a rectangle of pixels, one [`AoRow`] per row from the top.
-#[derive(Clone, Copy, Debug)]
+/// The filtered hits of a rectangle of pixels, one [`AoRow`] per row from the top, and what
+/// the window's comparisons read of them ([`Slots`]) for a band of its rows.
+#[derive(Clone, Debug)]
 pub struct AoRows<'a> {
     width: u32,
     rows: &'a [AoRow],
+    /// The rows whose slots are kept: those of the band and its window's margins.
+    kept: Range<u32>,
+    slots: Vec<[Slots; FILTERED_HITS]>,
 }
 
 impl<'a> AoRows<'a> {
-    /// The rows `rows` of a rectangle `width` pixels wide (each row holding `width` pixels).
+    /// The rows `rows` of a rectangle `width` pixels wide (each row holding `width` pixels),
+    /// for filtering any of them.
     pub fn new(width: u32, rows: &'a [AoRow]) -> AoRows<'a> {
-        assert!(rows.iter().all(|r| r.start.len() == width as usize + 1));
-        AoRows { width, rows }
+        AoRows::band(width, rows, 0..rows.len() as u32)
     }
 
-    /// Replaces the occlusion of every hit of row `y` by the filtered one in the colour of
-    /// `pixels` (that row). `pixel_angle` is the angle one pixel spans (radians). Each row
-    /// reads the others only, so rows can be filtered in any order and in parallel.
+    /// The rows `rows` of a rectangle `width` pixels wide, for filtering the rows `band`:
+    /// the slots, about 64 bytes a pixel, are made for those and their window's margins only.
+    pub fn band(width: u32, rows: &'a [AoRow], band: Range<u32>) -> AoRows<'a> {
+        assert!(rows.iter().all(|r| r.start.len() == width as usize + 1));
+        let kept = band.start.saturating_sub(BEFORE)..(band.end + AFTER).min(rows.len() as u32);
+        let slots = rows[kept.start as usize..kept.end as usize]
+            .par_iter()
+            .map(|row| std::array::from_fn(|h| Slots::of(row, h)))
+            .collect();
+        AoRows {
+            width,
+            rows,
+            kept,
+            slots,
+        }
+    }
+
+    /// Row `y`'s slots (a row of the band or its margins).
+    fn slots_of(&self, y: u32) -> &[Slots; FILTERED_HITS] {
+        assert!(self.kept.contains(&y));
+        &self.slots[(y - self.kept.start) as usize]
+    }
+
+    /// Replaces the occlusion of every hit of row `y` (of the band) by the filtered one in the
+    /// colour of `pixels` (that row). `pixel_angle` is the angle one pixel spans (radians).
+    /// Each row reads the others only, so rows can be filtered in any order and in parallel.
     pub fn apply_row(&self, y: u32, pixels: &mut [PixelSample], pixel_angle: f32) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            return unsafe { self.apply_row_avx2(y, pixels, pixel_angle) };
+        }
+        self.apply_row_with(y, pixels, |x0, h, out| {
+            for (x, out) in (x0..(x0 + GROUP).min(self.width as usize)).zip(out) {
+                if let Some(layer) = self.rows[y as usize].pixel(x as u32).get(h) {
+                    *out = self.filtered(layer, x as u32, y, pixel_angle);
+                }
+            }
+        });
+    }
+
+    /// [`AoRows::apply_row`] with the hits of [`GROUP`] pixels filtered at once.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn apply_row_avx2(&self, y: u32, pixels: &mut [PixelSample], pixel_angle: f32) {
+        self.apply_row_with(y, pixels, |x0, h, out| {
+            x8::filter_group(self, y, x0, h, pixel_angle, out)
+        });
+    }
+
+    /// [`AoRows::apply_row`], `filter(x0, h, out)` writing the filtered occlusion of hit `h` of
+    /// each of the [`GROUP`] pixels from `x0` that have one (`out[x - x0]`).
+    #[inline(always)]
+    fn apply_row_with(
+        &self,
+        y: u32,
+        pixels: &mut [PixelSample],
+        mut filter: impl FnMut(usize, usize, &mut [f32; GROUP]),
+    ) {
         assert_eq!(pixels.len(), self.width as usize);
-        for (x, px) in pixels.iter_mut().enumerate() {
-            let x = x as u32;
-            for layer in self.rows[y as usize].pixel(x) {
-                let ao = self.filtered(layer, x, y, pixel_angle);
-                for c in 0..3 {
-                    px.rgb[c] += layer.weight[c] * (ao - layer.ao);
+        let row = &self.rows[y as usize];
+        let slots = self.slots_of(y);
+        let mut out = [[0.0f32; GROUP]; FILTERED_HITS];
+        for (g, group) in pixels.chunks_mut(GROUP).enumerate() {
+            let x0 = g * GROUP;
+            let mut any = false;
+            for (h, out) in out.iter_mut().enumerate() {
+                if slots[h].any_hit(x0) {
+                    filter(x0, h, out);
+                    any = true;
+                }
+            }
+            if !any {
+                continue;
+            }
+            for (i, px) in group.iter_mut().enumerate() {
+                for (h, layer) in row.pixel((x0 + i) as u32).iter().enumerate() {
+                    let ao = out[h][i];
+                    for c in 0..3 {
+                        px.rgb[c] += layer.weight[c] * (ao - layer.ao);
+                    }
                 }
             }
         }
     }
 
-    /// The filtered occlusion of `layer`, a hit in pixel `(x, y)`.
+    /// The filtered occlusion of `layer`, a hit of pixel `(x, y)`: the mean over the window
+    /// around it of the occlusions of the hits of its surface that face its way and lie on its
+    /// tangent plane, added up row after row, pixel after pixel, hit after hit.
     fn filtered(&self, layer: &AoLayer, x: u32, y: u32, pixel_angle: f32) -> f32 {
-        let distance = norm(layer.p);
-        let facing = (dot(layer.n, layer.p).abs() / distance).max(MIN_FACING);
-        let footprint = PLANE_TOLERANCE * distance * pixel_angle / (facing * facing);
+        let footprint = footprint(layer.p, layer.n, pixel_angle);
         let (mut sum, mut count) = (0.0f32, 0u32);
-        let (x0, x1) = (x.saturating_sub(BEFORE), (x + AFTER).min(self.width - 1));
         let last_row = self.rows.len() as u32 - 1;
         for qy in y.saturating_sub(BEFORE)..=(y + AFTER).min(last_row) {
-            let row = &self.rows[qy as usize];
             let dy = qy.abs_diff(y);
-            // The plane tolerance per column of the window.
-            let mut tolerance = [0.0f32; TILE as usize];
-            for (qx, t) in (x0..=x1).zip(&mut tolerance) {
-                *t = footprint * qx.abs_diff(x).max(dy).max(1) as f32;
-            }
-            // The window's hits in this row, pixel after pixel from `x0`: one run.
-            let run = row.start[x0 as usize] as usize..row.start[x1 as usize + 1] as usize;
-            for (q, &qx) in row.layers[run.clone()].iter().zip(&row.column[run]) {
-                if q.surface == layer.surface
-                    && dot(q.n, layer.n) >= MIN_NORMAL_COSINE
-                    && dot(layer.n, sub(q.p, layer.p)).abs() <= tolerance[(qx - x0) as usize]
-                {
-                    sum += q.ao;
-                    count += 1;
+            for (dx, steps) in window_columns(dy) {
+                let tolerance = footprint * steps;
+                // Slot `x + BEFORE` is pixel `x`'s: the window's columns are all inside.
+                let i = (x + BEFORE) as usize;
+                let i = i.wrapping_add_signed(dx);
+                for q in self.slots_of(qy) {
+                    let n = [q.n[0][i], q.n[1][i], q.n[2][i]];
+                    let p = [q.p[0][i], q.p[1][i], q.p[2][i]];
+                    if q.surface[i] == layer.surface
+                        && dot(n, layer.n) >= MIN_NORMAL_COSINE
+                        && dot(layer.n, sub(p, layer.p)).abs() <= tolerance
+                    {
+                        sum += q.ao[i];
+                        count += 1;
+                    }
                 }
             }
         }
@@ -159,6 +247,72 @@ impl<'a> AoRows<'a> {
         } else {
             layer.ao
         }
+    }
+}
+
+/// Pixels whose hits are filtered together (one per lane).
+const GROUP: usize = 8;
+
+/// The plane tolerance per pixel of offset of a hit at `p` (from the camera) with normal `n`.
+#[inline(always)]
+fn footprint(p: [f32; 3], n: [f32; 3], pixel_angle: f32) -> f32 {
+    let distance = norm(p);
+    let facing = (dot(n, p).abs() / distance).max(MIN_FACING);
+    PLANE_TOLERANCE * distance * pixel_angle / (facing * facing)
+}
+
+/// The window's columns in a row `dy` rows away, from the left: each one's offset and the
+/// pixels of offset its plane tolerance counts (the larger on either axis, at least one).
+#[inline(always)]
+fn window_columns(dy: u32) -> impl Iterator<Item = (isize, f32)> {
+    (-(BEFORE as isize)..=AFTER as isize)
+        .map(move |dx| (dx, dx.unsigned_abs().max(dy as usize).max(1) as f32))
+}
+
+/// Hit `h` of each pixel of a row, as columns, what the window's comparisons read: pixel
+/// `x`'s at `x + BEFORE`, with [`BEFORE`] entries before the row's first pixel and [`AFTER`]
+/// plus [`GROUP`] after its last that no comparison keeps (of no surface), as none where a
+/// pixel has fewer hits. The window's neighbour of every pixel of a group is then one
+/// column's entry at a fixed offset, and its neighbours' tests are a group's lanes.
+#[derive(Clone, Debug, Default)]
+struct Slots {
+    surface: Vec<u32>,
+    p: [Vec<f32>; 3],
+    n: [Vec<f32>; 3],
+    ao: Vec<f32>,
+}
+
+impl Slots {
+    /// The surface of an entry without a hit.
+    const NONE: u32 = u32::MAX;
+
+    fn of(row: &AoRow, h: usize) -> Slots {
+        let pixels = row.start.len() - 1;
+        let len = BEFORE as usize + pixels + AFTER as usize + GROUP;
+        let mut s = Slots {
+            surface: vec![Self::NONE; len],
+            p: std::array::from_fn(|_| vec![0.0; len]),
+            n: std::array::from_fn(|_| vec![0.0; len]),
+            ao: vec![0.0; len],
+        };
+        for x in 0..pixels {
+            if let Some(l) = row.pixel(x as u32).get(h) {
+                let i = x + BEFORE as usize;
+                s.surface[i] = l.surface;
+                for a in 0..3 {
+                    s.p[a][i] = l.p[a];
+                    s.n[a][i] = l.n[a];
+                }
+                s.ao[i] = l.ao;
+            }
+        }
+        s
+    }
+
+    /// True when a pixel of the group from `x0` has a hit here.
+    fn any_hit(&self, x0: usize) -> bool {
+        let i = x0 + BEFORE as usize;
+        self.surface[i..i + GROUP].iter().any(|&s| s != Self::NONE)
     }
 }
 
@@ -212,8 +366,22 @@ mod tests {
             joined.append(fill(cut..5));
             assert_eq!(joined.start, whole.start, "cut at {cut}");
             assert_eq!(joined.layers, whole.layers, "cut at {cut}");
-            assert_eq!(joined.column, whole.column, "cut at {cut}");
         }
+    }
+
+    #[test]
+    fn pixels_ended_at_once_equal_pixels_ended_one_by_one() {
+        let facing = [0.0, 0.0, -1.0];
+        let (mut a, mut b) = (AoRow::new(), AoRow::new());
+        for row in [&mut a, &mut b] {
+            row.layers_mut().push(layer(0, 1.0, facing, 0.5));
+            row.end_pixel();
+        }
+        a.end_pixels(3);
+        for _ in 0..3 {
+            b.end_pixel();
+        }
+        assert_eq!((a.start, a.layers), (b.start, b.layers));
     }
 
     #[test]

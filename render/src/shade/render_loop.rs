@@ -289,7 +289,7 @@ fn render_strip<T: Tracer + ?Sized>(
         .clone()
         .map(|_| Row {
             pixels: Vec::with_capacity(width.max(xs.len())),
-            ao: AoRow::new(),
+            ao: AoRow::with_capacity(if record { width.max(xs.len()) } else { 0 }),
             rays: 0,
         })
         .collect();
@@ -319,6 +319,7 @@ fn render_strip<T: Tracer + ?Sized>(
     let mut rngs = Vec::with_capacity(TILE_RAYS);
     let mut dirs_k = Vec::with_capacity(TILE_RAYS);
     let mut rays = Vec::with_capacity(TILE_RAYS);
+    let miss = PixelAcc::only(PixelSample::MISS);
     for x0 in xs.clone().step_by(TILE as usize) {
         let x1 = (x0 + TILE).min(xs.end);
         let tw = (x1 - x0) as usize;
@@ -335,15 +336,11 @@ fn render_strip<T: Tracer + ?Sized>(
             rays.clear();
             for (y, &sy) in ys.clone().zip(&down) {
                 for (x, &sx) in (x0..x1).zip(&across) {
-                    let dir = if sampled {
+                    let dir = if spp > 1 {
                         let mut rng = Rng::for_pixel(x, y, s);
                         let (jx, jy) = rng.subpixel(spp);
                         rngs.push(rng);
-                        if spp > 1 {
-                            dirs.dir(f64::from(x) + jx, f64::from(y) + jy)
-                        } else {
-                            dirs.through(sx, sy)
-                        }
+                        dirs.dir(f64::from(x) + jx, f64::from(y) + jy)
                     } else {
                         dirs.through(sx, sy)
                     };
@@ -356,6 +353,16 @@ fn render_strip<T: Tracer + ?Sized>(
             }
             // A tile whose rays hit nothing has no layers: every sample is a miss.
             let any_hit = tile.trace(&counting, light, &rays, &mut hint);
+            if spp == 1 && !any_hit {
+                // Every pixel a miss: no generator, no shading.
+                for row in &mut rows {
+                    row.pixels.extend(std::iter::repeat_n(miss, tw));
+                    if record {
+                        row.ao.end_pixels(tw);
+                    }
+                }
+                continue;
+            }
             if alone {
                 shade_alone(
                     &counting,
@@ -367,6 +374,13 @@ fn render_strip<T: Tracer + ?Sized>(
                     &mut rows,
                 );
                 continue;
+            }
+            if spp == 1 && sampled {
+                // With one sample, the generators only place the shading's rays: made for the
+                // tiles that have any (the centre sample leaves them as they are).
+                for y in ys.clone() {
+                    rngs.extend((x0..x1).map(|x| Rng::for_pixel(x, y, s)));
+                }
             }
             if any_hit {
                 layers.trace(&counting, light, &rays, &mut tile);
@@ -485,22 +499,35 @@ fn finish<O: Send>(
     write: impl Fn(O, &[PixelSample]) + Sync,
 ) {
     assert_eq!(rows.len(), out.len());
+    let h = rows.len();
     let (pixels, ao): (Vec<Vec<PixelSample>>, Vec<AoRow>) =
         rows.into_iter().map(|r| (r.pixels, r.ao)).unzip();
-    let filter = filters(light, settings).then(|| AoRows::new(w, &ao));
+    let filters = filters(light, settings);
     let pixel_angle =
         (2.0 * (0.5 * camera.fov_deg).to_radians().tan() / f64::from(settings.height)) as f32;
-    pixels
-        .into_par_iter()
-        .zip(out)
-        .enumerate()
-        .for_each(|(y, (mut px, out))| {
-            if let Some(f) = &filter {
-                f.apply_row(y as u32, &mut px, pixel_angle);
-            }
-            write(out, &px);
-        });
+    let (mut pixels, mut out) = (pixels.into_iter(), out.into_iter());
+    // Band after band of rows, each band's rows in parallel: the filter's slots are held for
+    // one band (and its margins) at a time, not for the whole frame.
+    for y0 in (0..h).step_by(FILTER_BAND) {
+        let band = y0..(y0 + FILTER_BAND).min(h);
+        let filter = filters.then(|| AoRows::band(w, &ao, band.start as u32..band.end as u32));
+        let band_pixels: Vec<Vec<PixelSample>> = pixels.by_ref().take(band.len()).collect();
+        let band_out: Vec<O> = out.by_ref().take(band.len()).collect();
+        band_pixels
+            .into_par_iter()
+            .zip(band_out)
+            .enumerate()
+            .for_each(|(i, (mut px, out))| {
+                if let Some(f) = &filter {
+                    f.apply_row((y0 + i) as u32, &mut px, pixel_angle);
+                }
+                write(out, &px);
+            });
+    }
 }
+
+/// Rows filtered together by [`finish`]: the slots of about this many rows are held at once.
+const FILTER_BAND: usize = 64;
 
 /// A pixel's samples added up: the average of their colours and coverage, the rest of the first
 /// sample that hit anything.

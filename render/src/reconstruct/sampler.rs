@@ -228,7 +228,7 @@ impl<D: AsRef<[u8]>> Locate for Sampler<'_, D> {
         self.leaf_grid.as_ref()?;
         let leaf = self.find_leaf(lo)?;
         let t = self.tops[leaf as usize].as_ref()?;
-        if t.level != level || !self.tree.leaf_box(leaf).contains_cell(hi) {
+        if t.level != level || !self.read_box(leaf).contains_cell(hi) {
             return None;
         }
         let b = &self.bricks[t.brick as usize];
@@ -262,6 +262,11 @@ pub(super) fn block_in_brick(
         *slot = block[at];
     }
     Some(out)
+}
+
+/// The number of finest cells of leaf box `b`.
+fn volume(b: &IBox) -> u128 {
+    b.extent().iter().map(|&e| e.max(0) as u128).product()
 }
 
 /// [`Sampler::corners_from_block`] for any values, `own` being the side of the outer corner the
@@ -371,6 +376,9 @@ struct BrickRef<'f> {
     cells: IBox,
     /// Its values when they can be read in place.
     values: Option<&'f [f32]>,
+    /// Its finest cells (relative) when no finer brick overlaps it: every cell of it is then
+    /// a leaf cell, whichever kd-tree leaf holds the cell ([`Sampler::read_box`]).
+    alone: Option<IBox>,
 }
 
 /// Reconstructs one field of an open file.
@@ -411,7 +419,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         // One pass over each table: the bricks with their stored values, then the leaves.
         let mut bounded = true;
         let mut levels = Vec::with_capacity(file.num_bricks());
-        let bricks: Vec<BrickRef<'f>> = file
+        let mut bricks: Vec<BrickRef<'f>> = file
             .bricks()
             .zip(file.brick_locations(field))
             .map(|(b, at)| {
@@ -421,17 +429,21 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 BrickRef {
                     cells: b.cells,
                     values: file.raw_values(&at),
+                    alone: None,
                 }
             })
             .collect();
         let grid = Grid::new(file);
+        // Per brick: the finest cells of the kd-tree leaves whose first brick it is.
+        let mut first_of = vec![0u128; bricks.len()];
         let tops = file
             .leaves()
             .map(|l| {
                 l.bricks.first().map(|b| {
                     let brick = b.get();
+                    first_of[brick as usize] += volume(&l.bounds);
                     let level = levels[brick as usize];
-                    let BrickRef { cells, values } = &bricks[brick as usize];
+                    let BrickRef { cells, values, .. } = &bricks[brick as usize];
                     LeafTop {
                         brick,
                         level,
@@ -444,6 +456,15 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 })
             })
             .collect();
+        // A brick is alone when the leaves it is first in fill it: `open` checked that the
+        // leaves tile the domain and that a leaf's first brick covers it, so those leaves lie
+        // in the brick without overlapping, and every finest cell of the brick is in one.
+        for ((b, covered), &level) in bricks.iter_mut().zip(&first_of).zip(&levels) {
+            // Cannot overflow: a brick lies in its level's domain, which refines into the
+            // finest domain (32-bit coordinates).
+            let finest = grid.level_finest_box(level, &b.cells);
+            b.alone = (*covered == volume(&finest)).then_some(finest);
+        }
         let sampler = Self {
             bricks,
             leaf_grid: None,
@@ -506,6 +527,22 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// Kd-tree leaf `leaf`'s box in finest-level cells relative to the domain.
     pub fn leaf_box(&self, leaf: u32) -> IBox {
         self.tree.leaf_box(leaf)
+    }
+
+    /// The finest cells whose leaf cells kd-tree leaf `leaf`'s finest brick holds, as far as the
+    /// sampler knows: the whole brick when no finer brick overlaps it (then any kd-tree leaf
+    /// whose finest brick it is reads every cell of it), else the leaf's box. The octant
+    /// corners read cells from a leaf's brick wherever they lie in this box, so a brick that the
+    /// kd-tree cut into leaves near a level boundary is read as one.
+    #[inline(always)]
+    pub(super) fn read_box(&self, leaf: u32) -> IBox {
+        match &self.tops[leaf as usize] {
+            Some(t) => match self.bricks[t.brick as usize].alone {
+                Some(b) => b,
+                None => self.tree.leaf_box(leaf),
+            },
+            None => self.tree.leaf_box(leaf),
+        }
     }
 
     /// Leaf `leaf`'s finest brick and its level, `None` for a leaf no brick covers.
@@ -996,7 +1033,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         let (up, lo, hi, same) = self.outer_corner(o);
         // A leaf cell and its kd-tree leaf's box: finest cells in that leaf are read from its
         // brick.
-        let mut near = located.map(|c| (*c, self.tree.leaf_box(c.leaf)));
+        let mut near = located.map(|c| (*c, self.read_box(c.leaf)));
         let block = match near {
             // Otherwise the sides are located one by one below: the same values either way.
             Some((c, b)) if b.contains_cell(lo) && b.contains_cell(hi) => self
@@ -1028,7 +1065,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             todo &= todo - 1;
             around[n] = loc.locate_cell(side(n))?;
             if near.is_none() {
-                near = around[n].map(|c| (c, self.tree.leaf_box(c.leaf)));
+                near = around[n].map(|c| (c, self.read_box(c.leaf)));
             }
         }
         if same != 0 {

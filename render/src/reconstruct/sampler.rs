@@ -264,9 +264,11 @@ pub(super) fn block_in_brick(
     Some(out)
 }
 
-/// The number of finest cells of leaf box `b`.
-fn volume(b: &IBox) -> u128 {
-    b.extent().iter().map(|&e| e.max(0) as u128).product()
+/// The number of finest cells of box `b`, `None` past `u64`.
+fn volume(b: &IBox) -> Option<u64> {
+    b.extent()
+        .iter()
+        .try_fold(1u64, |n, &e| n.checked_mul(e.max(0) as u64))
 }
 
 /// [`Sampler::corners_from_block`] for any values, `own` being the side of the outer corner the
@@ -376,9 +378,6 @@ struct BrickRef<'f> {
     cells: IBox,
     /// Its values when they can be read in place.
     values: Option<&'f [f32]>,
-    /// Its finest cells (relative) when no finer brick overlaps it: every cell of it is then
-    /// a leaf cell, whichever kd-tree leaf holds the cell ([`Sampler::read_box`]).
-    alone: Option<IBox>,
 }
 
 /// Reconstructs one field of an open file.
@@ -390,6 +389,10 @@ pub struct Sampler<'f, D> {
     tops: Vec<Option<LeafTop<'f>>>,
     /// Per brick: its cells and its values when they can be read in place.
     bricks: Vec<BrickRef<'f>>,
+    /// Per brick: when no finer brick overlaps it (so every cell of it is a leaf cell whichever
+    /// kd-tree leaf holds the cell, [`Self::read_box`]), its finest cells (relative) as `lo`
+    /// then `hi`; all zero otherwise (a brick's `hi` is never zero).
+    alone: Vec<[u32; 6]>,
     tree: TreeView<'f>,
     /// Point location in one table read and a short walk (the table built on first need);
     /// `None` with the shortcuts off.
@@ -419,7 +422,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         // One pass over each table: the bricks with their stored values, then the leaves.
         let mut bounded = true;
         let mut levels = Vec::with_capacity(file.num_bricks());
-        let mut bricks: Vec<BrickRef<'f>> = file
+        let bricks: Vec<BrickRef<'f>> = file
             .bricks()
             .zip(file.brick_locations(field))
             .map(|(b, at)| {
@@ -429,19 +432,22 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 BrickRef {
                     cells: b.cells,
                     values: file.raw_values(&at),
-                    alone: None,
                 }
             })
             .collect();
         let grid = Grid::new(file);
-        // Per brick: the finest cells of the kd-tree leaves whose first brick it is.
-        let mut first_of = vec![0u128; bricks.len()];
+        // Per brick: the finest cells of the kd-tree leaves whose first brick it is (`u64::MAX`
+        // past `u64`).
+        let mut first_of = vec![0u64; bricks.len()];
         let tops = file
             .leaves()
             .map(|l| {
                 l.bricks.first().map(|b| {
                     let brick = b.get();
-                    first_of[brick as usize] += volume(&l.bounds);
+                    let sum = &mut first_of[brick as usize];
+                    *sum = volume(&l.bounds)
+                        .and_then(|v| sum.checked_add(v))
+                        .unwrap_or(u64::MAX);
                     let level = levels[brick as usize];
                     let BrickRef { cells, values, .. } = &bricks[brick as usize];
                     LeafTop {
@@ -459,14 +465,30 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         // A brick is alone when the leaves it is first in fill it: `open` checked that the
         // leaves tile the domain and that a leaf's first brick covers it, so those leaves lie
         // in the brick without overlapping, and every finest cell of the brick is in one.
-        for ((b, covered), &level) in bricks.iter_mut().zip(&first_of).zip(&levels) {
-            // Cannot overflow: a brick lies in its level's domain, which refines into the
-            // finest domain (32-bit coordinates).
-            let finest = grid.level_finest_box(level, &b.cells);
-            b.alone = (*covered == volume(&finest)).then_some(finest);
-        }
+        let alone = bricks
+            .iter()
+            .zip(&first_of)
+            .zip(&levels)
+            .map(|((b, &covered), &level)| {
+                // Cannot overflow: a brick lies in its level's domain, which refines into the
+                // finest domain (32-bit coordinates).
+                let f = grid.level_finest_box(level, &b.cells);
+                let c: Option<Vec<u32>> =
+                    f.lo.iter()
+                        .chain(&f.hi)
+                        .map(|&x| u32::try_from(x).ok())
+                        .collect();
+                match c {
+                    Some(c) if covered != u64::MAX && volume(&f) == Some(covered) => {
+                        [c[0], c[1], c[2], c[3], c[4], c[5]]
+                    }
+                    _ => [0; 6],
+                }
+            })
+            .collect();
         let sampler = Self {
             bricks,
+            alone,
             leaf_grid: None,
             gather: false,
             tree: file.tree(),
@@ -537,9 +559,12 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     #[inline(always)]
     pub(super) fn read_box(&self, leaf: u32) -> IBox {
         match &self.tops[leaf as usize] {
-            Some(t) => match self.bricks[t.brick as usize].alone {
-                Some(b) => b,
-                None => self.tree.leaf_box(leaf),
+            Some(t) => match &self.alone[t.brick as usize] {
+                b if b[3] != 0 => IBox::new(
+                    [b[0].into(), b[1].into(), b[2].into()],
+                    [b[3].into(), b[4].into(), b[5].into()],
+                ),
+                _ => self.tree.leaf_box(leaf),
             },
             None => self.tree.leaf_box(leaf),
         }
@@ -1262,6 +1287,17 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A box's finest cells count, `None` past `u64` (a brick of such a box is never marked
+    /// alone), zero for an empty box.
+    #[test]
+    fn volume_is_checked() {
+        assert_eq!(volume(&IBox::new([0; 3], [2, 3, 4])), Some(24));
+        assert_eq!(volume(&IBox::new([5; 3], [5, 9, 9])), Some(0));
+        let big = 1i64 << 32;
+        assert_eq!(volume(&IBox::new([0; 3], [big, big / 2, 1])), Some(1 << 63));
+        assert_eq!(volume(&IBox::new([0; 3], [big, big, 1])), None);
+    }
 
     /// The shared-pair corners have the general corners' bits for every side and any values
     /// within the bound: zeros of both signs, subnormals, values near the bound.

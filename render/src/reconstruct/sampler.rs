@@ -9,7 +9,7 @@
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hash, Hasher};
 use std::ops::Deref;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use amr_format::kdtree::TreeView;
 use amr_format::{AmrkFile, IBox};
@@ -264,6 +264,47 @@ pub(super) fn block_in_brick(
     Some(out)
 }
 
+/// Per brick of `file`, its finest cells (relative, `lo` then `hi`) when no finer brick overlaps
+/// it, else all zero ([`Sampler::read_box`]).
+///
+/// A brick is so when the kd-tree leaves whose first brick it is fill it: `open` checked that
+/// the leaves tile the domain and that a leaf's first brick covers the leaf, so those leaves lie
+/// in the brick without overlapping, and every finest cell of the brick is in one.
+fn alone_boxes<D: AsRef<[u8]>>(file: &AmrkFile<D>, grid: &Grid) -> Vec<[u32; 6]> {
+    // Per brick: the finest cells of the leaves whose first brick it is (`u64::MAX` past `u64`).
+    let mut first_of = vec![0u64; file.num_bricks()];
+    for l in file.leaves() {
+        if let Some(sum) = l
+            .bricks
+            .first()
+            .and_then(|b| first_of.get_mut(b.get() as usize))
+        {
+            *sum = volume(&l.bounds)
+                .and_then(|v| sum.checked_add(v))
+                .unwrap_or(u64::MAX);
+        }
+    }
+    file.bricks()
+        .zip(&first_of)
+        .map(|(b, &covered)| {
+            // Cannot overflow: a brick lies in its level's domain, which refines into the
+            // finest domain (32-bit coordinates).
+            let f = grid.level_finest_box(b.level, &b.cells);
+            let c: Option<Vec<u32>> =
+                f.lo.iter()
+                    .chain(&f.hi)
+                    .map(|&x| u32::try_from(x).ok())
+                    .collect();
+            match c {
+                Some(c) if covered != u64::MAX && volume(&f) == Some(covered) => {
+                    [c[0], c[1], c[2], c[3], c[4], c[5]]
+                }
+                _ => [0; 6],
+            }
+        })
+        .collect()
+}
+
 /// The number of finest cells of box `b`, `None` past `u64`.
 fn volume(b: &IBox) -> Option<u64> {
     b.extent()
@@ -391,8 +432,9 @@ pub struct Sampler<'f, D> {
     bricks: Vec<BrickRef<'f>>,
     /// Per brick: when no finer brick overlaps it (so every cell of it is a leaf cell whichever
     /// kd-tree leaf holds the cell, [`Self::read_box`]), its finest cells (relative) as `lo`
-    /// then `hi`; all zero otherwise (a brick's `hi` is never zero).
-    alone: Vec<[u32; 6]>,
+    /// then `hi`; all zero otherwise (a brick's `hi` is never zero). Built on first need
+    /// ([`alone_boxes`]): an extraction never reads it.
+    alone: OnceLock<Vec<[u32; 6]>>,
     tree: TreeView<'f>,
     /// Point location in one table read and a short walk (the table built on first need);
     /// `None` with the shortcuts off.
@@ -436,18 +478,11 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             })
             .collect();
         let grid = Grid::new(file);
-        // Per brick: the finest cells of the kd-tree leaves whose first brick it is (`u64::MAX`
-        // past `u64`).
-        let mut first_of = vec![0u64; bricks.len()];
         let tops = file
             .leaves()
             .map(|l| {
                 l.bricks.first().map(|b| {
                     let brick = b.get();
-                    let sum = &mut first_of[brick as usize];
-                    *sum = volume(&l.bounds)
-                        .and_then(|v| sum.checked_add(v))
-                        .unwrap_or(u64::MAX);
                     let level = levels[brick as usize];
                     let BrickRef { cells, values, .. } = &bricks[brick as usize];
                     LeafTop {
@@ -462,33 +497,9 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 })
             })
             .collect();
-        // A brick is alone when the leaves it is first in fill it: `open` checked that the
-        // leaves tile the domain and that a leaf's first brick covers it, so those leaves lie
-        // in the brick without overlapping, and every finest cell of the brick is in one.
-        let alone = bricks
-            .iter()
-            .zip(&first_of)
-            .zip(&levels)
-            .map(|((b, &covered), &level)| {
-                // Cannot overflow: a brick lies in its level's domain, which refines into the
-                // finest domain (32-bit coordinates).
-                let f = grid.level_finest_box(level, &b.cells);
-                let c: Option<Vec<u32>> =
-                    f.lo.iter()
-                        .chain(&f.hi)
-                        .map(|&x| u32::try_from(x).ok())
-                        .collect();
-                match c {
-                    Some(c) if covered != u64::MAX && volume(&f) == Some(covered) => {
-                        [c[0], c[1], c[2], c[3], c[4], c[5]]
-                    }
-                    _ => [0; 6],
-                }
-            })
-            .collect();
         let sampler = Self {
             bricks,
-            alone,
+            alone: OnceLock::new(),
             leaf_grid: None,
             gather: false,
             tree: file.tree(),
@@ -559,7 +570,10 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     #[inline(always)]
     pub(super) fn read_box(&self, leaf: u32) -> IBox {
         match &self.tops[leaf as usize] {
-            Some(t) => match &self.alone[t.brick as usize] {
+            Some(t) => match &self
+                .alone
+                .get_or_init(|| alone_boxes(self.file, &self.grid))[t.brick as usize]
+            {
                 b if b[3] != 0 => IBox::new(
                     [b[0].into(), b[1].into(), b[2].into()],
                     [b[3].into(), b[4].into(), b[5].into()],

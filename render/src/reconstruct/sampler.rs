@@ -484,7 +484,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                 l.bricks.first().map(|b| {
                     let brick = b.get();
                     let level = levels[brick as usize];
-                    let BrickRef { cells, values, .. } = &bricks[brick as usize];
+                    let BrickRef { cells, values } = &bricks[brick as usize];
                     LeafTop {
                         brick,
                         level,
@@ -1070,8 +1070,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     ) -> Result<Option<[f32; 8]>> {
         let level = o.level;
         let (up, lo, hi, same) = self.outer_corner(o);
-        // A leaf cell and its kd-tree leaf's box: finest cells in that leaf are read from its
-        // brick.
+        // A leaf cell and the box its kd-tree leaf's brick is read in ([`Self::read_box`]):
+        // finest cells there are read from that brick.
         let mut near = located.map(|c| (*c, self.read_box(c.leaf)));
         let block = match near {
             // Otherwise the sides are located one by one below: the same values either way.

@@ -123,6 +123,16 @@ impl Grid {
         )
     }
 
+    /// The finest-level cells (relative) of the cells `cells` (absolute) of `level`.
+    #[inline]
+    pub fn level_finest_box(&self, level: u32, cells: &IBox) -> IBox {
+        let s = self.scale(level);
+        IBox::new(
+            axes(|a| cells.lo[a] * s[a] - self.offset[a]),
+            axes(|a| cells.hi[a] * s[a] - self.offset[a]),
+        )
+    }
+
     /// The cells of `level` (absolute) overlapping the finest-level box `finest` (relative).
     #[inline]
     pub fn level_box(&self, level: u32, finest: &IBox) -> IBox {

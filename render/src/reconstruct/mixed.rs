@@ -120,7 +120,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             );
             let leaf_box = match near {
                 Some((n, nb)) if n.leaf == c.leaf => nb,
-                _ => self.leaf_box(c.leaf),
+                _ => self.read_box(c.leaf),
             };
             boxes[k] = leaf_box;
             if c.level <= level && leaf_box.contains_box(&b.intersect(&domain)) {

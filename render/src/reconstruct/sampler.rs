@@ -9,7 +9,7 @@
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hash, Hasher};
 use std::ops::Deref;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use amr_format::kdtree::TreeView;
 use amr_format::{AmrkFile, IBox};
@@ -228,7 +228,7 @@ impl<D: AsRef<[u8]>> Locate for Sampler<'_, D> {
         self.leaf_grid.as_ref()?;
         let leaf = self.find_leaf(lo)?;
         let t = self.tops[leaf as usize].as_ref()?;
-        if t.level != level || !self.tree.leaf_box(leaf).contains_cell(hi) {
+        if t.level != level || !self.read_box(leaf).contains_cell(hi) {
             return None;
         }
         let b = &self.bricks[t.brick as usize];
@@ -262,6 +262,54 @@ pub(super) fn block_in_brick(
         *slot = block[at];
     }
     Some(out)
+}
+
+/// Per brick of `file`, its finest cells (relative, `lo` then `hi`) when no finer brick overlaps
+/// it, else all zero ([`Sampler::read_box`]).
+///
+/// A brick is so when the kd-tree leaves whose first brick it is fill it: `open` checked that
+/// the leaves tile the domain and that a leaf's first brick covers the leaf, so those leaves lie
+/// in the brick without overlapping, and every finest cell of the brick is in one.
+fn alone_boxes<D: AsRef<[u8]>>(file: &AmrkFile<D>, grid: &Grid) -> Vec<[u32; 6]> {
+    // Per brick: the finest cells of the leaves whose first brick it is (`u64::MAX` past `u64`).
+    let mut first_of = vec![0u64; file.num_bricks()];
+    for l in file.leaves() {
+        if let Some(sum) = l
+            .bricks
+            .first()
+            .and_then(|b| first_of.get_mut(b.get() as usize))
+        {
+            *sum = volume(&l.bounds)
+                .and_then(|v| sum.checked_add(v))
+                .unwrap_or(u64::MAX);
+        }
+    }
+    file.bricks()
+        .zip(&first_of)
+        .map(|(b, &covered)| {
+            // Cannot overflow: a brick lies in its level's domain, which refines into the
+            // finest domain (32-bit coordinates).
+            let f = grid.level_finest_box(b.level, &b.cells);
+            let c: Option<Vec<u32>> =
+                f.lo.iter()
+                    .chain(&f.hi)
+                    .map(|&x| u32::try_from(x).ok())
+                    .collect();
+            match c {
+                Some(c) if covered != u64::MAX && volume(&f) == Some(covered) => {
+                    [c[0], c[1], c[2], c[3], c[4], c[5]]
+                }
+                _ => [0; 6],
+            }
+        })
+        .collect()
+}
+
+/// The number of finest cells of box `b`, `None` past `u64`.
+fn volume(b: &IBox) -> Option<u64> {
+    b.extent()
+        .iter()
+        .try_fold(1u64, |n, &e| n.checked_mul(e.max(0) as u64))
 }
 
 /// [`Sampler::corners_from_block`] for any values, `own` being the side of the outer corner the
@@ -382,6 +430,11 @@ pub struct Sampler<'f, D> {
     tops: Vec<Option<LeafTop<'f>>>,
     /// Per brick: its cells and its values when they can be read in place.
     bricks: Vec<BrickRef<'f>>,
+    /// Per brick: when no finer brick overlaps it (so every cell of it is a leaf cell whichever
+    /// kd-tree leaf holds the cell, [`Self::read_box`]), its finest cells (relative) as `lo`
+    /// then `hi`; all zero otherwise (a brick's `hi` is never zero). Built on first need
+    /// ([`alone_boxes`]): an extraction never reads it.
+    alone: OnceLock<Vec<[u32; 6]>>,
     tree: TreeView<'f>,
     /// Point location in one table read and a short walk (the table built on first need);
     /// `None` with the shortcuts off.
@@ -446,6 +499,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             .collect();
         let sampler = Self {
             bricks,
+            alone: OnceLock::new(),
             leaf_grid: None,
             gather: false,
             tree: file.tree(),
@@ -506,6 +560,28 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// Kd-tree leaf `leaf`'s box in finest-level cells relative to the domain.
     pub fn leaf_box(&self, leaf: u32) -> IBox {
         self.tree.leaf_box(leaf)
+    }
+
+    /// The finest cells whose leaf cells kd-tree leaf `leaf`'s finest brick holds, as far as the
+    /// sampler knows: the whole brick when no finer brick overlaps it (then any kd-tree leaf
+    /// whose finest brick it is reads every cell of it), else the leaf's box. The octant
+    /// corners read cells from a leaf's brick wherever they lie in this box, so a brick that the
+    /// kd-tree cut into leaves near a level boundary is read as one.
+    #[inline(always)]
+    pub(super) fn read_box(&self, leaf: u32) -> IBox {
+        match &self.tops[leaf as usize] {
+            Some(t) => match &self
+                .alone
+                .get_or_init(|| alone_boxes(self.file, &self.grid))[t.brick as usize]
+            {
+                b if b[3] != 0 => IBox::new(
+                    [b[0].into(), b[1].into(), b[2].into()],
+                    [b[3].into(), b[4].into(), b[5].into()],
+                ),
+                _ => self.tree.leaf_box(leaf),
+            },
+            None => self.tree.leaf_box(leaf),
+        }
     }
 
     /// Leaf `leaf`'s finest brick and its level, `None` for a leaf no brick covers.
@@ -994,9 +1070,9 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     ) -> Result<Option<[f32; 8]>> {
         let level = o.level;
         let (up, lo, hi, same) = self.outer_corner(o);
-        // A leaf cell and its kd-tree leaf's box: finest cells in that leaf are read from its
-        // brick.
-        let mut near = located.map(|c| (*c, self.tree.leaf_box(c.leaf)));
+        // A leaf cell and the box its kd-tree leaf's brick is read in ([`Self::read_box`]):
+        // finest cells there are read from that brick.
+        let mut near = located.map(|c| (*c, self.read_box(c.leaf)));
         let block = match near {
             // Otherwise the sides are located one by one below: the same values either way.
             Some((c, b)) if b.contains_cell(lo) && b.contains_cell(hi) => self
@@ -1028,7 +1104,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             todo &= todo - 1;
             around[n] = loc.locate_cell(side(n))?;
             if near.is_none() {
-                near = around[n].map(|c| (c, self.tree.leaf_box(c.leaf)));
+                near = around[n].map(|c| (c, self.read_box(c.leaf)));
             }
         }
         if same != 0 {
@@ -1225,6 +1301,17 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A box's finest cells count, `None` past `u64` (a brick of such a box is never marked
+    /// alone), zero for an empty box.
+    #[test]
+    fn volume_is_checked() {
+        assert_eq!(volume(&IBox::new([0; 3], [2, 3, 4])), Some(24));
+        assert_eq!(volume(&IBox::new([5; 3], [5, 9, 9])), Some(0));
+        let big = 1i64 << 32;
+        assert_eq!(volume(&IBox::new([0; 3], [big, big / 2, 1])), Some(1 << 63));
+        assert_eq!(volume(&IBox::new([0; 3], [big, big, 1])), None);
+    }
 
     /// The shared-pair corners have the general corners' bits for every side and any values
     /// within the bound: zeros of both signs, subnormals, values near the bound.

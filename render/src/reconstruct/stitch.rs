@@ -247,7 +247,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             return Ok(Some(known.leaves[j]));
         }
         Ok(loc.locate_cell(side())?.map(|c| {
-            let b = self.leaf_box(c.leaf);
+            let b = self.read_box(c.leaf);
             known.add_leaf(c.leaf, b);
             (c.leaf, b)
         }))

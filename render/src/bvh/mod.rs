@@ -519,6 +519,23 @@ impl Worker {
     }
 }
 
+/// The rays of `active` among `rays` (at most [`packet::PACKET`]) by direction octant: mask
+/// `o` holds the rays of octant `o`. Each ray's `-0.0` direction components become `+0.0`
+/// first, as the node tests need.
+fn by_octant(rays: &mut [Ray], active: Mask) -> [Mask; 8] {
+    assert!(
+        rays.len() <= packet::PACKET,
+        "{} rays in a packet",
+        rays.len()
+    );
+    let mut octants = [0 as Mask; 8];
+    for k in packet::rays_of(active) {
+        rays[k] = positive_zeros(rays[k]);
+        octants[(node_test::octant_inv4(rays[k].direction) & 7) as usize] |= 1 << k;
+    }
+    octants
+}
+
 /// `ray` with `+0.0` for any `-0.0` in its direction. obvhs's node test takes a component's
 /// near planes from its sign bit (`< 0.0`, false for `-0.0`) but its inverse from
 /// `signum` (negative for `-0.0`): a ray with a `-0.0` component would enter no child at all.
@@ -637,16 +654,7 @@ impl OctantBvh {
         active: Mask,
         mut visit: impl FnMut(usize, u64, Mask, &mut [Ray]),
     ) {
-        assert!(
-            rays.len() <= packet::PACKET,
-            "{} rays in a packet",
-            rays.len()
-        );
-        let mut octants = [0 as Mask; 8];
-        for k in packet::rays_of(active) {
-            rays[k] = positive_zeros(rays[k]);
-            octants[(node_test::octant_inv4(rays[k].direction) & 7) as usize] |= 1 << k;
-        }
+        let octants = by_octant(rays, active);
         let mut stack = PacketStack::with_capacity(256);
         for (o, &m) in octants.iter().enumerate() {
             if m == 0 {
@@ -697,16 +705,7 @@ impl OctantBvh {
         avx2: bool,
         mut visit: impl FnMut(usize, u64, Mask, &mut [Ray]),
     ) {
-        assert!(
-            rays.len() <= packet::PACKET,
-            "{} rays in a packet",
-            rays.len()
-        );
-        let mut octants = [0 as Mask; 8];
-        for k in packet::rays_of(active) {
-            rays[k] = positive_zeros(rays[k]);
-            octants[(node_test::octant_inv4(rays[k].direction) & 7) as usize] |= 1 << k;
-        }
+        let octants = by_octant(rays, active);
         if active == 0 {
             return;
         }

@@ -136,24 +136,91 @@ pub fn shade_hits<T: Tracer + ?Sized>(
     rng: &mut Rng,
     mut ao_layers: Option<&mut Vec<AoLayer>>,
 ) -> PixelSample {
-    let mut out = PixelSample::MISS;
-    let mut recorded = 0;
-    let mut transmittance = 1.0f32;
-    let mut rgb = [0.0f32; 3];
+    let mut c = Composite::EMPTY;
     for (layer, l) in layers.iter().enumerate() {
-        let (i, hit) = (l.surface, l.hit);
+        let hit = (l.surface, &l.hit, (l.shadow, l.ao));
+        let ao = ao_layers.as_deref_mut();
+        c.add(
+            tracer,
+            frame,
+            light,
+            (origin, dir),
+            hit,
+            rng,
+            ao,
+            layer == 0,
+        );
+    }
+    c.finish()
+}
+
+/// Shades the world ray `origin + t dir` (`dir` unit length) whose one layer is `hit`, a hit
+/// of the opaque surface `i`, its shadow and AO rays (if any) traced here: what [`shade_hits`]
+/// gives for that layer, without building it.
+#[inline(always)]
+pub fn shade_hit_alone<T: Tracer + ?Sized>(
+    tracer: &T,
+    frame: &GridFrame,
+    light: &Lighting,
+    (origin, dir): ([f64; 3], [f64; 3]),
+    (i, hit): (usize, &SurfaceHit),
+    rng: &mut Rng,
+) -> PixelSample {
+    let mut c = Composite::EMPTY;
+    let hit = (i, hit, (None, None));
+    c.add(tracer, frame, light, (origin, dir), hit, rng, None, true);
+    c.finish()
+}
+
+/// A pixel's layers composited front to back so far.
+struct Composite {
+    /// The pixel, its colour and alpha set by [`Composite::finish`].
+    out: PixelSample,
+    /// Colour so far (premultiplied).
+    rgb: [f32; 3],
+    /// Light that gets through the layers so far.
+    transmittance: f32,
+    /// Layers recorded for the ambient-occlusion filter.
+    recorded: usize,
+}
+
+impl Composite {
+    /// No layer yet.
+    const EMPTY: Composite = Composite {
+        out: PixelSample::MISS,
+        rgb: [0.0; 3],
+        transmittance: 1.0,
+        recorded: 0,
+    };
+
+    /// Adds the layer behind the others: `hit` of surface `i` with the shadow and AO `given`
+    /// ([`Layer::shadow`], [`Layer::ao`]); the `first` layer also sets the pixel's depth,
+    /// normal, position and level.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn add<T: Tracer + ?Sized>(
+        &mut self,
+        tracer: &T,
+        frame: &GridFrame,
+        light: &Lighting,
+        (origin, dir): ([f64; 3], [f64; 3]),
+        (i, hit, given): (usize, &SurfaceHit, (Option<f64>, Option<f64>)),
+        rng: &mut Rng,
+        ao_layers: Option<&mut Vec<AoLayer>>,
+        first: bool,
+    ) {
+        let transmittance = self.transmittance;
         let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dir.map(|x| -x));
-        let paint = tracer.paint(i, &hit);
+        let paint = tracer.paint(i, hit);
         let alpha = light.opacity[i];
         let colour = match paint {
             Some(p) if !p.lit => p.rgb,
             _ => {
                 let base = paint.map_or(light.colors[i], |p| p.rgb);
-                let given = (l.shadow, l.ao);
-                let shaded = shade_hit(tracer, frame, light, base, &hit, normal, dir, given, rng);
-                if let (Some(layers), Some(ao)) = (ao_layers.as_deref_mut(), shaded.ao) {
-                    if recorded < FILTERED_HITS {
-                        recorded += 1;
+                let shaded = shade_hit(tracer, frame, light, base, hit, normal, dir, given, rng);
+                if let (Some(layers), Some(ao)) = (ao_layers, shaded.ao) {
+                    if self.recorded < FILTERED_HITS {
+                        self.recorded += 1;
                         let p = frame.to_world(hit.pos);
                         layers.push(AoLayer {
                             surface: i as u32,
@@ -167,24 +234,28 @@ pub fn shade_hits<T: Tracer + ?Sized>(
                 shaded.rgb
             }
         };
-        if let (Some(p), true) = (paint, out.color_value.is_nan()) {
-            out.color_value = p.value;
+        if let (Some(p), true) = (paint, self.out.color_value.is_nan()) {
+            self.out.color_value = p.value;
         }
         for c in 0..3 {
-            rgb[c] += transmittance * alpha * colour[c];
+            self.rgb[c] += transmittance * alpha * colour[c];
         }
-        if layer == 0 {
+        if first {
             let p = frame.to_world(hit.pos);
-            out.z = hit.t as f32;
-            out.n = normal.map(|x| x as f32);
-            out.p = [0, 1, 2].map(|a| (p[a] - frame.origin[a]) as f32);
-            out.level = hit.level as f32;
+            self.out.z = hit.t as f32;
+            self.out.n = normal.map(|x| x as f32);
+            self.out.p = [0, 1, 2].map(|a| (p[a] - frame.origin[a]) as f32);
+            self.out.level = hit.level as f32;
         }
-        transmittance *= 1.0 - alpha;
+        self.transmittance *= 1.0 - alpha;
     }
-    out.rgb = rgb;
-    out.alpha = 1.0 - transmittance;
-    out
+
+    /// The pixel.
+    fn finish(mut self) -> PixelSample {
+        self.out.rgb = self.rgb;
+        self.out.alpha = 1.0 - self.transmittance;
+        self.out
+    }
 }
 
 /// The unit world-space normal for a grid-space gradient.

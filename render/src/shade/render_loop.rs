@@ -12,8 +12,8 @@ use crate::camera::Camera;
 use crate::output::frame::{FrameBuffer, PixelSample};
 use crate::shade::ao_filter::{self, AoRow, AoRows};
 use crate::shade::ao_packets::TileAo;
-use crate::shade::integrate::{shade_hits, KeyShadow, Lighting, SearchHint};
-use crate::shade::layers::{Layer, TileLayers};
+use crate::shade::integrate::{shade_hit_alone, shade_hits, KeyShadow, Lighting, SearchHint};
+use crate::shade::layers::TileLayers;
 use crate::shade::packets::{TileHits, TILE_RAYS};
 use crate::shade::sampling::Rng;
 use crate::trace::ray::GridRay;
@@ -441,7 +441,7 @@ fn hits_alone<T: Tracer + ?Sized>(tracer: &T, light: &Lighting, spp: u32) -> boo
 
 /// Pushes the pixels of a tile `tw` rays wide onto `rows` (one per row of the tile) when
 /// [`hits_alone`]: each ray `k`'s hit in `tile`, seen along `dirs[k]` from `origin`, shaded as
-/// [`shade_hits`] shades it as the ray's one layer (a miss where it has none).
+/// [`shade_hit_alone`] (a miss where it has none).
 #[inline(always)]
 fn shade_alone<T: Tracer + ?Sized>(
     tracer: &T,
@@ -455,24 +455,10 @@ fn shade_alone<T: Tracer + ?Sized>(
     let mut unused_rng = Rng::for_pixel(0, 0, 0);
     for (r, row) in rows.iter_mut().enumerate() {
         for k in r * tw..(r + 1) * tw {
-            let sample = match tile.hits_of(k)[0] {
+            let sample = match &tile.hits_of(k)[0] {
                 Some(hit) => {
-                    let layer = Layer {
-                        surface: 0,
-                        hit,
-                        shadow: None,
-                        ao: None,
-                    };
-                    let (dir, of) = (dirs[k], std::slice::from_ref(&layer));
-                    shade_hits(
-                        tracer,
-                        frame,
-                        light,
-                        (origin, dir),
-                        of,
-                        &mut unused_rng,
-                        None,
-                    )
+                    let (ray, hit) = ((origin, dirs[k]), (0, hit));
+                    shade_hit_alone(tracer, frame, light, ray, hit, &mut unused_rng)
                 }
                 None => PixelSample::MISS,
             };

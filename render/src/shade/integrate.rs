@@ -582,3 +582,73 @@ impl KeyShadow {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A tracer that finds nothing (the shading of a given hit asks it only for its frame and
+    /// the hit's paint).
+    struct Empty;
+
+    impl Tracer for Empty {
+        fn frame(&self) -> GridFrame {
+            GridFrame {
+                origin: [-1.0, 0.5, 2.0],
+                unit: [0.5, 0.25, 1.0],
+                extent: [8.0; 3],
+            }
+        }
+
+        fn num_surfaces(&self) -> usize {
+            1
+        }
+
+        fn next_hit(&self, _: usize, _: &GridRay, _: f64, _: f64) -> Option<SurfaceHit> {
+            None
+        }
+    }
+
+    #[test]
+    fn one_opaque_hit_alone_is_shaded_as_its_one_layer() {
+        let light = Lighting {
+            colors: vec![[0.8, 0.5, 0.2]],
+            opacity: vec![1.0],
+            key_dir: normalize([-0.3, 0.7, 0.5]).unwrap(),
+            shadows: false,
+            ao_rays: 0,
+            ao_distance: 1.0,
+            ao_filter: false,
+        };
+        let frame = Empty.frame();
+        let mut rng = Rng::for_pixel(0, 0, 0);
+        for (j, grad) in [[0.3, -1.0, 0.2], [0.0; 3], [-2.0, 0.5, 1.5]]
+            .into_iter()
+            .enumerate()
+        {
+            for rising in [false, true] {
+                let hit = SurfaceHit {
+                    t: 1.25 + j as f64,
+                    pos: [1.5, 2.25, 3.0 + j as f64],
+                    grad,
+                    rising,
+                    level: j as u32,
+                    size: 0.5,
+                    r: 7,
+                };
+                let dir = normalize([0.2, -0.4, -1.0 + 0.3 * j as f64]).unwrap();
+                let ray = ([0.1, 0.2, 5.0], dir);
+                let layer = Layer {
+                    surface: 0,
+                    hit,
+                    shadow: None,
+                    ao: None,
+                };
+                let layers = std::slice::from_ref(&layer);
+                let of_layers = shade_hits(&Empty, &frame, &light, ray, layers, &mut rng, None);
+                let alone = shade_hit_alone(&Empty, &frame, &light, ray, (0, &hit), &mut rng);
+                assert_eq!(format!("{alone:?}"), format!("{of_layers:?}"));
+            }
+        }
+    }
+}

@@ -297,11 +297,35 @@ fn extraction_equals_brute_force() {
     );
 }
 
+/// The blobs field on the small boxes of `params` (`amr_synth::boxes`), written to `path` with
+/// the tight ranges stored when `stored`, and opened.
+fn small_boxes_file(
+    path: &std::path::Path,
+    params: &amr_synth::BoxParams,
+    stored: bool,
+) -> AmrkFile<Vec<u8>> {
+    use amr_synth::{build_box_hierarchy, write_spec, Case as Synth};
+    let spec = build_box_hierarchy(&Synth::Blobs, "blobs", params).unwrap();
+    let opts = match stored {
+        false => Default::default(),
+        true => amr_render::extract::writer_options(Default::default()),
+    };
+    write_spec(
+        path,
+        spec,
+        &Synth::Blobs,
+        opts,
+        &amr_format::progress::NoProgress,
+    )
+    .unwrap();
+    AmrkFile::open(std::fs::read(path).unwrap()).unwrap()
+}
+
 /// Many small irregular boxes with mixed ratios (`amr_synth::boxes`): the leaf tree, the block
 /// ranges and the coarse bands meet leaves next to much coarser ones.
 #[test]
 fn extraction_equals_brute_force_on_small_irregular_boxes() {
-    use amr_synth::{build_box_hierarchy, write_spec, BoxParams, Case as Synth};
+    use amr_synth::BoxParams;
     let dir = tempfile::tempdir().unwrap();
     let (mut culled, mut skipped) = (0, 0);
     // Seed 3's boxes are small enough (at most 32 cells per leaf on average) that small
@@ -315,21 +339,8 @@ fn extraction_equals_brute_force_on_small_irregular_boxes() {
         };
         // Without stored tight ranges (computed as the extraction goes) and with them.
         for stored in [false, true] {
-            let spec = build_box_hierarchy(&Synth::Blobs, "blobs", &params).unwrap();
             let path = dir.path().join(format!("boxes{seed}-{stored}.amrk"));
-            let opts = match stored {
-                false => Default::default(),
-                true => amr_render::extract::writer_options(Default::default()),
-            };
-            write_spec(
-                &path,
-                spec,
-                &Synth::Blobs,
-                opts,
-                &amr_format::progress::NoProgress,
-            )
-            .unwrap();
-            let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+            let file = small_boxes_file(&path, &params, stored);
             assert_eq!(file.has_tight_ranges(), stored);
             let cells = Extractor::new(&file, 0, 64 << 20)
                 .and_then(|ex| ex.extract(0.0))
@@ -359,7 +370,7 @@ fn extraction_equals_brute_force_on_small_irregular_boxes() {
 /// extractor was made in (threads then share their lists of leaves met), run after run.
 #[test]
 fn shared_cell_tiles_give_the_same_refs_on_any_thread_count() {
-    use amr_synth::{build_box_hierarchy, write_spec, BoxParams, Case as Synth};
+    use amr_synth::BoxParams;
     let dir = tempfile::tempdir().unwrap();
     let params = BoxParams {
         base: 6,
@@ -367,18 +378,7 @@ fn shared_cell_tiles_give_the_same_refs_on_any_thread_count() {
         sizes: (1, 2),
         seed: 3,
     };
-    let spec = build_box_hierarchy(&Synth::Blobs, "blobs", &params).unwrap();
-    let path = dir.path().join("boxes.amrk");
-    let opts = amr_render::extract::writer_options(Default::default());
-    write_spec(
-        &path,
-        spec,
-        &Synth::Blobs,
-        opts,
-        &amr_format::progress::NoProgress,
-    )
-    .unwrap();
-    let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+    let file = small_boxes_file(&dir.path().join("boxes.amrk"), &params, true);
     let ex = Extractor::new(&file, 0, 64 << 20).unwrap();
     let cells = ex.extract(0.0).unwrap().stats.file_cells;
     assert!(

@@ -16,6 +16,8 @@
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray;
 
+use super::walk::visit_leaves;
+
 /// Most rays in one packet: one bit each of a [`Mask`].
 pub const PACKET: usize = 64;
 
@@ -79,37 +81,14 @@ pub fn walk_packet(
         let node = &nodes[n as usize];
         let mut entered = [0; 8];
         let hit = test(node, rays, m, &mut entered);
-        // The rays of each primitive bit, as the single-ray mask has them.
-        let mut prim_rays = [0; 24];
-        let mut prims = 0u32;
-        let mut slots = hit;
-        while slots != 0 {
-            let s = slots.trailing_zeros() as usize;
-            slots &= slots - 1;
-            let (meta, e) = (node.child_meta[s], entered[s]);
-            if is_inner(meta) {
-                continue;
-            }
-            let at = u32::from(meta & 0x1f);
-            let count = (meta >> 5).count_ones();
-            for j in at..(at + count).min(24) {
-                prim_rays[j as usize] = e;
-            }
-            prims |= u32::from(meta >> 5) << at;
-        }
-        while prims != 0 {
-            let j = 31 - prims.leading_zeros();
-            prims &= !(1 << j);
-            leaf(
-                node.primitive_base_idx + j,
-                prim_rays[j as usize],
-                rays,
-                stack,
-            );
-        }
+        // The hit leaves nearest first, as [`super::walk::walk`] visits them.
+        let imask = u32::from(node.imask);
+        visit_leaves(node, xor_slots(hit & !imask, oct), oct, |i, s| {
+            leaf(i, entered[s], rays, stack);
+            false
+        });
         // Inner children nearest first: pushed in the reverse order, slot `i ^ oct` for `i`
         // from 0 up.
-        let imask = u32::from(node.imask);
         let mut order = xor_slots(hit & imask, oct);
         while order != 0 {
             let s = order.trailing_zeros() ^ oct;

@@ -1,9 +1,12 @@
 //! The walk down one CWBVH8: obvhs's `traverse!` loop, with the node test passed in and one
 //! stack shared by the top level and the chunk it enters.
 //!
-//! The order is obvhs's: a node's hit inner children are taken nearest-first by the ray octant's
-//! slot order, the rest of the group goes on the stack, and a leaf's primitives are visited from
-//! the highest bit of its mask down.
+//! The order is obvhs's for the inner children: a node's hit inner children are taken
+//! nearest-first by the ray octant's slot order, the rest of the group goes on the stack. A
+//! node's hit leaves are visited before its inner children, as in obvhs, but nearest-first by the
+//! same slot order (obvhs visits all their primitives from the highest bit of the node's mask
+//! down, whatever the ray's direction), each leaf's primitives from the highest down: a closest
+//! hit found in a near leaf then lowers `tmax` before the far leaves' voxels are decoded.
 
 use std::mem::MaybeUninit;
 
@@ -73,6 +76,45 @@ fn high_bit(x: u32) -> u32 {
     31 - x.leading_zeros()
 }
 
+/// The slots of `node`'s leaves that `mask` (the node test's, obvhs's layout) has hit, slot `s`
+/// as bit `s ^ oct`: highest bit nearest.
+#[inline(always)]
+pub fn hit_leaves(node: &CwBvhNode, mask: u32, oct: u32) -> u32 {
+    let mut order = 0;
+    for (s, &meta) in node.child_meta.iter().enumerate() {
+        let leaf = meta != 0 && meta & 0x18 != 0x18;
+        if leaf && mask >> (meta & 0x1f) & 1 != 0 {
+            order |= 1 << (s as u32 ^ oct);
+        }
+    }
+    order
+}
+
+/// Visits the primitives of the leaves `order` of `node` ([`hit_leaves`]), nearest leaf first,
+/// each leaf's from the highest down: `leaf(i, s)` for each primitive `i`, `s` its leaf's slot,
+/// until it returns true (then true).
+#[inline(always)]
+pub fn visit_leaves(
+    node: &CwBvhNode,
+    mut order: u32,
+    oct: u32,
+    mut leaf: impl FnMut(u32, usize) -> bool,
+) -> bool {
+    while order != 0 {
+        let i = high_bit(order);
+        order &= !(1 << i);
+        let s = (i ^ oct) as usize;
+        let meta = node.child_meta[s];
+        let at = node.primitive_base_idx + u32::from(meta & 0x1f);
+        for j in (at..at + (meta >> 5).count_ones()).rev() {
+            if leaf(j, s) {
+                return true;
+            }
+        }
+    }
+    false
+}
+
 /// Walks `nodes` (empty, or a CWBVH8 whose root is node 0) with `ray`: `test(node, ray,
 /// oct_inv4)` gives a node's child hit mask, and `leaf(i, ray, stack)` is called for every
 /// primitive `i` of the leaves hit, may lower `ray.tmax`, and returns true to stop the walk, which
@@ -90,16 +132,17 @@ pub fn walk(
         return false;
     }
     let floor = stack.len;
+    let oct = oct_inv4 & 7;
     let mut group = UVec2::new(0, 0x8000_0000);
-    let mut prims = UVec2::ZERO;
+    // The node tested last and its hit leaves ([`hit_leaves`]).
+    let (mut leaf_node, mut leaves) = (&nodes[0], 0);
     loop {
-        while prims.y != 0 {
-            let k = high_bit(prims.y);
-            prims.y &= !(1 << k);
-            if leaf(prims.x + k, ray, stack) {
+        if leaves != 0 {
+            if visit_leaves(leaf_node, leaves, oct, |i, _| leaf(i, ray, stack)) {
                 stack.len = floor;
                 return true;
             }
+            leaves = 0;
         }
         if group.y & 0xff00_0000 != 0 {
             let hits = group.y;
@@ -116,11 +159,11 @@ pub fn walk(
                 node.child_base_idx,
                 (mask & 0xff00_0000) | node.imask as u32,
             );
-            prims = UVec2::new(node.primitive_base_idx, mask & 0x00ff_ffff);
+            (leaf_node, leaves) = (node, hit_leaves(node, mask, oct));
         } else {
             group = UVec2::ZERO;
         }
-        if prims.y == 0 && group.y & 0xff00_0000 == 0 {
+        if leaves == 0 && group.y & 0xff00_0000 == 0 {
             if stack.len == floor {
                 return false;
             }

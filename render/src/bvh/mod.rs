@@ -1127,7 +1127,7 @@ mod tests {
     }
 
     #[test]
-    fn walk_visits_what_obvhs_visits_nearest_leaves_first() {
+    fn walk_visits_what_obvhs_visits_nearest_first() {
         let mut visited = 0;
         for (name, bvh) in &scattered_builds() {
             for k in 0..300u32 {
@@ -1152,7 +1152,7 @@ mod tests {
                     want,
                     "{name} ray {k}, portable"
                 );
-                // obvhs visits the same refs; only the order of a node's leaves differs.
+                // obvhs visits the same refs, in another order.
                 let all = |traverse: &dyn Fn(Ray, &mut dyn FnMut(u64, &mut f32) -> bool)| {
                     let mut seen = Vec::new();
                     traverse(ray, &mut |r, _| {

@@ -3,8 +3,8 @@
 //!
 //! Every ray of a packet has the same direction octant, so the children are taken in one order
 //! for all of them: the order [`super::walk::walk`] gives each one. The walk is a depth-first
-//! pre-order over the tree: at a node, the primitives of its hit leaves (highest primitive bit
-//! first), then its hit inner children (nearest slot first), each with the rays that entered it.
+//! pre-order over the tree: at a node, its hit children nearest slot first, leaves and inner
+//! nodes alike (a leaf's primitives highest first), each with the rays that entered it.
 //! A ray's node tests see its `tmax` as lowered by the primitives it visited before, and a ray
 //! visits a node's children with the mask computed when the node was tested, as in the single-ray
 //! walk. So each ray visits exactly the primitives, in exactly the order and under exactly the
@@ -16,7 +16,7 @@
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray;
 
-use super::walk::visit_leaves;
+use super::walk::{child_entry, leaf_prims};
 
 /// Most rays in one packet: one bit each of a [`Mask`].
 pub const PACKET: usize = 64;
@@ -44,8 +44,9 @@ pub fn rays_where(m: Mask, mut keep: impl FnMut(usize) -> bool) -> Mask {
         .fold(0, |out, k| out | 1 << k)
 }
 
-/// Groups of children still to visit: a node and the rays that entered it.
-pub type PacketStack = Vec<(u32, Mask)>;
+/// Children still to visit: a node or a leaf ([`super::walk::child_entry`]) and the rays that
+/// entered it.
+pub type PacketStack = Vec<(u64, Mask)>;
 
 /// True when a child's meta byte names an inner node (bits 3 and 4 set: its slot plus 24).
 #[inline(always)]
@@ -77,24 +78,24 @@ pub fn walk_packet(
     let oct = oct_inv4 & 7;
     stack.push((0, active));
     while stack.len() > floor {
-        let Some((n, m)) = stack.pop() else { break };
-        let node = &nodes[n as usize];
+        let Some((entry, m)) = stack.pop() else { break };
+        if let Some(prims) = leaf_prims(entry) {
+            for i in prims.rev() {
+                leaf(i, m, rays, stack);
+            }
+            continue;
+        }
+        let node = &nodes[entry as usize];
         let mut entered = [0; 8];
         let hit = test(node, rays, m, &mut entered);
-        // The hit leaves nearest first, as [`super::walk::walk`] visits them.
+        // The children nearest first, as [`super::walk::walk`] takes them: pushed in the
+        // reverse order, slot `i ^ oct` for `i` from 0 up.
         let imask = u32::from(node.imask);
-        visit_leaves(node, xor_slots(hit & !imask, oct), oct, |i, s| {
-            leaf(i, entered[s], rays, stack);
-            false
-        });
-        // Inner children nearest first: pushed in the reverse order, slot `i ^ oct` for `i`
-        // from 0 up.
-        let mut order = xor_slots(hit & imask, oct);
+        let mut order = xor_slots(hit, oct);
         while order != 0 {
             let s = order.trailing_zeros() ^ oct;
             order &= order - 1;
-            let child = node.child_base_idx + (imask & !(u32::MAX << s)).count_ones();
-            stack.push((child, entered[s as usize]));
+            stack.push((child_entry(node, s, imask), entered[s as usize]));
         }
     }
     stack.truncate(floor);

@@ -1,28 +1,52 @@
-//! The walk down one CWBVH8: obvhs's `traverse!` loop, with the node test passed in and one
-//! stack shared by the top level and the chunk it enters.
+//! The walk down one CWBVH8 with one ray: a depth-first walk with the node test passed in and
+//! one stack shared by the top level and the chunk it enters.
 //!
-//! The order is obvhs's for the inner children: a node's hit inner children are taken
-//! nearest-first by the ray octant's slot order, the rest of the group goes on the stack. A
-//! node's hit leaves are visited before its inner children, as in obvhs, but nearest-first by the
-//! same slot order (obvhs visits all their primitives from the highest bit of the node's mask
-//! down, whatever the ray's direction), each leaf's primitives from the highest down: a closest
-//! hit found in a near leaf then lowers `tmax` before the far leaves' voxels are decoded.
+//! A node's hit children, leaves and inner nodes alike, are taken nearest-first by the ray
+//! octant's slot order (slot `i ^ oct` for `i` from 7 down), a leaf's primitives from the
+//! highest down. obvhs's own walk visits all the leaves of a node first, their primitives from
+//! the highest bit of the node's mask down whatever the ray's direction, then the inner
+//! children: a far leaf's voxels are then decoded before a near child's hit lowers `tmax`. Both
+//! walks visit the same primitives when `tmax` is not lowered.
 
 use std::mem::MaybeUninit;
 
-use glam::UVec2;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray;
 
-/// Stack entries: a walk holds at most one group per level of its path, and the wide builder
-/// keeps a BVH's depth below 32 (obvhs's own stack size), so the top level and a chunk fit
-/// together.
-const STACK: usize = 64;
+/// Stack entries: a walk holds at most seven entries per level of its path, and the wide
+/// builder keeps a BVH's depth below 32 (obvhs's own stack size), so the top level and a chunk
+/// fit together.
+const STACK: usize = 512;
 
-/// Groups of children still to visit, for one ray. Its entries are not initialized until pushed
+/// A stack entry's flag for a leaf, whose primitive count is in the two bits below the flag
+/// and its first primitive in the low 32 bits; an entry without it is an inner node's index.
+const LEAF_ENTRY: u64 = 1 << 63;
+
+/// The stack entry of the hit child in slot `s` of `node`, whose inner children are `imask`.
+#[inline(always)]
+pub fn child_entry(node: &CwBvhNode, s: u32, imask: u32) -> u64 {
+    if imask >> s & 1 != 0 {
+        u64::from(node.child_base_idx + (imask & !(u32::MAX << s)).count_ones())
+    } else {
+        let meta = node.child_meta[s as usize];
+        let first = node.primitive_base_idx + u32::from(meta & 0x1f);
+        LEAF_ENTRY | u64::from((meta >> 5).count_ones()) << 61 | u64::from(first)
+    }
+}
+
+/// The primitives of a leaf's stack entry ([`child_entry`]), or `None` for an inner node's.
+#[inline(always)]
+pub fn leaf_prims(entry: u64) -> Option<std::ops::Range<u32>> {
+    (entry & LEAF_ENTRY != 0).then(|| {
+        let first = entry as u32;
+        first..first + (entry >> 61 & 3) as u32
+    })
+}
+
+/// Nodes and leaves still to visit, for one ray. Its entries are not initialized until pushed
 /// (zeroing them cost about 50 instructions per ray, 1 % of a primary ray).
 pub struct Stack {
-    groups: MaybeUninit<[UVec2; STACK]>,
+    entries: MaybeUninit<[u64; STACK]>,
     len: usize,
 }
 
@@ -31,56 +55,51 @@ impl Stack {
     #[inline(always)]
     pub fn new() -> Self {
         // Built field by field: a struct literal with an uninitialized field is still zeroed
-        // whole (one `memset` of 520 bytes).
+        // whole (one `memset`).
         let mut stack = MaybeUninit::<Self>::uninit();
-        // SAFETY: `len` is written; `groups` may stay uninitialized (it is a `MaybeUninit`).
+        // SAFETY: `len` is written; `entries` may stay uninitialized (it is a `MaybeUninit`).
         unsafe {
             std::ptr::addr_of_mut!((*stack.as_mut_ptr()).len).write(0);
             stack.assume_init()
         }
     }
 
-    /// Pushes a group; when full, the last entry is overwritten (obvhs's `StackStack` does the
+    /// Pushes an entry; when full, the last entry is overwritten (obvhs's `StackStack` does the
     /// same; the depth bound above keeps it from happening).
     #[inline(always)]
-    fn push(&mut self, g: UVec2) {
+    fn push(&mut self, entry: u64) {
         // SAFETY: the index is below `STACK`; writing through the pointer reads nothing.
         unsafe {
-            self.groups
+            self.entries
                 .as_mut_ptr()
-                .cast::<UVec2>()
+                .cast::<u64>()
                 .add(self.len % STACK)
-                .write(g)
+                .write(entry)
         };
         self.len = (self.len + 1).min(STACK - 1);
     }
 
     #[inline(always)]
-    fn pop(&mut self) -> UVec2 {
+    fn pop(&mut self) -> u64 {
         self.len -= 1;
         // SAFETY: every entry below `len` was written by `push` (`len` grows only there, by at
         // most one past the entry written).
         unsafe {
-            self.groups
+            self.entries
                 .as_ptr()
-                .cast::<UVec2>()
+                .cast::<u64>()
                 .add(self.len % STACK)
                 .read()
         }
     }
 }
 
-/// The index of the highest set bit of a non-zero `x`.
+/// The slots of `node`'s children that `mask` (the node test's, obvhs's layout: an inner child
+/// as bit `24 + (s ^ oct)`, a leaf as its primitives' bits) has hit, slot `s` as bit `s ^ oct`:
+/// the highest bit nearest.
 #[inline(always)]
-fn high_bit(x: u32) -> u32 {
-    31 - x.leading_zeros()
-}
-
-/// The slots of `node`'s leaves that `mask` (the node test's, obvhs's layout) has hit, slot `s`
-/// as bit `s ^ oct`: highest bit nearest.
-#[inline(always)]
-pub fn hit_leaves(node: &CwBvhNode, mask: u32, oct: u32) -> u32 {
-    let mut order = 0;
+fn hit_children(node: &CwBvhNode, mask: u32, oct: u32) -> u32 {
+    let mut order = mask >> 24;
     for (s, &meta) in node.child_meta.iter().enumerate() {
         let leaf = meta != 0 && meta & 0x18 != 0x18;
         if leaf && mask >> (meta & 0x1f) & 1 != 0 {
@@ -88,31 +107,6 @@ pub fn hit_leaves(node: &CwBvhNode, mask: u32, oct: u32) -> u32 {
         }
     }
     order
-}
-
-/// Visits the primitives of the leaves `order` of `node` ([`hit_leaves`]), nearest leaf first,
-/// each leaf's from the highest down: `leaf(i, s)` for each primitive `i`, `s` its leaf's slot,
-/// until it returns true (then true).
-#[inline(always)]
-pub fn visit_leaves(
-    node: &CwBvhNode,
-    mut order: u32,
-    oct: u32,
-    mut leaf: impl FnMut(u32, usize) -> bool,
-) -> bool {
-    while order != 0 {
-        let i = high_bit(order);
-        order &= !(1 << i);
-        let s = (i ^ oct) as usize;
-        let meta = node.child_meta[s];
-        let at = node.primitive_base_idx + u32::from(meta & 0x1f);
-        for j in (at..at + (meta >> 5).count_ones()).rev() {
-            if leaf(j, s) {
-                return true;
-            }
-        }
-    }
-    false
 }
 
 /// Walks `nodes` (empty, or a CWBVH8 whose root is node 0) with `ray`: `test(node, ray,
@@ -133,41 +127,28 @@ pub fn walk(
     }
     let floor = stack.len;
     let oct = oct_inv4 & 7;
-    let mut group = UVec2::new(0, 0x8000_0000);
-    // The node tested last and its hit leaves ([`hit_leaves`]).
-    let (mut leaf_node, mut leaves) = (&nodes[0], 0);
-    loop {
-        if leaves != 0 {
-            if visit_leaves(leaf_node, leaves, oct, |i, _| leaf(i, ray, stack)) {
-                stack.len = floor;
-                return true;
+    stack.push(0);
+    while stack.len > floor {
+        let entry = stack.pop();
+        if let Some(prims) = leaf_prims(entry) {
+            for i in prims.rev() {
+                if leaf(i, ray, stack) {
+                    stack.len = floor;
+                    return true;
+                }
             }
-            leaves = 0;
+            continue;
         }
-        if group.y & 0xff00_0000 != 0 {
-            let hits = group.y;
-            let k = high_bit(hits);
-            group.y &= !(1 << k);
-            let base = group.x;
-            if group.y & 0xff00_0000 != 0 {
-                stack.push(group);
-            }
-            let slot = (k - 24) ^ (oct_inv4 & 0xff);
-            let node = &nodes[(base + (hits & !(u32::MAX << slot)).count_ones()) as usize];
-            let mask = test(node, ray, oct_inv4);
-            group = UVec2::new(
-                node.child_base_idx,
-                (mask & 0xff00_0000) | node.imask as u32,
-            );
-            (leaf_node, leaves) = (node, hit_leaves(node, mask, oct));
-        } else {
-            group = UVec2::ZERO;
-        }
-        if leaves == 0 && group.y & 0xff00_0000 == 0 {
-            if stack.len == floor {
-                return false;
-            }
-            group = stack.pop();
+        let node = &nodes[entry as usize];
+        let mask = test(node, ray, oct_inv4);
+        // Pushed farthest first, so that the nearest is taken first.
+        let imask = u32::from(node.imask);
+        let mut order = hit_children(node, mask, oct);
+        while order != 0 {
+            let i = order.trailing_zeros();
+            order &= order - 1;
+            stack.push(child_entry(node, i ^ oct, imask));
         }
     }
+    false
 }

@@ -503,7 +503,6 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
 
     #[inline]
     fn level_gradient(&self, p: [f64; 3], level: u32, step: [f64; 3]) -> Option<[f64; 3]> {
-        let step = self.cell_size(level).unwrap_or(step);
         let mut given = [None; 3];
         if matches!(self.voxels, Voxels::Octant(_) | Voxels::Current(_)) {
             // Inside one level, both fields are the dual cells' trilinear interpolant, whose
@@ -522,7 +521,7 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
                 }
             }
         }
-        self.gradient_given(p, step, given)
+        self.gradient_given(p, self.cell_size(level).unwrap_or(step), given)
     }
 
     fn release_pages(&self) {

@@ -628,7 +628,33 @@ impl LevelBlocks {
     /// [`Sampler::level_gradient`], reading the cells from this memo when it holds them; where
     /// that is `None`, the components [`Sampler::level_gradient_axes`] gives are put in `given`
     /// (left alone otherwise).
+    #[inline]
     pub fn gradient<D: AsRef<[u8]>>(
+        &mut self,
+        sampler: &Sampler<'_, D>,
+        p: [f64; 3],
+        level: u32,
+        given: &mut [Option<f64>; 3],
+    ) -> Result<Option<[f64; 3]>> {
+        // Most hits: a remembered whole block, weighed here; the rest below.
+        if self.owner == sampler.id() {
+            if let Some(steps) = self.levels.get(level as usize) {
+                if let Some(first) = steps.dual_cell(p) {
+                    let slot = &self.slots[slot_of(level, first)];
+                    if slot.key == (level, first) && slot.whole {
+                        let w = steps.weights(p, slot.base);
+                        return Ok(Some(slot.differences.gradient(&w, &steps.span)));
+                    }
+                }
+            }
+        }
+        self.gradient_filling(sampler, p, level, given)
+    }
+
+    /// [`Self::gradient`] where the memo is not yet the sampler's, or its slot holds another
+    /// dual cell or a block that is not whole: the slot filled if need be.
+    #[inline(never)]
+    fn gradient_filling<D: AsRef<[u8]>>(
         &mut self,
         sampler: &Sampler<'_, D>,
         p: [f64; 3],
@@ -651,11 +677,7 @@ impl LevelBlocks {
             return Ok(None);
         };
         let key = (level, first);
-        let h = (first[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
-            ^ (first[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
-            ^ (first[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
-            ^ u64::from(level).wrapping_mul(0x27D4_EB2F_1656_67C5);
-        let slot = &mut self.slots[(h >> (64 - BLOCK_SLOTS.trailing_zeros())) as usize];
+        let slot = &mut self.slots[slot_of(level, first)];
         if slot.key != key {
             let cells = sampler.level_cells(level, first)?;
             let base = sampler.grid().centre(level, first);
@@ -680,4 +702,14 @@ impl LevelBlocks {
         *given = axes(|a| slot.given[a].then_some(g[a]));
         Ok(None)
     }
+}
+
+/// The slot of [`LevelBlocks`] for the dual cell `first` of `level`.
+#[inline(always)]
+fn slot_of(level: u32, first: [i64; 3]) -> usize {
+    let h = (first[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (first[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+        ^ (first[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
+        ^ u64::from(level).wrapping_mul(0x27D4_EB2F_1656_67C5);
+    (h >> (64 - BLOCK_SLOTS.trailing_zeros())) as usize
 }

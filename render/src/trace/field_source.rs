@@ -32,7 +32,7 @@ use crate::trace::octant::{
     voxel_occludes, VoxelHit,
 };
 use crate::trace::ray::GridRay;
-use crate::trace::source::{BoxedLookup, GridFrame, Voxel, VoxelLookup, VoxelSource};
+use crate::trace::source::{BoxedLookup, GridFrame, LevelPoint, Voxel, VoxelLookup, VoxelSource};
 use crate::trace::tracer::central_difference_given;
 
 /// Bytes of decompressed bricks the sampler may cache.
@@ -503,25 +503,45 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
 
     #[inline]
     fn level_gradient(&self, p: [f64; 3], level: u32, step: [f64; 3]) -> Option<[f64; 3]> {
-        let mut given = [None; 3];
-        if matches!(self.voxels, Voxels::Octant(_) | Voxels::Current(_)) {
+        let mut out = [None];
+        self.level_gradients(&[LevelPoint { p, level, step }], &mut out);
+        out[0]
+    }
+
+    fn level_gradients(&self, at: &[LevelPoint], out: &mut [Option<[f64; 3]>]) {
+        let by_blocks = matches!(self.voxels, Voxels::Octant(_) | Voxels::Current(_));
+        let n = at.len().min(out.len());
+        let mut k = 0;
+        while k < n {
             // Inside one level, both fields are the dual cells' trilinear interpolant, whose
             // central differences one cell apart the brick gives directly: on every axis whose
-            // cells are leaf cells of the level, the others are sampled.
-            let found = {
+            // cells are leaf cells of the level, the others are sampled. The points are taken
+            // in order, the thread's cache held until one needs samples.
+            let mut given = [None; 3];
+            if by_blocks {
                 let mut cache = self.thread_cache().borrow_mut();
-                cache.blocks.gradient(self.sampler(), p, level, &mut given)
-            };
-            match found {
-                Ok(Some(g)) => return Some(g),
-                Ok(None) => {}
-                Err(e) => {
-                    self.record(e);
-                    return None;
+                let sampler = self.sampler();
+                while k < n {
+                    let q = &at[k];
+                    given = [None; 3];
+                    match cache.blocks.gradient(sampler, q.p, q.level, &mut given) {
+                        Ok(Some(g)) => out[k] = Some(g),
+                        Ok(None) => break,
+                        Err(e) => {
+                            self.record(e);
+                            out[k] = None;
+                        }
+                    }
+                    k += 1;
+                }
+                if k == n {
+                    return;
                 }
             }
+            let q = &at[k];
+            out[k] = self.gradient_given(q.p, self.cell_size(q.level).unwrap_or(q.step), given);
+            k += 1;
         }
-        self.gradient_given(p, self.cell_size(level).unwrap_or(step), given)
     }
 
     fn release_pages(&self) {

@@ -71,6 +71,18 @@ pub type VoxelLookup<'a> = dyn FnMut(u64) -> Voxel + 'a;
 pub type BoxedLookup<'a> =
     dyn FnMut(u64, &mut dyn FnMut([f64; 3], [f64; 3]) -> bool) -> Option<Voxel> + 'a;
 
+/// A point where [`VoxelSource::level_gradients`] takes a smooth normal's gradient: the
+/// arguments of [`VoxelSource::level_gradient`].
+#[derive(Clone, Copy, Debug)]
+pub struct LevelPoint {
+    /// The point, grid coordinates.
+    pub p: [f64; 3],
+    /// The AMR level of the voxel hit there.
+    pub level: u32,
+    /// The step on each axis when the source has no levels.
+    pub step: [f64; 3],
+}
+
 /// A volume seen as a source of trilinear voxels, each named by a 64-bit ref (the paper's
 /// *VoxelSource*, section 4.1.1), plus point sampling of the same reconstruction.
 pub trait VoxelSource: Sync {
@@ -127,6 +139,15 @@ pub trait VoxelSource: Sync {
     /// has no levels). Sources may compute the same values faster.
     fn level_gradient(&self, p: [f64; 3], level: u32, step: [f64; 3]) -> Option<[f64; 3]> {
         self.gradient(p, self.cell_size(level).unwrap_or(step))
+    }
+
+    /// [`Self::level_gradient`] of each of `at` (a point, its level and its step), into
+    /// `out[k]`: by default asked point by point; sources may share work between the points
+    /// (the smooth normals of a packet's hits).
+    fn level_gradients(&self, at: &[LevelPoint], out: &mut [Option<[f64; 3]>]) {
+        for (q, out) in at.iter().zip(out) {
+            *out = self.level_gradient(q.p, q.level, q.step);
+        }
     }
 
     /// The size of a cell of AMR level `level` in grid units, per axis; `None` (the default)

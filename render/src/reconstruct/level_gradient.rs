@@ -636,39 +636,8 @@ impl LevelBlocks {
         level: u32,
         given: &mut [Option<f64>; 3],
     ) -> Result<Option<[f64; 3]>> {
-        // Most hits: a remembered whole block, weighed here; the rest below.
-        if self.owner == sampler.id() {
-            if let Some(steps) = self.levels.get(level as usize) {
-                if let Some(first) = steps.dual_cell(p) {
-                    let slot = &self.slots[slot_of(level, first)];
-                    if slot.key == (level, first) && slot.whole {
-                        let w = steps.weights(p, slot.base);
-                        return Ok(Some(slot.differences.gradient(&w, &steps.span)));
-                    }
-                }
-            }
-        }
-        self.gradient_filling(sampler, p, level, given)
-    }
-
-    /// [`Self::gradient`] where the memo is not yet the sampler's, or its slot holds another
-    /// dual cell or a block that is not whole: the slot filled if need be.
-    #[inline(never)]
-    fn gradient_filling<D: AsRef<[u8]>>(
-        &mut self,
-        sampler: &Sampler<'_, D>,
-        p: [f64; 3],
-        level: u32,
-        given: &mut [Option<f64>; 3],
-    ) -> Result<Option<[f64; 3]>> {
         if self.owner != sampler.id() || self.slots.is_empty() {
-            let grid = sampler.grid();
-            self.owner = sampler.id();
-            self.levels = (0..grid.num_levels() as u32)
-                .map(|level| LevelSteps::of(grid, level))
-                .collect();
-            self.slots.clear();
-            self.slots.resize(BLOCK_SLOTS, BlockSlot::EMPTY);
+            self.serve(sampler);
         }
         let Some(steps) = self.levels.get(level as usize) else {
             return Ok(None);
@@ -677,18 +646,31 @@ impl LevelBlocks {
             return Ok(None);
         };
         let key = (level, first);
-        let slot = &mut self.slots[slot_of(level, first)];
-        if slot.key != key {
-            let cells = sampler.level_cells(level, first)?;
-            let base = sampler.grid().centre(level, first);
-            *slot = BlockSlot {
-                key,
-                base: base.map(|x| x as f64),
-                given: cells.axes(),
-                whole: cells.is_whole(),
-                differences: CornerDifferences::of(&cells.values),
-            };
+        let index = slot_of(level, first);
+        let slot = &self.slots[index];
+        // Most hits: a remembered whole block, weighed here; the rest below.
+        if slot.key == key && slot.whole {
+            let w = steps.weights(p, slot.base);
+            return Ok(Some(slot.differences.gradient(&w, &steps.span)));
         }
+        self.gradient_in_slot(sampler, p, key, index, given)
+    }
+
+    /// [`Self::gradient`] at `p` in the dual cell `key` (level and lower corner cell) where
+    /// slot `index` holds another dual cell (it is filled) or a block that is not whole.
+    #[inline(never)]
+    fn gradient_in_slot<D: AsRef<[u8]>>(
+        &mut self,
+        sampler: &Sampler<'_, D>,
+        p: [f64; 3],
+        key: (u32, [i64; 3]),
+        index: usize,
+        given: &mut [Option<f64>; 3],
+    ) -> Result<Option<[f64; 3]>> {
+        if self.slots[index].key != key {
+            self.fill(sampler, key, index)?;
+        }
+        let (slot, steps) = (&self.slots[index], &self.levels[key.0 as usize]);
         if slot.given == [false; 3] {
             *given = [None; 3];
             return Ok(None);
@@ -701,6 +683,40 @@ impl LevelBlocks {
         }
         *given = axes(|a| slot.given[a].then_some(g[a]));
         Ok(None)
+    }
+
+    /// Empties the memo for `sampler`'s dual cells and takes its levels' steps.
+    #[cold]
+    #[inline(never)]
+    fn serve<D: AsRef<[u8]>>(&mut self, sampler: &Sampler<'_, D>) {
+        let grid = sampler.grid();
+        self.owner = sampler.id();
+        self.levels = (0..grid.num_levels() as u32)
+            .map(|level| LevelSteps::of(grid, level))
+            .collect();
+        self.slots.clear();
+        self.slots.resize(BLOCK_SLOTS, BlockSlot::EMPTY);
+    }
+
+    /// Puts the cells of the dual cell `key` (level and lower corner cell) in slot `index`.
+    #[inline(never)]
+    fn fill<D: AsRef<[u8]>>(
+        &mut self,
+        sampler: &Sampler<'_, D>,
+        key: (u32, [i64; 3]),
+        index: usize,
+    ) -> Result<()> {
+        let (level, first) = key;
+        let cells = sampler.level_cells(level, first)?;
+        let base = sampler.grid().centre(level, first);
+        self.slots[index] = BlockSlot {
+            key,
+            base: base.map(|x| x as f64),
+            given: cells.axes(),
+            whole: cells.is_whole(),
+            differences: CornerDifferences::of(&cells.values),
+        };
+        Ok(())
     }
 }
 

@@ -32,8 +32,8 @@ use crate::trace::octant::{
     voxel_occludes, VoxelHit,
 };
 use crate::trace::ray::GridRay;
-use crate::trace::source::{BoxedLookup, GridFrame, LevelPoint, Voxel, VoxelLookup, VoxelSource};
-use crate::trace::tracer::central_difference_given;
+use crate::trace::source::{BoxedLookup, GridFrame, Voxel, VoxelLookup, VoxelSource};
+use crate::trace::tracer::{central_difference_given, SurfaceHit};
 
 /// Bytes of decompressed bricks the sampler may cache.
 pub const BRICK_CACHE_BYTES: usize = 256 << 20;
@@ -503,43 +503,73 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
 
     #[inline]
     fn level_gradient(&self, p: [f64; 3], level: u32, step: [f64; 3]) -> Option<[f64; 3]> {
-        let mut out = [None];
-        self.level_gradients(&[LevelPoint { p, level, step }], &mut out);
-        out[0]
-    }
-
-    fn level_gradients(&self, at: &[LevelPoint], out: &mut [Option<[f64; 3]>]) {
-        let by_blocks = matches!(self.voxels, Voxels::Octant(_) | Voxels::Current(_));
-        let n = at.len().min(out.len());
-        let mut k = 0;
-        while k < n {
+        let mut given = [None; 3];
+        if matches!(self.voxels, Voxels::Octant(_) | Voxels::Current(_)) {
             // Inside one level, both fields are the dual cells' trilinear interpolant, whose
             // central differences one cell apart the brick gives directly: on every axis whose
-            // cells are leaf cells of the level, the others are sampled. The points are taken
-            // in order, the thread's cache held until one needs samples.
-            let mut given = [None; 3];
-            if by_blocks {
+            // cells are leaf cells of the level, the others are sampled.
+            let found = {
+                let mut cache = self.thread_cache().borrow_mut();
+                cache.blocks.gradient(self.sampler(), p, level, &mut given)
+            };
+            match found {
+                Ok(Some(g)) => return Some(g),
+                Ok(None) => {}
+                Err(e) => {
+                    self.record(e);
+                    return None;
+                }
+            }
+        }
+        self.gradient_given(p, self.cell_size(level).unwrap_or(step), given)
+    }
+
+    fn smooth_gradients(&self, hits: &mut [Option<SurfaceHit>]) {
+        if !matches!(self.voxels, Voxels::Octant(_) | Voxels::Current(_)) {
+            for hit in hits.iter_mut().flatten() {
+                if let Some(g) = self.level_gradient(hit.pos, hit.level, [hit.size; 3]) {
+                    hit.grad = g;
+                }
+            }
+            return;
+        }
+        // [`Self::level_gradient`] hit by hit, in order, the thread's cache borrowed once for
+        // each run of hits whose blocks give the gradient, and let go for a hit that needs
+        // samples.
+        let mut k = 0;
+        while k < hits.len() {
+            let mut given = None;
+            {
                 let mut cache = self.thread_cache().borrow_mut();
                 let sampler = self.sampler();
-                while k < n {
-                    let q = &at[k];
-                    given = [None; 3];
-                    match cache.blocks.gradient(sampler, q.p, q.level, &mut given) {
-                        Ok(Some(g)) => out[k] = Some(g),
-                        Ok(None) => break,
-                        Err(e) => {
-                            self.record(e);
-                            out[k] = None;
+                while k < hits.len() {
+                    if let Some(hit) = &mut hits[k] {
+                        let mut part = [None; 3];
+                        match cache
+                            .blocks
+                            .gradient(sampler, hit.pos, hit.level, &mut part)
+                        {
+                            Ok(Some(g)) => hit.grad = g,
+                            Ok(None) => {
+                                given = Some(part);
+                                break;
+                            }
+                            Err(e) => self.record(e),
                         }
                     }
                     k += 1;
                 }
-                if k == n {
-                    return;
+            }
+            // Hit `k` (when the run stopped short of the end) needs samples.
+            let Some(given) = given else {
+                continue;
+            };
+            if let Some(hit) = &mut hits[k] {
+                let step = self.cell_size(hit.level).unwrap_or([hit.size; 3]);
+                if let Some(g) = self.gradient_given(hit.pos, step, given) {
+                    hit.grad = g;
                 }
             }
-            let q = &at[k];
-            out[k] = self.gradient_given(q.p, self.cell_size(q.level).unwrap_or(q.step), given);
             k += 1;
         }
     }

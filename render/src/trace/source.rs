@@ -5,7 +5,7 @@ use crate::bvh::BoxRun;
 use crate::reconstruct::Grid;
 use crate::trace::octant::{intersect_voxel, VoxelHit};
 use crate::trace::ray::GridRay;
-use crate::trace::tracer::central_difference;
+use crate::trace::tracer::{central_difference, SurfaceHit};
 pub use crate::voxel::Voxel;
 
 /// The affine map from grid coordinates to world coordinates, and the grid's extent.
@@ -71,18 +71,6 @@ pub type VoxelLookup<'a> = dyn FnMut(u64) -> Voxel + 'a;
 pub type BoxedLookup<'a> =
     dyn FnMut(u64, &mut dyn FnMut([f64; 3], [f64; 3]) -> bool) -> Option<Voxel> + 'a;
 
-/// A point where [`VoxelSource::level_gradients`] takes a smooth normal's gradient: the
-/// arguments of [`VoxelSource::level_gradient`].
-#[derive(Clone, Copy, Debug)]
-pub struct LevelPoint {
-    /// The point, grid coordinates.
-    pub p: [f64; 3],
-    /// The AMR level of the voxel hit there.
-    pub level: u32,
-    /// The step on each axis when the source has no levels.
-    pub step: [f64; 3],
-}
-
 /// A volume seen as a source of trilinear voxels, each named by a 64-bit ref (the paper's
 /// *VoxelSource*, section 4.1.1), plus point sampling of the same reconstruction.
 pub trait VoxelSource: Sync {
@@ -141,12 +129,16 @@ pub trait VoxelSource: Sync {
         self.gradient(p, self.cell_size(level).unwrap_or(step))
     }
 
-    /// [`Self::level_gradient`] of each of `at` (a point, its level and its step), into
-    /// `out[k]`: by default asked point by point; sources may share work between the points
-    /// (the smooth normals of a packet's hits).
-    fn level_gradients(&self, at: &[LevelPoint], out: &mut [Option<[f64; 3]>]) {
-        for (q, out) in at.iter().zip(out) {
-            *out = self.level_gradient(q.p, q.level, q.step);
+    /// Gives each of `hits` [`Self::level_gradient`] at its position, for its level, with its
+    /// voxel's size as the step, as its gradient where that is `Some`: the smooth normals of a
+    /// packet's hits. By default asked hit by hit; sources may share work between the hits.
+    /// (A source with levels steps by the level's cell, not by the voxel's shape, an octant or
+    /// a merged dual cell, so that neighbouring hits of one level use the same step.)
+    fn smooth_gradients(&self, hits: &mut [Option<SurfaceHit>]) {
+        for hit in hits.iter_mut().flatten() {
+            if let Some(g) = self.level_gradient(hit.pos, hit.level, [hit.size; 3]) {
+                hit.grad = g;
+            }
         }
     }
 

@@ -4,7 +4,7 @@
 use crate::bvh::packet::{rays_of, rays_where, Mask, PACKET};
 use crate::camera::dot;
 use crate::trace::ray::GridRay;
-use crate::trace::source::{GridFrame, LevelPoint, VoxelSource};
+use crate::trace::source::{GridFrame, VoxelSource};
 use crate::trace::traverse::{bvh_pad, AnyHitRays, Hit, Surface};
 
 /// A hit as the shader sees it.
@@ -260,7 +260,11 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
 
     fn next_hit(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> Option<SurfaceHit> {
         let h = self.surfaces[i].closest_hit(self.src, ray, tmin, tmax)?;
-        Some(self.surface_hit(h, ray))
+        let mut hit = [Some(self.voxel_surface_hit(h, ray))];
+        if self.smooth_normals {
+            self.src.smooth_gradients(&mut hit);
+        }
+        hit[0]
     }
 
     fn next_hits(&self, i: usize, rays: &[GridRay], tmax: &[f64], out: &mut [Option<SurfaceHit>]) {
@@ -377,51 +381,14 @@ impl<S: VoxelSource + ?Sized> HybridTracer<'_, S> {
                 *out = h.map(|h| self.voxel_surface_hit(h, ray));
             }
             if self.smooth_normals {
-                self.smooth_packet(out);
+                self.src.smooth_gradients(out);
             }
         }
     }
 
-    /// Gives the hits of a packet (at most [`PACKET`]) the smooth normals' gradient, asked of
-    /// the source for all of them at once ([`VoxelSource::level_gradients`]), where it has one.
-    fn smooth_packet(&self, hits: &mut [Option<SurfaceHit>]) {
-        let mut at = [LevelPoint {
-            p: [0.0; 3],
-            level: 0,
-            step: [0.0; 3],
-        }; PACKET];
-        let mut which = [0; PACKET];
-        let mut n = 0;
-        for (k, h) in hits.iter().enumerate() {
-            if let Some(h) = h {
-                at[n] = smoothing_point(h);
-                which[n] = k;
-                n += 1;
-            }
-        }
-        let mut grads = [None; PACKET];
-        self.src.level_gradients(&at[..n], &mut grads[..n]);
-        for (&k, g) in which[..n].iter().zip(&grads[..n]) {
-            if let (Some(h), Some(g)) = (&mut hits[k], g) {
-                h.grad = *g;
-            }
-        }
-    }
-
-    /// The hit the shader sees for `h`, a hit of `ray`.
-    fn surface_hit(&self, h: Hit, ray: &GridRay) -> SurfaceHit {
-        let mut hit = self.voxel_surface_hit(h, ray);
-        if self.smooth_normals {
-            let q = smoothing_point(&hit);
-            if let Some(g) = self.src.level_gradient(q.p, q.level, q.step) {
-                hit.grad = g;
-            }
-        }
-        hit
-    }
-
-    /// [`Self::surface_hit`] with the hit voxel's own gradient, before smooth normals (inlined
-    /// into the packets' loop: a call per hit passed the whole hit and its voxel by value).
+    /// The hit the shader sees for `h`, a hit of `ray`, with the hit voxel's own gradient: smooth
+    /// normals replace it after ([`VoxelSource::smooth_gradients`]). Inlined into the packets'
+    /// loop: a call per hit passed the whole hit and its voxel by value.
     #[inline(always)]
     fn voxel_surface_hit(&self, h: Hit, ray: &GridRay) -> SurfaceHit {
         let pos = h.grid_pos();
@@ -439,19 +406,6 @@ impl<S: VoxelSource + ?Sized> HybridTracer<'_, S> {
             size,
             r: h.r,
         }
-    }
-}
-
-/// Where smooth normals take `hit`'s gradient ([`VoxelSource::level_gradient`]): at its
-/// position, for its level, with the voxel's size as the step. The step depends on the level
-/// alone, not on the voxel's shape (an octant or a merged dual cell), so that neighbouring hits
-/// of one level use the same step.
-#[inline(always)]
-fn smoothing_point(hit: &SurfaceHit) -> LevelPoint {
-    LevelPoint {
-        p: hit.pos,
-        level: hit.level,
-        step: [hit.size; 3],
     }
 }
 

@@ -19,7 +19,7 @@ use amr_format::IBox;
 
 use crate::error::Result;
 
-use super::grid::axes;
+use super::grid::{axes, Grid};
 use super::sampler::{Sampler, Slab};
 
 /// The cells of a 4x4x4 block of one level that [`Sampler::gradient_in_block`] reads: the
@@ -158,17 +158,85 @@ impl LevelCells {
 /// Kd-tree leaves a block may span before [`Sampler::level_block`] gives up.
 const BLOCK_LEAVES: usize = 8;
 
-/// The gradient along axis `a` (cells `2 * scale` doubled units wide) from a block's values:
-/// the corner differences two cells apart, weighted by `w` ([`Sampler::gradient_in_block`]).
-#[inline(always)]
-fn axis_difference(block: &LevelBlock, w: &[f64; 8], a: usize, scale: i64) -> f64 {
-    let mut sum = 0.0;
-    for (n, wn) in w.iter().enumerate() {
-        let [up, down] = PAIRS[a][n];
-        sum += wn * (f64::from(block[up]) - f64::from(block[down]));
+/// A level's cell width and the grid's offset as `f64`s, per axis: what locating a point's dual
+/// cell and weighting its corners compute with, converted once per level.
+#[derive(Clone, Copy)]
+struct LevelSteps {
+    /// One cell's width in finest cells ([`Grid::scale`]).
+    scale: [f64; 3],
+    /// The finest domain's lower corner ([`Grid::offset`]).
+    offset: [f64; 3],
+    /// A dual cell's width in doubled units (`2 * scale`).
+    dual_width: [f64; 3],
+    /// A central difference's span in doubled units (`4 * scale`: two cells), and 1 in lane 3.
+    span: [f64; 4],
+}
+
+impl LevelSteps {
+    /// The steps of `level`, which `grid` has.
+    fn of(grid: &Grid, level: u32) -> Self {
+        let (s, o) = (grid.scale(level), grid.offset());
+        Self {
+            scale: axes(|a| s[a] as f64),
+            offset: axes(|a| o[a] as f64),
+            dual_width: axes(|a| (2 * s[a]) as f64),
+            span: [0, 1, 2, 3].map(|a| if a < 3 { (4 * s[a]) as f64 } else { 1.0 }),
+        }
     }
-    // Two cells apart, each `2 * scale` doubled units.
-    sum / (4 * scale) as f64
+
+    /// [`Sampler::dual_cell`] of doubled point `p`.
+    #[inline(always)]
+    fn dual_cell(&self, p: [f64; 3]) -> Option<[i64; 3]> {
+        let first =
+            axes(|a| (((p[a] - self.scale[a]) * 0.5 + self.offset[a]) / self.scale[a]).floor());
+        first
+            .iter()
+            .all(|x| x.abs() < 1e15)
+            .then(|| first.map(whole_to_i64))
+    }
+
+    /// The trilinear weight at `p` of each corner of the dual cell whose lower corner cell's
+    /// centre is `base` (doubled units, [`Grid::centre`]).
+    #[inline(always)]
+    fn weights(&self, p: [f64; 3], base: [f64; 3]) -> [f64; 8] {
+        let t = axes(|a| ((p[a] - base[a]) / self.dual_width[a]).clamp(0.0, 1.0));
+        let u = [[1.0 - t[0], t[0]], [1.0 - t[1], t[1]], [1.0 - t[2], t[2]]];
+        std::array::from_fn(|n| u[0][n & 1] * u[1][n >> 1 & 1] * u[2][n >> 2])
+    }
+}
+
+/// Per corner `n` of a dual cell, the difference of its neighbours' values above and below it
+/// on each axis (lane `a`; lane 3 is 0), from a block's values ([`PAIRS`]): what the gradient
+/// weighs, the same for every point of the dual cell.
+#[derive(Clone, Copy)]
+struct CornerDifferences([[f64; 4]; 8]);
+
+impl CornerDifferences {
+    /// The differences in `block`.
+    fn of(block: &LevelBlock) -> Self {
+        Self(std::array::from_fn(|n| {
+            let mut d = [0.0; 4];
+            for (a, d) in d.iter_mut().take(3).enumerate() {
+                let [up, down] = PAIRS[a][n];
+                *d = f64::from(block[up]) - f64::from(block[down]);
+            }
+            d
+        }))
+    }
+
+    /// The gradient ([`Sampler::gradient_in_block`]): on each axis the corners' differences
+    /// weighted by `w` ([`LevelSteps::weights`]), summed corner by corner, over the span of
+    /// two cells.
+    #[inline(always)]
+    fn gradient(&self, w: &[f64; 8], span: &[f64; 4]) -> [f64; 3] {
+        let mut sum = [0.0; 4];
+        for (wn, d) in w.iter().zip(&self.0) {
+            for (sum, d) in sum.iter_mut().zip(d) {
+                *sum += wn * d;
+            }
+        }
+        axes(|a| sum[a] / span[a])
+    }
 }
 
 /// Kd-tree leaves of another level whose boxes [`Sampler::level_cells`] remembers.
@@ -248,12 +316,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         if level as usize >= grid.num_levels() {
             return None;
         }
-        let (s, o) = (grid.scale(level), grid.offset());
-        let first = axes(|a| (((p[a] - s[a] as f64) * 0.5 + o[a] as f64) / s[a] as f64).floor());
-        first
-            .iter()
-            .all(|x| x.abs() < 1e15)
-            .then(|| first.map(|x| x as i64))
+        LevelSteps::of(grid, level).dual_cell(p)
     }
 
     /// [`Self::level_gradient`] at `p` in the dual cell `first` of `level`, from the block's
@@ -266,9 +329,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         level: u32,
         first: [i64; 3],
     ) -> [f64; 3] {
-        let w = self.dual_weights(p, level, first);
-        let s = self.grid().scale(level);
-        axes(|a| axis_difference(block, &w, a, s[a]))
+        let (steps, base) = self.steps_and_base(level, first);
+        CornerDifferences::of(block).gradient(&steps.weights(p, base), &steps.span)
     }
 
     /// [`Self::gradient_in_block`]'s component along each axis that `cells` give
@@ -285,19 +347,16 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         if given == [false; 3] {
             return [None; 3];
         }
-        let w = self.dual_weights(p, level, first);
-        let s = self.grid().scale(level);
-        axes(|a| given[a].then(|| axis_difference(&cells.values, &w, a, s[a])))
+        let (steps, base) = self.steps_and_base(level, first);
+        let g = CornerDifferences::of(&cells.values).gradient(&steps.weights(p, base), &steps.span);
+        axes(|a| given[a].then_some(g[a]))
     }
 
-    /// The trilinear weight of each corner of the dual cell `first` of `level` at `p`.
+    /// The steps of `level` and the centre of the dual cell's lower corner cell `first`.
     #[inline(always)]
-    fn dual_weights(&self, p: [f64; 3], level: u32, first: [i64; 3]) -> [f64; 8] {
-        let s = self.grid().scale(level);
+    fn steps_and_base(&self, level: u32, first: [i64; 3]) -> (LevelSteps, [f64; 3]) {
         let base = self.grid().centre(level, first);
-        let t = axes(|a| ((p[a] - base[a] as f64) / (2 * s[a]) as f64).clamp(0.0, 1.0));
-        let u = [[1.0 - t[0], t[0]], [1.0 - t[1], t[1]], [1.0 - t[2], t[2]]];
-        std::array::from_fn(|n| u[0][n & 1] * u[1][n >> 1 & 1] * u[2][n >> 2])
+        (LevelSteps::of(self.grid(), level), base.map(|x| x as f64))
     }
 
     /// The values of the cells of `level` that [`Self::level_gradient`] reads in the dual cell
@@ -523,16 +582,42 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 /// Slots of a [`LevelBlocks`] table (a power of two).
 const BLOCK_SLOTS: usize = 4096;
 
-/// A slot of [`LevelBlocks`]: the level and dual cell, and the cells there.
-type BlockSlot = ((u32, [i64; 3]), LevelCells);
+/// A slot of [`LevelBlocks`]: a level and dual cell, and what the gradient reads there.
+#[derive(Clone, Copy)]
+struct BlockSlot {
+    /// The level and the dual cell's lower corner cell.
+    key: (u32, [i64; 3]),
+    /// The centre of that cell in doubled units ([`Grid::centre`]).
+    base: [f64; 3],
+    /// The axes whose component the cells give ([`LevelCells::axes`]).
+    given: [bool; 3],
+    /// Every cell is a leaf cell of the level ([`LevelCells::is_whole`]).
+    whole: bool,
+    /// The corner differences of the cells' values ([`CornerDifferences::of`]).
+    differences: CornerDifferences,
+}
+
+impl BlockSlot {
+    /// A slot holding no dual cell.
+    const EMPTY: Self = Self {
+        key: (u32::MAX, [0; 3]),
+        base: [0.0; 3],
+        given: [false; 3],
+        whole: false,
+        differences: CornerDifferences([[0.0; 4]; 8]),
+    };
+}
 
 /// A per-thread memo of [`Sampler::level_cells`]' answers, direct-mapped by level and dual
-/// cell: the hits of neighbouring rays share dual cells, so most gradients read remembered
-/// cells. They are pure functions of their key, so the memo never changes a gradient.
+/// cell, kept as their corner differences: the hits of neighbouring rays share dual cells, so
+/// most gradients weigh remembered differences. They are pure functions of their key, so the
+/// memo never changes a gradient.
 #[derive(Default)]
 pub struct LevelBlocks {
     /// The sampler served, by [`Sampler::id`] (0: none yet).
     owner: u64,
+    /// Per level of the sampler's grid: its steps.
+    levels: Vec<LevelSteps>,
     slots: Vec<BlockSlot>,
 }
 
@@ -543,6 +628,7 @@ impl LevelBlocks {
     /// [`Sampler::level_gradient`], reading the cells from this memo when it holds them; where
     /// that is `None`, the components [`Sampler::level_gradient_axes`] gives are put in `given`
     /// (left alone otherwise).
+    #[inline]
     pub fn gradient<D: AsRef<[u8]>>(
         &mut self,
         sampler: &Sampler<'_, D>,
@@ -550,34 +636,134 @@ impl LevelBlocks {
         level: u32,
         given: &mut [Option<f64>; 3],
     ) -> Result<Option<[f64; 3]>> {
-        let Some(first) = sampler.dual_cell(p, level) else {
+        if self.owner != sampler.id() || self.slots.is_empty() {
+            self.serve(sampler);
+        }
+        let Some(steps) = self.levels.get(level as usize) else {
             return Ok(None);
         };
-        if self.owner != sampler.id() || self.slots.is_empty() {
-            self.owner = sampler.id();
-            self.slots.clear();
-            self.slots
-                .resize(BLOCK_SLOTS, ((u32::MAX, [0; 3]), LevelCells::NONE));
-        }
+        let Some(first) = steps.dual_cell(p) else {
+            return Ok(None);
+        };
         let key = (level, first);
-        let h = (first[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
-            ^ (first[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
-            ^ (first[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
-            ^ u64::from(level).wrapping_mul(0x27D4_EB2F_1656_67C5);
-        let slot = (h >> (64 - BLOCK_SLOTS.trailing_zeros())) as usize;
-        if self.slots[slot].0 != key {
-            self.slots[slot] = (key, sampler.level_cells(level, first)?);
+        let index = slot_of(level, first);
+        let slot = &self.slots[index];
+        // Most hits: a remembered whole block, weighed here; the rest below.
+        if slot.key == key && slot.whole {
+            let w = steps.weights(p, slot.base);
+            return Ok(Some(slot.differences.gradient(&w, &steps.span)));
         }
-        let cells = &self.slots[slot].1;
-        if cells.is_whole() {
-            return Ok(Some(sampler.gradient_in_block(
-                &cells.values,
-                p,
-                level,
-                first,
-            )));
+        self.gradient_in_slot(sampler, p, key, index, given)
+    }
+
+    /// [`Self::gradient`] at `p` in the dual cell `key` (level and lower corner cell) where
+    /// slot `index` holds another dual cell (it is filled) or a block that is not whole.
+    #[inline(never)]
+    fn gradient_in_slot<D: AsRef<[u8]>>(
+        &mut self,
+        sampler: &Sampler<'_, D>,
+        p: [f64; 3],
+        key: (u32, [i64; 3]),
+        index: usize,
+        given: &mut [Option<f64>; 3],
+    ) -> Result<Option<[f64; 3]>> {
+        if self.slots[index].key != key {
+            self.fill(sampler, key, index)?;
         }
-        *given = sampler.gradient_axes_in(cells, p, level, first);
+        let (slot, steps) = (&self.slots[index], &self.levels[key.0 as usize]);
+        if slot.given == [false; 3] {
+            *given = [None; 3];
+            return Ok(None);
+        }
+        let g = slot
+            .differences
+            .gradient(&steps.weights(p, slot.base), &steps.span);
+        if slot.whole {
+            return Ok(Some(g));
+        }
+        *given = axes(|a| slot.given[a].then_some(g[a]));
         Ok(None)
+    }
+
+    /// Empties the memo for `sampler`'s dual cells and takes its levels' steps.
+    #[cold]
+    #[inline(never)]
+    fn serve<D: AsRef<[u8]>>(&mut self, sampler: &Sampler<'_, D>) {
+        let grid = sampler.grid();
+        self.owner = sampler.id();
+        self.levels = (0..grid.num_levels() as u32)
+            .map(|level| LevelSteps::of(grid, level))
+            .collect();
+        self.slots.clear();
+        self.slots.resize(BLOCK_SLOTS, BlockSlot::EMPTY);
+    }
+
+    /// Puts the cells of the dual cell `key` (level and lower corner cell) in slot `index`.
+    #[inline(never)]
+    fn fill<D: AsRef<[u8]>>(
+        &mut self,
+        sampler: &Sampler<'_, D>,
+        key: (u32, [i64; 3]),
+        index: usize,
+    ) -> Result<()> {
+        let (level, first) = key;
+        let cells = sampler.level_cells(level, first)?;
+        let base = sampler.grid().centre(level, first);
+        self.slots[index] = BlockSlot {
+            key,
+            base: base.map(|x| x as f64),
+            given: cells.axes(),
+            whole: cells.is_whole(),
+            differences: CornerDifferences::of(&cells.values),
+        };
+        Ok(())
+    }
+}
+
+/// The slot of [`LevelBlocks`] for the dual cell `first` of `level`.
+#[inline(always)]
+fn slot_of(level: u32, first: [i64; 3]) -> usize {
+    let h = (first[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (first[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+        ^ (first[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
+        ^ u64::from(level).wrapping_mul(0x27D4_EB2F_1656_67C5);
+    (h >> (64 - BLOCK_SLOTS.trailing_zeros())) as usize
+}
+
+/// `x as i64` for a whole number `x` below `2^51` in magnitude, without the cast's saturation
+/// checks: added to `1.5 * 2^52`, `x` gives a sum in `[2^52, 2^53)`, where the ulp is 1, so
+/// the sum is exact and its bits are those of `1.5 * 2^52` plus `x`.
+#[inline(always)]
+fn whole_to_i64(x: f64) -> i64 {
+    const SHIFT: f64 = (3u64 << 51) as f64;
+    (x + SHIFT).to_bits() as i64 - SHIFT.to_bits() as i64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn whole_numbers_below_2_to_51_convert_as_the_cast_does() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        for i in 0..100_000u64 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let scale = [1.0, 1e3, 1e8, 1e15][(i % 4) as usize];
+            let x = (((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0) * scale;
+            let x = x.floor();
+            assert_eq!(whole_to_i64(x), x as i64, "{x}");
+        }
+        for x in [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            999_999_999_999_999.0,
+            -999_999_999_999_999.0,
+        ] {
+            assert_eq!(whole_to_i64(x), x as i64, "{x}");
+        }
     }
 }

@@ -33,7 +33,7 @@ use crate::trace::octant::{
 };
 use crate::trace::ray::GridRay;
 use crate::trace::source::{BoxedLookup, GridFrame, Voxel, VoxelLookup, VoxelSource};
-use crate::trace::tracer::central_difference_given;
+use crate::trace::tracer::{central_difference_given, SurfaceHit};
 
 /// Bytes of decompressed bricks the sampler may cache.
 pub const BRICK_CACHE_BYTES: usize = 256 << 20;
@@ -503,7 +503,6 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
 
     #[inline]
     fn level_gradient(&self, p: [f64; 3], level: u32, step: [f64; 3]) -> Option<[f64; 3]> {
-        let step = self.cell_size(level).unwrap_or(step);
         let mut given = [None; 3];
         if matches!(self.voxels, Voxels::Octant(_) | Voxels::Current(_)) {
             // Inside one level, both fields are the dual cells' trilinear interpolant, whose
@@ -522,7 +521,57 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
                 }
             }
         }
-        self.gradient_given(p, step, given)
+        self.gradient_given(p, self.cell_size(level).unwrap_or(step), given)
+    }
+
+    fn smooth_gradients(&self, hits: &mut [Option<SurfaceHit>]) {
+        if !matches!(self.voxels, Voxels::Octant(_) | Voxels::Current(_)) {
+            for hit in hits.iter_mut().flatten() {
+                if let Some(g) = self.level_gradient(hit.pos, hit.level, [hit.size; 3]) {
+                    hit.grad = g;
+                }
+            }
+            return;
+        }
+        // [`Self::level_gradient`] hit by hit, in order, the thread's cache borrowed once for
+        // each run of hits whose blocks give the gradient, and let go for a hit that needs
+        // samples.
+        let mut k = 0;
+        while k < hits.len() {
+            let mut given = None;
+            {
+                let mut cache = self.thread_cache().borrow_mut();
+                let sampler = self.sampler();
+                while k < hits.len() {
+                    if let Some(hit) = &mut hits[k] {
+                        let mut part = [None; 3];
+                        match cache
+                            .blocks
+                            .gradient(sampler, hit.pos, hit.level, &mut part)
+                        {
+                            Ok(Some(g)) => hit.grad = g,
+                            Ok(None) => {
+                                given = Some(part);
+                                break;
+                            }
+                            Err(e) => self.record(e),
+                        }
+                    }
+                    k += 1;
+                }
+            }
+            // Hit `k` (when the run stopped short of the end) needs samples.
+            let Some(given) = given else {
+                continue;
+            };
+            if let Some(hit) = &mut hits[k] {
+                let step = self.cell_size(hit.level).unwrap_or([hit.size; 3]);
+                if let Some(g) = self.gradient_given(hit.pos, step, given) {
+                    hit.grad = g;
+                }
+            }
+            k += 1;
+        }
     }
 
     fn release_pages(&self) {

@@ -5,7 +5,7 @@ use crate::bvh::BoxRun;
 use crate::reconstruct::Grid;
 use crate::trace::octant::{intersect_voxel, VoxelHit};
 use crate::trace::ray::GridRay;
-use crate::trace::tracer::central_difference;
+use crate::trace::tracer::{central_difference, SurfaceHit};
 pub use crate::voxel::Voxel;
 
 /// The affine map from grid coordinates to world coordinates, and the grid's extent.
@@ -127,6 +127,19 @@ pub trait VoxelSource: Sync {
     /// has no levels). Sources may compute the same values faster.
     fn level_gradient(&self, p: [f64; 3], level: u32, step: [f64; 3]) -> Option<[f64; 3]> {
         self.gradient(p, self.cell_size(level).unwrap_or(step))
+    }
+
+    /// Gives each of `hits` [`Self::level_gradient`] at its position, for its level, with its
+    /// voxel's size as the step, as its gradient where that is `Some`: the smooth normals of a
+    /// packet's hits. By default asked hit by hit; sources may share work between the hits.
+    /// (A source with levels steps by the level's cell, not by the voxel's shape, an octant or
+    /// a merged dual cell, so that neighbouring hits of one level use the same step.)
+    fn smooth_gradients(&self, hits: &mut [Option<SurfaceHit>]) {
+        for hit in hits.iter_mut().flatten() {
+            if let Some(g) = self.level_gradient(hit.pos, hit.level, [hit.size; 3]) {
+                hit.grad = g;
+            }
+        }
     }
 
     /// The size of a cell of AMR level `level` in grid units, per axis; `None` (the default)

@@ -260,7 +260,11 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
 
     fn next_hit(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> Option<SurfaceHit> {
         let h = self.surfaces[i].closest_hit(self.src, ray, tmin, tmax)?;
-        Some(self.surface_hit(h, ray))
+        let mut hit = [Some(self.voxel_surface_hit(h, ray))];
+        if self.smooth_normals {
+            self.src.smooth_gradients(&mut hit);
+        }
+        hit[0]
     }
 
     fn next_hits(&self, i: usize, rays: &[GridRay], tmax: &[f64], out: &mut [Option<SurfaceHit>]) {
@@ -374,28 +378,25 @@ impl<S: VoxelSource + ?Sized> HybridTracer<'_, S> {
             let hits = &mut hits[..rays.len()];
             query(k, rays, tmax, hits);
             for ((out, h), ray) in out.iter_mut().zip(hits.iter()).zip(rays) {
-                *out = h.map(|h| self.surface_hit(h, ray));
+                *out = h.map(|h| self.voxel_surface_hit(h, ray));
+            }
+            if self.smooth_normals {
+                self.src.smooth_gradients(out);
             }
         }
     }
 
-    /// The hit the shader sees for `h`, a hit of `ray` (inlined into the packets' loop: a call
-    /// per hit passed the whole hit and its voxel by value).
+    /// The hit the shader sees for `h`, a hit of `ray`, with the hit voxel's own gradient: smooth
+    /// normals replace it after ([`VoxelSource::smooth_gradients`]). Inlined into the packets'
+    /// loop: a call per hit passed the whole hit and its voxel by value.
     #[inline(always)]
-    fn surface_hit(&self, h: Hit, ray: &GridRay) -> SurfaceHit {
+    fn voxel_surface_hit(&self, h: Hit, ray: &GridRay) -> SurfaceHit {
         let pos = h.grid_pos();
         let size = (0..3)
             .map(|a| h.voxel.hi[a] - h.voxel.lo[a])
             .fold(f64::INFINITY, f64::min);
-        let mut grad = h.grid_gradient();
+        let grad = h.grid_gradient();
         let rising = dot(grad, ray.d) > 0.0;
-        if self.smooth_normals {
-            // The step depends on the level alone, not on the voxel's shape (an octant or a
-            // merged dual cell), so that neighbouring hits of one level use the same step.
-            if let Some(g) = self.src.level_gradient(pos, h.voxel.level, [size; 3]) {
-                grad = g;
-            }
-        }
         SurfaceHit {
             t: h.t,
             pos,

@@ -153,6 +153,9 @@ struct Segments {
     /// The lanes whose cubic is monotonic on `[0, 1]` (`Cubic::monotonic_on`), and each
     /// cubic's values at 0 and 1 (`Cubic::eval`): the first step of [`Cubic::first_root`].
     monotonic: i32,
+    /// The lanes whose value at 0 is beyond the tolerance of zero and whose values at 0 and 1
+    /// differ in sign: with `monotonic`, those whose bracket is the whole of `[0, 1]`.
+    changing: i32,
     f0: PerLane,
     f1: PerLane,
 }
@@ -165,14 +168,7 @@ impl Segments {
     #[target_feature(enable = "avx2")]
     #[inline]
     fn refined(&self) -> (i32, PerLane) {
-        let (f0, f1) = (self.f0.0, self.f1.0);
-        let mut lanes = 0;
-        for i in 0..4 {
-            if f0[i].abs() > self.tol && (f0[i] < 0.0) != (f1[i] < 0.0) {
-                lanes |= 1 << i;
-            }
-        }
-        lanes &= self.pass & self.monotonic;
+        let lanes = self.changing & self.pass & self.monotonic;
         if lanes == 0 {
             return (0, PerLane([0.0; 4]));
         }
@@ -356,6 +352,15 @@ impl Lanes {
             return None;
         }
         let (monotonic, f0, f1) = first_step(&c);
+        // `f0.abs() > tol && (f0 < 0.0) != (f1 < 0.0)` lane by lane.
+        let zero = _mm256_setzero_pd();
+        let changing = _mm256_movemask_pd(_mm256_and_pd(
+            _mm256_cmp_pd::<_CMP_GT_OQ>(abs(f0), _mm256_set1_pd(setup.tol)),
+            _mm256_xor_pd(
+                _mm256_cmp_pd::<_CMP_LT_OQ>(f0, zero),
+                _mm256_cmp_pd::<_CMP_LT_OQ>(f1, zero),
+            ),
+        ));
         Some(Segments {
             pass,
             ta: PerLane::of(ta),
@@ -365,6 +370,7 @@ impl Lanes {
             c: c.map(|v| PerLane::of(v)),
             tol: setup.tol,
             monotonic,
+            changing,
             f0: PerLane::of(f0),
             f1: PerLane::of(f1),
         })

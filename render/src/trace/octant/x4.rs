@@ -142,14 +142,15 @@ struct Lanes {
 }
 
 /// The four rays' segments in one voxel, lane by lane: `pass` has bit `i` when ray `i` has one.
-struct Segments {
+pub(super) struct Segments {
     pass: i32,
     ta: PerLane,
     tb: PerLane,
     p0: [PerLane; 3],
     q: [PerLane; 3],
     c: [PerLane; 4],
-    tol: f64,
+    /// Each lane's tolerance ([`VoxelSetup`]).
+    tol: PerLane,
     /// The lanes whose cubic is monotonic on `[0, 1]` (`Cubic::monotonic_on`), and each
     /// cubic's values at 0 and 1 (`Cubic::eval`): the first step of [`Cubic::first_root`].
     monotonic: i32,
@@ -168,7 +169,7 @@ impl Segments {
         let (f0, f1) = (self.f0.0, self.f1.0);
         let mut lanes = 0;
         for i in 0..4 {
-            if f0[i].abs() > self.tol && (f0[i] < 0.0) != (f1[i] < 0.0) {
+            if f0[i].abs() > self.tol.0[i] && (f0[i] < 0.0) != (f1[i] < 0.0) {
                 lanes |= 1 << i;
             }
         }
@@ -202,7 +203,7 @@ impl Segments {
                 c: [0, 1, 2, 3].map(|j| self.c[j].0[i]),
             };
             let monotonic = self.monotonic >> i & 1 != 0;
-            cubic.first_root_on_unit(monotonic, self.f0.0[i], self.f1.0[i], self.tol)?
+            cubic.first_root_on_unit(monotonic, self.f0.0[i], self.f1.0[i], self.tol.0[i])?
         };
         Some(Segment::hit_at(
             s,
@@ -217,7 +218,7 @@ impl Segments {
     /// Whether lane `i` has a segment whose cubic has a root ([`Cubic::has_root`], the any-hit
     /// test of [`super::voxel_occludes`]).
     #[inline(always)]
-    fn has_root(&self, i: usize) -> bool {
+    pub(super) fn has_root(&self, i: usize) -> bool {
         self.pass >> i & 1 != 0
             && Cubic {
                 c: [0, 1, 2, 3].map(|j| self.c[j].0[i]),
@@ -226,7 +227,7 @@ impl Segments {
                 self.monotonic >> i & 1 != 0,
                 self.f0.0[i],
                 self.f1.0[i],
-                self.tol,
+                self.tol.0[i],
             )
     }
 }
@@ -303,72 +304,123 @@ impl Lanes {
         if clipped == 0 {
             return None;
         }
-        // The widened segment (`Segment::in_box`).
-        let widen = _mm256_add_pd(
-            _mm256_mul_pd(_mm256_set1_pd(SEGMENT_WIDEN), _mm256_sub_pd(t1, t0)),
-            _mm256_mul_pd(_mm256_set1_pd(8.0 * f64::EPSILON), larger(abs(t0), abs(t1))),
-        );
-        let ta = larger(self.tmin, _mm256_sub_pd(t0, widen));
-        let tb = smaller(self.tmax, _mm256_add_pd(t1, widen));
-        let mut p0 = [_mm256_setzero_pd(); 3];
-        let mut q = [_mm256_setzero_pd(); 3];
-        for a in 0..3 {
-            let w = _mm256_set1_pd(extent.w[a]);
-            let rel = _mm256_sub_pd(self.o[a], lo[a]);
-            let local = |t: __m256d| {
-                let x = _mm256_add_pd(rel, _mm256_mul_pd(t, self.d[a]));
-                match extent.recip {
-                    Some(r) => _mm256_mul_pd(x, _mm256_set1_pd(r[a])),
-                    None => _mm256_div_pd(x, w),
-                }
-            };
-            p0[a] = local(ta);
-            q[a] = _mm256_sub_pd(local(tb), p0[a]);
-        }
-        let c = along_segment(&setup.c, p0, q);
-        // The Bernstein hull (`Cubic::clear_of_zero_on_unit`).
-        let third = _mm256_set1_pd(1.0 / 3.0);
-        let b = [
-            c[0],
-            _mm256_add_pd(c[0], _mm256_mul_pd(c[1], third)),
-            _mm256_add_pd(
-                _mm256_add_pd(c[0], _mm256_mul_pd(_mm256_set1_pd(2.0 / 3.0), c[1])),
-                _mm256_mul_pd(c[2], third),
-            ),
-            _mm256_add_pd(_mm256_add_pd(_mm256_add_pd(c[0], c[1]), c[2]), c[3]),
-        ];
-        let sum = _mm256_add_pd(
-            _mm256_add_pd(_mm256_add_pd(abs(c[0]), abs(c[1])), abs(c[2])),
-            abs(c[3]),
-        );
-        let margin = _mm256_add_pd(
+        let rel = [0, 1, 2].map(|a| _mm256_sub_pd(self.o[a], lo[a]));
+        let extent = match extent.recip {
+            Some(r) => LaneExtent::Recip(r.map(|r| _mm256_set1_pd(r))),
+            None => LaneExtent::Divide(extent.w.map(|w| _mm256_set1_pd(w))),
+        };
+        let span = Span {
+            tmin: self.tmin,
+            tmax: self.tmax,
+            t0,
+            t1,
+        };
+        let c = setup.c.map(|c| _mm256_set1_pd(c));
+        in_box(
+            &span,
+            clipped,
+            rel,
+            self.d,
+            &extent,
+            &c,
             _mm256_set1_pd(setup.tol),
-            _mm256_mul_pd(_mm256_set1_pd(64.0 * f64::EPSILON), sum),
-        );
-        let below = _mm256_xor_pd(margin, _mm256_set1_pd(-0.0));
-        let (mut above_all, mut below_all) = (inside, inside);
-        for x in b {
-            above_all = _mm256_and_pd(above_all, _mm256_cmp_pd::<_CMP_GT_OQ>(x, margin));
-            below_all = _mm256_and_pd(below_all, _mm256_cmp_pd::<_CMP_LT_OQ>(x, below));
-        }
-        let pass = clipped & !_mm256_movemask_pd(_mm256_or_pd(above_all, below_all));
-        if pass == 0 {
-            return None;
-        }
-        let (monotonic, f0, f1) = first_step(&c);
-        Some(Segments {
-            pass,
-            ta: PerLane::of(ta),
-            tb: PerLane::of(tb),
-            p0: p0.map(|v| PerLane::of(v)),
-            q: q.map(|v| PerLane::of(v)),
-            c: c.map(|v| PerLane::of(v)),
-            tol: setup.tol,
-            monotonic,
-            f0: PerLane::of(f0),
-            f1: PerLane::of(f1),
-        })
+        )
     }
+}
+
+/// Per lane, a ray's interval `[tmin, tmax]` and the part `[t0, t1]` of it in its voxel's box.
+#[derive(Clone, Copy)]
+pub(super) struct Span {
+    pub(super) tmin: __m256d,
+    pub(super) tmax: __m256d,
+    pub(super) t0: __m256d,
+    pub(super) t1: __m256d,
+}
+
+/// How the lanes' local coordinates are scaled to their voxels: by the extents' exact
+/// reciprocals, or by division by the extents (bit for bit the same).
+pub(super) enum LaneExtent {
+    Recip([__m256d; 3]),
+    Divide([__m256d; 3]),
+}
+
+/// The segments of the lanes `clipped` ([`Segment::in_box`] lane by lane, and the Bernstein
+/// hull test that ends [`Segment::new`]), given each lane's `span`, its ray's origin less its
+/// voxel's lower corner `rel` and direction `d`, its voxel's extent, its corner values less the
+/// isovalue `c` and its tolerance `tol`; `None` when no lane has one.
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn in_box(
+    span: &Span,
+    clipped: i32,
+    rel: [__m256d; 3],
+    d: [__m256d; 3],
+    extent: &LaneExtent,
+    c: &[__m256d; 8],
+    tol: __m256d,
+) -> Option<Segments> {
+    let Span { tmin, tmax, t0, t1 } = *span;
+    // The widened segment (`Segment::in_box`).
+    let widen = _mm256_add_pd(
+        _mm256_mul_pd(_mm256_set1_pd(SEGMENT_WIDEN), _mm256_sub_pd(t1, t0)),
+        _mm256_mul_pd(_mm256_set1_pd(8.0 * f64::EPSILON), larger(abs(t0), abs(t1))),
+    );
+    let ta = larger(tmin, _mm256_sub_pd(t0, widen));
+    let tb = smaller(tmax, _mm256_add_pd(t1, widen));
+    let mut p0 = [_mm256_setzero_pd(); 3];
+    let mut q = [_mm256_setzero_pd(); 3];
+    for a in 0..3 {
+        let local = |t: __m256d| {
+            let x = _mm256_add_pd(rel[a], _mm256_mul_pd(t, d[a]));
+            match extent {
+                LaneExtent::Recip(r) => _mm256_mul_pd(x, r[a]),
+                LaneExtent::Divide(w) => _mm256_div_pd(x, w[a]),
+            }
+        };
+        p0[a] = local(ta);
+        q[a] = _mm256_sub_pd(local(tb), p0[a]);
+    }
+    let c = along_segment(c, p0, q);
+    // The Bernstein hull (`Cubic::clear_of_zero_on_unit`).
+    let third = _mm256_set1_pd(1.0 / 3.0);
+    let b = [
+        c[0],
+        _mm256_add_pd(c[0], _mm256_mul_pd(c[1], third)),
+        _mm256_add_pd(
+            _mm256_add_pd(c[0], _mm256_mul_pd(_mm256_set1_pd(2.0 / 3.0), c[1])),
+            _mm256_mul_pd(c[2], third),
+        ),
+        _mm256_add_pd(_mm256_add_pd(_mm256_add_pd(c[0], c[1]), c[2]), c[3]),
+    ];
+    let sum = _mm256_add_pd(
+        _mm256_add_pd(_mm256_add_pd(abs(c[0]), abs(c[1])), abs(c[2])),
+        abs(c[3]),
+    );
+    let margin = _mm256_add_pd(tol, _mm256_mul_pd(_mm256_set1_pd(64.0 * f64::EPSILON), sum));
+    let below = _mm256_xor_pd(margin, _mm256_set1_pd(-0.0));
+    let all = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+    let (mut above_all, mut below_all) = (all, all);
+    for x in b {
+        above_all = _mm256_and_pd(above_all, _mm256_cmp_pd::<_CMP_GT_OQ>(x, margin));
+        below_all = _mm256_and_pd(below_all, _mm256_cmp_pd::<_CMP_LT_OQ>(x, below));
+    }
+    let pass = clipped & !_mm256_movemask_pd(_mm256_or_pd(above_all, below_all));
+    if pass == 0 {
+        return None;
+    }
+    let (monotonic, f0, f1) = first_step(&c);
+    Some(Segments {
+        pass,
+        ta: PerLane::of(ta),
+        tb: PerLane::of(tb),
+        p0: p0.map(|v| PerLane::of(v)),
+        q: q.map(|v| PerLane::of(v)),
+        c: c.map(|v| PerLane::of(v)),
+        tol: PerLane::of(tol),
+        monotonic,
+        f0: PerLane::of(f0),
+        f1: PerLane::of(f1),
+    })
 }
 
 /// The first step of [`Cubic::first_root`] on `[0, 1]` lane by lane, with the scalar code's
@@ -409,13 +461,12 @@ fn first_step(c: &[__m256d; 4]) -> (i32, __m256d, __m256d) {
 /// [`super::along_segment`] lane by lane: the cubic's coefficients, constant term first.
 #[target_feature(enable = "avx2")]
 #[inline]
-fn along_segment(c: &[f64; 8], p0: [__m256d; 3], q: [__m256d; 3]) -> [__m256d; 4] {
+fn along_segment(c: &[__m256d; 8], p0: [__m256d; 3], q: [__m256d; 3]) -> [__m256d; 4] {
     use std::arch::x86_64::{_mm256_add_pd as add, _mm256_mul_pd as mul, _mm256_sub_pd as sub};
     let (ux0, ux1) = (p0[0], q[0]);
     let edge = |i: usize| {
-        let d = c[i + 1] - c[i];
-        let dv = _mm256_set1_pd(d);
-        (add(_mm256_set1_pd(c[i]), mul(dv, ux0)), mul(dv, ux1))
+        let d = sub(c[i + 1], c[i]);
+        (add(c[i], mul(d, ux0)), mul(d, ux1))
     };
     let (e00, e10, e01, e11) = (edge(0), edge(2), edge(4), edge(6));
     let (t0, t1) = (p0[1], q[1]);

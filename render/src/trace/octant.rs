@@ -106,7 +106,7 @@ pub fn voxel_occluders_packet(
 
 /// [`voxel_occludes`] of ray `k` of a packet (`ray`, with its reciprocal direction `recip`,
 /// over `[tmin, tmax]`) in `voxel`, a candidate no other ray of the packet reached: with AVX2 it
-/// is held in `held` and tested with three more such candidates. The rays of `held`'s
+/// is held in `held` and tested with three more such candidates of other rays. The rays of `held`'s
 /// candidates found occluded now (none while the lanes fill).
 #[allow(clippy::too_many_arguments)]
 #[inline]
@@ -121,11 +121,21 @@ pub fn voxel_occludes_held(
 ) -> Mask {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
-        if !held.hold(voxel, iso, ray, recip, (tmin, tmax), k) {
-            return 0;
+        // A ray's candidates are held one at a time: a ray met again is first given its
+        // answer, so that an occluded ray walks on for one candidate at most.
+        let mut found = 0;
+        if held.holds(k) {
+            // SAFETY: the CPU has AVX2, checked just above.
+            found = unsafe { held.occluded() };
+            if found >> k & 1 != 0 {
+                return found;
+            }
         }
-        // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { held.occluded() };
+        if held.hold(voxel, iso, ray, recip, (tmin, tmax), k) {
+            // SAFETY: as above.
+            found |= unsafe { held.occluded() };
+        }
+        return found;
     }
     let _ = (held, recip);
     Mask::from(voxel_occludes(voxel, iso, ray, tmin, tmax)) << k

@@ -38,6 +38,8 @@ pub struct HeldSegments {
     tol: Lane,
     /// Each candidate's ray.
     rays: [usize; LANES],
+    /// The rays of the candidates held, a bit each.
+    held_rays: Mask,
     len: usize,
 }
 
@@ -76,8 +78,15 @@ impl HeldSegments {
         }
         self.tol.0[i] = setup.tol;
         self.rays[i] = k;
+        self.held_rays |= 1 << k;
         self.len += 1;
         self.len == LANES
+    }
+
+    /// True when a candidate of ray `k` is held.
+    #[inline]
+    pub fn holds(&self, k: usize) -> bool {
+        self.held_rays >> k & 1 != 0
     }
 
     /// The rays of the candidates held that [`super::voxel_occludes`] finds occluded; none is
@@ -88,40 +97,41 @@ impl HeldSegments {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     pub unsafe fn occluded(&mut self) -> Mask {
-        use super::x4::{in_box, LaneExtent, Span};
+        use super::x4::{along_segment, clear_of_zero, widened, Segments};
         use std::arch::x86_64::*;
         let n = std::mem::take(&mut self.len);
         if n == 0 {
             return 0;
         }
+        self.held_rays = 0;
         // SAFETY: a `Lane` is four `f64`s aligned to 32 bytes.
         let load = |x: &Lane| unsafe { _mm256_load_pd(x.0.as_ptr()) };
-        let span = Span {
-            tmin: load(&self.tmin),
-            tmax: load(&self.tmax),
-            t0: load(&self.t0),
-            t1: load(&self.t1),
-        };
-        let (mut rel, mut d, mut w) = (
-            [_mm256_setzero_pd(); 3],
-            [_mm256_setzero_pd(); 3],
-            [_mm256_setzero_pd(); 3],
+        // `Segment::in_box` lane by lane; the lanes past `n` hold stale values, and no lane's
+        // answer depends on another's.
+        let (ta, tb) = widened(
+            load(&self.tmin),
+            load(&self.tmax),
+            load(&self.t0),
+            load(&self.t1),
         );
+        let (mut p0, mut q) = ([_mm256_setzero_pd(); 3], [_mm256_setzero_pd(); 3]);
         for a in 0..3 {
-            rel[a] = load(&self.rel[a]);
-            d[a] = load(&self.d[a]);
-            w[a] = load(&self.w[a]);
+            let (rel, d, w) = (load(&self.rel[a]), load(&self.d[a]), load(&self.w[a]));
+            let local = |t: __m256d| _mm256_div_pd(_mm256_add_pd(rel, _mm256_mul_pd(t, d)), w);
+            p0[a] = local(ta);
+            q[a] = _mm256_sub_pd(local(tb), p0[a]);
         }
-        let mut c = [_mm256_setzero_pd(); 8];
-        for j in 0..8 {
-            c[j] = load(&self.c[j]);
+        let mut corners = [_mm256_setzero_pd(); 8];
+        for (v, x) in corners.iter_mut().zip(&self.c) {
+            *v = load(x);
         }
-        let extent = LaneExtent::Divide(w);
-        // The lanes past `n` hold stale values: no lane's answer depends on another's.
-        let held = (1 << n) - 1;
-        let Some(segs) = in_box(&span, held, rel, d, &extent, &c, load(&self.tol)) else {
+        let c = along_segment(&corners, p0, q);
+        let tol = load(&self.tol);
+        let pass = ((1 << n) - 1) & !clear_of_zero(&c, tol);
+        if pass == 0 {
             return 0;
-        };
+        }
+        let segs = Segments::new(pass, (ta, tb), (p0, q), c, tol);
         (0..n)
             .filter(|&i| segs.has_root(i))
             .fold(0, |out, i| out | 1 << self.rays[i])

@@ -159,6 +159,32 @@ pub(super) struct Segments {
 }
 
 impl Segments {
+    /// The segments of the lanes `pass`, from ray parameter `ta` to `tb`, starting at voxel-local
+    /// `p0` and extending `q`, their cubics `c` and their tolerances `tol`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) fn new(
+        pass: i32,
+        (ta, tb): (__m256d, __m256d),
+        (p0, q): ([__m256d; 3], [__m256d; 3]),
+        c: [__m256d; 4],
+        tol: __m256d,
+    ) -> Segments {
+        let (monotonic, f0, f1) = first_step(&c);
+        Segments {
+            pass,
+            ta: PerLane::of(ta),
+            tb: PerLane::of(tb),
+            p0: p0.map(|v| PerLane::of(v)),
+            q: q.map(|v| PerLane::of(v)),
+            c: c.map(|v| PerLane::of(v)),
+            tol: PerLane::of(tol),
+            monotonic,
+            f0: PerLane::of(f0),
+            f1: PerLane::of(f1),
+        }
+    }
+
     /// The lanes whose root [`Cubic::first_root_on_unit`] refines from the whole of `[0, 1]`
     /// (a segment whose cubic is monotonic there, changes sign, and is not within the
     /// tolerance of zero at 0), and those roots, refined four lanes at a time
@@ -304,84 +330,61 @@ impl Lanes {
         if clipped == 0 {
             return None;
         }
-        let rel = [0, 1, 2].map(|a| _mm256_sub_pd(self.o[a], lo[a]));
-        let extent = match extent.recip {
-            Some(r) => LaneExtent::Recip(r.map(|r| _mm256_set1_pd(r))),
-            None => LaneExtent::Divide(extent.w.map(|w| _mm256_set1_pd(w))),
-        };
-        let span = Span {
-            tmin: self.tmin,
-            tmax: self.tmax,
-            t0,
-            t1,
-        };
-        let c = setup.c.map(|c| _mm256_set1_pd(c));
-        in_box(
-            &span,
-            clipped,
-            rel,
-            self.d,
-            &extent,
-            &c,
-            _mm256_set1_pd(setup.tol),
-        )
+        let (ta, tb) = widened(self.tmin, self.tmax, t0, t1);
+        let mut p0 = [_mm256_setzero_pd(); 3];
+        let mut q = [_mm256_setzero_pd(); 3];
+        for a in 0..3 {
+            let w = _mm256_set1_pd(extent.w[a]);
+            let rel = _mm256_sub_pd(self.o[a], lo[a]);
+            let local = |t: __m256d| {
+                let x = _mm256_add_pd(rel, _mm256_mul_pd(t, self.d[a]));
+                match extent.recip {
+                    Some(r) => _mm256_mul_pd(x, _mm256_set1_pd(r[a])),
+                    None => _mm256_div_pd(x, w),
+                }
+            };
+            p0[a] = local(ta);
+            q[a] = _mm256_sub_pd(local(tb), p0[a]);
+        }
+        let mut corners = [_mm256_setzero_pd(); 8];
+        for (v, &x) in corners.iter_mut().zip(&setup.c) {
+            *v = _mm256_set1_pd(x);
+        }
+        let c = along_segment(&corners, p0, q);
+        let tol = _mm256_set1_pd(setup.tol);
+        let pass = clipped & !clear_of_zero(&c, tol);
+        if pass == 0 {
+            return None;
+        }
+        Some(Segments::new(pass, (ta, tb), (p0, q), c, tol))
     }
 }
 
-/// Per lane, a ray's interval `[tmin, tmax]` and the part `[t0, t1]` of it in its voxel's box.
-#[derive(Clone, Copy)]
-pub(super) struct Span {
-    pub(super) tmin: __m256d,
-    pub(super) tmax: __m256d,
-    pub(super) t0: __m256d,
-    pub(super) t1: __m256d,
-}
-
-/// How the lanes' local coordinates are scaled to their voxels: by the extents' exact
-/// reciprocals, or by division by the extents (bit for bit the same).
-pub(super) enum LaneExtent {
-    Recip([__m256d; 3]),
-    Divide([__m256d; 3]),
-}
-
-/// The segments of the lanes `clipped` ([`Segment::in_box`] lane by lane, and the Bernstein
-/// hull test that ends [`Segment::new`]), given each lane's `span`, its ray's origin less its
-/// voxel's lower corner `rel` and direction `d`, its voxel's extent, its corner values less the
-/// isovalue `c` and its tolerance `tol`; `None` when no lane has one.
+/// The ends `(ta, tb)` of the lanes' segments widened from their intervals `[t0, t1]` in their
+/// voxels' boxes, within their rays' `[tmin, tmax]` (as [`Segment::in_box`] widens them).
 #[target_feature(enable = "avx2")]
 #[inline]
-pub(super) fn in_box(
-    span: &Span,
-    clipped: i32,
-    rel: [__m256d; 3],
-    d: [__m256d; 3],
-    extent: &LaneExtent,
-    c: &[__m256d; 8],
-    tol: __m256d,
-) -> Option<Segments> {
-    let Span { tmin, tmax, t0, t1 } = *span;
-    // The widened segment (`Segment::in_box`).
+pub(super) fn widened(
+    tmin: __m256d,
+    tmax: __m256d,
+    t0: __m256d,
+    t1: __m256d,
+) -> (__m256d, __m256d) {
     let widen = _mm256_add_pd(
         _mm256_mul_pd(_mm256_set1_pd(SEGMENT_WIDEN), _mm256_sub_pd(t1, t0)),
         _mm256_mul_pd(_mm256_set1_pd(8.0 * f64::EPSILON), larger(abs(t0), abs(t1))),
     );
-    let ta = larger(tmin, _mm256_sub_pd(t0, widen));
-    let tb = smaller(tmax, _mm256_add_pd(t1, widen));
-    let mut p0 = [_mm256_setzero_pd(); 3];
-    let mut q = [_mm256_setzero_pd(); 3];
-    for a in 0..3 {
-        let local = |t: __m256d| {
-            let x = _mm256_add_pd(rel[a], _mm256_mul_pd(t, d[a]));
-            match extent {
-                LaneExtent::Recip(r) => _mm256_mul_pd(x, r[a]),
-                LaneExtent::Divide(w) => _mm256_div_pd(x, w[a]),
-            }
-        };
-        p0[a] = local(ta);
-        q[a] = _mm256_sub_pd(local(tb), p0[a]);
-    }
-    let c = along_segment(c, p0, q);
-    // The Bernstein hull (`Cubic::clear_of_zero_on_unit`).
+    (
+        larger(tmin, _mm256_sub_pd(t0, widen)),
+        smaller(tmax, _mm256_add_pd(t1, widen)),
+    )
+}
+
+/// The lanes whose cubic `c` the Bernstein hull keeps clear of zero on `[0, 1]` with tolerance
+/// `tol` (`Cubic::clear_of_zero_on_unit`), a bit per lane.
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn clear_of_zero(c: &[__m256d; 4], tol: __m256d) -> i32 {
     let third = _mm256_set1_pd(1.0 / 3.0);
     let b = [
         c[0],
@@ -404,23 +407,7 @@ pub(super) fn in_box(
         above_all = _mm256_and_pd(above_all, _mm256_cmp_pd::<_CMP_GT_OQ>(x, margin));
         below_all = _mm256_and_pd(below_all, _mm256_cmp_pd::<_CMP_LT_OQ>(x, below));
     }
-    let pass = clipped & !_mm256_movemask_pd(_mm256_or_pd(above_all, below_all));
-    if pass == 0 {
-        return None;
-    }
-    let (monotonic, f0, f1) = first_step(&c);
-    Some(Segments {
-        pass,
-        ta: PerLane::of(ta),
-        tb: PerLane::of(tb),
-        p0: p0.map(|v| PerLane::of(v)),
-        q: q.map(|v| PerLane::of(v)),
-        c: c.map(|v| PerLane::of(v)),
-        tol: PerLane::of(tol),
-        monotonic,
-        f0: PerLane::of(f0),
-        f1: PerLane::of(f1),
-    })
+    _mm256_movemask_pd(_mm256_or_pd(above_all, below_all))
 }
 
 /// The first step of [`Cubic::first_root`] on `[0, 1]` lane by lane, with the scalar code's
@@ -458,10 +445,11 @@ fn first_step(c: &[__m256d; 4]) -> (i32, __m256d, __m256d) {
     (monotonic, eval(zero), eval(one))
 }
 
-/// [`super::along_segment`] lane by lane: the cubic's coefficients, constant term first.
+/// [`super::along_segment`] lane by lane, each lane with its own corner values `c`: the cubic's
+/// coefficients, constant term first.
 #[target_feature(enable = "avx2")]
 #[inline]
-fn along_segment(c: &[__m256d; 8], p0: [__m256d; 3], q: [__m256d; 3]) -> [__m256d; 4] {
+pub(super) fn along_segment(c: &[__m256d; 8], p0: [__m256d; 3], q: [__m256d; 3]) -> [__m256d; 4] {
     use std::arch::x86_64::{_mm256_add_pd as add, _mm256_mul_pd as mul, _mm256_sub_pd as sub};
     let (ux0, ux1) = (p0[0], q[0]);
     let edge = |i: usize| {

@@ -28,8 +28,8 @@ use crate::reconstruct::level_gradient::LevelBlocks;
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
 use crate::trace::octant::{
-    held_occluders, intersect_voxel, intersect_voxel_clipped, intersect_voxel_packet,
-    voxel_occluders_packet, voxel_occludes, voxel_occludes_held, HeldSegments, VoxelHit,
+    intersect_voxel, intersect_voxel_clipped, intersect_voxel_packet, voxel_occluders_packet,
+    voxel_occludes, VoxelHit,
 };
 use crate::trace::ray::GridRay;
 use crate::trace::source::{BoxedLookup, GridFrame, Voxel, VoxelLookup, VoxelSource};
@@ -607,31 +607,5 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
             }),
             _ => voxel_occluders_packet(voxel, iso, rays, recips, m, tmin, tmax),
         }
-    }
-
-    #[inline]
-    fn occludes_single(
-        &self,
-        held: &mut HeldSegments,
-        voxel: &Voxel,
-        iso: f32,
-        rays: &[GridRay],
-        recips: &[[f64; 3]],
-        (tmin, tmax): (&[f64], &[f64]),
-        k: usize,
-    ) -> Mask {
-        let (ray, interval) = (&rays[k], (tmin[k], tmax[k]));
-        match self.voxels {
-            Voxels::Nearest(_) => {
-                let hit = intersect_face(voxel, iso, ray, interval.0, interval.1).is_some();
-                Mask::from(hit) << k
-            }
-            _ => voxel_occludes_held(held, voxel, iso, ray, &recips[k], interval, k),
-        }
-    }
-
-    #[inline]
-    fn held_occluders(&self, held: &mut HeldSegments) -> Mask {
-        held_occluders(held)
     }
 }

@@ -11,11 +11,8 @@ use crate::trace::cubic::Cubic;
 use crate::trace::ray::{larger, smaller, GridRay};
 use crate::trace::source::Voxel;
 
-mod held;
 #[cfg(target_arch = "x86_64")]
 mod x4;
-
-pub use held::HeldSegments;
 
 /// Relative widening of each segment at both ends, so that a ray passing exactly through a shared
 /// face, edge or corner is covered by the voxels on both sides despite round-off.
@@ -102,56 +99,6 @@ pub fn voxel_occluders_packet(
             .and_then(|t| Segment::in_box(voxel, &setup, &rays[k], (tmin, tmax), t))
             .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
     })
-}
-
-/// [`voxel_occludes`] of ray `k` of a packet (`ray`, with its reciprocal direction `recip`,
-/// over `[tmin, tmax]`) in `voxel`, a candidate no other ray of the packet reached: with AVX2 it
-/// is held in `held` and tested with three more such candidates of other rays. The rays of `held`'s
-/// candidates found occluded now (none while the lanes fill).
-#[allow(clippy::too_many_arguments)]
-#[inline]
-pub fn voxel_occludes_held(
-    held: &mut HeldSegments,
-    voxel: &Voxel,
-    iso: f32,
-    ray: &GridRay,
-    recip: &[f64; 3],
-    (tmin, tmax): (f64, f64),
-    k: usize,
-) -> Mask {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // A ray's candidates are held one at a time: a ray met again is first given its
-        // answer, so that an occluded ray walks on for one candidate at most.
-        let mut found = 0;
-        if held.holds(k) {
-            // SAFETY: the CPU has AVX2, checked just above.
-            found = unsafe { held.occluded() };
-            if found >> k & 1 != 0 {
-                return found;
-            }
-        }
-        if held.hold(voxel, iso, ray, recip, (tmin, tmax), k) {
-            // SAFETY: as above.
-            found |= unsafe { held.occluded() };
-        }
-        return found;
-    }
-    let _ = (held, recip);
-    Mask::from(voxel_occludes(voxel, iso, ray, tmin, tmax)) << k
-}
-
-/// The rays of the candidates still held in `held` ([`voxel_occludes_held`]) found occluded;
-/// none is held after.
-#[inline]
-pub fn held_occluders(held: &mut HeldSegments) -> Mask {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { held.occluded() };
-    }
-    let _ = held;
-    0
 }
 
 /// A ray's segment inside a voxel, widened, as the cubic of the interpolant minus the isovalue

@@ -3,7 +3,7 @@
 use crate::bvh::packet::{rays_where, Mask};
 use crate::bvh::BoxRun;
 use crate::reconstruct::Grid;
-use crate::trace::octant::{intersect_voxel, HeldSegments, VoxelHit};
+use crate::trace::octant::{intersect_voxel, VoxelHit};
 use crate::trace::ray::GridRay;
 use crate::trace::tracer::central_difference;
 pub use crate::voxel::Voxel;
@@ -217,34 +217,5 @@ pub trait VoxelSource: Sync {
     ) -> Mask {
         let _ = recips;
         rays_where(m, |k| self.occludes(voxel, iso, &rays[k], tmin[k], tmax[k]))
-    }
-
-    /// [`Self::occludes`] of ray `k` of a packet's `rays` (with its reciprocal direction,
-    /// [`GridRay::recip`], and its own `tmin` and `tmax`) in `voxel`, a candidate no other ray
-    /// of the packet reached: sources may hold it in `held` to test it with later such
-    /// candidates ([`Self::held_occluders`] tests the rest). The rays of the candidates held
-    /// found occluded now, this one's included when it was tested.
-    #[allow(clippy::too_many_arguments)]
-    #[inline]
-    fn occludes_single(
-        &self,
-        held: &mut HeldSegments,
-        voxel: &Voxel,
-        iso: f32,
-        rays: &[GridRay],
-        recips: &[[f64; 3]],
-        (tmin, tmax): (&[f64], &[f64]),
-        k: usize,
-    ) -> Mask {
-        let _ = (held, recips);
-        Mask::from(self.occludes(voxel, iso, &rays[k], tmin[k], tmax[k])) << k
-    }
-
-    /// The rays of the candidates [`Self::occludes_single`] still holds in `held` found
-    /// occluded; none is held after.
-    #[inline]
-    fn held_occluders(&self, held: &mut HeldSegments) -> Mask {
-        let _ = held;
-        0
     }
 }

@@ -8,7 +8,7 @@ use crate::bvh::packet::{rays_of, Mask, PACKET};
 use crate::bvh::{BoxGrid, BoxRun, BvhBuilder, OctantBvh};
 use crate::camera::dot;
 use crate::trace::last_hit::{self, Query};
-use crate::trace::octant::{HeldSegments, VoxelHit};
+use crate::trace::octant::VoxelHit;
 use crate::trace::ray::{bvh_rays, GridRay};
 use crate::trace::source::{GridFrame, Voxel, VoxelSource};
 use crate::trace::tracer::Behind;
@@ -423,8 +423,7 @@ impl Surface {
             ray32,
             ..
         } = rays;
-        let (grid, tmin, tmax, recips) = (*grid, *tmin, &tmax[..n], &recips[..n]);
-        let mut held = HeldSegments::default();
+        let (grid, tmin, tmax) = (*grid, *tmin, &tmax[..n]);
         src.with_voxels(&mut |voxel_of| {
             self.bvh
                 .traverse_packet_any(&mut ray32[..n], live, |_, r, m, ray32| {
@@ -434,27 +433,21 @@ impl Surface {
                     }
                     let voxel = voxel_of(r);
                     let found = if m & (m - 1) == 0 {
-                        // One ray: no set-up to share, but its test may be held back and made
-                        // with other such candidates.
+                        // One ray: its own test (no set-up to share).
                         let k = m.trailing_zeros() as usize;
-                        src.occludes_single(
-                            &mut held,
-                            &voxel,
-                            self.iso,
-                            grid,
-                            recips,
-                            (tmin, tmax),
-                            k,
-                        )
+                        if src.occludes(&voxel, self.iso, &grid[k], tmin[k], tmax[k]) {
+                            m
+                        } else {
+                            0
+                        }
                     } else {
-                        src.occluders_packet(&voxel, self.iso, grid, recips, m, tmin, tmax)
+                        src.occluders_packet(&voxel, self.iso, grid, &recips[..n], m, tmin, tmax)
                     };
                     hit |= found;
                     for k in rays_of(found) {
                         ray32[k].tmax = f32::NEG_INFINITY;
                     }
-                });
-            hit |= src.held_occluders(&mut held);
+                })
         });
         for k in rays_of(hit) {
             rays.ray32[k].tmax = rays.tmax32[k];

@@ -142,15 +142,14 @@ struct Lanes {
 }
 
 /// The four rays' segments in one voxel, lane by lane: `pass` has bit `i` when ray `i` has one.
-pub(super) struct Segments {
+struct Segments {
     pass: i32,
     ta: PerLane,
     tb: PerLane,
     p0: [PerLane; 3],
     q: [PerLane; 3],
     c: [PerLane; 4],
-    /// Each lane's tolerance ([`VoxelSetup`]).
-    tol: PerLane,
+    tol: f64,
     /// The lanes whose cubic is monotonic on `[0, 1]` (`Cubic::monotonic_on`), and each
     /// cubic's values at 0 and 1 (`Cubic::eval`): the first step of [`Cubic::first_root`].
     monotonic: i32,
@@ -159,32 +158,6 @@ pub(super) struct Segments {
 }
 
 impl Segments {
-    /// The segments of the lanes `pass`, from ray parameter `ta` to `tb`, starting at voxel-local
-    /// `p0` and extending `q`, their cubics `c` and their tolerances `tol`.
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    pub(super) fn new(
-        pass: i32,
-        (ta, tb): (__m256d, __m256d),
-        (p0, q): ([__m256d; 3], [__m256d; 3]),
-        c: [__m256d; 4],
-        tol: __m256d,
-    ) -> Segments {
-        let (monotonic, f0, f1) = first_step(&c);
-        Segments {
-            pass,
-            ta: PerLane::of(ta),
-            tb: PerLane::of(tb),
-            p0: p0.map(|v| PerLane::of(v)),
-            q: q.map(|v| PerLane::of(v)),
-            c: c.map(|v| PerLane::of(v)),
-            tol: PerLane::of(tol),
-            monotonic,
-            f0: PerLane::of(f0),
-            f1: PerLane::of(f1),
-        }
-    }
-
     /// The lanes whose root [`Cubic::first_root_on_unit`] refines from the whole of `[0, 1]`
     /// (a segment whose cubic is monotonic there, changes sign, and is not within the
     /// tolerance of zero at 0), and those roots, refined four lanes at a time
@@ -195,7 +168,7 @@ impl Segments {
         let (f0, f1) = (self.f0.0, self.f1.0);
         let mut lanes = 0;
         for i in 0..4 {
-            if f0[i].abs() > self.tol.0[i] && (f0[i] < 0.0) != (f1[i] < 0.0) {
+            if f0[i].abs() > self.tol && (f0[i] < 0.0) != (f1[i] < 0.0) {
                 lanes |= 1 << i;
             }
         }
@@ -229,7 +202,7 @@ impl Segments {
                 c: [0, 1, 2, 3].map(|j| self.c[j].0[i]),
             };
             let monotonic = self.monotonic >> i & 1 != 0;
-            cubic.first_root_on_unit(monotonic, self.f0.0[i], self.f1.0[i], self.tol.0[i])?
+            cubic.first_root_on_unit(monotonic, self.f0.0[i], self.f1.0[i], self.tol)?
         };
         Some(Segment::hit_at(
             s,
@@ -244,7 +217,7 @@ impl Segments {
     /// Whether lane `i` has a segment whose cubic has a root ([`Cubic::has_root`], the any-hit
     /// test of [`super::voxel_occludes`]).
     #[inline(always)]
-    pub(super) fn has_root(&self, i: usize) -> bool {
+    fn has_root(&self, i: usize) -> bool {
         self.pass >> i & 1 != 0
             && Cubic {
                 c: [0, 1, 2, 3].map(|j| self.c[j].0[i]),
@@ -253,7 +226,7 @@ impl Segments {
                 self.monotonic >> i & 1 != 0,
                 self.f0.0[i],
                 self.f1.0[i],
-                self.tol.0[i],
+                self.tol,
             )
     }
 }
@@ -330,7 +303,13 @@ impl Lanes {
         if clipped == 0 {
             return None;
         }
-        let (ta, tb) = widened(self.tmin, self.tmax, t0, t1);
+        // The widened segment (`Segment::in_box`).
+        let widen = _mm256_add_pd(
+            _mm256_mul_pd(_mm256_set1_pd(SEGMENT_WIDEN), _mm256_sub_pd(t1, t0)),
+            _mm256_mul_pd(_mm256_set1_pd(8.0 * f64::EPSILON), larger(abs(t0), abs(t1))),
+        );
+        let ta = larger(self.tmin, _mm256_sub_pd(t0, widen));
+        let tb = smaller(self.tmax, _mm256_add_pd(t1, widen));
         let mut p0 = [_mm256_setzero_pd(); 3];
         let mut q = [_mm256_setzero_pd(); 3];
         for a in 0..3 {
@@ -346,68 +325,50 @@ impl Lanes {
             p0[a] = local(ta);
             q[a] = _mm256_sub_pd(local(tb), p0[a]);
         }
-        let mut corners = [_mm256_setzero_pd(); 8];
-        for (v, &x) in corners.iter_mut().zip(&setup.c) {
-            *v = _mm256_set1_pd(x);
+        let c = along_segment(&setup.c, p0, q);
+        // The Bernstein hull (`Cubic::clear_of_zero_on_unit`).
+        let third = _mm256_set1_pd(1.0 / 3.0);
+        let b = [
+            c[0],
+            _mm256_add_pd(c[0], _mm256_mul_pd(c[1], third)),
+            _mm256_add_pd(
+                _mm256_add_pd(c[0], _mm256_mul_pd(_mm256_set1_pd(2.0 / 3.0), c[1])),
+                _mm256_mul_pd(c[2], third),
+            ),
+            _mm256_add_pd(_mm256_add_pd(_mm256_add_pd(c[0], c[1]), c[2]), c[3]),
+        ];
+        let sum = _mm256_add_pd(
+            _mm256_add_pd(_mm256_add_pd(abs(c[0]), abs(c[1])), abs(c[2])),
+            abs(c[3]),
+        );
+        let margin = _mm256_add_pd(
+            _mm256_set1_pd(setup.tol),
+            _mm256_mul_pd(_mm256_set1_pd(64.0 * f64::EPSILON), sum),
+        );
+        let below = _mm256_xor_pd(margin, _mm256_set1_pd(-0.0));
+        let (mut above_all, mut below_all) = (inside, inside);
+        for x in b {
+            above_all = _mm256_and_pd(above_all, _mm256_cmp_pd::<_CMP_GT_OQ>(x, margin));
+            below_all = _mm256_and_pd(below_all, _mm256_cmp_pd::<_CMP_LT_OQ>(x, below));
         }
-        let c = along_segment(&corners, p0, q);
-        let tol = _mm256_set1_pd(setup.tol);
-        let pass = clipped & !clear_of_zero(&c, tol);
+        let pass = clipped & !_mm256_movemask_pd(_mm256_or_pd(above_all, below_all));
         if pass == 0 {
             return None;
         }
-        Some(Segments::new(pass, (ta, tb), (p0, q), c, tol))
+        let (monotonic, f0, f1) = first_step(&c);
+        Some(Segments {
+            pass,
+            ta: PerLane::of(ta),
+            tb: PerLane::of(tb),
+            p0: p0.map(|v| PerLane::of(v)),
+            q: q.map(|v| PerLane::of(v)),
+            c: c.map(|v| PerLane::of(v)),
+            tol: setup.tol,
+            monotonic,
+            f0: PerLane::of(f0),
+            f1: PerLane::of(f1),
+        })
     }
-}
-
-/// The ends `(ta, tb)` of the lanes' segments widened from their intervals `[t0, t1]` in their
-/// voxels' boxes, within their rays' `[tmin, tmax]` (as [`Segment::in_box`] widens them).
-#[target_feature(enable = "avx2")]
-#[inline]
-pub(super) fn widened(
-    tmin: __m256d,
-    tmax: __m256d,
-    t0: __m256d,
-    t1: __m256d,
-) -> (__m256d, __m256d) {
-    let widen = _mm256_add_pd(
-        _mm256_mul_pd(_mm256_set1_pd(SEGMENT_WIDEN), _mm256_sub_pd(t1, t0)),
-        _mm256_mul_pd(_mm256_set1_pd(8.0 * f64::EPSILON), larger(abs(t0), abs(t1))),
-    );
-    (
-        larger(tmin, _mm256_sub_pd(t0, widen)),
-        smaller(tmax, _mm256_add_pd(t1, widen)),
-    )
-}
-
-/// The lanes whose cubic `c` the Bernstein hull keeps clear of zero on `[0, 1]` with tolerance
-/// `tol` (`Cubic::clear_of_zero_on_unit`), a bit per lane.
-#[target_feature(enable = "avx2")]
-#[inline]
-pub(super) fn clear_of_zero(c: &[__m256d; 4], tol: __m256d) -> i32 {
-    let third = _mm256_set1_pd(1.0 / 3.0);
-    let b = [
-        c[0],
-        _mm256_add_pd(c[0], _mm256_mul_pd(c[1], third)),
-        _mm256_add_pd(
-            _mm256_add_pd(c[0], _mm256_mul_pd(_mm256_set1_pd(2.0 / 3.0), c[1])),
-            _mm256_mul_pd(c[2], third),
-        ),
-        _mm256_add_pd(_mm256_add_pd(_mm256_add_pd(c[0], c[1]), c[2]), c[3]),
-    ];
-    let sum = _mm256_add_pd(
-        _mm256_add_pd(_mm256_add_pd(abs(c[0]), abs(c[1])), abs(c[2])),
-        abs(c[3]),
-    );
-    let margin = _mm256_add_pd(tol, _mm256_mul_pd(_mm256_set1_pd(64.0 * f64::EPSILON), sum));
-    let below = _mm256_xor_pd(margin, _mm256_set1_pd(-0.0));
-    let all = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
-    let (mut above_all, mut below_all) = (all, all);
-    for x in b {
-        above_all = _mm256_and_pd(above_all, _mm256_cmp_pd::<_CMP_GT_OQ>(x, margin));
-        below_all = _mm256_and_pd(below_all, _mm256_cmp_pd::<_CMP_LT_OQ>(x, below));
-    }
-    _mm256_movemask_pd(_mm256_or_pd(above_all, below_all))
 }
 
 /// The first step of [`Cubic::first_root`] on `[0, 1]` lane by lane, with the scalar code's
@@ -445,16 +406,16 @@ fn first_step(c: &[__m256d; 4]) -> (i32, __m256d, __m256d) {
     (monotonic, eval(zero), eval(one))
 }
 
-/// [`super::along_segment`] lane by lane, each lane with its own corner values `c`: the cubic's
-/// coefficients, constant term first.
+/// [`super::along_segment`] lane by lane: the cubic's coefficients, constant term first.
 #[target_feature(enable = "avx2")]
 #[inline]
-pub(super) fn along_segment(c: &[__m256d; 8], p0: [__m256d; 3], q: [__m256d; 3]) -> [__m256d; 4] {
+fn along_segment(c: &[f64; 8], p0: [__m256d; 3], q: [__m256d; 3]) -> [__m256d; 4] {
     use std::arch::x86_64::{_mm256_add_pd as add, _mm256_mul_pd as mul, _mm256_sub_pd as sub};
     let (ux0, ux1) = (p0[0], q[0]);
     let edge = |i: usize| {
-        let d = sub(c[i + 1], c[i]);
-        (add(c[i], mul(d, ux0)), mul(d, ux1))
+        let d = c[i + 1] - c[i];
+        let dv = _mm256_set1_pd(d);
+        (add(_mm256_set1_pd(c[i]), mul(dv, ux0)), mul(dv, ux1))
     };
     let (e00, e10, e01, e11) = (edge(0), edge(2), edge(4), edge(6));
     let (t0, t1) = (p0[1], q[1]);

@@ -214,6 +214,22 @@ pub trait VoxelSource: Sync {
         self.intersect(voxel, iso, ray, tmin, tmax).is_some()
     }
 
+    /// [`Self::occludes`] given `recip`, the ray's reciprocal direction ([`GridRay::recip`]), for
+    /// a ray that keeps it for all its candidates: sources may skip computing it.
+    #[inline]
+    fn occludes_with(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        recip: &[f64; 3],
+        tmin: f64,
+        tmax: f64,
+    ) -> bool {
+        let _ = recip;
+        self.occludes(voxel, iso, ray, tmin, tmax)
+    }
+
     /// [`Self::occludes`] for the rays `m` of a packet (each with its reciprocal direction,
     /// [`GridRay::recip`], and its own `tmin` and `tmax`) that reach `voxel`: the rays of `m` for
     /// which it is true. Sources may share the voxel's own work between the rays.

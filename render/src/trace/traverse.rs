@@ -435,7 +435,8 @@ impl Surface {
                     let found = if m & (m - 1) == 0 {
                         // One ray: its own test (no set-up to share).
                         let k = m.trailing_zeros() as usize;
-                        if src.occludes(&voxel, self.iso, &grid[k], tmin[k], tmax[k]) {
+                        let (ray, recip) = (&grid[k], &recips[k]);
+                        if src.occludes_with(&voxel, self.iso, ray, recip, tmin[k], tmax[k]) {
                             m
                         } else {
                             0

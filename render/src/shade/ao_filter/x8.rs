@@ -23,11 +23,11 @@ pub(super) fn filter_group(
     pixel_angle: f32,
     out: &mut [f32; GROUP],
 ) {
-    // Every row's columns hold `BEFORE + width + AFTER + GROUP` entries ([`Slots::of`]): from
+    // Every row's columns hold `BEFORE + width + AFTER + GROUP` entries ([`Slots::empty`]): from
     // `x0 + BEFORE + dx` with `-BEFORE <= dx <= AFTER`, `GROUP` entries are inside.
     assert!(x0 < rows.width as usize);
     let at = x0 + BEFORE as usize;
-    let c = &rows.slots_of(y)[h];
+    let c = rows.slots_of(y)[h];
     // SAFETY: `at` and the offsets below stay inside every row's columns (above).
     let load = |v: &Vec<f32>, i: usize| unsafe { _mm256_loadu_ps(v.as_ptr().add(i)) };
     let load_u32 = |v: &Vec<u32>, i: usize| unsafe { _mm256_loadu_si256(v.as_ptr().add(i).cast()) };

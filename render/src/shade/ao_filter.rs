@@ -230,12 +230,13 @@ impl<'a> AoRows<'a> {
         let last_row = self.rows.len() as u32 - 1;
         for qy in y.saturating_sub(BEFORE)..=(y + AFTER).min(last_row) {
             let dy = qy.abs_diff(y);
+            let row = self.slots_of(qy);
             for (dx, steps) in window_columns(dy) {
                 let tolerance = footprint * steps;
                 // Slot `x + BEFORE` is pixel `x`'s: the window's columns are all inside.
                 let i = (x + BEFORE) as usize;
                 let i = i.wrapping_add_signed(dx);
-                for q in self.slots_of(qy) {
+                for q in row {
                     let n = [q.n[0][i], q.n[1][i], q.n[2][i]];
                     let p = [q.p[0][i], q.p[1][i], q.p[2][i]];
                     if q.surface[i] == layer.surface

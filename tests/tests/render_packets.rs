@@ -378,7 +378,9 @@ fn packet_layers_match(
     label: &str,
 ) -> Vec<Vec<Layer>> {
     tile.trace(tracer, light, rays, hint);
-    let firsts: Vec<Vec<_>> = (0..rays.len()).map(|k| tile.hits_of(k).to_vec()).collect();
+    let firsts: Vec<Vec<_>> = (0..rays.len())
+        .map(|k| tile.hits_of(k).copied().collect())
+        .collect();
     layers.trace(tracer, light, rays, tile);
     rays.iter()
         .enumerate()

@@ -119,7 +119,11 @@ pub struct AoRows<'a> {
     rows: &'a [AoRow],
     /// The rows whose slots are kept: those of the band and its window's margins.
     kept: Range<u32>,
-    slots: Vec<[Slots; FILTERED_HITS]>,
+    /// Per kept row, each hit's slots; `None` where no pixel of the row has that hit, read as
+    /// `empty`.
+    slots: Vec<[Option<Slots>; FILTERED_HITS]>,
+    /// The slots of a row without the hit: what [`Slots::of`] would make for it.
+    empty: Slots,
 }
 
 impl<'a> AoRows<'a> {
@@ -143,13 +147,15 @@ impl<'a> AoRows<'a> {
             rows,
             kept,
             slots,
+            empty: Slots::empty(width as usize),
         }
     }
 
     /// Row `y`'s slots (a row of the band or its margins).
-    fn slots_of(&self, y: u32) -> &[Slots; FILTERED_HITS] {
+    fn slots_of(&self, y: u32) -> [&Slots; FILTERED_HITS] {
         assert!(self.kept.contains(&y));
-        &self.slots[(y - self.kept.start) as usize]
+        let slots = &self.slots[(y - self.kept.start) as usize];
+        std::array::from_fn(|h| slots[h].as_ref().unwrap_or(&self.empty))
     }
 
     /// Replaces the occlusion of every hit of row `y` (of the band) by the filtered one in the
@@ -224,12 +230,13 @@ impl<'a> AoRows<'a> {
         let last_row = self.rows.len() as u32 - 1;
         for qy in y.saturating_sub(BEFORE)..=(y + AFTER).min(last_row) {
             let dy = qy.abs_diff(y);
+            let row = self.slots_of(qy);
             for (dx, steps) in window_columns(dy) {
                 let tolerance = footprint * steps;
                 // Slot `x + BEFORE` is pixel `x`'s: the window's columns are all inside.
                 let i = (x + BEFORE) as usize;
                 let i = i.wrapping_add_signed(dx);
-                for q in self.slots_of(qy) {
+                for q in row {
                     let n = [q.n[0][i], q.n[1][i], q.n[2][i]];
                     let p = [q.p[0][i], q.p[1][i], q.p[2][i]];
                     if q.surface[i] == layer.surface
@@ -286,15 +293,14 @@ impl Slots {
     /// The surface of an entry without a hit.
     const NONE: u32 = u32::MAX;
 
-    fn of(row: &AoRow, h: usize) -> Slots {
+    /// Hit `h` of each pixel of `row`; `None` when no pixel has one (the row's slots are then
+    /// [`Slots::empty`]'s).
+    fn of(row: &AoRow, h: usize) -> Option<Slots> {
         let pixels = row.start.len() - 1;
-        let len = BEFORE as usize + pixels + AFTER as usize + GROUP;
-        let mut s = Slots {
-            surface: vec![Self::NONE; len],
-            p: std::array::from_fn(|_| vec![0.0; len]),
-            n: std::array::from_fn(|_| vec![0.0; len]),
-            ao: vec![0.0; len],
-        };
+        if !row.start.windows(2).any(|w| (w[1] - w[0]) as usize > h) {
+            return None;
+        }
+        let mut s = Slots::empty(pixels);
         for x in 0..pixels {
             if let Some(l) = row.pixel(x as u32).get(h) {
                 let i = x + BEFORE as usize;
@@ -306,7 +312,18 @@ impl Slots {
                 s.ao[i] = l.ao;
             }
         }
-        s
+        Some(s)
+    }
+
+    /// The slots of a row of `pixels` pixels none of which has the hit.
+    fn empty(pixels: usize) -> Slots {
+        let len = BEFORE as usize + pixels + AFTER as usize + GROUP;
+        Slots {
+            surface: vec![Self::NONE; len],
+            p: std::array::from_fn(|_| vec![0.0; len]),
+            n: std::array::from_fn(|_| vec![0.0; len]),
+            ao: vec![0.0; len],
+        }
     }
 
     /// True when a pixel of the group from `x0` has a hit here.

@@ -4,7 +4,7 @@
 
 use crate::bvh::packet::{rays_of, Mask, PACKET};
 use crate::shade::integrate::{grid_len, Lighting};
-use crate::shade::packets::TileHits;
+use crate::shade::packets::{RayHits, TileHits};
 use crate::trace::ray::GridRay;
 use crate::trace::tracer::{Behind, SurfaceHit, Tracer};
 
@@ -55,22 +55,22 @@ impl LayerSearch {
     fn take(
         &mut self,
         light: &Lighting,
-        next: &mut [Option<SurfaceHit>],
+        next: &mut RayHits<'_>,
         out: &mut Vec<Layer>,
     ) -> Option<(usize, Option<f64>)> {
         if self.taken >= MAX_LAYERS {
             return None;
         }
         let mut nearest: Option<(usize, f64)> = None;
-        for (i, h) in next.iter().enumerate() {
-            if let Some(h) = h {
+        for i in 0..next.len() {
+            if let Some(h) = next.get(i) {
                 if nearest.is_none_or(|(_, t)| h.t.total_cmp(&t).is_lt()) {
                     nearest = Some((i, h.t));
                 }
             }
         }
         let (i, _) = nearest?;
-        let hit = next[i].take()?;
+        let hit = next.get_mut(i).take()?;
         out.push(Layer {
             surface: i,
             hit,
@@ -83,10 +83,9 @@ impl LayerSearch {
         // A crossing behind a pending opaque hit of another surface is never composited: the
         // search for this surface's next one stops there.
         let tmax = goes_on.then(|| {
-            next.iter()
-                .enumerate()
-                .filter(|&(k, h)| k != i && h.is_some() && light.opacity[k] >= 1.0)
-                .filter_map(|(_, h)| h.map(|h| h.t))
+            (0..next.len())
+                .filter(|&k| k != i && next.get(k).is_some() && light.opacity[k] >= 1.0)
+                .filter_map(|k| next.get(k).map(|h| h.t))
                 .fold(f64::INFINITY, f64::min)
         });
         Some((i, tmax))
@@ -135,10 +134,11 @@ pub fn ray_layers<T: Tracer + ?Sized>(
     out: &mut Vec<Layer>,
 ) {
     let mut search = LayerSearch::default();
-    while let Some((i, tmax)) = search.take(light, next, out) {
+    let mut next = RayHits::of(next);
+    while let Some((i, tmax)) = search.take(light, &mut next, out) {
         let Some(tmax) = tmax else { break };
         let hit = out.last().expect("a layer was taken").hit;
-        next[i] = next_crossing(tracer, i, ray, &hit, tmax);
+        *next.get_mut(i) = next_crossing(tracer, i, ray, &hit, tmax);
     }
 }
 
@@ -204,7 +204,7 @@ impl TileLayers {
             // One opaque surface: each ray's one layer is its hit, if any (what
             // `LayerSearch::take` gives, without its search over surfaces).
             for (k, layers) in self.layers[..m].iter_mut().enumerate() {
-                if let Some(hit) = hits.ray_hits(k)[0].take() {
+                if let Some(hit) = hits.ray_hits(k).get_mut(0).take() {
                     layers.push(Layer {
                         surface: 0,
                         hit,
@@ -220,7 +220,7 @@ impl TileLayers {
             // Behind an opaque hit nothing is composited: each ray's one layer is its nearest
             // first hit, and no continuation is searched.
             for (k, (search, layers)) in search.iter_mut().zip(&mut self.layers[..m]).enumerate() {
-                let _ = search.take(light, hits.ray_hits(k), layers);
+                let _ = search.take(light, &mut hits.ray_hits(k), layers);
             }
             return;
         }
@@ -230,7 +230,8 @@ impl TileLayers {
         while live != 0 {
             for k in rays_of(live) {
                 let layers = &mut self.layers[k];
-                let Some((i, Some(tmax))) = search[k].take(light, hits.ray_hits(k), layers) else {
+                let Some((i, Some(tmax))) = search[k].take(light, &mut hits.ray_hits(k), layers)
+                else {
                     live &= !(1 << k);
                     continue;
                 };
@@ -273,7 +274,7 @@ impl TileLayers {
             &mut self.found[..c],
         );
         for (j, k) in rays_of(pending).enumerate() {
-            hits.ray_hits(k)[i] = self.found[j];
+            *hits.ray_hits(k).get_mut(i) = self.found[j];
         }
     }
 

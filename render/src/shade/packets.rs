@@ -13,10 +13,9 @@ pub const TILE_RAYS: usize = PACKET;
 /// ray's nearest opaque hit, as [`crate::shade::integrate::shade_ray`] searches them.
 pub struct TileHits {
     surfaces: usize,
-    /// Ray `k`'s hit with surface `i` at `k * surfaces + i`.
+    /// Ray `k`'s hit with surface `i` at `i * TILE_RAYS + k`: each surface's hits of the tile
+    /// together, where the tracer writes them.
     hits: Vec<Option<SurfaceHit>>,
-    /// One surface's hits of the tile, as the tracer gives them.
-    found: [Option<SurfaceHit>; TILE_RAYS],
     /// Each ray's nearest opaque hit so far.
     opaque_near: [f64; TILE_RAYS],
 }
@@ -27,7 +26,6 @@ impl TileHits {
         Self {
             surfaces,
             hits: vec![None; surfaces * TILE_RAYS],
-            found: [None; TILE_RAYS],
             opaque_near: [f64::INFINITY; TILE_RAYS],
         }
     }
@@ -63,12 +61,11 @@ impl TileHits {
             return any;
         }
         for i in search_order(light, n, hint.nearest_opaque) {
-            let found = &mut self.found[..m];
+            let found = &mut self.hits[i * TILE_RAYS..][..m];
             tracer.next_hits(i, rays, &self.opaque_near[..m], found);
             let opaque = light.opacity[i] >= 1.0;
             for (k, h) in found.iter().enumerate() {
                 any |= h.is_some();
-                self.hits[k * n + i] = *h;
                 if let (true, Some(h)) = (opaque, h) {
                     if h.t < self.opaque_near[k] {
                         self.opaque_near[k] = h.t;
@@ -88,16 +85,70 @@ impl TileHits {
         any
     }
 
+    /// Ray `k`'s first hit with surface `i`.
+    pub fn hit(&self, k: usize, i: usize) -> &Option<SurfaceHit> {
+        &self.hits[i * TILE_RAYS + k]
+    }
+
     /// Ray `k`'s first hit with each surface.
-    pub fn hits_of(&self, k: usize) -> &[Option<SurfaceHit>] {
-        let n = self.surfaces;
-        &self.hits[k * n..(k + 1) * n]
+    pub fn hits_of(&self, k: usize) -> impl Iterator<Item = &Option<SurfaceHit>> {
+        (0..self.surfaces).map(move |i| self.hit(k, i))
     }
 
     /// Ray `k`'s first hit with each surface, to shade ([`crate::shade::integrate::shade_hits`]
     /// uses it up).
-    pub fn ray_hits(&mut self, k: usize) -> &mut [Option<SurfaceHit>] {
-        let n = self.surfaces;
-        &mut self.hits[k * n..(k + 1) * n]
+    pub fn ray_hits(&mut self, k: usize) -> RayHits<'_> {
+        RayHits {
+            hits: &mut self.hits,
+            first: k,
+            stride: TILE_RAYS,
+            surfaces: self.surfaces,
+        }
+    }
+}
+
+/// One ray's next hit with each surface, wherever they are stored: `surfaces` entries `stride`
+/// apart from `first` in `hits`.
+pub struct RayHits<'a> {
+    hits: &'a mut [Option<SurfaceHit>],
+    first: usize,
+    stride: usize,
+    surfaces: usize,
+}
+
+impl<'a> RayHits<'a> {
+    /// The hits of a ray held one per surface in `hits`.
+    pub fn of(hits: &'a mut [Option<SurfaceHit>]) -> Self {
+        let surfaces = hits.len();
+        RayHits {
+            hits,
+            first: 0,
+            stride: 1,
+            surfaces,
+        }
+    }
+
+    /// The number of surfaces.
+    pub fn len(&self) -> usize {
+        self.surfaces
+    }
+
+    /// True when there is no surface.
+    pub fn is_empty(&self) -> bool {
+        self.surfaces == 0
+    }
+
+    /// The next hit with surface `i`.
+    #[inline(always)]
+    pub fn get(&self, i: usize) -> &Option<SurfaceHit> {
+        debug_assert!(i < self.surfaces);
+        &self.hits[self.first + i * self.stride]
+    }
+
+    /// The next hit with surface `i`, to change.
+    #[inline(always)]
+    pub fn get_mut(&mut self, i: usize) -> &mut Option<SurfaceHit> {
+        debug_assert!(i < self.surfaces);
+        &mut self.hits[self.first + i * self.stride]
     }
 }

@@ -455,7 +455,7 @@ fn shade_alone<T: Tracer + ?Sized>(
     let mut unused_rng = Rng::for_pixel(0, 0, 0);
     for (r, row) in rows.iter_mut().enumerate() {
         for k in r * tw..(r + 1) * tw {
-            let sample = match &tile.hits_of(k)[0] {
+            let sample = match tile.hit(k, 0) {
                 Some(hit) => {
                     let (ray, hit) = ((origin, dirs[k]), (0, hit));
                     shade_hit_alone(tracer, frame, light, ray, hit, &mut unused_rng)

@@ -128,7 +128,8 @@ pub fn cosine_hemisphere(n: [f64; 3], u1: f64, u2: f64) -> [f64; 3] {
     };
     let t = crate::camera::normalize(crate::camera::cross(a, n)).unwrap_or([0.0, 0.0, 1.0]);
     let b = crate::camera::cross(n, t);
-    [0, 1, 2].map(|i| x * t[i] + y * b[i] + z * n[i])
+    let along = |i: usize| x * t[i] + y * b[i] + z * n[i];
+    [along(0), along(1), along(2)]
 }
 
 #[cfg(test)]

@@ -23,11 +23,11 @@ pub(super) fn filter_group(
     pixel_angle: f32,
     out: &mut [f32; GROUP],
 ) {
-    // Every row's columns hold `BEFORE + width + AFTER + GROUP` entries ([`Slots::of`]): from
+    // Every row's columns hold `BEFORE + width + AFTER + GROUP` entries ([`Slots::empty`]): from
     // `x0 + BEFORE + dx` with `-BEFORE <= dx <= AFTER`, `GROUP` entries are inside.
     assert!(x0 < rows.width as usize);
     let at = x0 + BEFORE as usize;
-    let c = &rows.slots_of(y)[h];
+    let c = rows.slots_of(y)[h];
     // SAFETY: `at` and the offsets below stay inside every row's columns (above).
     let load = |v: &Vec<f32>, i: usize| unsafe { _mm256_loadu_ps(v.as_ptr().add(i)) };
     let load_u32 = |v: &Vec<u32>, i: usize| unsafe { _mm256_loadu_si256(v.as_ptr().add(i).cast()) };
@@ -52,10 +52,11 @@ pub(super) fn filter_group(
     let last_row = rows.rows.len() as u32 - 1;
     for qy in y.saturating_sub(BEFORE)..=(y + AFTER).min(last_row) {
         let dy = qy.abs_diff(y);
+        let row = rows.slots_of(qy);
         for (dx, steps) in window_columns(dy) {
             let tolerance = _mm256_mul_ps(footprint, _mm256_set1_ps(steps));
             let i = at.wrapping_add_signed(dx);
-            for q in rows.slots_of(qy) {
+            for q in row {
                 let same =
                     _mm256_castsi256_ps(_mm256_cmpeq_epi32(load_u32(&q.surface, i), surface));
                 let n = [0, 1, 2].map(|a| load(&q.n[a], i));

@@ -23,7 +23,8 @@ use crate::reconstruct::Sampler;
 /// Per-thread scratch: the codes of the last plain neighbourhood.
 #[derive(Default)]
 pub struct PlainCodes {
-    /// The cells coded: a level box, x fastest.
+    /// The cells coded: a level box, x fastest (the box asked for less its lowest layer on
+    /// each axis, see [`PlainCodes::code`]).
     pub cells: IBox,
     codes: Vec<u8>,
     touching: Vec<u32>,
@@ -32,10 +33,15 @@ pub struct PlainCodes {
 }
 
 impl PlainCodes {
-    /// Codes the level-`level` cells of box `g` for `iso` when every one is a leaf cell of
-    /// `level` inside the domain, as [`Neighbourhood::classify`] of the same box would; false,
-    /// with the codes meaning nothing, when some cell is not (coarser, refined, outside the
-    /// domain or uncovered).
+    /// Codes the level-`level` cells of box `g` above its lowest layer on each axis (the box
+    /// [`Self::cells`]) for `iso` when every cell of `g` is a leaf cell of `level` inside the
+    /// domain, as [`Neighbourhood::classify`] of the same cells would; false, with the codes
+    /// meaning nothing, when some cell of `g` is not (coarser, refined, outside the domain or
+    /// uncovered).
+    ///
+    /// `g` is a leaf's (or part's) cells grown by one: when all are leaf cells, every voxel the
+    /// leaf owns is a merged dual cell whose lowest cell is one of the leaf's, so the cells
+    /// below the leaf are checked but never read, and their codes are not written.
     ///
     /// [`Neighbourhood::classify`]: super::local::Neighbourhood::classify
     pub fn code<D: AsRef<[u8]>>(
@@ -60,14 +66,16 @@ impl PlainCodes {
         if !self.touching.iter().all(same_level) {
             return Ok(false);
         }
-        let n = g.num_cells().unwrap_or(0) as usize;
-        self.cells = g;
+        let n = g.num_cells().unwrap_or(0);
+        let coded = IBox::new(g.lo.map(|x| x + 1), g.hi);
+        self.cells = coded;
         // The leaves' level boxes inside `g` cover it when they hold its cells between them
         // without overlapping: each aligned to level cells (disjoint finest boxes, so disjoint
         // blocks) and inside its brick.
-        // Not cleared first: when the blocks below cover `g` (they are disjoint), every code is
-        // written, and otherwise the codes mean nothing.
-        self.codes.resize(n, 0);
+        // Not cleared first: when the blocks below cover `g` (they are disjoint), their parts
+        // inside `coded` write every code, and otherwise the codes mean nothing.
+        self.codes
+            .resize(coded.num_cells().unwrap_or(0) as usize, 0);
         let at_level = |f: &IBox| level_box(grid, level, f);
         let mut covered = 0u64;
         self.blocks.clear();
@@ -89,7 +97,8 @@ impl PlainCodes {
                 return Ok(false);
             };
             covered = covered.saturating_add(cells);
-            if cells == 0 {
+            let block = block.intersect(&coded);
+            if block.is_empty() {
                 continue;
             }
             if let Some(values) = sampler.values_in_place(brick) {
@@ -97,14 +106,14 @@ impl PlainCodes {
             }
             self.blocks.push((brick, block));
         }
-        if covered != n as u64 {
+        if covered != n {
             return Ok(false);
         }
         for &(brick, block) in &self.blocks {
             let slab = sampler.values(brick)?;
             let values: &[f32] = &slab;
             let bc = sampler.brick_cells(brick);
-            let (be, ge, ce) = (block.extent(), g.extent(), bc.extent());
+            let (be, ge, ce) = (block.extent(), coded.extent(), bc.extent());
             let rows = Rows {
                 w: be[0] as usize,
                 ny: be[1] as usize,
@@ -114,7 +123,7 @@ impl PlainCodes {
                 sy: ce[0] as usize,
                 sz: (ce[0] * ce[1]) as usize,
             };
-            let (d0, s0) = (g.linear_index(block.lo), bc.linear_index(block.lo));
+            let (d0, s0) = (coded.linear_index(block.lo), bc.linear_index(block.lo));
             let (Some(to), Some(from)) = (self.codes.get_mut(d0..), values.get(s0..)) else {
                 return Ok(false);
             };

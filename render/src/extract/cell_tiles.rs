@@ -37,7 +37,7 @@ const MAX_MEAN_CELLS: u64 = 32;
 /// Tiles kept per worker thread, at most (about 6 KB each). Few enough that the tiles reuse
 /// their memory: every page first touched costs a fault that, on the small boxes tiles are for,
 /// outweighs refilling a tile pushed out (`docs/benchmarks-extract.md`, "Tile slots", `tiny11`).
-const SLOTS: usize = 256;
+const SLOTS: usize = 128;
 /// Tiles of a set: a tile may be kept in any of them.
 const WAYS: usize = 8;
 

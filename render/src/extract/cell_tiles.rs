@@ -10,10 +10,12 @@
 //! tiles, each of the about 100 leaves around a small leaf's neighbourhood was visited again by
 //! every neighbourhood holding part of it, and each coarse cell settled again in each.
 //!
-//! The threads share the tiles, in a direct-mapped table of [`SLOTS`] tiles per worker thread,
-//! each behind its own lock: a tile is filled once whichever thread asks first (the threads
-//! work on leaves far apart, so a lock is seldom contended), and the memory is bounded; a tile
-//! pushed out is filled again when asked, with the same cells.
+//! The threads share the tiles, [`SLOTS`] per worker thread in sets of [`WAYS`], each set
+//! behind its own lock: a tile is filled once whichever thread asks first (the threads work on
+//! leaves far apart, so a lock is seldom contended), and the memory is bounded. A set pushes
+//! out its least recently used tile, which is filled again when asked, with the same cells;
+//! the leaves come in kd-tree order, so the tiles in use are few and near each other, and a few
+//! hundred tiles kept by use miss about as seldom as thousands placed by a hash alone.
 
 use std::sync::{Mutex, OnceLock};
 
@@ -32,15 +34,19 @@ const TILE_SHIFT: u32 = 3;
 pub const TILE: i64 = 1 << TILE_SHIFT;
 /// File cells per leaf, on average, at most, for the tiles to be used.
 const MAX_MEAN_CELLS: u64 = 32;
-/// Tiles kept per worker thread, at most (about 7 KB each). Few enough that the tiles reuse
+/// Tiles kept per worker thread, at most (about 6 KB each). Few enough that the tiles reuse
 /// their memory: every page first touched costs a fault that, on the small boxes tiles are for,
-/// outweighs refilling a tile pushed out (`docs/benchmarks-extract.md`, "Tile slots").
-const SLOTS: usize = 1024;
+/// outweighs refilling a cheap tile pushed out; enough that the tiles of coarse levels, whose
+/// fills gather many finer leaves, are seldom pushed out by the finer ones passing
+/// (`docs/benchmarks-extract.md`, "Tile slots" and `tiny11`).
+const SLOTS: usize = 256;
+/// Tiles of a set: a tile may be kept in any of them.
+const WAYS: usize = 8;
 
 /// The tiles of every level of one field.
 pub struct CellTiles {
-    /// The tiles, [`SLOTS`] per worker thread, made on first use.
-    slots: OnceLock<Box<[Mutex<Neighbourhood>]>>,
+    /// The sets of tiles, [`SLOTS`] `/` [`WAYS`] per worker thread, made on first use.
+    sets: OnceLock<Box<[Mutex<TileSet>]>>,
     /// Per thread, the leaves met by the tile it is filling: one list for all its fills.
     touching: Vec<Mutex<Vec<Met>>>,
 }
@@ -48,7 +54,7 @@ pub struct CellTiles {
 impl Default for CellTiles {
     fn default() -> Self {
         Self {
-            slots: OnceLock::new(),
+            sets: OnceLock::new(),
             touching: (0..rayon::current_num_threads() + 1)
                 .map(|_| Mutex::default())
                 .collect(),
@@ -120,8 +126,8 @@ impl CellTiles {
         let mut touching = self.touching[i.min(n - 1)]
             .lock()
             .unwrap_or_else(|e| e.into_inner());
-        let slots = self.slots.get_or_init(|| {
-            (0..SLOTS * (n - 1).max(1))
+        let sets = self.sets.get_or_init(|| {
+            (0..(SLOTS / WAYS) * (n - 1).max(1))
                 .map(|_| Mutex::default())
                 .collect()
         });
@@ -134,16 +140,23 @@ impl CellTiles {
                 for tx in tiles.lo[0]..tiles.hi[0] {
                     let t = [tx, ty, tz];
                     let cells = IBox::new(t.map(|v| v * TILE), t.map(|v| (v + 1) * TILE));
-                    let mut tile = slots[slot_of(level, t, slots.len())]
+                    let key = TileKey::new(level, t);
+                    let mut set = sets[key.set(sets.len())]
                         .lock()
                         .unwrap_or_else(|e| e.into_inner());
-                    if !tile.holds(level, &cells) {
-                        let sources = (sources.0, sources.1 .1);
-                        tile.fill_region_using(sources, level, cells, &mut touching)?;
-                    }
+                    let tile = match set.find(&key) {
+                        Some(tile) => tile,
+                        None => {
+                            let tile = set.evict();
+                            let sources = (sources.0, sources.1 .1);
+                            tile.fill_region_using(sources, level, cells, &mut touching)?;
+                            set.keep(key)
+                        }
+                    };
+                    debug_assert!(tile.holds(level, &cells), "a tile kept under another key");
                     let part = g.intersect(&cells);
-                    settle_in(sources, &mut tile, (&mut *memo, &mut *near), &part)?;
-                    f(&tile, &part);
+                    settle_in(sources, tile, (&mut *memo, &mut *near), &part)?;
+                    f(tile, &part);
                 }
             }
         }
@@ -154,11 +167,111 @@ impl CellTiles {
 /// The memos settling reads through.
 pub type Memos<'a> = (&'a mut VertexMemo, &'a mut AroundMemo);
 
-/// The slot of tile `t` of level `level` among `slots`.
-fn slot_of(level: u32, t: [i64; 3], slots: usize) -> usize {
-    let h = (t[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        ^ (t[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
-        ^ (t[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
-        ^ u64::from(level).wrapping_mul(0x27D4_EB2F_1656_67C5);
-    (h >> 40) as usize % slots
+/// The level of a tile and its place among the tiles of that level (its lowest cell over
+/// [`TILE`]), with a hash of them.
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct TileKey {
+    /// A hash of the level and place, never 0.
+    hash: u64,
+    level: u32,
+    t: [i64; 3],
+}
+
+impl TileKey {
+    fn new(level: u32, t: [i64; 3]) -> Self {
+        let h = (t[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ (t[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+            ^ (t[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
+            ^ u64::from(level).wrapping_mul(0x27D4_EB2F_1656_67C5);
+        Self {
+            hash: h | 1,
+            level,
+            t,
+        }
+    }
+
+    /// The set of this tile among `sets`.
+    #[inline]
+    fn set(&self, sets: usize) -> usize {
+        (self.hash >> 40) as usize % sets
+    }
+}
+
+/// The tiles of one set: [`WAYS`] tiles, the key of each and when it was last asked for.
+#[derive(Default)]
+struct TileSet {
+    tiles: [Neighbourhood; WAYS],
+    /// The hash of each tile's key, 0 while it holds no complete fill: compared first.
+    hashes: [u64; WAYS],
+    /// The key of each tile (meaningful where its hash is not 0).
+    keys: [Option<TileKey>; WAYS],
+    /// The value of [`Self::clock`] when each tile was last asked for.
+    used: [u64; WAYS],
+    /// Requests so far.
+    clock: u64,
+    /// The tile [`Self::evict`] chose.
+    victim: usize,
+}
+
+impl TileSet {
+    /// The tile kept under `key`, marked as the most recently used.
+    #[inline]
+    fn find(&mut self, key: &TileKey) -> Option<&mut Neighbourhood> {
+        let w = (0..WAYS)
+            .find(|&w| self.hashes[w] == key.hash && self.keys[w].as_ref() == Some(key))?;
+        self.clock += 1;
+        self.used[w] = self.clock;
+        Some(&mut self.tiles[w])
+    }
+
+    /// The least recently used tile (an unused one first), its key forgotten until
+    /// [`Self::keep`], so that a fill that fails leaves no tile under a key.
+    fn evict(&mut self) -> &mut Neighbourhood {
+        let w = (0..WAYS).min_by_key(|&w| self.used[w]).unwrap_or(0);
+        self.hashes[w] = 0;
+        self.keys[w] = None;
+        self.victim = w;
+        &mut self.tiles[w]
+    }
+
+    /// Keeps the tile [`Self::evict`] chose, now filled, under `key`.
+    fn keep(&mut self, key: TileKey) -> &mut Neighbourhood {
+        let w = self.victim;
+        self.hashes[w] = key.hash;
+        self.keys[w] = Some(key);
+        self.clock += 1;
+        self.used[w] = self.clock;
+        &mut self.tiles[w]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A set keeps the tiles asked for last: a full set pushes out the one asked for least
+    /// recently, and a tile whose fill failed is kept under no key.
+    #[test]
+    fn a_set_pushes_out_its_least_recently_used_tile() {
+        let mut set = TileSet::default();
+        let key = |x: i64| TileKey::new(3, [x, 0, 0]);
+        for x in 0..WAYS as i64 {
+            assert!(set.find(&key(x)).is_none());
+            set.evict();
+            set.keep(key(x));
+        }
+        // Tile 0 asked for again: tile 1 is now the least recently used.
+        assert!(set.find(&key(0)).is_some());
+        set.evict();
+        set.keep(key(100));
+        assert!(set.find(&key(1)).is_none());
+        for x in [0, 2, 100] {
+            assert!(set.find(&key(x)).is_some(), "tile {x}");
+        }
+        // An eviction not followed by a kept fill leaves its tile under no key.
+        set.evict();
+        assert_eq!(set.keys.iter().filter(|k| k.is_some()).count(), WAYS - 1);
+        // The same place on another level is another tile.
+        assert!(set.find(&TileKey::new(2, [0, 0, 0])).is_none());
+    }
 }

@@ -953,11 +953,21 @@ fn append(
     totals: &mut LeafCounts,
     duals: &mut u64,
 ) -> Result<()> {
+    let incoming: usize = parts.iter().flatten().map(|(part, _)| part.len()).sum();
+    if refs.capacity() != 0 {
+        refs.reserve(incoming);
+    }
     for part in parts {
         let (part, n) = part?;
-        refs.extend_from_slice(&part);
         *duals += part.iter().filter(|&&r| r as u32 >= DUAL_BASE).count() as u64;
         totals.add(&n);
+        // The first run's vector is taken whole: copying it would touch as many fresh pages.
+        if refs.capacity() == 0 {
+            *refs = part;
+            refs.reserve(incoming - refs.len());
+        } else {
+            refs.extend_from_slice(&part);
+        }
     }
     Ok(())
 }

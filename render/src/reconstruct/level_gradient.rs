@@ -563,10 +563,14 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         let brick_cells = self.brick_cells(brick);
         let whole = if leaf_box.contains_box(&finest) {
             // The cells of `level` lying whole in the leaf, within the brick.
-            let (s, o) = (grid.scale(level), grid.offset());
+            let (s, o, shift) = (grid.scale(level), grid.offset(), grid.shift(level));
+            let floor_div = |x: i64, a: usize| match shift {
+                Some(sh) => x >> sh[a],
+                None => x.div_euclid(s[a]),
+            };
             IBox::new(
-                axes(|a| (leaf_box.lo[a] + o[a] + s[a] - 1).div_euclid(s[a])),
-                axes(|a| (leaf_box.hi[a] + o[a]).div_euclid(s[a])),
+                axes(|a| floor_div(leaf_box.lo[a] + o[a] + s[a] - 1, a)),
+                axes(|a| floor_div(leaf_box.hi[a] + o[a], a)),
             )
             .intersect(&brick_cells)
         } else if self.leaf_cell_of_level(&finest, level) {

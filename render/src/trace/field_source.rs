@@ -29,7 +29,7 @@ use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
 use crate::trace::octant::{
     intersect_voxel, intersect_voxel_clipped, intersect_voxel_packet, voxel_occluders_packet,
-    voxel_occludes, voxel_occludes_with, VoxelHit,
+    voxel_occludes_with, VoxelHit,
 };
 use crate::trace::ray::GridRay;
 use crate::trace::source::{BoxedLookup, GridFrame, Voxel, VoxelLookup, VoxelSource};
@@ -633,10 +633,7 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
 
     #[inline]
     fn occludes(&self, voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
-        match self.voxels {
-            Voxels::Nearest(_) => intersect_face(voxel, iso, ray, tmin, tmax).is_some(),
-            _ => voxel_occludes(voxel, iso, ray, tmin, tmax),
-        }
+        self.occludes_with(voxel, iso, ray, &ray.recip(), tmin, tmax)
     }
 
     #[inline]

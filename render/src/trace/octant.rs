@@ -68,8 +68,7 @@ pub fn intersect_voxel_clipped(
 /// where the hit is.
 #[inline]
 pub fn voxel_occludes(voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
-    Segment::new(voxel, iso, ray, tmin, tmax)
-        .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
+    voxel_occludes_with(voxel, iso, ray, &ray.recip(), tmin, tmax)
 }
 
 /// [`voxel_occludes`] given `recip`, the ray's reciprocal direction ([`GridRay::recip`]), for a

@@ -632,12 +632,7 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
     }
 
     #[inline]
-    fn occludes(&self, voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
-        self.occludes_with(voxel, iso, ray, &ray.recip(), tmin, tmax)
-    }
-
-    #[inline]
-    fn occludes_with(
+    fn occludes(
         &self,
         voxel: &Voxel,
         iso: f32,

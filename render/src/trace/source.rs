@@ -208,16 +208,10 @@ pub trait VoxelSource: Sync {
     }
 
     /// True when [`Self::intersect`] would find a hit: the any-hit test of shadow and occlusion
-    /// rays. Sources may answer without computing where the hit is.
+    /// rays, given `recip`, the ray's reciprocal direction ([`GridRay::recip`]), which a ray
+    /// keeps for all its candidates. Sources may answer without computing where the hit is.
     #[inline]
-    fn occludes(&self, voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
-        self.intersect(voxel, iso, ray, tmin, tmax).is_some()
-    }
-
-    /// [`Self::occludes`] given `recip`, the ray's reciprocal direction ([`GridRay::recip`]), for
-    /// a ray that keeps it for all its candidates: sources may skip computing it.
-    #[inline]
-    fn occludes_with(
+    fn occludes(
         &self,
         voxel: &Voxel,
         iso: f32,
@@ -227,7 +221,7 @@ pub trait VoxelSource: Sync {
         tmax: f64,
     ) -> bool {
         let _ = recip;
-        self.occludes(voxel, iso, ray, tmin, tmax)
+        self.intersect(voxel, iso, ray, tmin, tmax).is_some()
     }
 
     /// [`Self::occludes`] for the rays `m` of a packet (each with its reciprocal direction,
@@ -244,7 +238,8 @@ pub trait VoxelSource: Sync {
         tmin: &[f64],
         tmax: &[f64],
     ) -> Mask {
-        let _ = recips;
-        rays_where(m, |k| self.occludes(voxel, iso, &rays[k], tmin[k], tmax[k]))
+        rays_where(m, |k| {
+            self.occludes(voxel, iso, &rays[k], &recips[k], tmin[k], tmax[k])
+        })
     }
 }

@@ -370,9 +370,10 @@ impl Surface {
         // The traversal macro's `break` leaves only the current leaf's loop, so a hit must also
         // stay set and empty the ray's interval, or later candidates would overwrite it.
         let mut hit = false;
+        let recip = ray.recip();
         src.with_voxels(&mut |voxel_of| {
             self.bvh.traverse(b.ray, |r, tmax32| {
-                if !hit && src.occludes(&voxel_of(r), self.iso, ray, tmin, tmax) {
+                if !hit && src.occludes(&voxel_of(r), self.iso, ray, &recip, tmin, tmax) {
                     hit = true;
                     *tmax32 = f32::NEG_INFINITY;
                 }
@@ -436,7 +437,7 @@ impl Surface {
                         // One ray: its own test (no set-up to share).
                         let k = m.trailing_zeros() as usize;
                         let (ray, recip) = (&grid[k], &recips[k]);
-                        if src.occludes_with(&voxel, self.iso, ray, recip, tmin[k], tmax[k]) {
+                        if src.occludes(&voxel, self.iso, ray, recip, tmin[k], tmax[k]) {
                             m
                         } else {
                             0

@@ -34,12 +34,14 @@ use rayon::prelude::*;
 mod lattice;
 mod node_test;
 pub mod packet;
+mod packet_any;
 mod walk;
 pub mod wide;
 
 pub use lattice::CellLattice;
 pub use node_test::T_MIN;
 use packet::{walk_packet, Mask, PacketStack};
+use packet_any::walk_packet_any;
 use walk::{walk, Stack};
 use wide::{centre_codes, morton, WideBuilder};
 
@@ -675,19 +677,19 @@ impl OctantBvh {
 
     /// The any-hit walk of the rays of `active` among `rays` (at most [`packet::PACKET`]) in
     /// one walk whatever their direction octants: `visit(i, refs()[i], m, rays)` is called with
-    /// the rays `m` that reach the ref (it may end rays by lowering their `tmax`). Each ray
-    /// reaches exactly the refs [`OctantBvh::traverse_indexed`] would give it alone under the
-    /// same `tmax` (at a node, the rays of each octant take [`OctantBvh::traverse_packet`]'s
-    /// test of that octant), but the children are taken in the order of one octant for all: for
-    /// queries whose answer does not depend on the order (any-hit), the rays of all the octants
-    /// then share the walk's nodes and the visits of the voxels they reach, where
-    /// [`OctantBvh::traverse_packet`] walks each octant from the root. Each ray's `-0.0`
-    /// direction components become `+0.0`.
+    /// the rays `m` that reach the ref and are still live, and returns those of them it ends
+    /// (their walk stops there). Until it is ended, each ray reaches exactly the refs
+    /// [`OctantBvh::traverse_indexed`] would give it alone under the same `tmax` (at a node, the
+    /// rays of each octant take [`OctantBvh::traverse_packet`]'s test of that octant), but the
+    /// children are taken in the order of one octant for all: for queries whose answer does not
+    /// depend on the order (any-hit), the rays of all the octants then share the walk's nodes
+    /// and the visits of the voxels they reach, where [`OctantBvh::traverse_packet`] walks each
+    /// octant from the root. Each ray's `-0.0` direction components become `+0.0`.
     pub fn traverse_packet_any(
         &self,
         rays: &mut [Ray],
         active: Mask,
-        visit: impl FnMut(usize, u64, Mask, &mut [Ray]),
+        visit: impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
     ) {
         #[cfg(target_arch = "x86_64")]
         let avx2 = std::arch::is_x86_feature_detected!("avx2");
@@ -703,7 +705,7 @@ impl OctantBvh {
         rays: &mut [Ray],
         active: Mask,
         avx2: bool,
-        mut visit: impl FnMut(usize, u64, Mask, &mut [Ray]),
+        mut visit: impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
     ) {
         let octants = by_octant(rays, active);
         if active == 0 {
@@ -719,7 +721,7 @@ impl OctantBvh {
                 if octants.contains(&active) {
                     // One octant (shadow rays, all parallel): its test alone, no loop over
                     // the octants at every node.
-                    self.packet_avx2(rays, active, oct, &mut stack, &mut visit);
+                    self.packet_any_one_avx2(rays, active, oct, &mut stack, &mut visit);
                 } else {
                     self.packet_any_avx2(rays, active, &octants, oct, &mut stack, &mut visit);
                 }
@@ -727,7 +729,7 @@ impl OctantBvh {
             return;
         }
         let _ = avx2;
-        self.packet_with(
+        self.packet_any_with(
             rays,
             active,
             oct,
@@ -757,7 +759,7 @@ impl OctantBvh {
         octants: &[Mask; 8],
         oct: u32,
         stack: &mut PacketStack,
-        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]),
+        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
     ) {
         let mut lanes: [packet::Avx2Lanes; 8] =
             [const { [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8] }; 8];
@@ -768,7 +770,7 @@ impl OctantBvh {
                 *test = Some(packet::Avx2Packet::new(lanes, rays, octants[o], oct));
             }
         }
-        self.packet_with(rays, m, oct, stack, visit, |node, rays, m, e| {
+        self.packet_any_with(rays, m, oct, stack, visit, |node, rays, m, e| {
             let mut slots = 0;
             for (test, &of_o) in tests.iter().zip(octants) {
                 if let Some(test) = test.as_ref().filter(|_| m & of_o != 0) {
@@ -777,6 +779,68 @@ impl OctantBvh {
             }
             slots
         });
+    }
+
+    /// [`OctantBvh::traverse_packet_any`] for rays of one octant (`oct`), with that octant's AVX2
+    /// node test, the whole walk compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn packet_any_one_avx2(
+        &self,
+        rays: &mut [Ray],
+        m: Mask,
+        oct: u32,
+        stack: &mut PacketStack,
+        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
+    ) {
+        let mut lanes: packet::Avx2Lanes =
+            [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8];
+        let test = packet::Avx2Packet::new(&mut lanes, rays, m, oct);
+        self.packet_any_with(rays, m, oct, stack, visit, |node, rays, m, e| {
+            test.children(node, rays, m, e)
+        });
+    }
+
+    /// The any-hit walk of the rays `m`, children in the order of octant `oct`: the top level,
+    /// then each chunk it reaches, with the node test `test`.
+    #[inline(always)]
+    fn packet_any_with(
+        &self,
+        rays: &mut [Ray],
+        m: Mask,
+        oct: u32,
+        stack: &mut PacketStack,
+        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
+        test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) -> u32 + Copy,
+    ) {
+        let mut chunk_walk = |chunk: &Chunk, rays: &mut [Ray], m: Mask, stack: &mut PacketStack| {
+            let refs = &self.refs[chunk.first..chunk.first + chunk.len];
+            walk_packet_any(
+                &chunk.bvh.nodes,
+                rays,
+                m,
+                oct,
+                stack,
+                test,
+                |i, m, rays, _| {
+                    let i = i as usize;
+                    visit(chunk.first + i, refs[i], m, rays)
+                },
+            )
+        };
+        if let [chunk] = self.chunks.as_slice() {
+            chunk_walk(chunk, rays, m, stack);
+            return;
+        }
+        walk_packet_any(
+            &self.top.nodes,
+            rays,
+            m,
+            oct,
+            stack,
+            test,
+            |c, m, rays, stack| chunk_walk(&self.chunks[c as usize], rays, m, stack),
+        );
     }
 
     /// [`OctantBvh::traverse_packet`] on a CPU without AVX2, to compare with the AVX2 test.
@@ -1309,6 +1373,7 @@ mod tests {
                         for k in packet::rays_of(m) {
                             got[k].push(r);
                         }
+                        0
                     });
                     got
                 };

@@ -103,7 +103,7 @@ pub fn walk_packet(
 
 /// The slot set `slots` (bit `s` for slot `s`) with each slot `s` moved to `s ^ oct` (`oct < 8`).
 #[inline(always)]
-fn xor_slots(mut slots: u32, oct: u32) -> u32 {
+pub(super) fn xor_slots(mut slots: u32, oct: u32) -> u32 {
     if oct & 1 != 0 {
         slots = (slots & 0x55) << 1 | (slots >> 1) & 0x55;
     }

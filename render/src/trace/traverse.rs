@@ -427,11 +427,7 @@ impl Surface {
         let (grid, tmin, tmax) = (*grid, *tmin, &tmax[..n]);
         src.with_voxels(&mut |voxel_of| {
             self.bvh
-                .traverse_packet_any(&mut ray32[..n], live, |_, r, m, ray32| {
-                    let m = m & !hit;
-                    if m == 0 {
-                        return;
-                    }
+                .traverse_packet_any(&mut ray32[..n], live, |_, r, m, _| {
                     let voxel = voxel_of(r);
                     let found = if m & (m - 1) == 0 {
                         // One ray: its own test (no set-up to share).
@@ -446,14 +442,9 @@ impl Surface {
                         src.occluders_packet(&voxel, self.iso, grid, &recips[..n], m, tmin, tmax)
                     };
                     hit |= found;
-                    for k in rays_of(found) {
-                        ray32[k].tmax = f32::NEG_INFINITY;
-                    }
+                    found
                 })
         });
-        for k in rays_of(hit) {
-            rays.ray32[k].tmax = rays.tmax32[k];
-        }
         hit
     }
 
@@ -478,8 +469,6 @@ pub struct AnyHitRays<'a> {
     tmax: [f64; PACKET],
     recips: [[f64; 3]; PACKET],
     ray32: [Ray; PACKET],
-    /// Each `f32` ray's own `tmax`, restored after a walk that ended it at a hit.
-    tmax32: [f32; PACKET],
     /// The rays asked about that meet the domain.
     live: Mask,
 }
@@ -505,7 +494,6 @@ impl<'a> AnyHitRays<'a> {
             tmax: [tmax; PACKET],
             recips: [[0.0; 3]; PACKET],
             ray32: [unused; PACKET],
-            tmax32: [0.0; PACKET],
             live: 0,
         };
         if active == 0 {
@@ -534,9 +522,6 @@ impl<'a> AnyHitRays<'a> {
                     ready.live |= 1 << k;
                 }
             }
-        }
-        for k in rays_of(ready.live) {
-            ready.tmax32[k] = ready.ray32[k].tmax;
         }
         ready
     }

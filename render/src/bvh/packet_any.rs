@@ -1,0 +1,71 @@
+//! The any-hit walk down one CWBVH8 with a packet of rays: [`super::packet::walk_packet`]'s
+//! walk, in which a ray leaves the walk as soon as a primitive ends it.
+//!
+//! A ray ended by a hit is dropped from every entry popped after it, so the nodes left on the
+//! stack are tested for the rays still live only, an entry none of them entered is popped
+//! without a test, and the walk stops when no ray is live. The rays still live visit exactly
+//! what [`super::packet::walk_packet`] gives them: a ray's entries do not depend on the other
+//! rays of the packet.
+
+use obvhs::cwbvh::node::CwBvhNode;
+use obvhs::ray::Ray;
+
+use super::packet::{xor_slots, Mask, PacketStack};
+use super::walk::{child_entry, leaf_prims};
+
+/// Walks `nodes` (empty, or a CWBVH8 whose root is node 0) with the rays of `active`, children
+/// taken in the order of direction octant code `oct_inv4`: `test(node, rays, m, entered)` is
+/// [`super::packet::walk_packet`]'s node test, and `leaf(i, m, rays, stack)` is called for
+/// every primitive `i` of the leaves hit with the rays `m` that hit it and are still live, and
+/// returns the rays of `m` it ends (none of them visits anything more). Returns the rays of
+/// `active` ended. The entries the walk pushes on `stack` are gone when it returns.
+#[inline(always)]
+pub fn walk_packet_any(
+    nodes: &[CwBvhNode],
+    rays: &mut [Ray],
+    active: Mask,
+    oct_inv4: u32,
+    stack: &mut PacketStack,
+    test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) -> u32,
+    mut leaf: impl FnMut(u32, Mask, &mut [Ray], &mut PacketStack) -> Mask,
+) -> Mask {
+    if nodes.is_empty() || active == 0 {
+        return 0;
+    }
+    let floor = stack.len();
+    let oct = oct_inv4 & 7;
+    let mut live = active;
+    stack.push((0, active));
+    while stack.len() > floor {
+        let Some((entry, m)) = stack.pop() else { break };
+        let m = m & live;
+        if m == 0 {
+            continue;
+        }
+        if let Some(prims) = leaf_prims(entry) {
+            for i in prims.rev() {
+                let m = m & live;
+                if m == 0 {
+                    break;
+                }
+                live &= !leaf(i, m, rays, stack);
+            }
+            if live == 0 {
+                break;
+            }
+            continue;
+        }
+        let node = &nodes[entry as usize];
+        let mut entered = [0; 8];
+        let hit = test(node, rays, m, &mut entered);
+        let imask = u32::from(node.imask);
+        let mut order = xor_slots(hit, oct);
+        while order != 0 {
+            let s = order.trailing_zeros() ^ oct;
+            order &= order - 1;
+            stack.push((child_entry(node, s, imask), entered[s as usize]));
+        }
+    }
+    stack.truncate(floor);
+    active & !live
+}

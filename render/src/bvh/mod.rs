@@ -681,10 +681,11 @@ impl OctantBvh {
     /// (their walk stops there). Until it is ended, each ray reaches exactly the refs
     /// [`OctantBvh::traverse_indexed`] would give it alone under the same `tmax` (at a node, the
     /// rays of each octant take [`OctantBvh::traverse_packet`]'s test of that octant), but the
-    /// children are taken in the order of one octant for all: for queries whose answer does not
-    /// depend on the order (any-hit), the rays of all the octants then share the walk's nodes
-    /// and the visits of the voxels they reach, where [`OctantBvh::traverse_packet`] walks each
-    /// octant from the root. Each ray's `-0.0` direction components become `+0.0`.
+    /// children are taken farthest first in the order of one octant for all
+    /// ([`packet_any`]): for queries whose answer does not depend on the order (any-hit), the
+    /// rays of all the octants then share the walk's nodes and the visits of the voxels they
+    /// reach, where [`OctantBvh::traverse_packet`] walks each octant from the root. Each ray's
+    /// `-0.0` direction components become `+0.0`.
     pub fn traverse_packet_any(
         &self,
         rays: &mut [Ray],

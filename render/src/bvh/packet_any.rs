@@ -3,9 +3,13 @@
 //!
 //! A ray ended by a hit is dropped from every entry popped after it, so the nodes left on the
 //! stack are tested for the rays still live only, an entry none of them entered is popped
-//! without a test, and the walk stops when no ray is live. The rays still live visit exactly
-//! what [`super::packet::walk_packet`] gives them: a ray's entries do not depend on the other
-//! rays of the packet.
+//! without a test, and the walk stops when no ray is live. A node's hit children are taken
+//! farthest first (slot `i ^ oct` for `i` from 0 up) and a leaf's primitives lowest first, the
+//! reverse of the closest-hit walks: an occluder is rarely among the nearest voxels, those of
+//! the surface the rays leave. Until it is ended, a ray visits the primitives
+//! [`super::packet::walk_packet`] gives it, in another order: a ray's entries do not depend on
+//! the other rays of the packet, and with `tmax` never lowered, the order does not change which
+//! primitives a ray reaches.
 
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray;
@@ -14,7 +18,8 @@ use super::packet::{xor_slots, Mask, PacketStack};
 use super::walk::{child_entry, leaf_prims};
 
 /// Walks `nodes` (empty, or a CWBVH8 whose root is node 0) with the rays of `active`, children
-/// taken in the order of direction octant code `oct_inv4`: `test(node, rays, m, entered)` is
+/// taken farthest first in the order of direction octant code `oct_inv4`: `test(node, rays, m,
+/// entered)` is
 /// [`super::packet::walk_packet`]'s node test, and `leaf(i, m, rays, stack)` is called for
 /// every primitive `i` of the leaves hit with the rays `m` that hit it and are still live, and
 /// returns the rays of `m` it ends (none of them visits anything more). Returns the rays of
@@ -33,7 +38,8 @@ pub fn walk_packet_any(
         return 0;
     }
     let floor = stack.len();
-    let oct = oct_inv4 & 7;
+    // Pushed nearest first, so that the farthest is taken first.
+    let far = !oct_inv4 & 7;
     let mut live = active;
     stack.push((0, active));
     while stack.len() > floor {
@@ -43,7 +49,7 @@ pub fn walk_packet_any(
             continue;
         }
         if let Some(prims) = leaf_prims(entry) {
-            for i in prims.rev() {
+            for i in prims {
                 let m = m & live;
                 if m == 0 {
                     break;
@@ -59,9 +65,9 @@ pub fn walk_packet_any(
         let mut entered = [0; 8];
         let hit = test(node, rays, m, &mut entered);
         let imask = u32::from(node.imask);
-        let mut order = xor_slots(hit, oct);
+        let mut order = xor_slots(hit, far);
         while order != 0 {
-            let s = order.trailing_zeros() ^ oct;
+            let s = order.trailing_zeros() ^ far;
             order &= order - 1;
             stack.push((child_entry(node, s, imask), entered[s as usize]));
         }

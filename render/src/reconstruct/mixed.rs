@@ -307,9 +307,18 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             let entry = |i: usize| corner(n) + side_step(i);
             // The corner's eight entries: bits 0, 1, 4, 5, 16, 17, 20 and 21 from `corner(n)`.
             *slot = if coarse >> corner(n) & 0x0033_0033 != 0 {
+                let v = axes(|a| base[a] + (n >> a & 1) as i64 * s[a]);
+                // A stitched corner's value is `vertex_value_in`'s at `v`, remembered with its
+                // values: the fine octants along a level boundary share their stitched corners.
+                if let Some(x) = memo.vertex(v, level) {
+                    match x {
+                        Some(x) => *slot = x,
+                        None => return Ok(None),
+                    }
+                    continue;
+                }
                 let lv: [u32; 8] = std::array::from_fn(|i| levels[entry(i)]);
                 let coarsest = lv.iter().copied().fold(u32::MAX, u32::min);
-                let v = axes(|a| base[a] + (n >> a & 1) as i64 * s[a]);
                 let side = lv.iter().position(|&l| l == coarsest).unwrap_or(0);
                 let e = entry(side);
                 let (x, y, z) = (e & 3, e >> 2 & 3, e >> 4);
@@ -343,12 +352,15 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                         let x = avg8(&std::array::from_fn(|i| values[entry(i)]));
                         if x != 0.0 {
                             stitches.add_vertex(v, q.level, Some(x));
+                            memo.remember_vertex(v, level, Some(x));
                             *slot = x;
                             continue;
                         }
                     }
                 }
-                match self.stitched_value(loc, v, &q, octant, &mut stitches, memo)? {
+                let x = self.stitched_value(loc, v, &q, octant, &mut stitches, memo)?;
+                memo.remember_vertex(v, level, x);
+                match x {
                     Some(x) => x,
                     None => return Ok(None),
                 }

@@ -268,11 +268,16 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             }
             return Ok(Some(out));
         }
-        // The stitch memory, made in place (about 1.3 KB) once some corner is known stitched.
-        let mut stitches = Stitches::new();
-        if let Some((c, b)) = near {
-            stitches.add_leaf(c.leaf, b);
-        }
+        // The stitch memory, made in place (about 1.3 KB) once some stitched corner is not
+        // remembered in `memo`.
+        let mut stitches = None::<Stitches>;
+        let new_stitches = || {
+            let mut known = Stitches::new();
+            if let Some((c, b)) = near {
+                known.add_leaf(c.leaf, b);
+            }
+            known
+        };
         for (n, slot) in out.iter_mut().enumerate() {
             if n == down {
                 // The corner at the cell centre carries the cell's value.
@@ -335,14 +340,19 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                     if (0..3).all(|a| (v[a] == olo[a]) | (v[a] == ohi[a])) {
                         let x = avg8(&std::array::from_fn(|i| values[entry(i)]));
                         if x != 0.0 {
-                            stitches.add_vertex(v, q.level, Some(x));
+                            stitches.get_or_insert_with(new_stitches).add_vertex(
+                                v,
+                                q.level,
+                                Some(x),
+                            );
                             memo.remember_vertex(v, level, Some(x));
                             *slot = x;
                             continue;
                         }
                     }
                 }
-                let x = self.stitched_value(loc, v, &q, octant, &mut stitches, memo)?;
+                let known = stitches.get_or_insert_with(new_stitches);
+                let x = self.stitched_value(loc, v, &q, octant, known, memo)?;
                 memo.remember_vertex(v, level, x);
                 match x {
                     Some(x) => x,

@@ -290,7 +290,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 let v = axes(|a| base[a] + (n >> a & 1) as i64 * s[a]);
                 // A stitched corner's value is `vertex_value_in`'s at `v`, remembered with its
                 // values: the fine octants along a level boundary share their stitched corners.
-                if let Some(x) = memo.vertex(v, level) {
+                if let Some(x) = memo.stitched(v, level) {
                     match x {
                         Some(x) => *slot = x,
                         None => return Ok(None),
@@ -345,7 +345,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                                 q.level,
                                 Some(x),
                             );
-                            memo.remember_vertex(v, level, Some(x));
+                            memo.remember_stitched(v, level, Some(x));
                             *slot = x;
                             continue;
                         }
@@ -353,7 +353,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 }
                 let known = stitches.get_or_insert_with(new_stitches);
                 let x = self.stitched_value(loc, v, &q, octant, known, memo)?;
-                memo.remember_vertex(v, level, x);
+                memo.remember_stitched(v, level, x);
                 match x {
                     Some(x) => x,
                     None => return Ok(None),

@@ -212,7 +212,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         }
         // The same value as `vertex_value_in`'s, so shared with it: coarse vertices recur
         // across the fine octants stitched to them.
-        if let Some(x) = memo.vertex(w, level) {
+        if let Some(x) = memo.stitched(w, level) {
             known.add_vertex(w, level, x);
             return Ok(x);
         }
@@ -235,7 +235,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             }
         };
         known.add_vertex(w, level, value);
-        memo.remember_vertex(w, level, value);
+        memo.remember_stitched(w, level, value);
         Ok(value)
     }
 

@@ -146,9 +146,10 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 ax.out[i] = usize::from((f < own.lo[a]) | (f >= own.hi[a])) << a;
             }
         }
-        // The table, entry `x + 4 y + 16 z`: each finest cell's leaf-cell value and (filled only
-        // when some corner is stitched) level, and, bit per entry, whether the cell was read or
-        // located rather than its position's and whether its level is coarser than the octant's.
+        // The table, entry `x + 4 y + 16 z`: each finest cell's leaf-cell value and (for a cell
+        // read or located; the others' is their whole position's) level, and, bit per entry,
+        // whether the cell was read or located rather than its position's and whether its level
+        // is coarser than the octant's.
         let mut levels = [0u32; 64];
         let mut values = [0f32; 64];
         let mut read = 0u64;
@@ -192,22 +193,6 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             let k = wholes.trailing_zeros() as usize;
             wholes &= wholes - 1;
             coarse |= entries_of(k) & 0u64.wrapping_sub(u64::from(whole_level[k] < level));
-        }
-        // Stitched corners read their entries' levels: those of whole positions are filled row by
-        // row as the values are, first, when a whole position is coarser than the octant.
-        let fill_levels = |levels: &mut [u32; 64]| {
-            for (z, &kz) in axis[2].out.iter().enumerate() {
-                for (y, &ky) in axis[1].out.iter().enumerate() {
-                    let k = (ky | kz) & 6;
-                    let (l0, l1) = (whole_level[k], whole_level[k | 1]);
-                    let row = 4 * y + 16 * z;
-                    levels[row..row + 4].copy_from_slice(&beyond.map(|b| if b { l1 } else { l0 }));
-                }
-            }
-        };
-        let levels_filled = coarse != 0;
-        if levels_filled {
-            fill_levels(&mut levels);
         }
         // The first coarser cells read or located, by entry: a stitched corner's coarse cell
         // is one of them, found again without reading it again.
@@ -267,16 +252,6 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 }
             }
         }
-        if coarse != 0 && !levels_filled {
-            // A coarser cell read or located alone: the other entries' levels after all.
-            let kept = levels;
-            fill_levels(&mut levels);
-            for e in 0..64 {
-                if read >> e & 1 == 1 {
-                    levels[e] = kept[e];
-                }
-            }
-        }
         // Side `i` of corner `n` is table entry `corner(n) + side_step(i)`.
         let corner = |n: usize| (n & 1) * 2 + (n >> 1 & 1) * 8 + (n >> 2 & 1) * 32;
         let side_step = |i: usize| (i & 1) + (i >> 1 & 1) * 4 + (i >> 2 & 1) * 16;
@@ -293,11 +268,16 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             }
             return Ok(Some(out));
         }
-        // The stitch memory, made in place (about 1.3 KB) once some corner is known stitched.
-        let mut stitches = Stitches::new();
-        if let Some((c, b)) = near {
-            stitches.add_leaf(c.leaf, b);
-        }
+        // The stitch memory, made in place (about 1.3 KB) once some stitched corner is not
+        // remembered in `memo`.
+        let mut stitches = None::<Stitches>;
+        let new_stitches = || {
+            let mut known = Stitches::new();
+            if let Some((c, b)) = near {
+                known.add_leaf(c.leaf, b);
+            }
+            known
+        };
         for (n, slot) in out.iter_mut().enumerate() {
             if n == down {
                 // The corner at the cell centre carries the cell's value.
@@ -307,9 +287,27 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             let entry = |i: usize| corner(n) + side_step(i);
             // The corner's eight entries: bits 0, 1, 4, 5, 16, 17, 20 and 21 from `corner(n)`.
             *slot = if coarse >> corner(n) & 0x0033_0033 != 0 {
-                let lv: [u32; 8] = std::array::from_fn(|i| levels[entry(i)]);
-                let coarsest = lv.iter().copied().fold(u32::MAX, u32::min);
                 let v = axes(|a| base[a] + (n >> a & 1) as i64 * s[a]);
+                // A stitched corner's value is `vertex_value_in`'s at `v`, remembered with its
+                // values: the fine octants along a level boundary share their stitched corners.
+                if let Some(x) = memo.stitched(v, level) {
+                    match x {
+                        Some(x) => *slot = x,
+                        None => return Ok(None),
+                    }
+                    continue;
+                }
+                // An entry's level: as read or located, else its whole position's.
+                let lv: [u32; 8] = std::array::from_fn(|i| {
+                    let e = entry(i);
+                    if read >> e & 1 == 1 {
+                        levels[e]
+                    } else {
+                        let (x, y, z) = (e & 3, e >> 2 & 3, e >> 4);
+                        whole_level[axis[0].out[x] | axis[1].out[y] | axis[2].out[z]]
+                    }
+                });
+                let coarsest = lv.iter().copied().fold(u32::MAX, u32::min);
                 let side = lv.iter().position(|&l| l == coarsest).unwrap_or(0);
                 let e = entry(side);
                 let (x, y, z) = (e & 3, e >> 2 & 3, e >> 4);
@@ -342,13 +340,21 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                     if (0..3).all(|a| (v[a] == olo[a]) | (v[a] == ohi[a])) {
                         let x = avg8(&std::array::from_fn(|i| values[entry(i)]));
                         if x != 0.0 {
-                            stitches.add_vertex(v, q.level, Some(x));
+                            stitches.get_or_insert_with(new_stitches).add_vertex(
+                                v,
+                                q.level,
+                                Some(x),
+                            );
+                            memo.remember_stitched(v, level, Some(x));
                             *slot = x;
                             continue;
                         }
                     }
                 }
-                match self.stitched_value(loc, v, &q, octant, &mut stitches, memo)? {
+                let known = stitches.get_or_insert_with(new_stitches);
+                let x = self.stitched_value(loc, v, &q, octant, known, memo)?;
+                memo.remember_stitched(v, level, x);
+                match x {
                     Some(x) => x,
                     None => return Ok(None),
                 }

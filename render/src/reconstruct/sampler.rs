@@ -111,6 +111,41 @@ impl VertexMemo {
         }
     }
 
+    /// The value remembered at vertex `v` as seen by an octant of level `level`, if any.
+    #[inline]
+    pub(super) fn vertex(&self, v: [i64; 3], level: u32) -> Option<Option<f32>> {
+        self.map.get(&VertexKey(v, level)).copied()
+    }
+
+    /// Remembers the value at vertex `v` as seen by an octant of level `level`.
+    #[inline]
+    pub(super) fn remember_vertex(&mut self, v: [i64; 3], level: u32, value: Option<f32>) {
+        if self.map.len() >= self.capacity {
+            self.map.clear();
+        }
+        self.map.insert(VertexKey(v, level), value);
+    }
+
+    /// [`Self::vertex`] for a stitched vertex: `None` from a memo used once (no octant table),
+    /// which does not remember them ([`Self::remember_stitched`]).
+    #[inline]
+    pub(super) fn stitched(&self, v: [i64; 3], level: u32) -> Option<Option<f32>> {
+        if self.octant_bits == 0 {
+            return None;
+        }
+        self.vertex(v, level)
+    }
+
+    /// [`Self::remember_vertex`] for a stitched vertex, except in a memo used once: there the
+    /// few repeats within one octant (which [`super::stitch::Stitches`] catches) do not pay
+    /// for the insertions.
+    #[inline]
+    pub(super) fn remember_stitched(&mut self, v: [i64; 3], level: u32, value: Option<f32>) {
+        if self.octant_bits != 0 {
+            self.remember_vertex(v, level, value);
+        }
+    }
+
     #[inline]
     fn octant_slot(&self, o: &Octant) -> usize {
         let h = (o.cell[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
@@ -739,14 +774,11 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         level: u32,
         memo: &mut VertexMemo,
     ) -> Result<Option<f32>> {
-        if let Some(&known) = memo.map.get(&VertexKey(v, level)) {
+        if let Some(known) = memo.vertex(v, level) {
             return Ok(known);
         }
         let value = self.vertex_value_unmemoized_in(loc, v, level, memo)?;
-        if memo.map.len() >= memo.capacity {
-            memo.map.clear();
-        }
-        memo.map.insert(VertexKey(v, level), value);
+        memo.remember_vertex(v, level, value);
         Ok(value)
     }
 

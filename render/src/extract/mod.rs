@@ -20,6 +20,7 @@
 //! - [`tight`]: per-leaf ranges from cell values, computed once, skipping leaves the file's
 //!   looser stored ranges let through.
 //! - [`region`]: limiting an extraction to a clip box or a view frustum.
+//! - [`scratch_pool`]: one extraction scratch per worker thread, kept across its runs of leaves.
 //! - [`stats`]: what an extraction did.
 //! - [`decode_frame`]: what decoding keeps of the leaf decoded last.
 //! - [`current`] and [`nearest`]: the active voxels of the `current` and `nearest`
@@ -45,6 +46,7 @@ pub mod parts;
 pub mod plain;
 pub mod refs;
 pub mod region;
+pub mod scratch_pool;
 pub mod small;
 pub mod stats;
 pub mod tight;
@@ -72,6 +74,7 @@ use leaf_tree::LeafTree;
 use parts::{extract_in_parts, in_parts, leaf_part_ranges, PartRanges};
 pub use refs::{make_ref, split_ref, LocalVoxel, DUAL_BASE};
 pub use region::Region;
+use scratch_pool::ScratchPool;
 pub use stats::ExtractStats;
 use tight::{box_range_in, TightRanges};
 
@@ -266,6 +269,8 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         } else {
             &self.blocks
         };
+        let tiles = CellTiles::pays(self.file_cells, file.num_leaves()).then_some(&self.cells);
+        let scratches = ScratchPool::new((&self.blocks, &self.leaves, &self.coarse), tiles);
         let chunks = self.chunks(leaves);
         if let Some(first) = chunks.first() {
             self.read_ahead(first);
@@ -285,7 +290,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     }
                     append(before, refs, totals, duals)
                 });
-                let parts = self.extract_chunk(iso, chunk, tight_blocks);
+                let parts = self.extract_chunk(iso, chunk, tight_blocks, &scratches);
                 (parts, helper.join())
             });
             match appended {
@@ -325,25 +330,19 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// leaves a worker extracted (the refs of its leaves one after the other, its counts
     /// summed), in order; tight ranges not known yet are bounded through `tight_blocks`. A run
     /// ends at its first error. One vector per run rather than per leaf: small leaves' few refs
-    /// each were as many allocations, and their fresh pages.
-    fn extract_chunk(
-        &self,
+    /// each were as many allocations, and their fresh pages. A run works in its thread's
+    /// scratch from `scratches`.
+    fn extract_chunk<'s>(
+        &'s self,
         iso: f32,
         chunk: &[u32],
         tight_blocks: &BlockRanges,
+        scratches: &ScratchPool<'s>,
     ) -> Vec<Result<(Vec<u64>, LeafCounts)>> {
-        let file = self.sampler.file();
         chunk
             .par_iter()
             .fold(
-                || {
-                    let shared = (&self.blocks, &self.leaves, &self.coarse);
-                    let tiles =
-                        CellTiles::pays(self.file_cells, file.num_leaves()).then_some(&self.cells);
-                    let run = Ok((Vec::new(), LeafCounts::default()));
-                    // Boxed: the fold moves its state from leaf to leaf.
-                    (Box::new(Scratch::new(shared, tiles)), run)
-                },
+                || (scratches.take(), Ok((Vec::new(), LeafCounts::default()))),
                 |(mut scratch, run), &leaf| {
                     let run = run.and_then(|(mut out, mut totals)| {
                         let counts =
@@ -354,7 +353,10 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                     (scratch, run)
                 },
             )
-            .map(|(_, run)| run)
+            .map(|(scratch, run)| {
+                scratches.give(scratch);
+                run
+            })
             .collect()
     }
 

@@ -8,7 +8,7 @@
 //! split at the median of the longest axis, balanced whatever the file.
 
 use std::convert::Infallible;
-use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use amr_format::kdtree::{leaf_bounds, KdNode, TreeView};
 use amr_format::raw::KdLeaf;
@@ -33,8 +33,6 @@ const SCAN_CELLS: u64 = 64;
 /// (two NaNs, which no computed range holds), so that the tables start as zeroed memory, whose
 /// pages the kernel only hands over when a range is kept in them.
 const UNKNOWN: u64 = 0;
-/// The parent of the root.
-const NO_PARENT: u32 = u32::MAX;
 
 /// One node: the leaves `order[first..end]`.
 struct Node {
@@ -48,11 +46,6 @@ struct Node {
     end: u32,
     /// Its two children, for a node of more than [`BUCKET`] leaves.
     children: Option<(u32, u32)>,
-    /// Its parent ([`NO_PARENT`] for the root).
-    parent: u32,
-    /// True when the children of each of its ancestors share no cell: a region inside it
-    /// overlaps no leaf outside its subtree.
-    apart: bool,
 }
 
 /// Every leaf's box (the file's) and the level of its finest brick (`u32::MAX` without data),
@@ -152,10 +145,6 @@ pub struct LeafTree {
     ordered: Vec<LeafBox>,
     /// Per leaf, its place in `order` (and its box's in `ordered`).
     position: Vec<u32>,
-    /// The node the last overlap walk started at ([`Self::start_for`]): the next region, near
-    /// the last, is found from there rather than from the root. Any node will do, so the
-    /// threads share it without order.
-    last_start: AtomicU32,
 }
 
 impl LeafTree {
@@ -190,7 +179,6 @@ impl LeafTree {
             order = (0..n).collect();
             build(&leaves, &mut order, 0, &mut nodes);
         }
-        link_parents(&mut nodes);
         let ordered = order
             .iter()
             .map(|&l| LeafBox::of(&tree.leaves[l as usize]))
@@ -208,7 +196,6 @@ impl LeafTree {
             exact_nodes: unknown(nodes.len()),
             nodes,
             order,
-            last_start: AtomicU32::new(0),
         }
     }
 
@@ -272,10 +259,10 @@ impl LeafTree {
         // Its own loop rather than `walk`, as in `exact_range_over`: through `walk` the fills
         // of `tiny`'s level-2 tiles, where no node is taken whole, cost 18 % more.
         // A child is tested before it is pushed: only nodes overlapping `region` are taken.
-        let mut stack = [self.start_for(region); 64];
+        let mut stack = [0u32; 64];
         let mut top = usize::from(
             self.nodes
-                .get(stack[0] as usize)
+                .first()
                 .is_some_and(|n| n.bounds.get().overlaps(region)),
         );
         while top > 0 {
@@ -325,13 +312,8 @@ impl LeafTree {
         };
         // Its own loop rather than `walk`, as in `exact_range_over`; a child is tested before
         // it is pushed, so that only nodes meeting `region` are taken from the stack.
-        let start = if OVERLAP { self.start_for(region) } else { 0 };
-        let mut stack = [start; 64];
-        let mut top = usize::from(
-            self.nodes
-                .get(start as usize)
-                .is_some_and(|n| meets(&n.bounds.get())),
-        );
+        let mut stack = [0u32; 64];
+        let mut top = usize::from(self.nodes.first().is_some_and(|n| meets(&n.bounds.get())));
         while top > 0 {
             top -= 1;
             let node = &self.nodes[stack[top] as usize];
@@ -350,51 +332,6 @@ impl LeafTree {
                 }
             }
         }
-    }
-
-    /// A node at which a walk over the nodes and leaves overlapping `region` may start instead
-    /// of the root, meeting the same ones in the same order: `region` lies inside it, the
-    /// children of each of its ancestors share no cell (so no leaf outside it overlaps
-    /// `region`) and none of its ancestors lies inside `region` (so none would be taken
-    /// whole). Found from the last walk's start, near in the leaves' order, up to the first
-    /// node holding `region`, then down while one child holds it: a few steps instead of a
-    /// walk down from the root's. The root when `region` is empty or no node fits.
-    fn start_for(&self, region: &IBox) -> u32 {
-        let hint = self.last_start.load(Ordering::Relaxed) as usize;
-        let (Some(mut node), false) = (self.nodes.get(hint), region.is_empty()) else {
-            return 0;
-        };
-        let mut i = hint as u32;
-        while !node.bounds.get().contains_box(region) {
-            match self.nodes.get(node.parent as usize) {
-                Some(parent) => (i, node) = (node.parent, parent),
-                None => return 0,
-            }
-        }
-        if !node.apart {
-            return 0;
-        }
-        while let Some(parent) = self.nodes.get(node.parent as usize) {
-            if !region.contains_box(&parent.bounds.get()) {
-                break;
-            }
-            (i, node) = (node.parent, parent);
-        }
-        while let (Some((a, b)), false) = (node.children, region.contains_box(&node.bounds.get())) {
-            let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
-            if !na.apart {
-                break;
-            }
-            (i, node) = if na.bounds.get().contains_box(region) {
-                (a, na)
-            } else if nb.bounds.get().contains_box(region) {
-                (b, nb)
-            } else {
-                break;
-            };
-        }
-        self.last_start.store(i, Ordering::Relaxed);
-        i
     }
 
     /// Pushes those of a node's children `(a, b)` whose bounds `meet` the walk's region, `b`
@@ -482,10 +419,10 @@ impl LeafTree {
         // Its own loop rather than `walk`: through `walk` this query cost 7 % more of `big`'s
         // whole extraction (callgrind, 199.0 -> 213.2 M instructions at iso 10).
         // A child is tested before it is pushed: only nodes overlapping `region` are taken.
-        let mut stack = [self.start_for(region); 64];
+        let mut stack = [0u32; 64];
         let mut top = usize::from(
             self.nodes
-                .get(stack[0] as usize)
+                .first()
                 .is_some_and(|n| n.bounds.get().overlaps(region)),
         );
         while top > 0 {
@@ -809,8 +746,6 @@ fn from_kd_node(
                 first,
                 end: first,
                 children: None,
-                parent: NO_PARENT,
-                apart: false,
             });
             let a = from_kd_node(tree, all, low, high, order, nodes)?;
             let b = from_kd_node(tree, all, high, end, order, nodes)?;
@@ -847,36 +782,10 @@ fn from_kd_node(
                 first,
                 end: order.len() as u32,
                 children: None,
-                parent: NO_PARENT,
-                apart: false,
             });
         }
     }
     Some(index)
-}
-
-/// Sets each node's parent and whether its ancestors' children are apart. Children come after
-/// their parent in `nodes`, so one pass in order sees each parent settled first.
-fn link_parents(nodes: &mut [Node]) {
-    if let Some(root) = nodes.first_mut() {
-        root.parent = NO_PARENT;
-        root.apart = true;
-    }
-    for i in 0..nodes.len() {
-        let Some((a, b)) = nodes[i].children else {
-            continue;
-        };
-        let (ba, bb) = (
-            nodes[a as usize].bounds.get(),
-            nodes[b as usize].bounds.get(),
-        );
-        let apart = nodes[i].apart && !ba.overlaps(&bb);
-        for child in [a, b] {
-            let node = &mut nodes[child as usize];
-            node.parent = i as u32;
-            node.apart = apart;
-        }
-    }
 }
 
 /// Appends the node of the leaves `leaves` (which start at `order[first]`) and its descendants to
@@ -901,8 +810,6 @@ fn build(all: &Leaves, leaves: &mut [u32], first: u32, nodes: &mut Vec<Node>) ->
         first,
         end,
         children: None,
-        parent: NO_PARENT,
-        apart: false,
     });
     if leaves.len() > BUCKET {
         let e = bounds.extent();

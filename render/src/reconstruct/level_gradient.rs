@@ -58,6 +58,37 @@ const fn slots() -> [usize; 64] {
     out
 }
 
+/// A row of [`NEEDED`]'s cells: offsets `x[0]` up to `x[1]` on the x axis at `y` and `z`.
+#[derive(Clone, Copy)]
+struct Row {
+    y: usize,
+    z: usize,
+    x: [usize; 2],
+}
+
+/// The rows of [`NEEDED`], in its order: a row with no outer offset on y and z holds its four
+/// cells, one with one outer offset its two inner ones.
+static ROWS: [Row; 12] = rows();
+
+const fn rows() -> [Row; 12] {
+    let mut out = [Row { y: 0, z: 0, x: [0; 2] }; 12];
+    let (mut z, mut n) = (0, 0);
+    while z < 4 {
+        let mut y = 0;
+        while y < 4 {
+            let outer = (y == 0 || y == 3) as usize + (z == 0 || z == 3) as usize;
+            if outer <= 1 {
+                let x = if outer == 0 { [0, 4] } else { [1, 3] };
+                out[n] = Row { y, z, x };
+                n += 1;
+            }
+            y += 1;
+        }
+        z += 1;
+    }
+    out
+}
+
 /// Per axis `a` and corner `n` of the dual cell (cell `1 + bit` of the block on each axis):
 /// the [`NEEDED`] slots of its neighbours above and below on `a`.
 const PAIRS: [[[usize; 2]; 8]; 3] = pairs();
@@ -382,49 +413,53 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             let Some(v) = slab.get(start..=start + 3 * (step[0] + step[1] + step[2])) else {
                 return Ok(None);
             };
-            // Row by row (x fastest, as in `NEEDED`): a row with no outer offset on y and z
-            // gives its four cells, one with one outer offset its two inner ones.
+            // Row by row (x fastest, as in `NEEDED`).
             let mut k = 0;
-            for z in 0..4 {
-                for y in 0..4 {
-                    let xs = match usize::from(y == 0 || y == 3) + usize::from(z == 0 || z == 3) {
-                        0 => 0..4,
-                        1 => 1..3,
-                        _ => continue,
-                    };
-                    let row = y * step[1] + z * step[2];
-                    let cells = &v[row + xs.start..row + xs.end];
-                    out[k..k + cells.len()].copy_from_slice(cells);
-                    k += cells.len();
-                }
+            for row in &ROWS {
+                let at = row.y * step[1] + row.z * step[2];
+                put_run(&mut out, k, &v[at + row.x[0]..at + row.x[1]]);
+                k += row.x[1] - row.x[0];
             }
             return Ok(Some(out));
         }
-        // Otherwise cell by cell, from the leaves met so far or one found next.
+        // Otherwise row by row too, each row in runs of the cells one leaf holds, from the
+        // leaves met so far or one found next.
         let mut leaves = [leaf; BLOCK_LEAVES];
         let (mut known, mut last) = (1, 0);
-        for (slot, c) in out.iter_mut().zip(NEEDED) {
-            let cell = axes(|a| lo[a] + c[a] as i64);
-            if !leaves[last].holds(cell) {
-                match (0..known).find(|&k| leaves[k].holds(cell)) {
-                    Some(k) => last = k,
-                    None if known == BLOCK_LEAVES => return Ok(None),
-                    None => {
-                        let found = self.block_leaf(level, cell, known, &mut slabs)?;
-                        let Some(l) = found.filter(|l| l.holds(cell)) else {
-                            return Ok(None);
-                        };
-                        leaves[known] = l;
-                        last = known;
-                        known += 1;
+        let mut k = 0;
+        for row in &ROWS {
+            let mut x = row.x[0];
+            while x < row.x[1] {
+                let cell = [lo[0] + x as i64, lo[1] + row.y as i64, lo[2] + row.z as i64];
+                if !leaves[last].holds(cell) {
+                    match (0..known).find(|&k| leaves[k].holds(cell)) {
+                        Some(k) => last = k,
+                        None if known == BLOCK_LEAVES => return Ok(None),
+                        None => {
+                            let found = self.block_leaf(level, cell, known, &mut slabs)?;
+                            let Some(l) = found.filter(|l| l.holds(cell)) else {
+                                return Ok(None);
+                            };
+                            leaves[known] = l;
+                            last = known;
+                            known += 1;
+                        }
                     }
                 }
+                let l = &leaves[last];
+                // The leaf holds the row's cells up to its upper face on x.
+                let end = row.x[1].min((l.hi[0] - lo[0]) as usize);
+                let start = l.index(cell);
+                let Some(v) = slabs[l.slab]
+                    .as_ref()
+                    .and_then(|s| s.get(start..start + (end - x)))
+                else {
+                    return Ok(None);
+                };
+                put_run(&mut out, k, v);
+                k += end - x;
+                x = end;
             }
-            let l = &leaves[last];
-            let Some(v) = slabs[l.slab].as_ref().and_then(|s| s.get(l.index(cell))) else {
-                return Ok(None);
-            };
-            *slot = *v;
         }
         Ok(Some(out))
     }
@@ -734,6 +769,19 @@ impl LevelBlocks {
             differences: CornerDifferences::of(&cells.values),
         };
         Ok(())
+    }
+}
+
+/// Copies `run` (one row's cells, 1 to 4 values) into `out` from slot `k`: copies of a fixed
+/// length, which compile to moves instead of a call to `memcpy`.
+#[inline(always)]
+fn put_run(out: &mut LevelBlock, k: usize, run: &[f32]) {
+    match *run {
+        [a, b, c, d] => out[k..k + 4].copy_from_slice(&[a, b, c, d]),
+        [a, b, c] => out[k..k + 3].copy_from_slice(&[a, b, c]),
+        [a, b] => out[k..k + 2].copy_from_slice(&[a, b]),
+        [a] => out[k] = a,
+        _ => out[k..k + run.len()].copy_from_slice(run),
     }
 }
 

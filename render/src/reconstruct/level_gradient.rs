@@ -286,6 +286,7 @@ struct BlockLeaf {
     hi: [i64; 3],
     brick_lo: [i64; 3],
     stride: [i64; 3],
+    brick: u32,
     slab: usize,
 }
 
@@ -296,6 +297,7 @@ impl BlockLeaf {
         hi: [0; 3],
         brick_lo: [0; 3],
         stride: [0; 3],
+        brick: 0,
         slab: 0,
     };
 
@@ -311,6 +313,11 @@ impl BlockLeaf {
             .sum::<i64>() as usize
     }
 }
+
+/// The kd-tree leaf (with its level) in which a block's first cell was last found: the next
+/// block's first cell is often in it too.
+#[derive(Clone, Copy, Default)]
+pub struct RecentLeaf(Option<(u32, BlockLeaf)>);
 
 impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// The central differences of the `octant` (and `current`) field at doubled point `p` one
@@ -397,10 +404,31 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// span at most [`BLOCK_LEAVES`] leaves; `None` otherwise. A pure function of `level` and
     /// `first`.
     pub fn level_block(&self, level: u32, first: [i64; 3]) -> Result<Option<LevelBlock>> {
+        self.level_block_near(level, first, &mut RecentLeaf::default())
+    }
+
+    /// [`Self::level_block`], taking the kd-tree leaf of `first` from `recent` when it holds
+    /// that cell (the leaf [`Self::block_leaf`] would find), and keeping the leaf found there.
+    fn level_block_near(
+        &self,
+        level: u32,
+        first: [i64; 3],
+        recent: &mut RecentLeaf,
+    ) -> Result<Option<LevelBlock>> {
         let lo = axes(|a| first[a] - 1);
         let mut slabs: [Option<Slab<'f>>; BLOCK_LEAVES] = Default::default();
-        let Some(leaf) = self.block_leaf(level, first, 0, &mut slabs)? else {
-            return Ok(None);
+        let leaf = match recent.0 {
+            Some((l, leaf)) if l == level && leaf.holds(first) => {
+                slabs[0] = Some(self.values(leaf.brick)?);
+                leaf
+            }
+            _ => {
+                let Some(leaf) = self.block_leaf(level, first, 0, &mut slabs)? else {
+                    return Ok(None);
+                };
+                recent.0 = Some((level, leaf));
+                leaf
+            }
         };
         let mut out = [0f32; 32];
         if leaf.holds(lo) && leaf.holds(axes(|a| lo[a] + 3)) {
@@ -469,7 +497,18 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// [`Self::level_block`] gives it, else the cells that are, as far as an axis could still
     /// use them ([`LevelCells::valid`]). A pure function of `level` and `first`.
     pub fn level_cells(&self, level: u32, first: [i64; 3]) -> Result<LevelCells> {
-        Ok(match self.level_block(level, first)? {
+        self.level_cells_near(level, first, &mut RecentLeaf::default())
+    }
+
+    /// [`Self::level_cells`], the block's first leaf taken from or kept in `recent`
+    /// ([`Self::level_block_near`]).
+    fn level_cells_near(
+        &self,
+        level: u32,
+        first: [i64; 3],
+        recent: &mut RecentLeaf,
+    ) -> Result<LevelCells> {
+        Ok(match self.level_block_near(level, first, recent)? {
             Some(values) => LevelCells {
                 values,
                 valid: u32::MAX,
@@ -626,6 +665,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             hi: whole.hi,
             brick_lo: brick_cells.lo,
             stride: [1, e[0], e[0] * e[1]],
+            brick,
             slab,
         }))
     }
@@ -671,6 +711,8 @@ pub struct LevelBlocks {
     /// Per level of the sampler's grid: its steps.
     levels: Vec<LevelSteps>,
     slots: Vec<BlockSlot>,
+    /// The kd-tree leaf of the last block filled ([`Sampler::level_block_near`]).
+    recent: RecentLeaf,
 }
 
 impl LevelBlocks {
@@ -748,6 +790,7 @@ impl LevelBlocks {
             .collect();
         self.slots.clear();
         self.slots.resize(BLOCK_SLOTS, BlockSlot::EMPTY);
+        self.recent = RecentLeaf::default();
     }
 
     /// Puts the cells of the dual cell `key` (level and lower corner cell) in slot `index`.
@@ -759,7 +802,7 @@ impl LevelBlocks {
         index: usize,
     ) -> Result<()> {
         let (level, first) = key;
-        let cells = sampler.level_cells(level, first)?;
+        let cells = sampler.level_cells_near(level, first, &mut self.recent)?;
         let base = sampler.grid().centre(level, first);
         self.slots[index] = BlockSlot {
             key,

@@ -71,7 +71,11 @@ struct Row {
 static ROWS: [Row; 12] = rows();
 
 const fn rows() -> [Row; 12] {
-    let mut out = [Row { y: 0, z: 0, x: [0; 2] }; 12];
+    let mut out = [Row {
+        y: 0,
+        z: 0,
+        x: [0; 2],
+    }; 12];
     let (mut z, mut n) = (0, 0);
     while z < 4 {
         let mut y = 0;
@@ -416,26 +420,19 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         recent: &mut RecentLeaf,
     ) -> Result<Option<LevelBlock>> {
         let lo = axes(|a| first[a] - 1);
-        let mut slabs: [Option<Slab<'f>>; BLOCK_LEAVES] = Default::default();
-        let leaf = match recent.0 {
-            Some((l, leaf)) if l == level && leaf.holds(first) => {
-                slabs[0] = Some(self.values(leaf.brick)?);
-                leaf
-            }
+        let (leaf, slab) = match recent.0 {
+            Some((l, leaf)) if l == level && leaf.holds(first) => (leaf, self.values(leaf.brick)?),
             _ => {
-                let Some(leaf) = self.block_leaf(level, first, 0, &mut slabs)? else {
+                let Some((leaf, slab)) = self.block_leaf(level, first, 0)? else {
                     return Ok(None);
                 };
                 recent.0 = Some((level, leaf));
-                leaf
+                (leaf, slab)
             }
         };
         let mut out = [0f32; 32];
         if leaf.holds(lo) && leaf.holds(axes(|a| lo[a] + 3)) {
             // One leaf holds the whole block: one index and three strides.
-            let Some(slab) = &slabs[0] else {
-                return Ok(None);
-            };
             let start = leaf.index(lo);
             let step = leaf.stride.map(|x| x as usize);
             let Some(v) = slab.get(start..=start + 3 * (step[0] + step[1] + step[2])) else {
@@ -452,6 +449,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         }
         // Otherwise row by row too, each row in runs of the cells one leaf holds, from the
         // leaves met so far or one found next.
+        let mut slabs: [Option<Slab<'f>>; BLOCK_LEAVES] = Default::default();
+        slabs[0] = Some(slab);
         let mut leaves = [leaf; BLOCK_LEAVES];
         let (mut known, mut last) = (1, 0);
         let mut k = 0;
@@ -464,10 +463,11 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                         Some(k) => last = k,
                         None if known == BLOCK_LEAVES => return Ok(None),
                         None => {
-                            let found = self.block_leaf(level, cell, known, &mut slabs)?;
-                            let Some(l) = found.filter(|l| l.holds(cell)) else {
+                            let found = self.block_leaf(level, cell, known)?;
+                            let Some((l, slab)) = found.filter(|(l, _)| l.holds(cell)) else {
                                 return Ok(None);
                             };
+                            slabs[known] = Some(slab);
                             leaves[known] = l;
                             last = known;
                             known += 1;
@@ -552,8 +552,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                             alive &= !SLOT_AXES[k];
                             continue;
                         }
-                        let found = self.block_leaf(level, cell, known, &mut slabs)?;
-                        let Some(l) = found.filter(|l| l.holds(cell)) else {
+                        let found = self.block_leaf(level, cell, known)?;
+                        let Some((l, slab)) = found.filter(|(l, _)| l.holds(cell)) else {
                             alive &= !SLOT_AXES[k];
                             if num_foreign < FOREIGN_LEAVES {
                                 if let Some(leaf) = self.find_leaf(f) {
@@ -566,6 +566,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                             }
                             continue;
                         };
+                        slabs[known] = Some(slab);
                         leaves[known] = l;
                         last = known;
                         known += 1;
@@ -612,16 +613,16 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         true
     }
 
-    /// The kd-tree leaf holding the lowest finest cell of cell `cell` of `level`, its values
-    /// kept in `slabs[slab]`, when its finest brick is of `level` and the cell is a leaf cell
-    /// everywhere (whole in that leaf, or in leaves all of `level`); `None` otherwise.
+    /// The kd-tree leaf holding the lowest finest cell of cell `cell` of `level`, to be kept in
+    /// slab `slab` of a block, and its brick's values, when its finest brick is of `level` and
+    /// the cell is a leaf cell everywhere (whole in that leaf, or in leaves all of `level`);
+    /// `None` otherwise.
     fn block_leaf(
         &self,
         level: u32,
         cell: [i64; 3],
         slab: usize,
-        slabs: &mut [Option<Slab<'f>>; BLOCK_LEAVES],
-    ) -> Result<Option<BlockLeaf>> {
+    ) -> Result<Option<(BlockLeaf, Slab<'f>)>> {
         let grid = self.grid();
         let finest = grid.finest_box(level, cell);
         let Some(leaf) = self.find_leaf(finest.lo) else {
@@ -656,18 +657,19 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             return Ok(None);
         };
         let e = brick_cells.extent();
-        slabs[slab] = Some(match self.values_in_place(brick) {
+        let values = match self.values_in_place(brick) {
             Some(v) => Slab::Borrowed(v),
             None => self.values(brick)?,
-        });
-        Ok(Some(BlockLeaf {
+        };
+        let leaf = BlockLeaf {
             lo: whole.lo,
             hi: whole.hi,
             brick_lo: brick_cells.lo,
             stride: [1, e[0], e[0] * e[1]],
             brick,
             slab,
-        }))
+        };
+        Ok(Some((leaf, values)))
     }
 }
 

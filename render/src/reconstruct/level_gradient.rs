@@ -318,10 +318,37 @@ impl BlockLeaf {
     }
 }
 
-/// The kd-tree leaf (with its level) in which a block's first cell was last found: the next
-/// block's first cell is often in it too.
+/// Kd-tree leaves [`RecentLeaf`] remembers.
+const RECENT_LEAVES: usize = 4;
+
+/// The kd-tree leaves (with their levels) in which the last blocks' cells were found: the next
+/// block's cells are often in them too. Any of them holding a cell of its level is the leaf
+/// [`Sampler::block_leaf`] would find for it.
 #[derive(Clone, Copy, Default)]
-pub struct RecentLeaf(Option<(u32, BlockLeaf)>);
+pub struct RecentLeaf {
+    leaves: [Option<(u32, BlockLeaf)>; RECENT_LEAVES],
+    /// The entry the next leaf found replaces.
+    next: usize,
+}
+
+impl RecentLeaf {
+    /// The remembered leaf of `level` holding `cell`, if any.
+    #[inline(always)]
+    fn holding(&self, level: u32, cell: [i64; 3]) -> Option<BlockLeaf> {
+        self.leaves
+            .iter()
+            .flatten()
+            .find(|(l, leaf)| *l == level && leaf.holds(cell))
+            .map(|&(_, leaf)| leaf)
+    }
+
+    /// Remembers `leaf` of `level`, in place of the oldest.
+    #[inline(always)]
+    fn keep(&mut self, level: u32, leaf: BlockLeaf) {
+        self.leaves[self.next] = Some((level, leaf));
+        self.next = (self.next + 1) % RECENT_LEAVES;
+    }
+}
 
 impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// The central differences of the `octant` (and `current`) field at doubled point `p` one
@@ -411,8 +438,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         self.level_block_near(level, first, &mut RecentLeaf::default())
     }
 
-    /// [`Self::level_block`], taking the kd-tree leaf of `first` from `recent` when it holds
-    /// that cell (the leaf [`Self::block_leaf`] would find), and keeping the leaf found there.
+    /// [`Self::level_block`], taking the kd-tree leaves of its cells from `recent` when it holds
+    /// them ([`Self::block_leaf_near`]), and keeping the leaves found there.
     fn level_block_near(
         &self,
         level: u32,
@@ -420,15 +447,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         recent: &mut RecentLeaf,
     ) -> Result<Option<LevelBlock>> {
         let lo = axes(|a| first[a] - 1);
-        let (leaf, slab) = match recent.0 {
-            Some((l, leaf)) if l == level && leaf.holds(first) => (leaf, self.values(leaf.brick)?),
-            _ => {
-                let Some((leaf, slab)) = self.block_leaf(level, first, 0)? else {
-                    return Ok(None);
-                };
-                recent.0 = Some((level, leaf));
-                (leaf, slab)
-            }
+        let Some((leaf, slab)) = self.block_leaf_near(level, first, 0, recent)? else {
+            return Ok(None);
         };
         let mut out = [0f32; 32];
         if leaf.holds(lo) && leaf.holds(axes(|a| lo[a] + 3)) {
@@ -463,7 +483,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                         Some(k) => last = k,
                         None if known == BLOCK_LEAVES => return Ok(None),
                         None => {
-                            let found = self.block_leaf(level, cell, known)?;
+                            let found = self.block_leaf_near(level, cell, known, recent)?;
                             let Some((l, slab)) = found.filter(|(l, _)| l.holds(cell)) else {
                                 return Ok(None);
                             };
@@ -611,6 +631,26 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             }
         }
         true
+    }
+
+    /// [`Self::block_leaf`], from `recent` when one of its leaves holds `cell` (kept there
+    /// otherwise).
+    #[inline(always)]
+    fn block_leaf_near(
+        &self,
+        level: u32,
+        cell: [i64; 3],
+        slab: usize,
+        recent: &mut RecentLeaf,
+    ) -> Result<Option<(BlockLeaf, Slab<'f>)>> {
+        if let Some(leaf) = recent.holding(level, cell) {
+            return Ok(Some((BlockLeaf { slab, ..leaf }, self.values(leaf.brick)?)));
+        }
+        let found = self.block_leaf(level, cell, slab)?;
+        if let Some((leaf, _)) = &found {
+            recent.keep(level, *leaf);
+        }
+        Ok(found)
     }
 
     /// The kd-tree leaf holding the lowest finest cell of cell `cell` of `level`, to be kept in

@@ -325,7 +325,7 @@ const RECENT_LEAVES: usize = 4;
 /// block's cells are often in them too. Any of them holding a cell of its level is the leaf
 /// [`Sampler::block_leaf`] would find for it.
 #[derive(Clone, Copy, Default)]
-pub struct RecentLeaf {
+struct RecentLeaf {
     leaves: [Option<(u32, BlockLeaf)>; RECENT_LEAVES],
     /// The entry the next leaf found replaces.
     next: usize,
@@ -753,7 +753,7 @@ pub struct LevelBlocks {
     /// Per level of the sampler's grid: its steps.
     levels: Vec<LevelSteps>,
     slots: Vec<BlockSlot>,
-    /// The kd-tree leaf of the last block filled ([`Sampler::level_block_near`]).
+    /// The kd-tree leaves of the last blocks filled ([`Sampler::level_block_near`]).
     recent: RecentLeaf,
 }
 

@@ -644,7 +644,11 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         recent: &mut RecentLeaf,
     ) -> Result<Option<(BlockLeaf, Slab<'f>)>> {
         if let Some(leaf) = recent.holding(level, cell) {
-            return Ok(Some((BlockLeaf { slab, ..leaf }, self.values(leaf.brick)?)));
+            let values = match self.values_in_place(leaf.brick) {
+                Some(v) => Slab::Borrowed(v),
+                None => self.values(leaf.brick)?,
+            };
+            return Ok(Some((BlockLeaf { slab, ..leaf }, values)));
         }
         let found = self.block_leaf(level, cell, slab)?;
         if let Some((leaf, _)) = &found {

@@ -520,7 +520,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         self.level_cells_near(level, first, &mut RecentLeaf::default())
     }
 
-    /// [`Self::level_cells`], the block's first leaf taken from or kept in `recent`
+    /// [`Self::level_cells`], the block's leaves taken from or kept in `recent`
     /// ([`Self::level_block_near`]).
     fn level_cells_near(
         &self,

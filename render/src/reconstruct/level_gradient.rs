@@ -58,6 +58,41 @@ const fn slots() -> [usize; 64] {
     out
 }
 
+/// A row of [`NEEDED`]'s cells: offsets `x[0]` up to `x[1]` on the x axis at `y` and `z`.
+#[derive(Clone, Copy)]
+struct Row {
+    y: usize,
+    z: usize,
+    x: [usize; 2],
+}
+
+/// The rows of [`NEEDED`], in its order: a row with no outer offset on y and z holds its four
+/// cells, one with one outer offset its two inner ones.
+static ROWS: [Row; 12] = rows();
+
+const fn rows() -> [Row; 12] {
+    let mut out = [Row {
+        y: 0,
+        z: 0,
+        x: [0; 2],
+    }; 12];
+    let (mut z, mut n) = (0, 0);
+    while z < 4 {
+        let mut y = 0;
+        while y < 4 {
+            let outer = (y == 0 || y == 3) as usize + (z == 0 || z == 3) as usize;
+            if outer <= 1 {
+                let x = if outer == 0 { [0, 4] } else { [1, 3] };
+                out[n] = Row { y, z, x };
+                n += 1;
+            }
+            y += 1;
+        }
+        z += 1;
+    }
+    out
+}
+
 /// Per axis `a` and corner `n` of the dual cell (cell `1 + bit` of the block on each axis):
 /// the [`NEEDED`] slots of its neighbours above and below on `a`.
 const PAIRS: [[[usize; 2]; 8]; 3] = pairs();
@@ -255,6 +290,7 @@ struct BlockLeaf {
     hi: [i64; 3],
     brick_lo: [i64; 3],
     stride: [i64; 3],
+    brick: u32,
     slab: usize,
 }
 
@@ -265,6 +301,7 @@ impl BlockLeaf {
         hi: [0; 3],
         brick_lo: [0; 3],
         stride: [0; 3],
+        brick: 0,
         slab: 0,
     };
 
@@ -278,6 +315,38 @@ impl BlockLeaf {
         (0..3)
             .map(|a| (c[a] - self.brick_lo[a]) * self.stride[a])
             .sum::<i64>() as usize
+    }
+}
+
+/// Kd-tree leaves [`RecentLeaf`] remembers.
+const RECENT_LEAVES: usize = 4;
+
+/// The kd-tree leaves (with their levels) in which the last blocks' cells were found: the next
+/// block's cells are often in them too. Any of them holding a cell of its level is the leaf
+/// [`Sampler::block_leaf`] would find for it.
+#[derive(Clone, Copy, Default)]
+struct RecentLeaf {
+    leaves: [Option<(u32, BlockLeaf)>; RECENT_LEAVES],
+    /// The entry the next leaf found replaces.
+    next: usize,
+}
+
+impl RecentLeaf {
+    /// The remembered leaf of `level` holding `cell`, if any.
+    #[inline(always)]
+    fn holding(&self, level: u32, cell: [i64; 3]) -> Option<BlockLeaf> {
+        self.leaves
+            .iter()
+            .flatten()
+            .find(|(l, leaf)| *l == level && leaf.holds(cell))
+            .map(|&(_, leaf)| leaf)
+    }
+
+    /// Remembers `leaf` of `level`, in place of the oldest.
+    #[inline(always)]
+    fn keep(&mut self, level: u32, leaf: BlockLeaf) {
+        self.leaves[self.next] = Some((level, leaf));
+        self.next = (self.next + 1) % RECENT_LEAVES;
     }
 }
 
@@ -366,65 +435,79 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// span at most [`BLOCK_LEAVES`] leaves; `None` otherwise. A pure function of `level` and
     /// `first`.
     pub fn level_block(&self, level: u32, first: [i64; 3]) -> Result<Option<LevelBlock>> {
+        self.level_block_near(level, first, &mut RecentLeaf::default())
+    }
+
+    /// [`Self::level_block`], taking the kd-tree leaves of its cells from `recent` when it holds
+    /// them ([`Self::block_leaf_near`]), and keeping the leaves found there.
+    fn level_block_near(
+        &self,
+        level: u32,
+        first: [i64; 3],
+        recent: &mut RecentLeaf,
+    ) -> Result<Option<LevelBlock>> {
         let lo = axes(|a| first[a] - 1);
-        let mut slabs: [Option<Slab<'f>>; BLOCK_LEAVES] = Default::default();
-        let Some(leaf) = self.block_leaf(level, first, 0, &mut slabs)? else {
+        let Some((leaf, slab)) = self.block_leaf_near(level, first, 0, recent)? else {
             return Ok(None);
         };
         let mut out = [0f32; 32];
         if leaf.holds(lo) && leaf.holds(axes(|a| lo[a] + 3)) {
             // One leaf holds the whole block: one index and three strides.
-            let Some(slab) = &slabs[0] else {
-                return Ok(None);
-            };
             let start = leaf.index(lo);
             let step = leaf.stride.map(|x| x as usize);
             let Some(v) = slab.get(start..=start + 3 * (step[0] + step[1] + step[2])) else {
                 return Ok(None);
             };
-            // Row by row (x fastest, as in `NEEDED`): a row with no outer offset on y and z
-            // gives its four cells, one with one outer offset its two inner ones.
+            // Row by row (x fastest, as in `NEEDED`).
             let mut k = 0;
-            for z in 0..4 {
-                for y in 0..4 {
-                    let xs = match usize::from(y == 0 || y == 3) + usize::from(z == 0 || z == 3) {
-                        0 => 0..4,
-                        1 => 1..3,
-                        _ => continue,
-                    };
-                    let row = y * step[1] + z * step[2];
-                    let cells = &v[row + xs.start..row + xs.end];
-                    out[k..k + cells.len()].copy_from_slice(cells);
-                    k += cells.len();
-                }
+            for row in &ROWS {
+                let at = row.y * step[1] + row.z * step[2];
+                put_run(&mut out, k, &v[at + row.x[0]..at + row.x[1]]);
+                k += row.x[1] - row.x[0];
             }
             return Ok(Some(out));
         }
-        // Otherwise cell by cell, from the leaves met so far or one found next.
+        // Otherwise row by row too, each row in runs of the cells one leaf holds, from the
+        // leaves met so far or one found next.
+        let mut slabs: [Option<Slab<'f>>; BLOCK_LEAVES] = Default::default();
+        slabs[0] = Some(slab);
         let mut leaves = [leaf; BLOCK_LEAVES];
         let (mut known, mut last) = (1, 0);
-        for (slot, c) in out.iter_mut().zip(NEEDED) {
-            let cell = axes(|a| lo[a] + c[a] as i64);
-            if !leaves[last].holds(cell) {
-                match (0..known).find(|&k| leaves[k].holds(cell)) {
-                    Some(k) => last = k,
-                    None if known == BLOCK_LEAVES => return Ok(None),
-                    None => {
-                        let found = self.block_leaf(level, cell, known, &mut slabs)?;
-                        let Some(l) = found.filter(|l| l.holds(cell)) else {
-                            return Ok(None);
-                        };
-                        leaves[known] = l;
-                        last = known;
-                        known += 1;
+        let mut k = 0;
+        for row in &ROWS {
+            let mut x = row.x[0];
+            while x < row.x[1] {
+                let cell = [lo[0] + x as i64, lo[1] + row.y as i64, lo[2] + row.z as i64];
+                if !leaves[last].holds(cell) {
+                    match (0..known).find(|&k| leaves[k].holds(cell)) {
+                        Some(k) => last = k,
+                        None if known == BLOCK_LEAVES => return Ok(None),
+                        None => {
+                            let found = self.block_leaf_near(level, cell, known, recent)?;
+                            let Some((l, slab)) = found.filter(|(l, _)| l.holds(cell)) else {
+                                return Ok(None);
+                            };
+                            slabs[known] = Some(slab);
+                            leaves[known] = l;
+                            last = known;
+                            known += 1;
+                        }
                     }
                 }
+                let l = &leaves[last];
+                // The leaf holds the row's cells up to its upper face on x.
+                let end = row.x[1].min((l.hi[0] - lo[0]) as usize);
+                let start = l.index(cell);
+                let Some(v) = slabs[l.slab]
+                    .as_ref()
+                    .and_then(|s| s.get(start..start + (end - x)))
+                else {
+                    return Ok(None);
+                };
+                put_run(&mut out, k, v);
+                k += end - x;
+                x = end;
             }
-            let l = &leaves[last];
-            let Some(v) = slabs[l.slab].as_ref().and_then(|s| s.get(l.index(cell))) else {
-                return Ok(None);
-            };
-            *slot = *v;
         }
         Ok(Some(out))
     }
@@ -434,7 +517,18 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// [`Self::level_block`] gives it, else the cells that are, as far as an axis could still
     /// use them ([`LevelCells::valid`]). A pure function of `level` and `first`.
     pub fn level_cells(&self, level: u32, first: [i64; 3]) -> Result<LevelCells> {
-        Ok(match self.level_block(level, first)? {
+        self.level_cells_near(level, first, &mut RecentLeaf::default())
+    }
+
+    /// [`Self::level_cells`], the block's leaves taken from or kept in `recent`
+    /// ([`Self::level_block_near`]).
+    fn level_cells_near(
+        &self,
+        level: u32,
+        first: [i64; 3],
+        recent: &mut RecentLeaf,
+    ) -> Result<LevelCells> {
+        Ok(match self.level_block_near(level, first, recent)? {
             Some(values) => LevelCells {
                 values,
                 valid: u32::MAX,
@@ -478,8 +572,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                             alive &= !SLOT_AXES[k];
                             continue;
                         }
-                        let found = self.block_leaf(level, cell, known, &mut slabs)?;
-                        let Some(l) = found.filter(|l| l.holds(cell)) else {
+                        let found = self.block_leaf(level, cell, known)?;
+                        let Some((l, slab)) = found.filter(|(l, _)| l.holds(cell)) else {
                             alive &= !SLOT_AXES[k];
                             if num_foreign < FOREIGN_LEAVES {
                                 if let Some(leaf) = self.find_leaf(f) {
@@ -492,6 +586,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                             }
                             continue;
                         };
+                        slabs[known] = Some(slab);
                         leaves[known] = l;
                         last = known;
                         known += 1;
@@ -538,16 +633,40 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         true
     }
 
-    /// The kd-tree leaf holding the lowest finest cell of cell `cell` of `level`, its values
-    /// kept in `slabs[slab]`, when its finest brick is of `level` and the cell is a leaf cell
-    /// everywhere (whole in that leaf, or in leaves all of `level`); `None` otherwise.
+    /// [`Self::block_leaf`], from `recent` when one of its leaves holds `cell` (kept there
+    /// otherwise).
+    #[inline(always)]
+    fn block_leaf_near(
+        &self,
+        level: u32,
+        cell: [i64; 3],
+        slab: usize,
+        recent: &mut RecentLeaf,
+    ) -> Result<Option<(BlockLeaf, Slab<'f>)>> {
+        if let Some(leaf) = recent.holding(level, cell) {
+            let values = match self.values_in_place(leaf.brick) {
+                Some(v) => Slab::Borrowed(v),
+                None => self.values(leaf.brick)?,
+            };
+            return Ok(Some((BlockLeaf { slab, ..leaf }, values)));
+        }
+        let found = self.block_leaf(level, cell, slab)?;
+        if let Some((leaf, _)) = &found {
+            recent.keep(level, *leaf);
+        }
+        Ok(found)
+    }
+
+    /// The kd-tree leaf holding the lowest finest cell of cell `cell` of `level`, to be kept in
+    /// slab `slab` of a block, and its brick's values, when its finest brick is of `level` and
+    /// the cell is a leaf cell everywhere (whole in that leaf, or in leaves all of `level`);
+    /// `None` otherwise.
     fn block_leaf(
         &self,
         level: u32,
         cell: [i64; 3],
         slab: usize,
-        slabs: &mut [Option<Slab<'f>>; BLOCK_LEAVES],
-    ) -> Result<Option<BlockLeaf>> {
+    ) -> Result<Option<(BlockLeaf, Slab<'f>)>> {
         let grid = self.grid();
         let finest = grid.finest_box(level, cell);
         let Some(leaf) = self.find_leaf(finest.lo) else {
@@ -582,17 +701,19 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             return Ok(None);
         };
         let e = brick_cells.extent();
-        slabs[slab] = Some(match self.values_in_place(brick) {
+        let values = match self.values_in_place(brick) {
             Some(v) => Slab::Borrowed(v),
             None => self.values(brick)?,
-        });
-        Ok(Some(BlockLeaf {
+        };
+        let leaf = BlockLeaf {
             lo: whole.lo,
             hi: whole.hi,
             brick_lo: brick_cells.lo,
             stride: [1, e[0], e[0] * e[1]],
+            brick,
             slab,
-        }))
+        };
+        Ok(Some((leaf, values)))
     }
 }
 
@@ -636,6 +757,8 @@ pub struct LevelBlocks {
     /// Per level of the sampler's grid: its steps.
     levels: Vec<LevelSteps>,
     slots: Vec<BlockSlot>,
+    /// The kd-tree leaves of the last blocks filled ([`Sampler::level_block_near`]).
+    recent: RecentLeaf,
 }
 
 impl LevelBlocks {
@@ -713,6 +836,7 @@ impl LevelBlocks {
             .collect();
         self.slots.clear();
         self.slots.resize(BLOCK_SLOTS, BlockSlot::EMPTY);
+        self.recent = RecentLeaf::default();
     }
 
     /// Puts the cells of the dual cell `key` (level and lower corner cell) in slot `index`.
@@ -724,7 +848,7 @@ impl LevelBlocks {
         index: usize,
     ) -> Result<()> {
         let (level, first) = key;
-        let cells = sampler.level_cells(level, first)?;
+        let cells = sampler.level_cells_near(level, first, &mut self.recent)?;
         let base = sampler.grid().centre(level, first);
         self.slots[index] = BlockSlot {
             key,
@@ -734,6 +858,19 @@ impl LevelBlocks {
             differences: CornerDifferences::of(&cells.values),
         };
         Ok(())
+    }
+}
+
+/// Copies `run` (one row's cells, 1 to 4 values) into `out` from slot `k`: copies of a fixed
+/// length, which compile to moves instead of a call to `memcpy`.
+#[inline(always)]
+fn put_run(out: &mut LevelBlock, k: usize, run: &[f32]) {
+    match *run {
+        [a, b, c, d] => out[k..k + 4].copy_from_slice(&[a, b, c, d]),
+        [a, b, c] => out[k..k + 3].copy_from_slice(&[a, b, c]),
+        [a, b] => out[k..k + 2].copy_from_slice(&[a, b]),
+        [a] => out[k] = a,
+        _ => out[k..k + run.len()].copy_from_slice(run),
     }
 }
 

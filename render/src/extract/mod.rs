@@ -48,11 +48,14 @@ pub mod refs;
 pub mod region;
 pub mod scratch_pool;
 pub mod small;
+pub mod spare_refs;
 pub mod stats;
 pub mod tight;
 pub mod vertices;
 
 use std::time::Instant;
+
+use spare_refs::SpareRefs;
 
 use amr_format::AmrkFile;
 
@@ -271,6 +274,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         };
         let tiles = CellTiles::pays(self.file_cells, file.num_leaves()).then_some(&self.cells);
         let scratches = ScratchPool::new((&self.blocks, &self.leaves, &self.coarse), tiles);
+        let spare = SpareRefs::default();
         let chunks = self.chunks(leaves);
         if let Some(first) = chunks.first() {
             self.read_ahead(first);
@@ -284,13 +288,14 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 // the workers no longer wait for them between chunks.
                 let before = std::mem::take(&mut done);
                 let (refs, totals, duals) = (&mut refs, &mut totals, &mut active_duals);
+                let spare = &spare;
                 let helper = s.spawn(move || {
                     if let Some(next) = next {
                         self.read_ahead(next);
                     }
-                    append(before, refs, totals, duals)
+                    append(before, refs, totals, duals, spare)
                 });
-                let parts = self.extract_chunk(iso, chunk, tight_blocks, &scratches);
+                let parts = self.extract_chunk(iso, chunk, tight_blocks, (&scratches, spare));
                 (parts, helper.join())
             });
             match appended {
@@ -302,7 +307,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 touched = Some(touched.unwrap_or(0) + b);
             }
         }
-        append(done, &mut refs, &mut totals, &mut active_duals)?;
+        append(done, &mut refs, &mut totals, &mut active_duals, &spare)?;
         refs.shrink_to_fit();
         let stats = ExtractStats {
             field: file.fields()[field].name.clone(),
@@ -331,18 +336,18 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// summed), in order; tight ranges not known yet are bounded through `tight_blocks`. A run
     /// ends at its first error. One vector per run rather than per leaf: small leaves' few refs
     /// each were as many allocations, and their fresh pages. A run works in its thread's
-    /// scratch from `scratches`.
+    /// scratch from `scratches` and writes into a vector from `spare`.
     fn extract_chunk<'s>(
         &'s self,
         iso: f32,
         chunk: &[u32],
         tight_blocks: &BlockRanges,
-        scratches: &ScratchPool<'s>,
+        (scratches, spare): (&ScratchPool<'s>, &SpareRefs),
     ) -> Vec<Result<(Vec<u64>, LeafCounts)>> {
         chunk
             .par_iter()
             .fold(
-                || (scratches.take(), Ok((Vec::new(), LeafCounts::default()))),
+                || (scratches.take(), Ok((spare.take(), LeafCounts::default()))),
                 |(mut scratch, run), &leaf| {
                     let run = run.and_then(|(mut out, mut totals)| {
                         let counts =
@@ -948,12 +953,14 @@ impl<'r, D: AsRef<[u8]> + Sync> LeafBoxes<'r, '_, '_, D> {
 }
 
 /// Appends the refs of `parts` (one entry per run of leaves, in order) to `refs`, adds their
-/// counts to `totals` and their merged dual cells to `duals`; the first error stops it.
+/// counts to `totals` and their merged dual cells to `duals`, and gives the runs' emptied vectors
+/// to `spare` (but the first, taken whole when `refs` is empty); the first error stops it.
 fn append(
     parts: Vec<Result<(Vec<u64>, LeafCounts)>>,
     refs: &mut Vec<u64>,
     totals: &mut LeafCounts,
     duals: &mut u64,
+    spare: &SpareRefs,
 ) -> Result<()> {
     let incoming: usize = parts.iter().flatten().map(|(part, _)| part.len()).sum();
     if refs.capacity() != 0 {
@@ -969,6 +976,7 @@ fn append(
             refs.reserve(incoming - refs.len());
         } else {
             refs.extend_from_slice(&part);
+            spare.give(part);
         }
     }
     Ok(())

@@ -196,6 +196,11 @@ impl<'f> PageRelease<'f> {
         }
     }
 
+    /// Whether a release may drop pages: the map is not smaller than the floor.
+    pub fn may_drop(&self) -> bool {
+        self.file.bytes().len() as u64 >= self.floor
+    }
+
     /// Drops every page of the map from the resident set, unless fewer than the floor
     /// ([`PageRelease::with_floor`]) are resident; returns the bytes that were resident just before,
     /// when `/proc/self/statm` tells.

@@ -156,6 +156,14 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         &self.sampler
     }
 
+    /// Whether [`Self::extract_leaves`] cuts its leaves into chunks: when a release set may drop
+    /// the map's pages after each chunk, or the map is larger than one chunk's bytes. A smaller
+    /// map, never dropped, would pay each chunk's barrier and helper thread for nothing.
+    fn drops_pages(&self) -> bool {
+        let map = self.sampler.file().bytes().len() as u64;
+        self.pages.as_ref().is_some_and(|p| p.may_drop()) || map > CHUNK_BYTES
+    }
+
     /// `leaves` cut into runs of at most [`CHUNK_LEAVES`] leaves and about [`CHUNK_BYTES`] of
     /// their cells.
     fn chunks<'l>(&self, leaves: &'l [u32]) -> Vec<&'l [u32]> {
@@ -275,13 +283,25 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let tiles = CellTiles::pays(self.file_cells, file.num_leaves()).then_some(&self.cells);
         let scratches = ScratchPool::new((&self.blocks, &self.leaves, &self.coarse), tiles);
         let spare = SpareRefs::default();
-        let chunks = self.chunks(leaves);
+        let chunks = if self.drops_pages() {
+            self.chunks(leaves)
+        } else {
+            vec![leaves]
+        };
         if let Some(first) = chunks.first() {
             self.read_ahead(first);
         }
         let mut done: Vec<Result<(Vec<u64>, LeafCounts)>> = Vec::new();
         for (k, chunk) in chunks.iter().enumerate() {
             let next = chunks.get(k + 1);
+            if next.is_none() && done.is_empty() {
+                // Nothing to read ahead or append beside the workers.
+                done = self.extract_chunk(iso, chunk, tight_blocks, (&scratches, &spare));
+                if let Some(b) = self.release_pages() {
+                    touched = Some(touched.unwrap_or(0) + b);
+                }
+                continue;
+            }
             let (parts, appended) = std::thread::scope(|s| {
                 // While the workers extract this chunk, another thread asks for the next chunk's
                 // reads and appends the chunk before's refs: neither waits for the other, and

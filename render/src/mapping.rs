@@ -69,8 +69,44 @@ pub fn open_mapped(path: &Path) -> Result<MappedFile> {
 }
 
 /// Bytes of `map`'s pages this process has touched (its resident set in the mapping), from
-/// `/proc/self/smaps`; `None` where that file is not available.
+/// `/proc/self/pagemap` (the map's own page-table entries), else `/proc/self/smaps`; `None`
+/// where neither file is available.
 pub fn mapped_resident_bytes(map: &[u8]) -> Option<u64> {
+    present_bytes(map).or_else(|| smaps_rss(map))
+}
+
+/// Bytes of the pages of `map` present in this process's page tables, from
+/// `/proc/self/pagemap`: 8 bytes read a page of the map, so its cost follows the map's size,
+/// not the process's other mappings (as `/proc/self/smaps` does, formatted as text).
+fn present_bytes(map: &[u8]) -> Option<u64> {
+    use std::os::unix::fs::FileExt;
+    /// Entries read at once.
+    const BATCH: u64 = 4096;
+    /// Bit 63 of an entry: the page is present.
+    const PRESENT: u64 = 1 << 63;
+    let page = page_bytes()?;
+    let first = map.as_ptr() as u64 / page;
+    let end = (map.as_ptr() as u64 + map.len() as u64).div_ceil(page);
+    let pagemap = File::open("/proc/self/pagemap").ok()?;
+    let mut buf = vec![0u8; (BATCH * 8) as usize];
+    let mut present = 0u64;
+    let mut p = first;
+    while p < end {
+        let entries = &mut buf[..((end - p).min(BATCH) * 8) as usize];
+        pagemap.read_exact_at(entries, p * 8).ok()?;
+        present += entries
+            .chunks_exact(8)
+            .filter(|e| {
+                u64::from_ne_bytes([e[0], e[1], e[2], e[3], e[4], e[5], e[6], e[7]]) & PRESENT != 0
+            })
+            .count() as u64;
+        p += (entries.len() / 8) as u64;
+    }
+    Some(present * page)
+}
+
+/// The `Rss` of the mapping holding `map` in `/proc/self/smaps`.
+fn smaps_rss(map: &[u8]) -> Option<u64> {
     let start = map.as_ptr() as usize;
     let smaps = std::fs::read_to_string("/proc/self/smaps").ok()?;
     let mut in_region = false;
@@ -99,9 +135,14 @@ pub fn mapped_resident_bytes(map: &[u8]) -> Option<u64> {
 fn file_resident_bytes() -> Option<u64> {
     let statm = std::fs::read_to_string("/proc/self/statm").ok()?;
     let pages: u64 = statm.split_whitespace().nth(2)?.parse().ok()?;
+    pages.checked_mul(page_bytes()?)
+}
+
+/// The page size.
+fn page_bytes() -> Option<u64> {
     // SAFETY: sysconf has no preconditions.
     let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
-    pages.checked_mul(u64::try_from(page).ok()?)
+    u64::try_from(page).ok().filter(|&p| p > 0)
 }
 
 /// Map bytes a release leaves resident when it finds fewer: unmapping them and faulting them
@@ -120,8 +161,8 @@ pub const RELEASE_FLOOR_BYTES: u64 = 64 << 20;
 /// A request runs between two stages, while the worker threads wait, so it must be cheap: the
 /// map's resident bytes are measured as the growth of the process's file-backed resident set
 /// (`/proc/self/statm`, a counter) since the last release, not by walking the map's page tables
-/// in `/proc/self/smaps`; file pages of other mappings faulted in meanwhile (program code)
-/// count too. The first release measures the map exactly instead (`/proc/self/smaps`, once),
+/// ([`mapped_resident_bytes`]); file pages of other mappings faulted in meanwhile (program code)
+/// count too. The first release measures the map exactly instead ([`mapped_resident_bytes`], once),
 /// because the first stage also faults in the program's own code for it; no measurement exceeds
 /// the map's size. The unmapping is one `madvise` call over the whole map, made by the
 /// requesting thread (see `docs/rendering.md`, "Map pages").
@@ -130,7 +171,7 @@ pub struct PageRelease<'f> {
     peak: AtomicU64,
     /// File-backed resident bytes of the process outside the map, as of the last release.
     others: AtomicU64,
-    /// Whether the next release reads the map's resident bytes from `/proc/self/smaps`.
+    /// Whether the next release measures the map's resident bytes exactly.
     exact_next: AtomicBool,
     /// Resident map bytes below which a release leaves the pages.
     floor: u64,
@@ -153,6 +194,11 @@ impl<'f> PageRelease<'f> {
             exact_next: AtomicBool::new(true),
             floor,
         }
+    }
+
+    /// Whether a release may drop pages: the map is not smaller than the floor.
+    pub fn may_drop(&self) -> bool {
+        self.file.bytes().len() as u64 >= self.floor
     }
 
     /// Drops every page of the map from the resident set, unless fewer than the floor
@@ -272,6 +318,19 @@ mod tests {
             "a release below the floor unmapped pages: {after} < {first}"
         );
         assert_eq!(weighted_sum(file.bytes()), before);
+    }
+
+    #[test]
+    fn page_table_entries_count_what_smaps_counts() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = small_blobs_file(dir.path());
+        let bytes = file.bytes();
+        let half = weighted_sum(&bytes[..bytes.len() / 2]);
+        assert!(half > 0);
+        let (Some(present), Some(rss)) = (present_bytes(bytes), smaps_rss(bytes)) else {
+            return;
+        };
+        assert_eq!(present, rss);
     }
 
     /// A small two-level `blobs` file written in `dir`, mapped.

@@ -10,9 +10,11 @@
 //! tiles, each of the about 100 leaves around a small leaf's neighbourhood was visited again by
 //! every neighbourhood holding part of it, and each coarse cell settled again in each.
 //!
-//! The threads share the tiles, [`SLOTS`] per worker thread in sets of [`WAYS`], each set
-//! behind its own lock: a tile is filled once whichever thread asks first (the threads work on
-//! leaves far apart, so a lock is seldom contended), and the memory is bounded. A set pushes
+//! Each worker thread keeps its own tiles, [`SLOTS`] in sets of [`WAYS`], each set behind a
+//! lock that only its thread takes: a tile two threads need is filled by each, but no thread
+//! writes the cache lines another reads (every request writes its set's use marks, and a fill
+//! the tile's cells; shared sets cost `tiny` about a sixth of its two-thread extraction, see
+//! `docs/benchmarks-extract.md`, `tinypar2`), and the memory is bounded. A set pushes
 //! out its least recently used tile, which is filled again when asked, with the same cells;
 //! the leaves come in kd-tree order, so the tiles in use are few and near each other, and a few
 //! hundred tiles kept by use miss about as seldom as thousands placed by a hash alone.
@@ -45,7 +47,8 @@ const WAYS: usize = 8;
 
 /// The tiles of every level of one field.
 pub struct CellTiles {
-    /// The sets of tiles, [`SLOTS`] `/` [`WAYS`] per worker thread, made on first use.
+    /// The sets of tiles, [`SLOTS`] `/` [`WAYS`] for each worker thread in turn, made on first
+    /// use.
     sets: OnceLock<Box<[Mutex<TileSet>]>>,
     /// Per thread, the leaves met by the tile it is filling: one list for all its fills.
     touching: Vec<Mutex<Vec<Met>>>,
@@ -131,6 +134,9 @@ impl CellTiles {
                 .map(|_| Mutex::default())
                 .collect()
         });
+        // The thread's own sets; a caller outside the pool shares the first thread's.
+        let per_thread = SLOTS / WAYS;
+        let own = i.saturating_sub(1) * per_thread;
         let tiles = IBox::new(
             g.lo.map(|v| v >> TILE_SHIFT),
             g.hi.map(|v| (v + TILE - 1) >> TILE_SHIFT),
@@ -141,7 +147,7 @@ impl CellTiles {
                     let t = [tx, ty, tz];
                     let cells = IBox::new(t.map(|v| v * TILE), t.map(|v| (v + 1) * TILE));
                     let key = TileKey::new(level, t);
-                    let mut set = sets[key.set(sets.len())]
+                    let mut set = sets[own + key.set(per_thread)]
                         .lock()
                         .unwrap_or_else(|e| e.into_inner());
                     let tile = match set.find(&key) {

@@ -48,11 +48,14 @@ pub mod refs;
 pub mod region;
 pub mod scratch_pool;
 pub mod small;
+pub mod spare_refs;
 pub mod stats;
 pub mod tight;
 pub mod vertices;
 
 use std::time::Instant;
+
+use spare_refs::SpareRefs;
 
 use amr_format::AmrkFile;
 
@@ -151,6 +154,14 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// The sampler underneath.
     pub fn sampler(&self) -> &Sampler<'f, D> {
         &self.sampler
+    }
+
+    /// Whether [`Self::extract_leaves`] cuts its leaves into chunks: when a release set may drop
+    /// the map's pages after each chunk, or the map is larger than one chunk's bytes. A smaller
+    /// map, never dropped, would pay each chunk's barrier and helper thread for nothing.
+    fn drops_pages(&self) -> bool {
+        let map = self.sampler.file().bytes().len() as u64;
+        self.pages.as_ref().is_some_and(|p| p.may_drop()) || map > CHUNK_BYTES
     }
 
     /// `leaves` cut into runs of at most [`CHUNK_LEAVES`] leaves and about [`CHUNK_BYTES`] of
@@ -271,26 +282,40 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         };
         let tiles = CellTiles::pays(self.file_cells, file.num_leaves()).then_some(&self.cells);
         let scratches = ScratchPool::new((&self.blocks, &self.leaves, &self.coarse), tiles);
-        let chunks = self.chunks(leaves);
+        let spare = SpareRefs::default();
+        let chunks = if self.drops_pages() {
+            self.chunks(leaves)
+        } else {
+            vec![leaves]
+        };
         if let Some(first) = chunks.first() {
             self.read_ahead(first);
         }
         let mut done: Vec<Result<(Vec<u64>, LeafCounts)>> = Vec::new();
         for (k, chunk) in chunks.iter().enumerate() {
             let next = chunks.get(k + 1);
+            if next.is_none() && done.is_empty() {
+                // Nothing to read ahead or append beside the workers.
+                done = self.extract_chunk(iso, chunk, tight_blocks, (&scratches, &spare));
+                if let Some(b) = self.release_pages() {
+                    touched = Some(touched.unwrap_or(0) + b);
+                }
+                continue;
+            }
             let (parts, appended) = std::thread::scope(|s| {
                 // While the workers extract this chunk, another thread asks for the next chunk's
                 // reads and appends the chunk before's refs: neither waits for the other, and
                 // the workers no longer wait for them between chunks.
                 let before = std::mem::take(&mut done);
                 let (refs, totals, duals) = (&mut refs, &mut totals, &mut active_duals);
+                let spare = &spare;
                 let helper = s.spawn(move || {
                     if let Some(next) = next {
                         self.read_ahead(next);
                     }
-                    append(before, refs, totals, duals)
+                    append(before, refs, totals, duals, spare)
                 });
-                let parts = self.extract_chunk(iso, chunk, tight_blocks, &scratches);
+                let parts = self.extract_chunk(iso, chunk, tight_blocks, (&scratches, spare));
                 (parts, helper.join())
             });
             match appended {
@@ -302,7 +327,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 touched = Some(touched.unwrap_or(0) + b);
             }
         }
-        append(done, &mut refs, &mut totals, &mut active_duals)?;
+        append(done, &mut refs, &mut totals, &mut active_duals, &spare)?;
         refs.shrink_to_fit();
         let stats = ExtractStats {
             field: file.fields()[field].name.clone(),
@@ -331,18 +356,18 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// summed), in order; tight ranges not known yet are bounded through `tight_blocks`. A run
     /// ends at its first error. One vector per run rather than per leaf: small leaves' few refs
     /// each were as many allocations, and their fresh pages. A run works in its thread's
-    /// scratch from `scratches`.
+    /// scratch from `scratches` and writes into a vector from `spare`.
     fn extract_chunk<'s>(
         &'s self,
         iso: f32,
         chunk: &[u32],
         tight_blocks: &BlockRanges,
-        scratches: &ScratchPool<'s>,
+        (scratches, spare): (&ScratchPool<'s>, &SpareRefs),
     ) -> Vec<Result<(Vec<u64>, LeafCounts)>> {
         chunk
             .par_iter()
             .fold(
-                || (scratches.take(), Ok((Vec::new(), LeafCounts::default()))),
+                || (scratches.take(), Ok((spare.take(), LeafCounts::default()))),
                 |(mut scratch, run), &leaf| {
                     let run = run.and_then(|(mut out, mut totals)| {
                         let counts =
@@ -948,12 +973,14 @@ impl<'r, D: AsRef<[u8]> + Sync> LeafBoxes<'r, '_, '_, D> {
 }
 
 /// Appends the refs of `parts` (one entry per run of leaves, in order) to `refs`, adds their
-/// counts to `totals` and their merged dual cells to `duals`; the first error stops it.
+/// counts to `totals` and their merged dual cells to `duals`, and gives the runs' emptied vectors
+/// to `spare` (but the first, taken whole when `refs` is empty); the first error stops it.
 fn append(
     parts: Vec<Result<(Vec<u64>, LeafCounts)>>,
     refs: &mut Vec<u64>,
     totals: &mut LeafCounts,
     duals: &mut u64,
+    spare: &SpareRefs,
 ) -> Result<()> {
     let incoming: usize = parts.iter().flatten().map(|(part, _)| part.len()).sum();
     if refs.capacity() != 0 {
@@ -969,6 +996,7 @@ fn append(
             refs.reserve(incoming - refs.len());
         } else {
             refs.extend_from_slice(&part);
+            spare.give(part);
         }
     }
     Ok(())

@@ -69,10 +69,9 @@ impl Default for SampleScratch {
     }
 }
 
-/// log2 of the octants a scratch remembers: 65536 (3 MiB per thread); the default 1024
-/// thrashes on the octants that smooth normals of neighbouring rows share, and 16384 still
-/// forgot some at 1024x768.
-const SCRATCH_OCTANT_BITS: u32 = 16;
+/// log2 of the octants a scratch remembers: 16384 (768 KiB per thread); the default 1024
+/// thrashes on the octants that smooth normals of neighbouring rows share.
+const SCRATCH_OCTANT_BITS: u32 = 14;
 
 /// Locates through a scratch's remembered leaves, then through the sampler's kd-tree.
 pub struct RecentLocator<'a, 's, 'f, D> {

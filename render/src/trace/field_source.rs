@@ -38,12 +38,8 @@ use crate::trace::tracer::{central_difference_given, SurfaceHit};
 /// Bytes of decompressed bricks the sampler may cache.
 pub const BRICK_CACHE_BYTES: usize = 256 << 20;
 
-/// log2 of the slots of each thread's cache of decoded voxels (96 bytes each): 4096 slots
-/// forgot voxels that later rays (shadow rays most) test again.
-const VOXEL_CACHE_BITS: u32 = 14;
-
-/// Slots of each thread's cache of decoded voxels.
-const VOXEL_CACHE_SLOTS: usize = 1 << VOXEL_CACHE_BITS;
+/// Slots of each thread's cache of decoded voxels (a power of two).
+const VOXEL_CACHE_SLOTS: usize = 4096;
 
 /// Bytes of one thread's voxel cache: the decoded voxels with their refs and the cell blocks of
 /// smooth normals, plus the sampling scratch (bounded by its own capacities, not counted here).
@@ -350,7 +346,7 @@ impl VoxelCache {
     /// hashing of the ref, so that neighbouring refs land in different slots.
     #[inline(always)]
     fn held(&self, r: u64) -> std::result::Result<Voxel, usize> {
-        let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - VOXEL_CACHE_BITS)) as usize;
+        let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
         match self.slots[slot] {
             (key, v) if key == r && r != u64::MAX => Ok(v),
             _ => Err(slot),

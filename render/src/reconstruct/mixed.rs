@@ -268,8 +268,8 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             }
             return Ok(Some(out));
         }
-        // The stitch memory, made in place (about 1.3 KB) once some stitched corner is not
-        // remembered in `memo`.
+        // The stitch memory, made in place (about 1.3 KB) when the first stitched corner needs
+        // it.
         let mut stitches = None::<Stitches>;
         let new_stitches = || {
             let mut known = Stitches::new();
@@ -288,15 +288,6 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             // The corner's eight entries: bits 0, 1, 4, 5, 16, 17, 20 and 21 from `corner(n)`.
             *slot = if coarse >> corner(n) & 0x0033_0033 != 0 {
                 let v = axes(|a| base[a] + (n >> a & 1) as i64 * s[a]);
-                // A stitched corner's value is `vertex_value_in`'s at `v`, remembered with its
-                // values: the fine octants along a level boundary share their stitched corners.
-                if let Some(x) = memo.stitched(v, level) {
-                    match x {
-                        Some(x) => *slot = x,
-                        None => return Ok(None),
-                    }
-                    continue;
-                }
                 // An entry's level: as read or located, else its whole position's.
                 let lv: [u32; 8] = std::array::from_fn(|i| {
                     let e = entry(i);
@@ -345,16 +336,13 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                                 q.level,
                                 Some(x),
                             );
-                            memo.remember_stitched(v, level, Some(x));
                             *slot = x;
                             continue;
                         }
                     }
                 }
                 let known = stitches.get_or_insert_with(new_stitches);
-                let x = self.stitched_value(loc, v, &q, octant, known, memo)?;
-                memo.remember_stitched(v, level, x);
-                match x {
+                match self.stitched_value(loc, v, &q, octant, known, memo)? {
                     Some(x) => x,
                     None => return Ok(None),
                 }

@@ -126,26 +126,6 @@ impl VertexMemo {
         self.map.insert(VertexKey(v, level), value);
     }
 
-    /// [`Self::vertex`] for a stitched vertex: `None` from a memo used once (no octant table),
-    /// which does not remember them ([`Self::remember_stitched`]).
-    #[inline]
-    pub(super) fn stitched(&self, v: [i64; 3], level: u32) -> Option<Option<f32>> {
-        if self.octant_bits == 0 {
-            return None;
-        }
-        self.vertex(v, level)
-    }
-
-    /// [`Self::remember_vertex`] for a stitched vertex, except in a memo used once: there the
-    /// few repeats within one octant (which [`super::stitch::Stitches`] catches) do not pay
-    /// for the insertions.
-    #[inline]
-    pub(super) fn remember_stitched(&mut self, v: [i64; 3], level: u32, value: Option<f32>) {
-        if self.octant_bits != 0 {
-            self.remember_vertex(v, level, value);
-        }
-    }
-
     #[inline]
     fn octant_slot(&self, o: &Octant) -> usize {
         let h = (o.cell[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)

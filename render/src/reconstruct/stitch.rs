@@ -210,12 +210,6 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         if let Some(x) = known.vertex(w, level) {
             return Ok(x);
         }
-        // The same value as `vertex_value_in`'s, so shared with it: coarse vertices recur
-        // across the fine octants stitched to them.
-        if let Some(x) = memo.stitched(w, level) {
-            known.add_vertex(w, level, x);
-            return Ok(x);
-        }
         let value = match self.around_values(loc, w, own, known)? {
             None => None,
             Some((levels, values)) => {
@@ -235,7 +229,6 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             }
         };
         known.add_vertex(w, level, value);
-        memo.remember_stitched(w, level, value);
         Ok(value)
     }
 

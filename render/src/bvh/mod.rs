@@ -40,8 +40,8 @@ pub mod wide;
 
 pub use lattice::CellLattice;
 pub use node_test::T_MIN;
-use packet::{walk_packet, Mask, PacketStack};
-use packet_any::walk_packet_any;
+use packet::{Mask, PacketStack};
+use packet_any::walk_packet_of;
 use walk::{walk, Stack};
 use wide::{centre_codes, morton, WideBuilder};
 
@@ -658,6 +658,10 @@ impl OctantBvh {
     ) {
         let octants = by_octant(rays, active);
         let mut stack = PacketStack::with_capacity(256);
+        let mut visit = |i: usize, r: u64, m: Mask, rays: &mut [Ray]| -> Mask {
+            visit(i, r, m, rays);
+            0
+        };
         for (o, &m) in octants.iter().enumerate() {
             if m == 0 {
                 continue;
@@ -666,10 +670,10 @@ impl OctantBvh {
             #[cfg(target_arch = "x86_64")]
             if std::arch::is_x86_feature_detected!("avx2") {
                 // SAFETY: the CPU has AVX2, checked just above.
-                unsafe { self.packet_avx2(rays, m, oct, &mut stack, &mut visit) };
+                unsafe { self.packet_avx2::<false>(rays, m, oct, &mut stack, &mut visit) };
                 continue;
             }
-            self.packet_with(rays, m, oct, &mut stack, &mut visit, |node, rays, m, e| {
+            self.packet_with::<false>(rays, m, oct, &mut stack, &mut visit, |node, rays, m, e| {
                 packet::children_portable(node, rays, m, oct, e)
             });
         }
@@ -722,7 +726,7 @@ impl OctantBvh {
                 if octants.contains(&active) {
                     // One octant (shadow rays, all parallel): its test alone, no loop over
                     // the octants at every node.
-                    self.packet_any_one_avx2(rays, active, oct, &mut stack, &mut visit);
+                    self.packet_avx2::<true>(rays, active, oct, &mut stack, &mut visit);
                 } else {
                     self.packet_any_avx2(rays, active, &octants, oct, &mut stack, &mut visit);
                 }
@@ -730,7 +734,7 @@ impl OctantBvh {
             return;
         }
         let _ = avx2;
-        self.packet_any_with(
+        self.packet_with::<true>(
             rays,
             active,
             oct,
@@ -771,7 +775,7 @@ impl OctantBvh {
                 *test = Some(packet::Avx2Packet::new(lanes, rays, octants[o], oct));
             }
         }
-        self.packet_any_with(rays, m, oct, stack, visit, |node, rays, m, e| {
+        self.packet_with::<true>(rays, m, oct, stack, visit, |node, rays, m, e| {
             let mut slots = 0;
             for (test, &of_o) in tests.iter().zip(octants) {
                 if let Some(test) = test.as_ref().filter(|_| m & of_o != 0) {
@@ -780,68 +784,6 @@ impl OctantBvh {
             }
             slots
         });
-    }
-
-    /// [`OctantBvh::traverse_packet_any`] for rays of one octant (`oct`), with that octant's AVX2
-    /// node test, the whole walk compiled for AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn packet_any_one_avx2(
-        &self,
-        rays: &mut [Ray],
-        m: Mask,
-        oct: u32,
-        stack: &mut PacketStack,
-        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
-    ) {
-        let mut lanes: packet::Avx2Lanes =
-            [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8];
-        let test = packet::Avx2Packet::new(&mut lanes, rays, m, oct);
-        self.packet_any_with(rays, m, oct, stack, visit, |node, rays, m, e| {
-            test.children(node, rays, m, e)
-        });
-    }
-
-    /// The any-hit walk of the rays `m`, children in the order of octant `oct`: the top level,
-    /// then each chunk it reaches, with the node test `test`.
-    #[inline(always)]
-    fn packet_any_with(
-        &self,
-        rays: &mut [Ray],
-        m: Mask,
-        oct: u32,
-        stack: &mut PacketStack,
-        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
-        test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) -> u32 + Copy,
-    ) {
-        let mut chunk_walk = |chunk: &Chunk, rays: &mut [Ray], m: Mask, stack: &mut PacketStack| {
-            let refs = &self.refs[chunk.first..chunk.first + chunk.len];
-            walk_packet_any(
-                &chunk.bvh.nodes,
-                rays,
-                m,
-                oct,
-                stack,
-                test,
-                |i, m, rays, _| {
-                    let i = i as usize;
-                    visit(chunk.first + i, refs[i], m, rays)
-                },
-            )
-        };
-        if let [chunk] = self.chunks.as_slice() {
-            chunk_walk(chunk, rays, m, stack);
-            return;
-        }
-        walk_packet_any(
-            &self.top.nodes,
-            rays,
-            m,
-            oct,
-            stack,
-            test,
-            |c, m, rays, stack| chunk_walk(&self.chunks[c as usize], rays, m, stack),
-        );
     }
 
     /// [`OctantBvh::traverse_packet`] on a CPU without AVX2, to compare with the AVX2 test.
@@ -858,47 +800,55 @@ impl OctantBvh {
             octants[(node_test::octant_inv4(rays[k].direction) & 7) as usize] |= 1 << k;
         }
         let mut stack = PacketStack::new();
+        let mut visit = |i: usize, r: u64, m: Mask, rays: &mut [Ray]| -> Mask {
+            visit(i, r, m, rays);
+            0
+        };
         for (o, &m) in octants.iter().enumerate() {
             let oct = (o as u32) * 0x0101_0101;
-            self.packet_with(rays, m, oct, &mut stack, &mut visit, |node, rays, m, e| {
+            self.packet_with::<false>(rays, m, oct, &mut stack, &mut visit, |node, rays, m, e| {
                 packet::children_portable(node, rays, m, oct, e)
             });
         }
     }
 
-    /// One octant's packet with the AVX2 node test, the whole walk compiled for AVX2.
+    /// One octant's packet (`oct`) with the AVX2 node test, the whole walk compiled for AVX2:
+    /// any-hit when `ANY`, else closest-hit ([`OctantBvh::packet_with`]).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn packet_avx2(
+    fn packet_avx2<const ANY: bool>(
         &self,
         rays: &mut [Ray],
         m: Mask,
         oct: u32,
         stack: &mut PacketStack,
-        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]),
+        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
     ) {
         let mut lanes: packet::Avx2Lanes =
             [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8];
         let test = packet::Avx2Packet::new(&mut lanes, rays, m, oct);
-        self.packet_with(rays, m, oct, stack, visit, |node, rays, m, e| {
+        self.packet_with::<ANY>(rays, m, oct, stack, visit, |node, rays, m, e| {
             test.children(node, rays, m, e)
         });
     }
 
-    /// One octant's packet: the top level, then each chunk it reaches, with the node test `test`.
+    /// One packet's walk, children in the order of octant `oct`: the top level, then each chunk
+    /// it reaches, with the node test `test`. Any-hit ([`walk_packet_any`]) when `ANY`, where
+    /// `visit` returns the rays it ends; else closest-hit ([`walk_packet`]), where it ends none
+    /// and what it returns is ignored.
     #[inline(always)]
-    fn packet_with(
+    fn packet_with<const ANY: bool>(
         &self,
         rays: &mut [Ray],
         m: Mask,
         oct: u32,
         stack: &mut PacketStack,
-        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]),
+        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
         test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) -> u32 + Copy,
     ) {
         let mut chunk_walk = |chunk: &Chunk, rays: &mut [Ray], m: Mask, stack: &mut PacketStack| {
             let refs = &self.refs[chunk.first..chunk.first + chunk.len];
-            walk_packet(
+            walk_packet_of::<ANY>(
                 &chunk.bvh.nodes,
                 rays,
                 m,
@@ -909,13 +859,13 @@ impl OctantBvh {
                     let i = i as usize;
                     visit(chunk.first + i, refs[i], m, rays)
                 },
-            );
+            )
         };
         if let [chunk] = self.chunks.as_slice() {
             chunk_walk(chunk, rays, m, stack);
             return;
         }
-        walk_packet(
+        walk_packet_of::<ANY>(
             &self.top.nodes,
             rays,
             m,

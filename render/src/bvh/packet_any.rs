@@ -1,4 +1,4 @@
-//! The any-hit walk down one CWBVH8 with a packet of rays: [`super::packet::walk_packet`]'s
+//! The any-hit walk down one CWBVH8 with a packet of rays: [`walk_packet`]'s
 //! walk, in which a ray leaves the walk as soon as a primitive ends it.
 //!
 //! A ray ended by a hit is dropped from every entry popped after it, so the nodes left on the
@@ -14,7 +14,7 @@
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray;
 
-use super::packet::{xor_slots, Mask, PacketStack};
+use super::packet::{walk_packet, xor_slots, Mask, PacketStack};
 use super::walk::{child_entry, leaf_prims};
 
 /// Walks `nodes` (empty, or a CWBVH8 whose root is node 0) with the rays of `active`, children
@@ -74,4 +74,33 @@ pub fn walk_packet_any(
     }
     stack.truncate(floor);
     active & !live
+}
+
+/// [`walk_packet_any`] when `ANY`, else [`super::packet::walk_packet`], whose `leaf` ends no
+/// ray (what it returns is ignored, and none are returned ended).
+#[inline(always)]
+pub fn walk_packet_of<const ANY: bool>(
+    nodes: &[CwBvhNode],
+    rays: &mut [Ray],
+    active: Mask,
+    oct_inv4: u32,
+    stack: &mut PacketStack,
+    test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) -> u32,
+    mut leaf: impl FnMut(u32, Mask, &mut [Ray], &mut PacketStack) -> Mask,
+) -> Mask {
+    if ANY {
+        return walk_packet_any(nodes, rays, active, oct_inv4, stack, test, leaf);
+    }
+    walk_packet(
+        nodes,
+        rays,
+        active,
+        oct_inv4,
+        stack,
+        test,
+        |i, m, rays, stack| {
+            leaf(i, m, rays, stack);
+        },
+    );
+    0
 }

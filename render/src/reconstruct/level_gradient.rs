@@ -479,8 +479,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             while x < row.x[1] {
                 let cell = [lo[0] + x as i64, lo[1] + row.y as i64, lo[2] + row.z as i64];
                 if !leaves[last].holds(cell) {
-                    match (0..known).find(|&k| leaves[k].holds(cell)) {
-                        Some(k) => last = k,
+                    match (0..known).find(|&i| leaves[i].holds(cell)) {
+                        Some(i) => last = i,
                         None if known == BLOCK_LEAVES => return Ok(None),
                         None => {
                             let found = self.block_leaf_near(level, cell, known, recent)?;

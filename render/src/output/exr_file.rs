@@ -6,6 +6,11 @@
 
 use std::path::Path;
 
+use exr::block::lines::LineRefMut;
+use exr::image::write::samples::{SamplesWriter, WritableSamples};
+use exr::math::RoundingMode;
+use exr::meta::attribute::LevelMode;
+use exr::meta::header::Header;
 use exr::prelude::*;
 
 use amr_format::output::temporary_for;
@@ -13,6 +18,44 @@ use amr_format::output::temporary_for;
 use crate::error::{RenderError, Result};
 
 use crate::output::frame::FrameBuffer;
+
+/// One of a frame's planes as the samples of an EXR channel, borrowed.
+struct Plane<'a>(&'a Vec<f32>);
+
+impl<'s, 'a: 's> WritableSamples<'s> for Plane<'a> {
+    type Writer = PlaneWriter<'a>;
+
+    fn sample_type(&self) -> SampleType {
+        SampleType::F32
+    }
+
+    fn infer_level_modes(&self) -> (LevelMode, RoundingMode) {
+        (LevelMode::Singular, RoundingMode::Down)
+    }
+
+    fn create_samples_writer(&'s self, header: &Header) -> PlaneWriter<'a> {
+        PlaneWriter {
+            width: header.layer_size.width(),
+            samples: self.0,
+        }
+    }
+}
+
+/// Hands the writer the lines of a [`Plane`].
+struct PlaneWriter<'a> {
+    width: usize,
+    samples: &'a [f32],
+}
+
+impl SamplesWriter for PlaneWriter<'_> {
+    fn extract_line(&self, line: LineRefMut<'_>) {
+        let start = line.location.position.y() * self.width + line.location.position.x();
+        let samples = &self.samples[start..start + line.location.sample_count];
+        // The line's bytes are a buffer of exactly this many samples, in memory.
+        line.write_samples_from_slice(samples)
+            .expect("a line's buffer holds its samples");
+    }
+}
 
 /// The channel of the values that painted surfaces and slices, written when a frame has any: a
 /// user can recolour the frame with another colormap or range.
@@ -99,7 +142,8 @@ pub fn write_exr_with(
     compression: ExrCompression,
 ) -> Result<()> {
     let size = (frame.width as usize, frame.height as usize);
-    let ch = |name: &str, data: &Vec<f32>| AnyChannel::new(name, FlatSamples::F32(data.clone()));
+    // The planes are read where they are: a copy of them all would double the frame's memory.
+    let ch = |name: &str, data| AnyChannel::new(name, Plane(data));
     let channels = vec![
         ch("R", &frame.rgb[0]),
         ch("G", &frame.rgb[1]),

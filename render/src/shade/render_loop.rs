@@ -3,6 +3,7 @@
 //! ray counting and progress, then the filter of the ambient occlusion over the whole frame.
 
 use std::cell::Cell;
+use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
@@ -135,27 +136,18 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
     progress: &(dyn Fn(u64) + Sync),
 ) -> (FrameBuffer, u64) {
     let (w, h) = (settings.width, settings.height);
-    let spp = u64::from(settings.spp.max(1));
     let threads = rayon::current_num_threads().max(1) as u64;
     let release_pixels = RELEASE_PIXELS_PER_THREAD.saturating_mul(threads);
     // Pixels (times samples) rendered since the last release, by all threads.
     let since_release = AtomicU64::new(0);
-    let pieces: Vec<(u32, u32)> = (0..h)
-        .step_by(TILE as usize)
-        .flat_map(|y| (0..w).step_by(PIECE_COLUMNS as usize).map(move |x| (x, y)))
-        .collect();
-    let part: Vec<Vec<Row>> = pieces
-        .into_par_iter()
-        .map(|(x, y)| {
-            let xs = x..(x + PIECE_COLUMNS).min(w);
-            let ys = y..(y + TILE).min(h);
-            let (last, pixels) = (xs.end == w, (xs.len() * ys.len()) as u64 * spp);
-            // The first piece of a strip holds the rows the others are appended to.
-            let width = if x == 0 { w as usize } else { 0 };
-            let strip = render_strip(tracer, camera, light, settings, (xs, ys), width);
-            if last {
-                progress(strip.len() as u64);
-            }
+    let mut frame = FrameBuffer::zeroed(w, h, tracer.frame().origin);
+    let mut out = frame.rows_mut().into_iter();
+    let mut pending = PendingRows::default();
+    let mut rays = 0;
+    let band_rows = band_rows(w);
+    for b0 in (0..h).step_by(band_rows as usize) {
+        let band = b0..(b0 + band_rows).min(h);
+        let rows = render_band(tracer, camera, light, settings, band.clone(), |pixels| {
             // The thread whose piece crosses the count releases; the others go on (their
             // accesses fault the same bytes back in).
             let before = since_release.fetch_add(pixels, Ordering::Relaxed);
@@ -163,12 +155,74 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
                 since_release.store(0, Ordering::Relaxed);
                 tracer.release_pages();
             }
+        }, progress);
+        rays += rows.iter().map(|r| r.rays).sum::<u64>();
+        pending.push(rows);
+        // The rows whose filter window is rendered are written; those the filter of the rows
+        // still to come reads are kept.
+        let ready = if band.end == h {
+            h
+        } else {
+            band.end - ao_filter::MARGIN
+        };
+        let (rows, written) = pending.take_until(ready as usize, ao_filter::MARGIN as usize);
+        let outs: Vec<_> = out.by_ref().take(written.len()).collect();
+        finish(rows, written, camera, light, settings, w, outs, |mut out, pixels| {
+            out.set_all(pixels)
+        });
+        pending.drop_before(ready.saturating_sub(ao_filter::MARGIN) as usize);
+    }
+    tracer.release_pages();
+    (frame, rays)
+}
+
+/// Pixels of a frame rendered before their rows are filtered and written into the frame: the
+/// rows' samples and filter hits (about 100 bytes a pixel) are held for about this many pixels
+/// at once, not for the whole frame (a frame of up to this many pixels is one band).
+const BAND_PIXELS: u32 = 1 << 20;
+
+/// Rows of a band of a frame `w` pixels wide: a multiple of [`TILE`] holding about
+/// [`BAND_PIXELS`] pixels.
+fn band_rows(w: u32) -> u32 {
+    (BAND_PIXELS / w.max(1) / TILE).max(1) * TILE
+}
+
+/// Renders the rows `band` of `settings`' frame, piece after piece in parallel; calls
+/// `rendered(pixels)` after each piece and `progress(rows)` after each strip's last piece.
+fn render_band<T: Tracer + Sync + ?Sized>(
+    tracer: &T,
+    camera: &Camera,
+    light: &Lighting,
+    settings: RenderSettings,
+    band: std::ops::Range<u32>,
+    rendered: impl Fn(u64) + Sync,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Vec<Row> {
+    let w = settings.width;
+    let spp = u64::from(settings.spp.max(1));
+    let pieces: Vec<(u32, u32)> = band
+        .clone()
+        .step_by(TILE as usize)
+        .flat_map(|y| (0..w).step_by(PIECE_COLUMNS as usize).map(move |x| (x, y)))
+        .collect();
+    let part: Vec<Vec<Row>> = pieces
+        .into_par_iter()
+        .map(|(x, y)| {
+            let xs = x..(x + PIECE_COLUMNS).min(w);
+            let ys = y..(y + TILE).min(band.end);
+            let (last, pixels) = (xs.end == w, (xs.len() * ys.len()) as u64 * spp);
+            // The first piece of a strip holds the rows the others are appended to.
+            let width = if x == 0 { w as usize } else { 0 };
+            let strip = render_strip(tracer, camera, light, settings, (xs, ys), width);
+            if last {
+                progress(strip.len() as u64);
+            }
+            rendered(pixels);
             strip
         })
         .collect();
-    tracer.release_pages();
     // The pieces of a strip are consecutive, left to right: their rows joined are the strip's.
-    let mut rows: Vec<Row> = Vec::with_capacity(h as usize);
+    let mut rows: Vec<Row> = Vec::with_capacity(band.len());
     let mut strip: Vec<Row> = Vec::new();
     for piece in part {
         if strip.is_empty() {
@@ -182,13 +236,43 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
             rows.append(&mut strip);
         }
     }
-    let rays = rows.iter().map(|r| r.rays).sum();
-    let mut frame = FrameBuffer::zeroed(w, h, tracer.frame().origin);
-    let out = frame.rows_mut();
-    finish(rows, camera, light, settings, w, out, |mut out, pixels| {
-        out.set_all(pixels)
-    });
-    (frame, rays)
+    rows
+}
+
+/// The rows of a frame rendered and not yet dropped: those not yet written and, before them,
+/// the rows their filter reads.
+#[derive(Default)]
+struct PendingRows {
+    /// Frame row of `rows[0]`.
+    top: usize,
+    /// Rows from `top` on.
+    rows: Vec<Row>,
+    /// Frame rows written so far.
+    written: usize,
+}
+
+impl PendingRows {
+    /// Appends the next rendered rows.
+    fn push(&mut self, rows: Vec<Row>) {
+        self.rows.extend(rows);
+    }
+
+    /// The rows from up to `margin` written rows before the first unwritten one to the last
+    /// rendered, and which of them to write: those up to frame row `ready` (exclusive), counted
+    /// as written.
+    fn take_until(&mut self, ready: usize, margin: usize) -> (&mut [Row], Range<usize>) {
+        let from = self.written.saturating_sub(margin).max(self.top);
+        let written = self.written - from..ready - from;
+        self.written = ready;
+        (&mut self.rows[from - self.top..], written)
+    }
+
+    /// Drops the rows before frame row `row`.
+    fn drop_before(&mut self, row: usize) {
+        let row = row.max(self.top);
+        self.rows.drain(..row - self.top);
+        self.top = row;
+    }
 }
 
 /// Renders the rectangle of `settings`' frame with lower corner `(x0, y0)` and size `w x h` (rows
@@ -212,7 +296,7 @@ pub fn render_rect<T: Tracer + Sync + ?Sized>(
     let (mx0, my0) = (x0.saturating_sub(margin), y0.saturating_sub(margin));
     let mx1 = (x0 + w).saturating_add(margin).min(fw).max(x0 + w);
     let my1 = (y0 + h).saturating_add(margin).min(fh).max(y0 + h);
-    let rows: Vec<Row> = (my0..my1)
+    let mut rows: Vec<Row> = (my0..my1)
         .step_by(TILE as usize)
         .collect::<Vec<u32>>()
         .into_par_iter()
@@ -236,7 +320,8 @@ pub fn render_rect<T: Tracer + Sync + ?Sized>(
     {
         *slot = Some(dst);
     }
-    finish(rows, camera, light, settings, mw, slots, |slot, pixels| {
+    let all = 0..rows.len();
+    finish(&mut rows, all, camera, light, settings, mw, slots, |slot, pixels| {
         if let Some(dst) = slot {
             dst.copy_from_slice(&pixels[cut_x..cut_x + dst.len()]);
         }
@@ -473,10 +558,14 @@ thread_local! {
     static STRIP_LAYERS: Cell<Option<Box<TileLayers>>> = const { Cell::new(None) };
 }
 
-/// Hands each of `rows` (a rectangle `w` pixels wide, top row first) to `write` with its
-/// destination in `out` (one per row), its ambient occlusion filtered first; rows in parallel.
+/// Hands each of the rows `written` of `rows` (a rectangle `w` pixels wide, top row first) to
+/// `write` with its destination in `out` (one per written row), its ambient occlusion filtered
+/// first; rows in parallel. The filter reads the rows of `rows` around them: those before and
+/// after `written` are read, not written.
+#[allow(clippy::too_many_arguments)]
 fn finish<O: Send>(
-    rows: Vec<Row>,
+    rows: &mut [Row],
+    written: Range<usize>,
     camera: &Camera,
     light: &Lighting,
     settings: RenderSettings,
@@ -484,31 +573,32 @@ fn finish<O: Send>(
     out: Vec<O>,
     write: impl Fn(O, &[PixelSample]) + Sync,
 ) {
-    assert_eq!(rows.len(), out.len());
-    let h = rows.len();
-    let (pixels, ao): (Vec<Vec<PixelSample>>, Vec<AoRow>) =
-        rows.into_iter().map(|r| (r.pixels, r.ao)).unzip();
+    assert_eq!(written.len(), out.len());
+    // The filter reads the rows' hits as one slice; they are handed back at the end.
+    let ao: Vec<AoRow> = rows.iter_mut().map(|r| std::mem::take(&mut r.ao)).collect();
     let filters = filters(light, settings);
     let pixel_angle =
         (2.0 * (0.5 * camera.fov_deg).to_radians().tan() / f64::from(settings.height)) as f32;
-    let (mut pixels, mut out) = (pixels.into_iter(), out.into_iter());
+    let mut out = out.into_iter();
     // Band after band of rows, each band's rows in parallel: the filter's slots are held for
-    // one band (and its margins) at a time, not for the whole frame.
-    for y0 in (0..h).step_by(FILTER_BAND) {
-        let band = y0..(y0 + FILTER_BAND).min(h);
+    // one band (and its margins) at a time, not for all the rows.
+    for y0 in written.clone().step_by(FILTER_BAND) {
+        let band = y0..(y0 + FILTER_BAND).min(written.end);
         let filter = filters.then(|| AoRows::band(w, &ao, band.start as u32..band.end as u32));
-        let band_pixels: Vec<Vec<PixelSample>> = pixels.by_ref().take(band.len()).collect();
         let band_out: Vec<O> = out.by_ref().take(band.len()).collect();
-        band_pixels
-            .into_par_iter()
+        rows[band]
+            .par_iter_mut()
             .zip(band_out)
             .enumerate()
-            .for_each(|(i, (mut px, out))| {
+            .for_each(|(i, (row, out))| {
                 if let Some(f) = &filter {
-                    f.apply_row((y0 + i) as u32, &mut px, pixel_angle);
+                    f.apply_row((y0 + i) as u32, &mut row.pixels, pixel_angle);
                 }
-                write(out, &px);
+                write(out, &row.pixels);
             });
+    }
+    for (row, ao) in rows.iter_mut().zip(ao) {
+        row.ao = ao;
     }
 }
 

@@ -1,6 +1,7 @@
 //! The filter of the ambient occlusion across pixels: one filtered ray per hit is closer to a
 //! many-ray reference than four unfiltered rays, and the filter, which reads neighbouring
-//! pixels, leaves rectangles of a frame (tiles) equal to the whole frame, bit for bit.
+//! pixels, leaves rectangles of a frame (tiles) equal to the whole frame, bit for bit, and a
+//! frame rendered in bands of rows equal to its rows rendered alone.
 
 use amr_render::shade::IsoSpec;
 use amr_render::{
@@ -152,4 +153,54 @@ fn tiles_of_a_filtered_frame_equal_the_whole_frame() {
             }
         }
     }
+}
+
+#[test]
+fn a_frame_rendered_in_bands_equals_its_rows_rendered_alone() {
+    // A frame of more pixels than one band (`BAND_PIXELS`, 2^20: 256 rows of 4096) is
+    // rendered, filtered and written band by band; the rows on either side of each band's end
+    // must be those a region of them gives (its filter sees every row around it).
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene(dir.path());
+    let view = View {
+        size: (4096, 1024),
+        ..view(1, true)
+    };
+    let whole = render(&scene, &view, &|_| ()).unwrap().frame;
+    let w = view.size.0;
+    let mut covered = 0;
+    for end in [256u32, 512, 768] {
+        let rect = Rect {
+            x0: 0,
+            y0: end - 6,
+            width: w,
+            height: 12,
+        };
+        let rows = render_region(&scene, &view, rect).unwrap();
+        for (k, p) in rows.pixels.iter().enumerate() {
+            let i = (rect.y0 * w) as usize + k;
+            let want = [p.rgb[0], p.rgb[1], p.rgb[2], p.alpha, p.z, p.n[0], p.level];
+            let got = [
+                whole.rgb[0][i],
+                whole.rgb[1][i],
+                whole.rgb[2][i],
+                whole.alpha[i],
+                whole.z[i],
+                whole.n[0][i],
+                whole.level[i],
+            ];
+            assert_eq!(
+                got.map(f32::to_bits),
+                want.map(f32::to_bits),
+                "pixel ({}, {})",
+                k as u32 % w,
+                rect.y0 + k as u32 / w
+            );
+            covered += usize::from(p.alpha > 0.0);
+        }
+    }
+    assert!(
+        covered > 1000,
+        "only {covered} pixels near the bands' ends hit"
+    );
 }

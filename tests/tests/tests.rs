@@ -33,7 +33,7 @@
 //! - [`render_ao_packets`]: frames whose shadow and AO rays of every layer are traced as packets
 //!   equal the single-ray shader's pixel for pixel.
 //! - [`render_ao_filter`]: the ambient occlusion filtered across pixels: less noise, and tiles
-//!   equal to the whole frame.
+//!   and bands of rows equal to the whole frame.
 //! - [`render_shading`]: coarse real data under smooth normals: no black silhouette pixels, no
 //!   self-shadow on a convex surface.
 //! - [`render_normals`]: smooth normals turn steadily across voxel faces and level boundaries,

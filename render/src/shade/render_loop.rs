@@ -147,15 +147,23 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
     let band_rows = band_rows(w);
     for b0 in (0..h).step_by(band_rows as usize) {
         let band = b0..(b0 + band_rows).min(h);
-        let rows = render_band(tracer, camera, light, settings, band.clone(), |pixels| {
-            // The thread whose piece crosses the count releases; the others go on (their
-            // accesses fault the same bytes back in).
-            let before = since_release.fetch_add(pixels, Ordering::Relaxed);
-            if before < release_pixels && before + pixels >= release_pixels {
-                since_release.store(0, Ordering::Relaxed);
-                tracer.release_pages();
-            }
-        }, progress);
+        let rows = render_band(
+            tracer,
+            camera,
+            light,
+            settings,
+            band.clone(),
+            |pixels| {
+                // The thread whose piece crosses the count releases; the others go on (their
+                // accesses fault the same bytes back in).
+                let before = since_release.fetch_add(pixels, Ordering::Relaxed);
+                if before < release_pixels && before + pixels >= release_pixels {
+                    since_release.store(0, Ordering::Relaxed);
+                    tracer.release_pages();
+                }
+            },
+            progress,
+        );
         rays += rows.iter().map(|r| r.rays).sum::<u64>();
         pending.push(rows);
         // The rows whose filter window is rendered are written; those the filter of the rows
@@ -167,9 +175,16 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
         };
         let (rows, written) = pending.take_until(ready as usize, ao_filter::MARGIN as usize);
         let outs: Vec<_> = out.by_ref().take(written.len()).collect();
-        finish(rows, written, camera, light, settings, w, outs, |mut out, pixels| {
-            out.set_all(pixels)
-        });
+        finish(
+            rows,
+            written,
+            camera,
+            light,
+            settings,
+            w,
+            outs,
+            |mut out, pixels| out.set_all(pixels),
+        );
         pending.drop_before(ready.saturating_sub(ao_filter::MARGIN) as usize);
     }
     tracer.release_pages();
@@ -321,11 +336,20 @@ pub fn render_rect<T: Tracer + Sync + ?Sized>(
         *slot = Some(dst);
     }
     let all = 0..rows.len();
-    finish(&mut rows, all, camera, light, settings, mw, slots, |slot, pixels| {
-        if let Some(dst) = slot {
-            dst.copy_from_slice(&pixels[cut_x..cut_x + dst.len()]);
-        }
-    });
+    finish(
+        &mut rows,
+        all,
+        camera,
+        light,
+        settings,
+        mw,
+        slots,
+        |slot, pixels| {
+            if let Some(dst) = slot {
+                dst.copy_from_slice(&pixels[cut_x..cut_x + dst.len()]);
+            }
+        },
+    );
     (out, rays)
 }
 

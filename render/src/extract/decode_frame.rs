@@ -5,6 +5,8 @@
 use amr_format::IBox;
 
 use super::leaf::LeafFrame;
+use super::refs::LocalVoxel;
+use super::LocatedVoxel;
 use crate::reconstruct::grid::Grid;
 
 /// A leaf's frame as [`super::Extractor::decode_with`] keeps it between decodes.
@@ -20,6 +22,10 @@ pub struct DecodeFrame {
     /// where the leaf's finest cells say (the finest cell at each cell's centre lies in the leaf
     /// and in that cell).
     pub duals: IBox,
+    /// The doubled centre of its lowest level cell (`cells.lo`).
+    lowest: [i64; 3],
+    /// The width of one of its level cells in finest cells.
+    scale: [i64; 3],
 }
 
 impl DecodeFrame {
@@ -59,18 +65,58 @@ impl DecodeFrame {
             extent: (e0, e1),
             cells: e[0] * e[1] * e[2],
             duals,
+            lowest: grid.centre(frame.level, frame.cells.lo),
+            scale: grid.scale(frame.level),
         })
     }
 
     /// The level cell (absolute index) of local cell index `index`, `None` past the leaf.
     #[inline]
     pub fn cell(&self, index: u32) -> Option<[i64; 3]> {
+        let d = self.offset(index)?;
+        Some([0, 1, 2].map(|a| self.frame.cells.lo[a] + d[a]))
+    }
+
+    /// The voxel `local` of this leaf located: its level cell ([`Self::cell`]) and its box,
+    /// the one [`super::Extractor::voxel_box`] gives, taken from the leaf's lowest cell's
+    /// centre (no level lookups); `None` past the leaf.
+    #[inline(always)]
+    pub fn locate(&self, local: LocalVoxel) -> Option<LocatedVoxel> {
+        let (index, octant) = match local {
+            LocalVoxel::Octant { cell, octant } => (cell, Some(octant)),
+            LocalVoxel::Dual { cell } => (cell, None),
+        };
+        let d = self.offset(index)?;
+        let s = self.scale;
+        let c = [0, 1, 2].map(|a| self.lowest[a] + 2 * d[a] * s[a]);
+        let (lo, hi) = match octant {
+            None => (c, [0, 1, 2].map(|a| c[a] + 2 * s[a])),
+            Some(octant) => {
+                // Octant bit `a` set: the upper half of the cell on axis `a`, which starts at `c`.
+                let up = |a: usize| octant >> a & 1 != 0;
+                let lo = [0, 1, 2].map(|a| if up(a) { c[a] } else { c[a] - s[a] });
+                (lo, [0, 1, 2].map(|a| lo[a] + s[a]))
+            }
+        };
+        Some(LocatedVoxel {
+            level: self.frame.level,
+            cell: [0, 1, 2].map(|a| self.frame.cells.lo[a] + d[a]),
+            octant,
+            lo,
+            hi,
+        })
+    }
+
+    /// The offsets from the leaf's lowest level cell of the cell of local index `index`,
+    /// `None` past the leaf.
+    #[inline(always)]
+    fn offset(&self, index: u32) -> Option<[i64; 3]> {
         if i64::from(index) >= self.cells {
             return None;
         }
         let (e0, e1) = self.extent;
-        let d = [index % e0, index / e0 % e1, index / e0 / e1].map(i64::from);
-        Some([0, 1, 2].map(|a| self.frame.cells.lo[a] + d[a]))
+        let row = index / e0;
+        Some([index % e0, row % e1, row / e1].map(i64::from))
     }
 }
 

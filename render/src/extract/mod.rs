@@ -588,16 +588,16 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// The voxel `r` names located in its leaf (whose frame `last` then holds).
     #[inline(always)]
     fn locate_in(&self, r: u64, last: &mut Option<DecodeFrame>) -> Result<LocatedVoxel> {
-        let (frame, cell, octant) = self.resolve_in(r, last)?;
-        let level = frame.frame.level;
-        let (lo, hi) = self.doubled_box(level, cell, octant);
-        Ok(LocatedVoxel {
-            level,
-            cell,
-            octant,
-            lo,
-            hi,
-        })
+        let (leaf, local) = split_ref(r);
+        if last.is_none_or(|f| f.frame.leaf != leaf) {
+            self.load_frame(r, last)?;
+        }
+        let Some(frame) = last.as_ref() else {
+            return Err(bad_ref(r, "no such leaf"));
+        };
+        frame
+            .locate(local)
+            .ok_or_else(|| bad_ref(r, "cell index past the leaf"))
     }
 
     /// The voxel located as `at` in the leaf of `frame`, its values read.
@@ -775,15 +775,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     ) -> Result<(&'l DecodeFrame, [i64; 3], Option<u8>)> {
         let (leaf, local) = split_ref(r);
         if last.is_none_or(|f| f.frame.leaf != leaf) {
-            if leaf as usize >= self.sampler.file().num_leaves() {
-                return Err(bad_ref(r, "no such leaf"));
-            }
-            let frame = LeafFrame::new(&self.sampler, leaf)
-                .ok_or_else(|| bad_ref(r, "the leaf holds no brick"))?;
-            *last = Some(
-                DecodeFrame::new(self.sampler.grid(), frame)
-                    .ok_or_else(|| bad_ref(r, "the leaf's extent is out of range"))?,
-            );
+            self.load_frame(r, last)?;
         }
         let Some(frame) = last.as_ref() else {
             return Err(bad_ref(r, "no such leaf"));
@@ -796,6 +788,25 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             .cell(index)
             .ok_or_else(|| bad_ref(r, "cell index past the leaf"))?;
         Ok((frame, cell, octant))
+    }
+
+    /// Puts the frame of the leaf of `r` in `last` (an error when `r` names no leaf of this
+    /// file with a brick), for [`Self::resolve_in`] and [`Self::locate_in`]: out of line, as the
+    /// voxels of a walk come from a few leaves at a time.
+    #[cold]
+    #[inline(never)]
+    fn load_frame(&self, r: u64, last: &mut Option<DecodeFrame>) -> Result<()> {
+        let leaf = split_ref(r).0;
+        if leaf as usize >= self.sampler.file().num_leaves() {
+            return Err(bad_ref(r, "no such leaf"));
+        }
+        let frame = LeafFrame::new(&self.sampler, leaf)
+            .ok_or_else(|| bad_ref(r, "the leaf holds no brick"))?;
+        *last = Some(
+            DecodeFrame::new(self.sampler.grid(), frame)
+                .ok_or_else(|| bad_ref(r, "the leaf's extent is out of range"))?,
+        );
+        Ok(())
     }
 
     /// The doubled-coordinate box of octant `octant` of level-`level` cell `cell`, or of the dual

@@ -32,7 +32,7 @@ use crate::trace::octant::{
     voxel_occludes_with, VoxelHit,
 };
 use crate::trace::ray::GridRay;
-use crate::trace::source::{BoxedLookup, GridFrame, Voxel, VoxelLookup, VoxelSource};
+use crate::trace::source::{BoxClip, BoxedLookup, GridFrame, Voxel, VoxelLookup, VoxelSource};
 use crate::trace::tracer::{central_difference_given, SurfaceHit};
 
 /// Bytes of decompressed bricks the sampler may cache.
@@ -277,20 +277,21 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         }
     }
 
-    /// The octant voxel `r` names ([`Self::voxel_in`]), or `None` when it is not in `cache`
-    /// and `keep` rejects its box, located from the ref and the leaf's frame alone: then its
-    /// values are not decoded ([`VoxelSource::with_boxed_voxels`]). A located voxel's values
-    /// are decoded from where it was located.
+    /// The octant voxel `r` names ([`Self::voxel_in`]) and, when it is not in `cache` and
+    /// `clip` is given, `clip`'s interval in its box, located from the ref and the leaf's frame
+    /// alone; `None` when that interval is empty: then its values are not decoded
+    /// ([`VoxelSource::with_boxed_voxels`]). A located voxel's values are decoded from where it
+    /// was located.
     #[inline]
     fn octant_voxel_if(
         &self,
         e: &Extractor<'f, D>,
         cache: &mut VoxelCache,
         r: u64,
-        keep: &mut dyn FnMut([f64; 3], [f64; 3]) -> bool,
-    ) -> Option<Voxel> {
+        clip: Option<&BoxClip<'_>>,
+    ) -> Option<(Voxel, Option<(f64, f64)>)> {
         let slot = match cache.held(r) {
-            Ok(v) => return Some(v),
+            Ok(v) => return Some((v, None)),
             Err(slot) => slot,
         };
         let last = &mut cache.leaves[leaf_slot(r)];
@@ -298,21 +299,22 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
             Ok(at) => at,
             Err(err) => {
                 self.record(err);
-                return Some(Voxel::EMPTY);
+                return Some((Voxel::EMPTY, None));
             }
         };
-        if !keep(at.lo.map(|x| x as f64), at.hi.map(|x| x as f64)) {
-            return None;
-        }
+        let clipped = match clip {
+            Some(clip) => Some(clip.of(at.lo.map(|x| x as f64), at.hi.map(|x| x as f64))?),
+            None => None,
+        };
         let v = match e.decode_located(r, &at, &mut cache.scratch, last) {
             Ok(v) => v,
             Err(err) => {
                 self.record(err);
-                return Some(Voxel::EMPTY);
+                return Some((Voxel::EMPTY, None));
             }
         };
         cache.slots[slot] = (r, v);
-        Some(v)
+        Some((v, clipped))
     }
 
     /// Decodes the voxel `r` names into `cache`'s slot `slot`; the empty voxel, its error
@@ -439,8 +441,8 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         match &self.voxels {
             // The octant method's test begins with the box clip, and its boxes come from the
             // refs and the leaf's frame.
-            Voxels::Octant(e) => f(&mut |r, keep| self.octant_voxel_if(e, &mut cache, r, keep)),
-            _ => f(&mut |r, _| Some(self.voxel_in(&mut cache, r))),
+            Voxels::Octant(e) => f(&mut |r, clip| self.octant_voxel_if(e, &mut cache, r, clip)),
+            _ => f(&mut |r, _| Some((self.voxel_in(&mut cache, r), None))),
         }
     }
 

@@ -66,10 +66,34 @@ impl GridFrame {
 pub type VoxelLookup<'a> = dyn FnMut(u64) -> Voxel + 'a;
 
 /// A lookup of voxels by ref that may skip a voxel on its box alone
-/// ([`VoxelSource::with_boxed_voxels`]): `lookup(r, keep)` gives the voxel `r` names, or may
-/// give `None` when `keep(lo, hi)` is false for its box.
+/// ([`VoxelSource::with_boxed_voxels`]): `lookup(r, clip)` gives the voxel `r` names and, when
+/// it clipped `clip`'s ray to the voxel's box, the interval [`BoxClip::of`] gave; or, given a
+/// `clip`, it may give `None` when that interval is empty.
 pub type BoxedLookup<'a> =
-    dyn FnMut(u64, &mut dyn FnMut([f64; 3], [f64; 3]) -> bool) -> Option<Voxel> + 'a;
+    dyn FnMut(u64, Option<&BoxClip<'_>>) -> Option<(Voxel, Option<(f64, f64)>)> + 'a;
+
+/// A ray over `[tmin, tmax]`, to be clipped to a candidate voxel's box before the voxel's values
+/// are read ([`BoxedLookup`]).
+#[derive(Clone, Copy)]
+pub struct BoxClip<'a> {
+    /// The ray.
+    pub ray: &'a GridRay,
+    /// The reciprocals of its direction's components ([`GridRay::recip`]).
+    pub recip: &'a [f64; 3],
+    /// The start of its interval.
+    pub tmin: f64,
+    /// The end of its interval.
+    pub tmax: f64,
+}
+
+impl BoxClip<'_> {
+    /// The ray's interval in the box `lo..hi` ([`GridRay::clip_with`]): the clip
+    /// [`intersect_voxel`] begins with.
+    #[inline(always)]
+    pub fn of(&self, lo: [f64; 3], hi: [f64; 3]) -> Option<(f64, f64)> {
+        self.ray.clip_with(self.recip, lo, hi, self.tmin, self.tmax)
+    }
+}
 
 /// A volume seen as a source of trilinear voxels, each named by a 64-bit ref (the paper's
 /// *VoxelSource*, section 4.1.1), plus point sampling of the same reconstruction.
@@ -88,13 +112,13 @@ pub trait VoxelSource: Sync {
         f(&mut |r| self.voxel(r))
     }
 
-    /// [`Self::with_voxels`] for a query that tests each voxel's box first: `keep(lo, hi)` is
-    /// the box clip [`intersect_voxel`] begins with. A source whose [`Self::intersect`] finds
-    /// hits only in voxels whose box passes that clip, and which can tell a box from its ref
-    /// alone, may give `None` for a voxel whose box `keep` rejects, without decoding its values.
-    /// By default every voxel is given, `keep` not asked.
+    /// [`Self::with_voxels`] for a query that tests each voxel's box first: the lookup's
+    /// [`BoxClip`] is the box clip [`intersect_voxel`] begins with. A source whose
+    /// [`Self::intersect`] finds hits only in voxels whose box passes that clip, and which can
+    /// tell a box from its ref alone, may give `None` for a voxel whose box the clip rejects,
+    /// without decoding its values. By default every voxel is given, not clipped.
     fn with_boxed_voxels(&self, f: &mut dyn FnMut(&mut BoxedLookup<'_>)) {
-        self.with_voxels(&mut |voxel_of| f(&mut |r, _| Some(voxel_of(r))))
+        self.with_voxels(&mut |voxel_of| f(&mut |r, _| Some((voxel_of(r), None))))
     }
 
     /// The box `(lo, hi)` of the voxel named by `r`: by default [`Self::voxel`]'s; sources that
@@ -166,10 +190,10 @@ pub trait VoxelSource: Sync {
         intersect_voxel(voxel, iso, ray, tmin, tmax)
     }
 
-    /// [`Self::intersect`] of a voxel for which [`Self::with_boxed_voxels`]' lookup asked
-    /// `keep`, given `clip`, the ray's interval in the voxel's box that `keep` computed
-    /// ([`GridRay::clip_with`] for `tmin` and `tmax`): sources that ask `keep` skip clipping
-    /// again. By default [`Self::intersect`].
+    /// [`Self::intersect`] of a voxel that [`Self::with_boxed_voxels`]' lookup clipped, given
+    /// `clip`, the ray's interval in the voxel's box it gave ([`GridRay::clip_with`] for `tmin`
+    /// and `tmax`): sources that clip there skip clipping again. By default
+    /// [`Self::intersect`].
     #[inline]
     fn intersect_clipped(
         &self,

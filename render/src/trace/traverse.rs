@@ -10,7 +10,7 @@ use crate::camera::dot;
 use crate::trace::last_hit::{self, Query};
 use crate::trace::octant::VoxelHit;
 use crate::trace::ray::{bvh_rays, GridRay};
-use crate::trace::source::{GridFrame, Voxel, VoxelSource};
+use crate::trace::source::{BoxClip, GridFrame, Voxel, VoxelSource};
 use crate::trace::tracer::Behind;
 
 /// One isosurface ready to trace: its isovalue and the BVH over its active voxels.
@@ -293,11 +293,13 @@ impl Surface {
                         // met the ray, their own does not).
                         let k = m.trailing_zeros() as usize;
                         let (ray, recip, t0, t1) = (&rays[k], &recips[k], tmin[k], best_t[k]);
-                        let mut clip = None;
-                        let Some(voxel) = voxel_of(r, &mut |lo, hi| {
-                            clip = ray.clip_with(recip, lo, hi, t0, t1);
-                            clip.is_some()
-                        }) else {
+                        let box_clip = BoxClip {
+                            ray,
+                            recip,
+                            tmin: t0,
+                            tmax: t1,
+                        };
+                        let Some((voxel, clip)) = voxel_of(r, Some(&box_clip)) else {
                             return;
                         };
                         found[k] = match clip {
@@ -308,7 +310,7 @@ impl Surface {
                         };
                         (voxel, if found[k].is_some() { m } else { 0 })
                     } else {
-                        let Some(voxel) = voxel_of(r, &mut |_, _| true) else {
+                        let Some((voxel, _)) = voxel_of(r, None) else {
                             return;
                         };
                         let hit = src.intersect_packet(

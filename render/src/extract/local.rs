@@ -131,6 +131,31 @@ impl Rows {
         }
     }
 
+    /// [`Self::of`] for a box `b` known to hold cells and to lie inside both `dst` and `src`.
+    #[inline(always)]
+    fn inside(b: &IBox, dst: &IBox, src: &IBox) -> Self {
+        let index = |c: &IBox| {
+            let (x, y, z) = (b.lo[0] - c.lo[0], b.lo[1] - c.lo[1], b.lo[2] - c.lo[2]);
+            let (ex, ey) = (c.hi[0] - c.lo[0], c.hi[1] - c.lo[1]);
+            (
+                (x + ex * (y + ey * z)) as usize,
+                ex as usize,
+                (ex * ey) as usize,
+            )
+        };
+        let ((dst, dst_y, dst_z), (src, src_y, src_z)) = (index(dst), index(src));
+        Self {
+            dst,
+            src,
+            dst_y,
+            src_y,
+            dst_z,
+            src_z,
+            ny: (b.hi[1] - b.lo[1]) as usize,
+            nz: (b.hi[2] - b.lo[2]) as usize,
+        }
+    }
+
     /// The index one past the last cell of the rows of `w` cells starting at `first`, rows
     /// `y` and planes `z` apart; `None` on overflow. `first` when there are no rows.
     fn end(&self, first: usize, (y, z): (usize, usize), w: usize) -> Option<usize> {
@@ -379,77 +404,100 @@ impl Neighbourhood {
     /// [`super::cull::settle_in`]), as [`super::cell_tiles::CellTiles::fill`] leaves them, so
     /// no pending flag is copied: the filled cells have none.
     pub fn copy_tile(&mut self, tile: &Neighbourhood) {
-        let g = self.cells;
-        let b = g.intersect(&tile.cells);
+        let (g, t) = (self.cells, tile.cells);
+        let b = g.intersect(&t);
         if b.is_empty() {
             return;
         }
-        let rows = Rows::of(&b, &g, &tile.cells);
-        let be = b.extent();
+        // Each array holds exactly the cells of its box, and `b` lies inside both boxes: then
+        // every row of `b` lies inside every array, with no row checked on its own.
+        let (n, m) = (self.kind.len(), tile.kind.len());
+        let whole = self.lo.len() == n
+            && self.hi.len() == n
+            && tile.lo.len() == m
+            && tile.hi.len() == m
+            && g.num_cells() == Some(n as u64)
+            && t.num_cells() == Some(m as u64);
+        debug_assert!(whole, "cells not sized to their box");
+        if !whole {
+            return;
+        }
+        let rows = Rows::inside(&b, &g, &t);
         // One copy loop per row length, so that each row is moved by fixed-length moves.
-        match be[0] {
-            1 => self.copy_rows::<1>(tile, &rows),
-            2 => self.copy_rows::<2>(tile, &rows),
-            3 => self.copy_rows::<3>(tile, &rows),
-            4 => self.copy_rows::<4>(tile, &rows),
-            5 => self.copy_rows::<5>(tile, &rows),
-            6 => self.copy_rows::<6>(tile, &rows),
-            7 => self.copy_rows::<7>(tile, &rows),
-            8 => self.copy_rows::<8>(tile, &rows),
-            w => self.copy_rows_of(tile, &rows, w as usize),
+        // SAFETY: `rows` are those of `b`, inside both boxes, whose arrays were checked above.
+        unsafe {
+            match b.hi[0] - b.lo[0] {
+                1 => self.copy_rows::<1>(tile, &rows),
+                2 => self.copy_rows::<2>(tile, &rows),
+                3 => self.copy_rows::<3>(tile, &rows),
+                4 => self.copy_rows::<4>(tile, &rows),
+                5 => self.copy_rows::<5>(tile, &rows),
+                6 => self.copy_rows::<6>(tile, &rows),
+                7 => self.copy_rows::<7>(tile, &rows),
+                8 => self.copy_rows::<8>(tile, &rows),
+                w => self.copy_rows_of(tile, &rows, w as usize),
+            }
         }
     }
 
     /// [`Self::copy_rows_of`] for rows of `N` cells, a length known when compiled.
+    ///
+    /// # Safety
+    ///
+    /// As for [`Self::copy_rows_of`].
     #[inline(always)]
-    fn copy_rows<const N: usize>(&mut self, tile: &Neighbourhood, rows: &Rows) {
-        self.copy_rows_of(tile, rows, N);
+    unsafe fn copy_rows<const N: usize>(&mut self, tile: &Neighbourhood, rows: &Rows) {
+        // SAFETY: the caller's.
+        unsafe { self.copy_rows_of(tile, rows, N) }
     }
 
-    /// Copies `rows` of `w` cells of `tile` (kinds, bounds) into these cells. The bounds are
-    /// checked once for all rows and arrays: three slices of a few cells checked per row cost
-    /// more than their copies. Rows that do not fit are a bug, and copy nothing.
+    /// Copies `rows` of `w` cells of `tile` (kinds, bounds) into these cells, with no bound
+    /// checked: three slices of a few cells checked per row cost more than their copies.
+    ///
+    /// # Safety
+    ///
+    /// `rows` must be the rows of a box `w` cells wide inside both [`Self::cells`] and
+    /// `tile.cells`, and each of the three arrays of both must hold exactly the cells of its
+    /// box, as [`Self::copy_tile`] checks.
     #[inline(always)]
-    fn copy_rows_of(&mut self, tile: &Neighbourhood, rows: &Rows, w: usize) {
-        let n = self.kind.len();
-        let t = tile.kind.len();
-        let ok = self.lo.len() == n
-            && self.hi.len() == n
-            && tile.lo.len() == t
-            && tile.hi.len() == t
-            && rows.fit(n, t, w);
-        debug_assert!(ok, "tile rows outside the cells");
-        if !ok {
-            return;
-        }
+    unsafe fn copy_rows_of(&mut self, tile: &Neighbourhood, rows: &Rows, w: usize) {
         let dst = (
             self.kind.as_mut_ptr(),
             self.lo.as_mut_ptr(),
             self.hi.as_mut_ptr(),
         );
         let src = (tile.kind.as_ptr(), tile.lo.as_ptr(), tile.hi.as_ptr());
-        let (mut dz, mut sz) = (rows.dst, rows.src);
-        for _ in 0..rows.nz {
-            let (mut d, mut s) = (dz, sz);
-            for _ in 0..rows.ny {
-                // SAFETY: every row lies below the ends checked above (`d + w <= n`, the length
-                // of each of the three destination arrays, and `s + w <= t`, that of each source
-                // array); the destinations are this neighbourhood's own vectors, borrowed
-                // mutably, and the sources another's, so no two overlap.
-                unsafe {
-                    std::ptr::copy_nonoverlapping(src.0.add(s), dst.0.add(d), w);
-                    std::ptr::copy_nonoverlapping(src.1.add(s), dst.1.add(d), w);
-                    std::ptr::copy_nonoverlapping(src.2.add(s), dst.2.add(d), w);
-                }
-                debug_assert!(
-                    !tile.coarse_pending[s..s + w].contains(&true),
-                    "a tile's pending cells copied"
-                );
-                d += rows.dst_y;
-                s += rows.src_y;
+        // One loop over all rows, a plane's rows `ny` at a time: fewer live counters than a
+        // loop per plane, for the few short rows of a tile's part.
+        let (mut d, mut s) = (rows.dst, rows.src);
+        let next_plane = (
+            rows.dst_z - rows.ny * rows.dst_y,
+            rows.src_z - rows.ny * rows.src_y,
+        );
+        let mut left = rows.ny;
+        for _ in 0..rows.ny * rows.nz {
+            // SAFETY: the rows are those of a box inside both boxes of cells, and each array
+            // holds exactly its box's cells (the caller's contract), so every row lies inside
+            // the three destination arrays and the three source arrays; the destinations are
+            // this neighbourhood's own vectors, borrowed mutably, and the sources another's, so
+            // no two overlap.
+            unsafe {
+                std::ptr::copy_nonoverlapping(src.0.add(s), dst.0.add(d), w);
+                std::ptr::copy_nonoverlapping(src.1.add(s), dst.1.add(d), w);
+                std::ptr::copy_nonoverlapping(src.2.add(s), dst.2.add(d), w);
             }
-            dz += rows.dst_z;
-            sz += rows.src_z;
+            debug_assert!(
+                !tile.coarse_pending[s..s + w].contains(&true),
+                "a tile's pending cells copied"
+            );
+            d += rows.dst_y;
+            s += rows.src_y;
+            left -= 1;
+            if left == 0 {
+                left = rows.ny;
+                d += next_plane.0;
+                s += next_plane.1;
+            }
         }
     }
 

@@ -93,6 +93,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 
     /// [`Self::sample`] and the leaf cell's level, locating through `loc` and remembering
     /// vertex values and octant corners in `memo`.
+    #[inline]
     pub fn sample_in<L: Locate>(
         &self,
         loc: &L,

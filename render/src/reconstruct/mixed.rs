@@ -110,6 +110,8 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         let mut whole = 0u8;
         let mut whole_level = [0u32; 8];
         let mut whole_value = [0f32; 8];
+        // The kd-tree leaf whose box was found last: neighbouring positions often share one.
+        let mut last = near.map(|(n, nb)| (n.leaf, nb));
         for k in 0..8 {
             let Some(c) = cell_at(k) else {
                 continue;
@@ -118,9 +120,13 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 axes(|a| own.lo[a] + step[a] * (k >> a & 1) as i64),
                 axes(|a| own.hi[a] + step[a] * (k >> a & 1) as i64),
             );
-            let leaf_box = match near {
-                Some((n, nb)) if n.leaf == c.leaf => nb,
-                _ => self.read_box(c.leaf),
+            let leaf_box = match last {
+                Some((leaf, lb)) if leaf == c.leaf => lb,
+                _ => {
+                    let lb = self.read_box(c.leaf);
+                    last = Some((c.leaf, lb));
+                    lb
+                }
             };
             boxes[k] = leaf_box;
             if c.level <= level && leaf_box.contains_box(&b.intersect(&domain)) {
@@ -146,10 +152,10 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 ax.out[i] = usize::from((f < own.lo[a]) | (f >= own.hi[a])) << a;
             }
         }
-        // The table, entry `x + 4 y + 16 z`: each finest cell's leaf-cell value and (for a cell
-        // read or located; the others' is their whole position's) level, and, bit per entry,
-        // whether the cell was read or located rather than its position's and whether its level
-        // is coarser than the octant's.
+        // The table, entry `x + 4 y + 16 z`: each finest cell's leaf-cell value and level (for a
+        // cell read or located, its own; for the others, their whole position's), and, bit per
+        // entry, whether the cell was read or located rather than its position's and whether its
+        // level is coarser than the octant's.
         let mut levels = [0u32; 64];
         let mut values = [0f32; 64];
         let mut read = 0u64;
@@ -175,8 +181,8 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         });
         // The entries of position `k`.
         let entries_of = |k: usize| part[0][k & 1] & part[1][k >> 1 & 1] & part[2][k >> 2 & 1];
-        // Every entry first takes its position's cell's value when that cell covers the whole
-        // position (its level is the position's, marked in `coarse` below); the entries of the
+        // Every entry first takes its position's cell's value and level when that cell covers
+        // the whole position (coarser levels are marked in `coarse` below); the entries of the
         // other positions are read or located below. A row along x holds two positions: `k`
         // and, where x lies outside the own cell, `k | 1`.
         let beyond = axis[0].out.map(|kx| kx != 0);
@@ -184,8 +190,10 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             for (y, &ky) in axis[1].out.iter().enumerate() {
                 let k = (ky | kz) & 6;
                 let (v0, v1) = (whole_value[k], whole_value[k | 1]);
+                let (l0, l1) = (whole_level[k], whole_level[k | 1]);
                 let row = 4 * y + 16 * z;
                 values[row..row + 4].copy_from_slice(&beyond.map(|b| if b { v1 } else { v0 }));
+                levels[row..row + 4].copy_from_slice(&beyond.map(|b| if b { l1 } else { l0 }));
             }
         }
         let mut wholes = whole;
@@ -288,16 +296,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             // The corner's eight entries: bits 0, 1, 4, 5, 16, 17, 20 and 21 from `corner(n)`.
             *slot = if coarse >> corner(n) & 0x0033_0033 != 0 {
                 let v = axes(|a| base[a] + (n >> a & 1) as i64 * s[a]);
-                // An entry's level: as read or located, else its whole position's.
-                let lv: [u32; 8] = std::array::from_fn(|i| {
-                    let e = entry(i);
-                    if read >> e & 1 == 1 {
-                        levels[e]
-                    } else {
-                        let (x, y, z) = (e & 3, e >> 2 & 3, e >> 4);
-                        whole_level[axis[0].out[x] | axis[1].out[y] | axis[2].out[z]]
-                    }
-                });
+                let lv: [u32; 8] = std::array::from_fn(|i| levels[entry(i)]);
                 let coarsest = lv.iter().copied().fold(u32::MAX, u32::min);
                 let side = lv.iter().position(|&l| l == coarsest).unwrap_or(0);
                 let e = entry(side);

@@ -69,7 +69,7 @@ impl Default for SampleScratch {
     }
 }
 
-/// log2 of the octants a scratch remembers: 16384 (768 KiB per thread); the default 1024
+/// log2 of the octants a scratch remembers: 16384 (1.1 MiB per thread); the default 1024
 /// thrashes on the octants that smooth normals of neighbouring rows share.
 const SCRATCH_OCTANT_BITS: u32 = 14;
 

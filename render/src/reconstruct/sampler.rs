@@ -74,8 +74,8 @@ impl Deref for Slab<'_> {
 pub struct VertexMemo {
     map: HashMap<VertexKey, Option<f32>, BuildHasherDefault<VertexHasher>>,
     capacity: usize,
-    /// Direct-mapped corner values of octants (allocated on first use: `octant_slots` slots of
-    /// 48 bytes).
+    /// Direct-mapped corner values of octants (allocated on first use: `2^octant_bits` slots of
+    /// 72 bytes).
     octants: Vec<(Octant, Option<[f32; 8]>)>,
     /// log2 of the octant table's slots; 0: no table.
     octant_bits: u32,
@@ -886,7 +886,9 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     }
 
     /// [`Self::corners_in`] for octant `octant` of leaf cell `q`, remembered in `memo`'s octant
-    /// table (the corners are a pure function of the octant).
+    /// table (the corners are a pure function of the octant). Inlined: most calls find the
+    /// octant in the table.
+    #[inline]
     pub fn leaf_octant_corners_in<L: Locate>(
         &self,
         loc: &L,
@@ -902,12 +904,25 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         if let Some(known) = memo.octant_get(&key) {
             return Ok(known);
         }
+        self.leaf_octant_corners_computed(loc, q, &key, memo)
+    }
+
+    /// [`Self::leaf_octant_corners_in`] for octant `key` of `q` missing from `memo`'s table:
+    /// computed and remembered there.
+    #[inline(never)]
+    fn leaf_octant_corners_computed<L: Locate>(
+        &self,
+        loc: &L,
+        q: &LeafCell,
+        key: &Octant,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<[f32; 8]>> {
         let c = if self.gather {
-            self.corners_gathered(loc, &key, q.value, Some(q), memo)?
+            self.corners_gathered(loc, key, q.value, Some(q), memo)?
         } else {
-            self.corners_in(loc, q.level, q.cell, q.value, octant, memo)?
+            self.corners_in(loc, q.level, q.cell, q.value, key.octant, memo)?
         };
-        memo.octant_put(&key, c);
+        memo.octant_put(key, c);
         Ok(c)
     }
 

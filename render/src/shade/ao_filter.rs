@@ -297,20 +297,22 @@ impl Slots {
     /// [`Slots::empty`]'s).
     fn of(row: &AoRow, h: usize) -> Option<Slots> {
         let pixels = row.start.len() - 1;
-        if !row.start.windows(2).any(|w| (w[1] - w[0]) as usize > h) {
-            return None;
-        }
+        // Pixel `x`'s hits start at `start[x]` and end at `start[x + 1]`.
+        let has_hit = |w: &[u32]| (w[1] - w[0]) as usize > h;
+        let first = row.start.windows(2).position(has_hit)?;
         let mut s = Slots::empty(pixels);
-        for x in 0..pixels {
-            if let Some(l) = row.pixel(x as u32).get(h) {
-                let i = x + BEFORE as usize;
-                s.surface[i] = l.surface;
-                for a in 0..3 {
-                    s.p[a][i] = l.p[a];
-                    s.n[a][i] = l.n[a];
-                }
-                s.ao[i] = l.ao;
+        for (x, w) in row.start.windows(2).enumerate().skip(first) {
+            if !has_hit(w) {
+                continue;
             }
+            let l = &row.layers[w[0] as usize + h];
+            let i = x + BEFORE as usize;
+            s.surface[i] = l.surface;
+            for a in 0..3 {
+                s.p[a][i] = l.p[a];
+                s.n[a][i] = l.n[a];
+            }
+            s.ao[i] = l.ao;
         }
         Some(s)
     }

@@ -165,7 +165,9 @@ impl CellTiles {
                     };
                     debug_assert!(tile.holds(level, &cells), "a tile kept under another key");
                     let part = g.intersect(&cells);
-                    settle_in(sources, tile, (&mut *memo, &mut *near), &part)?;
+                    if tile.has_pending() {
+                        settle_in(sources, tile, (&mut *memo, &mut *near), &part)?;
+                    }
                     f(tile, &part);
                 }
             }

@@ -10,16 +10,16 @@
 //! tiles, each of the about 100 leaves around a small leaf's neighbourhood was visited again by
 //! every neighbourhood holding part of it, and each coarse cell settled again in each.
 //!
-//! Each worker thread keeps its own tiles, [`SLOTS`] in sets of [`WAYS`], each set behind a
-//! lock that only its thread takes: a tile two threads need is filled by each, but no thread
-//! writes the cache lines another reads (every request writes its set's use marks, and a fill
-//! the tile's cells; shared sets cost `tiny` about a sixth of its two-thread extraction, see
-//! `docs/benchmarks-extract.md`, `tinypar2`), and the memory is bounded. A set pushes
+//! Each worker thread keeps its own tiles, [`SLOTS`] in sets of [`WAYS`], behind one lock that
+//! only its thread takes, once per neighbourhood: a tile two threads need is filled by each, but
+//! no thread writes the cache lines another reads (every request writes its set's use marks, and
+//! a fill the tile's cells; shared sets cost `tiny` about a sixth of its two-thread extraction,
+//! see `docs/benchmarks-extract.md`, `tinypar2`), and the memory is bounded. A set pushes
 //! out its least recently used tile, which is filled again when asked, with the same cells;
 //! the leaves come in kd-tree order, so the tiles in use are few and near each other, and a few
 //! hundred tiles kept by use miss about as seldom as thousands placed by a hash alone.
 
-use std::sync::{Mutex, OnceLock};
+use std::sync::Mutex;
 
 use amr_format::IBox;
 
@@ -45,25 +45,39 @@ const SLOTS: usize = 256;
 /// Tiles of a set: a tile may be kept in any of them.
 const WAYS: usize = 8;
 
+/// Sets of tiles a thread keeps.
+const SETS: usize = SLOTS / WAYS;
+
 /// The tiles of every level of one field.
 pub struct CellTiles {
-    /// The sets of tiles, [`SLOTS`] `/` [`WAYS`] for each worker thread in turn, made on first
-    /// use.
-    sets: OnceLock<Box<[Mutex<TileSet>]>>,
-    /// Per thread, the leaves met by the tile it is filling: one list for all its fills.
-    touching: Vec<Mutex<Vec<Met>>>,
+    /// Per worker thread, its tiles; a caller outside the pool shares the first thread's.
+    threads: Box<[OwnLines<Mutex<ThreadTiles>>]>,
 }
 
 impl Default for CellTiles {
     fn default() -> Self {
         Self {
-            sets: OnceLock::new(),
-            touching: (0..rayon::current_num_threads() + 1)
-                .map(|_| Mutex::default())
+            threads: (0..rayon::current_num_threads().max(1))
+                .map(|_| OwnLines::default())
                 .collect(),
         }
     }
 }
+
+/// One thread's tiles.
+#[derive(Default)]
+struct ThreadTiles {
+    /// [`SETS`] sets of tiles, made on first use.
+    sets: Vec<TileSet>,
+    /// The leaves met by the tile being filled: one list for all the thread's fills.
+    touching: Vec<Met>,
+}
+
+/// A value on cache lines of its own (128 bytes: a line and the one prefetched with it), so that
+/// the lock of one thread's tiles never shares a line with another thread's.
+#[derive(Default)]
+#[repr(align(128))]
+struct OwnLines<T>(T);
 
 impl CellTiles {
     /// True when a file of `cells` cells in `leaves` leaves has at most [`MAX_MEAN_CELLS`]
@@ -123,20 +137,12 @@ impl CellTiles {
         g: IBox,
         mut f: impl FnMut(&Neighbourhood, &IBox),
     ) -> Result<()> {
-        let n = self.touching.len();
-        let i = rayon::current_thread_index().map_or(0, |i| 1 + i % (n - 1).max(1));
-        // The thread's list first, then one tile at a time: one order, no deadlock.
-        let mut touching = self.touching[i.min(n - 1)]
-            .lock()
-            .unwrap_or_else(|e| e.into_inner());
-        let sets = self.sets.get_or_init(|| {
-            (0..(SLOTS / WAYS) * (n - 1).max(1))
-                .map(|_| Mutex::default())
-                .collect()
-        });
-        // The thread's own sets; a caller outside the pool shares the first thread's.
-        let per_thread = SLOTS / WAYS;
-        let own = i.saturating_sub(1) * per_thread;
+        let i = rayon::current_thread_index().map_or(0, |i| i % self.threads.len());
+        let mut own = self.threads[i].0.lock().unwrap_or_else(|e| e.into_inner());
+        let ThreadTiles { sets, touching } = &mut *own;
+        if sets.is_empty() {
+            sets.resize_with(SETS, TileSet::default);
+        }
         let tiles = IBox::new(
             g.lo.map(|v| v >> TILE_SHIFT),
             g.hi.map(|v| (v + TILE - 1) >> TILE_SHIFT),
@@ -147,21 +153,21 @@ impl CellTiles {
                     let t = [tx, ty, tz];
                     let cells = IBox::new(t.map(|v| v * TILE), t.map(|v| (v + 1) * TILE));
                     let key = TileKey::new(level, t);
-                    let mut set = sets[own + key.set(per_thread)]
-                        .lock()
-                        .unwrap_or_else(|e| e.into_inner());
+                    let set = &mut sets[key.set(SETS)];
                     let tile = match set.find(&key) {
                         Some(tile) => tile,
                         None => {
                             let tile = set.evict();
                             let sources = (sources.0, sources.1 .1);
-                            tile.fill_region_using(sources, level, cells, &mut touching)?;
+                            tile.fill_region_using(sources, level, cells, touching)?;
                             set.keep(key)
                         }
                     };
                     debug_assert!(tile.holds(level, &cells), "a tile kept under another key");
                     let part = g.intersect(&cells);
-                    settle_in(sources, tile, (&mut *memo, &mut *near), &part)?;
+                    if tile.has_pending() {
+                        settle_in(sources, tile, (&mut *memo, &mut *near), &part)?;
+                    }
                     f(tile, &part);
                 }
             }

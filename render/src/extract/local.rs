@@ -336,10 +336,7 @@ impl Neighbourhood {
             let block = at_level.of(&part);
             match sampler.leaf_top(l) {
                 None => self.set_block(&block, UNCOVERED),
-                Some((_, lv)) if lv < level => {
-                    self.set_block(&block, COARSER);
-                    self.mark_pending(&block);
-                }
+                Some((_, lv)) if lv < level => self.set_coarser_block(&block),
                 Some((brick, lv)) if lv > level => {
                     self.set_block(&block, FINER);
                     if block.num_cells() == Some(1) && region.contains_box(&lb) {
@@ -707,25 +704,36 @@ impl Neighbourhood {
         Ok(())
     }
 
-    /// Flags the cells of `block` (inside a coarser leaf cell) pending, counting those not
-    /// flagged yet.
-    fn mark_pending(&mut self, block: &IBox) {
+    /// Makes the cells of `block` [`COARSER`] cells ([`Self::set_block`]) and flags them
+    /// pending, counting those not flagged yet: one pass over each row of the block.
+    fn set_coarser_block(&mut self, block: &IBox) {
         let g = self.cells;
+        let e = g.extent();
         let w = (block.hi[0] - block.lo[0]).max(0) as usize;
-        let ey = g.extent()[1];
+        let mut newly = 0;
         for z in block.lo[2]..block.hi[2] {
             for y in block.lo[1]..block.hi[1] {
-                let r = ((y - g.lo[1]) + (z - g.lo[2]) * ey) as usize;
+                let r = ((y - g.lo[1]) + (z - g.lo[2]) * e[1]) as usize;
                 self.pending_rows[r / 64] |= 1 << (r % 64);
-                let dst = g.linear_index([block.lo[0], y, z]);
-                for p in &mut self.coarse_pending[dst..dst + w] {
-                    if !*p {
-                        *p = true;
-                        self.pending_left += 1;
+                let first = (block.lo[0] - g.lo[0]) as usize + r * e[0] as usize;
+                let cells = first..first + w;
+                let kinds = &mut self.kind[cells.clone()];
+                let values = &self.lo[cells.clone()];
+                let highs = &mut self.hi[cells.clone()];
+                let pending = &mut self.coarse_pending[cells];
+                let row = kinds.iter_mut().zip(values).zip(highs).zip(pending);
+                for (((kind, &value), high), pending) in row {
+                    // A leaf cell overwritten keeps its value as both ends of its bound.
+                    if *kind == LEAF {
+                        *high = value;
                     }
+                    *kind = COARSER;
+                    newly += usize::from(!*pending);
+                    *pending = true;
                 }
             }
         }
+        self.pending_left += newly;
     }
 
     /// Makes the cells of [`Self::cells`] outside box `inside` (the part inside the domain)

@@ -14,7 +14,7 @@
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray;
 
-use super::packet::{rays_of, walk_packet, xor_slots, Mask, PacketStack};
+use super::packet::{walk_packet, xor_slots, Mask, PacketStack};
 use super::walk::{child_entry, leaf_prims};
 
 /// Walks `nodes` (empty, or a CWBVH8 whose root is node 0) with the rays of `active`, children
@@ -165,7 +165,7 @@ pub fn children_of_octants(
             planes(1, o & 2 == 0),
             planes(2, o & 1 == 0),
         ];
-        for k in rays_of(m) {
+        for k in super::packet::rays_of(m) {
             let r = &rays[k];
             let (o, inv) = (r.origin, r.inv_direction);
             let (o, inv) = ([o.x, o.y, o.z], [inv.x, inv.y, inv.z]);

@@ -776,6 +776,9 @@ impl OctantBvh {
             }
         }
         self.packet_with::<true>(rays, m, oct, stack, visit, |node, rays, m, e| {
+            if m.count_ones() < packet_any::OCTANTS_RAY_BY_RAY_BELOW {
+                return packet_any::children_of_octants(node, rays, m, octants, e);
+            }
             let mut slots = 0;
             for (test, &of_o) in tests.iter().zip(octants) {
                 if let Some(test) = test.as_ref().filter(|_| m & of_o != 0) {

@@ -29,7 +29,7 @@ use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
 use crate::trace::octant::{
     intersect_voxel, intersect_voxel_clipped, intersect_voxel_packet, voxel_occluders_packet,
-    voxel_occludes_with, VoxelHit,
+    voxel_occludes_clipped, voxel_occludes_with, VoxelHit,
 };
 use crate::trace::ray::GridRay;
 use crate::trace::source::{BoxClip, BoxedLookup, GridFrame, Voxel, VoxelLookup, VoxelSource};
@@ -646,6 +646,22 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         match self.voxels {
             Voxels::Nearest(_) => intersect_face(voxel, iso, ray, tmin, tmax).is_some(),
             _ => voxel_occludes_with(voxel, iso, ray, recip, tmin, tmax),
+        }
+    }
+
+    #[inline]
+    fn occludes_clipped(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        _recip: &[f64; 3],
+        (tmin, tmax): (f64, f64),
+        clip: (f64, f64),
+    ) -> bool {
+        match self.voxels {
+            Voxels::Nearest(_) => intersect_face(voxel, iso, ray, tmin, tmax).is_some(),
+            _ => voxel_occludes_clipped(voxel, iso, ray, (tmin, tmax), clip),
         }
     }
 

@@ -90,6 +90,22 @@ pub fn voxel_occludes_with(
         .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
 }
 
+/// [`voxel_occludes_with`] given `clip`, the interval [`GridRay::clip_with`] gives `ray` in the
+/// voxel's box for `tmin` and `tmax` (for a caller that clipped it before the voxel's values
+/// were known): the same answer.
+#[inline]
+pub fn voxel_occludes_clipped(
+    voxel: &Voxel,
+    iso: f32,
+    ray: &GridRay,
+    (tmin, tmax): (f64, f64),
+    clip: (f64, f64),
+) -> bool {
+    VoxelSetup::new(voxel, iso)
+        .and_then(|setup| Segment::in_box(voxel, &setup, ray, (tmin, tmax), clip))
+        .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
+}
+
 /// [`voxel_occludes`] for the rays `m` of a packet, each with its reciprocal direction
 /// ([`GridRay::recip`]) and its own `tmin` and `tmax`: the rays of `m` for which it is true (the
 /// voxel's set-up is computed once, and with AVX2 the segments are built four rays at a time).

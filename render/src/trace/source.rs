@@ -248,6 +248,24 @@ pub trait VoxelSource: Sync {
         self.intersect(voxel, iso, ray, tmin, tmax).is_some()
     }
 
+    /// [`Self::occludes`] of a voxel for which [`Self::with_boxed_voxels`]' lookup asked `keep`,
+    /// given `clip`, the ray's interval in the voxel's box that `keep` computed
+    /// ([`GridRay::clip_with`] for `tmin` and `tmax`): the same answer, without clipping again.
+    /// By default [`Self::occludes`].
+    #[inline]
+    fn occludes_clipped(
+        &self,
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        recip: &[f64; 3],
+        (tmin, tmax): (f64, f64),
+        clip: (f64, f64),
+    ) -> bool {
+        let _ = clip;
+        self.occludes(voxel, iso, ray, recip, tmin, tmax)
+    }
+
     /// [`Self::occludes`] for the rays `m` of a packet (each with its reciprocal direction,
     /// [`GridRay::recip`], and its own `tmin` and `tmax`) that reach `voxel`: the rays of `m` for
     /// which it is true. Sources may share the voxel's own work between the rays.

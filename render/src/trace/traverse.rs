@@ -436,11 +436,13 @@ impl Surface {
                         // far view's single-ray candidates fail it).
                         let k = m.trailing_zeros() as usize;
                         let (ray, recip, t0, t1) = (&grid[k], &recips[k], tmin[k], tmax[k]);
-                        let mut clip = None;
-                        let Some(voxel) = voxel_of(r, &mut |lo, hi| {
-                            clip = ray.clip_with(recip, lo, hi, t0, t1);
-                            clip.is_some()
-                        }) else {
+                        let box_clip = BoxClip {
+                            ray,
+                            recip,
+                            tmin: t0,
+                            tmax: t1,
+                        };
+                        let Some((voxel, clip)) = voxel_of(r, Some(&box_clip)) else {
                             return 0;
                         };
                         let occluded = match clip {
@@ -455,7 +457,7 @@ impl Surface {
                             0
                         }
                     } else {
-                        let Some(voxel) = voxel_of(r, &mut |_, _| true) else {
+                        let Some((voxel, _)) = voxel_of(r, None) else {
                             return 0;
                         };
                         src.occluders_packet(&voxel, self.iso, grid, &recips[..n], m, tmin, tmax)

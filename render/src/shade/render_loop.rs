@@ -237,21 +237,23 @@ fn render_band<T: Tracer + Sync + ?Sized>(
         })
         .collect();
     // The pieces of a strip are consecutive, left to right: their rows joined are the strip's.
-    let mut rows: Vec<Row> = Vec::with_capacity(band.len());
-    let mut strip: Vec<Row> = Vec::new();
-    for piece in part {
-        if strip.is_empty() {
-            strip = piece;
-        } else {
-            for (row, more) in strip.iter_mut().zip(piece) {
-                row.append(more);
-            }
-        }
-        if strip.first().is_some_and(|r| r.pixels.len() == w as usize) {
-            rows.append(&mut strip);
+    // Strips are joined in parallel: the copies first touch the rows' pages, and on one thread
+    // they took about a sixth of the demo frame's time.
+    let per_strip = w.div_ceil(PIECE_COLUMNS).max(1) as usize;
+    let strips: Vec<Vec<Row>> = part.into_par_iter().chunks(per_strip).map(joined).collect();
+    strips.into_iter().flatten().collect()
+}
+
+/// The rows of a strip from its pieces, left to right.
+fn joined(pieces: Vec<Vec<Row>>) -> Vec<Row> {
+    let mut pieces = pieces.into_iter();
+    let mut strip = pieces.next().unwrap_or_default();
+    for piece in pieces {
+        for (row, more) in strip.iter_mut().zip(piece) {
+            row.append(more);
         }
     }
-    rows
+    strip
 }
 
 /// The rows of a frame rendered and not yet dropped: those not yet written and, before them,

@@ -128,6 +128,19 @@ impl FrameBuffer {
             .collect()
     }
 
+    /// Pixel `i` (row-major from the top-left pixel) as a sample.
+    pub fn sample(&self, i: usize) -> PixelSample {
+        PixelSample {
+            rgb: [self.rgb[0][i], self.rgb[1][i], self.rgb[2][i]],
+            alpha: self.alpha[i],
+            z: self.z[i],
+            n: [self.n[0][i], self.n[1][i], self.n[2][i]],
+            p: [self.p[0][i], self.p[1][i], self.p[2][i]],
+            level: self.level[i],
+            color_value: self.color_value[i],
+        }
+    }
+
     /// Number of pixels.
     pub fn len(&self) -> usize {
         self.width as usize * self.height as usize
@@ -151,28 +164,51 @@ pub struct RowPlanes<'a> {
     planes: [&'a mut [f32]; 13],
 }
 
-impl RowPlanes<'_> {
+impl<'a> RowPlanes<'a> {
     /// Writes the row's pixels from `pixels`, its samples from the left.
     pub fn set_all(&mut self, pixels: &[PixelSample]) {
         for (x, s) in pixels.iter().enumerate() {
-            let values = [
-                s.rgb[0],
-                s.rgb[1],
-                s.rgb[2],
-                s.alpha,
-                s.z,
-                s.n[0],
-                s.n[1],
-                s.n[2],
-                s.p[0],
-                s.p[1],
-                s.p[2],
-                s.level,
-                s.color_value,
-            ];
-            for (plane, v) in self.planes.iter_mut().zip(values) {
-                plane[x] = v;
-            }
+            self.set(x, s);
         }
+    }
+
+    /// Writes pixel `x` of the row from `s`.
+    #[inline(always)]
+    pub fn set(&mut self, x: usize, s: &PixelSample) {
+        let values = [
+            s.rgb[0],
+            s.rgb[1],
+            s.rgb[2],
+            s.alpha,
+            s.z,
+            s.n[0],
+            s.n[1],
+            s.n[2],
+            s.p[0],
+            s.p[1],
+            s.p[2],
+            s.level,
+            s.color_value,
+        ];
+        for (plane, v) in self.planes.iter_mut().zip(values) {
+            plane[x] = v;
+        }
+    }
+
+    /// The row's R, G and B.
+    pub fn rgb_mut(&mut self) -> [&mut [f32]; 3] {
+        let [r, g, b, ..] = &mut self.planes;
+        [&mut **r, &mut **g, &mut **b]
+    }
+
+    /// The row cut into pieces of `n` columns (the last one shorter), left to right.
+    pub fn split_columns(&mut self, n: usize) -> Vec<RowPlanes<'_>> {
+        let pieces = self.planes[0].len().div_ceil(n.max(1));
+        let mut columns = self.planes.each_mut().map(|p| p.chunks_mut(n.max(1)));
+        (0..pieces)
+            .map(|_| RowPlanes {
+                planes: std::array::from_fn(|i| columns[i].next().unwrap_or_default()),
+            })
+            .collect()
     }
 }

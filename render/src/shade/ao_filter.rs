@@ -18,7 +18,6 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use crate::output::frame::PixelSample;
 use crate::shade::sampling::TILE;
 
 #[cfg(target_arch = "x86_64")]
@@ -161,13 +160,13 @@ impl<'a> AoRows<'a> {
     /// Replaces the occlusion of every hit of row `y` (of the band) by the filtered one in the
     /// colour of `pixels` (that row). `pixel_angle` is the angle one pixel spans (radians).
     /// Each row reads the others only, so rows can be filtered in any order and in parallel.
-    pub fn apply_row(&self, y: u32, pixels: &mut [PixelSample], pixel_angle: f32) {
+    pub fn apply_row(&self, y: u32, rgb: [&mut [f32]; 3], pixel_angle: f32) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
-            return unsafe { self.apply_row_avx2(y, pixels, pixel_angle) };
+            return unsafe { self.apply_row_avx2(y, rgb, pixel_angle) };
         }
-        self.apply_row_with(y, pixels, |x0, h, out| {
+        self.apply_row_with(y, rgb, |x0, h, out| {
             for (x, out) in (x0..(x0 + GROUP).min(self.width as usize)).zip(out) {
                 if let Some(layer) = self.rows[y as usize].pixel(x as u32).get(h) {
                     *out = self.filtered(layer, x as u32, y, pixel_angle);
@@ -179,8 +178,8 @@ impl<'a> AoRows<'a> {
     /// [`AoRows::apply_row`] with the hits of [`GROUP`] pixels filtered at once.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn apply_row_avx2(&self, y: u32, pixels: &mut [PixelSample], pixel_angle: f32) {
-        self.apply_row_with(y, pixels, |x0, h, out| {
+    fn apply_row_avx2(&self, y: u32, rgb: [&mut [f32]; 3], pixel_angle: f32) {
+        self.apply_row_with(y, rgb, |x0, h, out| {
             x8::filter_group(self, y, x0, h, pixel_angle, out)
         });
     }
@@ -191,15 +190,15 @@ impl<'a> AoRows<'a> {
     fn apply_row_with(
         &self,
         y: u32,
-        pixels: &mut [PixelSample],
+        mut rgb: [&mut [f32]; 3],
         mut filter: impl FnMut(usize, usize, &mut [f32; GROUP]),
     ) {
-        assert_eq!(pixels.len(), self.width as usize);
+        let width = self.width as usize;
+        assert!(rgb.iter().all(|c| c.len() == width));
         let row = &self.rows[y as usize];
         let slots = self.slots_of(y);
         let mut out = [[0.0f32; GROUP]; FILTERED_HITS];
-        for (g, group) in pixels.chunks_mut(GROUP).enumerate() {
-            let x0 = g * GROUP;
+        for x0 in (0..width).step_by(GROUP) {
             let mut any = false;
             for (h, out) in out.iter_mut().enumerate() {
                 if slots[h].any_hit(x0) {
@@ -210,11 +209,11 @@ impl<'a> AoRows<'a> {
             if !any {
                 continue;
             }
-            for (i, px) in group.iter_mut().enumerate() {
-                for (h, layer) in row.pixel((x0 + i) as u32).iter().enumerate() {
+            for (i, x) in (x0..(x0 + GROUP).min(width)).enumerate() {
+                for (h, layer) in row.pixel(x as u32).iter().enumerate() {
                     let ao = out[h][i];
-                    for c in 0..3 {
-                        px.rgb[c] += layer.weight[c] * (ao - layer.ao);
+                    for (c, colour) in rgb.iter_mut().enumerate() {
+                        colour[x] += layer.weight[c] * (ao - layer.ao);
                     }
                 }
             }
@@ -420,12 +419,8 @@ mod tests {
             row.end_pixel();
         }
         let rows = [row];
-        let mut pixels = vec![PixelSample::MISS; 5];
-        AoRows::new(5, &rows).apply_row(0, &mut pixels, 0.01);
-        assert_eq!(pixels[0].rgb[0], 0.5 - 1.0);
-        assert_eq!(pixels[1].rgb[0], 0.5);
-        assert_eq!(pixels[2].rgb[0], 0.0);
-        assert_eq!(pixels[3].rgb[0], 0.0);
-        assert_eq!(pixels[4].rgb[0], 0.0);
+        let [mut r, mut g, mut b] = [(); 3].map(|_| vec![0.0f32; 5]);
+        AoRows::new(5, &rows).apply_row(0, [&mut r, &mut g, &mut b], 0.01);
+        assert_eq!(r, [0.5 - 1.0, 0.5, 0.0, 0.0, 0.0]);
     }
 }

@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use crate::bvh::packet::Mask;
 use crate::camera::Camera;
-use crate::output::frame::{FrameBuffer, PixelSample};
+use crate::output::frame::{FrameBuffer, PixelSample, RowPlanes};
 use crate::shade::ao_filter::{self, AoRow, AoRows};
 use crate::shade::ao_packets::TileAo;
 use crate::shade::integrate::{shade_hit_alone, shade_hits, KeyShadow, Lighting, SearchHint};
@@ -141,10 +141,19 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
     // Pixels (times samples) rendered since the last release, by all threads.
     let since_release = AtomicU64::new(0);
     let mut frame = FrameBuffer::zeroed(w, h, tracer.frame().origin);
-    let mut out = frame.rows_mut().into_iter();
+    let mut planes = frame.rows_mut();
     let mut pending = PendingRows::default();
     let mut rays = 0;
     let band_rows = band_rows(w);
+    let rendered = |pixels| {
+        // The thread whose piece crosses the count releases; the others go on (their accesses
+        // fault the same bytes back in).
+        let before = since_release.fetch_add(pixels, Ordering::Relaxed);
+        if before < release_pixels && before + pixels >= release_pixels {
+            since_release.store(0, Ordering::Relaxed);
+            tracer.release_pages();
+        }
+    };
     for b0 in (0..h).step_by(band_rows as usize) {
         let band = b0..(b0 + band_rows).min(h);
         let rows = render_band(
@@ -152,41 +161,27 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
             camera,
             light,
             settings,
-            band.clone(),
-            |pixels| {
-                // The thread whose piece crosses the count releases; the others go on (their
-                // accesses fault the same bytes back in).
-                let before = since_release.fetch_add(pixels, Ordering::Relaxed);
-                if before < release_pixels && before + pixels >= release_pixels {
-                    since_release.store(0, Ordering::Relaxed);
-                    tracer.release_pages();
-                }
-            },
+            (0..w, band.clone()),
+            &mut planes[band.start as usize..band.end as usize],
+            &rendered,
             progress,
         );
         rays += rows.iter().map(|r| r.rays).sum::<u64>();
         pending.push(rows);
-        // The rows whose filter window is rendered are written; those the filter of the rows
+        // The rows whose filter window is rendered are filtered; those the filter of the rows
         // still to come reads are kept.
         let ready = if band.end == h {
             h
         } else {
             band.end - ao_filter::MARGIN
-        };
-        let (rows, written) = pending.take_until(ready as usize, ao_filter::MARGIN as usize);
-        let outs: Vec<_> = out.by_ref().take(written.len()).collect();
-        finish(
-            rows,
-            written,
-            camera,
-            light,
-            settings,
-            w,
-            outs,
-            |mut out, pixels| out.set_all(pixels),
-        );
-        pending.drop_before(ready.saturating_sub(ao_filter::MARGIN) as usize);
+        } as usize;
+        let (rows, filtered) = pending.take_until(ready, ao_filter::MARGIN as usize);
+        let first = ready - filtered.len();
+        let out = &mut planes[first..ready];
+        filter_rows(rows, filtered, out, camera, light, settings, w);
+        pending.drop_before(ready.saturating_sub(ao_filter::MARGIN as usize));
     }
+    drop(planes);
     tracer.release_pages();
     (frame, rays)
 }
@@ -202,33 +197,56 @@ fn band_rows(w: u32) -> u32 {
     (BAND_PIXELS / w.max(1) / TILE).max(1) * TILE
 }
 
-/// Renders the rows `band` of `settings`' frame, piece after piece in parallel; calls
-/// `rendered(pixels)` after each piece and `progress(rows)` after each strip's last piece.
+/// Renders the columns `xs` of the rows `ys` of `settings`' frame into `planes` (one per row,
+/// holding those columns), piece after piece in parallel; returns the rows' hits to filter and
+/// ray queries. Calls `rendered(pixels)` after each piece and `progress(rows)` after each
+/// strip's last piece.
+#[allow(clippy::too_many_arguments)]
 fn render_band<T: Tracer + Sync + ?Sized>(
     tracer: &T,
     camera: &Camera,
     light: &Lighting,
     settings: RenderSettings,
-    band: std::ops::Range<u32>,
-    rendered: impl Fn(u64) + Sync,
+    (xs, ys): (Range<u32>, Range<u32>),
+    planes: &mut [RowPlanes<'_>],
+    rendered: &(dyn Fn(u64) + Sync),
     progress: &(dyn Fn(u64) + Sync),
 ) -> Vec<Row> {
-    let w = settings.width;
+    assert_eq!(planes.len(), ys.len());
     let spp = u64::from(settings.spp.max(1));
-    let pieces: Vec<(u32, u32)> = band
+    let per_strip = xs.len().div_ceil(PIECE_COLUMNS as usize).max(1);
+    // Each piece's rows: views of its columns of the frame's rows, written by the piece alone.
+    let mut pieces: Vec<(u32, u32, Vec<RowPlanes<'_>>)> = Vec::new();
+    for (y, strip) in ys
         .clone()
         .step_by(TILE as usize)
-        .flat_map(|y| (0..w).step_by(PIECE_COLUMNS as usize).map(move |x| (x, y)))
-        .collect();
+        .zip(planes.chunks_mut(TILE as usize))
+    {
+        let mut views: Vec<Vec<RowPlanes<'_>>> = (0..per_strip)
+            .map(|_| Vec::with_capacity(strip.len()))
+            .collect();
+        for row in strip.iter_mut() {
+            let columns = row.split_columns(PIECE_COLUMNS as usize);
+            for (view, piece) in columns.into_iter().zip(views.iter_mut()) {
+                piece.push(view);
+            }
+        }
+        pieces.extend(
+            (xs.start..)
+                .step_by(PIECE_COLUMNS as usize)
+                .zip(views)
+                .map(|(x, rows)| (x, y, rows)),
+        );
+    }
     let part: Vec<Vec<Row>> = pieces
         .into_par_iter()
-        .map(|(x, y)| {
-            let xs = x..(x + PIECE_COLUMNS).min(w);
-            let ys = y..(y + TILE).min(band.end);
-            let (last, pixels) = (xs.end == w, (xs.len() * ys.len()) as u64 * spp);
+        .map(|(x, y, mut out)| {
+            let px = x..(x + PIECE_COLUMNS).min(xs.end);
+            let py = y..(y + TILE).min(ys.end);
+            let (last, pixels) = (px.end == xs.end, (px.len() * py.len()) as u64 * spp);
             // The first piece of a strip holds the rows the others are appended to.
-            let width = if x == 0 { w as usize } else { 0 };
-            let strip = render_strip(tracer, camera, light, settings, (xs, ys), width);
+            let width = if x == xs.start { xs.len() } else { 0 };
+            let strip = render_strip(tracer, camera, light, settings, (px, py), width, &mut out);
             if last {
                 progress(strip.len() as u64);
             }
@@ -237,9 +255,7 @@ fn render_band<T: Tracer + Sync + ?Sized>(
         })
         .collect();
     // The pieces of a strip are consecutive, left to right: their rows joined are the strip's.
-    // Strips are joined in parallel: the copies first touch the rows' pages, and on one thread
-    // they took about a sixth of the demo frame's time.
-    let per_strip = w.div_ceil(PIECE_COLUMNS).max(1) as usize;
+    // Strips are joined in parallel: the joins first touch the rows' pages.
     let strips: Vec<Vec<Row>> = part.into_par_iter().chunks(per_strip).map(joined).collect();
     strips.into_iter().flatten().collect()
 }
@@ -313,59 +329,42 @@ pub fn render_rect<T: Tracer + Sync + ?Sized>(
     let (mx0, my0) = (x0.saturating_sub(margin), y0.saturating_sub(margin));
     let mx1 = (x0 + w).saturating_add(margin).min(fw).max(x0 + w);
     let my1 = (y0 + h).saturating_add(margin).min(fh).max(y0 + h);
-    let mut rows: Vec<Row> = (my0..my1)
-        .step_by(TILE as usize)
-        .collect::<Vec<u32>>()
-        .into_par_iter()
-        .map(|y| {
-            let ys = y..(y + TILE).min(my1);
-            render_strip(tracer, camera, light, settings, (mx0..mx1, ys), 0)
-        })
-        .collect::<Vec<Vec<Row>>>()
-        .into_iter()
-        .flatten()
-        .collect();
-    let rays = rows.iter().map(|r| r.rays).sum();
-    let mw = mx1 - mx0;
-    let (cut_x, cut_y) = ((x0 - mx0) as usize, (y0 - my0) as usize);
-    let mut out = vec![PixelSample::MISS; w as usize * h as usize];
-    // One slot per rendered row: the rows of the margin write nowhere.
-    let mut slots: Vec<Option<&mut [PixelSample]>> = (0..my1 - my0).map(|_| None).collect();
-    for (slot, dst) in slots[cut_y..]
-        .iter_mut()
-        .zip(out.chunks_mut(w.max(1) as usize))
-    {
-        *slot = Some(dst);
-    }
-    let all = 0..rows.len();
-    finish(
-        &mut rows,
-        all,
+    let (mw, mh) = (mx1 - mx0, my1 - my0);
+    let mut region = FrameBuffer::zeroed(mw, mh, tracer.frame().origin);
+    let mut planes = region.rows_mut();
+    let (xs, ys) = (mx0..mx1, my0..my1);
+    let mut rows = render_band(
+        tracer,
         camera,
         light,
         settings,
-        mw,
-        slots,
-        |slot, pixels| {
-            if let Some(dst) = slot {
-                dst.copy_from_slice(&pixels[cut_x..cut_x + dst.len()]);
-            }
-        },
+        (xs, ys),
+        &mut planes,
+        &|_| {},
+        &|_| {},
     );
+    let rays = rows.iter().map(|r| r.rays).sum();
+    let all = 0..rows.len();
+    filter_rows(&mut rows, all, &mut planes, camera, light, settings, mw);
+    drop(planes);
+    let (cut_x, cut_y) = ((x0 - mx0) as usize, (y0 - my0) as usize);
+    let mut out = Vec::with_capacity(w as usize * h as usize);
+    for y in cut_y..cut_y + h as usize {
+        let row = y * mw as usize;
+        out.extend((cut_x..cut_x + w as usize).map(|x| region.sample(row + x)));
+    }
     (out, rays)
 }
 
-/// One rendered row: its pixels, the hits of each to filter, and its ray queries.
+/// One rendered row's hits to filter (its pixels are in the frame) and its ray queries.
 struct Row {
-    pixels: Vec<PixelSample>,
     ao: AoRow,
     rays: u64,
 }
 
 impl Row {
     /// Appends `more`, the pixels to the right of this row's.
-    fn append(&mut self, mut more: Row) {
-        self.pixels.append(&mut more.pixels);
+    fn append(&mut self, more: Row) {
         self.ao.append(more.ao);
         self.rays += more.rays;
     }
@@ -380,9 +379,9 @@ fn filters(light: &Lighting, settings: RenderSettings) -> bool {
 /// Pixels per side of a tile, whose primary rays are traced together.
 const TILE: u32 = 8;
 
-/// The pixels `xs` of the rows `ys` (at most [`TILE`]), one row each (with room for `width`
-/// pixels), tile after tile of [`TILE`] columns; the strip's ray queries are counted in its
-/// first row.
+/// Renders the pixels `xs` of the rows `ys` (at most [`TILE`]) into `out` (one per row, from
+/// column `xs.start`), tile after tile of [`TILE`] columns; returns the rows' hits to filter
+/// (with room for `width` pixels) and counts the strip's ray queries in its first row.
 fn render_strip<T: Tracer + ?Sized>(
     tracer: &T,
     camera: &Camera,
@@ -390,7 +389,9 @@ fn render_strip<T: Tracer + ?Sized>(
     settings: RenderSettings,
     (xs, ys): (std::ops::Range<u32>, std::ops::Range<u32>),
     width: usize,
+    out: &mut [RowPlanes<'_>],
 ) -> Vec<Row> {
+    assert_eq!(out.len(), ys.len());
     let counting = Counting {
         inner: tracer,
         rays: Cell::new(0),
@@ -399,7 +400,6 @@ fn render_strip<T: Tracer + ?Sized>(
     let mut rows: Vec<Row> = ys
         .clone()
         .map(|_| Row {
-            pixels: Vec::with_capacity(width.max(xs.len())),
             ao: AoRow::with_capacity(if record { width.max(xs.len()) } else { 0 }),
             rays: 0,
         })
@@ -434,6 +434,8 @@ fn render_strip<T: Tracer + ?Sized>(
     for x0 in xs.clone().step_by(TILE as usize) {
         let x1 = (x0 + TILE).min(xs.end);
         let tw = (x1 - x0) as usize;
+        // The tile's first column in `out`.
+        let col = (x0 - xs.start) as usize;
         for (a, x) in across.iter_mut().zip(x0..x1) {
             *a = dirs.across(f64::from(x) + 0.5);
         }
@@ -466,8 +468,10 @@ fn render_strip<T: Tracer + ?Sized>(
             let any_hit = tile.trace(&counting, light, &rays, &mut hint);
             if spp == 1 && !any_hit {
                 // Every pixel a miss: no generator, no shading.
-                for row in &mut rows {
-                    row.pixels.extend(std::iter::repeat_n(miss, tw));
+                for (row, out) in rows.iter_mut().zip(out.iter_mut()) {
+                    for x in col..col + tw {
+                        out.set(x, &miss);
+                    }
                     if record {
                         row.ao.end_pixels(tw);
                     }
@@ -481,8 +485,8 @@ fn render_strip<T: Tracer + ?Sized>(
                     light,
                     origin,
                     (&dirs_k, &tile),
-                    tw,
-                    &mut rows,
+                    (col, tw),
+                    out,
                 );
                 continue;
             }
@@ -523,7 +527,7 @@ fn render_strip<T: Tracer + ?Sized>(
                         }
                         acc[k].finish(spp)
                     };
-                    row.pixels.push(pixel);
+                    out[r].set(col + k - r * tw, &pixel);
                     if record {
                         row.ao.end_pixel();
                     }
@@ -550,9 +554,9 @@ fn hits_alone<T: Tracer + ?Sized>(tracer: &T, light: &Lighting, spp: u32) -> boo
         && light.ao_rays == 0
 }
 
-/// Pushes the pixels of a tile `tw` rays wide onto `rows` (one per row of the tile) when
-/// [`hits_alone`]: each ray `k`'s hit in `tile`, seen along `dirs[k]` from `origin`, shaded as
-/// [`shade_hit_alone`] (a miss where it has none).
+/// Writes the pixels of a tile `tw` rays wide from column `col` of `out` (one per row of the
+/// tile) when [`hits_alone`]: each ray `k`'s hit in `tile`, seen along `dirs[k]` from `origin`,
+/// shaded as [`shade_hit_alone`] (a miss where it has none).
 #[inline(always)]
 fn shade_alone<T: Tracer + ?Sized>(
     tracer: &T,
@@ -560,11 +564,11 @@ fn shade_alone<T: Tracer + ?Sized>(
     light: &Lighting,
     origin: [f64; 3],
     (dirs, tile): (&[[f64; 3]], &TileHits),
-    tw: usize,
-    rows: &mut [Row],
+    (col, tw): (usize, usize),
+    out: &mut [RowPlanes<'_>],
 ) {
     let mut unused_rng = Rng::for_pixel(0, 0, 0);
-    for (r, row) in rows.iter_mut().enumerate() {
+    for (r, out) in out.iter_mut().enumerate() {
         for k in r * tw..(r + 1) * tw {
             let sample = match tile.hit(k, 0) {
                 Some(hit) => {
@@ -573,7 +577,7 @@ fn shade_alone<T: Tracer + ?Sized>(
                 }
                 None => PixelSample::MISS,
             };
-            row.pixels.push(PixelAcc::only(sample));
+            out.set(col + k - r * tw, &PixelAcc::only(sample));
         }
     }
 }
@@ -584,51 +588,46 @@ thread_local! {
     static STRIP_LAYERS: Cell<Option<Box<TileLayers>>> = const { Cell::new(None) };
 }
 
-/// Hands each of the rows `written` of `rows` (a rectangle `w` pixels wide, top row first) to
-/// `write` with its destination in `out` (one per written row), its ambient occlusion filtered
-/// first; rows in parallel. The filter reads the rows of `rows` around them: those before and
-/// after `written` are read, not written.
+/// Filters the ambient occlusion of the rows `filtered` of `rows` (a rectangle `w` pixels wide,
+/// top row first) in their pixels' colours, `out` (one per filtered row); rows in parallel. The
+/// filter reads the rows of `rows` around them too. Nothing to do for frames without the filter.
 #[allow(clippy::too_many_arguments)]
-fn finish<O: Send>(
+fn filter_rows(
     rows: &mut [Row],
-    written: Range<usize>,
+    filtered: Range<usize>,
+    out: &mut [RowPlanes<'_>],
     camera: &Camera,
     light: &Lighting,
     settings: RenderSettings,
     w: u32,
-    out: Vec<O>,
-    write: impl Fn(O, &[PixelSample]) + Sync,
 ) {
-    assert_eq!(written.len(), out.len());
+    assert_eq!(filtered.len(), out.len());
+    if !filters(light, settings) {
+        return;
+    }
     // The filter reads the rows' hits as one slice; they are handed back at the end.
     let ao: Vec<AoRow> = rows.iter_mut().map(|r| std::mem::take(&mut r.ao)).collect();
-    let filters = filters(light, settings);
     let pixel_angle =
         (2.0 * (0.5 * camera.fov_deg).to_radians().tan() / f64::from(settings.height)) as f32;
-    let mut out = out.into_iter();
     // Band after band of rows, each band's rows in parallel: the filter's slots are held for
     // one band (and its margins) at a time, not for all the rows.
-    for y0 in written.clone().step_by(FILTER_BAND) {
-        let band = y0..(y0 + FILTER_BAND).min(written.end);
-        let filter = filters.then(|| AoRows::band(w, &ao, band.start as u32..band.end as u32));
-        let band_out: Vec<O> = out.by_ref().take(band.len()).collect();
-        rows[band]
-            .par_iter_mut()
-            .zip(band_out)
-            .enumerate()
-            .for_each(|(i, (row, out))| {
-                if let Some(f) = &filter {
-                    f.apply_row((y0 + i) as u32, &mut row.pixels, pixel_angle);
-                }
-                write(out, &row.pixels);
-            });
+    for (y0, out) in filtered
+        .clone()
+        .step_by(FILTER_BAND)
+        .zip(out.chunks_mut(FILTER_BAND))
+    {
+        let band = y0 as u32..(y0 + out.len()) as u32;
+        let filter = AoRows::band(w, &ao, band);
+        out.par_iter_mut().enumerate().for_each(|(i, row)| {
+            filter.apply_row((y0 + i) as u32, row.rgb_mut(), pixel_angle);
+        });
     }
     for (row, ao) in rows.iter_mut().zip(ao) {
         row.ao = ao;
     }
 }
 
-/// Rows filtered together by [`finish`]: the slots of about this many rows are held at once.
+/// Rows filtered together by [`filter_rows`]: the slots of about this many rows are held at once.
 const FILTER_BAND: usize = 64;
 
 /// A pixel's samples added up: the average of their colours and coverage, the rest of the first

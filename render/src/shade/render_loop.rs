@@ -1,6 +1,7 @@
 //! The frame loop: strips of tiles of 8x8 pixels in parallel (each tile's primary rays, and the
 //! continuations behind transparent hits, traced together), `spp` jittered samples per pixel,
-//! ray counting and progress, then the filter of the ambient occlusion over the whole frame.
+//! ray counting and progress, pixels written straight into the frame's planes; then, band of
+//! rows after band, the filter of the ambient occlusion.
 
 use std::cell::Cell;
 use std::ops::Range;
@@ -186,9 +187,9 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
     (frame, rays)
 }
 
-/// Pixels of a frame rendered before their rows are filtered and written into the frame: the
-/// rows' samples and filter hits (about 100 bytes a pixel) are held for about this many pixels
-/// at once, not for the whole frame (a frame of up to this many pixels is one band).
+/// Pixels of a frame rendered before their rows' ambient occlusion is filtered: the rows' hits
+/// to filter (44 bytes a hit, up to two a pixel) are held for about this many pixels at once,
+/// not for the whole frame (a frame of up to this many pixels is one band).
 const BAND_PIXELS: u32 = 1 << 20;
 
 /// Rows of a band of a frame `w` pixels wide: a multiple of [`TILE`] holding about

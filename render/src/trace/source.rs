@@ -248,10 +248,10 @@ pub trait VoxelSource: Sync {
         self.intersect(voxel, iso, ray, tmin, tmax).is_some()
     }
 
-    /// [`Self::occludes`] of a voxel for which [`Self::with_boxed_voxels`]' lookup asked `keep`,
-    /// given `clip`, the ray's interval in the voxel's box that `keep` computed
-    /// ([`GridRay::clip_with`] for `tmin` and `tmax`): the same answer, without clipping again.
-    /// By default [`Self::occludes`].
+    /// [`Self::occludes`] of a voxel that [`Self::with_boxed_voxels`]' lookup clipped the ray
+    /// to, given `clip`, the ray's interval in the voxel's box that the lookup gave
+    /// ([`BoxClip::of`] for `tmin` and `tmax`): the same answer, without clipping again. By
+    /// default [`Self::occludes`].
     #[inline]
     fn occludes_clipped(
         &self,

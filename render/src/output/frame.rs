@@ -167,32 +167,38 @@ pub struct RowPlanes<'a> {
 impl<'a> RowPlanes<'a> {
     /// Writes the row's pixels from `pixels`, its samples from the left.
     pub fn set_all(&mut self, pixels: &[PixelSample]) {
-        for (x, s) in pixels.iter().enumerate() {
-            self.set(x, s);
-        }
+        self.set_run(0, pixels);
     }
 
-    /// Writes pixel `x` of the row from `s`.
+    /// Writes the row's pixels from `x` on from `pixels`: plane after plane, each range
+    /// checked once.
     #[inline(always)]
-    pub fn set(&mut self, x: usize, s: &PixelSample) {
-        let values = [
-            s.rgb[0],
-            s.rgb[1],
-            s.rgb[2],
-            s.alpha,
-            s.z,
-            s.n[0],
-            s.n[1],
-            s.n[2],
-            s.p[0],
-            s.p[1],
-            s.p[2],
-            s.level,
-            s.color_value,
-        ];
-        for (plane, v) in self.planes.iter_mut().zip(values) {
-            plane[x] = v;
+    pub fn set_run(&mut self, x: usize, pixels: &[PixelSample]) {
+        #[inline(always)]
+        fn put(
+            plane: &mut [f32],
+            x: usize,
+            pixels: &[PixelSample],
+            f: impl Fn(&PixelSample) -> f32,
+        ) {
+            for (d, s) in plane[x..x + pixels.len()].iter_mut().zip(pixels) {
+                *d = f(s);
+            }
         }
+        let [r, g, b, a, z, nx, ny, nz, px, py, pz, level, value] = &mut self.planes;
+        put(r, x, pixels, |s| s.rgb[0]);
+        put(g, x, pixels, |s| s.rgb[1]);
+        put(b, x, pixels, |s| s.rgb[2]);
+        put(a, x, pixels, |s| s.alpha);
+        put(z, x, pixels, |s| s.z);
+        put(nx, x, pixels, |s| s.n[0]);
+        put(ny, x, pixels, |s| s.n[1]);
+        put(nz, x, pixels, |s| s.n[2]);
+        put(px, x, pixels, |s| s.p[0]);
+        put(py, x, pixels, |s| s.p[1]);
+        put(pz, x, pixels, |s| s.p[2]);
+        put(level, x, pixels, |s| s.level);
+        put(value, x, pixels, |s| s.color_value);
     }
 
     /// The row's R, G and B.

@@ -470,9 +470,7 @@ fn render_strip<T: Tracer + ?Sized>(
             if spp == 1 && !any_hit {
                 // Every pixel a miss: no generator, no shading.
                 for (row, out) in rows.iter_mut().zip(out.iter_mut()) {
-                    for x in col..col + tw {
-                        out.set(x, &miss);
-                    }
+                    out.set_run(col, &[miss; TILE as usize][..tw]);
                     if record {
                         row.ao.end_pixels(tw);
                     }
@@ -505,6 +503,9 @@ fn render_strip<T: Tracer + ?Sized>(
                     ao.trace(&counting, light, &dirs_k, &mut rngs, &mut layers);
                 }
             }
+            // A row of the tile's pixels, written into the planes at once.
+            let mut run = [PixelSample::MISS; TILE as usize];
+            let last = s + 1 == spp;
             for (r, row) in rows.iter_mut().enumerate() {
                 for k in r * tw..(r + 1) * tw {
                     let sample = if any_hit {
@@ -528,10 +529,13 @@ fn render_strip<T: Tracer + ?Sized>(
                         }
                         acc[k].finish(spp)
                     };
-                    out[r].set(col + k - r * tw, &pixel);
+                    run[k - r * tw] = pixel;
                     if record {
                         row.ao.end_pixel();
                     }
+                }
+                if last {
+                    out[r].set_run(col, &run[..tw]);
                 }
             }
         }
@@ -569,8 +573,9 @@ fn shade_alone<T: Tracer + ?Sized>(
     out: &mut [RowPlanes<'_>],
 ) {
     let mut unused_rng = Rng::for_pixel(0, 0, 0);
+    let mut run = [PixelSample::MISS; TILE as usize];
     for (r, out) in out.iter_mut().enumerate() {
-        for k in r * tw..(r + 1) * tw {
+        for (k, px) in (r * tw..(r + 1) * tw).zip(&mut run) {
             let sample = match tile.hit(k, 0) {
                 Some(hit) => {
                     let (ray, hit) = ((origin, dirs[k]), (0, hit));
@@ -578,8 +583,9 @@ fn shade_alone<T: Tracer + ?Sized>(
                 }
                 None => PixelSample::MISS,
             };
-            out.set(col + k - r * tw, &PixelAcc::only(sample));
+            *px = PixelAcc::only(sample);
         }
+        out.set_run(col, &run[..tw]);
     }
 }
 

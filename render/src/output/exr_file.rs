@@ -142,6 +142,16 @@ pub fn write_exr_with(
     compression: ExrCompression,
 ) -> Result<()> {
     let size = (frame.width as usize, frame.height as usize);
+    let pixels = size.0.checked_mul(size.1);
+    let planes = frame.rgb.iter().chain(&frame.n).chain(&frame.p);
+    let others = [&frame.alpha, &frame.z, &frame.level, &frame.color_value];
+    if planes.chain(others).any(|p| Some(p.len()) != pixels) {
+        let message = format!(
+            "a channel of the {}x{} frame is not that size",
+            size.0, size.1
+        );
+        return Err(RenderError::output(path, message));
+    }
     // The planes are read where they are: a copy of them all would double the frame's memory.
     let ch = |name: &str, data| AnyChannel::new(name, Plane(data));
     let channels = vec![
@@ -240,4 +250,23 @@ pub fn read_text_attributes(path: &Path) -> Result<Vec<(String, String)>> {
             _ => None,
         })
         .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_frame_whose_channel_is_not_its_size_is_refused_not_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("short.exr");
+        let mut frame = FrameBuffer::zeroed(4, 3, [0.0; 3]);
+        frame.n[1].pop();
+        let err = write_exr(&path, &frame, &[]).unwrap_err().to_string();
+        assert!(err.contains("short.exr") && err.contains("4x3"), "{err}");
+        assert!(!path.exists());
+        frame.n[1].push(0.0);
+        write_exr(&path, &frame, &[]).unwrap();
+        assert_eq!(read_channel(&path, "N.Y").unwrap(), (4, 3, vec![0.0; 12]));
+    }
 }

@@ -427,7 +427,6 @@ impl<'a> Avx2Packet<'a> {
         let e = [extent.x, extent.y, extent.z].map(|x| _mm256_set1_ps(x));
         let p = node.p;
         let p = [p.x, p.y, p.z].map(|x| _mm256_set1_ps(x));
-        let t_min = _mm256_set1_ps(super::T_MIN);
         let mut any = 0;
         for k in rays_of(m) {
             // SAFETY: `new` wrote the lanes of every group holding a ray of `self.rays`, and
@@ -446,20 +445,8 @@ impl<'a> Avx2Packet<'a> {
                     _mm256_add_ps(_mm256_mul_ps(q[2 * a + 1], scale), offset),
                 )
             };
-            let (x0, x1) = axis(0);
-            let (y0, y1) = axis(1);
-            let (z0, z1) = axis(2);
-            let t0 = _mm256_max_ps(x0, _mm256_max_ps(y0, z0));
-            let t1 = _mm256_min_ps(x1, _mm256_min_ps(y1, z1));
-            let t0 = _mm256_max_ps(t0, t_min);
-            let t1 = _mm256_min_ps(t1, _mm256_set1_ps(rays[k].tmax));
-            let mut h = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32 & used;
-            any |= h;
-            while h != 0 {
-                let s = h.trailing_zeros() as usize;
-                h &= h - 1;
-                entered[s] |= 1 << k;
-            }
+            let slabs = [axis(0), axis(1), axis(2)];
+            any |= enter_children(slabs, rays[k].tmax, used, k, entered);
         }
         any
     }
@@ -532,4 +519,34 @@ impl<'a> Avx2Packet<'a> {
         // An ordered comparison: a NaN anywhere culls nothing.
         _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(t0, t1)) as u32
     }
+}
+
+/// The children (slots of `used`, one per lane) whose slabs `slabs` (per axis, the distances
+/// along ray `k` to the children's near and far planes) the ray enters within `[T_MIN, tmax]`:
+/// sets bit `k` of their `entered` and returns them. The one slab test of the ray-by-ray node
+/// tests ([`Avx2Packet::children`]'s and [`super::packet_any::children_of_octants`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn enter_children(
+    slabs: [(std::arch::x86_64::__m256, std::arch::x86_64::__m256); 3],
+    tmax: f32,
+    used: u32,
+    k: usize,
+    entered: &mut [Mask; 8],
+) -> u32 {
+    use std::arch::x86_64::*;
+    let [(x0, x1), (y0, y1), (z0, z1)] = slabs;
+    let t0 = _mm256_max_ps(x0, _mm256_max_ps(y0, z0));
+    let t1 = _mm256_min_ps(x1, _mm256_min_ps(y1, z1));
+    let t0 = _mm256_max_ps(t0, _mm256_set1_ps(super::T_MIN));
+    let t1 = _mm256_min_ps(t1, _mm256_set1_ps(tmax));
+    let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32 & used;
+    let mut h = hit;
+    while h != 0 {
+        let s = h.trailing_zeros() as usize;
+        h &= h - 1;
+        entered[s] |= 1 << k;
+    }
+    hit
 }

@@ -150,7 +150,6 @@ pub fn children_of_octants(
     let e = [extent.x, extent.y, extent.z].map(|x| _mm256_set1_ps(x));
     let p = node.p;
     let p = [p.x, p.y, p.z].map(|x| _mm256_set1_ps(x));
-    let t_min = _mm256_set1_ps(super::T_MIN);
     let mut any = 0;
     for (o, &of_o) in octants.iter().enumerate() {
         let m = m & of_o;
@@ -179,20 +178,8 @@ pub fn children_of_octants(
                     _mm256_add_ps(_mm256_mul_ps(far, scale), offset),
                 )
             };
-            let (x0, x1) = axis(0);
-            let (y0, y1) = axis(1);
-            let (z0, z1) = axis(2);
-            let t0 = _mm256_max_ps(x0, _mm256_max_ps(y0, z0));
-            let t1 = _mm256_min_ps(x1, _mm256_min_ps(y1, z1));
-            let t0 = _mm256_max_ps(t0, t_min);
-            let t1 = _mm256_min_ps(t1, _mm256_set1_ps(r.tmax));
-            let mut h = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32 & used;
-            any |= h;
-            while h != 0 {
-                let s = h.trailing_zeros() as usize;
-                h &= h - 1;
-                entered[s] |= 1 << k;
-            }
+            let slabs = [axis(0), axis(1), axis(2)];
+            any |= super::packet::enter_children(slabs, r.tmax, used, k, entered);
         }
     }
     any

@@ -1,7 +1,8 @@
 //! The frames of one run: each frame's file, camera and isosurfaces from the animation, one scene
 //! kept while its file is rendered (so a camera path or an unchanged isovalue costs frames only),
 //! dropped before the next file is opened (so a time series' memory stays flat), numbered
-//! outputs, one progress bar over all frames and, when asked, a movie.
+//! outputs written while the next frame renders, one progress bar over all frames and, when
+//! asked, a movie.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -15,9 +16,11 @@ use amr_render::{render, ColorBy, Scene, View};
 use anyhow::bail;
 use serde::Serialize;
 
+use crate::frame_writer::{FrameJob, FrameWriter};
 use crate::heap;
 use crate::movie;
 use crate::outputs::{self, FrameFiles, ProcessMemory, RunStats};
+use crate::probe::peak_rss_bytes;
 use crate::progress;
 use crate::render::request_isos;
 use crate::render_args::RenderRequest;
@@ -62,6 +65,7 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
     let mut scene: Option<(usize, Scene, Vec<IsoSpec>)> = None;
     let mut cameras = Vec::new();
     let mut records = Vec::new();
+    let mut writer = FrameWriter::start()?;
     let start = Instant::now();
     for k in 0..n {
         let index = if anim.series { k as usize } else { 0 };
@@ -110,6 +114,11 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             camera: Some(cameras[k as usize]),
             ..base_view.clone()
         };
+        if k == 0 && !anim.series {
+            // One file's frames repeat their allocations: freed blocks are kept for the next
+            // (a series keeps its memory at that of its largest step instead).
+            heap::keep_freed_for_frames();
+        }
         let rendered = render(scene, &view, rows)?;
         if rendered.stats.covered_pixels == 0 {
             warn_empty(scene);
@@ -135,21 +144,33 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         }
         let header = frame_header(scene, &rendered, &extra);
         let legend = Legend::of_frame(scene, &view, &rendered);
-        outputs::write_frame(&files[k as usize], &rendered, &header, &legend)?;
-        if n == 1 && request.outputs.summary {
-            eprintln!(
-                "{}",
-                summary(&request.files[index], scene, &files[0], start.elapsed())
-            );
-        }
+        let stats = rendered.stats.clone();
+        writer.write(FrameJob {
+            files: files[k as usize].clone(),
+            rendered,
+            header,
+            legend,
+        })?;
         records.push(FrameRecord {
             frame: k,
             file: request.files[index].clone(),
             simulation_time: time,
             simulation_step: step,
-            stats: RunStats::new(scene, rendered.stats.clone(), ProcessMemory::of(scene)),
+            stats: RunStats::new(scene, stats, ProcessMemory::of(scene)),
         });
         advance_frames(1);
+    }
+    writer.finish()?;
+    if let Some(last) = records.last_mut() {
+        // The last write is part of the run's peak.
+        last.stats.peak_rss_bytes = peak_rss_bytes();
+    }
+    if let (1, true, Some((index, scene, _))) = (n, request.outputs.summary, &scene) {
+        let took = start.elapsed();
+        eprintln!(
+            "{}",
+            summary(&request.files[*index], scene, &files[0], took)
+        );
     }
     drop(scene);
     bar.finish_and_clear();

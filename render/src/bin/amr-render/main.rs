@@ -5,6 +5,7 @@
 mod animation;
 mod demo;
 mod extract;
+mod frame_writer;
 mod frames;
 mod heap;
 mod info;

@@ -239,6 +239,84 @@ fn an_orbit_writes_numbered_frames_from_one_scene() {
     assert_ne!(bits(&single, "Z"), bits(&d.join("orbit_0001.exr"), "Z"));
 }
 
+/// The values of `name=[x, y, z]` in an EXR camera attribute, as a command line takes them.
+fn camera_part(camera: &str, name: &str) -> String {
+    let rest = &camera[camera.find(&format!("{name}=[")).unwrap() + name.len() + 2..];
+    rest[..rest.find(']').unwrap()].replace(' ', "")
+}
+
+#[test]
+fn an_orbits_frames_equal_separate_runs_from_their_cameras() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let (f, d) = (file.to_str().unwrap(), dir.path());
+    let common = [f, "--iso", "10", "--size", "32x24", "--ao", "1"];
+    let out = d.join("orbit.exr");
+    let mut args = common.to_vec();
+    args.extend(["--orbit", "3", "-o", out.to_str().unwrap()]);
+    let o = amr_render(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let channels = [
+        "R", "G", "B", "A", "Z", "N.X", "N.Y", "N.Z", "P.X", "P.Y", "P.Z", "level",
+    ];
+    for k in 0..3 {
+        let framed = d.join(format!("orbit_{k:04}.exr"));
+        let camera = attribute(&framed, "camera");
+        let [pos, look_at, up] = ["pos", "look_at", "up"].map(|p| camera_part(&camera, p));
+        let alone = d.join(format!("alone{k}.exr"));
+        let mut args = common.to_vec();
+        args.extend(["--camera-pos", &pos, "--look-at", &look_at, "--up", &up]);
+        args.extend(["-o", alone.to_str().unwrap()]);
+        let o = amr_render(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        for c in channels {
+            assert_eq!(bits(&alone, c), bits(&framed, c), "frame {k}, channel {c}");
+        }
+    }
+}
+
+#[test]
+fn a_write_that_fails_mid_run_names_its_file_and_stops_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let (f, d) = (file.to_str().unwrap(), dir.path());
+    // An empty frame compresses to a small file, one with a surface to a larger one: a file
+    // size limit between the two fails the second frame of a sweep 1000 -> 10 -> -980 (empty).
+    let view = ["--size", "64x48", "--camera-pos", "2,-1.5,1.5"];
+    let size_of = |iso: &str| {
+        let one = d.join(format!("one{iso}.exr"));
+        let mut args = vec![f, "--iso", iso, "-o", one.to_str().unwrap()];
+        args.extend(view);
+        let o = amr_render(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::metadata(&one).unwrap().len()
+    };
+    let (empty, full) = (size_of("1000"), size_of("10"));
+    assert!(empty + 2048 < full, "{empty} {full}");
+    let blocks = (empty + full) / 2 / 512;
+    let out = d.join("sweep.exr");
+    // The shell ignores the signal a write past the limit raises, so the write fails instead.
+    let script = format!("trap '' XFSZ; ulimit -f {blocks}; exec \"$0\" \"$@\"");
+    let o = Command::new("sh")
+        .args(["-c", &script, env!("CARGO_BIN_EXE_amr-render")])
+        .args([f, "--iso-sweep", "1000:-980:3"])
+        .args(view)
+        .args(["-o", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains("sweep_0001.exr"), "{err}");
+    assert!(d.join("sweep_0000.exr").exists());
+    assert!(!d.join("sweep_0001.exr").exists() && !d.join("sweep_0002.exr").exists());
+    let leftovers: Vec<_> = std::fs::read_dir(d)
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
 #[test]
 fn a_sweep_records_its_isovalues_and_a_series_equals_separate_runs() {
     let dir = tempfile::tempdir().unwrap();

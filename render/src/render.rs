@@ -13,7 +13,9 @@ use crate::paint::{GridSlice, PaintedTracer, Painter};
 use crate::reconstruct::Reconstruction;
 use crate::sample_mode::SampleTracer;
 use crate::scene::{Scene, TraceMethod};
-use crate::shade::{render_frame, render_rect, IsoSpec, Lighting, RenderSettings};
+use crate::shade::{
+    render_frame, render_in_planes, render_rect, IsoSpec, Lighting, RenderSettings,
+};
 use crate::stats::FrameStats;
 use crate::trace::{ClippedTracer, HybridTracer, Surface, Tracer, VoxelSource};
 use crate::view::View;
@@ -55,8 +57,30 @@ pub struct RegionPixels {
 
 /// Renders `scene` as `view` asks; `progress(rows)` is called as rows finish.
 pub fn render(scene: &Scene, view: &View, progress: &(dyn Fn(u64) + Sync)) -> Result<Rendered> {
+    render_with(scene, view, progress, None)
+}
+
+/// [`render`] in the planes of `planes`, the frame of an earlier render that is no longer
+/// needed: the same frame, written into memory already touched instead of fresh pages (a run of
+/// frames hands each frame back once it is written).
+pub fn render_reusing(
+    scene: &Scene,
+    view: &View,
+    progress: &(dyn Fn(u64) + Sync),
+    planes: FrameBuffer,
+) -> Result<Rendered> {
+    render_with(scene, view, progress, Some(planes))
+}
+
+/// [`render`], in `planes` when given.
+fn render_with(
+    scene: &Scene,
+    view: &View,
+    progress: &(dyn Fn(u64) + Sync),
+    planes: Option<FrameBuffer>,
+) -> Result<Rendered> {
     let (mut rendered, color_range) = with_scene_tracer(scene, view, |tracer, camera, light| {
-        trace_frame(tracer, *camera, light, view, progress)
+        trace_frame(tracer, *camera, light, view, progress, planes)
     })?;
     check_source(scene)?;
     rendered.color_range = color_range;
@@ -111,7 +135,7 @@ pub fn render_surfaces<S: VoxelSource + ?Sized>(
         isos,
         method,
         (view, None),
-        |tracer, camera, light| trace_frame(tracer, *camera, light, view, progress),
+        |tracer, camera, light| trace_frame(tracer, *camera, light, view, progress, None),
     )
 }
 
@@ -129,7 +153,7 @@ pub fn render_sampled<S: VoxelSource + ?Sized>(
         isos,
         method,
         (view, None),
-        |tracer, camera, light| trace_frame(tracer, *camera, light, view, progress),
+        |tracer, camera, light| trace_frame(tracer, *camera, light, view, progress, None),
     )
 }
 
@@ -248,17 +272,21 @@ fn with_tracer<S: VoxelSource + ?Sized, R>(
     })
 }
 
-/// Traces a whole frame through `tracer`.
+/// Traces a whole frame through `tracer`, in `planes` when given.
 fn trace_frame<T: Tracer + Sync + ?Sized>(
     tracer: &T,
     camera: Camera,
     light: &Lighting,
     view: &View,
     progress: &(dyn Fn(u64) + Sync),
+    planes: Option<FrameBuffer>,
 ) -> Rendered {
     let settings: RenderSettings = view.settings();
     let t = Instant::now();
-    let (frame, rays) = render_frame(tracer, &camera, light, settings, progress);
+    let (frame, rays) = match planes {
+        None => render_frame(tracer, &camera, light, settings, progress),
+        Some(p) => render_in_planes(tracer, &camera, light, settings, progress, p),
+    };
     let stats = FrameStats::new(t.elapsed(), rays, view.size, frame.covered() as u64);
     Rendered {
         frame,

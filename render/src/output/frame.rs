@@ -98,6 +98,31 @@ impl FrameBuffer {
         }
     }
 
+    /// A frame of `width x height` pixels in this frame's planes, for a render that writes every
+    /// pixel: a plane of that many pixels keeps its memory and, until overwritten, its values;
+    /// another is made anew, zeroed.
+    pub fn reshaped(mut self, width: u32, height: u32, p_origin: [f64; 3]) -> FrameBuffer {
+        let n = width as usize * height as usize;
+        let others = [
+            &mut self.alpha,
+            &mut self.z,
+            &mut self.level,
+            &mut self.color_value,
+        ];
+        let planes = self.rgb.iter_mut().chain(&mut self.n).chain(&mut self.p);
+        for plane in planes.chain(others) {
+            if plane.len() != n {
+                *plane = vec![0.0; n];
+            }
+        }
+        FrameBuffer {
+            width,
+            height,
+            p_origin,
+            ..self
+        }
+    }
+
     /// Every row's slice of every channel, top row first: rows can be written in parallel.
     pub fn rows_mut(&mut self) -> Vec<RowPlanes<'_>> {
         let w = self.width.max(1) as usize;

@@ -13,4 +13,4 @@ pub mod sampling;
 
 pub use integrate::{shade_ray, Lighting};
 pub use material::IsoSpec;
-pub use render_loop::{render_frame, render_rect, RenderSettings};
+pub use render_loop::{render_frame, render_in_planes, render_rect, RenderSettings};

@@ -136,12 +136,28 @@ pub fn render_frame<T: Tracer + Sync + ?Sized>(
     settings: RenderSettings,
     progress: &(dyn Fn(u64) + Sync),
 ) -> (FrameBuffer, u64) {
+    let frame = FrameBuffer::zeroed(settings.width, settings.height, tracer.frame().origin);
+    render_in_planes(tracer, camera, light, settings, progress, frame)
+}
+
+/// [`render_frame`] in the planes of `planes`, a frame handed back from an earlier render: its
+/// memory is written again instead of fresh pages being touched. Every pixel of every plane is
+/// written, so what the planes held does not matter; planes of another size are made anew.
+#[inline(never)]
+pub fn render_in_planes<T: Tracer + Sync + ?Sized>(
+    tracer: &T,
+    camera: &Camera,
+    light: &Lighting,
+    settings: RenderSettings,
+    progress: &(dyn Fn(u64) + Sync),
+    planes: FrameBuffer,
+) -> (FrameBuffer, u64) {
     let (w, h) = (settings.width, settings.height);
     let threads = rayon::current_num_threads().max(1) as u64;
     let release_pixels = RELEASE_PIXELS_PER_THREAD.saturating_mul(threads);
     // Pixels (times samples) rendered since the last release, by all threads.
     let since_release = AtomicU64::new(0);
-    let mut frame = FrameBuffer::zeroed(w, h, tracer.frame().origin);
+    let mut frame = planes.reshaped(w, h, tracer.frame().origin);
     let mut planes = frame.rows_mut();
     let mut pending = PendingRows::default();
     let mut rays = 0;

@@ -1,10 +1,12 @@
 //! Writing a run's frames on their own thread, one frame at a time, while the next frame renders:
-//! at most one frame is being written and one rendered, so a run holds two frames, not all.
+//! at most one frame is being written and one rendered, so a run holds two frames, not all. A
+//! written frame's planes come back for a later frame to render into.
 
-use std::sync::mpsc::{self, SyncSender};
+use std::sync::mpsc::{self, Receiver, SyncSender};
 use std::thread::JoinHandle;
 
 use amr_render::output::legend::Legend;
+use amr_render::output::FrameBuffer;
 use amr_render::Rendered;
 use anyhow::{bail, Context};
 
@@ -30,6 +32,7 @@ pub struct FrameJob {
 /// written whole or not at all ([`outputs::write_frame`]).
 pub struct FrameWriter {
     jobs: Option<SyncSender<FrameJob>>,
+    written: Receiver<FrameBuffer>,
     thread: Option<JoinHandle<anyhow::Result<()>>>,
 }
 
@@ -39,17 +42,21 @@ impl FrameWriter {
         // No buffer: a send completes when the writer takes the frame, that is once it has
         // written the previous one.
         let (jobs, queue) = mpsc::sync_channel::<FrameJob>(0);
+        let (done, written) = mpsc::channel();
         let thread = std::thread::Builder::new()
             .name("frame writer".into())
             .spawn(move || {
                 for job in queue {
                     outputs::write_frame(&job.files, &job.rendered, &job.header, &job.legend)?;
+                    // The run may have ended; then the planes are simply dropped.
+                    let _ = done.send(job.rendered.frame);
                 }
                 Ok(())
             })
             .context("cannot start the thread that writes frames")?;
         Ok(FrameWriter {
             jobs: Some(jobs),
+            written,
             thread: Some(thread),
         })
     }
@@ -69,6 +76,13 @@ impl FrameWriter {
             );
         }
         Ok(())
+    }
+
+    /// The planes of a frame written since the last call, if any, for the next frame to render
+    /// into. Once a frame has been handed over, the one before it has been written and its
+    /// planes are here.
+    pub fn written_planes(&self) -> Option<FrameBuffer> {
+        self.written.try_recv().ok()
     }
 
     /// Waits for every frame handed over to be written.

@@ -12,7 +12,7 @@ use amr_render::mapping::open_mapped;
 use amr_render::output::header::frame_header;
 use amr_render::output::legend::Legend;
 use amr_render::shade::IsoSpec;
-use amr_render::{render, ColorBy, Scene, View};
+use amr_render::{render, render_reusing, ColorBy, Scene, View};
 use anyhow::bail;
 use serde::Serialize;
 
@@ -119,7 +119,10 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             // (a series keeps its memory at that of its largest step instead).
             heap::keep_freed_for_frames();
         }
-        let rendered = render(scene, &view, rows)?;
+        let rendered = match writer.written_planes() {
+            Some(planes) => render_reusing(scene, &view, rows, planes)?,
+            None => render(scene, &view, rows)?,
+        };
         if rendered.stats.covered_pixels == 0 {
             warn_empty(scene);
         }

@@ -243,3 +243,22 @@ impl<'a> RowPlanes<'a> {
             .collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_reshaped_frame_keeps_planes_of_its_size_and_remakes_others() {
+        let mut frame = FrameBuffer::zeroed(4, 3, [0.0; 3]);
+        frame.z[5] = 7.0;
+        let z = frame.z.as_ptr();
+        let same = frame.reshaped(3, 4, [1.0; 3]);
+        assert_eq!((same.width, same.height, same.p_origin), (3, 4, [1.0; 3]));
+        assert_eq!((same.z.as_ptr(), same.z[5]), (z, 7.0));
+        let other = same.reshaped(2, 2, [0.0; 3]);
+        let planes = other.rgb.iter().chain(&other.n).chain(&other.p);
+        let others = [&other.alpha, &other.z, &other.level, &other.color_value];
+        assert!(planes.chain(others).all(|p| p == &vec![0.0; 4]));
+    }
+}

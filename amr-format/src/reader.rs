@@ -435,6 +435,17 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         )
     }
 
+    /// [`Self::tight_range`] of every leaf for field `field`, in leaf order, as the stored table
+    /// itself (no copy); `None` when the file stores none.
+    pub fn tight_range_table(&self, field: usize) -> Option<&[LeafRange]> {
+        if !self.tight {
+            return None;
+        }
+        let n = self.num_leaves();
+        let all: &[LeafRange] = self.slice(&self.footer.tight_ranges);
+        Some(&all[field * n..(field + 1) * n])
+    }
+
     /// Cells per axis of the parts whose bounds the file stores (layout version 4, written with
     /// them); `None` when it stores none.
     pub fn part_cells(&self) -> Option<u32> {

@@ -473,7 +473,8 @@ impl Bounds {
 
 impl Worker {
     /// A CWBVH over `self.boxes`, whose primitive `i` is `items[i]` (the items are permuted into
-    /// the BVH's leaf order and its primitive index array is dropped).
+    /// the BVH's leaf order and its primitive index array is handed back to the Morton builder for
+    /// the next build).
     fn build_level(&mut self, items: &mut [u64], method: BuildMethod) -> CwBvh {
         let mut bvh = match method {
             BuildMethod::Morton => self.wide.build_coded(&self.boxes, &self.codes),
@@ -481,6 +482,7 @@ impl Worker {
         };
         let perm = std::mem::take(&mut bvh.primitive_indices);
         gather(items, &perm, self.wide.spare());
+        self.wide.recycle(perm);
         bvh.nodes.shrink_to_fit();
         bvh
     }

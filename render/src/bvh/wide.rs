@@ -19,11 +19,13 @@ const LEAF_MAX: usize = 3;
 /// obvhs's traversal stack of 32 whatever the codes.
 const MORTON_DEPTH: u32 = 20;
 
-/// Build scratch: the sort keys, kept between builds.
+/// Build scratch: the sort keys, kept between builds, and a primitive index array handed back
+/// after a build ([`WideBuilder::recycle`]), which the next build fills instead of fresh memory.
 #[derive(Default)]
 pub struct WideBuilder {
     keys: Vec<u64>,
     tmp: Vec<u64>,
+    prims: Vec<u32>,
 }
 
 impl WideBuilder {
@@ -50,6 +52,10 @@ impl WideBuilder {
         let index_bits = (usize::BITS - (n - 1).leading_zeros()).max(1);
         self.sort(codes, index_bits);
         let index_mask = (1u64 << index_bits) - 1;
+        let mut prims = std::mem::take(&mut self.prims);
+        prims.clear();
+        // A leaf writes three primitives before it drops those past its own.
+        prims.reserve(n + 2);
         // The leaves read their boxes through the keys' indices: no copy of the boxes in
         // the keys' order.
         let mut b = Build {
@@ -58,8 +64,7 @@ impl WideBuilder {
             shift: index_bits,
             index_mask,
             nodes: Vec::with_capacity(n / 4 + 1),
-            // A leaf writes three primitives before it drops those past its own.
-            prims: Vec::with_capacity(n + 2),
+            prims,
         };
         b.nodes.push(CwBvhNode::default());
         let total = b.root(n);
@@ -72,6 +77,13 @@ impl WideBuilder {
         }
     }
 
+    /// Takes back a built BVH's primitive index array once it has been read: the next build
+    /// writes its primitives there. A chunked build's primitive arrays (a quarter megabyte
+    /// each) would otherwise each be fresh pages of a new mapping.
+    pub fn recycle(&mut self, prims: Vec<u32>) {
+        self.prims = prims;
+    }
+
     /// A buffer of the scratch that is free between builds (the radix sort's second buffer,
     /// as large as the last build's boxes), for the caller's own use.
     pub fn spare(&mut self) -> &mut Vec<u64> {
@@ -80,7 +92,7 @@ impl WideBuilder {
 
     /// Bytes of scratch held.
     pub fn scratch_bytes(&self) -> usize {
-        (self.keys.capacity() + self.tmp.capacity()) * 8
+        (self.keys.capacity() + self.tmp.capacity()) * 8 + self.prims.capacity() * 4
     }
 
     /// Fills `self.keys` with `code << index_bits | index`, sorted by code (then index), where

@@ -49,17 +49,23 @@ struct Node {
 }
 
 /// Every leaf's box (the file's) and the level of its finest brick (`u32::MAX` without data),
-/// by leaf id.
-struct Leaves<'a> {
+/// by leaf id: read from the file and the sampler, not copied.
+struct Leaves<'a, 's, D> {
     tree: &'a TreeView<'a>,
-    levels: Vec<u32>,
+    sampler: &'a Sampler<'s, D>,
 }
 
-impl Leaves<'_> {
+impl<D: AsRef<[u8]>> Leaves<'_, '_, D> {
     /// Leaf `l`'s box, `None` past the last leaf.
     #[inline]
     fn get(&self, l: u32) -> Option<IBox> {
         self.tree.leaves.get(l as usize).map(leaf_bounds)
+    }
+
+    /// The level of leaf `l`'s finest brick, `u32::MAX` without data.
+    #[inline]
+    fn level(&self, l: u32) -> u32 {
+        self.sampler.leaf_top(l).map_or(u32::MAX, |(_, lv)| lv)
     }
 }
 
@@ -169,9 +175,7 @@ impl LeafTree {
         let tree = sampler.file().tree();
         let leaves = Leaves {
             tree: &tree,
-            levels: (0..n)
-                .map(|l| sampler.leaf_top(l).map_or(u32::MAX, |(_, lv)| lv))
-                .collect(),
+            sampler,
         };
         let from_kd = kd && from_kd_tree(&tree, &leaves, &mut order, &mut nodes).is_some();
         if !from_kd && n > 0 {
@@ -701,9 +705,9 @@ fn keep(slot: &AtomicU64, range: (f32, f32)) {
 /// Fills `nodes` and `order` with the tree of the kd-tree `tree`'s shape (the file checked it
 /// at open: children after their parent, every node reached once); `None`, leaving them in any
 /// state, for a tree not of that form. `all` holds every leaf's box and level.
-fn from_kd_tree(
+fn from_kd_tree<D: AsRef<[u8]>>(
     tree: &TreeView<'_>,
-    all: &Leaves,
+    all: &Leaves<'_, '_, D>,
     order: &mut Vec<u32>,
     nodes: &mut Vec<Node>,
 ) -> Option<()> {
@@ -721,9 +725,9 @@ fn from_kd_tree(
 /// The kd nodes are stored depth first (checked at open): a subtree's nodes are contiguous, a
 /// split's first child's subtree runs from the node after it to its second child, and a
 /// subtree of `k` nodes holds `(k + 1) / 2` leaves, met in order by a scan of its nodes.
-fn from_kd_node(
+fn from_kd_node<D: AsRef<[u8]>>(
     tree: &TreeView<'_>,
-    all: &Leaves,
+    all: &Leaves<'_, '_, D>,
     i: usize,
     end: usize,
     order: &mut Vec<u32>,
@@ -769,7 +773,7 @@ fn from_kd_node(
                 let KdNode::Leaf { leaf } = KdNode::decode(i + j, n) else {
                     continue;
                 };
-                let (b, lv) = (all.get(leaf)?, all.levels[leaf as usize]);
+                let (b, lv) = (all.get(leaf)?, all.level(leaf));
                 order.push(leaf);
                 bounds = Some(bounds.map_or(b, |u| u.union(&b)));
                 coarsest = coarsest.min(lv);
@@ -791,12 +795,17 @@ fn from_kd_node(
 /// Appends the node of the leaves `leaves` (which start at `order[first]`) and its descendants to
 /// `nodes`, reordering `leaves` so that each child's are contiguous; returns the node's index.
 /// `all` holds every leaf's box and level (`u32::MAX` without data).
-fn build(all: &Leaves, leaves: &mut [u32], first: u32, nodes: &mut Vec<Node>) -> u32 {
+fn build<D: AsRef<[u8]>>(
+    all: &Leaves<'_, '_, D>,
+    leaves: &mut [u32],
+    first: u32,
+    nodes: &mut Vec<Node>,
+) -> u32 {
     let mut bounds = leaf_bounds(&all.tree.leaves[leaves[0] as usize]);
     let mut coarsest = u32::MAX;
     let mut complete = true;
     for &l in leaves.iter() {
-        let lv = all.levels[l as usize];
+        let lv = all.level(l);
         bounds = bounds.union(&leaf_bounds(&all.tree.leaves[l as usize]));
         coarsest = coarsest.min(lv);
         complete &= lv != u32::MAX;

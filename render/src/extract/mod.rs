@@ -100,7 +100,7 @@ pub struct Extraction {
 pub struct Extractor<'f, D> {
     sampler: Sampler<'f, D>,
     file_cells: u64,
-    tight: TightRanges,
+    tight: TightRanges<'f>,
     parts: PartRanges,
     blocks: BlockRanges,
     leaves: LeafTree,

@@ -26,6 +26,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::Result;
 use amr_format::kdtree::widen_range;
+use amr_format::raw::LeafRange;
 use amr_format::IBox;
 
 use super::blocks::BlockRanges;
@@ -36,24 +37,32 @@ use crate::reconstruct::Sampler;
 const UNKNOWN: u64 = u64::MAX;
 
 /// Per-leaf tight ranges of one field, filled on demand from any thread.
-pub struct TightRanges {
+pub struct TightRanges<'f> {
+    /// The ranges the file stores, all known, read in place (a copy would be a fresh page per
+    /// 512 leaves).
+    stored: Option<&'f [LeafRange]>,
+    /// Without stored ranges: per leaf, its range once computed.
     bits: Vec<AtomicU64>,
 }
 
-impl TightRanges {
+impl TightRanges<'_> {
     /// Unknown ranges for `leaves` leaves.
     pub fn new(leaves: usize) -> Self {
         Self {
+            stored: None,
             bits: (0..leaves).map(|_| AtomicU64::new(UNKNOWN)).collect(),
         }
     }
+}
 
+impl<'f> TightRanges<'f> {
     /// The tight ranges `file` stores for field `field` (layout version 3), known from the
     /// start; unknown ranges when it stores none.
-    pub fn of_file<D: AsRef<[u8]>>(file: &amr_format::AmrkFile<D>, field: usize) -> Self {
-        match file.tight_ranges(field) {
-            Some(ranges) => Self {
-                bits: ranges.map(|r| AtomicU64::new(pack(r))).collect(),
+    pub fn of_file<D: AsRef<[u8]>>(file: &'f amr_format::AmrkFile<D>, field: usize) -> Self {
+        match file.tight_range_table(field) {
+            Some(stored) => Self {
+                stored: Some(stored),
+                bits: Vec::new(),
             },
             None => Self::new(file.num_leaves()),
         }
@@ -77,6 +86,10 @@ impl TightRanges {
         leaf: u32,
         compute: impl FnOnce() -> Result<(f32, f32)>,
     ) -> Result<(f32, f32)> {
+        if let Some(stored) = self.stored {
+            let r = &stored[leaf as usize];
+            return Ok((r.min.get(), r.max.get()));
+        }
         let slot = &self.bits[leaf as usize];
         let known = slot.load(Ordering::Relaxed);
         if known != UNKNOWN {

@@ -380,21 +380,28 @@ fn corners_from_block_bounded(b: &[f32; 8], value: f32, own: usize) -> [f32; 8] 
 }
 
 /// A kd-tree leaf's finest brick as point location reads it: one record per leaf, so a locate
-/// reads no other table.
+/// reads no other table. Its fields are as narrow as the file's checks allow: the table is
+/// touched whole when a file is opened, each of its pages a fault.
 #[derive(Clone, Copy)]
 struct LeafTop<'f> {
     brick: u32,
     level: u32,
-    /// log2 of the level's cell width in finest cells, when every axis is a power of two.
-    shift: Option<[u32; 3]>,
+    /// log2 of the level's cell width in finest cells, when every axis is a power of two (at
+    /// most 31: the finest domain spans at most `u32::MAX` cells per axis).
+    shift: Option<[u8; 3]>,
     /// The brick's lowest cell (absolute index of `level`).
     lo: [i64; 3],
-    /// The brick's extent along x and y.
-    ex: i64,
-    ey: i64,
+    /// The brick's extent along x and y (a brick lies inside its level's domain, at most
+    /// `u32::MAX` cells per axis).
+    ex: u32,
+    ey: u32,
     /// The brick's values when they can be read in place.
     values: Option<&'f [f32]>,
 }
+
+/// A leaf's record in 64 bytes, so that a file of many small leaves opens with fewer fresh pages.
+#[cfg(target_pointer_width = "64")]
+const _: () = assert!(size_of::<Option<LeafTop<'_>>>() == 64);
 
 impl LeafTop<'_> {
     /// The cell of the brick's level holding finest-level cell `finest` (relative).
@@ -413,7 +420,7 @@ impl LeafTop<'_> {
     #[inline(always)]
     fn index(&self, cell: [i64; 3]) -> usize {
         let d = axes(|a| cell[a] - self.lo[a]);
-        (d[0] + self.ex * (d[1] + self.ey * d[2])) as usize
+        (d[0] + i64::from(self.ex) * (d[1] + i64::from(self.ey) * d[2])) as usize
     }
 }
 
@@ -500,13 +507,17 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                     let brick = b.get();
                     let level = levels[brick as usize];
                     let BrickRef { cells, values } = &bricks[brick as usize];
+                    let extent = |a: usize| {
+                        u32::try_from(cells.hi[a] - cells.lo[a])
+                            .expect("brick boxes lie inside the checked domain")
+                    };
                     LeafTop {
                         brick,
                         level,
-                        shift: grid.shift(level),
+                        shift: grid.shift(level).map(|sh| sh.map(|s| s as u8)),
                         lo: cells.lo,
-                        ex: cells.hi[0] - cells.lo[0],
-                        ey: cells.hi[1] - cells.lo[1],
+                        ex: extent(0),
+                        ey: extent(1),
                         values: *values,
                     }
                 })
@@ -1264,7 +1275,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         let t = self.tops[leaf as usize].as_ref()?;
         let values = t.values?;
         let (clo, chi) = (t.cell_of(&self.grid, lo), t.cell_of(&self.grid, hi));
-        let stride = [1, t.ex, t.ex * t.ey];
+        let (ex, ey) = (i64::from(t.ex), i64::from(t.ey));
+        let stride = [1, ex, ex * ey];
         let parts = axes(|a| {
             [
                 stride[a] * (clo[a] - t.lo[a]),

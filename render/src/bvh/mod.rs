@@ -673,9 +673,15 @@ impl OctantBvh {
                 unsafe { self.packet_avx2::<false>(rays, m, oct, &mut stack, &mut visit) };
                 continue;
             }
-            self.packet_with::<false>(rays, m, oct, &mut stack, &mut visit, |node, rays, m, e| {
-                packet::children_portable(node, rays, m, oct, e)
-            });
+            self.packet_with::<false>(
+                rays,
+                m,
+                oct,
+                &mut stack,
+                &mut visit,
+                |node, rays, m, e| packet::children_portable(node, rays, m, oct, e),
+                |node, ray| packet::ray_children_portable(node, ray, oct),
+            );
         }
     }
 
@@ -750,6 +756,9 @@ impl OctantBvh {
                 }
                 slots
             },
+            |node, ray| {
+                packet::ray_children_portable(node, ray, node_test::octant_inv4(ray.direction))
+            },
         );
     }
 
@@ -775,18 +784,27 @@ impl OctantBvh {
                 *test = Some(packet::Avx2Packet::new(lanes, rays, octants[o], oct));
             }
         }
-        self.packet_with::<true>(rays, m, oct, stack, visit, |node, rays, m, e| {
-            if m.count_ones() < packet_any::OCTANTS_RAY_BY_RAY_BELOW {
-                return packet_any::children_of_octants(node, rays, m, octants, e);
-            }
-            let mut slots = 0;
-            for (test, &of_o) in tests.iter().zip(octants) {
-                if let Some(test) = test.as_ref().filter(|_| m & of_o != 0) {
-                    slots |= test.children(node, rays, m & of_o, e);
+        self.packet_with::<true>(
+            rays,
+            m,
+            oct,
+            stack,
+            visit,
+            |node, rays, m, e| {
+                if m.count_ones() < packet_any::OCTANTS_RAY_BY_RAY_BELOW {
+                    return packet_any::children_of_octants(node, rays, m, octants, e);
                 }
-            }
-            slots
-        });
+                let mut slots = 0;
+                for (test, &of_o) in tests.iter().zip(octants) {
+                    if let Some(test) = test.as_ref().filter(|_| m & of_o != 0) {
+                        slots |= test.children(node, rays, m & of_o, e);
+                    }
+                }
+                slots
+            },
+            // The ray's octant, as `by_octant` found it (no `-0.0` left in its direction).
+            |node, ray| packet::ray_children(node, ray, node_test::octant_inv4(ray.direction)),
+        );
     }
 
     /// [`OctantBvh::traverse_packet`] on a CPU without AVX2, to compare with the AVX2 test.
@@ -809,9 +827,15 @@ impl OctantBvh {
         };
         for (o, &m) in octants.iter().enumerate() {
             let oct = (o as u32) * 0x0101_0101;
-            self.packet_with::<false>(rays, m, oct, &mut stack, &mut visit, |node, rays, m, e| {
-                packet::children_portable(node, rays, m, oct, e)
-            });
+            self.packet_with::<false>(
+                rays,
+                m,
+                oct,
+                &mut stack,
+                &mut visit,
+                |node, rays, m, e| packet::children_portable(node, rays, m, oct, e),
+                |node, ray| packet::ray_children_portable(node, ray, oct),
+            );
         }
     }
 
@@ -830,9 +854,15 @@ impl OctantBvh {
         let mut lanes: packet::Avx2Lanes =
             [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8];
         let test = packet::Avx2Packet::new(&mut lanes, rays, m, oct);
-        self.packet_with::<ANY>(rays, m, oct, stack, visit, |node, rays, m, e| {
-            test.children(node, rays, m, e)
-        });
+        self.packet_with::<ANY>(
+            rays,
+            m,
+            oct,
+            stack,
+            visit,
+            |node, rays, m, e| test.children(node, rays, m, e),
+            |node, ray| packet::ray_children(node, ray, oct),
+        );
     }
 
     /// One packet's walk, children in the order of octant `oct`: the top level, then each chunk
@@ -848,6 +878,7 @@ impl OctantBvh {
         stack: &mut PacketStack,
         visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
         test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) -> u32 + Copy,
+        test_one: impl Fn(&CwBvhNode, &Ray) -> u32 + Copy,
     ) {
         let mut chunk_walk = |chunk: &Chunk, rays: &mut [Ray], m: Mask, stack: &mut PacketStack| {
             let refs = &self.refs[chunk.first..chunk.first + chunk.len];
@@ -858,6 +889,7 @@ impl OctantBvh {
                 oct,
                 stack,
                 test,
+                test_one,
                 |i, m, rays, _| {
                     let i = i as usize;
                     visit(chunk.first + i, refs[i], m, rays)
@@ -875,6 +907,7 @@ impl OctantBvh {
             oct,
             stack,
             test,
+            test_one,
             |c, m, rays, stack| chunk_walk(&self.chunks[c as usize], rays, m, stack),
         );
     }

@@ -35,6 +35,8 @@ mod lattice;
 mod node_test;
 pub mod packet;
 mod packet_any;
+#[cfg(target_arch = "x86_64")]
+mod packet_mixed;
 mod walk;
 pub mod wide;
 
@@ -762,8 +764,8 @@ impl OctantBvh {
         );
     }
 
-    /// [`OctantBvh::traverse_packet_any`] with the AVX2 node test of each octant's rays
-    /// (`octants[o]`, the rays of octant `o`), the whole walk compiled for AVX2.
+    /// [`OctantBvh::traverse_packet_any`] with the AVX2 node tests of a packet of several
+    /// octants (`octants[o]`, the rays of octant `o`), the whole walk compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn packet_any_avx2(
@@ -775,15 +777,9 @@ impl OctantBvh {
         stack: &mut PacketStack,
         visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
     ) {
-        let mut lanes: [packet::Avx2Lanes; 8] =
-            [const { [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8] }; 8];
-        let mut tests: [Option<packet::Avx2Packet<'_>>; 8] = [const { None }; 8];
-        for ((o, lanes), test) in lanes.iter_mut().enumerate().zip(&mut tests) {
-            if octants[o] != 0 {
-                let oct = (o as u32) * 0x0101_0101;
-                *test = Some(packet::Avx2Packet::new(lanes, rays, octants[o], oct));
-            }
-        }
+        let mut lanes: packet_mixed::MixedLanes =
+            [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8];
+        let test = packet_mixed::MixedPacket::new(&mut lanes, rays, m);
         self.packet_with::<true>(
             rays,
             m,
@@ -794,13 +790,7 @@ impl OctantBvh {
                 if m.count_ones() < packet_any::OCTANTS_RAY_BY_RAY_BELOW {
                     return packet_any::children_of_octants(node, rays, m, octants, e);
                 }
-                let mut slots = 0;
-                for (test, &of_o) in tests.iter().zip(octants) {
-                    if let Some(test) = test.as_ref().filter(|_| m & of_o != 0) {
-                        slots |= test.children(node, rays, m & of_o, e);
-                    }
-                }
-                slots
+                test.children(node, rays, m, e)
             },
             // The ray's octant, as `by_octant` found it (no `-0.0` left in its direction).
             |node, ray| packet::ray_children(node, ray, node_test::octant_inv4(ray.direction)),

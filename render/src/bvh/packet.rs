@@ -211,7 +211,7 @@ const GROUPS_FROM: u32 = 12;
 /// index and its byte.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn groups_of(m: Mask) -> impl Iterator<Item = (usize, u32)> {
+pub(super) fn groups_of(m: Mask) -> impl Iterator<Item = (usize, u32)> {
     use std::arch::x86_64::*;
     // SAFETY: SSE2 is part of x86_64.
     let empty = unsafe {

@@ -122,12 +122,11 @@ pub fn walk_packet_of<const ANY: bool>(
 }
 
 /// Below this many rays at a node, an any-hit packet of several direction octants tests the node
-/// ray by ray for all its octants in one pass ([`children_of_octants`]); from it on, each
-/// octant's rays take their own [`super::packet::Avx2Packet::children`], whose group test pays
-/// off for many rays of one octant. A packet's rays are spread over up to eight octants, so the
-/// one pass costs less than the octants' tests up to more rays than a single octant's test
-/// goes ray by ray for (callgrind, occlusion at 512x384: 12, 20, 24, 32, 40 and 65 rays tried on
-/// the far 1e8-cell view, the close-up and the demo; 40 least on all three).
+/// ray by ray for all its octants in one pass ([`children_of_octants`]); from it on, eight rays
+/// at a time whatever their octants, after a cull by the rays' reach
+/// ([`super::packet_mixed::MixedPacket`]). (callgrind, occlusion at 512x384 on the far 1e8-cell
+/// view: 8, 16, 28, 40 and 52 rays tried, 40 least; before the mixed test, each octant's own
+/// [`super::packet::Avx2Packet::children`] from 40 rays on, with the same threshold.)
 #[cfg(target_arch = "x86_64")]
 pub const OCTANTS_RAY_BY_RAY_BELOW: u32 = 40;
 

@@ -267,3 +267,117 @@ impl<'a> MixedPacket<'a> {
         _mm256_movemask_ps(outside) as u32
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::packet::ray_children;
+    use crate::bvh::wide::WideBuilder;
+    use glam::Vec3A;
+    use obvhs::aabb::Aabb;
+
+    /// A deterministic stream of numbers in `[0, 1)`.
+    struct Lcg(u64);
+
+    impl Lcg {
+        fn next(&mut self) -> f32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
+    #[test]
+    fn each_ray_enters_the_children_its_own_test_gives() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            eprintln!("no AVX2 on this CPU: nothing to test");
+            return;
+        }
+        let mut rng = Lcg(11);
+        let boxes: Vec<Aabb> = (0..3000)
+            .map(|_| {
+                let lo = Vec3A::new(rng.next(), rng.next(), rng.next()) * 100.0;
+                let size = Vec3A::new(rng.next(), rng.next(), rng.next()) * 4.0;
+                Aabb::new(lo, lo + size)
+            })
+            .collect();
+        let bvh = WideBuilder::default().build(&boxes);
+        let (mut culled, mut entered_any) = (0usize, 0usize);
+        for p in 0..40 {
+            // Rays every way from points near one another, as a tile's AO rays go, some with
+            // zero components; short, long or endless.
+            let base = Vec3A::new(rng.next(), rng.next(), rng.next()) * 100.0;
+            let rays: Vec<Ray> = (0..64)
+                .map(|k| {
+                    let start = base + Vec3A::new(rng.next(), rng.next(), rng.next()) * 3.0;
+                    let mut dir = Vec3A::new(rng.next(), rng.next(), rng.next()) * 2.0 - 1.0;
+                    if k % 9 == 0 {
+                        dir[k % 3] = 0.0;
+                    }
+                    let tmax = match (p + k) % 13 {
+                        0 => f32::INFINITY,
+                        1 => 1e3,
+                        _ => rng.next() * 8.0,
+                    };
+                    Ray::new(start, dir + Vec3A::ZERO, 0.0, tmax)
+                })
+                .collect();
+            let m = if p % 3 == 0 {
+                0x5555_aaaa_f0f0_0ff1
+            } else {
+                u64::MAX
+            };
+            let mut lanes: MixedLanes = [const { MaybeUninit::uninit() }; PACKET / 8];
+            // SAFETY: the CPU has AVX2, checked above.
+            let test = unsafe { MixedPacket::new(&mut lanes, &rays, m) };
+            for node in &bvh.nodes {
+                let mut entered = [0; 8];
+                // SAFETY: as above.
+                let slots = unsafe { test.children(node, &rays, m, &mut entered) };
+                let mut want = [0; 8];
+                for k in rays_of(m) {
+                    let ray = &rays[k];
+                    // SAFETY: as above.
+                    let hit = unsafe { ray_children(node, ray, octant_inv4(ray.direction)) };
+                    for (s, w) in want.iter_mut().enumerate() {
+                        *w |= Mask::from(hit >> s & 1) << k;
+                    }
+                }
+                assert_eq!(entered, want, "packet {p}, node {node:?}");
+                let nonempty = want
+                    .iter()
+                    .enumerate()
+                    .map(|(s, &w)| u32::from(w != 0) << s);
+                assert_eq!(slots, nonempty.sum::<u32>(), "packet {p}");
+                entered_any += usize::from(slots != 0);
+                let lo = [&node.child_min_x, &node.child_min_y, &node.child_min_z].map(|b| {
+                    // SAFETY: as above.
+                    unsafe {
+                        _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(
+                            i64::from_le_bytes(*b),
+                        )))
+                    }
+                });
+                let hi = [&node.child_max_x, &node.child_max_y, &node.child_max_z].map(|b| {
+                    // SAFETY: as above.
+                    unsafe {
+                        _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(
+                            i64::from_le_bytes(*b),
+                        )))
+                    }
+                });
+                let extent = node.compute_extent();
+                let (e, q) = ([extent.x, extent.y, extent.z], node.p);
+                // SAFETY: as above.
+                let out = unsafe { test.outside_reach(&lo, &hi, e, [q.x, q.y, q.z]) };
+                culled += out.count_ones() as usize;
+            }
+        }
+        assert!(
+            culled > 1000 && entered_any > 1000,
+            "{culled} children culled, {entered_any} nodes entered"
+        );
+    }
+}

@@ -856,9 +856,11 @@ impl OctantBvh {
     }
 
     /// One packet's walk, children in the order of octant `oct`: the top level, then each chunk
-    /// it reaches, with the node test `test`. Any-hit ([`walk_packet_any`]) when `ANY`, where
+    /// it reaches, with the node test `test` (and `test_one` at an any-hit walk's node reached
+    /// by one ray, [`walk_packet_any`]). Any-hit ([`walk_packet_any`]) when `ANY`, where
     /// `visit` returns the rays it ends; else closest-hit ([`walk_packet`]), where it ends none
     /// and what it returns is ignored.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn packet_with<const ANY: bool>(
         &self,

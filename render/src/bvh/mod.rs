@@ -35,6 +35,8 @@ mod lattice;
 mod node_test;
 pub mod packet;
 mod packet_any;
+#[cfg(target_arch = "x86_64")]
+mod packet_mixed;
 mod walk;
 pub mod wide;
 
@@ -675,9 +677,15 @@ impl OctantBvh {
                 unsafe { self.packet_avx2::<false>(rays, m, oct, &mut stack, &mut visit) };
                 continue;
             }
-            self.packet_with::<false>(rays, m, oct, &mut stack, &mut visit, |node, rays, m, e| {
-                packet::children_portable(node, rays, m, oct, e)
-            });
+            self.packet_with::<false>(
+                rays,
+                m,
+                oct,
+                &mut stack,
+                &mut visit,
+                |node, rays, m, e| packet::children_portable(node, rays, m, oct, e),
+                |node, ray| packet::ray_children_portable(node, ray, oct),
+            );
         }
     }
 
@@ -752,11 +760,14 @@ impl OctantBvh {
                 }
                 slots
             },
+            |node, ray| {
+                packet::ray_children_portable(node, ray, node_test::octant_inv4(ray.direction))
+            },
         );
     }
 
-    /// [`OctantBvh::traverse_packet_any`] with the AVX2 node test of each octant's rays
-    /// (`octants[o]`, the rays of octant `o`), the whole walk compiled for AVX2.
+    /// [`OctantBvh::traverse_packet_any`] with the AVX2 node tests of a packet of several
+    /// octants (`octants[o]`, the rays of octant `o`), the whole walk compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn packet_any_avx2(
@@ -768,27 +779,24 @@ impl OctantBvh {
         stack: &mut PacketStack,
         visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
     ) {
-        let mut lanes: [packet::Avx2Lanes; 8] =
-            [const { [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8] }; 8];
-        let mut tests: [Option<packet::Avx2Packet<'_>>; 8] = [const { None }; 8];
-        for ((o, lanes), test) in lanes.iter_mut().enumerate().zip(&mut tests) {
-            if octants[o] != 0 {
-                let oct = (o as u32) * 0x0101_0101;
-                *test = Some(packet::Avx2Packet::new(lanes, rays, octants[o], oct));
-            }
-        }
-        self.packet_with::<true>(rays, m, oct, stack, visit, |node, rays, m, e| {
-            if m.count_ones() < packet_any::OCTANTS_RAY_BY_RAY_BELOW {
-                return packet_any::children_of_octants(node, rays, m, octants, e);
-            }
-            let mut slots = 0;
-            for (test, &of_o) in tests.iter().zip(octants) {
-                if let Some(test) = test.as_ref().filter(|_| m & of_o != 0) {
-                    slots |= test.children(node, rays, m & of_o, e);
+        let mut lanes: packet_mixed::MixedLanes =
+            [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8];
+        let test = packet_mixed::MixedPacket::new(&mut lanes, rays, m);
+        self.packet_with::<true>(
+            rays,
+            m,
+            oct,
+            stack,
+            visit,
+            |node, rays, m, e| {
+                if m.count_ones() < packet_any::OCTANTS_RAY_BY_RAY_BELOW {
+                    return packet_any::children_of_octants(node, rays, m, octants, e);
                 }
-            }
-            slots
-        });
+                test.children(node, rays, m, e)
+            },
+            // The ray's octant, as `by_octant` found it (no `-0.0` left in its direction).
+            |node, ray| packet::ray_children(node, ray, node_test::octant_inv4(ray.direction)),
+        );
     }
 
     /// [`OctantBvh::traverse_packet`] on a CPU without AVX2, to compare with the AVX2 test.
@@ -811,9 +819,15 @@ impl OctantBvh {
         };
         for (o, &m) in octants.iter().enumerate() {
             let oct = (o as u32) * 0x0101_0101;
-            self.packet_with::<false>(rays, m, oct, &mut stack, &mut visit, |node, rays, m, e| {
-                packet::children_portable(node, rays, m, oct, e)
-            });
+            self.packet_with::<false>(
+                rays,
+                m,
+                oct,
+                &mut stack,
+                &mut visit,
+                |node, rays, m, e| packet::children_portable(node, rays, m, oct, e),
+                |node, ray| packet::ray_children_portable(node, ray, oct),
+            );
         }
     }
 
@@ -832,15 +846,23 @@ impl OctantBvh {
         let mut lanes: packet::Avx2Lanes =
             [const { std::mem::MaybeUninit::uninit() }; packet::PACKET / 8];
         let test = packet::Avx2Packet::new(&mut lanes, rays, m, oct);
-        self.packet_with::<ANY>(rays, m, oct, stack, visit, |node, rays, m, e| {
-            test.children(node, rays, m, e)
-        });
+        self.packet_with::<ANY>(
+            rays,
+            m,
+            oct,
+            stack,
+            visit,
+            |node, rays, m, e| test.children(node, rays, m, e),
+            |node, ray| packet::ray_children(node, ray, oct),
+        );
     }
 
     /// One packet's walk, children in the order of octant `oct`: the top level, then each chunk
-    /// it reaches, with the node test `test`. Any-hit ([`walk_packet_any`]) when `ANY`, where
+    /// it reaches, with the node test `test` (and `test_one` at an any-hit walk's node reached
+    /// by one ray, [`walk_packet_any`]). Any-hit ([`walk_packet_any`]) when `ANY`, where
     /// `visit` returns the rays it ends; else closest-hit ([`walk_packet`]), where it ends none
     /// and what it returns is ignored.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn packet_with<const ANY: bool>(
         &self,
@@ -850,6 +872,7 @@ impl OctantBvh {
         stack: &mut PacketStack,
         visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
         test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) -> u32 + Copy,
+        test_one: impl Fn(&CwBvhNode, &Ray) -> u32 + Copy,
     ) {
         let mut chunk_walk = |chunk: &Chunk, rays: &mut [Ray], m: Mask, stack: &mut PacketStack| {
             let refs = &self.refs[chunk.first..chunk.first + chunk.len];
@@ -860,6 +883,7 @@ impl OctantBvh {
                 oct,
                 stack,
                 test,
+                test_one,
                 |i, m, rays, _| {
                     let i = i as usize;
                     visit(chunk.first + i, refs[i], m, rays)
@@ -877,6 +901,7 @@ impl OctantBvh {
             oct,
             stack,
             test,
+            test_one,
             |c, m, rays, stack| chunk_walk(&self.chunks[c as usize], rays, m, stack),
         );
     }

@@ -153,6 +153,12 @@ pub fn children_portable(
     slots
 }
 
+/// [`children_portable`] of one ray: the slots of the children it enters.
+#[inline(always)]
+pub fn ray_children_portable(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+    children_portable(node, std::slice::from_ref(ray), 1, oct_inv4, &mut [0; 8])
+}
+
 /// The packet node test with AVX2: the rays of a packet in groups of eight (rays `8g..8g + 8`),
 /// one ray per lane, so that one pass over a group tests a child for eight rays, and its result
 /// is already the group's byte of the child's ray mask (no transposition). Each lane computes
@@ -205,7 +211,7 @@ const GROUPS_FROM: u32 = 12;
 /// index and its byte.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn groups_of(m: Mask) -> impl Iterator<Item = (usize, u32)> {
+pub(super) fn groups_of(m: Mask) -> impl Iterator<Item = (usize, u32)> {
     use std::arch::x86_64::*;
     // SAFETY: SSE2 is part of x86_64.
     let empty = unsafe {
@@ -521,10 +527,84 @@ impl<'a> Avx2Packet<'a> {
     }
 }
 
+/// The non-empty children of `node` that `ray`, of direction octant code `oct_inv4`, enters:
+/// a bit per slot. What [`Avx2Packet::children`] sets for a packet's lone ray, bit for bit (the
+/// same products, sums, `max` and `min` in the same operand order), from the ray itself, with
+/// no lanes and no per-child ray masks: the test of an any-hit walk's node reached by one ray
+/// ([`super::packet_any::walk_packet_any`]).
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub fn ray_children(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+    use std::arch::x86_64::*;
+    let q = |b: &[u8; 8]| {
+        _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(
+            u64::from_le_bytes(*b) as i64,
+        )))
+    };
+    // The near and far planes along an axis: the high ones first where the ray goes down it.
+    let pick = |up: u32, lo: &[u8; 8], hi: &[u8; 8]| {
+        if oct_inv4 & up == 0 {
+            (q(hi), q(lo))
+        } else {
+            (q(lo), q(hi))
+        }
+    };
+    let near_far = [
+        pick(4, &node.child_min_x, &node.child_max_x),
+        pick(2, &node.child_min_y, &node.child_max_y),
+        pick(1, &node.child_min_z, &node.child_max_z),
+    ];
+    let meta = _mm_cvtsi64_si128(u64::from_le_bytes(node.child_meta) as i64);
+    let empty = _mm_movemask_epi8(_mm_cmpeq_epi8(meta, _mm_setzero_si128())) as u32;
+    let extent = node.compute_extent();
+    let (e, p) = ([extent.x, extent.y, extent.z], node.p);
+    let p = [p.x, p.y, p.z];
+    let (o, inv) = (ray.origin, ray.inv_direction);
+    let (o, inv) = ([o.x, o.y, o.z], [inv.x, inv.y, inv.z]);
+    let axis = |a: usize| {
+        let inv = _mm256_set1_ps(inv[a]);
+        let scale = _mm256_mul_ps(_mm256_set1_ps(e[a]), inv);
+        let offset = _mm256_mul_ps(
+            _mm256_sub_ps(_mm256_set1_ps(p[a]), _mm256_set1_ps(o[a])),
+            inv,
+        );
+        let (near, far) = near_far[a];
+        (
+            _mm256_add_ps(_mm256_mul_ps(near, scale), offset),
+            _mm256_add_ps(_mm256_mul_ps(far, scale), offset),
+        )
+    };
+    slab_hits([axis(0), axis(1), axis(2)], ray.tmax, !empty & 0xff)
+}
+
 /// The children (slots of `used`, one per lane) whose slabs `slabs` (per axis, the distances
-/// along ray `k` to the children's near and far planes) the ray enters within `[T_MIN, tmax]`:
-/// sets bit `k` of their `entered` and returns them. The one slab test of the ray-by-ray node
-/// tests ([`Avx2Packet::children`]'s and [`super::packet_any::children_of_octants`]).
+/// along a ray to the children's near and far planes) the ray enters within `[T_MIN, tmax]`:
+/// a bit per slot. The one slab test of the ray-by-ray node tests ([`enter_children`],
+/// [`ray_children`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn slab_hits(
+    slabs: [(std::arch::x86_64::__m256, std::arch::x86_64::__m256); 3],
+    tmax: f32,
+    used: u32,
+) -> u32 {
+    use std::arch::x86_64::*;
+    let [(x0, x1), (y0, y1), (z0, z1)] = slabs;
+    let t0 = _mm256_max_ps(x0, _mm256_max_ps(y0, z0));
+    let t1 = _mm256_min_ps(x1, _mm256_min_ps(y1, z1));
+    let t0 = _mm256_max_ps(t0, _mm256_set1_ps(super::T_MIN));
+    let t1 = _mm256_min_ps(t1, _mm256_set1_ps(tmax));
+    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32 & used
+}
+
+/// The children (slots of `used`) whose slabs `slabs` ray `k` enters ([`slab_hits`]): sets
+/// bit `k` of their `entered` and returns them. The slab test of the ray-by-ray node tests of
+/// several rays ([`Avx2Packet::children`]'s and [`super::packet_any::children_of_octants`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
@@ -535,13 +615,7 @@ pub(super) fn enter_children(
     k: usize,
     entered: &mut [Mask; 8],
 ) -> u32 {
-    use std::arch::x86_64::*;
-    let [(x0, x1), (y0, y1), (z0, z1)] = slabs;
-    let t0 = _mm256_max_ps(x0, _mm256_max_ps(y0, z0));
-    let t1 = _mm256_min_ps(x1, _mm256_min_ps(y1, z1));
-    let t0 = _mm256_max_ps(t0, _mm256_set1_ps(super::T_MIN));
-    let t1 = _mm256_min_ps(t1, _mm256_set1_ps(tmax));
-    let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t0, t1)) as u32 & used;
+    let hit = slab_hits(slabs, tmax, used);
     let mut h = hit;
     while h != 0 {
         let s = h.trailing_zeros() as usize;

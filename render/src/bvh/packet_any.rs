@@ -20,10 +20,13 @@ use super::walk::{child_entry, leaf_prims};
 /// Walks `nodes` (empty, or a CWBVH8 whose root is node 0) with the rays of `active`, children
 /// taken farthest first in the order of direction octant code `oct_inv4`: `test(node, rays, m,
 /// entered)` is
-/// [`super::packet::walk_packet`]'s node test, and `leaf(i, m, rays, stack)` is called for
+/// [`super::packet::walk_packet`]'s node test, `test_one(node, ray)` the same test for a node
+/// reached by one live ray `ray` (the slots it enters, no masks: every child is entered by that
+/// ray alone), and `leaf(i, m, rays, stack)` is called for
 /// every primitive `i` of the leaves hit with the rays `m` that hit it and are still live, and
 /// returns the rays of `m` it ends (none of them visits anything more). Returns the rays of
 /// `active` ended. The entries the walk pushes on `stack` are gone when it returns.
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub fn walk_packet_any(
     nodes: &[CwBvhNode],
@@ -32,6 +35,7 @@ pub fn walk_packet_any(
     oct_inv4: u32,
     stack: &mut PacketStack,
     test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) -> u32,
+    test_one: impl Fn(&CwBvhNode, &Ray) -> u32,
     mut leaf: impl FnMut(u32, Mask, &mut [Ray], &mut PacketStack) -> Mask,
 ) -> Mask {
     if nodes.is_empty() || active == 0 {
@@ -62,9 +66,18 @@ pub fn walk_packet_any(
             continue;
         }
         let node = &nodes[entry as usize];
+        let imask = u32::from(node.imask);
+        if m & (m - 1) == 0 {
+            let mut order = xor_slots(test_one(node, &rays[m.trailing_zeros() as usize]), far);
+            while order != 0 {
+                let s = order.trailing_zeros() ^ far;
+                order &= order - 1;
+                stack.push((child_entry(node, s, imask), m));
+            }
+            continue;
+        }
         let mut entered = [0; 8];
         let hit = test(node, rays, m, &mut entered);
-        let imask = u32::from(node.imask);
         let mut order = xor_slots(hit, far);
         while order != 0 {
             let s = order.trailing_zeros() ^ far;
@@ -76,8 +89,10 @@ pub fn walk_packet_any(
     active & !live
 }
 
-/// [`walk_packet_any`] when `ANY`, else [`super::packet::walk_packet`], whose `leaf` ends no
-/// ray (what it returns is ignored, and none are returned ended).
+/// [`walk_packet_any`] when `ANY`, else [`super::packet::walk_packet`] (which has no use for
+/// `test_one`), whose `leaf` ends no ray (what it returns is ignored, and none are returned
+/// ended).
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub fn walk_packet_of<const ANY: bool>(
     nodes: &[CwBvhNode],
@@ -86,10 +101,11 @@ pub fn walk_packet_of<const ANY: bool>(
     oct_inv4: u32,
     stack: &mut PacketStack,
     test: impl Fn(&CwBvhNode, &[Ray], Mask, &mut [Mask; 8]) -> u32,
+    test_one: impl Fn(&CwBvhNode, &Ray) -> u32,
     mut leaf: impl FnMut(u32, Mask, &mut [Ray], &mut PacketStack) -> Mask,
 ) -> Mask {
     if ANY {
-        return walk_packet_any(nodes, rays, active, oct_inv4, stack, test, leaf);
+        return walk_packet_any(nodes, rays, active, oct_inv4, stack, test, test_one, leaf);
     }
     walk_packet(
         nodes,
@@ -106,12 +122,11 @@ pub fn walk_packet_of<const ANY: bool>(
 }
 
 /// Below this many rays at a node, an any-hit packet of several direction octants tests the node
-/// ray by ray for all its octants in one pass ([`children_of_octants`]); from it on, each
-/// octant's rays take their own [`super::packet::Avx2Packet::children`], whose group test pays
-/// off for many rays of one octant. A packet's rays are spread over up to eight octants, so the
-/// one pass costs less than the octants' tests up to more rays than a single octant's test
-/// goes ray by ray for (callgrind, occlusion at 512x384: 12, 20, 24, 32, 40 and 65 rays tried on
-/// the far 1e8-cell view, the close-up and the demo; 40 least on all three).
+/// ray by ray for all its octants in one pass ([`children_of_octants`]); from it on, eight rays
+/// at a time whatever their octants, after a cull by the rays' reach
+/// ([`super::packet_mixed::MixedPacket`]). (callgrind, occlusion at 512x384 on the far 1e8-cell
+/// view: 8, 16, 28, 40 and 52 rays tried, 40 least; before the mixed test, each octant's own
+/// [`super::packet::Avx2Packet::children`] from 40 rays on, with the same threshold.)
 #[cfg(target_arch = "x86_64")]
 pub const OCTANTS_RAY_BY_RAY_BELOW: u32 = 40;
 

@@ -13,6 +13,7 @@ use crate::trace::lanes::{abs, larger, smaller, PerLane};
 ///
 /// [`Cubic::refine`]: super::Cubic::refine
 #[target_feature(enable = "avx2")]
+#[inline]
 pub(in crate::trace) fn refine_lanes(
     c: &[PerLane; 4],
     (x0, f0): (&PerLane, &PerLane),

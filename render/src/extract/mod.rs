@@ -37,6 +37,7 @@ pub mod cell_tiles;
 pub mod cull;
 pub mod current;
 pub mod decode_frame;
+pub mod dual_index;
 pub mod halo;
 pub mod leaf;
 pub mod leaf_tree;
@@ -659,13 +660,17 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// from the brick of `frame`'s leaf in one go when its eight cells lie in that leaf (whose
     /// cells are all of that level; [`DecodeFrame::duals`]) and the brick is read in place;
     /// `None` leaves them to be located one by one, which gives the same values where both do.
-    #[inline]
+    #[inline(always)]
     fn dual_block_in_leaf(&self, frame: &DecodeFrame, cell: [i64; 3]) -> Option<[f32; 8]> {
         if !frame.duals.contains_cell(cell) {
             return None;
         }
-        self.sampler
-            .brick_block(frame.frame.brick, cell, cell.map(|c| c + 1))
+        let brick = frame.frame.brick;
+        match frame.dual_index {
+            // The brick holds the eight cells of every dual cell of the box.
+            Some(index) => index.block(self.sampler.values_in_place(brick)?, cell),
+            None => self.sampler.brick_block(brick, cell, cell.map(|c| c + 1)),
+        }
     }
 
     /// The box, in doubled coordinates, of the voxel `r` names, from the reference alone: no
@@ -802,10 +807,10 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         }
         let frame = LeafFrame::new(&self.sampler, leaf)
             .ok_or_else(|| bad_ref(r, "the leaf holds no brick"))?;
-        *last = Some(
-            DecodeFrame::new(self.sampler.grid(), frame)
-                .ok_or_else(|| bad_ref(r, "the leaf's extent is out of range"))?,
-        );
+        let mut decode = DecodeFrame::new(self.sampler.grid(), frame)
+            .ok_or_else(|| bad_ref(r, "the leaf's extent is out of range"))?;
+        decode.index_duals_in(&self.sampler.brick_cells(frame.brick));
+        *last = Some(decode);
         Ok(())
     }
 

@@ -80,6 +80,19 @@ impl DecodeFrame {
         self.dual_index = DualIndex::new(brick, &self.duals);
     }
 
+    /// The value of level cell `c` in the leaf's brick values `values` (read in place) when `c`
+    /// is a corner of a dual cell of [`Self::duals`] (so a cell of the leaf as its finest cells
+    /// say, the value locating it gives) and [`Self::dual_index`] is kept; else `None`.
+    #[inline(always)]
+    pub fn corner_value(&self, values: &[f32], c: [i64; 3]) -> Option<f32> {
+        let index = self.dual_index?;
+        let (lo, hi) = (self.duals.lo, self.duals.hi);
+        if !(0..3).all(|a| lo[a] <= c[a] && c[a] <= hi[a]) {
+            return None;
+        }
+        index.cell(values, c)
+    }
+
     /// The level cell (absolute index) of local cell index `index`, `None` past the leaf.
     #[inline]
     pub fn cell(&self, index: u32) -> Option<[i64; 3]> {

@@ -33,6 +33,15 @@ impl DualIndex {
         })
     }
 
+    /// The value of level cell `c` (a corner of a dual cell of the box this index was made for)
+    /// in the brick's values `values`: the one [`Self::block`] reads for that corner. `None`
+    /// when `values` is too short.
+    #[inline(always)]
+    pub fn cell(&self, values: &[f32], c: [i64; 3]) -> Option<f32> {
+        let at = (self.origin + c[0] + c[1] * self.row + c[2] * self.layer) as usize;
+        values.get(at).copied()
+    }
+
     /// The values of the dual cell whose lowest cell is `cell` (one of the box this index was
     /// made for) in the brick's values `values`, corner `n` taking the upper cell on axis `a` when
     /// bit `a` of `n` is set: [`crate::reconstruct::Sampler::brick_block`]'s values, read at the
@@ -83,6 +92,10 @@ mod tests {
             index.block(&values[..values.len() - 1], [3 - 1, 6 - 1, 8 - 1]),
             None
         );
+        let corner = [3, 6, 8];
+        let at = [0, 1, 2].map(|a| corner[a] - brick.lo[a]);
+        let want = values[(at[0] + 7 * (at[1] + 5 * at[2])) as usize];
+        assert_eq!(index.cell(&values, corner), Some(want));
     }
 
     #[test]

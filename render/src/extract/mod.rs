@@ -633,9 +633,19 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             None => match self.dual_block_in_leaf(frame, cell) {
                 Some(values) => values,
                 None => {
+                    // The corners that are corners of the leaf's dual cells are read from its
+                    // brick, the others located.
+                    let brick = frame.frame.brick;
+                    let here = frame
+                        .dual_index
+                        .and_then(|_| self.sampler.values_in_place(brick));
                     let mut values = [0f32; 8];
                     for (n, v) in values.iter_mut().enumerate() {
                         let c = [0, 1, 2].map(|a| cell[a] + (n >> a & 1) as i64);
+                        if let Some(x) = here.and_then(|values| frame.corner_value(values, c)) {
+                            *v = x;
+                            continue;
+                        }
                         let at = grid.finest_cell(grid.centre(level, c), 7);
                         match loc.locate_cell(at)? {
                             Some(leaf_cell) if leaf_cell.level == level && leaf_cell.cell == c => {

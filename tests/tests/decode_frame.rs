@@ -43,3 +43,45 @@ fn the_kept_box_holds_the_dual_cells_inside_the_leaf() {
         assert!(kept > 0, "{case:?}: no dual cell inside a leaf");
     }
 }
+
+/// A corner of the kept dual cells read from the leaf's brick ([`DecodeFrame::corner_value`])
+/// is the cell, and the value, that locating its centre gives.
+#[test]
+fn a_corner_read_from_the_brick_is_the_located_cell() {
+    for case in standard_cases(2) {
+        let (_, file) = build(&case);
+        let s = Sampler::new(&file, 0, 64 << 20).unwrap();
+        let grid = s.grid();
+        let mut read = 0;
+        for leaf in 0..file.num_leaves() as u32 {
+            let Some(frame) = LeafFrame::new(&s, leaf) else {
+                continue;
+            };
+            let mut d = DecodeFrame::new(grid, frame).unwrap();
+            d.index_duals_in(&s.brick_cells(frame.brick));
+            let Some(values) = s.values_in_place(frame.brick) else {
+                continue;
+            };
+            let b = frame.cells;
+            for z in b.lo[2]..=b.hi[2] {
+                for y in b.lo[1]..=b.hi[1] {
+                    for x in b.lo[0]..=b.hi[0] {
+                        let c = [x, y, z];
+                        let Some(value) = d.corner_value(values, c) else {
+                            continue;
+                        };
+                        let at = grid.finest_cell(grid.centre(frame.level, c), 7);
+                        let cell = s.locate(at).unwrap().unwrap();
+                        assert_eq!(
+                            (cell.level, cell.cell, cell.value.to_bits()),
+                            (frame.level, c, value.to_bits()),
+                            "{case:?}: leaf {leaf} {c:?}"
+                        );
+                        read += 1;
+                    }
+                }
+            }
+        }
+        assert!(read > 0, "{case:?}: no corner read from a brick");
+    }
+}

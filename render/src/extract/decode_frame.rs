@@ -4,6 +4,7 @@
 
 use amr_format::IBox;
 
+use super::dual_index::DualIndex;
 use super::leaf::LeafFrame;
 use super::refs::LocalVoxel;
 use super::LocatedVoxel;
@@ -22,6 +23,9 @@ pub struct DecodeFrame {
     /// where the leaf's finest cells say (the finest cell at each cell's centre lies in the leaf
     /// and in that cell).
     pub duals: IBox,
+    /// Where the dual cells of [`Self::duals`] read their values in the leaf's brick, when the
+    /// brick holds all their cells ([`Self::index_duals_in`]; `None` until then).
+    pub dual_index: Option<DualIndex>,
     /// The doubled centre of its lowest level cell (`cells.lo`).
     lowest: [i64; 3],
     /// The width of one of its level cells in finest cells.
@@ -65,9 +69,28 @@ impl DecodeFrame {
             extent: (e0, e1),
             cells: e[0] * e[1] * e[2],
             duals,
+            dual_index: None,
             lowest: grid.centre(frame.level, frame.cells.lo),
             scale: grid.scale(frame.level),
         })
+    }
+
+    /// Keeps [`Self::dual_index`] for the leaf's brick, whose cells are `brick`.
+    pub fn index_duals_in(&mut self, brick: &IBox) {
+        self.dual_index = DualIndex::new(brick, &self.duals);
+    }
+
+    /// The value of level cell `c` in the leaf's brick values `values` (read in place) when `c`
+    /// is a corner of a dual cell of [`Self::duals`] (so a cell of the leaf as its finest cells
+    /// say, the value locating it gives) and [`Self::dual_index`] is kept; else `None`.
+    #[inline(always)]
+    pub fn corner_value(&self, values: &[f32], c: [i64; 3]) -> Option<f32> {
+        let index = self.dual_index?;
+        let (lo, hi) = (self.duals.lo, self.duals.hi);
+        if !(0..3).all(|a| lo[a] <= c[a] && c[a] <= hi[a]) {
+            return None;
+        }
+        index.cell(values, c)
     }
 
     /// The level cell (absolute index) of local cell index `index`, `None` past the leaf.

@@ -37,6 +37,7 @@ pub mod cell_tiles;
 pub mod cull;
 pub mod current;
 pub mod decode_frame;
+pub mod dual_index;
 pub mod halo;
 pub mod leaf;
 pub mod leaf_tree;
@@ -632,9 +633,19 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             None => match self.dual_block_in_leaf(frame, cell) {
                 Some(values) => values,
                 None => {
+                    // The corners that are corners of the leaf's dual cells are read from its
+                    // brick, the others located.
+                    let brick = frame.frame.brick;
+                    let here = frame
+                        .dual_index
+                        .and_then(|_| self.sampler.values_in_place(brick));
                     let mut values = [0f32; 8];
                     for (n, v) in values.iter_mut().enumerate() {
                         let c = [0, 1, 2].map(|a| cell[a] + (n >> a & 1) as i64);
+                        if let Some(x) = here.and_then(|values| frame.corner_value(values, c)) {
+                            *v = x;
+                            continue;
+                        }
                         let at = grid.finest_cell(grid.centre(level, c), 7);
                         match loc.locate_cell(at)? {
                             Some(leaf_cell) if leaf_cell.level == level && leaf_cell.cell == c => {
@@ -659,13 +670,17 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// from the brick of `frame`'s leaf in one go when its eight cells lie in that leaf (whose
     /// cells are all of that level; [`DecodeFrame::duals`]) and the brick is read in place;
     /// `None` leaves them to be located one by one, which gives the same values where both do.
-    #[inline]
+    #[inline(always)]
     fn dual_block_in_leaf(&self, frame: &DecodeFrame, cell: [i64; 3]) -> Option<[f32; 8]> {
         if !frame.duals.contains_cell(cell) {
             return None;
         }
-        self.sampler
-            .brick_block(frame.frame.brick, cell, cell.map(|c| c + 1))
+        let brick = frame.frame.brick;
+        match frame.dual_index {
+            // The brick holds the eight cells of every dual cell of the box.
+            Some(index) => index.block(self.sampler.values_in_place(brick)?, cell),
+            None => self.sampler.brick_block(brick, cell, cell.map(|c| c + 1)),
+        }
     }
 
     /// The box, in doubled coordinates, of the voxel `r` names, from the reference alone: no
@@ -802,10 +817,10 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         }
         let frame = LeafFrame::new(&self.sampler, leaf)
             .ok_or_else(|| bad_ref(r, "the leaf holds no brick"))?;
-        *last = Some(
-            DecodeFrame::new(self.sampler.grid(), frame)
-                .ok_or_else(|| bad_ref(r, "the leaf's extent is out of range"))?,
-        );
+        let mut decode = DecodeFrame::new(self.sampler.grid(), frame)
+            .ok_or_else(|| bad_ref(r, "the leaf's extent is out of range"))?;
+        decode.index_duals_in(&self.sampler.brick_cells(frame.brick));
+        *last = Some(decode);
         Ok(())
     }
 

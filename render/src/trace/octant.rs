@@ -161,7 +161,7 @@ pub struct VoxelSetup {
 
 impl VoxelSetup {
     /// The set-up of `voxel` for `iso`; `None` when the voxel's values exclude `iso`.
-    #[inline]
+    #[inline(always)]
     pub fn new(voxel: &Voxel, iso: f32) -> Option<VoxelSetup> {
         let (vmin, vmax) = voxel.range();
         if vmin > iso || vmax < iso {

@@ -881,6 +881,35 @@ impl Neighbourhood {
 mod tests {
     use super::*;
 
+    /// A pending cell's code keeps its [`PENDING`] bit through [`Neighbourhood::classify`] for
+    /// any isovalue, and loses it, with the count of pending cells, when it is settled.
+    #[test]
+    fn classify_keeps_the_pending_bit_until_settled() {
+        let mut hood = Neighbourhood {
+            cells: IBox::new([0, 0, 0], [2, 1, 1]),
+            ..Neighbourhood::default()
+        };
+        hood.kind = vec![LEAF, UNCOVERED];
+        hood.lo = vec![1.0, f32::INFINITY];
+        hood.hi = vec![f32::NEG_INFINITY; 2];
+        hood.codes = vec![0, 0];
+        hood.pending_rows = vec![0];
+        hood.set_coarser_block(&IBox::new([1, 0, 0], [2, 1, 1]));
+        hood.set_coarser_block(&IBox::new([1, 0, 0], [2, 1, 1]));
+        assert_eq!(hood.pending_left, 1, "a cell flagged twice counts once");
+        hood.finish_fill();
+        for iso in [0.5, 5.0] {
+            hood.classify(iso);
+            assert_eq!(hood.codes()[1], NOT_LEAF | PENDING, "iso {iso}");
+            assert_eq!(hood.codes()[0] & (NOT_LEAF | PENDING), 0, "iso {iso}");
+        }
+        hood.settle_coarse(1, (2.0, 3.0), 2.5);
+        assert!(!hood.has_pending());
+        assert_eq!(hood.codes()[1], NOT_LEAF | ABOVE | BELOW);
+        hood.classify(4.0);
+        assert_eq!(hood.codes()[1], NOT_LEAF | BELOW);
+    }
+
     /// [`Neighbourhood::mark_near_boundary`] marks exactly the cells with a non-[`LEAF`] cell
     /// among the up to 27 around them, on boxes of every shape from 1 to 5 cells per axis.
     #[test]

@@ -204,16 +204,15 @@ pub struct Neighbourhood {
     /// not kept).
     lo: Vec<f32>,
     hi: Vec<f32>,
-    /// Per cell: inside a coarser leaf cell whose octants' corners are not yet in the bound.
-    coarse_pending: Vec<bool>,
-    /// Cells of [`Self::coarse_pending`] still set.
+    /// Cells whose code has the [`PENDING`] bit.
     pending_left: usize,
     /// A bit per row of cells (along x; row `y + z * rows per plane`, relative to
     /// [`Self::cells`]): set when the fill flagged a cell of the row pending (the cell may have
     /// been settled since), clear when no cell of the row is pending.
     pending_rows: Vec<u64>,
-    /// Per cell, for the isovalue of the last [`Self::classify`]: [`ABOVE`], [`BELOW`],
-    /// [`NOT_LEAF`] and [`PENDING`] bits.
+    /// Per cell: the [`PENDING`] bit (set by a fill when the cell lies in a coarser leaf cell
+    /// whose octants' corners are not yet in its bound, cleared by settling) and, for the
+    /// isovalue of the last [`Self::classify`], the [`ABOVE`], [`BELOW`] and [`NOT_LEAF`] bits.
     codes: Vec<u8>,
     touching: Vec<Met>,
     /// Scratch of [`Self::mark_near_boundary`].
@@ -286,8 +285,8 @@ impl Neighbourhood {
         self.lo.resize(n, f32::INFINITY);
         self.hi.clear();
         self.hi.resize(n, f32::NEG_INFINITY);
-        self.coarse_pending.clear();
-        self.coarse_pending.resize(n, false);
+        self.codes.clear();
+        self.codes.resize(n, 0);
         self.pending_left = 0;
         self.pending_rows.clear();
         let e = g.extent();
@@ -390,8 +389,8 @@ impl Neighbourhood {
             v.resize(n, 0.0);
         }
         self.kind.resize(n, UNCOVERED);
-        self.coarse_pending.clear();
-        self.coarse_pending.resize(n, false);
+        self.codes.clear();
+        self.codes.resize(n, 0);
         self.pending_left = 0;
         self.pending_rows.clear();
     }
@@ -484,7 +483,7 @@ impl Neighbourhood {
                 std::ptr::copy_nonoverlapping(src.2.add(s), dst.2.add(d), w);
             }
             debug_assert!(
-                !tile.coarse_pending[s..s + w].contains(&true),
+                !tile.codes[s..s + w].iter().any(|&c| c & PENDING != 0),
                 "a tile's pending cells copied"
             );
             d += rows.dst_y;
@@ -563,14 +562,7 @@ impl Neighbourhood {
         self.all_leaf = self.kind.iter().fold(LEAF, |acc, &k| acc | k) == LEAF;
         // Marked by `fill`, when the cells are extracted from.
         self.near_boundary.clear();
-        // Codes before any classification: the pending flags, which settling keeps.
-        self.codes.clear();
-        if self.pending_left == 0 {
-            self.codes.resize(self.kind.len(), 0);
-        } else {
-            self.codes
-                .extend(self.coarse_pending.iter().map(|&p| u8::from(p) << 3));
-        }
+        // The codes before any classification are the pending flags the fill set.
         self.filled = Some((self.level, self.cells));
     }
 
@@ -720,16 +712,17 @@ impl Neighbourhood {
                 let kinds = &mut self.kind[cells.clone()];
                 let values = &self.lo[cells.clone()];
                 let highs = &mut self.hi[cells.clone()];
-                let pending = &mut self.coarse_pending[cells];
-                let row = kinds.iter_mut().zip(values).zip(highs).zip(pending);
-                for (((kind, &value), high), pending) in row {
+                let codes = &mut self.codes[cells];
+                let row = kinds.iter_mut().zip(values).zip(highs).zip(codes);
+                for (((kind, &value), high), code) in row {
                     // A leaf cell overwritten keeps its value as both ends of its bound.
                     if *kind == LEAF {
                         *high = value;
                     }
                     *kind = COARSER;
-                    newly += usize::from(!*pending);
-                    *pending = true;
+                    // During a fill a code holds no bit but `PENDING`.
+                    newly += usize::from(*code == 0);
+                    *code = PENDING;
                 }
             }
         }
@@ -817,25 +810,20 @@ impl Neighbourhood {
         }
     }
 
-    /// Computes every cell's code for `iso` from its bound, kind and pending flag.
+    /// Computes every cell's code for `iso` from its bound and kind, keeping its pending flag.
     pub fn classify(&mut self, iso: f32) {
-        self.codes.clear();
         if self.all_leaf {
             // Every cell a leaf cell, none pending: the code of its value alone.
+            self.codes.clear();
             self.codes.extend(self.lo.iter().map(|&v| code(v, v, iso)));
             return;
         }
-        self.codes.extend(
-            self.lo
-                .iter()
-                .zip(&self.hi)
-                .zip(self.kind.iter().zip(&self.coarse_pending))
-                .map(|((&lo, &hi), (&kind, &pending))| {
-                    let not_leaf = kind != LEAF;
-                    let hi = if not_leaf { hi } else { lo };
-                    code(lo, hi, iso) | u8::from(not_leaf) << 2 | u8::from(pending) << 3
-                }),
-        );
+        let cells = self.lo.iter().zip(&self.hi).zip(&self.kind);
+        for (c, ((&lo, &hi), &kind)) in self.codes.iter_mut().zip(cells) {
+            let not_leaf = kind != LEAF;
+            let hi = if not_leaf { hi } else { lo };
+            *c = code(lo, hi, iso) | u8::from(not_leaf) << 2 | *c & PENDING;
+        }
     }
 
     /// True when some cell lies in a coarser leaf cell whose octants are not yet in its bound.
@@ -868,10 +856,9 @@ impl Neighbourhood {
     pub fn settle_coarse(&mut self, i: usize, (lo, hi): (f32, f32), iso: f32) {
         self.lo[i] = self.lo[i].min(lo);
         self.hi[i] = self.hi[i].max(hi);
-        if self.coarse_pending[i] {
+        if self.codes[i] & PENDING != 0 {
             self.pending_left -= 1;
         }
-        self.coarse_pending[i] = false;
         self.codes[i] = self.codes[i] & NOT_LEAF | code(self.lo[i], self.hi[i], iso);
     }
 
@@ -893,6 +880,35 @@ impl Neighbourhood {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A pending cell's code keeps its [`PENDING`] bit through [`Neighbourhood::classify`] for
+    /// any isovalue, and loses it, with the count of pending cells, when it is settled.
+    #[test]
+    fn classify_keeps_the_pending_bit_until_settled() {
+        let mut hood = Neighbourhood {
+            cells: IBox::new([0, 0, 0], [2, 1, 1]),
+            ..Neighbourhood::default()
+        };
+        hood.kind = vec![LEAF, UNCOVERED];
+        hood.lo = vec![1.0, f32::INFINITY];
+        hood.hi = vec![f32::NEG_INFINITY; 2];
+        hood.codes = vec![0, 0];
+        hood.pending_rows = vec![0];
+        hood.set_coarser_block(&IBox::new([1, 0, 0], [2, 1, 1]));
+        hood.set_coarser_block(&IBox::new([1, 0, 0], [2, 1, 1]));
+        assert_eq!(hood.pending_left, 1, "a cell flagged twice counts once");
+        hood.finish_fill();
+        for iso in [0.5, 5.0] {
+            hood.classify(iso);
+            assert_eq!(hood.codes()[1], NOT_LEAF | PENDING, "iso {iso}");
+            assert_eq!(hood.codes()[0] & (NOT_LEAF | PENDING), 0, "iso {iso}");
+        }
+        hood.settle_coarse(1, (2.0, 3.0), 2.5);
+        assert!(!hood.has_pending());
+        assert_eq!(hood.codes()[1], NOT_LEAF | ABOVE | BELOW);
+        hood.classify(4.0);
+        assert_eq!(hood.codes()[1], NOT_LEAF | BELOW);
+    }
 
     /// [`Neighbourhood::mark_near_boundary`] marks exactly the cells with a non-[`LEAF`] cell
     /// among the up to 27 around them, on boxes of every shape from 1 to 5 cells per axis.

@@ -337,12 +337,12 @@ pub fn scan_short(values: &[f32], bc: &IBox, cells: &IBox) -> (f32, f32) {
 /// The range of the cells `cells` (inside the brick's cells `bc`) of brick data `values`; NaNs
 /// are left out.
 pub fn scan(values: &[f32], bc: &IBox, cells: &IBox) -> (f32, f32) {
-    let e = bc.extent();
-    let (row, slab) = (e[0] as usize, (e[0] * e[1]) as usize);
-    let w = cells.extent()[0] as usize;
     if cells.extent()[0] < SHORT_ROW {
         return scan_short(values, bc, cells);
     }
+    let e = bc.extent();
+    let (row, slab) = (e[0] as usize, (e[0] * e[1]) as usize);
+    let w = cells.extent()[0] as usize;
     let mut range = RangeAccumulator::new();
     let mut z_start = bc.linear_index(cells.lo);
     for _ in cells.lo[2]..cells.hi[2] {

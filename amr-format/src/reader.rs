@@ -384,6 +384,19 @@ impl<D: AsRef<[u8]>> AmrkFile<D> {
         LeafInfo::of(l, self.slice(&self.footer.brick_list))
     }
 
+    /// The bricks of each of `leaves`, in that order: [`Self::leaf`]'s bricks of each, with the
+    /// tables looked up once.
+    pub fn bricks_of_leaves<'s>(
+        &'s self,
+        leaves: &'s [u32],
+    ) -> impl Iterator<Item = &'s [U32]> + 's {
+        let table = self.slice::<KdLeaf>(&self.footer.leaves);
+        let list: &[U32] = self.slice(&self.footer.brick_list);
+        leaves
+            .iter()
+            .map(move |&l| LeafInfo::of(&table[l as usize], list).bricks)
+    }
+
     /// Every kd-tree leaf, in order: [`Self::leaf`] of each, in one pass over the table.
     pub fn leaves(&self) -> impl ExactSizeIterator<Item = LeafInfo<'_>> + '_ {
         let list: &[U32] = self.slice(&self.footer.brick_list);

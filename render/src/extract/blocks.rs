@@ -302,34 +302,47 @@ fn fold_blocks(
     }
 }
 
-/// The range of the cells `cells` (inside the brick's cells `bc`) of brick data `values`; NaNs
-/// are left out.
-pub fn scan(values: &[f32], bc: &IBox, cells: &IBox) -> (f32, f32) {
+/// Rows of fewer cells than this are folded by [`scan_short`]: one running pair, not the lanes
+/// of a vectorized accumulator.
+pub const SHORT_ROW: i64 = 16;
+
+/// [`scan`] for rows of fewer than [`SHORT_ROW`] cells, inlined into its callers: most of a
+/// small part's cost is the set-up around a few cells.
+#[inline(always)]
+pub fn scan_short(values: &[f32], bc: &IBox, cells: &IBox) -> (f32, f32) {
     let e = bc.extent();
     let (row, slab) = (e[0] as usize, (e[0] * e[1]) as usize);
     let w = cells.extent()[0] as usize;
-    if w < 16 {
-        // Short rows: one running pair, not the lanes of a vectorized accumulator.
-        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        let mut z_start = bc.linear_index(cells.lo);
-        for _ in cells.lo[2]..cells.hi[2] {
-            let mut src = z_start;
-            for _ in cells.lo[1]..cells.hi[1] {
-                for &v in &values[src..src + w] {
-                    // Comparisons, not f32::min: a NaN compares false and is left out.
-                    if v < lo {
-                        lo = v;
-                    }
-                    if v > hi {
-                        hi = v;
-                    }
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    let mut z_start = bc.linear_index(cells.lo);
+    for _ in cells.lo[2]..cells.hi[2] {
+        let mut src = z_start;
+        for _ in cells.lo[1]..cells.hi[1] {
+            for &v in &values[src..src + w] {
+                // Comparisons, not f32::min: a NaN compares false and is left out.
+                if v < lo {
+                    lo = v;
                 }
-                src += row;
+                if v > hi {
+                    hi = v;
+                }
             }
-            z_start += slab;
+            src += row;
         }
-        return (lo, hi);
+        z_start += slab;
     }
+    (lo, hi)
+}
+
+/// The range of the cells `cells` (inside the brick's cells `bc`) of brick data `values`; NaNs
+/// are left out.
+pub fn scan(values: &[f32], bc: &IBox, cells: &IBox) -> (f32, f32) {
+    if cells.extent()[0] < SHORT_ROW {
+        return scan_short(values, bc, cells);
+    }
+    let e = bc.extent();
+    let (row, slab) = (e[0] as usize, (e[0] * e[1]) as usize);
+    let w = cells.extent()[0] as usize;
     let mut range = RangeAccumulator::new();
     let mut z_start = bc.linear_index(cells.lo);
     for _ in cells.lo[2]..cells.hi[2] {

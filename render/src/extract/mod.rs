@@ -211,31 +211,21 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         let field = self.sampler.field();
         // Each brick once (neighbouring leaves share bricks), in brick order: one bit each.
         let mut wanted = vec![0u64; file.num_bricks().div_ceil(64)];
-        for b in leaves.iter().flat_map(|&l| file.leaf(l).bricks.iter()) {
+        for b in file.bricks_of_leaves(leaves).flatten() {
             let b = b.get() as usize;
             wanted[b / 64] |= 1 << (b % 64);
         }
-        let mut ranges: Vec<(u64, u64)> = Vec::new();
+        let mut merged = MergedRanges::default();
         for (w, &word) in wanted.iter().enumerate() {
             let mut bits = word;
             while bits != 0 {
                 let b = w * 64 + bits.trailing_zeros() as usize;
                 bits &= bits - 1;
                 let d = file.brick_data(field, b);
-                ranges.push((d.offset, d.offset.saturating_add(d.len)));
+                merged.add((d.offset, d.offset.saturating_add(d.len)), GAP);
             }
         }
-        // Writers store bricks in order, so this is usually sorted already.
-        if !ranges.is_sorted() {
-            ranges.sort_unstable();
-        }
-        let mut merged: Vec<(u64, u64)> = Vec::new();
-        for (start, end) in ranges {
-            match merged.last_mut() {
-                Some(last) if start <= last.1.saturating_add(GAP) => last.1 = last.1.max(end),
-                _ => merged.push((start, end)),
-            }
-        }
+        let merged = merged.finish(GAP);
         pages.read_ahead(merged.into_iter().map(|(start, end)| (start, end - start)));
     }
 
@@ -998,6 +988,47 @@ impl<'r, D: AsRef<[u8]> + Sync> LeafBoxes<'r, '_, '_, D> {
     }
 }
 
+/// Byte ranges with those closer than a gap joined, built one range at a time: writers store
+/// bricks in order, so the ranges usually come sorted by start and are merged as they come,
+/// without gathering them first.
+#[derive(Default)]
+struct MergedRanges {
+    ranges: Vec<(u64, u64)>,
+    /// A range came with a start below the one before.
+    unsorted: bool,
+}
+
+impl MergedRanges {
+    /// Adds `(start, end)`, joined to the last range when it starts within `gap` of its end
+    /// and not before its start.
+    fn add(&mut self, (start, end): (u64, u64), gap: u64) {
+        match self.ranges.last_mut() {
+            Some(last) if last.0 <= start && start <= last.1.saturating_add(gap) => {
+                last.1 = last.1.max(end);
+            }
+            Some(last) => {
+                self.unsorted |= start < last.0;
+                self.ranges.push((start, end));
+            }
+            None => self.ranges.push((start, end)),
+        }
+    }
+
+    /// The ranges sorted by start, those closer than `gap` joined (a joined range covers the
+    /// same bytes, gaps included, as its parts, so joining some early changes nothing).
+    fn finish(mut self, gap: u64) -> Vec<(u64, u64)> {
+        if !self.unsorted {
+            return self.ranges;
+        }
+        self.ranges.sort_unstable();
+        let mut sorted = MergedRanges::default();
+        for r in self.ranges {
+            sorted.add(r, gap);
+        }
+        sorted.ranges
+    }
+}
+
 /// Appends the refs of `parts` (one entry per run of leaves, in order) to `refs`, adds their
 /// counts to `totals` and their merged dual cells to `duals`, and gives the runs' emptied vectors
 /// to `spare` (but the first, taken whole when `refs` is empty); the first error stops it.
@@ -1103,5 +1134,56 @@ fn bad_ref(r: u64, what: &str) -> RenderError {
     RenderError::BadVoxelRef {
         r,
         what: what.into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::MergedRanges;
+
+    /// Sorted first, then joined: what [`MergedRanges`] must give whatever the order.
+    fn sorted_then_joined(mut ranges: Vec<(u64, u64)>, gap: u64) -> Vec<(u64, u64)> {
+        ranges.sort_unstable();
+        let mut out: Vec<(u64, u64)> = Vec::new();
+        for (start, end) in ranges {
+            match out.last_mut() {
+                Some(last) if start <= last.1.saturating_add(gap) => last.1 = last.1.max(end),
+                _ => out.push((start, end)),
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn merged_ranges_match_a_sort_then_a_join() {
+        let mut x = 12345u64;
+        let mut next = |m: u64| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x % m
+        };
+        for case in 0..200 {
+            let n = 1 + next(40) as usize;
+            let mut at = 0;
+            let ranges: Vec<(u64, u64)> = (0..n)
+                .map(|_| {
+                    // Mostly in order, as writers store bricks; some cases shuffled.
+                    let start = if case % 3 == 0 {
+                        next(1000)
+                    } else {
+                        at + next(30)
+                    };
+                    at = start;
+                    (start, start + 1 + next(20))
+                })
+                .collect();
+            let gap = next(16);
+            let mut merged = MergedRanges::default();
+            for &r in &ranges {
+                merged.add(r, gap);
+            }
+            assert_eq!(merged.finish(gap), sorted_then_joined(ranges, gap));
+        }
     }
 }

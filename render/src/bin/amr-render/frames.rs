@@ -114,9 +114,11 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             camera: Some(cameras[k as usize]),
             ..base_view.clone()
         };
-        if k == 0 && !anim.series {
-            // One file's frames repeat their allocations: freed blocks are kept for the next
-            // (a series keeps its memory at that of its largest step instead).
+        if k == 0 && !anim.series && anim.sweep.is_none() {
+            // One file's frames repeat their allocations: freed blocks are kept for the next.
+            // A series keeps its memory at that of its largest step instead, and a sweep at
+            // that of its largest extraction: kept frame blocks would sit beside each new
+            // isovalue's refs, BVH and build scratch.
             heap::keep_freed_for_frames();
         }
         let rendered = match writer.written_planes() {

@@ -95,7 +95,7 @@ const CHUNK_BYTES: u64 = 64 << 20;
 /// threshold of 256 KiB): its vector is then a mapping of its own, whose pages are first touched
 /// as refs are written and which grows by remapping, where a vector grown by doubling from
 /// nothing wrote its refs again into each larger block, fresh pages of its thread's heap
-/// (`tiny` iso 10: about 35 faults fewer at one and at two threads, `big` 20 to 37).
+/// (`tiny` iso 10: 33 and 47 faults fewer at one and two threads, `big` 36 at each).
 const RUN_REFS: usize = 1 << 16;
 
 /// The active voxels of one isovalue and what finding them took.

@@ -20,6 +20,7 @@
 //! - [`tight`]: per-leaf ranges from cell values, computed once, skipping leaves the file's
 //!   looser stored ranges let through.
 //! - [`region`]: limiting an extraction to a clip box or a view frustum.
+//! - [`gather`]: the runs of leaves' refs appended to the result, in order.
 //! - [`scratch_pool`]: one extraction scratch per worker thread, kept across its runs of leaves.
 //! - [`stats`]: what an extraction did.
 //! - [`decode_frame`]: what decoding keeps of the leaf decoded last.
@@ -38,6 +39,7 @@ pub mod cull;
 pub mod current;
 pub mod decode_frame;
 pub mod dual_index;
+pub mod gather;
 pub mod halo;
 pub mod leaf;
 pub mod leaf_tree;
@@ -72,6 +74,7 @@ use band::CoarseBounds;
 use blocks::BlockRanges;
 use cell_tiles::CellTiles;
 pub use decode_frame::DecodeFrame;
+use gather::{append, Run};
 use halo::Halo;
 use leaf::{LeafCounts, LeafFrame, Scratch};
 use leaf_tree::LeafTree;
@@ -87,6 +90,13 @@ const CHUNK_LEAVES: usize = 4096;
 /// Cell bytes of the leaves of one chunk (at each leaf's own level), at most, unless one leaf
 /// holds more: bounds the map pages a chunk touches, released after it.
 const CHUNK_BYTES: u64 = 64 << 20;
+
+/// Refs a run of leaves makes room for when it starts (512 KiB, more than the CLI's mmap
+/// threshold of 256 KiB): its vector is then a mapping of its own, whose pages are first touched
+/// as refs are written and which grows by remapping, where a vector grown by doubling from
+/// nothing wrote its refs again into each larger block, fresh pages of its thread's heap
+/// (`tiny` iso 10: 33 and 47 faults fewer at one and two threads, `big` 36 at each).
+const RUN_REFS: usize = 1 << 16;
 
 /// The active voxels of one isovalue and what finding them took.
 #[derive(Clone, Debug, Default)]
@@ -279,46 +289,69 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         } else {
             vec![leaves]
         };
-        if let Some(first) = chunks.first() {
-            self.read_ahead(first);
-        }
-        let mut done: Vec<Result<(Vec<u64>, LeafCounts)>> = Vec::new();
-        for (k, chunk) in chunks.iter().enumerate() {
-            let next = chunks.get(k + 1);
-            if next.is_none() && done.is_empty() {
-                // Nothing to read ahead or append beside the workers.
-                done = self.extract_chunk(iso, chunk, tight_blocks, (&scratches, &spare));
+        if let [only] = chunks[..] {
+            // Nothing to read ahead or append beside the workers. The chunk's reads are asked
+            // for beside its extraction (one thread works out the ranges while the others take
+            // leaves), and the map's pages are released (and measured) beside the result's copies.
+            let ((), runs) = rayon::join(
+                || self.read_ahead(only),
+                || self.extract_chunk(iso, only, tight_blocks, (&scratches, &spare)),
+            );
+            let (released, appended) = rayon::join(
+                || self.release_pages(),
+                || {
+                    append(
+                        runs,
+                        &mut refs,
+                        (&mut totals, &mut active_duals),
+                        &spare,
+                        true,
+                    )
+                },
+            );
+            appended?;
+            touched = released;
+        } else {
+            if let Some(first) = chunks.first() {
+                self.read_ahead(first);
+            }
+            let mut done: Vec<Run> = Vec::new();
+            for (k, chunk) in chunks.iter().enumerate() {
+                let next = chunks.get(k + 1);
+                let (parts, appended) = std::thread::scope(|s| {
+                    // While the workers extract this chunk, another thread asks for the next
+                    // chunk's reads and appends the chunk before's refs: neither waits for the
+                    // other, and the workers no longer wait for them between chunks.
+                    let before = std::mem::take(&mut done);
+                    let (refs, totals, duals) = (&mut refs, &mut totals, &mut active_duals);
+                    let spare = &spare;
+                    let helper = s.spawn(move || {
+                        if let Some(next) = next {
+                            self.read_ahead(next);
+                        }
+                        append(before, refs, (totals, duals), spare, false)
+                    });
+                    let parts = self.extract_chunk(iso, chunk, tight_blocks, (&scratches, spare));
+                    (parts, helper.join())
+                });
+                match appended {
+                    Ok(r) => r?,
+                    Err(panic) => std::panic::resume_unwind(panic),
+                }
+                done = parts;
                 if let Some(b) = self.release_pages() {
                     touched = Some(touched.unwrap_or(0) + b);
                 }
-                continue;
             }
-            let (parts, appended) = std::thread::scope(|s| {
-                // While the workers extract this chunk, another thread asks for the next chunk's
-                // reads and appends the chunk before's refs: neither waits for the other, and
-                // the workers no longer wait for them between chunks.
-                let before = std::mem::take(&mut done);
-                let (refs, totals, duals) = (&mut refs, &mut totals, &mut active_duals);
-                let spare = &spare;
-                let helper = s.spawn(move || {
-                    if let Some(next) = next {
-                        self.read_ahead(next);
-                    }
-                    append(before, refs, totals, duals, spare)
-                });
-                let parts = self.extract_chunk(iso, chunk, tight_blocks, (&scratches, spare));
-                (parts, helper.join())
-            });
-            match appended {
-                Ok(r) => r?,
-                Err(panic) => std::panic::resume_unwind(panic),
-            }
-            done = parts;
-            if let Some(b) = self.release_pages() {
-                touched = Some(touched.unwrap_or(0) + b);
-            }
+            // The workers are done: the pool shares the copies.
+            append(
+                done,
+                &mut refs,
+                (&mut totals, &mut active_duals),
+                &spare,
+                true,
+            )?;
         }
-        append(done, &mut refs, &mut totals, &mut active_duals, &spare)?;
         refs.shrink_to_fit();
         let stats = ExtractStats {
             field: file.fields()[field].name.clone(),
@@ -354,11 +387,15 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         chunk: &[u32],
         tight_blocks: &BlockRanges,
         (scratches, spare): (&ScratchPool<'s>, &SpareRefs),
-    ) -> Vec<Result<(Vec<u64>, LeafCounts)>> {
+    ) -> Vec<Run> {
         chunk
             .par_iter()
             .fold(
-                || (scratches.take(), Ok((spare.take(), LeafCounts::default()))),
+                || {
+                    let mut refs = spare.take();
+                    refs.reserve(RUN_REFS);
+                    (scratches.take(), Ok((refs, LeafCounts::default())))
+                },
                 |(mut scratch, run), &leaf| {
                     let run = run.and_then(|(mut out, mut totals)| {
                         let counts =
@@ -1027,36 +1064,6 @@ impl MergedRanges {
         }
         sorted.ranges
     }
-}
-
-/// Appends the refs of `parts` (one entry per run of leaves, in order) to `refs`, adds their
-/// counts to `totals` and their merged dual cells to `duals`, and gives the runs' emptied vectors
-/// to `spare` (but the first, taken whole when `refs` is empty); the first error stops it.
-fn append(
-    parts: Vec<Result<(Vec<u64>, LeafCounts)>>,
-    refs: &mut Vec<u64>,
-    totals: &mut LeafCounts,
-    duals: &mut u64,
-    spare: &SpareRefs,
-) -> Result<()> {
-    let incoming: usize = parts.iter().flatten().map(|(part, _)| part.len()).sum();
-    if refs.capacity() != 0 {
-        refs.reserve(incoming);
-    }
-    for part in parts {
-        let (part, n) = part?;
-        *duals += part.iter().filter(|&&r| r as u32 >= DUAL_BASE).count() as u64;
-        totals.add(&n);
-        // The first run's vector is taken whole: copying it would touch as many fresh pages.
-        if refs.capacity() == 0 {
-            *refs = part;
-            refs.reserve(incoming - refs.len());
-        } else {
-            refs.extend_from_slice(&part);
-            spare.give(part);
-        }
-    }
-    Ok(())
 }
 
 /// The leaves of `sampler`'s file whose stored value range of its field may hold `iso`, in leaf

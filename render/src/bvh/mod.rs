@@ -37,6 +37,8 @@ pub mod packet;
 mod packet_any;
 #[cfg(target_arch = "x86_64")]
 mod packet_mixed;
+#[cfg(test)]
+mod test_scene;
 mod walk;
 pub mod wide;
 
@@ -677,15 +679,7 @@ impl OctantBvh {
                 unsafe { self.packet_avx2::<false>(rays, m, oct, &mut stack, &mut visit) };
                 continue;
             }
-            self.packet_with::<false>(
-                rays,
-                m,
-                oct,
-                &mut stack,
-                &mut visit,
-                |node, rays, m, e| packet::children_portable(node, rays, m, oct, e),
-                |node, ray| packet::ray_children_portable(node, ray, oct),
-            );
+            self.packet_portable::<false>(rays, m, oct, &mut stack, &mut visit);
         }
     }
 
@@ -819,15 +813,7 @@ impl OctantBvh {
         };
         for (o, &m) in octants.iter().enumerate() {
             let oct = (o as u32) * 0x0101_0101;
-            self.packet_with::<false>(
-                rays,
-                m,
-                oct,
-                &mut stack,
-                &mut visit,
-                |node, rays, m, e| packet::children_portable(node, rays, m, oct, e),
-                |node, ray| packet::ray_children_portable(node, ray, oct),
-            );
+            self.packet_portable::<false>(rays, m, oct, &mut stack, &mut visit);
         }
     }
 
@@ -854,6 +840,26 @@ impl OctantBvh {
             visit,
             |node, rays, m, e| test.children(node, rays, m, e),
             |node, ray| packet::ray_children(node, ray, oct),
+        );
+    }
+
+    /// The packet walk of `m`'s rays of octant `oct` with the portable node tests.
+    fn packet_portable<const ANY: bool>(
+        &self,
+        rays: &mut [Ray],
+        m: Mask,
+        oct: u32,
+        stack: &mut PacketStack,
+        visit: &mut impl FnMut(usize, u64, Mask, &mut [Ray]) -> Mask,
+    ) {
+        self.packet_with::<ANY>(
+            rays,
+            m,
+            oct,
+            stack,
+            visit,
+            |node, rays, m, e| packet::children_portable(node, rays, m, oct, e),
+            |node, ray| packet::ray_children_portable(node, ray, oct),
         );
     }
 

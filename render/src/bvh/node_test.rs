@@ -142,21 +142,9 @@ fn widen(b: u64) -> std::arch::x86_64::__m256i {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bvh::test_scene::{random_boxes_bvh, Lcg};
     use crate::bvh::wide::WideBuilder;
     use obvhs::aabb::Aabb;
-
-    /// A deterministic stream of numbers in `[0, 1)`.
-    struct Lcg(u64);
-
-    impl Lcg {
-        fn next(&mut self) -> f32 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 40) as f32 / (1u64 << 24) as f32
-        }
-    }
 
     #[test]
     fn octant_code_is_obvhs_one() {
@@ -180,14 +168,7 @@ mod tests {
                 return;
             }
             let mut rng = Lcg(7);
-            let boxes: Vec<Aabb> = (0..3000)
-                .map(|_| {
-                    let lo = Vec3A::new(rng.next(), rng.next(), rng.next()) * 100.0;
-                    let size = Vec3A::new(rng.next(), rng.next(), rng.next()) * 4.0;
-                    Aabb::new(lo, lo + size)
-                })
-                .collect();
-            let bvh = WideBuilder::default().build(&boxes);
+            let bvh = random_boxes_bvh(&mut rng);
             let (mut tested, mut hit) = (0usize, 0usize);
             for k in 0..400 {
                 let origin = Vec3A::new(rng.next(), rng.next(), rng.next()) * 140.0 - 20.0;

@@ -272,22 +272,8 @@ impl<'a> MixedPacket<'a> {
 mod tests {
     use super::*;
     use crate::bvh::packet::ray_children;
-    use crate::bvh::wide::WideBuilder;
+    use crate::bvh::test_scene::{random_boxes_bvh, Lcg};
     use glam::Vec3A;
-    use obvhs::aabb::Aabb;
-
-    /// A deterministic stream of numbers in `[0, 1)`.
-    struct Lcg(u64);
-
-    impl Lcg {
-        fn next(&mut self) -> f32 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 40) as f32 / (1u64 << 24) as f32
-        }
-    }
 
     #[test]
     fn each_ray_enters_the_children_its_own_test_gives() {
@@ -296,14 +282,7 @@ mod tests {
             return;
         }
         let mut rng = Lcg(11);
-        let boxes: Vec<Aabb> = (0..3000)
-            .map(|_| {
-                let lo = Vec3A::new(rng.next(), rng.next(), rng.next()) * 100.0;
-                let size = Vec3A::new(rng.next(), rng.next(), rng.next()) * 4.0;
-                Aabb::new(lo, lo + size)
-            })
-            .collect();
-        let bvh = WideBuilder::default().build(&boxes);
+        let bvh = random_boxes_bvh(&mut rng);
         let (mut culled, mut entered_any) = (0usize, 0usize);
         for p in 0..40 {
             // Rays every way from points near one another, as a tile's AO rays go, some with

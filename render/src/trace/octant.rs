@@ -82,12 +82,26 @@ pub fn voxel_occludes_with(
     tmin: f64,
     tmax: f64,
 ) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { avx2::occludes_with(voxel, iso, ray, recip, tmin, tmax) };
+    }
+    occludes_with(voxel, iso, ray, recip, tmin, tmax)
+}
+
+/// [`voxel_occludes_with`]'s test, inlined into each of its compilations.
+#[inline(always)]
+fn occludes_with(
+    voxel: &Voxel,
+    iso: f32,
+    ray: &GridRay,
+    recip: &[f64; 3],
+    tmin: f64,
+    tmax: f64,
+) -> bool {
     ray.clip_with(recip, voxel.lo, voxel.hi, tmin, tmax)
-        .and_then(|t| {
-            let setup = VoxelSetup::new(voxel, iso)?;
-            Segment::in_box(voxel, &setup, ray, (tmin, tmax), t)
-        })
-        .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
+        .is_some_and(|t| occludes_clipped(voxel, iso, ray, (tmin, tmax), t))
 }
 
 /// [`voxel_occludes_with`] given `clip`, the interval [`GridRay::clip_with`] gives `ray` in the
@@ -101,9 +115,65 @@ pub fn voxel_occludes_clipped(
     (tmin, tmax): (f64, f64),
     clip: (f64, f64),
 ) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { avx2::occludes_clipped(voxel, iso, ray, (tmin, tmax), clip) };
+    }
+    occludes_clipped(voxel, iso, ray, (tmin, tmax), clip)
+}
+
+/// [`voxel_occludes_clipped`]'s test, inlined into each of its compilations.
+#[inline(always)]
+fn occludes_clipped(
+    voxel: &Voxel,
+    iso: f32,
+    ray: &GridRay,
+    (tmin, tmax): (f64, f64),
+    clip: (f64, f64),
+) -> bool {
     VoxelSetup::new(voxel, iso)
-        .and_then(|setup| Segment::in_box(voxel, &setup, ray, (tmin, tmax), clip))
+        .and_then(|setup| Segment::in_box_inlined(voxel, &setup, ray, (tmin, tmax), clip))
         .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
+}
+
+/// The single-ray any-hit tests compiled for AVX2: the same `f64` operations in the same order
+/// (no fused multiply-adds: Rust never contracts), so the same answers, in fewer instructions
+/// (three-operand forms spare the register copies the SSE code needs).
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{GridRay, Voxel};
+
+    /// [`super::voxel_occludes_with`] compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) fn occludes_with(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        recip: &[f64; 3],
+        tmin: f64,
+        tmax: f64,
+    ) -> bool {
+        super::occludes_with(voxel, iso, ray, recip, tmin, tmax)
+    }
+
+    /// [`super::voxel_occludes_clipped`] compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) fn occludes_clipped(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        t: (f64, f64),
+        clip: (f64, f64),
+    ) -> bool {
+        super::occludes_clipped(voxel, iso, ray, t, clip)
+    }
 }
 
 /// [`voxel_occludes`] for the rays `m` of a packet, each with its reciprocal direction
@@ -228,6 +298,18 @@ impl Segment {
     /// `[t_in, t_out]` in the voxel's box.
     #[inline]
     fn in_box(
+        voxel: &Voxel,
+        setup: &VoxelSetup,
+        ray: &GridRay,
+        t: (f64, f64),
+        clip: (f64, f64),
+    ) -> Option<Segment> {
+        Self::in_box_inlined(voxel, setup, ray, t, clip)
+    }
+
+    /// [`Self::in_box`], inlined into its caller.
+    #[inline(always)]
+    fn in_box_inlined(
         voxel: &Voxel,
         setup: &VoxelSetup,
         ray: &GridRay,

@@ -87,7 +87,7 @@ pub fn voxel_occludes_with(
         // SAFETY: the CPU has AVX2, checked just above.
         return unsafe { avx2::occludes_with(voxel, iso, ray, recip, tmin, tmax) };
     }
-    occludes_with(voxel, iso, ray, recip, tmin, tmax)
+    scalar::occludes_with(voxel, iso, ray, recip, tmin, tmax)
 }
 
 /// [`voxel_occludes_with`]'s test, inlined into each of its compilations.
@@ -120,7 +120,7 @@ pub fn voxel_occludes_clipped(
         // SAFETY: the CPU has AVX2, checked just above.
         return unsafe { avx2::occludes_clipped(voxel, iso, ray, (tmin, tmax), clip) };
     }
-    occludes_clipped(voxel, iso, ray, (tmin, tmax), clip)
+    scalar::occludes_clipped(voxel, iso, ray, (tmin, tmax), clip)
 }
 
 /// [`voxel_occludes_clipped`]'s test, inlined into each of its compilations.
@@ -135,6 +135,37 @@ fn occludes_clipped(
     VoxelSetup::new(voxel, iso)
         .and_then(|setup| Segment::in_box_inlined(voxel, &setup, ray, (tmin, tmax), clip))
         .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
+}
+
+/// The single-ray any-hit tests out of line where AVX2 is expected (so that the dispatch inlines
+/// into its callers without the test).
+mod scalar {
+    use super::{GridRay, Voxel};
+
+    /// [`super::voxel_occludes_with`] without AVX2.
+    #[cfg_attr(target_arch = "x86_64", inline(never))]
+    pub(super) fn occludes_with(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        recip: &[f64; 3],
+        tmin: f64,
+        tmax: f64,
+    ) -> bool {
+        super::occludes_with(voxel, iso, ray, recip, tmin, tmax)
+    }
+
+    /// [`super::voxel_occludes_clipped`] without AVX2.
+    #[cfg_attr(target_arch = "x86_64", inline(never))]
+    pub(super) fn occludes_clipped(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        t: (f64, f64),
+        clip: (f64, f64),
+    ) -> bool {
+        super::occludes_clipped(voxel, iso, ray, t, clip)
+    }
 }
 
 /// The single-ray any-hit tests compiled for AVX2: the same `f64` operations in the same order

@@ -60,8 +60,25 @@ pub fn intersect_voxel_clipped(
     (tmin, tmax): (f64, f64),
     clip: (f64, f64),
 ) -> Option<VoxelHit> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { avx2::hit_clipped(voxel, iso, ray, (tmin, tmax), clip) };
+    }
+    scalar::hit_clipped(voxel, iso, ray, (tmin, tmax), clip)
+}
+
+/// [`intersect_voxel_clipped`]'s test, inlined into each of its compilations.
+#[inline(always)]
+fn hit_clipped(
+    voxel: &Voxel,
+    iso: f32,
+    ray: &GridRay,
+    (tmin, tmax): (f64, f64),
+    clip: (f64, f64),
+) -> Option<VoxelHit> {
     let setup = VoxelSetup::new(voxel, iso)?;
-    Segment::in_box(voxel, &setup, ray, (tmin, tmax), clip)?.first_hit()
+    Segment::in_box_inlined(voxel, &setup, ray, (tmin, tmax), clip)?.first_hit()
 }
 
 /// True exactly when [`intersect_voxel`] finds a hit: the any-hit test, which skips refining
@@ -137,10 +154,22 @@ fn occludes_clipped(
         .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
 }
 
-/// The single-ray any-hit tests out of line where AVX2 is expected (so that the dispatch inlines
+/// The single-ray tests out of line where AVX2 is expected (so that the dispatch inlines
 /// into its callers without the test).
 mod scalar {
-    use super::{GridRay, Voxel};
+    use super::{GridRay, Voxel, VoxelHit};
+
+    /// [`super::intersect_voxel_clipped`] without AVX2.
+    #[cfg_attr(target_arch = "x86_64", inline(never))]
+    pub(super) fn hit_clipped(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        t: (f64, f64),
+        clip: (f64, f64),
+    ) -> Option<VoxelHit> {
+        super::hit_clipped(voxel, iso, ray, t, clip)
+    }
 
     /// [`super::voxel_occludes_with`] without AVX2.
     #[cfg_attr(target_arch = "x86_64", inline(never))]
@@ -168,12 +197,27 @@ mod scalar {
     }
 }
 
-/// The single-ray any-hit tests compiled for AVX2: the same `f64` operations in the same order
+/// The single-ray tests compiled for AVX2: the same `f64` operations in the same order
 /// (no fused multiply-adds: Rust never contracts), so the same answers, in fewer instructions
 /// (three-operand forms spare the register copies the SSE code needs).
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::{GridRay, Voxel};
+    use super::{GridRay, Voxel, VoxelHit};
+
+    /// [`super::intersect_voxel_clipped`] compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) fn hit_clipped(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        t: (f64, f64),
+        clip: (f64, f64),
+    ) -> Option<VoxelHit> {
+        super::hit_clipped(voxel, iso, ray, t, clip)
+    }
 
     /// [`super::voxel_occludes_with`] compiled for AVX2.
     ///

@@ -254,6 +254,7 @@ mod avx2 {
 /// [`voxel_occludes`] for the rays `m` of a packet, each with its reciprocal direction
 /// ([`GridRay::recip`]) and its own `tmin` and `tmax`: the rays of `m` for which it is true (the
 /// voxel's set-up is computed once, and with AVX2 the segments are built four rays at a time).
+#[inline]
 pub fn voxel_occluders_packet(
     voxel: &Voxel,
     iso: f32,
@@ -263,14 +264,14 @@ pub fn voxel_occluders_packet(
     tmin: &[f64],
     tmax: &[f64],
 ) -> Mask {
-    let Some(setup) = VoxelSetup::new(voxel, iso) else {
-        return 0;
-    };
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { x4::occluders(voxel, &setup, rays, recips, m, tmin, tmax) };
+        return unsafe { x4::occluders(voxel, iso, rays, recips, m, tmin, tmax) };
     }
+    let Some(setup) = VoxelSetup::new(voxel, iso) else {
+        return 0;
+    };
     rays_where(m, |k| {
         let (tmin, tmax) = (tmin[k], tmax[k]);
         rays[k]

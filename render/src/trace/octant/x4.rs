@@ -72,22 +72,26 @@ pub(super) fn hits(
     out
 }
 
-/// [`super::voxel_occluders_packet`]'s work for the rays `m` once the voxel's `setup` is known:
-/// the rays of `m` for which [`super::voxel_occludes`] is true, each segment built four rays at
-/// a time as [`hits`] builds it and asked only whether it has a root.
+/// [`super::voxel_occluders_packet`] on a CPU with AVX2, the voxel's set-up included: the rays
+/// of `m` for which [`super::voxel_occludes`] is true, each segment built four rays at a time as
+/// [`hits`] builds it and asked only whether it has a root.
 ///
 /// # Safety
 /// The CPU must have AVX2.
 #[target_feature(enable = "avx2")]
 pub(super) fn occluders(
     voxel: &Voxel,
-    setup: &VoxelSetup,
+    iso: f32,
     rays: &[GridRay],
     recips: &[[f64; 3]],
     m: Mask,
     tmin: &[f64],
     tmax: &[f64],
 ) -> Mask {
+    let Some(setup) = VoxelSetup::new(voxel, iso) else {
+        return 0;
+    };
+    let setup = &setup;
     let end = (Mask::BITS - m.leading_zeros()) as usize;
     assert!(end <= rays.len() && end <= recips.len() && end <= tmin.len() && end <= tmax.len());
     let w = [0, 1, 2].map(|a| voxel.hi[a] - voxel.lo[a]);

@@ -329,6 +329,7 @@ impl VoxelSetup {
 /// ([`GridRay::recip`]) and its own `tmin` and `tmax`: the rays of `m` that [`intersect_voxel`]
 /// gives a hit, each that hit in `hits[k]` (the voxel's set-up is computed once; the entries of
 /// the other rays are left unspecified).
+#[inline]
 #[allow(clippy::too_many_arguments)]
 pub fn intersect_voxel_packet(
     voxel: &Voxel,
@@ -340,14 +341,14 @@ pub fn intersect_voxel_packet(
     tmax: &[f64],
     hits: &mut [Option<VoxelHit>],
 ) -> Mask {
-    let Some(setup) = VoxelSetup::new(voxel, iso) else {
-        return 0;
-    };
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { x4::hits(voxel, &setup, rays, recips, m, tmin, tmax, hits) };
+        return unsafe { x4::hits(voxel, iso, rays, recips, m, tmin, tmax, hits) };
     }
+    let Some(setup) = VoxelSetup::new(voxel, iso) else {
+        return 0;
+    };
     rays_where(m, |k| {
         let (tmin, tmax) = (tmin[k], tmax[k]);
         hits[k] = rays[k]

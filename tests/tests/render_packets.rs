@@ -6,7 +6,8 @@
 //! rays traced as packets ([`Surface::any_hits`]) answer for every ray what the single-ray
 //! occlusion query ([`Surface::any_hit`]) answers, on the same rays, also when asked in turn
 //! ([`Tracer::occluded_in_turn`], the rays' set-up shared). A tile's layers behind
-//! transparent hits found with packets ([`TileLayers`]) are the single-ray search's.
+//! transparent hits found with packets ([`TileLayers`]) are the single-ray search's. A
+//! source's own any-hit test of candidate voxels answers what its test by lookup answers.
 
 use amr_format::AmrkFile;
 use amr_render::bvh::BvhBuilder;
@@ -14,6 +15,7 @@ use amr_render::shade::integrate::{shade_hits, KeyShadow, Lighting, SearchHint};
 use amr_render::shade::layers::{ray_layers, Layer, TileLayers};
 use amr_render::shade::packets::TileHits;
 use amr_render::shade::sampling::Rng as PixelRng;
+use amr_render::trace::source::{occlusion_tests_by_lookup, AnyHitQuery, BoxClip};
 use amr_render::trace::tracer::{HybridTracer, Tracer};
 use amr_render::trace::traverse::Surface;
 use amr_render::trace::FieldSource;
@@ -193,6 +195,95 @@ fn packets_find_the_single_ray_hits() {
         let packets: Vec<Vec<_>> = aimed.chunks(64).map(|c| c.to_vec()).collect();
         let (found, _) = compare(&src, &surface, &format!("{method:?} corners"), &packets);
         assert!(found > 500, "{method:?}: only {found} aimed rays hit");
+    }
+}
+
+/// A source's own any-hit test of candidate voxels ([`VoxelSource::with_occlusion_tests`]:
+/// the octant method tests a voxel where its cache holds it) answers what the test by lookup
+/// answers ([`occlusion_tests_by_lookup`]), one ray or a packet at a time, for voxels the cache
+/// holds and voxels it does not, rays that cross a voxel's box and rays that miss it.
+#[test]
+fn a_sources_occlusion_test_answers_the_lookups() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sphere.amrk");
+    write_half_refined_sphere(&path, 3, 2, 8);
+    let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+    for method in [
+        Reconstruction::Octant,
+        Reconstruction::Current,
+        Reconstruction::Nearest,
+    ] {
+        let src = FieldSource::new(&file, 0, method).unwrap();
+        let refs = src.extract(0.0).unwrap().refs;
+        let mut rng = Rng(5);
+        let (mut occluded, mut open) = (0, 0);
+        for &r in refs.iter().cycle().take(3 * refs.len()) {
+            let (lo, hi) = src.voxel_box(r);
+            // Four rays from around the box through points in or near it (some miss it).
+            let rays: Vec<GridRay> = (0..4)
+                .map(|_| {
+                    let at = [0, 1, 2].map(|a| lo[a] + (1.4 * rng.f64() - 0.2) * (hi[a] - lo[a]));
+                    let d = [0, 1, 2].map(|_| rng.f64() - 0.5);
+                    let o = [0, 1, 2].map(|a| at[a] - 2.0 * d[a] * (hi[a] - lo[a]));
+                    GridRay { o, d }
+                })
+                .collect();
+            let recips: Vec<[f64; 3]> = rays.iter().map(GridRay::recip).collect();
+            let tmin: Vec<f64> = (0..4).map(|k| if k == 1 { 1.9 } else { 0.0 }).collect();
+            let tmax: Vec<f64> = (0..4)
+                .map(|k| if k == 2 { 2.1 } else { f64::INFINITY })
+                .collect();
+            let ask = |own: bool, query: AnyHitQuery<'_>| {
+                let mut got = 0;
+                let mut f =
+                    |test: &mut amr_render::trace::source::OcclusionTest<'_>| got = test(r, query);
+                if own {
+                    src.with_occlusion_tests(0.0, &mut f);
+                } else {
+                    occlusion_tests_by_lookup(&src, 0.0, &mut f);
+                }
+                got
+            };
+            for k in 0..4 {
+                let clip = BoxClip {
+                    ray: &rays[k],
+                    recip: &recips[k],
+                    tmin: tmin[k],
+                    tmax: tmax[k],
+                };
+                // Asked first of the source (the voxel perhaps not cached yet), then by
+                // lookup, then of the source again.
+                let first = ask(true, AnyHitQuery::One(&clip));
+                assert_eq!(
+                    first,
+                    ask(false, AnyHitQuery::One(&clip)),
+                    "{method:?} {r:#x} {k}"
+                );
+                assert_eq!(
+                    first,
+                    ask(true, AnyHitQuery::One(&clip)),
+                    "{method:?} {r:#x} {k}"
+                );
+                if first != 0 {
+                    occluded += 1;
+                } else {
+                    open += 1;
+                }
+            }
+            let packet = AnyHitQuery::Packet {
+                rays: &rays,
+                recips: &recips,
+                m: 0b1011,
+                tmin: &tmin,
+                tmax: &tmax,
+            };
+            let want = ask(false, packet);
+            assert_eq!(ask(true, packet), want, "{method:?} {r:#x} packet");
+        }
+        assert!(
+            occluded > 1000 && open > 1000,
+            "{method:?}: {occluded} occluded, {open} open"
+        );
     }
 }
 

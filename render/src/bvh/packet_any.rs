@@ -15,7 +15,7 @@ use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray;
 
 use super::packet::{walk_packet, xor_slots, Mask, PacketStack};
-use super::walk::{child_entry, leaf_prims};
+use super::walk::{child_entry, leaf_prims, Stack};
 
 /// Walks `nodes` (empty, or a CWBVH8 whose root is node 0) with the rays of `active`, children
 /// taken farthest first in the order of direction octant code `oct_inv4`: `test(node, rays, m,
@@ -65,17 +65,17 @@ pub fn walk_packet_any(
             }
             continue;
         }
-        let node = &nodes[entry as usize];
-        let imask = u32::from(node.imask);
         if m & (m - 1) == 0 {
-            let mut order = xor_slots(test_one(node, &rays[m.trailing_zeros() as usize]), far);
-            while order != 0 {
-                let s = order.trailing_zeros() ^ far;
-                order &= order - 1;
-                stack.push((child_entry(node, s, imask), m));
+            if walk_lone(nodes, entry, m, far, rays, stack, &test_one, &mut leaf) {
+                live &= !m;
+                if live == 0 {
+                    break;
+                }
             }
             continue;
         }
+        let node = &nodes[entry as usize];
+        let imask = u32::from(node.imask);
         let mut entered = [0; 8];
         let hit = test(node, rays, m, &mut entered);
         let mut order = xor_slots(hit, far);
@@ -87,6 +87,47 @@ pub fn walk_packet_any(
     }
     stack.truncate(floor);
     active & !live
+}
+
+/// [`walk_packet_any`]'s walk below the inner node `entry` reached by the one live ray `m`: the
+/// nodes and primitives the packet walk would take there, in the same order (the entries a node
+/// pushes are popped before any entry below them, in both walks), on a stack of bare entries
+/// (every one is the ray's alone). True when `leaf` ends the ray, which stops the walk.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn walk_lone(
+    nodes: &[CwBvhNode],
+    entry: u64,
+    m: Mask,
+    far: u32,
+    rays: &mut [Ray],
+    stack: &mut PacketStack,
+    test_one: &impl Fn(&CwBvhNode, &Ray) -> u32,
+    leaf: &mut impl FnMut(u32, Mask, &mut [Ray], &mut PacketStack) -> Mask,
+) -> bool {
+    let k = m.trailing_zeros() as usize;
+    let mut lone = Stack::new();
+    lone.push(entry);
+    while !lone.is_empty() {
+        let entry = lone.pop();
+        if let Some(prims) = leaf_prims(entry) {
+            for i in prims {
+                if leaf(i, m, rays, stack) != 0 {
+                    return true;
+                }
+            }
+            continue;
+        }
+        let node = &nodes[entry as usize];
+        let imask = u32::from(node.imask);
+        let mut order = xor_slots(test_one(node, &rays[k]), far);
+        while order != 0 {
+            let s = order.trailing_zeros() ^ far;
+            order &= order - 1;
+            lone.push(child_entry(node, s, imask));
+        }
+    }
+    false
 }
 
 /// [`walk_packet_any`] when `ANY`, else [`super::packet::walk_packet`] (which has no use for

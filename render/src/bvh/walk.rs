@@ -64,10 +64,16 @@ impl Stack {
         }
     }
 
+    /// True when no entry is left.
+    #[inline(always)]
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
     /// Pushes an entry; when full, the last entry is overwritten (obvhs's `StackStack` does the
     /// same; the depth bound above keeps it from happening).
     #[inline(always)]
-    fn push(&mut self, entry: u64) {
+    pub fn push(&mut self, entry: u64) {
         // SAFETY: the index is below `STACK`; writing through the pointer reads nothing.
         unsafe {
             self.entries
@@ -79,8 +85,9 @@ impl Stack {
         self.len = (self.len + 1).min(STACK - 1);
     }
 
+    /// Pops the last entry pushed; the stack must not be empty.
     #[inline(always)]
-    fn pop(&mut self) -> u64 {
+    pub fn pop(&mut self) -> u64 {
         self.len -= 1;
         // SAFETY: every entry below `len` was written by `push` (`len` grows only there, by at
         // most one past the entry written).

@@ -591,14 +591,14 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// The voxel `r` names located in its leaf, with its box, its values not read: what
     /// [`Self::decode_located`] needs besides the leaf's frame, which `last` then holds
     /// ([`Self::resolve_in`]).
-    #[inline]
+    #[inline(always)]
     pub fn locate_with(&self, r: u64, last: &mut Option<DecodeFrame>) -> Result<LocatedVoxel> {
         self.locate_in(r, last)
     }
 
     /// [`Self::decode_with`] of the voxel `r` that [`Self::locate_with`] located as `at`,
     /// `last` the frame it left.
-    #[inline]
+    #[inline(always)]
     pub fn decode_located(
         &self,
         r: u64,

@@ -32,7 +32,10 @@ use crate::trace::octant::{
     voxel_occludes_clipped, voxel_occludes_with, VoxelHit,
 };
 use crate::trace::ray::GridRay;
-use crate::trace::source::{BoxClip, BoxedLookup, GridFrame, Voxel, VoxelLookup, VoxelSource};
+use crate::trace::source::{
+    occlusion_tests_by_lookup, AnyHitQuery, BoxClip, BoxedLookup, GridFrame, OcclusionTest, Voxel,
+    VoxelLookup, VoxelSource,
+};
 use crate::trace::tracer::{central_difference_given, SurfaceHit};
 
 /// Bytes of decompressed bricks the sampler may cache.
@@ -317,6 +320,75 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         Some((v, clipped))
     }
 
+    /// [`VoxelSource::with_occlusion_tests`]' test of the octant voxel `r`: what
+    /// [`occlusion_tests_by_lookup`] answers from [`Self::octant_voxel_if`]'s voxel, the voxel
+    /// tested where `cache` holds it rather than copied out.
+    #[inline(always)]
+    fn octant_occluders(
+        &self,
+        e: &Extractor<'f, D>,
+        cache: &mut VoxelCache,
+        iso: f32,
+        r: u64,
+        query: AnyHitQuery<'_>,
+    ) -> Mask {
+        let slot = match cache.held_at(r) {
+            Ok(at) => return occluders_of(&cache.slots[at].1, iso, query),
+            Err(slot) => slot,
+        };
+        let last = &mut cache.leaves[leaf_slot(r)];
+        let at = match e.locate_with(r, last) {
+            Ok(at) => at,
+            Err(err) => {
+                self.record(err);
+                return occluders_of(&Voxel::EMPTY, iso, query);
+            }
+        };
+        let clip = match query {
+            AnyHitQuery::One(c) => Some(c.of(at.lo.map(|x| x as f64), at.hi.map(|x| x as f64))),
+            AnyHitQuery::Packet { .. } => None,
+        };
+        if clip == Some(None) {
+            return 0;
+        }
+        let v = match e.decode_located(r, &at, &mut cache.scratch, last) {
+            Ok(v) => v,
+            Err(err) => {
+                self.record(err);
+                return occluders_of(&Voxel::EMPTY, iso, query);
+            }
+        };
+        cache.slots[slot] = (r, v);
+        match (query, clip) {
+            (AnyHitQuery::One(c), Some(Some(clip))) => Mask::from(voxel_occludes_clipped(
+                &v,
+                iso,
+                c.ray,
+                (c.tmin, c.tmax),
+                clip,
+            )),
+            _ => occluders_of(&v, iso, query),
+        }
+    }
+
+    /// [`Self::octant_occluders`] compiled for AVX2: the same answers (the same operations;
+    /// three-operand forms spare register copies).
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn octant_occluders_avx2(
+        &self,
+        e: &Extractor<'f, D>,
+        cache: &mut VoxelCache,
+        iso: f32,
+        r: u64,
+        query: AnyHitQuery<'_>,
+    ) -> Mask {
+        self.octant_occluders(e, cache, iso, r, query)
+    }
+
     /// Decodes the voxel `r` names into `cache`'s slot `slot`; the empty voxel, its error
     /// recorded, when it cannot be decoded.
     #[inline]
@@ -343,14 +415,48 @@ fn leaf_slot(r: u64) -> usize {
     (r >> 32) as usize % LEAF_SLOTS
 }
 
+/// The rays of `query` that the octant method's `voxel` occludes ([`voxel_occludes_with`],
+/// [`voxel_occluders_packet`]), a single ray's answer as 1 or 0.
+#[inline(always)]
+fn occluders_of(voxel: &Voxel, iso: f32, query: AnyHitQuery<'_>) -> Mask {
+    match query {
+        AnyHitQuery::One(c) => Mask::from(voxel_occludes_with(
+            voxel, iso, c.ray, c.recip, c.tmin, c.tmax,
+        )),
+        AnyHitQuery::Packet {
+            rays,
+            recips,
+            m,
+            tmin,
+            tmax,
+        } => voxel_occluders_packet(voxel, iso, rays, recips, m, tmin, tmax),
+    }
+}
+
 impl VoxelCache {
-    /// The voxel of ref `r` if this cache holds it, else the slot it goes in: Fibonacci
-    /// hashing of the ref, so that neighbouring refs land in different slots.
+    /// The voxel of ref `r` if this cache holds it, else the slot it goes in ([`Self::slot`]).
     #[inline(always)]
     fn held(&self, r: u64) -> std::result::Result<Voxel, usize> {
-        let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
+        let slot = Self::slot(r);
         match self.slots[slot] {
             (key, v) if key == r && r != u64::MAX => Ok(v),
+            _ => Err(slot),
+        }
+    }
+
+    /// The slot of ref `r`'s voxel: Fibonacci hashing of the ref, so that neighbouring refs
+    /// land in different slots.
+    #[inline(always)]
+    fn slot(r: u64) -> usize {
+        (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS
+    }
+
+    /// [`Self::held`]'s slot either way: `Ok` when it holds the voxel of ref `r`.
+    #[inline(always)]
+    fn held_at(&self, r: u64) -> std::result::Result<usize, usize> {
+        let slot = Self::slot(r);
+        match self.slots[slot] {
+            (key, _) if key == r && r != u64::MAX => Ok(slot),
             _ => Err(slot),
         }
     }
@@ -444,6 +550,21 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
             Voxels::Octant(e) => f(&mut |r, clip| self.octant_voxel_if(e, &mut cache, r, clip)),
             _ => f(&mut |r, _| Some((self.voxel_in(&mut cache, r), None))),
         }
+    }
+
+    fn with_occlusion_tests(&self, iso: f32, f: &mut dyn FnMut(&mut OcclusionTest<'_>)) {
+        let Voxels::Octant(e) = &self.voxels else {
+            return occlusion_tests_by_lookup(self, iso, f);
+        };
+        let mut cache = self.thread_cache().borrow_mut();
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            return f(&mut |r, query| unsafe {
+                self.octant_occluders_avx2(e, &mut cache, iso, r, query)
+            });
+        }
+        f(&mut |r, query| self.octant_occluders(e, &mut cache, iso, r, query))
     }
 
     fn voxel_box(&self, r: u64) -> ([f64; 3], [f64; 3]) {

@@ -60,8 +60,25 @@ pub fn intersect_voxel_clipped(
     (tmin, tmax): (f64, f64),
     clip: (f64, f64),
 ) -> Option<VoxelHit> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { avx2::hit_clipped(voxel, iso, ray, (tmin, tmax), clip) };
+    }
+    scalar::hit_clipped(voxel, iso, ray, (tmin, tmax), clip)
+}
+
+/// [`intersect_voxel_clipped`]'s test, inlined into each of its compilations.
+#[inline(always)]
+fn hit_clipped(
+    voxel: &Voxel,
+    iso: f32,
+    ray: &GridRay,
+    (tmin, tmax): (f64, f64),
+    clip: (f64, f64),
+) -> Option<VoxelHit> {
     let setup = VoxelSetup::new(voxel, iso)?;
-    Segment::in_box(voxel, &setup, ray, (tmin, tmax), clip)?.first_hit()
+    Segment::in_box_inlined(voxel, &setup, ray, (tmin, tmax), clip)?.first_hit()
 }
 
 /// True exactly when [`intersect_voxel`] finds a hit: the any-hit test, which skips refining
@@ -82,12 +99,26 @@ pub fn voxel_occludes_with(
     tmin: f64,
     tmax: f64,
 ) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { avx2::occludes_with(voxel, iso, ray, recip, tmin, tmax) };
+    }
+    scalar::occludes_with(voxel, iso, ray, recip, tmin, tmax)
+}
+
+/// [`voxel_occludes_with`]'s test, inlined into each of its compilations.
+#[inline(always)]
+fn occludes_with(
+    voxel: &Voxel,
+    iso: f32,
+    ray: &GridRay,
+    recip: &[f64; 3],
+    tmin: f64,
+    tmax: f64,
+) -> bool {
     ray.clip_with(recip, voxel.lo, voxel.hi, tmin, tmax)
-        .and_then(|t| {
-            let setup = VoxelSetup::new(voxel, iso)?;
-            Segment::in_box(voxel, &setup, ray, (tmin, tmax), t)
-        })
-        .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
+        .is_some_and(|t| occludes_clipped(voxel, iso, ray, (tmin, tmax), t))
 }
 
 /// [`voxel_occludes_with`] given `clip`, the interval [`GridRay::clip_with`] gives `ray` in the
@@ -101,14 +132,129 @@ pub fn voxel_occludes_clipped(
     (tmin, tmax): (f64, f64),
     clip: (f64, f64),
 ) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { avx2::occludes_clipped(voxel, iso, ray, (tmin, tmax), clip) };
+    }
+    scalar::occludes_clipped(voxel, iso, ray, (tmin, tmax), clip)
+}
+
+/// [`voxel_occludes_clipped`]'s test, inlined into each of its compilations.
+#[inline(always)]
+fn occludes_clipped(
+    voxel: &Voxel,
+    iso: f32,
+    ray: &GridRay,
+    (tmin, tmax): (f64, f64),
+    clip: (f64, f64),
+) -> bool {
     VoxelSetup::new(voxel, iso)
-        .and_then(|setup| Segment::in_box(voxel, &setup, ray, (tmin, tmax), clip))
+        .and_then(|setup| Segment::in_box_inlined(voxel, &setup, ray, (tmin, tmax), clip))
         .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
+}
+
+/// The single-ray tests out of line where AVX2 is expected (so that the dispatch inlines
+/// into its callers without the test).
+mod scalar {
+    use super::{GridRay, Voxel, VoxelHit};
+
+    /// [`super::intersect_voxel_clipped`] without AVX2.
+    #[cfg_attr(target_arch = "x86_64", inline(never))]
+    pub(super) fn hit_clipped(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        t: (f64, f64),
+        clip: (f64, f64),
+    ) -> Option<VoxelHit> {
+        super::hit_clipped(voxel, iso, ray, t, clip)
+    }
+
+    /// [`super::voxel_occludes_with`] without AVX2.
+    #[cfg_attr(target_arch = "x86_64", inline(never))]
+    pub(super) fn occludes_with(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        recip: &[f64; 3],
+        tmin: f64,
+        tmax: f64,
+    ) -> bool {
+        super::occludes_with(voxel, iso, ray, recip, tmin, tmax)
+    }
+
+    /// [`super::voxel_occludes_clipped`] without AVX2.
+    #[cfg_attr(target_arch = "x86_64", inline(never))]
+    pub(super) fn occludes_clipped(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        t: (f64, f64),
+        clip: (f64, f64),
+    ) -> bool {
+        super::occludes_clipped(voxel, iso, ray, t, clip)
+    }
+}
+
+/// The single-ray tests compiled for AVX2: the same `f64` operations in the same order
+/// (no fused multiply-adds: Rust never contracts), so the same answers, in fewer instructions
+/// (three-operand forms spare the register copies the SSE code needs).
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{GridRay, Voxel, VoxelHit};
+
+    /// [`super::intersect_voxel_clipped`] compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) fn hit_clipped(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        t: (f64, f64),
+        clip: (f64, f64),
+    ) -> Option<VoxelHit> {
+        super::hit_clipped(voxel, iso, ray, t, clip)
+    }
+
+    /// [`super::voxel_occludes_with`] compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) fn occludes_with(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        recip: &[f64; 3],
+        tmin: f64,
+        tmax: f64,
+    ) -> bool {
+        super::occludes_with(voxel, iso, ray, recip, tmin, tmax)
+    }
+
+    /// [`super::voxel_occludes_clipped`] compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) fn occludes_clipped(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        t: (f64, f64),
+        clip: (f64, f64),
+    ) -> bool {
+        super::occludes_clipped(voxel, iso, ray, t, clip)
+    }
 }
 
 /// [`voxel_occludes`] for the rays `m` of a packet, each with its reciprocal direction
 /// ([`GridRay::recip`]) and its own `tmin` and `tmax`: the rays of `m` for which it is true (the
 /// voxel's set-up is computed once, and with AVX2 the segments are built four rays at a time).
+#[inline]
 pub fn voxel_occluders_packet(
     voxel: &Voxel,
     iso: f32,
@@ -118,14 +264,14 @@ pub fn voxel_occluders_packet(
     tmin: &[f64],
     tmax: &[f64],
 ) -> Mask {
-    let Some(setup) = VoxelSetup::new(voxel, iso) else {
-        return 0;
-    };
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { x4::occluders(voxel, &setup, rays, recips, m, tmin, tmax) };
+        return unsafe { x4::occluders(voxel, iso, rays, recips, m, tmin, tmax) };
     }
+    let Some(setup) = VoxelSetup::new(voxel, iso) else {
+        return 0;
+    };
     rays_where(m, |k| {
         let (tmin, tmax) = (tmin[k], tmax[k]);
         rays[k]
@@ -183,6 +329,7 @@ impl VoxelSetup {
 /// ([`GridRay::recip`]) and its own `tmin` and `tmax`: the rays of `m` that [`intersect_voxel`]
 /// gives a hit, each that hit in `hits[k]` (the voxel's set-up is computed once; the entries of
 /// the other rays are left unspecified).
+#[inline]
 #[allow(clippy::too_many_arguments)]
 pub fn intersect_voxel_packet(
     voxel: &Voxel,
@@ -194,14 +341,14 @@ pub fn intersect_voxel_packet(
     tmax: &[f64],
     hits: &mut [Option<VoxelHit>],
 ) -> Mask {
-    let Some(setup) = VoxelSetup::new(voxel, iso) else {
-        return 0;
-    };
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { x4::hits(voxel, &setup, rays, recips, m, tmin, tmax, hits) };
+        return unsafe { x4::hits(voxel, iso, rays, recips, m, tmin, tmax, hits) };
     }
+    let Some(setup) = VoxelSetup::new(voxel, iso) else {
+        return 0;
+    };
     rays_where(m, |k| {
         let (tmin, tmax) = (tmin[k], tmax[k]);
         hits[k] = rays[k]
@@ -228,6 +375,18 @@ impl Segment {
     /// `[t_in, t_out]` in the voxel's box.
     #[inline]
     fn in_box(
+        voxel: &Voxel,
+        setup: &VoxelSetup,
+        ray: &GridRay,
+        t: (f64, f64),
+        clip: (f64, f64),
+    ) -> Option<Segment> {
+        Self::in_box_inlined(voxel, setup, ray, t, clip)
+    }
+
+    /// [`Self::in_box`], inlined into its caller.
+    #[inline(always)]
+    fn in_box_inlined(
         voxel: &Voxel,
         setup: &VoxelSetup,
         ray: &GridRay,

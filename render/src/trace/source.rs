@@ -72,6 +72,66 @@ pub type VoxelLookup<'a> = dyn FnMut(u64) -> Voxel + 'a;
 pub type BoxedLookup<'a> =
     dyn FnMut(u64, Option<&BoxClip<'_>>) -> Option<(Voxel, Option<(f64, f64)>)> + 'a;
 
+/// What an any-hit walk asks of a candidate voxel ([`OcclusionTest`]).
+#[derive(Clone, Copy)]
+pub enum AnyHitQuery<'a> {
+    /// One ray over its interval, clipped to the voxel's box first: [`VoxelSource::occludes`].
+    One(&'a BoxClip<'a>),
+    /// The rays `m` of a packet: [`VoxelSource::occluders_packet`]'s arguments.
+    Packet {
+        /// The packet's rays.
+        rays: &'a [GridRay],
+        /// Their reciprocal directions ([`GridRay::recip`]).
+        recips: &'a [[f64; 3]],
+        /// The rays asked about.
+        m: Mask,
+        /// Each ray's `tmin`.
+        tmin: &'a [f64],
+        /// Each ray's `tmax`.
+        tmax: &'a [f64],
+    },
+}
+
+/// An any-hit test of voxels by ref ([`VoxelSource::with_occlusion_tests`]): `test(r, query)`
+/// gives the rays of `query` that the voxel `r` names occludes, a single ray's answer as 1 or 0.
+pub type OcclusionTest<'a> = dyn FnMut(u64, AnyHitQuery<'_>) -> Mask + 'a;
+
+/// [`VoxelSource::with_occlusion_tests`] by [`VoxelSource::with_boxed_voxels`]: each voxel
+/// looked up (a single ray's clipped to its box first), then [`VoxelSource::occludes_clipped`],
+/// [`VoxelSource::occludes`] or [`VoxelSource::occluders_packet`].
+pub fn occlusion_tests_by_lookup<S: VoxelSource + ?Sized>(
+    src: &S,
+    iso: f32,
+    f: &mut dyn FnMut(&mut OcclusionTest<'_>),
+) {
+    src.with_boxed_voxels(&mut |voxel_of| {
+        f(&mut |r, query| match query {
+            AnyHitQuery::One(c) => {
+                let Some((voxel, clip)) = voxel_of(r, Some(c)) else {
+                    return 0;
+                };
+                let (ray, recip, t) = (c.ray, c.recip, (c.tmin, c.tmax));
+                Mask::from(match clip {
+                    Some(clip) => src.occludes_clipped(&voxel, iso, ray, recip, t, clip),
+                    None => src.occludes(&voxel, iso, ray, recip, t.0, t.1),
+                })
+            }
+            AnyHitQuery::Packet {
+                rays,
+                recips,
+                m,
+                tmin,
+                tmax,
+            } => {
+                let Some((voxel, _)) = voxel_of(r, None) else {
+                    return 0;
+                };
+                src.occluders_packet(&voxel, iso, rays, recips, m, tmin, tmax)
+            }
+        })
+    })
+}
+
 /// A ray over `[tmin, tmax]`, to be clipped to a candidate voxel's box before the voxel's values
 /// are read ([`BoxedLookup`]).
 #[derive(Clone, Copy)]
@@ -119,6 +179,14 @@ pub trait VoxelSource: Sync {
     /// without decoding its values. By default every voxel is given, not clipped.
     fn with_boxed_voxels(&self, f: &mut dyn FnMut(&mut BoxedLookup<'_>)) {
         self.with_voxels(&mut |voxel_of| f(&mut |r, _| Some((voxel_of(r), None))))
+    }
+
+    /// Calls `f` with an any-hit test of candidate voxels by ref for surface `iso`
+    /// ([`OcclusionTest`]), for the many candidates of an any-hit walk: by default
+    /// [`occlusion_tests_by_lookup`]; a source with a cache may test a voxel where its cache
+    /// holds it. The answers must be [`occlusion_tests_by_lookup`]'s.
+    fn with_occlusion_tests(&self, iso: f32, f: &mut dyn FnMut(&mut OcclusionTest<'_>)) {
+        occlusion_tests_by_lookup(self, iso, f)
     }
 
     /// The box `(lo, hi)` of the voxel named by `r`: by default [`Self::voxel`]'s; sources that

@@ -10,7 +10,7 @@ use crate::camera::dot;
 use crate::trace::last_hit::{self, Query};
 use crate::trace::octant::VoxelHit;
 use crate::trace::ray::{bvh_rays, GridRay};
-use crate::trace::source::{BoxClip, GridFrame, Voxel, VoxelSource};
+use crate::trace::source::{AnyHitQuery, BoxClip, GridFrame, Voxel, VoxelSource};
 use crate::trace::tracer::Behind;
 
 /// One isosurface ready to trace: its isovalue and the BVH over its active voxels.
@@ -427,7 +427,7 @@ impl Surface {
             ..
         } = rays;
         let (grid, tmin, tmax) = (*grid, *tmin, &tmax[..n]);
-        src.with_boxed_voxels(&mut |voxel_of| {
+        src.with_occlusion_tests(self.iso, &mut |test| {
             self.bvh
                 .traverse_packet_any(&mut ray32[..n], live, |_, r, m, _| {
                     let found = if m & (m - 1) == 0 {
@@ -435,32 +435,28 @@ impl Surface {
                         // with first, before the voxel's values are decoded (about a third of a
                         // far view's single-ray candidates fail it).
                         let k = m.trailing_zeros() as usize;
-                        let (ray, recip, t0, t1) = (&grid[k], &recips[k], tmin[k], tmax[k]);
                         let box_clip = BoxClip {
-                            ray,
-                            recip,
-                            tmin: t0,
-                            tmax: t1,
+                            ray: &grid[k],
+                            recip: &recips[k],
+                            tmin: tmin[k],
+                            tmax: tmax[k],
                         };
-                        let Some((voxel, clip)) = voxel_of(r, Some(&box_clip)) else {
-                            return 0;
-                        };
-                        let occluded = match clip {
-                            Some(clip) => {
-                                src.occludes_clipped(&voxel, self.iso, ray, recip, (t0, t1), clip)
-                            }
-                            None => src.occludes(&voxel, self.iso, ray, recip, t0, t1),
-                        };
-                        if occluded {
+                        if test(r, AnyHitQuery::One(&box_clip)) != 0 {
                             m
                         } else {
                             0
                         }
                     } else {
-                        let Some((voxel, _)) = voxel_of(r, None) else {
-                            return 0;
-                        };
-                        src.occluders_packet(&voxel, self.iso, grid, &recips[..n], m, tmin, tmax)
+                        test(
+                            r,
+                            AnyHitQuery::Packet {
+                                rays: grid,
+                                recips: &recips[..n],
+                                m,
+                                tmin,
+                                tmax,
+                            },
+                        )
                     };
                     hit |= found;
                     found

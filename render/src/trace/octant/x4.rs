@@ -19,8 +19,8 @@ use crate::trace::lanes::{abs, larger, smaller, PerLane};
 use crate::trace::ray::GridRay;
 use crate::trace::source::Voxel;
 
-/// [`super::intersect_voxel_packet`]'s work for the rays `m` once the voxel's `setup` is known:
-/// the rays of `m` with a hit, each in `hits[k]` (the other rays' entries are not written).
+/// [`super::intersect_voxel_packet`] on a CPU with AVX2, the voxel's set-up included: the rays
+/// of `m` with a hit, each in `hits[k]` (the other rays' entries are not written).
 ///
 /// # Safety
 /// The CPU must have AVX2.
@@ -28,7 +28,7 @@ use crate::trace::source::Voxel;
 #[allow(clippy::too_many_arguments)]
 pub(super) fn hits(
     voxel: &Voxel,
-    setup: &VoxelSetup,
+    iso: f32,
     rays: &[GridRay],
     recips: &[[f64; 3]],
     m: Mask,
@@ -36,6 +36,10 @@ pub(super) fn hits(
     tmax: &[f64],
     hits: &mut [Option<VoxelHit>],
 ) -> Mask {
+    let Some(setup) = VoxelSetup::new(voxel, iso) else {
+        return 0;
+    };
+    let setup = &setup;
     // One past the last ray of `m`: every ray the groups below read lies below it, so their
     // reads go unchecked.
     let end = (Mask::BITS - m.leading_zeros()) as usize;
@@ -72,22 +76,26 @@ pub(super) fn hits(
     out
 }
 
-/// [`super::voxel_occluders_packet`]'s work for the rays `m` once the voxel's `setup` is known:
-/// the rays of `m` for which [`super::voxel_occludes`] is true, each segment built four rays at
-/// a time as [`hits`] builds it and asked only whether it has a root.
+/// [`super::voxel_occluders_packet`] on a CPU with AVX2, the voxel's set-up included: the rays
+/// of `m` for which [`super::voxel_occludes`] is true, each segment built four rays at a time as
+/// [`hits`] builds it and asked only whether it has a root.
 ///
 /// # Safety
 /// The CPU must have AVX2.
 #[target_feature(enable = "avx2")]
 pub(super) fn occluders(
     voxel: &Voxel,
-    setup: &VoxelSetup,
+    iso: f32,
     rays: &[GridRay],
     recips: &[[f64; 3]],
     m: Mask,
     tmin: &[f64],
     tmax: &[f64],
 ) -> Mask {
+    let Some(setup) = VoxelSetup::new(voxel, iso) else {
+        return 0;
+    };
+    let setup = &setup;
     let end = (Mask::BITS - m.leading_zeros()) as usize;
     assert!(end <= rays.len() && end <= recips.len() && end <= tmin.len() && end <= tmax.len());
     let w = [0, 1, 2].map(|a| voxel.hi[a] - voxel.lo[a]);

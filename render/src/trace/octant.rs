@@ -49,36 +49,60 @@ pub fn intersect_voxel(
     Segment::new(voxel, iso, ray, tmin, tmax)?.first_hit()
 }
 
-/// [`intersect_voxel`] given `clip`, the interval [`GridRay::clip`] gives `ray` in the voxel's
-/// box for `tmin` and `tmax` (for a caller that clipped it before the voxel's values were
-/// known): the same hit.
-#[inline]
-pub fn intersect_voxel_clipped(
-    voxel: &Voxel,
-    iso: f32,
-    ray: &GridRay,
-    (tmin, tmax): (f64, f64),
-    clip: (f64, f64),
-) -> Option<VoxelHit> {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { avx2::hit_clipped(voxel, iso, ray, (tmin, tmax), clip) };
-    }
-    scalar::hit_clipped(voxel, iso, ray, (tmin, tmax), clip)
+/// Declares the public test `$name`, which runs `$test` (inlined into each compilation) compiled
+/// for AVX2 where the CPU has it, else a plain compilation kept out of line, so that the choice
+/// inlines into its callers without the test. The AVX2 compilation makes the same `f64`
+/// operations in the same order (no fused multiply-adds: Rust never contracts), so the same
+/// answers, in fewer instructions (three-operand forms spare the register copies SSE needs).
+macro_rules! avx2_or_plain {
+    ($(#[$doc:meta])* pub fn $name:ident($($arg:ident: $ty:ty),*) -> $ret:ty = $test:ident;) => {
+        $(#[$doc])*
+        #[inline]
+        pub fn $name($($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx2")]
+                fn avx2($($arg: $ty),*) -> $ret {
+                    $test($($arg),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU has AVX2, checked just above.
+                    return unsafe { avx2($($arg),*) };
+                }
+            }
+            #[cfg_attr(target_arch = "x86_64", inline(never))]
+            fn plain($($arg: $ty),*) -> $ret {
+                $test($($arg),*)
+            }
+            plain($($arg),*)
+        }
+    };
 }
 
-/// [`intersect_voxel_clipped`]'s test, inlined into each of its compilations.
+avx2_or_plain! {
+    /// [`intersect_voxel`] given `clip`, the interval [`GridRay::clip`] gives `ray` in the
+    /// voxel's box for the interval `t` (for a caller that clipped it before the voxel's values
+    /// were known): the same hit.
+    pub fn intersect_voxel_clipped(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        t: (f64, f64),
+        clip: (f64, f64)
+    ) -> Option<VoxelHit> = hit_clipped;
+}
+
+/// [`intersect_voxel_clipped`]'s test.
 #[inline(always)]
 fn hit_clipped(
     voxel: &Voxel,
     iso: f32,
     ray: &GridRay,
-    (tmin, tmax): (f64, f64),
+    t: (f64, f64),
     clip: (f64, f64),
 ) -> Option<VoxelHit> {
     let setup = VoxelSetup::new(voxel, iso)?;
-    Segment::in_box_inlined(voxel, &setup, ray, (tmin, tmax), clip)?.first_hit()
+    Segment::in_box_inlined(voxel, &setup, ray, t, clip)?.first_hit()
 }
 
 /// True exactly when [`intersect_voxel`] finds a hit: the any-hit test, which skips refining
@@ -88,26 +112,21 @@ pub fn voxel_occludes(voxel: &Voxel, iso: f32, ray: &GridRay, tmin: f64, tmax: f
     voxel_occludes_with(voxel, iso, ray, &ray.recip(), tmin, tmax)
 }
 
-/// [`voxel_occludes`] given `recip`, the ray's reciprocal direction ([`GridRay::recip`]), for a
-/// ray that keeps it for all its candidates: the same answer without the three divisions.
-#[inline]
-pub fn voxel_occludes_with(
-    voxel: &Voxel,
-    iso: f32,
-    ray: &GridRay,
-    recip: &[f64; 3],
-    tmin: f64,
-    tmax: f64,
-) -> bool {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { avx2::occludes_with(voxel, iso, ray, recip, tmin, tmax) };
-    }
-    scalar::occludes_with(voxel, iso, ray, recip, tmin, tmax)
+avx2_or_plain! {
+    /// [`voxel_occludes`] given `recip`, the ray's reciprocal direction ([`GridRay::recip`]),
+    /// for a ray that keeps it for all its candidates: the same answer without the three
+    /// divisions.
+    pub fn voxel_occludes_with(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        recip: &[f64; 3],
+        tmin: f64,
+        tmax: f64
+    ) -> bool = occludes_with;
 }
 
-/// [`voxel_occludes_with`]'s test, inlined into each of its compilations.
+/// [`voxel_occludes_with`]'s test.
 #[inline(always)]
 fn occludes_with(
     voxel: &Voxel,
@@ -121,134 +140,31 @@ fn occludes_with(
         .is_some_and(|t| occludes_clipped(voxel, iso, ray, (tmin, tmax), t))
 }
 
-/// [`voxel_occludes_with`] given `clip`, the interval [`GridRay::clip_with`] gives `ray` in the
-/// voxel's box for `tmin` and `tmax` (for a caller that clipped it before the voxel's values
-/// were known): the same answer.
-#[inline]
-pub fn voxel_occludes_clipped(
-    voxel: &Voxel,
-    iso: f32,
-    ray: &GridRay,
-    (tmin, tmax): (f64, f64),
-    clip: (f64, f64),
-) -> bool {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { avx2::occludes_clipped(voxel, iso, ray, (tmin, tmax), clip) };
-    }
-    scalar::occludes_clipped(voxel, iso, ray, (tmin, tmax), clip)
+avx2_or_plain! {
+    /// [`voxel_occludes_with`] given `clip`, the interval [`GridRay::clip_with`] gives `ray` in
+    /// the voxel's box for the interval `t` (for a caller that clipped it before the voxel's
+    /// values were known): the same answer.
+    pub fn voxel_occludes_clipped(
+        voxel: &Voxel,
+        iso: f32,
+        ray: &GridRay,
+        t: (f64, f64),
+        clip: (f64, f64)
+    ) -> bool = occludes_clipped;
 }
 
-/// [`voxel_occludes_clipped`]'s test, inlined into each of its compilations.
+/// [`voxel_occludes_clipped`]'s test.
 #[inline(always)]
 fn occludes_clipped(
     voxel: &Voxel,
     iso: f32,
     ray: &GridRay,
-    (tmin, tmax): (f64, f64),
+    t: (f64, f64),
     clip: (f64, f64),
 ) -> bool {
     VoxelSetup::new(voxel, iso)
-        .and_then(|setup| Segment::in_box_inlined(voxel, &setup, ray, (tmin, tmax), clip))
+        .and_then(|setup| Segment::in_box_inlined(voxel, &setup, ray, t, clip))
         .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
-}
-
-/// The single-ray tests out of line where AVX2 is expected (so that the dispatch inlines
-/// into its callers without the test).
-mod scalar {
-    use super::{GridRay, Voxel, VoxelHit};
-
-    /// [`super::intersect_voxel_clipped`] without AVX2.
-    #[cfg_attr(target_arch = "x86_64", inline(never))]
-    pub(super) fn hit_clipped(
-        voxel: &Voxel,
-        iso: f32,
-        ray: &GridRay,
-        t: (f64, f64),
-        clip: (f64, f64),
-    ) -> Option<VoxelHit> {
-        super::hit_clipped(voxel, iso, ray, t, clip)
-    }
-
-    /// [`super::voxel_occludes_with`] without AVX2.
-    #[cfg_attr(target_arch = "x86_64", inline(never))]
-    pub(super) fn occludes_with(
-        voxel: &Voxel,
-        iso: f32,
-        ray: &GridRay,
-        recip: &[f64; 3],
-        tmin: f64,
-        tmax: f64,
-    ) -> bool {
-        super::occludes_with(voxel, iso, ray, recip, tmin, tmax)
-    }
-
-    /// [`super::voxel_occludes_clipped`] without AVX2.
-    #[cfg_attr(target_arch = "x86_64", inline(never))]
-    pub(super) fn occludes_clipped(
-        voxel: &Voxel,
-        iso: f32,
-        ray: &GridRay,
-        t: (f64, f64),
-        clip: (f64, f64),
-    ) -> bool {
-        super::occludes_clipped(voxel, iso, ray, t, clip)
-    }
-}
-
-/// The single-ray tests compiled for AVX2: the same `f64` operations in the same order
-/// (no fused multiply-adds: Rust never contracts), so the same answers, in fewer instructions
-/// (three-operand forms spare the register copies the SSE code needs).
-#[cfg(target_arch = "x86_64")]
-mod avx2 {
-    use super::{GridRay, Voxel, VoxelHit};
-
-    /// [`super::intersect_voxel_clipped`] compiled for AVX2.
-    ///
-    /// # Safety
-    /// The CPU must have AVX2.
-    #[target_feature(enable = "avx2")]
-    pub(super) fn hit_clipped(
-        voxel: &Voxel,
-        iso: f32,
-        ray: &GridRay,
-        t: (f64, f64),
-        clip: (f64, f64),
-    ) -> Option<VoxelHit> {
-        super::hit_clipped(voxel, iso, ray, t, clip)
-    }
-
-    /// [`super::voxel_occludes_with`] compiled for AVX2.
-    ///
-    /// # Safety
-    /// The CPU must have AVX2.
-    #[target_feature(enable = "avx2")]
-    pub(super) fn occludes_with(
-        voxel: &Voxel,
-        iso: f32,
-        ray: &GridRay,
-        recip: &[f64; 3],
-        tmin: f64,
-        tmax: f64,
-    ) -> bool {
-        super::occludes_with(voxel, iso, ray, recip, tmin, tmax)
-    }
-
-    /// [`super::voxel_occludes_clipped`] compiled for AVX2.
-    ///
-    /// # Safety
-    /// The CPU must have AVX2.
-    #[target_feature(enable = "avx2")]
-    pub(super) fn occludes_clipped(
-        voxel: &Voxel,
-        iso: f32,
-        ray: &GridRay,
-        t: (f64, f64),
-        clip: (f64, f64),
-    ) -> bool {
-        super::occludes_clipped(voxel, iso, ray, t, clip)
-    }
 }
 
 /// [`voxel_occludes`] for the rays `m` of a packet, each with its reciprocal direction

@@ -294,24 +294,12 @@ impl<'a> Avx2Packet<'a> {
             m & !self.rays == 0 && rays.len() == self.len,
             "rays {m:#x} are not all in the packet"
         );
-        let q = |b: &[u8; 8]| {
-            _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(
-                u64::from_le_bytes(*b) as i64,
-            )))
+        let (low, high, used) = child_planes(node);
+        let pick = |a: usize| match self.down[a] {
+            true => (high[a], low[a]),
+            false => (low[a], high[a]),
         };
-        let pick = |down: bool, lo: &[u8; 8], hi: &[u8; 8]| {
-            if down {
-                (q(hi), q(lo))
-            } else {
-                (q(lo), q(hi))
-            }
-        };
-        let (nx, fx) = pick(self.down[0], &node.child_min_x, &node.child_max_x);
-        let (ny, fy) = pick(self.down[1], &node.child_min_y, &node.child_max_y);
-        let (nz, fz) = pick(self.down[2], &node.child_min_z, &node.child_max_z);
-        let meta = _mm_cvtsi64_si128(u64::from_le_bytes(node.child_meta) as i64);
-        let empty = _mm_movemask_epi8(_mm_cmpeq_epi8(meta, _mm_setzero_si128())) as u32;
-        let used = !empty & 0xff;
+        let ((nx, fx), (ny, fy), (nz, fz)) = (pick(0), pick(1), pick(2));
         if m.count_ones() < GROUPS_FROM {
             return self.ray_by_ray(node, rays, m, [nx, fx, ny, fy, nz, fz], used, entered);
         }
@@ -407,11 +395,7 @@ impl<'a> Avx2Packet<'a> {
                 entered[s & 7] |= Mask::from(lanes & byte) << (8 * g);
             }
         }
-        let mut hit = 0;
-        for (_, s) in left {
-            hit |= u32::from(entered[s & 7] != 0) << s;
-        }
-        hit
+        entered_slots(left, entered)
     }
 
     /// [`Avx2Packet::children`] one ray at a time, the eight children in the lanes, given the
@@ -540,26 +524,13 @@ impl<'a> Avx2Packet<'a> {
 #[inline]
 pub fn ray_children(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
     use std::arch::x86_64::*;
-    let q = |b: &[u8; 8]| {
-        _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(
-            u64::from_le_bytes(*b) as i64,
-        )))
-    };
+    let (low, high, used) = child_planes(node);
     // The near and far planes along an axis: the high ones first where the ray goes down it.
-    let pick = |up: u32, lo: &[u8; 8], hi: &[u8; 8]| {
-        if oct_inv4 & up == 0 {
-            (q(hi), q(lo))
-        } else {
-            (q(lo), q(hi))
-        }
+    let pick = |a: usize, up: u32| match oct_inv4 & up == 0 {
+        true => (high[a], low[a]),
+        false => (low[a], high[a]),
     };
-    let near_far = [
-        pick(4, &node.child_min_x, &node.child_max_x),
-        pick(2, &node.child_min_y, &node.child_max_y),
-        pick(1, &node.child_min_z, &node.child_max_z),
-    ];
-    let meta = _mm_cvtsi64_si128(u64::from_le_bytes(node.child_meta) as i64);
-    let empty = _mm_movemask_epi8(_mm_cmpeq_epi8(meta, _mm_setzero_si128())) as u32;
+    let near_far = [pick(0, 4), pick(1, 2), pick(2, 1)];
     let extent = node.compute_extent();
     let (e, p) = ([extent.x, extent.y, extent.z], node.p);
     let p = [p.x, p.y, p.z];
@@ -578,7 +549,44 @@ pub fn ray_children(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
             _mm256_add_ps(_mm256_mul_ps(far, scale), offset),
         )
     };
-    slab_hits([axis(0), axis(1), axis(2)], ray.tmax, !empty & 0xff)
+    slab_hits([axis(0), axis(1), axis(2)], ray.tmax, used)
+}
+
+/// A node's children's boxes, one child per lane: their quantized low and high planes per axis
+/// (x, y, z) as floats, and the slots that hold a child (a bit per slot).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn child_planes(
+    node: &CwBvhNode,
+) -> (
+    [std::arch::x86_64::__m256; 3],
+    [std::arch::x86_64::__m256; 3],
+    u32,
+) {
+    use std::arch::x86_64::*;
+    let q = |b: &[u8; 8]| {
+        _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(
+            u64::from_le_bytes(*b) as i64,
+        )))
+    };
+    let low = [&node.child_min_x, &node.child_min_y, &node.child_min_z].map(q);
+    let high = [&node.child_max_x, &node.child_max_y, &node.child_max_z].map(q);
+    let meta = _mm_cvtsi64_si128(u64::from_le_bytes(node.child_meta) as i64);
+    let empty = _mm_movemask_epi8(_mm_cmpeq_epi8(meta, _mm_setzero_si128())) as u32;
+    (low, high, !empty & 0xff)
+}
+
+/// The slots of `left` (children and their slots) that some ray entered (`entered`, a ray
+/// mask per slot).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+pub(super) fn entered_slots<T>(left: &[(T, usize)], entered: &[Mask; 8]) -> u32 {
+    let mut hit = 0;
+    for &(_, s) in left {
+        hit |= u32::from(entered[s & 7] != 0) << s;
+    }
+    hit
 }
 
 /// The children (slots of `used`, one per lane) whose slabs `slabs` (per axis, the distances

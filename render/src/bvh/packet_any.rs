@@ -192,16 +192,7 @@ pub fn children_of_octants(
     entered: &mut [Mask; 8],
 ) -> u32 {
     use std::arch::x86_64::*;
-    let q = |b: &[u8; 8]| {
-        _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(
-            u64::from_le_bytes(*b) as i64,
-        )))
-    };
-    let lo = [&node.child_min_x, &node.child_min_y, &node.child_min_z].map(q);
-    let hi = [&node.child_max_x, &node.child_max_y, &node.child_max_z].map(q);
-    let meta = _mm_cvtsi64_si128(u64::from_le_bytes(node.child_meta) as i64);
-    let empty = _mm_movemask_epi8(_mm_cmpeq_epi8(meta, _mm_setzero_si128())) as u32;
-    let used = !empty & 0xff;
+    let (lo, hi, used) = super::packet::child_planes(node);
     let extent = node.compute_extent();
     let e = [extent.x, extent.y, extent.z].map(|x| _mm256_set1_ps(x));
     let p = node.p;

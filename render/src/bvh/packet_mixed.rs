@@ -16,7 +16,7 @@ use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray;
 
 use super::node_test::octant_inv4;
-use super::packet::{groups_of, rays_of, Mask, PACKET};
+use super::packet::{child_planes, entered_slots, groups_of, rays_of, Mask, PACKET};
 
 /// Per group of eight rays of a packet: origin x, y, z, inverse direction x, y, z, and per axis
 /// a lane of all ones where the ray goes down the axis (its near planes are the high ones),
@@ -130,19 +130,11 @@ impl<'a> MixedPacket<'a> {
             m & !self.rays == 0 && rays.len() == self.len,
             "rays {m:#x} are not all in the packet"
         );
-        let q = |b: &[u8; 8]| {
-            _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(
-                u64::from_le_bytes(*b) as i64,
-            )))
-        };
-        let lo = [&node.child_min_x, &node.child_min_y, &node.child_min_z].map(q);
-        let hi = [&node.child_max_x, &node.child_max_y, &node.child_max_z].map(q);
-        let meta = _mm_cvtsi64_si128(u64::from_le_bytes(node.child_meta) as i64);
-        let empty = _mm_movemask_epi8(_mm_cmpeq_epi8(meta, _mm_setzero_si128())) as u32;
+        let (lo, hi, used) = child_planes(node);
         let extent = node.compute_extent();
         let (e, p) = ([extent.x, extent.y, extent.z], node.p);
         let p = [p.x, p.y, p.z];
-        let mut slots = !empty & 0xff & !self.outside_reach(&lo, &hi, e, p);
+        let mut slots = used & !self.outside_reach(&lo, &hi, e, p);
         if slots == 0 {
             return 0;
         }
@@ -225,11 +217,7 @@ impl<'a> MixedPacket<'a> {
                 entered[s & 7] |= Mask::from(lanes & byte) << (8 * g);
             }
         }
-        let mut hit = 0;
-        for (_, s) in left {
-            hit |= u32::from(entered[s & 7] != 0) << s;
-        }
-        hit
+        entered_slots(left, entered)
     }
 
     /// The children (a bit per slot) that lie, along some axis, outside the box of the rays'

@@ -138,7 +138,9 @@ impl<'a> MixedPacket<'a> {
         if slots == 0 {
             return 0;
         }
-        // Each child left: its slot and its low and high planes, each in all eight lanes.
+        // Each child left: its slot and its low and high planes, each in all eight lanes (the
+        // loop of `Avx2Packet::children`: a function for both was not inlined, +0.25 % on the
+        // close-up frame).
         let mut left = [const { MaybeUninit::<([__m256; 6], usize)>::uninit() }; 8];
         let mut count = 0;
         while slots != 0 {

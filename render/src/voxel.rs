@@ -41,7 +41,19 @@ impl Voxel {
 
     /// Gradient of the trilinear interpolant with respect to local coordinates at `u`.
     pub fn grad_local(&self, u: [f64; 3]) -> [f64; 3] {
-        let c = self.values.map(f64::from);
+        // Written out: as `map`, its call was not inlined into the tracer's per-hit loop in
+        // some builds (a call per hit on the close-up frame).
+        let v = &self.values;
+        let c = [
+            f64::from(v[0]),
+            f64::from(v[1]),
+            f64::from(v[2]),
+            f64::from(v[3]),
+            f64::from(v[4]),
+            f64::from(v[5]),
+            f64::from(v[6]),
+            f64::from(v[7]),
+        ];
         let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
         let dx = |j: usize| c[j + 1] - c[j];
         let gx = lerp(lerp(dx(0), dx(2), u[1]), lerp(dx(4), dx(6), u[1]), u[2]);
@@ -56,7 +68,8 @@ impl Voxel {
     #[inline]
     pub fn grad_grid(&self, u: [f64; 3]) -> [f64; 3] {
         let g = self.grad_local(u);
-        [0, 1, 2].map(|a| g[a] / (self.hi[a] - self.lo[a]))
+        let per_grid = |a: usize| g[a] / (self.hi[a] - self.lo[a]);
+        [per_grid(0), per_grid(1), per_grid(2)]
     }
 
     /// Lower corner in doubled finest-level coordinates (grid coordinates are integers there).

@@ -39,7 +39,8 @@ impl Hit {
     /// Grid position of the hit, from the voxel-local coordinates.
     pub fn grid_pos(&self) -> [f64; 3] {
         let v = &self.voxel;
-        [0, 1, 2].map(|a| v.lo[a] + self.local[a] * (v.hi[a] - v.lo[a]))
+        let at = |a: usize| v.lo[a] + self.local[a] * (v.hi[a] - v.lo[a]);
+        [at(0), at(1), at(2)]
     }
 
     /// Gradient of the voxel's trilinear interpolant at the hit, per grid unit.

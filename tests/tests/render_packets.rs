@@ -27,6 +27,22 @@ use crate::support::rng::Rng;
 
 const CENTRE: [f64; 3] = [0.47, 0.52, 0.5];
 
+/// The reconstructions whose packets and single rays are compared.
+const ALL_METHODS: [Reconstruction; 3] = [
+    Reconstruction::Octant,
+    Reconstruction::Current,
+    Reconstruction::Nearest,
+];
+
+/// The half-refined sphere (three levels, ratio 2, a base of 8 cells) the tests trace, read
+/// into memory.
+fn half_refined_sphere() -> AmrkFile<Vec<u8>> {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sphere.amrk");
+    write_half_refined_sphere(&path, 3, 2, 8);
+    AmrkFile::open(std::fs::read(&path).unwrap()).unwrap()
+}
+
 /// Compares packet and single-ray hits, and packet and single-ray occlusion, for each packet of
 /// `(origin, direction)` pairs; returns the hits found from the origins and behind them.
 fn compare(
@@ -132,16 +148,9 @@ fn compare(
 
 #[test]
 fn packets_find_the_single_ray_hits() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("sphere.amrk");
-    write_half_refined_sphere(&path, 3, 2, 8);
-    let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+    let file = half_refined_sphere();
     let finest = file.levels().last().unwrap().cell_size[0];
-    for method in [
-        Reconstruction::Octant,
-        Reconstruction::Current,
-        Reconstruction::Nearest,
-    ] {
+    for method in ALL_METHODS {
         let src = FieldSource::new(&file, 0, method).unwrap();
         let refs = src.extract(0.0).unwrap().refs;
         let surface = Surface::build(&src, 0.0, &refs, &mut BvhBuilder::new());
@@ -204,15 +213,8 @@ fn packets_find_the_single_ray_hits() {
 /// holds and voxels it does not, rays that cross a voxel's box and rays that miss it.
 #[test]
 fn a_sources_occlusion_test_answers_the_lookups() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("sphere.amrk");
-    write_half_refined_sphere(&path, 3, 2, 8);
-    let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
-    for method in [
-        Reconstruction::Octant,
-        Reconstruction::Current,
-        Reconstruction::Nearest,
-    ] {
+    let file = half_refined_sphere();
+    for method in ALL_METHODS {
         let src = FieldSource::new(&file, 0, method).unwrap();
         let refs = src.extract(0.0).unwrap().refs;
         let mut rng = Rng(5);
@@ -294,10 +296,7 @@ fn a_sources_occlusion_test_answers_the_lookups() {
 /// gives with its shadow rays traced one by one.
 #[test]
 fn tile_layers_are_the_single_ray_layers() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("sphere.amrk");
-    write_half_refined_sphere(&path, 3, 2, 8);
-    let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+    let file = half_refined_sphere();
     let isos = [0.08f32, 0.0, -0.08];
     for method in [Reconstruction::Octant, Reconstruction::Nearest] {
         let src = FieldSource::new(&file, 0, method).unwrap();
@@ -393,10 +392,7 @@ fn tile_layers_are_the_single_ray_layers() {
 /// nearest first hit as its one layer: the layers `ray_layers` finds ray by ray.
 #[test]
 fn opaque_tile_layers_are_the_single_ray_layers() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("sphere.amrk");
-    write_half_refined_sphere(&path, 3, 2, 8);
-    let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+    let file = half_refined_sphere();
     let src = FieldSource::new(&file, 0, Reconstruction::Octant).unwrap();
     for isos in [&[0.08f32, 0.0, -0.08][..], &[0.0][..]] {
         let surfaces = surfaces_at(&src, isos);

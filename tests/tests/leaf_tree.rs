@@ -145,6 +145,68 @@ fn exact_range_over_equals_a_scan_of_every_leaf() {
     );
 }
 
+/// `around_block` (the bounds around a block of coarse cells, computed together) gives for
+/// each cell of the block what `LeafTree::exact_range_over` gives for the 27 cells around
+/// it, at every level: the same range, or `None` exactly where a coarser leaf cell lies there.
+#[test]
+fn block_bounds_equal_the_exact_range_around_each_cell() {
+    use amr_render::extract::around_block::{around_block, BLOCK};
+    use amr_render::extract::blocks::BlockRanges;
+    let (mut ranges, mut coarser) = (0, 0);
+    for case in standard_cases(2) {
+        let (_, file) = build(&case);
+        let sampler = Sampler::new(&file, 0, 1 << 20).unwrap();
+        let blocks = BlockRanges::new(&file);
+        let grid = sampler.grid();
+        let leaves = LeafTree::new(&sampler);
+        let mut touching = Vec::new();
+        let mut rng = Rng(case.seed ^ 0xb10c);
+        for _ in 0..40 {
+            let level = rng.range(0, grid.num_levels() as i64) as u32;
+            let (s, o) = (grid.scale(level), grid.offset());
+            let domain = file.tree().domain;
+            // Cells of the level over the domain, and one beyond.
+            let c = [0, 1, 2].map(|a| {
+                rng.range(
+                    (domain.lo[a] + o[a]).div_euclid(s[a]) - 1,
+                    (domain.hi[a] + o[a]).div_euclid(s[a]) + 2,
+                )
+            });
+            let cells = IBox::new(c, c.map(|v| v + BLOCK));
+            let got =
+                around_block((&sampler, &blocks, &leaves), level, &cells, &mut touching).unwrap();
+            for z in cells.lo[2]..cells.hi[2] {
+                for y in cells.lo[1]..cells.hi[1] {
+                    for x in cells.lo[0]..cells.hi[0] {
+                        let p = [x, y, z];
+                        let finest = IBox::new(
+                            [0, 1, 2].map(|a| (p[a] - 1) * s[a] - o[a]),
+                            [0, 1, 2].map(|a| (p[a] + 2) * s[a] - o[a]),
+                        );
+                        let want = leaves
+                            .exact_range_over(&sampler, &blocks, &finest, level)
+                            .unwrap();
+                        match want {
+                            Some(_) => ranges += 1,
+                            None => coarser += 1,
+                        }
+                        assert_eq!(
+                            got[cells.linear_index(p)],
+                            want,
+                            "seed {}, level {level}, block {cells:?}, cell {p:?}",
+                            case.seed
+                        );
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        ranges > 100 && coarser > 100,
+        "{ranges} ranges and {coarser} coarser answers over all cases"
+    );
+}
+
 /// `LeafTree::for_each_overlapping_grouped` hands over the leaves `for_each_leaf_overlapping`
 /// finds, in the same order, with some runs of them as one node: a node inside the region, for
 /// which the test held with its box (the union of its leaves'), its leaves' coarsest level with

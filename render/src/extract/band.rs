@@ -14,7 +14,9 @@
 //! cells, so few leaves overlap them: the bound is then the exact range of those leaves' cells
 //! there ([`LeafTree::exact_range_over`]: the same cells, so the same bound), with no tile. A
 //! tile would gather 64 cells for a bound that reads 27, and small leaves' coarse neighbours
-//! rarely share tiles.
+//! rarely share tiles. Where a neighbourhood being settled asks about many such cells of one
+//! block of `4^3`, the block's bounds are computed together instead, from one pass over the
+//! leaves around it ([`super::around_block`]), and kept in the thread's [`AroundMemo`].
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hash, Hasher};
@@ -26,7 +28,8 @@ use std::sync::{Arc, Mutex};
 use crate::error::Result;
 use amr_format::IBox;
 
-use super::blocks::{level_box, BlockRanges, BLOCK};
+use super::around_block::{around_block, BLOCK, BLOCK_CELLS};
+use super::blocks::{level_box, BlockRanges, BLOCK as TABLE_BLOCK};
 use super::leaf_tree::{LeafTree, Met};
 use super::local::div_floor;
 use super::tight::{pack, unpack};
@@ -123,6 +126,10 @@ const NEXT_TO_COARSER: u64 = u64::MAX - 1;
 /// which one bound reads 27 (tiles pay for coarse cells, whose regions hold many leaves that
 /// neighbouring bounds share).
 const DIRECT_SCALE: i64 = 2;
+/// Block slots of an [`AroundMemo`].
+const BLOCK_SLOTS: usize = 32;
+/// Cells of a block about to be asked about, at least, for the block to be computed whole.
+const MIN_ASKED: u32 = 8;
 /// Level-`q` cells per axis of a tile.
 const TILE: i64 = 4;
 /// Independently locked parts of the tables, so threads rarely wait on each other.
@@ -172,15 +179,27 @@ const MEMO_SLOTS: usize = 4096;
 
 /// One thread's memo of [`CoarseBounds::range_around`] answers, which do not depend on the
 /// isovalue: a coarse cell is asked about again by each small leaf next to it. Direct-mapped:
-/// a slot keeps the last cell hashed to it.
+/// a slot keeps the last cell hashed to it; beside the slots, the answers for whole blocks of
+/// cells computed together ([`around_block`]), a slot keeping the last block hashed to it.
 pub struct AroundMemo {
     slots: Vec<(u32, [i64; 3], u64)>,
+    /// Per slot: the level and block (its lowest cell over [`BLOCK`]) and each cell's answer.
+    blocks: Vec<(u32, [i64; 3], [u64; BLOCK_CELLS])>,
+    /// Per slot (hashed as [`Self::blocks`]): the level, block and box of cells being settled
+    /// of the last block not computed for too few cells asked about, so that they are not
+    /// counted again for the next cell asked about in that block and box.
+    declined: Vec<(u32, [i64; 3], IBox)>,
+    /// Scratch of [`around_block`].
+    touching: Vec<u32>,
 }
 
 impl Default for AroundMemo {
     fn default() -> Self {
         Self {
             slots: vec![(u32::MAX, [0; 3], 0); MEMO_SLOTS],
+            blocks: vec![(u32::MAX, [0; 3], [0; BLOCK_CELLS]); BLOCK_SLOTS],
+            declined: vec![(u32::MAX, [0; 3], IBox::default()); BLOCK_SLOTS],
+            touching: Vec::new(),
         }
     }
 }
@@ -200,23 +219,73 @@ impl CoarseBounds {
     }
 
     /// [`Self::range_around`], answered from `memo` when it holds the cell.
+    ///
+    /// A cell at most [`DIRECT_SCALE`] finest cells wide is answered from its block of
+    /// [`BLOCK`]`^3` cells when the memo holds that, or, given `(wanted, asked)`, when
+    /// `asked(block, n)` (the caller is about to ask about at least `n` cells of the block's
+    /// box while settling its cells `wanted`) holds for [`MIN_ASKED`] cells: the block is then
+    /// computed whole ([`around_block`]), for less than that many leaf-tree queries. A block
+    /// found to hold too few is not counted again for the same `wanted`.
     pub fn range_around_memo<D: AsRef<[u8]>>(
         &self,
         sources: Sources<'_, '_, D>,
         memo: &mut AroundMemo,
-        level: u32,
-        c: [i64; 3],
+        (level, c): (u32, [i64; 3]),
+        wanted: Option<(&IBox, impl FnOnce(&IBox, u32) -> bool)>,
     ) -> Result<Option<(f32, f32)>> {
-        let key = Key(level, c);
-        let slot = &mut memo.slots[(hash_of(&key) >> 20) as usize % MEMO_SLOTS];
-        let bits = if slot.0 == level && slot.1 == c {
-            slot.2
+        let k = (hash_of(&Key(level, c)) >> 20) as usize % MEMO_SLOTS;
+        let bits = if memo.slots[k].0 == level && memo.slots[k].1 == c {
+            memo.slots[k].2
         } else {
-            let bits = self.compute_around(sources, level, c)?;
-            *slot = (level, c, bits);
+            let block = match wanted {
+                Some(wanted) => self.block_answer(sources, memo, (level, c), wanted)?,
+                None => None,
+            };
+            let bits = match block {
+                Some(bits) => bits,
+                None => self.compute_around(sources, level, c)?,
+            };
+            memo.slots[k] = (level, c, bits);
             bits
         };
         Ok((bits != NEXT_TO_COARSER).then(|| unpack(bits)))
+    }
+
+    /// The packed answer for cell `c` from its block, computed if `asked` holds enough of its
+    /// cells ([`Self::range_around_memo`]); `None` when the block is not computed.
+    fn block_answer<D: AsRef<[u8]>>(
+        &self,
+        sources: Sources<'_, '_, D>,
+        memo: &mut AroundMemo,
+        (level, c): (u32, [i64; 3]),
+        (wanted, asked): (&IBox, impl FnOnce(&IBox, u32) -> bool),
+    ) -> Result<Option<u64>> {
+        if sources
+            .0
+            .grid()
+            .scale(level)
+            .iter()
+            .any(|&v| v > DIRECT_SCALE)
+        {
+            return Ok(None);
+        }
+        let at = c.map(|v| v.div_euclid(BLOCK));
+        let cells = IBox::new(at.map(|v| v * BLOCK), at.map(|v| (v + 1) * BLOCK));
+        let b = (hash_of(&Key(level, at)) >> 20) as usize % BLOCK_SLOTS;
+        if !(memo.blocks[b].0 == level && memo.blocks[b].1 == at) {
+            let declined = &mut memo.declined[b];
+            if *declined == (level, at, *wanted) {
+                return Ok(None);
+            }
+            if !asked(&cells, MIN_ASKED) {
+                *declined = (level, at, *wanted);
+                return Ok(None);
+            }
+            let answers = around_block(sources, level, &cells, &mut memo.touching)?;
+            let bits = answers.map(|a| a.map_or(NEXT_TO_COARSER, pack));
+            memo.blocks[b] = (level, at, bits);
+        }
+        Ok(Some(memo.blocks[b].2[cells.linear_index(c)]))
     }
 
     /// The packed union of the bounds of the 27 cells around `c`, or [`NEXT_TO_COARSER`]: for
@@ -381,7 +450,7 @@ fn gather_tile<D: AsRef<[u8]>>(
         }
         let sf = grid.scale(lv);
         let r = axes(|a| s[a] / sf[a]);
-        if r.iter().all(|&v| v >= BLOCK) {
+        if r.iter().all(|&v| v >= TABLE_BLOCK) {
             let over = cells.coarsen(r).intersect(g);
             for z in over.lo[2]..over.hi[2] {
                 for y in over.lo[1]..over.hi[1] {

@@ -167,7 +167,7 @@ impl CellTiles {
                     debug_assert!(tile.holds(level, &cells), "a tile kept under another key");
                     let part = g.intersect(&cells);
                     if tile.has_pending() {
-                        settle_in(sources, tile, (&mut *memo, &mut *near), &part)?;
+                        settle_in(sources, tile, (&mut *memo, &mut *near), (&part, false))?;
                     }
                     f(tile, &part);
                 }

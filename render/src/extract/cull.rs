@@ -54,6 +54,8 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
         return Ok(false);
     }
     let mut union = union & !PENDING;
+    // The cells asked about next lie anywhere in the neighbourhood.
+    let all = hood.cells;
     for &d in around {
         let j = base + d;
         if hood.codes()[j] & PENDING != 0 {
@@ -61,7 +63,7 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
                 (sampler, (blocks, leaves, coarse)),
                 hood,
                 (memo, near),
-                j,
+                (j, Some(&all)),
                 iso,
             )?;
         }
@@ -72,12 +74,14 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
 
 /// Settles the pending cells of box `b` of `hood` (the bounds of its cells inside coarser leaf
 /// cells), as [`cell_may_hold`] does on need; the isovalue bits of the codes then mean nothing
-/// until the next [`Neighbourhood::classify`].
+/// until the next [`Neighbourhood::classify`]. With `together`, the bounds around the coarse
+/// cells may be computed a block at a time ([`CoarseBounds::range_around_memo`]); not for the
+/// parts of cell tiles, whose coarse cells lie few to a block among many small leaves.
 pub fn settle_in<D: AsRef<[u8]>>(
     (sampler, shared): (&Sampler<'_, D>, Shared<'_>),
     hood: &mut Neighbourhood,
     (memo, near): (&mut VertexMemo, &mut AroundMemo),
-    b: &IBox,
+    (b, together): (&IBox, bool),
 ) -> Result<()> {
     if !hood.has_pending() || b.is_empty() || !hood.may_pend_in(b) {
         return Ok(());
@@ -94,7 +98,8 @@ pub fn settle_in<D: AsRef<[u8]>>(
             }
             for j in r..r + w {
                 if hood.codes()[j] & PENDING != 0 {
-                    settle_coarse((sampler, shared), hood, (memo, near), j, 0.0)?;
+                    let wanted = together.then_some(b);
+                    settle_coarse((sampler, shared), hood, (memo, near), (j, wanted), 0.0)?;
                 }
             }
         }
@@ -105,12 +110,13 @@ pub fn settle_in<D: AsRef<[u8]>>(
 /// Computes the bound of coarser neighbourhood cell `j` and of every pending cell sharing its
 /// coarse leaf cell `Q`: the range of the leaf cells within one cell of `Q` at `Q`'s level
 /// (which holds every corner of `Q`'s octants when none of them is coarser than `Q`), or else
-/// the exact corners of the octants of `Q` overlapping cell `j`.
+/// the exact corners of the octants of `Q` overlapping cell `j`. The cells of `hood` being
+/// settled lie in box `wanted`, if given: the bounds may then be computed a block at a time.
 fn settle_coarse<D: AsRef<[u8]>>(
     (sampler, (blocks, leaves, coarse)): (&Sampler<'_, D>, Shared<'_>),
     hood: &mut Neighbourhood,
     (memo, near): (&mut VertexMemo, &mut AroundMemo),
-    j: usize,
+    (j, wanted): (usize, Option<&IBox>),
     iso: f32,
 ) -> Result<()> {
     debug_assert_eq!(hood.kind(j), COARSER);
@@ -130,8 +136,13 @@ fn settle_coarse<D: AsRef<[u8]>>(
         return Ok(());
     }
     let q_box = grid.finest_box(q.level, q.cell);
+    let asked = |w: &IBox, block: &IBox, enough: u32| {
+        let sq = grid.scale(q.level);
+        hood.pending_over(block, axes(|a| sq[a] / s[a]), w, enough)
+    };
+    let wanted = wanted.map(|w| (w, move |block: &IBox, enough| asked(w, block, enough)));
     if let Some(range) =
-        coarse.range_around_memo((sampler, blocks, leaves), near, q.level, q.cell)?
+        coarse.range_around_memo((sampler, blocks, leaves), near, (q.level, q.cell), wanted)?
     {
         let bound = widen(range);
         let inside = level_box(grid, level, &q_box).intersect(&hood.cells);

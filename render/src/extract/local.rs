@@ -832,6 +832,40 @@ impl Neighbourhood {
         self.pending_left > 0
     }
 
+    /// True when at least `enough` cells of `block` (at most 64 cells of a coarser level, each
+    /// `r` cells of this level per axis) hold a pending cell of box `within`.
+    pub fn pending_over(&self, block: &IBox, r: [i64; 3], within: &IBox, enough: u32) -> bool {
+        let mine = IBox::new(axes(|a| block.lo[a] * r[a]), axes(|a| block.hi[a] * r[a]));
+        let b = mine.intersect(&self.cells).intersect(within);
+        // The cells of `block` over `b`, before any is counted.
+        let over = IBox::new(
+            axes(|a| div_floor(b.lo[a], r[a])),
+            axes(|a| div_floor(b.hi[a] - 1, r[a]) + 1),
+        );
+        if b.is_empty() || over.num_cells().is_none_or(|n| n < u64::from(enough)) {
+            return false;
+        }
+        let (g, ey, w) = (self.cells, self.cells.extent()[1], b.extent()[0] as usize);
+        let mut bits = 0u64;
+        for z in b.lo[2]..b.hi[2] {
+            for y in b.lo[1]..b.hi[1] {
+                let row = ((y - g.lo[1]) + (z - g.lo[2]) * ey) as usize;
+                let flagged = self.pending_rows.get(row / 64);
+                if flagged.is_none_or(|word| word >> (row % 64) & 1 == 0) {
+                    continue;
+                }
+                let first = self.index([b.lo[0], y, z]);
+                let row = block.linear_index([block.lo[0], div_floor(y, r[1]), div_floor(z, r[2])]);
+                for (x, &c) in (b.lo[0]..).zip(&self.codes[first..first + w]) {
+                    if c & PENDING != 0 {
+                        bits |= 1 << (row + (div_floor(x, r[0]) - block.lo[0]) as usize);
+                    }
+                }
+            }
+        }
+        bits.count_ones() >= enough
+    }
+
     /// False when no cell of box `b` (inside [`Self::cells`]) is pending: none of its rows
     /// had a cell flagged pending by the fill. The rows of each plane of `b` are one run of
     /// bits.

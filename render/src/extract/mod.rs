@@ -32,6 +32,7 @@
 //! touching their bricks. The result holds 8 bytes per active voxel, in leaf order and sorted
 //! within each leaf, the same on every run and any number of threads.
 
+pub mod around_block;
 pub mod band;
 pub mod blocks;
 pub mod cell_tiles;

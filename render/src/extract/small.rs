@@ -58,7 +58,7 @@ pub fn hood_range<D: AsRef<[u8]>>(
             let region = run_region(sampler, leaves, leaf, level, g);
             hood.fill_region((sampler, leaves), level, region)?;
         }
-        let settled = settle_in((sampler, *shared), hood, (memo, near), &g);
+        let settled = settle_in((sampler, *shared), hood, (memo, near), (&g, true));
         settled?;
         let (lo, hi) = hood.range_in(&g);
         if lo > hi {

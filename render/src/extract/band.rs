@@ -127,7 +127,7 @@ const NEXT_TO_COARSER: u64 = u64::MAX - 1;
 /// neighbouring bounds share).
 const DIRECT_SCALE: i64 = 2;
 /// Block slots of an [`AroundMemo`].
-const BLOCK_SLOTS: usize = 32;
+const BLOCK_SLOTS: usize = 128;
 /// Cells of a block about to be asked about, at least, for the block to be computed whole.
 const MIN_ASKED: u32 = 8;
 /// Level-`q` cells per axis of a tile.
@@ -183,7 +183,8 @@ const MEMO_SLOTS: usize = 4096;
 /// cells computed together ([`around_block`]), a slot keeping the last block hashed to it.
 pub struct AroundMemo {
     slots: Vec<(u32, [i64; 3], u64)>,
-    /// Per slot: the level and block (its lowest cell over [`BLOCK`]) and each cell's answer.
+    /// Per slot (made on first need: files of tiny leaves never ask): the level and block
+    /// (its lowest cell over [`BLOCK`]) and each cell's answer.
     blocks: Vec<(u32, [i64; 3], [u64; BLOCK_CELLS])>,
     /// Per slot (hashed as [`Self::blocks`]): the level, block and box of cells being settled
     /// of the last block not computed for too few cells asked about, so that they are not
@@ -197,8 +198,8 @@ impl Default for AroundMemo {
     fn default() -> Self {
         Self {
             slots: vec![(u32::MAX, [0; 3], 0); MEMO_SLOTS],
-            blocks: vec![(u32::MAX, [0; 3], [0; BLOCK_CELLS]); BLOCK_SLOTS],
-            declined: vec![(u32::MAX, [0; 3], IBox::default()); BLOCK_SLOTS],
+            blocks: Vec::new(),
+            declined: Vec::new(),
             touching: Vec::new(),
         }
     }
@@ -268,6 +269,10 @@ impl CoarseBounds {
             .any(|&v| v > DIRECT_SCALE)
         {
             return Ok(None);
+        }
+        if memo.blocks.is_empty() {
+            memo.blocks = vec![(u32::MAX, [0; 3], [0; BLOCK_CELLS]); BLOCK_SLOTS];
+            memo.declined = vec![(u32::MAX, [0; 3], IBox::default()); BLOCK_SLOTS];
         }
         let at = c.map(|v| v.div_euclid(BLOCK));
         let cells = IBox::new(at.map(|v| v * BLOCK), at.map(|v| (v + 1) * BLOCK));

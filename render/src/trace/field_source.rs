@@ -333,10 +333,24 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         r: u64,
         query: AnyHitQuery<'_>,
     ) -> Mask {
-        let slot = match cache.held_at(r) {
-            Ok(at) => return occluders_of::<AVX2>(&cache.slots[at].1, iso, query),
-            Err(slot) => slot,
-        };
+        match cache.held_at(r) {
+            Ok(at) => occluders_of::<AVX2>(&cache.slots[at].1, iso, query),
+            Err(slot) => self.octant_occluders_missed::<AVX2>(e, cache, slot, iso, r, query),
+        }
+    }
+
+    /// [`Self::octant_occluders`] of a voxel `cache` does not hold, to go in its slot `slot`:
+    /// out of line, so that the test of a voxel held needs none of its registers.
+    #[inline(never)]
+    fn octant_occluders_missed<const AVX2: bool>(
+        &self,
+        e: &Extractor<'f, D>,
+        cache: &mut VoxelCache,
+        slot: usize,
+        iso: f32,
+        r: u64,
+        query: AnyHitQuery<'_>,
+    ) -> Mask {
         let last = &mut cache.leaves[leaf_slot(r)];
         let at = match e.locate_with(r, last) {
             Ok(at) => at,

@@ -96,6 +96,9 @@ macro_rules! avx2_or_plain {
 
         #[doc = concat!("[`", stringify!($name), "`]'s AVX2 compilation, for a caller compiled for")]
         /// AVX2 itself (which has no need of the CPU's test).
+        ///
+        /// # Safety
+        /// The CPU must have AVX2.
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx2")]
         #[inline(never)]
@@ -224,6 +227,9 @@ pub fn voxel_occluders_packet(
 }
 
 /// [`voxel_occluders_packet`]'s AVX2 compilation, for a caller compiled for AVX2 itself.
+///
+/// # Safety
+/// The CPU must have AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]

@@ -28,7 +28,7 @@ use crate::reconstruct::level_gradient::LevelBlocks;
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
 use crate::trace::octant::{
-    intersect_voxel, intersect_voxel_clipped, intersect_voxel_packet, voxel_occluders_packet,
+    self, intersect_voxel, intersect_voxel_clipped, intersect_voxel_packet, voxel_occluders_packet,
     voxel_occludes_clipped, voxel_occludes_with, VoxelHit,
 };
 use crate::trace::ray::GridRay;
@@ -322,9 +322,10 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
 
     /// [`VoxelSource::with_occlusion_tests`]' test of the octant voxel `r`: what
     /// [`occlusion_tests_by_lookup`] answers from [`Self::octant_voxel_if`]'s voxel, the voxel
-    /// tested where `cache` holds it rather than copied out.
+    /// tested where `cache` holds it rather than copied out. `AVX2` when the caller is compiled
+    /// for AVX2 and calls the tests' AVX2 compilations directly ([`occluders_of`]).
     #[inline(always)]
-    fn octant_occluders(
+    fn octant_occluders<const AVX2: bool>(
         &self,
         e: &Extractor<'f, D>,
         cache: &mut VoxelCache,
@@ -332,16 +333,30 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         r: u64,
         query: AnyHitQuery<'_>,
     ) -> Mask {
-        let slot = match cache.held_at(r) {
-            Ok(at) => return occluders_of(&cache.slots[at].1, iso, query),
-            Err(slot) => slot,
-        };
+        match cache.held_at(r) {
+            Ok(at) => occluders_of::<AVX2>(&cache.slots[at].1, iso, query),
+            Err(slot) => self.octant_occluders_missed::<AVX2>(e, cache, slot, iso, r, query),
+        }
+    }
+
+    /// [`Self::octant_occluders`] of a voxel `cache` does not hold, to go in its slot `slot`:
+    /// out of line, so that the test of a voxel held needs none of its registers.
+    #[inline(never)]
+    fn octant_occluders_missed<const AVX2: bool>(
+        &self,
+        e: &Extractor<'f, D>,
+        cache: &mut VoxelCache,
+        slot: usize,
+        iso: f32,
+        r: u64,
+        query: AnyHitQuery<'_>,
+    ) -> Mask {
         let last = &mut cache.leaves[leaf_slot(r)];
         let at = match e.locate_with(r, last) {
             Ok(at) => at,
             Err(err) => {
                 self.record(err);
-                return occluders_of(&Voxel::EMPTY, iso, query);
+                return occluders_of::<AVX2>(&Voxel::EMPTY, iso, query);
             }
         };
         let clip = match query {
@@ -355,38 +370,43 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
             Ok(v) => v,
             Err(err) => {
                 self.record(err);
-                return occluders_of(&Voxel::EMPTY, iso, query);
+                return occluders_of::<AVX2>(&Voxel::EMPTY, iso, query);
             }
         };
         cache.slots[slot] = (r, v);
         match (query, clip) {
-            (AnyHitQuery::One(c), Some(Some(clip))) => Mask::from(voxel_occludes_clipped(
-                &v,
-                iso,
-                c.ray,
-                (c.tmin, c.tmax),
-                clip,
-            )),
-            _ => occluders_of(&v, iso, query),
+            (AnyHitQuery::One(c), Some(Some(clip))) => {
+                let t = (c.tmin, c.tmax);
+                #[cfg(target_arch = "x86_64")]
+                if AVX2 {
+                    // SAFETY: `AVX2` only when the CPU has it (`octant_occlusion_tests_avx2`).
+                    return unsafe {
+                        Mask::from(octant::voxel_occludes_clipped_avx2(&v, iso, c.ray, t, clip))
+                    };
+                }
+                Mask::from(voxel_occludes_clipped(&v, iso, c.ray, t, clip))
+            }
+            _ => occluders_of::<AVX2>(&v, iso, query),
         }
     }
 
-    /// [`Self::octant_occluders`] compiled for AVX2: the same answers (the same operations;
-    /// three-operand forms spare register copies).
+    /// [`VoxelSource::with_occlusion_tests`] of the octant method with [`Self::octant_occluders`]
+    /// compiled for AVX2 into the test `f` is given (a closure inherits its function's target
+    /// features): the same answers (the same operations; three-operand forms spare register
+    /// copies), and one call less per candidate.
     ///
     /// # Safety
     /// The CPU must have AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn octant_occluders_avx2(
+    fn octant_occlusion_tests_avx2(
         &self,
         e: &Extractor<'f, D>,
         cache: &mut VoxelCache,
         iso: f32,
-        r: u64,
-        query: AnyHitQuery<'_>,
-    ) -> Mask {
-        self.octant_occluders(e, cache, iso, r, query)
+        f: &mut dyn FnMut(&mut OcclusionTest<'_>),
+    ) {
+        f(&mut |r, query| self.octant_occluders::<true>(e, cache, iso, r, query))
     }
 
     /// Decodes the voxel `r` names into `cache`'s slot `slot`; the empty voxel, its error
@@ -416,9 +436,28 @@ fn leaf_slot(r: u64) -> usize {
 }
 
 /// The rays of `query` that the octant method's `voxel` occludes ([`voxel_occludes_with`],
-/// [`voxel_occluders_packet`]), a single ray's answer as 1 or 0.
+/// [`voxel_occluders_packet`]), a single ray's answer as 1 or 0; their AVX2 compilations
+/// called directly when `AVX2`, which the CPU must then have.
 #[inline(always)]
-fn occluders_of(voxel: &Voxel, iso: f32, query: AnyHitQuery<'_>) -> Mask {
+fn occluders_of<const AVX2: bool>(voxel: &Voxel, iso: f32, query: AnyHitQuery<'_>) -> Mask {
+    #[cfg(target_arch = "x86_64")]
+    if AVX2 {
+        // SAFETY: `AVX2` only when the CPU has it (`octant_occlusion_tests_avx2`).
+        return unsafe {
+            match query {
+                AnyHitQuery::One(c) => Mask::from(octant::voxel_occludes_with_avx2(
+                    voxel, iso, c.ray, c.recip, c.tmin, c.tmax,
+                )),
+                AnyHitQuery::Packet {
+                    rays,
+                    recips,
+                    m,
+                    tmin,
+                    tmax,
+                } => octant::voxel_occluders_packet_avx2(voxel, iso, rays, recips, m, tmin, tmax),
+            }
+        };
+    }
     match query {
         AnyHitQuery::One(c) => Mask::from(voxel_occludes_with(
             voxel, iso, c.ray, c.recip, c.tmin, c.tmax,
@@ -560,11 +599,9 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
-            return f(&mut |r, query| unsafe {
-                self.octant_occluders_avx2(e, &mut cache, iso, r, query)
-            });
+            return unsafe { self.octant_occlusion_tests_avx2(e, &mut cache, iso, f) };
         }
-        f(&mut |r, query| self.octant_occluders(e, &mut cache, iso, r, query))
+        f(&mut |r, query| self.octant_occluders::<false>(e, &mut cache, iso, r, query))
     }
 
     fn voxel_box(&self, r: u64) -> ([f64; 3], [f64; 3]) {

@@ -77,6 +77,35 @@ macro_rules! avx2_or_plain {
             plain($($arg),*)
         }
     };
+    ($(#[$doc:meta])* pub fn $name:ident($($arg:ident: $ty:ty),*) -> $ret:ty = $test:ident,
+        avx2: $avx2:ident;) => {
+        $(#[$doc])*
+        #[inline]
+        pub fn $name($($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2, checked just above.
+                return unsafe { $avx2($($arg),*) };
+            }
+            #[cfg_attr(target_arch = "x86_64", inline(never))]
+            fn plain($($arg: $ty),*) -> $ret {
+                $test($($arg),*)
+            }
+            plain($($arg),*)
+        }
+
+        #[doc = concat!("[`", stringify!($name), "`]'s AVX2 compilation, for a caller compiled for")]
+        /// AVX2 itself (which has no need of the CPU's test).
+        ///
+        /// # Safety
+        /// The CPU must have AVX2.
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2")]
+        #[inline(never)]
+        pub fn $avx2($($arg: $ty),*) -> $ret {
+            $test($($arg),*)
+        }
+    };
 }
 
 avx2_or_plain! {
@@ -123,7 +152,7 @@ avx2_or_plain! {
         recip: &[f64; 3],
         tmin: f64,
         tmax: f64
-    ) -> bool = occludes_with;
+    ) -> bool = occludes_with, avx2: voxel_occludes_with_avx2;
 }
 
 /// [`voxel_occludes_with`]'s test.
@@ -150,7 +179,7 @@ avx2_or_plain! {
         ray: &GridRay,
         t: (f64, f64),
         clip: (f64, f64)
-    ) -> bool = occludes_clipped;
+    ) -> bool = occludes_clipped, avx2: voxel_occludes_clipped_avx2;
 }
 
 /// [`voxel_occludes_clipped`]'s test.
@@ -195,6 +224,25 @@ pub fn voxel_occluders_packet(
             .and_then(|t| Segment::in_box(voxel, &setup, &rays[k], (tmin, tmax), t))
             .is_some_and(|seg| seg.cubic.has_root(0.0, 1.0, seg.tol))
     })
+}
+
+/// [`voxel_occluders_packet`]'s AVX2 compilation, for a caller compiled for AVX2 itself.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub fn voxel_occluders_packet_avx2(
+    voxel: &Voxel,
+    iso: f32,
+    rays: &[GridRay],
+    recips: &[[f64; 3]],
+    m: Mask,
+    tmin: &[f64],
+    tmax: &[f64],
+) -> Mask {
+    x4::occluders(voxel, iso, rays, recips, m, tmin, tmax)
 }
 
 /// A ray's segment inside a voxel, widened, as the cubic of the interpolant minus the isovalue

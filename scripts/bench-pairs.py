@@ -7,6 +7,7 @@ the run's own `--stats-json` figures), for medians and paired ratios (`--summary
 
 DATA holds the files the cases read, made by
     amr-bench boxes --base 18 --ratios 2,4,2 --sizes 2,4 -o tiny.amrk
+    amr-bench boxes --base 16 --ratios 2,4,2 --sizes 2,16 -o mid.amrk
     amr-bench boxes --base 16 --ratios 2,4,2 --sizes 16,16 -o big.amrk
     amr-convert synth blobs -o b1m.amrk --cells 1.2e6 --levels 4
     amr-convert synth blobs --levels 3 --ratio 2 --base 32 --brick 16 -o demo.amrk
@@ -33,9 +34,14 @@ CASES = {
     "e9_sweep": ("render", f"{D}/b1e9.amrk --iso-sweep 20:10:2 --size 512x384"),
     "demo_orbit12": ("render", f"{DEMO} --orbit 12"),
     "tiny_extract": ("extract", f"extract {D}/tiny.amrk --iso 10"),
+    "mid_extract": ("extract", f"extract {D}/mid.amrk --iso 10"),
     "big_extract": ("extract", f"extract {D}/big.amrk --iso 10"),
     "tiny_extract_t1": ("extract", f"extract {D}/tiny.amrk --iso 10 --threads 1"),
+    "mid_extract_t1": ("extract", f"extract {D}/mid.amrk --iso 10 --threads 1"),
     "big_extract_t1": ("extract", f"extract {D}/big.amrk --iso 10 --threads 1"),
+    "tiny_extract6_t1": ("extract", f"extract {D}/tiny.amrk --iso 6 --threads 1"),
+    "mid_extract6_t1": ("extract", f"extract {D}/mid.amrk --iso 6 --threads 1"),
+    "big_extract6_t1": ("extract", f"extract {D}/big.amrk --iso 6 --threads 1"),
     "tiny_info": ("plain", f"info {D}/tiny.amrk"),
     "sample": ("sample", f"sample {D}/b1m.amrk --methods octant --runs 5"),
 }

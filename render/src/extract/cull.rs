@@ -45,8 +45,7 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
 ) -> Result<bool> {
     let e = hood.cells.extent();
     let base = i - 1 - e[0] as usize - (e[0] * e[1]) as usize;
-    let codes = hood.codes();
-    let union = around.iter().fold(0u8, |u, &d| u | codes[base + d]);
+    let union = union_around(hood.codes(), base, around);
     if union & (ABOVE | BELOW) == ABOVE | BELOW {
         return Ok(true);
     }
@@ -70,6 +69,28 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
         union |= hood.codes()[j];
     }
     Ok(union & (ABOVE | BELOW) == ABOVE | BELOW)
+}
+
+/// The union (OR) of the codes of the 27 cells at `base + around[k]`: each of the nine rows of
+/// three read as one little-endian word of four codes, the fourth masked off, where the last
+/// row's word lies inside `codes`.
+#[inline]
+fn union_around(codes: &[u8], base: usize, around: &[usize; 27]) -> u8 {
+    let end = base + around[24] + 4;
+    if end > codes.len() {
+        return around.iter().fold(0u8, |u, &d| u | codes[base + d]);
+    }
+    let rows = &codes[base..end];
+    let mut words = 0u32;
+    for r in 0..9 {
+        let o = around[3 * r];
+        // SAFETY: `o <= around[24]` (the offsets grow with `k`), so the four bytes at `o` lie
+        // inside `rows`, whose length is `around[24] + 4`; `read_unaligned` needs no alignment.
+        let word = unsafe { rows.as_ptr().add(o).cast::<u32>().read_unaligned() };
+        words |= u32::from_le(word);
+    }
+    let words = words & 0x00ff_ffff;
+    (words | words >> 8 | words >> 16) as u8
 }
 
 /// Settles the pending cells of box `b` of `hood` (the bounds of its cells inside coarser leaf
@@ -194,4 +215,38 @@ fn widen((lo, hi): (f32, f32)) -> (f32, f32) {
     }
     let slack = lo.abs().max(hi.abs()) * 4.0e-6 + f32::from_bits(64);
     (lo - slack, hi + slack)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The union of the codes around a cell read a row of three at a time equals the union of
+    /// the 27 codes one by one, for every cell of a neighbourhood, its last ones included.
+    #[test]
+    fn union_around_is_the_union_of_the_27_codes() {
+        let (row, slab) = (5, 5 * 4);
+        // Few cells with a bit each, so that a fourth code read along would show.
+        let mut state = 12345u32;
+        let codes: Vec<u8> = (0..slab * 3)
+            .map(|_| {
+                state = state.wrapping_mul(1_103_515_245).wrapping_add(12345);
+                let r = state >> 16;
+                if r % 5 == 0 {
+                    1 << (r / 5 % 4)
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let around = around_offsets(row, slab);
+        for base in 0..=codes.len() - 1 - around[26] {
+            let each = around.iter().fold(0u8, |u, &d| u | codes[base + d]);
+            assert_eq!(
+                union_around(&codes, base, &around),
+                each,
+                "cells from {base}"
+            );
+        }
+    }
 }

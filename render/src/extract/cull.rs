@@ -52,11 +52,13 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
     if union & PENDING == 0 {
         return Ok(false);
     }
-    let mut union = union & !PENDING;
     // The cells asked about next lie anywhere in the neighbourhood.
     let all = hood.cells;
-    for &d in around {
-        let j = base + d;
+    let mut pending = pending_around(hood.codes(), base, around);
+    while pending != 0 {
+        let j = base + around[pending.trailing_zeros() as usize];
+        pending &= pending - 1;
+        // An earlier cell's settling may have settled this one.
         if hood.codes()[j] & PENDING != 0 {
             settle_coarse(
                 (sampler, (blocks, leaves, coarse)),
@@ -66,9 +68,33 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
                 iso,
             )?;
         }
-        union |= hood.codes()[j];
     }
+    // Settling only widens the bounds of pending cells, so their codes only gain bits: the
+    // union now is that of the codes before, without `PENDING`, and of the settled codes.
+    let union = union_around(hood.codes(), base, around);
     Ok(union & (ABOVE | BELOW) == ABOVE | BELOW)
+}
+
+/// Bit `k` set when the code at `base + around[k]` is [`PENDING`], read nine words at a time as
+/// in [`union_around`].
+#[inline]
+fn pending_around(codes: &[u8], base: usize, around: &[usize; 27]) -> u32 {
+    let end = base + around[24] + 4;
+    if end > codes.len() {
+        return (0..27).fold(0, |m, k| {
+            m | u32::from(codes[base + around[k]] & PENDING != 0) << k
+        });
+    }
+    let rows = &codes[base..end];
+    let mut mask = 0u32;
+    for r in 0..9 {
+        let o = around[3 * r];
+        // SAFETY: as in `union_around`: `o + 4 <= around[24] + 4 = rows.len()`.
+        let word = u32::from_le(unsafe { rows.as_ptr().add(o).cast::<u32>().read_unaligned() });
+        let p = word >> PENDING.trailing_zeros() & 0x0001_0101;
+        mask |= (p & 1 | p >> 7 & 2 | p >> 14 & 4) << (3 * r);
+    }
+    mask
 }
 
 /// The union (OR) of the codes of the 27 cells at `base + around[k]`: each of the nine rows of
@@ -245,6 +271,14 @@ mod tests {
             assert_eq!(
                 union_around(&codes, base, &around),
                 each,
+                "cells from {base}"
+            );
+            let pending = (0..27).fold(0, |m, k| {
+                m | u32::from(codes[base + around[k]] & PENDING != 0) << k
+            });
+            assert_eq!(
+                pending_around(&codes, base, &around),
+                pending,
                 "cells from {base}"
             );
         }

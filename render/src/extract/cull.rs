@@ -100,7 +100,7 @@ fn pending_around(codes: &[u8], base: usize, around: &[usize; 27]) -> u32 {
 /// The union (OR) of the codes of the 27 cells at `base + around[k]`: each of the nine rows of
 /// three read as one little-endian word of four codes, the fourth masked off, where the last
 /// row's word lies inside `codes`.
-#[inline]
+#[inline(always)]
 fn union_around(codes: &[u8], base: usize, around: &[usize; 27]) -> u8 {
     let end = base + around[24] + 4;
     if end > codes.len() {
@@ -258,7 +258,7 @@ mod tests {
             .map(|_| {
                 state = state.wrapping_mul(1_103_515_245).wrapping_add(12345);
                 let r = state >> 16;
-                if r % 5 == 0 {
+                if r.is_multiple_of(5) {
                     1 << (r / 5 % 4)
                 } else {
                     0

@@ -652,7 +652,10 @@ impl Neighbourhood {
                 not_leaf[top.clone()].copy_from_slice(&along[top]);
                 not_leaf[bottom.clone()].copy_from_slice(&along[bottom]);
                 if e[1] > 1 {
-                    or_into(&mut not_leaf[first..first + row], &along[first + row..first + 2 * row]);
+                    or_into(
+                        &mut not_leaf[first..first + row],
+                        &along[first + row..first + 2 * row],
+                    );
                     or_into(&mut not_leaf[last..last + row], &along[last - row..last]);
                 }
             }

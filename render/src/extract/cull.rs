@@ -45,19 +45,20 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
 ) -> Result<bool> {
     let e = hood.cells.extent();
     let base = i - 1 - e[0] as usize - (e[0] * e[1]) as usize;
-    let codes = hood.codes();
-    let union = around.iter().fold(0u8, |u, &d| u | codes[base + d]);
+    let union = union_around(hood.codes(), base, around);
     if union & (ABOVE | BELOW) == ABOVE | BELOW {
         return Ok(true);
     }
     if union & PENDING == 0 {
         return Ok(false);
     }
-    let mut union = union & !PENDING;
     // The cells asked about next lie anywhere in the neighbourhood.
     let all = hood.cells;
-    for &d in around {
-        let j = base + d;
+    let mut pending = pending_around(hood.codes(), base, around);
+    while pending != 0 {
+        let j = base + around[pending.trailing_zeros() as usize];
+        pending &= pending - 1;
+        // An earlier cell's settling may have settled this one.
         if hood.codes()[j] & PENDING != 0 {
             settle_coarse(
                 (sampler, (blocks, leaves, coarse)),
@@ -67,9 +68,55 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
                 iso,
             )?;
         }
-        union |= hood.codes()[j];
     }
+    // Settling only widens the bounds of pending cells, so their codes only gain bits: the
+    // union now is that of the codes before, without `PENDING`, and of the settled codes.
+    let union = union_around(hood.codes(), base, around);
     Ok(union & (ABOVE | BELOW) == ABOVE | BELOW)
+}
+
+/// Bit `k` set when the code at `base + around[k]` is [`PENDING`], read nine words at a time as
+/// in [`union_around`].
+#[inline]
+fn pending_around(codes: &[u8], base: usize, around: &[usize; 27]) -> u32 {
+    let end = base + around[24] + 4;
+    if end > codes.len() {
+        return (0..27).fold(0, |m, k| {
+            m | u32::from(codes[base + around[k]] & PENDING != 0) << k
+        });
+    }
+    let rows = &codes[base..end];
+    let mut mask = 0u32;
+    for r in 0..9 {
+        let o = around[3 * r];
+        // SAFETY: as in `union_around`: `o + 4 <= around[24] + 4 = rows.len()`.
+        let word = u32::from_le(unsafe { rows.as_ptr().add(o).cast::<u32>().read_unaligned() });
+        let p = word >> PENDING.trailing_zeros() & 0x0001_0101;
+        mask |= (p & 1 | p >> 7 & 2 | p >> 14 & 4) << (3 * r);
+    }
+    mask
+}
+
+/// The union (OR) of the codes of the 27 cells at `base + around[k]`: each of the nine rows of
+/// three read as one little-endian word of four codes, the fourth masked off, where the last
+/// row's word lies inside `codes`.
+#[inline(always)]
+fn union_around(codes: &[u8], base: usize, around: &[usize; 27]) -> u8 {
+    let end = base + around[24] + 4;
+    if end > codes.len() {
+        return around.iter().fold(0u8, |u, &d| u | codes[base + d]);
+    }
+    let rows = &codes[base..end];
+    let mut words = 0u32;
+    for r in 0..9 {
+        let o = around[3 * r];
+        // SAFETY: `o <= around[24]` (the offsets grow with `k`), so the four bytes at `o` lie
+        // inside `rows`, whose length is `around[24] + 4`; `read_unaligned` needs no alignment.
+        let word = unsafe { rows.as_ptr().add(o).cast::<u32>().read_unaligned() };
+        words |= u32::from_le(word);
+    }
+    let words = words & 0x00ff_ffff;
+    (words | words >> 8 | words >> 16) as u8
 }
 
 /// Settles the pending cells of box `b` of `hood` (the bounds of its cells inside coarser leaf
@@ -194,4 +241,46 @@ fn widen((lo, hi): (f32, f32)) -> (f32, f32) {
     }
     let slack = lo.abs().max(hi.abs()) * 4.0e-6 + f32::from_bits(64);
     (lo - slack, hi + slack)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The union of the codes around a cell read a row of three at a time equals the union of
+    /// the 27 codes one by one, for every cell of a neighbourhood, its last ones included.
+    #[test]
+    fn union_around_is_the_union_of_the_27_codes() {
+        let (row, slab) = (5, 5 * 4);
+        // Few cells with a bit each, so that a fourth code read along would show.
+        let mut state = 12345u32;
+        let codes: Vec<u8> = (0..slab * 3)
+            .map(|_| {
+                state = state.wrapping_mul(1_103_515_245).wrapping_add(12345);
+                let r = state >> 16;
+                if r.is_multiple_of(5) {
+                    1 << (r / 5 % 4)
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let around = around_offsets(row, slab);
+        for base in 0..=codes.len() - 1 - around[26] {
+            let each = around.iter().fold(0u8, |u, &d| u | codes[base + d]);
+            assert_eq!(
+                union_around(&codes, base, &around),
+                each,
+                "cells from {base}"
+            );
+            let pending = (0..27).fold(0, |m, k| {
+                m | u32::from(codes[base + around[k]] & PENDING != 0) << k
+            });
+            assert_eq!(
+                pending_around(&codes, base, &around),
+                pending,
+                "cells from {base}"
+            );
+        }
+    }
 }

@@ -505,8 +505,26 @@ impl DualScan<'_> {
                         out.push(first_ref + k as u64);
                     }
                 }
-                let done = width - chunks.remainder().len();
-                for (k, &m) in chunks.remainder().iter().enumerate() {
+                let rest = chunks.remainder();
+                let done = width - rest.len();
+                if rest.is_empty() {
+                    continue;
+                }
+                // Short rows (small leaves) are all remainder: sixteen codes read at once where
+                // `duals` holds them, the bits past the row's end dropped.
+                if let Some(sixteen) = duals.get(r + done..r + done + 16) {
+                    let (leaf, on) = sixteen_bits(sixteen);
+                    let row_bits = (1u32 << rest.len()) - 1;
+                    counts.evaluated += u64::from((leaf & row_bits).count_ones());
+                    let mut on = on & row_bits;
+                    while on != 0 {
+                        let k = done + on.trailing_zeros() as usize;
+                        on &= on - 1;
+                        out.push(first_ref + k as u64);
+                    }
+                    continue;
+                }
+                for (k, &m) in rest.iter().enumerate() {
                     counts.evaluated += u64::from(m & NOT_LEAF == 0);
                     if active(m) {
                         out.push(first_ref + (done + k) as u64);

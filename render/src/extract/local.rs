@@ -629,13 +629,12 @@ impl Neighbourhood {
                 *d |= s;
             }
         }
-        for r in (0..n).step_by(row.max(1)) {
-            let last = r + row - 1;
-            if row == 1 {
-                along[r] = not_leaf[r];
-            } else {
-                along[r] = not_leaf[r] | not_leaf[r + 1];
-                along[last] = not_leaf[last - 1] | not_leaf[last];
+        if row == 1 {
+            along.copy_from_slice(not_leaf);
+        } else if row > 1 {
+            for (a, c) in along.chunks_exact_mut(row).zip(not_leaf.chunks_exact(row)) {
+                a[0] = c[0] | c[1];
+                a[row - 1] = c[row - 2] | c[row - 1];
             }
         }
         // Along y, within each slab, then along z; `not_leaf` becomes the y-dilated cells. As
@@ -647,12 +646,17 @@ impl Neighbourhood {
             or_into(&mut not_leaf[..n - row], &along[row..]);
         }
         if n > 0 {
-            let several = e[1] > 1;
             for z in 0..e[2] {
                 let (first, last) = (z * slab, z * slab + slab - row);
-                for k in 0..row {
-                    not_leaf[first + k] = along[first + k] | (several && along[first + row + k]);
-                    not_leaf[last + k] = along[last + k] | (several && along[last - row + k]);
+                let (top, bottom) = (first..first + row, last..last + row);
+                not_leaf[top.clone()].copy_from_slice(&along[top]);
+                not_leaf[bottom.clone()].copy_from_slice(&along[bottom]);
+                if e[1] > 1 {
+                    or_into(
+                        &mut not_leaf[first..first + row],
+                        &along[first + row..first + 2 * row],
+                    );
+                    or_into(&mut not_leaf[last..last + row], &along[last - row..last]);
                 }
             }
         }

@@ -249,26 +249,28 @@ impl Lanes {
         tmax: &[f64],
         ks: [usize; 4],
     ) -> Lanes {
-        // Each quantity gathered in one instruction: lane `i` reads the `f64` at index `ks[i]`
-        // times the record's length in `f64`s (the same values the scalar reads would give).
-        const RAY: i32 = (std::mem::size_of::<GridRay>() / 8) as i32;
-        const O: usize = std::mem::offset_of!(GridRay, o) / 8;
-        const D: usize = std::mem::offset_of!(GridRay, d) / 8;
-        let k = _mm_setr_epi32(ks[0] as i32, ks[1] as i32, ks[2] as i32, ks[3] as i32);
-        let at_ray = _mm_mullo_epi32(k, _mm_set1_epi32(RAY));
-        let at_recip = _mm_add_epi32(_mm_add_epi32(k, k), k);
-        let (r, v) = (rays.as_ptr().cast::<f64>(), recips.as_ptr().cast::<f64>());
-        // SAFETY: the caller's promise: each `ks[i]` indexes all four slices, so each read lies
-        // in the record of `ks[i]` (`GridRay` is six `f64`s, a reciprocal three).
-        unsafe {
-            Lanes {
-                o: [0, 1, 2].map(|a| _mm256_i32gather_pd::<8>(r.add(O + a), at_ray)),
-                d: [0, 1, 2].map(|a| _mm256_i32gather_pd::<8>(r.add(D + a), at_ray)),
-                recip: [0, 1, 2].map(|a| _mm256_i32gather_pd::<8>(v.add(a), at_recip)),
-                tmin: _mm256_i32gather_pd::<8>(tmin.as_ptr(), k),
-                tmax: _mm256_i32gather_pd::<8>(tmax.as_ptr(), k),
-            }
+        // SAFETY: the caller's promise.
+        let (r, v, t0, t1) = unsafe {
+            (
+                ks.map(|k| rays.get_unchecked(k)),
+                ks.map(|k| recips.get_unchecked(k)),
+                ks.map(|k| *tmin.get_unchecked(k)),
+                ks.map(|k| *tmax.get_unchecked(k)),
+            )
+        };
+        let mut lanes = Lanes {
+            o: [_mm256_setzero_pd(); 3],
+            d: [_mm256_setzero_pd(); 3],
+            recip: [_mm256_setzero_pd(); 3],
+            tmin: _mm256_setr_pd(t0[0], t0[1], t0[2], t0[3]),
+            tmax: _mm256_setr_pd(t1[0], t1[1], t1[2], t1[3]),
+        };
+        for a in 0..3 {
+            lanes.o[a] = _mm256_setr_pd(r[0].o[a], r[1].o[a], r[2].o[a], r[3].o[a]);
+            lanes.d[a] = _mm256_setr_pd(r[0].d[a], r[1].d[a], r[2].d[a], r[3].d[a]);
+            lanes.recip[a] = _mm256_setr_pd(v[0][a], v[1][a], v[2][a], v[3][a]);
         }
+        lanes
     }
 
     /// Each lane's segment in `voxel`, as [`Segment::new`] makes it (after the set-up's range

@@ -10,7 +10,7 @@
 
 use amr_format::IBox;
 
-use super::band::Sources;
+use super::band::{mark_cells, Sources};
 use super::blocks::level_box;
 use super::local::div_floor;
 use crate::error::Result;
@@ -57,13 +57,11 @@ pub fn around_block<D: AsRef<[u8]>>(
         };
         let part = leaves.leaf_box(l).intersect(&finest);
         if lv < level {
-            let over = level_box(grid, level, &part).intersect(&g);
-            for z in over.lo[2]..over.hi[2] {
-                for y in over.lo[1]..over.hi[1] {
-                    let row = g.linear_index([over.lo[0], y, z]);
-                    coarser[row..row + over.extent()[0] as usize].fill(true);
-                }
-            }
+            mark_cells(
+                &mut coarser,
+                &g,
+                &level_box(grid, level, &part).intersect(&g),
+            );
             any_coarser = true;
             continue;
         }

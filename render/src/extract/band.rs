@@ -439,13 +439,7 @@ fn gather_tile<D: AsRef<[u8]>>(
             continue;
         }
         if lv < level {
-            let block = level_box(grid, level, &part).intersect(g);
-            for z in block.lo[2]..block.hi[2] {
-                for y in block.lo[1]..block.hi[1] {
-                    let row = g.linear_index([block.lo[0], y, z]);
-                    coarser[row..row + block.extent()[0] as usize].fill(true);
-                }
-            }
+            mark_cells(&mut coarser, g, &level_box(grid, level, &part).intersect(g));
             continue;
         }
         let bc = sampler.brick_cells(brick);
@@ -496,4 +490,19 @@ fn hash_of(k: &Key) -> u64 {
     let mut h = FxHasher::default();
     k.hash(&mut h);
     h.finish()
+}
+
+/// Sets the flags of the cells of box `b`, which lies inside box `within`, in `flags`: one per
+/// cell of `within`, x fastest.
+pub(super) fn mark_cells(flags: &mut [bool], within: &IBox, b: &IBox) {
+    if b.is_empty() {
+        return;
+    }
+    let w = b.extent()[0] as usize;
+    for z in b.lo[2]..b.hi[2] {
+        for y in b.lo[1]..b.hi[1] {
+            let row = within.linear_index([b.lo[0], y, z]);
+            flags[row..row + w].fill(true);
+        }
+    }
 }

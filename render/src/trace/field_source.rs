@@ -473,27 +473,17 @@ fn occluders_of<const AVX2: bool>(voxel: &Voxel, iso: f32, query: AnyHitQuery<'_
 }
 
 impl VoxelCache {
-    /// The voxel of ref `r` if this cache holds it, else the slot it goes in ([`Self::slot`]).
+    /// The voxel of ref `r` if this cache holds it, else the slot it goes in ([`Self::held_at`]).
     #[inline(always)]
     fn held(&self, r: u64) -> std::result::Result<Voxel, usize> {
-        let slot = Self::slot(r);
-        match self.slots[slot] {
-            (key, v) if key == r && r != u64::MAX => Ok(v),
-            _ => Err(slot),
-        }
+        self.held_at(r).map(|at| self.slots[at].1)
     }
 
-    /// The slot of ref `r`'s voxel: Fibonacci hashing of the ref, so that neighbouring refs
-    /// land in different slots.
-    #[inline(always)]
-    fn slot(r: u64) -> usize {
-        (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS
-    }
-
-    /// [`Self::held`]'s slot either way: `Ok` when it holds the voxel of ref `r`.
+    /// The slot of ref `r`'s voxel, `Ok` when this cache holds it: Fibonacci hashing of the ref,
+    /// so that neighbouring refs land in different slots.
     #[inline(always)]
     fn held_at(&self, r: u64) -> std::result::Result<usize, usize> {
-        let slot = Self::slot(r);
+        let slot = (r.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % VOXEL_CACHE_SLOTS;
         match self.slots[slot] {
             (key, _) if key == r && r != u64::MAX => Ok(slot),
             _ => Err(slot),

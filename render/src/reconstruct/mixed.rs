@@ -16,17 +16,8 @@ use crate::error::Result;
 
 use super::grid::axes;
 use super::interp::avg8;
-use super::sampler::{LeafCell, Locate, Octant, Position, Sampler, VertexMemo};
+use super::sampler::{LeafCell, Locate, Octant, Position, Sampler, VertexMemo, NO_CELL};
 use super::stitch::Stitches;
-
-/// A placeholder for the unused slots of a fixed array of leaf cells.
-const NO_CELL: LeafCell = LeafCell {
-    leaf: 0,
-    brick: 0,
-    level: 0,
-    cell: [0; 3],
-    value: 0.0,
-};
 
 /// The finest cells of the table along one axis.
 #[derive(Clone, Copy, Default)]

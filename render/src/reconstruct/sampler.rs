@@ -38,6 +38,15 @@ pub struct LeafCell {
     pub value: f32,
 }
 
+/// A placeholder for the unused slots of a fixed array of leaf cells.
+pub(super) const NO_CELL: LeafCell = LeafCell {
+    leaf: 0,
+    brick: 0,
+    level: 0,
+    cell: [0; 3],
+    value: 0.0,
+};
+
 /// One octant of one cell: the eighth of the cell between its centre and corner `octant`
 /// (bit `a` set: the upper side of axis `a`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -724,21 +733,53 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// [`Self::around`], locating through `loc`.
     #[inline]
     pub fn around_in<L: Locate>(&self, loc: &L, v: [i64; 3]) -> Result<Option<[LeafCell; 8]>> {
+        let mut out = [NO_CELL; 8];
+        Ok(self.around_into(loc, v, &mut out)?.then_some(out))
+    }
+
+    /// [`Self::around_in`] written into `out`: false (`out` then partly written) where a side
+    /// is not covered.
+    ///
+    /// The sides are located in order, each located side's kd-tree leaf giving the later sides
+    /// in its box, read from its brick when read in place ([`Self::cell_in_leaf_numbered`]):
+    /// leaves tile the domain, so that is the locate's answer, and a side not read so is
+    /// located in its turn (the first side not covered, or failing, is the same one).
+    #[inline]
+    pub(super) fn around_into<L: Locate>(
+        &self,
+        loc: &L,
+        v: [i64; 3],
+        out: &mut [LeafCell; 8],
+    ) -> Result<bool> {
         let (lo, hi, same) = self.nudges(v);
-        let mut out = [None::<LeafCell>; 8];
-        for n in 0..8 {
-            let m = n & !same;
-            out[n] = if m != n {
-                out[m]
-            } else {
-                let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
-                match loc.locate_cell(f)? {
-                    Some(c) => Some(c),
-                    None => return Ok(None),
-                }
+        let side = |n: usize| axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+        let mut todo = distinct_sides(same);
+        while todo != 0 {
+            let n = todo.trailing_zeros() as usize;
+            todo &= todo - 1;
+            let Some(c) = loc.locate_cell(side(n))? else {
+                return Ok(false);
             };
+            out[n] = c;
+            if todo == 0 {
+                break;
+            }
+            let mut take = sides_in(&self.tree.leaf_box(c.leaf), lo, hi) & todo;
+            while take != 0 {
+                let m = take.trailing_zeros() as usize;
+                take &= take - 1;
+                if let Some(x) = self.cell_in_leaf_numbered(c.leaf, side(m)) {
+                    out[m] = x;
+                    todo &= !(1 << m);
+                }
+            }
         }
-        Ok(Some(out.map(|c| c.expect("every side was located"))))
+        if same != 0 {
+            for n in 1..8 {
+                out[n] = out[n & !same];
+            }
+        }
+        Ok(true)
     }
 
     /// The value at octant vertex `v` as seen by an octant of level `level`.
@@ -783,10 +824,11 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         level: u32,
         memo: &mut VertexMemo,
     ) -> Result<Option<f32>> {
-        match self.around_in(loc, v)? {
-            Some(cells) => self.vertex_value_from_in(loc, v, level, &cells, memo),
-            None => Ok(None),
+        let mut cells = [NO_CELL; 8];
+        if !self.around_into(loc, v, &mut cells)? {
+            return Ok(None);
         }
+        self.vertex_value_from_in(loc, v, level, &cells, memo)
     }
 
     /// [`Self::vertex_value`] given the leaf cells around `v` (as [`Self::around`] finds them).

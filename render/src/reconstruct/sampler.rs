@@ -20,7 +20,8 @@ use crate::error::Result;
 use super::cache::BrickCache;
 use super::grid::{axes, index_in, Grid};
 use super::interp::{avg2, avg8, trilinear};
-use super::leaf_grid::LazyLeafGrid;
+use super::leaf_grid::{Entry, LazyLeafGrid};
+use super::leaf_hints::LeafHints;
 use super::mixed::{distinct_sides, holds, sides_in};
 
 /// The leaf cell at a point: the finest cell any brick holds there.
@@ -88,6 +89,8 @@ pub struct VertexMemo {
     octants: Vec<(Octant, Option<[f32; 8]>)>,
     /// log2 of the octant table's slots; 0: no table.
     octant_bits: u32,
+    /// The kd-tree leaves located last, tried first by the next vertices' sides.
+    pub(super) hints: LeafHints,
 }
 
 /// log2 of the slots of [`VertexMemo`]'s octant table by default.
@@ -100,6 +103,7 @@ impl Default for VertexMemo {
             capacity: 1 << 16,
             octants: Vec::new(),
             octant_bits: OCTANT_BITS,
+            hints: LeafHints::default(),
         }
     }
 }
@@ -109,6 +113,7 @@ impl VertexMemo {
     pub fn clear(&mut self) {
         self.map.clear();
         self.octants.clear();
+        self.hints.clear();
     }
 
     /// A memo whose octant table holds `2^bits` octants (1024 by default; none for 0, which
@@ -713,6 +718,21 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         }
     }
 
+    /// Where the leaf grid places finest-level cell `finest`: the leaf or the node to walk from
+    /// ([`super::leaf_grid::LeafGrid::entry`]); `None` outside the domain, or when there is no table yet (or
+    /// with the shortcuts off), for [`Self::find_leaf`] to answer.
+    #[inline]
+    pub(super) fn grid_entry(&self, finest: [i64; 3]) -> Option<Entry> {
+        self.leaf_grid.as_ref()?.built()?.entry(finest)
+    }
+
+    /// The kd-tree leaf holding finest-level cell `finest`, walking down from node `node`,
+    /// whose region holds it.
+    #[inline]
+    pub(super) fn find_leaf_from(&self, node: usize, finest: [i64; 3]) -> Option<u32> {
+        self.tree.find_leaf_from(node, finest)
+    }
+
     /// The leaf cells touching doubled point `v` from its eight sides (side `n`: nudged toward
     /// `+` on axis `a` when bit `a` of `n` is set), clamped into the domain.
     pub fn around(&self, v: [i64; 3]) -> Result<Option<[LeafCell; 8]>> {
@@ -734,22 +754,25 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     #[inline]
     pub fn around_in<L: Locate>(&self, loc: &L, v: [i64; 3]) -> Result<Option<[LeafCell; 8]>> {
         let mut out = [NO_CELL; 8];
-        Ok(self.around_into(loc, v, &mut out)?.then_some(out))
+        let found = self.around_into(loc, v, &mut out, &mut LeafHints::default())?;
+        Ok(found.then_some(out))
     }
 
     /// [`Self::around_in`] written into `out`: false (`out` then partly written) where a side
     /// is not covered.
     ///
-    /// The sides are located in order, each located side's kd-tree leaf giving the later sides
-    /// in its box, read from its brick when read in place ([`Self::cell_in_leaf_numbered`]):
-    /// leaves tile the domain, so that is the locate's answer, and a side not read so is
-    /// located in its turn (the first side not covered, or failing, is the same one).
+    /// The sides are located in order ([`Self::locate_hinted`], trying the leaves of `hints`
+    /// first), each located side's kd-tree leaf giving the later sides in its box, read from
+    /// its brick when read in place ([`Self::cell_in_leaf_numbered`]): leaves tile the domain,
+    /// so that is the locate's answer, and a side not read so is located in its turn (the first
+    /// side not covered, or failing, is the same one).
     #[inline]
     pub(super) fn around_into<L: Locate>(
         &self,
         loc: &L,
         v: [i64; 3],
         out: &mut [LeafCell; 8],
+        hints: &mut LeafHints,
     ) -> Result<bool> {
         let (lo, hi, same) = self.nudges(v);
         let side = |n: usize| axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
@@ -757,14 +780,11 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         while todo != 0 {
             let n = todo.trailing_zeros() as usize;
             todo &= todo - 1;
-            let Some(c) = loc.locate_cell(side(n))? else {
+            let Some((c, b)) = self.locate_hinted(loc, side(n), hints)? else {
                 return Ok(false);
             };
             out[n] = c;
-            if todo == 0 {
-                break;
-            }
-            let mut take = sides_in(&self.tree.leaf_box(c.leaf), lo, hi) & todo;
+            let mut take = sides_in(&b, lo, hi) & todo;
             while take != 0 {
                 let m = take.trailing_zeros() as usize;
                 take &= take - 1;
@@ -825,7 +845,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         memo: &mut VertexMemo,
     ) -> Result<Option<f32>> {
         let mut cells = [NO_CELL; 8];
-        if !self.around_into(loc, v, &mut cells)? {
+        if !self.around_into(loc, v, &mut cells, &mut memo.hints)? {
             return Ok(None);
         }
         self.vertex_value_from_in(loc, v, level, &cells, memo)

@@ -65,7 +65,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
     /// holds `f` is taken instead of the walk (and a leaf walked to is remembered there). A
     /// cell of a leaf whose brick is read in place is read from it, the others located through
     /// `loc`.
-    #[inline]
+    #[inline(always)]
     pub(super) fn locate_hinted<L: Locate>(
         &self,
         loc: &L,

@@ -236,7 +236,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 };
                 let c = match c {
                     Some(c) => c,
-                    None => match self.position_cell(loc, p.as_ref(), near.as_ref(), f)? {
+                    None => match self.position_cell(loc, p.as_ref(), near.as_ref(), f, &mut memo.hints)? {
                         Some(c) => c,
                         None => return Ok(None),
                     },
@@ -302,7 +302,13 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 } else {
                     // The cell read or located for the entry: the same answer again.
                     let f = [axis[0].at[x], axis[1].at[y], axis[2].at[z]];
-                    self.position_cell(loc, position(k).as_ref(), near.as_ref(), f)?
+                    self.position_cell(
+                        loc,
+                        position(k).as_ref(),
+                        near.as_ref(),
+                        f,
+                        &mut memo.hints,
+                    )?
                 };
                 let Some(q) = q else {
                     return Ok(None);

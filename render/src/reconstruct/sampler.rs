@@ -319,14 +319,12 @@ fn alone_boxes<D: AsRef<[u8]>>(file: &AmrkFile<D>, grid: &Grid) -> Vec<[u32; 6]>
             // Cannot overflow: a brick lies in its level's domain, which refines into the
             // finest domain (32-bit coordinates).
             let f = grid.level_finest_box(b.level, &b.cells);
-            let c: Option<Vec<u32>> =
-                f.lo.iter()
-                    .chain(&f.hi)
-                    .map(|&x| u32::try_from(x).ok())
-                    .collect();
-            match c {
-                Some(c) if covered != u64::MAX && volume(&f) == Some(covered) => {
-                    [c[0], c[1], c[2], c[3], c[4], c[5]]
+            let corners = [f.lo[0], f.lo[1], f.lo[2], f.hi[0], f.hi[1], f.hi[2]];
+            match corners.map(|x| u32::try_from(x).ok()) {
+                [Some(x0), Some(y0), Some(z0), Some(x1), Some(y1), Some(z1)]
+                    if covered != u64::MAX && volume(&f) == Some(covered) =>
+                {
+                    [x0, y0, z0, x1, y1, z1]
                 }
                 _ => [0; 6],
             }
@@ -1202,7 +1200,20 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         while todo != 0 {
             let n = todo.trailing_zeros() as usize;
             todo &= todo - 1;
-            around[n] = loc.locate_cell(side(n))?;
+            let found = self.locate_hinted(loc, side(n), &mut memo.hints)?;
+            around[n] = found.map(|(c, _)| c);
+            // The later sides in the located cell's kd-tree leaf, read from its brick.
+            if let Some((c, b)) = found {
+                let mut take = sides_in(&b, lo, hi) & todo;
+                while take != 0 {
+                    let m = take.trailing_zeros() as usize;
+                    take &= take - 1;
+                    if let Some(x) = self.cell_in_leaf_numbered(c.leaf, side(m)) {
+                        around[m] = Some(x);
+                        todo &= !(1 << m);
+                    }
+                }
+            }
             if near.is_none() {
                 near = around[n].map(|c| (c, self.read_box(c.leaf)));
             }
@@ -1225,7 +1236,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// The leaf cell at finest cell `f` of a position gathered by [`Self::corners_gathered`]:
     /// the position's cell when it covers the whole position, else read from the brick of the
     /// position's kd-tree leaf or of `near`'s when `f` lies in that leaf, else located through
-    /// `loc`.
+    /// `loc` ([`Self::locate_hinted`], trying the leaves of `hints` where the leaf grid names a
+    /// node).
     #[inline]
     pub(super) fn position_cell<L: Locate>(
         &self,
@@ -1233,6 +1245,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         p: Option<&Position>,
         near: Option<&(LeafCell, IBox)>,
         f: [i64; 3],
+        hints: &mut LeafHints,
     ) -> Result<Option<LeafCell>> {
         if let Some(p) = p {
             if p.whole {
@@ -1245,7 +1258,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         if let Some(c) = near.and_then(|(c, b)| self.cell_in_leaf(c, b, f)) {
             return Ok(Some(c));
         }
-        loc.locate_cell(f)
+        Ok(self.locate_hinted(loc, f, hints)?.map(|(c, _)| c))
     }
 
     /// The values of the eight cells at finest cells `lo`/`hi` per axis (as in

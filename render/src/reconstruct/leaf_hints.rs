@@ -10,8 +10,8 @@ use amr_format::IBox;
 
 use crate::error::Result;
 
-use super::mixed::holds;
 use super::leaf_grid::Entry;
+use super::mixed::holds;
 use super::sampler::{LeafCell, Locate, Sampler};
 
 /// Leaves remembered: the last few a neighbourhood of vertices touches.

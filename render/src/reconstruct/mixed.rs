@@ -236,7 +236,13 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 };
                 let c = match c {
                     Some(c) => c,
-                    None => match self.position_cell(loc, p.as_ref(), near.as_ref(), f, &mut memo.hints)? {
+                    None => match self.position_cell(
+                        loc,
+                        p.as_ref(),
+                        near.as_ref(),
+                        f,
+                        &mut memo.hints,
+                    )? {
                         Some(c) => c,
                         None => return Ok(None),
                     },

@@ -355,3 +355,40 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         Ok(Some(out))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `sides_in` gives the sides whose finest cell lies in the box, for every placement
+    /// of the two nudges against a box's faces on every axis.
+    #[test]
+    fn sides_in_are_the_sides_in_the_box() {
+        let b = IBox::new([2, 5, -3], [4, 9, 1]);
+        let near = |a: usize| {
+            [
+                b.lo[a] - 2,
+                b.lo[a] - 1,
+                b.lo[a],
+                b.hi[a] - 1,
+                b.hi[a],
+                b.hi[a] + 1,
+            ]
+        };
+        for x in near(0) {
+            for y in near(1) {
+                for z in near(2) {
+                    for same in 0..8usize {
+                        let lo = [x, y, z];
+                        let hi = axes(|a| lo[a] + i64::from(same >> a & 1 == 0));
+                        let expected = (0..8).fold(0u8, |m, n| {
+                            let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+                            m | u8::from(b.contains_cell(f)) << n
+                        });
+                        assert_eq!(sides_in(&b, lo, hi), expected, "{lo:?} {hi:?}");
+                    }
+                }
+            }
+        }
+    }
+}

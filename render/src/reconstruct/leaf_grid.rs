@@ -165,7 +165,8 @@ impl LeafGrid {
     }
 
     /// The table's entry for finest-level cell `p`: the leaf holding it, or the node to walk
-    /// from ([`TreeView::find_leaf_from`]); `None` outside the domain.
+    /// from ([`TreeView::find_leaf_from`]); `None` outside the domain. [`Self::find_leaf`]
+    /// spells the same read out: written through this, it cost a render 0.3 M instructions.
     #[inline]
     pub fn entry(&self, p: [i64; 3]) -> Option<Entry> {
         if (0..3).any(|a| p[a] < 0 || p[a] >= self.extent[a]) {

@@ -717,8 +717,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     }
 
     /// Where the leaf grid places finest-level cell `finest`: the leaf or the node to walk from
-    /// ([`super::leaf_grid::LeafGrid::entry`]); `None` outside the domain, or when there is no table yet (or
-    /// with the shortcuts off), for [`Self::find_leaf`] to answer.
+    /// ([`super::leaf_grid::LeafGrid::entry`]); `None` outside the domain, or when there is no
+    /// table yet (or with the shortcuts off), for [`Self::find_leaf`] to answer.
     #[inline]
     pub(super) fn grid_entry(&self, finest: [i64; 3]) -> Option<Entry> {
         self.leaf_grid.as_ref()?.built()?.entry(finest)

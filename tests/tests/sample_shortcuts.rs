@@ -5,7 +5,7 @@
 //! seed.
 
 use amr_format::AmrkFile;
-use amr_render::reconstruct::{Octant, Reconstruction, SampleScratch, Sampler};
+use amr_render::reconstruct::{Octant, Reconstruction, SampleScratch, Sampler, VertexMemo};
 
 use crate::support::hierarchy::{build, standard_cases, Case, Rng};
 
@@ -140,6 +140,42 @@ fn gathered_octant_corners_equal_the_general_rule() {
         }
     }
     assert!(stitched > 1000, "only {stitched} stitched corners checked");
+}
+
+/// The leaf cells around a vertex are the cells located at its eight sides, and a vertex's
+/// value is the same whatever a memo kept from the vertices before (the kd-tree leaves it
+/// remembers): vertices near level boundaries, at every level, through one memo.
+#[test]
+fn vertex_sides_and_values_do_not_depend_on_the_leaves_remembered() {
+    for case in cases() {
+        let (_, file) = build(&case);
+        let (fast, general) = fast_and_general(&file, 0);
+        let grid = general.grid();
+        let mut memo = VertexMemo::default();
+        for p in points(&fast, case.seed ^ 0x7e11, 1500) {
+            let v = p.map(|x| x.round() as i64);
+            let sides: Vec<_> = (0..8u8)
+                .map(|n| general.locate(grid.finest_cell(v, n)).unwrap())
+                .collect();
+            let want = sides
+                .iter()
+                .all(Option::is_some)
+                .then(|| sides.iter().map(|c| c.unwrap()).collect::<Vec<_>>());
+            let got = fast.around(v).unwrap().map(|c| c.to_vec());
+            assert_eq!(got, want, "{case:?}: around {v:?}");
+            for level in 0..grid.num_levels() as u32 {
+                let want = general
+                    .vertex_value(v, level, &mut VertexMemo::default())
+                    .unwrap();
+                let got = fast.vertex_value(v, level, &mut memo).unwrap();
+                assert_eq!(
+                    got.map(f32::to_bits),
+                    want.map(f32::to_bits),
+                    "{case:?}: vertex {v:?} seen from level {level}"
+                );
+            }
+        }
+    }
 }
 
 #[test]

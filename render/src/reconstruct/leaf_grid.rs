@@ -164,6 +164,23 @@ impl LeafGrid {
         tree.find_leaf_from((entry & !NODE) as usize, p)
     }
 
+    /// The table's entry for finest-level cell `p`: the leaf holding it, or the node to walk
+    /// from ([`TreeView::find_leaf_from`]); `None` outside the domain. [`Self::find_leaf`]
+    /// spells the same read out: written through this, it cost a render 0.3 M instructions.
+    #[inline]
+    pub fn entry(&self, p: [i64; 3]) -> Option<Entry> {
+        if (0..3).any(|a| p[a] < 0 || p[a] >= self.extent[a]) {
+            return None;
+        }
+        let g = p.map(|x| x >> self.shift);
+        let entry = self.table[(g[0] + self.dims[0] * (g[1] + self.dims[1] * g[2])) as usize];
+        Some(if entry & NODE == 0 {
+            Entry::Leaf(entry)
+        } else {
+            Entry::Node((entry & !NODE) as usize)
+        })
+    }
+
     /// log2 of a grid cell's edge in finest cells.
     pub fn shift(&self) -> u32 {
         self.shift
@@ -174,6 +191,15 @@ impl LeafGrid {
         let leaves = self.table.iter().filter(|&&e| e & NODE == 0).count();
         (leaves, self.table.len())
     }
+}
+
+/// A [`LeafGrid`]'s answer for one finest-level cell.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Entry {
+    /// The kd-tree leaf holding the cell.
+    Leaf(u32),
+    /// A node whose region holds the cell, to walk down from.
+    Node(usize),
 }
 
 /// A [`LeafGrid`] built on first need: until then (for a tree of more than [`EAGER_LEAVES`]
@@ -223,6 +249,12 @@ impl LazyLeafGrid {
         self.grid
             .get_or_init(|| LeafGrid::new(tree))
             .find_leaf(tree, p)
+    }
+
+    /// The table, once built.
+    #[inline]
+    pub fn built(&self) -> Option<&LeafGrid> {
+        self.grid.get()
     }
 
     /// True once the table is built.

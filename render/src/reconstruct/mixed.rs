@@ -16,17 +16,8 @@ use crate::error::Result;
 
 use super::grid::axes;
 use super::interp::avg8;
-use super::sampler::{LeafCell, Locate, Octant, Position, Sampler, VertexMemo};
+use super::sampler::{LeafCell, Locate, Octant, Position, Sampler, VertexMemo, NO_CELL};
 use super::stitch::Stitches;
-
-/// A placeholder for the unused slots of a fixed array of leaf cells.
-const NO_CELL: LeafCell = LeafCell {
-    leaf: 0,
-    brick: 0,
-    level: 0,
-    cell: [0; 3],
-    value: 0.0,
-};
 
 /// The finest cells of the table along one axis.
 #[derive(Clone, Copy, Default)]
@@ -245,7 +236,13 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 };
                 let c = match c {
                     Some(c) => c,
-                    None => match self.position_cell(loc, p.as_ref(), near.as_ref(), f)? {
+                    None => match self.position_cell(
+                        loc,
+                        p.as_ref(),
+                        near.as_ref(),
+                        f,
+                        &mut memo.hints,
+                    )? {
                         Some(c) => c,
                         None => return Ok(None),
                     },
@@ -311,7 +308,13 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 } else {
                     // The cell read or located for the entry: the same answer again.
                     let f = [axis[0].at[x], axis[1].at[y], axis[2].at[z]];
-                    self.position_cell(loc, position(k).as_ref(), near.as_ref(), f)?
+                    self.position_cell(
+                        loc,
+                        position(k).as_ref(),
+                        near.as_ref(),
+                        f,
+                        &mut memo.hints,
+                    )?
                 };
                 let Some(q) = q else {
                     return Ok(None);
@@ -350,5 +353,42 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             };
         }
         Ok(Some(out))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `sides_in` gives the sides whose finest cell lies in the box, for every placement
+    /// of the two nudges against a box's faces on every axis.
+    #[test]
+    fn sides_in_are_the_sides_in_the_box() {
+        let b = IBox::new([2, 5, -3], [4, 9, 1]);
+        let near = |a: usize| {
+            [
+                b.lo[a] - 2,
+                b.lo[a] - 1,
+                b.lo[a],
+                b.hi[a] - 1,
+                b.hi[a],
+                b.hi[a] + 1,
+            ]
+        };
+        for x in near(0) {
+            for y in near(1) {
+                for z in near(2) {
+                    for same in 0..8usize {
+                        let lo = [x, y, z];
+                        let hi = axes(|a| lo[a] + i64::from(same >> a & 1 == 0));
+                        let expected = (0..8).fold(0u8, |m, n| {
+                            let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+                            m | u8::from(b.contains_cell(f)) << n
+                        });
+                        assert_eq!(sides_in(&b, lo, hi), expected, "{lo:?} {hi:?}");
+                    }
+                }
+            }
+        }
     }
 }

@@ -4,6 +4,7 @@
 //! - [`interp`]: trilinear interpolation and averages in one fixed evaluation order.
 //! - [`cache`]: a bounded cache of decoded (decompressed) bricks.
 //! - [`leaf_grid`]: point location in one table read over the kd-tree.
+//! - [`leaf_hints`]: the kd-tree leaves located last, tried before walking the kd-tree.
 //! - [`recent`]: per-thread scratch that makes nearby point samples cheap.
 //! - [`sampler`]: leaf-cell location and the octant method's vertex values.
 //! - [`stitch`]: stitched vertex values from the coarse corners of non-zero weight alone.
@@ -17,6 +18,7 @@ pub mod cache;
 pub mod grid;
 pub mod interp;
 pub mod leaf_grid;
+mod leaf_hints;
 pub mod level_gradient;
 pub mod methods;
 mod mixed;

@@ -20,7 +20,8 @@ use crate::error::Result;
 use super::cache::BrickCache;
 use super::grid::{axes, index_in, Grid};
 use super::interp::{avg2, avg8, trilinear};
-use super::leaf_grid::LazyLeafGrid;
+use super::leaf_grid::{Entry, LazyLeafGrid};
+use super::leaf_hints::LeafHints;
 use super::mixed::{distinct_sides, holds, sides_in};
 
 /// The leaf cell at a point: the finest cell any brick holds there.
@@ -37,6 +38,15 @@ pub struct LeafCell {
     /// The cell's value.
     pub value: f32,
 }
+
+/// A placeholder for the unused slots of a fixed array of leaf cells.
+pub(super) const NO_CELL: LeafCell = LeafCell {
+    leaf: 0,
+    brick: 0,
+    level: 0,
+    cell: [0; 3],
+    value: 0.0,
+};
 
 /// One octant of one cell: the eighth of the cell between its centre and corner `octant`
 /// (bit `a` set: the upper side of axis `a`).
@@ -79,6 +89,8 @@ pub struct VertexMemo {
     octants: Vec<(Octant, Option<[f32; 8]>)>,
     /// log2 of the octant table's slots; 0: no table.
     octant_bits: u32,
+    /// The kd-tree leaves located last, tried first by the next vertices' sides.
+    pub(super) hints: LeafHints,
 }
 
 /// log2 of the slots of [`VertexMemo`]'s octant table by default.
@@ -91,6 +103,7 @@ impl Default for VertexMemo {
             capacity: 1 << 16,
             octants: Vec::new(),
             octant_bits: OCTANT_BITS,
+            hints: LeafHints::default(),
         }
     }
 }
@@ -100,6 +113,7 @@ impl VertexMemo {
     pub fn clear(&mut self) {
         self.map.clear();
         self.octants.clear();
+        self.hints.clear();
     }
 
     /// A memo whose octant table holds `2^bits` octants (1024 by default; none for 0, which
@@ -305,14 +319,12 @@ fn alone_boxes<D: AsRef<[u8]>>(file: &AmrkFile<D>, grid: &Grid) -> Vec<[u32; 6]>
             // Cannot overflow: a brick lies in its level's domain, which refines into the
             // finest domain (32-bit coordinates).
             let f = grid.level_finest_box(b.level, &b.cells);
-            let c: Option<Vec<u32>> =
-                f.lo.iter()
-                    .chain(&f.hi)
-                    .map(|&x| u32::try_from(x).ok())
-                    .collect();
-            match c {
-                Some(c) if covered != u64::MAX && volume(&f) == Some(covered) => {
-                    [c[0], c[1], c[2], c[3], c[4], c[5]]
+            let corners = [f.lo[0], f.lo[1], f.lo[2], f.hi[0], f.hi[1], f.hi[2]];
+            match corners.map(|x| u32::try_from(x).ok()) {
+                [Some(x0), Some(y0), Some(z0), Some(x1), Some(y1), Some(z1)]
+                    if covered != u64::MAX && volume(&f) == Some(covered) =>
+                {
+                    [x0, y0, z0, x1, y1, z1]
                 }
                 _ => [0; 6],
             }
@@ -704,6 +716,21 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         }
     }
 
+    /// Where the leaf grid places finest-level cell `finest`: the leaf or the node to walk from
+    /// ([`super::leaf_grid::LeafGrid::entry`]); `None` outside the domain, or when there is no
+    /// table yet (or with the shortcuts off), for [`Self::find_leaf`] to answer.
+    #[inline]
+    pub(super) fn grid_entry(&self, finest: [i64; 3]) -> Option<Entry> {
+        self.leaf_grid.as_ref()?.built()?.entry(finest)
+    }
+
+    /// The kd-tree leaf holding finest-level cell `finest`, walking down from node `node`,
+    /// whose region holds it.
+    #[inline]
+    pub(super) fn find_leaf_from(&self, node: usize, finest: [i64; 3]) -> Option<u32> {
+        self.tree.find_leaf_from(node, finest)
+    }
+
     /// The leaf cells touching doubled point `v` from its eight sides (side `n`: nudged toward
     /// `+` on axis `a` when bit `a` of `n` is set), clamped into the domain.
     pub fn around(&self, v: [i64; 3]) -> Result<Option<[LeafCell; 8]>> {
@@ -724,21 +751,53 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// [`Self::around`], locating through `loc`.
     #[inline]
     pub fn around_in<L: Locate>(&self, loc: &L, v: [i64; 3]) -> Result<Option<[LeafCell; 8]>> {
+        let mut out = [NO_CELL; 8];
+        let found = self.around_into(loc, v, &mut out, &mut LeafHints::default())?;
+        Ok(found.then_some(out))
+    }
+
+    /// [`Self::around_in`] written into `out`: false (`out` then partly written) where a side
+    /// is not covered.
+    ///
+    /// The sides are located in order ([`Self::locate_hinted`], trying the leaves of `hints`
+    /// first), each located side's kd-tree leaf giving the later sides in its box, read from
+    /// its brick when read in place ([`Self::cell_in_leaf_numbered`]): leaves tile the domain,
+    /// so that is the locate's answer, and a side not read so is located in its turn (the first
+    /// side not covered, or failing, is the same one).
+    #[inline]
+    pub(super) fn around_into<L: Locate>(
+        &self,
+        loc: &L,
+        v: [i64; 3],
+        out: &mut [LeafCell; 8],
+        hints: &mut LeafHints,
+    ) -> Result<bool> {
         let (lo, hi, same) = self.nudges(v);
-        let mut out = [None::<LeafCell>; 8];
-        for n in 0..8 {
-            let m = n & !same;
-            out[n] = if m != n {
-                out[m]
-            } else {
-                let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
-                match loc.locate_cell(f)? {
-                    Some(c) => Some(c),
-                    None => return Ok(None),
-                }
+        let side = |n: usize| axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+        let mut todo = distinct_sides(same);
+        while todo != 0 {
+            let n = todo.trailing_zeros() as usize;
+            todo &= todo - 1;
+            let Some((c, b)) = self.locate_hinted(loc, side(n), hints)? else {
+                return Ok(false);
             };
+            out[n] = c;
+            let mut take = sides_in(&b, lo, hi) & todo;
+            while take != 0 {
+                let m = take.trailing_zeros() as usize;
+                take &= take - 1;
+                if let Some(x) = self.cell_in_leaf_numbered(c.leaf, side(m)) {
+                    out[m] = x;
+                    todo &= !(1 << m);
+                }
+            }
         }
-        Ok(Some(out.map(|c| c.expect("every side was located"))))
+        if same != 0 {
+            for n in 1..8 {
+                out[n] = out[n & !same];
+            }
+        }
+        Ok(true)
     }
 
     /// The value at octant vertex `v` as seen by an octant of level `level`.
@@ -783,10 +842,11 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         level: u32,
         memo: &mut VertexMemo,
     ) -> Result<Option<f32>> {
-        match self.around_in(loc, v)? {
-            Some(cells) => self.vertex_value_from_in(loc, v, level, &cells, memo),
-            None => Ok(None),
+        let mut cells = [NO_CELL; 8];
+        if !self.around_into(loc, v, &mut cells, &mut memo.hints)? {
+            return Ok(None);
         }
+        self.vertex_value_from_in(loc, v, level, &cells, memo)
     }
 
     /// [`Self::vertex_value`] given the leaf cells around `v` (as [`Self::around`] finds them).
@@ -1140,7 +1200,20 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         while todo != 0 {
             let n = todo.trailing_zeros() as usize;
             todo &= todo - 1;
-            around[n] = loc.locate_cell(side(n))?;
+            let found = self.locate_hinted(loc, side(n), &mut memo.hints)?;
+            around[n] = found.map(|(c, _)| c);
+            // The later sides in the located cell's kd-tree leaf, read from its brick.
+            if let Some((c, b)) = found {
+                let mut take = sides_in(&b, lo, hi) & todo;
+                while take != 0 {
+                    let m = take.trailing_zeros() as usize;
+                    take &= take - 1;
+                    if let Some(x) = self.cell_in_leaf_numbered(c.leaf, side(m)) {
+                        around[m] = Some(x);
+                        todo &= !(1 << m);
+                    }
+                }
+            }
             if near.is_none() {
                 near = around[n].map(|c| (c, self.read_box(c.leaf)));
             }
@@ -1163,7 +1236,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// The leaf cell at finest cell `f` of a position gathered by [`Self::corners_gathered`]:
     /// the position's cell when it covers the whole position, else read from the brick of the
     /// position's kd-tree leaf or of `near`'s when `f` lies in that leaf, else located through
-    /// `loc`.
+    /// `loc` ([`Self::locate_hinted`], trying the leaves of `hints` where the leaf grid names a
+    /// node).
     #[inline]
     pub(super) fn position_cell<L: Locate>(
         &self,
@@ -1171,6 +1245,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         p: Option<&Position>,
         near: Option<&(LeafCell, IBox)>,
         f: [i64; 3],
+        hints: &mut LeafHints,
     ) -> Result<Option<LeafCell>> {
         if let Some(p) = p {
             if p.whole {
@@ -1183,7 +1258,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         if let Some(c) = near.and_then(|(c, b)| self.cell_in_leaf(c, b, f)) {
             return Ok(Some(c));
         }
-        loc.locate_cell(f)
+        Ok(self.locate_hinted(loc, f, hints)?.map(|(c, _)| c))
     }
 
     /// The values of the eight cells at finest cells `lo`/`hi` per axis (as in

@@ -397,6 +397,7 @@ fn shared_cell_tiles_give_the_same_refs_on_any_thread_count() {
             s.active_duals,
             s.evaluated,
             s.culled_cells,
+            s.culled_octants,
             s.leaves_skipped,
         );
         (out.refs, counts)

@@ -75,6 +75,22 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
     Ok(union & (ABOVE | BELOW) == ABOVE | BELOW)
 }
 
+/// Settles neighbourhood cell `j` if it is pending, as [`cell_may_hold`] settles the cells
+/// around a cell: afterwards its code holds its whole bound for `iso`.
+pub fn settle_pending<D: AsRef<[u8]>>(
+    sources: (&Sampler<'_, D>, Shared<'_>),
+    hood: &mut Neighbourhood,
+    (memo, near): (&mut VertexMemo, &mut AroundMemo),
+    j: usize,
+    iso: f32,
+) -> Result<()> {
+    if hood.codes()[j] & PENDING != 0 {
+        let all = hood.cells;
+        settle_coarse(sources, hood, (memo, near), (j, Some(&all)), iso)?;
+    }
+    Ok(())
+}
+
 /// Bit `k` set when the code at `base + around[k]` is [`PENDING`], read nine words at a time as
 /// in [`union_around`].
 #[inline]

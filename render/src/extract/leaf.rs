@@ -12,15 +12,15 @@ use amr_format::IBox;
 
 use super::band::AroundMemo;
 use super::cell_tiles::CellTiles;
-use super::cull::{around_offsets, cell_may_hold, Shared};
-use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};
+use super::cull::{around_offsets, cell_may_hold, settle_pending, Shared};
+use super::local::{code, Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF, PENDING};
 use super::plain::PlainCodes;
 use super::refs::{make_ref, LocalVoxel};
 use super::small::MAX_CELLS;
 use super::vertices::LeafVertices;
 use crate::reconstruct::grid::axes;
 use crate::reconstruct::interp::{avg8, min_max, straddles};
-use crate::reconstruct::{Sampler, VertexMemo};
+use crate::reconstruct::{LeafCell, Locate, Sampler, VertexMemo};
 
 /// Per-thread scratch of [`extract_leaf`].
 pub struct Scratch<'s> {
@@ -74,6 +74,9 @@ pub struct LeafCounts {
     /// Parts of the leaf skipped because their block bound excludes the isovalue
     /// ([`super::parts`]).
     pub parts_skipped: u64,
+    /// Boundary octants left unevaluated because the values of some corners and the bounds
+    /// around the others exclude the isovalue ([`boundary_corners`]).
+    pub octants_culled: u64,
 }
 
 impl LeafCounts {
@@ -84,6 +87,7 @@ impl LeafCounts {
         self.boundary += other.boundary;
         self.culled += other.culled;
         self.parts_skipped += other.parts_skipped;
+        self.octants_culled += other.octants_culled;
     }
 }
 
@@ -267,24 +271,57 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                             - (0..3)
                                 .map(|a| (1 - (octant as usize >> a & 1)) * step[a])
                                 .sum::<usize>();
-                        if offsets.iter().all(|&d| hood.kind(low + d) == LEAF) {
+                        // The octant's vertices lie in its closure, so the cells around them
+                        // are among the eight around its outer corner: the octant is skipped
+                        // when those are all leaf cells of the level (a merged dual cell), or
+                        // when their bounds, settled, exclude `iso` ([`super::cull`]'s argument
+                        // for these eight cells).
+                        let block = |hood: &Neighbourhood| {
+                            offsets.iter().fold(0u8, |m, &d| m | hood.codes()[low + d])
+                        };
+                        let mut m = block(hood);
+                        if m & NOT_LEAF == 0 {
                             continue;
                         }
-                        counts.evaluated += 1;
-                        counts.boundary += 1;
-                        let Some(v) = boundary_corners(
+                        if m & PENDING != 0 {
+                            for d in offsets {
+                                settle_pending(
+                                    (sampler, *shared),
+                                    hood,
+                                    (memo, near),
+                                    low + d,
+                                    iso,
+                                )?;
+                            }
+                            m = block(hood);
+                        }
+                        if m & (ABOVE | BELOW) != ABOVE | BELOW {
+                            counts.octants_culled += 1;
+                            continue;
+                        }
+                        let v = match boundary_corners(
                             sampler,
                             hood,
                             (memo, verts),
-                            level,
+                            (level, iso),
                             i,
                             local,
                             lo,
                             octant,
-                        )?
-                        else {
-                            continue;
+                        )? {
+                            Corners::Values(v) => v,
+                            Corners::Uncovered => {
+                                counts.evaluated += 1;
+                                counts.boundary += 1;
+                                continue;
+                            }
+                            Corners::Culled => {
+                                counts.octants_culled += 1;
+                                continue;
+                            }
                         };
+                        counts.evaluated += 1;
+                        counts.boundary += 1;
                         let (vlo, vhi) = min_max(&v);
                         if straddles(vlo, vhi, iso) {
                             let local = frame.refs.linear_index(cell) as u32;
@@ -305,27 +342,50 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     Ok(counts)
 }
 
+/// What [`boundary_corners`] finds for an octant.
+enum Corners {
+    /// The eight corner values.
+    Values([f32; 8]),
+    /// A cell touching a corner is not covered by any brick: the octant is no voxel.
+    Uncovered,
+    /// Some corners were left unevaluated: the values of the others and the bounds of the cells
+    /// around the rest exclude the isovalue, so the octant is not active.
+    Culled,
+}
+
 /// The corner values of octant `octant` of the leaf-cell at neighbourhood index `i` (local
 /// cell position `local` in the leaf's box), whose lower corner is doubled point `lo`:
 /// [`Sampler::corners`], reading the eight cells around a vertex from the neighbourhood when
 /// they are all leaf cells of the octant's level (the same values in the same order), and asking
 /// the sampler otherwise. Every vertex is computed once per leaf, and those the sampler gives
 /// are kept for the leaves after it ([`LeafVertices::kept`]).
+///
+/// The vertices the sampler would give are asked for last, and only while the octant may still
+/// straddle `iso`: such a vertex's value lies in the union of the bounds of the level-`L` cells
+/// around it (the argument of [`super::cull`], for the cells around one vertex instead of the 27
+/// around a cell), so when the values known and those bounds exclude `iso`, the octant is
+/// [`Corners::Culled`].
 #[allow(clippy::too_many_arguments)]
 fn boundary_corners<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     hood: &Neighbourhood,
     (memo, verts): (&mut VertexMemo, &mut LeafVertices),
-    level: u32,
+    (level, iso): (u32, f32),
     i: usize,
     local: [usize; 3],
     lo: [i64; 3],
     octant: u8,
-) -> Result<Option<[f32; 8]>> {
+) -> Result<Corners> {
     let e = hood.cells.extent();
     let step = [1isize, e[0] as isize, (e[0] * e[1]) as isize];
     let s = sampler.grid().scale(level);
+    let codes = hood.codes();
     let mut out = [0f32; 8];
+    // The union of the codes of the values known, and per other corner: its vertex slot, the
+    // code of the bounds of the cells around it and those cells.
+    let mut known = 0u8;
+    let mut other = [(0usize, 0u8, [0usize; 8]); 8];
+    let mut left = 0u8;
     for (n, slot) in out.iter_mut().enumerate() {
         let mut below = [0isize; 3];
         let mut above = [0isize; 3];
@@ -342,45 +402,122 @@ fn boundary_corners<D: AsRef<[u8]>>(
                 below[a] = -step[a];
             }
         }
-        if at_centre {
-            *slot = hood.value(i);
-            continue;
-        }
-        let k = axes(|a| 2 * local[a] + (octant as usize >> a & 1) + (n >> a & 1));
-        let vi = verts.slot_at(k);
-        let value = match verts.get_slot(vi) {
-            Some(known) => known,
-            None => {
-                let around: [usize; 8] = std::array::from_fn(|m| {
-                    let d: isize = (0..3)
-                        .map(|a| if m >> a & 1 == 1 { above[a] } else { below[a] })
-                        .sum();
-                    (i as isize + d) as usize
-                });
-                let value = if around.iter().all(|&j| hood.kind(j) == LEAF) {
-                    Some(avg8(&around.map(|j| hood.value(j))))
-                } else {
-                    let v = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
-                    match verts.kept(v, level) {
-                        Some(kept) => kept,
-                        None => {
-                            let value =
-                                sampler.vertex_value_unmemoized_in(sampler, v, level, memo)?;
-                            verts.keep(v, level, value);
-                            value
-                        }
+        let value = if at_centre {
+            Some(hood.value(i))
+        } else {
+            let k = axes(|a| 2 * local[a] + (octant as usize >> a & 1) + (n >> a & 1));
+            let vi = verts.slot_at(k);
+            match verts.get_slot(vi) {
+                Some(value) => value,
+                None => {
+                    let around: [usize; 8] = std::array::from_fn(|m| {
+                        let d: isize = (0..3)
+                            .map(|a| if m >> a & 1 == 1 { above[a] } else { below[a] })
+                            .sum();
+                        (i as isize + d) as usize
+                    });
+                    if !around.iter().all(|&j| hood.kind(j) == LEAF) {
+                        let bound = around.iter().fold(0u8, |u, &j| u | codes[j]);
+                        let bound = if bound & PENDING != 0 {
+                            ABOVE | BELOW
+                        } else {
+                            bound & (ABOVE | BELOW)
+                        };
+                        other[n] = (vi, bound, around);
+                        left |= 1 << n;
+                        continue;
                     }
-                };
-                verts.put_slot(vi, value);
-                value
+                    let value = Some(avg8(&around.map(|j| hood.value(j))));
+                    verts.put_slot(vi, value);
+                    value
+                }
             }
         };
         match value {
-            Some(x) => *slot = x,
-            None => return Ok(None),
+            Some(x) => {
+                *slot = x;
+                known |= code(x, x, iso);
+            }
+            None => return Ok(Corners::Uncovered),
         }
     }
-    Ok(Some(out))
+    // The other corners in order, each while the values so far and the bounds of those left may
+    // straddle `iso`. The leaf's slots are filled in the same order whatever the thread, so the
+    // decision is too; values kept from other leaves, which depend on what the thread did
+    // before, only spare computing a value.
+    while left != 0 {
+        let bounds = (0..8).fold(known, |u, n| {
+            u | if left >> n & 1 == 1 { other[n].1 } else { 0 }
+        });
+        if bounds & (ABOVE | BELOW) != ABOVE | BELOW {
+            return Ok(Corners::Culled);
+        }
+        let n = left.trailing_zeros() as usize;
+        left &= left - 1;
+        let (vi, _, around) = other[n];
+        let v = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
+        let value = match verts.kept(v, level) {
+            Some(kept) => kept,
+            None => {
+                let value = vertex_value(sampler, hood, memo, (v, level), &around)?;
+                verts.keep(v, level, value);
+                value
+            }
+        };
+        verts.put_slot(vi, value);
+        match value {
+            Some(x) => {
+                out[n] = x;
+                known |= code(x, x, iso);
+            }
+            None => return Ok(Corners::Uncovered),
+        }
+    }
+    Ok(Corners::Values(out))
+}
+
+/// [`Sampler::vertex_value_unmemoized_in`] at vertex `v` seen from level `level`, whose eight
+/// sides (as [`Sampler::around`] numbers them) lie in the neighbourhood cells `around`: the
+/// same value from the same cells, but a side in a [`LEAF`] cell is that cell (of level
+/// `level`, with the neighbourhood's value) rather than located again. Such a side's kd-tree
+/// leaf and brick are not known (they are `u32::MAX`): [`Sampler::vertex_value_from_in`] reads
+/// a side whole only when it is of the coarsest level there, coarser than `level`, and
+/// otherwise only its level and value.
+fn vertex_value<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    hood: &Neighbourhood,
+    memo: &mut VertexMemo,
+    (v, level): ([i64; 3], u32),
+    around: &[usize; 8],
+) -> Result<Option<f32>> {
+    let grid = sampler.grid();
+    let (lo, hi) = (grid.finest_cell(v, 0), grid.finest_cell(v, 7));
+    // The axes on which the two nudges coincide: there side `n` repeats side `n` without the
+    // axis's bit, as in [`Sampler::around_in`].
+    let same = (0..3).fold(0usize, |m, a| m | usize::from(lo[a] == hi[a]) << a);
+    let mut cells = [LeafCell {
+        leaf: u32::MAX,
+        brick: u32::MAX,
+        level,
+        cell: [0; 3],
+        value: 0.0,
+    }; 8];
+    for (n, &j) in around.iter().enumerate() {
+        let m = n & !same;
+        if m != n {
+            cells[n] = cells[m];
+        } else if hood.kind(j) == LEAF {
+            cells[n].cell = hood.cell_at(j);
+            cells[n].value = hood.value(j);
+        } else {
+            let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+            match sampler.locate_cell(f)? {
+                Some(c) => cells[n] = c,
+                None => return Ok(None),
+            }
+        }
+    }
+    sampler.vertex_value_from_in(sampler, v, level, &cells, memo)
 }
 
 /// The merged dual cells are coded over the whole stretch of the neighbourhood's cells from the

@@ -365,6 +365,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             evaluated: totals.evaluated,
             boundary_evaluated: totals.boundary,
             culled_cells: totals.culled,
+            culled_octants: totals.octants_culled,
             parts_skipped: totals.parts_skipped,
             file_cells: self.file_cells,
             seconds: start.elapsed().as_secs_f64(),

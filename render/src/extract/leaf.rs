@@ -13,7 +13,7 @@ use amr_format::IBox;
 use super::band::AroundMemo;
 use super::cell_tiles::CellTiles;
 use super::cull::{around_offsets, cell_may_hold, settle_pending, Shared};
-use super::local::{code, Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF, PENDING};
+use super::local::{code, div_floor, Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF, PENDING};
 use super::plain::PlainCodes;
 use super::refs::{make_ref, LocalVoxel};
 use super::small::MAX_CELLS;
@@ -380,29 +380,33 @@ fn boundary_corners<D: AsRef<[u8]>>(
     let step = [1isize, e[0] as isize, (e[0] * e[1]) as isize];
     let s = sampler.grid().scale(level);
     let codes = hood.codes();
-    let mut out = [0f32; 8];
-    // The union of the codes of the values known, and per other corner: its vertex slot, the
-    // code of the bounds of the cells around it and those cells.
-    let mut known = 0u8;
-    let mut other = [(0usize, 0u8, [0usize; 8]); 8];
-    let mut left = 0u8;
-    for (n, slot) in out.iter_mut().enumerate() {
-        let mut below = [0isize; 3];
-        let mut above = [0isize; 3];
-        let mut at_centre = true;
-        for a in 0..3 {
+    // The neighbourhood cells around corner `n` (not the cell's centre), numbered as
+    // [`Sampler::around`] numbers a vertex's sides: on an axis where the corner lies on the
+    // octant's outer face, the side beyond it is the neighbour that way, else the cell itself.
+    let around_of = |n: usize| -> [usize; 8] {
+        let d = axes(|a| {
             let up = octant >> a & 1 == 1;
             if (n >> a & 1 == 1) != up {
-                continue;
-            }
-            at_centre = false;
-            if up {
-                above[a] = step[a];
+                [0, 0]
+            } else if up {
+                [0, step[a]]
             } else {
-                below[a] = -step[a];
+                [-step[a], 0]
             }
-        }
-        let value = if at_centre {
+        });
+        std::array::from_fn(|m| {
+            (i as isize + d[0][m & 1] + d[1][m >> 1 & 1] + d[2][m >> 2 & 1]) as usize
+        })
+    };
+    let centre = usize::from(!octant & 7);
+    let mut out = [0f32; 8];
+    // The union of the codes of the values known, and per other corner: its vertex slot and the
+    // code of the bounds of the cells around it.
+    let mut known = 0u8;
+    let mut other = [(0usize, 0u8); 8];
+    let mut left = 0u8;
+    for (n, slot) in out.iter_mut().enumerate() {
+        let value = if n == centre {
             Some(hood.value(i))
         } else {
             let k = axes(|a| 2 * local[a] + (octant as usize >> a & 1) + (n >> a & 1));
@@ -410,12 +414,7 @@ fn boundary_corners<D: AsRef<[u8]>>(
             match verts.get_slot(vi) {
                 Some(value) => value,
                 None => {
-                    let around: [usize; 8] = std::array::from_fn(|m| {
-                        let d: isize = (0..3)
-                            .map(|a| if m >> a & 1 == 1 { above[a] } else { below[a] })
-                            .sum();
-                        (i as isize + d) as usize
-                    });
+                    let around = around_of(n);
                     if !around.iter().all(|&j| hood.kind(j) == LEAF) {
                         let bound = around.iter().fold(0u8, |u, &j| u | codes[j]);
                         let bound = if bound & PENDING != 0 {
@@ -423,7 +422,7 @@ fn boundary_corners<D: AsRef<[u8]>>(
                         } else {
                             bound & (ABOVE | BELOW)
                         };
-                        other[n] = (vi, bound, around);
+                        other[n] = (vi, bound);
                         left |= 1 << n;
                         continue;
                     }
@@ -454,12 +453,12 @@ fn boundary_corners<D: AsRef<[u8]>>(
         }
         let n = left.trailing_zeros() as usize;
         left &= left - 1;
-        let (vi, _, around) = other[n];
+        let (vi, _) = other[n];
         let v = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
         let value = match verts.kept(v, level) {
             Some(kept) => kept,
             None => {
-                let value = vertex_value(sampler, hood, memo, (v, level), &around)?;
+                let value = vertex_value(sampler, hood, memo, (v, level), &around_of(n))?;
                 verts.keep(v, level, value);
                 value
             }
@@ -479,10 +478,10 @@ fn boundary_corners<D: AsRef<[u8]>>(
 /// [`Sampler::vertex_value_unmemoized_in`] at vertex `v` seen from level `level`, whose eight
 /// sides (as [`Sampler::around`] numbers them) lie in the neighbourhood cells `around`: the
 /// same value from the same cells, but a side in a [`LEAF`] cell is that cell (of level
-/// `level`, with the neighbourhood's value) rather than located again. Such a side's kd-tree
-/// leaf and brick are not known (they are `u32::MAX`): [`Sampler::vertex_value_from_in`] reads
-/// a side whole only when it is of the coarsest level there, coarser than `level`, and
-/// otherwise only its level and value.
+/// `level`, its index from the side's finest cell, its value the neighbourhood's) rather than
+/// located again. Such a side's kd-tree leaf and brick are not known (they are `u32::MAX`):
+/// [`Sampler::vertex_value_from_in`] reads a side whole only when it is of the coarsest level
+/// there, coarser than `level`, and otherwise only its level and value.
 fn vertex_value<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     hood: &Neighbourhood,
@@ -502,15 +501,18 @@ fn vertex_value<D: AsRef<[u8]>>(
         cell: [0; 3],
         value: 0.0,
     }; 8];
+    let (s, o) = (grid.scale(level), grid.offset());
     for (n, &j) in around.iter().enumerate() {
         let m = n & !same;
         if m != n {
             cells[n] = cells[m];
-        } else if hood.kind(j) == LEAF {
-            cells[n].cell = hood.cell_at(j);
+            continue;
+        }
+        let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+        if hood.kind(j) == LEAF {
+            cells[n].cell = axes(|a| div_floor(f[a] + o[a], s[a]));
             cells[n].value = hood.value(j);
         } else {
-            let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
             match sampler.locate_cell(f)? {
                 Some(c) => cells[n] = c,
                 None => return Ok(None),

@@ -451,8 +451,14 @@ fn boundary_corners<D: AsRef<[u8]>>(
         if bounds & (ABOVE | BELOW) != ABOVE | BELOW {
             return Ok(Corners::Culled);
         }
-        let n = left.trailing_zeros() as usize;
-        left &= left - 1;
+        // First a corner that could give a bit the values so far lack: if it does not, the
+        // octant is settled sooner.
+        let missing = (ABOVE | BELOW) & !known;
+        let wanted = (0..8).fold(0u8, |w, n| {
+            w | u8::from(left >> n & 1 == 1 && other[n].1 & missing != 0) << n
+        });
+        let n = if wanted != 0 { wanted } else { left }.trailing_zeros() as usize;
+        left &= !(1 << n);
         let (vi, _) = other[n];
         let v = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
         let value = match verts.kept(v, level) {

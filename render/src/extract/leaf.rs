@@ -12,7 +12,7 @@ use amr_format::IBox;
 
 use super::band::AroundMemo;
 use super::cell_tiles::CellTiles;
-use super::cull::{around_offsets, cell_may_hold, settle_pending, Shared};
+use super::cull::{around_offsets, cell_may_hold, coarse_cell_bound, settle_pending, Shared};
 use super::local::{code, div_floor, Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF, PENDING};
 use super::plain::PlainCodes;
 use super::refs::{make_ref, LocalVoxel};
@@ -299,6 +299,22 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                             counts.octants_culled += 1;
                             continue;
                         }
+                        // Again with the cells inside coarser leaf cells bounded by the corners
+                        // of the coarse octants over them alone: dearer, and tighter.
+                        let mut narrowed = 0u8;
+                        for d in offsets {
+                            let j = low + d;
+                            if hood.narrows(j) && hood.exact(j).is_none() {
+                                let x = hood.cell_at(j);
+                                let b = coarse_cell_bound((sampler, memo), level, x)?;
+                                hood.set_exact(j, b);
+                            }
+                            narrowed |= hood.value_code(j, iso);
+                        }
+                        if narrowed & (ABOVE | BELOW) != ABOVE | BELOW {
+                            counts.octants_culled += 1;
+                            continue;
+                        }
                         let v = match boundary_corners(
                             sampler,
                             hood,
@@ -379,7 +395,6 @@ fn boundary_corners<D: AsRef<[u8]>>(
     let e = hood.cells.extent();
     let step = [1isize, e[0] as isize, (e[0] * e[1]) as isize];
     let s = sampler.grid().scale(level);
-    let codes = hood.codes();
     // The neighbourhood cells around corner `n` (not the cell's centre), numbered as
     // [`Sampler::around`] numbers a vertex's sides: on an axis where the corner lies on the
     // octant's outer face, the side beyond it is the neighbour that way, else the cell itself.
@@ -416,12 +431,7 @@ fn boundary_corners<D: AsRef<[u8]>>(
                 None => {
                     let around = around_of(n);
                     if !around.iter().all(|&j| hood.kind(j) == LEAF) {
-                        let bound = around.iter().fold(0u8, |u, &j| u | codes[j]);
-                        let bound = if bound & PENDING != 0 {
-                            ABOVE | BELOW
-                        } else {
-                            bound & (ABOVE | BELOW)
-                        };
+                        let bound = around.iter().fold(0u8, |u, &j| u | hood.value_code(j, iso));
                         other[n] = (vi, bound);
                         left |= 1 << n;
                         continue;

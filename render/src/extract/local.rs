@@ -215,6 +215,12 @@ pub struct Neighbourhood {
     /// isovalue of the last [`Self::classify`], the [`ABOVE`], [`BELOW`] and [`NOT_LEAF`] bits.
     codes: Vec<u8>,
     touching: Vec<Met>,
+    /// Per cell inside a coarser leaf cell: true when the fill gave it a bound of its own (leaf
+    /// cells of this level or finer met there), merged into the coarse one when settled.
+    mixed: Vec<bool>,
+    /// Per cell: its bound from the coarse octants alone ([`super::cull::coarse_cell_bound`])
+    /// once computed, NaN before.
+    exact: Vec<(f32, f32)>,
     /// Scratch of [`Self::mark_near_boundary`].
     dilated: Vec<bool>,
     /// The level and box of the last fill, while the cells hold it.
@@ -287,6 +293,10 @@ impl Neighbourhood {
         self.hi.resize(n, f32::NEG_INFINITY);
         self.codes.clear();
         self.codes.resize(n, 0);
+        self.mixed.clear();
+        self.mixed.resize(n, false);
+        self.exact.clear();
+        self.exact.resize(n, (f32::NAN, f32::NAN));
         self.pending_left = 0;
         self.pending_rows.clear();
         let e = g.extent();
@@ -389,6 +399,9 @@ impl Neighbourhood {
             v.resize(n, 0.0);
         }
         self.kind.resize(n, UNCOVERED);
+        self.mixed.resize(n, false);
+        self.exact.clear();
+        self.exact.resize(n, (f32::NAN, f32::NAN));
         self.codes.clear();
         self.codes.resize(n, 0);
         self.pending_left = 0;
@@ -410,8 +423,10 @@ impl Neighbourhood {
         let (n, m) = (self.kind.len(), tile.kind.len());
         let whole = self.lo.len() == n
             && self.hi.len() == n
+            && self.mixed.len() == n
             && tile.lo.len() == m
             && tile.hi.len() == m
+            && tile.mixed.len() == m
             && g.num_cells() == Some(n as u64)
             && t.num_cells() == Some(m as u64);
         debug_assert!(whole, "cells not sized to their box");
@@ -461,8 +476,14 @@ impl Neighbourhood {
             self.kind.as_mut_ptr(),
             self.lo.as_mut_ptr(),
             self.hi.as_mut_ptr(),
+            self.mixed.as_mut_ptr(),
         );
-        let src = (tile.kind.as_ptr(), tile.lo.as_ptr(), tile.hi.as_ptr());
+        let src = (
+            tile.kind.as_ptr(),
+            tile.lo.as_ptr(),
+            tile.hi.as_ptr(),
+            tile.mixed.as_ptr(),
+        );
         // One loop over all rows, a plane's rows `ny` at a time: fewer live counters than a
         // loop per plane, for the few short rows of a tile's part.
         let (mut d, mut s) = (rows.dst, rows.src);
@@ -481,6 +502,7 @@ impl Neighbourhood {
                 std::ptr::copy_nonoverlapping(src.0.add(s), dst.0.add(d), w);
                 std::ptr::copy_nonoverlapping(src.1.add(s), dst.1.add(d), w);
                 std::ptr::copy_nonoverlapping(src.2.add(s), dst.2.add(d), w);
+                std::ptr::copy_nonoverlapping(src.3.add(s), dst.3.add(d), w);
             }
             debug_assert!(
                 !tile.codes[s..s + w].iter().any(|&c| c & PENDING != 0),
@@ -892,12 +914,49 @@ impl Neighbourhood {
     /// Folds `lo..=hi` into the bound of the cell at index `i`, clears its pending flag and
     /// updates its code for `iso`.
     pub fn settle_coarse(&mut self, i: usize, (lo, hi): (f32, f32), iso: f32) {
-        self.lo[i] = self.lo[i].min(lo);
-        self.hi[i] = self.hi[i].max(hi);
         if self.codes[i] & PENDING != 0 {
             self.pending_left -= 1;
+            self.mixed[i] = self.lo[i] <= self.hi[i];
         }
+        self.lo[i] = self.lo[i].min(lo);
+        self.hi[i] = self.hi[i].max(hi);
         self.codes[i] = self.codes[i] & NOT_LEAF | code(self.lo[i], self.hi[i], iso);
+    }
+
+    /// True when the bound of the cell at index `i` may be narrowed to its coarse octants'
+    /// ([`super::cull::coarse_cell_bound`]): a settled cell inside a coarser leaf cell, with no
+    /// bound of its own from the fill.
+    #[inline]
+    pub fn narrows(&self, i: usize) -> bool {
+        self.kind[i] == COARSER && self.codes[i] & PENDING == 0 && !self.mixed[i]
+    }
+
+    /// The bound of the cell at index `i` from its coarse octants alone, once given
+    /// ([`Self::set_exact`]).
+    #[inline]
+    pub fn exact(&self, i: usize) -> Option<(f32, f32)> {
+        let (lo, hi) = self.exact[i];
+        (!lo.is_nan()).then_some((lo, hi))
+    }
+
+    /// Keeps the bound of the cell at index `i` from its coarse octants alone.
+    #[inline]
+    pub fn set_exact(&mut self, i: usize, bound: (f32, f32)) {
+        self.exact[i] = bound;
+    }
+
+    /// The code for `iso` ([`ABOVE`], [`BELOW`]) of the values a vertex can take through the
+    /// cell at index `i`: its bound's, narrowed to the coarse octants' when known; both bits
+    /// while it is pending.
+    #[inline]
+    pub fn value_code(&self, i: usize, iso: f32) -> u8 {
+        if self.codes[i] & PENDING != 0 {
+            return ABOVE | BELOW;
+        }
+        match self.exact(i) {
+            Some((lo, hi)) if self.narrows(i) => code(lo, hi, iso),
+            _ => self.codes[i] & (ABOVE | BELOW),
+        }
     }
 
     /// The cell (absolute level index) at index `i`.
@@ -931,6 +990,7 @@ mod tests {
         hood.lo = vec![1.0, f32::INFINITY];
         hood.hi = vec![f32::NEG_INFINITY; 2];
         hood.codes = vec![0, 0];
+        hood.mixed = vec![false; 2];
         hood.pending_rows = vec![0];
         hood.set_coarser_block(&IBox::new([1, 0, 0], [2, 1, 1]));
         hood.set_coarser_block(&IBox::new([1, 0, 0], [2, 1, 1]));

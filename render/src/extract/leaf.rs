@@ -301,17 +301,51 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                         }
                         // Again with the cells inside coarser leaf cells bounded by the corners
                         // of the coarse octants over them alone: dearer, and tighter.
-                        let mut narrowed = 0u8;
-                        for d in offsets {
+                        // The cells left to narrow, a bit per offset, and the codes of the
+                        // others; the decision is that of all cells narrowed (narrowing only
+                        // drops bits), whichever were narrowed before.
+                        let mut fixed = 0u8;
+                        let mut open = 0u8;
+                        for (k, d) in offsets.iter().enumerate() {
                             let j = low + d;
                             if hood.narrows(j) && hood.exact(j).is_none() {
-                                let x = hood.cell_at(j);
-                                let b = coarse_cell_bound((sampler, memo), level, x)?;
-                                hood.set_exact(j, b);
+                                open |= 1 << k;
+                            } else {
+                                fixed |= hood.value_code(j, iso);
                             }
-                            narrowed |= hood.value_code(j, iso);
                         }
-                        if narrowed & (ABOVE | BELOW) != ABOVE | BELOW {
+                        let mut culled = false;
+                        loop {
+                            let rest = (0..8).fold(0u8, |u, k| {
+                                u | if open >> k & 1 == 1 {
+                                    hood.value_code(low + offsets[k], iso)
+                                } else {
+                                    0
+                                }
+                            });
+                            if (fixed | rest) & (ABOVE | BELOW) != ABOVE | BELOW {
+                                culled = true;
+                                break;
+                            }
+                            if fixed & (ABOVE | BELOW) == ABOVE | BELOW || open == 0 {
+                                break;
+                            }
+                            let missing = (ABOVE | BELOW) & !fixed;
+                            let wanted = (0..8).fold(0u8, |w, k| {
+                                let j = low + offsets[k];
+                                w | u8::from(
+                                    open >> k & 1 == 1 && hood.value_code(j, iso) & missing != 0,
+                                ) << k
+                            });
+                            let k =
+                                if wanted != 0 { wanted } else { open }.trailing_zeros() as usize;
+                            open &= !(1 << k);
+                            let j = low + offsets[k];
+                            let b = coarse_cell_bound((sampler, memo), level, hood.cell_at(j))?;
+                            hood.set_exact(j, b);
+                            fixed |= hood.value_code(j, iso);
+                        }
+                        if culled {
                             counts.octants_culled += 1;
                             continue;
                         }
@@ -384,7 +418,7 @@ enum Corners {
 #[allow(clippy::too_many_arguments)]
 fn boundary_corners<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
-    hood: &Neighbourhood,
+    hood: &mut Neighbourhood,
     (memo, verts): (&mut VertexMemo, &mut LeafVertices),
     (level, iso): (u32, f32),
     i: usize,
@@ -431,7 +465,14 @@ fn boundary_corners<D: AsRef<[u8]>>(
                 None => {
                     let around = around_of(n);
                     if !around.iter().all(|&j| hood.kind(j) == LEAF) {
-                        let bound = around.iter().fold(0u8, |u, &j| u | hood.value_code(j, iso));
+                        let mut bound = 0u8;
+                        for &j in &around {
+                            if hood.narrows(j) && hood.exact(j).is_none() {
+                                let b = coarse_cell_bound((sampler, memo), level, hood.cell_at(j))?;
+                                hood.set_exact(j, b);
+                            }
+                            bound |= hood.value_code(j, iso);
+                        }
                         other[n] = (vi, bound);
                         left |= 1 << n;
                         continue;

@@ -4,7 +4,9 @@
 //! whose half-open box holds the voxel's lower corner), so every voxel belongs to exactly one
 //! leaf. A dual cell of level `L` is merged (one voxel for its eight octants) when its eight
 //! cells are all leaf cells of level `L`; every other octant of the leaf's cells is a voxel of
-//! its own, with corners from [`Sampler::corners`].
+//! its own, with corners from [`Sampler::corners`], unless the bounds of the cells around it
+//! (and the corners already known) show it cannot straddle the isovalue: then its other corners
+//! are never evaluated.
 
 use super::blocks::level_box;
 use crate::error::Result;
@@ -301,51 +303,8 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                         }
                         // Again with the cells inside coarser leaf cells bounded by the corners
                         // of the coarse octants over them alone: dearer, and tighter.
-                        // The cells left to narrow, a bit per offset, and the codes of the
-                        // others; the decision is that of all cells narrowed (narrowing only
-                        // drops bits), whichever were narrowed before.
-                        let mut fixed = 0u8;
-                        let mut open = 0u8;
-                        for (k, d) in offsets.iter().enumerate() {
-                            let j = low + d;
-                            if hood.narrows(j) && hood.exact(j).is_none() {
-                                open |= 1 << k;
-                            } else {
-                                fixed |= hood.value_code(j, iso);
-                            }
-                        }
-                        let mut culled = false;
-                        loop {
-                            let rest = (0..8).fold(0u8, |u, k| {
-                                u | if open >> k & 1 == 1 {
-                                    hood.value_code(low + offsets[k], iso)
-                                } else {
-                                    0
-                                }
-                            });
-                            if (fixed | rest) & (ABOVE | BELOW) != ABOVE | BELOW {
-                                culled = true;
-                                break;
-                            }
-                            if fixed & (ABOVE | BELOW) == ABOVE | BELOW || open == 0 {
-                                break;
-                            }
-                            let missing = (ABOVE | BELOW) & !fixed;
-                            let wanted = (0..8).fold(0u8, |w, k| {
-                                let j = low + offsets[k];
-                                w | u8::from(
-                                    open >> k & 1 == 1 && hood.value_code(j, iso) & missing != 0,
-                                ) << k
-                            });
-                            let k =
-                                if wanted != 0 { wanted } else { open }.trailing_zeros() as usize;
-                            open &= !(1 << k);
-                            let j = low + offsets[k];
-                            let b = coarse_cell_bound((sampler, memo), level, hood.cell_at(j))?;
-                            hood.set_exact(j, b);
-                            fixed |= hood.value_code(j, iso);
-                        }
-                        if culled {
+                        let cells = offsets.map(|d| low + d);
+                        if !narrowed_may_straddle(sampler, hood, memo, (level, iso), &cells)? {
                             counts.octants_culled += 1;
                             continue;
                         }
@@ -390,6 +349,54 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     }
     out[start..].sort_unstable();
     Ok(counts)
+}
+
+/// False when the codes of neighbourhood cells `cells` (the eight around a boundary octant's
+/// outer corner, none pending) exclude `iso` once those inside coarser leaf cells are narrowed
+/// to their coarse octants' corners ([`Neighbourhood::narrows`], `cull::coarse_cell_bound`).
+/// They are narrowed one at a time, first those whose codes could give the bit the others lack,
+/// until the answer is known; narrowing only drops bits, so the answer is that of all cells
+/// narrowed, whichever the neighbourhood had narrowed before.
+#[inline(always)]
+fn narrowed_may_straddle<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    hood: &mut Neighbourhood,
+    memo: &mut VertexMemo,
+    (level, iso): (u32, f32),
+    cells: &[usize; 8],
+) -> Result<bool> {
+    let both = ABOVE | BELOW;
+    // The codes of the cells narrowed or not to be narrowed, and a bit per cell left.
+    let mut fixed = 0u8;
+    let mut open = 0u8;
+    for (k, &j) in cells.iter().enumerate() {
+        if hood.narrows(j) && hood.exact(j).is_none() {
+            open |= 1 << k;
+        } else {
+            fixed |= hood.value_code(j, iso);
+        }
+    }
+    loop {
+        let code_of = |k: usize| hood.value_code(cells[k], iso);
+        let rest = (0..8).fold(0u8, |u, k| {
+            u | if open >> k & 1 == 1 { code_of(k) } else { 0 }
+        });
+        if (fixed | rest) & both != both {
+            return Ok(false);
+        }
+        if fixed & both == both || open == 0 {
+            return Ok(true);
+        }
+        let missing = both & !fixed;
+        let wanted = (0..8).fold(0u8, |w, k| {
+            w | u8::from(open >> k & 1 == 1 && code_of(k) & missing != 0) << k
+        });
+        let k = if wanted != 0 { wanted } else { open }.trailing_zeros() as usize;
+        open &= !(1 << k);
+        let bound = coarse_cell_bound((sampler, memo), level, hood.cell_at(cells[k]))?;
+        hood.set_exact(cells[k], bound);
+        fixed |= hood.value_code(cells[k], iso);
+    }
 }
 
 /// What [`boundary_corners`] finds for an octant.

@@ -7,7 +7,8 @@
 //!   exclude the isovalue.
 //! - [`plain`]: the codes of a neighbourhood of leaf cells of one level, straight from the
 //!   bricks.
-//! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue.
+//! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue, and the
+//!   narrower bounds of cells inside coarser leaf cells that boundary octants are tested with.
 //! - [`band`]: the bounds around coarse leaf cells the cull reads, kept for every leaf.
 //! - [`vertices`]: a leaf's boundary vertex values, computed once each.
 //! - [`blocks`]: per-brick ranges of blocks of cells (stored in the file, or built), for bounds

@@ -104,23 +104,25 @@ fn isovalues(
     out
 }
 
-/// Checks every isovalue of `case`; returns how many boundary cells extraction culled and how
-/// many leaves it skipped by their tight range.
-fn check_case(case: &Case) -> (u64, u64) {
-    let (culled, skipped, _) = check_case_parts(case);
-    (culled, skipped)
+/// Checks every isovalue of `case`; returns how many boundary cells extraction culled, how
+/// many leaves it skipped by their tight range and how many boundary octants it culled.
+fn check_case(case: &Case) -> (u64, u64, u64) {
+    let (culled, skipped, _, octants) = check_case_parts(case);
+    (culled, skipped, octants)
 }
 
-/// [`check_case`], also returning how many parts of large leaves extraction skipped.
-fn check_case_parts(case: &Case) -> (u64, u64, u64) {
+/// [`check_case`], also returning how many parts of large leaves extraction skipped (third).
+fn check_case_parts(case: &Case) -> (u64, u64, u64, u64) {
     let (_, file) = build(case);
     check_file(&file, case.seed, &format!("seed {} ({case:?})", case.seed))
 }
 
 /// Checks random isovalues (from `seed`) of every field of `file`, naming it `name` in failures;
-/// returns how many boundary cells extraction culled and how many leaves it skipped.
-fn check_file(file: &AmrkFile<Vec<u8>>, seed: u64, name: &str) -> (u64, u64, u64) {
+/// returns how many boundary cells extraction culled, how many leaves it skipped, how many parts
+/// of leaves it skipped and how many boundary octants it culled.
+fn check_file(file: &AmrkFile<Vec<u8>>, seed: u64, name: &str) -> (u64, u64, u64, u64) {
     let mut parts = 0;
+    let mut octants_culled = 0;
     let mut culled = 0;
     let mut skipped = 0;
     let mut rng = Rng(seed ^ 0x1234);
@@ -139,6 +141,7 @@ fn check_file(file: &AmrkFile<Vec<u8>>, seed: u64, name: &str) -> (u64, u64, u64
             let ctx = format!("{name} field {field} iso {iso}");
             let result = ex.extract(iso).unwrap_or_else(|e| panic!("{ctx}: {e}"));
             culled += result.stats.culled_cells;
+            octants_culled += result.stats.culled_octants;
             skipped += result.stats.leaves_skipped;
             parts += result.stats.parts_skipped;
             let refs = &result.refs;
@@ -276,20 +279,25 @@ fn check_file(file: &AmrkFile<Vec<u8>>, seed: u64, name: &str) -> (u64, u64, u64
             assert!(result.stats.decompressions <= nb);
         }
     }
-    (culled, skipped, parts)
+    (culled, skipped, parts, octants_culled)
 }
 
 #[test]
 fn extraction_equals_brute_force() {
-    let (mut culled, mut skipped) = (0, 0);
+    let (mut culled, mut skipped, mut octants) = (0, 0, 0);
     for case in standard_cases(3) {
-        let (c, s) = check_case(&case);
+        let (c, s, o) = check_case(&case);
         culled += c;
         skipped += s;
+        octants += o;
     }
     assert!(
         culled > 0,
         "no boundary cell was culled: the test does not exercise culling"
+    );
+    assert!(
+        octants > 0,
+        "no boundary octant was culled: the test does not exercise culling them"
     );
     assert!(
         skipped > 0,
@@ -354,7 +362,7 @@ fn extraction_equals_brute_force_on_small_irregular_boxes() {
                 file.num_leaves()
             );
             let name = format!("small boxes {params:?}, stored tight ranges {stored}");
-            let (c, s, _) = check_file(&file, seed, &name);
+            let (c, s, _, _) = check_file(&file, seed, &name);
             culled += c;
             skipped += s;
         }
@@ -397,6 +405,7 @@ fn shared_cell_tiles_give_the_same_refs_on_any_thread_count() {
             s.active_duals,
             s.evaluated,
             s.culled_cells,
+            s.culled_octants,
             s.leaves_skipped,
         );
         (out.refs, counts)

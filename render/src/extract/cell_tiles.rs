@@ -122,7 +122,10 @@ impl CellTiles {
         g: IBox,
     ) -> Result<()> {
         hood.begin_copies(level, g);
-        self.each_tile(sources, locs, level, g, |tile, _| hood.copy_tile(tile))?;
+        self.each_tile(sources, locs, level, g, |tile, _| {
+            hood.copy_tile(tile);
+            hood.copy_mixed(tile);
+        })?;
         hood.end_copies();
         Ok(())
     }

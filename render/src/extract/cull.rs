@@ -20,7 +20,7 @@ use super::leaf_tree::LeafTree;
 use super::local::{Neighbourhood, ABOVE, BELOW, COARSER, PENDING};
 use crate::reconstruct::grid::axes;
 use crate::reconstruct::sampler::Locate;
-use crate::reconstruct::{Sampler, VertexMemo};
+use crate::reconstruct::{LeafCell, Sampler, VertexMemo};
 
 /// The neighbourhood-index offsets of the 27 cells around a cell, in a neighbourhood whose
 /// rows hold `row` cells and whose slabs hold `slab` cells, relative to the lowest of them.
@@ -73,6 +73,22 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
     // union now is that of the codes before, without `PENDING`, and of the settled codes.
     let union = union_around(hood.codes(), base, around);
     Ok(union & (ABOVE | BELOW) == ABOVE | BELOW)
+}
+
+/// Settles neighbourhood cell `j` if it is pending, as [`cell_may_hold`] settles the cells
+/// around a cell: afterwards its code holds its whole bound for `iso`.
+pub fn settle_pending<D: AsRef<[u8]>>(
+    sources: (&Sampler<'_, D>, Shared<'_>),
+    hood: &mut Neighbourhood,
+    (memo, near): (&mut VertexMemo, &mut AroundMemo),
+    j: usize,
+    iso: f32,
+) -> Result<()> {
+    if hood.codes()[j] & PENDING != 0 {
+        let all = hood.cells;
+        settle_coarse(sources, hood, (memo, near), (j, Some(&all)), iso)?;
+    }
+    Ok(())
 }
 
 /// Bit `k` set when the code at `base + around[k]` is [`PENDING`], read nine words at a time as
@@ -211,6 +227,23 @@ fn settle_coarse<D: AsRef<[u8]>>(
         }
         return Ok(());
     }
+    let bound = exact_bound((sampler, memo), &q, level, x)?;
+    hood.settle_coarse(j, bound, iso);
+    Ok(())
+}
+
+/// The bound of level-`level` cell `x`, which lies in leaf cell `q` coarser than it: the range
+/// of the corners of the octants of `q` overlapping `x` (computed through `memo`), widened.
+fn exact_bound<D: AsRef<[u8]>>(
+    (sampler, memo): (&Sampler<'_, D>, &mut VertexMemo),
+    q: &LeafCell,
+    level: u32,
+    x: [i64; 3],
+) -> Result<(f32, f32)> {
+    let grid = sampler.grid();
+    let s = grid.scale(level);
+    let o = grid.offset();
+    let lower = axes(|a| x[a] * s[a] - o[a]);
     let c = grid.centre(q.level, q.cell);
     let (x0, x1) = (
         lower.map(|v| 2 * v),
@@ -229,15 +262,33 @@ fn settle_coarse<D: AsRef<[u8]>>(
         if !overlaps {
             continue;
         }
-        if let Some(corners) = sampler.leaf_octant_corners_in(sampler, &q, octant, memo)? {
+        if let Some(corners) = sampler.leaf_octant_corners_in(sampler, q, octant, memo)? {
             for v in corners {
                 lo = lo.min(v);
                 hi = hi.max(v);
             }
         }
     }
-    hood.settle_coarse(j, widen((lo, hi)), iso);
-    Ok(())
+    Ok(widen((lo, hi)))
+}
+
+/// The bound [`settle_coarse`] gives level-`level` cell `x` (inside a coarser leaf cell) where
+/// no bound of the leaf cells around that coarse cell is used: the range of the corners of the
+/// coarse cell's octants overlapping `x`, widened. Every value a vertex takes from a coarse
+/// octant through a finest cell of `x` lies in it; tighter than the settled bound, and dearer.
+pub fn coarse_cell_bound<D: AsRef<[u8]>>(
+    (sampler, memo): (&Sampler<'_, D>, &mut VertexMemo),
+    level: u32,
+    x: [i64; 3],
+) -> Result<(f32, f32)> {
+    let grid = sampler.grid();
+    let (s, o) = (grid.scale(level), grid.offset());
+    let lower = axes(|a| x[a] * s[a] - o[a]);
+    match sampler.locate_cell(lower)? {
+        None => Ok((f32::INFINITY, f32::NEG_INFINITY)),
+        Some(q) if q.level >= level => Ok((f32::NEG_INFINITY, f32::INFINITY)),
+        Some(q) => exact_bound((sampler, memo), &q, level, x),
+    }
 }
 
 /// Widens a range of corner values by the round-off a trilinear interpolation of them can add.

@@ -4,7 +4,9 @@
 //! whose half-open box holds the voxel's lower corner), so every voxel belongs to exactly one
 //! leaf. A dual cell of level `L` is merged (one voxel for its eight octants) when its eight
 //! cells are all leaf cells of level `L`; every other octant of the leaf's cells is a voxel of
-//! its own, with corners from [`Sampler::corners`].
+//! its own, with corners from [`Sampler::corners`], unless the bounds of the cells around it
+//! (and the corners already known) show it cannot straddle the isovalue: then its other corners
+//! are never evaluated.
 
 use super::blocks::level_box;
 use crate::error::Result;
@@ -12,15 +14,15 @@ use amr_format::IBox;
 
 use super::band::AroundMemo;
 use super::cell_tiles::CellTiles;
-use super::cull::{around_offsets, cell_may_hold, Shared};
-use super::local::{Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF};
+use super::cull::{around_offsets, cell_may_hold, coarse_cell_bound, settle_pending, Shared};
+use super::local::{code, div_floor, Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF, PENDING};
 use super::plain::PlainCodes;
 use super::refs::{make_ref, LocalVoxel};
 use super::small::MAX_CELLS;
 use super::vertices::LeafVertices;
 use crate::reconstruct::grid::axes;
 use crate::reconstruct::interp::{avg8, min_max, straddles};
-use crate::reconstruct::{Sampler, VertexMemo};
+use crate::reconstruct::{LeafCell, Locate, Sampler, VertexMemo};
 
 /// Per-thread scratch of [`extract_leaf`].
 pub struct Scratch<'s> {
@@ -74,6 +76,9 @@ pub struct LeafCounts {
     /// Parts of the leaf skipped because their block bound excludes the isovalue
     /// ([`super::parts`]).
     pub parts_skipped: u64,
+    /// Boundary octants left unevaluated because the values of some corners and the bounds
+    /// around the others exclude the isovalue ([`boundary_corners`]).
+    pub octants_culled: u64,
 }
 
 impl LeafCounts {
@@ -84,6 +89,7 @@ impl LeafCounts {
         self.boundary += other.boundary;
         self.culled += other.culled;
         self.parts_skipped += other.parts_skipped;
+        self.octants_culled += other.octants_culled;
     }
 }
 
@@ -267,24 +273,64 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                             - (0..3)
                                 .map(|a| (1 - (octant as usize >> a & 1)) * step[a])
                                 .sum::<usize>();
-                        if offsets.iter().all(|&d| hood.kind(low + d) == LEAF) {
+                        // The octant's vertices lie in its closure, so the cells around them
+                        // are among the eight around its outer corner: the octant is skipped
+                        // when those are all leaf cells of the level (a merged dual cell), or
+                        // when their bounds, settled, exclude `iso` ([`super::cull`]'s argument
+                        // for these eight cells).
+                        let block = |hood: &Neighbourhood| {
+                            offsets.iter().fold(0u8, |m, &d| m | hood.codes()[low + d])
+                        };
+                        let mut m = block(hood);
+                        if m & NOT_LEAF == 0 {
                             continue;
                         }
-                        counts.evaluated += 1;
-                        counts.boundary += 1;
-                        let Some(v) = boundary_corners(
+                        if m & PENDING != 0 {
+                            for d in offsets {
+                                settle_pending(
+                                    (sampler, *shared),
+                                    hood,
+                                    (memo, near),
+                                    low + d,
+                                    iso,
+                                )?;
+                            }
+                            m = block(hood);
+                        }
+                        if m & (ABOVE | BELOW) != ABOVE | BELOW {
+                            counts.octants_culled += 1;
+                            continue;
+                        }
+                        // Again with the cells inside coarser leaf cells bounded by the corners
+                        // of the coarse octants over them alone: dearer, and tighter.
+                        let cells = offsets.map(|d| low + d);
+                        if !narrowed_may_straddle(sampler, hood, memo, (level, iso), &cells)? {
+                            counts.octants_culled += 1;
+                            continue;
+                        }
+                        let v = match boundary_corners(
                             sampler,
                             hood,
                             (memo, verts),
-                            level,
+                            (level, iso),
                             i,
                             local,
                             lo,
                             octant,
-                        )?
-                        else {
-                            continue;
+                        )? {
+                            Corners::Values(v) => v,
+                            Corners::Uncovered => {
+                                counts.evaluated += 1;
+                                counts.boundary += 1;
+                                continue;
+                            }
+                            Corners::Culled => {
+                                counts.octants_culled += 1;
+                                continue;
+                            }
                         };
+                        counts.evaluated += 1;
+                        counts.boundary += 1;
                         let (vlo, vhi) = min_max(&v);
                         if straddles(vlo, vhi, iso) {
                             let local = frame.refs.linear_index(cell) as u32;
@@ -305,82 +351,239 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     Ok(counts)
 }
 
+/// False when the codes of neighbourhood cells `cells` (the eight around a boundary octant's
+/// outer corner, none pending) exclude `iso` once those inside coarser leaf cells are narrowed
+/// to their coarse octants' corners ([`Neighbourhood::narrows`], `cull::coarse_cell_bound`).
+/// They are narrowed one at a time, first those whose codes could give the bit the others lack,
+/// until the answer is known; narrowing only drops bits, so the answer is that of all cells
+/// narrowed, whichever the neighbourhood had narrowed before.
+#[inline(always)]
+fn narrowed_may_straddle<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    hood: &mut Neighbourhood,
+    memo: &mut VertexMemo,
+    (level, iso): (u32, f32),
+    cells: &[usize; 8],
+) -> Result<bool> {
+    let both = ABOVE | BELOW;
+    // The codes of the cells narrowed or not to be narrowed, and a bit per cell left.
+    let mut fixed = 0u8;
+    let mut open = 0u8;
+    for (k, &j) in cells.iter().enumerate() {
+        if hood.narrows(j) && hood.exact(j).is_none() {
+            open |= 1 << k;
+        } else {
+            fixed |= hood.value_code(j, iso);
+        }
+    }
+    loop {
+        let code_of = |k: usize| hood.value_code(cells[k], iso);
+        let rest = (0..8).fold(0u8, |u, k| {
+            u | if open >> k & 1 == 1 { code_of(k) } else { 0 }
+        });
+        if (fixed | rest) & both != both {
+            return Ok(false);
+        }
+        if fixed & both == both || open == 0 {
+            return Ok(true);
+        }
+        let missing = both & !fixed;
+        let wanted = (0..8).fold(0u8, |w, k| {
+            w | u8::from(open >> k & 1 == 1 && code_of(k) & missing != 0) << k
+        });
+        let k = if wanted != 0 { wanted } else { open }.trailing_zeros() as usize;
+        open &= !(1 << k);
+        let bound = coarse_cell_bound((sampler, memo), level, hood.cell_at(cells[k]))?;
+        hood.set_exact(cells[k], bound);
+        fixed |= hood.value_code(cells[k], iso);
+    }
+}
+
+/// What [`boundary_corners`] finds for an octant.
+enum Corners {
+    /// The eight corner values.
+    Values([f32; 8]),
+    /// A cell touching a corner is not covered by any brick: the octant is no voxel.
+    Uncovered,
+    /// Some corners were left unevaluated: the values of the others and the bounds of the cells
+    /// around the rest exclude the isovalue, so the octant is not active.
+    Culled,
+}
+
 /// The corner values of octant `octant` of the leaf-cell at neighbourhood index `i` (local
 /// cell position `local` in the leaf's box), whose lower corner is doubled point `lo`:
 /// [`Sampler::corners`], reading the eight cells around a vertex from the neighbourhood when
 /// they are all leaf cells of the octant's level (the same values in the same order), and asking
 /// the sampler otherwise. Every vertex is computed once per leaf, and those the sampler gives
 /// are kept for the leaves after it ([`LeafVertices::kept`]).
+///
+/// The vertices the sampler would give are asked for last, and only while the octant may still
+/// straddle `iso`: such a vertex's value lies in the union of the bounds of the level-`L` cells
+/// around it (the argument of [`super::cull`], for the cells around one vertex instead of the 27
+/// around a cell), so when the values known and those bounds exclude `iso`, the octant is
+/// [`Corners::Culled`].
 #[allow(clippy::too_many_arguments)]
 fn boundary_corners<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
-    hood: &Neighbourhood,
+    hood: &mut Neighbourhood,
     (memo, verts): (&mut VertexMemo, &mut LeafVertices),
-    level: u32,
+    (level, iso): (u32, f32),
     i: usize,
     local: [usize; 3],
     lo: [i64; 3],
     octant: u8,
-) -> Result<Option<[f32; 8]>> {
+) -> Result<Corners> {
     let e = hood.cells.extent();
     let step = [1isize, e[0] as isize, (e[0] * e[1]) as isize];
     let s = sampler.grid().scale(level);
-    let mut out = [0f32; 8];
-    for (n, slot) in out.iter_mut().enumerate() {
-        let mut below = [0isize; 3];
-        let mut above = [0isize; 3];
-        let mut at_centre = true;
-        for a in 0..3 {
+    // The neighbourhood cells around corner `n` (not the cell's centre), numbered as
+    // [`Sampler::around`] numbers a vertex's sides: on an axis where the corner lies on the
+    // octant's outer face, the side beyond it is the neighbour that way, else the cell itself.
+    let around_of = |n: usize| -> [usize; 8] {
+        let d = axes(|a| {
             let up = octant >> a & 1 == 1;
             if (n >> a & 1 == 1) != up {
-                continue;
-            }
-            at_centre = false;
-            if up {
-                above[a] = step[a];
+                [0, 0]
+            } else if up {
+                [0, step[a]]
             } else {
-                below[a] = -step[a];
+                [-step[a], 0]
             }
-        }
-        if at_centre {
-            *slot = hood.value(i);
-            continue;
-        }
-        let k = axes(|a| 2 * local[a] + (octant as usize >> a & 1) + (n >> a & 1));
-        let vi = verts.slot_at(k);
-        let value = match verts.get_slot(vi) {
-            Some(known) => known,
-            None => {
-                let around: [usize; 8] = std::array::from_fn(|m| {
-                    let d: isize = (0..3)
-                        .map(|a| if m >> a & 1 == 1 { above[a] } else { below[a] })
-                        .sum();
-                    (i as isize + d) as usize
-                });
-                let value = if around.iter().all(|&j| hood.kind(j) == LEAF) {
-                    Some(avg8(&around.map(|j| hood.value(j))))
-                } else {
-                    let v = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
-                    match verts.kept(v, level) {
-                        Some(kept) => kept,
-                        None => {
-                            let value =
-                                sampler.vertex_value_unmemoized_in(sampler, v, level, memo)?;
-                            verts.keep(v, level, value);
-                            value
+        });
+        std::array::from_fn(|m| {
+            (i as isize + d[0][m & 1] + d[1][m >> 1 & 1] + d[2][m >> 2 & 1]) as usize
+        })
+    };
+    let centre = usize::from(!octant & 7);
+    let mut out = [0f32; 8];
+    // The union of the codes of the values known, and per other corner: its vertex slot and the
+    // code of the bounds of the cells around it.
+    let mut known = 0u8;
+    let mut other = [(0usize, 0u8); 8];
+    let mut left = 0u8;
+    for (n, slot) in out.iter_mut().enumerate() {
+        let value = if n == centre {
+            Some(hood.value(i))
+        } else {
+            let k = axes(|a| 2 * local[a] + (octant as usize >> a & 1) + (n >> a & 1));
+            let vi = verts.slot_at(k);
+            match verts.get_slot(vi) {
+                Some(value) => value,
+                None => {
+                    let around = around_of(n);
+                    if !around.iter().all(|&j| hood.kind(j) == LEAF) {
+                        let mut bound = 0u8;
+                        for &j in &around {
+                            if hood.narrows(j) && hood.exact(j).is_none() {
+                                let b = coarse_cell_bound((sampler, memo), level, hood.cell_at(j))?;
+                                hood.set_exact(j, b);
+                            }
+                            bound |= hood.value_code(j, iso);
                         }
+                        other[n] = (vi, bound);
+                        left |= 1 << n;
+                        continue;
                     }
-                };
-                verts.put_slot(vi, value);
-                value
+                    let value = Some(avg8(&around.map(|j| hood.value(j))));
+                    verts.put_slot(vi, value);
+                    value
+                }
             }
         };
         match value {
-            Some(x) => *slot = x,
-            None => return Ok(None),
+            Some(x) => {
+                *slot = x;
+                known |= code(x, x, iso);
+            }
+            None => return Ok(Corners::Uncovered),
         }
     }
-    Ok(Some(out))
+    // The other corners in order, each while the values so far and the bounds of those left may
+    // straddle `iso`. The leaf's slots are filled in the same order whatever the thread, so the
+    // decision is too; values kept from other leaves, which depend on what the thread did
+    // before, only spare computing a value.
+    while left != 0 {
+        let bounds = (0..8).fold(known, |u, n| {
+            u | if left >> n & 1 == 1 { other[n].1 } else { 0 }
+        });
+        if bounds & (ABOVE | BELOW) != ABOVE | BELOW {
+            return Ok(Corners::Culled);
+        }
+        // First a corner that could give a bit the values so far lack: if it does not, the
+        // octant is settled sooner.
+        let missing = (ABOVE | BELOW) & !known;
+        let wanted = (0..8).fold(0u8, |w, n| {
+            w | u8::from(left >> n & 1 == 1 && other[n].1 & missing != 0) << n
+        });
+        let n = if wanted != 0 { wanted } else { left }.trailing_zeros() as usize;
+        left &= !(1 << n);
+        let (vi, _) = other[n];
+        let v = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
+        let value = match verts.kept(v, level) {
+            Some(kept) => kept,
+            None => {
+                let value = vertex_value(sampler, hood, memo, (v, level), &around_of(n))?;
+                verts.keep(v, level, value);
+                value
+            }
+        };
+        verts.put_slot(vi, value);
+        match value {
+            Some(x) => {
+                out[n] = x;
+                known |= code(x, x, iso);
+            }
+            None => return Ok(Corners::Uncovered),
+        }
+    }
+    Ok(Corners::Values(out))
+}
+
+/// [`Sampler::vertex_value_unmemoized_in`] at vertex `v` seen from level `level`, whose eight
+/// sides (as [`Sampler::around`] numbers them) lie in the neighbourhood cells `around`: the
+/// same value from the same cells, but a side in a [`LEAF`] cell is that cell (of level
+/// `level`, its index from the side's finest cell, its value the neighbourhood's) rather than
+/// located again. Such a side's kd-tree leaf and brick are not known (they are `u32::MAX`):
+/// [`Sampler::vertex_value_from_in`] reads a side whole only when it is of the coarsest level
+/// there, coarser than `level`, and otherwise only its level and value.
+fn vertex_value<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    hood: &Neighbourhood,
+    memo: &mut VertexMemo,
+    (v, level): ([i64; 3], u32),
+    around: &[usize; 8],
+) -> Result<Option<f32>> {
+    let grid = sampler.grid();
+    let (lo, hi) = (grid.finest_cell(v, 0), grid.finest_cell(v, 7));
+    // The axes on which the two nudges coincide: there side `n` repeats side `n` without the
+    // axis's bit, as in [`Sampler::around_in`].
+    let same = (0..3).fold(0usize, |m, a| m | usize::from(lo[a] == hi[a]) << a);
+    let mut cells = [LeafCell {
+        leaf: u32::MAX,
+        brick: u32::MAX,
+        level,
+        cell: [0; 3],
+        value: 0.0,
+    }; 8];
+    let (s, o) = (grid.scale(level), grid.offset());
+    for (n, &j) in around.iter().enumerate() {
+        let m = n & !same;
+        if m != n {
+            cells[n] = cells[m];
+            continue;
+        }
+        let f = axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+        if hood.kind(j) == LEAF {
+            cells[n].cell = axes(|a| div_floor(f[a] + o[a], s[a]));
+            cells[n].value = hood.value(j);
+        } else {
+            match sampler.locate_cell(f)? {
+                Some(c) => cells[n] = c,
+                None => return Ok(None),
+            }
+        }
+    }
+    sampler.vertex_value_from_in(sampler, v, level, &cells, memo)
 }
 
 /// The merged dual cells are coded over the whole stretch of the neighbourhood's cells from the

@@ -215,6 +215,13 @@ pub struct Neighbourhood {
     /// isovalue of the last [`Self::classify`], the [`ABOVE`], [`BELOW`] and [`NOT_LEAF`] bits.
     codes: Vec<u8>,
     touching: Vec<Met>,
+    /// Per cell inside a coarser leaf cell: true when the fill gave it a bound of its own (leaf
+    /// cells of this level or finer met there), merged into the coarse one when settled. Empty
+    /// while no cell is (the common case), else one flag per cell.
+    mixed: Vec<bool>,
+    /// Per cell: its bound from the coarse octants alone ([`super::cull::coarse_cell_bound`])
+    /// once computed, NaN before; empty until the first is.
+    exact: Vec<(f32, f32)>,
     /// Scratch of [`Self::mark_near_boundary`].
     dilated: Vec<bool>,
     /// The level and box of the last fill, while the cells hold it.
@@ -287,6 +294,8 @@ impl Neighbourhood {
         self.hi.resize(n, f32::NEG_INFINITY);
         self.codes.clear();
         self.codes.resize(n, 0);
+        self.mixed.clear();
+        self.exact.clear();
         self.pending_left = 0;
         self.pending_rows.clear();
         let e = g.extent();
@@ -389,6 +398,8 @@ impl Neighbourhood {
             v.resize(n, 0.0);
         }
         self.kind.resize(n, UNCOVERED);
+        self.mixed.clear();
+        self.exact.clear();
         self.codes.clear();
         self.codes.resize(n, 0);
         self.pending_left = 0;
@@ -396,7 +407,8 @@ impl Neighbourhood {
     }
 
     /// Copies the cells of `tile` (a neighbourhood of the level being filled) that lie in the
-    /// box being filled: their kinds and bounds. Those cells must be settled (none pending,
+    /// box being filled: their kinds and bounds ([`Self::copy_mixed`] copies their flags of mixed
+    /// bounds). Those cells must be settled (none pending,
     /// [`super::cull::settle_in`]), as [`super::cell_tiles::CellTiles::fill`] leaves them, so
     /// no pending flag is copied: the filled cells have none.
     pub fn copy_tile(&mut self, tile: &Neighbourhood) {
@@ -432,6 +444,33 @@ impl Neighbourhood {
                 7 => self.copy_rows::<7>(tile, &rows),
                 8 => self.copy_rows::<8>(tile, &rows),
                 w => self.copy_rows_of(tile, &rows, w as usize),
+            }
+        }
+    }
+
+    /// Copies the [`Self::mixed`] flags of the cells of `tile` that [`Self::copy_tile`] copied,
+    /// when it has some (rare).
+    #[inline]
+    pub fn copy_mixed(&mut self, tile: &Neighbourhood) {
+        if !tile.mixed.is_empty() {
+            self.copy_mixed_of(tile);
+        }
+    }
+
+    /// [`Self::copy_mixed`] for a tile with flags: kept out of the copies' code.
+    #[cold]
+    #[inline(never)]
+    fn copy_mixed_of(&mut self, tile: &Neighbourhood) {
+        let b = self.cells.intersect(&tile.cells);
+        if b.is_empty() {
+            return;
+        }
+        self.mixed.resize(self.kind.len(), false);
+        let w = b.extent()[0].max(0) as usize;
+        for z in b.lo[2]..b.hi[2] {
+            for y in b.lo[1]..b.hi[1] {
+                let (d, s) = (self.index([b.lo[0], y, z]), tile.index([b.lo[0], y, z]));
+                self.mixed[d..d + w].copy_from_slice(&tile.mixed[s..s + w]);
             }
         }
     }
@@ -891,13 +930,66 @@ impl Neighbourhood {
 
     /// Folds `lo..=hi` into the bound of the cell at index `i`, clears its pending flag and
     /// updates its code for `iso`.
+    #[inline(always)]
     pub fn settle_coarse(&mut self, i: usize, (lo, hi): (f32, f32), iso: f32) {
-        self.lo[i] = self.lo[i].min(lo);
-        self.hi[i] = self.hi[i].max(hi);
-        if self.codes[i] & PENDING != 0 {
+        let (was_lo, was_hi, c) = (self.lo[i], self.hi[i], self.codes[i]);
+        if c & PENDING != 0 {
             self.pending_left -= 1;
+            if was_lo <= was_hi {
+                self.mark_mixed(i);
+            }
         }
-        self.codes[i] = self.codes[i] & NOT_LEAF | code(self.lo[i], self.hi[i], iso);
+        let (lo, hi) = (was_lo.min(lo), was_hi.max(hi));
+        self.lo[i] = lo;
+        self.hi[i] = hi;
+        self.codes[i] = c & NOT_LEAF | code(lo, hi, iso);
+    }
+
+    /// Flags the cell at index `i` [`Self::mixed`] (rare: kept out of the settling's code).
+    #[cold]
+    #[inline(never)]
+    fn mark_mixed(&mut self, i: usize) {
+        self.mixed.resize(self.kind.len(), false);
+        self.mixed[i] = true;
+    }
+
+    /// True when the bound of the cell at index `i` may be narrowed to its coarse octants'
+    /// ([`super::cull::coarse_cell_bound`]): a settled cell inside a coarser leaf cell, with no
+    /// bound of its own from the fill.
+    #[inline]
+    pub fn narrows(&self, i: usize) -> bool {
+        self.kind[i] == COARSER
+            && self.codes[i] & PENDING == 0
+            && !self.mixed.get(i).copied().unwrap_or(false)
+    }
+
+    /// The bound of the cell at index `i` from its coarse octants alone, once given
+    /// ([`Self::set_exact`]).
+    #[inline]
+    pub fn exact(&self, i: usize) -> Option<(f32, f32)> {
+        let &(lo, hi) = self.exact.get(i)?;
+        (!lo.is_nan()).then_some((lo, hi))
+    }
+
+    /// Keeps the bound of the cell at index `i` from its coarse octants alone.
+    #[inline]
+    pub fn set_exact(&mut self, i: usize, bound: (f32, f32)) {
+        self.exact.resize(self.kind.len(), (f32::NAN, f32::NAN));
+        self.exact[i] = bound;
+    }
+
+    /// The code for `iso` ([`ABOVE`], [`BELOW`]) of the values a vertex can take through the
+    /// cell at index `i`: its bound's, narrowed to the coarse octants' when known; both bits
+    /// while it is pending.
+    #[inline]
+    pub fn value_code(&self, i: usize, iso: f32) -> u8 {
+        if self.codes[i] & PENDING != 0 {
+            return ABOVE | BELOW;
+        }
+        match self.exact(i) {
+            Some((lo, hi)) if self.narrows(i) => code(lo, hi, iso),
+            _ => self.codes[i] & (ABOVE | BELOW),
+        }
     }
 
     /// The cell (absolute level index) at index `i`.

@@ -7,7 +7,8 @@
 //!   exclude the isovalue.
 //! - [`plain`]: the codes of a neighbourhood of leaf cells of one level, straight from the
 //!   bricks.
-//! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue.
+//! - [`cull`]: skipping boundary cells whose neighbourhood cannot hold the isovalue, and the
+//!   narrower bounds of cells inside coarser leaf cells that boundary octants are tested with.
 //! - [`band`]: the bounds around coarse leaf cells the cull reads, kept for every leaf.
 //! - [`vertices`]: a leaf's boundary vertex values, computed once each.
 //! - [`blocks`]: per-brick ranges of blocks of cells (stored in the file, or built), for bounds
@@ -365,6 +366,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             evaluated: totals.evaluated,
             boundary_evaluated: totals.boundary,
             culled_cells: totals.culled,
+            culled_octants: totals.octants_culled,
             parts_skipped: totals.parts_skipped,
             file_cells: self.file_cells,
             seconds: start.elapsed().as_secs_f64(),

@@ -312,6 +312,7 @@ pub fn extract_in_parts<D: AsRef<[u8]>>(
         counts.evaluated += n.evaluated;
         counts.boundary += n.boundary;
         counts.culled += n.culled;
+        counts.octants_culled += n.octants_culled;
     }
     // Runs of sorted refs, one per run of parts: the stable sort merges them.
     out[start..].sort();

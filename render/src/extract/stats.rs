@@ -27,6 +27,9 @@ pub struct ExtractStats {
     /// Cells next to a level boundary whose octants were skipped unevaluated, because the value
     /// bound of their neighbourhood excludes the isovalue.
     pub culled_cells: u64,
+    /// Octants next to a level boundary skipped unevaluated, in cells not culled, because the
+    /// value bound of the eight cells around their outer corner excludes the isovalue.
+    pub culled_octants: u64,
     /// Parts of large leaves skipped whole because the stored block ranges around them exclude
     /// the isovalue (files with block range tables).
     pub parts_skipped: u64,
@@ -63,7 +66,7 @@ impl fmt::Display for ExtractStats {
         write!(
             f,
             "field '{}' iso {}: {} active voxels ({} merged dual cells), {} of {} leaves visited ({} skipped by tight range), \
-             {} voxels evaluated ({} boundary octants; {} boundary cells culled; {} leaf parts skipped), {:.3} s on {} threads ({:.1} M file cells per core-second, \
+             {} voxels evaluated ({} boundary octants; {} boundary cells and {} boundary octants culled; {} leaf parts skipped), {:.3} s on {} threads ({:.1} M file cells per core-second, \
              {:.1} M voxels per second), {} bricks decompressed",
             self.field,
             self.iso,
@@ -75,6 +78,7 @@ impl fmt::Display for ExtractStats {
             self.evaluated,
             self.boundary_evaluated,
             self.culled_cells,
+            self.culled_octants,
             self.parts_skipped,
             self.seconds,
             self.threads,

@@ -842,11 +842,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         level: u32,
         memo: &mut VertexMemo,
     ) -> Result<Option<f32>> {
-        let mut cells = [NO_CELL; 8];
-        if !self.around_into(loc, v, &mut cells, &mut memo.hints)? {
-            return Ok(None);
-        }
-        self.vertex_value_from_in(loc, v, level, &cells, memo)
+        self.vertex_value_lean_in(loc, v, level, memo)
     }
 
     /// [`Self::vertex_value`] given the leaf cells around `v` (as [`Self::around`] finds them).
@@ -1318,6 +1314,14 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         let cell = t.cell_of(&self.grid, f);
         let &value = t.values?.get(t.index(cell))?;
         Some(LeafCell { cell, value, ..*c })
+    }
+
+    /// The level and value of [`Self::cell_in_leaf_numbered`]'s cell.
+    #[inline(always)]
+    pub(super) fn side_in_leaf(&self, leaf: u32, f: [i64; 3]) -> Option<(u32, f32)> {
+        let t = self.tops[leaf as usize].as_ref()?;
+        let &value = t.values?.get(t.index(t.cell_of(&self.grid, f)))?;
+        Some((t.level, value))
     }
 
     /// [`Self::cell_in_own_leaf`] for a finest cell `f` known to lie in kd-tree leaf `leaf`.

@@ -89,12 +89,24 @@ pub struct VertexMemo {
     octants: Vec<(Octant, Option<[f32; 8]>)>,
     /// log2 of the octant table's slots; 0: no table.
     octant_bits: u32,
+    /// log2 of the slots the table grows to (by [`OCTANT_GROWTH`] at a time) once it has taken
+    /// as many octants as it has slots: a memo kept for many octants gets a table that holds
+    /// more of them, one used for a few keeps a small one.
+    octant_max_bits: u32,
+    /// Octants put in the table since it was last allocated.
+    octant_puts: usize,
     /// The kd-tree leaves located last, tried first by the next vertices' sides.
     pub(super) hints: LeafHints,
 }
 
-/// log2 of the slots of [`VertexMemo`]'s octant table by default.
+/// log2 of the slots of [`VertexMemo`]'s octant table at first by default.
 const OCTANT_BITS: u32 = 10;
+
+/// log2 of the most slots [`VertexMemo`]'s octant table grows to by default (1.2 MB).
+const OCTANT_MAX_BITS: u32 = 14;
+
+/// log2 of the factor the octant table grows by at a time.
+const OCTANT_GROWTH: u32 = 2;
 
 impl Default for VertexMemo {
     fn default() -> Self {
@@ -103,6 +115,8 @@ impl Default for VertexMemo {
             capacity: 1 << 16,
             octants: Vec::new(),
             octant_bits: OCTANT_BITS,
+            octant_max_bits: OCTANT_MAX_BITS,
+            octant_puts: 0,
             hints: LeafHints::default(),
         }
     }
@@ -116,11 +130,13 @@ impl VertexMemo {
         self.hints.clear();
     }
 
-    /// A memo whose octant table holds `2^bits` octants (1024 by default; none for 0, which
-    /// suits a memo used once: the table is allocated whole on first use).
+    /// A memo whose octant table holds `2^bits` octants (by default 1024, growing to 16384
+    /// with use; none for 0, which suits a memo used once: the table is allocated whole on
+    /// first use).
     pub fn with_octant_bits(bits: u32) -> Self {
         Self {
             octant_bits: bits.min(24),
+            octant_max_bits: bits.min(24),
             ..Self::default()
         }
     }
@@ -170,7 +186,15 @@ impl VertexMemo {
                 octant: 0,
             };
             self.octants.resize(1 << self.octant_bits, (empty, None));
+            self.octant_puts = 0;
+        } else if self.octant_puts >= self.octants.len() && self.octant_bits < self.octant_max_bits
+        {
+            // Forgetting changes no value: the table starts again, larger.
+            self.octant_bits = (self.octant_bits + OCTANT_GROWTH).min(self.octant_max_bits);
+            self.octants.clear();
+            return self.octant_put(o, corners);
         }
+        self.octant_puts += 1;
         let slot = self.octant_slot(o);
         self.octants[slot] = (*o, corners);
     }

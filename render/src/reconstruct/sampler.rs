@@ -1494,4 +1494,35 @@ mod tests {
             }
         }
     }
+
+    /// The octant table grows by steps to its largest size once it has taken as many octants
+    /// as it has slots, and answers for the octants put since it last grew; a memo made with a
+    /// size keeps it.
+    #[test]
+    fn octant_table_grows_with_use() {
+        let octant = |i: i64| Octant {
+            level: 2,
+            cell: [i, -i, 3 * i],
+            octant: (i & 7) as u8,
+        };
+        let corners = |i: i64| Some([i as f32; 8]);
+        let mut memo = VertexMemo::default();
+        let mut sizes = Vec::new();
+        for i in 0..40_000 {
+            memo.octant_put(&octant(i), corners(i));
+            assert_eq!(memo.octant_get(&octant(i)), Some(corners(i)));
+            if sizes.last() != Some(&memo.octants.len()) {
+                sizes.push(memo.octants.len());
+            }
+        }
+        assert_eq!(
+            sizes,
+            [1 << OCTANT_BITS, 1 << 12, 1 << OCTANT_MAX_BITS].to_vec()
+        );
+        let mut fixed = VertexMemo::with_octant_bits(10);
+        for i in 0..5_000 {
+            fixed.octant_put(&octant(i), corners(i));
+        }
+        assert_eq!(fixed.octants.len(), 1 << 10);
+    }
 }

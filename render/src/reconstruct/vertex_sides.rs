@@ -17,17 +17,30 @@ use super::mixed::{distinct_sides, sides_in};
 use super::sampler::{Locate, Sampler, VertexMemo};
 
 /// The eight sides of a vertex (side `n` as in [`Sampler::around`]): per side its leaf cell's
-/// level and value and its kd-tree leaf.
-#[derive(Clone, Copy, Default)]
+/// value, and per distinct side (not a repeat, [`Sampler::nudges`]) its level and kd-tree leaf.
+/// A repeated side's level stays `u32::MAX`: it is its first side's, which comes before it, so
+/// the coarsest level and its first side are read over all eight.
+#[derive(Clone, Copy)]
 pub(super) struct VertexSides {
     pub(super) levels: [u32; 8],
     pub(super) values: [f32; 8],
     pub(super) leaves: [u32; 8],
 }
 
+impl Default for VertexSides {
+    fn default() -> Self {
+        Self {
+            levels: [u32::MAX; 8],
+            values: [0.0; 8],
+            leaves: [0; 8],
+        }
+    }
+}
+
 impl<D: AsRef<[u8]>> Sampler<'_, D> {
-    /// [`Self::around_into`]'s sides of doubled point `v` written into `out` as levels, values
-    /// and leaves: false (`out` then partly written) where a side is not covered.
+    /// [`Self::around_into`]'s sides of the vertex whose nudges are `lo`, `hi` and `same`
+    /// ([`Self::nudges`]) written into `out`, whose levels are all `u32::MAX`: false (`out` then
+    /// partly written) where a side is not covered.
     #[inline(always)]
     pub(super) fn sides_into<L: Locate>(
         &self,
@@ -57,9 +70,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         }
         if same != 0 {
             for n in 1..8 {
-                let m = n & !same;
-                (out.levels[n], out.values[n], out.leaves[n]) =
-                    (out.levels[m], out.values[m], out.leaves[m]);
+                out.values[n] = out.values[n & !same];
             }
         }
         Ok(true)

@@ -7,6 +7,7 @@
 //! - [`leaf_hints`]: the kd-tree leaves located last, tried before walking the kd-tree.
 //! - [`recent`]: per-thread scratch that makes nearby point samples cheap.
 //! - [`sampler`]: leaf-cell location and the octant method's vertex values.
+//! - [`vertex_sides`]: a vertex's sides as its value reads them (levels, values, leaves).
 //! - [`stitch`]: stitched vertex values from the coarse corners of non-zero weight alone.
 //! - [`level_gradient`]: smooth normals' central differences inside one level, from a brick.
 //! - [`mixed`]: octant corners next to other levels, from one table of the cells they read.
@@ -25,6 +26,7 @@ mod mixed;
 pub mod recent;
 pub mod sampler;
 mod stitch;
+mod vertex_sides;
 
 pub use grid::Grid;
 pub use methods::Reconstruction;

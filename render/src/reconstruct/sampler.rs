@@ -89,12 +89,24 @@ pub struct VertexMemo {
     octants: Vec<(Octant, Option<[f32; 8]>)>,
     /// log2 of the octant table's slots; 0: no table.
     octant_bits: u32,
+    /// log2 of the slots the table grows to (by [`OCTANT_GROWTH`] at a time) once it has taken
+    /// as many octants as it has slots: a memo kept for many octants gets a table that holds
+    /// more of them, one used for a few keeps a small one.
+    octant_max_bits: u32,
+    /// Octants put in the table since it was last allocated.
+    octant_puts: usize,
     /// The kd-tree leaves located last, tried first by the next vertices' sides.
     pub(super) hints: LeafHints,
 }
 
-/// log2 of the slots of [`VertexMemo`]'s octant table by default.
+/// log2 of the slots of [`VertexMemo`]'s octant table at first by default.
 const OCTANT_BITS: u32 = 10;
+
+/// log2 of the most slots [`VertexMemo`]'s octant table grows to by default (1.2 MB).
+const OCTANT_MAX_BITS: u32 = 14;
+
+/// log2 of the factor the octant table grows by at a time.
+const OCTANT_GROWTH: u32 = 2;
 
 impl Default for VertexMemo {
     fn default() -> Self {
@@ -103,6 +115,8 @@ impl Default for VertexMemo {
             capacity: 1 << 16,
             octants: Vec::new(),
             octant_bits: OCTANT_BITS,
+            octant_max_bits: OCTANT_MAX_BITS,
+            octant_puts: 0,
             hints: LeafHints::default(),
         }
     }
@@ -116,11 +130,13 @@ impl VertexMemo {
         self.hints.clear();
     }
 
-    /// A memo whose octant table holds `2^bits` octants (1024 by default; none for 0, which
-    /// suits a memo used once: the table is allocated whole on first use).
+    /// A memo whose octant table holds `2^bits` octants (by default 1024, growing to 16384
+    /// with use; none for 0, which suits a memo used once: the table is allocated whole on
+    /// first use).
     pub fn with_octant_bits(bits: u32) -> Self {
         Self {
             octant_bits: bits.min(24),
+            octant_max_bits: bits.min(24),
             ..Self::default()
         }
     }
@@ -170,7 +186,15 @@ impl VertexMemo {
                 octant: 0,
             };
             self.octants.resize(1 << self.octant_bits, (empty, None));
+            self.octant_puts = 0;
+        } else if self.octant_puts >= self.octants.len() && self.octant_bits < self.octant_max_bits
+        {
+            // Forgetting changes no value: the table starts again, larger.
+            self.octant_bits = (self.octant_bits + OCTANT_GROWTH).min(self.octant_max_bits);
+            self.octants.clear();
+            return self.octant_put(o, corners);
         }
+        self.octant_puts += 1;
         let slot = self.octant_slot(o);
         self.octants[slot] = (*o, corners);
     }
@@ -842,11 +866,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         level: u32,
         memo: &mut VertexMemo,
     ) -> Result<Option<f32>> {
-        let mut cells = [NO_CELL; 8];
-        if !self.around_into(loc, v, &mut cells, &mut memo.hints)? {
-            return Ok(None);
-        }
-        self.vertex_value_from_in(loc, v, level, &cells, memo)
+        self.vertex_value_lean_in(loc, v, level, memo)
     }
 
     /// [`Self::vertex_value`] given the leaf cells around `v` (as [`Self::around`] finds them).
@@ -1320,6 +1340,14 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         Some(LeafCell { cell, value, ..*c })
     }
 
+    /// The level and value of [`Self::cell_in_leaf_numbered`]'s cell.
+    #[inline(always)]
+    pub(super) fn side_in_leaf(&self, leaf: u32, f: [i64; 3]) -> Option<(u32, f32)> {
+        let t = self.tops[leaf as usize].as_ref()?;
+        let &value = t.values?.get(t.index(t.cell_of(&self.grid, f)))?;
+        Some((t.level, value))
+    }
+
     /// [`Self::cell_in_own_leaf`] for a finest cell `f` known to lie in kd-tree leaf `leaf`.
     #[inline(always)]
     pub(super) fn cell_in_leaf_numbered(&self, leaf: u32, f: [i64; 3]) -> Option<LeafCell> {
@@ -1465,5 +1493,36 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The octant table grows by steps to its largest size once it has taken as many octants
+    /// as it has slots, and answers for the octants put since it last grew; a memo made with a
+    /// size keeps it.
+    #[test]
+    fn octant_table_grows_with_use() {
+        let octant = |i: i64| Octant {
+            level: 2,
+            cell: [i, -i, 3 * i],
+            octant: (i & 7) as u8,
+        };
+        let corners = |i: i64| Some([i as f32; 8]);
+        let mut memo = VertexMemo::default();
+        let mut sizes = Vec::new();
+        for i in 0..40_000 {
+            memo.octant_put(&octant(i), corners(i));
+            assert_eq!(memo.octant_get(&octant(i)), Some(corners(i)));
+            if sizes.last() != Some(&memo.octants.len()) {
+                sizes.push(memo.octants.len());
+            }
+        }
+        assert_eq!(
+            sizes,
+            [1 << OCTANT_BITS, 1 << 12, 1 << OCTANT_MAX_BITS].to_vec()
+        );
+        let mut fixed = VertexMemo::with_octant_bits(10);
+        for i in 0..5_000 {
+            fixed.octant_put(&octant(i), corners(i));
+        }
+        assert_eq!(fixed.octants.len(), 1 << 10);
     }
 }

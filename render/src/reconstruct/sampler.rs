@@ -776,52 +776,8 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     #[inline]
     pub fn around_in<L: Locate>(&self, loc: &L, v: [i64; 3]) -> Result<Option<[LeafCell; 8]>> {
         let mut out = [NO_CELL; 8];
-        let found = self.around_into(loc, v, &mut out, &mut LeafHints::default())?;
+        let found = self.sides_into(loc, self.nudges(v), &mut out, &mut LeafHints::default())?;
         Ok(found.then_some(out))
-    }
-
-    /// [`Self::around_in`] written into `out`: false (`out` then partly written) where a side
-    /// is not covered.
-    ///
-    /// The sides are located in order ([`Self::locate_hinted`], trying the leaves of `hints`
-    /// first), each located side's kd-tree leaf giving the later sides in its box, read from
-    /// its brick when read in place ([`Self::cell_in_leaf_numbered`]): leaves tile the domain,
-    /// so that is the locate's answer, and a side not read so is located in its turn (the first
-    /// side not covered, or failing, is the same one).
-    #[inline]
-    pub(super) fn around_into<L: Locate>(
-        &self,
-        loc: &L,
-        v: [i64; 3],
-        out: &mut [LeafCell; 8],
-        hints: &mut LeafHints,
-    ) -> Result<bool> {
-        let (lo, hi, same) = self.nudges(v);
-        let side = |n: usize| axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
-        let mut todo = distinct_sides(same);
-        while todo != 0 {
-            let n = todo.trailing_zeros() as usize;
-            todo &= todo - 1;
-            let Some((c, b)) = self.locate_hinted(loc, side(n), hints)? else {
-                return Ok(false);
-            };
-            out[n] = c;
-            let mut take = sides_in(&b, lo, hi) & todo;
-            while take != 0 {
-                let m = take.trailing_zeros() as usize;
-                take &= take - 1;
-                if let Some(x) = self.cell_in_leaf_numbered(c.leaf, side(m)) {
-                    out[m] = x;
-                    todo &= !(1 << m);
-                }
-            }
-        }
-        if same != 0 {
-            for n in 1..8 {
-                out[n] = out[n & !same];
-            }
-        }
-        Ok(true)
     }
 
     /// The value at octant vertex `v` as seen by an octant of level `level`.

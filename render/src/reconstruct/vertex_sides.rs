@@ -14,7 +14,7 @@ use super::grid::axes;
 use super::interp::avg8;
 use super::leaf_hints::LeafHints;
 use super::mixed::{distinct_sides, sides_in};
-use super::sampler::{Locate, Sampler, VertexMemo};
+use super::sampler::{LeafCell, Locate, Sampler, VertexMemo};
 
 /// The eight sides of a vertex (side `n` as in [`Sampler::around`]): per side its leaf cell's
 /// value, and per distinct side (not a repeat, [`Sampler::nudges`]) its level and kd-tree leaf.
@@ -37,16 +37,94 @@ impl Default for VertexSides {
     }
 }
 
-impl<D: AsRef<[u8]>> Sampler<'_, D> {
-    /// [`Self::around_into`]'s sides of the vertex whose nudges are `lo`, `hi` and `same`
-    /// ([`Self::nudges`]) written into `out`, whose levels are all `u32::MAX`: false (`out` then
-    /// partly written) where a side is not covered.
+/// Where [`Sampler::sides_into`] writes the sides it finds: full leaf cells
+/// ([`Sampler::around_in`]) or [`VertexSides`] (the vertex value).
+pub(super) trait SideSink {
+    /// Side `n`, located as leaf cell `c`.
+    fn put_located(&mut self, n: usize, c: &LeafCell);
+    /// Side `n`, the cell at finest cell `f` of kd-tree leaf `leaf` when that leaf's brick holds
+    /// it: false (nothing written) otherwise.
+    fn put_in_leaf<D: AsRef<[u8]>>(
+        &mut self,
+        sampler: &Sampler<'_, D>,
+        n: usize,
+        leaf: u32,
+        f: [i64; 3],
+    ) -> bool;
+    /// Side `n` repeats side `first` (the side without the axes on which the two coincide).
+    fn repeat(&mut self, n: usize, first: usize);
+}
+
+impl SideSink for [LeafCell; 8] {
     #[inline(always)]
-    pub(super) fn sides_into<L: Locate>(
+    fn put_located(&mut self, n: usize, c: &LeafCell) {
+        self[n] = *c;
+    }
+
+    #[inline(always)]
+    fn put_in_leaf<D: AsRef<[u8]>>(
+        &mut self,
+        sampler: &Sampler<'_, D>,
+        n: usize,
+        leaf: u32,
+        f: [i64; 3],
+    ) -> bool {
+        sampler
+            .cell_in_leaf_numbered(leaf, f)
+            .map(|x| self[n] = x)
+            .is_some()
+    }
+
+    #[inline(always)]
+    fn repeat(&mut self, n: usize, first: usize) {
+        self[n] = self[first];
+    }
+}
+
+impl SideSink for VertexSides {
+    #[inline(always)]
+    fn put_located(&mut self, n: usize, c: &LeafCell) {
+        (self.levels[n], self.values[n], self.leaves[n]) = (c.level, c.value, c.leaf);
+    }
+
+    #[inline(always)]
+    fn put_in_leaf<D: AsRef<[u8]>>(
+        &mut self,
+        sampler: &Sampler<'_, D>,
+        n: usize,
+        leaf: u32,
+        f: [i64; 3],
+    ) -> bool {
+        sampler
+            .side_in_leaf(leaf, f)
+            .map(|(level, value)| {
+                (self.levels[n], self.values[n], self.leaves[n]) = (level, value, leaf);
+            })
+            .is_some()
+    }
+
+    /// Only the value: the repeated side's level stays `u32::MAX` (see [`VertexSides`]).
+    #[inline(always)]
+    fn repeat(&mut self, n: usize, first: usize) {
+        self.values[n] = self.values[first];
+    }
+}
+
+impl<D: AsRef<[u8]>> Sampler<'_, D> {
+    /// The sides of the vertex whose nudges are `lo`, `hi` and `same` ([`Self::nudges`]),
+    /// written into `out`: false (`out` then partly written) where a side is not covered.
+    ///
+    /// The sides are located in order ([`Self::locate_hinted`], trying the leaves of `hints`
+    /// first), each located side's kd-tree leaf giving the later sides in its box, read from
+    /// its brick when read in place: leaves tile the domain, so that is the locate's answer,
+    /// and a side not read so is located in its turn (the first side not covered, or failing,
+    /// is the same one).
+    #[inline(always)]
+    pub(super) fn sides_into<L: Locate, S: SideSink>(
         &self,
         loc: &L,
         (lo, hi, same): ([i64; 3], [i64; 3], usize),
-        out: &mut VertexSides,
+        out: &mut S,
         hints: &mut LeafHints,
     ) -> Result<bool> {
         let side = |n: usize| axes(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
@@ -57,20 +135,19 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             let Some((c, b)) = self.locate_hinted(loc, side(n), hints)? else {
                 return Ok(false);
             };
-            (out.levels[n], out.values[n], out.leaves[n]) = (c.level, c.value, c.leaf);
+            out.put_located(n, &c);
             let mut take = sides_in(&b, lo, hi) & todo;
             while take != 0 {
                 let m = take.trailing_zeros() as usize;
                 take &= take - 1;
-                if let Some((level, value)) = self.side_in_leaf(c.leaf, side(m)) {
-                    (out.levels[m], out.values[m], out.leaves[m]) = (level, value, c.leaf);
+                if out.put_in_leaf(self, m, c.leaf, side(m)) {
                     todo &= !(1 << m);
                 }
             }
         }
         if same != 0 {
             for n in 1..8 {
-                out.values[n] = out.values[n & !same];
+                out.repeat(n, n & !same);
             }
         }
         Ok(true)

@@ -292,6 +292,8 @@ fn summary(file: &Path, scene: &Scene, files: &FrameFiles, took: Duration) -> St
     }
     let mut written = vec![files.exr.display().to_string()];
     written.extend(files.preview.iter().map(|p| p.display().to_string()));
+    // A PNG output is its own preview: named once.
+    written.dedup();
     out += &format!(
         ": wrote {} in {:.2} s",
         written.join(" and "),

@@ -387,16 +387,40 @@ fn narrowed_may_straddle<D: AsRef<[u8]>>(
         if fixed & both == both || open == 0 {
             return Ok(true);
         }
-        let missing = both & !fixed;
-        let wanted = (0..8).fold(0u8, |w, k| {
-            w | u8::from(open >> k & 1 == 1 && code_of(k) & missing != 0) << k
-        });
-        let k = if wanted != 0 { wanted } else { open }.trailing_zeros() as usize;
+        let k = next_deciding(open, fixed, code_of);
         open &= !(1 << k);
-        let bound = coarse_cell_bound((sampler, memo), level, hood.cell_at(cells[k]))?;
-        hood.set_exact(cells[k], bound);
+        narrow(sampler, hood, memo, level, cells[k])?;
         fixed |= hood.value_code(cells[k], iso);
     }
+}
+
+/// Of the items whose bits are set in `open` (at least one), the first whose code
+/// (`code_of`) could give a bit ([`ABOVE`], [`BELOW`]) that `known` lacks, else the first: asked
+/// first, an item that does not give it settles the decision sooner.
+#[inline(always)]
+fn next_deciding(open: u8, known: u8, code_of: impl Fn(usize) -> u8) -> usize {
+    let missing = (ABOVE | BELOW) & !known;
+    let wanted = (0..8).fold(0u8, |w, k| {
+        w | u8::from(open >> k & 1 == 1 && code_of(k) & missing != 0) << k
+    });
+    if wanted != 0 { wanted } else { open }.trailing_zeros() as usize
+}
+
+/// Narrows neighbourhood cell `j` to its coarse octants' bound
+/// ([`super::cull::coarse_cell_bound`]) when it may be narrowed and is not yet.
+#[inline(always)]
+fn narrow<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    hood: &mut Neighbourhood,
+    memo: &mut VertexMemo,
+    level: u32,
+    j: usize,
+) -> Result<()> {
+    if hood.narrows(j) && hood.exact(j).is_none() {
+        let bound = coarse_cell_bound((sampler, memo), level, hood.cell_at(j))?;
+        hood.set_exact(j, bound);
+    }
+    Ok(())
 }
 
 /// What [`boundary_corners`] finds for an octant.
@@ -474,10 +498,7 @@ fn boundary_corners<D: AsRef<[u8]>>(
                     if !around.iter().all(|&j| hood.kind(j) == LEAF) {
                         let mut bound = 0u8;
                         for &j in &around {
-                            if hood.narrows(j) && hood.exact(j).is_none() {
-                                let b = coarse_cell_bound((sampler, memo), level, hood.cell_at(j))?;
-                                hood.set_exact(j, b);
-                            }
+                            narrow(sampler, hood, memo, level, j)?;
                             bound |= hood.value_code(j, iso);
                         }
                         other[n] = (vi, bound);
@@ -509,13 +530,7 @@ fn boundary_corners<D: AsRef<[u8]>>(
         if bounds & (ABOVE | BELOW) != ABOVE | BELOW {
             return Ok(Corners::Culled);
         }
-        // First a corner that could give a bit the values so far lack: if it does not, the
-        // octant is settled sooner.
-        let missing = (ABOVE | BELOW) & !known;
-        let wanted = (0..8).fold(0u8, |w, n| {
-            w | u8::from(left >> n & 1 == 1 && other[n].1 & missing != 0) << n
-        });
-        let n = if wanted != 0 { wanted } else { left }.trailing_zeros() as usize;
+        let n = next_deciding(left, known, |n| other[n].1);
         left &= !(1 << n);
         let (vi, _) = other[n];
         let v = axes(|a| lo[a] + (n >> a & 1) as i64 * s[a]);
@@ -554,10 +569,9 @@ fn vertex_value<D: AsRef<[u8]>>(
     around: &[usize; 8],
 ) -> Result<Option<f32>> {
     let grid = sampler.grid();
-    let (lo, hi) = (grid.finest_cell(v, 0), grid.finest_cell(v, 7));
-    // The axes on which the two nudges coincide: there side `n` repeats side `n` without the
-    // axis's bit, as in [`Sampler::around_in`].
-    let same = (0..3).fold(0usize, |m, a| m | usize::from(lo[a] == hi[a]) << a);
+    // On the axes of `same` the two nudges coincide: there side `n` repeats side `n` without
+    // the axis's bit.
+    let (lo, hi, same) = sampler.nudges(v);
     let mut cells = [LeafCell {
         leaf: u32::MAX,
         brick: u32::MAX,

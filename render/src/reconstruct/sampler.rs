@@ -765,7 +765,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// axis, and the axes (bit `a`) on which they coincide (odd coordinate, or clamped at the
     /// domain's edge): there side `n` of `v` repeats the side without that bit.
     #[inline(always)]
-    pub(super) fn nudges(&self, v: [i64; 3]) -> ([i64; 3], [i64; 3], usize) {
+    pub(crate) fn nudges(&self, v: [i64; 3]) -> ([i64; 3], [i64; 3], usize) {
         let lo = self.grid.finest_cell(v, 0);
         let hi = self.grid.finest_cell(v, 7);
         let same = (0..3).fold(0usize, |m, a| m | usize::from(lo[a] == hi[a]) << a);

@@ -52,7 +52,7 @@ impl<'s> Scratch<'s> {
         Self {
             hood: Neighbourhood::default(),
             plain: PlainCodes::default(),
-            memo: VertexMemo::default(),
+            memo: VertexMemo::default().with_octants_together(),
             verts: LeafVertices::default(),
             rows: Vec::new(),
             shared,

@@ -18,6 +18,7 @@ use crate::error::Result;
 
 use super::grid::axes;
 use super::interp::avg8;
+use super::leaf_hints::LeafHints;
 use super::mixed::{holds, SIDES_DOWN};
 use super::sampler::{LeafCell, Locate, Octant, Position, Sampler, VertexMemo, NO_CELL};
 use super::stitch::Stitches;
@@ -77,6 +78,8 @@ pub(super) struct CellOctants {
     near: Option<(LeafCell, IBox)>,
     /// The stitch memory, made when the first stitched point needs it.
     stitches: Option<Stitches>,
+    /// The kd-tree leaves positions were located in last (kept from cell to cell).
+    hints: LeafHints,
 }
 
 impl Default for CellOctants {
@@ -107,6 +110,7 @@ impl Default for CellOctants {
             computed: 0,
             near: None,
             stitches: None,
+            hints: LeafHints::default(),
         }
     }
 }
@@ -180,14 +184,15 @@ impl CellOctants {
     }
 
     /// Locates position `p` at one of its finest cells: read from the brick of a kd-tree leaf
-    /// already met whose box holds that cell, else located.
+    /// already met whose box holds that cell, else located (trying the leaves positions were
+    /// located in last, kept apart from the memo's hints for the vertices' sides: sharing
+    /// those, each evicts the other's).
     #[inline(never)]
     fn locate_position<D: AsRef<[u8]>, L: Locate>(
         &mut self,
         sampler: &Sampler<'_, D>,
         loc: &L,
         p: usize,
-        memo: &mut VertexMemo,
     ) -> Result<()> {
         let d = PLACE[p];
         let f = axes(|a| match d[a] {
@@ -216,7 +221,7 @@ impl CellOctants {
         let fresh = found.is_none();
         if fresh {
             found = sampler
-                .locate_hinted(loc, f, &mut memo.hints)?
+                .locate_hinted(loc, f, &mut self.hints)?
                 .map(|(c, _)| (c, sampler.read_box(c.leaf)));
         }
         self.put_position(p, found, fresh);
@@ -303,7 +308,7 @@ impl CellOctants {
         while missing != 0 {
             let p = missing.trailing_zeros() as usize;
             missing &= missing - 1;
-            self.locate_position(sampler, loc, p, memo)?;
+            self.locate_position(sampler, loc, p)?;
         }
         let mut levels = [0u32; 8];
         let mut values = [0f32; 8];

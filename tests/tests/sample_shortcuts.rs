@@ -142,6 +142,54 @@ fn gathered_octant_corners_equal_the_general_rule() {
     assert!(stitched > 1000, "only {stitched} stitched corners checked");
 }
 
+/// Octants asked for through one memo that computes a cell's octants together (as the
+/// extraction's does) have the general rule's corners: both the octant asked for and the ones
+/// computed with it and found in the memo's table later. Every octant of the cells at and
+/// beside each leaf's corners, in an order that often asks a cell's octants one after another.
+#[test]
+fn octants_computed_together_equal_the_general_rule() {
+    let mut from_table = 0u64;
+    for case in cases() {
+        let (_, file) = build(&case);
+        let (fast, general) = fast_and_general(&file, 0);
+        let mut memo = VertexMemo::default().with_octants_together();
+        for leaf in 0..file.num_leaves() as u32 {
+            let Some((_, level)) = fast.leaf_top(leaf) else {
+                continue;
+            };
+            let cells = fast.grid().level_box(level, &fast.leaf_box(leaf));
+            for corner in 0..8 {
+                let cell = [0, 1, 2].map(|a| {
+                    if corner >> a & 1 == 1 {
+                        cells.hi[a] - 1
+                    } else {
+                        cells.lo[a]
+                    }
+                });
+                for octant in (0..8u8).rev() {
+                    let o = Octant {
+                        level,
+                        cell,
+                        octant,
+                    };
+                    from_table += u64::from(memo.knows_octant(&o));
+                    let got = fast.octant_values_memo(&o, &mut memo).unwrap();
+                    let want = general.octant_values(&o).unwrap();
+                    assert_eq!(
+                        got.map(|v| v.map(f32::to_bits)),
+                        want.map(|v| v.map(f32::to_bits)),
+                        "{case:?}: {o:?}"
+                    );
+                }
+            }
+        }
+    }
+    assert!(
+        from_table > 1000,
+        "only {from_table} octants from the table"
+    );
+}
+
 /// The leaf cells around a vertex are the cells located at its eight sides, and a vertex's
 /// value is the same whatever a memo kept from the vertices before (the kd-tree leaves it
 /// remembers): vertices near level boundaries, at every level, through one memo.

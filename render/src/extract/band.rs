@@ -129,7 +129,7 @@ const DIRECT_SCALE: i64 = 2;
 /// Block slots of an [`AroundMemo`].
 const BLOCK_SLOTS: usize = 128;
 /// Cells of a block about to be asked about, at least, for the block to be computed whole.
-const MIN_ASKED: u32 = 8;
+const MIN_ASKED: u32 = 4;
 /// Level-`q` cells per axis of a tile.
 const TILE: i64 = 4;
 /// Independently locked parts of the tables, so threads rarely wait on each other.

@@ -22,7 +22,7 @@ use super::small::MAX_CELLS;
 use super::vertices::LeafVertices;
 use crate::reconstruct::grid::axes;
 use crate::reconstruct::interp::{avg8, min_max, straddles};
-use crate::reconstruct::{LeafCell, Locate, Sampler, VertexMemo};
+use crate::reconstruct::{LeafCell, Sampler, VertexMemo};
 
 /// Per-thread scratch of [`extract_leaf`].
 pub struct Scratch<'s> {
@@ -52,7 +52,7 @@ impl<'s> Scratch<'s> {
         Self {
             hood: Neighbourhood::default(),
             plain: PlainCodes::default(),
-            memo: VertexMemo::default(),
+            memo: VertexMemo::default().with_octants_together(),
             verts: LeafVertices::default(),
             rows: Vec::new(),
             shared,
@@ -580,6 +580,9 @@ fn vertex_value<D: AsRef<[u8]>>(
         value: 0.0,
     }; 8];
     let (s, o) = (grid.scale(level), grid.offset());
+    // The kd-tree leaf of the side located last: the next sides outside the neighbourhood
+    // often lie in it.
+    let mut last = None;
     for (n, &j) in around.iter().enumerate() {
         let m = n & !same;
         if m != n {
@@ -591,7 +594,7 @@ fn vertex_value<D: AsRef<[u8]>>(
             cells[n].cell = axes(|a| div_floor(f[a] + o[a], s[a]));
             cells[n].value = hood.value(j);
         } else {
-            match sampler.locate_cell(f)? {
+            match sampler.locate_near(f, memo, &mut last)? {
                 Some(c) => cells[n] = c,
                 None => return Ok(None),
             }

@@ -12,7 +12,7 @@ use crate::error::Result;
 
 use super::leaf_grid::Entry;
 use super::mixed::holds;
-use super::sampler::{LeafCell, Locate, Sampler};
+use super::sampler::{LeafCell, Locate, Sampler, VertexMemo};
 
 /// Leaves remembered: the last few a neighbourhood of vertices touches.
 const HINTS: usize = 4;
@@ -107,5 +107,26 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             return Ok(None);
         };
         Ok(Some((c, self.leaf_box(c.leaf))))
+    }
+
+    /// The leaf cell at finest cell `f`, [`Self::locate`]'s answer: read from the brick of the
+    /// kd-tree leaf found last (`last`, with its box) when that box holds `f`, else located
+    /// through the leaves `memo` remembers ([`Self::locate_hinted`]); the leaf found becomes
+    /// `last`. For callers that locate several nearby cells in turn.
+    #[inline]
+    pub fn locate_near(
+        &self,
+        f: [i64; 3],
+        memo: &mut VertexMemo,
+        last: &mut Option<(LeafCell, IBox)>,
+    ) -> Result<Option<LeafCell>> {
+        if let Some(c) = last.and_then(|(c, b)| self.cell_in_leaf(&c, &b, f)) {
+            return Ok(Some(c));
+        }
+        let found = self.locate_hinted(self, f, &mut memo.hints)?;
+        if found.is_some() {
+            *last = found;
+        }
+        Ok(found.map(|(c, _)| c))
     }
 }

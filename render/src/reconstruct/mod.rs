@@ -10,12 +10,14 @@
 //! - [`vertex_sides`]: a vertex's sides as its value reads them (levels, values, leaves).
 //! - [`stitch`]: stitched vertex values from the coarse corners of non-zero weight alone.
 //! - [`level_gradient`]: smooth normals' central differences inside one level, from a brick.
+//! - [`cell_octants`]: several octants of one leaf cell next to other levels, computed together.
 //! - [`mixed`]: octant corners next to other levels, from one table of the cells they read.
 //! - [`methods`]: point sampling with `nearest`, `current`, `finest` and `octant`.
 //!
 //! `docs/reconstruction.md` gives the rules and the reasons for them.
 
 pub mod cache;
+mod cell_octants;
 pub mod grid;
 pub mod interp;
 pub mod leaf_grid;

@@ -18,6 +18,7 @@ use crate::error::RenderError;
 use crate::error::Result;
 
 use super::cache::BrickCache;
+use super::cell_octants::CellOctants;
 use super::grid::{axes, index_in, Grid};
 use super::interp::{avg2, avg8, trilinear};
 use super::leaf_grid::{Entry, LazyLeafGrid};
@@ -97,6 +98,11 @@ pub struct VertexMemo {
     octant_puts: usize,
     /// The kd-tree leaves located last, tried first by the next vertices' sides.
     pub(super) hints: LeafHints,
+    /// True when a cell's octants next to other levels are computed together
+    /// ([`Self::with_octants_together`]).
+    together: bool,
+    /// Scratch for computing a cell's octants together (allocated on first use).
+    pub(super) cell_octants: Option<Box<CellOctants>>,
 }
 
 /// log2 of the slots of [`VertexMemo`]'s octant table at first by default.
@@ -118,6 +124,8 @@ impl Default for VertexMemo {
             octant_max_bits: OCTANT_MAX_BITS,
             octant_puts: 0,
             hints: LeafHints::default(),
+            together: false,
+            cell_octants: None,
         }
     }
 }
@@ -139,6 +147,28 @@ impl VertexMemo {
             octant_max_bits: bits.min(24),
             ..Self::default()
         }
+    }
+
+    /// This memo, computing the octants of a cell next to other levels that are likely to be
+    /// asked for together: when an octant missing from the octant table is asked for, the
+    /// cell's other octants next to a neighbour of another level are computed with it (sharing
+    /// their neighbours and corners, [`super::cell_octants`]) and put in the table. For callers
+    /// that ask for the octants of a whole region, such as the extraction; the values are the
+    /// same either way.
+    pub fn with_octants_together(mut self) -> Self {
+        self.together = true;
+        self
+    }
+
+    /// True when the octant table holds octant `o`'s corners.
+    pub fn knows_octant(&self, o: &Octant) -> bool {
+        self.octant_get(o).is_some()
+    }
+
+    /// True when octants missing from the table are computed a cell at a time.
+    #[inline]
+    pub(super) fn octants_together(&self) -> bool {
+        self.together && self.octant_bits != 0
     }
 
     /// The value remembered at vertex `v` as seen by an octant of level `level`, if any.
@@ -175,7 +205,7 @@ impl VertexMemo {
     }
 
     #[inline]
-    fn octant_put(&mut self, o: &Octant, corners: Option<[f32; 8]>) {
+    pub(super) fn octant_put(&mut self, o: &Octant, corners: Option<[f32; 8]>) {
         if self.octant_bits == 0 {
             return;
         }
@@ -1157,6 +1187,9 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         };
         if let Some(block) = block {
             return Ok(Some(self.corners_from_block(&block, value, up)));
+        }
+        if memo.octants_together() {
+            return self.corners_together(loc, o, value, near, memo);
         }
         // Side `n` of the outer corner, as in `corners_one_level`: first the sides in `near`'s
         // kd-tree leaf, read from its brick, then the others located.

@@ -88,6 +88,29 @@ fn shortcut_locates_equal_tree_walks() {
     }
 }
 
+/// Per kd-tree leaf with cells, its eight corner cells (level and cell): where its neighbours,
+/// often of other levels, meet.
+fn leaf_corner_cells(s: &Sampler<'_, Vec<u8>>) -> Vec<(u32, [i64; 3])> {
+    let mut out = Vec::new();
+    for leaf in 0..s.file().num_leaves() as u32 {
+        let Some((_, level)) = s.leaf_top(leaf) else {
+            continue;
+        };
+        let cells = s.grid().level_box(level, &s.leaf_box(leaf));
+        for corner in 0..8 {
+            let cell = [0, 1, 2].map(|a| {
+                if corner >> a & 1 == 1 {
+                    cells.hi[a] - 1
+                } else {
+                    cells.lo[a]
+                }
+            });
+            out.push((level, cell));
+        }
+    }
+    out
+}
+
 #[test]
 fn gathered_octant_corners_equal_the_general_rule() {
     let mut stitched = 0u64;
@@ -95,44 +118,30 @@ fn gathered_octant_corners_equal_the_general_rule() {
         let (_, file) = build(&case);
         for field in 0..2 {
             let (fast, general) = fast_and_general(&file, field);
-            for leaf in 0..file.num_leaves() as u32 {
-                let Some((_, level)) = fast.leaf_top(leaf) else {
-                    continue;
-                };
-                let cells = fast.grid().level_box(level, &fast.leaf_box(leaf));
-                // The leaf's corner cells: where its neighbours, often of other levels, meet.
-                for corner in 0..8 {
-                    let cell = [0, 1, 2].map(|a| {
-                        if corner >> a & 1 == 1 {
-                            cells.hi[a] - 1
-                        } else {
-                            cells.lo[a]
-                        }
-                    });
-                    for octant in 0..8u8 {
-                        let o = Octant {
-                            level,
-                            cell,
-                            octant,
+            for (level, cell) in leaf_corner_cells(&fast) {
+                for octant in 0..8u8 {
+                    let o = Octant {
+                        level,
+                        cell,
+                        octant,
+                    };
+                    let got = fast.octant_values(&o).unwrap();
+                    let want = general.octant_values(&o).unwrap();
+                    assert_eq!(
+                        got.map(|v| v.map(f32::to_bits)),
+                        want.map(|v| v.map(f32::to_bits)),
+                        "{case:?}, field {field}: {o:?}"
+                    );
+                    // Corners that are not means of their eight cells: stitched ones.
+                    let (lo, _) = general.octant_box(&o);
+                    let sc = general.grid().scale(level);
+                    for n in 0..8 {
+                        let v = [0, 1, 2].map(|a| lo[a] + (n >> a & 1) as i64 * sc[a]);
+                        let Some(cells) = general.around(v).unwrap() else {
+                            continue;
                         };
-                        let got = fast.octant_values(&o).unwrap();
-                        let want = general.octant_values(&o).unwrap();
-                        assert_eq!(
-                            got.map(|v| v.map(f32::to_bits)),
-                            want.map(|v| v.map(f32::to_bits)),
-                            "{case:?}, field {field}: {o:?}"
-                        );
-                        // Corners that are not means of their eight cells: stitched ones.
-                        let (lo, _) = general.octant_box(&o);
-                        let sc = general.grid().scale(level);
-                        for n in 0..8 {
-                            let v = [0, 1, 2].map(|a| lo[a] + (n >> a & 1) as i64 * sc[a]);
-                            let Some(cells) = general.around(v).unwrap() else {
-                                continue;
-                            };
-                            if cells.iter().any(|c| c.level < level) {
-                                stitched += 1;
-                            }
+                        if cells.iter().any(|c| c.level < level) {
+                            stitched += 1;
                         }
                     }
                 }
@@ -153,34 +162,21 @@ fn octants_computed_together_equal_the_general_rule() {
         let (_, file) = build(&case);
         let (fast, general) = fast_and_general(&file, 0);
         let mut memo = VertexMemo::default().with_octants_together();
-        for leaf in 0..file.num_leaves() as u32 {
-            let Some((_, level)) = fast.leaf_top(leaf) else {
-                continue;
-            };
-            let cells = fast.grid().level_box(level, &fast.leaf_box(leaf));
-            for corner in 0..8 {
-                let cell = [0, 1, 2].map(|a| {
-                    if corner >> a & 1 == 1 {
-                        cells.hi[a] - 1
-                    } else {
-                        cells.lo[a]
-                    }
-                });
-                for octant in (0..8u8).rev() {
-                    let o = Octant {
-                        level,
-                        cell,
-                        octant,
-                    };
-                    from_table += u64::from(memo.knows_octant(&o));
-                    let got = fast.octant_values_memo(&o, &mut memo).unwrap();
-                    let want = general.octant_values(&o).unwrap();
-                    assert_eq!(
-                        got.map(|v| v.map(f32::to_bits)),
-                        want.map(|v| v.map(f32::to_bits)),
-                        "{case:?}: {o:?}"
-                    );
-                }
+        for (level, cell) in leaf_corner_cells(&fast) {
+            for octant in (0..8u8).rev() {
+                let o = Octant {
+                    level,
+                    cell,
+                    octant,
+                };
+                from_table += u64::from(memo.knows_octant(&o));
+                let got = fast.octant_values_memo(&o, &mut memo).unwrap();
+                let want = general.octant_values(&o).unwrap();
+                assert_eq!(
+                    got.map(|v| v.map(f32::to_bits)),
+                    want.map(|v| v.map(f32::to_bits)),
+                    "{case:?}: {o:?}"
+                );
             }
         }
     }

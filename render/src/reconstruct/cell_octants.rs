@@ -392,36 +392,15 @@ impl CellOctants {
         let Some(q) = q else {
             return Ok(None);
         };
-        let octant = sampler.octant_toward(v, &q, side);
-        let near = self.near;
-        let new_stitches = || {
-            let mut known = Stitches::new();
-            if let Some((c, b)) = near {
-                known.add_leaf(c.leaf, b);
-            }
-            known
-        };
-        if sampler.bounded() {
-            // A corner of the coarse octant: the interpolant there is that corner's value, the
-            // value at `v` seen from `q`'s level, which is the coarsest around `v`: the `avg8`
-            // of the point's own cells (as in `corners_mixed`).
-            let (olo, ohi) = sampler.octant_box(&Octant {
-                level: q.level,
-                cell: q.cell,
-                octant,
-            });
-            if (0..3).all(|a| (v[a] == olo[a]) | (v[a] == ohi[a])) {
-                let x = avg8(&values);
-                if x != 0.0 {
-                    self.stitches
-                        .get_or_insert_with(new_stitches)
-                        .add_vertex(v, q.level, Some(x));
-                    return Ok(Some(x));
-                }
-            }
-        }
-        let known = self.stitches.get_or_insert_with(new_stitches);
-        sampler.stitched_value(loc, v, &q, octant, known, memo)
+        sampler.stitched_corner(
+            loc,
+            v,
+            (&q, side),
+            || values,
+            &mut self.stitches,
+            self.near,
+            memo,
+        )
     }
 
     /// The octant `octant` of this cell as a key of the octant table.

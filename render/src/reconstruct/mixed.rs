@@ -276,13 +276,6 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         // The stitch memory, made in place (about 1.3 KB) when the first stitched corner needs
         // it.
         let mut stitches = None::<Stitches>;
-        let new_stitches = || {
-            let mut known = Stitches::new();
-            if let Some((c, b)) = near {
-                known.add_leaf(c.leaf, b);
-            }
-            known
-        };
         for (n, slot) in out.iter_mut().enumerate() {
             if n == down {
                 // The corner at the cell centre carries the cell's value.
@@ -319,32 +312,15 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
                 let Some(q) = q else {
                     return Ok(None);
                 };
-                let octant = self.octant_toward(v, &q, side);
-                if self.bounded() {
-                    // A corner of the coarse octant: the interpolant there is that corner's
-                    // value (`lerp` at 0 and 1 keeps an operand, exactly when it is not zero),
-                    // the value at `v` seen from `q`'s level, which is the coarsest around `v`:
-                    // the `avg8` of the corner's own entries.
-                    let (olo, ohi) = self.octant_box(&Octant {
-                        level: q.level,
-                        cell: q.cell,
-                        octant,
-                    });
-                    if (0..3).all(|a| (v[a] == olo[a]) | (v[a] == ohi[a])) {
-                        let x = avg8(&std::array::from_fn(|i| values[entry(i)]));
-                        if x != 0.0 {
-                            stitches.get_or_insert_with(new_stitches).add_vertex(
-                                v,
-                                q.level,
-                                Some(x),
-                            );
-                            *slot = x;
-                            continue;
-                        }
-                    }
-                }
-                let known = stitches.get_or_insert_with(new_stitches);
-                match self.stitched_value(loc, v, &q, octant, known, memo)? {
+                match self.stitched_corner(
+                    loc,
+                    v,
+                    (&q, side),
+                    || std::array::from_fn(|i| values[entry(i)]),
+                    &mut stitches,
+                    near,
+                    memo,
+                )? {
                     Some(x) => x,
                     None => return Ok(None),
                 }

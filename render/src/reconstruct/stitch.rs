@@ -122,6 +122,53 @@ fn trilinear_skipping(v: &[f32; 8], t: [f32; 3]) -> Option<f32> {
 }
 
 impl<D: AsRef<[u8]>> Sampler<'_, D> {
+    /// The value at vertex `v` whose coarsest side, side `side`, lies in leaf cell `q` (a
+    /// coarser level than some other side's), given its eight sides' values `sides` (asked only
+    /// where needed). At a corner of `q`'s octant toward `v` in a bounded file that is the mean
+    /// of the sides when not zero (`lerp` at 0 and 1 keeps an operand exactly when it is not
+    /// zero): the value at `v` seen from `q`'s level, the coarsest around `v`. Otherwise
+    /// [`Self::stitched_value`]. `stitches` is the stitch memory of the octant being computed,
+    /// made on first need knowing `near`'s kd-tree leaf. `None` where a cell involved is not
+    /// covered.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn stitched_corner<L: Locate>(
+        &self,
+        loc: &L,
+        v: [i64; 3],
+        (q, side): (&LeafCell, usize),
+        sides: impl FnOnce() -> [f32; 8],
+        stitches: &mut Option<Stitches>,
+        near: Option<(LeafCell, IBox)>,
+        memo: &mut VertexMemo,
+    ) -> Result<Option<f32>> {
+        let octant = self.octant_toward(v, q, side);
+        let new_stitches = || {
+            let mut known = Stitches::new();
+            if let Some((c, b)) = near {
+                known.add_leaf(c.leaf, b);
+            }
+            known
+        };
+        if self.bounded() {
+            let (olo, ohi) = self.octant_box(&Octant {
+                level: q.level,
+                cell: q.cell,
+                octant,
+            });
+            if (0..3).all(|a| (v[a] == olo[a]) | (v[a] == ohi[a])) {
+                let x = avg8(&sides());
+                if x != 0.0 {
+                    stitches
+                        .get_or_insert_with(new_stitches)
+                        .add_vertex(v, q.level, Some(x));
+                    return Ok(Some(x));
+                }
+            }
+        }
+        let known = stitches.get_or_insert_with(new_stitches);
+        self.stitched_value(loc, v, q, octant, known, memo)
+    }
+
     /// The value at vertex `v` of octant `octant` of leaf cell `q`, which holds `v` and is the
     /// coarse cell the vertex is stitched to: [`Self::coarse_value_in`]'s value, computed from
     /// the octant's corners of non-zero weight when the file allows it, else from the whole

@@ -157,7 +157,7 @@ fn tiles_of_a_filtered_frame_equal_the_whole_frame() {
 
 #[test]
 fn a_frame_rendered_in_bands_equals_its_rows_rendered_alone() {
-    // A frame of more pixels than one band (`BAND_PIXELS`, 2^20: 256 rows of 4096) is
+    // A frame of more pixels than one band (`BAND_PIXELS`, 2^17: 32 rows of 4096) is
     // rendered, filtered and written band by band; the rows on either side of each band's end
     // must be those a region of them gives (its filter sees every row around it).
     let dir = tempfile::tempdir().unwrap();

@@ -205,8 +205,10 @@ pub fn render_in_planes<T: Tracer + Sync + ?Sized>(
 
 /// Pixels of a frame rendered before their rows' ambient occlusion is filtered: the rows' hits
 /// to filter (44 bytes a hit, up to two a pixel) are held for about this many pixels at once,
-/// not for the whole frame (a frame of up to this many pixels is one band).
-const BAND_PIXELS: u32 = 1 << 20;
+/// not for the whole frame (a frame of up to this many pixels is one band). Small enough that a
+/// 1024x768 frame is several bands, whose dropped rows' memory the next band's rows reuse
+/// instead of touching fresh pages (`docs/benchmarks-render.md`, "clock1").
+const BAND_PIXELS: u32 = 1 << 17;
 
 /// Rows of a band of a frame `w` pixels wide: a multiple of [`TILE`] holding about
 /// [`BAND_PIXELS`] pixels.

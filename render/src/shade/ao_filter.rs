@@ -104,6 +104,18 @@ impl AoRow {
         self.layers.extend(more.layers);
     }
 
+    /// Appends `more`, the rows of the pixels to the right of this row's, left to right, the
+    /// room for all of their hits made at once.
+    pub fn append_all(&mut self, more: Vec<AoRow>) {
+        self.start
+            .reserve(more.iter().map(|m| m.start.len() - 1).sum());
+        self.layers
+            .reserve(more.iter().map(|m| m.layers.len()).sum());
+        for more in more {
+            self.append(more);
+        }
+    }
+
     fn pixel(&self, x: u32) -> &[AoLayer] {
         let x = x as usize;
         &self.layers[self.start[x] as usize..self.start[x + 1] as usize]

@@ -283,10 +283,10 @@ fn render_band<T: Tracer + Sync + ?Sized>(
 fn joined(pieces: Vec<Vec<Row>>) -> Vec<Row> {
     let mut pieces = pieces.into_iter();
     let mut strip = pieces.next().unwrap_or_default();
-    for piece in pieces {
-        for (row, more) in strip.iter_mut().zip(piece) {
-            row.append(more);
-        }
+    let mut rest: Vec<_> = pieces.map(Vec::into_iter).collect();
+    for row in &mut strip {
+        let more = rest.iter_mut().filter_map(Iterator::next).collect();
+        row.append_all(more);
     }
     strip
 }
@@ -382,10 +382,10 @@ struct Row {
 }
 
 impl Row {
-    /// Appends `more`, the pixels to the right of this row's.
-    fn append(&mut self, more: Row) {
-        self.ao.append(more.ao);
-        self.rays += more.rays;
+    /// Appends `more`, the rows of the pixels to the right of this row's, left to right.
+    fn append_all(&mut self, more: Vec<Row>) {
+        self.rays += more.iter().map(|m| m.rays).sum::<u64>();
+        self.ao.append_all(more.into_iter().map(|m| m.ao).collect());
     }
 }
 

@@ -156,8 +156,8 @@ impl CellOctants {
         self.stitches = None;
     }
 
-    /// Takes leaf cell `c` (or none: not covered), located at a finest cell of position `p`;
-    /// `fresh`: its kd-tree leaf is not one met before.
+    /// Takes the leaf cell `found` and its kd-tree leaf's box (`None`: not covered), located at
+    /// a finest cell of position `p`; `fresh`: its kd-tree leaf is not one met before.
     #[inline(always)]
     fn put_position(&mut self, p: usize, found: Option<(LeafCell, IBox)>, fresh: bool) {
         self.located |= 1 << p;

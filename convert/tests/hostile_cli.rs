@@ -81,6 +81,32 @@ fn a_bad_command_line_is_exit_1() {
     assert!(!out.exists());
 }
 
+/// A series whose inputs are missing or not dumps leaves no output directory behind: a missing
+/// input is refused before the directory is made, and one that fails to convert removes the
+/// directory this run made while it is still empty.
+#[test]
+fn a_failed_series_leaves_no_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture(dir.path());
+    let not_a_dump = dir.path().join("notes");
+    std::fs::create_dir(&not_a_dump).unwrap();
+    let out = dir.path().join("series.amrk");
+    let missing = dir.path().join("chombo");
+    for (first, what) in [
+        (&missing, "does not exist"),
+        (&not_a_dump, "unrecognised input"),
+    ] {
+        let (code, err) = run(&[first, &input, Path::new("-o"), &out], &[]);
+        assert_eq!(code, Some(1), "{err}");
+        assert!(err.contains(what), "{err}");
+        assert!(!out.exists(), "{err}");
+    }
+    // A series that fails after converting a dump keeps that file, and so its directory.
+    let (code, err) = run(&[&input, &not_a_dump, Path::new("-o"), &out], &[]);
+    assert_eq!(code, Some(1), "{err}");
+    assert_eq!(names(&out), ["plt.amrk"]);
+}
+
 #[test]
 fn an_output_that_is_the_input_is_refused() {
     let dir = tempfile::tempdir().unwrap();

@@ -102,8 +102,15 @@ fn main() -> ExitCode {
                 unreachable!("clap requires --output without a subcommand")
             };
             series::outputs(&cli.inputs, output).and_then(|jobs| {
-                jobs.iter()
-                    .try_for_each(|(input, output)| convert_one(&cli, input, output))
+                let done = jobs
+                    .pairs
+                    .iter()
+                    .try_for_each(|(input, output)| convert_one(&cli, input, output));
+                if let (Err(_), Some(dir)) = (&done, &jobs.created) {
+                    // Removes the directory this run made only if nothing was written into it.
+                    let _ = std::fs::remove_dir(dir);
+                }
+                done
             })
         }
     };

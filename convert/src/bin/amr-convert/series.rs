@@ -8,13 +8,27 @@ use std::path::{Path, PathBuf};
 use anyhow::bail;
 
 /// The `(input, output)` pairs of a conversion of `inputs` to `output`.
-pub fn outputs(inputs: &[PathBuf], output: &Path) -> anyhow::Result<Vec<(PathBuf, PathBuf)>> {
+pub struct Outputs {
+    /// Each input and the file it converts to.
+    pub pairs: Vec<(PathBuf, PathBuf)>,
+    /// The directory of a series when this call created it (so that a run that fails before
+    /// writing into it can remove it again).
+    pub created: Option<PathBuf>,
+}
+
+/// The `(input, output)` pairs of a conversion of `inputs` to `output`. For a series, every
+/// input must exist before the output directory is made.
+pub fn outputs(inputs: &[PathBuf], output: &Path) -> anyhow::Result<Outputs> {
     let to_dir = inputs.len() > 1 || output.as_os_str().to_string_lossy().ends_with('/');
     if !to_dir {
-        return Ok(inputs
+        let pairs = inputs
             .iter()
             .map(|i| (i.clone(), output.to_path_buf()))
-            .collect());
+            .collect();
+        return Ok(Outputs {
+            pairs,
+            created: None,
+        });
     }
     if output.exists() && !output.is_dir() {
         bail!(
@@ -22,8 +36,14 @@ pub fn outputs(inputs: &[PathBuf], output: &Path) -> anyhow::Result<Vec<(PathBuf
             output.display()
         );
     }
-    std::fs::create_dir_all(output)
-        .map_err(|e| anyhow::anyhow!("{}: cannot create the directory: {e}", output.display()))?;
+    if let Some(missing) = inputs.iter().find(|i| !i.exists()) {
+        bail!(
+            "input {} does not exist (amr-convert tells the dump's format from its files: give \
+             each dump's path, then -o)",
+            missing.display()
+        );
+    }
+    let created = (!output.exists()).then(|| output.to_path_buf());
     let mut pairs: Vec<(PathBuf, PathBuf)> = Vec::with_capacity(inputs.len());
     for input in inputs {
         let out = output.join(format!("{}.amrk", step_name(input)?));
@@ -37,7 +57,9 @@ pub fn outputs(inputs: &[PathBuf], output: &Path) -> anyhow::Result<Vec<(PathBuf
         }
         pairs.push((input.clone(), out));
     }
-    Ok(pairs)
+    std::fs::create_dir_all(output)
+        .map_err(|e| anyhow::anyhow!("{}: cannot create the directory: {e}", output.display()))?;
+    Ok(Outputs { pairs, created })
 }
 
 /// The name of a dump: its file or directory name without HDF5 extensions.
@@ -64,13 +86,27 @@ mod tests {
             PathBuf::from("run/plt00100"),
             PathBuf::from("run/chk0010.3d.hdf5"),
         ];
-        let pairs = outputs(&inputs, &out).unwrap();
-        assert_eq!(pairs[0].1, out.join("plt00100.amrk"));
-        assert_eq!(pairs[1].1, out.join("chk0010.amrk"));
+        // The inputs must exist: a missing one is refused before the directory is made.
+        assert!(outputs(&inputs, &out).is_err());
+        assert!(!out.exists());
+        let run = dir.path().join("run");
+        let inputs = inputs.map(|i| dir.path().join(i));
+        std::fs::create_dir_all(&inputs[0]).unwrap();
+        assert!(outputs(&inputs, &out).is_err());
+        assert!(!out.exists());
+        std::fs::write(&inputs[1], b"").unwrap();
+        let made = outputs(&inputs, &out).unwrap();
+        assert_eq!(made.pairs[0].1, out.join("plt00100.amrk"));
+        assert_eq!(made.pairs[1].1, out.join("chk0010.amrk"));
+        assert_eq!(made.created.as_deref(), Some(out.as_path()));
         assert!(out.is_dir());
-        let same = [PathBuf::from("a/plt1"), PathBuf::from("b/plt1")];
+        assert_eq!(outputs(&inputs, &out).unwrap().created, None);
+        let same = [run.join("plt1"), dir.path().join("plt1")];
+        for s in &same {
+            std::fs::create_dir_all(s).unwrap();
+        }
         assert!(outputs(&same, &out).is_err());
         let single = outputs(&inputs[..1], Path::new("x.amrk")).unwrap();
-        assert_eq!(single[0].1, PathBuf::from("x.amrk"));
+        assert_eq!(single.pairs[0].1, PathBuf::from("x.amrk"));
     }
 }

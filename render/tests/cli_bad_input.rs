@@ -112,3 +112,31 @@ fn write_small_file(path: &Path) {
     }
     w.finish().unwrap();
 }
+
+/// A frame or preview named for a format `amr-render` does not write is refused before
+/// anything is rendered, and nothing is written.
+#[test]
+fn outputs_named_for_other_formats_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.amrk");
+    write_small_file(&good);
+    let f = good.to_str().unwrap();
+    let jpg = dir.path().join("frame.jpg");
+    let (code, err) = run(&[f, "--iso", "100", "-o", jpg.to_str().unwrap()]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("frame.jpg") && err.contains(".exr"), "{err}");
+    let exr = dir.path().join("frame.EXR");
+    let tif = dir.path().join("preview.tif");
+    let args = [f, "--iso", "100", "-o", exr.to_str().unwrap()];
+    let (code, err) = run(&[&args[..], &["--preview", tif.to_str().unwrap()]].concat());
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("preview.tif"), "{err}");
+    let (code, err) = run(&["demo", "-o", jpg.to_str().unwrap()]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("frame.jpg"), "{err}");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    // Upper-case extensions are the formats they name.
+    let (code, err) = run(&args);
+    assert_eq!(code, 0, "{err}");
+    assert!(exr.exists());
+}

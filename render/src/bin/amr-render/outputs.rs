@@ -184,6 +184,25 @@ pub fn report(outputs: &Outputs, stats: &impl Serialize, print_also: &str) -> an
     Ok(())
 }
 
+/// Refuses an output named for a format `amr-render` does not write: the frame must end in
+/// `.exr` or `.png` (or have no extension: OpenEXR), a preview in `.png`, whatever the case.
+pub fn check_names(output: &Path, preview: Option<&Path>) -> anyhow::Result<()> {
+    let ext = |p: &Path| {
+        p.extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+    };
+    if let Some(e) = ext(output).filter(|e| e != "exr" && e != "png") {
+        anyhow::bail!(
+            "{}: amr-render writes OpenEXR (.exr) or PNG (.png) frames, not .{e}",
+            output.display()
+        );
+    }
+    if let Some(p) = preview.filter(|p| ext(p).as_deref() != Some("png")) {
+        anyhow::bail!("{}: the preview is a PNG file: name it .png", p.display());
+    }
+    Ok(())
+}
+
 /// True when `path` names a PNG file.
 pub fn is_png(path: &Path) -> bool {
     path.extension()

@@ -93,6 +93,16 @@ pub fn format_value(v: f64) -> String {
     format_significant(v, 5)
 }
 
+/// `(x, y, z)` with each value as [`format_value`] writes it.
+pub fn format_vector(v: [f64; 3]) -> String {
+    format!(
+        "({}, {}, {})",
+        format_value(v[0]),
+        format_value(v[1]),
+        format_value(v[2])
+    )
+}
+
 /// The labels of `values` (tick marks) by [`format_value`], with more significant digits
 /// where that would print two of them alike (ticks `1.00002` apart near 1).
 pub fn distinct_labels(values: &[f64]) -> Vec<String> {

@@ -5,7 +5,7 @@ use std::fmt::Write;
 
 use amr_format::{AmrkFile, IBox, LevelInfo};
 
-use crate::field_stats::{format_value, FieldPercentiles, TABLE};
+use crate::field_stats::{format_value, format_vector, FieldPercentiles, TABLE};
 
 /// A human-readable description of an open file: levels, bricks, cells, fields and their
 /// ranges, tree depth and leaves, and bytes by section.
@@ -45,8 +45,8 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
             cells[l],
             lev.domain.lo,
             lev.domain.hi,
-            vec3(lev.cell_size),
-            vec3(lev.origin),
+            format_vector(lev.cell_size),
+            format_vector(lev.origin),
             lev.ratio_to_next
         );
         match covered[l] {
@@ -54,8 +54,8 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
                 let _ = writeln!(
                     out,
                     "           boxes within {} .. {}",
-                    vec3(world(lev, b.lo)),
-                    vec3(world(lev, b.hi))
+                    format_vector(world(lev, b.lo)),
+                    format_vector(world(lev, b.hi))
                 );
             }
             None => {
@@ -67,8 +67,8 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
         let _ = writeln!(
             out,
             "domain extent: {} .. {}",
-            vec3(world(lev, lev.domain.lo)),
-            vec3(world(lev, lev.domain.hi))
+            format_vector(world(lev, lev.domain.lo)),
+            format_vector(world(lev, lev.domain.hi))
         );
     }
     let _ = writeln!(out, "bricks: {}", file.num_bricks());
@@ -119,14 +119,4 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
 /// The world position of the corner of `lev`'s cell index `i`.
 fn world(lev: &LevelInfo, i: [i64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|a| lev.origin[a] + i[a] as f64 * lev.cell_size[a])
-}
-
-/// `(x, y, z)` with readable numbers.
-fn vec3(v: [f64; 3]) -> String {
-    format!(
-        "({}, {}, {})",
-        format_value(v[0]),
-        format_value(v[1]),
-        format_value(v[2])
-    )
 }

@@ -71,6 +71,24 @@ impl Slice {
         })
     }
 
+    /// True when the plane meets the world box `lo..hi` (its faces included).
+    pub fn meets_box(&self, lo: [f64; 3], hi: [f64; 3]) -> bool {
+        let side = |c: usize| -> f64 {
+            (0..3)
+                .map(|a| {
+                    let x = if c >> a & 1 == 1 { hi[a] } else { lo[a] };
+                    self.normal[a] * (x - self.point[a])
+                })
+                .sum()
+        };
+        let (min, max) = (0..8)
+            .map(side)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(m, n), d| {
+                (m.min(d), n.max(d))
+            });
+        min <= 0.0 && max >= 0.0
+    }
+
     /// The ray parameter where the world ray `o + t d` meets the plane, if it does.
     pub fn intersect(&self, o: [f64; 3], d: [f64; 3]) -> Option<f64> {
         let den: f64 = (0..3).map(|a| self.normal[a] * d[a]).sum();
@@ -104,6 +122,29 @@ fn split_opacity(s: &str) -> Result<(&str, f32), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn planes_meet_a_box_through_it_or_its_faces_only() {
+        let (lo, hi) = ([0.0; 3], [1.0, 2.0, 3.0]);
+        for (text, meets) in [
+            ("z=1.5", true),
+            ("z=3", true),
+            ("z=0", true),
+            ("z=3.0001", false),
+            ("x=-1", false),
+            ("y=99", false),
+        ] {
+            let s = Slice::parse_axis(text).unwrap();
+            assert_eq!(s.meets_box(lo, hi), meets, "{text}");
+        }
+        // Diagonal planes: through the far corner, and just beyond it.
+        let corner = Slice::new([1.0, 2.0, 3.0], [1.0, 1.0, 1.0]).unwrap();
+        assert!(corner.meets_box(lo, hi));
+        let beyond = Slice::new([1.0, 2.0, 3.01], [1.0, 1.0, 1.0]).unwrap();
+        assert!(!beyond.meets_box(lo, hi));
+        let across = Slice::new([5.0, 5.0, 1.0], [1.0, -1.0, 0.0]).unwrap();
+        assert!(across.meets_box(lo, hi));
+    }
 
     #[test]
     fn parses_slices() {

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use amr_render::field_stats::format_value;
+use amr_render::field_stats::{format_value, format_vector};
 use amr_render::mapping::open_mapped;
 use amr_render::output::header::frame_header;
 use amr_render::output::legend::Legend;
@@ -211,8 +211,28 @@ fn open_scene(request: &RenderRequest, index: usize) -> anyhow::Result<Scene> {
     scene.set_clip(request.clip)?;
     if !request.slices.is_empty() {
         scene.set_slices(&request.slices, request.slice_field.clone())?;
+        warn_slices_outside(&scene);
     }
     Ok(scene)
+}
+
+/// Warns about each slice plane that misses the domain: it shows nothing.
+fn warn_slices_outside(scene: &Scene) {
+    let frame = scene.grid_frame();
+    let lo = frame.origin;
+    let hi: [f64; 3] = std::array::from_fn(|a| lo[a] + frame.extent[a] * frame.unit[a]);
+    for (slice, _) in scene.slices() {
+        if !slice.meets_box(lo, hi) {
+            eprintln!(
+                "warning: {}: the slice through {} with normal {} misses the domain {} .. {}: it shows nothing",
+                scene.path().display(),
+                format_vector(slice.point),
+                format_vector(slice.normal),
+                format_vector(lo),
+                format_vector(hi)
+            );
+        }
+    }
 }
 
 /// What paints each of `n` isosurfaces: one `--color-by` paints all, several pair in order.

@@ -43,6 +43,7 @@ pub mod shade;
 pub mod sigbus;
 pub mod slice;
 pub mod stats;
+pub mod system_memory;
 pub mod trace;
 pub mod view;
 pub mod voxel;

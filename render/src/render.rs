@@ -8,7 +8,7 @@ use crate::clip::ClipBox;
 use crate::coloring::ColorBy;
 use crate::error::{RenderError, Result};
 use crate::outline;
-use crate::output::frame::{FrameBuffer, PixelSample};
+use crate::output::frame::{FrameBuffer, PixelSample, FRAME_PLANES};
 use crate::paint::{GridSlice, PaintedTracer, Painter};
 use crate::reconstruct::Reconstruction;
 use crate::sample_mode::SampleTracer;
@@ -17,6 +17,7 @@ use crate::shade::{
     render_frame, render_in_planes, render_rect, IsoSpec, Lighting, RenderSettings,
 };
 use crate::stats::FrameStats;
+use crate::system_memory;
 use crate::trace::{ClippedTracer, HybridTracer, Surface, Tracer, VoxelSource};
 use crate::view::View;
 
@@ -79,6 +80,13 @@ fn render_with(
     progress: &(dyn Fn(u64) + Sync),
     planes: Option<FrameBuffer>,
 ) -> Result<Rendered> {
+    let (w, h) = view.size;
+    if planes
+        .as_ref()
+        .is_none_or(|p| (p.width, p.height) != (w, h))
+    {
+        check_frame_fits(view.size, system_memory::available_bytes())?;
+    }
     let (mut rendered, color_range) = with_scene_tracer(scene, view, |tracer, camera, light| {
         trace_frame(tracer, *camera, light, view, progress, planes)
     })?;
@@ -93,6 +101,25 @@ fn render_with(
     let width = outline::line_width(view.size.0, view.size.1);
     outline::draw(&mut rendered.frame, &rendered.camera, &segments, width);
     Ok(rendered)
+}
+
+/// Refuses a `w x h` frame whose planes, with a tenth to spare, need more than `available`
+/// bytes (the memory the machine can still give, when known): the system would kill the
+/// process part way through the frame instead of it failing with a message.
+fn check_frame_fits((w, h): (u32, u32), available: Option<u64>) -> Result<()> {
+    let needed = FrameBuffer::bytes_for(w, h);
+    let gib = |b: u64| b as f64 / f64::from(1u32 << 30);
+    match available {
+        Some(free) if needed.saturating_add(needed / 10) > free => {
+            Err(RenderError::Invalid(format!(
+                "a {w}x{h} frame needs {:.1} GiB for its {FRAME_PLANES} planes and this machine has \
+                 {:.1} GiB available: render a smaller frame",
+                gib(needed),
+                gib(free)
+            )))
+        }
+        _ => Ok(()),
+    }
 }
 
 /// Renders the rectangle `rect` of the frame [`render`] would give.
@@ -128,6 +155,7 @@ pub fn render_surfaces<S: VoxelSource + ?Sized>(
     view: &View,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Rendered> {
+    check_frame_fits(view.size, system_memory::available_bytes())?;
     let method = (TraceMethod::Hybrid, view.smooth_normals);
     with_tracer(
         src,
@@ -301,5 +329,26 @@ fn check_source(scene: &Scene) -> Result<()> {
     match scene.take_failure() {
         Some(e) => Err(e),
         None => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_frame_larger_than_the_memory_left_is_refused() {
+        let gib = 1u64 << 30;
+        // 8192 x 8192 pixels of 13 planes: 3.25 GiB.
+        assert!(check_frame_fits((8192, 8192), Some(16 * gib)).is_ok());
+        assert!(check_frame_fits((8192, 8192), None).is_ok());
+        let err = check_frame_fits((8192, 8192), Some(3 * gib)).unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.contains("8192x8192") && text.contains("3.2 GiB") && text.contains("3.0 GiB"),
+            "{text}"
+        );
+        // A tenth to spare: 3.5 GiB is too little for 3.25.
+        assert!(check_frame_fits((8192, 8192), Some(3 * gib + gib / 2)).is_err());
     }
 }

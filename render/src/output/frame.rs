@@ -34,6 +34,10 @@ impl PixelSample {
     };
 }
 
+/// The planes of a [`FrameBuffer`], each an `f32` per pixel: R, G, B, alpha, depth, the
+/// normal's three, the position's three, the level and the painted value.
+pub const FRAME_PLANES: u64 = 13;
+
 /// A frame's channels, row-major from the top-left pixel.
 #[derive(Clone, Debug, Default)]
 pub struct FrameBuffer {
@@ -61,6 +65,11 @@ pub struct FrameBuffer {
 }
 
 impl FrameBuffer {
+    /// Bytes of the planes of a `width x height` frame.
+    pub fn bytes_for(width: u32, height: u32) -> u64 {
+        FRAME_PLANES * 4 * u64::from(width) * u64::from(height)
+    }
+
     /// A frame of `width x height` pixels from its samples, row-major from the top row (rows
     /// copied in parallel).
     pub fn from_pixels(
@@ -247,6 +256,15 @@ impl<'a> RowPlanes<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bytes_for_counts_every_plane() {
+        let f = FrameBuffer::zeroed(3, 2, [0.0; 3]);
+        let planes = f.rgb.iter().chain(&f.n).chain(&f.p);
+        let others = [&f.alpha, &f.z, &f.level, &f.color_value];
+        let floats: usize = planes.chain(others).map(Vec::len).sum();
+        assert_eq!(FrameBuffer::bytes_for(3, 2), 4 * floats as u64);
+    }
 
     #[test]
     fn a_reshaped_frame_keeps_planes_of_its_size_and_remakes_others() {

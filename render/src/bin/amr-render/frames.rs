@@ -20,10 +20,10 @@ use crate::frame_writer::{FrameJob, FrameWriter};
 use crate::heap;
 use crate::movie;
 use crate::outputs::{self, FrameFiles, ProcessMemory, RunStats};
-use crate::probe::peak_rss_bytes;
 use crate::progress;
 use crate::render::request_isos;
 use crate::render_args::RenderRequest;
+use amr_render::system_memory::peak_rss_bytes;
 
 /// The statistics of one frame of an animation.
 #[derive(Serialize)]

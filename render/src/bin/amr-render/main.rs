@@ -13,7 +13,6 @@ mod movie;
 #[cfg(feature = "mpi")]
 mod mpi;
 mod outputs;
-mod probe;
 mod progress;
 mod render;
 mod render_args;

@@ -14,8 +14,8 @@ use amr_render::{FrameStats, Rendered, Scene, SceneStats};
 use anyhow::Context;
 use serde::Serialize;
 
-use crate::probe::peak_rss_bytes;
 use crate::render_args::Outputs;
+use amr_render::system_memory::peak_rss_bytes;
 
 /// The statistics of one render, as `--stats` prints them and `--stats-json` writes them.
 #[derive(Serialize)]

@@ -18,10 +18,10 @@ use serde::Serialize;
 use super::stats::{cpu_seconds, table, RankRecord, RankStats};
 use super::{partitioned, replicated, MpiMode};
 use crate::outputs::{self, FrameFiles, RunStats};
-use crate::probe::peak_rss_bytes;
 use crate::progress;
 use crate::render::request_isos;
 use crate::render_args::RenderRequest;
+use amr_render::system_memory::peak_rss_bytes;
 
 /// What an MPI run adds to the statistics of a render.
 #[derive(Serialize)]

@@ -115,8 +115,12 @@ fn an_output_that_is_the_input_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let file = blobs(dir.path());
     let before = std::fs::read(&file).unwrap();
-    let f = file.to_str().unwrap();
-    for args in [vec![f, "-o", f], vec![f, "-o", "x.exr", "--preview", f]] {
+    // Inputs named like outputs, so that the names alone do not refuse them.
+    let (as_exr, as_png) = (dir.path().join("in.exr"), dir.path().join("in.png"));
+    std::fs::copy(&file, &as_exr).unwrap();
+    std::fs::copy(&file, &as_png).unwrap();
+    let (e, p) = (as_exr.to_str().unwrap(), as_png.to_str().unwrap());
+    for args in [vec![e, "-o", e], vec![p, "-o", "x.exr", "--preview", p]] {
         let o = amr_render(&args);
         assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
         assert!(
@@ -125,7 +129,14 @@ fn an_output_that_is_the_input_is_refused() {
             stderr(&o)
         );
     }
-    assert_eq!(std::fs::read(&file).unwrap(), before, "the input changed");
+    // Named `.amrk`, the output is refused for its name first.
+    let f = file.to_str().unwrap();
+    for args in [vec![f, "-o", f], vec![f, "-o", "x.exr", "--preview", f]] {
+        assert_eq!(amr_render(&args).status.code(), Some(1));
+    }
+    for input in [&file, &as_exr, &as_png] {
+        assert_eq!(std::fs::read(input).unwrap(), before, "the input changed");
+    }
 }
 
 #[test]

@@ -140,3 +140,42 @@ fn outputs_named_for_other_formats_are_refused() {
     assert_eq!(code, 0, "{err}");
     assert!(exr.exists());
 }
+
+/// Two outputs of one run naming one file (the statistics over the frame, through another
+/// spelling of its path) are refused, as is a series with a file that does not open: before
+/// any frame is written.
+#[test]
+fn outputs_that_collide_and_series_that_cannot_open_write_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.amrk");
+    write_small_file(&good);
+    let f = good.to_str().unwrap();
+    let frame = dir.path().join("frame.exr");
+    let again = dir.path().join(".").join("frame.exr");
+    let (code, err) = run(&[
+        f,
+        "--iso",
+        "100",
+        "-o",
+        frame.to_str().unwrap(),
+        "--stats-json",
+        again.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("--stats-json") && err.contains("frame 0"),
+        "{err}"
+    );
+    let missing = dir.path().join("missing.amrk");
+    let (code, err) = run(&[
+        f,
+        missing.to_str().unwrap(),
+        "--iso",
+        "100",
+        "-o",
+        frame.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("missing.amrk"), "{err}");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}

@@ -13,7 +13,7 @@ use amr_render::output::header::frame_header;
 use amr_render::output::legend::Legend;
 use amr_render::shade::IsoSpec;
 use amr_render::{render, render_reusing, ColorBy, Scene, View};
-use anyhow::bail;
+use anyhow::{bail, Context};
 use serde::Serialize;
 
 use crate::frame_writer::{FrameJob, FrameWriter};
@@ -50,6 +50,11 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
     let inputs: Vec<&Path> = request.files.iter().map(PathBuf::as_path).collect();
     for f in &files {
         outputs::check_frame(f, &request.outputs, &inputs)?;
+    }
+    outputs::check_distinct(&files, &request.outputs)?;
+    // Every file of a series opens before the first frame is written.
+    for input in &inputs {
+        std::fs::File::open(input).with_context(|| format!("{}: cannot open", input.display()))?;
     }
     let (bar, advance_frames) = progress::bar(u64::from(n), "frames");
     let quiet = |_: u64| {};

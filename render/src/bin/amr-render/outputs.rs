@@ -139,6 +139,52 @@ pub fn check_frame(files: &FrameFiles, outputs: &Outputs, inputs: &[&Path]) -> a
     Ok(())
 }
 
+/// Refuses two outputs of a run that are one file: two frames' files, the statistics or the
+/// movie over a frame's file, each compared by where it resolves to. A PNG frame and its preview
+/// may be one file (the picture is written once).
+pub fn check_distinct(files: &[FrameFiles], outputs: &Outputs) -> anyhow::Result<()> {
+    let mut named: Vec<(PathBuf, String)> = Vec::new();
+    for (k, f) in files.iter().enumerate() {
+        let mut own = vec![(&f.exr, format!("frame {k}"))];
+        if let Some(p) = f
+            .preview
+            .as_ref()
+            .filter(|p| !(is_png(&f.exr) && *p == &f.exr))
+        {
+            own.push((p, format!("frame {k}'s preview")));
+        }
+        named.extend(own.into_iter().map(|(p, what)| (p.clone(), what)));
+    }
+    if let Some(p) = &outputs.stats_json {
+        named.push((p.clone(), "--stats-json".into()));
+    }
+    if let Some((p, _)) = &outputs.movie {
+        named.push((p.clone(), "--movie".into()));
+    }
+    let mut seen: std::collections::HashMap<PathBuf, &str> = std::collections::HashMap::new();
+    for (path, what) in &named {
+        if let Some(first) = seen.insert(resolved(path), what) {
+            anyhow::bail!(
+                "{}: the output of {what} is also that of {first}; give each its own name",
+                path.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Where `path` would be written: its directory resolved (links followed), then its name.
+fn resolved(path: &Path) -> PathBuf {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    match (std::fs::canonicalize(dir), path.file_name()) {
+        (Ok(d), Some(name)) => d.join(name),
+        _ => path.to_path_buf(),
+    }
+}
+
 /// Writes a frame's EXR and its preview.
 pub fn write_frame(
     files: &FrameFiles,

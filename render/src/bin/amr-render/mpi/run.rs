@@ -112,6 +112,7 @@ fn run_rank(
         if rank == 0 {
             let files = FrameFiles::numbered(&request.outputs, 0, 1, false);
             outputs::check_frame(&files, &request.outputs, &[&request.files[0]])?;
+            outputs::check_distinct(std::slice::from_ref(&files), &request.outputs)?;
         }
         Ok(Scene::open(&request.files[0], &request.scene)?)
     })();

@@ -85,7 +85,8 @@ pub enum FormatError {
     /// does not decode, for every reader of it).
     #[error("{0}")]
     Shared(std::sync::Arc<FormatError>),
-    /// An output path that would replace something it must not (an input, a device, a directory).
+    /// An output path that would replace something it must not (an input, a device, a
+    /// directory), or whose file system has no room for it.
     #[error("{}: {reason}", path.display())]
     Output {
         /// The output path as given.

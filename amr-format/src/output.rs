@@ -89,6 +89,33 @@ pub fn temporary_for(target: &Path, suffix: &str) -> Result<NamedTempFile> {
         .map_err(|e| FormatError::io(format!("creating a temporary file in {}", dir.display()), e))
 }
 
+/// Bytes an unprivileged writer may still put on the file system that `target` would be written
+/// to (`statvfs` of its directory: available blocks times their size); `None` when unknown.
+pub fn free_bytes_for(target: &Path) -> Option<u64> {
+    let st = rustix::fs::statvfs(target_dir(target)).ok()?;
+    st.f_bavail.checked_mul(st.f_frsize)
+}
+
+/// Refuses to write `need` bytes to `target` when its file system has less free (the writer
+/// would fail part way, or fill the disk for others): the error names the file, the bytes
+/// needed and those free.
+pub fn check_room(target: &Path, need: u64) -> Result<()> {
+    match free_bytes_for(target) {
+        Some(free) if need > free => {
+            let gb = |b: u64| b as f64 / 1e9;
+            Err(FormatError::Output {
+                path: target.to_path_buf(),
+                reason: format!(
+                    "the file needs {:.2} GB and its file system has {:.2} GB free",
+                    gb(need),
+                    gb(free)
+                ),
+            })
+        }
+        _ => Ok(()),
+    }
+}
+
 /// Removes the temporaries of `target` (named as [`temporary_for`] names them) whose writing
 /// process is no longer running; returns how many were removed. Does nothing where running
 /// processes cannot be listed (no `/proc`). A failure to remove one is not an error.
@@ -144,6 +171,18 @@ fn target_dir(target: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_file_larger_than_the_free_space_is_refused_naming_both() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("big.amrk");
+        let free = free_bytes_for(&target).expect("statvfs works on a temporary directory");
+        assert!(free > 0);
+        assert!(check_room(&target, 0).is_ok());
+        assert!(check_room(&target, free / 2).is_ok());
+        let err = check_room(&target, u64::MAX).unwrap_err().to_string();
+        assert!(err.contains("big.amrk") && err.contains("GB free"), "{err}");
+    }
 
     #[test]
     fn refuses_inputs_directories_devices_and_paths_inside_inputs() {

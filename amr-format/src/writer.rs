@@ -174,6 +174,11 @@ impl AmrkWriter {
                 Some(spills)
             }
         };
+        if spill.is_none() {
+            // The raw data's end is known: a file system without that much room refuses it now
+            // rather than when a write fails part way (compressed sizes are not known yet).
+            output::check_room(path, data_end)?;
+        }
         Ok(Self {
             target: path.to_path_buf(),
             file,

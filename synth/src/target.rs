@@ -12,6 +12,9 @@ use crate::refine::{near_surface, walk_levels};
 
 /// Brick sizes tried, largest first, when the caller leaves the brick size free.
 const FREE_BRICKS: [u32; 4] = [32, 16, 8, 4];
+/// The most cells a fit may give per cell asked for: when even the smallest level 0 refines to
+/// more, the levels asked for are too many for the target.
+const MAX_OVERSHOOT: u64 = 1000;
 /// A fit within this factor of the target is good enough to stop trying smaller bricks.
 const GOOD_ENOUGH: f64 = 1.5;
 
@@ -38,15 +41,26 @@ where
 ///
 /// With `free_brick`, brick sizes 32, 16, 8 and 4 are tried in turn until the fit is within a factor
 /// 1.5, since a large brick cannot make a small dataset. Levels, ratio and placement are kept.
+/// No count goes past `limit` cells nor [`MAX_OVERSHOOT`] times the target (counting stops
+/// there): a fit above that, when even the smallest level 0 refines past it, is an error.
 pub fn fit_cells<F>(
     field: &F,
     params: &SynthParams,
     target: u64,
     free_brick: bool,
+    limit: u64,
 ) -> Result<(SynthParams, u64), FormatError>
 where
     F: AnalyticField + Sync,
 {
+    if target > limit {
+        return Err(FormatError::InvalidHierarchy(format!(
+            "{target} cells asked for, more than the {limit} allowed"
+        )));
+    }
+    // Counting a hierarchy far larger than the target costs time for nothing: past this the
+    // fit is refused.
+    let limit = limit.min(target.max(1).saturating_mul(MAX_OVERSHOOT));
     let bricks: Vec<u32> = if free_brick {
         FREE_BRICKS.to_vec()
     } else {
@@ -61,6 +75,7 @@ where
                 ..params.clone()
             },
             target.max(1),
+            limit,
         )?;
         if best
             .as_ref()
@@ -75,7 +90,15 @@ where
             break;
         }
     }
-    Ok(best.expect("at least one brick size is tried"))
+    let best = best.expect("at least one brick size is tried");
+    if best.1 > limit {
+        return Err(FormatError::InvalidHierarchy(format!(
+            "{} levels refined by {}: every level 0 tried gives more than {limit} cells; ask \
+             for fewer levels or more cells",
+            params.levels, params.ratio
+        )));
+    }
+    Ok(best)
 }
 
 /// The best multiple of `params.brick` as `base`: doubling the multiple until the total reaches
@@ -85,6 +108,7 @@ fn fit_base<F>(
     field: &F,
     params: &SynthParams,
     target: u64,
+    limit: u64,
 ) -> Result<(SynthParams, u64), FormatError>
 where
     F: AnalyticField + Sync,
@@ -98,7 +122,7 @@ where
     let (mut lo, mut hi) = (0, 1);
     while total(hi, target)? < target {
         if with(2 * hi).validate().is_err() {
-            return Ok((with(hi), total(hi, u64::MAX)?));
+            return Ok((with(hi), total(hi, limit)?));
         }
         (lo, hi) = (hi, 2 * hi);
     }
@@ -110,16 +134,18 @@ where
             lo = mid;
         }
     }
-    let above = total(hi, u64::MAX)?;
+    let above = total(hi, limit)?;
     if lo == 0 {
         return Ok((with(hi), above));
     }
-    let below = total(lo, u64::MAX)?;
-    Ok(if misfit(below, target) < misfit(above, target) {
-        (with(lo), below)
-    } else {
-        (with(hi), above)
-    })
+    let below = total(lo, limit)?;
+    Ok(
+        if above > limit || misfit(below, target) < misfit(above, target) {
+            (with(lo), below)
+        } else {
+            (with(hi), above)
+        },
+    )
 }
 
 /// How far `total` is from `target`, as the absolute log of their ratio.
@@ -132,6 +158,23 @@ mod tests {
     use super::*;
     use crate::fields::Case;
     use crate::refine::build_hierarchy;
+
+    /// A target past the limit, and levels too many for the target, are refused at once (no
+    /// count runs to the end of a hierarchy of 20 levels).
+    #[test]
+    fn fits_past_the_limit_are_refused() {
+        let p = SynthParams::default();
+        assert!(fit_cells(&Case::Blobs, &p, 1_000_000, true, 999_999).is_err());
+        let deep = SynthParams {
+            levels: 20,
+            ..SynthParams::default()
+        };
+        let err = fit_cells(&Case::Blobs, &deep, 1000, true, u64::MAX).unwrap_err();
+        assert!(err.to_string().contains("fewer levels"), "{err}");
+        // A fit within both limits is kept.
+        let (_, total) = fit_cells(&Case::Blobs, &p, 100_000, true, 10_000_000).unwrap();
+        assert!(total <= 10_000_000);
+    }
 
     #[test]
     fn counts_match_the_built_hierarchy() {
@@ -163,7 +206,7 @@ mod tests {
                         ratio,
                         ..SynthParams::default()
                     };
-                    let (fit, total) = fit_cells(&case, &p, target, true).unwrap();
+                    let (fit, total) = fit_cells(&case, &p, target, true, u64::MAX).unwrap();
                     assert_eq!(fit.base % fit.brick, 0);
                     assert_eq!(count_cells(&case, &fit, u64::MAX).unwrap(), total);
                     let m = misfit(total, target).exp();

@@ -79,7 +79,7 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
     let mut bvh_table = None;
     for &target in &targets {
         let base = SynthParams::default();
-        let (params, cells) = fit_cells(&Case::Blobs, &base, target, true)?;
+        let (params, cells) = fit_cells(&Case::Blobs, &base, target, true, u64::MAX)?;
         if points.last().is_some_and(|p: &Point| p.cells == cells) {
             continue;
         }

@@ -6,10 +6,12 @@ use amr_format::Compression;
 use anyhow::Context;
 
 use crate::progress_bar::Bar;
-use amr_synth::{fit_cells, write_synth, Case, SynthParams};
+use amr_synth::{count_cells, fit_cells, write_synth, Case, SynthParams};
 
 /// zstd level used by `--compress`.
 const ZSTD_LEVEL: i32 = 3;
+/// Bytes of one cell of the one field, stored raw.
+const RAW_BYTES_PER_CELL: u64 = 4;
 /// Brick size when neither `--brick` nor `--cells` chooses one.
 const DEFAULT_BRICK: u32 = 32;
 
@@ -61,10 +63,28 @@ impl SynthArgs {
             size: self.size,
         };
         params.validate()?;
-        let params = match self.cells {
-            Some(target) => fit_cells(&case, &params, target, self.brick.is_none())?.0,
-            None => params,
+        // Nothing is counted, fitted or built past what the output's file system can hold:
+        // a mistyped `--cells 1e15` or `--levels 20` is refused in seconds, not after hours.
+        let limit = amr_format::output::free_bytes_for(&self.output)
+            .map_or(u64::MAX, |free| free / RAW_BYTES_PER_CELL);
+        let (params, cells) = match self.cells {
+            Some(target) => fit_cells(&case, &params, target, self.brick.is_none(), limit)
+                .map_err(|e| too_large(e, &self.output, target > limit))?,
+            None => {
+                let cells = count_cells(&case, &params, limit)?;
+                (params, cells)
+            }
         };
+        if cells > limit {
+            anyhow::bail!(
+                "{}: {} levels of base {} refined by {} hold more than {limit} cells, more than \
+                 its file system has room for; ask for fewer levels or a smaller --base",
+                self.output.display(),
+                params.levels,
+                params.base,
+                params.ratio
+            );
+        }
         Ok((case, params))
     }
 }
@@ -103,10 +123,26 @@ pub fn run_synth(args: &SynthArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `e`, a fit refused at the limit the output's file system sets, said as that when `over`
+/// (the target itself is past it).
+fn too_large(e: amr_format::FormatError, output: &std::path::Path, over: bool) -> anyhow::Error {
+    if over {
+        anyhow::anyhow!(
+            "{}: {e}: the file would not fit on its file system",
+            output.display()
+        )
+    } else {
+        anyhow::anyhow!("{}: {e}", output.display())
+    }
+}
+
 /// Parses a cell count written as an integer or in float notation (`1e9`, `2.2e9`).
 fn parse_count(s: &str) -> Result<u64, String> {
     if let Ok(n) = s.parse::<u64>() {
-        return Ok(n);
+        return match n {
+            0 => Err(format!("'{s}' is not a positive cell count")),
+            n => Ok(n),
+        };
     }
     match s.parse::<f64>() {
         Ok(x) if x.is_finite() && x >= 1.0 && x < u64::MAX as f64 => Ok(x.round() as u64),
@@ -190,5 +226,14 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("--ratio"));
+        // Past what the output's file system holds (no file system holds 1e18 cells), and
+        // too many levels: refused before anything is built.
+        let cli = Cli::parse_from(["x", "blobs", "-o", "a.amrk", "--cells", "1e18"]);
+        let err = cli.synth.to_params().unwrap_err().to_string();
+        assert!(err.contains("would not fit"), "{err}");
+        let cli = Cli::parse_from(["x", "blobs", "-o", "a.amrk", "--levels", "24"]);
+        let err = cli.synth.to_params().unwrap_err().to_string();
+        assert!(err.contains("fewer levels"), "{err}");
+        assert!(Cli::try_parse_from(["x", "blobs", "-o", "a.amrk", "--cells", "0"]).is_err());
     }
 }

@@ -126,7 +126,8 @@ pub fn numbered(path: &Path, k: u32, n: u32) -> PathBuf {
 }
 
 /// Refuses the files of a frame, and the statistics file, when one would replace an input or
-/// something that is not a regular file ([`amr_format::output::check_output`]).
+/// something that is not a regular file ([`amr_format::output::check_output`]), or names a
+/// format this program does not write ([`check_names`]).
 pub fn check_frame(files: &FrameFiles, outputs: &Outputs, inputs: &[&Path]) -> anyhow::Result<()> {
     let paths = [
         Some(&files.exr),
@@ -136,7 +137,7 @@ pub fn check_frame(files: &FrameFiles, outputs: &Outputs, inputs: &[&Path]) -> a
     for out in paths.into_iter().flatten() {
         amr_format::output::check_output(out, inputs)?;
     }
-    Ok(())
+    check_names(&files.exr, files.preview.as_deref())
 }
 
 /// Refuses two outputs of a run that are one file: two frames' files, the statistics or the

@@ -296,7 +296,6 @@ impl RenderArgs {
             ),
             None => None,
         };
-        crate::outputs::check_names(&self.output, self.preview.as_deref())?;
         if self.fps == 0 || self.fps > 240 {
             bail!("--fps {} must be between 1 and 240", self.fps);
         }

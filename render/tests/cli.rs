@@ -129,7 +129,7 @@ fn an_output_that_is_the_input_is_refused() {
             stderr(&o)
         );
     }
-    // Named `.amrk`, the output is refused for its name first.
+    // Named `.amrk` as inputs are, it is refused all the same.
     let f = file.to_str().unwrap();
     for args in [vec![f, "-o", f], vec![f, "-o", "x.exr", "--preview", f]] {
         assert_eq!(amr_render(&args).status.code(), Some(1));

@@ -36,8 +36,9 @@ pub struct RenderArgs {
         allow_hyphen_values = true
     )]
     pub iso: Vec<IsoSpec>,
-    /// Output file: OpenEXR with every channel, or a PNG picture with its legend when the name
-    /// ends in .png; with several frames, OUT_0000.exr, OUT_0001.exr, ...
+    /// Output file: OpenEXR with every channel (.exr, or no extension), or a PNG picture with
+    /// its legend when the name ends in .png (other extensions are refused); with several
+    /// frames, OUT_0000.exr, OUT_0001.exr, ...
     #[arg(short = 'o', long = "output", value_name = "OUT.exr|OUT.png")]
     pub output: PathBuf,
     /// Paint isosurfaces by a field of the file (sampled at each hit) or by `level`; repeat to

@@ -26,7 +26,8 @@ pub struct ExtractArgs {
     #[arg(long = "iso", required = true, allow_hyphen_values = true)]
     pub iso: Vec<f32>,
     /// Runs per isovalue; the statistics of each run are reported.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100_000))]
     pub runs: usize,
     /// Budget of the decompressed-brick cache in MiB (compressed files only).
     #[arg(long, default_value_t = 2048)]
@@ -104,7 +105,7 @@ fn extract_all(args: &ExtractArgs) -> anyhow::Result<()> {
     }
     let mut all: Vec<ExtractStats> = Vec::new();
     for &iso in &args.iso {
-        for _ in 0..args.runs.max(1) {
+        for _ in 0..args.runs {
             let result = extractor
                 .extract_in(iso, &region)
                 .map_err(|e| e.in_file(&args.file))

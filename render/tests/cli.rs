@@ -515,6 +515,26 @@ fn png_output_summary_quiet_and_an_empty_frame_warning() {
         "{}",
         stderr(&o)
     );
+    // A surface the camera looks away from is named with where it lies, not the field's range.
+    let o = amr_render(&[
+        f,
+        "--quiet",
+        "--size",
+        "16x12",
+        "--camera-pos",
+        "0.5,0.5,-3",
+        "--look-at",
+        "0.5,0.5,-10",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("the frame shows none of the surface's")
+            && stderr(&o).contains("looking at (0.5, 0.5, -10) does not see them"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]

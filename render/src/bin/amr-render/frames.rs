@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use amr_render::camera::Camera;
 use amr_render::field_stats::{format_value, format_vector};
 use amr_render::mapping::open_mapped;
 use amr_render::output::header::frame_header;
@@ -131,7 +132,7 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             None => render(scene, &view, rows)?,
         };
         if rendered.stats.covered_pixels == 0 {
-            warn_empty(scene);
+            warn_empty(scene, &rendered.camera);
         }
         let file = scene.file();
         let (time, step) = (file.simulation_time(), file.simulation_step());
@@ -327,8 +328,22 @@ fn summary(file: &Path, scene: &Scene, files: &FrameFiles, took: Duration) -> St
     out
 }
 
-/// Warns that a frame shows no surface, with the field's range.
-fn warn_empty(scene: &Scene) {
+/// Warns that a frame shows no surface: with the field's range when there is none to show,
+/// else with where the surface lies and where the camera looks.
+fn warn_empty(scene: &Scene, camera: &Camera) {
+    let active = scene.stats().active_octants;
+    if let (true, Some((lo, hi))) = (active > 0, scene.surface_bounds()) {
+        eprintln!(
+            "warning: {}: the frame shows none of the surface's {active} active voxels, which lie \
+             in {} .. {}: the camera at {} looking at {} does not see them",
+            scene.path().display(),
+            format_vector(lo),
+            format_vector(hi),
+            format_vector(camera.pos),
+            format_vector(camera.look_at)
+        );
+        return;
+    }
     let f = &scene.file().fields()[scene.field()];
     let isos: Vec<String> = scene
         .isosurfaces()
@@ -342,6 +357,6 @@ fn warn_empty(scene: &Scene) {
         format_value(f64::from(f.min)),
         format_value(f64::from(f.max)),
         isos.join(", "),
-        scene.stats().active_octants
+        active
     );
 }

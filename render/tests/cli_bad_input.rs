@@ -179,3 +179,42 @@ fn outputs_that_collide_and_series_that_cannot_open_write_nothing() {
     assert!(err.contains("missing.amrk"), "{err}");
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }
+
+/// `--write-scene` never replaces the data it names: a scene file is `.toml`, and is refused
+/// where it would replace an input; a refused scene stops the run before any frame.
+#[test]
+fn a_scene_file_never_replaces_an_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.amrk");
+    write_small_file(&good);
+    let before = std::fs::read(&good).unwrap();
+    let f = good.to_str().unwrap();
+    let frame = dir.path().join("frame.png");
+    let o = frame.to_str().unwrap();
+    let (code, err) = run(&[f, "--iso", "100", "-o", o, "--write-scene", f]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains(".toml"), "{err}");
+    assert_eq!(std::fs::read(&good).unwrap(), before, "the input changed");
+    assert!(!frame.exists());
+    // A scene file beside it is written whole, and renders again.
+    let scene = dir.path().join("scene.toml");
+    let (code, err) = run(&[
+        f,
+        "--iso",
+        "100",
+        "-o",
+        o,
+        "--write-scene",
+        scene.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&scene).unwrap();
+    assert!(
+        text.contains("good.amrk") && text.contains("frame.png"),
+        "{text}"
+    );
+    std::fs::remove_file(&frame).unwrap();
+    let (code, err) = run(&[scene.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    assert!(frame.exists());
+}

@@ -7,6 +7,7 @@
 //! relative to the directory the command runs in.
 
 use std::ffi::OsString;
+use std::io::Write;
 use std::path::Path;
 
 use anyhow::{bail, Context};
@@ -97,6 +98,20 @@ fn scalar(key: &str, v: &Value) -> anyhow::Result<String> {
 
 /// Writes the render arguments given in `matches` (parsed by `cmd`) as a scene file at `path`.
 pub fn write(path: &Path, cmd: &Command, matches: &ArgMatches) -> anyhow::Result<()> {
+    if path.extension().is_none_or(|e| e != "toml") {
+        bail!(
+            "{}: a scene file is named .toml (`amr-render SCENE.toml` renders it again)",
+            path.display()
+        );
+    }
+    // The data files must never be replaced by the scene that names them.
+    let inputs: Vec<&Path> = matches
+        .get_raw(FILES)
+        .into_iter()
+        .flatten()
+        .map(Path::new)
+        .collect();
+    amr_format::output::check_output(path, &inputs)?;
     let mut table = Table::new();
     for arg in cmd.get_arguments() {
         let id = arg.get_id().as_str();
@@ -124,7 +139,12 @@ pub fn write(path: &Path, cmd: &Command, matches: &ArgMatches) -> anyhow::Result
     }
     let text = toml::to_string_pretty(&table)?;
     let header = "# amr-render scene file: `amr-render THIS.toml` renders it again.\n";
-    std::fs::write(path, format!("{header}{text}"))
+    // Written beside its place and renamed there: never a half-written scene.
+    let mut temp = amr_format::output::temporary_for(path, ".tmp")?;
+    temp.write_all(format!("{header}{text}").as_bytes())
+        .and_then(|()| temp.as_file().sync_all())
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    temp.persist(path)
         .with_context(|| format!("cannot write {}", path.display()))?;
     Ok(())
 }

@@ -84,6 +84,11 @@ fn truncated_and_flipped_files() {
 }
 
 fn write_small_file(path: &Path) {
+    write_small_file_with(path, "f");
+}
+
+/// [`write_small_file`] with its one field named `field`.
+fn write_small_file_with(path: &Path, field: &str) {
     use amr_format::{AmrkWriter, BrickSpec, HierarchySpec, IBox, LevelSpec, WriterOptions};
     let domain = IBox::new([0; 3], [8; 3]);
     let spec = HierarchySpec {
@@ -93,7 +98,7 @@ fn write_small_file(path: &Path) {
             ratio_to_next: [1; 3],
             domain,
         }],
-        fields: vec!["f".into()],
+        fields: vec![field.into()],
         bricks: domain
             .split([4; 3])
             .into_iter()
@@ -177,7 +182,22 @@ fn outputs_that_collide_and_series_that_cannot_open_write_nothing() {
     ]);
     assert_eq!(code, 1, "{err}");
     assert!(err.contains("missing.amrk"), "{err}");
-    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    // A later file of the series without the field asked for: refused before frame 0 too.
+    let other = dir.path().join("other.amrk");
+    write_small_file_with(&other, "g");
+    let (code, err) = run(&[
+        f,
+        other.to_str().unwrap(),
+        "--field",
+        "f",
+        "--iso",
+        "100",
+        "-o",
+        frame.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("other.amrk: no field 'f'"), "{err}");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
 }
 
 /// `--write-scene` never replaces the data it names: a scene file is `.toml`, and is refused

@@ -14,7 +14,7 @@ use amr_render::output::header::frame_header;
 use amr_render::output::legend::Legend;
 use amr_render::shade::IsoSpec;
 use amr_render::{render, render_reusing, ColorBy, Scene, View};
-use anyhow::{bail, Context};
+use anyhow::bail;
 use serde::Serialize;
 
 use crate::frame_writer::{FrameJob, FrameWriter};
@@ -53,9 +53,8 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         outputs::check_frame(f, &request.outputs, &inputs)?;
     }
     outputs::check_distinct(&files, &request.outputs)?;
-    // Every file of a series opens before the first frame is written.
-    for input in &inputs {
-        std::fs::File::open(input).with_context(|| format!("{}: cannot open", input.display()))?;
+    if request.files.len() > 1 {
+        check_series(request)?;
     }
     let (bar, advance_frames) = progress::bar(u64::from(n), "frames");
     let quiet = |_: u64| {};
@@ -247,6 +246,35 @@ fn painting(request: &RenderRequest, n: usize) -> Vec<Option<ColorBy>> {
         [one] => vec![one.clone(); n],
         many => many.to_vec(),
     }
+}
+
+/// Opens every file of a series and finds in each the fields the request names (the field of
+/// the surfaces and those that paint), so that a file missing or without one of them stops the
+/// run before its first frame rather than at that file's.
+fn check_series(request: &RenderRequest) -> anyhow::Result<()> {
+    let painting = request.color_by.iter().chain([&request.slice_field]);
+    let names: Vec<&str> = request
+        .scene
+        .field
+        .iter()
+        .map(String::as_str)
+        .chain(painting.filter_map(|c| match c {
+            Some(ColorBy::Field(name)) => Some(name.as_str()),
+            _ => None,
+        }))
+        .collect();
+    for path in &request.files {
+        let file = open_mapped(path)?;
+        if let Some(name) = names.iter().find(|n| file.field_index(n).is_none()) {
+            let fields: Vec<&str> = file.fields().iter().map(|f| f.name.as_str()).collect();
+            bail!(
+                "{}: no field '{name}' (fields: {})",
+                path.display(),
+                fields.join(", ")
+            );
+        }
+    }
+    Ok(())
 }
 
 /// The range of the field that paints surfaces or slices, over every file of the series (from

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::bail;
 
-/// The `(input, output)` pairs of a conversion of `inputs` to `output`.
+/// Where each input of a conversion goes.
 pub struct Outputs {
     /// Each input and the file it converts to.
     pub pairs: Vec<(PathBuf, PathBuf)>,

@@ -146,15 +146,14 @@ pub fn check_frame(files: &FrameFiles, outputs: &Outputs, inputs: &[&Path]) -> a
 pub fn check_distinct(files: &[FrameFiles], outputs: &Outputs) -> anyhow::Result<()> {
     let mut named: Vec<(PathBuf, String)> = Vec::new();
     for (k, f) in files.iter().enumerate() {
-        let mut own = vec![(&f.exr, format!("frame {k}"))];
+        named.push((f.exr.clone(), format!("frame {k}")));
         if let Some(p) = f
             .preview
             .as_ref()
             .filter(|p| !(is_png(&f.exr) && *p == &f.exr))
         {
-            own.push((p, format!("frame {k}'s preview")));
+            named.push((p.clone(), format!("frame {k}'s preview")));
         }
-        named.extend(own.into_iter().map(|(p, what)| (p.clone(), what)));
     }
     if let Some(p) = &outputs.stats_json {
         named.push((p.clone(), "--stats-json".into()));

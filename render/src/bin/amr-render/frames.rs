@@ -58,8 +58,6 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
     }
     let (bar, advance_frames) = progress::bar(u64::from(n), "frames");
     let quiet = |_: u64| {};
-    let (row_bar, advance_rows) = progress::bar(u64::from(request.view.size.1), "rows");
-    let rows: &(dyn Fn(u64) + Sync) = if n == 1 { &advance_rows } else { &quiet };
 
     let mut base_view = request.view.clone();
     if request.series_color_range {
@@ -79,6 +77,7 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             if scene.take().is_some() {
                 heap::return_freed();
             }
+            let _stage = (n == 1).then(|| progress::stage("opening the file"));
             let opened = open_scene(request, index)?;
             let isos = request_isos(request, &opened);
             scene = Some((index, opened, isos));
@@ -102,6 +101,7 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             }
             false => None,
         };
+        let stage = (n == 1).then(|| progress::stage("extracting and building the isosurfaces"));
         if scene.extract_view().is_none() {
             scene.set_extract_view(in_view.as_ref())?;
         }
@@ -126,10 +126,15 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             // isovalue's refs, BVH and build scratch.
             heap::keep_freed_for_frames();
         }
+        drop(stage);
+        // One frame's rows are a bar of their own, from when they start.
+        let (row_bar, advance_rows) = progress::bar(u64::from(view.size.1), "rows");
+        let rows: &(dyn Fn(u64) + Sync) = if n == 1 { &advance_rows } else { &quiet };
         let rendered = match writer.written_planes() {
             Some(planes) => render_reusing(scene, &view, rows, planes)?,
             None => render(scene, &view, rows)?,
         };
+        row_bar.finish_and_clear();
         if rendered.stats.covered_pixels == 0 {
             warn_empty(scene, &rendered.camera);
         }
@@ -184,7 +189,6 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
     }
     drop(scene);
     bar.finish_and_clear();
-    row_bar.finish_and_clear();
     if n == 1 {
         let only = records.pop().map(|r| r.stats);
         outputs::report(&request.outputs, &only, "")?;

@@ -16,7 +16,8 @@ use crate::error::{FormatError, Result};
 
 /// Refuses `output` when writing it would replace something it must not: an existing path that
 /// is not a regular file (a directory, a device such as `/dev/null`, a pipe), one of `inputs`
-/// (the same file, through any name), or a path inside an input directory.
+/// (the same file, through any name), a path inside an input directory, or a path in a
+/// directory that does not exist (the write would fail only after all the work).
 ///
 /// Writers replace their output by renaming a finished temporary over it, so a device or pipe
 /// would be replaced, not written to. Symbolic links are followed for the comparison.
@@ -39,6 +40,13 @@ pub fn check_output(output: &Path, inputs: &[&Path]) -> Result<()> {
                 "the output is {what}; refusing to replace it (name a new or regular file)"
             ));
         }
+    }
+    let dir = target_dir(output);
+    if !dir.is_dir() {
+        return refuse(format!(
+            "its directory {} does not exist (make it first)",
+            dir.display()
+        ));
     }
     let out_dir = output_dir(output);
     for input in inputs {
@@ -171,6 +179,20 @@ fn target_dir(target: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_output_in_a_missing_directory_is_refused_before_any_work() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("frames").join("f.exr");
+        let err = check_output(&missing, &[]).unwrap_err().to_string();
+        assert!(
+            err.contains("frames") && err.contains("does not exist"),
+            "{err}"
+        );
+        assert!(check_output(&dir.path().join("f.exr"), &[]).is_ok());
+        // A bare name is in the directory the command runs in, which exists.
+        assert!(check_output(Path::new("f.exr"), &[]).is_ok());
+    }
 
     #[test]
     fn a_file_larger_than_the_free_space_is_refused_naming_both() {

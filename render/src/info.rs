@@ -5,7 +5,9 @@ use std::fmt::Write;
 
 use amr_format::{AmrkFile, IBox, LevelInfo};
 
-use crate::field_stats::{format_value, format_vector, FieldPercentiles, TABLE};
+use crate::field_stats::{
+    format_value, format_vector, FieldPercentiles, MAX_SAMPLES, SAMPLE_RUN, TABLE,
+};
 
 /// A human-readable description of an open file: levels, bricks, cells, fields and their
 /// ranges, tree depth and leaves, and bytes by section.
@@ -90,17 +92,35 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
             if f.compressed { " (zstd)" } else { "" }
         );
     }
-    let _ = writeln!(out, "field percentiles (over every cell of every level):");
+    let all: Vec<_> = (0..file.fields().len())
+        .map(|i| FieldPercentiles::of(file, i))
+        .collect();
+    let over = match all.iter().flatten().any(|p| p.subsampled) {
+        true => format!(
+            "over {} runs of {SAMPLE_RUN} cells spread evenly over every level; p0 and p100 are \
+             the field's min and max",
+            MAX_SAMPLES as u64 / SAMPLE_RUN
+        ),
+        false => "over every cell of every level".to_string(),
+    };
+    let _ = writeln!(out, "field percentiles ({over}):");
     let head: Vec<String> = TABLE
         .iter()
         .map(|q| format!("{:>11}", format!("p{}", q * 100.0)))
         .collect();
     let _ = writeln!(out, "  {:<width$} {}", "", head.join(" "));
-    for (i, f) in file.fields().iter().enumerate() {
-        let row: Vec<String> = match FieldPercentiles::of(file, i) {
+    for (f, p) in file.fields().iter().zip(&all) {
+        let row: Vec<String> = match p {
             Ok(p) => TABLE
                 .iter()
-                .map(|&q| format!("{:>11}", format_value(p.at(q))))
+                .map(|&q| {
+                    let v = match (p.subsampled, q) {
+                        (true, 0.0) => f64::from(f.min),
+                        (true, 1.0) => f64::from(f.max),
+                        _ => p.at(q),
+                    };
+                    format!("{:>11}", format_value(v))
+                })
                 .collect(),
             Err(e) => vec![format!("unreadable: {e}")],
         };

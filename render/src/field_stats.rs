@@ -1,6 +1,7 @@
 //! The distribution of a field's cell values (percentiles over every cell of every level, from an
 //! even subsample when the file is large), and numbers formatted for people.
 
+use amr_format::compress::Encoding;
 use amr_format::AmrkFile;
 
 use crate::error::{RenderError, Result};
@@ -31,6 +32,18 @@ impl FieldPercentiles {
     /// evenly spaced along all the bricks' cells in brick order (each cell as likely to be taken
     /// as any other; a run may go on into the next brick). Only the bricks a run meets are read.
     pub fn of<D: AsRef<[u8]>>(file: &AmrkFile<D>, field: usize) -> Result<Self> {
+        Self::of_reading_ahead(file, field, |_| {})
+    }
+
+    /// [`Self::of`], first handing `read_ahead` the byte ranges of the file it is about to read
+    /// (offset, length): the runs of raw bricks, compressed bricks whole. A mapped file asks the
+    /// kernel for them all at once, so that a cold disk reads them with a deep queue rather
+    /// than one page fault at a time.
+    pub fn of_reading_ahead<D: AsRef<[u8]>>(
+        file: &AmrkFile<D>,
+        field: usize,
+        read_ahead: impl FnOnce(&[(u64, u64)]),
+    ) -> Result<Self> {
         if field >= file.fields().len() {
             return Err(RenderError::Invalid(format!("no field {field}")));
         }
@@ -38,24 +51,29 @@ impl FieldPercentiles {
             .map(|b| file.brick(b).cells.num_cells().unwrap_or(0))
             .collect();
         let cells: u64 = sizes.iter().sum();
-        let runs = sample_runs(cells);
-        let mut sorted = Vec::with_capacity(cells.min(MAX_SAMPLES as u64) as usize + 1);
-        let mut next = 0;
-        let mut first = 0u64;
-        for (b, &n) in sizes.iter().enumerate() {
-            let end = first + n;
-            while next < runs.len() && runs[next].1 <= first {
-                next += 1;
-            }
-            if runs.get(next).is_some_and(|r| r.0 < end) {
-                let values = file.brick_values(field, b)?;
-                for &(lo, hi) in runs[next..].iter().take_while(|r| r.0 < end) {
-                    let taken =
-                        &values[(lo.max(first) - first) as usize..(hi.min(end) - first) as usize];
-                    sorted.extend(taken.iter().copied().filter(|v| v.is_finite()));
+        let takes = brick_takes(&sizes, &sample_runs(cells));
+        let ranges: Vec<(u64, u64)> = takes
+            .iter()
+            .map(|&(b, lo, hi)| {
+                let at = file.brick_data(field, b);
+                match at.encoding {
+                    Encoding::Raw => (at.offset + 4 * lo, 4 * (hi - lo)),
+                    _ => (at.offset, at.len),
                 }
+            })
+            .collect();
+        read_ahead(&ranges);
+        let mut sorted = Vec::with_capacity(cells.min(MAX_SAMPLES as u64) as usize + 1);
+        let mut last: Option<(usize, std::borrow::Cow<'_, [f32]>)> = None;
+        for &(b, lo, hi) in &takes {
+            if last.as_ref().is_none_or(|(l, _)| *l != b) {
+                last = Some((b, file.brick_values(field, b)?));
             }
-            first = end;
+            let Some((_, values)) = &last else {
+                unreachable!("set above");
+            };
+            let taken = &values[lo as usize..hi as usize];
+            sorted.extend(taken.iter().copied().filter(|v| v.is_finite()));
         }
         sorted.sort_unstable_by(f32::total_cmp);
         Ok(FieldPercentiles {
@@ -124,6 +142,28 @@ fn sample_runs(cells: u64) -> Vec<(u64, u64)> {
             (lo, lo + SAMPLE_RUN)
         })
         .collect()
+}
+
+/// The cells of each brick that `runs` (ranges of all the bricks' cells in brick order, sorted
+/// and apart) take: `(brick, first, end)` with cell indices within the brick, in brick order.
+fn brick_takes(sizes: &[u64], runs: &[(u64, u64)]) -> Vec<(usize, u64, u64)> {
+    let mut takes = Vec::new();
+    let mut next = 0;
+    let mut first = 0u64;
+    for (b, &n) in sizes.iter().enumerate() {
+        let end = first + n;
+        while next < runs.len() && runs[next].1 <= first {
+            next += 1;
+        }
+        for &(lo, hi) in runs[next..].iter().take_while(|r| r.0 < end) {
+            let (lo, hi) = (lo.max(first), hi.min(end));
+            if lo < hi {
+                takes.push((b, lo - first, hi - first));
+            }
+        }
+        first = end;
+    }
+    takes
 }
 
 /// `v` with about 5 significant digits: plain between 1e-3 and 1e6, scientific otherwise

@@ -3,7 +3,9 @@
 
 use std::fmt::Write;
 
-use amr_format::{AmrkFile, IBox, LevelInfo};
+use amr_format::{IBox, LevelInfo};
+
+use crate::mapping::{read_ahead, MappedFile};
 
 use crate::field_stats::{
     format_value, format_vector, FieldPercentiles, MAX_SAMPLES, SAMPLE_RUN, TABLE,
@@ -11,7 +13,7 @@ use crate::field_stats::{
 
 /// A human-readable description of an open file: levels, bricks, cells, fields and their
 /// ranges, tree depth and leaves, and bytes by section.
-pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
+pub fn describe(file: &MappedFile) -> String {
     let mut out = String::new();
     let nl = file.levels().len();
     let mut bricks = vec![0u64; nl];
@@ -93,7 +95,9 @@ pub fn describe<D: AsRef<[u8]>>(file: &AmrkFile<D>) -> String {
         );
     }
     let all: Vec<_> = (0..file.fields().len())
-        .map(|i| FieldPercentiles::of(file, i))
+        .map(|i| {
+            FieldPercentiles::of_reading_ahead(file, i, |r| read_ahead(file, r.iter().copied()))
+        })
         .collect();
     let over = match all.iter().flatten().any(|p| p.subsampled) {
         true => format!(

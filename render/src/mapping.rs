@@ -35,6 +35,21 @@ impl AsRef<[u8]> for WatchedMap {
     }
 }
 
+/// Asks the kernel to start reading the byte ranges `ranges` (offset, length) of `file`'s map
+/// into the page cache (`madvise(MADV_WILLNEED)`) and returns without waiting for the reads.
+/// Ranges are clipped to the map.
+pub fn read_ahead(file: &MappedFile, ranges: impl IntoIterator<Item = (u64, u64)>) {
+    let map = file.data();
+    let size = map.len() as u64;
+    for (offset, len) in ranges {
+        let end = offset.saturating_add(len).min(size);
+        if offset < end {
+            // A refused hint changes nothing but speed.
+            let _ = map.advise_range(Advice::WillNeed, offset as usize, (end - offset) as usize);
+        }
+    }
+}
+
 /// Opens and maps `path`, then validates it with [`AmrkFile::open`]. Errors name the file.
 pub fn open_mapped(path: &Path) -> Result<MappedFile> {
     let fail = |e: FormatError| e.in_file(path);
@@ -265,16 +280,7 @@ impl<'f> PageRelease<'f> {
     /// so that a stage about to fault them in finds them read, or being read with a deep queue.
     /// Ranges are clipped to the map.
     pub fn read_ahead(&self, ranges: impl IntoIterator<Item = (u64, u64)>) {
-        let map = self.file.data();
-        let size = map.len() as u64;
-        for (offset, len) in ranges {
-            let end = offset.saturating_add(len).min(size);
-            if offset < end {
-                // A refused hint changes nothing but speed.
-                let _ =
-                    map.advise_range(Advice::WillNeed, offset as usize, (end - offset) as usize);
-            }
-        }
+        read_ahead(self.file, ranges);
     }
 
     /// The most map bytes measured resident at once: the largest of the measurements taken by

@@ -261,7 +261,11 @@ impl Scene {
     pub fn default_isovalue(&self) -> f32 {
         let f = &self.file().fields()[self.field];
         let mid = 0.5 * (f.min + f.max);
-        let Ok(p) = crate::field_stats::FieldPercentiles::of(self.file(), self.field) else {
+        let file = self.file();
+        let read_ahead = |r: &[(u64, u64)]| crate::mapping::read_ahead(file, r.iter().copied());
+        let Ok(p) =
+            crate::field_stats::FieldPercentiles::of_reading_ahead(file, self.field, read_ahead)
+        else {
             return mid;
         };
         let median = p.at(0.5);

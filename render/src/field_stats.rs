@@ -72,7 +72,13 @@ impl FieldPercentiles {
             let Some((_, values)) = &last else {
                 unreachable!("set above");
             };
-            let taken = &values[lo as usize..hi as usize];
+            // `open` checks that a brick holds its cells' values; kept from panicking all the same.
+            let Some(taken) = values.get(lo as usize..hi as usize) else {
+                return Err(RenderError::Invalid(format!(
+                    "brick {b} of field {field} holds {} values, fewer than its cells",
+                    values.len()
+                )));
+            };
             sorted.extend(taken.iter().copied().filter(|v| v.is_finite()));
         }
         sorted.sort_unstable_by(f32::total_cmp);

@@ -231,7 +231,9 @@ mod tests {
         let cli = Cli::parse_from(["x", "blobs", "-o", "a.amrk", "--cells", "1e18"]);
         let err = cli.synth.to_params().unwrap_err().to_string();
         assert!(err.contains("would not fit"), "{err}");
-        let cli = Cli::parse_from(["x", "blobs", "-o", "a.amrk", "--levels", "24"]);
+        let cli = Cli::parse_from([
+            "x", "blobs", "-o", "a.amrk", "--levels", "24", "--cells", "1000",
+        ]);
         let err = cli.synth.to_params().unwrap_err().to_string();
         assert!(err.contains("fewer levels"), "{err}");
         assert!(Cli::try_parse_from(["x", "blobs", "-o", "a.amrk", "--cells", "0"]).is_err());

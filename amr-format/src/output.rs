@@ -77,11 +77,17 @@ pub fn check_output(output: &Path, inputs: &[&Path]) -> Result<()> {
 
 /// The directory `output` would be written in, resolved, when it exists.
 fn output_dir(output: &Path) -> Option<PathBuf> {
-    let parent = match output.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    fs::canonicalize(parent).ok()
+    fs::canonicalize(target_dir(output)).ok()
+}
+
+/// Where `output` would be written: its directory resolved (links followed, `.` and `..`
+/// gone), then its name; `output` itself when the directory does not exist. Two outputs that
+/// resolve alike are one file.
+pub fn resolved_path(output: &Path) -> PathBuf {
+    match (output_dir(output), output.file_name()) {
+        (Some(dir), Some(name)) => dir.join(name),
+        _ => output.to_path_buf(),
+    }
 }
 
 /// A new temporary file for writing `target`, beside it and named after it and this process

@@ -146,11 +146,8 @@ fn smaps_rss(map: &[u8]) -> Option<u64> {
                 }
             }
         }
-        if in_region {
-            if let Some(rest) = line.strip_prefix("Rss:") {
-                let kb: u64 = rest.trim().trim_end_matches("kB").trim().parse().ok()?;
-                return Some(kb * 1024);
-            }
+        if in_region && line.starts_with("Rss:") {
+            return crate::system_memory::kib_field(line, "Rss:");
         }
     }
     None

@@ -18,8 +18,8 @@ pub fn available_bytes() -> Option<u64> {
     )
 }
 
-/// The value of the line `key  N kB` of a `/proc` file's text, in bytes.
-fn kib_field(text: &str, key: &str) -> Option<u64> {
+/// The value of the first line `key  N kB` of a `/proc` file's text, in bytes.
+pub(crate) fn kib_field(text: &str, key: &str) -> Option<u64> {
     let line = text.lines().find(|l| l.starts_with(key))?;
     let kib: u64 = line[key.len()..]
         .trim()

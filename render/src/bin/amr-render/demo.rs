@@ -26,7 +26,6 @@ pub struct DemoArgs {
 
 /// Runs the demo.
 pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
-    crate::outputs::check_names(&args.output, None)?;
     let dir = tempfile::Builder::new()
         .prefix("amr-render-demo-")
         .tempdir()

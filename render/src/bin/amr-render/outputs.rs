@@ -163,7 +163,7 @@ pub fn check_distinct(files: &[FrameFiles], outputs: &Outputs) -> anyhow::Result
     }
     let mut seen: std::collections::HashMap<PathBuf, &str> = std::collections::HashMap::new();
     for (path, what) in &named {
-        if let Some(first) = seen.insert(resolved(path), what) {
+        if let Some(first) = seen.insert(amr_format::output::resolved_path(path), what) {
             anyhow::bail!(
                 "{}: the output of {what} is also that of {first}; give each its own name",
                 path.display()
@@ -171,18 +171,6 @@ pub fn check_distinct(files: &[FrameFiles], outputs: &Outputs) -> anyhow::Result
         }
     }
     Ok(())
-}
-
-/// Where `path` would be written: its directory resolved (links followed), then its name.
-fn resolved(path: &Path) -> PathBuf {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    match (std::fs::canonicalize(dir), path.file_name()) {
-        (Ok(d), Some(name)) => d.join(name),
-        _ => path.to_path_buf(),
-    }
 }
 
 /// Writes a frame's EXR and its preview.

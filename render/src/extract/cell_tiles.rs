@@ -162,7 +162,7 @@ impl CellTiles {
                         Some(tile) => tile,
                         None => {
                             let tile = set.evict();
-                            let sources = (sources.0, sources.1 .1);
+                            let sources = (sources.0, sources.1.leaves);
                             tile.fill_region_using(sources, level, cells, touching)?;
                             set.keep(key)
                         }

@@ -18,6 +18,7 @@ use super::band::{AroundMemo, CoarseBounds};
 use super::blocks::{level_box, BlockRanges};
 use super::leaf_tree::LeafTree;
 use super::local::{Neighbourhood, ABOVE, BELOW, COARSER, PENDING};
+use super::tight::TightRanges;
 use crate::reconstruct::grid::axes;
 use crate::reconstruct::sampler::Locate;
 use crate::reconstruct::{LeafCell, Sampler, VertexMemo};
@@ -28,8 +29,18 @@ pub fn around_offsets(row: usize, slab: usize) -> [usize; 27] {
     std::array::from_fn(|k| k % 3 + k / 3 % 3 * row + k / 9 * slab)
 }
 
-/// The tables every leaf's cull reads: block ranges, the leaf tree, the coarse bounds.
-pub type Shared<'s> = (&'s BlockRanges, &'s LeafTree, &'s CoarseBounds);
+/// The tables every leaf's cull reads, shared by the threads of one field's extraction.
+#[derive(Clone, Copy)]
+pub struct Shared<'s> {
+    /// The bricks' block ranges.
+    pub blocks: &'s BlockRanges,
+    /// The kd leaves' boxes by region.
+    pub leaves: &'s LeafTree,
+    /// The bounds around coarse leaf cells, kept for every leaf.
+    pub coarse: &'s CoarseBounds,
+    /// The kd leaves' tight ranges, those known so far.
+    pub tight: &'s TightRanges<'s>,
+}
 
 /// True unless the octants of the cell at neighbourhood index `i` certainly do not straddle
 /// `iso` ([`Neighbourhood::classify`] must have run for `iso`). `around` comes from
@@ -37,7 +48,7 @@ pub type Shared<'s> = (&'s BlockRanges, &'s LeafTree, &'s CoarseBounds);
 /// keeps them for every leaf, gathering them from the leaves of `leaves` through `blocks`) and kept
 /// in `hood`.
 pub fn cell_may_hold<D: AsRef<[u8]>>(
-    (sampler, (blocks, leaves, coarse)): (&Sampler<'_, D>, Shared<'_>),
+    (sampler, shared): (&Sampler<'_, D>, Shared<'_>),
     hood: &mut Neighbourhood,
     (memo, near): (&mut VertexMemo, &mut AroundMemo),
     (i, around): (usize, &[usize; 27]),
@@ -61,11 +72,11 @@ pub fn cell_may_hold<D: AsRef<[u8]>>(
         // An earlier cell's settling may have settled this one.
         if hood.codes()[j] & PENDING != 0 {
             settle_coarse(
-                (sampler, (blocks, leaves, coarse)),
+                (sampler, shared),
                 hood,
                 (memo, near),
                 (j, Some(&all)),
-                iso,
+                Some(iso),
             )?;
         }
     }
@@ -86,7 +97,7 @@ pub fn settle_pending<D: AsRef<[u8]>>(
 ) -> Result<()> {
     if hood.codes()[j] & PENDING != 0 {
         let all = hood.cells;
-        settle_coarse(sources, hood, (memo, near), (j, Some(&all)), iso)?;
+        settle_coarse(sources, hood, (memo, near), (j, Some(&all)), Some(iso))?;
     }
     Ok(())
 }
@@ -168,7 +179,7 @@ pub fn settle_in<D: AsRef<[u8]>>(
             for j in r..r + w {
                 if hood.codes()[j] & PENDING != 0 {
                     let wanted = together.then_some(b);
-                    settle_coarse((sampler, shared), hood, (memo, near), (j, wanted), 0.0)?;
+                    settle_coarse((sampler, shared), hood, (memo, near), (j, wanted), None)?;
                 }
             }
         }
@@ -181,13 +192,25 @@ pub fn settle_in<D: AsRef<[u8]>>(
 /// (which holds every corner of `Q`'s octants when none of them is coarser than `Q`), or else
 /// the exact corners of the octants of `Q` overlapping cell `j`. The cells of `hood` being
 /// settled lie in box `wanted`, if given: the bounds may then be computed a block at a time.
+///
+/// With `iso` (the cull's settling, whose codes are read for that isovalue alone), a known tight
+/// range of the kd leaf holding `Q` that lies wholly above or below `iso` is taken instead: it
+/// holds every corner of `Q`'s octants, so the codes are the ones the bound above would give.
+/// Without (`iso` `None`: bounds kept for any isovalue, as [`settle_in`] makes them), always
+/// the bound above.
 fn settle_coarse<D: AsRef<[u8]>>(
-    (sampler, (blocks, leaves, coarse)): (&Sampler<'_, D>, Shared<'_>),
+    (sampler, shared): (&Sampler<'_, D>, Shared<'_>),
     hood: &mut Neighbourhood,
     (memo, near): (&mut VertexMemo, &mut AroundMemo),
     (j, wanted): (usize, Option<&IBox>),
-    iso: f32,
+    iso: Option<f32>,
 ) -> Result<()> {
+    let Shared {
+        blocks,
+        leaves,
+        coarse,
+        tight,
+    } = shared;
     debug_assert_eq!(hood.kind(j), COARSER);
     let grid = sampler.grid();
     let level = hood.level;
@@ -195,16 +218,36 @@ fn settle_coarse<D: AsRef<[u8]>>(
     let o = grid.offset();
     let x = hood.cell_at(j);
     let lower = axes(|a| x[a] * s[a] - o[a]);
+    let code_iso = iso.unwrap_or(0.0);
     let Some(q) = sampler.locate_cell(lower)? else {
-        hood.settle_coarse(j, (f32::INFINITY, f32::NEG_INFINITY), iso);
+        hood.settle_coarse(j, (f32::INFINITY, f32::NEG_INFINITY), code_iso);
         return Ok(());
     };
     if q.level >= level {
         // Not a properly nested hierarchy here: never cull next to it.
-        hood.settle_coarse(j, (f32::NEG_INFINITY, f32::INFINITY), iso);
+        hood.settle_coarse(j, (f32::NEG_INFINITY, f32::INFINITY), code_iso);
         return Ok(());
     }
     let q_box = grid.finest_box(q.level, q.cell);
+    let settle_all_in_q = |hood: &mut Neighbourhood, bound: (f32, f32)| {
+        let inside = level_box(grid, level, &q_box).intersect(&hood.cells);
+        for z in inside.lo[2]..inside.hi[2] {
+            for y in inside.lo[1]..inside.hi[1] {
+                let row = hood.index([inside.lo[0], y, z]);
+                for i in row..row + inside.extent()[0] as usize {
+                    if hood.codes()[i] & PENDING != 0 {
+                        hood.settle_coarse(i, bound, code_iso);
+                    }
+                }
+            }
+        }
+    };
+    if let Some(iso) = iso {
+        if let Some(bound) = leaf_side_of(sampler, tight, &q, &q_box, iso) {
+            settle_all_in_q(hood, bound);
+            return Ok(());
+        }
+    }
     let asked = |w: &IBox, block: &IBox, enough: u32| {
         let sq = grid.scale(q.level);
         hood.pending_over(block, axes(|a| sq[a] / s[a]), w, enough)
@@ -213,23 +256,29 @@ fn settle_coarse<D: AsRef<[u8]>>(
     if let Some(range) =
         coarse.range_around_memo((sampler, blocks, leaves), near, (q.level, q.cell), wanted)?
     {
-        let bound = widen(range);
-        let inside = level_box(grid, level, &q_box).intersect(&hood.cells);
-        for z in inside.lo[2]..inside.hi[2] {
-            for y in inside.lo[1]..inside.hi[1] {
-                let row = hood.index([inside.lo[0], y, z]);
-                for i in row..row + inside.extent()[0] as usize {
-                    if hood.codes()[i] & PENDING != 0 {
-                        hood.settle_coarse(i, bound, iso);
-                    }
-                }
-            }
-        }
+        settle_all_in_q(hood, widen(range));
         return Ok(());
     }
     let bound = exact_bound((sampler, memo), &q, level, x)?;
-    hood.settle_coarse(j, bound, iso);
+    hood.settle_coarse(j, bound, code_iso);
     Ok(())
+}
+
+/// The tight range of the kd leaf holding coarse leaf cell `q` (whose finest cells are `q_box`),
+/// widened, when it is known, lies wholly on one side of `iso`, and bounds every octant of `q`:
+/// the leaf owns those octants when `q` lies inside the leaf's box, and a leaf's tight range
+/// holds every corner of every voxel it owns ([`super::tight`]). A vertex that takes its value
+/// from one of them takes a trilinear interpolant of its corners, which [`widen`] covers.
+fn leaf_side_of<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    tight: &TightRanges<'_>,
+    q: &LeafCell,
+    q_box: &IBox,
+    iso: f32,
+) -> Option<(f32, f32)> {
+    let (lo, hi) = widen(tight.known(q.leaf)?);
+    let one_side = hi < iso || lo >= iso;
+    (one_side && sampler.leaf_box(q.leaf).contains_box(q_box)).then_some((lo, hi))
 }
 
 /// The bound of level-`level` cell `x`, which lies in leaf cell `q` coarser than it: the range

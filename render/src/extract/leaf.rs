@@ -180,11 +180,12 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     // the bricks, unless the cells are held already (or come from the tiles). Small leaves'
     // neighbourhoods gather many leaves' short rows, which the fill copies faster.
     let large = frame.refs.extent().iter().any(|&e| e > MAX_CELLS);
-    let plain = large && !held && !tiled && codes_of.code((sampler, shared.1), level, g, iso)?;
+    let plain =
+        large && !held && !tiled && codes_of.code((sampler, shared.leaves), level, g, iso)?;
     let (codes, cells) = if plain {
         (codes_of.codes(), codes_of.cells)
     } else {
-        hood.fill((sampler, shared.1), level, &frame.cells)?;
+        hood.fill((sampler, shared.leaves), level, &frame.cells)?;
         hood.classify(iso);
         (hood.codes(), hood.cells)
     };

@@ -75,6 +75,7 @@ pub use crate::voxel::Voxel;
 use band::CoarseBounds;
 use blocks::BlockRanges;
 use cell_tiles::CellTiles;
+use cull::Shared;
 pub use decode_frame::DecodeFrame;
 use gather::{append, Run};
 use halo::Halo;
@@ -284,7 +285,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             &self.blocks
         };
         let tiles = CellTiles::pays(self.file_cells, file.num_leaves()).then_some(&self.cells);
-        let scratches = ScratchPool::new((&self.blocks, &self.leaves, &self.coarse), tiles);
+        let scratches = ScratchPool::new(self.shared(), tiles);
         let spare = SpareRefs::default();
         let chunks = if self.drops_pages() {
             self.chunks(leaves)
@@ -450,6 +451,16 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         )
     }
 
+    /// The tables every leaf's cull reads.
+    fn shared(&self) -> Shared<'_> {
+        Shared {
+            blocks: &self.blocks,
+            leaves: &self.leaves,
+            coarse: &self.coarse,
+            tight: &self.tight,
+        }
+    }
+
     /// The tight range of `leaf` computed from the file's data and tables, whatever the file
     /// stores, and for a leaf extracted in parts the leaves around it, gathered once for its
     /// tight range and its parts' bounds.
@@ -501,7 +512,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 .par_iter()
                 .map_init(
                     || {
-                        let shared = (&self.blocks, &self.leaves, &self.coarse);
+                        let shared = self.shared();
                         let tiles = CellTiles::pays(self.file_cells, file.num_leaves())
                             .then_some(&self.cells);
                         Scratch::new(shared, tiles)

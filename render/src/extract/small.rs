@@ -46,7 +46,7 @@ pub fn hood_range<D: AsRef<[u8]>>(
         tiles,
         ..
     } = scratch;
-    let leaves = shared.1;
+    let leaves = shared.leaves;
     let finest = leaves.leaf_box(leaf);
     let cells = level_box(sampler.grid(), level, &finest);
     if cells.extent().iter().any(|&e| e > MAX_CELLS) {

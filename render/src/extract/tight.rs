@@ -68,6 +68,17 @@ impl<'f> TightRanges<'f> {
         }
     }
 
+    /// The tight range of `leaf` if it is known: stored, or computed already.
+    #[inline]
+    pub fn known(&self, leaf: u32) -> Option<(f32, f32)> {
+        if let Some(stored) = self.stored {
+            let r = stored.get(leaf as usize)?;
+            return Some((r.min.get(), r.max.get()));
+        }
+        let known = self.bits.get(leaf as usize)?.load(Ordering::Relaxed);
+        (known != UNKNOWN).then(|| unpack(known))
+    }
+
     /// The tight range of `leaf`, computed on first need from the block ranges and the leaf
     /// tree.
     pub fn get<D: AsRef<[u8]>>(

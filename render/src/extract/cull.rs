@@ -264,11 +264,35 @@ fn settle_coarse<D: AsRef<[u8]>>(
     Ok(())
 }
 
-/// The tight range of the kd leaf holding coarse leaf cell `q` (whose finest cells are `q_box`),
-/// widened, when it is known, lies wholly on one side of `iso`, and bounds every octant of `q`:
-/// the leaf owns those octants when `q` lies inside the leaf's box, and a leaf's tight range
-/// holds every corner of every voxel it owns ([`super::tight`]). A vertex that takes its value
-/// from one of them takes a trilinear interpolant of its corners, which [`widen`] covers.
+/// Settles the pending cells of `hood` for `iso` that lie in coarser kd leaves whose known
+/// tight range lies wholly on one side of `iso` (see [`one_sided_range`]), a block of cells per
+/// leaf, where the leaf's box is whole cells of its level: then every coarse leaf cell holding
+/// one of the block's cells lies inside the leaf. The codes are those [`cell_may_hold`] would
+/// settle one cell at a time.
+pub fn settle_by_leaf_ranges<D: AsRef<[u8]>>(
+    sampler: &Sampler<'_, D>,
+    tight: &TightRanges<'_>,
+    hood: &mut Neighbourhood,
+    iso: f32,
+) {
+    if !hood.has_pending() {
+        return;
+    }
+    let grid = sampler.grid();
+    let o = grid.offset();
+    hood.settle_coarser_blocks(iso, |leaf, level| {
+        let bound = one_sided_range(tight, leaf, iso)?;
+        let (b, s) = (sampler.leaf_box(leaf), grid.scale(level));
+        let whole_cells = (0..3).all(|a| {
+            (b.lo[a] + o[a]).rem_euclid(s[a]) == 0 && (b.hi[a] + o[a]).rem_euclid(s[a]) == 0
+        });
+        whole_cells.then_some(bound)
+    });
+}
+
+/// The tight range of the kd leaf holding coarse leaf cell `q` (whose finest cells are `q_box`)
+/// as [`one_sided_range`] gives it, when `q` lies inside the leaf's box: the leaf then owns
+/// every octant of `q`.
 fn leaf_side_of<D: AsRef<[u8]>>(
     sampler: &Sampler<'_, D>,
     tight: &TightRanges<'_>,
@@ -276,9 +300,21 @@ fn leaf_side_of<D: AsRef<[u8]>>(
     q_box: &IBox,
     iso: f32,
 ) -> Option<(f32, f32)> {
-    let (lo, hi) = widen(tight.known(q.leaf)?);
-    let one_side = hi < iso || lo >= iso;
-    (one_side && sampler.leaf_box(q.leaf).contains_box(q_box)).then_some((lo, hi))
+    let bound = one_sided_range(tight, q.leaf, iso)?;
+    sampler
+        .leaf_box(q.leaf)
+        .contains_box(q_box)
+        .then_some(bound)
+}
+
+/// The tight range of kd leaf `leaf`, widened, when it is known and lies wholly on one side of
+/// `iso`. It bounds every octant the leaf owns: a leaf's tight range holds every corner of every
+/// voxel it owns ([`super::tight`]), and a vertex that takes its value from such an octant takes
+/// a trilinear interpolant of its corners, which [`widen`] covers. Its code for `iso` is then
+/// the code of any bound inside it that is not empty.
+fn one_sided_range(tight: &TightRanges<'_>, leaf: u32, iso: f32) -> Option<(f32, f32)> {
+    let (lo, hi) = widen(tight.known(leaf)?);
+    (hi < iso || lo >= iso).then_some((lo, hi))
 }
 
 /// The bound of level-`level` cell `x`, which lies in leaf cell `q` coarser than it: the range

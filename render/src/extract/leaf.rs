@@ -14,7 +14,9 @@ use amr_format::IBox;
 
 use super::band::AroundMemo;
 use super::cell_tiles::CellTiles;
-use super::cull::{around_offsets, cell_may_hold, coarse_cell_bound, settle_pending, Shared};
+use super::cull::{
+    around_offsets, cell_may_hold, coarse_cell_bound, settle_by_leaf_ranges, settle_pending, Shared,
+};
 use super::local::{code, div_floor, Neighbourhood, ABOVE, BELOW, LEAF, NOT_LEAF, PENDING};
 use super::plain::PlainCodes;
 use super::refs::{make_ref, LocalVoxel};
@@ -187,6 +189,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
     } else {
         hood.fill((sampler, shared.leaves), level, &frame.cells)?;
         hood.classify(iso);
+        settle_by_leaf_ranges(sampler, shared.tight, hood, iso);
         (hood.codes(), hood.cells)
     };
     let grid = sampler.grid();

@@ -226,6 +226,9 @@ pub struct Neighbourhood {
     dilated: Vec<bool>,
     /// The level and box of the last fill, while the cells hold it.
     filled: Option<(u32, IBox)>,
+    /// The blocks of cells the last fill made [`COARSER`] and pending, each with the kd leaf
+    /// covering it and that leaf's level ([`Self::settle_coarser_blocks`]).
+    coarser_blocks: Vec<(IBox, u32, u32)>,
 }
 
 impl Neighbourhood {
@@ -296,6 +299,7 @@ impl Neighbourhood {
         self.codes.resize(n, 0);
         self.mixed.clear();
         self.exact.clear();
+        self.coarser_blocks.clear();
         self.pending_left = 0;
         self.pending_rows.clear();
         let e = g.extent();
@@ -344,7 +348,10 @@ impl Neighbourhood {
             let block = at_level.of(&part);
             match sampler.leaf_top(l) {
                 None => self.set_block(&block, UNCOVERED),
-                Some((_, lv)) if lv < level => self.set_coarser_block(&block),
+                Some((_, lv)) if lv < level => {
+                    self.set_coarser_block(&block);
+                    self.coarser_blocks.push((block, l, lv));
+                }
                 Some((brick, lv)) if lv > level => {
                     self.set_block(&block, FINER);
                     if block.num_cells() == Some(1) && region.contains_box(&lb) {
@@ -400,6 +407,7 @@ impl Neighbourhood {
         self.kind.resize(n, UNCOVERED);
         self.mixed.clear();
         self.exact.clear();
+        self.coarser_blocks.clear();
         self.codes.clear();
         self.codes.resize(n, 0);
         self.pending_left = 0;
@@ -951,6 +959,37 @@ impl Neighbourhood {
     fn mark_mixed(&mut self, i: usize) {
         self.mixed.resize(self.kind.len(), false);
         self.mixed[i] = true;
+    }
+
+    /// Settles, as [`Self::settle_coarse`] with `iso`, the pending cells of each block of cells
+    /// the last fill found inside a coarser kd leaf for which `bound_of(leaf, level)` gives a
+    /// bound (the block's cells lie inside that leaf).
+    pub fn settle_coarser_blocks(
+        &mut self,
+        iso: f32,
+        mut bound_of: impl FnMut(u32, u32) -> Option<(f32, f32)>,
+    ) {
+        let blocks = std::mem::take(&mut self.coarser_blocks);
+        for &(block, leaf, level) in &blocks {
+            if self.pending_left == 0 {
+                break;
+            }
+            let Some(bound) = bound_of(leaf, level) else {
+                continue;
+            };
+            let w = block.extent()[0].max(0) as usize;
+            for z in block.lo[2]..block.hi[2] {
+                for y in block.lo[1]..block.hi[1] {
+                    let row = self.index([block.lo[0], y, z]);
+                    for i in row..row + w {
+                        if self.codes[i] & PENDING != 0 {
+                            self.settle_coarse(i, bound, iso);
+                        }
+                    }
+                }
+            }
+        }
+        self.coarser_blocks = blocks;
     }
 
     /// True when the bound of the cell at index `i` may be narrowed to its coarse octants'

@@ -42,17 +42,18 @@ pub enum ConvertError {
         available: String,
     },
     /// The output would replace one of the dump's files or something that is not a regular
-    /// file ([`amr_format::output::check_output`]; the message names both).
+    /// file ([`amr_format::output::check_output`]; the message names both), or its file system
+    /// has no room for it.
     #[error("{0}")]
     RefusedOutput(FormatError),
     /// The `.amrk` writer refused the data or failed to write.
-    #[error("writing {}: {source}", path.display())]
+    #[error("writing {}: {cause}", path.display())]
     Output {
         /// The output file.
         path: PathBuf,
-        /// The writer's error.
-        #[source]
-        source: FormatError,
+        /// The writer's error (its message is part of this one's, so it is not also the
+        /// error's `source()`: printing the chain would repeat it).
+        cause: FormatError,
     },
 }
 
@@ -92,10 +93,14 @@ pub trait AmrSource {
 
 /// The error for a failure of the `.amrk` writer on `output`.
 fn output_error<E: From<ConvertError>>(output: &Path, source: FormatError) -> E {
-    E::from(ConvertError::Output {
-        path: output.to_path_buf(),
-        source,
-    })
+    match source {
+        // Its message names the output already.
+        FormatError::Output { .. } => E::from(ConvertError::RefusedOutput(source)),
+        _ => E::from(ConvertError::Output {
+            path: output.to_path_buf(),
+            cause: source,
+        }),
+    }
 }
 
 /// The slabs of box `valid` with at most `chunk` rows and layers each, the whole x range:

@@ -254,3 +254,59 @@ fn a_child_killed_from_outside_is_not_called_a_crash() {
     );
     assert_eq!(names(dir.path()), ["plt.3d.hdf5"]);
 }
+
+/// Copies the directory tree `from` into `to`, leaving out the files named in `skip`.
+fn copy_tree_without(from: &Path, to: &Path, skip: &[&str]) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let name = entry.file_name();
+        if skip.iter().any(|s| name == *s) {
+            continue;
+        }
+        if entry.file_type().unwrap().is_dir() {
+            copy_tree_without(&entry.path(), &to.join(&name), skip);
+        } else {
+            std::fs::copy(entry.path(), to.join(&name)).unwrap();
+        }
+    }
+}
+
+/// An error that wraps the operating system's or a library's says their message once: the
+/// message printed is the chain of causes, and a cause whose text is already in its wrapper's
+/// message is not also its source (an AMReX data file and an Enzo HDF5 file missing, from the
+/// shared real data).
+#[test]
+fn an_error_says_each_cause_once() {
+    let Some(amrex) = support::amrex::shared_amrex("an_error_says_each_cause_once") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let plt = dir.path().join("plt");
+    copy_tree_without(&amrex.join("example_plt_3d"), &plt, &["Cell_D_00001"]);
+    let (code, err) = run(&[&plt, Path::new("-o"), &dir.path().join("a.amrk")], &[]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("Cell_D_00001"), "{err}");
+    assert_eq!(err.matches("No such file or directory").count(), 1, "{err}");
+
+    let Some(enzo) = support::amrex::shared_data(
+        "an_error_says_each_cause_once",
+        "enzo",
+        "DD0010/moving7_0010",
+    ) else {
+        return;
+    };
+    let dd = dir.path().join("DD0010");
+    copy_tree_without(&enzo.join("DD0010"), &dd, &["moving7_0010.cpu0000"]);
+    let (code, err) = run(
+        &[
+            &dd.join("moving7_0010"),
+            Path::new("-o"),
+            &dir.path().join("e.amrk"),
+        ],
+        &[],
+    );
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("moving7_0010.cpu0000"), "{err}");
+    assert_eq!(err.matches("H5Fopen").count(), 1, "{err}");
+}

@@ -17,7 +17,7 @@ use crate::shade::{
     render_frame, render_in_planes, render_rect, IsoSpec, Lighting, RenderSettings,
 };
 use crate::stats::FrameStats;
-use crate::system_memory;
+use crate::system_memory::{self, Available};
 use crate::trace::{ClippedTracer, HybridTracer, Surface, Tracer, VoxelSource};
 use crate::view::View;
 
@@ -85,7 +85,7 @@ fn render_with(
         .as_ref()
         .is_none_or(|p| (p.width, p.height) != (w, h))
     {
-        check_frame_fits(view.size, system_memory::available_bytes())?;
+        check_frame_fits(view.size, system_memory::available())?;
     }
     let (mut rendered, color_range) = with_scene_tracer(scene, view, |tracer, camera, light| {
         trace_frame(tracer, *camera, light, view, progress, planes)
@@ -104,18 +104,24 @@ fn render_with(
 }
 
 /// Refuses a `w x h` frame whose planes, with a tenth to spare, need more than `available`
-/// bytes (the memory the machine can still give, when known): the system would kill the
+/// bytes (the memory this process can still be given, when known): the system would kill the
 /// process part way through the frame instead of it failing with a message.
-fn check_frame_fits((w, h): (u32, u32), available: Option<u64>) -> Result<()> {
+fn check_frame_fits((w, h): (u32, u32), available: Option<Available>) -> Result<()> {
     let needed = FrameBuffer::bytes_for(w, h);
     let gib = |b: u64| b as f64 / f64::from(1u32 << 30);
     match available {
-        Some(free) if needed.saturating_add(needed / 10) > free => {
+        Some(free) if needed.saturating_add(needed / 10) > free.bytes => {
+            let whose = if free.by_limit {
+                "this process's memory limit (its control group's: a batch job's or a \
+                 container's) leaves"
+            } else {
+                "this machine has"
+            };
             Err(RenderError::Invalid(format!(
-                "a {w}x{h} frame needs {:.1} GiB for its {FRAME_PLANES} planes and this machine has \
+                "a {w}x{h} frame needs {:.1} GiB for its {FRAME_PLANES} planes and {whose} \
                  {:.1} GiB available: render a smaller frame",
                 gib(needed),
-                gib(free)
+                gib(free.bytes)
             )))
         }
         _ => Ok(()),
@@ -155,7 +161,7 @@ pub fn render_surfaces<S: VoxelSource + ?Sized>(
     view: &View,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Rendered> {
-    check_frame_fits(view.size, system_memory::available_bytes())?;
+    check_frame_fits(view.size, system_memory::available())?;
     let method = (TraceMethod::Hybrid, view.smooth_normals);
     with_tracer(
         src,
@@ -340,15 +346,35 @@ mod tests {
     fn a_frame_larger_than_the_memory_left_is_refused() {
         let gib = 1u64 << 30;
         // 8192 x 8192 pixels of 13 planes: 3.25 GiB.
-        assert!(check_frame_fits((8192, 8192), Some(16 * gib)).is_ok());
+        let machine = |bytes| {
+            Some(Available {
+                bytes,
+                by_limit: false,
+            })
+        };
+        assert!(check_frame_fits((8192, 8192), machine(16 * gib)).is_ok());
         assert!(check_frame_fits((8192, 8192), None).is_ok());
-        let err = check_frame_fits((8192, 8192), Some(3 * gib)).unwrap_err();
+        let err = check_frame_fits((8192, 8192), machine(3 * gib)).unwrap_err();
         let text = err.to_string();
         assert!(
-            text.contains("8192x8192") && text.contains("3.2 GiB") && text.contains("3.0 GiB"),
+            text.contains("8192x8192")
+                && text.contains("3.2 GiB")
+                && text.contains("3.0 GiB")
+                && text.contains("this machine"),
             "{text}"
         );
         // A tenth to spare: 3.5 GiB is too little for 3.25.
-        assert!(check_frame_fits((8192, 8192), Some(3 * gib + gib / 2)).is_err());
+        assert!(check_frame_fits((8192, 8192), machine(3 * gib + gib / 2)).is_err());
+        let limited = Available {
+            bytes: 2 * gib,
+            by_limit: true,
+        };
+        let text = check_frame_fits((8192, 8192), Some(limited))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            text.contains("memory limit") && text.contains("2.0 GiB"),
+            "{text}"
+        );
     }
 }

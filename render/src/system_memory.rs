@@ -1,5 +1,8 @@
 //! What the operating system says about memory: this process's peak resident set and the memory
-//! the machine can still give without swapping (`/proc`, Linux; `None` elsewhere).
+//! it can still be given without swapping or being killed (`/proc` and the cgroup file system,
+//! Linux; `None` elsewhere).
+
+use std::path::{Path, PathBuf};
 
 /// Peak resident set of this process (`VmHWM` in `/proc/self/status`).
 pub fn peak_rss_bytes() -> Option<u64> {
@@ -9,13 +12,129 @@ pub fn peak_rss_bytes() -> Option<u64> {
     )
 }
 
-/// Memory the machine can give new allocations without swapping (`MemAvailable` in
-/// `/proc/meminfo`: free memory plus the page cache and other memory it can reclaim).
-pub fn available_bytes() -> Option<u64> {
-    kib_field(
-        &std::fs::read_to_string("/proc/meminfo").ok()?,
-        "MemAvailable:",
-    )
+/// Memory this process can still be given, and what sets it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Available {
+    /// Bytes that new allocations can take.
+    pub bytes: u64,
+    /// True when a memory limit of the process's control group (a batch job's or a container's)
+    /// leaves less than the machine has available.
+    pub by_limit: bool,
+}
+
+/// Memory this process can still be given: the machine's `MemAvailable` (`/proc/meminfo`: free
+/// memory plus the page cache and other memory the kernel can reclaim), or less when the control
+/// group the process runs in (a batch scheduler's job, a container) has a memory limit that
+/// leaves less: the limit less the group's memory in use that the kernel cannot reclaim (its
+/// page cache, such as a mapped data file's pages, is reclaimable and not counted).
+pub fn available() -> Option<Available> {
+    let machine = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|text| kib_field(&text, "MemAvailable:"));
+    let group = std::fs::read_to_string("/proc/self/cgroup")
+        .ok()
+        .and_then(|text| cgroup_headroom(&text, Path::new("/sys/fs/cgroup")));
+    match (machine, group) {
+        (Some(m), Some(g)) if g < m => Some(Available {
+            bytes: g,
+            by_limit: true,
+        }),
+        (Some(m), _) => Some(Available {
+            bytes: m,
+            by_limit: false,
+        }),
+        (None, Some(g)) => Some(Available {
+            bytes: g,
+            by_limit: true,
+        }),
+        (None, None) => None,
+    }
+}
+
+/// What the memory limits of the process's control groups leave it, the smallest over the
+/// groups from its own up to the root of the hierarchy; `None` when no limit is set or none
+/// can be read. `proc_cgroup` is the text of `/proc/self/cgroup`; `root` is where the cgroup
+/// file system is mounted. Version 2 (one unified hierarchy, the line `0::PATH`): `memory.max`,
+/// `memory.current` and `file` of `memory.stat` in each group. Version 1 (a `memory` controller
+/// hierarchy under `root/memory`): `memory.limit_in_bytes`, `memory.usage_in_bytes` and
+/// `total_cache` of `memory.stat`. A group's own path may not exist inside a container that
+/// sees only its own group at the mount's root: that root is read then.
+pub fn cgroup_headroom(proc_cgroup: &str, root: &Path) -> Option<u64> {
+    let mut smallest: Option<u64> = None;
+    for line in proc_cgroup.lines() {
+        let mut parts = line.splitn(3, ':');
+        let (Some(_), Some(controllers), Some(path)) = (parts.next(), parts.next(), parts.next())
+        else {
+            continue;
+        };
+        let headroom = if controllers.is_empty() {
+            walk_groups(root, path, v2_headroom)
+        } else if controllers.split(',').any(|c| c == "memory") {
+            walk_groups(&root.join("memory"), path, v1_headroom)
+        } else {
+            None
+        };
+        if let Some(h) = headroom {
+            smallest = Some(smallest.map_or(h, |s| s.min(h)));
+        }
+    }
+    smallest
+}
+
+/// The smallest `headroom` of the groups from `path` (relative to the hierarchy's `mount`) up to
+/// the mount itself; the mount alone when `path` is not there.
+fn walk_groups(mount: &Path, path: &str, headroom: fn(&Path) -> Option<u64>) -> Option<u64> {
+    let mut dir: PathBuf = mount.join(path.trim_start_matches('/'));
+    if !dir.is_dir() {
+        dir = mount.to_path_buf();
+    }
+    let mut smallest: Option<u64> = None;
+    loop {
+        if let Some(h) = headroom(&dir) {
+            smallest = Some(smallest.map_or(h, |s| s.min(h)));
+        }
+        if dir.as_path() == mount || !dir.pop() || !dir.starts_with(mount) {
+            return smallest;
+        }
+    }
+}
+
+/// A cgroup-v2 group's limit less its memory in use other than page cache.
+fn v2_headroom(dir: &Path) -> Option<u64> {
+    let limit: u64 = read_trimmed(&dir.join("memory.max"))?.parse().ok()?;
+    let current: u64 = read_trimmed(&dir.join("memory.current"))?.parse().ok()?;
+    let cache = stat_field(&dir.join("memory.stat"), "file").unwrap_or(0);
+    Some(limit.saturating_sub(current.saturating_sub(cache)))
+}
+
+/// A cgroup-v1 group's limit less its memory in use other than page cache. Version 1 writes
+/// "no limit" as a number near `i64::MAX`.
+fn v1_headroom(dir: &Path) -> Option<u64> {
+    let limit: u64 = read_trimmed(&dir.join("memory.limit_in_bytes"))?
+        .parse()
+        .ok()?;
+    if limit >= 1 << 62 {
+        return None;
+    }
+    let usage: u64 = read_trimmed(&dir.join("memory.usage_in_bytes"))?
+        .parse()
+        .ok()?;
+    let cache = stat_field(&dir.join("memory.stat"), "total_cache").unwrap_or(0);
+    Some(limit.saturating_sub(usage.saturating_sub(cache)))
+}
+
+/// The file's text, trimmed.
+fn read_trimmed(path: &Path) -> Option<String> {
+    Some(std::fs::read_to_string(path).ok()?.trim().to_owned())
+}
+
+/// The value of the line `key N` of a cgroup `memory.stat` file.
+fn stat_field(path: &Path, key: &str) -> Option<u64> {
+    let text = std::fs::read_to_string(path).ok()?;
+    text.lines().find_map(|l| {
+        let (k, v) = l.split_once(' ')?;
+        (k == key).then(|| v.trim().parse().ok()).flatten()
+    })
 }
 
 /// The value of the first line `key  N kB` of a `/proc` file's text, in bytes.
@@ -34,6 +153,77 @@ pub(crate) fn kib_field(text: &str, key: &str) -> Option<u64> {
 mod tests {
     use super::*;
 
+    /// Writes `files` (path relative to `root`, text) under `root`.
+    fn write_all(root: &Path, files: &[(&str, &str)]) {
+        for (path, text) in files {
+            let path = root.join(path);
+            std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+            std::fs::write(path, text).unwrap();
+        }
+    }
+
+    /// Version 2: the tightest group on the way up binds, and page cache is not counted as used.
+    #[test]
+    fn a_cgroup_v2_limit_up_the_tree_binds_less_its_page_cache() {
+        let dir = tempfile::tempdir().unwrap();
+        let gib = 1u64 << 30;
+        write_all(
+            dir.path(),
+            &[
+                // The job's group: 8 GiB, 5 GiB in use of which 4 GiB page cache: 7 GiB left.
+                ("job/memory.max", &format!("{}\n", 8 * gib)),
+                ("job/memory.current", &format!("{}\n", 5 * gib)),
+                ("job/memory.stat", &format!("anon 1024\nfile {}\n", 4 * gib)),
+                // The step's group inside it: no limit of its own.
+                ("job/step/memory.max", "max\n"),
+                ("job/step/memory.current", "1000\n"),
+            ],
+        );
+        let left = cgroup_headroom("0::/job/step\n", dir.path());
+        assert_eq!(left, Some(7 * gib));
+        // The same groups without a limit anywhere: none.
+        std::fs::write(dir.path().join("job/memory.max"), "max\n").unwrap();
+        assert_eq!(cgroup_headroom("0::/job/step\n", dir.path()), None);
+    }
+
+    /// Version 1: the memory controller's hierarchy; "no limit" is a huge number; a path that
+    /// is not there (a container seeing only its own group) reads the mount's root.
+    #[test]
+    fn a_cgroup_v1_limit_binds_and_no_limit_is_none() {
+        let dir = tempfile::tempdir().unwrap();
+        let mib = 1u64 << 20;
+        write_all(
+            dir.path(),
+            &[
+                ("memory/memory.limit_in_bytes", "9223372036854771712\n"),
+                (
+                    "memory/slurm/job1/memory.limit_in_bytes",
+                    &format!("{}", 512 * mib),
+                ),
+                (
+                    "memory/slurm/job1/memory.usage_in_bytes",
+                    &format!("{}", 300 * mib),
+                ),
+                (
+                    "memory/slurm/job1/memory.stat",
+                    &format!("cache 1\nrss 2\ntotal_cache {}\n", 100 * mib),
+                ),
+            ],
+        );
+        let text = "9:pids:/slurm/job1\n4:cpu,memory:/slurm/job1\n0::/\n";
+        assert_eq!(cgroup_headroom(text, dir.path()), Some(312 * mib));
+        assert_eq!(cgroup_headroom("4:memory:/\n", dir.path()), None);
+        let container = "4:memory:/docker/abc\n";
+        std::fs::write(
+            dir.path().join("memory/memory.limit_in_bytes"),
+            format!("{}", 64 * mib),
+        )
+        .unwrap();
+        std::fs::write(dir.path().join("memory/memory.usage_in_bytes"), "0").unwrap();
+        assert_eq!(cgroup_headroom(container, dir.path()), Some(64 * mib));
+        assert_eq!(cgroup_headroom("garbage\n\n", dir.path()), None);
+    }
+
     #[test]
     fn reads_a_field_in_kib() {
         let meminfo =
@@ -43,7 +233,7 @@ mod tests {
         assert_eq!(kib_field(meminfo, "SwapFree:"), None);
         assert_eq!(kib_field("MemAvailable: lots kB", "MemAvailable:"), None);
         if cfg!(target_os = "linux") {
-            assert!(available_bytes().is_some_and(|b| b > 0));
+            assert!(available().is_some_and(|a| a.bytes > 0));
             assert!(peak_rss_bytes().is_some_and(|b| b > 0));
         }
     }

@@ -8,15 +8,15 @@ use crate::hierarchy_to_amrk::ConvertError;
 #[derive(Debug, thiserror::Error)]
 pub enum AmrexError {
     /// The operating system refused a read.
-    #[error("{}: {what}: {source}", path.display())]
+    #[error("{}: {what}: {cause}", path.display())]
     Io {
         /// The file being read.
         path: PathBuf,
         /// What was being done.
         what: String,
-        /// The underlying error.
-        #[source]
-        source: std::io::Error,
+        /// The underlying error (its message is part of this one's, so it is not also the
+        /// error's `source()`: printing the chain would repeat it).
+        cause: std::io::Error,
     },
     /// A text header (`Header`, `Cell_H`, a FAB header line) does not parse.
     #[error("{}, line {line}: {msg}", path.display())]
@@ -90,7 +90,7 @@ impl AmrexError {
         AmrexError::Io {
             path: path.into(),
             what: what.into(),
-            source,
+            cause: source,
         }
     }
 

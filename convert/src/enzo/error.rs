@@ -8,15 +8,15 @@ use crate::hierarchy_to_amrk::ConvertError;
 #[derive(Debug, thiserror::Error)]
 pub enum EnzoError {
     /// The operating system refused a read.
-    #[error("{}: {what}: {source}", path.display())]
+    #[error("{}: {what}: {cause}", path.display())]
     Io {
         /// The file being read.
         path: PathBuf,
         /// What was being done.
         what: String,
-        /// The underlying error.
-        #[source]
-        source: std::io::Error,
+        /// The underlying error (its message is part of this one's, so it is not also the
+        /// error's `source()`: printing the chain would repeat it).
+        cause: std::io::Error,
     },
     /// A line of the parameter or hierarchy file does not parse.
     #[error("{}, line {line}: {msg}", path.display())]
@@ -46,15 +46,15 @@ pub enum EnzoError {
         msg: String,
     },
     /// The HDF5 library refused an operation on a data file.
-    #[error("{}: {what}: {source}", path.display())]
+    #[error("{}: {what}: {cause}", path.display())]
     Hdf5 {
         /// The HDF5 file.
         path: PathBuf,
         /// What was being read.
         what: String,
-        /// The library's error.
-        #[source]
-        source: hdf5_metno::Error,
+        /// The library's error (its message is part of this one's, so it is not also the
+        /// error's `source()`: printing the chain would repeat it).
+        cause: hdf5_metno::Error,
     },
     /// A cell value cannot be stored as a finite `f32`.
     #[error(
@@ -94,7 +94,7 @@ impl EnzoError {
         EnzoError::Io {
             path: path.into(),
             what: what.into(),
-            source,
+            cause: source,
         }
     }
 
@@ -120,7 +120,7 @@ impl EnzoError {
         EnzoError::Hdf5 {
             path: path.into(),
             what: what.into(),
-            source,
+            cause: source,
         }
     }
 }

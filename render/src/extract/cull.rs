@@ -38,7 +38,7 @@ pub struct Shared<'s> {
     pub leaves: &'s LeafTree,
     /// The bounds around coarse leaf cells, kept for every leaf.
     pub coarse: &'s CoarseBounds,
-    /// The kd leaves' tight ranges, those known so far.
+    /// The kd leaves' tight ranges.
     pub tight: &'s TightRanges<'s>,
 }
 
@@ -193,7 +193,7 @@ pub fn settle_in<D: AsRef<[u8]>>(
 /// the exact corners of the octants of `Q` overlapping cell `j`. The cells of `hood` being
 /// settled lie in box `wanted`, if given: the bounds may then be computed a block at a time.
 ///
-/// With `iso` (the cull's settling, whose codes are read for that isovalue alone), a known tight
+/// With `iso` (the cull's settling, whose codes are read for that isovalue alone), a stored tight
 /// range of the kd leaf holding `Q` that lies wholly above or below `iso` is taken instead: it
 /// holds every corner of `Q`'s octants, so the codes are the ones the bound above would give.
 /// Without (`iso` `None`: bounds kept for any isovalue, as [`settle_in`] makes them), always
@@ -264,7 +264,7 @@ fn settle_coarse<D: AsRef<[u8]>>(
     Ok(())
 }
 
-/// Settles the pending cells of `hood` for `iso` that lie in coarser kd leaves whose known
+/// Settles the pending cells of `hood` for `iso` that lie in coarser kd leaves whose stored
 /// tight range lies wholly on one side of `iso` (see [`one_sided_range`]), a block of cells per
 /// leaf, where the leaf's box is whole cells of its level: then every coarse leaf cell holding
 /// one of the block's cells lies inside the leaf. The codes are those [`cell_may_hold`] would
@@ -307,13 +307,13 @@ fn leaf_side_of<D: AsRef<[u8]>>(
         .then_some(bound)
 }
 
-/// The tight range of kd leaf `leaf`, widened, when it is known and lies wholly on one side of
-/// `iso`. It bounds every octant the leaf owns: a leaf's tight range holds every corner of every
+/// The tight range of kd leaf `leaf`, widened, when the file stores it and it lies wholly on one
+/// side of `iso`. It bounds every octant the leaf owns: a leaf's tight range holds every corner of every
 /// voxel it owns ([`super::tight`]), and a vertex that takes its value from such an octant takes
 /// a trilinear interpolant of its corners, which [`widen`] covers. Its code for `iso` is then
 /// the code of any bound inside it that is not empty.
 fn one_sided_range(tight: &TightRanges<'_>, leaf: u32, iso: f32) -> Option<(f32, f32)> {
-    let (lo, hi) = widen(tight.known(leaf)?);
+    let (lo, hi) = widen(tight.stored(leaf)?);
     (hi < iso || lo >= iso).then_some((lo, hi))
 }
 

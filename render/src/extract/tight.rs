@@ -68,15 +68,12 @@ impl<'f> TightRanges<'f> {
         }
     }
 
-    /// The tight range of `leaf` if it is known: stored, or computed already.
+    /// The tight range of `leaf` if the file stores it. (One computed in this session is left
+    /// out: whether another thread has computed it yet depends on timing.)
     #[inline]
-    pub fn known(&self, leaf: u32) -> Option<(f32, f32)> {
-        if let Some(stored) = self.stored {
-            let r = stored.get(leaf as usize)?;
-            return Some((r.min.get(), r.max.get()));
-        }
-        let known = self.bits.get(leaf as usize)?.load(Ordering::Relaxed);
-        (known != UNKNOWN).then(|| unpack(known))
+    pub fn stored(&self, leaf: u32) -> Option<(f32, f32)> {
+        let r = self.stored?.get(leaf as usize)?;
+        Some((r.min.get(), r.max.get()))
     }
 
     /// The tight range of `leaf`, computed on first need from the block ranges and the leaf

@@ -17,7 +17,7 @@ use crate::shade::{
     render_frame, render_in_planes, render_rect, IsoSpec, Lighting, RenderSettings,
 };
 use crate::stats::FrameStats;
-use crate::system_memory::{self, Available};
+use crate::system_memory::{self, describe_bytes, Available};
 use crate::trace::{ClippedTracer, HybridTracer, Surface, Tracer, VoxelSource};
 use crate::view::View;
 
@@ -108,20 +108,14 @@ fn render_with(
 /// process part way through the frame instead of it failing with a message.
 fn check_frame_fits((w, h): (u32, u32), available: Option<Available>) -> Result<()> {
     let needed = FrameBuffer::bytes_for(w, h);
-    let gib = |b: u64| b as f64 / f64::from(1u32 << 30);
     match available {
         Some(free) if needed.saturating_add(needed / 10) > free.bytes => {
-            let whose = if free.by_limit {
-                "this process's memory limit (its control group's: a batch job's or a \
-                 container's) leaves"
-            } else {
-                "this machine has"
-            };
             Err(RenderError::Invalid(format!(
-                "a {w}x{h} frame needs {:.1} GiB for its {FRAME_PLANES} planes and {whose} \
-                 {:.1} GiB available: render a smaller frame",
-                gib(needed),
-                gib(free.bytes)
+                "a {w}x{h} frame needs {} for its {FRAME_PLANES} planes and {} {} available: \
+                 render a smaller frame",
+                describe_bytes(needed),
+                free.whose(),
+                describe_bytes(free.bytes)
             )))
         }
         _ => Ok(()),

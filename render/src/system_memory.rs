@@ -22,6 +22,29 @@ pub struct Available {
     pub by_limit: bool,
 }
 
+/// `bytes` for a message: MiB below a GiB, else GiB with one decimal.
+pub fn describe_bytes(bytes: u64) -> String {
+    const GIB: f64 = (1u64 << 30) as f64;
+    let b = bytes as f64;
+    if b < GIB {
+        format!("{:.0} MiB", b / f64::from(1u32 << 20))
+    } else {
+        format!("{:.1} GiB", b / GIB)
+    }
+}
+
+impl Available {
+    /// How a message names what leaves these bytes, before the amount.
+    pub fn whose(&self) -> &'static str {
+        if self.by_limit {
+            "this process's memory limit (its control group's: a batch job's or a container's) \
+             leaves"
+        } else {
+            "this machine has"
+        }
+    }
+}
+
 /// Memory this process can still be given: the machine's `MemAvailable` (`/proc/meminfo`: free
 /// memory plus the page cache and other memory the kernel can reclaim), or less when the control
 /// group the process runs in (a batch scheduler's job, a container) has a memory limit that
@@ -222,6 +245,13 @@ mod tests {
         std::fs::write(dir.path().join("memory/memory.usage_in_bytes"), "0").unwrap();
         assert_eq!(cgroup_headroom(container, dir.path()), Some(64 * mib));
         assert_eq!(cgroup_headroom("garbage\n\n", dir.path()), None);
+    }
+
+    #[test]
+    fn bytes_are_described_in_mib_below_a_gib() {
+        assert_eq!(describe_bytes(87_417_888), "83 MiB");
+        assert_eq!(describe_bytes(3 << 30), "3.0 GiB");
+        assert_eq!(describe_bytes((1 << 30) - 1), "1024 MiB");
     }
 
     #[test]

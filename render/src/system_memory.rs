@@ -82,7 +82,7 @@ pub fn available() -> Option<Available> {
 /// hierarchy under `root/memory`): `memory.limit_in_bytes`, `memory.usage_in_bytes` and
 /// `total_cache` of `memory.stat`. A group's own path may not exist inside a container that
 /// sees only its own group at the mount's root: that root is read then.
-pub fn cgroup_headroom(proc_cgroup: &str, root: &Path) -> Option<u64> {
+fn cgroup_headroom(proc_cgroup: &str, root: &Path) -> Option<u64> {
     let mut smallest: Option<u64> = None;
     for line in proc_cgroup.lines() {
         let mut parts = line.splitn(3, ':');

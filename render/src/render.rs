@@ -108,17 +108,15 @@ fn render_with(
 /// process part way through the frame instead of it failing with a message.
 fn check_frame_fits((w, h): (u32, u32), available: Option<Available>) -> Result<()> {
     let needed = FrameBuffer::bytes_for(w, h);
-    match available {
-        Some(free) if needed.saturating_add(needed / 10) > free.bytes => {
-            Err(RenderError::Invalid(format!(
-                "a {w}x{h} frame needs {} for its {FRAME_PLANES} planes and {} {} available: \
-                 render a smaller frame",
-                describe_bytes(needed),
-                free.whose(),
-                describe_bytes(free.bytes)
-            )))
-        }
-        _ => Ok(()),
+    match Available::short_of(needed, available) {
+        Some(free) => Err(RenderError::Invalid(format!(
+            "a {w}x{h} frame needs {} for its {FRAME_PLANES} planes and {} {} available: \
+             render a smaller frame",
+            describe_bytes(needed),
+            free.whose(),
+            describe_bytes(free.bytes)
+        ))),
+        None => Ok(()),
     }
 }
 

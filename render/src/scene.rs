@@ -594,18 +594,16 @@ const BVH_BYTES_PER_VOXEL: u64 = 12;
 /// failing with a message.
 fn check_bvh_fits(iso: f32, voxels: usize, available: Option<Available>) -> Result<()> {
     let needed = (voxels as u64).saturating_mul(BVH_BYTES_PER_VOXEL);
-    match available {
-        Some(free) if needed.saturating_add(needed / 10) > free.bytes => {
-            Err(RenderError::Invalid(format!(
-                "iso {iso}: the BVH of its {voxels} active voxels needs about {} and {} {} \
-                 available: render a smaller region (a clip box, or the view's frustum alone) \
-                 or an isovalue with fewer active voxels",
-                describe_bytes(needed),
-                free.whose(),
-                describe_bytes(free.bytes)
-            )))
-        }
-        _ => Ok(()),
+    match Available::short_of(needed, available) {
+        Some(free) => Err(RenderError::Invalid(format!(
+            "iso {iso}: the BVH of its {voxels} active voxels needs about {} and {} {} \
+             available: render a smaller region (a clip box, or the view's frustum alone) or \
+             an isovalue with fewer active voxels",
+            describe_bytes(needed),
+            free.whose(),
+            describe_bytes(free.bytes)
+        ))),
+        None => Ok(()),
     }
 }
 

@@ -34,6 +34,12 @@ pub fn describe_bytes(bytes: u64) -> String {
 }
 
 impl Available {
+    /// `available`, when `needed` bytes with a tenth to spare do not fit in it (`None` when
+    /// they fit or nothing is known).
+    pub fn short_of(needed: u64, available: Option<Available>) -> Option<Available> {
+        available.filter(|free| needed.saturating_add(needed / 10) > free.bytes)
+    }
+
     /// How a message names what leaves these bytes, before the amount.
     pub fn whose(&self) -> &'static str {
         if self.by_limit {

@@ -163,6 +163,9 @@ impl Scene {
             if options.release_pages {
                 source.set_page_release(PageRelease::new(file));
             }
+            source.set_refs_check(Box::new(|iso, voxels| {
+                check_bvh_fits(iso, (voxels, Found::SoFar), system_memory::available())
+            }));
             Ok(SceneSources {
                 main: source,
                 colors: Vec::new(),
@@ -571,7 +574,7 @@ impl Scene {
         };
         stats.extract += t.elapsed();
         source.release_pages();
-        check_bvh_fits(iso, refs.len(), system_memory::available())
+        check_bvh_fits(iso, (refs.len(), Found::All), system_memory::available())
             .map_err(|e| e.in_file(&self.path))?;
         let t = Instant::now();
         let surface = Surface::build_owned(source, iso, refs, builder);
@@ -588,15 +591,33 @@ impl Scene {
 /// apart from that (it builds in chunks).
 const BVH_BYTES_PER_VOXEL: u64 = 12;
 
-/// Refuses to build the BVH of the `voxels` active voxels of isovalue `iso` when it needs, with
-/// a tenth to spare, more than `available` bytes (the memory this process can still be given,
-/// when known): the system would kill the process part way through the build instead of it
-/// failing with a message.
-fn check_bvh_fits(iso: f32, voxels: usize, available: Option<Available>) -> Result<()> {
+/// Whether an extraction has found all its active voxels or is part way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Found {
+    /// Every active voxel of the isovalue.
+    All,
+    /// Those found before the extraction was stopped.
+    SoFar,
+}
+
+/// Refuses to build the BVH of the `voxels` active voxels of isovalue `iso` (all of them, or
+/// those an extraction has found so far, which stops it) when it needs, with a tenth to spare,
+/// more than `available` bytes (the memory this process can still be given, when known): the
+/// system would kill the process part way through the build, or through the extraction as its
+/// refs grow, instead of it failing with a message.
+fn check_bvh_fits(
+    iso: f32,
+    (voxels, found): (usize, Found),
+    available: Option<Available>,
+) -> Result<()> {
     let needed = (voxels as u64).saturating_mul(BVH_BYTES_PER_VOXEL);
+    let found = match found {
+        Found::All => "",
+        Found::SoFar => " found so far (the extraction stopped there)",
+    };
     match Available::short_of(needed, available) {
         Some(free) => Err(RenderError::Invalid(format!(
-            "iso {iso}: the BVH of its {voxels} active voxels needs about {} and {} {} \
+            "iso {iso}: the BVH of its {voxels} active voxels{found} needs about {} and {} {} \
              available: render a smaller region (a clip box, or the view's frustum alone) or \
              an isovalue with fewer active voxels",
             describe_bytes(needed),
@@ -654,17 +675,23 @@ mod tests {
             })
         };
         // 100 M voxels: about 1.1 GiB of BVH.
-        assert!(check_bvh_fits(10.0, 100_000_000, limit(2 * gib)).is_ok());
-        assert!(check_bvh_fits(10.0, 100_000_000, None).is_ok());
-        let text = check_bvh_fits(10.0, 100_000_000, limit(gib))
+        let all = (100_000_000, Found::All);
+        assert!(check_bvh_fits(10.0, all, limit(2 * gib)).is_ok());
+        assert!(check_bvh_fits(10.0, all, None).is_ok());
+        let text = check_bvh_fits(10.0, all, limit(gib))
             .unwrap_err()
             .to_string();
         assert!(
             text.contains("iso 10")
                 && text.contains("100000000 active voxels")
                 && text.contains("1.1 GiB")
-                && text.contains("memory limit"),
+                && text.contains("memory limit")
+                && !text.contains("so far"),
             "{text}"
         );
+        let text = check_bvh_fits(10.0, (100_000_000, Found::SoFar), limit(gib))
+            .unwrap_err()
+            .to_string();
+        assert!(text.contains("found so far"), "{text}");
     }
 }

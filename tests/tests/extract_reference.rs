@@ -506,3 +506,57 @@ fn compressed_bricks_are_decoded_once_per_extraction() {
         "a cache too small for one brick still works"
     );
 }
+
+/// An extraction taken in chunks (its file's pages released) runs the refs check after each
+/// chunk with the refs found so far, stops with the check's error, and gives the same refs as
+/// one without a check when the check passes.
+#[test]
+fn the_refs_check_runs_after_each_chunk_and_can_stop_the_extraction() {
+    use amr_render::mapping::{open_mapped, PageRelease};
+    use amr_render::RenderError;
+    use amr_synth::BoxParams;
+    use std::sync::{Arc, Mutex};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("boxes.amrk");
+    let params = BoxParams {
+        base: 32,
+        ratios: vec![2, 2],
+        sizes: (1, 2),
+        seed: 5,
+    };
+    small_boxes_file(&path, &params, true);
+    let file = open_mapped(&path).unwrap();
+    let plain = Extractor::new(&file, 0, 64 << 20).unwrap();
+    let iso = 10.0;
+    let expected = plain.extract(iso).unwrap();
+    assert!(
+        expected.stats.leaves_visited > 4096,
+        "{} leaves visited: too few for two chunks of 4096",
+        expected.stats.leaves_visited
+    );
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let mut checked = Extractor::new(&file, 0, 64 << 20).unwrap();
+    checked.set_page_release(PageRelease::with_floor(&file, 0));
+    let log = Arc::clone(&seen);
+    checked.set_refs_check(Box::new(move |at, n| {
+        log.lock().unwrap().push((at, n));
+        Ok(())
+    }));
+    assert_eq!(checked.extract(iso).unwrap().refs, expected.refs);
+    let seen = seen.lock().unwrap().clone();
+    assert!(seen.len() >= 2, "checked {} times", seen.len());
+    assert!(seen.iter().all(|&(at, _)| at == iso));
+    assert!(
+        seen.windows(2).all(|w| w[0].1 <= w[1].1) && seen.last().unwrap().1 <= expected.refs.len(),
+        "{seen:?}"
+    );
+
+    let mut stopped = Extractor::new(&file, 0, 64 << 20).unwrap();
+    stopped.set_page_release(PageRelease::with_floor(&file, 0));
+    stopped.set_refs_check(Box::new(|_, n| match n {
+        0 => Ok(()),
+        _ => Err(RenderError::Invalid(format!("{n} refs: too many"))),
+    }));
+    let err = stopped.extract(iso).unwrap_err().to_string();
+    assert!(err.contains("refs: too many"), "{err}");
+}

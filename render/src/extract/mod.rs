@@ -110,6 +110,10 @@ pub struct Extraction {
     pub stats: ExtractStats,
 }
 
+/// A test of an extraction's refs so far (the isovalue, how many), run after each chunk of
+/// leaves: an error stops the extraction with it ([`Extractor::set_refs_check`]).
+pub type RefsCheck = Box<dyn Fn(f32, usize) -> Result<()> + Send + Sync>;
+
 /// Extracts and decodes active voxels of one field of an open file.
 pub struct Extractor<'f, D> {
     sampler: Sampler<'f, D>,
@@ -121,6 +125,7 @@ pub struct Extractor<'f, D> {
     coarse: CoarseBounds,
     cells: CellTiles,
     pages: Option<PageRelease<'f>>,
+    refs_check: Option<RefsCheck>,
 }
 
 impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
@@ -144,6 +149,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             sampler,
             file_cells,
             pages: None,
+            refs_check: None,
         })
     }
 
@@ -152,6 +158,15 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// chunks of the map bytes resident at the end of each chunk.
     pub fn set_page_release(&mut self, pages: PageRelease<'f>) {
         self.pages = Some(pages);
+    }
+
+    /// Runs `check` on the refs found so far after each chunk of leaves an extraction takes
+    /// (a file is taken in chunks when its map is larger than 64 MiB or its pages may be
+    /// released, [`Self::set_page_release`]; a smaller one in one piece, unchecked): a caller
+    /// that will need memory for each ref (a BVH) stops an extraction whose refs will not fit,
+    /// before the refs themselves outgrow the memory left.
+    pub fn set_refs_check(&mut self, check: RefsCheck) {
+        self.refs_check = Some(check);
     }
 
     /// The page release set with [`Self::set_page_release`].
@@ -344,6 +359,10 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 done = parts;
                 if let Some(b) = self.release_pages() {
                     touched = Some(touched.unwrap_or(0) + b);
+                }
+                if let Some(check) = &self.refs_check {
+                    let pending: usize = done.iter().flatten().map(|(r, _)| r.len()).sum();
+                    check(iso, refs.len() + pending)?;
                 }
             }
             // The workers are done: the pool shares the copies.

@@ -21,7 +21,8 @@ use crate::error::{RenderError, Result};
 use crate::extract::current::CurrentVoxels;
 use crate::extract::nearest::NearestFaces;
 use crate::extract::{
-    candidate_leaves, DecodeFrame, ExtractStats, Extraction, Extractor, LeafBoxes, Region,
+    candidate_leaves, DecodeFrame, ExtractStats, Extraction, Extractor, LeafBoxes, RefsCheck,
+    Region,
 };
 use crate::mapping::PageRelease;
 use crate::reconstruct::level_gradient::LevelBlocks;
@@ -148,6 +149,14 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     pub fn set_page_release(&mut self, pages: PageRelease<'f>) {
         if let Voxels::Octant(e) = &mut self.voxels {
             e.set_page_release(pages);
+        }
+    }
+
+    /// Runs `check` on the refs an octant extraction has found after each chunk of leaves
+    /// ([`Extractor::set_refs_check`]).
+    pub fn set_refs_check(&mut self, check: RefsCheck) {
+        if let Voxels::Octant(e) = &mut self.voxels {
+            e.set_refs_check(check);
         }
     }
 

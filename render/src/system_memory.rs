@@ -2,7 +2,7 @@
 //! it can still be given without swapping or being killed (`/proc` and the cgroup file system,
 //! Linux; `None` elsewhere).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Peak resident set of this process (`VmHWM` in `/proc/self/status`).
 pub fn peak_rss_bytes() -> Option<u64> {
@@ -63,21 +63,13 @@ pub fn available() -> Option<Available> {
     let group = std::fs::read_to_string("/proc/self/cgroup")
         .ok()
         .and_then(|text| cgroup_headroom(&text, Path::new("/sys/fs/cgroup")));
-    match (machine, group) {
-        (Some(m), Some(g)) if g < m => Some(Available {
-            bytes: g,
-            by_limit: true,
-        }),
-        (Some(m), _) => Some(Available {
-            bytes: m,
-            by_limit: false,
-        }),
-        (None, Some(g)) => Some(Available {
-            bytes: g,
-            by_limit: true,
-        }),
-        (None, None) => None,
-    }
+    let (bytes, by_limit) = match (machine, group) {
+        (Some(m), Some(g)) => (m.min(g), g < m),
+        (Some(m), None) => (m, false),
+        (None, Some(g)) => (g, true),
+        (None, None) => return None,
+    };
+    Some(Available { bytes, by_limit })
 }
 
 /// What the memory limits of the process's control groups leave it, the smallest over the
@@ -89,72 +81,72 @@ pub fn available() -> Option<Available> {
 /// `total_cache` of `memory.stat`. A group's own path may not exist inside a container that
 /// sees only its own group at the mount's root: that root is read then.
 fn cgroup_headroom(proc_cgroup: &str, root: &Path) -> Option<u64> {
-    let mut smallest: Option<u64> = None;
-    for line in proc_cgroup.lines() {
-        let mut parts = line.splitn(3, ':');
-        let (Some(_), Some(controllers), Some(path)) = (parts.next(), parts.next(), parts.next())
-        else {
-            continue;
-        };
-        let headroom = if controllers.is_empty() {
-            walk_groups(root, path, v2_headroom)
-        } else if controllers.split(',').any(|c| c == "memory") {
-            walk_groups(&root.join("memory"), path, v1_headroom)
-        } else {
-            None
-        };
-        if let Some(h) = headroom {
-            smallest = Some(smallest.map_or(h, |s| s.min(h)));
-        }
-    }
-    smallest
+    proc_cgroup
+        .lines()
+        .filter_map(|line| {
+            let mut parts = line.splitn(3, ':');
+            let (_, controllers, path) = (parts.next()?, parts.next()?, parts.next()?);
+            if controllers.is_empty() {
+                smallest_up_from(root, path, &V2)
+            } else if controllers.split(',').any(|c| c == "memory") {
+                smallest_up_from(&root.join("memory"), path, &V1)
+            } else {
+                None
+            }
+        })
+        .min()
 }
 
-/// The smallest `headroom` of the groups from `path` (relative to the hierarchy's `mount`) up to
-/// the mount itself; the mount alone when `path` is not there.
-fn walk_groups(mount: &Path, path: &str, headroom: fn(&Path) -> Option<u64>) -> Option<u64> {
-    let mut dir: PathBuf = mount.join(path.trim_start_matches('/'));
-    if !dir.is_dir() {
-        dir = mount.to_path_buf();
-    }
-    let mut smallest: Option<u64> = None;
-    loop {
-        if let Some(h) = headroom(&dir) {
-            smallest = Some(smallest.map_or(h, |s| s.min(h)));
-        }
-        if dir.as_path() == mount || !dir.pop() || !dir.starts_with(mount) {
-            return smallest;
-        }
-    }
+/// The files of a cgroup version's memory controller that [`group_headroom`] reads.
+struct MemoryFiles {
+    /// The limit: a number, or a word or huge number for none.
+    limit: &'static str,
+    /// The memory in use.
+    usage: &'static str,
+    /// The `memory.stat` key of the page cache within it.
+    cache: &'static str,
 }
 
-/// A cgroup-v2 group's limit less its memory in use other than page cache.
-fn v2_headroom(dir: &Path) -> Option<u64> {
-    let limit: u64 = read_trimmed(&dir.join("memory.max"))?.parse().ok()?;
-    let current: u64 = read_trimmed(&dir.join("memory.current"))?.parse().ok()?;
-    let cache = stat_field(&dir.join("memory.stat"), "file").unwrap_or(0);
-    Some(limit.saturating_sub(current.saturating_sub(cache)))
+/// Version 2 (no limit: `max`).
+const V2: MemoryFiles = MemoryFiles {
+    limit: "memory.max",
+    usage: "memory.current",
+    cache: "file",
+};
+
+/// Version 1 (no limit: a number near `i64::MAX`).
+const V1: MemoryFiles = MemoryFiles {
+    limit: "memory.limit_in_bytes",
+    usage: "memory.usage_in_bytes",
+    cache: "total_cache",
+};
+
+/// The smallest [`group_headroom`] of the groups from `path` (relative to the hierarchy's
+/// `mount`) up to the mount itself; from the mount alone when `path` is not there.
+fn smallest_up_from(mount: &Path, path: &str, files: &MemoryFiles) -> Option<u64> {
+    let own = mount.join(path.trim_start_matches('/'));
+    let start = if own.is_dir() { own.as_path() } else { mount };
+    start
+        .ancestors()
+        .take_while(|dir| dir.starts_with(mount))
+        .filter_map(|dir| group_headroom(dir, files))
+        .min()
 }
 
-/// A cgroup-v1 group's limit less its memory in use other than page cache. Version 1 writes
-/// "no limit" as a number near `i64::MAX`.
-fn v1_headroom(dir: &Path) -> Option<u64> {
-    let limit: u64 = read_trimmed(&dir.join("memory.limit_in_bytes"))?
-        .parse()
-        .ok()?;
+/// A group's limit less its memory in use other than page cache; `None` without a limit.
+fn group_headroom(dir: &Path, files: &MemoryFiles) -> Option<u64> {
+    let limit = read_number(&dir.join(files.limit))?;
     if limit >= 1 << 62 {
         return None;
     }
-    let usage: u64 = read_trimmed(&dir.join("memory.usage_in_bytes"))?
-        .parse()
-        .ok()?;
-    let cache = stat_field(&dir.join("memory.stat"), "total_cache").unwrap_or(0);
+    let usage = read_number(&dir.join(files.usage))?;
+    let cache = stat_field(&dir.join("memory.stat"), files.cache).unwrap_or(0);
     Some(limit.saturating_sub(usage.saturating_sub(cache)))
 }
 
-/// The file's text, trimmed.
-fn read_trimmed(path: &Path) -> Option<String> {
-    Some(std::fs::read_to_string(path).ok()?.trim().to_owned())
+/// The number a file holds alone.
+fn read_number(path: &Path) -> Option<u64> {
+    std::fs::read_to_string(path).ok()?.trim().parse().ok()
 }
 
 /// The value of the line `key N` of a cgroup `memory.stat` file.

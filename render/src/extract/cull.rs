@@ -231,16 +231,7 @@ fn settle_coarse<D: AsRef<[u8]>>(
     let q_box = grid.finest_box(q.level, q.cell);
     let settle_all_in_q = |hood: &mut Neighbourhood, bound: (f32, f32)| {
         let inside = level_box(grid, level, &q_box).intersect(&hood.cells);
-        for z in inside.lo[2]..inside.hi[2] {
-            for y in inside.lo[1]..inside.hi[1] {
-                let row = hood.index([inside.lo[0], y, z]);
-                for i in row..row + inside.extent()[0] as usize {
-                    if hood.codes()[i] & PENDING != 0 {
-                        hood.settle_coarse(i, bound, code_iso);
-                    }
-                }
-            }
-        }
+        hood.settle_pending_in(&inside, bound, code_iso);
     };
     if let Some(iso) = iso {
         if let Some(bound) = leaf_side_of(sampler, tight, &q, &q_box, iso) {

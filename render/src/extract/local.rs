@@ -969,27 +969,31 @@ impl Neighbourhood {
         iso: f32,
         mut bound_of: impl FnMut(u32, u32) -> Option<(f32, f32)>,
     ) {
-        let blocks = std::mem::take(&mut self.coarser_blocks);
-        for &(block, leaf, level) in &blocks {
+        for k in 0..self.coarser_blocks.len() {
             if self.pending_left == 0 {
                 break;
             }
-            let Some(bound) = bound_of(leaf, level) else {
-                continue;
-            };
-            let w = block.extent()[0].max(0) as usize;
-            for z in block.lo[2]..block.hi[2] {
-                for y in block.lo[1]..block.hi[1] {
-                    let row = self.index([block.lo[0], y, z]);
-                    for i in row..row + w {
-                        if self.codes[i] & PENDING != 0 {
-                            self.settle_coarse(i, bound, iso);
-                        }
+            let (block, leaf, level) = self.coarser_blocks[k];
+            if let Some(bound) = bound_of(leaf, level) {
+                self.settle_pending_in(&block, bound, iso);
+            }
+        }
+    }
+
+    /// Settles every pending cell of box `b` (inside [`Self::cells`]) with `bound`, as
+    /// [`Self::settle_coarse`] with `iso`.
+    pub fn settle_pending_in(&mut self, b: &IBox, bound: (f32, f32), iso: f32) {
+        let w = b.extent()[0].max(0) as usize;
+        for z in b.lo[2]..b.hi[2] {
+            for y in b.lo[1]..b.hi[1] {
+                let row = self.index([b.lo[0], y, z]);
+                for i in row..row + w {
+                    if self.codes[i] & PENDING != 0 {
+                        self.settle_coarse(i, bound, iso);
                     }
                 }
             }
         }
-        self.coarser_blocks = blocks;
     }
 
     /// True when the bound of the cell at index `i` may be narrowed to its coarse octants'

@@ -2,10 +2,10 @@
 """Issue 17's goal 1 over many isovalues: extraction rate per file cell of small-box files
 against the same field on big boxes, isovalue by isovalue, for one or two builds.
 
-    scripts/bench-extract-sweep.py DATA RUNS THREADS ISOS BIN [BIN2]
+    scripts/bench-extract-sweep.py [--files A,B,...] DATA RUNS THREADS ISOS BIN [BIN2]
 
 DATA holds tiny.amrk, mid.amrk and big.amrk (the commands that make them are in
-scripts/bench-pairs.py); ISOS is a comma-separated list, e.g. 5,6,7,8,9,10,11,12. Each run
+scripts/bench-pairs.py), or the files named by --files (without `.amrk`; `big` among them); ISOS is a comma-separated list, e.g. 5,6,7,8,9,10,11,12. Each run
 extracts every file at every isovalue once with each build in turn (alternating which goes
 first), in a fresh process, the page cache warm after a warm-up pass. Prints per file and
 isovalue the median `seconds`, the rate in file cells per core-second, the ratio of `big`'s
@@ -30,6 +30,12 @@ def extract(binary, path, iso, threads, out):
 
 
 def main():
+    global FILES
+    if len(sys.argv) > 2 and sys.argv[1] == "--files":
+        FILES = sys.argv[2].split(",")
+        del sys.argv[1:3]
+        if "big" not in FILES:
+            sys.exit("--files must name big, the files' reference")
     if len(sys.argv) < 6:
         sys.exit(__doc__)
     data, runs, threads, isos = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4].split(",")

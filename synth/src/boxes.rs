@@ -25,17 +25,23 @@ pub struct BoxParams {
     pub sizes: (u32, u32),
     /// Seed of the box extents.
     pub seed: u64,
+    /// When set, every box is cut afterwards into pieces of these extents (smallest, largest;
+    /// cells of the box's level, rounded up to whole parent cells): the same levels and cells,
+    /// so the same field on the same refined region, in more and smaller boxes.
+    pub pieces: Option<(u32, u32)>,
 }
 
 impl BoxParams {
     /// Checks every parameter, naming the one at fault.
     pub fn validate(&self) -> Result<(), FormatError> {
         let bad = |m: String| Err(FormatError::InvalidHierarchy(m));
-        let (lo, hi) = self.sizes;
-        if lo == 0 || lo > hi || i64::from(hi) > amr_format::hierarchy::MAX_BRICK_EXTENT {
-            return bad(format!(
-                "box sizes {lo}..{hi} (need 1 <= min <= max <= 1024)"
-            ));
+        for (what, (lo, hi)) in [("box sizes", Some(self.sizes)), ("box pieces", self.pieces)]
+            .into_iter()
+            .filter_map(|(what, s)| Some((what, s?)))
+        {
+            if lo == 0 || lo > hi || i64::from(hi) > amr_format::hierarchy::MAX_BRICK_EXTENT {
+                return bad(format!("{what} {lo}..{hi} (need 1 <= min <= max <= 1024)"));
+            }
         }
         if self.base == 0 {
             return bad("base 0 (must be at least 1)".into());
@@ -61,7 +67,8 @@ impl BoxParams {
 }
 
 /// The hierarchy of irregular boxes of `params`, refined around `field`'s default isosurface;
-/// its one field is named `name`. Levels left without boxes are dropped.
+/// its one field is named `name`. Levels left without boxes are dropped. With
+/// [`BoxParams::pieces`], each box is then cut into pieces, after the levels are laid out.
 pub fn build_box_hierarchy<F: AnalyticField + Sync>(
     field: &F,
     name: &str,
@@ -70,7 +77,13 @@ pub fn build_box_hierarchy<F: AnalyticField + Sync>(
     params.validate()?;
     let iso = field.default_iso();
     let n = |l: usize| params.cells_per_axis(l).expect("validated");
-    let mut current = cut(&IBox::new([0; 3], [n(0); 3]), params, 0, 1);
+    let mut current = cut(
+        &IBox::new([0; 3], [n(0); 3]),
+        params.sizes,
+        params.seed,
+        0,
+        1,
+    );
     let mut bricks: Vec<BrickSpec> = current
         .iter()
         .map(|&cells| BrickSpec { level: 0, cells })
@@ -84,7 +97,7 @@ pub fn build_box_hierarchy<F: AnalyticField + Sync>(
             .par_iter()
             .flat_map_iter(|parent| {
                 let fine = parent.refine([r; 3]).expect("validated");
-                cut(&fine, params, level as u64, r)
+                cut(&fine, params.sizes, params.seed, level as u64, r)
                     .into_iter()
                     .filter(move |&cells| {
                         let block = Block {
@@ -125,6 +138,24 @@ pub fn build_box_hierarchy<F: AnalyticField + Sync>(
             }
         })
         .collect();
+    if let Some(pieces) = params.pieces {
+        bricks = bricks
+            .iter()
+            .flat_map(|b| {
+                let unit = match b.level {
+                    0 => 1,
+                    l => i64::from(params.ratios[l as usize - 1]),
+                };
+                let seed = !params.seed;
+                cut(&b.cells, pieces, seed, u64::from(b.level), unit)
+                    .into_iter()
+                    .map(|cells| BrickSpec {
+                        level: b.level,
+                        cells,
+                    })
+            })
+            .collect();
+    }
     Ok(HierarchySpec {
         levels: specs,
         fields: vec![name.to_owned()],
@@ -175,14 +206,14 @@ impl Coverage {
     }
 }
 
-/// `region` cut into boxes whose extents along each axis are drawn from `params.sizes` and
-/// rounded up to a multiple of `unit` (the ratio to the parent level, so that every box is made
-/// of whole parent cells); the cuts along an axis depend on the seed, the level, the axis and
-/// the region's position.
-fn cut(region: &IBox, params: &BoxParams, level: u64, unit: i64) -> Vec<IBox> {
+/// `region` cut into boxes whose extents along each axis are drawn from `sizes` and rounded up
+/// to a multiple of `unit` (the ratio to the parent level, so that every box is made of whole
+/// parent cells); the cuts along an axis depend on the seed, the level, the axis and the
+/// region's position.
+fn cut(region: &IBox, sizes: (u32, u32), seed: u64, level: u64, unit: i64) -> Vec<IBox> {
     let spans: [Vec<(i64, i64)>; 3] = std::array::from_fn(|a| {
-        let key = params.seed ^ level << 56 ^ (a as u64) << 48 ^ region.lo[a] as u64;
-        spans(region.lo[a], region.hi[a], params.sizes, unit, key)
+        let key = seed ^ level << 56 ^ (a as u64) << 48 ^ region.lo[a] as u64;
+        spans(region.lo[a], region.hi[a], sizes, unit, key)
     });
     let mut out = Vec::with_capacity(spans.iter().map(Vec::len).product());
     for &(z0, z1) in &spans[2] {
@@ -226,12 +257,64 @@ mod tests {
     use crate::fields::Case;
 
     #[test]
+    fn pieces_hold_the_same_cells_in_more_boxes() {
+        let whole = BoxParams {
+            base: 16,
+            ratios: vec![2, 4],
+            sizes: (8, 8),
+            seed: 1,
+            pieces: None,
+        };
+        let cut = BoxParams {
+            pieces: Some((1, 3)),
+            ..whole.clone()
+        };
+        let a = build_box_hierarchy(&Case::Blobs, "blobs", &whole).unwrap();
+        let b = build_box_hierarchy(&Case::Blobs, "blobs", &cut).unwrap();
+        b.validate().unwrap();
+        assert_eq!(a.levels, b.levels);
+        assert!(
+            b.bricks.len() > 4 * a.bricks.len(),
+            "{} boxes",
+            b.bricks.len()
+        );
+        for level in 0..a.levels.len() as u32 {
+            let cells = |s: &HierarchySpec| {
+                let mut v: Vec<[i64; 3]> = s
+                    .bricks
+                    .iter()
+                    .filter(|b| b.level == level)
+                    .flat_map(|b| {
+                        let c = b.cells;
+                        (c.lo[2]..c.hi[2]).flat_map(move |z| {
+                            (c.lo[1]..c.hi[1])
+                                .flat_map(move |y| (c.lo[0]..c.hi[0]).map(move |x| [x, y, z]))
+                        })
+                    })
+                    .collect();
+                v.sort_unstable();
+                v
+            };
+            let (ca, cb) = (cells(&a), cells(&b));
+            assert_eq!(ca, cb, "level {level}");
+            assert!(
+                cb.windows(2).all(|w| w[0] != w[1]),
+                "level {level} overlaps"
+            );
+        }
+        let extents: std::collections::BTreeSet<i64> =
+            b.bricks.iter().flat_map(|b| b.cells.extent()).collect();
+        assert!(extents.iter().all(|&e| e <= 4), "{extents:?}");
+    }
+
+    #[test]
     fn boxes_nest_do_not_overlap_and_vary_in_size() {
         let params = BoxParams {
             base: 16,
             ratios: vec![2, 4],
             sizes: (2, 7),
             seed: 1,
+            pieces: None,
         };
         let spec = build_box_hierarchy(&Case::Blobs, "blobs", &params).unwrap();
         spec.validate().unwrap();

@@ -336,30 +336,32 @@ fn extraction_equals_brute_force_on_small_irregular_boxes() {
     use amr_synth::BoxParams;
     let dir = tempfile::tempdir().unwrap();
     let (mut culled, mut skipped) = (0, 0);
-    // Seed 3's boxes are small enough (at most 32 cells per leaf on average) that small
-    // leaves take their neighbourhoods from tiles of cells (`extract::cell_tiles`).
-    for seed in 1..=3u64 {
+    // Whether small leaves took their neighbourhoods from tiles of cells
+    // (`extract::cell_tiles`), which the smaller boxes of some seeds turn on: both ways are met.
+    let mut tiled = std::collections::BTreeSet::new();
+    // Seed 4 cuts larger boxes into pieces after the levels are laid out, so that fine boxes
+    // straddle coarse ones.
+    for seed in 1..=4u64 {
         let params = BoxParams {
             base: 6,
             ratios: if seed == 3 { vec![2, 2] } else { vec![2, 4] },
-            sizes: if seed == 3 { (1, 2) } else { (1, 5) },
+            sizes: match seed {
+                3 => (1, 2),
+                4 => (4, 8),
+                _ => (1, 5),
+            },
             seed,
+            pieces: (seed == 4).then_some((1, 3)),
         };
         // Without stored tight ranges (computed as the extraction goes) and with them.
         for stored in [false, true] {
             let path = dir.path().join(format!("boxes{seed}-{stored}.amrk"));
             let file = small_boxes_file(&path, &params, stored);
             assert_eq!(file.has_tight_ranges(), stored);
-            let cells = Extractor::new(&file, 0, 64 << 20)
-                .and_then(|ex| ex.extract(0.0))
-                .unwrap()
-                .stats
-                .file_cells;
-            assert_eq!(
-                amr_render::extract::cell_tiles::CellTiles::pays(cells, file.num_leaves()),
-                seed == 3,
-                "seed {seed}: {cells} cells in {} leaves",
-                file.num_leaves()
+            tiled.insert(
+                Extractor::new(&file, 0, 64 << 20)
+                    .unwrap()
+                    .uses_cell_tiles(),
             );
             let name = format!("small boxes {params:?}, stored tight ranges {stored}");
             let (c, s, _, _) = check_file(&file, seed, &name);
@@ -371,6 +373,7 @@ fn extraction_equals_brute_force_on_small_irregular_boxes() {
         culled > 0 && skipped > 0,
         "culled {culled}, skipped {skipped}"
     );
+    assert_eq!(tiled.len(), 2, "tiles used: {tiled:?}");
 }
 
 /// Small boxes whose leaves take their neighbourhoods from the cell tiles, which the threads
@@ -385,12 +388,13 @@ fn shared_cell_tiles_give_the_same_refs_on_any_thread_count() {
         ratios: vec![2, 2],
         sizes: (1, 2),
         seed: 3,
+        pieces: None,
     };
     let file = small_boxes_file(&dir.path().join("boxes.amrk"), &params, true);
     let ex = Extractor::new(&file, 0, 64 << 20).unwrap();
     let cells = ex.extract(0.0).unwrap().stats.file_cells;
     assert!(
-        amr_render::extract::cell_tiles::CellTiles::pays(cells, file.num_leaves()),
+        ex.uses_cell_tiles(),
         "{cells} cells in {} leaves: the tiles are not used",
         file.num_leaves()
     );
@@ -523,6 +527,7 @@ fn the_refs_check_runs_after_each_chunk_and_can_stop_the_extraction() {
         ratios: vec![2, 2],
         sizes: (1, 2),
         seed: 5,
+        pieces: None,
     };
     small_boxes_file(&path, &params, true);
     let file = open_mapped(&path).unwrap();

@@ -24,6 +24,7 @@ use std::sync::Mutex;
 use amr_format::IBox;
 
 use super::band::AroundMemo;
+use super::blocks::level_box;
 use super::cull::{settle_in, Shared};
 use super::leaf_tree::Met;
 use super::local::Neighbourhood;
@@ -34,8 +35,9 @@ use crate::reconstruct::{Sampler, VertexMemo};
 const TILE_SHIFT: u32 = 3;
 /// Cells per axis of a tile.
 pub const TILE: i64 = 1 << TILE_SHIFT;
-/// File cells per leaf, on average, at most, for the tiles to be used.
-const MAX_MEAN_CELLS: u64 = 32;
+/// Cells per axis (of its level) of a leaf, at most, for its cells to count towards the tiles
+/// being used ([`CellTiles::pays`]).
+const SMALL_LEAF: i64 = 4;
 /// Tiles kept per worker thread, at most (about 6 KB each). Few enough that the tiles reuse
 /// their memory: every page first touched costs a fault that, on the small boxes tiles are for,
 /// outweighs refilling a cheap tile pushed out; enough that the tiles of coarse levels, whose
@@ -80,12 +82,28 @@ struct ThreadTiles {
 struct OwnLines<T>(T);
 
 impl CellTiles {
-    /// True when a file of `cells` cells in `leaves` leaves has at most [`MAX_MEAN_CELLS`]
-    /// cells per leaf on average: the neighbourhoods of its leaves (each grown by one cell)
-    /// then overlap enough that classifying each cell once, in tiles, costs less than filling
-    /// each neighbourhood from the leaves around it.
-    pub fn pays(cells: u64, leaves: usize) -> bool {
-        cells <= MAX_MEAN_CELLS.saturating_mul(leaves as u64)
+    /// True when at least half of the cells of the leaves with data lie in leaves of at most
+    /// [`SMALL_LEAF`] cells per axis: most neighbourhoods (each leaf's box grown by one cell,
+    /// two thirds of whose cells are then outside the leaf) overlap enough that classifying each
+    /// cell once, in tiles, costs less than filling each neighbourhood from the leaves around
+    /// it. A share of cells, not a mean size: a few large leaves do not hide many small ones,
+    /// and a few small leaves among large ones, where tiles are filled for one neighbourhood
+    /// each, do not turn them on (`docs/benchmarks-extract.md`, `pieces`).
+    pub fn pays<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>) -> bool {
+        let grid = sampler.grid();
+        let (mut small, mut all) = (0u64, 0u64);
+        for leaf in 0..sampler.file().num_leaves() as u32 {
+            let Some((_, level)) = sampler.leaf_top(leaf) else {
+                continue;
+            };
+            let cells = level_box(grid, level, &sampler.leaf_box(leaf));
+            let n = cells.num_cells().unwrap_or(0);
+            all = all.saturating_add(n);
+            if cells.extent().iter().all(|&e| e <= SMALL_LEAF) {
+                small = small.saturating_add(n);
+            }
+        }
+        all > 0 && small >= all - small
     }
 
     /// A range holding the bounds of the level-`level` cells of box `g` once settled (the

@@ -124,6 +124,8 @@ pub struct Extractor<'f, D> {
     leaves: LeafTree,
     coarse: CoarseBounds,
     cells: CellTiles,
+    /// Whether small leaves take their neighbourhoods from [`Self::cells`] ([`CellTiles::pays`]).
+    tiled: bool,
     pages: Option<PageRelease<'f>>,
     refs_check: Option<RefsCheck>,
 }
@@ -146,11 +148,18 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
             leaves: LeafTree::new(&sampler),
             coarse: CoarseBounds::default(),
             cells: CellTiles::default(),
+            tiled: CellTiles::pays(&sampler),
             sampler,
             file_cells,
             pages: None,
             refs_check: None,
         })
+    }
+
+    /// True when small leaves take their neighbourhoods from cell tiles
+    /// ([`CellTiles::pays`]), which depends on the file alone.
+    pub fn uses_cell_tiles(&self) -> bool {
+        self.tiled
     }
 
     /// Releases `pages` after each chunk of leaves, so that the map's resident bytes stay
@@ -299,7 +308,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
         } else {
             &self.blocks
         };
-        let tiles = CellTiles::pays(self.file_cells, file.num_leaves()).then_some(&self.cells);
+        let tiles = self.tiled.then_some(&self.cells);
         let scratches = ScratchPool::new(self.shared(), tiles);
         let spare = SpareRefs::default();
         let chunks = if self.drops_pages() {
@@ -532,8 +541,7 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
                 .map_init(
                     || {
                         let shared = self.shared();
-                        let tiles = CellTiles::pays(self.file_cells, file.num_leaves())
-                            .then_some(&self.cells);
+                        let tiles = self.tiled.then_some(&self.cells);
                         Scratch::new(shared, tiles)
                     },
                     |scratch, &leaf| {

@@ -30,6 +30,10 @@ pub struct BoxesArgs {
     /// Seed of the box extents.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Then cut every box into pieces of MIN,MAX cells per axis: the same levels and cells in
+    /// more, smaller boxes (compare with the file written without it).
+    #[arg(long, value_delimiter = ',')]
+    pieces: Option<Vec<u32>>,
 }
 
 /// Writes the file and prints a one-line summary.
@@ -38,11 +42,17 @@ pub fn run(args: &BoxesArgs) -> anyhow::Result<()> {
     let [min, max] = args.sizes[..] else {
         anyhow::bail!("--sizes takes MIN,MAX, not {:?}", args.sizes);
     };
+    let pieces = match args.pieces.as_deref() {
+        None => None,
+        Some(&[min, max]) => Some((min, max)),
+        Some(other) => anyhow::bail!("--pieces takes MIN,MAX, not {other:?}"),
+    };
     let params = BoxParams {
         base: args.base,
         ratios: args.ratios.clone(),
         sizes: (min, max),
         seed: args.seed,
+        pieces,
     };
     let spec = build_box_hierarchy(&case, case.name(), &params)?;
     let per_level = cells_per_level(&spec);

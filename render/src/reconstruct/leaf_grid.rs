@@ -29,9 +29,14 @@ const ENTRIES_PER_LEAF: u64 = 16;
 /// Kd-tree leaves, at most, of a tree whose [`LazyLeafGrid`] builds its table at once: below
 /// this the table costs less than the check of whether it is built.
 const EAGER_LEAVES: usize = 2048;
-/// Kd-tree leaves per walk a [`LazyLeafGrid`] makes before it builds its table: the walks
-/// (each as deep as the tree) then cost about what the table's fill does.
-const LEAVES_PER_WALK: u64 = 16;
+/// Kd-tree leaves per walk a [`LazyLeafGrid`] makes before it builds its table. A walk costs
+/// about what the table's fill costs per leaf (on 54,387 leaves, 21 deep: 237 instructions a
+/// walk, 175 per leaf and 256 fresh pages for the table), so the walks stop near where they
+/// have paid for the table, as a renter buys once the rent has reached the price: an
+/// extraction that locates few cells never builds it, and one that locates many pays at most
+/// about twice the least it could. At 16 leaves per walk that file (`big` cut into boxes of 2
+/// to 4 cells) built it at iso 12 after 3,400 walks (`docs/benchmarks-extract.md`, `pieces`).
+const LEAVES_PER_WALK: u64 = 2;
 
 /// A uniform grid of cubes of `2^shift` finest cells over the domain, naming per cube the leaf or
 /// the node to walk from.

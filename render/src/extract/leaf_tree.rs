@@ -612,7 +612,11 @@ impl LeafTree {
         if let Some((brick, lv)) = sampler.leaf_top(l) {
             let bc = sampler.brick_cells(brick);
             let cells = level_box(sampler.grid(), lv, &self.leaf_box(l)).intersect(&bc);
-            if !cells.is_empty() {
+            if cells == bc {
+                // The leaf holds its whole brick: the range the writer stored with the brick's
+                // values (NaNs left out, as below), without reading them.
+                (lo, hi) = sampler.file().brick_range(sampler.field(), brick as usize);
+            } else if !cells.is_empty() {
                 let values = sampler.values(brick)?;
                 let w = cells.extent()[0] as usize;
                 for z in cells.lo[2]..cells.hi[2] {

@@ -521,7 +521,8 @@ pub struct Sampler<'f, D> {
     /// Per brick: when no finer brick overlaps it (so every cell of it is a leaf cell whichever
     /// kd-tree leaf holds the cell, [`Self::read_box`]), its finest cells (relative) as `lo`
     /// then `hi`; all zero otherwise (a brick's `hi` is never zero). Built on first need
-    /// ([`alone_boxes`]): an extraction never reads it.
+    /// ([`alone_boxes`]) by the first octant whose corners are read: a boundary octant's in an
+    /// extraction, any octant's in a render.
     alone: OnceLock<Vec<[u32; 6]>>,
     tree: TreeView<'f>,
     /// Point location in one table read and a short walk (the table built on first need);

@@ -9,7 +9,7 @@
 //! [`LazyLeafGrid`] builds the table on first need: a file of many small leaves whose
 //! extraction locates few cells walks the kd-tree for those instead of paying for the table.
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::OnceLock;
 
 use amr_format::kdtree::{KdNode, TreeView};
@@ -209,7 +209,8 @@ pub enum Entry {
 
 /// A [`LeafGrid`] built on first need: until then (for a tree of more than [`EAGER_LEAVES`]
 /// leaves) each query walks the kd-tree, and the table is built once the walks reach one per
-/// [`LEAVES_PER_WALK`] leaves. The answers are the same either way.
+/// [`LEAVES_PER_WALK`] leaves. The answers are the same either way, so while one thread builds
+/// the table the others go on walking instead of waiting for it.
 #[derive(Debug)]
 pub struct LazyLeafGrid {
     grid: OnceLock<LeafGrid>,
@@ -217,6 +218,8 @@ pub struct LazyLeafGrid {
     walks: AtomicU64,
     /// Walks made before the table is built.
     allowance: u64,
+    /// Set by the thread that builds the table.
+    building: AtomicBool,
 }
 
 impl LazyLeafGrid {
@@ -230,6 +233,7 @@ impl LazyLeafGrid {
             grid,
             walks: AtomicU64::new(0),
             allowance: tree.num_leaves() as u64 / LEAVES_PER_WALK,
+            building: AtomicBool::new(false),
         }
     }
 
@@ -244,11 +248,13 @@ impl LazyLeafGrid {
     }
 
     /// [`Self::find_leaf`] before the table is built: a walk, or the table's build once the
-    /// walks have used up their allowance.
+    /// walks have used up their allowance (a walk again while another thread builds it).
     #[cold]
     #[inline(never)]
     fn find_leaf_unbuilt(&self, tree: &TreeView<'_>, p: [i64; 3]) -> Option<u32> {
-        if self.walks.fetch_add(1, Ordering::Relaxed) < self.allowance {
+        if self.walks.fetch_add(1, Ordering::Relaxed) < self.allowance
+            || self.building.swap(true, Ordering::Relaxed)
+        {
             return tree.find_leaf(p);
         }
         self.grid
@@ -273,13 +279,9 @@ mod tests {
     use super::*;
     use amr_format::kdtree::{build, TreeBrick};
 
-    /// A lazy grid over a tree of many small leaves answers as the kd-tree walk does, before its
-    /// table is built (the walks) and after (the table), and builds the table once the walks'
-    /// allowance is used up.
-    #[test]
-    fn lazy_grid_answers_as_the_tree_before_and_after_its_build() {
-        // Bricks of 2^3 cells over a 64 x 32 x 16 domain, a fifth of the 4,096 places left to
-        // a coarse brick under them all.
+    /// Bricks of 2^3 cells over a 64 x 32 x 16 domain, a fifth of the 4,096 places left to a
+    /// coarse brick under them all: a tree of more than [`EAGER_LEAVES`] leaves.
+    fn many_small_leaves() -> (amr_format::kdtree::KdTree, IBox) {
         let domain = IBox::new([0; 3], [64, 32, 16]);
         let mut bricks = vec![TreeBrick {
             bounds: domain,
@@ -298,7 +300,15 @@ mod tests {
                 }
             }
         }
-        let tree = build(&bricks, domain).expect("a valid hierarchy");
+        (build(&bricks, domain).expect("a valid hierarchy"), domain)
+    }
+
+    /// A lazy grid over a tree of many small leaves answers as the kd-tree walk does, before its
+    /// table is built (the walks) and after (the table), and builds the table once the walks'
+    /// allowance is used up.
+    #[test]
+    fn lazy_grid_answers_as_the_tree_before_and_after_its_build() {
+        let (tree, domain) = many_small_leaves();
         let view = TreeView {
             nodes: &tree.nodes,
             leaves: &tree.leaves,
@@ -321,6 +331,35 @@ mod tests {
                 }
             }
         }
+        assert!(lazy.is_built());
+    }
+
+    /// Threads asking at once, one of them building the table while the others walk, get the
+    /// walk's answers, and the table is built once.
+    #[test]
+    fn threads_asking_while_the_table_is_built_get_the_same_answers() {
+        let (tree, domain) = many_small_leaves();
+        let view = TreeView {
+            nodes: &tree.nodes,
+            leaves: &tree.leaves,
+            domain,
+        };
+        let lazy = LazyLeafGrid::new(&view);
+        std::thread::scope(|s| {
+            for t in 0..4i64 {
+                let (lazy, view) = (&lazy, &view);
+                s.spawn(move || {
+                    for z in -1..17 {
+                        for y in -1..33 {
+                            for x in -1..65 {
+                                let p = [(x + 13 * t).rem_euclid(66) - 1, y, z];
+                                assert_eq!(lazy.find_leaf(view, p), view.find_leaf(p), "{p:?}");
+                            }
+                        }
+                    }
+                });
+            }
+        });
         assert!(lazy.is_built());
     }
 

@@ -86,9 +86,10 @@ impl CellTiles {
     /// [`SMALL_LEAF`] cells per axis: most neighbourhoods (each leaf's box grown by one cell,
     /// two thirds of whose cells are then outside the leaf) overlap enough that classifying each
     /// cell once, in tiles, costs less than filling each neighbourhood from the leaves around
-    /// it. A share of cells, not a mean size: a few large leaves do not hide many small ones,
-    /// and a few small leaves among large ones, where tiles are filled for one neighbourhood
-    /// each, do not turn them on (`docs/benchmarks-extract.md`, `pieces`).
+    /// it. A share of the leaves' own cells, not the file's cells per leaf: that mean also
+    /// counts the cells of coarse bricks that finer ones cover, and a few large leaves raise it;
+    /// and a few small leaves among large ones, where a tile serves one neighbourhood, do not
+    /// turn the tiles on (`docs/benchmarks-extract.md`, `pieces`).
     pub fn pays<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>) -> bool {
         let grid = sampler.grid();
         let (mut small, mut all) = (0u64, 0u64);

@@ -139,6 +139,8 @@ pub fn build_box_hierarchy<F: AnalyticField + Sync>(
         })
         .collect();
     if let Some(pieces) = params.pieces {
+        // Another seed than the layout's, so the pieces' cuts do not repeat the boxes' own.
+        let seed = !params.seed;
         bricks = bricks
             .iter()
             .flat_map(|b| {
@@ -146,7 +148,6 @@ pub fn build_box_hierarchy<F: AnalyticField + Sync>(
                     0 => 1,
                     l => i64::from(params.ratios[l as usize - 1]),
                 };
-                let seed = !params.seed;
                 cut(&b.cells, pieces, seed, u64::from(b.level), unit)
                     .into_iter()
                     .map(|cells| BrickSpec {

@@ -9,6 +9,7 @@ DATA holds the files the cases read, made by
     amr-bench boxes --base 18 --ratios 2,4,2 --sizes 2,4 -o tiny.amrk
     amr-bench boxes --base 16 --ratios 2,4,2 --sizes 2,16 -o mid.amrk
     amr-bench boxes --base 16 --ratios 2,4,2 --sizes 16,16 -o big.amrk
+    amr-bench boxes --base 16 --ratios 2,4,2 --sizes 16,16 --pieces 2,4 -o big-p2-4.amrk
     amr-convert synth blobs -o b1m.amrk --cells 1.2e6 --levels 4
     amr-convert synth blobs --levels 3 --ratio 2 --base 32 --brick 16 -o demo.amrk
     amr-convert synth blobs --cells 1e8 -o b1e8v2.amrk
@@ -36,6 +37,10 @@ CASES = {
     "tiny_extract": ("extract", f"extract {D}/tiny.amrk --iso 10"),
     "mid_extract": ("extract", f"extract {D}/mid.amrk --iso 10"),
     "big_extract": ("extract", f"extract {D}/big.amrk --iso 10"),
+    "p24_extract5": ("extract", f"extract {D}/big-p2-4.amrk --iso 5"),
+    "p24_extract12": ("extract", f"extract {D}/big-p2-4.amrk --iso 12"),
+    "big_extract5": ("extract", f"extract {D}/big.amrk --iso 5"),
+    "big_extract12": ("extract", f"extract {D}/big.amrk --iso 12"),
     "tiny_extract_t1": ("extract", f"extract {D}/tiny.amrk --iso 10 --threads 1"),
     "mid_extract_t1": ("extract", f"extract {D}/mid.amrk --iso 10 --threads 1"),
     "big_extract_t1": ("extract", f"extract {D}/big.amrk --iso 10 --threads 1"),

@@ -303,17 +303,22 @@ mod tests {
         (build(&bricks, domain).expect("a valid hierarchy"), domain)
     }
 
+    /// The view of `tree` over `domain`.
+    fn view_of(tree: &amr_format::kdtree::KdTree, domain: IBox) -> TreeView<'_> {
+        TreeView {
+            nodes: &tree.nodes,
+            leaves: &tree.leaves,
+            domain,
+        }
+    }
+
     /// A lazy grid over a tree of many small leaves answers as the kd-tree walk does, before its
     /// table is built (the walks) and after (the table), and builds the table once the walks'
     /// allowance is used up.
     #[test]
     fn lazy_grid_answers_as_the_tree_before_and_after_its_build() {
         let (tree, domain) = many_small_leaves();
-        let view = TreeView {
-            nodes: &tree.nodes,
-            leaves: &tree.leaves,
-            domain,
-        };
+        let view = view_of(&tree, domain);
         assert!(view.num_leaves() > EAGER_LEAVES);
         let lazy = LazyLeafGrid::new(&view);
         assert!(!lazy.is_built());
@@ -339,11 +344,7 @@ mod tests {
     #[test]
     fn threads_asking_while_the_table_is_built_get_the_same_answers() {
         let (tree, domain) = many_small_leaves();
-        let view = TreeView {
-            nodes: &tree.nodes,
-            leaves: &tree.leaves,
-            domain,
-        };
+        let view = view_of(&tree, domain);
         let lazy = LazyLeafGrid::new(&view);
         std::thread::scope(|s| {
             for t in 0..4i64 {
@@ -372,11 +373,7 @@ mod tests {
             level: 0,
         }];
         let tree = build(&bricks, domain).expect("a valid hierarchy");
-        let view = TreeView {
-            nodes: &tree.nodes,
-            leaves: &tree.leaves,
-            domain,
-        };
+        let view = view_of(&tree, domain);
         let lazy = LazyLeafGrid::new(&view);
         assert!(lazy.is_built());
         assert_eq!(lazy.find_leaf(&view, [3, 4, 5]), Some(0));

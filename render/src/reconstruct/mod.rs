@@ -16,6 +16,7 @@
 //!
 //! `docs/reconstruction.md` gives the rules and the reasons for them.
 
+mod alone_bricks;
 pub mod cache;
 mod cell_octants;
 pub mod grid;

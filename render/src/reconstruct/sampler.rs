@@ -9,7 +9,7 @@
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hash, Hasher};
 use std::ops::Deref;
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 use amr_format::kdtree::TreeView;
 use amr_format::{AmrkFile, IBox};
@@ -17,6 +17,7 @@ use amr_format::{AmrkFile, IBox};
 use crate::error::RenderError;
 use crate::error::Result;
 
+use super::alone_bricks::AloneBricks;
 use super::cache::BrickCache;
 use super::cell_octants::CellOctants;
 use super::grid::{axes, index_in, Grid};
@@ -347,52 +348,6 @@ pub(super) fn block_in_brick(
     Some(out)
 }
 
-/// Per brick of `file`, its finest cells (relative, `lo` then `hi`) when no finer brick overlaps
-/// it, else all zero ([`Sampler::read_box`]).
-///
-/// A brick is so when the kd-tree leaves whose first brick it is fill it: `open` checked that
-/// the leaves tile the domain and that a leaf's first brick covers the leaf, so those leaves lie
-/// in the brick without overlapping, and every finest cell of the brick is in one.
-fn alone_boxes<D: AsRef<[u8]>>(file: &AmrkFile<D>, grid: &Grid) -> Vec<[u32; 6]> {
-    // Per brick: the finest cells of the leaves whose first brick it is (`u64::MAX` past `u64`).
-    let mut first_of = vec![0u64; file.num_bricks()];
-    for l in file.leaves() {
-        if let Some(sum) = l
-            .bricks
-            .first()
-            .and_then(|b| first_of.get_mut(b.get() as usize))
-        {
-            *sum = volume(&l.bounds)
-                .and_then(|v| sum.checked_add(v))
-                .unwrap_or(u64::MAX);
-        }
-    }
-    file.bricks()
-        .zip(&first_of)
-        .map(|(b, &covered)| {
-            // Cannot overflow: a brick lies in its level's domain, which refines into the
-            // finest domain (32-bit coordinates).
-            let f = grid.level_finest_box(b.level, &b.cells);
-            let corners = [f.lo[0], f.lo[1], f.lo[2], f.hi[0], f.hi[1], f.hi[2]];
-            match corners.map(|x| u32::try_from(x).ok()) {
-                [Some(x0), Some(y0), Some(z0), Some(x1), Some(y1), Some(z1)]
-                    if covered != u64::MAX && volume(&f) == Some(covered) =>
-                {
-                    [x0, y0, z0, x1, y1, z1]
-                }
-                _ => [0; 6],
-            }
-        })
-        .collect()
-}
-
-/// The number of finest cells of box `b`, `None` past `u64`.
-fn volume(b: &IBox) -> Option<u64> {
-    b.extent()
-        .iter()
-        .try_fold(1u64, |n, &e| n.checked_mul(e.max(0) as u64))
-}
-
 /// [`Sampler::corners_from_block`] for any values, `own` being the side of the outer corner the
 /// cell lies on: corner `own ^ face` is the [`avg8`] of the cells `(m & face) | (own & !face)`.
 #[inline]
@@ -519,11 +474,10 @@ pub struct Sampler<'f, D> {
     /// Per brick: its cells and its values when they can be read in place.
     bricks: Vec<BrickRef<'f>>,
     /// Per brick: when no finer brick overlaps it (so every cell of it is a leaf cell whichever
-    /// kd-tree leaf holds the cell, [`Self::read_box`]), its finest cells (relative) as `lo`
-    /// then `hi`; all zero otherwise (a brick's `hi` is never zero). Built on first need
-    /// ([`alone_boxes`]) by the first octant whose corners are read: a boundary octant's in an
-    /// extraction, any octant's in a render.
-    alone: OnceLock<Vec<[u32; 6]>>,
+    /// kd-tree leaf holds the cell, [`Self::read_box`]), its finest cells. Built on first need
+    /// by the first octant whose corners are read (a boundary octant's in an extraction, any
+    /// octant's in a render), or ahead of it ([`Self::prepare_read_boxes`]).
+    alone: AloneBricks,
     tree: TreeView<'f>,
     /// Point location in one table read and a short walk (the table built on first need);
     /// `None` with the shortcuts off.
@@ -592,7 +546,7 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             .collect();
         let sampler = Self {
             bricks,
-            alone: OnceLock::new(),
+            alone: AloneBricks::default(),
             leaf_grid: None,
             gather: false,
             tree: file.tree(),
@@ -660,21 +614,37 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// whose finest brick it is reads every cell of it), else the leaf's box. The octant
     /// corners read cells from a leaf's brick wherever they lie in this box, so a brick that the
     /// kd-tree cut into leaves near a level boundary is read as one.
+    ///
+    /// While another thread builds the table of whole bricks, the leaf's box: the cells beyond
+    /// it are then located instead of read in place, to the same values.
     #[inline(always)]
     pub(super) fn read_box(&self, leaf: u32) -> IBox {
-        match &self.tops[leaf as usize] {
-            Some(t) => match &self
-                .alone
-                .get_or_init(|| alone_boxes(self.file, &self.grid))[t.brick as usize]
-            {
-                b if b[3] != 0 => IBox::new(
-                    [b[0].into(), b[1].into(), b[2].into()],
-                    [b[3].into(), b[4].into(), b[5].into()],
-                ),
-                _ => self.tree.leaf_box(leaf),
-            },
+        let whole = self.tops[leaf as usize].and_then(|t| {
+            let alone = self.alone.get(self.file, &self.grid)?;
+            Some(alone[t.brick as usize]).filter(|b| b[3] != 0)
+        });
+        match whole {
+            Some(b) => IBox::new(
+                [b[0].into(), b[1].into(), b[2].into()],
+                [b[3].into(), b[4].into(), b[5].into()],
+            ),
             None => self.tree.leaf_box(leaf),
         }
+    }
+
+    /// This sampler as its threads see it while another thread builds its table of bricks no
+    /// finer brick overlaps, for good ([`Self::read_box`]): the same values, for tests that
+    /// show it.
+    pub fn with_read_boxes_held(self) -> Self {
+        self.alone.hold();
+        self
+    }
+
+    /// Builds the table of bricks no finer brick overlaps ([`Self::read_box`]) now, unless a
+    /// thread has started it: a caller with a thread to spare builds it beside the work that
+    /// will read it.
+    pub fn prepare_read_boxes(&self) {
+        self.alone.get(self.file, &self.grid);
     }
 
     /// Leaf `leaf`'s finest brick and its level, `None` for a leaf no brick covers.
@@ -1433,17 +1403,6 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A box's finest cells count, `None` past `u64` (a brick of such a box is never marked
-    /// alone), zero for an empty box.
-    #[test]
-    fn volume_is_checked() {
-        assert_eq!(volume(&IBox::new([0; 3], [2, 3, 4])), Some(24));
-        assert_eq!(volume(&IBox::new([5; 3], [5, 9, 9])), Some(0));
-        let big = 1i64 << 32;
-        assert_eq!(volume(&IBox::new([0; 3], [big, big / 2, 1])), Some(1 << 63));
-        assert_eq!(volume(&IBox::new([0; 3], [big, big, 1])), None);
-    }
 
     /// The shared-pair corners have the general corners' bits for every side and any values
     /// within the bound: zeros of both signs, subnormals, values near the bound.

@@ -135,11 +135,6 @@ impl<'f, D: AsRef<[u8]> + Sync> Extractor<'f, D> {
     /// cache of about `cache_bytes`.
     pub fn new(file: &'f AmrkFile<D>, field: usize, cache_bytes: usize) -> Result<Self> {
         let sampler = Sampler::new(file, field, cache_bytes)?;
-        // Boundary octants read it, and with more than one level there are boundary octants:
-        // built on first need instead, it stopped every other thread in the first extraction.
-        if file.levels().len() > 1 {
-            sampler.prepare_read_boxes();
-        }
         // Start the worker threads now, with the file open, not inside the first extraction.
         rayon::broadcast(|_| ());
         let file_cells = file

@@ -7,6 +7,7 @@
 //! - [`leaf_hints`]: the kd-tree leaves located last, tried before walking the kd-tree.
 //! - [`recent`]: per-thread scratch that makes nearby point samples cheap.
 //! - [`sampler`]: leaf-cell location and the octant method's vertex values.
+//! - [`whole_bricks`]: the bricks no finer brick overlaps, which a leaf reads past its own box.
 //! - [`vertex_sides`]: a vertex's sides as its value reads them (levels, values, leaves).
 //! - [`stitch`]: stitched vertex values from the coarse corners of non-zero weight alone.
 //! - [`level_gradient`]: smooth normals' central differences inside one level, from a brick.
@@ -16,7 +17,6 @@
 //!
 //! `docs/reconstruction.md` gives the rules and the reasons for them.
 
-mod alone_bricks;
 pub mod cache;
 mod cell_octants;
 pub mod grid;
@@ -30,6 +30,7 @@ pub mod recent;
 pub mod sampler;
 mod stitch;
 mod vertex_sides;
+mod whole_bricks;
 
 pub use grid::Grid;
 pub use methods::Reconstruction;

@@ -17,7 +17,7 @@ use amr_format::{AmrkFile, IBox};
 use crate::error::RenderError;
 use crate::error::Result;
 
-use super::alone_bricks::AloneBricks;
+use super::whole_bricks::LeafCover;
 use super::cache::BrickCache;
 use super::cell_octants::CellOctants;
 use super::grid::{axes, index_in, Grid};
@@ -416,6 +416,10 @@ struct LeafTop<'f> {
     /// `u32::MAX` cells per axis).
     ex: u32,
     ey: u32,
+    /// The brick's extent along z when no finer brick overlaps the brick (then every cell of
+    /// it is a leaf cell, whichever kd-tree leaf holds the cell: [`Sampler::read_box`]); zero
+    /// otherwise.
+    whole_ez: u32,
     /// The brick's values when they can be read in place.
     values: Option<&'f [f32]>,
 }
@@ -435,6 +439,29 @@ impl LeafTop<'_> {
             }
             None => grid.cell_of(self.level, finest),
         }
+    }
+
+    /// The brick's finest cells (relative), when no finer brick overlaps it.
+    #[inline(always)]
+    fn whole_box(&self, grid: &Grid) -> Option<IBox> {
+        if self.whole_ez == 0 {
+            return None;
+        }
+        let hi = [
+            self.lo[0] + i64::from(self.ex),
+            self.lo[1] + i64::from(self.ey),
+            self.lo[2] + i64::from(self.whole_ez),
+        ];
+        Some(match self.shift {
+            Some(sh) => {
+                let o = grid.offset();
+                IBox::new(
+                    axes(|a| (self.lo[a] << sh[a]) - o[a]),
+                    axes(|a| (hi[a] << sh[a]) - o[a]),
+                )
+            }
+            None => grid.level_finest_box(self.level, &IBox::new(self.lo, hi)),
+        })
     }
 
     /// The index of cell `cell` (which the brick holds) in the brick's values.
@@ -473,11 +500,6 @@ pub struct Sampler<'f, D> {
     tops: Vec<Option<LeafTop<'f>>>,
     /// Per brick: its cells and its values when they can be read in place.
     bricks: Vec<BrickRef<'f>>,
-    /// Per brick: when no finer brick overlaps it (so every cell of it is a leaf cell whichever
-    /// kd-tree leaf holds the cell, [`Self::read_box`]), its finest cells. Built on first need
-    /// by the first octant whose corners are read (a boundary octant's in an extraction, any
-    /// octant's in a render), or ahead of it ([`Self::prepare_read_boxes`]).
-    alone: AloneBricks,
     tree: TreeView<'f>,
     /// Point location in one table read and a short walk (the table built on first need);
     /// `None` with the shortcuts off.
@@ -521,11 +543,13 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
             })
             .collect();
         let grid = Grid::new(file);
-        let tops = file
+        let mut cover = LeafCover::new(bricks.len());
+        let mut tops = file
             .leaves()
             .map(|l| {
                 l.bricks.first().map(|b| {
                     let brick = b.get();
+                    cover.add(brick, &l.bounds);
                     let level = levels[brick as usize];
                     let BrickRef { cells, values } = &bricks[brick as usize];
                     let extent = |a: usize| {
@@ -539,14 +563,26 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
                         lo: cells.lo,
                         ex: extent(0),
                         ey: extent(1),
+                        whole_ez: 0,
                         values: *values,
                     }
                 })
             })
-            .collect();
+            .collect::<Vec<_>>();
+        let whole = cover.whole_bricks(
+            levels
+                .iter()
+                .zip(&bricks)
+                .map(|(&l, b)| grid.level_finest_box(l, &b.cells)),
+        );
+        for t in tops.iter_mut().flatten() {
+            if whole[t.brick as usize] {
+                t.whole_ez = u32::try_from(bricks[t.brick as usize].cells.extent()[2])
+                    .expect("brick boxes lie inside the checked domain");
+            }
+        }
         let sampler = Self {
             bricks,
-            alone: AloneBricks::default(),
             leaf_grid: None,
             gather: false,
             tree: file.tree(),
@@ -614,37 +650,12 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// whose finest brick it is reads every cell of it), else the leaf's box. The octant
     /// corners read cells from a leaf's brick wherever they lie in this box, so a brick that the
     /// kd-tree cut into leaves near a level boundary is read as one.
-    ///
-    /// While another thread builds the table of whole bricks, the leaf's box: the cells beyond
-    /// it are then located instead of read in place, to the same values.
     #[inline(always)]
     pub(super) fn read_box(&self, leaf: u32) -> IBox {
-        let whole = self.tops[leaf as usize].and_then(|t| {
-            let alone = self.alone.get(self.file, &self.grid)?;
-            Some(alone[t.brick as usize]).filter(|b| b[3] != 0)
-        });
-        match whole {
-            Some(b) => IBox::new(
-                [b[0].into(), b[1].into(), b[2].into()],
-                [b[3].into(), b[4].into(), b[5].into()],
-            ),
+        match self.tops[leaf as usize].and_then(|t| t.whole_box(&self.grid)) {
+            Some(whole) => whole,
             None => self.tree.leaf_box(leaf),
         }
-    }
-
-    /// This sampler as its threads see it while another thread builds its table of bricks no
-    /// finer brick overlaps, for good ([`Self::read_box`]): the same values, for tests that
-    /// show it.
-    pub fn with_read_boxes_held(self) -> Self {
-        self.alone.hold();
-        self
-    }
-
-    /// Builds the table of bricks no finer brick overlaps ([`Self::read_box`]) now, unless a
-    /// thread has started it: a caller with a thread to spare builds it beside the work that
-    /// will read it.
-    pub fn prepare_read_boxes(&self) {
-        self.alone.get(self.file, &self.grid);
     }
 
     /// Leaf `leaf`'s finest brick and its level, `None` for a leaf no brick covers.

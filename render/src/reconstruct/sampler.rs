@@ -17,7 +17,6 @@ use amr_format::{AmrkFile, IBox};
 use crate::error::RenderError;
 use crate::error::Result;
 
-use super::whole_bricks::LeafCover;
 use super::cache::BrickCache;
 use super::cell_octants::CellOctants;
 use super::grid::{axes, index_in, Grid};
@@ -25,6 +24,7 @@ use super::interp::{avg2, avg8, trilinear};
 use super::leaf_grid::{Entry, LazyLeafGrid};
 use super::leaf_hints::LeafHints;
 use super::mixed::{distinct_sides, holds, sides_in};
+use super::whole_bricks::LeafCover;
 
 /// The leaf cell at a point: the finest cell any brick holds there.
 #[derive(Clone, Copy, Debug, PartialEq)]

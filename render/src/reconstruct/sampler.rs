@@ -652,7 +652,10 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// kd-tree cut into leaves near a level boundary is read as one.
     #[inline(always)]
     pub(super) fn read_box(&self, leaf: u32) -> IBox {
-        match self.tops[leaf as usize].and_then(|t| t.whole_box(&self.grid)) {
+        match self.tops[leaf as usize]
+            .as_ref()
+            .and_then(|t| t.whole_box(&self.grid))
+        {
             Some(whole) => whole,
             None => self.tree.leaf_box(leaf),
         }

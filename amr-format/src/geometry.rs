@@ -160,6 +160,20 @@ pub fn copy_subbox<T: Copy>(src: &[T], src_box: &IBox, dst_box: &IBox, dst: &mut
 mod tests {
     use super::*;
 
+    /// A box's cell count, `None` past `u64` (a brick of such a box is never counted whole by
+    /// the renderer's sampler), zero for an empty box.
+    #[test]
+    fn num_cells_is_checked() {
+        assert_eq!(IBox::new([0; 3], [2, 3, 4]).num_cells(), Some(24));
+        assert_eq!(IBox::new([5; 3], [5, 9, 9]).num_cells(), Some(0));
+        let big = 1i64 << 32;
+        assert_eq!(
+            IBox::new([0; 3], [big, big / 2, 1]).num_cells(),
+            Some(1 << 63)
+        );
+        assert_eq!(IBox::new([0; 3], [big, big, 1]).num_cells(), None);
+    }
+
     #[test]
     fn split_covers_box_exactly() {
         let b = IBox::new([-3, 0, 5], [10, 7, 6]);

@@ -26,7 +26,8 @@ impl LeafCover {
     #[inline]
     pub(super) fn add(&mut self, brick: u32, bounds: &IBox) {
         if let Some(sum) = self.cells.get_mut(brick as usize) {
-            *sum = volume(bounds)
+            *sum = bounds
+                .num_cells()
                 .and_then(|v| sum.checked_add(v))
                 .unwrap_or(u64::MAX);
         }
@@ -36,16 +37,9 @@ impl LeafCover {
     pub(super) fn whole_bricks(self, finest: impl Iterator<Item = IBox>) -> Vec<bool> {
         finest
             .zip(&self.cells)
-            .map(|(f, &covered)| covered != u64::MAX && volume(&f) == Some(covered))
+            .map(|(f, &covered)| covered != u64::MAX && f.num_cells() == Some(covered))
             .collect()
     }
-}
-
-/// The number of finest cells of box `b`, `None` past `u64`.
-fn volume(b: &IBox) -> Option<u64> {
-    b.extent()
-        .iter()
-        .try_fold(1u64, |n, &e| n.checked_mul(e.max(0) as u64))
 }
 
 #[cfg(test)]
@@ -72,16 +66,5 @@ mod tests {
         // A brick number past the table is ignored.
         cover.add(7, &bricks[0]);
         assert_eq!(cover.whole_bricks(bricks.into_iter()), [true, false, false]);
-    }
-
-    /// A box's finest cells count, `None` past `u64` (a brick of such a box is never marked
-    /// whole), zero for an empty box.
-    #[test]
-    fn volume_is_checked() {
-        assert_eq!(volume(&IBox::new([0; 3], [2, 3, 4])), Some(24));
-        assert_eq!(volume(&IBox::new([5; 3], [5, 9, 9])), Some(0));
-        let big = 1i64 << 32;
-        assert_eq!(volume(&IBox::new([0; 3], [big, big / 2, 1])), Some(1 << 63));
-        assert_eq!(volume(&IBox::new([0; 3], [big, big, 1])), None);
     }
 }

@@ -5,10 +5,11 @@ against the same field on big boxes, isovalue by isovalue, for one or two builds
     scripts/bench-extract-sweep.py [--files A,B,...] DATA RUNS THREADS ISOS BIN [BIN2]
 
 DATA holds tiny.amrk, mid.amrk and big.amrk (the commands that make them are in
-scripts/bench-pairs.py), or the files named by --files (without `.amrk`; `big` among them); ISOS is a comma-separated list, e.g. 5,6,7,8,9,10,11,12. Each run
-extracts every file at every isovalue once with each build in turn (alternating which goes
-first; the files of one isovalue one after the other), in a fresh process, the page cache warm after a warm-up pass. Prints per file and
-isovalue the median `seconds`, the rate in file cells per core-second, the ratio of `big`'s
+scripts/bench-pairs.py), or the files named by --files (without `.amrk`; `big` among them);
+ISOS is a comma-separated list, e.g. 5,6,7,8,9,10,11,12. Each run extracts every file at every
+isovalue once with each build in turn (alternating which goes first; the files of one isovalue
+one after the other), in a fresh process, the page cache warm after a warm-up pass. Prints per
+file and isovalue the median `seconds`, the rate in file cells per core-second, the ratio of `big`'s
 rate to this file's (goal: at most 2) and the work counts (`active`, `boundary_evaluated`),
 with BIN2's median over BIN's when two builds are given.
 

@@ -452,16 +452,7 @@ impl LeafTop<'_> {
             self.lo[1] + i64::from(self.ey),
             self.lo[2] + i64::from(self.whole_ez),
         ];
-        Some(match self.shift {
-            Some(sh) => {
-                let o = grid.offset();
-                IBox::new(
-                    axes(|a| (self.lo[a] << sh[a]) - o[a]),
-                    axes(|a| (hi[a] << sh[a]) - o[a]),
-                )
-            }
-            None => grid.level_finest_box(self.level, &IBox::new(self.lo, hi)),
-        })
+        Some(grid.level_finest_box(self.level, &IBox::new(self.lo, hi)))
     }
 
     /// The index of cell `cell` (which the brick holds) in the brick's values.
@@ -652,13 +643,10 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
     /// kd-tree cut into leaves near a level boundary is read as one.
     #[inline(always)]
     pub(super) fn read_box(&self, leaf: u32) -> IBox {
-        match self.tops[leaf as usize]
+        self.tops[leaf as usize]
             .as_ref()
             .and_then(|t| t.whole_box(&self.grid))
-        {
-            Some(whole) => whole,
-            None => self.tree.leaf_box(leaf),
-        }
+            .unwrap_or_else(|| self.tree.leaf_box(leaf))
     }
 
     /// Leaf `leaf`'s finest brick and its level, `None` for a leaf no brick covers.

@@ -156,6 +156,27 @@ pub fn copy_subbox<T: Copy>(src: &[T], src_box: &IBox, dst_box: &IBox, dst: &mut
     }
 }
 
+/// Writes `src`, the values of `src_box` (x fastest), into `dst`, the values of `dst_box`: the
+/// inverse of [`copy_subbox`].
+///
+/// `src_box` must lie inside `dst_box`; the lengths must equal the boxes' cell counts.
+pub fn paste_subbox<T: Copy>(src: &[T], src_box: &IBox, dst: &mut [T], dst_box: &IBox) {
+    debug_assert!(dst_box.contains_box(src_box));
+    let row = src_box.extent()[0] as usize;
+    if row == 0 {
+        return;
+    }
+    let mut rows = src.chunks_exact(row);
+    for z in src_box.lo[2]..src_box.hi[2] {
+        for y in src_box.lo[1]..src_box.hi[1] {
+            let start = dst_box.linear_index([src_box.lo[0], y, z]);
+            if let Some(values) = rows.next() {
+                dst[start..start + row].copy_from_slice(values);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -200,6 +221,25 @@ mod tests {
             .map(|&p| src_box.linear_index(p))
             .collect();
         assert_eq!(dst, expect);
+    }
+
+    #[test]
+    fn paste_subbox_undoes_copy_subbox() {
+        let whole = IBox::new([2, 0, 1], [6, 3, 3]);
+        let src: Vec<u32> = (0..24).collect();
+        let part = IBox::new([3, 1, 1], [5, 3, 2]);
+        let mut cut = Vec::new();
+        copy_subbox(&src, &whole, &part, &mut cut);
+        let mut back = vec![99; 24];
+        paste_subbox(&cut, &part, &mut back, &whole);
+        for (i, (&b, &s)) in back.iter().zip(&src).enumerate() {
+            let cell = [2 + i as i64 % 4, i as i64 / 4 % 3, 1 + i as i64 / 12];
+            assert_eq!(
+                b,
+                if part.contains_cell(cell) { s } else { 99 },
+                "cell {cell:?}"
+            );
+        }
     }
 
     #[test]

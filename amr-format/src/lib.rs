@@ -3,6 +3,7 @@
 //!
 //! - [`raw`]: the on-disk structs, nothing else.
 //! - [`blocks`]: block range tables (the value range of each `4^3` block of a brick).
+//! - [`box_join`]: runs of small boxes joined into bricks.
 //! - [`AmrkWriter`]: streams bricks into a new file and writes the tables and tree last.
 //! - [`AmrkFile`]: opens a file from any bytes (`Vec<u8>`, a memory map) in O(metadata),
 //!   validating every count and offset; [`AmrkFile::verify`] checks everything else.
@@ -10,6 +11,7 @@
 #![warn(missing_docs)]
 
 pub mod blocks;
+pub mod box_join;
 pub mod compress;
 pub mod error;
 pub mod geometry;
@@ -26,7 +28,7 @@ pub mod verify;
 pub mod writer;
 
 pub use error::{FormatError, Result};
-pub use geometry::{copy_subbox, IBox};
+pub use geometry::{copy_subbox, paste_subbox, IBox};
 pub use hierarchy::{BrickSpec, HierarchySpec, LevelSpec};
 pub use reader::{AmrkFile, BrickInfo, BrickLocation, FieldInfo, LeafInfo, LevelInfo};
 pub use tight_sink::TightSink;

@@ -3,8 +3,12 @@
 
 use std::path::Path;
 
+use std::collections::HashMap;
+
+use amr_format::box_join::join_runs;
 use amr_format::{
-    copy_subbox, AmrkWriter, BrickSpec, Compression, FormatError, HierarchySpec, IBox, LevelSpec,
+    copy_subbox, paste_subbox, AmrkWriter, BrickSpec, Compression, FormatError, HierarchySpec,
+    IBox, LevelSpec,
 };
 
 /// What to convert and how.
@@ -16,6 +20,9 @@ pub struct ConvertOptions {
     pub brick: u32,
     /// Compression of the brick data.
     pub compression: Compression,
+    /// Join runs of small boxes that arrive one after another into bricks of at most `brick`
+    /// cells per axis (see [`amr_format::box_join`]); off keeps every box in its own bricks.
+    pub join: bool,
 }
 
 /// What a conversion did.
@@ -27,35 +34,71 @@ pub struct ConvertStats {
     pub cells: u64,
     /// Bricks written.
     pub bricks: u64,
+    /// Boxes read, over all levels (fewer than the bricks when boxes were split, more when
+    /// small ones were joined).
+    pub boxes: u64,
 }
 
-/// Where one box's bricks sit in the brick table: consecutive, x fastest, `nx * ny` per layer.
+/// Where one input box's cells go in the brick table.
 #[derive(Clone, Copy, Debug)]
-struct BoxBricks {
-    first: usize,
-    nx: usize,
-    ny: usize,
+enum BoxBricks {
+    /// Split into bricks of at most `brick` cells per axis: consecutive from `first`, x
+    /// fastest, `nx * ny` per layer (one brick when the box fits in one).
+    Split { first: usize, nx: usize, ny: usize },
+    /// One of a run of boxes joined into the single brick `brick`.
+    Joined { brick: usize },
 }
 
-/// Every input box split into bricks of at most `brick` cells per axis, in one brick table.
-#[derive(Clone, Debug)]
+/// One field of a joined brick, gathered from its boxes' slabs until every cell has come.
+#[derive(Debug)]
+struct PendingBrick {
+    values: Vec<f32>,
+    filled: u64,
+}
+
+/// Every input box in the brick table: boxes larger than a brick split into bricks, runs of small
+/// boxes that arrive one after another and together fill a box of at most a brick joined into
+/// one (see [`amr_format::box_join`]).
+#[derive(Debug)]
 pub struct BrickLayout {
     brick: i64,
     bricks: Vec<BrickSpec>,
     boxes: Vec<Vec<BoxBricks>>,
+    /// Joined bricks still waiting for cells, by (brick, field): at most one run's worth when the
+    /// boxes come in the order the layout was made for.
+    pending: HashMap<(usize, usize), PendingBrick>,
 }
 
 impl BrickLayout {
-    /// Splits the valid boxes of each level (`levels[l]` holds level `l`'s boxes) into bricks.
-    pub fn new<'a>(levels: impl IntoIterator<Item = &'a [IBox]>, brick: u32) -> Self {
+    /// Lays out the valid boxes of each level (`levels[l]` holds level `l`'s boxes) in bricks of
+    /// at most `brick` cells per axis. With `join_order`, the `(level, index)` of every box in
+    /// the order their data will arrive, runs of small boxes in that order are joined; an order
+    /// that does not list every box exactly once joins nothing.
+    pub fn new(levels: &[&[IBox]], brick: u32, join_order: Option<&[(usize, usize)]>) -> Self {
         let b = i64::from(brick.max(1));
+        let joined = join_order
+            .filter(|order| lists_every_box_once(levels, order))
+            .map(|order| joined_boxes(levels, order, b))
+            .unwrap_or_default();
         let mut bricks = Vec::new();
-        let mut boxes = Vec::new();
-        for (l, level) in levels.into_iter().enumerate() {
+        let mut boxes = Vec::with_capacity(levels.len());
+        let mut joined_brick: HashMap<usize, usize> = HashMap::new();
+        for (l, level) in levels.iter().enumerate() {
             let mut per_box = Vec::with_capacity(level.len());
-            for valid in level {
+            for (i, valid) in level.iter().enumerate() {
+                if let Some(&(run, cells)) = joined.get(&(l, i)) {
+                    let brick = *joined_brick.entry(run).or_insert_with(|| {
+                        bricks.push(BrickSpec {
+                            level: l as u32,
+                            cells,
+                        });
+                        bricks.len() - 1
+                    });
+                    per_box.push(BoxBricks::Joined { brick });
+                    continue;
+                }
                 let e = valid.extent();
-                per_box.push(BoxBricks {
+                per_box.push(BoxBricks::Split {
                     first: bricks.len(),
                     nx: ((e[0] + b - 1) / b) as usize,
                     ny: ((e[1] + b - 1) / b) as usize,
@@ -71,6 +114,7 @@ impl BrickLayout {
             brick: b,
             bricks,
             boxes,
+            pending: HashMap::new(),
         }
     }
 
@@ -80,11 +124,12 @@ impl BrickLayout {
     }
 
     /// Writes every brick lying inside `cells`, a part of box `index` of `level` (whose valid box
-    /// is `valid`) aligned to the brick grid, holding `values` of field `field` (x fastest).
-    /// `scratch` is reused between calls.
+    /// is `valid`) aligned to the brick grid, holding `values` of field `field` (x fastest). A
+    /// joined brick is written once the last of its boxes' cells has come. `scratch` is reused
+    /// between calls.
     #[allow(clippy::too_many_arguments)]
     pub fn write_slab(
-        &self,
+        &mut self,
         writer: &mut AmrkWriter,
         level: usize,
         index: usize,
@@ -94,26 +139,120 @@ impl BrickLayout {
         values: &[f32],
         scratch: &mut Vec<f32>,
     ) -> Result<(), FormatError> {
-        let bb = self.boxes[level][index];
         let b = self.brick;
-        let brick_range = |a: usize| {
-            let lo = (cells.lo[a] - valid.lo[a]) / b;
-            let hi = (cells.hi[a] - valid.lo[a] + b - 1) / b;
-            lo as usize..hi as usize
-        };
-        for iz in brick_range(2) {
-            for iy in brick_range(1) {
-                for ix in brick_range(0) {
-                    let id = bb.first + ix + bb.nx * (iy + bb.ny * iz);
-                    let brick = &self.bricks[id];
-                    debug_assert!(cells.contains_box(&brick.cells));
-                    copy_subbox(values, cells, &brick.cells, scratch);
-                    writer.write_brick(id, field, scratch)?;
+        match self.boxes[level][index] {
+            BoxBricks::Split { first, nx, ny } => {
+                let brick_range = |a: usize| {
+                    let lo = (cells.lo[a] - valid.lo[a]) / b;
+                    let hi = (cells.hi[a] - valid.lo[a] + b - 1) / b;
+                    lo as usize..hi as usize
+                };
+                for iz in brick_range(2) {
+                    for iy in brick_range(1) {
+                        for ix in brick_range(0) {
+                            let id = first + ix + nx * (iy + ny * iz);
+                            let brick = &self.bricks[id];
+                            debug_assert!(cells.contains_box(&brick.cells));
+                            copy_subbox(values, cells, &brick.cells, scratch);
+                            writer.write_brick(id, field, scratch)?;
+                        }
+                    }
                 }
+                Ok(())
+            }
+            BoxBricks::Joined { brick } => self.gather(writer, brick, cells, field, values),
+        }
+    }
+
+    /// Adds a slab to joined brick `brick`'s values of `field`, and writes them once complete.
+    fn gather(
+        &mut self,
+        writer: &mut AmrkWriter,
+        brick: usize,
+        cells: &IBox,
+        field: usize,
+        values: &[f32],
+    ) -> Result<(), FormatError> {
+        let whole = self.bricks[brick].cells;
+        let count = cells.num_cells().unwrap_or(u64::MAX);
+        let total = whole.num_cells().unwrap_or(u64::MAX);
+        if !whole.contains_box(cells) || values.len() as u64 != count {
+            return Err(FormatError::Usage(format!(
+                "a slab of cells {:?}..{:?} ({} values) does not fit joined brick {brick} ({:?}..{:?})",
+                cells.lo, cells.hi, values.len(), whole.lo, whole.hi
+            )));
+        }
+        let pending = self
+            .pending
+            .entry((brick, field))
+            .or_insert_with(|| PendingBrick {
+                values: vec![0.0; total as usize],
+                filled: 0,
+            });
+        paste_subbox(values, cells, &mut pending.values, &whole);
+        pending.filled += count;
+        if pending.filled < total {
+            return Ok(());
+        }
+        let done = self.pending.remove(&(brick, field)).expect("just filled");
+        if done.filled != total {
+            return Err(FormatError::Usage(format!(
+                "joined brick {brick} was given {} cells of field {field} for its {total}",
+                done.filled
+            )));
+        }
+        writer.write_brick(brick, field, &done.values)
+    }
+
+    /// Fails when a joined brick is still missing cells.
+    fn check_complete(&self) -> Result<(), FormatError> {
+        match self.pending.iter().next() {
+            None => Ok(()),
+            Some((&(brick, field), p)) => Err(FormatError::Usage(format!(
+                "joined brick {brick} got {} of its {} cells of field {field}",
+                p.filled,
+                p.values.len()
+            ))),
+        }
+    }
+}
+
+/// True when `order` names every box of `levels` exactly once.
+fn lists_every_box_once(levels: &[&[IBox]], order: &[(usize, usize)]) -> bool {
+    let mut seen: Vec<Vec<bool>> = levels.iter().map(|l| vec![false; l.len()]).collect();
+    let total: usize = levels.iter().map(|l| l.len()).sum();
+    order.len() == total
+        && order.iter().all(
+            |&(l, i)| match seen.get_mut(l).and_then(|level| level.get_mut(i)) {
+                Some(slot) if !*slot => {
+                    *slot = true;
+                    true
+                }
+                _ => false,
+            },
+        )
+}
+
+/// The boxes that belong to runs of more than one, by `(level, index)`: the run's number and
+/// cells.
+fn joined_boxes(
+    levels: &[&[IBox]],
+    order: &[(usize, usize)],
+    brick: i64,
+) -> HashMap<(usize, usize), (usize, IBox)> {
+    let sequence: Vec<(u32, IBox)> = order
+        .iter()
+        .map(|&(l, i)| (l as u32, levels[l][i]))
+        .collect();
+    let mut joined = HashMap::new();
+    for (run, j) in join_runs(&sequence, brick).into_iter().enumerate() {
+        if j.members.len() > 1 {
+            for &member in &order[j.members] {
+                joined.insert(member, (run, j.cells));
             }
         }
-        Ok(())
     }
+    joined
 }
 
 /// A writer fed slab by slab: the brick layout, the `.amrk` writer and the copy buffer together.
@@ -172,7 +311,6 @@ impl BrickSink {
         )
     }
 
-    /// Finishes the file; returns the number of bricks written.
     /// Records when in the simulation the data was written (see `AmrkWriter::set_simulation`).
     pub fn set_simulation(
         &mut self,
@@ -182,7 +320,9 @@ impl BrickSink {
         self.writer.set_simulation(time, step)
     }
 
+    /// Finishes the file; returns the number of bricks written.
     pub fn finish(self) -> Result<u64, FormatError> {
+        self.layout.check_complete()?;
         let bricks = self.layout.bricks().len() as u64;
         self.writer.finish()?;
         Ok(bricks)

@@ -89,6 +89,8 @@ pub struct ConvertSummary {
     pub cells: u64,
     /// Bricks written.
     pub bricks: u64,
+    /// Boxes read, over all levels.
+    pub boxes: u64,
     /// Size of the output file.
     pub output_bytes: u64,
     /// Wall-clock time of the conversion.
@@ -105,9 +107,10 @@ impl std::fmt::Display for ConvertSummary {
         };
         write!(
             f,
-            "read {:.1} MiB, wrote {} cells in {} bricks, {:.1} MiB, in {:.2} s ({:.0} MiB/s)",
+            "read {:.1} MiB, wrote {} cells of {} boxes in {} bricks, {:.1} MiB, in {:.2} s ({:.0} MiB/s)",
             mib(self.bytes_read),
             self.cells,
+            self.boxes,
             self.bricks,
             mib(self.output_bytes),
             self.seconds,
@@ -228,6 +231,7 @@ pub fn convert_dump(
         bytes_read: stats.bytes_read,
         cells: stats.cells,
         bricks: stats.bricks,
+        boxes: stats.boxes,
         output_bytes,
         seconds: start.elapsed().as_secs_f64(),
     })

@@ -79,6 +79,18 @@ pub trait AmrSource {
     /// Each level's valid boxes, in the order [`Slab::index`] counts them.
     fn boxes(&self) -> Vec<&[IBox]>;
 
+    /// `(level, index)` of every box in the order [`stream`](Self::stream) hands out its slabs
+    /// (for each field, when it streams field by field). The converter joins only boxes that
+    /// follow one another in this order, so that it holds at most one unfinished joined brick.
+    /// By default: level by level, each level's boxes in order.
+    fn stream_order(&self) -> Vec<(usize, usize)> {
+        self.boxes()
+            .iter()
+            .enumerate()
+            .flat_map(|(l, boxes)| (0..boxes.len()).map(move |i| (l, i)))
+            .collect()
+    }
+
     /// Streams the fields `comps` (indices into [`fields`](Self::fields)) of every box to
     /// `sink`, in slabs of at most `chunk` rows and layers (x whole), each aligned to the box's
     /// lower corner. Returns the bytes of cell data read.
@@ -160,8 +172,8 @@ pub fn total_cells<S: AmrSource + ?Sized>(src: &S) -> u64 {
 }
 
 /// Converts `src` into the `.amrk` file `output`: every box split into bricks of at most
-/// `opts.brick` cells per axis, all bricks declared before any data is read, then the data
-/// streamed slab by slab into the writer.
+/// `opts.brick` cells per axis (with `opts.join`, runs of small boxes joined into one), all
+/// bricks declared before any data is read, then the data streamed slab by slab into the writer.
 ///
 /// The output appears only when the conversion succeeds: the writer works in a temporary file
 /// that an error (or a kill) leaves behind only as that temporary, never at `output`.
@@ -173,7 +185,8 @@ pub fn convert<S: AmrSource + ?Sized>(
 ) -> Result<ConvertStats, S::Error> {
     let comps = select_fields(src, &opts.fields)?;
     let boxes = src.boxes();
-    let layout = BrickLayout::new(boxes.iter().copied(), opts.brick);
+    let order = opts.join.then(|| src.stream_order());
+    let layout = BrickLayout::new(&boxes, opts.brick, order.as_deref());
     let fields = comps.iter().map(|&c| src.fields()[c].clone()).collect();
     let mut sink = BrickSink::create(output, src.level_specs(), fields, layout, opts.compression)
         .map_err(|e| output_error(output, e))?;
@@ -192,5 +205,6 @@ pub fn convert<S: AmrSource + ?Sized>(
         bytes_read,
         cells: total_cells(src),
         bricks,
+        boxes: boxes.iter().map(|l| l.len() as u64).sum(),
     })
 }

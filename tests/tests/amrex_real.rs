@@ -26,6 +26,54 @@ fn example_plt_3d_converts_exactly() {
     }
 }
 
+/// PeleLM cut each level into boxes of `8^3` cells; joined, the levels' 73 boxes are 7 bricks of
+/// at most `32^3` (the file streams its boxes by data file, not in the order `Cell_H` lists
+/// them, and runs are joined in the order the data comes). Every value is still where it was,
+/// and the surfaces extracted from both files have the same active voxels.
+#[test]
+fn example_plt_3d_small_boxes_join_into_fewer_bricks() {
+    use amr_convert::bricking::ConvertOptions;
+    use amr_convert::dump::convert_dump;
+    use amr_render::extract::Extractor;
+    let Some(data) = shared_amrex("example_plt_3d_small_boxes_join_into_fewer_bricks") else {
+        return;
+    };
+    let input = data.join("example_plt_3d");
+    let out = tempfile::tempdir().unwrap();
+    let convert_with = |join: bool| {
+        let target = out.path().join(format!("join-{join}.amrk"));
+        let opts = ConvertOptions {
+            fields: vec!["temp".into()],
+            brick: 32,
+            compression: Compression::None,
+            join,
+        };
+        let s = convert_dump(&input, &target, &opts, &amr_format::progress::NoProgress).unwrap();
+        check_conversion(&input, &target, &["temp"]);
+        let file = amr_format::AmrkFile::open(std::fs::read(&target).unwrap()).unwrap();
+        (s.bricks, file)
+    };
+    let (joined_bricks, joined) = convert_with(true);
+    let (kept_bricks, kept) = convert_with(false);
+    assert_eq!(kept_bricks, 73);
+    assert_eq!(joined_bricks, 7);
+    let (a, b) = (
+        Extractor::new(&joined, 0, 64 << 20).unwrap(),
+        Extractor::new(&kept, 0, 64 << 20).unwrap(),
+    );
+    let info = &kept.fields()[0];
+    for t in [0.1f32, 0.3, 0.5, 0.7, 0.9] {
+        let iso = info.min + (info.max - info.min) * t;
+        let (x, y) = (a.extract(iso).unwrap().stats, b.extract(iso).unwrap().stats);
+        assert!(y.active > 0, "iso {iso}: no surface");
+        assert_eq!(
+            (x.active, x.active_duals),
+            (y.active, y.active_duals),
+            "iso {iso}"
+        );
+    }
+}
+
 #[test]
 fn example_plt_3d_compressed_keeps_values() {
     let Some(data) = shared_amrex("example_plt_3d_compressed_keeps_values") else {

@@ -22,6 +22,7 @@ fn fails_at(dir: &Path, input: &Path, fields: &[&str]) -> String {
         fields: fields.iter().map(|s| s.to_string()).collect(),
         brick: 8,
         compression: Compression::None,
+        join: true,
     };
     let err =
         chombo::convert(input, &output, &opts, &NoProgress).expect_err("conversion should fail");
@@ -201,6 +202,7 @@ fn a_nan_in_a_ghost_cell_is_ignored() {
         fields: vec![],
         brick: 8,
         compression: Compression::None,
+        join: true,
     };
     chombo::convert(&input, &dir.path().join("out.amrk"), &opts, &NoProgress).unwrap();
 }
@@ -235,6 +237,7 @@ fn a_missing_file() {
         fields: vec![],
         brick: 8,
         compression: Compression::None,
+        join: true,
     };
     let err =
         chombo::convert(&input, &dir.path().join("out.amrk"), &opts, &NoProgress).unwrap_err();

@@ -312,8 +312,22 @@ fn small_boxes_file(
     params: &amr_synth::BoxParams,
     stored: bool,
 ) -> AmrkFile<Vec<u8>> {
+    small_boxes_file_joined(path, params, stored, None)
+}
+
+/// [`small_boxes_file`] with runs of consecutive boxes joined into bricks of at most `join`
+/// cells per axis, as `amr-convert` joins a dump's small boxes.
+fn small_boxes_file_joined(
+    path: &std::path::Path,
+    params: &amr_synth::BoxParams,
+    stored: bool,
+    join: Option<i64>,
+) -> AmrkFile<Vec<u8>> {
     use amr_synth::{build_box_hierarchy, write_spec, Case as Synth};
-    let spec = build_box_hierarchy(&Synth::Blobs, "blobs", params).unwrap();
+    let mut spec = build_box_hierarchy(&Synth::Blobs, "blobs", params).unwrap();
+    if let Some(n) = join {
+        spec.bricks = amr_format::box_join::join_bricks(&spec.bricks, n);
+    }
     let opts = match stored {
         false => Default::default(),
         true => amr_render::extract::writer_options(Default::default()),
@@ -327,6 +341,12 @@ fn small_boxes_file(
     )
     .unwrap();
     AmrkFile::open(std::fs::read(path).unwrap()).unwrap()
+}
+
+/// Bricks of the hierarchy of `params` before any joining.
+fn build_box_hierarchy_bricks(params: &amr_synth::BoxParams) -> usize {
+    let spec = amr_synth::build_box_hierarchy(&amr_synth::Case::Blobs, "blobs", params).unwrap();
+    spec.bricks.len()
 }
 
 /// Many small irregular boxes with mixed ratios (`amr_synth::boxes`): the leaf tree, the block
@@ -353,17 +373,27 @@ fn extraction_equals_brute_force_on_small_irregular_boxes() {
             seed,
             pieces: (seed == 4).then_some((1, 3)),
         };
-        // Without stored tight ranges (computed as the extraction goes) and with them.
-        for stored in [false, true] {
-            let path = dir.path().join(format!("boxes{seed}-{stored}.amrk"));
-            let file = small_boxes_file(&path, &params, stored);
+        // Without stored tight ranges (computed as the extraction goes) and with them, and
+        // with runs of boxes joined into bricks as `amr-convert` joins them.
+        for (stored, join) in [(false, None), (true, None), (true, Some(8))] {
+            let path = dir
+                .path()
+                .join(format!("boxes{seed}-{stored}-{join:?}.amrk"));
+            let file = small_boxes_file_joined(&path, &params, stored, join);
+            if join.is_some() {
+                assert!(
+                    file.num_bricks() < build_box_hierarchy_bricks(&params),
+                    "nothing joined"
+                );
+            }
             assert_eq!(file.has_tight_ranges(), stored);
             tiled.insert(
                 Extractor::new(&file, 0, 64 << 20)
                     .unwrap()
                     .uses_cell_tiles(),
             );
-            let name = format!("small boxes {params:?}, stored tight ranges {stored}");
+            let name =
+                format!("small boxes {params:?}, stored tight ranges {stored}, joined {join:?}");
             let (c, s, _, _) = check_file(&file, seed, &name);
             culled += c;
             skipped += s;

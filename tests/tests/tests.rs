@@ -8,6 +8,8 @@
 //! - [`chombo_convert`] and [`chombo_errors`]: Chombo HDF5 files, good and bad.
 //! - [`chombo_checkpoint`]: Chombo checkpoints in both layouts.
 //! - [`enzo_convert`]: the real Enzo dataset against yt, written Enzo datasets, bad ones.
+//! - [`stream_order`]: every reader streams its boxes in the order it declares, which the
+//!   converter's joining of small boxes relies on.
 //! - [`amrex_bench`], [`chombo_bench`] and [`enzo_bench`]: large inputs for the conversion
 //!   benchmarks (ignored).
 //!
@@ -83,3 +85,4 @@ mod sample_scratch;
 mod sample_shortcuts;
 mod scene_api;
 mod simulation_stamp;
+mod stream_order;

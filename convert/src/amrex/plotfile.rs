@@ -138,6 +138,10 @@ impl AmrSource for Plotfile {
             .collect()
     }
 
+    fn stream_order(&self) -> Vec<(usize, usize)> {
+        super::reader::stream_order(self)
+    }
+
     fn stream(
         &self,
         comps: &[usize],

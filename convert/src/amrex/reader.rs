@@ -40,6 +40,34 @@ struct Job {
     offset: u64,
 }
 
+/// Every box's FAB, grouped by data file (files in path order), each file's FABs in offset
+/// order: the order [`stream`] reads them in.
+fn jobs_by_file(pf: &Plotfile) -> Vec<(PathBuf, Vec<Job>)> {
+    let mut files: BTreeMap<PathBuf, Vec<Job>> = BTreeMap::new();
+    for (level, pl) in pf.levels.iter().enumerate() {
+        for (index, fod) in pl.cells.fabs.iter().enumerate() {
+            files.entry(pl.dir.join(&fod.file)).or_default().push(Job {
+                level,
+                index,
+                offset: fod.offset,
+            });
+        }
+    }
+    let mut files: Vec<_> = files.into_iter().collect();
+    for (_, jobs) in &mut files {
+        jobs.sort_by_key(|j| j.offset);
+    }
+    files
+}
+
+/// `(level, index)` of every box in the order [`stream`] hands out their slabs.
+pub fn stream_order(pf: &Plotfile) -> Vec<(usize, usize)> {
+    jobs_by_file(pf)
+        .into_iter()
+        .flat_map(|(_, jobs)| jobs.into_iter().map(|j| (j.level, j.index)))
+        .collect()
+}
+
 /// Streams the components `comps` (indices into the plotfile's fields) of every box of every
 /// level to `sink`, in slabs of at most `slab_z` planes aligned to each box's lower z corner.
 /// Progress counts data-file bytes.
@@ -55,18 +83,9 @@ pub fn stream(
     for (p, &c) in comps.iter().enumerate() {
         selected[c] = Some(p);
     }
-    let mut files: BTreeMap<PathBuf, Vec<Job>> = BTreeMap::new();
-    for (level, pl) in pf.levels.iter().enumerate() {
-        for (index, fod) in pl.cells.fabs.iter().enumerate() {
-            files.entry(pl.dir.join(&fod.file)).or_default().push(Job {
-                level,
-                index,
-                offset: fod.offset,
-            });
-        }
-    }
+    let files = jobs_by_file(pf);
     let mut sizes = Vec::with_capacity(files.len());
-    for path in files.keys() {
+    for (path, _) in &files {
         let meta = std::fs::metadata(path)
             .map_err(|e| AmrexError::io(path, "cannot open data file", e))?;
         sizes.push(meta.len());
@@ -230,8 +249,7 @@ impl FileStreamer<'_> {
         advanced: &AtomicU64,
     ) -> Result<StreamStats> {
         let mut stats = StreamStats::default();
-        for (path, mut jobs, len) in files {
-            jobs.sort_by_key(|j| j.offset);
+        for (path, jobs, len) in files {
             let file =
                 File::open(&path).map_err(|e| AmrexError::io(&path, "cannot open data file", e))?;
             let mut f = DataFile {

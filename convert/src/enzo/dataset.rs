@@ -386,6 +386,13 @@ impl AmrSource for Dataset {
         self.boxes.iter().map(Vec::as_slice).collect()
     }
 
+    fn stream_order(&self) -> Vec<(usize, usize)> {
+        super::reader::grid_order(self)
+            .into_iter()
+            .map(|g| (g.level, g.index))
+            .collect()
+    }
+
     fn stream(
         &self,
         comps: &[usize],

@@ -17,6 +17,14 @@ use crate::finite::ToFiniteF32;
 use crate::hierarchy_to_amrk::{slab_ranges, Slab};
 use amr_format::progress::Progress;
 
+/// The grids in the order [`stream`] reads them: by data file, then by grid number, so that
+/// each file is opened once.
+pub fn grid_order(ds: &Dataset) -> Vec<&Grid> {
+    let mut order: Vec<&Grid> = ds.grids.iter().collect();
+    order.sort_by(|a, b| a.file.cmp(&b.file).then(a.id.cmp(&b.id)));
+    order
+}
+
 /// Streams the fields `comps` (indices into `ds.fields`) of every grid to `sink`, in slabs of
 /// at most `chunk` rows and layers. Returns the bytes of cell data read.
 pub fn stream(
@@ -32,12 +40,10 @@ pub fn stream(
         .map(|g| g.valid.num_cells().unwrap_or(0))
         .sum();
     progress.set_total(cells * comps.len() as u64 * ds.value_bytes);
-    let mut order: Vec<&Grid> = ds.grids.iter().collect();
-    order.sort_by(|a, b| a.file.cmp(&b.file).then(a.id.cmp(&b.id)));
     let mut files = OpenFile::default();
     let mut out = Vec::new();
     let mut bytes_read = 0u64;
-    for grid in order {
+    for grid in grid_order(ds) {
         let file = files.get(&grid.file)?;
         for (f, &c) in comps.iter().enumerate() {
             let name = &ds.fields[c];

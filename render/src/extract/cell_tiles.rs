@@ -35,9 +35,10 @@ use crate::reconstruct::{Sampler, VertexMemo};
 const TILE_SHIFT: u32 = 3;
 /// Cells per axis of a tile.
 pub const TILE: i64 = 1 << TILE_SHIFT;
-/// Cells per axis (of its level) of a leaf, at most, for its cells to count towards the tiles
-/// being used ([`CellTiles::pays`]).
-const SMALL_LEAF: i64 = 4;
+/// How many times the leaves' own cells their neighbourhoods must hold for the tiles to pay
+/// ([`CellTiles::pays`]): measured break-even is near 3 (files whose neighbourhoods hold 2.6 to
+/// 2.9 times their cells extract about as fast either way, 4.2 and more faster with tiles).
+const OVERLAP_PAYS: f64 = 3.2;
 /// Tiles kept per worker thread, at most (about 6 KB each). Few enough that the tiles reuse
 /// their memory: every page first touched costs a fault that, on the small boxes tiles are for,
 /// outweighs refilling a cheap tile pushed out; enough that the tiles of coarse levels, whose
@@ -82,29 +83,27 @@ struct ThreadTiles {
 struct OwnLines<T>(T);
 
 impl CellTiles {
-    /// True when at least half of the cells of the leaves with data lie in leaves of at most
-    /// [`SMALL_LEAF`] cells per axis: most neighbourhoods (each leaf's box grown by one cell,
-    /// two thirds of whose cells are then outside the leaf) overlap enough that classifying each
-    /// cell once, in tiles, costs less than filling each neighbourhood from the leaves around
-    /// it. A share of the leaves' own cells, not the file's cells per leaf: that mean also
-    /// counts the cells of coarse bricks that finer ones cover, and a few large leaves raise it;
-    /// and a few small leaves among large ones, where a tile serves one neighbourhood, do not
-    /// turn the tiles on (`docs/benchmarks-extract.md`, `pieces`).
+    /// True when the neighbourhoods of the leaves with data (each leaf's box grown by one cell)
+    /// hold at least [`OVERLAP_PAYS`] times the leaves' own cells: they overlap enough that
+    /// classifying each cell once, in tiles, costs less than filling each neighbourhood from
+    /// the leaves around it. A leaf of `4^3` cells has a neighbourhood of `6^3`, 3.4 times its
+    /// cells; one of `8^3`, 2.0 times. The ratio follows the leaves where the cost is, not the
+    /// boxes of the file: a level joined into large bricks whose kd leaves stay small (where
+    /// finer levels cut them) keeps its tiles, and a few small leaves among large ones, where a
+    /// tile serves one neighbourhood, do not turn them on (`docs/benchmarks-extract.md`,
+    /// `pieces` and `join`).
     pub fn pays<D: AsRef<[u8]>>(sampler: &Sampler<'_, D>) -> bool {
         let grid = sampler.grid();
-        let (mut small, mut all) = (0u64, 0u64);
+        let (mut own, mut around) = (0u64, 0u64);
         for leaf in 0..sampler.file().num_leaves() as u32 {
             let Some((_, level)) = sampler.leaf_top(leaf) else {
                 continue;
             };
             let cells = level_box(grid, level, &sampler.leaf_box(leaf));
-            let n = cells.num_cells().unwrap_or(0);
-            all = all.saturating_add(n);
-            if cells.extent().iter().all(|&e| e <= SMALL_LEAF) {
-                small = small.saturating_add(n);
-            }
+            own = own.saturating_add(cells.num_cells().unwrap_or(0));
+            around = around.saturating_add(cells.grow([1; 3]).num_cells().unwrap_or(0));
         }
-        all > 0 && small >= all - small
+        own > 0 && around as f64 >= OVERLAP_PAYS * own as f64
     }
 
     /// A range holding the bounds of the level-`level` cells of box `g` once settled (the

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use amr_format::box_join::join_bricks;
 use amr_format::progress::NoProgress;
 use amr_format::Compression;
 use amr_synth::{build_box_hierarchy, stream::cells_per_level, write_spec, BoxParams, Case};
@@ -34,6 +35,10 @@ pub struct BoxesArgs {
     /// more, smaller boxes (compare with the file written without it).
     #[arg(long, value_delimiter = ',')]
     pieces: Option<Vec<u32>>,
+    /// Then join runs of consecutive boxes that fill a box of at most N cells per axis into one
+    /// brick, as `amr-convert` does with a dump's boxes (`--brick N`, without `--keep-boxes`).
+    #[arg(long, value_name = "N")]
+    join: Option<u32>,
 }
 
 /// Writes the file and prints a one-line summary.
@@ -54,7 +59,10 @@ pub fn run(args: &BoxesArgs) -> anyhow::Result<()> {
         seed: args.seed,
         pieces,
     };
-    let spec = build_box_hierarchy(&case, case.name(), &params)?;
+    let mut spec = build_box_hierarchy(&case, case.name(), &params)?;
+    if let Some(n) = args.join {
+        spec.bricks = join_bricks(&spec.bricks, i64::from(n.max(1)));
+    }
     let per_level = cells_per_level(&spec);
     let finest = spec.levels.len() as u32 - 1;
     let finest_boxes = spec.bricks.iter().filter(|b| b.level == finest).count();

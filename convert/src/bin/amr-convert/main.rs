@@ -44,6 +44,10 @@ struct Cli {
     /// Compress each brick with zstd (byte-shuffled; stored raw where that does not pay).
     #[arg(long)]
     compress: bool,
+    /// Keep every input box in bricks of its own (by default, runs of small boxes that together
+    /// fill a box of at most --brick cells are joined into one brick, which renders faster).
+    #[arg(long)]
+    keep_boxes: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -67,6 +71,9 @@ fn convert_one(cli: &Cli, input: &Path, output: &Path) -> anyhow::Result<()> {
         if cli.compress {
             options.push("--compress".into());
         }
+        if cli.keep_boxes {
+            options.push("--keep-boxes".into());
+        }
         return isolate::convert_in_child(input, output, &options);
     }
     isolate::crash_if_asked();
@@ -79,6 +86,7 @@ fn convert_one(cli: &Cli, input: &Path, output: &Path) -> anyhow::Result<()> {
         fields: cli.fields.clone(),
         brick: cli.brick,
         compression,
+        join: !cli.keep_boxes,
     };
     let summary = convert_dump(input, output, &opts, &Bar::bytes("converting"))?;
     eprintln!("{}: {summary}", output.display());

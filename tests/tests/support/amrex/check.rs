@@ -57,21 +57,29 @@ pub fn check_against(src: &SrcPlotfile, amrk: &Path, fields: &[&str]) -> Checked
         let info = file.brick(b);
         let level = info.level as usize;
         let (lo, hi) = (info.cells.lo, info.cells.hi);
-        let last = [hi[0] - 1, hi[1] - 1, hi[2] - 1];
-        let owner = src.levels[level]
-            .iter()
-            .position(|s| s.contains(lo) && s.contains(last))
-            .unwrap_or_else(|| {
-                panic!("brick {b} {lo:?}..{hi:?} of level {level} lies in no source box")
-            });
-        let sb = &src.levels[level][owner];
-        covered[level][owner] += info.cells.num_cells().unwrap();
+        // A brick holds one source box's cells, part of them, or (joined) several boxes whole.
+        let owners: Vec<usize> = (0..src.levels[level].len())
+            .filter(|&i| {
+                let s = &src.levels[level][i];
+                (0..3).all(|a| s.lo[a] < hi[a] && lo[a] <= s.hi[a])
+            })
+            .collect();
         for (f, &c) in comps.iter().enumerate() {
             let vals = file.brick_values(f, b).unwrap();
             let mut i = 0;
             for z in lo[2]..hi[2] {
                 for y in lo[1]..hi[1] {
                     for x in lo[0]..hi[0] {
+                        let owner = *owners
+                            .iter()
+                            .find(|&&o| src.levels[level][o].contains([x, y, z]))
+                            .unwrap_or_else(|| {
+                                panic!("brick {b}'s cell ({x},{y},{z}) of level {level} lies in no source box")
+                            });
+                        let sb = &src.levels[level][owner];
+                        if f == 0 {
+                            covered[level][owner] += 1;
+                        }
                         let want = sb.at(c, [x, y, z]) as f32;
                         let got = vals[i];
                         assert_eq!(

@@ -60,6 +60,7 @@ pub fn run_convert(
         fields: fields.to_vec(),
         brick,
         compression,
+        join: true,
     };
     convert_dump(input, output, &opts, &NoProgress)
 }

@@ -22,6 +22,7 @@ pub fn convert(
         fields: fields.iter().map(|s| s.to_string()).collect(),
         brick,
         compression,
+        join: true,
     };
     match chombo::convert(input, output, &opts, &NoProgress) {
         Ok(s) => s,
@@ -61,7 +62,8 @@ pub fn check(out: &Path, d: &Desc, fields: &[&str], brick: i64) {
     }
     let names: Vec<&str> = file.fields().iter().map(|f| f.name.as_str()).collect();
     assert_eq!(names, fields);
-    // Coverage: every brick lies in one source box, no larger than `brick`; cells add up.
+    // Coverage: every brick is no larger than `brick` and made of whole cells of the level's
+    // boxes (one box's, part of one, or several joined); cells add up.
     let mut cells = vec![0u64; d.levels.len()];
     for i in 0..file.num_bricks() {
         let b = file.brick(i);
@@ -71,12 +73,15 @@ pub fn check(out: &Path, d: &Desc, fields: &[&str], brick: i64) {
             "brick {i} {:?} exceeds {brick}",
             b.cells
         );
-        assert!(
-            d.levels[l]
-                .boxes
-                .iter()
-                .any(|&sb| inclusive(sb).contains_box(&b.cells)),
-            "brick {i} {:?} lies in no level-{l} box",
+        let in_boxes: u64 = d.levels[l]
+            .boxes
+            .iter()
+            .map(|&sb| inclusive(sb).intersect(&b.cells).num_cells().unwrap())
+            .sum();
+        assert_eq!(
+            in_boxes,
+            b.cells.num_cells().unwrap(),
+            "brick {i} {:?} is not made of level-{l} boxes' cells",
             b.cells
         );
         cells[l] += b.cells.num_cells().unwrap();

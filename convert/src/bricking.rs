@@ -20,8 +20,9 @@ pub struct ConvertOptions {
     pub brick: u32,
     /// Compression of the brick data.
     pub compression: Compression,
-    /// Join runs of small boxes that arrive one after another into bricks of at most `brick`
-    /// cells per axis (see [`amr_format::box_join`]); off keeps every box in its own bricks.
+    /// Join runs of small boxes that arrive close together into bricks of at most `brick`
+    /// and [`MAX_JOINED_EXTENT`] cells per axis (see [`amr_format::box_join`]); off keeps every
+    /// box in its own bricks.
     pub join: bool,
 }
 
@@ -38,6 +39,13 @@ pub struct ConvertStats {
     /// small ones were joined).
     pub boxes: u64,
 }
+
+/// Cells per axis of a brick joined from small boxes, at most (and at most `--brick`). Joined up
+/// to 16, a level cut into boxes of 2 to 16 cells extracts as fast as the same cells in boxes of
+/// `16^3`; joined up to 32, the same `16^3` boxes extract up to 1.2 times slower at isovalues
+/// where few of a larger leaf's cells are near the surface (its one value range culls less):
+/// `docs/benchmarks-extract.md`, `join`.
+pub const MAX_JOINED_EXTENT: u32 = 16;
 
 /// Where one input box's cells go in the brick table.
 #[derive(Clone, Copy, Debug)]
@@ -57,28 +65,30 @@ struct PendingBrick {
 }
 
 /// Every input box in the brick table: boxes larger than a brick split into bricks, runs of small
-/// boxes that arrive one after another and together fill a box of at most a brick joined into
-/// one (see [`amr_format::box_join`]).
+/// boxes that arrive close together and together fill a box of at most a brick joined into one
+/// (see [`amr_format::box_join`]).
 #[derive(Debug)]
 pub struct BrickLayout {
     brick: i64,
     bricks: Vec<BrickSpec>,
     boxes: Vec<Vec<BoxBricks>>,
-    /// Joined bricks still waiting for cells, by (brick, field): at most one run's worth when the
-    /// boxes come in the order the layout was made for.
+    /// Joined bricks still waiting for cells, by (brick, field): at most
+    /// `amr_format::box_join::WINDOW + 1` bricks per field when the boxes come in the order the
+    /// layout was made for.
     pending: HashMap<(usize, usize), PendingBrick>,
 }
 
 impl BrickLayout {
     /// Lays out the valid boxes of each level (`levels[l]` holds level `l`'s boxes) in bricks of
     /// at most `brick` cells per axis. With `join_order`, the `(level, index)` of every box in
-    /// the order their data will arrive, runs of small boxes in that order are joined; an order
-    /// that does not list every box exactly once joins nothing.
+    /// the order their data will arrive, runs of small boxes in that order are joined into
+    /// bricks of at most `brick` and [`MAX_JOINED_EXTENT`] cells per axis; an order that does not
+    /// list every box exactly once joins nothing.
     pub fn new(levels: &[&[IBox]], brick: u32, join_order: Option<&[(usize, usize)]>) -> Self {
         let b = i64::from(brick.max(1));
         let joined = join_order
             .filter(|order| lists_every_box_once(levels, order))
-            .map(|order| joined_boxes(levels, order, b))
+            .map(|order| joined_boxes(levels, order, b.min(i64::from(MAX_JOINED_EXTENT))))
             .unwrap_or_default();
         let mut bricks = Vec::new();
         let mut boxes = Vec::with_capacity(levels.len());
@@ -247,8 +257,8 @@ fn joined_boxes(
     let mut joined = HashMap::new();
     for (run, j) in join_runs(&sequence, brick).into_iter().enumerate() {
         if j.members.len() > 1 {
-            for &member in &order[j.members] {
-                joined.insert(member, (run, j.cells));
+            for &position in &j.members {
+                joined.insert(order[position], (run, j.cells));
             }
         }
     }

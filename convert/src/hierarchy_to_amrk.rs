@@ -81,7 +81,8 @@ pub trait AmrSource {
 
     /// `(level, index)` of every box in the order [`stream`](Self::stream) hands out its slabs
     /// (for each field, when it streams field by field). The converter joins only boxes that
-    /// follow one another in this order, so that it holds at most one unfinished joined brick.
+    /// come close together in this order, so that it holds few unfinished joined bricks
+    /// ([`amr_format::box_join::join_runs`]).
     /// By default: level by level, each level's boxes in order.
     fn stream_order(&self) -> Vec<(usize, usize)> {
         self.boxes()

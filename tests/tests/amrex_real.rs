@@ -26,9 +26,10 @@ fn example_plt_3d_converts_exactly() {
     }
 }
 
-/// PeleLM cut each level into boxes of `8^3` cells; joined, the levels' 73 boxes are 7 bricks of
-/// at most `32^3` (the file streams its boxes by data file, not in the order `Cell_H` lists
-/// them, and runs are joined in the order the data comes). Every value is still where it was,
+/// PeleLM cut each level into boxes of `8^3` cells; joined, the levels' 73 boxes are 10 bricks of
+/// at most `16^3`: one a level for the two coarse levels, eight for the finest (the file streams
+/// its boxes by data file, not in the order `Cell_H` lists them, and boxes are joined by their
+/// positions in the order the data comes). Every value is still where it was,
 /// and the surfaces extracted from both files have the same active voxels.
 #[test]
 fn example_plt_3d_small_boxes_join_into_fewer_bricks() {
@@ -56,7 +57,14 @@ fn example_plt_3d_small_boxes_join_into_fewer_bricks() {
     let (joined_bricks, joined) = convert_with(true);
     let (kept_bricks, kept) = convert_with(false);
     assert_eq!(kept_bricks, 73);
-    assert_eq!(joined_bricks, 7);
+    assert_eq!(joined_bricks, 10);
+    let finest = |f: &amr_format::AmrkFile<Vec<u8>>| {
+        (0..f.num_bricks())
+            .filter(|&b| f.brick(b).level == 2)
+            .map(|b| f.brick(b).cells.extent())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(finest(&joined), vec![[16; 3]; 8]);
     let (a, b) = (
         Extractor::new(&joined, 0, 64 << 20).unwrap(),
         Extractor::new(&kept, 0, 64 << 20).unwrap(),

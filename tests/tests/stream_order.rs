@@ -1,6 +1,6 @@
 //! Every reader streams its boxes in the order it declares (`AmrSource::stream_order`): the
-//! converter joins only boxes that follow one another in that order, so that it holds at most
-//! one unfinished joined brick. Checked on the real PeleLM plotfile (whose data files hold
+//! converter joins only boxes that come close together in that order, so that it holds few
+//! unfinished joined bricks. Checked on the real PeleLM plotfile (whose data files hold
 //! boxes out of `Cell_H`'s order), the real Enzo dataset and a written Chombo file.
 
 use amr_convert::hierarchy_to_amrk::AmrSource;

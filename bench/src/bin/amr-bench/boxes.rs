@@ -35,8 +35,9 @@ pub struct BoxesArgs {
     /// more, smaller boxes (compare with the file written without it).
     #[arg(long, value_delimiter = ',')]
     pieces: Option<Vec<u32>>,
-    /// Then join runs of consecutive boxes that fill a box of at most N cells per axis into one
-    /// brick, as `amr-convert` does with a dump's boxes (`--brick N`, without `--keep-boxes`).
+    /// Then join runs of boxes close together in their order that fill a box of at most N cells
+    /// per axis into one brick, as `amr-convert` joins a dump's boxes (N = 16 unless
+    /// `--brick` is smaller; `--keep-boxes` turns it off).
     #[arg(long, value_name = "N")]
     join: Option<u32>,
 }

@@ -45,7 +45,8 @@ struct Cli {
     #[arg(long)]
     compress: bool,
     /// Keep every input box in bricks of its own (by default, runs of small boxes that together
-    /// fill a box of at most --brick cells are joined into one brick, which renders faster).
+    /// fill a box of at most 16 cells per axis, and --brick, are joined into one brick, which
+    /// extracts faster).
     #[arg(long)]
     keep_boxes: bool,
 }

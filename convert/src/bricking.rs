@@ -1,9 +1,9 @@
 //! What every reader shares on its way into the writer: the conversion options and statistics,
-//! and the layout that splits each input box into bricks and routes slabs of box data to them.
-
-use std::path::Path;
+//! and the layout that splits each input box into bricks (or joins runs of small ones into one)
+//! and routes slabs of box data to them.
 
 use std::collections::HashMap;
+use std::path::Path;
 
 use amr_format::box_join::join_runs;
 use amr_format::{

@@ -65,7 +65,9 @@ pub struct RenderArgs {
     /// The field that paints slices (default: the first --color-by field, else the rendered one).
     #[arg(long, value_name = "FIELD|level")]
     pub slice_field: Option<ColorBy>,
-    /// Lines drawn for context: none, domain (its bounding box) or boxes (every level's boxes).
+    /// Lines drawn for context: none, domain (its bounding box) or boxes (every level's boxes as
+    /// the file stores them: large boxes split at amr-convert's --brick, small ones joined unless
+    /// converted with --keep-boxes).
     #[arg(long, value_name = "WHAT", default_value = "domain")]
     pub outline: Outline,
     /// Frame the whole domain instead of the isosurfaces when no camera is given (mpirun

@@ -25,6 +25,18 @@ fn selected_fields_keep_their_order() {
     );
 }
 
+/// Level 0's two boxes of `8 x 12 x 8` cells share a face: with bricks of 16 they are joined
+/// into one, and every value is still where it was.
+#[test]
+fn boxes_sharing_a_face_join_into_one_brick() {
+    let d = Desc::three_levels(false);
+    let stats = roundtrip(&d, &[], 16, Compression::None);
+    assert_eq!(stats.boxes, 6);
+    // Level 0 joined into one brick, level 1's two boxes apart, level 2's boxes of up to 24
+    // cells per axis split into 2 x 1 x 2 and 1 x 1 x 1 bricks.
+    assert_eq!(stats.bricks, 1 + 2 + 4 + 1);
+}
+
 #[test]
 fn compressed_output_holds_the_same_values() {
     roundtrip(

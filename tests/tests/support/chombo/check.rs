@@ -102,7 +102,7 @@ pub fn check(out: &Path, d: &Desc, fields: &[&str], brick: i64) {
 }
 
 /// Writes `d`, converts `fields` of it (all when empty), and checks the output.
-pub fn roundtrip(d: &Desc, fields: &[&str], brick: u32, compression: Compression) {
+pub fn roundtrip(d: &Desc, fields: &[&str], brick: u32, compression: Compression) -> ConvertStats {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("plt.3d.hdf5");
     let output = dir.path().join("out.amrk");
@@ -119,4 +119,5 @@ pub fn roundtrip(d: &Desc, fields: &[&str], brick: u32, compression: Compression
         .sum();
     assert_eq!(stats.cells, cells);
     assert!(stats.bytes_read > 0);
+    stats
 }

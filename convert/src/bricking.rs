@@ -5,7 +5,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use amr_format::box_join::join_runs;
+use amr_format::box_join::{join_runs, max_open};
 use amr_format::{
     copy_subbox, paste_subbox, AmrkWriter, BrickSpec, Compression, FormatError, HierarchySpec,
     IBox, LevelSpec,
@@ -72,23 +72,31 @@ pub struct BrickLayout {
     brick: i64,
     bricks: Vec<BrickSpec>,
     boxes: Vec<Vec<BoxBricks>>,
-    /// Joined bricks still waiting for cells, by (brick, field): at most
-    /// `amr_format::box_join::WINDOW + 1` bricks per field when the boxes come in the order the
-    /// layout was made for.
+    /// Joined bricks still waiting for cells, by (brick, field): about
+    /// `amr_format::box_join::PENDING_BYTES` of them at most when the boxes come in the order
+    /// the layout was made for.
     pending: HashMap<(usize, usize), PendingBrick>,
 }
 
 impl BrickLayout {
     /// Lays out the valid boxes of each level (`levels[l]` holds level `l`'s boxes) in bricks of
     /// at most `brick` cells per axis. With `join_order`, the `(level, index)` of every box in
-    /// the order their data will arrive, runs of small boxes in that order are joined into
-    /// bricks of at most `brick` and [`MAX_JOINED_EXTENT`] cells per axis; an order that does not
-    /// list every box exactly once joins nothing.
-    pub fn new(levels: &[&[IBox]], brick: u32, join_order: Option<&[(usize, usize)]>) -> Self {
+    /// the order their data will arrive, runs of small boxes are joined into bricks of at most
+    /// `brick` and [`MAX_JOINED_EXTENT`] cells per axis, few enough unfinished at any point of
+    /// that order that `fields` fields of them stay within
+    /// [`amr_format::box_join::PENDING_BYTES`]; an order that does not list every box exactly
+    /// once joins nothing.
+    pub fn new(
+        levels: &[&[IBox]],
+        brick: u32,
+        join_order: Option<&[(usize, usize)]>,
+        fields: usize,
+    ) -> Self {
         let b = i64::from(brick.max(1));
+        let extent = b.min(i64::from(MAX_JOINED_EXTENT));
         let joined = join_order
             .filter(|order| lists_every_box_once(levels, order))
-            .map(|order| joined_boxes(levels, order, b.min(i64::from(MAX_JOINED_EXTENT))))
+            .map(|order| joined_boxes(levels, order, extent, max_open(extent, fields)))
             .unwrap_or_default();
         let mut bricks = Vec::new();
         let mut boxes = Vec::with_capacity(levels.len());
@@ -248,14 +256,18 @@ fn lists_every_box_once(levels: &[&[IBox]], order: &[(usize, usize)]) -> bool {
 fn joined_boxes(
     levels: &[&[IBox]],
     order: &[(usize, usize)],
-    brick: i64,
+    extent: i64,
+    max_open: usize,
 ) -> HashMap<(usize, usize), (usize, IBox)> {
     let sequence: Vec<(u32, IBox)> = order
         .iter()
         .map(|&(l, i)| (l as u32, levels[l][i]))
         .collect();
     let mut joined = HashMap::new();
-    for (run, j) in join_runs(&sequence, brick).into_iter().enumerate() {
+    for (run, j) in join_runs(&sequence, extent, max_open)
+        .into_iter()
+        .enumerate()
+    {
         if j.members.len() > 1 {
             for &position in &j.members {
                 joined.insert(order[position], (run, j.cells));

@@ -187,7 +187,7 @@ pub fn convert<S: AmrSource + ?Sized>(
     let comps = select_fields(src, &opts.fields)?;
     let boxes = src.boxes();
     let order = opts.join.then(|| src.stream_order());
-    let layout = BrickLayout::new(&boxes, opts.brick, order.as_deref());
+    let layout = BrickLayout::new(&boxes, opts.brick, order.as_deref(), comps.len());
     let fields = comps.iter().map(|&c| src.fields()[c].clone()).collect();
     let mut sink = BrickSink::create(output, src.level_specs(), fields, layout, opts.compression)
         .map_err(|e| output_error(output, e))?;

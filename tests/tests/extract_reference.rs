@@ -326,7 +326,11 @@ fn small_boxes_file_joined(
     use amr_synth::{build_box_hierarchy, write_spec, Case as Synth};
     let mut spec = build_box_hierarchy(&Synth::Blobs, "blobs", params).unwrap();
     if let Some(n) = join {
-        spec.bricks = amr_format::box_join::join_bricks(&spec.bricks, n);
+        spec.bricks = amr_format::box_join::join_bricks(
+            &spec.bricks,
+            n,
+            amr_format::box_join::max_open(n, 1),
+        );
     }
     let opts = match stored {
         false => Default::default(),

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use amr_format::box_join::join_bricks;
+use amr_format::box_join::{join_bricks, max_open};
 use amr_format::progress::NoProgress;
 use amr_format::Compression;
 use amr_synth::{build_box_hierarchy, stream::cells_per_level, write_spec, BoxParams, Case};
@@ -62,7 +62,8 @@ pub fn run(args: &BoxesArgs) -> anyhow::Result<()> {
     };
     let mut spec = build_box_hierarchy(&case, case.name(), &params)?;
     if let Some(n) = args.join {
-        spec.bricks = join_bricks(&spec.bricks, i64::from(n.max(1)));
+        let n = i64::from(n.max(1));
+        spec.bricks = join_bricks(&spec.bricks, n, max_open(n, spec.fields.len()));
     }
     let per_level = cells_per_level(&spec);
     let finest = spec.levels.len() as u32 - 1;

@@ -57,9 +57,8 @@ pub struct JoinedBox {
 /// including, its last). Boxes larger than `max_extent`, and boxes no neighbour fits, stay runs of
 /// one. Every position belongs to exactly one run; runs come in the order of their first box.
 ///
-/// Overlapping input boxes (a malformed dump) share no whole face without sharing cells only
-/// by coincidence of their extents; a pair that does is joined only if disjoint, so overlaps are
-/// still found where the kd-tree is built.
+/// Two runs join only when they share no cell, so the overlapping boxes of a malformed dump are
+/// never joined and are still found where the kd-tree is built.
 pub fn join_runs(boxes: &[(u32, IBox)], max_extent: i64, max_open: usize) -> Vec<JoinedBox> {
     let mut runs = consecutive_runs(boxes, max_extent);
     let mut faces = Faces::with_capacity(runs.len());
@@ -83,19 +82,12 @@ pub fn join_runs(boxes: &[(u32, IBox)], max_extent: i64, max_open: usize) -> Vec
                     };
                     faces.remove(&runs[id], id);
                     faces.remove(&runs[other], other);
-                    let taken = std::mem::take(&mut runs[other].members);
-                    let (o_first, o_last, o_cells) =
-                        (runs[other].first, runs[other].last, runs[other].cells);
-                    runs[other].alive = false;
-                    let run = &mut runs[id];
-                    open.add(run.first, run.last, -1);
-                    open.add(o_first, o_last, -1);
-                    run.cells = run.cells.union(&o_cells);
-                    run.first = run.first.min(o_first);
-                    run.last = run.last.max(o_last);
-                    run.members.extend(taken);
-                    open.add(run.first, run.last, 1);
-                    faces.insert(run, id);
+                    open.add(runs[id].first, runs[id].last, -1);
+                    open.add(runs[other].first, runs[other].last, -1);
+                    let absorbed = std::mem::replace(&mut runs[other], Run::joined());
+                    runs[id].absorb(absorbed);
+                    open.add(runs[id].first, runs[id].last, 1);
+                    faces.insert(&runs[id], id);
                     joins += 1;
                 }
             }
@@ -184,6 +176,28 @@ struct Run {
     first: usize,
     last: usize,
     alive: bool,
+}
+
+impl Run {
+    /// What is left of a run joined into another.
+    fn joined() -> Self {
+        Self {
+            level: 0,
+            cells: IBox::default(),
+            members: Vec::new(),
+            first: 0,
+            last: 0,
+            alive: false,
+        }
+    }
+
+    /// Takes `other`'s boxes into this run.
+    fn absorb(&mut self, other: Run) {
+        self.cells = self.cells.union(&other.cells);
+        self.first = self.first.min(other.first);
+        self.last = self.last.max(other.last);
+        self.members.extend(other.members);
+    }
 }
 
 /// A whole face of a box: level, axis, the face's coordinate on that axis, the box's range on

@@ -367,17 +367,23 @@ mod tests {
         IBox::new(lo, lo.map(|v| v + n))
     }
 
-    #[test]
-    fn pieces_of_a_box_in_x_fastest_order_rejoin_into_it() {
-        // A 16^3 box cut into 4^3 pieces, x fastest, as a reader would stream them.
+    /// Cubes of `size` cells of `level` filling `counts` of them per axis, x fastest.
+    fn cubes_in_row_order(level: u32, counts: [i64; 3], size: i64) -> Vec<(u32, IBox)> {
         let mut boxes = Vec::new();
-        for z in 0..4 {
-            for y in 0..4 {
-                for x in 0..4 {
-                    boxes.push((1, cube([4 * x, 4 * y, 4 * z], 4)));
+        for z in 0..counts[2] {
+            for y in 0..counts[1] {
+                for x in 0..counts[0] {
+                    boxes.push((level, cube([x, y, z].map(|v| v * size), size)));
                 }
             }
         }
+        boxes
+    }
+
+    #[test]
+    fn pieces_of_a_box_in_x_fastest_order_rejoin_into_it() {
+        // A 16^3 box cut into 4^3 pieces, x fastest, as a reader would stream them.
+        let boxes = cubes_in_row_order(1, [4; 3], 4);
         let runs = join_runs(&boxes, 16, 16);
         assert_eq!(
             runs,
@@ -426,14 +432,7 @@ mod tests {
     fn neighbours_a_few_positions_apart_join() {
         // Boxes of 8^3 filling 32x16x16, streamed as two layers of two rows of four: a brick of
         // 16^3 takes the first two boxes of each row, which are not consecutive.
-        let mut boxes = Vec::new();
-        for z in 0..2 {
-            for y in 0..2 {
-                for x in 0..4 {
-                    boxes.push((2, cube([8 * x, 8 * y, 8 * z], 8)));
-                }
-            }
-        }
+        let boxes = cubes_in_row_order(2, [4, 2, 2], 8);
         let runs = join_runs(&boxes, 16, 16);
         let cells: Vec<IBox> = runs.iter().map(|r| r.cells).collect();
         assert_eq!(
@@ -507,15 +506,7 @@ mod tests {
 
     #[test]
     fn one_cell_boxes_in_row_order_rejoin_within_the_bound() {
-        let n = 40;
-        let mut boxes = Vec::new();
-        for z in 0..n {
-            for y in 0..n {
-                for x in 0..n {
-                    boxes.push((0, cube([x, y, z], 1)));
-                }
-            }
-        }
+        let boxes = cubes_in_row_order(0, [40; 3], 1);
         // 3 x 3 bricks of up to 16^3 open across a layer at once: 9 runs.
         for (max_open, want) in [(9, 27), (4, 0)] {
             let runs = join_runs(&boxes, 16, max_open);

@@ -27,10 +27,10 @@ fn example_plt_3d_converts_exactly() {
 }
 
 /// PeleLM cut each level into boxes of `8^3` cells; joined, the levels' 73 boxes are 10 bricks of
-/// at most `16^3`: one a level for the two coarse levels, eight for the finest (the file streams
-/// its boxes by data file, not in the order `Cell_H` lists them, and boxes are joined by their
-/// positions in the order the data comes). Every value is still where it was,
-/// and the surfaces extracted from both files have the same active voxels.
+/// at most `16^3`: one a level for the two coarse levels, eight for the finest, one per aligned
+/// block (the file streams its boxes by data file, not in the order `Cell_H` lists them). Every
+/// value is still where it was, and the surfaces extracted from both files have the same active
+/// voxels.
 #[test]
 fn example_plt_3d_small_boxes_join_into_fewer_bricks() {
     use amr_convert::bricking::ConvertOptions;

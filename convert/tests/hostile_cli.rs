@@ -310,3 +310,22 @@ fn an_error_says_each_cause_once() {
     assert!(err.contains("moving7_0010.cpu0000"), "{err}");
     assert_eq!(err.matches("H5Fopen").count(), 1, "{err}");
 }
+
+/// `--keep-boxes` reaches the child that reads HDF5: level 0's two boxes of the fixture, which
+/// share a face, are one brick by default and two with it.
+#[test]
+fn keep_boxes_reaches_the_hdf5_child() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture(dir.path());
+    let joined = dir.path().join("joined.amrk");
+    let kept = dir.path().join("kept.amrk");
+    let brick = Path::new("16");
+    let flag = Path::new("--brick");
+    let (code, joined_msg) = run(&[&input, Path::new("-o"), &joined, flag, brick], &[]);
+    assert_eq!(code, Some(0), "{joined_msg}");
+    let keep = Path::new("--keep-boxes");
+    let (code, kept_msg) = run(&[&input, Path::new("-o"), &kept, flag, brick, keep], &[]);
+    assert_eq!(code, Some(0), "{kept_msg}");
+    assert!(joined_msg.contains("of 6 boxes in 8 bricks"), "{joined_msg}");
+    assert!(kept_msg.contains("of 6 boxes in 9 bricks"), "{kept_msg}");
+}

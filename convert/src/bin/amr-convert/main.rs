@@ -44,9 +44,9 @@ struct Cli {
     /// Compress each brick with zstd (byte-shuffled; stored raw where that does not pay).
     #[arg(long)]
     compress: bool,
-    /// Keep every input box in bricks of its own (by default, runs of small boxes that together
-    /// fill a box of at most 16 cells per axis, and --brick, are joined into one brick, which
-    /// extracts faster).
+    /// Keep every input box in bricks of its own (by default, small boxes of a level that share
+    /// whole faces and together fill a box of at most 16 cells per axis, and --brick, are joined
+    /// into one brick, which extracts faster; --outline boxes then draws the joined bricks).
     #[arg(long)]
     keep_boxes: bool,
 }

@@ -326,6 +326,9 @@ fn keep_boxes_reaches_the_hdf5_child() {
     let keep = Path::new("--keep-boxes");
     let (code, kept_msg) = run(&[&input, Path::new("-o"), &kept, flag, brick, keep], &[]);
     assert_eq!(code, Some(0), "{kept_msg}");
-    assert!(joined_msg.contains("of 6 boxes in 8 bricks"), "{joined_msg}");
+    assert!(
+        joined_msg.contains("of 6 boxes in 8 bricks"),
+        "{joined_msg}"
+    );
     assert!(kept_msg.contains("of 6 boxes in 9 bricks"), "{kept_msg}");
 }

@@ -274,3 +274,73 @@ fn unrecognised_inputs_are_named() {
     std::fs::write(&h5, b"\x89HDF").unwrap();
     assert_fails(&h5, &[], &["run.hdf5"]);
 }
+
+/// Levels cut into many small boxes of random sizes, listed in a shuffled order and spread over
+/// several data files, so that the converter joins boxes that arrive far apart and out of
+/// order: every value of every field still comes back where it was, and fewer bricks than
+/// boxes are written.
+#[test]
+fn small_boxes_in_shuffled_files_join_and_keep_every_value() {
+    use crate::support::rng::Rng;
+    for seed in 1..=4u64 {
+        let mut rng = Rng(seed);
+        // Cuts of `0..n` into spans of 1 to 5 cells.
+        let mut spans = |lo: i64, n: i64| {
+            let mut out = Vec::new();
+            let mut at = lo;
+            while at < lo + n {
+                let end = (at + 1 + rng.below(5) as i64).min(lo + n);
+                out.push((at, end));
+                at = end;
+            }
+            out
+        };
+        let mut cut = |lo: [i64; 3], n: [i64; 3]| -> Vec<Bx> {
+            let (xs, ys, zs) = (spans(lo[0], n[0]), spans(lo[1], n[1]), spans(lo[2], n[2]));
+            let mut boxes = Vec::new();
+            for &(z0, z1) in &zs {
+                for &(y0, y1) in &ys {
+                    for &(x0, x1) in &xs {
+                        boxes.push(([x0, y0, z0], [x1 - 1, y1 - 1, z1 - 1]));
+                    }
+                }
+            }
+            boxes
+        };
+        let mut level0 = cut([0; 3], [20, 12, 10]);
+        // Level 1 (ratio 2) over part of level 0, in boxes of 1 to 5 cells as well.
+        let mut level1 = cut([4, 2, 2], [24, 14, 12]);
+        let mut shuffle = |boxes: &mut Vec<Bx>| {
+            for i in (1..boxes.len()).rev() {
+                let j = rng.below(i as u64 + 1) as usize;
+                boxes.swap(i, j);
+            }
+        };
+        shuffle(&mut level0);
+        shuffle(&mut level1);
+        let spec = PlotSpec {
+            fields: vec!["density".into(), "temp".into()],
+            domain: ([0; 3], [19, 11, 9]),
+            prob_hi: [2.0, 1.2, 1.0],
+            ratios: vec![[2, 2, 2]],
+            boxes: vec![level0, level1],
+            boxes_per_file: 7,
+            ..PlotSpec::single(20)
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let plt = dir.path().join("plt00000");
+        write_plotfile(&plt, &spec, &analytic, 0.0);
+        let target = dir.path().join("out.amrk");
+        let s = convert(&plt, &target, &[], 16).unwrap();
+        let boxes: u64 = spec.boxes.iter().map(|l| l.len() as u64).sum();
+        assert_eq!(s.boxes, boxes);
+        assert!(
+            s.bricks < boxes / 2,
+            "seed {seed}: {} bricks of {boxes} boxes",
+            s.bricks
+        );
+        let checked = check_conversion(&plt, &target, &[]);
+        assert_eq!(checked.values, s.cells * 2, "seed {seed}");
+        check_geometry(&spec, &target);
+    }
+}

@@ -122,13 +122,11 @@ fn consecutive_runs(boxes: &[(u32, IBox)], max_extent: i64) -> Vec<Run> {
         if let Some(run) = runs.last_mut() {
             let hull = run.cells.union(&cells);
             let fits = hull.extent().iter().all(|&e| e <= max_extent);
-            let count = |b: &IBox| b.num_cells().map(u128::from);
-            let fills = match (count(&run.cells), count(&cells), count(&hull)) {
-                (Some(a), Some(b), Some(h)) => a + b == h,
-                _ => false,
-            };
-            let aligned = in_one_block(&hull, max_extent);
-            if run.level == level && fits && aligned && fills && !run.cells.overlaps(&cells) {
+            if run.level == level
+                && shares_whole_face(&run.cells, &cells)
+                && fits
+                && in_one_block(&hull, max_extent)
+            {
                 run.cells = hull;
                 run.members.push(i);
                 run.last = i;
@@ -145,6 +143,15 @@ fn consecutive_runs(boxes: &[(u32, IBox)], max_extent: i64) -> Vec<Run> {
         });
     }
     runs
+}
+
+/// True when `a` and `b` share a whole face: adjacent along one axis, the same range on the two
+/// others. Their union is then a box, and they share no cell.
+fn shares_whole_face(a: &IBox, b: &IBox) -> bool {
+    (0..3).any(|ax| {
+        face(0, a, ax, a.hi[ax]) == face(0, b, ax, b.lo[ax])
+            || face(0, a, ax, a.lo[ax]) == face(0, b, ax, b.hi[ax])
+    })
 }
 
 /// True when `cells` lies inside one block of the grid of `size` cells per axis (blocks
@@ -275,7 +282,6 @@ impl Faces {
                 k != id
                     && other.alive
                     && e[a] + other.cells.extent()[a] <= max_extent
-                    && !run.cells.overlaps(&other.cells)
                     && bound(run, other)
             })
         })

@@ -188,16 +188,32 @@ pub fn format_vector(v: [f64; 3]) -> String {
     )
 }
 
-/// The labels of `values` (tick marks) by [`format_value`], with more significant digits
-/// where that would print two of them alike (ticks `1.00002` apart near 1).
+/// The labels of `values` (tick marks, ascending) by [`format_value`], with more significant
+/// digits where fewer would print two of them alike or put a label on the wrong tick: ticks
+/// `5e-6` apart from 1.000005 are `1.000005, 1.00001`, not `1, 1.00001`.
 pub fn distinct_labels(values: &[f64]) -> Vec<String> {
+    let spacing = values
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .fold(f64::INFINITY, f64::min);
+    let reads_as_its_tick = |label: &str, v: f64| {
+        !spacing.is_finite()
+            || label
+                .parse::<f64>()
+                .is_ok_and(|read| (read - v).abs() <= 0.01 * spacing)
+    };
     let mut labels = Vec::new();
     for digits in 5..=17 {
         labels = values
             .iter()
             .map(|&v| format_significant(v, digits))
             .collect();
-        if labels.windows(2).all(|w| w[0] != w[1]) {
+        if labels.windows(2).all(|w| w[0] != w[1])
+            && labels
+                .iter()
+                .zip(values)
+                .all(|(l, &v)| reads_as_its_tick(l, v))
+        {
             break;
         }
     }
@@ -318,5 +334,17 @@ mod tests {
             ["1", "1.00002", "1.00004"]
         );
         assert_eq!(distinct_labels(&[2e7, 2.00001e7]), ["2e7", "2.00001e7"]);
+        assert_eq!(
+            distinct_labels(&[1.000005, 1.00001]),
+            ["1.000005", "1.00001"]
+        );
+        assert_eq!(
+            distinct_labels(&[-0.25, 0.0, 0.25, 0.5]),
+            ["-0.25", "0", "0.25", "0.5"]
+        );
+        assert_eq!(
+            distinct_labels(&[10.0, 100.0, 1000.0]),
+            ["10", "100", "1000"]
+        );
     }
 }

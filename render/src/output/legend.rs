@@ -25,6 +25,10 @@ pub struct ColorBar {
     pub range: (f64, f64),
     /// Logarithmic.
     pub log: bool,
+    /// Whether the frame holds values below the low end and above the high end, drawn in the
+    /// ends' colours: the bar then ends in a pointed cap on that side, as matplotlib's
+    /// `extend` draws it, so that a saturated colour is not read as the end's value.
+    pub beyond: (bool, bool),
 }
 
 /// The mark beside a legend line, in 8-bit sRGB.
@@ -77,6 +81,17 @@ impl Canvas<'_> {
             for x in x0..x0 + w {
                 self.blend(x, y, c, a);
             }
+        }
+    }
+
+    /// A triangle `width` wide at row `base`, narrowing row by row in direction `step` (-1: up)
+    /// to a point: black, `color` inside.
+    fn cap(&mut self, (x0, base): (i64, i64), width: i64, step: i64, color: [u8; 3]) {
+        let rows = (width + 1) / 2 + 1;
+        for r in 0..rows {
+            let (inset, y) = (r, base + step * r);
+            self.rect(x0 + inset, y, width - 2 * inset, 1, [0, 0, 0], 1.0);
+            self.rect(x0 + inset + 1, y, width - 2 * inset - 2, 1, color, 1.0);
         }
     }
 
@@ -205,6 +220,7 @@ impl Legend {
                 colormap: view.color_scale.colormap,
                 range,
                 log: view.color_scale.log,
+                beyond: values_beyond(&rendered.frame.color_value, range),
             }),
             _ => None,
         };
@@ -311,10 +327,20 @@ impl Legend {
         };
         let right = w - px;
         let x0 = (right - label_w - px * 0.5 - bar_w).min(right - text.width(&title));
-        let (y0, y1) = (h * 0.2, h * 0.8);
+        let (top, bottom) = (h * 0.2, h * 0.8);
         let title_x = x0.min(right - text.width(&title));
-        canvas.panel((title_x, y0 - px * 1.6), (right, y1 + px * 0.6), px * 0.4);
-        text.draw(canvas, &title, title_x, y0 - px * 1.6);
+        canvas.panel(
+            (title_x, top - px * 1.6),
+            (right, bottom + px * 0.6),
+            px * 0.4,
+        );
+        text.draw(canvas, &title, title_x, top - px * 1.6);
+        let cap = bar_w.round() as i64;
+        let cap_room = |drawn: bool| if drawn { (cap / 2 + 3) as f32 } else { 0.0 };
+        let (y0, y1) = (
+            top + cap_room(bar.beyond.1),
+            bottom - cap_room(bar.beyond.0),
+        );
         let position = |v: f64| {
             crate::coloring::ColorScale {
                 colormap: bar.colormap,
@@ -335,6 +361,14 @@ impl Legend {
             let t = f64::from((y1 - y as f32) / (y1 - y0));
             canvas.rect(x0 as i64, y, bar_w as i64, 1, bar.colormap.srgb8(t), 1.0);
         }
+        for (beyond, base, step, t) in [
+            (bar.beyond.1, y0 as i64 - 1, -1, 1.0),
+            (bar.beyond.0, y1 as i64 + 1, 1, 0.0),
+        ] {
+            if beyond {
+                canvas.cap((x0 as i64 - 1, base), cap + 2, step, bar.colormap.srgb8(t));
+            }
+        }
         for (v, s) in labels {
             let y = y1 - position(v) as f32 * (y1 - y0);
             canvas.rect(
@@ -348,6 +382,19 @@ impl Legend {
             text.draw(canvas, &s, x0 + bar_w + px * 0.5, y - px * 0.6);
         }
     }
+}
+
+/// Whether any of the painted values (NaN: not painted) lies below `lo` and above `hi`, by more
+/// than the `f32` rounding of the range's ends.
+fn values_beyond(values: &[f32], (lo, hi): (f64, f64)) -> (bool, bool) {
+    let slack = 1e-6 * lo.abs().max(hi.abs());
+    values
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((false, false), |(below, above), &v| {
+            let v = f64::from(v);
+            (below || v < lo - slack, above || v > hi + slack)
+        })
 }
 
 /// About five round tick values in `range` (powers of ten for a log scale spanning decades).
@@ -370,7 +417,7 @@ pub fn ticks((lo, hi): (f64, f64), log: bool) -> Vec<f64> {
         .map(|m| m * mag)
         .find(|s| *s >= raw)
         .unwrap_or(10.0 * mag);
-    let first = (lo / step).ceil() as i64;
+    let first = (lo / step - 1e-9).ceil() as i64;
     (first..)
         .map(|k| k as f64 * step)
         .take_while(|v| *v <= hi + 1e-9 * step)
@@ -417,5 +464,57 @@ mod tests {
             "{t:?}"
         );
         assert_eq!(ticks((1.0, 1000.0), true), vec![1.0, 10.0, 100.0, 1000.0]);
+        let t = ticks((1.0, 1.0000141), false);
+        assert_eq!(t.len(), 3, "the tick at the range's low end is kept: {t:?}");
+        assert!((t[0] - 1.0).abs() < 1e-12, "{t:?}");
+    }
+
+    #[test]
+    fn values_past_the_range_are_told_on_their_side() {
+        let nan = f32::NAN;
+        assert_eq!(values_beyond(&[nan, 1.0, 5.0], (0.0, 4.0)), (false, true));
+        assert_eq!(values_beyond(&[-1.0, 2.0], (0.0, 4.0)), (true, false));
+        assert_eq!(values_beyond(&[nan, 0.0, 4.0], (0.0, 4.0)), (false, false));
+        let hi = 1.000_014_066_696_167;
+        assert_eq!(values_beyond(&[hi as f32], (1.0, hi)), (false, false));
+    }
+
+    #[test]
+    fn a_bar_with_values_past_its_ends_is_capped_on_those_sides() {
+        let (w, h) = (400u32, 300u32);
+        let draw = |beyond| {
+            let mut rgb = vec![128u8; (3 * w * h) as usize];
+            let legend = Legend {
+                color_bar: Some(ColorBar {
+                    title: "T".into(),
+                    colormap: Colormap::default(),
+                    range: (0.0, 1.0),
+                    log: false,
+                    beyond,
+                }),
+                ..Legend::default()
+            };
+            legend.draw(&mut rgb, w, h);
+            rgb
+        };
+        let (plain, top, both) = (
+            draw((false, false)),
+            draw((false, true)),
+            draw((true, true)),
+        );
+        let count = |rgb: &[u8], t: f64| {
+            let c = Colormap::default().srgb8(t);
+            rgb.chunks(3).filter(|p| *p == c).count()
+        };
+        let bar_w = (w as f32 / 60.0).max(10.0) as usize;
+        assert!(
+            count(&top, 1.0) > count(&plain, 1.0) + bar_w,
+            "no cap on top"
+        );
+        assert_eq!(count(&top, 0.0), count(&plain, 0.0));
+        assert!(
+            count(&both, 0.0) > count(&top, 0.0) + bar_w,
+            "no cap at the bottom"
+        );
     }
 }

@@ -11,6 +11,15 @@ use crate::field_stats::{
     format_value, format_vector, FieldPercentiles, MAX_SAMPLES, SAMPLE_RUN, TABLE,
 };
 
+/// `v` in full (it reads back as the same `f64`), in scientific notation where plain digits
+/// would run long: a PeleLM time is `1.3924182125972017e-8`, not 0.0000000139....
+fn exact_number(v: f64) -> String {
+    match v == 0.0 || (1e-3..1e6).contains(&v.abs()) {
+        true => v.to_string(),
+        false => format!("{v:e}"),
+    }
+}
+
 /// A human-readable description of an open file: levels, bricks, cells, fields and their
 /// ranges, tree depth and leaves, and bytes by section.
 pub fn describe(file: &MappedFile) -> String {
@@ -35,7 +44,7 @@ pub fn describe(file: &MappedFile) -> String {
             let _ = writeln!(
                 out,
                 "simulation: time {} step {}",
-                show(time.map(|t| t.to_string())),
+                show(time.map(exact_number)),
                 show(step.map(|n| n.to_string()))
             );
         }
@@ -44,14 +53,17 @@ pub fn describe(file: &MappedFile) -> String {
     for (l, lev) in file.levels().iter().enumerate() {
         let _ = writeln!(
             out,
-            "  level {l}: bricks {} cells {} domain {:?}..{:?} cell size {} origin {} ratio to next {:?}",
+            "  level {l}: bricks {} cells {} domain {:?}..{:?} cell size {} origin {}{}",
             bricks[l],
             cells[l],
             lev.domain.lo,
             lev.domain.hi,
             format_vector(lev.cell_size),
             format_vector(lev.origin),
-            lev.ratio_to_next
+            match l + 1 < nl {
+                true => format!(" ratio to next {:?}", lev.ratio_to_next),
+                false => String::new(),
+            }
         );
         match covered[l] {
             Some(b) => {

@@ -27,3 +27,26 @@ fn enzo_and_amrex_dumps_record_their_time_and_step() {
         assert_eq!(stamp_of(&dir), (Some(1.3924182125972017e-08), Some(20)));
     }
 }
+
+/// `amr-render info` prints the PeleLM time in full but readably, and no ratio for the finest
+/// level, which has no next level.
+#[test]
+fn info_prints_a_small_time_in_full_and_no_ratio_past_the_finest_level() {
+    let Some(dir) = shared_data("simulation_stamp", "amrex/example_plt_3d", "Header") else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out.amrk");
+    convert(&dir, &out, &[], 16).unwrap();
+    let text = amr_render::info::describe(&amr_render::mapping::open_mapped(&out).unwrap());
+    assert!(
+        text.contains("simulation: time 1.3924182125972017e-8 step 20"),
+        "{text}"
+    );
+    let levels: Vec<&str> = text.lines().filter(|l| l.starts_with("  level ")).collect();
+    assert_eq!(levels.len(), 3, "{text}");
+    assert!(levels[..2]
+        .iter()
+        .all(|l| l.ends_with("ratio to next [2, 2, 2]")));
+    assert!(!levels[2].contains("ratio"), "{}", levels[2]);
+}

@@ -146,6 +146,9 @@ pub struct Scene {
     color_by: Vec<Option<ColorBy>>,
     /// Slices and what paints them.
     slices: Vec<(Slice, ColorBy)>,
+    /// What the caller asked to paint the slices by (`None`: the default, resolved again
+    /// whenever the surfaces' painters change).
+    slice_by: Option<ColorBy>,
     /// The box the surfaces are cut to.
     clip: Option<ClipBox>,
     /// The frustum the extraction is limited to.
@@ -182,6 +185,7 @@ impl Scene {
             stats: SceneStats::default(),
             color_by: Vec::new(),
             slices: Vec::new(),
+            slice_by: None,
             clip: None,
             extract_view: None,
         })
@@ -380,13 +384,27 @@ impl Scene {
             self.open_color_source(by)?;
         }
         self.color_by = per_surface.to_vec();
-        Ok(())
+        self.paint_slices()
     }
 
     /// Replaces the slices, each painted by `by` (default: the first field that paints a
-    /// surface, else the rendered field).
+    /// surface, else the rendered field; the default follows later [`Self::set_color_by`]
+    /// calls, so the two may come in either order).
     pub fn set_slices(&mut self, slices: &[Slice], by: Option<ColorBy>) -> Result<()> {
-        let by = by.unwrap_or_else(|| {
+        let before = (self.slice_by.clone(), self.slices.clone());
+        self.slice_by = by;
+        self.slices = slices.iter().map(|s| (*s, ColorBy::Level)).collect();
+        self.paint_slices().inspect_err(|_| {
+            (self.slice_by, self.slices) = before;
+        })
+    }
+
+    /// Sets what paints the slices from the request and the surfaces' painters.
+    fn paint_slices(&mut self) -> Result<()> {
+        if self.slices.is_empty() {
+            return Ok(());
+        }
+        let by = self.slice_by.clone().unwrap_or_else(|| {
             self.color_by
                 .iter()
                 .flatten()
@@ -395,7 +413,9 @@ impl Scene {
                 .unwrap_or_else(|| ColorBy::Field(self.field_name().to_string()))
         });
         self.open_color_source(&by)?;
-        self.slices = slices.iter().map(|s| (*s, by.clone())).collect();
+        for slice in &mut self.slices {
+            slice.1 = by.clone();
+        }
         Ok(())
     }
 

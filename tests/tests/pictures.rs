@@ -183,6 +183,35 @@ fn a_slice_shows_the_field_at_each_of_its_points() {
     );
 }
 
+/// A slice's default painter is the field that paints the surfaces, whichever of
+/// `set_slices` and `set_color_by` comes first (the CLI set the slices first and then refused
+/// `--slice` with `--color-by` as two colour scales).
+#[test]
+fn a_slice_takes_the_surfaces_painter_whichever_is_set_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let slice = Slice::parse_axis("z=0.4").unwrap();
+    let ramp_paints = [Some(ColorBy::Field("ramp".into()))];
+    let mut slices_first = scene(&path);
+    slices_first.set_slices(&[slice], None).unwrap();
+    slices_first.set_color_by(&ramp_paints).unwrap();
+    let mut painters_first = scene(&path);
+    painters_first.set_color_by(&ramp_paints).unwrap();
+    painters_first.set_slices(&[slice], None).unwrap();
+    for s in [&slices_first, &painters_first] {
+        assert_eq!(s.slices()[0].1, ColorBy::Field("ramp".into()));
+        assert!(render(s, &view(), &|_| {}).is_ok());
+    }
+    assert!(slices_first
+        .set_slices(&[slice], Some(ColorBy::Field("no such field".into())))
+        .is_err());
+    assert_eq!(
+        slices_first.slices()[0].1,
+        ColorBy::Field("ramp".into()),
+        "a refused call leaves the slices as they were"
+    );
+}
+
 #[test]
 fn level_painting_shows_each_hit_s_level() {
     let dir = tempfile::tempdir().unwrap();

@@ -346,7 +346,8 @@ fn summary(file: &Path, scene: &Scene, files: &FrameFiles, took: Duration) -> St
         scene.stats().active_octants
     );
     if !scene.slices().is_empty() {
-        out += &format!(", {} slices", scene.slices().len());
+        let n = scene.slices().len();
+        out += &format!(", {n} slice{}", if n == 1 { "" } else { "s" });
     }
     let mut written = vec![files.exr.display().to_string()];
     written.extend(files.preview.iter().map(|p| p.display().to_string()));

@@ -212,6 +212,31 @@ fn a_slice_takes_the_surfaces_painter_whichever_is_set_first() {
     );
 }
 
+/// Surfaces painted by level beside a slice painted by a field: the colour bar is the field's
+/// and the level palette joins the list on the left, so that both are explained.
+#[test]
+fn levels_and_a_field_painting_one_frame_both_get_a_legend() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let mut scene = scene(&path);
+    scene.set_color_by(&[Some(ColorBy::Level)]).unwrap();
+    let slice = Slice::parse_axis("z=0.4").unwrap();
+    scene
+        .set_slices(&[slice], Some(ColorBy::Field("ramp".into())))
+        .unwrap();
+    let r = render(&scene, &view(), &|_| {}).unwrap();
+    let legend = Legend::of_frame(&scene, &view(), &r);
+    assert_eq!(
+        legend.color_bar.as_ref().map(|b| b.title.as_str()),
+        Some("ramp")
+    );
+    let levels = scene.file().levels().len() as u32;
+    for l in 0..levels {
+        let entry = (format!("level {l}"), Some(Swatch::Patch(level_srgb8(l))));
+        assert!(legend.entries.contains(&entry), "{:?}", legend.entries);
+    }
+}
+
 #[test]
 fn level_painting_shows_each_hit_s_level() {
     let dir = tempfile::tempdir().unwrap();

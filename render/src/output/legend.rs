@@ -224,10 +224,17 @@ impl Legend {
             }),
             _ => None,
         };
-        let levels = painters
+        let mut levels = painters
             .iter()
             .any(|b| **b == ColorBy::Level)
             .then_some(scene.file().levels().len() as u32);
+        if let (Some(n), Some(_)) = (levels, &color_bar) {
+            // The colour bar takes the right side: the level palette joins the list.
+            let palette =
+                (0..n).map(|l| (format!("level {l}"), Some(Swatch::Patch(level_srgb8(l)))));
+            entries.extend(palette);
+            levels = None;
+        }
         Legend {
             entries,
             color_bar,

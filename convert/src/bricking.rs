@@ -76,6 +76,11 @@ pub struct BrickLayout {
     /// `amr_format::box_join::PENDING_BYTES` of them at most when the boxes come in the order
     /// the layout was made for.
     pending: HashMap<(usize, usize), PendingBrick>,
+    /// Bytes of `pending`'s values.
+    pending_bytes: u64,
+    /// Twice the bytes the join planned to keep pending at most: a reader that streams out of
+    /// the order it declared fails here with a clear error instead of growing without bound.
+    pending_cap: u64,
 }
 
 impl BrickLayout {
@@ -94,6 +99,9 @@ impl BrickLayout {
     ) -> Self {
         let b = i64::from(brick.max(1));
         let extent = b.min(i64::from(MAX_JOINED_EXTENT));
+        let planned = (max_open(extent, fields) as u64)
+            .saturating_mul((extent as u64).pow(3) * 4)
+            .saturating_mul(fields.max(1) as u64);
         let joined = join_order
             .filter(|order| lists_every_box_once(levels, order))
             .map(|order| joined_boxes(levels, order, extent, max_open(extent, fields)))
@@ -133,6 +141,8 @@ impl BrickLayout {
             bricks,
             boxes,
             pending: HashMap::new(),
+            pending_bytes: 0,
+            pending_cap: planned.saturating_mul(2),
         }
     }
 
@@ -200,6 +210,17 @@ impl BrickLayout {
                 cells.lo, cells.hi, values.len(), whole.lo, whole.hi
             )));
         }
+        if !self.pending.contains_key(&(brick, field)) {
+            self.pending_bytes += total * 4;
+            if self.pending_bytes > self.pending_cap {
+                return Err(FormatError::Usage(format!(
+                    "the input's boxes arrive in another order than the reader declared: {} \
+                     bytes of joined bricks would wait for cells, more than the {} planned; \
+                     convert with --keep-boxes",
+                    self.pending_bytes, self.pending_cap
+                )));
+            }
+        }
         let pending = self
             .pending
             .entry((brick, field))
@@ -213,6 +234,7 @@ impl BrickLayout {
             return Ok(());
         }
         let done = self.pending.remove(&(brick, field)).expect("just filled");
+        self.pending_bytes -= total * 4;
         if done.filled != total {
             return Err(FormatError::Usage(format!(
                 "joined brick {brick} was given {} cells of field {field} for its {total}",
@@ -348,5 +370,81 @@ impl BrickSink {
         let bricks = self.layout.bricks().len() as u64;
         self.writer.finish()?;
         Ok(bricks)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One level of `n` pairs of `8 x 16 x 16` boxes, each pair filling a `16^3` block.
+    fn pairs(n: i64) -> Vec<IBox> {
+        (0..n)
+            .flat_map(|k| {
+                let x = 16 * k;
+                [
+                    IBox::new([x, 0, 0], [x + 8, 16, 16]),
+                    IBox::new([x + 8, 0, 0], [x + 16, 16, 16]),
+                ]
+            })
+            .collect()
+    }
+
+    fn sink(dir: &Path, boxes: &[IBox], order: &[(usize, usize)]) -> BrickSink {
+        let layout = BrickLayout::new(&[boxes], 32, Some(order), 1);
+        let n = boxes.len() as i64 / 2;
+        let level = LevelSpec {
+            cell_size: [1.0; 3],
+            origin: [0.0; 3],
+            ratio_to_next: [2; 3],
+            domain: IBox::new([0, 0, 0], [16 * n, 16, 16]),
+        };
+        let out = dir.join("out.amrk");
+        BrickSink::create(
+            &out,
+            vec![level],
+            vec!["f".into()],
+            layout,
+            Compression::None,
+        )
+        .unwrap()
+    }
+
+    /// A reader that streams out of the order it declared gets a clear error once the joined
+    /// bricks waiting for cells pass the cap, instead of holding ever more of them.
+    #[test]
+    fn boxes_out_of_the_declared_order_fail_at_the_cap_instead_of_growing() {
+        let dir = tempfile::tempdir().unwrap();
+        let boxes = pairs(8);
+        let declared: Vec<(usize, usize)> = (0..boxes.len()).map(|i| (0, i)).collect();
+        let in_order = |sink: &mut BrickSink, order: &[usize]| {
+            order.iter().try_for_each(|&i| {
+                let values = vec![1.0; 8 * 16 * 16];
+                sink.write_slab(0, i, &boxes[i], &boxes[i], 0, &values)
+            })
+        };
+        let mut good = sink(dir.path(), &boxes, &declared);
+        assert_eq!(
+            good.layout.bricks().len(),
+            8,
+            "each pair joined into one brick"
+        );
+        good.layout.pending_cap = 2 * 16 * 16 * 16 * 4;
+        in_order(&mut good, &(0..16).collect::<Vec<_>>()).unwrap();
+        assert_eq!(good.finish().unwrap(), 8);
+
+        let mut bad = sink(dir.path(), &boxes, &declared);
+        bad.layout.pending_cap = 2 * 16 * 16 * 16 * 4;
+        let halves_first: Vec<usize> = (0..16).step_by(2).chain((1..16).step_by(2)).collect();
+        let e = in_order(&mut bad, &halves_first).unwrap_err().to_string();
+        assert!(
+            e.contains("another order than the reader declared") && e.contains("--keep-boxes"),
+            "{e}"
+        );
+        assert_eq!(
+            bad.layout.pending.len(),
+            2,
+            "no brick past the cap was started"
+        );
     }
 }

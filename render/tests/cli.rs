@@ -178,6 +178,62 @@ fn stats_json_has_the_documented_keys() {
     assert!(text.contains("\"field\": \"blobs\""), "{text}");
 }
 
+/// `--stats-json -` writes the statistics to standard output, for a pipe, and no file named
+/// `-`; `extract` then prints its lines for people to standard error.
+#[test]
+fn stats_json_dash_is_standard_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let out = dir.path().join("s.exr");
+    let run = |args: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_amr-render"))
+            .current_dir(dir.path())
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", stderr(&o));
+        let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap_or_else(|e| {
+            panic!(
+                "stdout is not JSON ({e}): {}",
+                String::from_utf8_lossy(&o.stdout)
+            )
+        });
+        (json, stderr(&o))
+    };
+    let file = file.to_str().unwrap();
+    let (frame, _) = run(&[
+        file,
+        "--iso",
+        "10",
+        "--size",
+        "32x24",
+        "-o",
+        out.to_str().unwrap(),
+        "--stats-json",
+        "-",
+    ]);
+    assert!(
+        frame["active_octants"].as_u64().is_some_and(|n| n > 0),
+        "{frame}"
+    );
+    let (runs, text) = run(&[
+        "extract",
+        file,
+        "--iso",
+        "10",
+        "--iso",
+        "20",
+        "--stats-json",
+        "-",
+    ]);
+    assert_eq!(runs.as_array().map(Vec::len), Some(2), "{runs}");
+    assert!(
+        text.contains("active voxels"),
+        "the lines for people went missing: {text}"
+    );
+    assert!(!dir.path().join("-").exists(), "a file named - was written");
+}
+
 /// The text attribute `key` of an EXR file.
 fn attribute(path: &Path, key: &str) -> String {
     let attrs = amr_render::output::exr_file::read_text_attributes(path).unwrap();

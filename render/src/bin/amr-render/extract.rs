@@ -10,7 +10,7 @@ use amr_render::ClipBox;
 use anyhow::{bail, Context};
 use serde::Serialize;
 
-use crate::outputs::write_json;
+use crate::outputs::{is_stdout, write_json};
 use crate::render_args::MAX_THREADS;
 
 /// Arguments of `amr-render extract`.
@@ -35,7 +35,8 @@ pub struct ExtractArgs {
     /// Extracts only the voxels that meet this box (world coordinates), as `--clip` of a render.
     #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", allow_hyphen_values = true)]
     pub clip: Option<String>,
-    /// Writes the statistics of every run as a JSON array to this file.
+    /// Writes the statistics of every run as a JSON array to this file (`-`: to standard
+    /// output, the lines for people then going to standard error).
     #[arg(long)]
     pub stats_json: Option<PathBuf>,
     /// Worker threads (default: all cores), as `--threads` of a render.
@@ -78,9 +79,11 @@ fn extract_all(args: &ExtractArgs) -> anyhow::Result<()> {
         ),
         None => None,
     };
-    if let Some(out) = &args.stats_json {
+    if let Some(out) = args.stats_json.as_ref().filter(|p| !is_stdout(p)) {
         amr_format::output::check_output(out, &[&args.file])?;
     }
+    // With the statistics on standard output, the lines for people go to standard error.
+    let json_on_stdout = args.stats_json.as_deref().is_some_and(is_stdout);
     let file = open_mapped(&args.file)?;
     let field = match &args.field {
         None => 0,
@@ -110,7 +113,10 @@ fn extract_all(args: &ExtractArgs) -> anyhow::Result<()> {
                 .extract_in(iso, &region)
                 .map_err(|e| e.in_file(&args.file))
                 .with_context(|| format!("extracting iso {iso}"))?;
-            println!("{}", result.stats);
+            match json_on_stdout {
+                true => eprintln!("{}", result.stats),
+                false => println!("{}", result.stats),
+            }
             all.push(result.stats);
         }
     }

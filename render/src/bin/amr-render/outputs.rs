@@ -125,6 +125,11 @@ pub fn numbered(path: &Path, k: u32, n: u32) -> PathBuf {
     path.with_file_name(name)
 }
 
+/// True for `-`, the name of standard output (`--stats-json -`).
+pub fn is_stdout(path: &Path) -> bool {
+    path.as_os_str() == "-"
+}
+
 /// Refuses the files of a frame, and the statistics file, when one would replace an input or
 /// something that is not a regular file ([`amr_format::output::check_output`]), or names a
 /// format this program does not write ([`check_names`]).
@@ -132,7 +137,7 @@ pub fn check_frame(files: &FrameFiles, outputs: &Outputs, inputs: &[&Path]) -> a
     let paths = [
         Some(&files.exr),
         files.preview.as_ref(),
-        outputs.stats_json.as_ref(),
+        outputs.stats_json.as_ref().filter(|p| !is_stdout(p)),
     ];
     for out in paths.into_iter().flatten() {
         amr_format::output::check_output(out, inputs)?;
@@ -155,7 +160,7 @@ pub fn check_distinct(files: &[FrameFiles], outputs: &Outputs) -> anyhow::Result
             named.push((p.clone(), format!("frame {k}'s preview")));
         }
     }
-    if let Some(p) = &outputs.stats_json {
+    if let Some(p) = outputs.stats_json.as_ref().filter(|p| !is_stdout(p)) {
         named.push((p.clone(), "--stats-json".into()));
     }
     if let Some((p, _)) = &outputs.movie {
@@ -254,6 +259,14 @@ fn write_picture(path: &Path, rendered: &Rendered, legend: &Legend) -> anyhow::R
 
 /// Writes `value` as pretty JSON to `path` through a temporary file.
 pub fn write_json(path: &Path, value: &impl Serialize) -> anyhow::Result<()> {
+    if is_stdout(path) {
+        let body = serde_json::to_string_pretty(value)? + "\n";
+        let mut out = std::io::stdout().lock();
+        return out
+            .write_all(body.as_bytes())
+            .and_then(|()| out.flush())
+            .context("cannot write the statistics to standard output");
+    }
     let fail = || format!("cannot write {}", path.display());
     let mut tmp = temporary_for(path, ".tmp").with_context(fail)?;
     let body = serde_json::to_string_pretty(value)? + "\n";

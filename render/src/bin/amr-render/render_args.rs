@@ -166,7 +166,7 @@ pub struct RenderArgs {
     /// Print statistics to stderr.
     #[arg(long)]
     pub stats: bool,
-    /// Write statistics as JSON.
+    /// Write statistics as JSON (`-`: to standard output)
     #[arg(long, value_name = "PATH")]
     pub stats_json: Option<PathBuf>,
     /// Ambient-occlusion rays per hit (0 disables); filtered across pixels, one ray per hit

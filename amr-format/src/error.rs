@@ -14,6 +14,10 @@ pub enum FormatError {
         /// Where the magic was expected ("header" or "footer").
         at: &'static str,
     },
+    /// Not an `.amrk` file at all, with what it looks like instead (a directory, a simulation
+    /// dump to convert first).
+    #[error("{0}")]
+    NotAmrk(String),
     /// The file was written with a layout this reader does not know.
     #[error("layout version {got} is not supported (this build reads versions 1 to {expected}); upgrade amr-render or re-convert")]
     Version {

@@ -26,6 +26,7 @@ pub mod camera_path;
 pub mod clip;
 pub mod coloring;
 pub mod colormap;
+pub mod dump_hint;
 pub mod error;
 pub mod extract;
 pub mod field_stats;

@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use amr_format::{AmrkFile, FormatError, Result};
 use memmap2::{Advice, Mmap, UncheckedAdvice};
 
+use crate::dump_hint;
 use crate::sigbus::{self, Watch};
 
 /// An `.amrk` file opened from a read-only memory map.
@@ -58,9 +59,7 @@ pub fn open_mapped(path: &Path) -> Result<MappedFile> {
         .metadata()
         .map_err(|e| fail(FormatError::io("cannot stat", e)))?;
     if meta.is_dir() {
-        return Err(fail(FormatError::Corrupt(
-            "is a directory, not an .amrk file".into(),
-        )));
+        return Err(fail(FormatError::NotAmrk(dump_hint::not_amrk(path))));
     }
     if meta.len() == 0 {
         return Err(fail(FormatError::Truncated("the file is empty".into())));
@@ -80,6 +79,10 @@ pub fn open_mapped(path: &Path) -> Result<MappedFile> {
     };
     AmrkFile::open(watched)
         .map(|f| f.with_path(path))
+        .map_err(|e| match e {
+            FormatError::BadMagic { .. } => FormatError::NotAmrk(dump_hint::not_amrk(path)),
+            other => other,
+        })
         .map_err(fail)
 }
 

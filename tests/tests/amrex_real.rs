@@ -178,3 +178,31 @@ fn missing_index_is_refused() {
     let input = data.join("bad_plotfiles/plt_3d_missingindexes");
     assert_fails(&input, &[], &["Level_2/Cell_H", "line 69", "box 63 of 64"]);
 }
+
+/// Real dumps handed to the renderer instead of their conversion: the error says what they look
+/// like and the `amr-convert` command to run (a plotfile's directory for its `Header`; an Enzo
+/// dataset's parameter file for its hierarchy or data file).
+#[test]
+fn real_dumps_given_to_the_renderer_name_the_conversion() {
+    let Some(data) = shared_amrex("real_dumps_given_to_the_renderer_name_the_conversion") else {
+        return;
+    };
+    let message = |p: &std::path::Path| match amr_render::mapping::open_mapped(p) {
+        Ok(_) => panic!("{} opened as an .amrk file", p.display()),
+        Err(e) => e.to_string(),
+    };
+    let plt = data.join("example_plt_3d");
+    for p in [plt.clone(), plt.join("Header")] {
+        let m = message(&p);
+        let want = format!("amr-convert {} -o OUT.amrk", plt.display());
+        assert!(m.contains("AMReX plotfile") && m.contains(&want), "{m}");
+    }
+    let enzo = data.join("../enzo/DD0010");
+    if enzo.is_dir() {
+        for part in ["moving7_0010.hierarchy", "moving7_0010.cpu0000"] {
+            let m = message(&enzo.join(part));
+            let want = format!("amr-convert {} -o", enzo.join("moving7_0010").display());
+            assert!(m.contains("Enzo dataset") && m.contains(&want), "{m}");
+        }
+    }
+}

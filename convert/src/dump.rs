@@ -174,12 +174,36 @@ pub fn detect(input: &Path) -> Result<InputFormat, DumpError> {
             path: input.to_path_buf(),
         });
     }
-    Err(unrecognised(
-        input,
-        "expected an AMReX plotfile directory, a Chombo .h5/.hdf5 file, or an Enzo parameter \
-         file with its .hierarchy beside it"
-            .into(),
-    ))
+    let head = first_bytes::<8>(input);
+    if head == Some(HDF5_SIGNATURE) {
+        // Chombo's own names end in .hdf5 or .h5, but a renamed file is still one.
+        return Ok(InputFormat::ChomboHdf5);
+    }
+    let reason = match input.parent() {
+        _ if head == Some(amr_format::raw::MAGIC) => {
+            "already an .amrk file: render it with `amr-render FILE`".to_string()
+        }
+        Some(dir) if input.file_name().is_some_and(|n| n == "Header") && detect(dir).is_ok() => {
+            format!(
+                "the Header of an AMReX plotfile: give the plotfile's directory, {}",
+                dir.display()
+            )
+        }
+        _ => "expected an AMReX plotfile directory, a Chombo .h5/.hdf5 file, or an Enzo \
+              parameter file with its .hierarchy beside it"
+            .to_string(),
+    };
+    Err(unrecognised(input, reason))
+}
+
+/// The first bytes of an HDF5 file (Chombo's and Enzo's data files).
+const HDF5_SIGNATURE: [u8; 8] = *b"\x89HDF\r\n\x1a\n";
+
+/// The first `N` bytes of the file `path`, when it has that many.
+fn first_bytes<const N: usize>(path: &Path) -> Option<[u8; N]> {
+    let mut head = [0u8; N];
+    File::open(path).ok()?.read_exact(&mut head).ok()?;
+    Some(head)
 }
 
 fn unrecognised(input: &Path, reason: String) -> DumpError {
@@ -250,4 +274,38 @@ fn first_line(path: &Path) -> Result<String, DumpError> {
         .read_until(b'\n', &mut bytes)
         .map_err(read)?;
     Ok(String::from_utf8_lossy(&bytes).into_owned())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inputs_that_are_not_dumps_say_what_to_give_instead() {
+        let dir = tempfile::tempdir().unwrap();
+        let plt = dir.path().join("plt00010");
+        std::fs::create_dir(&plt).unwrap();
+        std::fs::write(plt.join("Header"), "HyperCLaw-V1.1\n").unwrap();
+        assert!(matches!(detect(&plt), Ok(InputFormat::Amrex)));
+        let e = detect(&plt.join("Header")).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("give the plotfile's directory, {}", plt.display())),
+            "{e}"
+        );
+        let amrk = dir.path().join("out.amrk");
+        std::fs::write(
+            &amrk,
+            [amr_format::raw::MAGIC.as_slice(), &[0; 64]].concat(),
+        )
+        .unwrap();
+        let e = detect(&amrk).unwrap_err().to_string();
+        assert!(e.contains("already an .amrk file"), "{e}");
+        let renamed = dir.path().join("plt0010.chombo");
+        std::fs::write(&renamed, [HDF5_SIGNATURE.as_slice(), &[0; 64]].concat()).unwrap();
+        assert!(matches!(detect(&renamed), Ok(InputFormat::ChomboHdf5)));
+        let text = dir.path().join("notes.txt");
+        std::fs::write(&text, "x").unwrap();
+        let e = detect(&text).unwrap_err().to_string();
+        assert!(e.contains("expected an AMReX plotfile directory"), "{e}");
+    }
 }

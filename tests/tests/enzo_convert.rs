@@ -55,6 +55,34 @@ fn dd0010_matches_yt() {
     }
 }
 
+/// Any file of the dataset names it: its data file and its boundary files convert to the same
+/// bytes as its parameter file.
+#[test]
+fn dd0010_converts_from_any_of_its_files() {
+    let Some(dir) = shared_data(
+        "dd0010_converts_from_any_of_its_files",
+        "enzo/DD0010",
+        "moving7_0010.hierarchy",
+    ) else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let want = tmp.path().join("params.amrk");
+    convert(&dir.join("moving7_0010"), &want, &[], 16).unwrap();
+    for part in [
+        "moving7_0010.cpu0000",
+        "moving7_0010.boundary",
+        "moving7_0010.boundary.hdf",
+    ] {
+        let out = tmp.path().join(format!("{part}.amrk"));
+        convert(&dir.join(part), &out, &[], 16).unwrap();
+        assert!(
+            std::fs::read(&out).unwrap() == std::fs::read(&want).unwrap(),
+            "{part} converts to other bytes than the parameter file"
+        );
+    }
+}
+
 /// Rendered without a field or an isovalue, DD0010 shows `Density` (not the first field in name
 /// order, `Dark_Matter_Density`) at its median; `Dark_Matter_Density`, zero in over a quarter of
 /// the cells, gets its median too, not the middle of its range.

@@ -26,8 +26,9 @@ use amr_format::progress::Progress;
 pub const HIERARCHY_SUFFIX: &str = ".hierarchy";
 
 /// The parameter file and hierarchy of the Enzo dataset `input` names, if it names one: a
-/// parameter file with a `.hierarchy` beside it, the `.hierarchy` itself, or a directory holding
-/// exactly one `.hierarchy`.
+/// parameter file with a `.hierarchy` beside it, the `.hierarchy` itself, another of the
+/// dataset's files (`NAME.cpu0000`, `NAME.boundary`), or a directory holding exactly one
+/// `.hierarchy`.
 pub fn locate(input: &Path) -> Option<(PathBuf, PathBuf)> {
     if input.is_dir() {
         let mut found = std::fs::read_dir(input)
@@ -44,8 +45,25 @@ pub fn locate(input: &Path) -> Option<(PathBuf, PathBuf)> {
     if s.ends_with(HIERARCHY_SUFFIX) && input.is_file() {
         return Some((strip_suffix(input)?, input.to_path_buf()));
     }
-    let h = PathBuf::from(format!("{s}{HIERARCHY_SUFFIX}"));
-    (input.is_file() && h.is_file()).then(|| (input.to_path_buf(), h))
+    if !input.is_file() {
+        return None;
+    }
+    // The parameter file `NAME`, or another file of the dataset (`NAME.cpu0000`,
+    // `NAME.boundary`, `NAME.boundary.hdf`) with `NAME.hierarchy` beside it.
+    let mut name = s.as_ref();
+    for _ in 0..3 {
+        let h = PathBuf::from(format!("{name}{HIERARCHY_SUFFIX}"));
+        let params = PathBuf::from(name);
+        if h.is_file() && params.is_file() {
+            return Some((params, h));
+        }
+        let dot = name.rfind('.')?;
+        if name[dot..].contains(std::path::MAIN_SEPARATOR) {
+            return None;
+        }
+        name = &name[..dot];
+    }
+    None
 }
 
 fn strip_suffix(h: &Path) -> Option<PathBuf> {

@@ -64,6 +64,12 @@ pub fn outputs(inputs: &[PathBuf], output: &Path) -> anyhow::Result<Outputs> {
 
 /// The name of a dump: its file or directory name without HDF5 extensions.
 fn step_name(input: &Path) -> anyhow::Result<String> {
+    // Any file of an Enzo dataset (`NAME.cpu0000`) is named after its parameter file.
+    let enzo = input
+        .is_file()
+        .then(|| amr_convert::enzo::locate(input))
+        .flatten();
+    let input = enzo.as_ref().map_or(input, |(params, _)| params.as_path());
     let Some(name) = input.file_name().map(|n| n.to_string_lossy().into_owned()) else {
         bail!("{}: no file name to name its .amrk after", input.display());
     };
@@ -108,5 +114,24 @@ mod tests {
         assert!(outputs(&same, &out).is_err());
         let single = outputs(&inputs[..1], Path::new("x.amrk")).unwrap();
         assert_eq!(single.pairs[0].1, PathBuf::from("x.amrk"));
+    }
+
+    #[test]
+    fn an_enzo_data_file_names_its_step_after_the_parameter_file() {
+        let dir = tempfile::tempdir().unwrap();
+        for f in [
+            "DD0010/data0010",
+            "DD0010/data0010.hierarchy",
+            "DD0010/data0010.cpu0000",
+        ] {
+            let p = dir.path().join(f);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(p, b"").unwrap();
+        }
+        let d = dir.path().join("DD0010");
+        for input in ["data0010.cpu0000", "data0010.hierarchy", "data0010"] {
+            assert_eq!(step_name(&d.join(input)).unwrap(), "data0010", "{input}");
+        }
+        assert_eq!(step_name(&d).unwrap(), "DD0010");
     }
 }

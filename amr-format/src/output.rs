@@ -115,18 +115,28 @@ pub fn free_bytes_for(target: &Path) -> Option<u64> {
 /// needed and those free.
 pub fn check_room(target: &Path, need: u64) -> Result<()> {
     match free_bytes_for(target) {
-        Some(free) if need > free => {
-            let gb = |b: u64| b as f64 / 1e9;
-            Err(FormatError::Output {
-                path: target.to_path_buf(),
-                reason: format!(
-                    "the file needs {:.2} GB and its file system has {:.2} GB free",
-                    gb(need),
-                    gb(free)
-                ),
-            })
-        }
+        Some(free) if need > free => Err(FormatError::Output {
+            path: target.to_path_buf(),
+            reason: format!(
+                "the file needs {} and its file system has {} free",
+                describe_bytes(need),
+                describe_bytes(free)
+            ),
+        }),
         _ => Ok(()),
+    }
+}
+
+/// `bytes` for a message: KiB below a MiB, MiB below a GiB, else GiB with one decimal.
+pub fn describe_bytes(bytes: u64) -> String {
+    const KIB: f64 = 1024.0;
+    let b = bytes as f64;
+    if b < KIB * KIB {
+        format!("{:.0} KiB", b / KIB)
+    } else if b < KIB * KIB * KIB {
+        format!("{:.0} MiB", b / (KIB * KIB))
+    } else {
+        format!("{:.1} GiB", b / (KIB * KIB * KIB))
     }
 }
 
@@ -209,7 +219,9 @@ mod tests {
         assert!(check_room(&target, 0).is_ok());
         assert!(check_room(&target, free / 2).is_ok());
         let err = check_room(&target, u64::MAX).unwrap_err().to_string();
-        assert!(err.contains("big.amrk") && err.contains("GB free"), "{err}");
+        assert!(err.contains("big.amrk") && err.contains("iB free"), "{err}");
+        assert_eq!(describe_bytes(3_000_000), "3 MiB");
+        assert_eq!(describe_bytes(600_000), "586 KiB");
     }
 
     #[test]

@@ -22,16 +22,7 @@ pub struct Available {
     pub by_limit: bool,
 }
 
-/// `bytes` for a message: MiB below a GiB, else GiB with one decimal.
-pub fn describe_bytes(bytes: u64) -> String {
-    const GIB: f64 = (1u64 << 30) as f64;
-    let b = bytes as f64;
-    if b < GIB {
-        format!("{:.0} MiB", b / f64::from(1u32 << 20))
-    } else {
-        format!("{:.1} GiB", b / GIB)
-    }
-}
+pub use amr_format::output::describe_bytes;
 
 impl Available {
     /// `available`, when `needed` bytes with a tenth to spare do not fit in it (`None` when

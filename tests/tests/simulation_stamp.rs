@@ -50,3 +50,29 @@ fn info_prints_a_small_time_in_full_and_no_ratio_past_the_finest_level() {
         .all(|l| l.ends_with("ratio to next [2, 2, 2]")));
     assert!(!levels[2].contains("ratio"), "{}", levels[2]);
 }
+
+/// A picture of a dump says when in the simulation it was written: the legend's first line is
+/// `t = 0.81751, step 10` for DD0010.
+#[test]
+fn the_legend_of_a_real_dump_shows_its_time_and_step() {
+    let Some(dir) = shared_data("simulation_stamp", "enzo/DD0010", "moving7_0010.hierarchy") else {
+        return;
+    };
+    use amr_render::output::legend::Legend;
+    use amr_render::{render, Scene, SceneOptions, View};
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out.amrk");
+    convert(&dir.join("moving7_0010"), &out, &[], 16).unwrap();
+    let mut scene = Scene::open(&out, &SceneOptions::default()).unwrap();
+    scene.set_isosurfaces(&[]).unwrap();
+    let view = View {
+        size: (16, 12),
+        ..View::default()
+    };
+    let rendered = render(&scene, &view, &|_| {}).unwrap();
+    let legend = Legend::of_frame(&scene, &view, &rendered);
+    assert_eq!(
+        legend.entries[0],
+        ("t = 0.81751, step 10".to_string(), None)
+    );
+}

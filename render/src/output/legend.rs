@@ -171,6 +171,12 @@ impl Legend {
     pub fn of_frame(scene: &Scene, view: &View, rendered: &Rendered) -> Legend {
         let field = scene.field_name();
         let mut entries = Vec::new();
+        if let Some(when) = simulation_stamp(
+            scene.file().simulation_time(),
+            scene.file().simulation_step(),
+        ) {
+            entries.push((when, None));
+        }
         for (i, s) in scene.isosurfaces().iter().enumerate() {
             let painted = scene.color_by().get(i).cloned().flatten();
             let opacity = match s.opacity < 1.0 {
@@ -391,6 +397,17 @@ impl Legend {
     }
 }
 
+/// When in the simulation the data was written, as the file records it: `t = 0.81751, step 10`
+/// (either part alone when only one is recorded; `None` when neither is).
+fn simulation_stamp(time: Option<f64>, step: Option<i64>) -> Option<String> {
+    match (time, step) {
+        (Some(t), Some(s)) => Some(format!("t = {}, step {s}", format_value(t))),
+        (Some(t), None) => Some(format!("t = {}", format_value(t))),
+        (None, Some(s)) => Some(format!("step {s}")),
+        (None, None) => None,
+    }
+}
+
 /// Whether any of the painted values (NaN: not painted) lies below `lo` and above `hi`, by more
 /// than the `f32` rounding of the range's ends.
 fn values_beyond(values: &[f32], (lo, hi): (f64, f64)) -> (bool, bool) {
@@ -523,5 +540,19 @@ mod tests {
             count(&both, 0.0) > count(&top, 0.0) + bar_w,
             "no cap at the bottom"
         );
+    }
+
+    #[test]
+    fn the_simulation_stamp_shows_what_the_file_records() {
+        assert_eq!(
+            simulation_stamp(Some(0.81751317119117), Some(10)).as_deref(),
+            Some("t = 0.81751, step 10")
+        );
+        assert_eq!(
+            simulation_stamp(Some(1.3924182125972017e-8), None).as_deref(),
+            Some("t = 1.3924e-8")
+        );
+        assert_eq!(simulation_stamp(None, Some(20)).as_deref(), Some("step 20"));
+        assert_eq!(simulation_stamp(None, None), None);
     }
 }

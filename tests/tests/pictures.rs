@@ -237,6 +237,28 @@ fn levels_and_a_field_painting_one_frame_both_get_a_legend() {
     }
 }
 
+/// A cut-away says so: the legend names the box the surfaces are cut to.
+#[test]
+fn a_clipped_frame_names_its_clip_box() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let mut scene = scene(&path);
+    scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
+    scene
+        .set_clip(Some(
+            amr_render::ClipBox::new([0.5, 0.0, 0.0], [1.0, 1.0, 1.0]).unwrap(),
+        ))
+        .unwrap();
+    let r = render(&scene, &view(), &|_| {}).unwrap();
+    let legend = Legend::of_frame(&scene, &view(), &r);
+    let line = "surfaces cut to (0.5, 0, 0) .. (1, 1, 1)".to_string();
+    assert!(
+        legend.entries.contains(&(line, None)),
+        "{:?}",
+        legend.entries
+    );
+}
+
 #[test]
 fn level_painting_shows_each_hit_s_level() {
     let dir = tempfile::tempdir().unwrap();

@@ -7,7 +7,7 @@ use ab_glyph::{point, Font, FontRef, PxScale, ScaleFont};
 use crate::camera::Camera;
 use crate::coloring::ColorBy;
 use crate::colormap::{level_srgb8, Colormap};
-use crate::field_stats::{distinct_labels, format_value};
+use crate::field_stats::{distinct_labels, format_value, format_vector};
 use crate::outline::{LevelColors, Outline};
 use crate::render::Rendered;
 use crate::scene::Scene;
@@ -197,6 +197,16 @@ impl Legend {
                 ),
             };
             entries.push((label, swatch));
+        }
+        if let (Some(c), false) = (scene.clip(), scene.isosurfaces().is_empty()) {
+            entries.push((
+                format!(
+                    "surfaces cut to {} .. {}",
+                    format_vector(c.lo),
+                    format_vector(c.hi)
+                ),
+                None,
+            ));
         }
         for (s, by) in scene.slices() {
             let p = s.point.map(format_value);

@@ -237,6 +237,41 @@ fn levels_and_a_field_painting_one_frame_both_get_a_legend() {
     }
 }
 
+/// Surfaces made otherwise than by default say how, since they look otherwise (blocky cells,
+/// cracks, sampling); the default says nothing.
+#[test]
+fn a_frame_names_a_reconstruction_or_method_other_than_the_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let line = |reconstruction, method| {
+        let options = SceneOptions {
+            field: Some("sphere".into()),
+            reconstruction,
+            method,
+            ..SceneOptions::default()
+        };
+        let mut scene = Scene::open(&path, &options).unwrap();
+        scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
+        let r = render(&scene, &view(), &|_| {}).unwrap();
+        let legend = Legend::of_frame(&scene, &view(), &r);
+        legend
+            .entries
+            .iter()
+            .find(|e| e.0.starts_with("surfaces: "))
+            .map(|e| e.0.clone())
+    };
+    use amr_render::{Reconstruction, TraceMethod};
+    assert_eq!(line(Reconstruction::Octant, TraceMethod::Hybrid), None);
+    assert_eq!(
+        line(Reconstruction::Nearest, TraceMethod::Hybrid).as_deref(),
+        Some("surfaces: nearest reconstruction")
+    );
+    assert_eq!(
+        line(Reconstruction::Octant, TraceMethod::Sample).as_deref(),
+        Some("surfaces: sampled along rays")
+    );
+}
+
 /// A cut-away says so: the legend names the box the surfaces are cut to.
 #[test]
 fn a_clipped_frame_names_its_clip_box() {

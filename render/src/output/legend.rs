@@ -9,8 +9,9 @@ use crate::coloring::ColorBy;
 use crate::colormap::{level_srgb8, Colormap};
 use crate::field_stats::{distinct_labels, format_value, format_vector};
 use crate::outline::{LevelColors, Outline};
+use crate::reconstruct::Reconstruction;
 use crate::render::Rendered;
-use crate::scene::Scene;
+use crate::scene::{Scene, TraceMethod};
 use crate::shade::material::srgb8;
 use crate::view::View;
 
@@ -197,6 +198,9 @@ impl Legend {
                 ),
             };
             entries.push((label, swatch));
+        }
+        if let Some(how) = how_surfaces_were_made(scene) {
+            entries.push((how, None));
         }
         if let (Some(c), false) = (scene.clip(), scene.isosurfaces().is_empty()) {
             entries.push((
@@ -405,6 +409,25 @@ impl Legend {
             text.draw(canvas, &s, x0 + bar_w + px * 0.5, y - px * 0.6);
         }
     }
+}
+
+/// A line for surfaces made otherwise than by default (the octant reconstruction, traced
+/// exactly), whose look differs: blocky `nearest` cells, `current`'s cracks at level
+/// boundaries, sampled surfaces; `None` for the default or a frame without surfaces.
+fn how_surfaces_were_made(scene: &Scene) -> Option<String> {
+    if scene.isosurfaces().is_empty() {
+        return None;
+    }
+    let reconstruction = scene.reconstruction();
+    let sampled = scene.method() == TraceMethod::Sample;
+    let mut parts = Vec::new();
+    if reconstruction != Reconstruction::Octant {
+        parts.push(format!("{} reconstruction", reconstruction.name()));
+    }
+    if sampled {
+        parts.push("sampled along rays".to_string());
+    }
+    (!parts.is_empty()).then(|| format!("surfaces: {}", parts.join(", ")))
 }
 
 /// When in the simulation the data was written, as the file records it: `t = 0.81751, step 10`

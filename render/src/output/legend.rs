@@ -234,20 +234,20 @@ impl Legend {
             ColorBy::Field(name) => Some(name.clone()),
             ColorBy::Level => None,
         });
+        let by_level = painters.iter().any(|b| **b == ColorBy::Level);
+        // With levels painted too, a pixel whose value is its level was painted by level.
+        let level_channel = by_level.then_some(rendered.frame.level.as_slice());
         let color_bar = match (field_painter, rendered.color_range) {
             (Some(title), Some(range)) => Some(ColorBar {
                 title,
                 colormap: view.color_scale.colormap,
                 range,
                 log: view.color_scale.log,
-                beyond: values_beyond(&rendered.frame.color_value, range),
+                beyond: values_beyond(&rendered.frame.color_value, level_channel, range),
             }),
             _ => None,
         };
-        let mut levels = painters
-            .iter()
-            .any(|b| **b == ColorBy::Level)
-            .then_some(scene.file().levels().len() as u32);
+        let mut levels = by_level.then_some(scene.file().levels().len() as u32);
         if let (Some(n), Some(_)) = (levels, &color_bar) {
             // The colour bar takes the right side: the level palette joins the list.
             let palette =
@@ -442,14 +442,16 @@ fn simulation_stamp(time: Option<f64>, step: Option<i64>) -> Option<String> {
 }
 
 /// Whether any of the painted values (NaN: not painted) lies below `lo` and above `hi`, by more
-/// than the `f32` rounding of the range's ends.
-fn values_beyond(values: &[f32], (lo, hi): (f64, f64)) -> (bool, bool) {
+/// than the `f32` rounding of the range's ends. With `levels` (the frame's level channel, when
+/// some surfaces are painted by level), a value equal to its pixel's level is taken for a level
+/// and left out.
+fn values_beyond(values: &[f32], levels: Option<&[f32]>, (lo, hi): (f64, f64)) -> (bool, bool) {
     let slack = 1e-6 * lo.abs().max(hi.abs());
-    values
-        .iter()
-        .filter(|v| v.is_finite())
-        .fold((false, false), |(below, above), &v| {
-            let v = f64::from(v);
+    let painted_by_level = |i: usize| levels.is_some_and(|l| l.get(i) == Some(&values[i]));
+    (0..values.len())
+        .filter(|&i| values[i].is_finite() && !painted_by_level(i))
+        .fold((false, false), |(below, above), i| {
+            let v = f64::from(values[i]);
             (below || v < lo - slack, above || v > hi + slack)
         })
 }
@@ -529,11 +531,27 @@ mod tests {
     #[test]
     fn values_past_the_range_are_told_on_their_side() {
         let nan = f32::NAN;
-        assert_eq!(values_beyond(&[nan, 1.0, 5.0], (0.0, 4.0)), (false, true));
-        assert_eq!(values_beyond(&[-1.0, 2.0], (0.0, 4.0)), (true, false));
-        assert_eq!(values_beyond(&[nan, 0.0, 4.0], (0.0, 4.0)), (false, false));
+        assert_eq!(
+            values_beyond(&[nan, 1.0, 5.0], None, (0.0, 4.0)),
+            (false, true)
+        );
+        assert_eq!(values_beyond(&[-1.0, 2.0], None, (0.0, 4.0)), (true, false));
+        assert_eq!(
+            values_beyond(&[nan, 0.0, 4.0], None, (0.0, 4.0)),
+            (false, false)
+        );
+        let levels = [5.0, 1.0, 2.0];
+        assert_eq!(
+            values_beyond(&[5.0, 1.0, 2.0], Some(&levels), (0.0, 4.0)),
+            (false, false),
+            "level 5 painted by level"
+        );
+        assert_eq!(
+            values_beyond(&[5.0, 6.0, 2.0], Some(&levels), (0.0, 4.0)),
+            (false, true)
+        );
         let hi = 1.000_014_066_696_167;
-        assert_eq!(values_beyond(&[hi as f32], (1.0, hi)), (false, false));
+        assert_eq!(values_beyond(&[hi as f32], None, (1.0, hi)), (false, false));
     }
 
     #[test]

@@ -139,23 +139,32 @@ fn an_output_that_is_the_input_is_refused() {
     }
 }
 
+/// The arguments of a 32x24 frame of `file` at iso 10 written to `out`, its statistics to `json`.
+fn small_frame_with_stats<'a>(file: &'a str, out: &'a str, json: &'a str) -> [&'a str; 9] {
+    [
+        file,
+        "--iso",
+        "10",
+        "--size",
+        "32x24",
+        "-o",
+        out,
+        "--stats-json",
+        json,
+    ]
+}
+
 #[test]
 fn stats_json_has_the_documented_keys() {
     let dir = tempfile::tempdir().unwrap();
     let file = blobs(dir.path());
     let out = dir.path().join("s.exr");
     let json = dir.path().join("s.json");
-    let o = amr_render(&[
+    let o = amr_render(&small_frame_with_stats(
         file.to_str().unwrap(),
-        "--iso",
-        "10",
-        "--size",
-        "32x24",
-        "-o",
         out.to_str().unwrap(),
-        "--stats-json",
         json.to_str().unwrap(),
-    ]);
+    ));
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&json).unwrap();
     for key in [
@@ -201,17 +210,7 @@ fn stats_json_dash_is_standard_output() {
         (json, stderr(&o))
     };
     let file = file.to_str().unwrap();
-    let (frame, _) = run(&[
-        file,
-        "--iso",
-        "10",
-        "--size",
-        "32x24",
-        "-o",
-        out.to_str().unwrap(),
-        "--stats-json",
-        "-",
-    ]);
+    let (frame, _) = run(&small_frame_with_stats(file, out.to_str().unwrap(), "-"));
     assert!(
         frame["active_octants"].as_u64().is_some_and(|n| n > 0),
         "{frame}"

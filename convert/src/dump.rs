@@ -162,6 +162,13 @@ pub fn detect(input: &Path) -> Result<InputFormat, DumpError> {
                 .into(),
         ));
     }
+    if input.exists() && !input.is_file() {
+        // Never opened: opening a FIFO would wait for a writer.
+        return Err(unrecognised(
+            input,
+            "not a regular file (a device, pipe or socket)".into(),
+        ));
+    }
     let ext = input
         .extension()
         .and_then(|e| e.to_str())
@@ -307,5 +314,14 @@ mod tests {
         std::fs::write(&text, "x").unwrap();
         let e = detect(&text).unwrap_err().to_string();
         assert!(e.contains("expected an AMReX plotfile directory"), "{e}");
+        // A FIFO is not read (opening it would wait for a writer), whatever its name.
+        for name in ["fifo", "fifo.h5"] {
+            let fifo = dir.path().join(name);
+            let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+            if made.is_ok_and(|s| s.success()) {
+                let e = detect(&fifo).unwrap_err().to_string();
+                assert!(e.contains("not a regular file"), "{e}");
+            }
+        }
     }
 }

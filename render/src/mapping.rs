@@ -54,13 +54,20 @@ pub fn read_ahead(file: &MappedFile, ranges: impl IntoIterator<Item = (u64, u64)
 /// Opens and maps `path`, then validates it with [`AmrkFile::open`]. Errors name the file.
 pub fn open_mapped(path: &Path) -> Result<MappedFile> {
     let fail = |e: FormatError| e.in_file(path);
+    // Looked at before it is opened: opening a FIFO would wait for a writer.
+    let meta = std::fs::metadata(path).map_err(|e| fail(FormatError::io("cannot open", e)))?;
+    if meta.is_dir() {
+        return Err(fail(FormatError::NotAmrk(dump_hint::not_amrk(path))));
+    }
+    if !meta.is_file() {
+        return Err(fail(FormatError::NotAmrk(
+            "not an .amrk file (not a regular file: a device, pipe or socket)".into(),
+        )));
+    }
     let file = File::open(path).map_err(|e| fail(FormatError::io("cannot open", e)))?;
     let meta = file
         .metadata()
         .map_err(|e| fail(FormatError::io("cannot stat", e)))?;
-    if meta.is_dir() {
-        return Err(fail(FormatError::NotAmrk(dump_hint::not_amrk(path))));
-    }
     if meta.len() == 0 {
         return Err(fail(FormatError::Truncated("the file is empty".into())));
     }

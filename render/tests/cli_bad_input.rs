@@ -42,6 +42,12 @@ fn bad_files_give_exit_code_1_and_name_the_file() {
     std::fs::write(&text, vec![b'x'; 4096]).unwrap();
     expect_error(&text, "not an .amrk file");
     expect_error(&dir.path().join("missing.amrk"), "cannot open");
+    // A FIFO is refused before it is opened: opening it would wait for a writer forever.
+    let fifo = dir.path().join("fifo.amrk");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if made.is_ok_and(|s| s.success()) {
+        expect_error(&fifo, "not a regular file");
+    }
 }
 
 #[test]

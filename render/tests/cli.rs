@@ -233,6 +233,37 @@ fn stats_json_dash_is_standard_output() {
     assert!(!dir.path().join("-").exists(), "a file named - was written");
 }
 
+/// Output cut short by the reader (`amr-render extract F ... | head -1`) ends the run quietly
+/// with exit 0, as for any command-line tool, never with a panic.
+#[test]
+fn a_closed_pipe_on_standard_output_is_not_a_failure() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let file = file.to_str().unwrap();
+    for args in [
+        vec![
+            "extract", file, "--iso", "10", "--iso", "20", "--runs", "50",
+        ],
+        vec!["verify", file],
+        vec!["info", file],
+    ] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_amr-render"))
+            .args(&args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take());
+        let o = child.wait_with_output().unwrap();
+        let err = stderr(&o);
+        assert!(
+            o.status.success() && !err.contains("panicked"),
+            "{args:?}: {:?} {err}",
+            o.status
+        );
+    }
+}
+
 /// The text attribute `key` of an EXR file.
 fn attribute(path: &Path, key: &str) -> String {
     let attrs = amr_render::output::exr_file::read_text_attributes(path).unwrap();

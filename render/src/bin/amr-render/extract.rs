@@ -1,6 +1,7 @@
 //! `amr-render extract FILE --iso V...`: active-voxel extraction for one or more isovalues of one
 //! open file, with one line of statistics per run.
 
+use std::io::Write;
 use std::path::PathBuf;
 
 use amr_render::extract::{ExtractStats, Extractor, Region};
@@ -115,7 +116,7 @@ fn extract_all(args: &ExtractArgs) -> anyhow::Result<()> {
                 .with_context(|| format!("extracting iso {iso}"))?;
             match json_on_stdout {
                 true => eprintln!("{}", result.stats),
-                false => println!("{}", result.stats),
+                false => writeln!(std::io::stdout(), "{}", result.stats)?,
             }
             all.push(result.stats);
         }

@@ -1,5 +1,6 @@
 //! `amr-render verify FILE`: reads the whole file and checks everything `open` does not.
 
+use std::io::Write;
 use std::path::PathBuf;
 
 use amr_render::extract::Extractor;
@@ -26,7 +27,11 @@ pub fn run(args: &VerifyArgs) -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("verification failed: {e}"))?;
     let tight = check_tight_ranges(&file)
         .map_err(|e| anyhow::anyhow!("verification failed: {}: {e}", args.file.display()))?;
-    println!("{}: OK: {report}{tight}", args.file.display());
+    writeln!(
+        std::io::stdout(),
+        "{}: OK: {report}{tight}",
+        args.file.display()
+    )?;
     Ok(())
 }
 

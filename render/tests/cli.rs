@@ -264,6 +264,31 @@ fn a_closed_pipe_on_standard_output_is_not_a_failure() {
     }
 }
 
+/// A path that is not UTF-8 cannot go into a TOML scene file: refused, rather than written with
+/// replacement characters that would name another file.
+#[test]
+fn a_scene_file_refuses_a_path_that_is_not_utf8() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let odd = dir
+        .path()
+        .join(std::ffi::OsStr::from_bytes(b"b\xfflobs.amrk"));
+    std::fs::copy(&file, &odd).unwrap();
+    let scene = dir.path().join("s.toml");
+    let o = Command::new(env!("CARGO_BIN_EXE_amr-render"))
+        .arg(&odd)
+        .args(["--size", "8x6", "-o"])
+        .arg(dir.path().join("x.exr"))
+        .arg("--write-scene")
+        .arg(&scene)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not valid UTF-8"), "{}", stderr(&o));
+    assert!(!scene.exists());
+}
+
 /// The text attribute `key` of an EXR file.
 fn attribute(path: &Path, key: &str) -> String {
     let attrs = amr_render::output::exr_file::read_text_attributes(path).unwrap();

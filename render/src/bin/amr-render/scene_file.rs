@@ -120,14 +120,14 @@ pub fn write(path: &Path, cmd: &Command, matches: &ArgMatches) -> anyhow::Result
         }
         let Some(long) = arg.get_long() else {
             if id == FILES {
-                table.insert(FILES.into(), Value::Array(raw_values(matches, id)));
+                table.insert(FILES.into(), Value::Array(raw_values(matches, id)?));
             }
             continue;
         };
         let value = if !arg.get_action().takes_values() {
             Value::Boolean(true)
         } else {
-            let mut values = raw_values(matches, id);
+            let mut values = raw_values(matches, id)?;
             match arg.get_num_args().is_some_and(|n| n.max_values() > 1)
                 || matches!(arg.get_action(), clap::ArgAction::Append)
             {
@@ -149,21 +149,27 @@ pub fn write(path: &Path, cmd: &Command, matches: &ArgMatches) -> anyhow::Result
     Ok(())
 }
 
-/// The values of `id` as given, numbers as numbers.
-fn raw_values(matches: &ArgMatches, id: &str) -> Vec<Value> {
+/// The values of `id` as given, numbers as numbers; an error for a value that is not UTF-8 (a
+/// path TOML cannot hold: written with replacement characters, it would name another file).
+fn raw_values(matches: &ArgMatches, id: &str) -> anyhow::Result<Vec<Value>> {
     matches
         .get_raw(id)
         .into_iter()
         .flatten()
         .map(|raw| {
-            let s = raw.to_string_lossy();
-            match s.parse::<i64>() {
+            let Some(s) = raw.to_str() else {
+                bail!(
+                    "{} is not valid UTF-8, which a TOML scene file cannot hold; rename it",
+                    raw.to_string_lossy()
+                );
+            };
+            Ok(match s.parse::<i64>() {
                 Ok(i) => Value::Integer(i),
                 Err(_) => match s.parse::<f64>() {
                     Ok(f) if f.is_finite() && !s.contains(['x', 'X']) => Value::Float(f),
-                    _ => Value::String(s.into_owned()),
+                    _ => Value::String(s.to_owned()),
                 },
-            }
+            })
         })
         .collect()
 }

@@ -19,7 +19,7 @@ pub enum RenderError {
     #[error(transparent)]
     Format(#[from] FormatError),
     /// The file has no field of that name.
-    #[error("no field '{name}' (fields: {})", available.join(", "))]
+    #[error("no field '{name}'{} (fields: {})", same_but_case(name, available), available.join(", "))]
     NoField {
         /// The name asked for.
         name: String,
@@ -93,5 +93,40 @@ impl RenderError {
             path: path.to_path_buf(),
             message: message.to_string(),
         }
+    }
+}
+
+/// ` (did you mean 'density'?)` when a field of `available` is `name` but for letter case.
+fn same_but_case(name: &str, available: &[String]) -> String {
+    available
+        .iter()
+        .find(|f| f.eq_ignore_ascii_case(name))
+        .map(|f| format!(" (did you mean '{f}'?)"))
+        .unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_missing_field_lists_the_fields_and_the_one_differing_in_case() {
+        let available: Vec<String> = ["x_velocity", "density"].map(String::from).to_vec();
+        let e = RenderError::NoField {
+            name: "Density".into(),
+            available: available.clone(),
+        };
+        assert_eq!(
+            e.to_string(),
+            "no field 'Density' (did you mean 'density'?) (fields: x_velocity, density)"
+        );
+        let e = RenderError::NoField {
+            name: "temp".into(),
+            available,
+        };
+        assert_eq!(
+            e.to_string(),
+            "no field 'temp' (fields: x_velocity, density)"
+        );
     }
 }

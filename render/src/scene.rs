@@ -673,6 +673,12 @@ fn resolve_field(file: &MappedFile, name: Option<&str>) -> Result<usize> {
             .or_else(|| fields.iter().position(spread))
             .unwrap_or(0));
     };
+    field_named(file, name)
+}
+
+/// The index of the field `name` of `file`; an error listing the file's fields (and the one
+/// that differs only in letter case, if any) when it has none of that name.
+pub fn field_named<D: AsRef<[u8]>>(file: &amr_format::AmrkFile<D>, name: &str) -> Result<usize> {
     file.field_index(name).ok_or_else(|| RenderError::NoField {
         name: name.to_string(),
         available: file.fields().iter().map(|f| f.name.clone()).collect(),

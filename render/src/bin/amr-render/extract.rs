@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use amr_render::extract::{ExtractStats, Extractor, Region};
 use amr_render::mapping::{open_mapped, PageRelease};
+use amr_render::scene::field_named;
 use amr_render::trace::GridFrame;
 use amr_render::ClipBox;
 use anyhow::{bail, Context};
@@ -88,14 +89,7 @@ fn extract_all(args: &ExtractArgs) -> anyhow::Result<()> {
     let file = open_mapped(&args.file)?;
     let field = match &args.field {
         None => 0,
-        Some(name) => file.field_index(name).with_context(|| {
-            let names: Vec<&str> = file.fields().iter().map(|f| f.name.as_str()).collect();
-            format!(
-                "{}: no field '{name}' (fields: {})",
-                args.file.display(),
-                names.join(", ")
-            )
-        })?,
+        Some(name) => field_named(&file, name).map_err(|e| e.in_file(&args.file))?,
     };
     let mut extractor =
         Extractor::new(&file, field, args.cache_mib << 20).map_err(|e| e.in_file(&args.file))?;

@@ -12,6 +12,7 @@ use amr_render::field_stats::{format_value, format_vector};
 use amr_render::mapping::open_mapped;
 use amr_render::output::header::frame_header;
 use amr_render::output::legend::Legend;
+use amr_render::scene::field_named;
 use amr_render::shade::IsoSpec;
 use amr_render::{render, render_reusing, ColorBy, Scene, View};
 use anyhow::bail;
@@ -269,13 +270,8 @@ fn check_series(request: &RenderRequest) -> anyhow::Result<()> {
         .collect();
     for path in &request.files {
         let file = open_mapped(path)?;
-        if let Some(name) = names.iter().find(|n| file.field_index(n).is_none()) {
-            let fields: Vec<&str> = file.fields().iter().map(|f| f.name.as_str()).collect();
-            bail!(
-                "{}: no field '{name}' (fields: {})",
-                path.display(),
-                fields.join(", ")
-            );
+        for name in &names {
+            field_named(&file, name).map_err(|e| e.in_file(path))?;
         }
     }
     Ok(())

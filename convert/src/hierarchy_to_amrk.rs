@@ -32,7 +32,7 @@ pub struct Slab<'a> {
 #[derive(Debug, thiserror::Error)]
 pub enum ConvertError {
     /// A requested field is not in the dump.
-    #[error("{}: no field named '{name}'; the file has: {available}", path.display())]
+    #[error("{}: no field named '{name}'{hint}; the file has: {available}", path.display())]
     UnknownField {
         /// The dump's main file (the one [`AmrSource::path`] names).
         path: PathBuf,
@@ -40,6 +40,9 @@ pub enum ConvertError {
         name: String,
         /// The dump's field names, comma-separated.
         available: String,
+        /// The field that differs only in letter case, as ` (did you mean 'density'?)`, or
+        /// nothing.
+        hint: String,
     },
     /// The output would replace one of the dump's files or something that is not a regular
     /// file ([`amr_format::output::check_output`]; the message names both), or its file system
@@ -155,6 +158,7 @@ pub fn select_fields<S: AmrSource + ?Sized>(
                     path: src.path().to_path_buf(),
                     name: name.clone(),
                     available: fields.join(", "),
+                    hint: amr_render::error::same_but_case(name, &fields),
                 })?;
         if !out.contains(&c) {
             out.push(c);

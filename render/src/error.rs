@@ -97,7 +97,7 @@ impl RenderError {
 }
 
 /// ` (did you mean 'density'?)` when a field of `available` is `name` but for letter case.
-fn same_but_case(name: &str, available: &[String]) -> String {
+pub fn same_but_case(name: &str, available: &[String]) -> String {
     available
         .iter()
         .find(|f| f.eq_ignore_ascii_case(name))

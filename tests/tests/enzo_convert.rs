@@ -249,6 +249,11 @@ fn misaligned_and_badly_nested_grids_are_refused() {
             "Density, Temperature, x-velocity",
         ],
     );
+    assert_fails(
+        &p,
+        &["density"],
+        &["no field named 'density' (did you mean 'Density'?)"],
+    );
     std::fs::remove_file(tmp.path().join("e/DD0003.cpu0000")).unwrap();
     assert_fails(&p, &[], &["DD0003.cpu0000", "cannot open as an HDF5 file"]);
 }

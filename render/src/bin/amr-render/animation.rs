@@ -99,8 +99,8 @@ impl Animation {
         mut keyframes: Vec<CameraKey>,
     ) -> anyhow::Result<Animation> {
         keyframes.sort_by_key(|k| k.frame);
-        if keyframes.windows(2).any(|w| w[0].frame == w[1].frame) {
-            bail!("two --keyframe options name the same frame");
+        if let Some(w) = keyframes.windows(2).find(|w| w[0].frame == w[1].frame) {
+            bail!("two --keyframe options name frame {}", w[0].frame);
         }
         if orbit.is_some() && !keyframes.is_empty() {
             bail!("--orbit and --keyframe are two camera paths: give one");

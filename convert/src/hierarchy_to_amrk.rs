@@ -158,7 +158,7 @@ pub fn select_fields<S: AmrSource + ?Sized>(
                     path: src.path().to_path_buf(),
                     name: name.clone(),
                     available: fields.join(", "),
-                    hint: amr_render::error::same_but_case(name, &fields),
+                    hint: amr_render::error::same_but_case(name, fields),
                 })?;
         if !out.contains(&c) {
             out.push(c);

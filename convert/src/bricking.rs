@@ -2,6 +2,7 @@
 //! and the layout that splits each input box into bricks (or joins runs of small ones into one)
 //! and routes slabs of box data to them.
 
+use std::collections::hash_map::Entry;
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -99,12 +100,13 @@ impl BrickLayout {
     ) -> Self {
         let b = i64::from(brick.max(1));
         let extent = b.min(i64::from(MAX_JOINED_EXTENT));
-        let planned = (max_open(extent, fields) as u64)
+        let open = max_open(extent, fields);
+        let planned = (open as u64)
             .saturating_mul((extent as u64).pow(3) * 4)
             .saturating_mul(fields.max(1) as u64);
         let joined = join_order
             .filter(|order| lists_every_box_once(levels, order))
-            .map(|order| joined_boxes(levels, order, extent, max_open(extent, fields)))
+            .map(|order| joined_boxes(levels, order, extent, open))
             .unwrap_or_default();
         let mut bricks = Vec::new();
         let mut boxes = Vec::with_capacity(levels.len());
@@ -210,24 +212,24 @@ impl BrickLayout {
                 cells.lo, cells.hi, values.len(), whole.lo, whole.hi
             )));
         }
-        if !self.pending.contains_key(&(brick, field)) {
-            self.pending_bytes += total * 4;
-            if self.pending_bytes > self.pending_cap {
-                return Err(FormatError::Usage(format!(
-                    "the input's boxes arrive in another order than the reader declared: {} \
-                     bytes of joined bricks would wait for cells, more than the {} planned; \
-                     convert with --keep-boxes",
-                    self.pending_bytes, self.pending_cap
-                )));
+        let pending = match self.pending.entry((brick, field)) {
+            Entry::Occupied(e) => e.into_mut(),
+            Entry::Vacant(e) => {
+                self.pending_bytes += total * 4;
+                if self.pending_bytes > self.pending_cap {
+                    return Err(FormatError::Usage(format!(
+                        "the input's boxes arrive in another order than the reader declared: \
+                         {} bytes of joined bricks would wait for cells, more than the {} \
+                         planned; convert with --keep-boxes",
+                        self.pending_bytes, self.pending_cap
+                    )));
+                }
+                e.insert(PendingBrick {
+                    values: vec![0.0; total as usize],
+                    filled: 0,
+                })
             }
-        }
-        let pending = self
-            .pending
-            .entry((brick, field))
-            .or_insert_with(|| PendingBrick {
-                values: vec![0.0; total as usize],
-                filled: 0,
-            });
+        };
         paste_subbox(values, cells, &mut pending.values, &whole);
         pending.filled += count;
         if pending.filled < total {

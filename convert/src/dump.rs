@@ -9,6 +9,7 @@ use std::time::Instant;
 use amr_format::hierarchy::MAX_BRICK_EXTENT;
 use amr_format::progress::Progress;
 use amr_format::FormatError;
+use amr_render::dump_hint::{first_bytes, HDF5_SIGNATURE};
 
 use crate::amrex::{self, AmrexError};
 use crate::bricking::ConvertOptions;
@@ -201,16 +202,6 @@ pub fn detect(input: &Path) -> Result<InputFormat, DumpError> {
             .to_string(),
     };
     Err(unrecognised(input, reason))
-}
-
-/// The first bytes of an HDF5 file (Chombo's and Enzo's data files).
-const HDF5_SIGNATURE: [u8; 8] = *b"\x89HDF\r\n\x1a\n";
-
-/// The first `N` bytes of the file `path`, when it has that many.
-fn first_bytes<const N: usize>(path: &Path) -> Option<[u8; N]> {
-    let mut head = [0u8; N];
-    File::open(path).ok()?.read_exact(&mut head).ok()?;
-    Some(head)
 }
 
 fn unrecognised(input: &Path, reason: String) -> DumpError {

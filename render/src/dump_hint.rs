@@ -5,7 +5,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// The HDF5 signature, the first bytes of a Chombo or Enzo data file.
-const HDF5_SIGNATURE: &[u8; 8] = b"\x89HDF\r\n\x1a\n";
+pub const HDF5_SIGNATURE: [u8; 8] = *b"\x89HDF\r\n\x1a\n";
 
 /// Why `path` (not an `.amrk` file: a directory or wrong magic bytes) cannot be rendered, with
 /// the conversion to run when it looks like a dump `amr-convert` reads.
@@ -22,7 +22,7 @@ pub fn not_amrk(path: &Path) -> String {
         (kind, path.to_path_buf())
     } else if let Some(parameters) = enzo_parameter_file(path) {
         (Some("part of an Enzo dataset"), parameters)
-    } else if starts_with(path, HDF5_SIGNATURE) {
+    } else if first_bytes::<8>(path) == Some(HDF5_SIGNATURE) {
         (
             Some("an HDF5 file (a Chombo plotfile?)"),
             path.to_path_buf(),
@@ -62,11 +62,12 @@ fn enzo_parameter_file(path: &Path) -> Option<PathBuf> {
         .then(|| PathBuf::from(base))
 }
 
-fn starts_with(path: &Path, prefix: &[u8]) -> bool {
-    let mut head = vec![0u8; prefix.len()];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut head))
-        .is_ok_and(|()| head == prefix)
+/// The first `N` bytes of the file `path`, when it has that many (call it on a regular file
+/// only: opening a FIFO waits for a writer).
+pub fn first_bytes<const N: usize>(path: &Path) -> Option<[u8; N]> {
+    let mut head = [0u8; N];
+    std::fs::File::open(path).ok()?.read_exact(&mut head).ok()?;
+    Some(head)
 }
 
 fn has_file_ending(dir: &Path, suffix: &str) -> bool {
@@ -107,7 +108,7 @@ mod tests {
         std::fs::write(enzo.join("data0010"), "InitialTime = 1\n").unwrap();
         std::fs::write(enzo.join("data0010.hierarchy"), "\n").unwrap();
         assert!(not_amrk(&enzo).contains("Enzo dataset directory"));
-        std::fs::write(enzo.join("data0010.cpu0000"), HDF5_SIGNATURE).unwrap();
+        std::fs::write(enzo.join("data0010.cpu0000"), HDF5_SIGNATURE.as_slice()).unwrap();
         for part in ["data0010", "data0010.hierarchy", "data0010.cpu0000"] {
             let m = not_amrk(&enzo.join(part));
             let want = format!("amr-convert {} -o", enzo.join("data0010").display());

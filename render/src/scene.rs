@@ -384,39 +384,39 @@ impl Scene {
             self.open_color_source(by)?;
         }
         self.color_by = per_surface.to_vec();
-        self.paint_slices()
+        if self.slice_by.is_none() && !self.slices.is_empty() {
+            // Slices painted by default follow the surfaces' painters.
+            let painter = self.default_slice_painter();
+            self.open_color_source(&painter)?;
+            for slice in &mut self.slices {
+                slice.1 = painter.clone();
+            }
+        }
+        Ok(())
     }
 
     /// Replaces the slices, each painted by `by` (default: the first field that paints a
     /// surface, else the rendered field; the default follows later [`Self::set_color_by`]
     /// calls, so the two may come in either order).
     pub fn set_slices(&mut self, slices: &[Slice], by: Option<ColorBy>) -> Result<()> {
-        let before = (self.slice_by.clone(), self.slices.clone());
+        let painter = by.clone().unwrap_or_else(|| self.default_slice_painter());
+        if !slices.is_empty() {
+            self.open_color_source(&painter)?;
+        }
         self.slice_by = by;
-        self.slices = slices.iter().map(|s| (*s, ColorBy::Level)).collect();
-        self.paint_slices().inspect_err(|_| {
-            (self.slice_by, self.slices) = before;
-        })
+        self.slices = slices.iter().map(|s| (*s, painter.clone())).collect();
+        Ok(())
     }
 
-    /// Sets what paints the slices from the request and the surfaces' painters.
-    fn paint_slices(&mut self) -> Result<()> {
-        if self.slices.is_empty() {
-            return Ok(());
-        }
-        let by = self.slice_by.clone().unwrap_or_else(|| {
-            self.color_by
-                .iter()
-                .flatten()
-                .find(|b| matches!(b, ColorBy::Field(_)))
-                .cloned()
-                .unwrap_or_else(|| ColorBy::Field(self.field_name().to_string()))
-        });
-        self.open_color_source(&by)?;
-        for slice in &mut self.slices {
-            slice.1 = by.clone();
-        }
-        Ok(())
+    /// What paints slices given no painter: the first field that paints a surface, else the
+    /// rendered field.
+    fn default_slice_painter(&self) -> ColorBy {
+        self.color_by
+            .iter()
+            .flatten()
+            .find(|b| matches!(b, ColorBy::Field(_)))
+            .cloned()
+            .unwrap_or_else(|| ColorBy::Field(self.field_name().to_string()))
     }
 
     /// The index of the field that `by` names, with its source opened (`None` for the level).

@@ -1,15 +1,18 @@
 //! Smooth normals through the file pipeline: along a fine sweep of rays across a sphere whose
 //! surface crosses voxel faces and a level boundary, the octant method's smooth normals turn
 //! steadily within a level (where the voxels' own trilinear gradients jump by degrees at
-//! faces), change only slightly where the level changes, and stay within a degree of the
-//! sphere's normal. The normals read from blocks of cell values inside one level
+//! faces) and as steadily where the level changes, and stay within a degree of the sphere's
+//! normal. The normals read from blocks of cell values inside one level
 //! (`VoxelSource::level_gradient`) are compared ray by ray with the six point samples they
 //! replace, which the sweep also traces (also where the block gives only some components and
-//! the others are sampled), also on a ratio-3 file whose kd-tree leaves cut coarse cells; and
-//! frames with smooth normals are the same on 1, 2 and 3 threads.
+//! the others are sampled, and near the level boundary, where both take the same blend of two
+//! levels' differences), also on a ratio-3 file whose kd-tree leaves cut coarse cells; the
+//! blend's weights from a thread's memo equal the kd-tree walk's; and frames with smooth
+//! normals are the same on 1, 2 and 3 threads.
 
 use amr_format::AmrkFile;
 use amr_render::bvh::BvhBuilder;
+use amr_render::reconstruct::level_blend::{LevelWeights, NearLevels};
 use amr_render::shade::IsoSpec;
 use amr_render::trace::octant::VoxelHit;
 use amr_render::trace::{
@@ -34,8 +37,9 @@ fn unit(v: [f64; 3]) -> [f64; 3] {
     v.map(|x| x / n)
 }
 
-/// A source tracing like `S` whose smooth normals always take six point samples (the trait's
-/// default `level_gradient`), never the blocks of cell values.
+/// A source tracing like `S` whose smooth normals always take six point samples per level
+/// weighed (the trait's default `level_gradient`, with `S`'s blend weights), never the blocks
+/// of cell values.
 struct Sampled<'a, S>(&'a S);
 
 impl<S: VoxelSource> VoxelSource for Sampled<'_, S> {
@@ -53,6 +57,9 @@ impl<S: VoxelSource> VoxelSource for Sampled<'_, S> {
     }
     fn cell_size(&self, level: u32) -> Option<[f64; 3]> {
         self.0.cell_size(level)
+    }
+    fn level_weights(&self, p: [f64; 3], level: u32) -> LevelWeights {
+        self.0.level_weights(p, level)
     }
     fn intersect(
         &self,
@@ -218,10 +225,11 @@ fn smooth_normals_turn_steadily_across_voxel_faces_and_level_boundaries() {
         smooth.max_step < 0.02 && flat.max_step > 1.0,
         "smooth normals jump between neighbouring rays on one level: {smooth:?} {flat:?}"
     );
-    // Where the level, and with it the step, changes, they change by a small fraction of what
-    // the voxels' gradients do.
+    // Where the level, and with it the step, changes, the two levels' differences are
+    // blended (`level_blend`): the normals turn there as steadily as within a level (without
+    // the blend they jumped by 0.21 degrees, 27 times the sweep's step).
     assert!(
-        smooth.max_step_across_levels < 0.1 * flat.max_step_across_levels,
+        smooth.max_step_across_levels < 0.02,
         "smooth normals jump at the level boundary: {smooth:?} {flat:?}"
     );
     assert!(
@@ -311,5 +319,53 @@ fn smooth_normals_are_the_same_on_any_thread_count() {
                 "{reconstruction}: other pixels on {threads} threads"
             );
         }
+    }
+}
+
+/// The blend weights a thread takes from its memo of other-level leaves around dual cells are
+/// those of the kd-tree walk at each point, on files whose levels meet at ratio 2 and at ratio
+/// 3 (where leaf faces cut coarse cells), along a random walk that revisits dual cells and
+/// crosses level boundaries.
+#[test]
+fn blend_weights_from_the_memo_equal_the_walked_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, levels, ratio, base) in [("r2.amrk", 3, 2, 16), ("r3.amrk", 2, 3, 12)] {
+        let path = dir.path().join(name);
+        write_half_refined_sphere(&path, levels, ratio, base);
+        let file = AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+        let src = FieldSource::new(&file, 0, Reconstruction::Octant).unwrap();
+        let sampler = src.sampler();
+        let extent = src.frame().extent;
+        let mut memo = NearLevels::default();
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut blended, mut p) = (0, [0.5 * extent[0], 0.5 * extent[1], 0.5 * extent[2]]);
+        for i in 0..60_000 {
+            if i % 500 == 0 {
+                p = [0, 1, 2].map(|a| next() * extent[a]);
+            } else {
+                p = [0, 1, 2].map(|a| (p[a] + (next() - 0.5) * 0.6).clamp(0.0, extent[a]));
+            }
+            let Some((_, level)) = src.sample(p) else {
+                continue;
+            };
+            let walked = sampler.level_weights(p, level);
+            let memoized = sampler.level_weights_near(p, level, &mut memo);
+            assert_eq!(
+                memoized, walked,
+                "{name}: weights at {p:?} on level {level}"
+            );
+            blended += usize::from(walked.single().is_none());
+        }
+        eprintln!("{name}: {blended} of 60000 points blend two levels");
+        assert!(
+            blended > 200,
+            "{name}: the walk should cross level boundaries"
+        );
     }
 }

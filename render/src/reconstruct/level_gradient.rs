@@ -139,6 +139,23 @@ const fn axis_slots() -> [u32; 3] {
     out
 }
 
+/// The [`NEEDED`] slots (bit per slot) of the dual cell's eight corner cells (offsets 1 and 2
+/// on every axis): half a cell around any point of the dual cell lies in them.
+const CORE_SLOTS: u32 = core_slots();
+
+const fn core_slots() -> u32 {
+    let mut out = 0;
+    let mut k = 0;
+    while k < 32 {
+        let c = NEEDED[k];
+        if matches!(c[0], 1 | 2) && matches!(c[1], 1 | 2) && matches!(c[2], 1 | 2) {
+            out |= 1 << k;
+        }
+        k += 1;
+    }
+    out
+}
+
 /// Per [`NEEDED`] slot: the axes (bit per axis) whose gradient reads it ([`AXIS_SLOTS`]).
 const SLOT_AXES: [u8; 32] = slot_axes();
 
@@ -188,6 +205,24 @@ impl LevelCells {
     pub fn axes(&self) -> [bool; 3] {
         axes(|a| self.valid & AXIS_SLOTS[a] == AXIS_SLOTS[a])
     }
+
+    /// True when the dual cell's eight corner cells are leaf cells of the level, so that no
+    /// other level lies within half a cell of it around any point of the dual cell
+    /// ([`super::level_blend`]). False also where a corner cell was not looked at.
+    pub fn core_is_whole(&self) -> bool {
+        self.valid & CORE_SLOTS == CORE_SLOTS
+    }
+}
+
+/// What a block of cells that is not whole gives toward a smooth normal's gradient.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PartialGradient {
+    /// The components whose cells are leaf cells of the level ([`LevelCells::axes`]); the
+    /// others are sampled.
+    pub given: [Option<f64>; 3],
+    /// The dual cell's eight corner cells are leaf cells of the level
+    /// ([`LevelCells::core_is_whole`]): no other level is near enough to blend with.
+    pub core_is_whole: bool,
 }
 
 /// Kd-tree leaves a block may span before [`Sampler::level_block`] gives up.
@@ -731,6 +766,8 @@ struct BlockSlot {
     given: [bool; 3],
     /// Every cell is a leaf cell of the level ([`LevelCells::is_whole`]).
     whole: bool,
+    /// The dual cell's corner cells are leaf cells of the level ([`LevelCells::core_is_whole`]).
+    core_is_whole: bool,
     /// The corner differences of the cells' values ([`CornerDifferences::of`]).
     differences: CornerDifferences,
 }
@@ -742,6 +779,7 @@ impl BlockSlot {
         base: [0.0; 3],
         given: [false; 3],
         whole: false,
+        core_is_whole: false,
         differences: CornerDifferences([[0.0; 4]; 8]),
     };
 }
@@ -766,15 +804,16 @@ impl LevelBlocks {
     pub const BYTES: usize = BLOCK_SLOTS * std::mem::size_of::<BlockSlot>();
 
     /// [`Sampler::level_gradient`], reading the cells from this memo when it holds them; where
-    /// that is `None`, the components [`Sampler::level_gradient_axes`] gives are put in `given`
-    /// (left alone otherwise).
+    /// that is `None`, the components [`Sampler::level_gradient_axes`] gives and whether the
+    /// dual cell's corner cells are leaf cells of the level are put in `partial` (left alone
+    /// otherwise).
     #[inline]
     pub fn gradient<D: AsRef<[u8]>>(
         &mut self,
         sampler: &Sampler<'_, D>,
         p: [f64; 3],
         level: u32,
-        given: &mut [Option<f64>; 3],
+        partial: &mut PartialGradient,
     ) -> Result<Option<[f64; 3]>> {
         if self.owner != sampler.id() || self.slots.is_empty() {
             self.serve(sampler);
@@ -793,7 +832,7 @@ impl LevelBlocks {
             let w = steps.weights(p, slot.base);
             return Ok(Some(slot.differences.gradient(&w, &steps.span)));
         }
-        self.gradient_in_slot(sampler, p, key, index, given)
+        self.gradient_in_slot(sampler, p, key, index, partial)
     }
 
     /// [`Self::gradient`] at `p` in the dual cell `key` (level and lower corner cell) where
@@ -805,14 +844,15 @@ impl LevelBlocks {
         p: [f64; 3],
         key: (u32, [i64; 3]),
         index: usize,
-        given: &mut [Option<f64>; 3],
+        partial: &mut PartialGradient,
     ) -> Result<Option<[f64; 3]>> {
         if self.slots[index].key != key {
             self.fill(sampler, key, index)?;
         }
         let (slot, steps) = (&self.slots[index], &self.levels[key.0 as usize]);
+        partial.core_is_whole = slot.core_is_whole;
         if slot.given == [false; 3] {
-            *given = [None; 3];
+            partial.given = [None; 3];
             return Ok(None);
         }
         let g = slot
@@ -821,7 +861,7 @@ impl LevelBlocks {
         if slot.whole {
             return Ok(Some(g));
         }
-        *given = axes(|a| slot.given[a].then_some(g[a]));
+        partial.given = axes(|a| slot.given[a].then_some(g[a]));
         Ok(None)
     }
 
@@ -855,6 +895,7 @@ impl LevelBlocks {
             base: base.map(|x| x as f64),
             given: cells.axes(),
             whole: cells.is_whole(),
+            core_is_whole: cells.core_is_whole(),
             differences: CornerDifferences::of(&cells.values),
         };
         Ok(())

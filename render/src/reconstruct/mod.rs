@@ -11,6 +11,7 @@
 //! - [`vertex_sides`]: a vertex's sides as its value reads them (levels, values, leaves).
 //! - [`stitch`]: stitched vertex values from the coarse corners of non-zero weight alone.
 //! - [`level_gradient`]: smooth normals' central differences inside one level, from a brick.
+//! - [`level_blend`]: smooth normals' differences of two levels weighed near a level boundary.
 //! - [`cell_octants`]: several octants of one leaf cell next to other levels, computed together.
 //! - [`mixed`]: octant corners next to other levels, from one table of the cells they read.
 //! - [`methods`]: point sampling with `nearest`, `current`, `finest` and `octant`.
@@ -23,6 +24,7 @@ pub mod grid;
 pub mod interp;
 pub mod leaf_grid;
 mod leaf_hints;
+pub mod level_blend;
 pub mod level_gradient;
 pub mod methods;
 mod mixed;

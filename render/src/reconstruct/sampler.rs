@@ -636,6 +636,12 @@ impl<'f, D: AsRef<[u8]>> Sampler<'f, D> {
         self.tree.leaf_box(leaf)
     }
 
+    /// Calls `f` with every kd-tree leaf whose closed box touches the closed `region` (finest-level
+    /// cells relative to the domain).
+    pub fn for_each_leaf_touching(&self, region: &IBox, f: impl FnMut(u32)) {
+        self.tree.for_each_leaf_touching(region, f)
+    }
+
     /// The finest cells whose leaf cells kd-tree leaf `leaf`'s finest brick holds, as far as the
     /// sampler knows: the whole brick when no finer brick overlaps it (then any kd-tree leaf
     /// whose finest brick it is reads every cell of it), else the leaf's box. The octant

@@ -25,7 +25,8 @@ use crate::extract::{
     Region,
 };
 use crate::mapping::PageRelease;
-use crate::reconstruct::level_gradient::LevelBlocks;
+use crate::reconstruct::level_blend::{LevelWeights, NearLevels};
+use crate::reconstruct::level_gradient::{LevelBlocks, PartialGradient};
 use crate::reconstruct::{Reconstruction, SampleScratch, Sampler};
 use crate::trace::face::intersect_face;
 use crate::trace::octant::{
@@ -45,10 +46,12 @@ pub const BRICK_CACHE_BYTES: usize = 256 << 20;
 /// Slots of each thread's cache of decoded voxels (a power of two).
 const VOXEL_CACHE_SLOTS: usize = 4096;
 
-/// Bytes of one thread's voxel cache: the decoded voxels with their refs and the cell blocks of
-/// smooth normals, plus the sampling scratch (bounded by its own capacities, not counted here).
-pub const VOXEL_CACHE_BYTES: usize =
-    VOXEL_CACHE_SLOTS * std::mem::size_of::<(u64, Voxel)>() + LevelBlocks::BYTES;
+/// Bytes of one thread's voxel cache: the decoded voxels with their refs, the cell blocks of
+/// smooth normals and their memo of other-level leaves, plus the sampling scratch (bounded by
+/// its own capacities, not counted here).
+pub const VOXEL_CACHE_BYTES: usize = VOXEL_CACHE_SLOTS * std::mem::size_of::<(u64, Voxel)>()
+    + LevelBlocks::BYTES
+    + NearLevels::BYTES;
 
 /// The voxels of one reconstruction.
 // One value per source, matched on every lookup: boxing the large variant would add an
@@ -71,6 +74,8 @@ struct VoxelCache {
     /// ([`leaf_slot`]): the candidates of a walk come from a few leaves at a time.
     leaves: [Option<DecodeFrame>; LEAF_SLOTS],
     blocks: LevelBlocks,
+    /// The other-level leaves around the dual cells of smooth normals near level boundaries.
+    near_levels: NearLevels,
 }
 
 /// One field of an open file, reconstructed one way, as a [`VoxelSource`].
@@ -271,6 +276,7 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
                 scratch: SampleScratch::default(),
                 leaves: [None; LEAF_SLOTS],
                 blocks: LevelBlocks::default(),
+                near_levels: NearLevels::default(),
             })
         })
     }
@@ -566,6 +572,78 @@ impl<D: AsRef<[u8]> + Sync> FieldSource<'_, D> {
     }
 }
 
+impl<D: AsRef<[u8]> + Sync> FieldSource<'_, D> {
+    /// The smooth normal's gradient at `p` one cell of `level` apart from the cells of `level`
+    /// around it, when they are all leaf cells of the level (`Ok(Ok)`): both fields are then
+    /// the dual cells' trilinear interpolant, whose central differences the brick gives
+    /// directly. Otherwise `Ok(Err)` with what the block gives (the components whose cells are
+    /// leaf cells of the level; the others are to be sampled); `Err` after an error (recorded).
+    #[inline]
+    fn one_level_block_gradient(
+        &self,
+        p: [f64; 3],
+        level: u32,
+    ) -> std::result::Result<std::result::Result<[f64; 3], PartialGradient>, ()> {
+        let mut partial = PartialGradient::default();
+        if !matches!(self.voxels, Voxels::Octant(_) | Voxels::Current(_)) {
+            return Ok(Err(partial));
+        }
+        let found = {
+            let mut cache = self.thread_cache().borrow_mut();
+            cache
+                .blocks
+                .gradient(self.sampler(), p, level, &mut partial)
+        };
+        match found {
+            Ok(Some(g)) => Ok(Ok(g)),
+            Ok(None) => Ok(Err(partial)),
+            Err(e) => {
+                self.record(e);
+                Err(())
+            }
+        }
+    }
+
+    /// The smooth normal's gradient at `p` on a hit of `level` whose cells' block did not give
+    /// all of it (`partial`: what it gave): `level`'s differences, the missing components
+    /// sampled, or near a level boundary those of the levels [`Sampler::level_weights`] gives,
+    /// weighed. Kept out of line: most smooth normals come from whole blocks.
+    #[inline(never)]
+    fn blended_gradient(
+        &self,
+        p: [f64; 3],
+        level: u32,
+        step: [f64; 3],
+        partial: PartialGradient,
+    ) -> Option<[f64; 3]> {
+        let one_level =
+            |given| self.gradient_given(p, self.cell_size(level).unwrap_or(step), given);
+        if partial.core_is_whole {
+            return one_level(partial.given);
+        }
+        let weights = {
+            let mut cache = self.thread_cache().borrow_mut();
+            self.sampler()
+                .level_weights_near(p, level, &mut cache.near_levels)
+        };
+        if weights.single().is_some() {
+            return one_level(partial.given);
+        }
+        weights.blend(|l| {
+            let given = if l == level {
+                partial.given
+            } else {
+                match self.one_level_block_gradient(p, l) {
+                    Ok(Ok(g)) => return Some(g),
+                    Ok(Err(other)) => other.given,
+                    Err(()) => return None,
+                }
+            };
+            self.gradient_given(p, self.cell_size(l).unwrap_or(step), given)
+        })
+    }
+}
+
 impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
     fn frame(&self) -> GridFrame {
         self.frame
@@ -662,25 +740,15 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
 
     #[inline]
     fn level_gradient(&self, p: [f64; 3], level: u32, step: [f64; 3]) -> Option<[f64; 3]> {
-        let mut given = [None; 3];
-        if matches!(self.voxels, Voxels::Octant(_) | Voxels::Current(_)) {
-            // Inside one level, both fields are the dual cells' trilinear interpolant, whose
-            // central differences one cell apart the brick gives directly: on every axis whose
-            // cells are leaf cells of the level, the others are sampled.
-            let found = {
-                let mut cache = self.thread_cache().borrow_mut();
-                cache.blocks.gradient(self.sampler(), p, level, &mut given)
-            };
-            match found {
-                Ok(Some(g)) => return Some(g),
-                Ok(None) => {}
-                Err(e) => {
-                    self.record(e);
-                    return None;
-                }
-            }
+        match self.one_level_block_gradient(p, level) {
+            Ok(Ok(g)) => Some(g),
+            Ok(Err(partial)) => self.blended_gradient(p, level, step, partial),
+            Err(()) => None,
         }
-        self.gradient_given(p, self.cell_size(level).unwrap_or(step), given)
+    }
+
+    fn level_weights(&self, p: [f64; 3], level: u32) -> LevelWeights {
+        self.sampler().level_weights(p, level)
     }
 
     fn smooth_gradients(&self, hits: &mut [Option<SurfaceHit>]) {
@@ -697,20 +765,20 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
         // samples.
         let mut k = 0;
         while k < hits.len() {
-            let mut given = None;
+            let mut partial = None;
             {
                 let mut cache = self.thread_cache().borrow_mut();
                 let sampler = self.sampler();
                 while k < hits.len() {
                     if let Some(hit) = &mut hits[k] {
-                        let mut part = [None; 3];
+                        let mut part = PartialGradient::default();
                         match cache
                             .blocks
                             .gradient(sampler, hit.pos, hit.level, &mut part)
                         {
                             Ok(Some(g)) => hit.grad = g,
                             Ok(None) => {
-                                given = Some(part);
+                                partial = Some(part);
                                 break;
                             }
                             Err(e) => self.record(e),
@@ -720,12 +788,11 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
                 }
             }
             // Hit `k` (when the run stopped short of the end) needs samples.
-            let Some(given) = given else {
+            let Some(partial) = partial else {
                 continue;
             };
             if let Some(hit) = &mut hits[k] {
-                let step = self.cell_size(hit.level).unwrap_or([hit.size; 3]);
-                if let Some(g) = self.gradient_given(hit.pos, step, given) {
+                if let Some(g) = self.blended_gradient(hit.pos, hit.level, [hit.size; 3], partial) {
                     hit.grad = g;
                 }
             }

@@ -2,6 +2,7 @@
 
 use crate::bvh::packet::{rays_where, Mask};
 use crate::bvh::BoxRun;
+use crate::reconstruct::level_blend::LevelWeights;
 use crate::reconstruct::Grid;
 use crate::trace::octant::{intersect_voxel, VoxelHit};
 use crate::trace::ray::GridRay;
@@ -215,10 +216,19 @@ pub trait VoxelSource: Sync {
     }
 
     /// The gradient smooth normals take at `p` on a hit of AMR level `level`: [`Self::gradient`]
-    /// one cell of that level apart on each axis ([`Self::cell_size`], `step` when the source
-    /// has no levels). Sources may compute the same values faster.
+    /// one cell of a level apart on each axis ([`Self::cell_size`], `step` when the source has
+    /// no levels), for each level [`Self::level_weights`] gives, weighed by it. Sources may
+    /// compute the same values faster.
     fn level_gradient(&self, p: [f64; 3], level: u32, step: [f64; 3]) -> Option<[f64; 3]> {
-        self.gradient(p, self.cell_size(level).unwrap_or(step))
+        self.level_weights(p, level)
+            .blend(|l| self.gradient(p, self.cell_size(l).unwrap_or(step)))
+    }
+
+    /// The levels whose cells smooth normals step by at `p` on a hit of level `level`, and
+    /// their weights: by default `level` alone; a source with levels blends two near a level
+    /// boundary, so that the normal does not jump there ([`crate::reconstruct::level_blend`]).
+    fn level_weights(&self, _p: [f64; 3], level: u32) -> LevelWeights {
+        LevelWeights::one(level)
     }
 
     /// Gives each of `hits` [`Self::level_gradient`] at its position, for its level, with its

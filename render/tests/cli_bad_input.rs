@@ -244,3 +244,57 @@ fn a_scene_file_never_replaces_an_input() {
     assert_eq!(code, 0, "{err}");
     assert!(frame.exists());
 }
+
+/// A command that fails writes no scene file, and leaves the one it would replace as it was:
+/// `amr-render scene.toml --iso ... --write-scene scene.toml` with a mistake in it must not
+/// lose the scene that worked.
+#[test]
+fn a_failed_command_writes_no_scene_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.amrk");
+    write_small_file(&good);
+    let f = good.to_str().unwrap();
+    let frame = dir.path().join("frame.png");
+    let scene = dir.path().join("scene.toml");
+    let s = scene.to_str().unwrap();
+    let (code, err) = run(&[
+        f,
+        "--iso",
+        "100",
+        "-o",
+        frame.to_str().unwrap(),
+        "--write-scene",
+        s,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let before = std::fs::read(&scene).unwrap();
+    // A field that does not exist, and an output directory that does not.
+    let missing = dir.path().join("no").join("frame.png");
+    for bad in [
+        vec![s, "--field", "nonesuch", "--write-scene", s],
+        vec![s, "-o", missing.to_str().unwrap(), "--write-scene", s],
+    ] {
+        let (code, err) = run(&bad);
+        assert_eq!(code, 1, "{bad:?}: {err}");
+        assert_eq!(
+            std::fs::read(&scene).unwrap(),
+            before,
+            "{bad:?}: the scene changed"
+        );
+    }
+    let other = dir.path().join("other.toml");
+    let (code, err) = run(&[
+        s,
+        "--field",
+        "nonesuch",
+        "--write-scene",
+        other.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(!other.exists(), "a failed command wrote a scene file");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        3,
+        "no leftovers"
+    );
+}

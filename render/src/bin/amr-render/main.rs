@@ -62,8 +62,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
-/// The command line, a scene file in first position expanded, parsed; `--write-scene` saved.
-fn parse() -> anyhow::Result<Cli> {
+/// The command line, a scene file in first position expanded, parsed; `--write-scene`'s file
+/// composed, to be written once the command has succeeded.
+fn parse() -> anyhow::Result<(Cli, Option<scene_file::PendingScene>)> {
     let argv = scene_file::expand(std::env::args_os().collect())?;
     let cmd = Cli::command();
     let matches = cmd
@@ -71,10 +72,11 @@ fn parse() -> anyhow::Result<Cli> {
         .try_get_matches_from(argv)
         .unwrap_or_else(exit_on);
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(exit_on);
-    if let Some(path) = cli.render.as_ref().and_then(|r| r.write_scene.as_ref()) {
-        scene_file::write(path, &cmd, &matches)?;
-    }
-    Ok(cli)
+    let scene = match cli.render.as_ref().and_then(|r| r.write_scene.as_ref()) {
+        Some(path) => Some(scene_file::prepare(path, &cmd, &matches)?),
+        None => None,
+    };
+    Ok((cli, scene))
 }
 
 /// Prints clap's message and exits: 0 after `--help` or `--version`, 1 for a bad command line
@@ -87,7 +89,11 @@ fn exit_on<T>(e: clap::Error) -> T {
 fn main() -> ExitCode {
     heap::keep_large_blocks_mapped();
     amr_render::sigbus::install();
-    match parse().and_then(run) {
+    let outcome = parse().and_then(|(cli, scene)| {
+        run(cli)?;
+        scene.map_or(Ok(()), scene_file::PendingScene::write)
+    });
+    match outcome {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {

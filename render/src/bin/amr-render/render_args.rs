@@ -107,7 +107,8 @@ pub struct RenderArgs {
     /// Frames per second of --movie.
     #[arg(long, value_name = "N", default_value_t = 24)]
     pub fps: u32,
-    /// Writes these arguments as a TOML scene file that `amr-render FILE.toml` renders again.
+    /// Writes these arguments as a TOML scene file that `amr-render FILE.toml` renders again,
+    /// once the command has succeeded.
     #[arg(long, value_name = "SCENE.toml")]
     pub write_scene: Option<PathBuf>,
     /// Image size.

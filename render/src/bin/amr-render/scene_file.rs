@@ -96,8 +96,31 @@ fn scalar(key: &str, v: &Value) -> anyhow::Result<String> {
     }
 }
 
-/// Writes the render arguments given in `matches` (parsed by `cmd`) as a scene file at `path`.
-pub fn write(path: &Path, cmd: &Command, matches: &ArgMatches) -> anyhow::Result<()> {
+/// A scene file checked and composed before the render, written once the render has succeeded:
+/// a command that fails (a missing output directory, a field misspelt) leaves no scene behind,
+/// nor replaces a scene file that worked with its own.
+pub struct PendingScene {
+    path: std::path::PathBuf,
+    text: String,
+}
+
+impl PendingScene {
+    /// Writes the scene file: beside its place, then renamed there, so never half-written.
+    pub fn write(self) -> anyhow::Result<()> {
+        let path = &self.path;
+        let mut temp = amr_format::output::temporary_for(path, ".tmp")?;
+        temp.write_all(self.text.as_bytes())
+            .and_then(|()| temp.as_file().sync_all())
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        temp.persist(path)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        Ok(())
+    }
+}
+
+/// The render arguments given in `matches` (parsed by `cmd`) as a scene file for `path`, checked
+/// (the name, that it replaces no input, that every value can be written) but not yet written.
+pub fn prepare(path: &Path, cmd: &Command, matches: &ArgMatches) -> anyhow::Result<PendingScene> {
     if path.extension().is_none_or(|e| e != "toml") {
         bail!(
             "{}: a scene file is named .toml (`amr-render SCENE.toml` renders it again)",
@@ -139,14 +162,10 @@ pub fn write(path: &Path, cmd: &Command, matches: &ArgMatches) -> anyhow::Result
     }
     let text = toml::to_string_pretty(&table)?;
     let header = "# amr-render scene file: `amr-render THIS.toml` renders it again.\n";
-    // Written beside its place and renamed there: never a half-written scene.
-    let mut temp = amr_format::output::temporary_for(path, ".tmp")?;
-    temp.write_all(format!("{header}{text}").as_bytes())
-        .and_then(|()| temp.as_file().sync_all())
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    temp.persist(path)
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(())
+    Ok(PendingScene {
+        path: path.to_owned(),
+        text: format!("{header}{text}"),
+    })
 }
 
 /// The values of `id` as given, numbers as numbers; an error for a value that is not UTF-8 (a

@@ -23,6 +23,7 @@
 use amr_format::IBox;
 
 use super::grid::{axes, Grid};
+use super::level_gradient::dual_cell_slot;
 use super::sampler::Sampler;
 
 /// Most levels one blend weighs; past that, the lightest are left out.
@@ -152,7 +153,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             );
         }
         let key = (level, first);
-        let slot = &mut memo.slots[near_slot_of(level, first)];
+        let slot = &mut memo.slots[dual_cell_slot(level, first, NEAR_SLOTS)];
         if slot.key != key {
             // The finest cells of the dual cell's corner cells: every point of the dual cell
             // in a leaf of `level` reaches less than half a cell of `level` (module comment).
@@ -259,16 +260,6 @@ fn gap_squared(p: [f64; 3], b: &IBox, unit: [f64; 3]) -> f64 {
             x * x
         })
         .sum()
-}
-
-/// The slot of [`NearLevels`] for the dual cell `first` of `level`.
-#[inline]
-fn near_slot_of(level: u32, first: [i64; 3]) -> usize {
-    let h = (first[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        ^ (first[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
-        ^ (first[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
-        ^ u64::from(level).wrapping_mul(0x27D4_EB2F_1656_67C5);
-    (h >> (64 - NEAR_SLOTS.trailing_zeros())) as usize
 }
 
 #[cfg(test)]

@@ -918,11 +918,18 @@ fn put_run(out: &mut LevelBlock, k: usize, run: &[f32]) {
 /// The slot of [`LevelBlocks`] for the dual cell `first` of `level`.
 #[inline(always)]
 fn slot_of(level: u32, first: [i64; 3]) -> usize {
+    dual_cell_slot(level, first, BLOCK_SLOTS)
+}
+
+/// The slot of a direct-mapped per-thread memo of `slots` slots (a power of two) keyed by the
+/// dual cell `first` of `level`.
+#[inline(always)]
+pub(super) fn dual_cell_slot(level: u32, first: [i64; 3], slots: usize) -> usize {
     let h = (first[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
         ^ (first[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
         ^ (first[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
         ^ u64::from(level).wrapping_mul(0x27D4_EB2F_1656_67C5);
-    (h >> (64 - BLOCK_SLOTS.trailing_zeros())) as usize
+    (h >> (64 - slots.trailing_zeros())) as usize
 }
 
 /// `x as i64` for a whole number `x` below `2^51` in magnitude, without the cast's saturation

@@ -679,6 +679,60 @@ fn painting_by_a_missing_field_names_the_file_and_the_fields() {
     assert!(stderr(&o).contains("viridis"), "{}", stderr(&o));
 }
 
+/// The colour scale's options with nothing painted by a field would change nothing: the user
+/// who gave them expected colour, so they are refused with what to add; with a field painting
+/// a surface or a slice they are taken.
+#[test]
+fn a_colour_scale_without_a_painted_field_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let f = file.to_str().unwrap();
+    let out = dir.path().join("x.png");
+    let o = out.to_str().unwrap();
+    for (args, says) in [
+        (vec!["--colormap", "magma"], "--color-by FIELD or a --slice"),
+        (
+            vec!["--color-log", "--color-range", "1:5"],
+            "--color-range, --color-log",
+        ),
+        (
+            vec!["--color-by", "level", "--color-log"],
+            "each level its own colour",
+        ),
+        (
+            vec![
+                "--slice",
+                "x=0.5",
+                "--slice-field",
+                "level",
+                "--colormap",
+                "magma",
+            ],
+            "--slice-field FIELD",
+        ),
+    ] {
+        let r = amr_render(&[&[f, "--size", "16x12", "-o", o], &args[..]].concat());
+        assert_eq!(r.status.code(), Some(1), "{args:?}: {}", stderr(&r));
+        assert!(stderr(&r).contains(says), "{args:?}: {}", stderr(&r));
+        assert!(!out.exists(), "{args:?}: a frame was written");
+    }
+    for args in [
+        vec!["--color-by", "blobs", "--colormap", "magma", "--color-log"],
+        vec!["--slice", "x=0.5", "--color-range", "1:5"],
+        vec![
+            "--color-by",
+            "level",
+            "--slice",
+            "x=0.5",
+            "--colormap",
+            "magma",
+        ],
+    ] {
+        let r = amr_render(&[&[f, "--size", "16x12", "-o", o], &args[..]].concat());
+        assert!(r.status.success(), "{args:?}: {}", stderr(&r));
+    }
+}
+
 #[test]
 fn the_exr_header_says_what_was_drawn_in_plain_text() {
     let dir = tempfile::tempdir().unwrap();
@@ -768,7 +822,7 @@ fn auto_series_keeps_one_colour_range_over_a_series() {
     ]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(
-        stderr(&o).contains("needs a field to paint with"),
+        stderr(&o).contains("nothing is painted by a field"),
         "{}",
         stderr(&o)
     );

@@ -45,9 +45,9 @@ pub struct RenderArgs {
     /// pair with the --iso values in order (`none` leaves one unpainted); one value paints all.
     #[arg(long = "color-by", value_name = "FIELD|level|none", value_parser = parse_color_by)]
     pub color_by: Vec<Option<ColorBy>>,
-    /// Colormap of painted surfaces and slices.
-    #[arg(long, value_name = "NAME", default_value_t = Colormap::Viridis)]
-    pub colormap: Colormap,
+    /// Colormap of painted surfaces and slices [default: viridis].
+    #[arg(long, value_name = "NAME")]
+    pub colormap: Option<Colormap>,
     /// Values at the colormap's ends (default: 1st..99th percentile of the values in view);
     /// `auto-series`: the painting field's range over every file of a time series, the same for
     /// every frame.
@@ -244,6 +244,50 @@ pub struct Outputs {
 }
 
 impl RenderArgs {
+    /// An error when the options of the colour scale (`--colormap`, `--color-range`,
+    /// `--color-log`) are given but no field paints a surface or a slice: they would change
+    /// nothing, and the user who gave them expected colour.
+    fn check_color_scale_applies(&self) -> anyhow::Result<()> {
+        let paints_field = self
+            .color_by
+            .iter()
+            .chain([&self.slice_field])
+            .any(|c| matches!(c, Some(ColorBy::Field(_))))
+            || (!(self.slice.is_empty() && self.slice_plane.is_empty())
+                && self.slice_field != Some(ColorBy::Level));
+        let given: Vec<&str> = [
+            (self.colormap.is_some(), "--colormap"),
+            (self.color_range.is_some(), "--color-range"),
+            (self.color_log, "--color-log"),
+        ]
+        .into_iter()
+        .filter_map(|(on, name)| on.then_some(name))
+        .collect();
+        if paints_field || given.is_empty() {
+            return Ok(());
+        }
+        let by_level = self
+            .color_by
+            .iter()
+            .chain([&self.slice_field])
+            .any(|c| *c == Some(ColorBy::Level));
+        let has_slices = !(self.slice.is_empty() && self.slice_plane.is_empty());
+        bail!(
+            "{} colours a field's values, but nothing is painted by a field{}: add {}",
+            given.join(", "),
+            if by_level {
+                " (painting by level gives each level its own colour)"
+            } else {
+                ""
+            },
+            if has_slices {
+                "--color-by FIELD or --slice-field FIELD"
+            } else {
+                "--color-by FIELD or a --slice"
+            }
+        )
+    }
+
     /// Checks everything that can be checked before opening the file.
     pub fn request(&self) -> anyhow::Result<RenderRequest> {
         let camera = match (self.camera_pos, self.look_at) {
@@ -276,7 +320,7 @@ impl RenderArgs {
             smooth_normals: !self.flat_normals,
             sample_step: self.step,
             color_scale: ColorScale {
-                colormap: self.colormap,
+                colormap: self.colormap.unwrap_or_default(),
                 range: match self.color_range {
                     Some(ColorRange::Fixed(lo, hi)) => Some((lo, hi)),
                     _ => None,
@@ -293,6 +337,7 @@ impl RenderArgs {
             );
         }
         view.validate()?;
+        self.check_color_scale_applies()?;
         let clip = match &self.clip {
             Some(text) => Some(
                 text.parse::<ClipBox>()

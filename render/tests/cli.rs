@@ -679,6 +679,75 @@ fn painting_by_a_missing_field_names_the_file_and_the_fields() {
     assert!(stderr(&o).contains("viridis"), "{}", stderr(&o));
 }
 
+/// An option the rest of the command makes void is refused, naming what it needs or what
+/// overrides it: ignored, it would leave the user believing it took effect.
+#[test]
+fn an_option_the_command_makes_void_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let f = file.to_str().unwrap();
+    let png = dir.path().join("x.png");
+    let key = ["--keyframe", "0:2,2,2:0.5,0.5,0.5"];
+    for (args, says) in [
+        (
+            vec!["--orbit-degrees", "90"],
+            "--orbit-degrees applies to --orbit N",
+        ),
+        (vec!["--fps", "30"], "--fps applies to --movie"),
+        (vec!["--step", "0.01"], "--step applies to --method sample"),
+        (
+            vec!["--slice-field", "blobs"],
+            "--slice-field applies to --slice",
+        ),
+        (vec!["--exr-compression", "zip"], "writes none"),
+        (
+            vec![&key[..], &["--camera-pos", "1,1,1"]].concat(),
+            "leave out --camera-pos",
+        ),
+        (
+            vec![&key[..], &["--frame-domain"]].concat(),
+            "leave out --frame-domain",
+        ),
+        (
+            vec!["--frame-domain", "--camera-pos", "2,2,2"],
+            "--frame-domain frames",
+        ),
+    ] {
+        let r = amr_render(
+            &[
+                &[f, "--size", "16x12", "-o", png.to_str().unwrap()],
+                &args[..],
+            ]
+            .concat(),
+        );
+        assert_eq!(r.status.code(), Some(1), "{args:?}: {}", stderr(&r));
+        assert!(stderr(&r).contains(says), "{args:?}: {}", stderr(&r));
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "{args:?}: an output was written"
+        );
+    }
+    // With what they qualify, they are taken.
+    let exr = dir.path().join("x.exr");
+    for args in [
+        vec!["--orbit", "2", "--orbit-degrees", "90"],
+        vec!["--method", "sample", "--step", "0.01"],
+        vec!["--slice", "x=0.5", "--slice-field", "blobs"],
+        vec!["--exr-compression", "zip"],
+        vec![&key[..], &["--keyframe", "1:2,2,3:0.5,0.5,0.5"]].concat(),
+    ] {
+        let r = amr_render(
+            &[
+                &[f, "--size", "16x12", "-o", exr.to_str().unwrap()],
+                &args[..],
+            ]
+            .concat(),
+        );
+        assert!(r.status.success(), "{args:?}: {}", stderr(&r));
+    }
+}
+
 /// The colour scale's options with nothing painted by a field would change nothing: the user
 /// who gave them expected colour, so they are refused with what to add; with a field painting
 /// a surface or a slice they are taken.

@@ -81,14 +81,9 @@ pub struct RenderArgs {
     /// given or automatic camera.
     #[arg(long, value_name = "N")]
     pub orbit: Option<u32>,
-    /// Degrees the orbit turns in all.
-    #[arg(
-        long,
-        value_name = "D",
-        default_value_t = 360.0,
-        allow_hyphen_values = true
-    )]
-    pub orbit_degrees: f64,
+    /// Degrees the orbit turns in all [default: 360].
+    #[arg(long, value_name = "D", allow_hyphen_values = true)]
+    pub orbit_degrees: Option<f64>,
     /// N frames with one more isosurface whose value goes from A to B (colour and opacity as
     /// for --iso).
     #[arg(
@@ -104,9 +99,9 @@ pub struct RenderArgs {
     /// Encodes the frames' PNG previews into a movie with ffmpeg (when it is installed).
     #[arg(long, value_name = "OUT.mp4")]
     pub movie: Option<PathBuf>,
-    /// Frames per second of --movie.
-    #[arg(long, value_name = "N", default_value_t = 24)]
-    pub fps: u32,
+    /// Frames per second of --movie [default: 24].
+    #[arg(long, value_name = "N")]
+    pub fps: Option<u32>,
     /// Writes these arguments as a TOML scene file that `amr-render FILE.toml` renders again,
     /// once the command has succeeded.
     #[arg(long, value_name = "SCENE.toml")]
@@ -162,8 +157,8 @@ pub struct RenderArgs {
     pub preview: Option<PathBuf>,
     /// Lossless compression of EXR frames: piz (default; smaller and faster than zip), zip, rle
     /// (fastest, largest files) or none.
-    #[arg(long, value_name = "KIND", default_value_t = ExrCompression::default())]
-    pub exr_compression: ExrCompression,
+    #[arg(long, value_name = "KIND")]
+    pub exr_compression: Option<ExrCompression>,
     /// Print statistics to stderr.
     #[arg(long)]
     pub stats: bool,
@@ -288,6 +283,71 @@ impl RenderArgs {
         )
     }
 
+    /// An error for an option that the rest of the command makes void: one that only qualifies
+    /// another option left out (`--fps` without `--movie`), or one that another overrides
+    /// (`--camera-pos` beside `--keyframe`). Ignored, it would leave the user believing it
+    /// took effect.
+    fn check_options_apply(&self) -> anyhow::Result<()> {
+        let needs = [
+            (
+                self.orbit_degrees.is_some(),
+                self.orbit.is_some(),
+                "--orbit-degrees",
+                "--orbit N",
+            ),
+            (
+                self.fps.is_some(),
+                self.movie.is_some(),
+                "--fps",
+                "--movie OUT.mp4",
+            ),
+            (
+                self.step.is_some(),
+                self.method == TraceMethod::Sample,
+                "--step",
+                "--method sample",
+            ),
+            (
+                self.slice_field.is_some(),
+                !(self.slice.is_empty() && self.slice_plane.is_empty()),
+                "--slice-field",
+                "--slice or --slice-plane",
+            ),
+        ];
+        for (given, parent, option, what) in needs {
+            if given && !parent {
+                bail!("{option} applies to {what}, which is not given");
+            }
+        }
+        let writes_exr = self
+            .output
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        if self.exr_compression.is_some() && !writes_exr {
+            bail!(
+                "--exr-compression applies to EXR output, and -o {} writes none",
+                self.output.display()
+            );
+        }
+        if self.frame_domain && !self.keyframe.is_empty() {
+            bail!("--keyframe places the camera of every frame: leave out --frame-domain");
+        }
+        let placed = [
+            (self.camera_pos.is_some(), "--camera-pos"),
+            (self.look_at.is_some(), "--look-at"),
+            (self.up.is_some(), "--up"),
+        ];
+        if let Some((_, option)) = placed.iter().find(|(given, _)| *given) {
+            if !self.keyframe.is_empty() {
+                bail!("--keyframe places the camera of every frame: leave out {option}");
+            }
+            if self.frame_domain {
+                bail!("--frame-domain frames the automatic camera: leave it out with {option}");
+            }
+        }
+        Ok(())
+    }
+
     /// Checks everything that can be checked before opening the file.
     pub fn request(&self) -> anyhow::Result<RenderRequest> {
         let camera = match (self.camera_pos, self.look_at) {
@@ -338,6 +398,7 @@ impl RenderArgs {
         }
         view.validate()?;
         self.check_color_scale_applies()?;
+        self.check_options_apply()?;
         let clip = match &self.clip {
             Some(text) => Some(
                 text.parse::<ClipBox>()
@@ -345,12 +406,13 @@ impl RenderArgs {
             ),
             None => None,
         };
-        if self.fps == 0 || self.fps > 240 {
-            bail!("--fps {} must be between 1 and 240", self.fps);
+        let fps = self.fps.unwrap_or(24);
+        if fps == 0 || fps > 240 {
+            bail!("--fps {fps} must be between 1 and 240");
         }
         let animation = Animation::new(
             self.files.len(),
-            self.orbit.map(|n| (n, self.orbit_degrees)),
+            self.orbit.map(|n| (n, self.orbit_degrees.unwrap_or(360.0))),
             self.iso_sweep,
             self.keyframe.clone(),
         )?;
@@ -367,11 +429,11 @@ impl RenderArgs {
             outputs: Outputs {
                 exr: self.output.clone(),
                 preview: self.preview.clone(),
-                exr_compression: self.exr_compression,
+                exr_compression: self.exr_compression.unwrap_or_default(),
                 print_stats: self.stats,
                 stats_json: self.stats_json.clone(),
                 summary: !self.quiet,
-                movie: self.movie.clone().map(|m| (m, self.fps)),
+                movie: self.movie.clone().map(|m| (m, fps)),
             },
             threads: self.threads,
             animation,

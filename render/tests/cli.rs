@@ -701,11 +701,11 @@ fn an_option_the_command_makes_void_is_refused() {
         ),
         (vec!["--exr-compression", "zip"], "writes none"),
         (
-            vec![&key[..], &["--camera-pos", "1,1,1"]].concat(),
+            [&key[..], &["--camera-pos", "1,1,1"]].concat(),
             "leave out --camera-pos",
         ),
         (
-            vec![&key[..], &["--frame-domain"]].concat(),
+            [&key[..], &["--frame-domain"]].concat(),
             "leave out --frame-domain",
         ),
         (
@@ -735,7 +735,7 @@ fn an_option_the_command_makes_void_is_refused() {
         vec!["--method", "sample", "--step", "0.01"],
         vec!["--slice", "x=0.5", "--slice-field", "blobs"],
         vec!["--exr-compression", "zip"],
-        vec![&key[..], &["--keyframe", "1:2,2,3:0.5,0.5,0.5"]].concat(),
+        [&key[..], &["--keyframe", "1:2,2,3:0.5,0.5,0.5"]].concat(),
     ] {
         let r = amr_render(
             &[

@@ -572,21 +572,26 @@ impl<D: AsRef<[u8]> + Sync> FieldSource<'_, D> {
     }
 }
 
+/// What the cells of one level around a point give toward a smooth normal's gradient
+/// ([`FieldSource::block_gradient`]).
+enum BlockGradient {
+    /// All of it: the cells are all leaf cells of the level.
+    Whole([f64; 3]),
+    /// Some components, or none; the others are to be sampled.
+    Partial(PartialGradient),
+    /// An error, recorded.
+    Failed,
+}
+
 impl<D: AsRef<[u8]> + Sync> FieldSource<'_, D> {
-    /// The smooth normal's gradient at `p` one cell of `level` apart from the cells of `level`
-    /// around it, when they are all leaf cells of the level (`Ok(Ok)`): both fields are then
-    /// the dual cells' trilinear interpolant, whose central differences the brick gives
-    /// directly. Otherwise `Ok(Err)` with what the block gives (the components whose cells are
-    /// leaf cells of the level; the others are to be sampled); `Err` after an error (recorded).
+    /// The smooth normal's gradient at `p` one cell of `level` apart, as far as the cells of
+    /// `level` around it give it: both fields are the dual cells' trilinear interpolant where
+    /// they are leaf cells of the level, whose central differences the brick gives directly.
     #[inline]
-    fn one_level_block_gradient(
-        &self,
-        p: [f64; 3],
-        level: u32,
-    ) -> std::result::Result<std::result::Result<[f64; 3], PartialGradient>, ()> {
+    fn block_gradient(&self, p: [f64; 3], level: u32) -> BlockGradient {
         let mut partial = PartialGradient::default();
         if !matches!(self.voxels, Voxels::Octant(_) | Voxels::Current(_)) {
-            return Ok(Err(partial));
+            return BlockGradient::Partial(partial);
         }
         let found = {
             let mut cache = self.thread_cache().borrow_mut();
@@ -595,11 +600,11 @@ impl<D: AsRef<[u8]> + Sync> FieldSource<'_, D> {
                 .gradient(self.sampler(), p, level, &mut partial)
         };
         match found {
-            Ok(Some(g)) => Ok(Ok(g)),
-            Ok(None) => Ok(Err(partial)),
+            Ok(Some(g)) => BlockGradient::Whole(g),
+            Ok(None) => BlockGradient::Partial(partial),
             Err(e) => {
                 self.record(e);
-                Err(())
+                BlockGradient::Failed
             }
         }
     }
@@ -633,10 +638,10 @@ impl<D: AsRef<[u8]> + Sync> FieldSource<'_, D> {
             let given = if l == level {
                 partial.given
             } else {
-                match self.one_level_block_gradient(p, l) {
-                    Ok(Ok(g)) => return Some(g),
-                    Ok(Err(other)) => other.given,
-                    Err(()) => return None,
+                match self.block_gradient(p, l) {
+                    BlockGradient::Whole(g) => return Some(g),
+                    BlockGradient::Partial(other) => other.given,
+                    BlockGradient::Failed => return None,
                 }
             };
             self.gradient_given(p, self.cell_size(l).unwrap_or(step), given)
@@ -740,10 +745,10 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
 
     #[inline]
     fn level_gradient(&self, p: [f64; 3], level: u32, step: [f64; 3]) -> Option<[f64; 3]> {
-        match self.one_level_block_gradient(p, level) {
-            Ok(Ok(g)) => Some(g),
-            Ok(Err(partial)) => self.blended_gradient(p, level, step, partial),
-            Err(()) => None,
+        match self.block_gradient(p, level) {
+            BlockGradient::Whole(g) => Some(g),
+            BlockGradient::Partial(partial) => self.blended_gradient(p, level, step, partial),
+            BlockGradient::Failed => None,
         }
     }
 

@@ -29,7 +29,7 @@ use super::sampler::Sampler;
 /// Most levels one blend weighs; past that, the lightest are left out.
 const MOST_LEVELS: usize = 4;
 
-/// The levels whose cells smooth normals step by at a point, with their weights.
+/// The levels whose differences smooth normals weigh at a point, with their weights.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LevelWeights {
     levels: [(u32, f64); MOST_LEVELS],
@@ -155,8 +155,9 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
         let key = (level, first);
         let slot = &mut memo.slots[dual_cell_slot(level, first, NEAR_SLOTS)];
         if slot.key != key {
-            // The finest cells of the dual cell's corner cells: every point of the dual cell
-            // in a leaf of `level` reaches less than half a cell of `level` (module comment).
+            // The finest cells of the dual cell's corner cells: a point of the dual cell in a
+            // leaf of `level` weighs leaves at most a quarter of a cell of `level` away, and
+            // half a cell around it lies in these cells (module comment).
             let extent = grid.extent();
             let cells = IBox::new(first, axes(|a| first[a] + 2));
             let f = grid.level_finest_box(level, &cells);
@@ -199,8 +200,8 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
     }
 
     /// The levels whose differences smooth normals weigh at doubled point `p`, on a hit of
-    /// level `level`: `level` alone unless a leaf of another level lies within half a cell of
-    /// the finer of the two from `p` (module comment); a pure function of `p` there.
+    /// level `level`: `level` alone unless a leaf of another level lies within a quarter of a
+    /// cell of the finer of the two from `p` (module comment); a pure function of `p` there.
     pub fn level_weights(&self, p: [f64; 3], level: u32) -> LevelWeights {
         let grid = self.grid();
         let extent = grid.extent();

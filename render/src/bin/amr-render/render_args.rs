@@ -239,6 +239,11 @@ pub struct Outputs {
 }
 
 impl RenderArgs {
+    /// True when a slice is given (`--slice` or `--slice-plane`).
+    fn has_slices(&self) -> bool {
+        !(self.slice.is_empty() && self.slice_plane.is_empty())
+    }
+
     /// An error when the options of the colour scale (`--colormap`, `--color-range`,
     /// `--color-log`) are given but no field paints a surface or a slice: they would change
     /// nothing, and the user who gave them expected colour.
@@ -248,8 +253,7 @@ impl RenderArgs {
             .iter()
             .chain([&self.slice_field])
             .any(|c| matches!(c, Some(ColorBy::Field(_))))
-            || (!(self.slice.is_empty() && self.slice_plane.is_empty())
-                && self.slice_field != Some(ColorBy::Level));
+            || (self.has_slices() && self.slice_field != Some(ColorBy::Level));
         let given: Vec<&str> = [
             (self.colormap.is_some(), "--colormap"),
             (self.color_range.is_some(), "--color-range"),
@@ -266,7 +270,6 @@ impl RenderArgs {
             .iter()
             .chain([&self.slice_field])
             .any(|c| *c == Some(ColorBy::Level));
-        let has_slices = !(self.slice.is_empty() && self.slice_plane.is_empty());
         bail!(
             "{} colours a field's values, but nothing is painted by a field{}: add {}",
             given.join(", "),
@@ -275,7 +278,7 @@ impl RenderArgs {
             } else {
                 ""
             },
-            if has_slices {
+            if self.has_slices() {
                 "--color-by FIELD or --slice-field FIELD"
             } else {
                 "--color-by FIELD or a --slice"
@@ -309,7 +312,7 @@ impl RenderArgs {
             ),
             (
                 self.slice_field.is_some(),
-                !(self.slice.is_empty() && self.slice_plane.is_empty()),
+                self.has_slices(),
                 "--slice-field",
                 "--slice or --slice-plane",
             ),

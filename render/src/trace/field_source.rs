@@ -634,16 +634,13 @@ impl<D: AsRef<[u8]> + Sync> FieldSource<'_, D> {
         if weights.single().is_some() {
             return one_level(partial.given);
         }
+        // Another level's block is not looked up: every axis's differences read its cell
+        // holding `p`, which is a leaf cell of it only where `p` lies in a leaf of that level
+        // and not of `level` (the hit's voxel and its leaf disagree: counted, it never gave a
+        // component on the demo close-up or `tiny`), and its look-up would evict blocks that
+        // neighbouring hits use. Its differences are sampled: the same function.
         weights.blend(|l| {
-            let given = if l == level {
-                partial.given
-            } else {
-                match self.block_gradient(p, l) {
-                    BlockGradient::Whole(g) => return Some(g),
-                    BlockGradient::Partial(other) => other.given,
-                    BlockGradient::Failed => return None,
-                }
-            };
+            let given = if l == level { partial.given } else { [None; 3] };
             self.gradient_given(p, self.cell_size(l).unwrap_or(step), given)
         })
     }

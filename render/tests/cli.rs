@@ -1258,3 +1258,72 @@ fn info_says_where_each_levels_boxes_lie() {
     assert_eq!(within[0], domain, "{report}");
     assert_ne!(within[2], domain, "{report}");
 }
+
+/// `info --json` holds what the text says, as data: the levels the synthetic hierarchy was
+/// written with (domains, cell sizes, ratios), every count the text prints, and each field's
+/// range and percentiles keyed `p0` .. `p100`.
+#[test]
+fn info_json_holds_the_hierarchy_and_what_the_text_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("sphere.amrk");
+    // 3 levels, ratio 2, 16 cells a side on level 0, over the unit cube.
+    let params = SynthParams::unit_cube(3, 2, 16, 8);
+    write_synth(
+        &file,
+        Case::Sphere,
+        &params,
+        WriterOptions::default(),
+        &NoProgress,
+    )
+    .unwrap();
+    let f = file.to_str().unwrap();
+    let o = amr_render(&["info", f, "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let levels = j["levels"].as_array().unwrap();
+    assert_eq!(levels.len(), 3);
+    for (l, lev) in levels.iter().enumerate() {
+        let n = 16i64 << l;
+        assert_eq!(
+            lev["domain"],
+            serde_json::json!([[0, 0, 0], [n, n, n]]),
+            "level {l}"
+        );
+        assert_eq!(
+            lev["cell_size"][0].as_f64().unwrap(),
+            1.0 / n as f64,
+            "level {l}"
+        );
+        let ratio = if l < 2 {
+            serde_json::json!([2, 2, 2])
+        } else {
+            serde_json::Value::Null
+        };
+        assert_eq!(lev["ratio_to_next"], ratio, "level {l}");
+    }
+    assert_eq!(
+        j["domain"],
+        serde_json::json!([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
+    );
+    assert!(j["simulation_time"].is_null() && j["simulation_step"].is_null());
+    let sum = |key: &str| levels.iter().map(|l| l[key].as_u64().unwrap()).sum::<u64>();
+    assert_eq!(j["cells"].as_u64(), Some(sum("cells")));
+    assert_eq!(j["bricks"].as_u64(), Some(sum("bricks")));
+    // The text prints the same counts.
+    let text = String::from_utf8(amr_render(&["info", f]).stdout).unwrap();
+    for key in ["cells", "bricks", "kd_leaves", "kd_depth", "file_bytes"] {
+        let label = format!("{}: {}\n", key.replace('_', " "), j[key]);
+        assert!(text.contains(&label), "{label:?} not in\n{text}");
+    }
+    let field = &j["fields"][0];
+    let p = field["percentiles"].as_object().unwrap();
+    let keys: Vec<&str> = p.keys().map(String::as_str).collect();
+    assert_eq!(keys, ["p0", "p1", "p25", "p50", "p75", "p99", "p100"]);
+    let values: Vec<f64> = p.values().map(|v| v.as_f64().unwrap()).collect();
+    assert!(values.windows(2).all(|w| w[0] <= w[1]), "{p:?}");
+    // Every cell is counted in so small a file: p0 and p100 are the range.
+    assert_eq!(j["percentiles_subsampled"], false);
+    assert_eq!(values[0], field["min"].as_f64().unwrap());
+    assert_eq!(values[6], field["max"].as_f64().unwrap());
+    assert!(field.get("unreadable").is_none());
+}

@@ -1327,3 +1327,25 @@ fn info_json_holds_the_hierarchy_and_what_the_text_says() {
     assert_eq!(values[6], field["max"].as_f64().unwrap());
     assert!(field.get("unreadable").is_none());
 }
+
+/// An isovalue outside the field's range beside other surfaces gets a warning naming it and
+/// the range (its surface is empty while the frame shows the others); the frame is written.
+#[test]
+fn an_isovalue_outside_the_range_beside_others_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let f = file.to_str().unwrap();
+    let out = dir.path().join("x.png");
+    let o = out.to_str().unwrap();
+    let r = amr_render(&[f, "--iso", "1e6", "--iso", "10", "--size", "32x24", "-o", o]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let e = stderr(&r);
+    assert!(
+        e.contains("isovalue 1e6 lies outside blobs's range ["),
+        "{e}"
+    );
+    assert!(out.exists());
+    let r = amr_render(&[f, "--iso", "10", "--iso", "20", "--size", "32x24", "-o", o]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    assert!(!stderr(&r).contains("lies outside"), "{}", stderr(&r));
+}

@@ -81,6 +81,11 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             let _stage = (n == 1).then(|| progress::stage("opening the file"));
             let opened = open_scene(request, index)?;
             let isos = request_isos(request, &opened);
+            // One surface and nothing else: a frame without it gets `warn_empty`'s message.
+            let alone = isos.len() == 1 && request.slices.is_empty() && anim.sweep.is_none();
+            if !alone {
+                warn_isos_outside(&opened, &isos);
+            }
             scene = Some((index, opened, isos));
         }
         let Some((_, scene, base_isos)) = scene.as_mut() else {
@@ -355,6 +360,22 @@ fn summary(file: &Path, scene: &Scene, files: &FrameFiles, took: Duration) -> St
         took.as_secs_f64()
     );
     out
+}
+
+/// Warns about each isovalue outside the field's range: its surface is empty, while the frame
+/// shows the others (or slices), so nothing else would say so.
+fn warn_isos_outside(scene: &Scene, isos: &[IsoSpec]) {
+    let f = &scene.file().fields()[scene.field()];
+    for iso in isos.iter().filter(|s| s.value < f.min || s.value > f.max) {
+        eprintln!(
+            "warning: {}: isovalue {} lies outside {}'s range [{}, {}]: that surface is empty",
+            scene.path().display(),
+            format_value(f64::from(iso.value)),
+            f.name,
+            format_value(f64::from(f.min)),
+            format_value(f64::from(f.max))
+        );
+    }
 }
 
 /// Warns that a frame shows no surface: with the field's range when there is none to show,

@@ -20,19 +20,23 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// A synthetic file `name` of `case` in `dir`: `levels` levels, ratio 2, 16 cells a side on
+/// level 0, over the unit cube.
+fn synth(dir: &Path, name: &str, case: Case, levels: u32) -> PathBuf {
+    let path = dir.join(name);
+    let params = SynthParams::unit_cube(levels, 2, 16, 8);
+    write_synth(&path, case, &params, WriterOptions::default(), &NoProgress).unwrap();
+    path
+}
+
 /// A small two-level blobs file in `dir`.
 fn blobs(dir: &Path) -> PathBuf {
-    let path = dir.join("blobs.amrk");
-    let params = SynthParams::unit_cube(2, 2, 16, 8);
-    write_synth(
-        &path,
-        Case::Blobs,
-        &params,
-        WriterOptions::default(),
-        &NoProgress,
-    )
-    .unwrap();
-    path
+    synth(dir, "blobs.amrk", Case::Blobs, 2)
+}
+
+/// The sphere case on 3 levels in `dir`.
+fn sphere(dir: &Path) -> PathBuf {
+    synth(dir, "sphere.amrk", Case::Sphere, 3)
 }
 
 #[test]
@@ -1232,16 +1236,7 @@ fn extract_runs_on_the_threads_asked_for() {
 #[test]
 fn info_says_where_each_levels_boxes_lie() {
     let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("sphere.amrk");
-    let params = SynthParams::unit_cube(3, 2, 16, 8);
-    write_synth(
-        &file,
-        Case::Sphere,
-        &params,
-        WriterOptions::default(),
-        &NoProgress,
-    )
-    .unwrap();
+    let file = sphere(dir.path());
     let o = amr_render(&["info", file.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let report = String::from_utf8_lossy(&o.stdout);
@@ -1265,17 +1260,8 @@ fn info_says_where_each_levels_boxes_lie() {
 #[test]
 fn info_json_holds_the_hierarchy_and_what_the_text_says() {
     let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("sphere.amrk");
     // 3 levels, ratio 2, 16 cells a side on level 0, over the unit cube.
-    let params = SynthParams::unit_cube(3, 2, 16, 8);
-    write_synth(
-        &file,
-        Case::Sphere,
-        &params,
-        WriterOptions::default(),
-        &NoProgress,
-    )
-    .unwrap();
+    let file = sphere(dir.path());
     let f = file.to_str().unwrap();
     let o = amr_render(&["info", f, "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));

@@ -72,6 +72,15 @@ impl LevelWeights {
         }
     }
 
+    /// Weighs level `other` by its leaf `b`'s distance from `p`, a point in a leaf of `own`
+    /// (module comment): `1 - d / r` when within `r`.
+    fn weigh_leaf(&mut self, grid: &Grid, p: [f64; 3], own: u32, other: u32, b: &IBox) {
+        let d2 = gap_squared(p, b, blend_reach(grid, own.max(other)));
+        if d2 < 1.0 {
+            self.raise(other, 1.0 - d2.sqrt());
+        }
+    }
+
     /// The weighted sum of `gradient` over the levels, divided by the weights of the levels
     /// where it is `Some`; `None` where it is `None` for every level. With one level, that
     /// level's gradient, the same bits.
@@ -190,11 +199,8 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             return self.level_weights(p, level);
         }
         let mut out = LevelWeights::one(level);
-        for &(b, other) in leaves.iter().filter(|e| e.1 != NO_LEVEL) {
-            let d2 = gap_squared(p, &b, blend_reach(grid, level.max(other)));
-            if d2 < 1.0 {
-                out.raise(other, 1.0 - d2.sqrt());
-            }
+        for (b, other) in leaves.iter().filter(|e| e.1 != NO_LEVEL) {
+            out.weigh_leaf(grid, p, level, *other, b);
         }
         out
     }
@@ -230,10 +236,7 @@ impl<D: AsRef<[u8]>> Sampler<'_, D> {
             if other == own {
                 return;
             }
-            let d2 = gap_squared(p, &self.leaf_box(leaf), blend_reach(grid, own.max(other)));
-            if d2 < 1.0 {
-                out.raise(other, 1.0 - d2.sqrt());
-            }
+            out.weigh_leaf(grid, p, own, other, &self.leaf_box(leaf));
         });
         if out.single().is_some() {
             LevelWeights::one(level)

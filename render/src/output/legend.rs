@@ -456,17 +456,26 @@ fn values_beyond(values: &[f32], levels: Option<&[f32]>, (lo, hi): (f64, f64)) -
         })
 }
 
-/// About five round tick values in `range` (powers of ten for a log scale spanning decades).
+/// About five round tick values in `range`: powers of ten for a log scale spanning three
+/// decades or more, 1-2-5 steps within each decade for one spanning one to three (where the
+/// powers of ten alone would label the bar at one or two places).
 pub fn ticks((lo, hi): (f64, f64), log: bool) -> Vec<f64> {
     if !(hi > lo) || !lo.is_finite() || !hi.is_finite() {
         return vec![lo];
     }
     if log && lo > 0.0 && hi / lo >= 10.0 {
         let (a, b) = (lo.log10().ceil() as i32, hi.log10().floor() as i32);
-        let step = ((b - a) / 6 + 1).max(1);
-        return (a..=b)
-            .step_by(step as usize)
-            .map(|e| 10f64.powi(e))
+        if b - a >= 2 {
+            let step = ((b - a) / 6 + 1).max(1);
+            return (a..=b)
+                .step_by(step as usize)
+                .map(|e| 10f64.powi(e))
+                .collect();
+        }
+        let slack = 1e-9;
+        return (a - 1..=b)
+            .flat_map(|e| [1.0, 2.0, 5.0].map(|m| m * 10f64.powi(e)))
+            .filter(|v| *v >= lo * (1.0 - slack) && *v <= hi * (1.0 + slack))
             .collect();
     }
     let raw = (hi - lo) / 5.0;
@@ -523,6 +532,12 @@ mod tests {
             "{t:?}"
         );
         assert_eq!(ticks((1.0, 1000.0), true), vec![1.0, 10.0, 100.0, 1000.0]);
+        assert_eq!(
+            ticks((0.09, 8.3), true),
+            vec![0.1, 0.2, 0.5, 1.0, 2.0, 5.0],
+            "a log bar over two decades is labelled at more than its powers of ten"
+        );
+        assert_eq!(ticks((1.5, 16.0), true), vec![2.0, 5.0, 10.0]);
         let t = ticks((1.0, 1.0000141), false);
         assert_eq!(t.len(), 3, "the tick at the range's low end is kept: {t:?}");
         assert!((t[0] - 1.0).abs() < 1e-12, "{t:?}");

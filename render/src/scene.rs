@@ -455,23 +455,45 @@ impl Scene {
             .map(|e| e.in_file(&self.path))
     }
 
-    /// The world box of the isosurfaces' active voxels, `None` without any (or with the
-    /// sample method, which extracts none).
-    pub fn surface_bounds(&self) -> Option<([f64; 3], [f64; 3])> {
+    /// The world box of the isosurfaces' active voxels, `None` without any. The sample method
+    /// keeps none: for it the active voxels are extracted here, boxed and dropped (an
+    /// extraction, which the sampled frame costs many times over).
+    pub fn surface_bounds(&self) -> Result<Option<([f64; 3], [f64; 3])>> {
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
-        // The BVH build kept the union of the boxes it decoded.
-        for (a, b) in self.surfaces.iter().filter_map(|s| s.bvh.voxel_bounds()) {
+        let mut grow = |(a, b): ([f64; 3], [f64; 3])| {
             for k in 0..3 {
                 lo[k] = lo[k].min(a[k]);
                 hi[k] = hi[k].max(b[k]);
             }
+        };
+        match self.method {
+            // The BVH build kept the union of the boxes it decoded.
+            TraceMethod::Hybrid => self
+                .surfaces
+                .iter()
+                .filter_map(|s| s.bvh.voxel_bounds())
+                .for_each(grow),
+            TraceMethod::Sample => {
+                let source = self.source();
+                let region = self.region();
+                for spec in &self.isos {
+                    let e = source
+                        .extract_in(spec.value, &region)
+                        .map_err(|e| e.in_file(&self.path))?;
+                    e.refs.iter().for_each(|&r| grow(source.voxel_box(r)));
+                }
+                source.release_pages();
+                if let Some(e) = source.take_failure() {
+                    return Err(e.in_file(&self.path));
+                }
+            }
         }
         if !(0..3).all(|k| lo[k] <= hi[k]) {
-            return None;
+            return Ok(None);
         }
         let frame = self.grid_frame();
-        Some((frame.to_world(lo), frame.to_world(hi)))
+        Ok(Some((frame.to_world(lo), frame.to_world(hi))))
     }
 
     /// Replaces the isosurfaces with `isos`: a surface whose isovalue is already in the scene is

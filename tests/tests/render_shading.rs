@@ -28,7 +28,10 @@ fn frame(scene: &Scene, shadows: bool) -> Rendered {
         shadows,
         ..View::default()
     };
-    view.camera = Some(view.framing(scene.surface_bounds().unwrap()).unwrap());
+    view.camera = Some(
+        view.framing(scene.surface_bounds().unwrap().unwrap())
+            .unwrap(),
+    );
     render(scene, &view, &|_| ()).unwrap()
 }
 
@@ -75,5 +78,32 @@ fn a_convex_surface_does_not_shadow_itself() {
     assert!(
         darker == 0,
         "{darker} pixels darker with shadows, by up to {largest}"
+    );
+}
+
+/// The sample method keeps no active voxels, yet a frame without a camera shows its surfaces,
+/// not the whole domain: its surfaces' box is the extracted surfaces' (it was the domain).
+#[test]
+fn sampled_surfaces_are_framed_like_extracted_ones() {
+    let tmp = tempfile::tempdir().unwrap();
+    let Some(scene) = clump(
+        "sampled_surfaces_are_framed_like_extracted_ones",
+        tmp.path(),
+    ) else {
+        return;
+    };
+    let options = SceneOptions {
+        method: amr_render::TraceMethod::Sample,
+        ..SceneOptions::default()
+    };
+    let mut sampled = Scene::open(scene.path(), &options).unwrap();
+    sampled.set_isosurfaces(scene.isosurfaces()).unwrap();
+    let extracted = scene.surface_bounds().unwrap().unwrap();
+    assert!(extracted.1[0] - extracted.0[0] < 0.5, "{extracted:?}");
+    assert_eq!(sampled.surface_bounds().unwrap(), Some(extracted));
+    assert_eq!(
+        sampled.stats().active_octants,
+        0,
+        "the sample method keeps no voxels"
     );
 }

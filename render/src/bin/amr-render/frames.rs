@@ -12,7 +12,7 @@ use amr_render::field_stats::{format_value, format_vector};
 use amr_render::mapping::open_mapped;
 use amr_render::output::header::frame_header;
 use amr_render::output::legend::Legend;
-use amr_render::scene::field_named;
+use amr_render::scene::{field_named, TraceMethod};
 use amr_render::shade::IsoSpec;
 use amr_render::{render, render_reusing, ColorBy, Scene, View};
 use anyhow::bail;
@@ -321,7 +321,7 @@ fn series_range(request: &RenderRequest) -> anyhow::Result<(f64, f64)> {
 fn framed_view(view: &View, scene: &Scene) -> anyhow::Result<View> {
     let mut view = view.clone();
     if view.camera.is_none() && scene.slices().is_empty() {
-        if let Some(bounds) = scene.surface_bounds() {
+        if let Some(bounds) = scene.surface_bounds()? {
             view.camera = Some(view.framing(bounds)?);
         }
     }
@@ -339,12 +339,16 @@ fn summary(file: &Path, scene: &Scene, files: &FrameFiles, took: Duration) -> St
             None => format_value(f64::from(s.value)),
         })
         .collect();
+    let surfaces = match scene.method() {
+        TraceMethod::Hybrid => format!("{} active voxels", scene.stats().active_octants),
+        // Nothing is extracted: "0 active voxels" would read as an empty surface.
+        TraceMethod::Sample => "sampled along rays".to_string(),
+    };
     let mut out = format!(
-        "{}: field {}, iso {}, {} active voxels",
+        "{}: field {}, iso {}, {surfaces}",
         file.display(),
         scene.field_name(),
         isos.join(", "),
-        scene.stats().active_octants
     );
     if !scene.slices().is_empty() {
         let n = scene.slices().len();
@@ -382,7 +386,11 @@ fn warn_isos_outside(scene: &Scene, isos: &[IsoSpec]) {
 /// else with where the surface lies and where the camera looks.
 fn warn_empty(scene: &Scene, camera: &Camera) {
     let active = scene.stats().active_octants;
-    if let (true, Some((lo, hi))) = (active > 0, scene.surface_bounds()) {
+    let bounds = match active {
+        0 => None,
+        _ => scene.surface_bounds().ok().flatten(),
+    };
+    if let Some((lo, hi)) = bounds {
         eprintln!(
             "warning: {}: the frame shows none of the surface's {active} active voxels, which lie \
              in {} .. {}: the camera at {} looking at {} does not see them",

@@ -198,6 +198,7 @@ pub fn compare(
             let tracer = HybridTracer {
                 src: &src,
                 surfaces: surface,
+                sources: &[],
                 smooth_normals: true,
             };
             let t = Instant::now();

@@ -49,11 +49,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             value: 10.0,
             color: Some([0.85, 0.62, 0.35]),
             opacity: 1.0,
+            field: None,
         },
         IsoSpec {
             value: 6.0,
             color: Some([0.35, 0.55, 0.85]),
             opacity: 0.3,
+            field: None,
         },
     ])?;
     let view = |ao_rays: u32, ao_filter: bool| View {

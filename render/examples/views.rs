@@ -42,11 +42,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         value: 10.0,
         color: Some([0.85, 0.62, 0.35]),
         opacity: 1.0,
+        field: None,
     };
     let glass = IsoSpec {
         value: 6.0,
         color: Some([0.35, 0.55, 0.85]),
         opacity: 0.3,
+        field: None,
     };
     let stats = scene.set_isosurfaces(&[gold, glass])?;
     println!(

@@ -156,7 +156,7 @@ pub fn render_surfaces<S: VoxelSource + ?Sized>(
     check_frame_fits(view.size, system_memory::available())?;
     let method = (TraceMethod::Hybrid, view.smooth_normals);
     with_tracer(
-        src,
+        (src, &[]),
         surfaces,
         isos,
         method,
@@ -174,7 +174,7 @@ pub fn render_sampled<S: VoxelSource + ?Sized>(
 ) -> Result<Rendered> {
     let method = (TraceMethod::Sample, view.smooth_normals);
     with_tracer(
-        src,
+        (src, &[]),
         &[],
         isos,
         method,
@@ -195,8 +195,13 @@ fn with_scene_tracer<R>(
     let method = (scene.method(), smooth);
     let isos = scene.isosurfaces();
     scene.check_view(view)?;
+    // Surfaces of other fields read their own sources; a scene of one field passes none.
+    let sources = match scene.one_field() {
+        true => Vec::new(),
+        false => scene.surface_sources(),
+    };
     with_tracer(
-        scene.source(),
+        (scene.source(), &sources),
         scene.surfaces(),
         isos,
         method,
@@ -254,11 +259,12 @@ fn with_scene_tracer<R>(
     )?
 }
 
-/// The camera, lighting and tracer of a frame of `src` (surfaces `surfaces` of `isos`, traced
-/// with `method.0`, smooth normals when `method.1`, cut to the clip box `view.1` when set) seen
+/// The camera, lighting and tracer of a frame of `src.0` (surfaces `surfaces` of `isos`, those
+/// of other fields read from `src.1` by their index as [`HybridTracer::sources`]; traced with
+/// `method.0`, smooth normals when `method.1`, cut to the clip box `view.1` when set) seen
 /// through `view.0`, handed to `run`.
 fn with_tracer<S: VoxelSource + ?Sized, R>(
-    src: &S,
+    (src, sources): (&S, &[&S]),
     surfaces: &[Surface],
     isos: &[IsoSpec],
     (method, smooth_normals): (TraceMethod, bool),
@@ -288,6 +294,7 @@ fn with_tracer<S: VoxelSource + ?Sized, R>(
         TraceMethod::Hybrid => run_clipped(&HybridTracer {
             src,
             surfaces,
+            sources,
             smooth_normals,
         }),
         TraceMethod::Sample => run_clipped(&SampleTracer {

@@ -29,12 +29,12 @@ pub const DEGENERATE_WIDTH: f64 = 1e-12;
 /// The voxel source of a mapped file.
 pub type MappedSource<'f> = FieldSource<'f, WatchedMap>;
 
-/// The voxel sources of a scene: the rendered field's, and those of the fields that paint
-/// surfaces and slices.
+/// The voxel sources of a scene: the scene's field's, and those of the other fields that have
+/// isosurfaces or paint surfaces and slices.
 pub struct SceneSources<'f> {
     main: MappedSource<'f>,
-    /// `(field index, source)`, one per field that paints.
-    colors: Vec<(usize, MappedSource<'f>)>,
+    /// `(field index, source)`, one per other field opened.
+    others: Vec<(usize, MappedSource<'f>)>,
 }
 
 self_cell::self_cell!(
@@ -137,6 +137,8 @@ pub struct Scene {
     path: PathBuf,
     cell: SourceCell,
     field: usize,
+    /// [`SceneOptions::release_pages`], for the sources of other fields.
+    release_pages: bool,
     method: TraceMethod,
     isos: Vec<IsoSpec>,
     /// One per isosurface: the BVH over its active voxels (empty for the sample method).
@@ -162,16 +164,10 @@ impl Scene {
         let file = open_mapped(path).map_err(|e| RenderError::from(e).in_file(path))?;
         let field = resolve_field(&file, options.field.as_deref()).map_err(|e| e.in_file(path))?;
         let cell = SourceCell::try_new(file, |file| -> Result<SceneSources<'_>> {
-            let mut source = FieldSource::new(file, field, options.reconstruction)?;
-            if options.release_pages {
-                source.set_page_release(PageRelease::new(file));
-            }
-            source.set_refs_check(Box::new(|iso, voxels| {
-                check_bvh_fits(iso, (voxels, Found::SoFar), system_memory::available())
-            }));
+            let source = scene_source(file, field, options)?;
             Ok(SceneSources {
                 main: source,
-                colors: Vec::new(),
+                others: Vec::new(),
             })
         })
         .map_err(|e| e.in_file(path))?;
@@ -179,6 +175,7 @@ impl Scene {
             path: path.to_path_buf(),
             cell,
             field,
+            release_pages: options.release_pages,
             method: options.method,
             isos: Vec::new(),
             surfaces: Vec::new(),
@@ -211,10 +208,42 @@ impl Scene {
     pub fn color_source(&self, field: usize) -> Option<&MappedSource<'_>> {
         let sources = self.cell.borrow_dependent();
         sources
-            .colors
+            .others
             .iter()
             .find(|(f, _)| *f == field)
             .map(|(_, s)| s)
+    }
+
+    /// The voxel source of the field an isosurface of `spec` is of: the scene's, or the one
+    /// [`Self::set_isosurfaces`] opened for it.
+    fn surface_source(&self, spec: &IsoSpec) -> &MappedSource<'_> {
+        match spec.field {
+            Some(f) if f != self.field => self.color_source(f).unwrap_or(self.source()),
+            _ => self.source(),
+        }
+    }
+
+    /// The voxel source of each isosurface, in order (the scene's source for those of its
+    /// field).
+    pub fn surface_sources(&self) -> Vec<&MappedSource<'_>> {
+        self.isos.iter().map(|s| self.surface_source(s)).collect()
+    }
+
+    /// The index of the field the isosurface `spec` is of.
+    pub fn surface_field(&self, spec: &IsoSpec) -> usize {
+        spec.field.unwrap_or(self.field)
+    }
+
+    /// The name of the field the isosurface `spec` is of.
+    pub fn surface_field_name(&self, spec: &IsoSpec) -> &str {
+        &self.file().fields()[self.surface_field(spec)].name
+    }
+
+    /// True when every isosurface is of the scene's field.
+    pub fn one_field(&self) -> bool {
+        self.isos
+            .iter()
+            .all(|s| self.surface_field(s) == self.field)
     }
 
     /// The octant method's extractor (`None` for the other reconstructions).
@@ -433,15 +462,23 @@ impl Scene {
             return Ok(());
         };
         let field = resolve_field(self.file(), Some(name)).map_err(|e| e.in_file(&self.path))?;
+        self.open_source(field)
+    }
+
+    /// Opens the source of field `field` beside the scene's unless it is open.
+    fn open_source(&mut self, field: usize) -> Result<()> {
         if self.color_source(field).is_some() {
             return Ok(());
         }
-        let reconstruction = self.reconstruction();
+        let options = SceneOptions {
+            reconstruction: self.reconstruction(),
+            release_pages: self.release_pages,
+            ..SceneOptions::default()
+        };
         let path = self.path.clone();
         self.cell.with_dependent_mut(|file, sources| -> Result<()> {
-            let source =
-                FieldSource::new(file, field, reconstruction).map_err(|e| e.in_file(&path))?;
-            sources.colors.push((field, source));
+            let source = scene_source(file, field, &options).map_err(|e| e.in_file(&path))?;
+            sources.others.push((field, source));
             Ok(())
         })
     }
@@ -450,7 +487,7 @@ impl Scene {
     pub fn take_failure(&self) -> Option<RenderError> {
         let sources = self.cell.borrow_dependent();
         std::iter::once(&sources.main)
-            .chain(sources.colors.iter().map(|(_, s)| s))
+            .chain(sources.others.iter().map(|(_, s)| s))
             .find_map(|s| s.take_failure())
             .map(|e| e.in_file(&self.path))
     }
@@ -484,8 +521,8 @@ impl Scene {
                     e.refs.iter().for_each(|&r| grow(source.voxel_box(r)));
                 }
                 source.release_pages();
-                if let Some(e) = source.take_failure() {
-                    return Err(e.in_file(&self.path));
+                if let Some(e) = self.take_failure() {
+                    return Err(e);
                 }
             }
         }
@@ -534,19 +571,44 @@ impl Scene {
                 bad.value
             )));
         }
+        let fields = self.file().fields().len();
+        if let Some(f) = isos.iter().filter_map(|s| s.field).find(|&f| f >= fields) {
+            return Err(RenderError::Invalid(format!(
+                "an isosurface of field {f}, but the file has {fields} fields"
+            ))
+            .in_file(&self.path));
+        }
+        let other = isos.iter().find(|s| self.surface_field(s) != self.field);
+        if let (Some(s), TraceMethod::Sample) = (other, self.method) {
+            return Err(RenderError::Invalid(format!(
+                "the sample method traces isosurfaces of the scene's field ({}) only, not of {}",
+                self.field_name(),
+                self.file().fields()[self.surface_field(s)].name
+            ))
+            .in_file(&self.path));
+        }
+        for spec in isos {
+            let field = self.surface_field(spec);
+            if field != self.field {
+                self.open_source(field)?;
+            }
+        }
         let mut given = given.map(Vec::into_iter);
         let mut old: Vec<Option<Surface>> = self.surfaces.drain(..).map(Some).collect();
         let mut stats = SceneStats::default();
         let mut builder = BvhBuilder::new();
         let mut surfaces = Vec::with_capacity(isos.len());
         for spec in isos {
+            let field = self.surface_field(spec);
             let kept = old
                 .iter_mut()
-                .find(|s| {
-                    s.as_ref()
-                        .is_some_and(|s| s.iso.to_bits() == spec.value.to_bits())
+                .zip(&self.isos)
+                .find(|(s, was)| {
+                    s.as_ref().is_some_and(|s| {
+                        s.iso.to_bits() == spec.value.to_bits() && self.surface_field(was) == field
+                    })
                 })
-                .and_then(Option::take);
+                .and_then(|(s, _)| s.take());
             let refs = given.as_mut().and_then(Iterator::next);
             let surface = match (kept, self.method) {
                 (Some(s), _) => s,
@@ -556,17 +618,20 @@ impl Scene {
                 },
                 (None, TraceMethod::Hybrid) => {
                     stats.surfaces_built += 1;
-                    self.build_surface(spec.value, refs, &mut builder, &mut stats)?
+                    let source = self.surface_source(spec);
+                    self.build_surface(source, spec.value, refs, &mut builder, &mut stats)?
                 }
             };
             surfaces.push(surface);
         }
         drop(old);
         builder.release();
-        let source = self.source();
-        source.release_pages();
-        if let Some(e) = source.take_failure() {
-            return Err(e.in_file(&self.path));
+        for spec in isos {
+            self.surface_source(spec).release_pages();
+        }
+        self.source().release_pages();
+        if let Some(e) = self.take_failure() {
+            return Err(e);
         }
         for s in &surfaces {
             let bvh = &s.bvh;
@@ -583,16 +648,16 @@ impl Scene {
         Ok(&self.stats)
     }
 
-    /// Builds the surface `iso` over `refs`, extracted when `None`, adding the times and
-    /// scratch to `stats`.
+    /// Builds the surface `iso` of `source`'s field over `refs`, extracted when `None`, adding
+    /// the times and scratch to `stats`.
     fn build_surface(
         &self,
+        source: &MappedSource<'_>,
         iso: f32,
         refs: Option<Vec<u64>>,
         builder: &mut BvhBuilder,
         stats: &mut SceneStats,
     ) -> Result<Surface> {
-        let source = self.source();
         let region = self.region();
         let t = Instant::now();
         let refs = match refs {
@@ -640,6 +705,23 @@ enum Found {
     All,
     /// Those found before the extraction was stopped.
     SoFar,
+}
+
+/// The voxel source of field `field` of `file` as a scene reads it: with `options`'
+/// reconstruction and page release, and the BVH's memory checked as the extraction finds voxels.
+fn scene_source<'f>(
+    file: &'f MappedFile,
+    field: usize,
+    options: &SceneOptions,
+) -> Result<MappedSource<'f>> {
+    let mut source = FieldSource::new(file, field, options.reconstruction)?;
+    if options.release_pages {
+        source.set_page_release(PageRelease::new(file));
+    }
+    source.set_refs_check(Box::new(|iso, voxels| {
+        check_bvh_fits(iso, (voxels, Found::SoFar), system_memory::available())
+    }));
+    Ok(source)
 }
 
 /// Refuses to build the BVH of the `voxels` active voxels of isovalue `iso` (all of them, or

@@ -1335,3 +1335,56 @@ fn an_isovalue_outside_the_range_beside_others_is_named() {
     assert!(r.status.success(), "{}", stderr(&r));
     assert!(!stderr(&r).contains("lies outside"), "{}", stderr(&r));
 }
+
+/// `--iso FIELD=V` draws a surface of another field beside `--field`'s: the summary names it as
+/// typed, a scene file keeps it, and a name the file does not hold is refused with the file's
+/// fields.
+#[test]
+fn an_isosurface_of_another_field_is_drawn_and_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("two.amrk");
+    let mut spec = amr_synth::build_hierarchy(
+        &Case::Sphere,
+        "sphere",
+        &SynthParams::unit_cube(2, 2, 16, 8),
+    )
+    .unwrap();
+    spec.fields = vec!["sphere".into(), "ramp".into()];
+    let sphere = |p: [f64; 3]| amr_synth::AnalyticField::value(&Case::Sphere, p);
+    let ramp = |p: [f64; 3]| p[0] + 0.5 * p[1];
+    amr_synth::write_fields(&path, spec, &[&sphere, &ramp], WriterOptions::default()).unwrap();
+    let (file, out, scene) = (
+        path.to_str().unwrap(),
+        dir.path().join("f.png"),
+        dir.path().join("s.toml"),
+    );
+    let o = amr_render(&[
+        file,
+        "--field",
+        "sphere",
+        "--iso",
+        "0",
+        "--iso",
+        "ramp=1:red",
+        "--size",
+        "64x48",
+        "-o",
+        out.to_str().unwrap(),
+        "--write-scene",
+        scene.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("iso 0, ramp=1,"), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&scene).unwrap();
+    assert!(text.contains("\"ramp=1:red\""), "{text}");
+    let again = amr_render(&[scene.to_str().unwrap(), "-q"]);
+    assert!(again.status.success(), "{}", stderr(&again));
+
+    let o = amr_render(&[file, "--iso", "nope=1", "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("two.amrk") && e.contains("no field 'nope'") && e.contains("ramp"),
+        "{e}"
+    );
+}

@@ -336,6 +336,7 @@ fn check_rays(
     let tracer = HybridTracer {
         src: &src,
         surfaces: &surf,
+        sources: &[],
         smooth_normals: false,
     };
     let m = recon;

@@ -42,6 +42,7 @@ fn thin_sheet_missed_by_coarse_marching_is_found_exactly() {
     let hybrid = HybridTracer {
         src: &grid,
         surfaces: &surf,
+        sources: &[],
         smooth_normals: false,
     };
     let coarse = SampleTracer {

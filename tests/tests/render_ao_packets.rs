@@ -75,6 +75,7 @@ fn layer_packets_shade_every_pixel_as_single_rays_do() {
     let tracer = HybridTracer {
         src: scene.source(),
         surfaces: scene.surfaces(),
+        sources: &[],
         smooth_normals: true,
     };
     // A close view and a far one (hits of a tile close together, and far apart).

@@ -119,6 +119,7 @@ fn shadow_and_occlusion_rays_see_only_the_cut_surface() {
     let whole = HybridTracer {
         src: scene.source(),
         surfaces: scene.surfaces(),
+        sources: &[],
         smooth_normals: true,
     };
     let frame = whole.frame();

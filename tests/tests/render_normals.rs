@@ -112,11 +112,13 @@ fn sweep(path: &std::path::Path, reconstruction: Reconstruction, kind: Normals) 
     let tracer = HybridTracer {
         src: &src,
         surfaces: &surfaces,
+        sources: &[],
         smooth_normals: kind == Normals::Smooth,
     };
     let reference = HybridTracer {
         src: &sampled,
         surfaces: &surfaces,
+        sources: &[],
         smooth_normals: true,
     };
     let frame = src.frame();

@@ -119,6 +119,7 @@ fn compare(
         let tracer = HybridTracer {
             src,
             surfaces: std::slice::from_ref(surface),
+            sources: &[],
             smooth_normals: false,
         };
         let mut answers = Vec::new();
@@ -304,6 +305,7 @@ fn tile_layers_are_the_single_ray_layers() {
         let tracer = HybridTracer {
             src: &src,
             surfaces: &surfaces,
+            sources: &[],
             smooth_normals: false,
         };
         let light = lighting(vec![0.3, 0.5, 1.0], true);
@@ -399,6 +401,7 @@ fn opaque_tile_layers_are_the_single_ray_layers() {
         let tracer = HybridTracer {
             src: &src,
             surfaces: &surfaces,
+            sources: &[],
             smooth_normals: false,
         };
         let light = lighting(vec![1.0; isos.len()], false);

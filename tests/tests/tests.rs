@@ -75,6 +75,7 @@ mod render_ao_filter;
 mod render_ao_packets;
 mod render_bench;
 mod render_clip;
+mod render_fields;
 mod render_golden;
 mod render_normals;
 mod render_packets;

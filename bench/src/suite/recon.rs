@@ -222,6 +222,7 @@ fn hybrid_leaks<D: AsRef<[u8]> + Sync>(
     let tracer = HybridTracer {
         src,
         surfaces: &surf,
+        sources: &[],
         smooth_normals: false,
     };
     let t = Instant::now();

@@ -106,6 +106,7 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
         let tracer = HybridTracer {
             src: &src,
             surfaces: &surf,
+            sources: &[],
             smooth_normals: false,
         };
         let frame = src.frame();

@@ -394,6 +394,7 @@ fn measure<D: AsRef<[u8]> + Sync>(
     let hybrid = HybridTracer {
         src,
         surfaces: &surf,
+        sources: &[],
         smooth_normals,
     };
     let mut last: Option<Frame> = None;

@@ -53,6 +53,16 @@ pub fn frame_header(
         ),
         ("file".into(), scene.path().display().to_string()),
     ];
+    if !scene.one_field() {
+        // Each isovalue's field, in order ("; " apart: names may hold spaces), when some are
+        // not `field`'s.
+        let fields: Vec<&str> = scene
+            .isosurfaces()
+            .iter()
+            .map(|s| scene.surface_field_name(s))
+            .collect();
+        m.push(("iso_fields".into(), fields.join("; ")));
+    }
     if scene.color_by().iter().any(Option::is_some) {
         let by: Vec<String> = (0..scene.isosurfaces().len())
             .map(|i| match scene.color_by().get(i).cloned().flatten() {

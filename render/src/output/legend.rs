@@ -170,7 +170,6 @@ impl Text {
 impl Legend {
     /// The legend of `rendered`, a frame of `scene` seen through `view`.
     pub fn of_frame(scene: &Scene, view: &View, rendered: &Rendered) -> Legend {
-        let field = scene.field_name();
         let mut entries = Vec::new();
         if let Some(when) = simulation_stamp(
             scene.file().simulation_time(),
@@ -179,6 +178,7 @@ impl Legend {
             entries.push((when, None));
         }
         for (i, s) in scene.isosurfaces().iter().enumerate() {
+            let field = scene.surface_field_name(s);
             let painted = scene.color_by().get(i).cloned().flatten();
             let opacity = match s.opacity < 1.0 {
                 true => format!(" (opacity {})", s.opacity),

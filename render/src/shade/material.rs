@@ -2,7 +2,7 @@
 
 use std::str::FromStr;
 
-/// One isosurface to render: isovalue, colour and opacity.
+/// One isosurface to render: isovalue, colour, opacity, and the field it is of.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IsoSpec {
     /// The isovalue.
@@ -11,6 +11,9 @@ pub struct IsoSpec {
     pub color: Option<[f32; 3]>,
     /// Opacity in `[0, 1]`; 1 is opaque.
     pub opacity: f32,
+    /// The index of the field (in the file) the surface is of; `None`: the scene's field. The
+    /// text form does not hold it: the command line reads a field's name before `=`.
+    pub field: Option<usize>,
 }
 
 /// Colours given to isosurfaces without one, in order.
@@ -45,6 +48,7 @@ impl IsoSpec {
             value,
             color: None,
             opacity: 1.0,
+            field: None,
         }
     }
 
@@ -139,6 +143,7 @@ impl FromStr for IsoSpec {
             value,
             color,
             opacity,
+            field: None,
         })
     }
 }
@@ -167,14 +172,7 @@ mod tests {
 
     #[test]
     fn parses_iso_specs() {
-        assert_eq!(
-            "0.5".parse::<IsoSpec>().unwrap(),
-            IsoSpec {
-                value: 0.5,
-                color: None,
-                opacity: 1.0
-            }
-        );
+        assert_eq!("0.5".parse::<IsoSpec>().unwrap(), IsoSpec::new(0.5));
         let s: IsoSpec = "-2:red:0.3".parse().unwrap();
         assert_eq!((s.value, s.opacity), (-2.0, 0.3));
         assert_eq!(s.color, Some([0.85, 0.15, 0.12]));

@@ -239,10 +239,15 @@ pub fn next_hits_one_by_one<T: Tracer + ?Sized>(
 
 /// Exact tracing through BVHs over active voxels.
 pub struct HybridTracer<'a, S: VoxelSource + ?Sized> {
-    /// The voxel source.
+    /// The voxel source: the frame's grid, and the voxels of every surface `sources` names none
+    /// for.
     pub src: &'a S,
     /// One surface per isovalue.
     pub surfaces: &'a [Surface],
+    /// The voxel source of each surface whose field is not `src`'s, by the surface's index:
+    /// surface `i` reads `sources[i]` when it is there, else `src` (empty: every surface is of
+    /// `src`'s field).
+    pub sources: &'a [&'a S],
     /// Normals from central differences of the reconstruction one cell of the hit's level apart
     /// on each axis ([`VoxelSource::cell_size`]), which are continuous wherever the level does
     /// not change, instead of the hit voxel's trilinear gradient, which jumps at voxel faces.
@@ -259,23 +264,23 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
     }
 
     fn next_hit(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> Option<SurfaceHit> {
-        let h = self.surfaces[i].closest_hit(self.src, ray, tmin, tmax)?;
+        let h = self.surfaces[i].closest_hit(self.source(i), ray, tmin, tmax)?;
         let mut hit = [Some(self.voxel_surface_hit(h, ray))];
         if self.smooth_normals {
-            self.src.smooth_gradients(&mut hit);
+            self.source(i).smooth_gradients(&mut hit);
         }
         hit[0]
     }
 
     fn next_hits(&self, i: usize, rays: &[GridRay], tmax: &[f64], out: &mut [Option<SurfaceHit>]) {
         let bounds = self.reach(i);
-        self.hits_by_packets(rays, tmax, out, |_, rays, tmax, hits| {
+        self.hits_by_packets(i, rays, tmax, out, |_, rays, tmax, hits| {
             if misses_all(bounds, rays, tmax) {
                 hits.fill(None);
                 return;
             }
             let from_origin = &[0.0; PACKET][..rays.len()];
-            self.surfaces[i].closest_hits(self.src, rays, from_origin, tmax, hits)
+            self.surfaces[i].closest_hits(self.source(i), rays, from_origin, tmax, hits)
         });
     }
 
@@ -287,9 +292,9 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
         tmax: &[f64],
         out: &mut [Option<SurfaceHit>],
     ) {
-        self.hits_by_packets(rays, tmax, out, |k, rays, tmax, hits| {
+        self.hits_by_packets(i, rays, tmax, out, |k, rays, tmax, hits| {
             let tmin = &tmin[k..k + rays.len()];
-            self.surfaces[i].closest_hits(self.src, rays, tmin, tmax, hits)
+            self.surfaces[i].closest_hits(self.source(i), rays, tmin, tmax, hits)
         });
     }
 
@@ -301,14 +306,14 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
         tmax: &[f64],
         out: &mut [Option<SurfaceHit>],
     ) {
-        self.hits_by_packets(rays, tmax, out, |k, rays, tmax, hits| {
+        self.hits_by_packets(i, rays, tmax, out, |k, rays, tmax, hits| {
             let behind = &behind[k..k + rays.len()];
-            self.surfaces[i].closest_hits_behind(self.src, rays, behind, tmax, hits)
+            self.surfaces[i].closest_hits_behind(self.source(i), rays, behind, tmax, hits)
         });
     }
 
     fn occluded(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> bool {
-        self.surfaces[i].any_hit(self.src, ray, tmin, tmax)
+        self.surfaces[i].any_hit(self.source(i), ray, tmin, tmax)
     }
 
     fn occluded_many(
@@ -319,7 +324,7 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
         tmax: f64,
         active: Mask,
     ) -> Mask {
-        self.surfaces[i].any_hits(self.src, rays, tmin, tmax, active)
+        self.surfaces[i].any_hits(self.source(i), rays, tmin, tmax, active)
     }
 
     fn occluded_in_turn(
@@ -340,16 +345,28 @@ impl<S: VoxelSource + ?Sized> Tracer for HybridTracer<'_, S> {
             if live == 0 {
                 break;
             }
-            live = answer(s, self.surfaces[s].any_hits_of(self.src, &mut ready, live));
+            live = answer(
+                s,
+                self.surfaces[s].any_hits_of(self.source(s), &mut ready, live),
+            );
         }
     }
 
     fn release_pages(&self) {
         self.src.release_pages();
+        for s in self.sources {
+            s.release_pages();
+        }
     }
 }
 
 impl<S: VoxelSource + ?Sized> HybridTracer<'_, S> {
+    /// The voxel source of surface `i`.
+    #[inline(always)]
+    fn source(&self, i: usize) -> &S {
+        self.sources.get(i).copied().unwrap_or(self.src)
+    }
+
     /// The box surface `i`'s hits lie in: its voxels' bounds grown by [`REACH_PADS`] times the
     /// BVH's pad (`None` when it has no voxel).
     fn reach(&self, i: usize) -> Option<([f64; 3], [f64; 3])> {
@@ -358,11 +375,12 @@ impl<S: VoxelSource + ?Sized> HybridTracer<'_, S> {
         Some((lo.map(|x| x - grow), hi.map(|x| x + grow)))
     }
 
-    /// The surface hits of `rays` up to `tmax` into `out`, a packet at a time: `query(k, rays,
+    /// Surface `i`'s hits of `rays` up to `tmax` into `out`, a packet at a time: `query(k, rays,
     /// tmax, hits)` finds the hits of the packet whose first ray is ray `k`.
     #[inline(always)]
     fn hits_by_packets(
         &self,
+        i: usize,
         rays: &[GridRay],
         tmax: &[f64],
         out: &mut [Option<SurfaceHit>],
@@ -381,7 +399,7 @@ impl<S: VoxelSource + ?Sized> HybridTracer<'_, S> {
                 *out = h.map(|h| self.voxel_surface_hit(h, ray));
             }
             if self.smooth_normals {
-                self.src.smooth_gradients(out);
+                self.source(i).smooth_gradients(out);
             }
         }
     }

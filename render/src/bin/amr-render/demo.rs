@@ -15,6 +15,7 @@ use anyhow::Context;
 use crate::animation::Animation;
 use crate::frames::render_all;
 use crate::render_args::{Outputs, RenderRequest};
+use crate::surface_arg::SurfaceArg;
 
 /// Arguments of `amr-render demo`.
 #[derive(clap::Args, Debug)]
@@ -54,16 +55,18 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             release_pages: true,
         },
         isos: vec![
-            IsoSpec {
+            SurfaceArg::of_scene_field(IsoSpec {
                 value: iso,
                 color: Some([0.85, 0.62, 0.35]),
                 opacity: 1.0,
-            },
-            IsoSpec {
+                field: None,
+            }),
+            SurfaceArg::of_scene_field(IsoSpec {
                 value: 0.6 * iso,
                 color: Some([0.35, 0.55, 0.85]),
                 opacity: 0.3,
-            },
+                field: None,
+            }),
         ],
         view: View {
             fov_deg: 35.0,

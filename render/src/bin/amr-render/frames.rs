@@ -80,7 +80,7 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             }
             let _stage = (n == 1).then(|| progress::stage("opening the file"));
             let opened = open_scene(request, index)?;
-            let isos = request_isos(request, &opened);
+            let isos = request_isos(request, &opened)?;
             // One surface and nothing else: a frame without it gets `warn_empty`'s message.
             let alone = isos.len() == 1 && request.slices.is_empty() && anim.sweep.is_none();
             if !alone {
@@ -334,9 +334,12 @@ fn summary(file: &Path, scene: &Scene, files: &FrameFiles, took: Duration) -> St
         .isosurfaces()
         .iter()
         .enumerate()
-        .map(|(i, s)| match scene.color_by().get(i).cloned().flatten() {
-            Some(by) => format!("{} (coloured by {by})", format_value(f64::from(s.value))),
-            None => format_value(f64::from(s.value)),
+        .map(|(i, s)| {
+            let value = surface_value(scene, s);
+            match scene.color_by().get(i).cloned().flatten() {
+                Some(by) => format!("{value} (coloured by {by})"),
+                None => value,
+            }
         })
         .collect();
     let surfaces = match scene.method() {
@@ -366,11 +369,24 @@ fn summary(file: &Path, scene: &Scene, files: &FrameFiles, took: Duration) -> St
     out
 }
 
-/// Warns about each isovalue outside the field's range: its surface is empty, while the frame
+/// An isovalue as the summary and warnings write it: `V`, or `FIELD=V` for a surface of
+/// another field than the scene's (as `--iso` reads it).
+fn surface_value(scene: &Scene, s: &IsoSpec) -> String {
+    let value = format_value(f64::from(s.value));
+    match scene.surface_field(s) == scene.field() {
+        true => value,
+        false => format!("{}={value}", scene.surface_field_name(s)),
+    }
+}
+
+/// Warns about each isovalue outside its field's range: its surface is empty, while the frame
 /// shows the others (or slices), so nothing else would say so.
 fn warn_isos_outside(scene: &Scene, isos: &[IsoSpec]) {
-    let f = &scene.file().fields()[scene.field()];
-    for iso in isos.iter().filter(|s| s.value < f.min || s.value > f.max) {
+    for iso in isos {
+        let f = &scene.file().fields()[scene.surface_field(iso)];
+        if !(iso.value < f.min || iso.value > f.max) {
+            continue;
+        }
         eprintln!(
             "warning: {}: isovalue {} lies outside {}'s range [{}, {}]: that surface is empty",
             scene.path().display(),
@@ -402,11 +418,33 @@ fn warn_empty(scene: &Scene, camera: &Camera) {
         );
         return;
     }
+    if !scene.one_field() {
+        let isos: Vec<String> = scene
+            .isosurfaces()
+            .iter()
+            .map(|s| {
+                let f = &scene.file().fields()[scene.surface_field(s)];
+                format!(
+                    "{} ({} ranges over [{}, {}])",
+                    surface_value(scene, s),
+                    f.name,
+                    format_value(f64::from(f.min)),
+                    format_value(f64::from(f.max))
+                )
+            })
+            .collect();
+        eprintln!(
+            "warning: {}: the frame shows no surface: the isovalues are {} ({active} active voxels)",
+            scene.path().display(),
+            isos.join(", "),
+        );
+        return;
+    }
     let f = &scene.file().fields()[scene.field()];
     let isos: Vec<String> = scene
         .isosurfaces()
         .iter()
-        .map(|s| format_value(f64::from(s.value)))
+        .map(|s| surface_value(scene, s))
         .collect();
     eprintln!(
         "warning: {}: the frame shows no surface: {} ranges over [{}, {}] and the isovalues are {} ({} active voxels)",

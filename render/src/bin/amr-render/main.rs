@@ -17,6 +17,7 @@ mod progress;
 mod render;
 mod render_args;
 mod scene_file;
+mod surface_arg;
 mod verify;
 
 use std::process::ExitCode;

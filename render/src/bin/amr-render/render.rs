@@ -46,10 +46,11 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     }
 }
 
-/// The request's isosurfaces (the median of the field's values when none given).
-pub fn request_isos(request: &RenderRequest, scene: &Scene) -> Vec<IsoSpec> {
+/// The request's isosurfaces for `scene` (the median of the field's values when none given),
+/// their fields' names resolved in its file.
+pub fn request_isos(request: &RenderRequest, scene: &Scene) -> anyhow::Result<Vec<IsoSpec>> {
     match request.isos.is_empty() && request.animation.sweep.is_none() {
-        true => vec![IsoSpec::new(scene.default_isovalue())],
-        false => request.isos.clone(),
+        true => Ok(vec![IsoSpec::new(scene.default_isovalue())]),
+        false => request.isos.iter().map(|s| s.resolve(scene)).collect(),
     }
 }

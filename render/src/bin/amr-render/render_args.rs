@@ -5,7 +5,6 @@ use std::path::PathBuf;
 
 use amr_render::camera_path::CameraKey;
 use amr_render::output::exr_file::ExrCompression;
-use amr_render::shade::IsoSpec;
 use amr_render::{
     CameraPlacement, ClipBox, ColorBy, ColorScale, Colormap, Outline, Reconstruction, SceneOptions,
     Slice, TraceMethod, View,
@@ -14,6 +13,7 @@ use anyhow::bail;
 use clap::Args;
 
 use crate::animation::{Animation, IsoSweep};
+use crate::surface_arg::SurfaceArg;
 
 /// Most worker threads `--threads` may ask for.
 pub const MAX_THREADS: usize = 256;
@@ -29,13 +29,14 @@ pub struct RenderArgs {
     #[arg(long)]
     pub field: Option<String>,
     /// An isosurface: value, optional colour (name or #rrggbb) and opacity; repeat for several
-    /// (default: the middle of the field's range). Negative values as typed: --iso -60:red.
+    /// (default: the middle of the field's range). Negative values as typed: --iso -60:red. A
+    /// surface of another field than --field: its name and `=` first, --iso temp=1500:red.
     #[arg(
         long = "iso",
-        value_name = "V[:COLOR[:OPACITY]]",
+        value_name = "[FIELD=]V[:COLOR[:OPACITY]]",
         allow_hyphen_values = true
     )]
-    pub iso: Vec<IsoSpec>,
+    pub iso: Vec<SurfaceArg>,
     /// Output file: OpenEXR with every channel (.exr, or no extension), or a PNG picture with
     /// its legend when the name ends in .png (other extensions are refused); with several
     /// frames, OUT_0000.exr, OUT_0001.exr, ...
@@ -194,7 +195,7 @@ pub struct RenderRequest {
     /// The scene's field, reconstruction and method.
     pub scene: SceneOptions,
     /// Isosurfaces (empty: the middle of the field's range).
-    pub isos: Vec<IsoSpec>,
+    pub isos: Vec<SurfaceArg>,
     /// Camera, size, sampling and lighting.
     pub view: View,
     /// Output files and reports.
@@ -371,6 +372,15 @@ impl RenderArgs {
         }
         if self.mpi_mode.is_some() && !cfg!(feature = "mpi") {
             bail!("--mpi-mode needs a build with `--features mpi` and a start with mpirun");
+        }
+        if let (Some("partitioned"), Some(s)) = (
+            self.mpi_mode.as_deref(),
+            self.iso.iter().find(|s| s.field.is_some()),
+        ) {
+            bail!(
+                "--iso {s}: --mpi-mode partitioned renders isosurfaces of --field's field only \
+                 (each rank extracts its part of that field)"
+            );
         }
         let view = View {
             camera,

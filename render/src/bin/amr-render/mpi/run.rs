@@ -154,11 +154,11 @@ fn run_rank(
     let cpu0 = cpu_seconds();
     let frame = match mode {
         MpiMode::Partitioned => {
-            let isos = request_isos(request, &scene);
+            let isos = request_isos(request, &scene)?;
             partitioned::render_part(world, &mut scene, &isos, &view, &mut stats, progress)?
         }
         MpiMode::Replicated => {
-            scene.set_isosurfaces(&request_isos(request, &scene))?;
+            scene.set_isosurfaces(&request_isos(request, &scene)?)?;
             stats.extract = scene.stats().extract.as_secs_f64();
             stats.cpu_scene = cpu_seconds();
             let job = replicated::Job {

@@ -1,0 +1,88 @@
+//! `--iso [FIELD=]V[:COLOR[:OPACITY]]`: an isosurface as typed, its field named (not yet
+//! resolved: each file of a time series resolves the name to its own field index).
+
+use std::fmt;
+use std::str::FromStr;
+
+use amr_render::scene::field_named;
+use amr_render::shade::IsoSpec;
+use amr_render::Scene;
+
+/// An isosurface of the command line: the field it is of (`None`: the scene's field) and its
+/// value, colour and opacity.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SurfaceArg {
+    /// The field's name, as typed before `=`.
+    pub field: Option<String>,
+    /// Value, colour and opacity (its `field` unset).
+    pub spec: IsoSpec,
+}
+
+impl SurfaceArg {
+    /// An isosurface of the scene's field.
+    pub fn of_scene_field(spec: IsoSpec) -> Self {
+        SurfaceArg { field: None, spec }
+    }
+
+    /// The isosurface for `scene`: its field's name resolved in the scene's file.
+    pub fn resolve(&self, scene: &Scene) -> anyhow::Result<IsoSpec> {
+        let field = match &self.field {
+            None => None,
+            Some(name) => {
+                Some(field_named(scene.file(), name).map_err(|e| e.in_file(scene.path()))?)
+            }
+        };
+        Ok(IsoSpec { field, ..self.spec })
+    }
+}
+
+impl FromStr for SurfaceArg {
+    type Err = String;
+
+    /// `V[:COLOR[:OPACITY]]`, or `FIELD=V[:COLOR[:OPACITY]]` for a surface of another field
+    /// than `--field` (no value, colour or opacity holds an `=`).
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.split_once('=') {
+            None => Ok(SurfaceArg::of_scene_field(s.parse()?)),
+            Some((name, rest)) => {
+                let name = name.trim();
+                if name.is_empty() {
+                    return Err(format!("'{s}': no field name before '='"));
+                }
+                Ok(SurfaceArg {
+                    field: Some(name.to_string()),
+                    spec: rest.parse()?,
+                })
+            }
+        }
+    }
+}
+
+impl fmt::Display for SurfaceArg {
+    /// The form `FromStr` reads back.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Some(name) = &self.field {
+            write!(f, "{name}=")?;
+        }
+        write!(f, "{}", self.spec)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_field_before_the_value_is_read_and_written_back() {
+        let a: SurfaceArg = "Y(OH)=1e-3:red:0.5".parse().unwrap();
+        assert_eq!(a.field.as_deref(), Some("Y(OH)"));
+        assert_eq!((a.spec.value, a.spec.opacity), (1e-3, 0.5));
+        let again: SurfaceArg = a.to_string().parse().unwrap();
+        assert_eq!(again.field, a.field);
+        assert_eq!(again.spec.value, a.spec.value);
+        let plain: SurfaceArg = "-60:red".parse().unwrap();
+        assert_eq!((plain.field, plain.spec.value), (None, -60.0));
+        assert!("=5".parse::<SurfaceArg>().is_err());
+        assert!("temp=hot".parse::<SurfaceArg>().is_err());
+    }
+}

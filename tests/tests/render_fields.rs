@@ -1,0 +1,159 @@
+//! Isosurfaces of several fields in one scene (`IsoSpec::field`): each surface is the one its own
+//! field's scene draws, the nearer of two hides the farther, and what cannot be done is refused.
+
+use std::path::{Path, PathBuf};
+
+use amr_format::WriterOptions;
+use amr_render::shade::IsoSpec;
+use amr_render::view::CameraPlacement;
+use amr_render::{render, Rendered, Scene, SceneOptions, TraceMethod, View};
+use amr_synth::{build_hierarchy, write_fields, AnalyticField, Case, SynthParams};
+
+/// A two-level file with fields `sphere` (refined around its zero surface) and `ramp`, a plane
+/// wave across it.
+fn two_fields(dir: &Path) -> PathBuf {
+    let path = dir.join("two.amrk");
+    let mut spec = build_hierarchy(
+        &Case::Sphere,
+        "sphere",
+        &SynthParams::unit_cube(2, 2, 16, 8),
+    )
+    .unwrap();
+    spec.fields = vec!["sphere".into(), "ramp".into()];
+    let sphere = |p: [f64; 3]| Case::Sphere.value(p);
+    let ramp = |p: [f64; 3]| p[0] + 0.5 * p[1] + 0.25 * p[2];
+    write_fields(&path, spec, &[&sphere, &ramp], WriterOptions::default()).unwrap();
+    path
+}
+
+fn open(path: &Path, field: &str) -> Scene {
+    let options = SceneOptions {
+        field: Some(field.into()),
+        ..SceneOptions::default()
+    };
+    Scene::open(path, &options).unwrap()
+}
+
+fn spec(value: f32, color: [f32; 3], field: Option<usize>) -> IsoSpec {
+    IsoSpec {
+        color: Some(color),
+        field,
+        ..IsoSpec::new(value)
+    }
+}
+
+/// One camera for every scene, smooth normals, no shadows or ambient occlusion (which would let
+/// one surface darken the other).
+fn view() -> View {
+    View {
+        size: (160, 120),
+        ao_rays: 0,
+        shadows: false,
+        camera: Some(CameraPlacement {
+            pos: [1.6, -1.1, 1.3],
+            look_at: Some([0.5, 0.5, 0.5]),
+            up: Some([0.0, 0.0, 1.0]),
+        }),
+        ..View::default()
+    }
+}
+
+const GOLD: [f32; 3] = [0.85, 0.62, 0.35];
+const BLUE: [f32; 3] = [0.35, 0.55, 0.85];
+
+#[test]
+fn each_surface_is_what_its_own_fields_scene_draws() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path());
+    let mut both = open(&path, "sphere");
+    let ramp = both.file().field_index("ramp").unwrap();
+    both.set_isosurfaces(&[spec(0.0, GOLD, None), spec(1.0, BLUE, Some(ramp))])
+        .unwrap();
+    let mut sphere = open(&path, "sphere");
+    sphere.set_isosurfaces(&[spec(0.0, GOLD, None)]).unwrap();
+    let mut plane = open(&path, "ramp");
+    plane.set_isosurfaces(&[spec(1.0, BLUE, None)]).unwrap();
+
+    let (a, b) = (sphere.stats().active_octants, plane.stats().active_octants);
+    assert!(a > 1000 && b > 1000, "{a} and {b} active voxels");
+    assert_eq!(both.stats().active_octants, a + b);
+    assert_eq!(both.surface_field_name(&both.isosurfaces()[1]), "ramp");
+    assert!(!both.one_field());
+
+    let v = view();
+    let frames: Vec<Rendered> = [&both, &sphere, &plane]
+        .iter()
+        .map(|s| render(s, &v, &|_| ()).unwrap())
+        .collect();
+    let (f, s, p) = (&frames[0].frame, &frames[1].frame, &frames[2].frame);
+    let (mut from_sphere, mut from_plane) = (0, 0);
+    for i in 0..f.alpha.len() {
+        let (zs, zp) = (s.z[i], p.z[i]);
+        // The nearer surface, where one is clearly nearer (`z` is infinite on a miss).
+        let nearer = match (zs < zp * 0.999, zp < zs * 0.999) {
+            (true, false) => s,
+            (false, true) => p,
+            _ => continue,
+        };
+        if std::ptr::eq(nearer, s) {
+            from_sphere += 1;
+        } else {
+            from_plane += 1;
+        }
+        assert_eq!(f.z[i], nearer.z[i], "pixel {i}: depth");
+        for c in 0..3 {
+            assert_eq!(f.rgb[c][i], nearer.rgb[c][i], "pixel {i}: colour");
+            assert_eq!(f.n[c][i], nearer.n[c][i], "pixel {i}: normal");
+        }
+    }
+    assert!(
+        from_sphere > 1000 && from_plane > 1000,
+        "{from_sphere} pixels of the sphere, {from_plane} of the plane"
+    );
+}
+
+#[test]
+fn a_surface_of_another_field_is_kept_while_its_field_and_value_stay() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path());
+    let mut scene = open(&path, "sphere");
+    let ramp = scene.file().field_index("ramp").unwrap();
+    scene
+        .set_isosurfaces(&[spec(0.0, GOLD, None), spec(1.0, BLUE, Some(ramp))])
+        .unwrap();
+    let again = scene
+        .set_isosurfaces(&[spec(0.0, BLUE, None), spec(1.0, GOLD, Some(ramp))])
+        .unwrap();
+    assert_eq!(again.surfaces_built, 0, "recoloured surfaces are kept");
+    // The same value of the scene's own field is another surface.
+    let moved = scene
+        .set_isosurfaces(&[spec(0.0, GOLD, None), spec(1.0, BLUE, None)])
+        .unwrap();
+    assert_eq!(moved.surfaces_built, 1);
+}
+
+#[test]
+fn what_a_scene_of_several_fields_cannot_do_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path());
+    let mut scene = open(&path, "sphere");
+    let err = scene
+        .set_isosurfaces(&[spec(0.0, GOLD, Some(7))])
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("field 7") && err.contains("two.amrk"), "{err}");
+    let options = SceneOptions {
+        field: Some("sphere".into()),
+        method: TraceMethod::Sample,
+        ..SceneOptions::default()
+    };
+    let mut sampled = Scene::open(&path, &options).unwrap();
+    let err = sampled
+        .set_isosurfaces(&[spec(1.0, GOLD, Some(1))])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("sample method") && err.contains("ramp"),
+        "{err}"
+    );
+}

@@ -1342,17 +1342,7 @@ fn an_isovalue_outside_the_range_beside_others_is_named() {
 #[test]
 fn an_isosurface_of_another_field_is_drawn_and_named() {
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("two.amrk");
-    let mut spec = amr_synth::build_hierarchy(
-        &Case::Sphere,
-        "sphere",
-        &SynthParams::unit_cube(2, 2, 16, 8),
-    )
-    .unwrap();
-    spec.fields = vec!["sphere".into(), "ramp".into()];
-    let sphere = |p: [f64; 3]| amr_synth::AnalyticField::value(&Case::Sphere, p);
-    let ramp = |p: [f64; 3]| p[0] + 0.5 * p[1];
-    amr_synth::write_fields(&path, spec, &[&sphere, &ramp], WriterOptions::default()).unwrap();
+    let path = sphere_and_ramp(dir.path());
     let (file, out, scene) = (
         path.to_str().unwrap(),
         dir.path().join("f.png"),
@@ -1386,5 +1376,55 @@ fn an_isosurface_of_another_field_is_drawn_and_named() {
     assert!(
         e.contains("two.amrk") && e.contains("no field 'nope'") && e.contains("ramp"),
         "{e}"
+    );
+}
+
+/// A two-level file of fields `sphere` and `ramp` in `dir`.
+fn sphere_and_ramp(dir: &Path) -> PathBuf {
+    let path = dir.join("two.amrk");
+    let mut spec = amr_synth::build_hierarchy(
+        &Case::Sphere,
+        "sphere",
+        &SynthParams::unit_cube(2, 2, 16, 8),
+    )
+    .unwrap();
+    spec.fields = vec!["sphere".into(), "ramp".into()];
+    let sphere = |p: [f64; 3]| amr_synth::AnalyticField::value(&Case::Sphere, p);
+    let ramp = |p: [f64; 3]| p[0] + 0.5 * p[1];
+    amr_synth::write_fields(&path, spec, &[&sphere, &ramp], WriterOptions::default()).unwrap();
+    path
+}
+
+/// A time series whose later file lacks the field of an `--iso FIELD=V` stops before its first
+/// frame, naming that file.
+#[test]
+fn a_series_file_without_a_surfaces_field_stops_the_run_before_any_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let two = sphere_and_ramp(dir.path());
+    let one = sphere(dir.path());
+    let out = dir.path().join("f.exr");
+    let o = amr_render(&[
+        two.to_str().unwrap(),
+        one.to_str().unwrap(),
+        "--field",
+        "sphere",
+        "--iso",
+        "0",
+        "--iso",
+        "ramp=1",
+        "--size",
+        "32x24",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("sphere.amrk") && e.contains("no field 'ramp'"),
+        "{e}"
+    );
+    assert!(
+        !dir.path().join("f_0000.exr").exists(),
+        "a frame was written"
     );
 }

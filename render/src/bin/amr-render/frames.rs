@@ -272,6 +272,7 @@ fn check_series(request: &RenderRequest) -> anyhow::Result<()> {
             Some(ColorBy::Field(name)) => Some(name.as_str()),
             _ => None,
         }))
+        .chain(request.isos.iter().filter_map(|s| s.field.as_deref()))
         .collect();
     for path in &request.files {
         let file = open_mapped(path)?;

@@ -157,3 +157,43 @@ fn what_a_scene_of_several_fields_cannot_do_is_refused() {
         "{err}"
     );
 }
+
+/// A surface of another field painted by that field (one source traces and paints it) shows its
+/// own isovalue, while the scene's surface painted by it shows other values.
+#[test]
+fn a_surface_painted_by_its_own_field_shows_its_isovalue() {
+    use amr_render::ColorBy;
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path());
+    let mut scene = open(&path, "sphere");
+    let ramp = scene.file().field_index("ramp").unwrap();
+    scene
+        .set_isosurfaces(&[spec(0.0, GOLD, None), spec(1.0, BLUE, Some(ramp))])
+        .unwrap();
+    let by = Some(ColorBy::Field("ramp".into()));
+    scene.set_color_by(&[by.clone(), by]).unwrap();
+    let f = render(&scene, &view(), &|_| ()).unwrap().frame;
+    let mut plane = open(&path, "ramp");
+    plane.set_isosurfaces(&[spec(1.0, BLUE, None)]).unwrap();
+    let p = render(&plane, &view(), &|_| ()).unwrap().frame;
+    let (mut on_plane, mut elsewhere) = (0, 0);
+    for i in 0..f.alpha.len() {
+        let v = f.color_value[i];
+        if !v.is_finite() {
+            continue;
+        }
+        if f.z[i] == p.z[i] {
+            on_plane += 1;
+            assert!(
+                (v - 1.0).abs() < 1e-3,
+                "pixel {i}: {v} on the ramp = 1 surface"
+            );
+        } else if (v - 1.0).abs() > 0.05 {
+            elsewhere += 1;
+        }
+    }
+    assert!(
+        on_plane > 1000 && elsewhere > 100,
+        "{on_plane} / {elsewhere}"
+    );
+}

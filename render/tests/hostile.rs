@@ -20,7 +20,7 @@ use amr_format::raw::{Footer, KdLeaf, KD_LEAF};
 use amr_format::reader::recompute_checksums;
 use amr_format::{Compression, WriterOptions};
 use amr_render::mapping::open_mapped;
-use amr_synth::{write_synth, Case, SynthParams};
+use amr_synth::{build_hierarchy, write_fields, write_synth, AnalyticField, Case, SynthParams};
 use zerocopy::FromBytes;
 
 const BIN: &str = env!("CARGO_BIN_EXE_amr-render");
@@ -126,21 +126,24 @@ fn footer_of(b: &[u8]) -> Footer {
     Footer::read_from_bytes(&b[b.len() - size_of::<Footer>()..]).unwrap()
 }
 
-/// The three runs of the fuzzer on `path`: `info`, `extract` and a 32x32 render. Returns the
-/// first problem, naming the command.
-fn check_all(bin: &std::ffi::OsStr, path: &Path, iso: f32, out: &Path) -> Option<String> {
-    let (p, o, iso) = (
-        path.to_str().unwrap(),
-        out.to_str().unwrap(),
-        format!("--iso={iso}"),
-    );
+/// The three runs of the fuzzer on `path`: `info`, `extract` and a 32x32 render.
+fn three_runs(path: &str, iso: f32, out: &str) -> Vec<Vec<String>> {
+    let iso = format!("--iso={iso}");
     let runs: [&[&str]; 3] = [
-        &["info", p],
-        &["extract", p, &iso],
-        &[p, &iso, "-o", o, "--size", "32x32"],
+        &["info", path],
+        &["extract", path, &iso],
+        &[path, &iso, "-o", out, "--size", "32x32"],
     ];
+    runs.iter()
+        .map(|r| r.iter().map(|a| a.to_string()).collect())
+        .collect()
+}
+
+/// Runs `runs` in turn; returns the first problem, naming the command.
+fn check_all(bin: &std::ffi::OsStr, runs: &[Vec<String>]) -> Option<String> {
     runs.iter().find_map(|args| {
-        let outcome = run_bin(bin, args);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let outcome = run_bin(bin, &args);
         outcome.problem().map(|m| {
             let tail: String = outcome.stderr.chars().take(600).collect();
             format!("amr-render {}: {m}: {tail}", args.join(" "))
@@ -250,7 +253,8 @@ fn fuzz_mutated_files_exit_cleanly() {
         if amr_format::AmrkFile::open(&b[..]).is_ok() {
             opened += 1;
         }
-        if let Some(problem) = check_all(&bin, &path, *iso, &out) {
+        let runs = three_runs(path.to_str().unwrap(), *iso, out.to_str().unwrap());
+        if let Some(problem) = check_all(&bin, &runs) {
             std::fs::create_dir_all(&keep).unwrap();
             let kept = keep.join(format!("seed-{seed}.amrk"));
             std::fs::write(&kept, &b).unwrap();
@@ -263,6 +267,83 @@ fn fuzz_mutated_files_exit_cleanly() {
         failures.len(),
         start.elapsed().as_secs_f64()
     );
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// A small two-field file: `sphere`, refined around its zero surface, and `ramp`.
+fn two_field_file(dir: &Path) -> PathBuf {
+    let path = dir.join("two.amrk");
+    let params = SynthParams {
+        levels: 3,
+        ratio: 2,
+        base: 8,
+        brick: 4,
+        origin: [0.0; 3],
+        size: 1.0,
+    };
+    let mut spec = build_hierarchy(&Case::Sphere, "sphere", &params).unwrap();
+    spec.fields = vec!["sphere".into(), "ramp".into()];
+    let sphere = |p: [f64; 3]| AnalyticField::value(&Case::Sphere, p);
+    let ramp = |p: [f64; 3]| p[0] + 0.5 * p[1];
+    write_fields(&path, spec, &[&sphere, &ramp], WriterOptions::default()).unwrap();
+    path
+}
+
+/// The fuzzer of [`fuzz_mutated_files_exit_cleanly`] on a file of two fields, whose second
+/// field is read by every run: extracted, traced as a surface beside the first's
+/// (`--iso ramp=1`) and painting both (`AMR_FUZZ_CASES`, default 300, about 5 s).
+#[test]
+fn fuzz_mutated_two_field_files_exit_cleanly() {
+    let cases = env_u64("AMR_FUZZ_CASES", 300);
+    let seed0 = env_u64("AMR_FUZZ_SEED", 0);
+    let bin = std::env::var_os("AMR_FUZZ_BIN").unwrap_or_else(|| BIN.into());
+    let dir = tempfile::tempdir().unwrap();
+    let base = std::fs::read(two_field_file(dir.path())).unwrap();
+    let keep = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/hostile-fuzz");
+    let (path, out) = (dir.path().join("m.amrk"), dir.path().join("m.exr"));
+    let (p, o) = (path.to_str().unwrap(), out.to_str().unwrap());
+    let runs: Vec<Vec<String>> = [
+        &["info", p][..],
+        &["extract", p, "--field", "ramp", "--iso", "1"],
+        &[
+            p,
+            "--field",
+            "sphere",
+            "--iso",
+            "0",
+            "--iso",
+            "ramp=1",
+            "--color-by",
+            "ramp",
+            "-o",
+            o,
+            "--size",
+            "32x32",
+        ],
+    ]
+    .iter()
+    .map(|r| r.iter().map(|a| a.to_string()).collect())
+    .collect();
+    // The undamaged file passes every run: the runs read what they are meant to.
+    std::fs::write(&path, &base).unwrap();
+    for args in &runs {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = run_bin(bin.as_os_str(), &args);
+        assert_eq!(o.code, Some(0), "{args:?}: {}", o.stderr);
+    }
+    let mut failures = Vec::new();
+    for seed in seed0..seed0 + cases {
+        let mut rng = Rng(seed);
+        let mut b = base.clone();
+        mutate(&mut b, &mut rng);
+        std::fs::write(&path, &b).unwrap();
+        if let Some(problem) = check_all(&bin, &runs) {
+            std::fs::create_dir_all(&keep).unwrap();
+            let kept = keep.join(format!("two-seed-{seed}.amrk"));
+            std::fs::write(&kept, &b).unwrap();
+            failures.push(format!("seed {seed} ({}): {problem}", kept.display()));
+        }
+    }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 

@@ -1428,3 +1428,39 @@ fn a_series_file_without_a_surfaces_field_stops_the_run_before_any_frame() {
         "a frame was written"
     );
 }
+
+/// `--iso-sweep FIELD=A:B:N` sweeps a surface of another field beside `--field`'s surfaces; a
+/// field the file does not hold is refused before any frame.
+#[test]
+fn a_sweep_of_another_field_renders_its_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = sphere_and_ramp(dir.path());
+    let out = dir.path().join("f.exr");
+    let args = |sweep: &str| {
+        amr_render(&[
+            path.to_str().unwrap(),
+            "--field",
+            "sphere",
+            "--iso",
+            "0",
+            "--iso-sweep",
+            sweep,
+            "--size",
+            "32x24",
+            "-q",
+            "-o",
+            out.to_str().unwrap(),
+        ])
+    };
+    let o = args("ramp=0.5:1.5:3:red");
+    assert!(o.status.success(), "{}", stderr(&o));
+    for k in 0..3 {
+        assert!(
+            dir.path().join(format!("f_{k:04}.exr")).exists(),
+            "frame {k}"
+        );
+    }
+    let o = args("nope=0.5:1.5:3");
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("no field 'nope'"), "{}", stderr(&o));
+}

@@ -14,7 +14,7 @@ use anyhow::bail;
 pub const MAX_FRAMES: u32 = 100_000;
 
 /// An isosurface whose value goes from `from` to `to` over `frames` frames.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct IsoSweep {
     /// The first frame's isosurface (its value is `from`).
     pub first: IsoSpec,
@@ -22,6 +22,8 @@ pub struct IsoSweep {
     pub to: f32,
     /// Frames.
     pub frames: u32,
+    /// The field swept, when not `--field`'s: its name, resolved in each file.
+    pub field: Option<String>,
 }
 
 impl IsoSweep {
@@ -43,8 +45,15 @@ impl IsoSweep {
 impl FromStr for IsoSweep {
     type Err = String;
 
-    /// `A:B:N[:COLOR[:OPACITY]]`.
-    fn from_str(s: &str) -> Result<Self, String> {
+    /// `[FIELD=]A:B:N[:COLOR[:OPACITY]]`.
+    fn from_str(text: &str) -> Result<Self, String> {
+        let (field, s) = match text.split_once('=') {
+            Some((name, _)) if name.trim().is_empty() => {
+                return Err(format!("'{text}': no field name before '='"))
+            }
+            Some((name, rest)) => (Some(name.trim().to_string()), rest),
+            None => (None, text),
+        };
         let parts: Vec<&str> = s.splitn(4, ':').collect();
         if parts.len() < 3 {
             return Err(format!("sweep '{s}' is not A:B:N[:COLOR[:OPACITY]]"));
@@ -71,6 +80,7 @@ impl FromStr for IsoSweep {
             first: first.parse()?,
             to,
             frames,
+            field,
         })
     }
 }
@@ -118,7 +128,7 @@ impl Animation {
         if let Some((n, _)) = orbit {
             counts.push((format!("--orbit {n}"), n));
         }
-        if let Some(s) = sweep {
+        if let Some(s) = &sweep {
             counts.push((format!("--iso-sweep of {} frames", s.frames), s.frames));
         }
         if let Some((a, b)) = counts
@@ -165,11 +175,15 @@ impl Animation {
         Ok(vec![fixed; self.frames as usize])
     }
 
-    /// The isosurfaces of frame `k`: `isos` and the sweep's surface of that frame.
-    pub fn isos(&self, isos: &[IsoSpec], k: u32) -> Vec<IsoSpec> {
+    /// The isosurfaces of frame `k`: `isos` and the sweep's surface of that frame, of field
+    /// `sweep_field` (the index its name has in the frame's file; `None`: the scene's field).
+    pub fn isos(&self, isos: &[IsoSpec], k: u32, sweep_field: Option<usize>) -> Vec<IsoSpec> {
         let mut all = isos.to_vec();
-        if let Some(s) = self.sweep {
-            all.push(s.at(k));
+        if let Some(s) = &self.sweep {
+            all.push(IsoSpec {
+                field: sweep_field,
+                ..s.at(k)
+            });
         }
         all
     }
@@ -178,6 +192,21 @@ impl Animation {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_sweep_of_another_field_names_it_and_gives_its_index_to_its_surfaces() {
+        let s: IsoSweep = "Y(OH)=1e-4:5e-4:3:red".parse().unwrap();
+        assert_eq!(s.field.as_deref(), Some("Y(OH)"));
+        assert_eq!((s.first.value, s.to, s.frames), (1e-4, 5e-4, 3));
+        let anim = Animation::new(1, None, Some(s), vec![]).unwrap();
+        let isos = anim.isos(&[IsoSpec::new(2.0)], 2, Some(7));
+        assert_eq!(isos.len(), 2);
+        assert_eq!(
+            (isos[0].field, isos[1].field, isos[1].value),
+            (None, Some(7), 5e-4)
+        );
+        assert!("=1:2:3".parse::<IsoSweep>().is_err());
+    }
 
     #[test]
     fn a_sweep_includes_both_ends() {

@@ -23,7 +23,7 @@ use crate::heap;
 use crate::movie;
 use crate::outputs::{self, FrameFiles, ProcessMemory, RunStats};
 use crate::progress;
-use crate::render::request_isos;
+use crate::render::{request_isos, sweep_field};
 use crate::render_args::RenderRequest;
 use amr_render::system_memory::peak_rss_bytes;
 
@@ -66,14 +66,14 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
     }
     // The open file's index, its scene and its isosurfaces (a default isovalue reads the field's
     // cells, so it is found once per file, not once per frame).
-    let mut scene: Option<(usize, Scene, Vec<IsoSpec>)> = None;
+    let mut scene: Option<(usize, Scene, Vec<IsoSpec>, Option<usize>)> = None;
     let mut cameras = Vec::new();
     let mut records = Vec::new();
     let mut writer = FrameWriter::start()?;
     let start = Instant::now();
     for k in 0..n {
         let index = if anim.series { k as usize } else { 0 };
-        if scene.as_ref().is_none_or(|(i, _, _)| *i != index) {
+        if scene.as_ref().is_none_or(|(i, ..)| *i != index) {
             // The previous file's map and surfaces go before the next file is opened.
             if scene.take().is_some() {
                 heap::return_freed();
@@ -86,12 +86,13 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             if !alone {
                 warn_isos_outside(&opened, &isos);
             }
-            scene = Some((index, opened, isos));
+            let swept = sweep_field(request, &opened)?;
+            scene = Some((index, opened, isos, swept));
         }
-        let Some((_, scene, base_isos)) = scene.as_mut() else {
+        let Some((_, scene, base_isos, swept)) = scene.as_mut() else {
             unreachable!("a scene was opened above");
         };
-        let isos = anim.isos(base_isos, k);
+        let isos = anim.isos(base_isos, k, *swept);
         // In view: the first extraction of a file is limited to its frame's view; a later frame
         // extracts the new isovalues in the previous view, then everything again if the camera
         // moved (the statistics then report that last extraction).
@@ -186,7 +187,7 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         // The last write is part of the run's peak.
         last.stats.peak_rss_bytes = peak_rss_bytes();
     }
-    if let (1, true, Some((index, scene, _))) = (n, request.outputs.summary, &scene) {
+    if let (1, true, Some((index, scene, ..))) = (n, request.outputs.summary, &scene) {
         let took = start.elapsed();
         eprintln!(
             "{}",
@@ -273,6 +274,13 @@ fn check_series(request: &RenderRequest) -> anyhow::Result<()> {
             _ => None,
         }))
         .chain(request.isos.iter().filter_map(|s| s.field.as_deref()))
+        .chain(
+            request
+                .animation
+                .sweep
+                .iter()
+                .filter_map(|s| s.field.as_deref()),
+        )
         .collect();
     for path in &request.files {
         let file = open_mapped(path)?;

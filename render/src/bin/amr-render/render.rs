@@ -1,5 +1,6 @@
 //! `amr-render FILE.amrk ...`: the frames of a request, in this process or with MPI ranks.
 
+use amr_render::scene::field_named;
 use amr_render::shade::IsoSpec;
 use amr_render::Scene;
 use anyhow::bail;
@@ -44,6 +45,20 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
             .install(work),
         None => work(),
     }
+}
+
+/// The index, in `scene`'s file, of the field an `--iso-sweep FIELD=...` names (`None` for
+/// `--field`'s).
+pub fn sweep_field(request: &RenderRequest, scene: &Scene) -> anyhow::Result<Option<usize>> {
+    let name = request
+        .animation
+        .sweep
+        .as_ref()
+        .and_then(|s| s.field.as_ref());
+    Ok(match name {
+        Some(n) => Some(field_named(scene.file(), n).map_err(|e| e.in_file(scene.path()))?),
+        None => None,
+    })
 }
 
 /// The request's isosurfaces for `scene` (the median of the field's values when none given),

@@ -85,11 +85,11 @@ pub struct RenderArgs {
     /// Degrees the orbit turns in all [default: 360].
     #[arg(long, value_name = "D", allow_hyphen_values = true)]
     pub orbit_degrees: Option<f64>,
-    /// N frames with one more isosurface whose value goes from A to B (colour and opacity as
-    /// for --iso).
+    /// N frames with one more isosurface whose value goes from A to B (colour, opacity and
+    /// another field than --field as for --iso: temp=800:1600:24).
     #[arg(
         long,
-        value_name = "A:B:N[:COLOR[:OPACITY]]",
+        value_name = "[FIELD=]A:B:N[:COLOR[:OPACITY]]",
         allow_hyphen_values = true
     )]
     pub iso_sweep: Option<IsoSweep>,
@@ -426,7 +426,7 @@ impl RenderArgs {
         let animation = Animation::new(
             self.files.len(),
             self.orbit.map(|n| (n, self.orbit_degrees.unwrap_or(360.0))),
-            self.iso_sweep,
+            self.iso_sweep.clone(),
             self.keyframe.clone(),
         )?;
         Ok(RenderRequest {

@@ -56,7 +56,9 @@ pub use error::{RenderError, Result};
 pub use frustum::Frustum;
 pub use outline::Outline;
 pub use reconstruct::Reconstruction;
-pub use render::{render, render_region, render_reusing, Rect, RegionPixels, Rendered};
+pub use render::{
+    render, render_region, render_reusing, PaintedRange, Rect, RegionPixels, Rendered,
+};
 pub use scene::{Scene, SceneOptions, SceneStats, TraceMethod};
 pub use shade::IsoSpec;
 pub use slice::Slice;

@@ -24,8 +24,19 @@ const RANGE_STRIDE: u32 = 4;
 pub enum Painter<'a> {
     /// The AMR level, with the categorical palette.
     Level,
-    /// A field, sampled with its source's reconstruction.
-    Field(&'a (dyn VoxelSource + 'a)),
+    /// A field, sampled with its source's reconstruction, and the index of its range in
+    /// [`PaintedTracer::ranges`] (one per field that paints).
+    Field(&'a (dyn VoxelSource + 'a), usize),
+}
+
+/// The colour range of one field's painted values, from the values a frame shows
+/// ([`PaintedTracer::visible_ranges`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VisibleRange {
+    /// The values at the colormap's ends.
+    pub range: (f64, f64),
+    /// Whether some of the values seen lie below the low end and above the high end.
+    pub beyond: (bool, bool),
 }
 
 /// A slice in grid coordinates, and what paints it.
@@ -57,10 +68,11 @@ pub struct PaintedTracer<'a, T: ?Sized> {
     pub slices: Vec<GridSlice<'a>>,
     /// The source whose levels [`Painter::Level`] paints slices with.
     pub levels: &'a (dyn VoxelSource + 'a),
-    /// Values to colours.
+    /// Values to colours: the colormap and log scale of every field, and the range of a field
+    /// given one.
     pub scale: ColorScale,
-    /// The values at the colormap's ends.
-    pub range: (f64, f64),
+    /// The values at the colormap's ends, per field that paints.
+    pub ranges: Vec<(f64, f64)>,
 }
 
 impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
@@ -68,7 +80,7 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
     fn value(&self, painter: Painter<'_>, pos: [f64; 3], level: u32) -> Option<f32> {
         match painter {
             Painter::Level => Some(level as f32),
-            Painter::Field(src) => src.sample(pos).map(|s| s.0),
+            Painter::Field(src, _) => src.sample(pos).map(|s| s.0),
         }
     }
 
@@ -76,7 +88,7 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
     fn color(&self, painter: Painter<'_>, value: f32) -> [f32; 3] {
         match painter {
             Painter::Level => level_linear(value.max(0.0) as u32),
-            Painter::Field(_) => self.scale.linear(f64::from(value), self.range),
+            Painter::Field(_, k) => self.scale.linear(f64::from(value), self.ranges[k]),
         }
     }
 
@@ -114,18 +126,21 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
         })
     }
 
-    /// The robust range of the values painted by fields that the primary rays of `camera`
-    /// (every [`RANGE_STRIDE`]-th pixel of a `w x h` frame) meet before an opaque layer, with
-    /// `opacity` per surface and slice; `None` when no such value is seen.
-    pub fn visible_range(
+    /// Per field that paints (`fields` of them, in the order of [`Painter::Field`]'s index),
+    /// the robust range of its values that the primary rays of `camera` (every
+    /// [`RANGE_STRIDE`]-th pixel of a `w x h` frame) meet before an opaque layer, with `opacity`
+    /// per surface and slice, and whether some of those values lie below and above it; `None`
+    /// for a field none of whose values is seen.
+    pub fn visible_ranges(
         &self,
         camera: &Camera,
         (w, h): (u32, u32),
         opacity: &[f32],
-    ) -> Option<(f64, f64)> {
+        fields: usize,
+    ) -> Vec<Option<VisibleRange>> {
         let frame = self.inner.frame();
         let rows: Vec<u32> = (0..h).step_by(RANGE_STRIDE as usize).collect();
-        let mut values: Vec<f32> = rows
+        let seen: Vec<(usize, f32)> = rows
             .par_iter()
             .flat_map_iter(|&y| {
                 let mut out = Vec::new();
@@ -137,11 +152,31 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
                 out
             })
             .collect();
-        self.scale.resolve(&mut values)
+        (0..fields)
+            .map(|k| {
+                let mut values: Vec<f32> = seen
+                    .iter()
+                    .filter(|(f, _)| *f == k)
+                    .map(|(_, v)| *v)
+                    .collect();
+                let range = self.scale.resolve(&mut values)?;
+                let past = |below: bool| {
+                    values.iter().any(|&v| match below {
+                        true => f64::from(v) < range.0,
+                        false => f64::from(v) > range.1,
+                    })
+                };
+                Some(VisibleRange {
+                    range,
+                    beyond: (past(true), past(false)),
+                })
+            })
+            .collect()
     }
 
-    /// Appends to `out` the field values painted along `ray` in front of its first opaque layer.
-    fn visible_values(&self, ray: &GridRay, opacity: &[f32], out: &mut Vec<f32>) {
+    /// Appends to `out` the field values painted along `ray` in front of its first opaque layer,
+    /// each with the index of its field's range.
+    fn visible_values(&self, ray: &GridRay, opacity: &[f32], out: &mut Vec<(usize, f32)>) {
         let mut layers: Vec<(f64, usize, SurfaceHit)> = (0..self.num_surfaces())
             .filter_map(|i| {
                 self.next_hit(i, ray, 0.0, f64::INFINITY)
@@ -150,9 +185,10 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
             .collect();
         layers.sort_by(|a, b| a.0.total_cmp(&b.0));
         for (_, i, hit) in layers {
-            if let Some(Painter::Field(_)) = self.painter(i) {
-                if let Some(p) = self.paint(i, &hit) {
-                    out.push(p.value);
+            if let Some(painter @ Painter::Field(_, k)) = self.painter(i) {
+                // The value alone: the colours wait for the ranges this pass finds.
+                if let Some(v) = self.value(painter, hit.pos, hit.level) {
+                    out.push((k, v));
                 }
             }
             if opacity.get(i).is_some_and(|&o| o >= 1.0) {

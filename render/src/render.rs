@@ -30,8 +30,21 @@ pub struct Rendered {
     pub camera: Camera,
     /// What it cost.
     pub stats: FrameStats,
-    /// The values at the colormap's ends, when surfaces or slices were painted by a field.
-    pub color_range: Option<(f64, f64)>,
+    /// The colour range of each field that painted surfaces or slices (and was seen), in the
+    /// order the fields first paint: surfaces, then slices.
+    pub color_ranges: Vec<PaintedRange>,
+}
+
+/// The colour range one field painted a frame with.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PaintedRange {
+    /// The field's name.
+    pub field: String,
+    /// The values at the colormap's ends.
+    pub range: (f64, f64),
+    /// Whether values of the field that the colour-range pre-pass met (every fourth pixel on
+    /// each axis) lie below the low end and above the high end.
+    pub beyond: (bool, bool),
 }
 
 /// A rectangle of a frame: lower corner `x0, y0` (pixels from the top left) and size.
@@ -87,11 +100,11 @@ fn render_with(
     {
         check_frame_fits(view.size, system_memory::available())?;
     }
-    let (mut rendered, color_range) = with_scene_tracer(scene, view, |tracer, camera, light| {
+    let (mut rendered, color_ranges) = with_scene_tracer(scene, view, |tracer, camera, light| {
         trace_frame(tracer, *camera, light, view, progress, planes)
     })?;
     check_source(scene)?;
-    rendered.color_range = color_range;
+    rendered.color_ranges = color_ranges;
     let segments = outline::segments(
         view.outline,
         scene.file(),
@@ -184,12 +197,12 @@ pub fn render_sampled<S: VoxelSource + ?Sized>(
 }
 
 /// [`with_tracer`] for a scene, with its surfaces painted and its slices added when it has
-/// any; also returns the colour range painted with.
+/// any; also returns the colour range of each field that painted.
 fn with_scene_tracer<R>(
     scene: &Scene,
     view: &View,
     run: impl FnOnce(&(dyn Tracer + Sync), &Camera, &Lighting) -> R,
-) -> Result<(R, Option<(f64, f64)>)> {
+) -> Result<(R, Vec<PaintedRange>)> {
     // A piecewise-constant field has no smooth normals: nearest shades with the faces' normals.
     let smooth = view.smooth_normals && scene.reconstruction() != Reconstruction::Nearest;
     let method = (scene.method(), smooth);
@@ -208,23 +221,35 @@ fn with_scene_tracer<R>(
         (view, scene.clip()),
         |tracer, camera, light| {
             if scene.painters().next().is_none() {
-                return Ok((run(tracer, camera, light), None));
+                return Ok((run(tracer, camera, light), Vec::new()));
             }
-            let fields: Vec<&ColorBy> = scene
-                .painters()
-                .filter(|b| matches!(b, ColorBy::Field(_)))
-                .collect();
-            if let Some(other) = fields.iter().find(|b| **b != fields[0]) {
+            // The fields that paint, in the order they first do: one colour range each.
+            let mut fields: Vec<&str> = Vec::new();
+            for by in scene.painters() {
+                if let ColorBy::Field(name) = by {
+                    if !fields.contains(&name.as_str()) {
+                        fields.push(name);
+                    }
+                }
+            }
+            if let (Some((lo, hi)), true) = (view.color_scale.range, fields.len() > 1) {
                 return Err(RenderError::Invalid(format!(
-                    "a frame has one colour scale: it cannot paint by both {} and {other}",
-                    fields[0]
+                    "one colour range {lo}:{hi} for {} fields that paint ({}): each field \
+                     takes the range of its own values in view",
+                    fields.len(),
+                    fields.join(", ")
                 )));
             }
-            let painter =
-                |by: &ColorBy| match scene.color_field(by).and_then(|f| scene.color_source(f)) {
-                    Some(src) => Painter::Field(src as &dyn VoxelSource),
-                    None => Painter::Level,
-                };
+            let painter = |by: &ColorBy| match (
+                by,
+                scene.color_field(by).and_then(|f| scene.color_source(f)),
+            ) {
+                (ColorBy::Field(name), Some(src)) => {
+                    let k = fields.iter().position(|f| f == name).unwrap_or(0);
+                    Painter::Field(src as &dyn VoxelSource, k)
+                }
+                _ => Painter::Level,
+            };
             let frame = tracer.frame();
             let mut painted = PaintedTracer {
                 inner: tracer,
@@ -245,16 +270,30 @@ fn with_scene_tracer<R>(
                     .collect(),
                 levels: scene.source(),
                 scale: view.color_scale,
-                range: (0.0, 1.0),
+                ranges: Vec::new(),
             };
             let mut light = light.clone();
             for (s, _) in scene.slices() {
                 light.colors.push([1.0; 3]);
                 light.opacity.push(s.opacity);
             }
-            let range = painted.visible_range(camera, view.size, &light.opacity);
-            painted.range = range.unwrap_or((0.0, 1.0));
-            Ok((run(&painted, camera, &light), range))
+            let seen = painted.visible_ranges(camera, view.size, &light.opacity, fields.len());
+            painted.ranges = seen
+                .iter()
+                .map(|r| r.map_or((0.0, 1.0), |r| r.range))
+                .collect();
+            let ranges = fields
+                .iter()
+                .zip(&seen)
+                .filter_map(|(field, r)| {
+                    r.map(|r| PaintedRange {
+                        field: field.to_string(),
+                        range: r.range,
+                        beyond: r.beyond,
+                    })
+                })
+                .collect();
+            Ok((run(&painted, camera, &light), ranges))
         },
     )?
 }
@@ -325,7 +364,7 @@ fn trace_frame<T: Tracer + Sync + ?Sized>(
         frame,
         camera,
         stats,
-        color_range: None,
+        color_ranges: Vec::new(),
     }
 }
 

@@ -1464,3 +1464,42 @@ fn a_sweep_of_another_field_renders_its_frames() {
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("no field 'nope'"), "{}", stderr(&o));
 }
+
+/// A surface painted by one field and a slice by another render with a colour bar each; one
+/// `--color-range` for both is refused before anything is extracted.
+#[test]
+fn two_fields_painting_one_frame_render_and_refuse_one_shared_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = sphere_and_ramp(dir.path());
+    let out = dir.path().join("f.png");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            path.to_str().unwrap(),
+            "--field",
+            "sphere",
+            "--iso",
+            "0",
+            "--color-by",
+            "ramp",
+            "--slice",
+            "z=0.4",
+            "--slice-field",
+            "sphere",
+            "--size",
+            "64x48",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        amr_render(&args)
+    };
+    let o = run(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = run(&["--color-range", "0:1"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("2 fields paint (ramp, sphere)"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -90,7 +90,12 @@ fn a_surface_painted_by_a_second_field_has_its_colormap_colour_at_each_hit() {
         .set_color_by(&[Some(ColorBy::Field("ramp".into()))])
         .unwrap();
     let painted = render(&scene, &view(), &|_| {}).unwrap();
-    assert_eq!(painted.color_range, Some((0.0, 3.0)));
+    let ranges: Vec<(&str, (f64, f64))> = painted
+        .color_ranges
+        .iter()
+        .map(|r| (r.field.as_str(), r.range))
+        .collect();
+    assert_eq!(ranges, [("ramp", (0.0, 3.0))]);
     let scale = view().color_scale;
     let mut checked = 0;
     for i in 0..painted.frame.len() {
@@ -183,6 +188,84 @@ fn a_slice_shows_the_field_at_each_of_its_points() {
     );
 }
 
+/// A surface painted by one field and a slice by another: each field takes the robust range of
+/// its own values in view, and the slice's unlit pixels are its field's colours on its range.
+/// One given range for both is refused.
+#[test]
+fn a_surface_and_a_slice_painted_by_two_fields_each_take_their_own_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let mut scene = scene(&path);
+    scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
+    scene
+        .set_color_by(&[Some(ColorBy::Field("ramp".into()))])
+        .unwrap();
+    let slice = Slice::parse_axis("z=0.4").unwrap();
+    scene
+        .set_slices(&[slice], Some(ColorBy::Field("sphere".into())))
+        .unwrap();
+    let mut v = View {
+        camera: Some(CameraPlacement {
+            pos: [0.3, 0.2, 3.0],
+            look_at: Some([0.5, 0.5, 0.4]),
+            up: Some([0.0, 1.0, 0.0]),
+        }),
+        ..view()
+    };
+    v.color_scale.range = None;
+    let r = render(&scene, &v, &|_| {}).unwrap();
+    let fields: Vec<&str> = r.color_ranges.iter().map(|c| c.field.as_str()).collect();
+    assert_eq!(fields, ["ramp", "sphere"]);
+    let (on_ramp, on_sphere) = (r.color_ranges[0].range, r.color_ranges[1].range);
+    let sphere_value = |p: [f64; 3]| Case::Sphere.value(p);
+    let (mut on_slice, mut on_surface) = (Vec::new(), Vec::new());
+    for i in 0..r.frame.len() {
+        if r.frame.alpha[i] == 0.0 {
+            continue;
+        }
+        let p = hit(&r, i);
+        if p.iter().any(|&x| !(COARSE..=1.0 - COARSE).contains(&x)) {
+            continue;
+        }
+        let value = f64::from(r.frame.color_value[i]);
+        if (p[2] - 0.4).abs() < 1e-6 {
+            on_slice.push(value);
+            assert!((value - sphere_value(p)).abs() < 2e-3, "pixel {i} at {p:?}");
+            let want = v.color_scale.linear(value, on_sphere);
+            for c in 0..3 {
+                assert!((r.frame.rgb[c][i] - want[c]).abs() < 1e-6, "pixel {i}");
+            }
+        } else {
+            on_surface.push(value);
+            assert!((value - ramp(p)).abs() < 2e-3, "pixel {i} at {p:?}");
+        }
+    }
+    assert!(
+        on_slice.len() > 300 && on_surface.len() > 300,
+        "{} slice and {} surface pixels",
+        on_slice.len(),
+        on_surface.len()
+    );
+    // Each range is the 1st to 99th percentile of its own field's values (seen at every 4th
+    // pixel): it holds nearly all of them, and not the other field's.
+    let within = |values: &[f64], (lo, hi): (f64, f64)| {
+        values.iter().filter(|&&x| x >= lo && x <= hi).count() as f64 / values.len() as f64
+    };
+    assert!(within(&on_slice, on_sphere) > 0.9, "{on_sphere:?}");
+    assert!(within(&on_surface, on_ramp) > 0.9, "{on_ramp:?}");
+    assert!(
+        within(&on_slice, on_ramp) < 0.5 && within(&on_surface, on_sphere) < 0.5,
+        "{on_ramp:?} {on_sphere:?}"
+    );
+    let legend = Legend::of_frame(&scene, &v, &r);
+    let titles: Vec<&str> = legend.color_bars.iter().map(|b| b.title.as_str()).collect();
+    assert_eq!(titles, ["ramp", "sphere"]);
+
+    v.color_scale.range = Some((0.0, 3.0));
+    let err = render(&scene, &v, &|_| {}).unwrap_err().to_string();
+    assert!(err.contains("2 fields that paint"), "{err}");
+}
+
 /// A slice's default painter is the field that paints the surfaces, whichever of
 /// `set_slices` and `set_color_by` comes first (the CLI set the slices first and then refused
 /// `--slice` with `--color-by` as two colour scales).
@@ -226,10 +309,8 @@ fn levels_and_a_field_painting_one_frame_both_get_a_legend() {
         .unwrap();
     let r = render(&scene, &view(), &|_| {}).unwrap();
     let legend = Legend::of_frame(&scene, &view(), &r);
-    assert_eq!(
-        legend.color_bar.as_ref().map(|b| b.title.as_str()),
-        Some("ramp")
-    );
+    let titles: Vec<&str> = legend.color_bars.iter().map(|b| b.title.as_str()).collect();
+    assert_eq!(titles, ["ramp"]);
     let levels = scene.file().levels().len() as u32;
     for l in 0..levels {
         let entry = (format!("level {l}"), Some(Swatch::Patch(level_srgb8(l))));

@@ -72,8 +72,20 @@ pub fn frame_header(
             .collect();
         m.push(("color_by".into(), by.join(" ")));
     }
-    if let Some((lo, hi)) = rendered.color_range {
-        m.push(("color_range".into(), format!("{lo} {hi}")));
+    match rendered.color_ranges.as_slice() {
+        [] => {}
+        [one] => {
+            let (lo, hi) = one.range;
+            m.push(("color_range".into(), format!("{lo} {hi}")));
+        }
+        several => {
+            // Each painting field's range, `; ` apart (names may hold spaces).
+            let ranges: Vec<String> = several
+                .iter()
+                .map(|r| format!("{} {} {}", r.field, r.range.0, r.range.1))
+                .collect();
+            m.push(("color_ranges".into(), ranges.join("; ")));
+        }
     }
     if !scene.slices().is_empty() {
         let slices: Vec<String> = scene

@@ -46,8 +46,8 @@ pub enum Swatch {
 pub struct Legend {
     /// Lines at the top left, each with its swatch (`None`: no swatch).
     pub entries: Vec<(String, Option<Swatch>)>,
-    /// The colour bar of the field that paints.
-    pub color_bar: Option<ColorBar>,
+    /// The colour bars of the fields that paint, top to bottom on the right side.
+    pub color_bars: Vec<ColorBar>,
     /// The level palette's swatches, for this many levels.
     pub levels: Option<u32>,
     /// The camera, for the axis triad.
@@ -229,26 +229,28 @@ impl Legend {
                 entries.push((format!("level {l} boxes"), Some(swatch)));
             }
         }
-        let painters: Vec<&ColorBy> = scene.painters().collect();
-        let field_painter = painters.iter().find_map(|b| match b {
-            ColorBy::Field(name) => Some(name.clone()),
-            ColorBy::Level => None,
-        });
-        let by_level = painters.iter().any(|b| **b == ColorBy::Level);
+        let by_level = scene.painters().any(|b| *b == ColorBy::Level);
         // With levels painted too, a pixel whose value is its level was painted by level.
         let level_channel = by_level.then_some(rendered.frame.level.as_slice());
-        let color_bar = match (field_painter, rendered.color_range) {
-            (Some(title), Some(range)) => Some(ColorBar {
-                title,
+        let one_field = rendered.color_ranges.len() == 1;
+        let color_bars: Vec<ColorBar> = rendered
+            .color_ranges
+            .iter()
+            .map(|r| ColorBar {
+                title: r.field.clone(),
                 colormap: view.color_scale.colormap,
-                range,
+                range: r.range,
                 log: view.color_scale.log,
-                beyond: values_beyond(&rendered.frame.color_value, level_channel, range),
-            }),
-            _ => None,
-        };
+                // One field: every painted pixel of the frame is its. Several share the
+                // `color_value` channel, so each bar tells what its field's pre-pass saw.
+                beyond: match one_field {
+                    true => values_beyond(&rendered.frame.color_value, level_channel, r.range),
+                    false => r.beyond,
+                },
+            })
+            .collect();
         let mut levels = by_level.then_some(scene.file().levels().len() as u32);
-        if let (Some(n), Some(_)) = (levels, &color_bar) {
+        if let (Some(n), false) = (levels, color_bars.is_empty()) {
             // The colour bar takes the right side: the level palette joins the list.
             let palette =
                 (0..n).map(|l| (format!("level {l}"), Some(Swatch::Patch(level_srgb8(l)))));
@@ -257,7 +259,7 @@ impl Legend {
         }
         Legend {
             entries,
-            color_bar,
+            color_bars,
             levels,
             camera: Some(rendered.camera),
         }
@@ -313,8 +315,22 @@ impl Legend {
             }
             text.draw(&mut canvas, s, x, y);
         }
-        if let Some(bar) = &self.color_bar {
-            self.draw_bar(&mut canvas, &text, bar);
+        if !self.color_bars.is_empty() {
+            // The bars share the right side's span, a title's height apart.
+            let n = self.color_bars.len() as f32;
+            let (top, bottom) = (h as f32 * 0.2, h as f32 * 0.8);
+            let gap = px * 4.0;
+            let each = (bottom - top - gap * (n - 1.0)) / n;
+            // One left edge for every bar: the panels line up.
+            let left = self
+                .color_bars
+                .iter()
+                .map(|b| bar_left(&text, b, w as f32))
+                .fold(f32::INFINITY, f32::min);
+            for (k, bar) in self.color_bars.iter().enumerate() {
+                let y0 = top + k as f32 * (each + gap);
+                self.draw_bar(&mut canvas, &text, bar, left, (y0, y0 + each));
+            }
         } else if let Some(n) = self.levels {
             let labels: Vec<String> = (0..n).map(|l| format!("level {l}")).collect();
             let tw = labels.iter().map(|s| text.width(s)).fold(0.0, f32::max);
@@ -340,22 +356,23 @@ impl Legend {
         }
     }
 
-    fn draw_bar(&self, canvas: &mut Canvas<'_>, text: &Text, bar: &ColorBar) {
-        let (w, h) = (canvas.w as f32, canvas.h as f32);
+    /// Draws `bar` on the right side from `x0` (its [`bar_left`], or further left) between
+    /// heights `top` and `bottom`, its title above.
+    fn draw_bar(
+        &self,
+        canvas: &mut Canvas<'_>,
+        text: &Text,
+        bar: &ColorBar,
+        x0: f32,
+        (top, bottom): (f32, f32),
+    ) {
+        let w = canvas.w as f32;
         let px = text.px;
-        let ticks = ticks(bar.range, bar.log);
-        let labels: Vec<(f64, String)> =
-            ticks.iter().copied().zip(distinct_labels(&ticks)).collect();
-        let label_w = labels.iter().map(|l| text.width(&l.1)).fold(0.0, f32::max);
+        let labels = bar_labels(bar);
         let bar_w = (w / 60.0).max(10.0);
-        let title = match bar.log {
-            true => format!("{} (log)", bar.title),
-            false => bar.title.clone(),
-        };
+        let title = bar_title(bar);
         let right = w - px;
-        let x0 = (right - label_w - px * 0.5 - bar_w).min(right - text.width(&title));
-        let (top, bottom) = (h * 0.2, h * 0.8);
-        let title_x = x0.min(right - text.width(&title));
+        let title_x = x0;
         canvas.panel(
             (title_x, top - px * 1.6),
             (right, bottom + px * 0.6),
@@ -409,6 +426,33 @@ impl Legend {
             text.draw(canvas, &s, x0 + bar_w + px * 0.5, y - px * 0.6);
         }
     }
+}
+
+/// The tick values of `bar` and their labels.
+fn bar_labels(bar: &ColorBar) -> Vec<(f64, String)> {
+    let ticks = ticks(bar.range, bar.log);
+    ticks.iter().copied().zip(distinct_labels(&ticks)).collect()
+}
+
+/// The title drawn above `bar`.
+fn bar_title(bar: &ColorBar) -> String {
+    match bar.log {
+        true => format!("{} (log)", bar.title),
+        false => bar.title.clone(),
+    }
+}
+
+/// The left edge of `bar`'s colours and title in a frame `w` wide: room on their right for the
+/// widest label, and for the title.
+fn bar_left(text: &Text, bar: &ColorBar, w: f32) -> f32 {
+    let px = text.px;
+    let label_w = bar_labels(bar)
+        .iter()
+        .map(|l| text.width(&l.1))
+        .fold(0.0, f32::max);
+    let bar_w = (w / 60.0).max(10.0);
+    let right = w - px;
+    (right - label_w - px * 0.5 - bar_w).min(right - text.width(&bar_title(bar)))
 }
 
 /// A line for surfaces made otherwise than by default (the octant reconstruction, traced
@@ -480,17 +524,26 @@ pub fn ticks((lo, hi): (f64, f64), log: bool) -> Vec<f64> {
     }
     let raw = (hi - lo) / 5.0;
     let mag = 10f64.powf(raw.log10().floor());
-    let step = [1.0, 2.0, 2.5, 5.0, 10.0]
+    let steps = [0.5, 1.0, 2.0, 2.5, 5.0, 10.0].map(|m| m * mag);
+    let at = steps[1..]
         .iter()
-        .map(|m| m * mag)
-        .find(|s| *s >= raw)
-        .unwrap_or(10.0 * mag);
-    let first = (lo / step - 1e-9).ceil() as i64;
-    (first..)
-        .map(|k| k as f64 * step)
-        .take_while(|v| *v <= hi + 1e-9 * step)
-        .take(12)
-        .collect()
+        .position(|s| *s >= raw)
+        .map_or(5, |k| k + 1);
+    let in_steps = |step: f64| -> Vec<f64> {
+        let first = (lo / step - 1e-9).ceil() as i64;
+        (first..)
+            .map(|k| k as f64 * step)
+            .take_while(|v| *v <= hi + 1e-9 * step)
+            .take(12)
+            .collect()
+    };
+    // The first round step at least a fifth of the range can leave two ticks (20 to 560 in
+    // steps of 200): then the next smaller one.
+    let ticks = in_steps(steps[at]);
+    match ticks.len() < 3 {
+        true => in_steps(steps[at - 1]),
+        false => ticks,
+    }
 }
 
 /// The world axes as the camera sees them, at the bottom left: x red, y green, z blue.
@@ -538,6 +591,11 @@ mod tests {
             "a log bar over two decades is labelled at more than its powers of ten"
         );
         assert_eq!(ticks((1.5, 16.0), true), vec![2.0, 5.0, 10.0]);
+        assert_eq!(
+            ticks((20.0, 560.0), false),
+            vec![100.0, 200.0, 300.0, 400.0, 500.0],
+            "a range the first round step would label twice takes the next smaller"
+        );
         let t = ticks((1.0, 1.0000141), false);
         assert_eq!(t.len(), 3, "the tick at the range's low end is kept: {t:?}");
         assert!((t[0] - 1.0).abs() < 1e-12, "{t:?}");
@@ -575,13 +633,13 @@ mod tests {
         let draw = |beyond| {
             let mut rgb = vec![128u8; (3 * w * h) as usize];
             let legend = Legend {
-                color_bar: Some(ColorBar {
+                color_bars: vec![ColorBar {
                     title: "T".into(),
                     colormap: Colormap::default(),
                     range: (0.0, 1.0),
                     log: false,
                     beyond,
-                }),
+                }],
                 ..Legend::default()
             };
             legend.draw(&mut rgb, w, h);

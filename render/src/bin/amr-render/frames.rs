@@ -157,7 +157,7 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         if let Some(s) = step {
             extra.push(("simulation_step", s.to_string()));
         }
-        if rendered.color_range.is_some() {
+        if !rendered.color_ranges.is_empty() {
             let c = &view.color_scale;
             extra.push((
                 "colormap",

@@ -247,7 +247,8 @@ impl RenderArgs {
 
     /// An error when the options of the colour scale (`--colormap`, `--color-range`,
     /// `--color-log`) are given but no field paints a surface or a slice: they would change
-    /// nothing, and the user who gave them expected colour.
+    /// nothing, and the user who gave them expected colour. Also when one `--color-range` is
+    /// given for several fields that paint, each with its own range.
     fn check_color_scale_applies(&self) -> anyhow::Result<()> {
         let paints_field = self
             .color_by
@@ -263,6 +264,22 @@ impl RenderArgs {
         .into_iter()
         .filter_map(|(on, name)| on.then_some(name))
         .collect();
+        let mut fields: Vec<&str> = Vec::new();
+        for c in self.color_by.iter().chain([&self.slice_field]) {
+            if let Some(ColorBy::Field(name)) = c {
+                if !fields.contains(&name.as_str()) {
+                    fields.push(name);
+                }
+            }
+        }
+        if let (Some(_), true) = (&self.color_range, fields.len() > 1) {
+            bail!(
+                "--color-range gives one range, but {} fields paint ({}): each takes the 1st to \
+                 99th percentile of its own values in view, on its own colour bar",
+                fields.len(),
+                fields.join(", ")
+            );
+        }
         if paints_field || given.is_empty() {
             return Ok(());
         }

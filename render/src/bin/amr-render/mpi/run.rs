@@ -224,7 +224,7 @@ fn write_rank0(
         frame,
         camera,
         stats: frame_stats.clone(),
-        color_range: None,
+        color_ranges: Vec::new(),
     };
     let totals = MpiTotals {
         mpi_mode: mode.name(),

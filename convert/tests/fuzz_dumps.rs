@@ -12,18 +12,20 @@
 //! A failing dump is kept in `target/convert-fuzz/seedN/` with a report of its damage and the
 //! error. Skipped, with a message, when the shared data is absent.
 
-// The integration tests' support code, for `shared_data`.
+// The integration tests' support code, for `shared_data`, and its child-process runner.
+#[path = "../../tests/tests/support/child.rs"]
+mod child;
 #[path = "../../tests/tests/support/mod.rs"]
 #[allow(dead_code)]
 mod support;
 
-use std::io::Read;
-use std::os::unix::process::{CommandExt, ExitStatusExt};
+use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
+use std::time::Duration;
 
 use amr_format::AmrkFile;
+use child::{run_killed_after, Outcome};
 use support::amrex::shared_data;
 
 const BIN: &str = env!("CARGO_BIN_EXE_amr-convert");
@@ -44,18 +46,10 @@ struct Dump {
     fields: &'static [&'static str],
 }
 
-/// How a run ended.
-struct Outcome {
-    code: Option<i32>,
-    signal: Option<i32>,
-    stderr: String,
-    timed_out: bool,
-}
-
 /// Runs `amr-convert args` with [`MEMORY_LIMIT`], killing it after [`TIMEOUT`].
 fn run(args: &[&std::ffi::OsStr]) -> Outcome {
     let mut cmd = Command::new(BIN);
-    cmd.args(args).stdout(Stdio::null()).stderr(Stdio::piped());
+    cmd.args(args);
     // SAFETY: the closure runs in the forked child before exec and only calls setrlimit, which
     // is async-signal-safe; it touches no memory of the parent's other threads.
     unsafe {
@@ -70,30 +64,7 @@ fn run(args: &[&std::ffi::OsStr]) -> Outcome {
             Ok(())
         });
     }
-    let mut child = cmd.spawn().unwrap();
-    let mut pipe = child.stderr.take().unwrap();
-    let reader = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = pipe.read_to_string(&mut s);
-        s
-    });
-    let start = Instant::now();
-    let (status, timed_out) = loop {
-        if let Some(st) = child.try_wait().unwrap() {
-            break (st, false);
-        }
-        if start.elapsed() > TIMEOUT {
-            let _ = child.kill();
-            break (child.wait().unwrap(), true);
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    };
-    Outcome {
-        code: status.code(),
-        signal: status.signal(),
-        stderr: reader.join().unwrap(),
-        timed_out,
-    }
+    run_killed_after(cmd, TIMEOUT)
 }
 
 /// A small deterministic generator (xorshift64*), so that a seed names its case.

@@ -9,6 +9,11 @@ use amr_format::WriterOptions;
 use amr_render::output::exr_file::read_channel;
 use amr_synth::{write_synth, Case, SynthParams};
 
+// The two-field file of the integration tests' support.
+#[path = "../../tests/tests/support/synth_file.rs"]
+#[allow(dead_code)]
+mod synth_file;
+
 fn amr_render(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_amr-render"))
         .args(args)
@@ -1381,18 +1386,9 @@ fn an_isosurface_of_another_field_is_drawn_and_named() {
 
 /// A two-level file of fields `sphere` and `ramp` in `dir`.
 fn sphere_and_ramp(dir: &Path) -> PathBuf {
-    let path = dir.join("two.amrk");
-    let mut spec = amr_synth::build_hierarchy(
-        &Case::Sphere,
-        "sphere",
-        &SynthParams::unit_cube(2, 2, 16, 8),
-    )
-    .unwrap();
-    spec.fields = vec!["sphere".into(), "ramp".into()];
-    let sphere = |p: [f64; 3]| amr_synth::AnalyticField::value(&Case::Sphere, p);
-    let ramp = |p: [f64; 3]| p[0] + 0.5 * p[1];
-    amr_synth::write_fields(&path, spec, &[&sphere, &ramp], WriterOptions::default()).unwrap();
-    path
+    synth_file::sphere_and_ramp(dir, &SynthParams::unit_cube(2, 2, 16, 8), &|p| {
+        p[0] + 0.5 * p[1]
+    })
 }
 
 /// A time series whose later file lacks the field of an `--iso FIELD=V` stops before its first

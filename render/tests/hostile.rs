@@ -8,11 +8,10 @@
 //! (`AMR_FUZZ_SEED` moves the seeds; `AMR_FUZZ_BIN` runs another `amr-render` binary, such as an
 //! installed or older one). Failing files are kept in `target/hostile-fuzz/`.
 
-use std::io::Read;
 use std::os::unix::fs::FileExt;
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use amr_format::progress::NoProgress;
@@ -20,24 +19,29 @@ use amr_format::raw::{Footer, KdLeaf, KD_LEAF};
 use amr_format::reader::recompute_checksums;
 use amr_format::{Compression, WriterOptions};
 use amr_render::mapping::open_mapped;
-use amr_synth::{build_hierarchy, write_fields, write_synth, AnalyticField, Case, SynthParams};
+use amr_synth::{write_synth, Case, SynthParams};
 use zerocopy::FromBytes;
+
+// The child-process runner and the two-field file of the integration tests' support.
+#[path = "../../tests/tests/support/child.rs"]
+mod child;
+#[path = "../../tests/tests/support/synth_file.rs"]
+#[allow(dead_code)]
+mod synth_file;
+
+use child::{run_killed_after, Outcome};
 
 const BIN: &str = env!("CARGO_BIN_EXE_amr-render");
 /// A run taking longer than this is a hang.
 const TIMEOUT: Duration = Duration::from_secs(20);
 
-/// How a run ended.
-#[derive(Debug)]
-struct Outcome {
-    code: Option<i32>,
-    signal: Option<i32>,
-    stderr: String,
-    timed_out: bool,
+/// Whether a run ended as the fuzzers require.
+trait EndedCleanly {
+    /// Exit 0, or exit 1 with an `Error:` message; `None` when so, else what is wrong.
+    fn problem(&self) -> Option<String>;
 }
 
-impl Outcome {
-    /// Exit 0, or exit 1 with an `Error:` message; `None` when so, else what is wrong.
+impl EndedCleanly for Outcome {
     fn problem(&self) -> Option<String> {
         match (self.timed_out, self.signal, self.code) {
             (true, ..) => Some("timed out".into()),
@@ -56,35 +60,9 @@ fn run(args: &[&str]) -> Outcome {
 
 /// Runs `bin args`, killing it after [`TIMEOUT`].
 fn run_bin(bin: &std::ffi::OsStr, args: &[&str]) -> Outcome {
-    let mut child = Command::new(bin)
-        .args(args)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut pipe = child.stderr.take().unwrap();
-    let reader = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = pipe.read_to_string(&mut s);
-        s
-    });
-    let start = Instant::now();
-    let (status, timed_out) = loop {
-        if let Some(st) = child.try_wait().unwrap() {
-            break (st, false);
-        }
-        if start.elapsed() > TIMEOUT {
-            let _ = child.kill();
-            break (child.wait().unwrap(), true);
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    };
-    Outcome {
-        code: status.code(),
-        signal: status.signal(),
-        stderr: reader.join().unwrap(),
-        timed_out,
-    }
+    let mut cmd = Command::new(bin);
+    cmd.args(args);
+    run_killed_after(cmd, TIMEOUT)
 }
 
 /// A small synthetic file and an isovalue crossing its field.
@@ -93,14 +71,7 @@ fn base_file(dir: &Path, case: Case, compress: bool) -> (PathBuf, f32) {
         "{case}{}.amrk",
         if compress { "-zstd" } else { "" }
     ));
-    let params = SynthParams {
-        levels: 3,
-        ratio: 2,
-        base: 8,
-        brick: 4,
-        origin: [0.0; 3],
-        size: 1.0,
-    };
+    let params = small_params();
     let compression = if compress {
         Compression::Zstd { level: 3 }
     } else {
@@ -270,23 +241,21 @@ fn fuzz_mutated_files_exit_cleanly() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
-/// A small two-field file: `sphere`, refined around its zero surface, and `ramp`.
-fn two_field_file(dir: &Path) -> PathBuf {
-    let path = dir.join("two.amrk");
-    let params = SynthParams {
+/// The synthetic files' hierarchy: three levels, bricks of 4 cells.
+fn small_params() -> SynthParams {
+    SynthParams {
         levels: 3,
         ratio: 2,
         base: 8,
         brick: 4,
         origin: [0.0; 3],
         size: 1.0,
-    };
-    let mut spec = build_hierarchy(&Case::Sphere, "sphere", &params).unwrap();
-    spec.fields = vec!["sphere".into(), "ramp".into()];
-    let sphere = |p: [f64; 3]| AnalyticField::value(&Case::Sphere, p);
-    let ramp = |p: [f64; 3]| p[0] + 0.5 * p[1];
-    write_fields(&path, spec, &[&sphere, &ramp], WriterOptions::default()).unwrap();
-    path
+    }
+}
+
+/// A small two-field file: `sphere`, refined around its zero surface, and `ramp`.
+fn two_field_file(dir: &Path) -> PathBuf {
+    synth_file::sphere_and_ramp(dir, &small_params(), &|p| p[0] + 0.5 * p[1])
 }
 
 /// The fuzzer of [`fuzz_mutated_files_exit_cleanly`] on a file of two fields, whose second

@@ -20,6 +20,7 @@ use amr_render::{
 use amr_synth::{build_hierarchy, write_fields, AnalyticField, Case, SynthParams};
 
 use crate::support::golden::assert_matches_golden;
+use crate::support::synth_file::sphere_and_ramp;
 
 /// Size of a coarse cell of the fixture.
 const COARSE: f64 = 1.0 / 16.0;
@@ -28,19 +29,9 @@ fn ramp(p: [f64; 3]) -> f64 {
     p[0] + 2.0 * p[1]
 }
 
-/// A two-level file with fields `names`, `sphere` refined around the sphere.
-fn two_fields(dir: &Path, names: [&str; 2], second: &(dyn Fn([f64; 3]) -> f64 + Sync)) -> PathBuf {
-    let path = dir.join("two.amrk");
-    let mut spec = build_hierarchy(
-        &Case::Sphere,
-        "sphere",
-        &SynthParams::unit_cube(2, 2, 16, 8),
-    )
-    .unwrap();
-    spec.fields = names.iter().map(|s| s.to_string()).collect();
-    let sphere = |p: [f64; 3]| Case::Sphere.value(p);
-    write_fields(&path, spec, &[&sphere, second], WriterOptions::default()).unwrap();
-    path
+/// A two-level file of fields `sphere`, refined around the sphere, and `ramp`.
+fn two_fields(dir: &Path) -> PathBuf {
+    sphere_and_ramp(dir, &SynthParams::unit_cube(2, 2, 16, 8), &ramp)
 }
 
 fn scene(path: &Path) -> Scene {
@@ -77,7 +68,7 @@ fn rgb(r: &Rendered, i: usize) -> [f64; 3] {
 #[test]
 fn a_surface_painted_by_a_second_field_has_its_colormap_colour_at_each_hit() {
     let dir = tempfile::tempdir().unwrap();
-    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let path = two_fields(dir.path());
     let mut scene = scene(&path);
     // Black: the unpainted frame is the specular highlight alone, the same in both frames.
     let black = IsoSpec {
@@ -134,7 +125,7 @@ fn a_surface_painted_by_a_second_field_has_its_colormap_colour_at_each_hit() {
 #[test]
 fn a_slice_shows_the_field_at_each_of_its_points() {
     let dir = tempfile::tempdir().unwrap();
-    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let path = two_fields(dir.path());
     let mut scene = scene(&path);
     scene.set_isosurfaces(&[]).unwrap();
     let slice = Slice::parse_axis("z=0.4").unwrap();
@@ -194,7 +185,7 @@ fn a_slice_shows_the_field_at_each_of_its_points() {
 #[test]
 fn a_surface_and_a_slice_painted_by_two_fields_each_take_their_own_range() {
     let dir = tempfile::tempdir().unwrap();
-    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let path = two_fields(dir.path());
     let mut scene = scene(&path);
     scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
     scene
@@ -272,7 +263,7 @@ fn a_surface_and_a_slice_painted_by_two_fields_each_take_their_own_range() {
 #[test]
 fn a_slice_takes_the_surfaces_painter_whichever_is_set_first() {
     let dir = tempfile::tempdir().unwrap();
-    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let path = two_fields(dir.path());
     let slice = Slice::parse_axis("z=0.4").unwrap();
     let ramp_paints = [Some(ColorBy::Field("ramp".into()))];
     let mut slices_first = scene(&path);
@@ -300,7 +291,7 @@ fn a_slice_takes_the_surfaces_painter_whichever_is_set_first() {
 #[test]
 fn levels_and_a_field_painting_one_frame_both_get_a_legend() {
     let dir = tempfile::tempdir().unwrap();
-    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let path = two_fields(dir.path());
     let mut scene = scene(&path);
     scene.set_color_by(&[Some(ColorBy::Level)]).unwrap();
     let slice = Slice::parse_axis("z=0.4").unwrap();
@@ -323,7 +314,7 @@ fn levels_and_a_field_painting_one_frame_both_get_a_legend() {
 #[test]
 fn a_frame_names_a_reconstruction_or_method_other_than_the_default() {
     let dir = tempfile::tempdir().unwrap();
-    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let path = two_fields(dir.path());
     let line = |reconstruction, method| {
         let options = SceneOptions {
             field: Some("sphere".into()),
@@ -357,7 +348,7 @@ fn a_frame_names_a_reconstruction_or_method_other_than_the_default() {
 #[test]
 fn a_clipped_frame_names_its_clip_box() {
     let dir = tempfile::tempdir().unwrap();
-    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let path = two_fields(dir.path());
     let mut scene = scene(&path);
     scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
     scene
@@ -378,7 +369,7 @@ fn a_clipped_frame_names_its_clip_box() {
 #[test]
 fn level_painting_shows_each_hit_s_level() {
     let dir = tempfile::tempdir().unwrap();
-    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let path = two_fields(dir.path());
     let mut scene = scene(&path);
     scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
     scene.set_color_by(&[Some(ColorBy::Level)]).unwrap();
@@ -419,7 +410,7 @@ fn to_segment(q: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
 #[test]
 fn the_domain_outline_is_drawn_where_its_edges_project_and_nowhere_else() {
     let dir = tempfile::tempdir().unwrap();
-    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let path = two_fields(dir.path());
     let mut scene = scene(&path);
     scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
     let plain = render(&scene, &view(), &|_| {}).unwrap();
@@ -533,7 +524,7 @@ fn a_median_on_a_floor_gives_the_median_above_the_floor() {
 #[test]
 fn a_painted_frame_with_its_legend_matches_the_golden_preview() {
     let dir = tempfile::tempdir().unwrap();
-    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let path = two_fields(dir.path());
     let mut scene = scene(&path);
     scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
     scene
@@ -556,7 +547,7 @@ fn a_painted_frame_with_its_legend_matches_the_golden_preview() {
 #[test]
 fn level_boxes_are_not_drawn_in_a_surface_colour_unless_surfaces_are_painted_by_level() {
     let dir = tempfile::tempdir().unwrap();
-    let path = two_fields(dir.path(), ["sphere", "ramp"], &ramp);
+    let path = two_fields(dir.path());
     let mut scene = scene(&path);
     // The default palette's first two colours are close to the level palette's first two.
     scene

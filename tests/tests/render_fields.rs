@@ -3,27 +3,18 @@
 
 use std::path::{Path, PathBuf};
 
-use amr_format::WriterOptions;
 use amr_render::shade::IsoSpec;
 use amr_render::view::CameraPlacement;
 use amr_render::{render, Rendered, Scene, SceneOptions, TraceMethod, View};
-use amr_synth::{build_hierarchy, write_fields, AnalyticField, Case, SynthParams};
+use amr_synth::SynthParams;
+
+use crate::support::synth_file::sphere_and_ramp;
 
 /// A two-level file with fields `sphere` (refined around its zero surface) and `ramp`, a plane
 /// wave across it.
 fn two_fields(dir: &Path) -> PathBuf {
-    let path = dir.join("two.amrk");
-    let mut spec = build_hierarchy(
-        &Case::Sphere,
-        "sphere",
-        &SynthParams::unit_cube(2, 2, 16, 8),
-    )
-    .unwrap();
-    spec.fields = vec!["sphere".into(), "ramp".into()];
-    let sphere = |p: [f64; 3]| Case::Sphere.value(p);
     let ramp = |p: [f64; 3]| p[0] + 0.5 * p[1] + 0.25 * p[2];
-    write_fields(&path, spec, &[&sphere, &ramp], WriterOptions::default()).unwrap();
-    path
+    sphere_and_ramp(dir, &SynthParams::unit_cube(2, 2, 16, 8), &ramp)
 }
 
 fn open(path: &Path, field: &str) -> Scene {

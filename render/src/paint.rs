@@ -68,9 +68,8 @@ pub struct PaintedTracer<'a, T: ?Sized> {
     pub slices: Vec<GridSlice<'a>>,
     /// The source whose levels [`Painter::Level`] paints slices with.
     pub levels: &'a (dyn VoxelSource + 'a),
-    /// Values to colours: the colormap and log scale of every field, and the range of a field
-    /// given one.
-    pub scale: ColorScale,
+    /// Values to colours, per field that paints: its colormap, log scale and given range.
+    pub scales: Vec<ColorScale>,
     /// The values at the colormap's ends, per field that paints.
     pub ranges: Vec<(f64, f64)>,
 }
@@ -88,7 +87,7 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
     fn color(&self, painter: Painter<'_>, value: f32) -> [f32; 3] {
         match painter {
             Painter::Level => level_linear(value.max(0.0) as u32),
-            Painter::Field(_, k) => self.scale.linear(f64::from(value), self.ranges[k]),
+            Painter::Field(_, k) => self.scales[k].linear(f64::from(value), self.ranges[k]),
         }
     }
 
@@ -126,17 +125,16 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
         })
     }
 
-    /// Per field that paints (`fields` of them, in the order of [`Painter::Field`]'s index),
-    /// the robust range of its values that the primary rays of `camera` (every
-    /// [`RANGE_STRIDE`]-th pixel of a `w x h` frame) meet before an opaque layer, with `opacity`
-    /// per surface and slice, and whether some of those values lie below and above it; `None`
-    /// for a field none of whose values is seen.
+    /// Per field that paints (one per entry of [`Self::scales`], in the order of
+    /// [`Painter::Field`]'s index), its scale's range, else the robust range of its values that
+    /// the primary rays of `camera` (every [`RANGE_STRIDE`]-th pixel of a `w x h` frame) meet
+    /// before an opaque layer, with `opacity` per surface and slice; and whether some of those
+    /// values lie below and above it. `None` for a field none of whose values is seen.
     pub fn visible_ranges(
         &self,
         camera: &Camera,
         (w, h): (u32, u32),
         opacity: &[f32],
-        fields: usize,
     ) -> Vec<Option<VisibleRange>> {
         let frame = self.inner.frame();
         let rows: Vec<u32> = (0..h).step_by(RANGE_STRIDE as usize).collect();
@@ -152,14 +150,14 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
                 out
             })
             .collect();
-        (0..fields)
+        (0..self.scales.len())
             .map(|k| {
                 let mut values: Vec<f32> = seen
                     .iter()
                     .filter(|(f, _)| *f == k)
                     .map(|(_, v)| *v)
                     .collect();
-                let range = self.scale.resolve(&mut values)?;
+                let range = self.scales[k].resolve(&mut values)?;
                 let past = |below: bool| {
                     values.iter().any(|&v| match below {
                         true => f64::from(v) < range.0,

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use crate::camera::Camera;
 use crate::clip::ClipBox;
-use crate::coloring::ColorBy;
+use crate::coloring::{ColorBy, ColorScale};
 use crate::error::{RenderError, Result};
 use crate::outline;
 use crate::output::frame::{FrameBuffer, PixelSample, FRAME_PLANES};
@@ -40,6 +40,8 @@ pub struct Rendered {
 pub struct PaintedRange {
     /// The field's name.
     pub field: String,
+    /// Its scale: [`View::color_scale`], or its own from [`View::field_scales`].
+    pub scale: ColorScale,
     /// The values at the colormap's ends.
     pub range: (f64, f64),
     /// Whether values of the field that the colour-range pre-pass met (every fourth pixel on
@@ -220,9 +222,6 @@ fn with_scene_tracer<R>(
         method,
         (view, scene.clip()),
         |tracer, camera, light| {
-            if scene.painters().next().is_none() {
-                return Ok((run(tracer, camera, light), Vec::new()));
-            }
             // The fields that paint, in the order they first do: one colour range each.
             let mut fields: Vec<&str> = Vec::new();
             for by in scene.painters() {
@@ -232,14 +231,36 @@ fn with_scene_tracer<R>(
                     }
                 }
             }
-            if let (Some((lo, hi)), true) = (view.color_scale.range, fields.len() > 1) {
+            if let Some((name, _)) = view
+                .field_scales
+                .iter()
+                .find(|(n, _)| !fields.contains(&n.as_str()))
+            {
                 return Err(RenderError::Invalid(format!(
-                    "one colour range {lo}:{hi} for {} fields that paint ({}): each field \
-                     takes the range of its own values in view",
-                    fields.len(),
-                    fields.join(", ")
+                    "a colour scale for {name}, which paints nothing in this frame"
                 )));
             }
+            if scene.painters().next().is_none() {
+                return Ok((run(tracer, camera, light), Vec::new()));
+            }
+            let own = |f: &str| view.field_scales.iter().find(|(n, _)| n == f).map(|s| s.1);
+            let shared: Vec<&str> = fields
+                .iter()
+                .copied()
+                .filter(|f| own(f).is_none())
+                .collect();
+            if let (Some((lo, hi)), true) = (view.color_scale.range, shared.len() > 1) {
+                return Err(RenderError::Invalid(format!(
+                    "one colour range {lo}:{hi} for {} fields that paint ({}): each field \
+                     takes the range of its own values in view, or the one its own scale gives",
+                    shared.len(),
+                    shared.join(", ")
+                )));
+            }
+            let scales: Vec<ColorScale> = fields
+                .iter()
+                .map(|f| own(f).unwrap_or(view.color_scale))
+                .collect();
             let painter = |by: &ColorBy| match (
                 by,
                 scene.color_field(by).and_then(|f| scene.color_source(f)),
@@ -269,7 +290,7 @@ fn with_scene_tracer<R>(
                     .map(|(s, by)| GridSlice::new(s, &frame, painter(by)))
                     .collect(),
                 levels: scene.source(),
-                scale: view.color_scale,
+                scales: scales.clone(),
                 ranges: Vec::new(),
             };
             let mut light = light.clone();
@@ -277,7 +298,7 @@ fn with_scene_tracer<R>(
                 light.colors.push([1.0; 3]);
                 light.opacity.push(s.opacity);
             }
-            let seen = painted.visible_ranges(camera, view.size, &light.opacity, fields.len());
+            let seen = painted.visible_ranges(camera, view.size, &light.opacity);
             painted.ranges = seen
                 .iter()
                 .map(|r| r.map_or((0.0, 1.0), |r| r.range))
@@ -285,9 +306,11 @@ fn with_scene_tracer<R>(
             let ranges = fields
                 .iter()
                 .zip(&seen)
-                .filter_map(|(field, r)| {
+                .zip(&scales)
+                .filter_map(|((field, r), scale)| {
                     r.map(|r| PaintedRange {
                         field: field.to_string(),
+                        scale: *scale,
                         range: r.range,
                         beyond: r.beyond,
                     })

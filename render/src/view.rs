@@ -53,6 +53,8 @@ pub struct View {
     pub sample_step: Option<f64>,
     /// How the values that paint surfaces and slices become colours.
     pub color_scale: ColorScale,
+    /// Fields painted with a scale of their own instead of `color_scale`, by name.
+    pub field_scales: Vec<(String, ColorScale)>,
     /// The boxes drawn as lines (scene frames only).
     pub outline: Outline,
 }
@@ -70,6 +72,7 @@ impl Default for View {
             smooth_normals: true,
             sample_step: None,
             color_scale: ColorScale::default(),
+            field_scales: Vec::new(),
             outline: Outline::None,
         }
     }
@@ -107,6 +110,11 @@ impl View {
             }
         }
         self.color_scale.validate().map_err(RenderError::Invalid)?;
+        for (field, scale) in &self.field_scales {
+            scale
+                .validate()
+                .map_err(|e| RenderError::Invalid(format!("{field}: {e}")))?;
+        }
         if let Some(CameraPlacement {
             pos,
             look_at: Some(look),

@@ -1499,3 +1499,55 @@ fn two_fields_painting_one_frame_render_and_refuse_one_shared_range() {
         stderr(&o)
     );
 }
+
+/// `--color-scale FIELD=...` gives one painting field its own colormap, log scale or range
+/// (so a shared `--color-range` is then the other field's alone); one for a field that paints
+/// nothing is refused.
+#[test]
+fn a_field_takes_its_own_colour_scale() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = sphere_and_ramp(dir.path());
+    let out = dir.path().join("f.png");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            path.to_str().unwrap(),
+            "--field",
+            "sphere",
+            "--iso",
+            "0",
+            "--color-by",
+            "ramp",
+            "--slice",
+            "z=0.4",
+            "--slice-field",
+            "sphere",
+            "--size",
+            "64x48",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        amr_render(&args)
+    };
+    let o = run(&[
+        "--color-scale",
+        "sphere=magma:0:0.5",
+        "--color-range",
+        "0:3",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = run(&["--color-scale", "nope=magma"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("nope paints nothing in this frame (painting: ramp, sphere)"),
+        "{}",
+        stderr(&o)
+    );
+    let o = run(&["--color-scale", "sphere=nope"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("unknown colormap 'nope'"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -255,6 +255,46 @@ fn a_surface_and_a_slice_painted_by_two_fields_each_take_their_own_range() {
     v.color_scale.range = Some((0.0, 3.0));
     let err = render(&scene, &v, &|_| {}).unwrap_err().to_string();
     assert!(err.contains("2 fields that paint"), "{err}");
+
+    // A field with a scale of its own: its colormap and range paint it; the given range is
+    // then the other field's alone.
+    let magma = ColorScale {
+        colormap: Colormap::Magma,
+        range: Some((0.0, 0.5)),
+        log: false,
+    };
+    v.field_scales = vec![("sphere".into(), magma)];
+    let r = render(&scene, &v, &|_| {}).unwrap();
+    let got: Vec<(&str, (f64, f64), Colormap)> = r
+        .color_ranges
+        .iter()
+        .map(|c| (c.field.as_str(), c.range, c.scale.colormap))
+        .collect();
+    assert_eq!(
+        got,
+        [
+            ("ramp", (0.0, 3.0), Colormap::Viridis),
+            ("sphere", (0.0, 0.5), Colormap::Magma)
+        ]
+    );
+    let mut checked = 0;
+    for i in 0..r.frame.len() {
+        let p = hit(&r, i);
+        if r.frame.alpha[i] == 0.0 || (p[2] - 0.4).abs() > 1e-6 {
+            continue;
+        }
+        let want = magma.linear(f64::from(r.frame.color_value[i]), (0.0, 0.5));
+        for c in 0..3 {
+            assert!((r.frame.rgb[c][i] - want[c]).abs() < 1e-6, "pixel {i}");
+        }
+        checked += 1;
+    }
+    assert!(checked > 300, "{checked} slice pixels");
+    let legend = Legend::of_frame(&scene, &v, &r);
+    assert_eq!(legend.color_bars[1].colormap, Colormap::Magma);
+    v.field_scales = vec![("nope".into(), magma)];
+    let err = render(&scene, &v, &|_| {}).unwrap_err().to_string();
+    assert!(err.contains("nope, which paints nothing"), "{err}");
 }
 
 /// A slice's default painter is the field that paints the surfaces, whichever of

@@ -79,10 +79,14 @@ pub fn frame_header(
             m.push(("color_range".into(), format!("{lo} {hi}")));
         }
         several => {
-            // Each painting field's range, `; ` apart (names may hold spaces).
+            // Each painting field's range and colormap, `; ` apart (names may hold spaces).
             let ranges: Vec<String> = several
                 .iter()
-                .map(|r| format!("{} {} {}", r.field, r.range.0, r.range.1))
+                .map(|r| {
+                    let log = if r.scale.log { " log" } else { "" };
+                    let (lo, hi) = r.range;
+                    format!("{} {lo} {hi} {}{log}", r.field, r.scale.colormap)
+                })
                 .collect();
             m.push(("color_ranges".into(), ranges.join("; ")));
         }

@@ -238,9 +238,9 @@ impl Legend {
             .iter()
             .map(|r| ColorBar {
                 title: r.field.clone(),
-                colormap: view.color_scale.colormap,
+                colormap: r.scale.colormap,
                 range: r.range,
-                log: view.color_scale.log,
+                log: r.scale.log,
                 // One field: every painted pixel of the frame is its. Several share the
                 // `color_value` channel, so each bar tells what its field's pre-pass saw.
                 beyond: match one_field {

@@ -157,8 +157,8 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         if let Some(s) = step {
             extra.push(("simulation_step", s.to_string()));
         }
-        if !rendered.color_ranges.is_empty() {
-            let c = &view.color_scale;
+        if let [one] = rendered.color_ranges.as_slice() {
+            let c = &one.scale;
             extra.push((
                 "colormap",
                 format!("{}{}", c.colormap, if c.log { " log" } else { "" }),

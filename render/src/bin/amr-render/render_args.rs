@@ -13,6 +13,7 @@ use anyhow::bail;
 use clap::Args;
 
 use crate::animation::{Animation, IsoSweep};
+use crate::field_scale_arg::FieldScaleArg;
 use crate::surface_arg::SurfaceArg;
 
 /// Most worker threads `--threads` may ask for.
@@ -57,6 +58,15 @@ pub struct RenderArgs {
     /// Map the logarithm of the values.
     #[arg(long)]
     pub color_log: bool,
+    /// A field painted with a scale of its own: colormap, `log` or `linear`, range, each else
+    /// the frame's (--colormap, --color-log, its values in view); repeat for several fields:
+    /// --color-scale 'Y(OH)=magma:log'.
+    #[arg(
+        long = "color-scale",
+        value_name = "FIELD=[COLORMAP][:log][:LO:HI]",
+        allow_hyphen_values = true
+    )]
+    pub field_scale: Vec<FieldScaleArg>,
     /// A slice across an axis: x=0.5, with an optional opacity (z=0.008:0.6); repeatable.
     #[arg(long, value_name = "AXIS=VALUE[:OPACITY]", value_parser = Slice::parse_axis, allow_hyphen_values = true)]
     pub slice: Vec<Slice>,
@@ -260,6 +270,7 @@ impl RenderArgs {
             (self.colormap.is_some(), "--colormap"),
             (self.color_range.is_some(), "--color-range"),
             (self.color_log, "--color-log"),
+            (!self.field_scale.is_empty(), "--color-scale"),
         ]
         .into_iter()
         .filter_map(|(on, name)| on.then_some(name))
@@ -272,13 +283,37 @@ impl RenderArgs {
                 }
             }
         }
-        if let (Some(_), true) = (&self.color_range, fields.len() > 1) {
+        let own = |f: &str| self.field_scale.iter().any(|s| s.field == f);
+        let shared: Vec<&str> = fields.iter().copied().filter(|f| !own(f)).collect();
+        if let (Some(_), true) = (&self.color_range, shared.len() > 1) {
             bail!(
                 "--color-range gives one range, but {} fields paint ({}): each takes the 1st to \
-                 99th percentile of its own values in view, on its own colour bar",
-                fields.len(),
-                fields.join(", ")
+                 99th percentile of its own values in view, on its own colour bar (or give a \
+                 field its range: --color-scale FIELD=:LO:HI)",
+                shared.len(),
+                shared.join(", ")
             );
+        }
+        // A field's scale when the fields that paint are all named (a slice left to its
+        // default painter with no field painting surfaces takes the scene's field, named or
+        // not: the renderer checks that case).
+        let slice_default = self.has_slices() && self.slice_field.is_none() && fields.is_empty();
+        if !slice_default {
+            if let Some(s) = self
+                .field_scale
+                .iter()
+                .find(|s| !fields.contains(&s.field.as_str()))
+            {
+                bail!(
+                    "--color-scale {}=...: {} paints nothing in this frame{}",
+                    s.field,
+                    s.field,
+                    match fields.is_empty() {
+                        true => String::new(),
+                        false => format!(" (painting: {})", fields.join(", ")),
+                    }
+                );
+            }
         }
         if paints_field || given.is_empty() {
             return Ok(());
@@ -399,6 +434,14 @@ impl RenderArgs {
                  (each rank extracts its part of that field)"
             );
         }
+        let color_scale = ColorScale {
+            colormap: self.colormap.unwrap_or_default(),
+            range: match self.color_range {
+                Some(ColorRange::Fixed(lo, hi)) => Some((lo, hi)),
+                _ => None,
+            },
+            log: self.color_log,
+        };
         let view = View {
             camera,
             fov_deg: self.fov,
@@ -409,14 +452,12 @@ impl RenderArgs {
             ao_filter: !self.no_ao_filter,
             smooth_normals: !self.flat_normals,
             sample_step: self.step,
-            color_scale: ColorScale {
-                colormap: self.colormap.unwrap_or_default(),
-                range: match self.color_range {
-                    Some(ColorRange::Fixed(lo, hi)) => Some((lo, hi)),
-                    _ => None,
-                },
-                log: self.color_log,
-            },
+            color_scale,
+            field_scales: self
+                .field_scale
+                .iter()
+                .map(|s| (s.field.clone(), s.scale(&color_scale)))
+                .collect(),
             outline: self.outline,
         };
         if self.color_by.len() > 1 && self.color_by.len() > self.iso.len() {

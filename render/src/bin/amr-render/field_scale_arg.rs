@@ -1,6 +1,6 @@
 //! `--color-scale FIELD=[COLORMAP][:log|:linear][:LO:HI]`: a field painted with a colour scale
 //! of its own, each part it leaves out taken from the frame's (`--colormap`, `--color-log`,
-//! the range of the field's values in view).
+//! `--color-range`, else the range of the field's values in view).
 
 use std::str::FromStr;
 
@@ -21,12 +21,11 @@ pub struct FieldScaleArg {
 }
 
 impl FieldScaleArg {
-    /// The scale: what was typed, the rest from `frame` (the frame's colormap and log scale;
-    /// its range is not the field's).
+    /// The scale: what was typed, the rest from `frame`.
     pub fn scale(&self, frame: &ColorScale) -> ColorScale {
         ColorScale {
             colormap: self.colormap.unwrap_or(frame.colormap),
-            range: self.range,
+            range: self.range.or(frame.range),
             log: self.log.unwrap_or(frame.log),
         }
     }
@@ -106,6 +105,7 @@ mod tests {
         assert_eq!(scale.colormap, Colormap::Cividis);
         assert!(scale.log);
         assert_eq!(scale.range, Some((300.0, 1600.0)));
+        assert_eq!(c.scale(&frame).range, Some((0.0, 1.0)), "the frame's range");
         for bad in [
             "temp",
             "=magma",

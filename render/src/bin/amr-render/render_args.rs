@@ -283,8 +283,13 @@ impl RenderArgs {
                 }
             }
         }
-        let own = |f: &str| self.field_scale.iter().any(|s| s.field == f);
-        let shared: Vec<&str> = fields.iter().copied().filter(|f| !own(f)).collect();
+        // The fields that would take `--color-range`: those without a range of their own.
+        let own_range = |f: &str| {
+            self.field_scale
+                .iter()
+                .any(|s| s.field == f && s.range.is_some())
+        };
+        let shared: Vec<&str> = fields.iter().copied().filter(|f| !own_range(f)).collect();
         if let (Some(_), true) = (&self.color_range, shared.len() > 1) {
             bail!(
                 "--color-range gives one range, but {} fields paint ({}): each takes the 1st to \

@@ -1536,6 +1536,10 @@ fn a_field_takes_its_own_colour_scale() {
         "0:3",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
+    // A scale without a range of its own takes `--color-range` too: two fields would share it.
+    let o = run(&["--color-scale", "sphere=magma", "--color-range", "0:3"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("2 fields paint"), "{}", stderr(&o));
     let o = run(&["--color-scale", "nope=magma"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(

@@ -1468,27 +1468,7 @@ fn two_fields_painting_one_frame_render_and_refuse_one_shared_range() {
     let dir = tempfile::tempdir().unwrap();
     let path = sphere_and_ramp(dir.path());
     let out = dir.path().join("f.png");
-    let run = |extra: &[&str]| {
-        let mut args = vec![
-            path.to_str().unwrap(),
-            "--field",
-            "sphere",
-            "--iso",
-            "0",
-            "--color-by",
-            "ramp",
-            "--slice",
-            "z=0.4",
-            "--slice-field",
-            "sphere",
-            "--size",
-            "64x48",
-            "-o",
-            out.to_str().unwrap(),
-        ];
-        args.extend_from_slice(extra);
-        amr_render(&args)
-    };
+    let run = |extra: &[&str]| painted_by_two_fields(&path, &out, extra);
     let o = run(&[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let o = run(&["--color-range", "0:1"]);
@@ -1508,27 +1488,7 @@ fn a_field_takes_its_own_colour_scale() {
     let dir = tempfile::tempdir().unwrap();
     let path = sphere_and_ramp(dir.path());
     let out = dir.path().join("f.png");
-    let run = |extra: &[&str]| {
-        let mut args = vec![
-            path.to_str().unwrap(),
-            "--field",
-            "sphere",
-            "--iso",
-            "0",
-            "--color-by",
-            "ramp",
-            "--slice",
-            "z=0.4",
-            "--slice-field",
-            "sphere",
-            "--size",
-            "64x48",
-            "-o",
-            out.to_str().unwrap(),
-        ];
-        args.extend_from_slice(extra);
-        amr_render(&args)
-    };
+    let run = |extra: &[&str]| painted_by_two_fields(&path, &out, extra);
     let o = run(&[
         "--color-scale",
         "sphere=magma:0:0.5",
@@ -1554,4 +1514,28 @@ fn a_field_takes_its_own_colour_scale() {
         "{}",
         stderr(&o)
     );
+}
+
+/// `amr-render` on `path` (`sphere_and_ramp`'s file) with its sphere surface painted by `ramp`
+/// and a slice painted by `sphere`, into `out`, with `extra` arguments.
+fn painted_by_two_fields(path: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        path.to_str().unwrap(),
+        "--field",
+        "sphere",
+        "--iso",
+        "0",
+        "--color-by",
+        "ramp",
+        "--slice",
+        "z=0.4",
+        "--slice-field",
+        "sphere",
+        "--size",
+        "64x48",
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    amr_render(&args)
 }

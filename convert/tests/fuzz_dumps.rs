@@ -12,9 +12,9 @@
 //! A failing dump is kept in `target/convert-fuzz/seedN/` with a report of its damage and the
 //! error. Skipped, with a message, when the shared data is absent.
 
-// The integration tests' support code, for `shared_data`, and its child-process runner.
-#[path = "../../tests/tests/support/child.rs"]
-mod child;
+// The integration tests' support code, for `shared_data`, and the fuzzers' child-process runner.
+#[path = "../../tests/tests/support/fuzz.rs"]
+mod fuzz;
 #[path = "../../tests/tests/support/mod.rs"]
 #[allow(dead_code)]
 mod support;
@@ -25,7 +25,7 @@ use std::process::Command;
 use std::time::Duration;
 
 use amr_format::AmrkFile;
-use child::{run_killed_after, Outcome};
+use fuzz::{env_u64, run_killed_after, Outcome};
 use support::amrex::shared_data;
 
 const BIN: &str = env!("CARGO_BIN_EXE_amr-convert");
@@ -348,13 +348,6 @@ fn problem(o: &Outcome, dump: &Path, out_dir: &Path, out: &Path) -> Option<Strin
         }
         c => Some(format!("exit {c:?}")),
     }
-}
-
-fn env_u64(name: &str, default: u64) -> u64 {
-    std::env::var(name)
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
 }
 
 #[test]

@@ -22,14 +22,14 @@ use amr_render::mapping::open_mapped;
 use amr_synth::{write_synth, Case, SynthParams};
 use zerocopy::FromBytes;
 
-// The child-process runner and the two-field file of the integration tests' support.
-#[path = "../../tests/tests/support/child.rs"]
-mod child;
+// The fuzzers' child-process runner and the two-field file of the integration tests' support.
+#[path = "../../tests/tests/support/fuzz.rs"]
+mod fuzz;
 #[path = "../../tests/tests/support/synth_file.rs"]
 #[allow(dead_code)]
 mod synth_file;
 
-use child::{run_killed_after, Outcome};
+use fuzz::{env_u64, run_killed_after, Outcome};
 
 const BIN: &str = env!("CARGO_BIN_EXE_amr-render");
 /// A run taking longer than this is a hang.
@@ -185,13 +185,6 @@ impl Rng {
     fn below(&mut self, n: u64) -> u64 {
         self.next() % n.max(1)
     }
-}
-
-fn env_u64(name: &str, default: u64) -> u64 {
-    std::env::var(name)
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
 }
 
 #[test]

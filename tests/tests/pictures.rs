@@ -42,6 +42,16 @@ fn scene(path: &Path) -> Scene {
     Scene::open(path, &options).unwrap()
 }
 
+/// [`scene`] of `path` with the sphere's zero surface painted by `ramp`.
+fn painted_by_ramp(path: &Path) -> Scene {
+    let mut scene = scene(path);
+    scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
+    scene
+        .set_color_by(&[Some(ColorBy::Field("ramp".into()))])
+        .unwrap();
+    scene
+}
+
 fn view() -> View {
     View {
         size: (96, 72),
@@ -186,11 +196,7 @@ fn a_slice_shows_the_field_at_each_of_its_points() {
 fn a_surface_and_a_slice_painted_by_two_fields_each_take_their_own_range() {
     let dir = tempfile::tempdir().unwrap();
     let path = two_fields(dir.path());
-    let mut scene = scene(&path);
-    scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
-    scene
-        .set_color_by(&[Some(ColorBy::Field("ramp".into()))])
-        .unwrap();
+    let mut scene = painted_by_ramp(&path);
     let slice = Slice::parse_axis("z=0.4").unwrap();
     scene
         .set_slices(&[slice], Some(ColorBy::Field("sphere".into())))
@@ -565,11 +571,7 @@ fn a_median_on_a_floor_gives_the_median_above_the_floor() {
 fn a_painted_frame_with_its_legend_matches_the_golden_preview() {
     let dir = tempfile::tempdir().unwrap();
     let path = two_fields(dir.path());
-    let mut scene = scene(&path);
-    scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
-    scene
-        .set_color_by(&[Some(ColorBy::Field("ramp".into()))])
-        .unwrap();
+    let scene = painted_by_ramp(&path);
     let v = View {
         size: (240, 180),
         outline: Outline::Domain,

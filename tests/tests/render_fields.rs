@@ -52,14 +52,22 @@ fn view() -> View {
 const GOLD: [f32; 3] = [0.85, 0.62, 0.35];
 const BLUE: [f32; 3] = [0.35, 0.55, 0.85];
 
+/// A scene of `path`'s `sphere` field with its zero surface (gold) and the `ramp = 1` plane
+/// (blue), and the index of `ramp`.
+fn sphere_and_plane(path: &Path) -> (Scene, usize) {
+    let mut scene = open(path, "sphere");
+    let ramp = scene.file().field_index("ramp").unwrap();
+    scene
+        .set_isosurfaces(&[spec(0.0, GOLD, None), spec(1.0, BLUE, Some(ramp))])
+        .unwrap();
+    (scene, ramp)
+}
+
 #[test]
 fn each_surface_is_what_its_own_fields_scene_draws() {
     let dir = tempfile::tempdir().unwrap();
     let path = two_fields(dir.path());
-    let mut both = open(&path, "sphere");
-    let ramp = both.file().field_index("ramp").unwrap();
-    both.set_isosurfaces(&[spec(0.0, GOLD, None), spec(1.0, BLUE, Some(ramp))])
-        .unwrap();
+    let (both, _) = sphere_and_plane(&path);
     let mut sphere = open(&path, "sphere");
     sphere.set_isosurfaces(&[spec(0.0, GOLD, None)]).unwrap();
     let mut plane = open(&path, "ramp");
@@ -107,11 +115,7 @@ fn each_surface_is_what_its_own_fields_scene_draws() {
 fn a_surface_of_another_field_is_kept_while_its_field_and_value_stay() {
     let dir = tempfile::tempdir().unwrap();
     let path = two_fields(dir.path());
-    let mut scene = open(&path, "sphere");
-    let ramp = scene.file().field_index("ramp").unwrap();
-    scene
-        .set_isosurfaces(&[spec(0.0, GOLD, None), spec(1.0, BLUE, Some(ramp))])
-        .unwrap();
+    let (mut scene, ramp) = sphere_and_plane(&path);
     let again = scene
         .set_isosurfaces(&[spec(0.0, BLUE, None), spec(1.0, GOLD, Some(ramp))])
         .unwrap();
@@ -156,11 +160,7 @@ fn a_surface_painted_by_its_own_field_shows_its_isovalue() {
     use amr_render::ColorBy;
     let dir = tempfile::tempdir().unwrap();
     let path = two_fields(dir.path());
-    let mut scene = open(&path, "sphere");
-    let ramp = scene.file().field_index("ramp").unwrap();
-    scene
-        .set_isosurfaces(&[spec(0.0, GOLD, None), spec(1.0, BLUE, Some(ramp))])
-        .unwrap();
+    let (mut scene, _) = sphere_and_plane(&path);
     let by = Some(ColorBy::Field("ramp".into()));
     scene.set_color_by(&[by.clone(), by]).unwrap();
     let f = render(&scene, &view(), &|_| ()).unwrap().frame;

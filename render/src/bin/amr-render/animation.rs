@@ -10,6 +10,8 @@ use amr_render::shade::IsoSpec;
 use amr_render::CameraPlacement;
 use anyhow::bail;
 
+use crate::surface_arg::split_field;
+
 /// Most frames one run renders.
 pub const MAX_FRAMES: u32 = 100_000;
 
@@ -47,13 +49,7 @@ impl FromStr for IsoSweep {
 
     /// `[FIELD=]A:B:N[:COLOR[:OPACITY]]`.
     fn from_str(text: &str) -> Result<Self, String> {
-        let (field, s) = match text.split_once('=') {
-            Some((name, _)) if name.trim().is_empty() => {
-                return Err(format!("'{text}': no field name before '='"))
-            }
-            Some((name, rest)) => (Some(name.trim().to_string()), rest),
-            None => (None, text),
-        };
+        let (field, s) = split_field(text)?;
         let parts: Vec<&str> = s.splitn(4, ':').collect();
         if parts.len() < 3 {
             return Err(format!("sweep '{s}' is not A:B:N[:COLOR[:OPACITY]]"));

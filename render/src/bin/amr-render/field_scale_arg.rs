@@ -7,6 +7,9 @@ use std::str::FromStr;
 use amr_render::colormap::Colormap;
 use amr_render::ColorScale;
 
+use crate::render_args::parse_range;
+use crate::surface_arg::split_field;
+
 /// A field's own colour scale, as typed.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FieldScaleArg {
@@ -35,24 +38,17 @@ impl FromStr for FieldScaleArg {
     type Err = String;
 
     fn from_str(s: &str) -> Result<Self, String> {
-        let (field, rest) = s
-            .split_once('=')
-            .ok_or_else(|| format!("'{s}' is not FIELD=[COLORMAP][:log][:LO:HI]"))?;
-        let field = field.trim();
-        if field.is_empty() {
-            return Err(format!("'{s}': no field name before '='"));
-        }
+        let (Some(field), rest) = split_field(s)? else {
+            return Err(format!("'{s}' is not FIELD=[COLORMAP][:log][:LO:HI]"));
+        };
         let mut parts: Vec<&str> = rest.split(':').map(str::trim).collect();
         // A range is the last two parts when both are numbers.
-        let number = |p: &str| p.parse::<f64>().ok();
+        let number = |p: &str| p.parse::<f64>().is_ok();
         let range = match parts.as_slice() {
-            [.., a, b] if number(a).is_some() && number(b).is_some() => {
-                let (lo, hi) = (number(a).unwrap(), number(b).unwrap());
-                if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-                    return Err(format!("range {a}:{b} in '{s}' needs finite LO < HI"));
-                }
+            [.., a, b] if number(a) && number(b) => {
+                let range = parse_range(&format!("{a}:{b}"))?;
                 parts.truncate(parts.len() - 2);
-                Some((lo, hi))
+                Some(range)
             }
             _ => None,
         };
@@ -65,13 +61,14 @@ impl FromStr for FieldScaleArg {
                 other => return Err(format!("'{other}' in '{s}': a second colormap")),
             }
         }
-        if let (Some(true), Some((lo, _))) = (log, range) {
-            if lo <= 0.0 {
-                return Err(format!("'{s}': a log scale needs a positive range"));
-            }
-        }
+        let scale = ColorScale {
+            colormap: colormap.unwrap_or_default(),
+            range,
+            log: log.unwrap_or(false),
+        };
+        scale.validate().map_err(|e| format!("'{s}': {e}"))?;
         Ok(FieldScaleArg {
-            field: field.to_string(),
+            field,
             colormap,
             log,
             range,

@@ -255,26 +255,9 @@ impl RenderArgs {
         !(self.slice.is_empty() && self.slice_plane.is_empty())
     }
 
-    /// An error when the options of the colour scale (`--colormap`, `--color-range`,
-    /// `--color-log`) are given but no field paints a surface or a slice: they would change
-    /// nothing, and the user who gave them expected colour. Also when one `--color-range` is
-    /// given for several fields that paint, each with its own range.
-    fn check_color_scale_applies(&self) -> anyhow::Result<()> {
-        let paints_field = self
-            .color_by
-            .iter()
-            .chain([&self.slice_field])
-            .any(|c| matches!(c, Some(ColorBy::Field(_))))
-            || (self.has_slices() && self.slice_field != Some(ColorBy::Level));
-        let given: Vec<&str> = [
-            (self.colormap.is_some(), "--colormap"),
-            (self.color_range.is_some(), "--color-range"),
-            (self.color_log, "--color-log"),
-            (!self.field_scale.is_empty(), "--color-scale"),
-        ]
-        .into_iter()
-        .filter_map(|(on, name)| on.then_some(name))
-        .collect();
+    /// The fields named to paint surfaces (`--color-by`) or slices (`--slice-field`), in the
+    /// order they first do.
+    fn painting_fields(&self) -> Vec<&str> {
         let mut fields: Vec<&str> = Vec::new();
         for c in self.color_by.iter().chain([&self.slice_field]) {
             if let Some(ColorBy::Field(name)) = c {
@@ -283,6 +266,13 @@ impl RenderArgs {
                 }
             }
         }
+        fields
+    }
+
+    /// An error when `--color-range` would be the range of several painting fields (those
+    /// without a range of their own), or a `--color-scale` names a field that paints nothing.
+    fn check_field_scales(&self) -> anyhow::Result<()> {
+        let fields = self.painting_fields();
         // The fields that would take `--color-range`: those without a range of their own.
         let own_range = |f: &str| {
             self.field_scale
@@ -299,27 +289,44 @@ impl RenderArgs {
                 shared.join(", ")
             );
         }
-        // A field's scale when the fields that paint are all named (a slice left to its
-        // default painter with no field painting surfaces takes the scene's field, named or
-        // not: the renderer checks that case).
-        let slice_default = self.has_slices() && self.slice_field.is_none() && fields.is_empty();
-        if !slice_default {
-            if let Some(s) = self
-                .field_scale
-                .iter()
-                .find(|s| !fields.contains(&s.field.as_str()))
-            {
-                bail!(
-                    "--color-scale {}=...: {} paints nothing in this frame{}",
-                    s.field,
-                    s.field,
-                    match fields.is_empty() {
-                        true => String::new(),
-                        false => format!(" (painting: {})", fields.join(", ")),
-                    }
-                );
-            }
+        // A slice left to its default painter with no field painting surfaces takes the
+        // scene's field, named or not: the renderer checks a scale against it.
+        if self.has_slices() && self.slice_field.is_none() && fields.is_empty() {
+            return Ok(());
         }
+        match self
+            .field_scale
+            .iter()
+            .find(|s| !fields.contains(&s.field.as_str()))
+        {
+            Some(s) => bail!(
+                "--color-scale {}=...: {} paints nothing in this frame{}",
+                s.field,
+                s.field,
+                match fields.is_empty() {
+                    true => String::new(),
+                    false => format!(" (painting: {})", fields.join(", ")),
+                }
+            ),
+            None => Ok(()),
+        }
+    }
+
+    /// An error when the options of the colour scale (`--colormap`, `--color-range`,
+    /// `--color-log`, `--color-scale`) are given but no field paints a surface or a slice: they
+    /// would change nothing, and the user who gave them expected colour.
+    fn check_color_scale_applies(&self) -> anyhow::Result<()> {
+        let paints_field = !self.painting_fields().is_empty()
+            || (self.has_slices() && self.slice_field != Some(ColorBy::Level));
+        let given: Vec<&str> = [
+            (self.colormap.is_some(), "--colormap"),
+            (self.color_range.is_some(), "--color-range"),
+            (self.color_log, "--color-log"),
+            (!self.field_scale.is_empty(), "--color-scale"),
+        ]
+        .into_iter()
+        .filter_map(|(on, name)| on.then_some(name))
+        .collect();
         if paints_field || given.is_empty() {
             return Ok(());
         }
@@ -473,6 +480,7 @@ impl RenderArgs {
             );
         }
         view.validate()?;
+        self.check_field_scales()?;
         self.check_color_scale_applies()?;
         self.check_options_apply()?;
         let clip = match &self.clip {
@@ -550,7 +558,6 @@ fn parse_color_by(s: &str) -> Result<Option<ColorBy>, String> {
     }
 }
 
-/// Parses a range `LO:HI` of finite numbers with `LO < HI`.
 /// What `--color-range` asks for.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ColorRange {
@@ -568,7 +575,8 @@ fn parse_color_range(s: &str) -> Result<ColorRange, String> {
     parse_range(s).map(|(lo, hi)| ColorRange::Fixed(lo, hi))
 }
 
-fn parse_range(s: &str) -> Result<(f64, f64), String> {
+/// Parses a range `LO:HI` of finite numbers with `LO < HI`.
+pub fn parse_range(s: &str) -> Result<(f64, f64), String> {
     let (lo, hi) = s
         .split_once(':')
         .ok_or_else(|| format!("range '{s}' is not LO:HI"))?;

@@ -36,25 +36,29 @@ impl SurfaceArg {
     }
 }
 
+/// The field an argument names before `=` (`None` without one) and the rest: the form of
+/// `--iso`, `--iso-sweep` and `--color-scale`, none of whose other parts holds an `=`.
+pub fn split_field(s: &str) -> Result<(Option<String>, &str), String> {
+    match s.split_once('=') {
+        None => Ok((None, s)),
+        Some((name, _)) if name.trim().is_empty() => {
+            Err(format!("'{s}': no field name before '='"))
+        }
+        Some((name, rest)) => Ok((Some(name.trim().to_string()), rest)),
+    }
+}
+
 impl FromStr for SurfaceArg {
     type Err = String;
 
     /// `V[:COLOR[:OPACITY]]`, or `FIELD=V[:COLOR[:OPACITY]]` for a surface of another field
-    /// than `--field` (no value, colour or opacity holds an `=`).
+    /// than `--field`.
     fn from_str(s: &str) -> Result<Self, String> {
-        match s.split_once('=') {
-            None => Ok(SurfaceArg::of_scene_field(s.parse()?)),
-            Some((name, rest)) => {
-                let name = name.trim();
-                if name.is_empty() {
-                    return Err(format!("'{s}': no field name before '='"));
-                }
-                Ok(SurfaceArg {
-                    field: Some(name.to_string()),
-                    spec: rest.parse()?,
-                })
-            }
-        }
+        let (field, rest) = split_field(s)?;
+        Ok(SurfaceArg {
+            field,
+            spec: rest.parse()?,
+        })
     }
 }
 

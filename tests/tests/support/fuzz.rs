@@ -1,5 +1,6 @@
-//! A program run as a child process under a time limit: how it ended (exit code, signal, its
-//! standard error, whether it was killed for taking too long). The fuzzers' runs.
+//! What the fuzzers share: a program run as a child process under a time limit, with how it
+//! ended (exit code, signal, its standard error, whether it was killed for taking too long),
+//! and their settings from the environment.
 
 use std::io::Read;
 use std::os::unix::process::ExitStatusExt;
@@ -50,4 +51,12 @@ pub fn run_killed_after(mut cmd: Command, limit: Duration) -> Outcome {
         stderr: reader.join().unwrap(),
         timed_out,
     }
+}
+
+/// The environment variable `name` as a number, else `default`.
+pub fn env_u64(name: &str, default: u64) -> u64 {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
 }

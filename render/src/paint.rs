@@ -288,7 +288,10 @@ impl<T: Tracer + Sync + ?Sized> Tracer for PaintedTracer<'_, T> {
         Some(Paint {
             rgb: self.color(painter, value),
             value,
-            lit: i < self.surfaces.len(),
         })
+    }
+
+    fn unlit(&self, i: usize) -> bool {
+        i >= self.surfaces.len()
     }
 }

@@ -74,7 +74,7 @@ impl TileAo {
                 else {
                     continue;
                 };
-                if tracer.paint(i, &hit).is_some_and(|p| !p.lit) {
+                if tracer.unlit(i) {
                     continue;
                 }
                 self.hits.push((k, l, self.rays.len()));

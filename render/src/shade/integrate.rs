@@ -214,7 +214,7 @@ impl Composite {
         let paint = tracer.paint(i, hit);
         let alpha = light.opacity[i];
         let colour = match paint {
-            Some(p) if !p.lit => p.rgb,
+            Some(p) if tracer.unlit(i) => p.rgb,
             _ => {
                 let base = paint.map_or(light.colors[i], |p| p.rgb);
                 let shaded = shade_hit(tracer, frame, light, base, hit, normal, dir, given, rng);
@@ -527,7 +527,7 @@ impl KeyShadow {
                     continue;
                 };
                 let hit = layer.hit;
-                if tracer.paint(layer.surface, &hit).is_some_and(|p| !p.lit) {
+                if tracer.unlit(layer.surface) {
                     continue;
                 }
                 let normal = world_normal(&frame.unit, hit.grad).unwrap_or(dir.map(|x| -x));

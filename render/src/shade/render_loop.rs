@@ -114,6 +114,10 @@ impl<T: Tracer + ?Sized> Tracer for Counting<'_, T> {
     fn paint(&self, i: usize, hit: &SurfaceHit) -> Option<Paint> {
         self.inner.paint(i, hit)
     }
+
+    fn unlit(&self, i: usize) -> bool {
+        self.inner.unlit(i)
+    }
 }
 
 /// Pixels rendered, per thread, between two [`Tracer::release_pages`] calls: the map pages a

@@ -43,4 +43,8 @@ impl<T: Tracer + ?Sized> Tracer for ClippedTracer<'_, T> {
     fn paint(&self, i: usize, hit: &SurfaceHit) -> Option<Paint> {
         self.inner.paint(i, hit)
     }
+
+    fn unlit(&self, i: usize) -> bool {
+        self.inner.unlit(i)
+    }
 }

@@ -36,8 +36,6 @@ pub struct Paint {
     pub rgb: [f32; 3],
     /// The value painted (a field's value, or the level).
     pub value: f32,
-    /// Shaded by the lights like a surface; `false` shows the colour as it is (slices).
-    pub lit: bool,
 }
 
 /// Finds hits with a set of isosurfaces.
@@ -142,6 +140,12 @@ pub trait Tracer {
     /// The colour data gives surface `i` at `hit`; `None` (the default) keeps the surface's own.
     fn paint(&self, _i: usize, _hit: &SurfaceHit) -> Option<Paint> {
         None
+    }
+
+    /// Whether surface `i` shows its painted colour as it is, not shaded by the lights (a
+    /// slice): no shadow or AO ray leaves it. `false` by default.
+    fn unlit(&self, _i: usize) -> bool {
+        false
     }
 }
 

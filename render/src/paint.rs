@@ -3,6 +3,8 @@
 //! surfaces, so that the shader composites everything in depth order. The default colour range
 //! comes from a pre-pass over the values the frame shows.
 
+use std::sync::atomic::{AtomicU32, Ordering};
+
 use rayon::prelude::*;
 
 use crate::bvh::packet::Mask;
@@ -72,9 +74,17 @@ pub struct PaintedTracer<'a, T: ?Sized> {
     pub scales: Vec<ColorScale>,
     /// The values at the colormap's ends, per field that paints.
     pub ranges: Vec<(f64, f64)>,
+    /// Bit `l` set once [`Painter::Level`] has painted level `l` into a pixel.
+    pub painted_levels: AtomicU32,
 }
 
 impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
+    /// The levels [`Painter::Level`] has painted into pixels so far, ascending.
+    pub fn levels_painted(&self) -> Vec<u32> {
+        let bits = self.painted_levels.load(Ordering::Relaxed);
+        (0..u32::BITS).filter(|l| bits & (1 << l) != 0).collect()
+    }
+
     /// The value `painter` gives at grid point `pos` of a hit on level `level`.
     fn value(&self, painter: Painter<'_>, pos: [f64; 3], level: u32) -> Option<f32> {
         match painter {
@@ -284,6 +294,12 @@ impl<T: Tracer + Sync + ?Sized> Tracer for PaintedTracer<'_, T> {
 
     fn paint(&self, i: usize, hit: &SurfaceHit) -> Option<Paint> {
         let painter = self.painter(i)?;
+        if let (Painter::Level, Some(bit)) = (painter, 1u32.checked_shl(hit.level)) {
+            // Read first: the bit is set once, not written by every pixel of the level.
+            if self.painted_levels.load(Ordering::Relaxed) & bit == 0 {
+                self.painted_levels.fetch_or(bit, Ordering::Relaxed);
+            }
+        }
         let value = self.value(painter, hit.pos, hit.level)?;
         Some(Paint {
             rgb: self.color(painter, value),

@@ -33,6 +33,18 @@ pub struct Rendered {
     /// The colour range of each field that painted surfaces or slices (and was seen), in the
     /// order the fields first paint: surfaces, then slices.
     pub color_ranges: Vec<PaintedRange>,
+    /// The AMR levels painted into pixels by surfaces or slices painted by level, ascending
+    /// (empty when none paints by level); `None` when not recorded (frames composited from
+    /// several processes).
+    pub painted_levels: Option<Vec<u32>>,
+}
+
+/// What painting by data gave a frame, beside its pixels.
+struct Painting {
+    /// [`Rendered::color_ranges`].
+    color_ranges: Vec<PaintedRange>,
+    /// [`Rendered::painted_levels`].
+    levels: Vec<u32>,
 }
 
 /// The colour range one field painted a frame with.
@@ -102,11 +114,12 @@ fn render_with(
     {
         check_frame_fits(view.size, system_memory::available())?;
     }
-    let (mut rendered, color_ranges) = with_scene_tracer(scene, view, |tracer, camera, light| {
+    let (mut rendered, painting) = with_scene_tracer(scene, view, |tracer, camera, light| {
         trace_frame(tracer, *camera, light, view, progress, planes)
     })?;
     check_source(scene)?;
-    rendered.color_ranges = color_ranges;
+    rendered.color_ranges = painting.color_ranges;
+    rendered.painted_levels = Some(painting.levels);
     let segments = outline::segments(
         view.outline,
         scene.file(),
@@ -204,7 +217,7 @@ fn with_scene_tracer<R>(
     scene: &Scene,
     view: &View,
     run: impl FnOnce(&(dyn Tracer + Sync), &Camera, &Lighting) -> R,
-) -> Result<(R, Vec<PaintedRange>)> {
+) -> Result<(R, Painting)> {
     // A piecewise-constant field has no smooth normals: nearest shades with the faces' normals.
     let smooth = view.smooth_normals && scene.reconstruction() != Reconstruction::Nearest;
     let method = (scene.method(), smooth);
@@ -241,7 +254,11 @@ fn with_scene_tracer<R>(
                 )));
             }
             if scene.painters().next().is_none() {
-                return Ok((run(tracer, camera, light), Vec::new()));
+                let painting = Painting {
+                    color_ranges: Vec::new(),
+                    levels: Vec::new(),
+                };
+                return Ok((run(tracer, camera, light), painting));
             }
             let own = |f: &str| view.field_scales.iter().find(|(n, _)| n == f).map(|s| s.1);
             let shared: Vec<&str> = fields
@@ -292,6 +309,7 @@ fn with_scene_tracer<R>(
                 levels: scene.source(),
                 scales: scales.clone(),
                 ranges: Vec::new(),
+                painted_levels: Default::default(),
             };
             let mut light = light.clone();
             for (s, _) in scene.slices() {
@@ -316,7 +334,12 @@ fn with_scene_tracer<R>(
                     })
                 })
                 .collect();
-            Ok((run(&painted, camera, &light), ranges))
+            let out = run(&painted, camera, &light);
+            let painting = Painting {
+                color_ranges: ranges,
+                levels: painted.levels_painted(),
+            };
+            Ok((out, painting))
         },
     )?
 }
@@ -388,6 +411,7 @@ fn trace_frame<T: Tracer + Sync + ?Sized>(
         camera,
         stats,
         color_ranges: Vec::new(),
+        painted_levels: None,
     }
 }
 

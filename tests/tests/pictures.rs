@@ -339,6 +339,7 @@ fn levels_and_a_field_painting_one_frame_both_get_a_legend() {
     let dir = tempfile::tempdir().unwrap();
     let path = two_fields(dir.path());
     let mut scene = scene(&path);
+    scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
     scene.set_color_by(&[Some(ColorBy::Level)]).unwrap();
     let slice = Slice::parse_axis("z=0.4").unwrap();
     scene
@@ -348,11 +349,62 @@ fn levels_and_a_field_painting_one_frame_both_get_a_legend() {
     let legend = Legend::of_frame(&scene, &view(), &r);
     let titles: Vec<&str> = legend.color_bars.iter().map(|b| b.title.as_str()).collect();
     assert_eq!(titles, ["ramp"]);
-    let levels = scene.file().levels().len() as u32;
-    for l in 0..levels {
+    let painted = r.painted_levels.clone().unwrap();
+    assert!(!painted.is_empty());
+    for l in painted {
         let entry = (format!("level {l}"), Some(Swatch::Patch(level_srgb8(l))));
         assert!(legend.entries.contains(&entry), "{:?}", legend.entries);
     }
+}
+
+/// The levels of the file's pixels where surface `0`, painted by level, is the first hit.
+fn levels_shown(r: &Rendered) -> Vec<u32> {
+    let mut seen: Vec<u32> = (0..r.frame.len())
+        .filter(|&i| r.frame.alpha[i] > 0.0 && r.frame.color_value[i] == r.frame.level[i])
+        .map(|i| r.frame.level[i] as u32)
+        .collect();
+    seen.sort_unstable();
+    seen.dedup();
+    seen
+}
+
+/// The level palette lists the levels painted into the frame, not every level of the file: a
+/// surface that lies on the finer level only shows that level's swatch, and a slice across
+/// both levels shows both.
+#[test]
+fn the_level_palette_lists_the_levels_the_frame_shows() {
+    let dir = tempfile::tempdir().unwrap();
+    // Bricks of 4 cells: the finer level covers the sphere's surroundings, not the whole domain.
+    let path = sphere_and_ramp(dir.path(), &SynthParams::unit_cube(2, 2, 16, 4), &ramp);
+    let mut scene = scene(&path);
+    scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
+    scene.set_color_by(&[Some(ColorBy::Level)]).unwrap();
+    let r = render(&scene, &view(), &|_| {}).unwrap();
+    let shown = levels_shown(&r);
+    assert_eq!(shown, [1], "the sphere lies in the refined region");
+    assert_eq!(r.painted_levels.as_deref(), Some(&shown[..]));
+    assert_eq!(Legend::of_frame(&scene, &view(), &r).levels, shown);
+
+    scene.set_isosurfaces(&[]).unwrap();
+    let slice = Slice::parse_axis("z=0.5").unwrap();
+    scene.set_slices(&[slice], Some(ColorBy::Level)).unwrap();
+    let r = render(&scene, &view(), &|_| {}).unwrap();
+    assert_eq!(levels_shown(&r), [0, 1]);
+    assert_eq!(r.painted_levels.as_deref(), Some(&[0, 1][..]));
+    assert_eq!(Legend::of_frame(&scene, &view(), &r).levels, [0, 1]);
+
+    // A frame painted by level but showing none of it has no palette.
+    let away = View {
+        camera: Some(CameraPlacement {
+            pos: [0.5, 0.5, 3.0],
+            look_at: Some([0.5, 0.5, 6.0]),
+            up: Some([0.0, 1.0, 0.0]),
+        }),
+        ..view()
+    };
+    let r = render(&scene, &away, &|_| {}).unwrap();
+    assert_eq!(r.frame.covered(), 0);
+    assert!(Legend::of_frame(&scene, &away, &r).levels.is_empty());
 }
 
 /// Surfaces made otherwise than by default say how, since they look otherwise (blocky cells,

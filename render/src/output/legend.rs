@@ -48,8 +48,8 @@ pub struct Legend {
     pub entries: Vec<(String, Option<Swatch>)>,
     /// The colour bars of the fields that paint, top to bottom on the right side.
     pub color_bars: Vec<ColorBar>,
-    /// The level palette's swatches, for this many levels.
-    pub levels: Option<u32>,
+    /// The levels whose palette swatches stand on the right side, ascending.
+    pub levels: Vec<u32>,
     /// The camera, for the axis triad.
     pub camera: Option<Camera>,
 }
@@ -249,13 +249,18 @@ impl Legend {
                 },
             })
             .collect();
-        let mut levels = by_level.then_some(scene.file().levels().len() as u32);
-        if let (Some(n), false) = (levels, color_bars.is_empty()) {
+        // The levels painted into the frame; every level of the file when that was not recorded.
+        let mut levels = match (by_level, &rendered.painted_levels) {
+            (false, _) => Vec::new(),
+            (true, Some(painted)) => painted.clone(),
+            (true, None) => (0..scene.file().levels().len() as u32).collect(),
+        };
+        if !color_bars.is_empty() {
             // The colour bar takes the right side: the level palette joins the list.
-            let palette =
-                (0..n).map(|l| (format!("level {l}"), Some(Swatch::Patch(level_srgb8(l)))));
+            let palette = levels
+                .drain(..)
+                .map(|l| (format!("level {l}"), Some(Swatch::Patch(level_srgb8(l)))));
             entries.extend(palette);
-            levels = None;
         }
         Legend {
             entries,
@@ -331,23 +336,16 @@ impl Legend {
                 let y0 = top + k as f32 * (each + gap);
                 self.draw_bar(&mut canvas, &text, bar, left, (y0, y0 + each));
             }
-        } else if let Some(n) = self.levels {
-            let labels: Vec<String> = (0..n).map(|l| format!("level {l}")).collect();
+        } else if !self.levels.is_empty() {
+            let labels: Vec<String> = self.levels.iter().map(|l| format!("level {l}")).collect();
             let tw = labels.iter().map(|s| text.width(s)).fold(0.0, f32::max);
             let x = w as f32 - m - tw - swatch_w;
-            let bottom = list_bottom(n as usize);
+            let bottom = list_bottom(labels.len());
             canvas.panel((x, m), (w as f32 - m, bottom), px * 0.4);
-            for (l, s) in labels.iter().enumerate() {
-                let y = m + l as f32 * line;
+            for (k, (&l, s)) in self.levels.iter().zip(&labels).enumerate() {
+                let y = m + k as f32 * line;
                 let side = (0.8 * px) as i64;
-                canvas.rect(
-                    x as i64,
-                    y as i64 + 2,
-                    side,
-                    side,
-                    level_srgb8(l as u32),
-                    1.0,
-                );
+                canvas.rect(x as i64, y as i64 + 2, side, side, level_srgb8(l), 1.0);
                 text.draw(&mut canvas, s, x + swatch_w, y);
             }
         }

@@ -219,12 +219,14 @@ fn write_rank0(
         (frame.width, frame.height),
         frame.covered() as u64,
     );
-    // Painting by data is not gathered across ranks: no colour range, no colour bar.
+    // Painting by data is not gathered across ranks: no colour range, no colour bar, and the
+    // legend lists every level for surfaces painted by level.
     let rendered = Rendered {
         frame,
         camera,
         stats: frame_stats.clone(),
         color_ranges: Vec::new(),
+        painted_levels: None,
     };
     let totals = MpiTotals {
         mpi_mode: mode.name(),

@@ -4,6 +4,7 @@
 
 use std::fmt;
 use std::str::FromStr;
+use std::sync::LazyLock;
 
 /// A colormap from values in `[0, 1]` to colours.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -102,14 +103,18 @@ pub fn oklab_distance(a: [u8; 3], b: [u8; 3]) -> f32 {
 
 /// Linear RGB of an 8-bit sRGB colour.
 pub fn srgb8_to_linear(c: [u8; 3]) -> [f32; 3] {
-    c.map(|v| {
-        let s = f32::from(v) / 255.0;
-        if s <= 0.04045 {
-            s / 12.92
-        } else {
-            ((s + 0.055) / 1.055).powf(2.4)
-        }
-    })
+    // Every hit painted by data converts its colour: a table, not three `powf`s.
+    static LINEAR: LazyLock<[f32; 256]> = LazyLock::new(|| {
+        std::array::from_fn(|v| {
+            let s = v as f32 / 255.0;
+            if s <= 0.04045 {
+                s / 12.92
+            } else {
+                ((s + 0.055) / 1.055).powf(2.4)
+            }
+        })
+    });
+    c.map(|v| LINEAR[usize::from(v)])
 }
 
 impl fmt::Display for Colormap {

@@ -18,6 +18,7 @@ use crate::shade::{
 };
 use crate::stats::FrameStats;
 use crate::system_memory::{self, describe_bytes, Available};
+use crate::trace::ray::GridRay;
 use crate::trace::{ClippedTracer, HybridTracer, Surface, Tracer, VoxelSource};
 use crate::view::View;
 
@@ -211,17 +212,45 @@ pub fn render_sampled<S: VoxelSource + ?Sized>(
     )
 }
 
-/// [`with_tracer`] for a scene, with its surfaces painted and its slices added when it has
-/// any; also returns the colour range of each field that painted.
-fn with_scene_tracer<R>(
+/// Directions of the rays [`enclosing_surface`] casts.
+const ENCLOSURE_RAYS: usize = 64;
+
+/// The first of the scene's isosurfaces that encloses world point `point`, as seen through
+/// `view` (its clip box cuts surfaces open): the one that every one of [`ENCLOSURE_RAYS`] rays
+/// from `point`, in directions spread evenly over the sphere, meets. A camera there sees only
+/// the inside of that surface.
+pub fn enclosing_surface(scene: &Scene, view: &View, point: [f64; 3]) -> Result<Option<usize>> {
+    let found = with_surface_tracer(scene, view, |tracer, _, _| {
+        let frame = tracer.frame();
+        let n = ENCLOSURE_RAYS as f64;
+        // A Fibonacci lattice: even spacing on the sphere without clusters at the poles.
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let rays: Vec<GridRay> = (0..ENCLOSURE_RAYS)
+            .map(|k| {
+                let z = 1.0 - (2.0 * k as f64 + 1.0) / n;
+                let r = (1.0 - z * z).sqrt();
+                let phi = golden * k as f64;
+                GridRay::from_world(&frame, point, [r * phi.cos(), r * phi.sin(), z])
+            })
+            .collect();
+        (0..scene.isosurfaces().len()).find(|&i| {
+            rays.iter()
+                .all(|ray| tracer.occluded(i, ray, 0.0, f64::INFINITY))
+        })
+    })?;
+    check_source(scene)?;
+    Ok(found)
+}
+
+/// [`with_tracer`] for a scene's surfaces, unpainted and without slices.
+fn with_surface_tracer<R>(
     scene: &Scene,
     view: &View,
     run: impl FnOnce(&(dyn Tracer + Sync), &Camera, &Lighting) -> R,
-) -> Result<(R, Painting)> {
+) -> Result<R> {
     // A piecewise-constant field has no smooth normals: nearest shades with the faces' normals.
     let smooth = view.smooth_normals && scene.reconstruction() != Reconstruction::Nearest;
     let method = (scene.method(), smooth);
-    let isos = scene.isosurfaces();
     scene.check_view(view)?;
     // Surfaces of other fields read their own sources; a scene of one field passes none.
     let sources = match scene.one_field() {
@@ -231,117 +260,128 @@ fn with_scene_tracer<R>(
     with_tracer(
         (scene.source(), &sources),
         scene.surfaces(),
-        isos,
+        scene.isosurfaces(),
         method,
         (view, scene.clip()),
-        |tracer, camera, light| {
-            // The fields that paint, in the order they first do: one colour range each.
-            let mut fields: Vec<&str> = Vec::new();
-            for by in scene.painters() {
-                if let ColorBy::Field(name) = by {
-                    if !fields.contains(&name.as_str()) {
-                        fields.push(name);
-                    }
+        run,
+    )
+}
+
+/// [`with_surface_tracer`] with the surfaces painted and the slices added when the scene has
+/// any; also returns what painting gave the frame beside its pixels.
+fn with_scene_tracer<R>(
+    scene: &Scene,
+    view: &View,
+    run: impl FnOnce(&(dyn Tracer + Sync), &Camera, &Lighting) -> R,
+) -> Result<(R, Painting)> {
+    let isos = scene.isosurfaces();
+    with_surface_tracer(scene, view, |tracer, camera, light| {
+        // The fields that paint, in the order they first do: one colour range each.
+        let mut fields: Vec<&str> = Vec::new();
+        for by in scene.painters() {
+            if let ColorBy::Field(name) = by {
+                if !fields.contains(&name.as_str()) {
+                    fields.push(name);
                 }
             }
-            if let Some((name, _)) = view
-                .field_scales
-                .iter()
-                .find(|(n, _)| !fields.contains(&n.as_str()))
-            {
-                return Err(RenderError::Invalid(format!(
-                    "a colour scale for {name}, which paints nothing in this frame"
-                )));
-            }
-            if scene.painters().next().is_none() {
-                let painting = Painting {
-                    color_ranges: Vec::new(),
-                    levels: Vec::new(),
-                };
-                return Ok((run(tracer, camera, light), painting));
-            }
-            let own = |f: &str| view.field_scales.iter().find(|(n, _)| n == f).map(|s| s.1);
-            let shared: Vec<&str> = fields
-                .iter()
-                .copied()
-                .filter(|f| own(f).is_none())
-                .collect();
-            if let (Some((lo, hi)), true) = (view.color_scale.range, shared.len() > 1) {
-                return Err(RenderError::Invalid(format!(
-                    "one colour range {lo}:{hi} for {} fields that paint ({}): each field \
-                     takes the range of its own values in view, or the one its own scale gives",
-                    shared.len(),
-                    shared.join(", ")
-                )));
-            }
-            let scales: Vec<ColorScale> = fields
-                .iter()
-                .map(|f| own(f).unwrap_or(view.color_scale))
-                .collect();
-            let painter = |by: &ColorBy| match (
-                by,
-                scene.color_field(by).and_then(|f| scene.color_source(f)),
-            ) {
-                (ColorBy::Field(name), Some(src)) => {
-                    let k = fields.iter().position(|f| f == name).unwrap_or(0);
-                    Painter::Field(src as &dyn VoxelSource, k)
-                }
-                _ => Painter::Level,
-            };
-            let frame = tracer.frame();
-            let mut painted = PaintedTracer {
-                inner: tracer,
-                surfaces: (0..isos.len())
-                    .map(|i| {
-                        scene
-                            .color_by()
-                            .get(i)
-                            .cloned()
-                            .flatten()
-                            .map(|b| painter(&b))
-                    })
-                    .collect(),
-                slices: scene
-                    .slices()
-                    .iter()
-                    .map(|(s, by)| GridSlice::new(s, &frame, painter(by)))
-                    .collect(),
-                levels: scene.source(),
-                scales: scales.clone(),
-                ranges: Vec::new(),
-                painted_levels: Default::default(),
-            };
-            let mut light = light.clone();
-            for (s, _) in scene.slices() {
-                light.colors.push([1.0; 3]);
-                light.opacity.push(s.opacity);
-            }
-            let seen = painted.visible_ranges(camera, view.size, &light.opacity);
-            painted.ranges = seen
-                .iter()
-                .map(|r| r.map_or((0.0, 1.0), |r| r.range))
-                .collect();
-            let ranges = fields
-                .iter()
-                .zip(&seen)
-                .zip(&scales)
-                .filter_map(|((field, r), scale)| {
-                    r.map(|r| PaintedRange {
-                        field: field.to_string(),
-                        scale: *scale,
-                        range: r.range,
-                        beyond: r.beyond,
-                    })
-                })
-                .collect();
-            let out = run(&painted, camera, &light);
+        }
+        if let Some((name, _)) = view
+            .field_scales
+            .iter()
+            .find(|(n, _)| !fields.contains(&n.as_str()))
+        {
+            return Err(RenderError::Invalid(format!(
+                "a colour scale for {name}, which paints nothing in this frame"
+            )));
+        }
+        if scene.painters().next().is_none() {
             let painting = Painting {
-                color_ranges: ranges,
-                levels: painted.levels_painted(),
+                color_ranges: Vec::new(),
+                levels: Vec::new(),
             };
-            Ok((out, painting))
-        },
-    )?
+            return Ok((run(tracer, camera, light), painting));
+        }
+        let own = |f: &str| view.field_scales.iter().find(|(n, _)| n == f).map(|s| s.1);
+        let shared: Vec<&str> = fields
+            .iter()
+            .copied()
+            .filter(|f| own(f).is_none())
+            .collect();
+        if let (Some((lo, hi)), true) = (view.color_scale.range, shared.len() > 1) {
+            return Err(RenderError::Invalid(format!(
+                "one colour range {lo}:{hi} for {} fields that paint ({}): each field \
+                     takes the range of its own values in view, or the one its own scale gives",
+                shared.len(),
+                shared.join(", ")
+            )));
+        }
+        let scales: Vec<ColorScale> = fields
+            .iter()
+            .map(|f| own(f).unwrap_or(view.color_scale))
+            .collect();
+        let painter = |by: &ColorBy| match (
+            by,
+            scene.color_field(by).and_then(|f| scene.color_source(f)),
+        ) {
+            (ColorBy::Field(name), Some(src)) => {
+                let k = fields.iter().position(|f| f == name).unwrap_or(0);
+                Painter::Field(src as &dyn VoxelSource, k)
+            }
+            _ => Painter::Level,
+        };
+        let frame = tracer.frame();
+        let mut painted = PaintedTracer {
+            inner: tracer,
+            surfaces: (0..isos.len())
+                .map(|i| {
+                    scene
+                        .color_by()
+                        .get(i)
+                        .cloned()
+                        .flatten()
+                        .map(|b| painter(&b))
+                })
+                .collect(),
+            slices: scene
+                .slices()
+                .iter()
+                .map(|(s, by)| GridSlice::new(s, &frame, painter(by)))
+                .collect(),
+            levels: scene.source(),
+            scales: scales.clone(),
+            ranges: Vec::new(),
+            painted_levels: Default::default(),
+        };
+        let mut light = light.clone();
+        for (s, _) in scene.slices() {
+            light.colors.push([1.0; 3]);
+            light.opacity.push(s.opacity);
+        }
+        let seen = painted.visible_ranges(camera, view.size, &light.opacity);
+        painted.ranges = seen
+            .iter()
+            .map(|r| r.map_or((0.0, 1.0), |r| r.range))
+            .collect();
+        let ranges = fields
+            .iter()
+            .zip(&seen)
+            .zip(&scales)
+            .filter_map(|((field, r), scale)| {
+                r.map(|r| PaintedRange {
+                    field: field.to_string(),
+                    scale: *scale,
+                    range: r.range,
+                    beyond: r.beyond,
+                })
+            })
+            .collect();
+        let out = run(&painted, camera, &light);
+        let painting = Painting {
+            color_ranges: ranges,
+            levels: painted.levels_painted(),
+        };
+        Ok((out, painting))
+    })?
 }
 
 /// The camera, lighting and tracer of a frame of `src.0` (surfaces `surfaces` of `isos`, those

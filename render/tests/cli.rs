@@ -1539,3 +1539,59 @@ fn painted_by_two_fields(path: &Path, out: &Path, extra: &[&str]) -> Output {
     args.extend_from_slice(extra);
     amr_render(&args)
 }
+
+/// A camera inside a closed surface gets a warning that names it (once, for an orbit that stays
+/// inside); a close-up from outside that fills the frame as well gets none.
+#[test]
+fn a_camera_enclosed_by_a_surface_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = sphere(dir.path());
+    let f = file.to_str().unwrap();
+    let out = dir.path().join("in.png");
+    let o = amr_render(&[
+        f,
+        "--iso",
+        "0",
+        "--size",
+        "32x24",
+        "--camera-pos",
+        "0.47,0.52,0.5",
+        "--look-at",
+        "0.47,0.52,0.0",
+        "--orbit",
+        "3",
+        "--quiet",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let warning = "the camera at (0.47, 0.52, 0.5) is enclosed by the surface sphere = 0";
+    assert_eq!(stderr(&o).matches(warning).count(), 1, "{}", stderr(&o));
+
+    let o = amr_render(&[
+        f,
+        "--iso",
+        "0",
+        "--size",
+        "32x24",
+        "--camera-pos",
+        "0.47,0.52,0.9",
+        "--look-at",
+        "0.47,0.52,0.5",
+        "--fov",
+        "5",
+        "--quiet",
+        "--stats-json",
+        "-",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stats: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(
+        stats["covered_pixels"],
+        32 * 24,
+        "the close-up fills the frame"
+    );
+    assert!(!stderr(&o).contains("enclosed"), "{}", stderr(&o));
+}

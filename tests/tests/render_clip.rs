@@ -209,3 +209,53 @@ fn view_limited_extraction_renders_the_view_as_the_whole_one() {
         assert_eq!(limited.stats().active_octants, whole.stats().active_octants);
     }
 }
+
+/// A point inside the sphere is enclosed by it (every ray from it meets the surface), a point
+/// outside is not, nor is the centre once a clip box cuts the sphere open; a second surface
+/// that does not enclose the point is passed over for the one that does.
+#[test]
+fn the_enclosing_surface_of_a_point_is_the_closed_one_around_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_level(dir.path(), Case::Sphere);
+    let [cx, cy, cz] = SPHERE_CENTRE;
+    let view = looking_from([cx + 3.0, cy, cz], SPHERE_CENTRE, 30.0);
+    let mut scene = Scene::open(&path, &SceneOptions::default()).unwrap();
+    scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
+    let inside = [cx + 0.5 * SPHERE_RADIUS, cy, cz];
+    let outside = [cx + 1.2 * SPHERE_RADIUS, cy, cz];
+    assert_eq!(
+        amr_render::enclosing_surface(&scene, &view, SPHERE_CENTRE).unwrap(),
+        Some(0)
+    );
+    assert_eq!(
+        amr_render::enclosing_surface(&scene, &view, inside).unwrap(),
+        Some(0)
+    );
+    assert_eq!(
+        amr_render::enclosing_surface(&scene, &view, outside).unwrap(),
+        None
+    );
+
+    // The smaller sphere (distance -0.1) encloses the centre too; a larger one's (0.5) surface
+    // leaves the domain, which cuts it open.
+    scene
+        .set_isosurfaces(&[IsoSpec::new(0.5), IsoSpec::new(-0.1)])
+        .unwrap();
+    let between = [cx + 0.85 * SPHERE_RADIUS, cy, cz];
+    assert_eq!(
+        amr_render::enclosing_surface(&scene, &view, SPHERE_CENTRE).unwrap(),
+        Some(1)
+    );
+    assert_eq!(
+        amr_render::enclosing_surface(&scene, &view, between).unwrap(),
+        None
+    );
+
+    scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
+    let clip = ClipBox::new([-1.0, -1.0, -1.0], [cx, 2.0, 2.0]).unwrap();
+    scene.set_clip(Some(clip)).unwrap();
+    assert_eq!(
+        amr_render::enclosing_surface(&scene, &view, SPHERE_CENTRE).unwrap(),
+        None
+    );
+}

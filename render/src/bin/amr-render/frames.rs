@@ -14,7 +14,7 @@ use amr_render::output::header::frame_header;
 use amr_render::output::legend::Legend;
 use amr_render::scene::{field_named, TraceMethod};
 use amr_render::shade::IsoSpec;
-use amr_render::{render, render_reusing, ColorBy, Scene, View};
+use amr_render::{enclosing_surface, render, render_reusing, ColorBy, Scene, View};
 use anyhow::bail;
 use serde::Serialize;
 
@@ -70,6 +70,7 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
     let mut cameras = Vec::new();
     let mut records = Vec::new();
     let mut writer = FrameWriter::start()?;
+    let mut warned_enclosed = false;
     let start = Instant::now();
     for k in 0..n {
         let index = if anim.series { k as usize } else { 0 };
@@ -144,6 +145,11 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         row_bar.finish_and_clear();
         if rendered.stats.covered_pixels == 0 {
             warn_empty(scene, &rendered.camera);
+        }
+        let every_pixel = u64::from(view.size.0) * u64::from(view.size.1);
+        if rendered.stats.covered_pixels == every_pixel && !warned_enclosed {
+            // Once a run: a camera path may stay inside for many frames.
+            warned_enclosed = warn_enclosed(scene, &view, &rendered.camera)?;
         }
         let file = scene.file();
         let (time, step) = (file.simulation_time(), file.simulation_step());
@@ -386,6 +392,26 @@ fn surface_value(scene: &Scene, s: &IsoSpec) -> String {
         true => value,
         false => format!("{}={value}", scene.surface_field_name(s)),
     }
+}
+
+/// Warns when the camera is enclosed by one of the surfaces, so that the frame shows nothing but
+/// that surface's inside (a frame every pixel of which shows a surface, as here, may also be a
+/// close-up); returns whether it warned.
+fn warn_enclosed(scene: &Scene, view: &View, camera: &Camera) -> anyhow::Result<bool> {
+    let Some(i) = enclosing_surface(scene, view, camera.pos)? else {
+        return Ok(false);
+    };
+    let s = &scene.isosurfaces()[i];
+    eprintln!(
+        "warning: {}: the camera at {} is enclosed by the surface {} = {}, which every ray \
+         from it meets: the frame shows only its inside; place the camera outside it \
+         (--camera-pos) or cut it open (--clip)",
+        scene.path().display(),
+        format_vector(camera.pos),
+        scene.surface_field_name(s),
+        format_value(f64::from(s.value)),
+    );
+    Ok(true)
 }
 
 /// Warns about each isovalue outside its field's range: its surface is empty, while the frame

@@ -142,7 +142,13 @@ pub(crate) struct AmrexBox {
 impl AmrexBox {
     /// The same cells as a half-open [`IBox`], or an error for an inverted or overflowing box.
     pub(crate) fn to_ibox(self) -> std::result::Result<IBox, String> {
-        if self.lo.iter().chain(&self.hi).any(|c| c.abs() > MAX_INDEX) {
+        // `unsigned_abs`: `i64::MIN.abs()` overflows (it wraps to itself in a release build).
+        if self
+            .lo
+            .iter()
+            .chain(&self.hi)
+            .any(|c| c.unsigned_abs() > MAX_INDEX as u64)
+        {
             return Err(format!(
                 "box {:?}..={:?} has an index beyond +-{MAX_INDEX}",
                 self.lo, self.hi
@@ -320,6 +326,12 @@ mod tests {
             .amrex_box()
             .unwrap();
         assert!(huge.to_ibox().unwrap_err().contains("beyond"));
+        // The most negative i64, whose `abs` overflows (found by the dump fuzzer: a domain
+        // from i64::MIN to 7 passed and divided by zero later).
+        let least = Scan::new("((-9223372036854775808,0,0) (7,7,7) (0,0,0))")
+            .amrex_box()
+            .unwrap();
+        assert!(least.to_ibox().unwrap_err().contains("beyond"));
         assert!(Scan::new("((0,0) (7,7) (0,0))")
             .amrex_box()
             .unwrap_err()

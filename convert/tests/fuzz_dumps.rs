@@ -1,6 +1,6 @@
 //! A seeded mutation fuzzer of the readers, through the `amr-convert` program: the real dumps of
 //! the shared data (the AMReX plotfiles `plt1_Y` and `example_plt_3d`, the Enzo dataset
-//! `DD0010`), copied and damaged: numbers in their text headers and `FAB` lines replaced by huge,
+//! `DD0010`) and a Chombo plotfile written by the tests' HDF5 writer, copied and damaged: numbers in their text headers and `FAB` lines replaced by huge,
 //! negative or malformed ones, lines dropped, doubled or swapped, files cut short, bytes of
 //! their data randomized. Every run must exit 0 with a file that verifies, or 1 with an `Error:`
 //! message that names the dump or a file of it and leaves no output: never a panic, a signal,
@@ -10,7 +10,7 @@
 //! moves the seeds:
 //! `AMR_FUZZ_CASES=20000 cargo test --release -p amr-convert --test fuzz_dumps -- --nocapture`.
 //! A failing dump is kept in `target/convert-fuzz/seedN/` with a report of its damage and the
-//! error. Skipped, with a message, when the shared data is absent.
+//! error. The shared dumps are skipped, with a message, when the shared data is absent.
 
 // The integration tests' support code, for `shared_data`, and the fuzzers' child-process runner.
 #[path = "../../tests/tests/support/fuzz.rs"]
@@ -218,7 +218,8 @@ fn damage_text(b: &mut Vec<u8>, rng: &mut Rng) -> String {
     }
 }
 
-/// Damages a binary file (an AMReX `Cell_D` with its text `FAB` headers, an Enzo HDF5 file)
+/// Damages a binary file (an AMReX `Cell_D` with its text `FAB` headers, an Enzo or Chombo
+/// HDF5 file)
 /// once; returns what was done.
 fn damage_binary(b: &mut Vec<u8>, rng: &mut Rng) -> String {
     if b.is_empty() {
@@ -378,9 +379,19 @@ fn fuzz_damaged_dumps_exit_cleanly() {
             fields: &["Density", "Temperature"],
         });
     }
-    if dumps.is_empty() {
-        return;
-    }
+    // No Chombo file in the shared data: a plotfile in the layout Chombo's writer produces,
+    // written by the tests' own writer through the HDF5 library, whose parsing of damaged
+    // files is under test here as much as the reader's.
+    let chombo = tempfile::tempdir().unwrap();
+    let chombo_file = chombo.path().join("plot.3d.hdf5");
+    support::chombo::writer::write(&chombo_file, &support::chombo::Desc::three_levels(true))
+        .unwrap();
+    dumps.push(Dump {
+        name: "chombo",
+        folder: chombo.path().to_path_buf(),
+        input: "plot.3d.hdf5",
+        fields: &["density", "chi"],
+    });
     let cases = env_u64("AMR_FUZZ_CASES", 240);
     let seed0 = env_u64("AMR_FUZZ_SEED", 0);
     let keep = Path::new(env!("CARGO_TARGET_TMPDIR")).join("../convert-fuzz");

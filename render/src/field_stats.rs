@@ -178,6 +178,24 @@ pub fn format_value(v: f64) -> String {
     format_significant(v, 5)
 }
 
+/// The `f32` nearest to `v` as [`format_value`] writes it (five significant digits).
+pub fn round_to_shown(v: f64) -> f32 {
+    format_value(v).parse().unwrap_or(v as f32)
+}
+
+/// An isovalue as [`format_value`] writes it, with more significant digits (up to the 9 that
+/// tell any two `f32` apart) where five would read as another isovalue: `1.000005` is not `1`.
+pub fn format_isovalue(v: f32) -> String {
+    let mut s = format_value(f64::from(v));
+    for digits in 6..=9 {
+        if s.parse::<f32>().is_ok_and(|read| read == v) {
+            break;
+        }
+        s = format_significant(f64::from(v), digits);
+    }
+    s
+}
+
 /// `(x, y, z)` with each value as [`format_value`] writes it.
 pub fn format_vector(v: [f64; 3]) -> String {
     format!(
@@ -251,6 +269,26 @@ fn format_significant(v: f64, digits: usize) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn isovalues_print_with_the_digits_that_tell_them_apart() {
+        assert_eq!(format_isovalue(10.0), "10");
+        assert_eq!(format_isovalue(0.27), "0.27");
+        assert_eq!(format_isovalue(1.000005), "1.000005");
+        assert_eq!(format_isovalue(-2.5e-7), "-2.5e-7");
+        assert_eq!(format_isovalue(4.476523), "4.476523");
+        assert_eq!(round_to_shown(4.476523), 4.4765);
+        assert_eq!(format_isovalue(round_to_shown(0.232615713)), "0.23262");
+        for v in [
+            1.000_000_1f32,
+            123_456.79,
+            3.333_333_3e-12,
+            f32::MAX,
+            f32::MIN_POSITIVE,
+        ] {
+            assert_eq!(format_isovalue(v).parse::<f32>(), Ok(v), "{v}");
+        }
+    }
 
     #[test]
     fn sample_runs_are_every_cell_or_even_runs_inside_the_cells() {

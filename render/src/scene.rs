@@ -294,7 +294,8 @@ impl Scene {
     /// The isovalue used when none is given: the median of the field's cell values; when the
     /// median sits on a floor or ceiling many cells share (a density floor, zero dark matter in
     /// voids), the median of the values off those plateaus; the middle of the range when
-    /// nothing is off them (a field that is one value up to round-off).
+    /// nothing is off them (a field that is one value up to round-off). A median is rounded to
+    /// the five significant digits [`crate::field_stats::format_value`] prints.
     pub fn default_isovalue(&self) -> f32 {
         let f = &self.file().fields()[self.field];
         let mid = 0.5 * (f.min + f.max);
@@ -305,11 +306,20 @@ impl Scene {
         else {
             return mid;
         };
+        // The legend's five significant digits, so that the isovalue shown is the one drawn
+        // and can be typed again; the median itself where rounding lands on a plateau.
+        let shown = |m: f64| {
+            let rounded = crate::field_stats::round_to_shown(m);
+            match p.off_plateaus(f64::from(rounded)) {
+                true => rounded,
+                false => m as f32,
+            }
+        };
         let median = p.at(0.5);
         if p.off_plateaus(median) {
-            return median as f32;
+            return shown(median);
         }
-        p.median_off_plateaus().map_or(mid, |m| m as f32)
+        p.median_off_plateaus().map_or(mid, shown)
     }
 
     /// The box the surfaces are cut to, if any.

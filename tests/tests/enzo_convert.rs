@@ -102,7 +102,9 @@ fn dd0010_defaults_to_density_at_its_median() {
     assert_eq!(scene.field_name(), "Density");
     let file = AmrkFile::open(std::fs::read(&out).unwrap()).unwrap();
     for (field, name) in [(1, "Density"), (0, "Dark_Matter_Density")] {
-        let median = FieldPercentiles::of(&file, field).unwrap().at(0.5) as f32;
+        let median = FieldPercentiles::of(&file, field).unwrap().at(0.5);
+        // Rounded to five significant digits, as the legend prints it.
+        let median: f32 = format!("{median:.4e}").parse().unwrap();
         let options = SceneOptions {
             field: Some(name.into()),
             ..SceneOptions::default()

@@ -7,7 +7,7 @@ use ab_glyph::{point, Font, FontRef, PxScale, ScaleFont};
 use crate::camera::Camera;
 use crate::coloring::ColorBy;
 use crate::colormap::{level_srgb8, Colormap};
-use crate::field_stats::{distinct_labels, format_value, format_vector};
+use crate::field_stats::{distinct_labels, format_isovalue, format_value, format_vector};
 use crate::outline::{LevelColors, Outline};
 use crate::reconstruct::Reconstruction;
 use crate::render::Rendered;
@@ -188,12 +188,12 @@ impl Legend {
                 Some(by) => (
                     format!(
                         "{field} = {}, coloured by {by}{opacity}",
-                        format_value(f64::from(s.value))
+                        format_isovalue(s.value)
                     ),
                     None,
                 ),
                 None => (
-                    format!("{field} = {}{opacity}", format_value(f64::from(s.value))),
+                    format!("{field} = {}{opacity}", format_isovalue(s.value)),
                     Some(Swatch::Patch(srgb8(s.color_or_palette(i)))),
                 ),
             };

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use amr_render::camera::Camera;
-use amr_render::field_stats::{format_value, format_vector};
+use amr_render::field_stats::{format_isovalue, format_value, format_vector};
 use amr_render::mapping::open_mapped;
 use amr_render::output::header::frame_header;
 use amr_render::output::legend::Legend;
@@ -387,7 +387,7 @@ fn summary(file: &Path, scene: &Scene, files: &FrameFiles, took: Duration) -> St
 /// An isovalue as the summary and warnings write it: `V`, or `FIELD=V` for a surface of
 /// another field than the scene's (as `--iso` reads it).
 fn surface_value(scene: &Scene, s: &IsoSpec) -> String {
-    let value = format_value(f64::from(s.value));
+    let value = format_isovalue(s.value);
     match scene.surface_field(s) == scene.field() {
         true => value,
         false => format!("{}={value}", scene.surface_field_name(s)),
@@ -409,7 +409,7 @@ fn warn_enclosed(scene: &Scene, view: &View, camera: &Camera) -> anyhow::Result<
         scene.path().display(),
         format_vector(camera.pos),
         scene.surface_field_name(s),
-        format_value(f64::from(s.value)),
+        format_isovalue(s.value),
     );
     Ok(true)
 }
@@ -425,7 +425,7 @@ fn warn_isos_outside(scene: &Scene, isos: &[IsoSpec]) {
         eprintln!(
             "warning: {}: isovalue {} lies outside {}'s range [{}, {}]: that surface is empty",
             scene.path().display(),
-            format_value(f64::from(iso.value)),
+            format_isovalue(iso.value),
             f.name,
             format_value(f64::from(f.min)),
             format_value(f64::from(f.max))

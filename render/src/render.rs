@@ -425,7 +425,7 @@ fn with_tracer<S: VoxelSource + ?Sized, R>(
         TraceMethod::Sample => run_clipped(&SampleTracer {
             src,
             isos: isos.iter().map(|s| s.value).collect(),
-            step: view.sample_step(&frame)?,
+            step: view.sample_step(src)?,
         }),
     })
 }

@@ -1,5 +1,6 @@
 //! The sample-based baseline (section 4's ray marching): step along the ray by a fixed distance,
-//! evaluate the same reconstruction, and bisect the first sign change of `F - iso`.
+//! or by half a cell of the level each sample lands in, evaluate the same reconstruction, and
+//! bisect the first sign change of `F - iso`.
 
 use crate::camera::dot;
 use crate::trace::ray::GridRay;
@@ -9,21 +10,58 @@ use crate::trace::tracer::{SurfaceHit, Tracer};
 /// Bisection steps after a sign change is found (the bracket shrinks to `step / 2^BISECTIONS`).
 const BISECTIONS: u32 = 24;
 
-/// Marches rays through the reconstruction with a fixed step.
+/// How far a [`SampleTracer`] steps along a ray, in ray-parameter units (world distance for
+/// unit directions).
+#[derive(Clone, Debug, PartialEq)]
+pub enum SampleStep {
+    /// The same distance everywhere: section 4's baseline.
+    Fixed(f64),
+    /// Per AMR level, coarsest first: the step after a sample on level `l` is entry `l` (the last
+    /// entry past the end). A fixed step fine enough for the finest level crosses a deep
+    /// hierarchy's coarse levels in thousands of steps per cell.
+    PerLevel(Vec<f64>),
+}
+
+impl SampleStep {
+    /// Half a cell of each level (its smallest side in world units) of `src`.
+    pub fn half_cells<S: VoxelSource + ?Sized>(src: &S) -> SampleStep {
+        let unit = src.frame().unit;
+        let steps = (0..)
+            .map_while(|l| src.cell_size(l))
+            .map(|c| 0.5 * (0..3).map(|a| c[a] * unit[a]).fold(f64::INFINITY, f64::min))
+            .collect();
+        SampleStep::PerLevel(steps)
+    }
+
+    /// The step after a sample on `level`.
+    fn after(&self, level: u32) -> f64 {
+        match self {
+            SampleStep::Fixed(s) => *s,
+            SampleStep::PerLevel(steps) => steps
+                .get(level as usize)
+                .or(steps.last())
+                .copied()
+                .unwrap_or(0.0),
+        }
+    }
+}
+
+/// Marches rays through the reconstruction.
 pub struct SampleTracer<'a, S: VoxelSource + ?Sized> {
     /// The reconstruction.
     pub src: &'a S,
     /// Isovalues, one per surface.
     pub isos: Vec<f32>,
-    /// Step along the ray, in ray-parameter units (world distance for unit directions).
-    pub step: f64,
+    /// Step along the ray.
+    pub step: SampleStep,
 }
 
 impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {
-    fn value(&self, ray: &GridRay, t: f64, iso: f32) -> Option<f64> {
+    /// `F - iso` at `t` and the level sampled there.
+    fn value(&self, ray: &GridRay, t: f64, iso: f32) -> Option<(f64, u32)> {
         self.src
             .sample(ray.at(t))
-            .map(|(v, _)| f64::from(v) - f64::from(iso))
+            .map(|(v, level)| (f64::from(v) - f64::from(iso), level))
     }
 }
 
@@ -40,28 +78,46 @@ impl<S: VoxelSource + ?Sized> Tracer for SampleTracer<'_, S> {
         let iso = self.isos[i];
         let frame = self.src.frame();
         let (t0, t1) = ray.clip([0.0; 3], frame.extent, tmin, tmax)?;
-        if !(self.step > 0.0) || !t1.is_finite() {
+        if !t1.is_finite() {
             return None;
         }
         let mut prev: Option<(f64, f64)> = None;
-        let n = ((t1 - t0) / self.step).ceil() as u64;
-        for k in 0..=n {
-            let t = (t0 + k as f64 * self.step).min(t1);
-            let Some(f) = self.value(ray, t, iso) else {
-                prev = None;
-                continue;
-            };
-            if let Some((tp, fp)) = prev {
-                if (fp < 0.0) != (f < 0.0) || f == 0.0 {
-                    let t_hit = self.bisect(ray, iso, tp, fp, t, f);
-                    return Some(self.hit(ray, t_hit));
-                }
-            } else if f == 0.0 {
-                return Some(self.hit(ray, t));
+        let (mut t, mut k) = (t0, 0u64);
+        // The step after a point without a value: the coarsest level's.
+        let mut step = self.step.after(0);
+        loop {
+            if !(step > 0.0) {
+                return None;
             }
-            prev = Some((t, f));
+            if let Some((f, level)) = self.value(ray, t, iso) {
+                if let Some((tp, fp)) = prev {
+                    if (fp < 0.0) != (f < 0.0) || f == 0.0 {
+                        let t_hit = self.bisect(ray, iso, tp, fp, t, f);
+                        return Some(self.hit(ray, t_hit));
+                    }
+                } else if f == 0.0 {
+                    return Some(self.hit(ray, t));
+                }
+                prev = Some((t, f));
+                step = self.step.after(level);
+            } else {
+                prev = None;
+            }
+            if t >= t1 {
+                return None;
+            }
+            k += 1;
+            let next = match self.step {
+                // Multiples of the step from `t0`: no rounding accumulates along the ray.
+                SampleStep::Fixed(s) => t0 + k as f64 * s,
+                SampleStep::PerLevel(_) => t + step,
+            };
+            if !(next > t) {
+                // A step below the rounding of `t`: the march would not move.
+                return None;
+            }
+            t = next.min(t1);
         }
-        None
     }
 
     fn release_pages(&self) {
@@ -78,8 +134,8 @@ impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {
         for _ in 0..BISECTIONS {
             let m = 0.5 * (a + b);
             match self.value(ray, m, iso) {
-                Some(0.0) => return m,
-                Some(f) if (f < 0.0) == neg_a => a = m,
+                Some((0.0, _)) => return m,
+                Some((f, _)) if (f < 0.0) == neg_a => a = m,
                 _ => b = m,
             }
         }
@@ -89,9 +145,14 @@ impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {
     fn hit(&self, ray: &GridRay, t: f64) -> SurfaceHit {
         let pos = ray.at(t);
         let len = (ray.d[0] * ray.d[0] + ray.d[1] * ray.d[1] + ray.d[2] * ray.d[2]).sqrt();
-        let size = (self.step * len).max(1e-9);
-        let grad = self.src.gradient(pos, [0.5 * size; 3]).unwrap_or([0.0; 3]);
         let level = self.src.sample(pos).map_or(0, |s| s.1);
+        let size = (self.step.after(level) * len).max(1e-9);
+        // The hybrid method's smooth normal (one cell of the level apart, blended across level
+        // boundaries), so that the two methods differ only in where they find the surface.
+        let grad = self
+            .src
+            .level_gradient(pos, level, [0.5 * size; 3])
+            .unwrap_or([0.0; 3]);
         let rising = dot(grad, ray.d) > 0.0;
         SurfaceHit {
             t,

@@ -6,8 +6,9 @@ use crate::coloring::ColorScale;
 use crate::error::{RenderError, Result};
 use crate::frustum::Frustum;
 use crate::outline::Outline;
+use crate::sample_mode::SampleStep;
 use crate::shade::{IsoSpec, Lighting, RenderSettings};
-use crate::trace::GridFrame;
+use crate::trace::{GridFrame, VoxelSource};
 
 /// Most samples per pixel a view may ask for.
 pub const MAX_SPP: u32 = 4096;
@@ -49,7 +50,8 @@ pub struct View {
     /// Normals continuous across voxels (central differences of the reconstruction) instead of
     /// each voxel's own trilinear gradient.
     pub smooth_normals: bool,
-    /// Step of the sample method along rays, world units; `None` is half the finest cell.
+    /// Step of the sample method along rays, world units; `None` is half a cell of the level
+    /// each sample lands in.
     pub sample_step: Option<f64>,
     /// How the values that paint surfaces and slices become colours.
     pub color_scale: ColorScale,
@@ -180,12 +182,20 @@ impl View {
         }
     }
 
-    /// The step of the sample method in a domain with grid frame `frame`: the view's, or half
-    /// the finest grid unit; a step given in the view is refused when a ray would take more than
+    /// The step of the sample method through `src`: the view's, or half a cell of the level
+    /// each sample lands in (half a grid unit, a quarter of a finest cell, for a source without
+    /// levels); a step given in the view is refused when a ray would take more than
     /// [`MAX_STEPS_PER_DIAGONAL`] steps across the domain.
-    pub fn sample_step(&self, frame: &GridFrame) -> Result<f64> {
-        let unit = frame.unit.iter().fold(f64::INFINITY, |m, &u| m.min(u));
-        let step = self.sample_step.unwrap_or(0.5 * unit);
+    pub fn sample_step<S: VoxelSource + ?Sized>(&self, src: &S) -> Result<SampleStep> {
+        let frame = src.frame();
+        let Some(step) = self.sample_step else {
+            return Ok(match SampleStep::half_cells(src) {
+                SampleStep::PerLevel(steps) if steps.is_empty() => {
+                    SampleStep::Fixed(0.5 * frame.unit.iter().fold(f64::INFINITY, |m, &u| m.min(u)))
+                }
+                per_level => per_level,
+            });
+        };
         let (lo, hi) = frame.world_bounds();
         let diag = (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
         if !(step > 0.0 && step.is_finite()) {
@@ -193,14 +203,14 @@ impl View {
                 "sample step {step} must be positive and finite"
             )));
         }
-        if self.sample_step.is_some() && diag / step > MAX_STEPS_PER_DIAGONAL {
+        if diag / step > MAX_STEPS_PER_DIAGONAL {
             return Err(RenderError::Invalid(format!(
                 "sample step {step} would take {:.3e} steps across the domain (diagonal {diag:.6e}); \
                  the limit is {MAX_STEPS_PER_DIAGONAL:.0e}",
                 diag / step
             )));
         }
-        Ok(step)
+        Ok(SampleStep::Fixed(step))
     }
 }
 

@@ -3,7 +3,7 @@
 
 use crate::support::block_grid::BlockGrid;
 use crate::support::render::{render_grid, sphere_grid, surfaces, Rng};
-use amr_render::sample_mode::SampleTracer;
+use amr_render::sample_mode::{SampleStep, SampleTracer};
 use amr_render::shade::IsoSpec;
 use amr_render::trace::{GridRay, HybridTracer, Tracer};
 use amr_render::View;
@@ -48,12 +48,12 @@ fn thin_sheet_missed_by_coarse_marching_is_found_exactly() {
     let coarse = SampleTracer {
         src: &grid,
         isos: vec![iso],
-        step: 0.2,
+        step: SampleStep::Fixed(0.2),
     };
     let fine = SampleTracer {
         src: &grid,
         isos: vec![iso],
-        step: 0.01,
+        step: SampleStep::Fixed(0.01),
     };
     let (h, c, f) = (
         hit_fraction(&hybrid, &rays),
@@ -122,5 +122,89 @@ fn far_from_the_origin_with_tiny_cells_renders_like_the_unit_cube() {
         bad <= a.len() / 200,
         "seed {seed}: {bad} of {} pixels differ",
         a.len()
+    );
+}
+
+/// The sample method's default step is half a cell of the level each sample lands in: on a
+/// five-level file it steps by each level's own half cell, and its frame finds the surface where
+/// the hybrid method does (a fixed step fine enough for the finest level took 98 times as long
+/// on the Enzo dataset's 8 levels).
+#[test]
+fn the_sample_method_steps_by_the_level_it_samples() {
+    use amr_format::progress::NoProgress;
+    use amr_format::WriterOptions;
+    use amr_render::{Scene, SceneOptions, TraceMethod};
+    use amr_synth::{write_synth, Case, SynthParams};
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("deep.amrk");
+    let params = SynthParams::unit_cube(5, 2, 8, 8);
+    write_synth(
+        &path,
+        Case::Sphere,
+        &params,
+        WriterOptions::default(),
+        &NoProgress,
+    )
+    .unwrap();
+    let open = |method| {
+        let options = SceneOptions {
+            method,
+            ..SceneOptions::default()
+        };
+        let mut scene = Scene::open(&path, &options).unwrap();
+        scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
+        scene
+    };
+    let (hybrid, sampled) = (open(TraceMethod::Hybrid), open(TraceMethod::Sample));
+    let view = View {
+        size: (64, 48),
+        shadows: false,
+        ao_rays: 0,
+        camera: Some(amr_render::CameraPlacement {
+            pos: [1.3, 0.9, 1.1],
+            look_at: Some([0.47, 0.52, 0.5]),
+            up: None,
+        }),
+        ..View::default()
+    };
+    // Level `l` of the unit cube has 8 * 2^l cells a side: half a cell is 1 / (16 * 2^l).
+    let want: Vec<f64> = (0..5).map(|l| 1.0 / (16.0 * f64::from(1 << l))).collect();
+    match view.sample_step(sampled.source()).unwrap() {
+        SampleStep::PerLevel(steps) => {
+            assert_eq!(steps.len(), 5);
+            for (s, w) in steps.iter().zip(&want) {
+                assert!((s - w).abs() < 1e-12 * w, "{steps:?} against {want:?}");
+            }
+        }
+        other => panic!("a fixed default step {other:?}"),
+    }
+    let a = amr_render::render(&hybrid, &view, &|_| {}).unwrap().frame;
+    let b = amr_render::render(&sampled, &view, &|_| {}).unwrap().frame;
+    assert!(
+        a.covered() > a.len() / 10,
+        "the sphere covers {} pixels",
+        a.covered()
+    );
+    let mut disagree = 0;
+    let mut off = Vec::new();
+    for i in 0..a.len() {
+        match (a.z[i].is_finite(), b.z[i].is_finite()) {
+            (true, true) => off.push((a.z[i] - b.z[i]).abs()),
+            (x, y) if x != y => disagree += 1,
+            _ => {}
+        }
+    }
+    off.sort_by(f32::total_cmp);
+    let finest = want[4] as f32;
+    assert!(
+        disagree <= a.len() / 100,
+        "{disagree} pixels hit by one method only"
+    );
+    assert!(
+        off[off.len() / 2] < 1e-3 * finest && off[off.len() * 99 / 100] < 0.1 * finest,
+        "depths apart: median {}, 99th percentile {}",
+        off[off.len() / 2],
+        off[off.len() * 99 / 100]
     );
 }

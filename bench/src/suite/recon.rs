@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use amr_render::bvh::BvhBuilder;
 use amr_render::mapping::open_mapped;
 use amr_render::reconstruct::Sampler;
-use amr_render::sample_mode::SampleTracer;
+use amr_render::sample_mode::{SampleStep, SampleTracer};
 use amr_render::trace::{
     FieldSource, GridFrame, GridRay, HybridTracer, Surface, Tracer, VoxelSource,
 };
@@ -139,7 +139,7 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
         let tracer = SampleTracer {
             src: &src,
             isos: vec![0.0],
-            step: step * frame.unit[0],
+            step: SampleStep::Fixed(step * frame.unit[0]),
         };
         let d = dirs(nrays_sample);
         let t = Instant::now();

@@ -13,7 +13,7 @@ use std::time::Instant;
 use amr_render::bvh::BvhBuilder;
 use amr_render::camera::Camera;
 use amr_render::mapping::open_mapped;
-use amr_render::sample_mode::SampleTracer;
+use amr_render::sample_mode::{SampleStep, SampleTracer};
 use amr_render::trace::{
     FieldSource, GridFrame, GridRay, HybridTracer, Surface, SurfaceHit, Tracer, VoxelSource,
 };
@@ -418,7 +418,7 @@ fn measure<D: AsRef<[u8]> + Sync>(
         let tracer = SampleTracer {
             src,
             isos: vec![0.0],
-            step,
+            step: SampleStep::Fixed(step),
         };
         // Fine steps are slow: fewer runs for them.
         let runs = if c.quick {

@@ -154,7 +154,7 @@ pub struct RenderArgs {
     /// Intersection method: hybrid (BVH and exact intersection) or sample (ray marching).
     #[arg(long, default_value_t = TraceMethod::Hybrid)]
     pub method: TraceMethod,
-    /// Step of the sample method, world units (default: half the finest cell).
+    /// Step of the sample method, world units (default: half a cell of the level each sample lands in).
     #[arg(long, value_name = "S", allow_hyphen_values = true)]
     pub step: Option<f64>,
     /// Samples per pixel.

@@ -424,6 +424,7 @@ fn with_tracer<S: VoxelSource + ?Sized, R>(
         }),
         TraceMethod::Sample => run_clipped(&SampleTracer {
             src,
+            sources,
             isos: isos.iter().map(|s| s.value).collect(),
             step: view.sample_step(src)?,
         }),

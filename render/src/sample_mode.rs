@@ -50,6 +50,9 @@ impl SampleStep {
 pub struct SampleTracer<'a, S: VoxelSource + ?Sized> {
     /// The reconstruction.
     pub src: &'a S,
+    /// The reconstruction of each surface's field, by surface; empty when every surface is of
+    /// `src`'s field.
+    pub sources: &'a [&'a S],
     /// Isovalues, one per surface.
     pub isos: Vec<f32>,
     /// Step along the ray.
@@ -57,10 +60,14 @@ pub struct SampleTracer<'a, S: VoxelSource + ?Sized> {
 }
 
 impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {
-    /// `F - iso` at `t` and the level sampled there.
-    fn value(&self, ray: &GridRay, t: f64, iso: f32) -> Option<(f64, u32)> {
-        self.src
-            .sample(ray.at(t))
+    /// The reconstruction surface `i` is of.
+    fn source(&self, i: usize) -> &S {
+        self.sources.get(i).copied().unwrap_or(self.src)
+    }
+
+    /// `F - iso` of `src` at `t` and the level sampled there.
+    fn value(&self, src: &S, ray: &GridRay, t: f64, iso: f32) -> Option<(f64, u32)> {
+        src.sample(ray.at(t))
             .map(|(v, level)| (f64::from(v) - f64::from(iso), level))
     }
 }
@@ -75,7 +82,7 @@ impl<S: VoxelSource + ?Sized> Tracer for SampleTracer<'_, S> {
     }
 
     fn next_hit(&self, i: usize, ray: &GridRay, tmin: f64, tmax: f64) -> Option<SurfaceHit> {
-        let iso = self.isos[i];
+        let (iso, src) = (self.isos[i], self.source(i));
         let frame = self.src.frame();
         let (t0, t1) = ray.clip([0.0; 3], frame.extent, tmin, tmax)?;
         if !t1.is_finite() {
@@ -89,14 +96,14 @@ impl<S: VoxelSource + ?Sized> Tracer for SampleTracer<'_, S> {
             if !(step > 0.0) {
                 return None;
             }
-            if let Some((f, level)) = self.value(ray, t, iso) {
+            if let Some((f, level)) = self.value(src, ray, t, iso) {
                 if let Some((tp, fp)) = prev {
                     if (fp < 0.0) != (f < 0.0) || f == 0.0 {
-                        let t_hit = self.bisect(ray, iso, tp, fp, t, f);
-                        return Some(self.hit(ray, t_hit));
+                        let t_hit = self.bisect(src, ray, iso, (tp, fp), (t, f));
+                        return Some(self.hit(src, ray, t_hit));
                     }
                 } else if f == 0.0 {
-                    return Some(self.hit(ray, t));
+                    return Some(self.hit(src, ray, t));
                 }
                 prev = Some((t, f));
                 step = self.step.after(level);
@@ -122,18 +129,27 @@ impl<S: VoxelSource + ?Sized> Tracer for SampleTracer<'_, S> {
 
     fn release_pages(&self) {
         self.src.release_pages();
+        self.sources.iter().for_each(|s| s.release_pages());
     }
 }
 
 impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {
-    fn bisect(&self, ray: &GridRay, iso: f32, mut a: f64, fa: f64, mut b: f64, fb: f64) -> f64 {
+    /// The root of `src`'s `F - iso` in the bracket `(a, fa)`, `(b, fb)` along `ray`.
+    fn bisect(
+        &self,
+        src: &S,
+        ray: &GridRay,
+        iso: f32,
+        (mut a, fa): (f64, f64),
+        (mut b, fb): (f64, f64),
+    ) -> f64 {
         if fb == 0.0 {
             return b;
         }
         let neg_a = fa < 0.0;
         for _ in 0..BISECTIONS {
             let m = 0.5 * (a + b);
-            match self.value(ray, m, iso) {
+            match self.value(src, ray, m, iso) {
                 Some((0.0, _)) => return m,
                 Some((f, _)) if (f < 0.0) == neg_a => a = m,
                 _ => b = m,
@@ -142,15 +158,15 @@ impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {
         0.5 * (a + b)
     }
 
-    fn hit(&self, ray: &GridRay, t: f64) -> SurfaceHit {
+    /// The hit of `src`'s surface at `t` along `ray`.
+    fn hit(&self, src: &S, ray: &GridRay, t: f64) -> SurfaceHit {
         let pos = ray.at(t);
         let len = (ray.d[0] * ray.d[0] + ray.d[1] * ray.d[1] + ray.d[2] * ray.d[2]).sqrt();
-        let level = self.src.sample(pos).map_or(0, |s| s.1);
+        let level = src.sample(pos).map_or(0, |s| s.1);
         let size = (self.step.after(level) * len).max(1e-9);
         // The hybrid method's smooth normal (one cell of the level apart, blended across level
         // boundaries), so that the two methods differ only in where they find the surface.
-        let grad = self
-            .src
+        let grad = src
             .level_gradient(pos, level, [0.5 * size; 3])
             .unwrap_or([0.0; 3]);
         let rising = dot(grad, ray.d) > 0.0;

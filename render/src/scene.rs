@@ -522,15 +522,15 @@ impl Scene {
                 .filter_map(|s| s.bvh.voxel_bounds())
                 .for_each(grow),
             TraceMethod::Sample => {
-                let source = self.source();
                 let region = self.region();
                 for spec in &self.isos {
+                    let source = self.surface_source(spec);
                     let e = source
                         .extract_in(spec.value, &region)
                         .map_err(|e| e.in_file(&self.path))?;
                     e.refs.iter().for_each(|&r| grow(source.voxel_box(r)));
+                    source.release_pages();
                 }
-                source.release_pages();
                 if let Some(e) = self.take_failure() {
                     return Err(e);
                 }
@@ -585,15 +585,6 @@ impl Scene {
         if let Some(f) = isos.iter().filter_map(|s| s.field).find(|&f| f >= fields) {
             return Err(RenderError::Invalid(format!(
                 "an isosurface of field {f}, but the file has {fields} fields"
-            ))
-            .in_file(&self.path));
-        }
-        let other = isos.iter().find(|s| self.surface_field(s) != self.field);
-        if let (Some(s), TraceMethod::Sample) = (other, self.method) {
-            return Err(RenderError::Invalid(format!(
-                "the sample method traces isosurfaces of the scene's field ({}) only, not of {}",
-                self.field_name(),
-                self.file().fields()[self.surface_field(s)].name
             ))
             .in_file(&self.path));
         }

@@ -47,11 +47,13 @@ fn thin_sheet_missed_by_coarse_marching_is_found_exactly() {
     };
     let coarse = SampleTracer {
         src: &grid,
+        sources: &[],
         isos: vec![iso],
         step: SampleStep::Fixed(0.2),
     };
     let fine = SampleTracer {
         src: &grid,
+        sources: &[],
         isos: vec![iso],
         step: SampleStep::Fixed(0.01),
     };

@@ -137,19 +137,56 @@ fn what_a_scene_of_several_fields_cannot_do_is_refused() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("field 7") && err.contains("two.amrk"), "{err}");
+}
+
+/// The sample method marches each surface through its own field's reconstruction (refused
+/// until 2026-12-07): a scene of two fields sampled shows both surfaces where the hybrid method
+/// does, each in its colour, and frames them alike.
+#[test]
+fn the_sample_method_traces_surfaces_of_several_fields() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path());
+    let (hybrid, ramp) = sphere_and_plane(&path);
     let options = SceneOptions {
         field: Some("sphere".into()),
         method: TraceMethod::Sample,
         ..SceneOptions::default()
     };
     let mut sampled = Scene::open(&path, &options).unwrap();
-    let err = sampled
-        .set_isosurfaces(&[spec(1.0, GOLD, Some(1))])
-        .unwrap_err()
-        .to_string();
+    sampled
+        .set_isosurfaces(&[spec(0.0, GOLD, None), spec(1.0, BLUE, Some(ramp))])
+        .unwrap();
+    assert_eq!(
+        sampled.surface_bounds().unwrap(),
+        hybrid.surface_bounds().unwrap()
+    );
+    let frame = |scene: &Scene| render(scene, &view(), &|_| ()).unwrap();
+    let (a, b) = (frame(&hybrid), frame(&sampled));
+    let f = &a.frame;
+    let (mut agree, mut covered, mut gold, mut blue) = (0, 0, 0, 0);
+    for i in 0..f.len() {
+        if !f.z[i].is_finite() {
+            continue;
+        }
+        covered += 1;
+        let near = (f.z[i] - b.frame.z[i]).abs() < 1e-4;
+        let same_colour = (0..3).all(|c| (f.rgb[c][i] - b.frame.rgb[c][i]).abs() < 0.03);
+        if near && same_colour {
+            agree += 1;
+            // The blue surface is the one whose blue outweighs its red.
+            match f.rgb[2][i] > f.rgb[0][i] {
+                true => blue += 1,
+                false => gold += 1,
+            }
+        }
+    }
     assert!(
-        err.contains("sample method") && err.contains("ramp"),
-        "{err}"
+        agree * 100 >= covered * 98,
+        "{agree} of {covered} pixels alike"
+    );
+    assert!(
+        gold > 500 && blue > 500,
+        "{gold} gold and {blue} blue pixels"
     );
 }
 

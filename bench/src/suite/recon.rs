@@ -138,6 +138,7 @@ pub fn run(ctx: &Ctx) -> anyhow::Result<String> {
         let step = 0.25 * 2.0; // a quarter of a finest cell, in grid units
         let tracer = SampleTracer {
             src: &src,
+            sources: &[],
             isos: vec![0.0],
             step: SampleStep::Fixed(step * frame.unit[0]),
         };

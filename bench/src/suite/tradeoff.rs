@@ -417,6 +417,7 @@ fn measure<D: AsRef<[u8]> + Sync>(
         let step = c.finest / f64::from(k);
         let tracer = SampleTracer {
             src,
+            sources: &[],
             isos: vec![0.0],
             step: SampleStep::Fixed(step),
         };

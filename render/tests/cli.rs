@@ -1595,3 +1595,85 @@ fn a_camera_enclosed_by_a_surface_is_warned_about() {
     );
     assert!(!stderr(&o).contains("enclosed"), "{}", stderr(&o));
 }
+
+/// `--color-range auto-series` with two fields painting (refused until 2026-12-07): each
+/// field's colour range is its range over every file of the series, the same in every frame,
+/// and a field's own `--color-scale` range stays its own.
+#[test]
+fn auto_series_gives_each_painting_field_its_range_over_the_series() {
+    let dir = tempfile::tempdir().unwrap();
+    let (da, db) = (dir.path().join("a"), dir.path().join("b"));
+    std::fs::create_dir_all(&da).unwrap();
+    std::fs::create_dir_all(&db).unwrap();
+    let a = sphere_and_ramp(&da);
+    let b = synth_file::sphere_and_ramp(&db, &SynthParams::unit_cube(2, 2, 16, 8), &|p| {
+        3.0 * p[0] - 1.0
+    });
+    let range = |name: &str| {
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for path in [&a, &b] {
+            let file = amr_format::AmrkFile::open(std::fs::read(path).unwrap()).unwrap();
+            let f = &file.fields()[file.field_index(name).unwrap()];
+            (lo, hi) = (lo.min(f.min), hi.max(f.max));
+        }
+        (f64::from(lo), f64::from(hi))
+    };
+    let out = dir.path().join("s.exr");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+            "--field",
+            "sphere",
+            "--iso",
+            "0",
+            "--color-by",
+            "ramp",
+            "--slice",
+            "z=0.5",
+            "--slice-field",
+            "sphere",
+            "--color-range",
+            "auto-series",
+            "--size",
+            "24x18",
+            "-q",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        amr_render(&args)
+    };
+    let o = run(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let first = attribute(&dir.path().join("s_0000.exr"), "color_ranges");
+    assert_eq!(
+        first,
+        attribute(&dir.path().join("s_0001.exr"), "color_ranges")
+    );
+    // `FIELD LO HI COLORMAP; ...`, the fields in the order they first paint.
+    let parsed: Vec<(String, f64, f64)> = first
+        .split("; ")
+        .map(|r| {
+            let p: Vec<&str> = r.split(' ').collect();
+            (
+                p[0].to_string(),
+                p[1].parse().unwrap(),
+                p[2].parse().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(parsed.len(), 2, "{first}");
+    for (name, lo, hi) in &parsed {
+        let (want_lo, want_hi) = range(name);
+        assert!(
+            (lo - want_lo).abs() <= 1e-6 * want_lo.abs().max(1.0)
+                && (hi - want_hi).abs() <= 1e-6 * want_hi.abs().max(1.0),
+            "{name}: {lo}..{hi}, over the series {want_lo}..{want_hi}"
+        );
+    }
+    let o = run(&["--color-scale", "ramp=:0:1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let ranges = attribute(&dir.path().join("s_0000.exr"), "color_ranges");
+    assert!(ranges.starts_with("ramp 0 1 "), "{ranges}");
+}

@@ -14,7 +14,7 @@ use amr_render::output::header::frame_header;
 use amr_render::output::legend::Legend;
 use amr_render::scene::{field_named, TraceMethod};
 use amr_render::shade::IsoSpec;
-use amr_render::{enclosing_surface, render, render_reusing, ColorBy, Scene, View};
+use amr_render::{enclosing_surface, render, render_reusing, ColorBy, ColorScale, Scene, View};
 use anyhow::bail;
 use serde::Serialize;
 
@@ -62,7 +62,30 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
 
     let mut base_view = request.view.clone();
     if request.series_color_range {
-        base_view.color_scale.range = Some(series_range(request)?);
+        let ranges = series_ranges(request)?;
+        match ranges.as_slice() {
+            [(_, one)] if base_view.field_scales.is_empty() => {
+                base_view.color_scale.range = Some(*one);
+            }
+            // A field's own range stays; the others take theirs over the series.
+            _ => {
+                for (name, range) in ranges {
+                    let scales = &mut base_view.field_scales;
+                    match scales.iter_mut().find(|(n, _)| *n == name) {
+                        Some((_, own)) => {
+                            own.range.get_or_insert(range);
+                        }
+                        None => {
+                            let scale = ColorScale {
+                                range: Some(range),
+                                ..base_view.color_scale
+                            };
+                            scales.push((name, scale));
+                        }
+                    }
+                }
+            }
+        }
     }
     // The open file's index, its scene and its isosurfaces (a default isovalue reads the field's
     // cells, so it is found once per file, not once per frame).
@@ -297,38 +320,54 @@ fn check_series(request: &RenderRequest) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The range of the field that paints surfaces or slices, over every file of the series (from
-/// the ranges the files store, so no data is read).
-fn series_range(request: &RenderRequest) -> anyhow::Result<(f64, f64)> {
-    let painted = request
+/// Each painting field's range over every file of a time series (`--color-range auto-series`),
+/// from the ranges the files store, so no data is read: the fields of `--color-by` and
+/// `--slice-field`, in that order, or the scene's field (`--field`) when only slices paint with
+/// it.
+fn series_ranges(request: &RenderRequest) -> anyhow::Result<Vec<(String, (f64, f64))>> {
+    let mut names: Vec<String> = Vec::new();
+    for c in request
         .color_by
         .iter()
         .chain(std::iter::once(&request.slice_field))
-        .find_map(|c| match c {
-            Some(ColorBy::Field(name)) => Some(name.clone()),
-            _ => None,
-        })
-        .or_else(|| request.slices.first().and(request.scene.field.clone()));
-    let Some(name) = painted else {
+    {
+        if let Some(ColorBy::Field(name)) = c {
+            if !names.contains(name) {
+                names.push(name.clone());
+            }
+        }
+    }
+    if let (true, false, Some(field)) = (
+        names.is_empty(),
+        request.slices.is_empty(),
+        &request.scene.field,
+    ) {
+        names.push(field.clone());
+    }
+    if names.is_empty() {
         bail!("--color-range auto-series needs a field to paint with (--color-by FIELD or --slice-field FIELD)");
-    };
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    }
+    let mut ranges: Vec<(f64, f64)> = vec![(f64::INFINITY, f64::NEG_INFINITY); names.len()];
     for path in &request.files {
         let file = open_mapped(path)?;
-        let Some(i) = file.field_index(&name) else {
-            bail!(
-                "{}: no field '{name}' to take the series' colour range from",
-                path.display()
-            );
-        };
-        let f = &file.fields()[i];
-        lo = lo.min(f64::from(f.min));
-        hi = hi.max(f64::from(f.max));
+        for (name, (lo, hi)) in names.iter().zip(&mut ranges) {
+            let Some(i) = file.field_index(name) else {
+                bail!(
+                    "{}: no field '{name}' to take the series' colour range from",
+                    path.display()
+                );
+            };
+            let f = &file.fields()[i];
+            *lo = lo.min(f64::from(f.min));
+            *hi = hi.max(f64::from(f.max));
+        }
     }
-    if !(lo < hi) {
-        bail!("field '{name}' is {lo} in every file of the series: no colour range to spread");
+    for (name, (lo, hi)) in names.iter().zip(&ranges) {
+        if !(lo < hi) {
+            bail!("field '{name}' is {lo} in every file of the series: no colour range to spread");
+        }
     }
-    Ok((lo, hi))
+    Ok(names.into_iter().zip(ranges).collect())
 }
 
 /// `view`, with a camera that frames the scene's isosurfaces when it has none and the frame has

@@ -51,8 +51,8 @@ pub struct RenderArgs {
     #[arg(long, value_name = "NAME")]
     pub colormap: Option<Colormap>,
     /// Values at the colormap's ends (default: 1st..99th percentile of the values in view);
-    /// `auto-series`: the painting field's range over every file of a time series, the same for
-    /// every frame.
+    /// `auto-series`: each painting field's range over every file of a time series, the same
+    /// for every frame.
     #[arg(long, value_name = "LO:HI|auto-series", value_parser = parse_color_range, allow_hyphen_values = true)]
     pub color_range: Option<ColorRange>,
     /// Map the logarithm of the values.
@@ -280,7 +280,8 @@ impl RenderArgs {
                 .any(|s| s.field == f && s.range.is_some())
         };
         let shared: Vec<&str> = fields.iter().copied().filter(|f| !own_range(f)).collect();
-        if let (Some(_), true) = (&self.color_range, shared.len() > 1) {
+        // `auto-series` is a range per field: each field's over the series.
+        if let (Some(ColorRange::Fixed(..)), true) = (&self.color_range, shared.len() > 1) {
             bail!(
                 "--color-range gives one range, but {} fields paint ({}): each takes the 1st to \
                  99th percentile of its own values in view, on its own colour bar (or give a \

@@ -251,6 +251,33 @@ impl Scene {
         self.source().extractor()
     }
 
+    /// The extractor of the field each isosurface of `isos` is of, in order, opening the voxel
+    /// source of each field that is not the scene's (as [`Self::set_isosurfaces`] would); `None`
+    /// for a reconstruction without one (only the octant reconstruction extracts this way). For
+    /// a process that extracts its part of a scene before [`Self::set_isosurfaces_from_refs`].
+    pub fn surface_extractors(
+        &mut self,
+        isos: &[IsoSpec],
+    ) -> Result<Vec<Option<&Extractor<'_, WatchedMap>>>> {
+        let fields = self.file().fields().len();
+        for spec in isos {
+            let field = self.surface_field(spec);
+            if field >= fields {
+                return Err(RenderError::Invalid(format!(
+                    "an isosurface of field {field}, but the file has {fields} fields"
+                ))
+                .in_file(&self.path));
+            }
+            if field != self.field {
+                self.open_source(field)?;
+            }
+        }
+        Ok(isos
+            .iter()
+            .map(|s| self.surface_source(s).extractor())
+            .collect())
+    }
+
     /// The field's index in the file.
     pub fn field(&self) -> usize {
         self.field

@@ -11,7 +11,7 @@ use std::process::Command;
 use amr_format::progress::NoProgress;
 use amr_format::WriterOptions;
 use amr_render::output::exr_file::read_channel;
-use amr_synth::{write_synth, Case, SynthParams};
+use amr_synth::{write_synth, AnalyticField, Case, SynthParams};
 
 const CHANNELS: [&str; 12] = [
     "R", "G", "B", "A", "Z", "N.X", "N.Y", "N.Z", "P.X", "P.Y", "P.Z", "level",
@@ -307,4 +307,83 @@ fn a_clip_or_view_limited_extraction_under_mpirun_is_refused() {
         );
         assert!(!out.exists());
     }
+}
+
+/// Surfaces of two fields (`--iso FIELD=V`) in partitioned mode (refused until 2026-12-07):
+/// each rank extracts its share of each field's leaves, and the frame has the single-process
+/// first hits.
+#[test]
+fn partitioned_frames_of_two_fields_have_the_single_process_first_hits() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("two.amrk");
+    let params = SynthParams::unit_cube(3, 2, 16, 8);
+    let mut spec = amr_synth::build_hierarchy(&Case::Sphere, "sphere", &params).unwrap();
+    spec.fields = vec!["sphere".into(), "ramp".into()];
+    let sphere = |p: [f64; 3]| Case::Sphere.value(p);
+    let ramp = |p: [f64; 3]| p[0] + 0.5 * p[1];
+    amr_synth::write_fields(&file, spec, &[&sphere, &ramp], WriterOptions::default()).unwrap();
+    let args = |out: &Path| -> Vec<String> {
+        [
+            file.to_str().unwrap(),
+            "--field",
+            "sphere",
+            "--iso",
+            "0:orange",
+            "--iso",
+            "ramp=1:#3070ff",
+            "--size",
+            "96x72",
+            "--frame-domain",
+            "--no-shadows",
+            "--ao",
+            "0",
+            "--outline",
+            "none",
+            "-o",
+            out.to_str().unwrap(),
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
+    };
+    let reference = dir.path().join("single.exr");
+    let o = Command::new(env!("CARGO_BIN_EXE_amr-render"))
+        .args(args(&reference))
+        .output()
+        .unwrap();
+    check(o, "single-process render");
+    let out = dir.path().join("partitioned.exr");
+    let o = Command::new(mpirun())
+        .args(["--oversubscribe", "--bind-to", "none", "-n", "2"])
+        .arg(env!("CARGO_BIN_EXE_amr-render"))
+        .args(args(&out))
+        .args(["--mpi-mode", "partitioned"])
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+        .output()
+        .unwrap();
+    check(o, "mpirun -n 2 --mpi-mode partitioned, two fields");
+    let covered = channel(&reference, "A")
+        .iter()
+        .filter(|&&a| f32::from_bits(a) > 0.0)
+        .count();
+    assert!(covered > 300, "{covered} pixels covered");
+    for c in FIRST_HIT {
+        assert!(
+            channel(&out, c) == channel(&reference, c),
+            "channel {c} differs from the single-process frame"
+        );
+    }
+    // Both surfaces are in the frame: orange (red over blue) and blue pixels.
+    let (r, b) = (channel(&out, "R"), channel(&out, "B"));
+    let blue = r
+        .iter()
+        .zip(&b)
+        .filter(|(r, b)| f32::from_bits(**b) > f32::from_bits(**r) + 0.05)
+        .count();
+    assert!(
+        blue > 30 && blue + 30 < covered,
+        "{blue} blue pixels of {covered}"
+    );
 }

@@ -438,15 +438,6 @@ impl RenderArgs {
         if self.mpi_mode.is_some() && !cfg!(feature = "mpi") {
             bail!("--mpi-mode needs a build with `--features mpi` and a start with mpirun");
         }
-        if let (Some("partitioned"), Some(s)) = (
-            self.mpi_mode.as_deref(),
-            self.iso.iter().find(|s| s.field.is_some()),
-        ) {
-            bail!(
-                "--iso {s}: --mpi-mode partitioned renders isosurfaces of --field's field only \
-                 (each rank extracts its part of that field)"
-            );
-        }
         let color_scale = ColorScale {
             colormap: self.colormap.unwrap_or_default(),
             range: match self.color_range {

@@ -42,13 +42,12 @@ pub fn render_part(
     let mut bytes = 0u64;
 
     let t = Instant::now();
-    let ext = scene
-        .extractor()
-        .ok_or_else(|| anyhow!("--mpi-mode partitioned needs the octant reconstruction"))?;
-    let file = scene.file();
     let mut local = Vec::with_capacity(isos.len());
-    let mut counts = vec![0u64; file.num_leaves()];
-    for spec in isos {
+    let mut counts = vec![0u64; scene.file().num_leaves()];
+    // Each surface from its own field's extractor: the fields share the kd-tree's leaves.
+    for (spec, ext) in isos.iter().zip(scene.surface_extractors(isos)?) {
+        let ext =
+            ext.ok_or_else(|| anyhow!("--mpi-mode partitioned needs the octant reconstruction"))?;
         let candidates = ext.candidate_leaves(spec.value);
         let c = candidates.len();
         let slice = &candidates[me * c / n..(me + 1) * c / n];
@@ -65,7 +64,7 @@ pub fn render_part(
     let frame = scene.grid_frame();
     let camera = view.camera(&frame)?;
     let eye = [0, 1, 2].map(|a| 0.5 * (camera.pos[a] - frame.origin[a]) / frame.unit[a]);
-    let order = visibility_order(&file.tree(), eye);
+    let order = visibility_order(&scene.file().tree(), eye);
     let owner = balanced_runs(&order, &total, n);
     drop((order, total));
     let extracted = t.elapsed();

@@ -100,10 +100,10 @@ impl<S: VoxelSource + ?Sized> Tracer for SampleTracer<'_, S> {
                 if let Some((tp, fp)) = prev {
                     if (fp < 0.0) != (f < 0.0) || f == 0.0 {
                         let t_hit = self.bisect(src, ray, iso, (tp, fp), (t, f));
-                        return Some(self.hit(src, ray, t_hit));
+                        return Some(self.hit(src, ray, t_hit, Some(fp < f)));
                     }
                 } else if f == 0.0 {
-                    return Some(self.hit(src, ray, t));
+                    return Some(self.hit(src, ray, t, None));
                 }
                 prev = Some((t, f));
                 step = self.step.after(level);
@@ -158,8 +158,9 @@ impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {
         0.5 * (a + b)
     }
 
-    /// The hit of `src`'s surface at `t` along `ray`.
-    fn hit(&self, src: &S, ray: &GridRay, t: f64) -> SurfaceHit {
+    /// The hit of `src`'s surface at `t` along `ray`; `rising` is whether the field grows along
+    /// the ray there, when the bracket of the crossing tells (else the gradient does).
+    fn hit(&self, src: &S, ray: &GridRay, t: f64, rising: Option<bool>) -> SurfaceHit {
         let pos = ray.at(t);
         let len = (ray.d[0] * ray.d[0] + ray.d[1] * ray.d[1] + ray.d[2] * ray.d[2]).sqrt();
         let level = src.sample(pos).map_or(0, |s| s.1);
@@ -169,7 +170,9 @@ impl<S: VoxelSource + ?Sized> SampleTracer<'_, S> {
         let grad = src
             .level_gradient(pos, level, [0.5 * size; 3])
             .unwrap_or([0.0; 3]);
-        let rising = dot(grad, ray.d) > 0.0;
+        // From the crossing, not from the smooth normal, which may lean past the ray at a
+        // silhouette ([`SurfaceHit::rising`]).
+        let rising = rising.unwrap_or_else(|| dot(grad, ray.d) > 0.0);
         SurfaceHit {
             t,
             pos,

@@ -92,15 +92,21 @@ fn single(file: &Path, out: &Path, extra: &[&str]) {
     check(o, "single-process render");
 }
 
-fn mpi(n: usize, file: &Path, out: &Path, extra: &[&str]) -> String {
-    let o = Command::new(mpirun())
-        .args(["--oversubscribe", "--bind-to", "none", "-n", &n.to_string()])
+/// `mpirun -n N amr-render`, arguments to follow.
+fn mpirun_render(n: usize) -> Command {
+    let mut c = Command::new(mpirun());
+    c.args(["--oversubscribe", "--bind-to", "none", "-n", &n.to_string()])
         .arg(env!("CARGO_BIN_EXE_amr-render"))
-        .args(render_args(file, out, extra))
         // Open MPI refuses root (as in CI containers) without these.
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none");
+    c
+}
+
+fn mpi(n: usize, file: &Path, out: &Path, extra: &[&str]) -> String {
+    let o = mpirun_render(n)
+        .args(render_args(file, out, extra))
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr).into_owned();
@@ -270,13 +276,8 @@ fn a_bad_file_under_mpirun_is_one_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("missing.amrk");
     let out = dir.path().join("x.exr");
-    let o = Command::new(mpirun())
-        .args(["--oversubscribe", "--bind-to", "none", "-n", "2"])
-        .arg(env!("CARGO_BIN_EXE_amr-render"))
+    let o = mpirun_render(2)
         .args(render_args(&missing, &out, &[]))
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
@@ -290,13 +291,8 @@ fn a_clip_or_view_limited_extraction_under_mpirun_is_refused() {
     let file = dataset(dir.path());
     let out = dir.path().join("x.exr");
     for extra in [&["--clip", "0,0,0,0.5,1,1"][..], &["--extract-in-view"]] {
-        let o = Command::new(mpirun())
-            .args(["--oversubscribe", "--bind-to", "none", "-n", "1"])
-            .arg(env!("CARGO_BIN_EXE_amr-render"))
+        let o = mpirun_render(1)
             .args(render_args(&file, &out, extra))
-            .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-            .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-            .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
             .output()
             .unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
@@ -353,14 +349,9 @@ fn partitioned_frames_of_two_fields_have_the_single_process_first_hits() {
         .unwrap();
     check(o, "single-process render");
     let out = dir.path().join("partitioned.exr");
-    let o = Command::new(mpirun())
-        .args(["--oversubscribe", "--bind-to", "none", "-n", "2"])
-        .arg(env!("CARGO_BIN_EXE_amr-render"))
+    let o = mpirun_render(2)
         .args(args(&out))
         .args(["--mpi-mode", "partitioned"])
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
         .output()
         .unwrap();
     check(o, "mpirun -n 2 --mpi-mode partitioned, two fields");

@@ -259,23 +259,30 @@ impl Scene {
         &mut self,
         isos: &[IsoSpec],
     ) -> Result<Vec<Option<&Extractor<'_, WatchedMap>>>> {
-        let fields = self.file().fields().len();
-        for spec in isos {
-            let field = self.surface_field(spec);
-            if field >= fields {
-                return Err(RenderError::Invalid(format!(
-                    "an isosurface of field {field}, but the file has {fields} fields"
-                ))
-                .in_file(&self.path));
-            }
-            if field != self.field {
-                self.open_source(field)?;
-            }
-        }
+        self.open_surface_sources(isos)?;
         Ok(isos
             .iter()
             .map(|s| self.surface_source(s).extractor())
             .collect())
+    }
+
+    /// Opens the voxel source of each field of `isos` that is not the scene's; an error for a
+    /// field the file does not hold.
+    fn open_surface_sources(&mut self, isos: &[IsoSpec]) -> Result<()> {
+        let fields = self.file().fields().len();
+        if let Some(f) = isos.iter().filter_map(|s| s.field).find(|&f| f >= fields) {
+            return Err(RenderError::Invalid(format!(
+                "an isosurface of field {f}, but the file has {fields} fields"
+            ))
+            .in_file(&self.path));
+        }
+        for spec in isos {
+            let field = self.surface_field(spec);
+            if field != self.field {
+                self.open_source(field)?;
+            }
+        }
+        Ok(())
     }
 
     /// The field's index in the file.
@@ -608,19 +615,7 @@ impl Scene {
                 bad.value
             )));
         }
-        let fields = self.file().fields().len();
-        if let Some(f) = isos.iter().filter_map(|s| s.field).find(|&f| f >= fields) {
-            return Err(RenderError::Invalid(format!(
-                "an isosurface of field {f}, but the file has {fields} fields"
-            ))
-            .in_file(&self.path));
-        }
-        for spec in isos {
-            let field = self.surface_field(spec);
-            if field != self.field {
-                self.open_source(field)?;
-            }
-        }
+        self.open_surface_sources(isos)?;
         let mut given = given.map(Vec::into_iter);
         let mut old: Vec<Option<Surface>> = self.surfaces.drain(..).map(Some).collect();
         let mut stats = SceneStats::default();

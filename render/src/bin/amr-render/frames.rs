@@ -24,7 +24,7 @@ use crate::movie;
 use crate::outputs::{self, FrameFiles, ProcessMemory, RunStats};
 use crate::progress;
 use crate::render::{request_isos, sweep_field};
-use crate::render_args::RenderRequest;
+use crate::render_args::{painting_fields, RenderRequest};
 use amr_render::system_memory::peak_rss_bytes;
 
 /// The statistics of one frame of an animation.
@@ -325,18 +325,10 @@ fn check_series(request: &RenderRequest) -> anyhow::Result<()> {
 /// `--slice-field`, in that order, or the scene's field (`--field`) when only slices paint with
 /// it.
 fn series_ranges(request: &RenderRequest) -> anyhow::Result<Vec<(String, (f64, f64))>> {
-    let mut names: Vec<String> = Vec::new();
-    for c in request
-        .color_by
-        .iter()
-        .chain(std::iter::once(&request.slice_field))
-    {
-        if let Some(ColorBy::Field(name)) = c {
-            if !names.contains(name) {
-                names.push(name.clone());
-            }
-        }
-    }
+    let mut names: Vec<String> = painting_fields(&request.color_by, &request.slice_field)
+        .into_iter()
+        .map(String::from)
+        .collect();
     if let (true, false, Some(field)) = (
         names.is_empty(),
         request.slices.is_empty(),

@@ -258,15 +258,7 @@ impl RenderArgs {
     /// The fields named to paint surfaces (`--color-by`) or slices (`--slice-field`), in the
     /// order they first do.
     fn painting_fields(&self) -> Vec<&str> {
-        let mut fields: Vec<&str> = Vec::new();
-        for c in self.color_by.iter().chain([&self.slice_field]) {
-            if let Some(ColorBy::Field(name)) = c {
-                if !fields.contains(&name.as_str()) {
-                    fields.push(name);
-                }
-            }
-        }
-        fields
+        painting_fields(&self.color_by, &self.slice_field)
     }
 
     /// An error when `--color-range` would be the range of several painting fields (those
@@ -557,6 +549,23 @@ pub enum ColorRange {
     Fixed(f64, f64),
     /// The painting field's range over every file of the series.
     AutoSeries,
+}
+
+/// The fields named by `--color-by` and `--slice-field` (`color_by`, `slice_field`), each once,
+/// in the order they first appear.
+pub fn painting_fields<'a>(
+    color_by: &'a [Option<ColorBy>],
+    slice_field: &'a Option<ColorBy>,
+) -> Vec<&'a str> {
+    let mut fields: Vec<&str> = Vec::new();
+    for c in color_by.iter().chain([slice_field]) {
+        if let Some(ColorBy::Field(name)) = c {
+            if !fields.contains(&name.as_str()) {
+                fields.push(name);
+            }
+        }
+    }
+    fields
 }
 
 /// Parses `LO:HI` or `auto-series`.

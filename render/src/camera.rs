@@ -35,6 +35,29 @@ pub enum CameraError {
     EmptyImage(u32, u32),
 }
 
+/// Where a world box falls in a camera's image ([`Camera::place_box`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BoxPlacement {
+    /// Behind the camera, or in the plane through it square to the view.
+    Behind,
+    /// In front of the camera, reaching past the image's edges but not into it: `right` is -1
+    /// when it lies to the image's left, 1 to its right, 0 across it; `below` likewise, -1
+    /// above.
+    Outside {
+        /// -1 left, 1 right, 0 across the image's width.
+        right: i8,
+        /// -1 above, 1 below, 0 across the image's height.
+        below: i8,
+    },
+    /// In front of the camera and over the image, spanning `pixels` pixels on its longer side.
+    InView {
+        /// The box's extent in the image, pixels, on its longer side.
+        pixels: f64,
+    },
+    /// Partly behind the camera and partly in front of it.
+    AroundCamera,
+}
+
 /// A validated pinhole camera with an orthonormal basis.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
@@ -119,6 +142,55 @@ impl Camera {
     /// Unit direction through image point `(x, y)` in pixels (`y` down) of a `w x h` image.
     pub fn ray_dir(&self, x: f64, y: f64, w: u32, h: u32) -> [f64; 3] {
         self.pixel_dirs(w, h).dir(x, y)
+    }
+
+    /// Where world point `p` appears in a `w x h` image, in pixels (`y` down; the image spans
+    /// `0..w` and `0..h`, and points outside it give coordinates outside those): the inverse of
+    /// [`Camera::ray_dir`]. `None` for a point in the camera's plane or behind it.
+    pub fn image_point(&self, p: [f64; 3], w: u32, h: u32) -> Option<[f64; 2]> {
+        let d = sub(p, self.pos);
+        let depth = dot(d, self.forward);
+        if !(depth > 0.0) {
+            return None;
+        }
+        let dirs = self.pixel_dirs(w, h);
+        let sx = dot(d, self.right) / depth / (dirs.tan * dirs.w / dirs.h);
+        let sy = dot(d, self.true_up) / depth / dirs.tan;
+        Some([0.5 * (sx + 1.0) * dirs.w, 0.5 * (1.0 - sy) * dirs.h])
+    }
+
+    /// Where world box `[lo, hi]` falls in a `w x h` image, from its eight corners
+    /// ([`Camera::image_point`]): what a frame that shows nothing of a surface inside the box
+    /// tells about why.
+    pub fn place_box(&self, lo: [f64; 3], hi: [f64; 3], w: u32, h: u32) -> BoxPlacement {
+        let corners =
+            (0..8).map(|n| std::array::from_fn(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] }));
+        let points: Vec<Option<[f64; 2]>> = corners.map(|c| self.image_point(c, w, h)).collect();
+        if points.iter().all(Option::is_none) {
+            return BoxPlacement::Behind;
+        }
+        let Some(points) = points.into_iter().collect::<Option<Vec<_>>>() else {
+            return BoxPlacement::AroundCamera;
+        };
+        let span = |a: usize| {
+            points
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, u), p| {
+                    (l.min(p[a]), u.max(p[a]))
+                })
+        };
+        let side = |(l, u): (f64, f64), size: u32| match () {
+            _ if u < 0.0 => -1,
+            _ if l > f64::from(size) => 1,
+            _ => 0,
+        };
+        let (x, y) = (span(0), span(1));
+        match (side(x, w), side(y, h)) {
+            (0, 0) => BoxPlacement::InView {
+                pixels: (x.1 - x.0).max(y.1 - y.0),
+            },
+            (right, below) => BoxPlacement::Outside { right, below },
+        }
     }
 
     /// [`Camera::ray_dir`] for many points of one `w x h` image, the field of view's tangent
@@ -281,5 +353,55 @@ mod tests {
         assert!(top[2] > 0.0);
         let right = c.ray_dir(100.0, 50.0, 100, 100);
         assert!(right[0] > 0.0);
+    }
+
+    #[test]
+    fn image_points_invert_ray_directions() {
+        let c = Camera::new([0.3, -2.0, 0.7], [0.5, 0.4, 0.2], [0.1, 0.0, 1.0], 35.0).unwrap();
+        let (w, h) = (160, 90);
+        for (x, y) in [(0.0, 0.0), (80.0, 45.0), (159.5, 3.25), (-40.0, 200.0)] {
+            let d = c.ray_dir(x, y, w, h);
+            for t in [0.01, 1.0, 1e3] {
+                let p = [0, 1, 2].map(|a| c.pos[a] + t * d[a]);
+                let [px, py] = c.image_point(p, w, h).unwrap();
+                assert!(
+                    (px - x).abs() < 1e-6 && (py - y).abs() < 1e-6,
+                    "{x},{y} at {t}: {px},{py}"
+                );
+            }
+        }
+        let far = |d: [f64; 3], r: f64| {
+            let p: [f64; 3] = std::array::from_fn(|a| c.pos[a] + 10.0 * d[a]);
+            ([0, 1, 2].map(|a| p[a] - r), [0, 1, 2].map(|a| p[a] + r))
+        };
+        let (lo, hi) = far(c.ray_dir(80.0, 45.0, w, h), 1e-4);
+        let BoxPlacement::InView { pixels } = c.place_box(lo, hi, w, h) else {
+            panic!("a small box at the centre is in view");
+        };
+        assert!(pixels > 0.0 && pixels < 1.0, "{pixels}");
+        let (lo, hi) = far(c.ray_dir(80.0, 45.0, w, h), 1.0);
+        assert!(
+            matches!(c.place_box(lo, hi, w, h), BoxPlacement::InView { pixels } if pixels > 10.0)
+        );
+        let (lo, hi) = far(c.ray_dir(-300.0, 45.0, w, h), 0.1);
+        assert_eq!(
+            c.place_box(lo, hi, w, h),
+            BoxPlacement::Outside {
+                right: -1,
+                below: 0
+            }
+        );
+        let (lo, hi) = far(c.ray_dir(400.0, 500.0, w, h), 0.1);
+        assert_eq!(
+            c.place_box(lo, hi, w, h),
+            BoxPlacement::Outside { right: 1, below: 1 }
+        );
+        let (lo, hi) = far(c.forward().map(|v| -v), 1.0);
+        assert_eq!(c.place_box(lo, hi, w, h), BoxPlacement::Behind);
+        let (lo, hi) = far([0.0; 3], 1.0);
+        assert_eq!(c.place_box(lo, hi, w, h), BoxPlacement::AroundCamera);
+        let behind = [0, 1, 2].map(|a| c.pos[a] - c.forward()[a]);
+        assert_eq!(c.image_point(behind, w, h), None);
+        assert_eq!(c.image_point(c.pos, w, h), None);
     }
 }

@@ -651,10 +651,42 @@ fn png_output_summary_quiet_and_an_empty_frame_warning() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         stderr(&o).contains("the frame shows none of the surface's")
-            && stderr(&o).contains("looking at (0.5, 0.5, -10) does not see them"),
+            && stderr(&o).contains(
+                "looking at (0.5, 0.5, -10), they are behind it: look at them (--look-at "
+            ),
         "{}",
         stderr(&o)
     );
+    // Why the camera misses it: the surface outside the frame, or smaller than a pixel.
+    for (camera, why) in [
+        (
+            ["0.5,-3,0.5", "-3,0,0.5"],
+            "they lie outside the frame, to its right: look at them",
+        ),
+        (
+            ["0.5,-3,0.5", "0.5,0,3.5"],
+            "they lie outside the frame, below it: look at them",
+        ),
+        (
+            ["0.5,0.5,1e5", "0.5,0.5,0.5"],
+            "they span less than a pixel of its 16x12 frame",
+        ),
+    ] {
+        let o = amr_render(&[
+            f,
+            "--quiet",
+            "--size",
+            "16x12",
+            "--camera-pos",
+            camera[0],
+            "--look-at",
+            camera[1],
+            "-o",
+            png.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(stderr(&o).contains(why), "{camera:?}: {}", stderr(&o));
+    }
 }
 
 #[test]

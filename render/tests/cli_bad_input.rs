@@ -50,6 +50,48 @@ fn bad_files_give_exit_code_1_and_name_the_file() {
     }
 }
 
+/// A compressed brick is decoded whole, so its checksum is checked first: a damaged one stops
+/// `extract` and a render with an error naming the file and the brick, and no frame is written,
+/// where it used to decode to wrong values and render them.
+#[test]
+fn a_damaged_compressed_brick_is_refused_when_it_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.amrk");
+    write_small_file_stored(&good, "f", amr_format::Compression::Zstd { level: 3 });
+    let mut bytes = std::fs::read(&good).unwrap();
+    let file = amr_format::AmrkFile::open(bytes.clone()).unwrap();
+    let damaged = (0..file.num_bricks())
+        .find(|&b| file.brick_data(0, b).encoding == amr_format::compress::Encoding::ZstdShuffled)
+        .expect("a brick stored compressed");
+    let at = file.brick_data(0, damaged);
+    bytes[(at.offset + at.len / 2) as usize] ^= 0x04;
+    let bad = dir.path().join("bad.amrk");
+    std::fs::write(&bad, &bytes).unwrap();
+    let iso = "--iso=0.5";
+    assert_eq!(run(&["extract", good.to_str().unwrap(), iso]).0, 0);
+    let frame = dir.path().join("frame.png");
+    for args in [
+        vec!["extract", bad.to_str().unwrap(), iso],
+        vec![
+            bad.to_str().unwrap(),
+            iso,
+            "--size=32x24",
+            "-o",
+            frame.to_str().unwrap(),
+        ],
+    ] {
+        let (code, err) = run(&args);
+        assert_eq!(code, 1, "{args:?}: {err}");
+        assert!(
+            err.contains("checksum mismatch")
+                && err.contains("bad.amrk")
+                && err.contains(&format!("brick {damaged}")),
+            "{args:?}: {err}"
+        );
+    }
+    assert!(!frame.exists(), "no frame is written");
+}
+
 #[test]
 fn truncated_and_flipped_files() {
     let dir = tempfile::tempdir().unwrap();
@@ -95,6 +137,11 @@ fn write_small_file(path: &Path) {
 
 /// [`write_small_file`] with its one field named `field`.
 fn write_small_file_with(path: &Path, field: &str) {
+    write_small_file_stored(path, field, amr_format::Compression::None);
+}
+
+/// [`write_small_file_with`], its bricks stored with `compression`.
+fn write_small_file_stored(path: &Path, field: &str, compression: amr_format::Compression) {
     use amr_format::{AmrkWriter, BrickSpec, HierarchySpec, IBox, LevelSpec, WriterOptions};
     let domain = IBox::new([0; 3], [8; 3]);
     let spec = HierarchySpec {
@@ -111,7 +158,11 @@ fn write_small_file_with(path: &Path, field: &str) {
             .map(|c| BrickSpec { level: 0, cells: c })
             .collect(),
     };
-    let mut w = AmrkWriter::create(path, spec.clone(), WriterOptions::default()).unwrap();
+    let options = WriterOptions {
+        compression,
+        ..WriterOptions::default()
+    };
+    let mut w = AmrkWriter::create(path, spec.clone(), options).unwrap();
     for (i, b) in spec.bricks.iter().enumerate() {
         let n = b.cells.num_cells().unwrap() as usize;
         w.write_brick(

@@ -7,17 +7,17 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use amr_render::camera::Camera;
-use amr_render::field_stats::{format_isovalue, format_value, format_vector};
+use amr_render::field_stats::format_isovalue;
 use amr_render::mapping::open_mapped;
 use amr_render::output::header::frame_header;
 use amr_render::output::legend::Legend;
 use amr_render::scene::{field_named, TraceMethod};
 use amr_render::shade::IsoSpec;
-use amr_render::{enclosing_surface, render, render_reusing, ColorBy, ColorScale, Scene, View};
+use amr_render::{render, render_reusing, ColorBy, ColorScale, Scene, View};
 use anyhow::bail;
 use serde::Serialize;
 
+use crate::frame_warnings::{warn_empty, warn_enclosed, warn_isos_outside, warn_slices_outside};
 use crate::frame_writer::{FrameJob, FrameWriter};
 use crate::heap;
 use crate::movie;
@@ -167,7 +167,7 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         };
         row_bar.finish_and_clear();
         if rendered.stats.covered_pixels == 0 {
-            warn_empty(scene, &rendered.camera);
+            warn_empty(scene, &rendered.camera, view.size);
         }
         let every_pixel = u64::from(view.size.0) * u64::from(view.size.1);
         if rendered.stats.covered_pixels == every_pixel && !warned_enclosed {
@@ -259,25 +259,6 @@ fn open_scene(request: &RenderRequest, index: usize) -> anyhow::Result<Scene> {
         warn_slices_outside(&scene);
     }
     Ok(scene)
-}
-
-/// Warns about each slice plane that misses the domain: it shows nothing.
-fn warn_slices_outside(scene: &Scene) {
-    let frame = scene.grid_frame();
-    let lo = frame.origin;
-    let hi: [f64; 3] = std::array::from_fn(|a| lo[a] + frame.extent[a] * frame.unit[a]);
-    for (slice, _) in scene.slices() {
-        if !slice.meets_box(lo, hi) {
-            eprintln!(
-                "warning: {}: the slice through {} with normal {} misses the domain {} .. {}: it shows nothing",
-                scene.path().display(),
-                format_vector(slice.point),
-                format_vector(slice.normal),
-                format_vector(lo),
-                format_vector(hi)
-            );
-        }
-    }
 }
 
 /// What paints each of `n` isosurfaces: one `--color-by` paints all, several pair in order.
@@ -417,108 +398,10 @@ fn summary(file: &Path, scene: &Scene, files: &FrameFiles, took: Duration) -> St
 
 /// An isovalue as the summary and warnings write it: `V`, or `FIELD=V` for a surface of
 /// another field than the scene's (as `--iso` reads it).
-fn surface_value(scene: &Scene, s: &IsoSpec) -> String {
+pub(crate) fn surface_value(scene: &Scene, s: &IsoSpec) -> String {
     let value = format_isovalue(s.value);
     match scene.surface_field(s) == scene.field() {
         true => value,
         false => format!("{}={value}", scene.surface_field_name(s)),
     }
-}
-
-/// Warns when the camera is enclosed by one of the surfaces, so that the frame shows nothing but
-/// that surface's inside (a frame every pixel of which shows a surface, as here, may also be a
-/// close-up); returns whether it warned.
-fn warn_enclosed(scene: &Scene, view: &View, camera: &Camera) -> anyhow::Result<bool> {
-    let Some(i) = enclosing_surface(scene, view, camera.pos)? else {
-        return Ok(false);
-    };
-    let s = &scene.isosurfaces()[i];
-    eprintln!(
-        "warning: {}: the camera at {} is enclosed by the surface {} = {}, which every ray \
-         from it meets: the frame shows only its inside; place the camera outside it \
-         (--camera-pos) or cut it open (--clip)",
-        scene.path().display(),
-        format_vector(camera.pos),
-        scene.surface_field_name(s),
-        format_isovalue(s.value),
-    );
-    Ok(true)
-}
-
-/// Warns about each isovalue outside its field's range: its surface is empty, while the frame
-/// shows the others (or slices), so nothing else would say so.
-fn warn_isos_outside(scene: &Scene, isos: &[IsoSpec]) {
-    for iso in isos {
-        let f = &scene.file().fields()[scene.surface_field(iso)];
-        if !(iso.value < f.min || iso.value > f.max) {
-            continue;
-        }
-        eprintln!(
-            "warning: {}: isovalue {} lies outside {}'s range [{}, {}]: that surface is empty",
-            scene.path().display(),
-            format_isovalue(iso.value),
-            f.name,
-            format_value(f64::from(f.min)),
-            format_value(f64::from(f.max))
-        );
-    }
-}
-
-/// Warns that a frame shows no surface: with the field's range when there is none to show,
-/// else with where the surface lies and where the camera looks.
-fn warn_empty(scene: &Scene, camera: &Camera) {
-    let active = scene.stats().active_octants;
-    let bounds = match active {
-        0 => None,
-        _ => scene.surface_bounds().ok().flatten(),
-    };
-    if let Some((lo, hi)) = bounds {
-        eprintln!(
-            "warning: {}: the frame shows none of the surface's {active} active voxels, which lie \
-             in {} .. {}: the camera at {} looking at {} does not see them",
-            scene.path().display(),
-            format_vector(lo),
-            format_vector(hi),
-            format_vector(camera.pos),
-            format_vector(camera.look_at)
-        );
-        return;
-    }
-    if !scene.one_field() {
-        let isos: Vec<String> = scene
-            .isosurfaces()
-            .iter()
-            .map(|s| {
-                let f = &scene.file().fields()[scene.surface_field(s)];
-                format!(
-                    "{} ({} ranges over [{}, {}])",
-                    surface_value(scene, s),
-                    f.name,
-                    format_value(f64::from(f.min)),
-                    format_value(f64::from(f.max))
-                )
-            })
-            .collect();
-        eprintln!(
-            "warning: {}: the frame shows no surface: the isovalues are {} ({active} active voxels)",
-            scene.path().display(),
-            isos.join(", "),
-        );
-        return;
-    }
-    let f = &scene.file().fields()[scene.field()];
-    let isos: Vec<String> = scene
-        .isosurfaces()
-        .iter()
-        .map(|s| surface_value(scene, s))
-        .collect();
-    eprintln!(
-        "warning: {}: the frame shows no surface: {} ranges over [{}, {}] and the isovalues are {} ({} active voxels)",
-        scene.path().display(),
-        f.name,
-        format_value(f64::from(f.min)),
-        format_value(f64::from(f.max)),
-        isos.join(", "),
-        active
-    );
 }

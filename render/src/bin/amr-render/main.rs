@@ -6,6 +6,7 @@ mod animation;
 mod demo;
 mod extract;
 mod field_scale_arg;
+mod frame_warnings;
 mod frame_writer;
 mod frames;
 mod heap;

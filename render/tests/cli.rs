@@ -242,6 +242,39 @@ fn stats_json_dash_is_standard_output() {
     assert!(!dir.path().join("-").exists(), "a file named - was written");
 }
 
+/// `extract --iso FIELD=V` extracts another field than `--field`, in the same run: each line is
+/// the line of a run of that field alone, and a field the file lacks is refused before any
+/// extraction.
+#[test]
+fn extract_takes_isovalues_of_several_fields() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = sphere_and_ramp(dir.path());
+    let f = path.to_str().unwrap();
+    let lines = |args: &[&str]| {
+        let o = amr_render(args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        String::from_utf8_lossy(&o.stdout)
+            .lines()
+            // Up to the counts: the times and the pages touched differ from run to run.
+            .map(|l| l.split(" voxels evaluated").next().unwrap_or(l).to_string())
+            .collect::<Vec<_>>()
+    };
+    let mixed = lines(&[
+        "extract", f, "--iso", "0", "--iso", "ramp=0.6", "--iso", "0.1",
+    ]);
+    let first = lines(&["extract", f, "--iso", "0", "--iso", "0.1"]);
+    let second = lines(&["extract", f, "--field", "ramp", "--iso", "0.6"]);
+    assert_eq!(
+        mixed,
+        vec![first[0].clone(), second[0].clone(), first[1].clone()]
+    );
+    assert!(mixed[1].starts_with("field 'ramp' iso 0.6: "), "{mixed:?}");
+    let o = amr_render(&["extract", f, "--iso", "0", "--iso", "nosuch=1"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("no field 'nosuch'"), "{}", stderr(&o));
+    assert!(o.stdout.is_empty(), "extracted before refusing");
+}
+
 /// Output cut short by the reader (`amr-render extract F ... | head -1`) ends the run quietly
 /// with exit 0, as for any command-line tool, never with a panic.
 #[test]

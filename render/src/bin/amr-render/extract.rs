@@ -1,11 +1,12 @@
-//! `amr-render extract FILE --iso V...`: active-voxel extraction for one or more isovalues of one
-//! open file, with one line of statistics per run.
+//! `amr-render extract FILE --iso [FIELD=]V...`: active-voxel extraction for one or more
+//! isovalues, of one or more fields, of one open file, with one line of statistics per run.
 
 use std::io::Write;
 use std::path::PathBuf;
 
 use amr_render::extract::{ExtractStats, Extractor, Region};
 use amr_render::mapping::{open_mapped, PageRelease};
+use amr_render::reconstruct::Grid;
 use amr_render::scene::field_named;
 use amr_render::trace::GridFrame;
 use amr_render::ClipBox;
@@ -14,6 +15,7 @@ use serde::Serialize;
 
 use crate::outputs::{is_stdout, write_json};
 use crate::render_args::MAX_THREADS;
+use crate::surface_arg::split_field;
 
 /// Arguments of `amr-render extract`.
 #[derive(clap::Args, Debug, Clone)]
@@ -23,10 +25,15 @@ pub struct ExtractArgs {
     /// The field to extract from (default: the file's first field).
     #[arg(long)]
     pub field: Option<String>,
-    /// An isovalue; repeat for several (the file is opened once, each isovalue re-runs only the
-    /// extraction).
-    #[arg(long = "iso", required = true, allow_hyphen_values = true)]
-    pub iso: Vec<f32>,
+    /// An isovalue, `V` of `--field` or `FIELD=V` of another field; repeat for several (the
+    /// file is opened once, each isovalue re-runs only the extraction).
+    #[arg(
+        long = "iso",
+        required = true,
+        allow_hyphen_values = true,
+        value_name = "[FIELD=]V"
+    )]
+    pub iso: Vec<ExtractIso>,
     /// Runs per isovalue; the statistics of each run are reported.
     #[arg(long, default_value_t = 1,
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100_000))]
@@ -44,6 +51,31 @@ pub struct ExtractArgs {
     /// Worker threads (default: all cores), as `--threads` of a render.
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
+}
+
+/// An isovalue of `amr-render extract`: `V`, or `FIELD=V` for another field than `--field`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExtractIso {
+    /// The field's name, as typed before `=`.
+    pub field: Option<String>,
+    /// The isovalue.
+    pub value: f32,
+}
+
+impl std::str::FromStr for ExtractIso {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (field, rest) = split_field(s)?;
+        let value = rest
+            .trim()
+            .parse::<f32>()
+            .map_err(|_| format!("'{rest}' is not a number"))?;
+        if !value.is_finite() {
+            return Err(format!("isovalue {rest} is not a finite number"));
+        }
+        Ok(ExtractIso { field, value })
+    }
 }
 
 /// One run's statistics with the rates derived from them.
@@ -71,9 +103,6 @@ pub fn run(args: &ExtractArgs) -> anyhow::Result<()> {
 
 /// [`run`] on the current thread pool.
 fn extract_all(args: &ExtractArgs) -> anyhow::Result<()> {
-    if let Some(bad) = args.iso.iter().find(|v| !v.is_finite()) {
-        bail!("isovalue {bad} is not a finite number");
-    }
     let clip = match &args.clip {
         Some(text) => Some(
             text.parse::<ClipBox>()
@@ -87,14 +116,24 @@ fn extract_all(args: &ExtractArgs) -> anyhow::Result<()> {
     // With the statistics on standard output, the lines for people go to standard error.
     let json_on_stdout = args.stats_json.as_deref().is_some_and(is_stdout);
     let file = open_mapped(&args.file)?;
-    let field = match &args.field {
-        None => 0,
-        Some(name) => field_named(&file, name).map_err(|e| e.in_file(&args.file))?,
+    let field_of = |name: Option<&String>| match name {
+        None => Ok(0),
+        Some(name) => field_named(&file, name).map_err(|e| e.in_file(&args.file)),
     };
-    let mut extractor =
-        Extractor::new(&file, field, args.cache_mib << 20).map_err(|e| e.in_file(&args.file))?;
-    extractor.set_page_release(PageRelease::new(&file));
-    let frame = GridFrame::of_grid(extractor.sampler().grid());
+    let default_field = field_of(args.field.as_ref())?;
+    // Every field named is checked before the first extraction.
+    let fields = args
+        .iso
+        .iter()
+        .map(|iso| match &iso.field {
+            None => Ok(default_field),
+            named => field_of(named.as_ref()),
+        })
+        .collect::<Result<Vec<usize>, _>>()?;
+    // One extractor per field, made when its first isovalue comes.
+    let mut extractors: Vec<Option<Extractor<'_, _>>> = Vec::new();
+    extractors.resize_with(file.fields().len(), || None);
+    let frame = GridFrame::of_grid(&Grid::new(&file));
     let mut region = Region::default();
     if let Some(c) = clip {
         c.check_overlaps(&frame)
@@ -102,7 +141,17 @@ fn extract_all(args: &ExtractArgs) -> anyhow::Result<()> {
         region.bounds = Some(c.to_grid(&frame));
     }
     let mut all: Vec<ExtractStats> = Vec::new();
-    for &iso in &args.iso {
+    for (iso, &field) in args.iso.iter().zip(&fields) {
+        let extractor = match &mut extractors[field] {
+            Some(made) => made,
+            slot => {
+                let mut made = Extractor::new(&file, field, args.cache_mib << 20)
+                    .map_err(|e| e.in_file(&args.file))?;
+                made.set_page_release(PageRelease::new(&file));
+                slot.insert(made)
+            }
+        };
+        let iso = iso.value;
         for _ in 0..args.runs {
             let result = extractor
                 .extract_in(iso, &region)

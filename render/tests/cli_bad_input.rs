@@ -92,6 +92,47 @@ fn a_damaged_compressed_brick_is_refused_when_it_is_read() {
     assert!(!frame.exists(), "no frame is written");
 }
 
+/// A raw brick is read in place, unchecked; a NaN written into one after conversion (no
+/// converter writes one) stops a render whose rays meet it with an error naming the file and
+/// the place, where it used to leave a hole in the surface, and no frame is written.
+#[test]
+fn a_nan_written_into_a_raw_brick_stops_the_render_that_meets_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.amrk");
+    write_small_file(&good);
+    let mut bytes = std::fs::read(&good).unwrap();
+    // Brick 0 holds 0, 1, 2, ... x fastest: the surface at 0.5 passes between its first cells.
+    let at = amr_format::AmrkFile::open(bytes.clone())
+        .unwrap()
+        .brick_data(0, 0)
+        .offset as usize;
+    bytes[at + 4..at + 8].copy_from_slice(&f32::NAN.to_le_bytes());
+    let bad = dir.path().join("nan.amrk");
+    std::fs::write(&bad, &bytes).unwrap();
+    let frame = dir.path().join("frame.png");
+    let render = |file: &Path| {
+        run(&[
+            file.to_str().unwrap(),
+            "--iso=0.5",
+            "--size=64x48",
+            "-o",
+            frame.to_str().unwrap(),
+        ])
+    };
+    assert_eq!(render(&good).0, 0);
+    std::fs::remove_file(&frame).unwrap();
+    let (code, err) = render(&bad);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("nan.amrk") && err.contains("field 'f' holds a NaN near ("),
+        "{err}"
+    );
+    assert!(!frame.exists(), "no frame is written");
+    let (code, err) = run(&["verify", bad.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(err.contains("checksum mismatch"), "{err}");
+}
+
 #[test]
 fn truncated_and_flipped_files() {
     let dir = tempfile::tempdir().unwrap();

@@ -18,7 +18,7 @@ use amr_format::IBox;
 use crate::error::{RenderError, Result};
 
 use super::{candidate_leaves, over_leaves};
-use crate::reconstruct::interp::{min_max, straddles};
+use crate::reconstruct::interp::corners_straddle;
 use crate::reconstruct::Sampler;
 use crate::voxel::Voxel;
 
@@ -105,8 +105,7 @@ impl<'s, 'f, D: AsRef<[u8]> + Sync> CurrentVoxels<'s, 'f, D> {
                     let Some((_, _, values)) = self.clip(&f, i, &dual) else {
                         continue;
                     };
-                    let (lo, hi) = min_max(&values);
-                    if straddles(lo, hi, iso) {
+                    if corners_straddle(&values, iso) {
                         let id = (i[0] - f.duals.lo[0])
                             + de[0] * ((i[1] - f.duals.lo[1]) + de[1] * (i[2] - f.duals.lo[2]));
                         out.push(u64::from(leaf) << 32 | id as u64);

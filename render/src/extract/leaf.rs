@@ -23,7 +23,7 @@ use super::refs::{make_ref, LocalVoxel};
 use super::small::MAX_CELLS;
 use super::vertices::LeafVertices;
 use crate::reconstruct::grid::axes;
-use crate::reconstruct::interp::{avg8, min_max, straddles};
+use crate::reconstruct::interp::{avg8, corners_straddle};
 use crate::reconstruct::{LeafCell, Sampler, VertexMemo};
 
 /// Per-thread scratch of [`extract_leaf`].
@@ -335,8 +335,7 @@ pub fn extract_leaf<D: AsRef<[u8]>>(
                         };
                         counts.evaluated += 1;
                         counts.boundary += 1;
-                        let (vlo, vhi) = min_max(&v);
-                        if straddles(vlo, vhi, iso) {
+                        if corners_straddle(&v, iso) {
                             let local = frame.refs.linear_index(cell) as u32;
                             out.push(make_ref(
                                 frame.leaf,

@@ -41,9 +41,14 @@ pub const PENDING: u8 = 8;
 
 /// [`ABOVE`] and [`BELOW`] bits of a bound `lo..=hi` for `iso`: a union of bounds straddles
 /// `iso` (`min lo < iso <= max hi`) exactly when the union of their codes has both bits.
+///
+/// A NaN (which no converter writes: only a file damaged after it was written holds one) may
+/// stand for any value, so it gives both bits: the voxels around it are extracted, and the
+/// tracer, decoding one, stops the render with an error naming the file instead of leaving a
+/// hole in the surface. The empty bound (`+inf..=-inf`) gives neither.
 #[inline]
 pub(super) fn code(lo: f32, hi: f32, iso: f32) -> u8 {
-    u8::from(hi >= iso) | u8::from(lo < iso) << 1
+    u8::from(!(hi < iso)) | u8::from(!(lo >= iso)) << 1
 }
 
 /// `floor(v / d)` for `d > 0`, a shift when `d` is a power of two.

@@ -131,7 +131,9 @@ impl<'s, 'f, D: AsRef<[u8]> + Sync> NearestFaces<'s, 'f, D> {
                             continue;
                         }
                         let (lo, hi) = (own.value.min(across.value), own.value.max(across.value));
-                        if straddles(lo, hi, iso) {
+                        // A NaN (a damaged file) keeps the face, for the tracer to report.
+                        let nan = own.value.is_nan() || across.value.is_nan();
+                        if straddles(lo, hi, iso) || nan {
                             let id = f.cells.linear_index(c) as u64 * 8 + u64::from(face);
                             out.push(u64::from(leaf) << 32 | id);
                         }

@@ -318,14 +318,14 @@ fn code_rows_by_eight(dst: &mut [u8], src: &[f32], rows: Rows, iso: f32) {
     for_each_eight(rows, |d, s| unsafe {
         let a = _mm_loadu_ps(from.add(s));
         let b = _mm_loadu_ps(from.add(s + 4));
-        // All ones where `v >= iso` (false for NaN), and where `v < iso`.
+        // All ones where `!(v < iso)`, and where `!(v >= iso)`: both for NaN, as `code`'s.
         let ge = _mm_packs_epi32(
-            _mm_castps_si128(_mm_cmpge_ps(a, iso4)),
-            _mm_castps_si128(_mm_cmpge_ps(b, iso4)),
+            _mm_castps_si128(_mm_cmpnlt_ps(a, iso4)),
+            _mm_castps_si128(_mm_cmpnlt_ps(b, iso4)),
         );
         let lt = _mm_packs_epi32(
-            _mm_castps_si128(_mm_cmplt_ps(a, iso4)),
-            _mm_castps_si128(_mm_cmplt_ps(b, iso4)),
+            _mm_castps_si128(_mm_cmpnge_ps(a, iso4)),
+            _mm_castps_si128(_mm_cmpnge_ps(b, iso4)),
         );
         let bytes = _mm_or_si128(
             _mm_and_si128(_mm_packs_epi16(ge, ge), above),
@@ -366,9 +366,9 @@ fn code_rows_by_eight_avx(dst: &mut [u8], src: &[f32], rows: Rows, iso: f32) {
     // inside both slices, unaligned); AVX is enabled for this function.
     for_each_eight(rows, |d, s| unsafe {
         let v = _mm256_loadu_ps(from.add(s));
-        // Ordered compares: false for NaN, as `code`'s.
-        let ge = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(v, iso8)) as usize;
-        let lt = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(v, iso8)) as usize;
+        // Unordered negated compares: true for NaN, as `code`'s.
+        let ge = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_NLT_UQ>(v, iso8)) as usize;
+        let lt = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_NGE_UQ>(v, iso8)) as usize;
         let bytes = (SPREAD_BITS[ge & 0xff] * u64::from(ABOVE))
             | (SPREAD_BITS[lt & 0xff] * u64::from(BELOW));
         to.add(d).cast::<u64>().write_unaligned(bytes.to_le());

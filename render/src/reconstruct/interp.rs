@@ -61,6 +61,16 @@ pub fn straddles(lo: f32, hi: f32, iso: f32) -> bool {
     lo < iso && iso <= hi
 }
 
+/// The activity rule for a voxel of corner values `v`: [`straddles`] of their range, or a
+/// corner is NaN. No converter writes a NaN (only a file damaged after it was written holds
+/// one), and it may stand for any value: such a voxel is kept, so that the tracer, decoding it,
+/// reports the damage instead of leaving a hole in the surface.
+#[inline]
+pub fn corners_straddle(v: &[f32; 8], iso: f32) -> bool {
+    let (lo, hi) = min_max(v);
+    straddles(lo, hi, iso) || v.iter().any(|x| x.is_nan())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

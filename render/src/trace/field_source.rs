@@ -10,7 +10,7 @@ use std::cell::RefCell;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 
-use amr_format::AmrkFile;
+use amr_format::{AmrkFile, FormatError};
 use thread_local::ThreadLocal;
 
 use crate::bvh::packet::{rays_where, Mask};
@@ -24,6 +24,7 @@ use crate::extract::{
     candidate_leaves, DecodeFrame, ExtractStats, Extraction, Extractor, LeafBoxes, RefsCheck,
     Region,
 };
+use crate::field_stats::format_vector;
 use crate::mapping::PageRelease;
 use crate::reconstruct::level_blend::{LevelWeights, NearLevels};
 use crate::reconstruct::level_gradient::{LevelBlocks, PartialGradient};
@@ -324,12 +325,8 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
             Some(clip) => Some(clip.of(at.lo.map(|x| x as f64), at.hi.map(|x| x as f64))?),
             None => None,
         };
-        let v = match e.decode_located(r, &at, &mut cache.scratch, last) {
-            Ok(v) => v,
-            Err(err) => {
-                self.record(err);
-                return Some((Voxel::EMPTY, None));
-            }
+        let Some(v) = self.checked(e.decode_located(r, &at, &mut cache.scratch, last)) else {
+            return Some((Voxel::EMPTY, None));
         };
         cache.slots[slot] = (r, v);
         Some((v, clipped))
@@ -381,12 +378,8 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         if clip == Some(None) {
             return 0;
         }
-        let v = match e.decode_located(r, &at, &mut cache.scratch, last) {
-            Ok(v) => v,
-            Err(err) => {
-                self.record(err);
-                return occluders_of::<AVX2>(&Voxel::EMPTY, iso, query);
-            }
+        let Some(v) = self.checked(e.decode_located(r, &at, &mut cache.scratch, last)) else {
+            return occluders_of::<AVX2>(&Voxel::EMPTY, iso, query);
         };
         cache.slots[slot] = (r, v);
         match (query, clip) {
@@ -429,15 +422,51 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
     #[inline]
     fn decode_into(&self, cache: &mut VoxelCache, slot: usize, r: u64) -> Voxel {
         let last = &mut cache.leaves[leaf_slot(r)];
-        let v = match self.decode(r, &mut cache.scratch, last) {
-            Ok(v) => v,
-            Err(e) => {
-                self.record(e);
-                return Voxel::EMPTY;
-            }
+        let Some(v) = self.checked(self.decode(r, &mut cache.scratch, last)) else {
+            return Voxel::EMPTY;
         };
         cache.slots[slot] = (r, v);
         v
+    }
+
+    /// A decoded voxel, or `None` with the error recorded: the decode's, or [`Self::holds_nan`]'s
+    /// for a voxel with a NaN corner.
+    #[inline(always)]
+    fn checked(&self, decoded: Result<Voxel>) -> Option<Voxel> {
+        match decoded {
+            Ok(v) if !v.values.iter().any(|x| x.is_nan()) => Some(v),
+            Ok(v) => {
+                self.record(self.holds_nan(&v));
+                None
+            }
+            Err(e) => {
+                self.record(e);
+                None
+            }
+        }
+    }
+
+    /// The error for voxel `v`, a corner value of which is NaN. No converter writes one, so the
+    /// file's data was damaged after it was written (a raw brick is read in place, its checksum
+    /// unchecked; `verify` checks every brick). The extraction keeps such voxels
+    /// ([`crate::reconstruct::interp::corners_straddle`]) so that this error, and not a hole in
+    /// the surface, is what the damage gives where a ray meets it.
+    #[cold]
+    fn holds_nan(&self, v: &Voxel) -> RenderError {
+        let sampler = self.sampler();
+        let file = sampler.file();
+        let centre = std::array::from_fn(|a| 0.5 * (v.lo[a] + v.hi[a]));
+        let e = FormatError::Corrupt(format!(
+            "field '{}' holds a NaN near {} (level {}): no converter writes one, so the data was \
+             damaged after the file was written (`amr-render verify` checks every brick)",
+            file.fields()[sampler.field()].name,
+            format_vector(self.frame.to_world(centre)),
+            v.level,
+        ));
+        RenderError::Format(match file.path() {
+            Some(path) => e.in_file(path),
+            None => e,
+        })
     }
 }
 

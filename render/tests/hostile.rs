@@ -537,10 +537,10 @@ fn a_fault_outside_watched_maps_reaches_the_handler_before() {
     assert!(!stderr.contains("truncated while it was read"), "{stderr}");
 }
 
-/// A compressed brick that does not decode: the message names the file once and says the
-/// problem once, in `extract` and in a render.
+/// A damaged compressed brick (its checksum checked before it is decoded): the message names
+/// the file once and says the problem once, in `extract` and in a render.
 #[test]
-fn an_undecodable_brick_is_named_once() {
+fn a_damaged_compressed_brick_is_named_once() {
     let dir = tempfile::tempdir().unwrap();
     let (path, iso) = base_file(dir.path(), Case::Ripple, true);
     let mut b = std::fs::read(&path).unwrap();
@@ -558,6 +558,7 @@ fn an_undecodable_brick_is_named_once() {
         let o = run(&args);
         assert_eq!(o.code, Some(1), "{args:?}: {o:?}");
         assert_eq!(o.stderr.matches(p).count(), 1, "{}", o.stderr);
-        assert_eq!(o.stderr.matches("corrupt file").count(), 1, "{}", o.stderr);
+        assert_eq!(o.stderr.matches("corrupt").count(), 1, "{}", o.stderr);
+        assert!(o.stderr.contains("checksum mismatch"), "{}", o.stderr);
     }
 }

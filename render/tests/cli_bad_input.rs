@@ -93,8 +93,9 @@ fn a_damaged_compressed_brick_is_refused_when_it_is_read() {
 }
 
 /// A raw brick is read in place, unchecked; a NaN written into one after conversion (no
-/// converter writes one) stops a render whose rays meet it with an error naming the file and
-/// the place, where it used to leave a hole in the surface, and no frame is written.
+/// converter writes one) stops a render whose rays meet it, by either method or on a slice,
+/// with an error naming the file and the place, where it used to leave a hole in the surface,
+/// and no frame is written.
 #[test]
 fn a_nan_written_into_a_raw_brick_stops_the_render_that_meets_it() {
     let dir = tempfile::tempdir().unwrap();
@@ -110,24 +111,28 @@ fn a_nan_written_into_a_raw_brick_stops_the_render_that_meets_it() {
     let bad = dir.path().join("nan.amrk");
     std::fs::write(&bad, &bytes).unwrap();
     let frame = dir.path().join("frame.png");
-    let render = |file: &Path| {
-        run(&[
-            file.to_str().unwrap(),
-            "--iso=0.5",
-            "--size=64x48",
-            "-o",
-            frame.to_str().unwrap(),
-        ])
-    };
-    assert_eq!(render(&good).0, 0);
-    std::fs::remove_file(&frame).unwrap();
-    let (code, err) = render(&bad);
-    assert_eq!(code, 1, "{err}");
-    assert!(
-        err.contains("nan.amrk") && err.contains("field 'f' holds a NaN near ("),
-        "{err}"
-    );
-    assert!(!frame.exists(), "no frame is written");
+    // The hybrid method, the sample method, and a slice through the damaged cell alone.
+    for how in [
+        &["--iso=0.5"][..],
+        &["--iso=0.5", "--method=sample"],
+        &["--iso=1000", "--slice=z=0.0625", "--quiet"],
+    ] {
+        let render = |file: &Path| {
+            let mut args = vec![file.to_str().unwrap(), "--size=64x48", "-o"];
+            args.push(frame.to_str().unwrap());
+            args.extend(how);
+            run(&args)
+        };
+        assert_eq!(render(&good).0, 0, "{how:?}");
+        std::fs::remove_file(&frame).unwrap();
+        let (code, err) = render(&bad);
+        assert_eq!(code, 1, "{how:?}: {err}");
+        assert!(
+            err.contains("nan.amrk") && err.contains("field 'f' holds a NaN near ("),
+            "{how:?}: {err}"
+        );
+        assert!(!frame.exists(), "{how:?}: no frame is written");
+    }
     let (code, err) = run(&["verify", bad.to_str().unwrap()]);
     assert_eq!(code, 1);
     assert!(err.contains("checksum mismatch"), "{err}");

@@ -436,7 +436,8 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         match decoded {
             Ok(v) if !v.values.iter().any(|x| x.is_nan()) => Some(v),
             Ok(v) => {
-                self.record(self.holds_nan(&v));
+                let centre = std::array::from_fn(|a| 0.5 * (v.lo[a] + v.hi[a]));
+                self.record(self.holds_nan(centre, v.level));
                 None
             }
             Err(e) => {
@@ -446,22 +447,22 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         }
     }
 
-    /// The error for voxel `v`, a corner value of which is NaN. No converter writes one, so the
-    /// file's data was damaged after it was written (a raw brick is read in place, its checksum
-    /// unchecked; `verify` checks every brick). The extraction keeps such voxels
+    /// The error for a NaN met at grid point `centre`, in a cell of level `level`: a voxel's
+    /// corner or a sample. No converter writes one, so the file's data was damaged after it was
+    /// written (a raw brick is read in place, its checksum unchecked; `verify` checks every
+    /// brick). The extraction keeps voxels with a NaN corner
     /// ([`crate::reconstruct::interp::corners_straddle`]) so that this error, and not a hole in
     /// the surface, is what the damage gives where a ray meets it.
     #[cold]
-    fn holds_nan(&self, v: &Voxel) -> RenderError {
+    fn holds_nan(&self, centre: [f64; 3], level: u32) -> RenderError {
         let sampler = self.sampler();
         let file = sampler.file();
-        let centre = std::array::from_fn(|a| 0.5 * (v.lo[a] + v.hi[a]));
         let e = FormatError::Corrupt(format!(
             "field '{}' holds a NaN near {} (level {}): no converter writes one, so the data was \
              damaged after the file was written (`amr-render verify` checks every brick)",
             file.fields()[sampler.field()].name,
             format_vector(self.frame.to_world(centre)),
-            v.level,
+            level,
         ));
         RenderError::Format(match file.path() {
             Some(path) => e.in_file(path),
@@ -751,6 +752,10 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
             .sampler()
             .sample_with(p, self.reconstruction, &mut cache.scratch)
         {
+            Ok(Some((v, level))) if v.is_nan() => {
+                self.record(self.holds_nan(p, level));
+                None
+            }
             Ok(v) => v,
             Err(e) => {
                 self.record(e);

@@ -38,7 +38,8 @@ pub struct ExtractArgs {
     #[arg(long, default_value_t = 1,
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100_000))]
     pub runs: usize,
-    /// Budget of the decompressed-brick cache in MiB (compressed files only).
+    /// Budget of the decompressed-brick cache in MiB, per field extracted (compressed files
+    /// only).
     #[arg(long, default_value_t = 2048)]
     pub cache_mib: usize,
     /// Extracts only the voxels that meet this box (world coordinates), as `--clip` of a render.

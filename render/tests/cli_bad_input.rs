@@ -92,50 +92,55 @@ fn a_damaged_compressed_brick_is_refused_when_it_is_read() {
     assert!(!frame.exists(), "no frame is written");
 }
 
-/// A raw brick is read in place, unchecked; a NaN written into one after conversion (no
-/// converter writes one) stops a render whose rays meet it, by either method or on a slice,
-/// with an error naming the file and the place, where it used to leave a hole in the surface,
-/// and no frame is written.
+/// A raw brick is read in place, unchecked; a NaN or an infinity written into one after
+/// conversion (no converter writes one) stops a render whose rays meet it, by either method or
+/// on a slice, with an error naming the file, the value and the place, where it used to leave a
+/// hole in the surface, and no frame is written.
 #[test]
-fn a_nan_written_into_a_raw_brick_stops_the_render_that_meets_it() {
+fn a_value_not_finite_written_into_a_raw_brick_stops_the_render_that_meets_it() {
     let dir = tempfile::tempdir().unwrap();
     let good = dir.path().join("good.amrk");
     write_small_file(&good);
-    let mut bytes = std::fs::read(&good).unwrap();
+    let bytes = std::fs::read(&good).unwrap();
     // Brick 0 holds 0, 1, 2, ... x fastest: the surface at 0.5 passes between its first cells.
     let at = amr_format::AmrkFile::open(bytes.clone())
         .unwrap()
         .brick_data(0, 0)
         .offset as usize;
-    bytes[at + 4..at + 8].copy_from_slice(&f32::NAN.to_le_bytes());
-    let bad = dir.path().join("nan.amrk");
-    std::fs::write(&bad, &bytes).unwrap();
     let frame = dir.path().join("frame.png");
-    // The hybrid method, the sample method, and a slice through the damaged cell alone.
-    for how in [
-        &["--iso=0.5"][..],
-        &["--iso=0.5", "--method=sample"],
-        &["--iso=1000", "--slice=z=0.0625", "--quiet"],
-    ] {
-        let render = |file: &Path| {
-            let mut args = vec![file.to_str().unwrap(), "--size=64x48", "-o"];
-            args.push(frame.to_str().unwrap());
-            args.extend(how);
-            run(&args)
-        };
-        assert_eq!(render(&good).0, 0, "{how:?}");
-        std::fs::remove_file(&frame).unwrap();
-        let (code, err) = render(&bad);
-        assert_eq!(code, 1, "{how:?}: {err}");
-        assert!(
-            err.contains("nan.amrk") && err.contains("field 'f' holds a NaN near ("),
-            "{how:?}: {err}"
-        );
-        assert!(!frame.exists(), "{how:?}: no frame is written");
+    for (value, shown) in [(f32::NAN, "NaN"), (f32::INFINITY, "inf")] {
+        let mut damaged = bytes.clone();
+        damaged[at + 4..at + 8].copy_from_slice(&value.to_le_bytes());
+        let bad = dir.path().join("bad.amrk");
+        std::fs::write(&bad, &damaged).unwrap();
+        // The hybrid method, the sample method, and a slice through the damaged cell alone.
+        for how in [
+            &["--iso=0.5"][..],
+            &["--iso=0.5", "--method=sample"],
+            &["--iso=1000", "--slice=z=0.0625", "--quiet"],
+        ] {
+            let render = |file: &Path| {
+                let mut args = vec![file.to_str().unwrap(), "--size=64x48", "-o"];
+                args.push(frame.to_str().unwrap());
+                args.extend(how);
+                run(&args)
+            };
+            assert_eq!(render(&good).0, 0, "{how:?}");
+            std::fs::remove_file(&frame).unwrap();
+            let (code, err) = render(&bad);
+            assert_eq!(code, 1, "{shown} {how:?}: {err}");
+            // The value read, or NaN where the reconstruction mixes an infinity with others.
+            let says = |v: &str| err.contains(&format!("field 'f' is {v} near ("));
+            assert!(
+                err.contains("bad.amrk") && (says(shown) || says("NaN")),
+                "{shown} {how:?}: {err}"
+            );
+            assert!(!frame.exists(), "{shown} {how:?}: no frame is written");
+        }
+        let (code, err) = run(&["verify", bad.to_str().unwrap()]);
+        assert_eq!(code, 1);
+        assert!(err.contains("checksum mismatch"), "{err}");
     }
-    let (code, err) = run(&["verify", bad.to_str().unwrap()]);
-    assert_eq!(code, 1);
-    assert!(err.contains("checksum mismatch"), "{err}");
 }
 
 #[test]

@@ -429,15 +429,16 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         v
     }
 
-    /// A decoded voxel, or `None` with the error recorded: the decode's, or [`Self::holds_nan`]'s
-    /// for a voxel with a NaN corner.
+    /// A decoded voxel, or `None` with the error recorded: the decode's, or
+    /// [`Self::not_finite`]'s for a voxel with a NaN or infinite corner.
     #[inline(always)]
     fn checked(&self, decoded: Result<Voxel>) -> Option<Voxel> {
         match decoded {
-            Ok(v) if !v.values.iter().any(|x| x.is_nan()) => Some(v),
+            Ok(v) if v.values.iter().all(|x| x.is_finite()) => Some(v),
             Ok(v) => {
                 let centre = std::array::from_fn(|a| 0.5 * (v.lo[a] + v.hi[a]));
-                self.record(self.holds_nan(centre, v.level));
+                let bad = v.values.into_iter().find(|x| !x.is_finite());
+                self.record(self.not_finite(bad.unwrap_or(f32::NAN), centre, v.level));
                 None
             }
             Err(e) => {
@@ -447,19 +448,21 @@ impl<'f, D: AsRef<[u8]> + Sync> FieldSource<'f, D> {
         }
     }
 
-    /// The error for a NaN met at grid point `centre`, in a cell of level `level`: a voxel's
-    /// corner or a sample. No converter writes one, so the file's data was damaged after it was
-    /// written (a raw brick is read in place, its checksum unchecked; `verify` checks every
-    /// brick). The extraction keeps voxels with a NaN corner
-    /// ([`crate::reconstruct::interp::corners_straddle`]) so that this error, and not a hole in
-    /// the surface, is what the damage gives where a ray meets it.
+    /// The error for value `bad` (a NaN or an infinity) met at grid point `centre`, in a cell of
+    /// level `level`: a voxel's corner or a sample. No converter writes one, so the file's data
+    /// was damaged after it was written (a raw brick is read in place, its checksum unchecked;
+    /// `verify` checks every brick). The extraction keeps voxels with a NaN corner
+    /// ([`crate::reconstruct::interp::corners_straddle`]; an infinity compares as a value) so
+    /// that this error, and not a hole in the surface, is what the damage gives where a ray
+    /// meets it.
     #[cold]
-    fn holds_nan(&self, centre: [f64; 3], level: u32) -> RenderError {
+    fn not_finite(&self, bad: f32, centre: [f64; 3], level: u32) -> RenderError {
         let sampler = self.sampler();
         let file = sampler.file();
         let e = FormatError::Corrupt(format!(
-            "field '{}' holds a NaN near {} (level {}): no converter writes one, so the data was \
-             damaged after the file was written (`amr-render verify` checks every brick)",
+            "field '{}' is {bad} near {} (level {}): no converter writes a value that is not \
+             finite, so the data was damaged after the file was written (`amr-render verify` \
+             checks every brick)",
             file.fields()[sampler.field()].name,
             format_vector(self.frame.to_world(centre)),
             level,
@@ -752,8 +755,8 @@ impl<D: AsRef<[u8]> + Sync> VoxelSource for FieldSource<'_, D> {
             .sampler()
             .sample_with(p, self.reconstruction, &mut cache.scratch)
         {
-            Ok(Some((v, level))) if v.is_nan() => {
-                self.record(self.holds_nan(p, level));
+            Ok(Some((v, level))) if !v.is_finite() => {
+                self.record(self.not_finite(v, p, level));
                 None
             }
             Ok(v) => v,

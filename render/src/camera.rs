@@ -179,10 +179,14 @@ impl Camera {
                     (l.min(p[a]), u.max(p[a]))
                 })
         };
-        let side = |(l, u): (f64, f64), size: u32| match () {
-            _ if u < 0.0 => -1,
-            _ if l > f64::from(size) => 1,
-            _ => 0,
+        let side = |(l, u): (f64, f64), size: u32| {
+            if u < 0.0 {
+                -1
+            } else if l > f64::from(size) {
+                1
+            } else {
+                0
+            }
         };
         let (x, y) = (span(0), span(1));
         match (side(x, w), side(y, h)) {

@@ -25,6 +25,20 @@ impl fmt::Display for ColorBy {
     }
 }
 
+/// The fields that `painters` name, each once, in the order they first appear: one colour
+/// range each.
+pub fn painting_fields<'a>(painters: impl IntoIterator<Item = &'a ColorBy>) -> Vec<&'a str> {
+    let mut fields: Vec<&str> = Vec::new();
+    for by in painters {
+        if let ColorBy::Field(name) = by {
+            if !fields.contains(&name.as_str()) {
+                fields.push(name);
+            }
+        }
+    }
+    fields
+}
+
 impl FromStr for ColorBy {
     type Err = String;
 

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use crate::camera::Camera;
 use crate::clip::ClipBox;
-use crate::coloring::{ColorBy, ColorScale};
+use crate::coloring::{painting_fields, ColorBy, ColorScale};
 use crate::error::{RenderError, Result};
 use crate::outline;
 use crate::output::frame::{FrameBuffer, PixelSample, FRAME_PLANES};
@@ -41,6 +41,7 @@ pub struct Rendered {
 }
 
 /// What painting by data gave a frame, beside its pixels.
+#[derive(Default)]
 struct Painting {
     /// [`Rendered::color_ranges`].
     color_ranges: Vec<PaintedRange>,
@@ -276,15 +277,7 @@ fn with_scene_tracer<R>(
 ) -> Result<(R, Painting)> {
     let isos = scene.isosurfaces();
     with_surface_tracer(scene, view, |tracer, camera, light| {
-        // The fields that paint, in the order they first do: one colour range each.
-        let mut fields: Vec<&str> = Vec::new();
-        for by in scene.painters() {
-            if let ColorBy::Field(name) = by {
-                if !fields.contains(&name.as_str()) {
-                    fields.push(name);
-                }
-            }
-        }
+        let fields = painting_fields(scene.painters());
         if let Some((name, _)) = view
             .field_scales
             .iter()
@@ -295,11 +288,7 @@ fn with_scene_tracer<R>(
             )));
         }
         if scene.painters().next().is_none() {
-            let painting = Painting {
-                color_ranges: Vec::new(),
-                levels: Vec::new(),
-            };
-            return Ok((run(tracer, camera, light), painting));
+            return Ok((run(tracer, camera, light), Painting::default()));
         }
         let own = |f: &str| view.field_scales.iter().find(|(n, _)| n == f).map(|s| s.1);
         let shared: Vec<&str> = fields

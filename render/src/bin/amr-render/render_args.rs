@@ -557,15 +557,7 @@ pub fn painting_fields<'a>(
     color_by: &'a [Option<ColorBy>],
     slice_field: &'a Option<ColorBy>,
 ) -> Vec<&'a str> {
-    let mut fields: Vec<&str> = Vec::new();
-    for c in color_by.iter().chain([slice_field]) {
-        if let Some(ColorBy::Field(name)) = c {
-            if !fields.contains(&name.as_str()) {
-                fields.push(name);
-            }
-        }
-    }
-    fields
+    amr_render::coloring::painting_fields(color_by.iter().chain([slice_field]).flatten())
 }
 
 /// Parses `LO:HI` or `auto-series`.

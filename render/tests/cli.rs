@@ -608,6 +608,53 @@ fn animation_counts_must_agree() {
     );
 }
 
+/// A picture too small for its legend is left as rendered, with a note naming the size that
+/// holds it; `--no-legend` leaves the legend out of any picture, without a note.
+#[test]
+fn a_legend_without_room_is_left_out_with_a_note_and_no_legend_leaves_it_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let f = file.to_str().unwrap();
+    let png = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let run = |size: &str, out: &str, extra: &[&str]| {
+        let mut args = vec![
+            f,
+            "--iso",
+            "10",
+            "--color-by",
+            "level",
+            "--size",
+            size,
+            "-o",
+            out,
+        ];
+        args.extend_from_slice(extra);
+        let o = amr_render(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let (small, small_bare) = (png("small.png"), png("small-bare.png"));
+    let said = run("96x72", &small, &[]);
+    assert!(
+        said.contains("small.png: a 96x72 picture has no room for its legend, which is left out; it fits from --size "),
+        "{said}"
+    );
+    let said = run("96x72", &small_bare, &["--no-legend"]);
+    assert!(!said.contains("legend"), "{said}");
+    let read = |p: &str| std::fs::read(p).unwrap();
+    assert_eq!(read(&small), read(&small_bare), "a legend was drawn");
+    let said = run("96x72", &small, &["--quiet"]);
+    assert!(said.is_empty(), "--quiet printed: {said}");
+    let (large, large_bare) = (png("large.png"), png("large-bare.png"));
+    assert!(!run("480x360", &large, &[]).contains("legend"));
+    run("480x360", &large_bare, &["--no-legend"]);
+    assert_ne!(
+        read(&large),
+        read(&large_bare),
+        "no legend drawn on 480x360"
+    );
+}
+
 #[test]
 fn png_output_summary_quiet_and_an_empty_frame_warning() {
     let dir = tempfile::tempdir().unwrap();

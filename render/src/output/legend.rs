@@ -58,6 +58,12 @@ pub struct Legend {
 const PANEL: [u8; 3] = [24, 24, 24];
 const PANEL_ALPHA: f32 = 0.55;
 
+/// The smallest text a legend is drawn with, in pixels: DejaVu Sans still reads at 8.
+pub const MIN_TEXT_PX: f32 = 8.0;
+
+/// The largest share of a picture a legend's parts may cover.
+pub const MAX_COVER: f32 = 1.0 / 3.0;
+
 /// An RGB8 image being drawn on.
 struct Canvas<'a> {
     rgb: &'a mut [u8],
@@ -270,26 +276,21 @@ impl Legend {
         }
     }
 
-    /// Draws the legend into `rgb` (`w x h` RGB8, row-major).
-    pub fn draw(&self, rgb: &mut [u8], w: u32, h: u32) {
-        let px = (h as f32 / 40.0).clamp(10.0, 28.0);
-        let Some(text) = Text::new(px) else {
-            return;
+    /// Draws the legend into `rgb` (`w x h` RGB8, row-major) at the largest text size from
+    /// `h / 40` down to [`MIN_TEXT_PX`] at which its parts fit (see [`Legend::fits`]), the axis
+    /// triad left out before the text shrinks; draws nothing and returns false when none does.
+    pub fn draw(&self, rgb: &mut [u8], w: u32, h: u32) -> bool {
+        let Some((text, triad)) = self.layout(w, h) else {
+            return false;
         };
+        let px = text.px;
         let mut canvas = Canvas { rgb, w, h };
         let m = px;
         let line = px * 1.3;
         let swatch_w = px * 1.2;
-        // The bottom of a list of `n` lines: the last line's top plus its height.
-        let list_bottom = |n: usize| m + (n as f32 - 1.0) * line + px * 1.2;
-        let entries_w = self
-            .entries
-            .iter()
-            .map(|(s, sw)| text.width(s) + if sw.is_some() { swatch_w } else { 0.0 })
-            .fold(0.0, f32::max);
         if !self.entries.is_empty() {
-            let bottom = list_bottom(self.entries.len());
-            canvas.panel((m, m), (m + entries_w, bottom), px * 0.4);
+            let (x0, y0, x1, y1) = self.entries_box(&text);
+            canvas.panel((x0, y0), (x1, y1), px * 0.4);
         }
         for (k, (s, swatch)) in self.entries.iter().enumerate() {
             let y = m + k as f32 * line;
@@ -321,37 +322,144 @@ impl Legend {
             text.draw(&mut canvas, s, x, y);
         }
         if !self.color_bars.is_empty() {
-            // The bars share the right side's span, a title's height apart.
-            let n = self.color_bars.len() as f32;
-            let (top, bottom) = (h as f32 * 0.2, h as f32 * 0.8);
-            let gap = px * 4.0;
-            let each = (bottom - top - gap * (n - 1.0)) / n;
-            // One left edge for every bar: the panels line up.
-            let left = self
-                .color_bars
-                .iter()
-                .map(|b| bar_left(&text, b, w as f32))
-                .fold(f32::INFINITY, f32::min);
+            let left = self.bars_left(&text, w as f32);
             for (k, bar) in self.color_bars.iter().enumerate() {
-                let y0 = top + k as f32 * (each + gap);
-                self.draw_bar(&mut canvas, &text, bar, left, (y0, y0 + each));
+                let span = self.bar_span(&text, h as f32, k);
+                self.draw_bar(&mut canvas, &text, bar, left, span);
             }
         } else if !self.levels.is_empty() {
-            let labels: Vec<String> = self.levels.iter().map(|l| format!("level {l}")).collect();
-            let tw = labels.iter().map(|s| text.width(s)).fold(0.0, f32::max);
-            let x = w as f32 - m - tw - swatch_w;
-            let bottom = list_bottom(labels.len());
-            canvas.panel((x, m), (w as f32 - m, bottom), px * 0.4);
-            for (k, (&l, s)) in self.levels.iter().zip(&labels).enumerate() {
+            let (x, y0, x1, y1) = self.levels_box(&text, w as f32);
+            canvas.panel((x, y0), (x1, y1), px * 0.4);
+            for (k, &l) in self.levels.iter().enumerate() {
                 let y = m + k as f32 * line;
                 let side = (0.8 * px) as i64;
                 canvas.rect(x as i64, y as i64 + 2, side, side, level_srgb8(l), 1.0);
-                text.draw(&mut canvas, s, x + swatch_w, y);
+                text.draw(&mut canvas, &format!("level {l}"), x + swatch_w, y);
             }
         }
-        if let Some(camera) = &self.camera {
+        if let (Some(camera), true) = (&self.camera, triad) {
             draw_triad(&mut canvas, &text, camera, m);
         }
+        true
+    }
+
+    /// Whether the legend has room in a `w x h` picture at some text size of at least
+    /// [`MIN_TEXT_PX`]: every part inside the frame, no two overlapping, a colour bar's tick labels
+    /// apart, and all of them together covering at most [`MAX_COVER`] of the picture.
+    pub fn fits(&self, w: u32, h: u32) -> bool {
+        self.layout(w, h).is_some()
+    }
+
+    /// The smallest picture of `w x h`'s shape, enlarged by steps of a quarter up to 16 times,
+    /// in which the legend fits; `None` when none of those does.
+    pub fn smallest_fitting_size(&self, (w, h): (u32, u32)) -> Option<(u32, u32)> {
+        (0..=50)
+            .map(|k| 1.0 + 0.25 * f64::from(k))
+            .filter(|s| *s <= 16.0)
+            .map(|s| {
+                let scale = |n: u32| (f64::from(n) * s).round() as u32;
+                (scale(w), scale(h))
+            })
+            .find(|&(w, h)| self.fits(w, h))
+    }
+
+    /// The text and whether the triad is drawn: the largest size from the nominal `h / 40`
+    /// (10 to 28 px) down to [`MIN_TEXT_PX`] at which the legend fits, with its triad if it
+    /// fits so, else without.
+    fn layout(&self, w: u32, h: u32) -> Option<(Text, bool)> {
+        let nominal = (h as f32 / 40.0).clamp(10.0, 28.0);
+        let sizes = (0..).map(|k| nominal - k as f32);
+        for px in sizes.take_while(|px| *px >= MIN_TEXT_PX) {
+            let text = Text::new(px)?;
+            for triad in [true, false] {
+                if self.has_room(&text, w as f32, h as f32, triad) {
+                    return Some((text, triad));
+                }
+            }
+        }
+        None
+    }
+
+    /// Whether the parts, drawn with `text`, fit a `w x h` picture (see [`Legend::fits`]).
+    fn has_room(&self, text: &Text, w: f32, h: f32, triad: bool) -> bool {
+        let px = text.px;
+        let mut parts: Vec<(f32, f32, f32, f32)> = Vec::new();
+        if !self.entries.is_empty() {
+            parts.push(self.entries_box(text));
+        }
+        if !self.color_bars.is_empty() {
+            let left = self.bars_left(text, w);
+            for k in 0..self.color_bars.len() {
+                let (top, bottom) = self.bar_span(text, h, k);
+                let bar = &self.color_bars[k];
+                if bottom <= top || bar_ticks(bar, text, (top, bottom), w).is_none() {
+                    return false;
+                }
+                parts.push((left, top - px * 1.6, w - px, bottom + px * 0.6));
+            }
+        } else if !self.levels.is_empty() {
+            parts.push(self.levels_box(text, w));
+        }
+        let pad = px * 0.4;
+        let mut parts: Vec<_> = parts
+            .into_iter()
+            .map(|(x0, y0, x1, y1)| (x0 - pad, y0 - pad, x1 + pad, y1 + pad))
+            .collect();
+        if let (Some(_), true) = (&self.camera, triad) {
+            parts.push(triad_box(w, h, px));
+        }
+        let inside = |b: &(f32, f32, f32, f32)| b.0 >= 0.0 && b.1 >= 0.0 && b.2 <= w && b.3 <= h;
+        let apart = |a: &(f32, f32, f32, f32), b: &(f32, f32, f32, f32)| {
+            a.2 <= b.0 || b.2 <= a.0 || a.3 <= b.1 || b.3 <= a.1
+        };
+        let covered: f32 = parts.iter().map(|b| (b.2 - b.0) * (b.3 - b.1)).sum();
+        parts.iter().all(inside)
+            && (0..parts.len()).all(|i| (i + 1..parts.len()).all(|j| apart(&parts[i], &parts[j])))
+            && covered <= MAX_COVER * w * h
+    }
+
+    /// The box of the lines at the top left, without the panel's margin.
+    fn entries_box(&self, text: &Text) -> (f32, f32, f32, f32) {
+        let px = text.px;
+        let swatch_w = px * 1.2;
+        let width = self
+            .entries
+            .iter()
+            .map(|(s, sw)| text.width(s) + if sw.is_some() { swatch_w } else { 0.0 })
+            .fold(0.0, f32::max);
+        (px, px, px + width, list_bottom(px, self.entries.len()))
+    }
+
+    /// The box of the level palette on the right side (drawn when no colour bar takes it),
+    /// without the panel's margin; its left edge is where the swatches start.
+    fn levels_box(&self, text: &Text, w: f32) -> (f32, f32, f32, f32) {
+        let px = text.px;
+        let tw = self
+            .levels
+            .iter()
+            .map(|l| text.width(&format!("level {l}")))
+            .fold(0.0, f32::max);
+        let x = w - px - tw - px * 1.2;
+        (x, px, w - px, list_bottom(px, self.levels.len()))
+    }
+
+    /// One left edge for every colour bar, so that their panels line up.
+    fn bars_left(&self, text: &Text, w: f32) -> f32 {
+        self.color_bars
+            .iter()
+            .map(|b| bar_left(text, b, w))
+            .fold(f32::INFINITY, f32::min)
+    }
+
+    /// The heights between which colour bar `k` is drawn: the bars share the right side's span
+    /// from a fifth of the height to four fifths, a title's height apart.
+    fn bar_span(&self, text: &Text, h: f32, k: usize) -> (f32, f32) {
+        let n = self.color_bars.len() as f32;
+        let (top, bottom) = (h * 0.2, h * 0.8);
+        let gap = text.px * 4.0;
+        let each = (bottom - top - gap * (n - 1.0)) / n;
+        let y0 = top + k as f32 * (each + gap);
+        (y0, y0 + each)
     }
 
     /// Draws `bar` on the right side from `x0` (its [`bar_left`], or further left) between
@@ -366,8 +474,10 @@ impl Legend {
     ) {
         let w = canvas.w as f32;
         let px = text.px;
-        let labels = bar_labels(bar);
-        let bar_w = (w / 60.0).max(10.0);
+        let Some(BarTicks { y0, y1, labels }) = bar_ticks(bar, text, (top, bottom), w) else {
+            return;
+        };
+        let bar_w = bar_width(w);
         let title = bar_title(bar);
         let right = w - px;
         let title_x = x0;
@@ -378,19 +488,6 @@ impl Legend {
         );
         text.draw(canvas, &title, title_x, top - px * 1.6);
         let cap = bar_w.round() as i64;
-        let cap_room = |drawn: bool| if drawn { (cap / 2 + 3) as f32 } else { 0.0 };
-        let (y0, y1) = (
-            top + cap_room(bar.beyond.1),
-            bottom - cap_room(bar.beyond.0),
-        );
-        let position = |v: f64| {
-            crate::coloring::ColorScale {
-                colormap: bar.colormap,
-                range: None,
-                log: bar.log,
-            }
-            .position(v, bar.range)
-        };
         canvas.rect(
             x0 as i64 - 1,
             y0 as i64 - 1,
@@ -411,8 +508,7 @@ impl Legend {
                 canvas.cap((x0 as i64 - 1, base), cap + 2, step, bar.colormap.srgb8(t));
             }
         }
-        for (v, s) in labels {
-            let y = y1 - position(v) as f32 * (y1 - y0);
+        for (y, s) in labels {
             canvas.rect(
                 (x0 + bar_w) as i64,
                 y as i64,
@@ -424,6 +520,62 @@ impl Legend {
             text.draw(canvas, &s, x0 + bar_w + px * 0.5, y - px * 0.6);
         }
     }
+}
+
+/// The bottom of a list of `n` lines in text of `px` pixels drawn from the top margin: the last
+/// line's top plus its height.
+fn list_bottom(px: f32, n: usize) -> f32 {
+    px + (n as f32 - 1.0) * px * 1.3 + px * 1.2
+}
+
+/// The width of a colour bar's colours in a frame `w` wide.
+fn bar_width(w: f32) -> f32 {
+    (w / 60.0).max(10.0)
+}
+
+/// Where a colour bar's colours run and which of its tick labels are drawn where.
+struct BarTicks {
+    /// The colours' top, short of a cap drawn above.
+    y0: f32,
+    /// The colours' bottom, short of a cap drawn below.
+    y1: f32,
+    /// The labels drawn, each with the height of its tick.
+    labels: Vec<(f32, String)>,
+}
+
+/// `bar` drawn between heights `top` and `bottom` in a frame `w` wide: its colours' span, and
+/// every k-th of its tick labels for the least k that sets them at least a line of `text`
+/// apart; `None` when no two labels are (or the span is empty).
+fn bar_ticks(bar: &ColorBar, text: &Text, (top, bottom): (f32, f32), w: f32) -> Option<BarTicks> {
+    let cap = bar_width(w).round() as i64;
+    let cap_room = |drawn: bool| if drawn { (cap / 2 + 3) as f32 } else { 0.0 };
+    let (y0, y1) = (
+        top + cap_room(bar.beyond.1),
+        bottom - cap_room(bar.beyond.0),
+    );
+    if y1 <= y0 {
+        return None;
+    }
+    let scale = crate::coloring::ColorScale {
+        colormap: bar.colormap,
+        range: None,
+        log: bar.log,
+    };
+    let placed: Vec<(f32, String)> = bar_labels(bar)
+        .into_iter()
+        .map(|(v, s)| (y1 - scale.position(v, bar.range) as f32 * (y1 - y0), s))
+        .collect();
+    let apart = |picked: &[&(f32, String)]| {
+        picked
+            .windows(2)
+            .all(|p| (p[0].0 - p[1].0).abs() >= text.px * 1.1)
+    };
+    let steps = 1..placed.len().max(2);
+    let labels = steps
+        .map(|k| placed.iter().step_by(k).collect::<Vec<_>>())
+        .find(|picked| apart(picked))?;
+    let labels = labels.into_iter().cloned().collect();
+    Some(BarTicks { y0, y1, labels })
 }
 
 /// The tick values of `bar` and their labels.
@@ -448,7 +600,7 @@ fn bar_left(text: &Text, bar: &ColorBar, w: f32) -> f32 {
         .iter()
         .map(|l| text.width(&l.1))
         .fold(0.0, f32::max);
-    let bar_w = (w / 60.0).max(10.0);
+    let bar_w = bar_width(w);
     let right = w - px;
     (right - label_w - px * 0.5 - bar_w).min(right - text.width(&bar_title(bar)))
 }
@@ -542,6 +694,20 @@ pub fn ticks((lo, hi): (f64, f64), log: bool) -> Vec<f64> {
         true => in_steps(steps[at - 1]),
         false => ticks,
     }
+}
+
+/// The box the axis triad and its letters may take at the bottom left of a `w x h` frame,
+/// whatever the camera's turn, cut to the frame.
+fn triad_box(w: f32, h: f32, px: f32) -> (f32, f32, f32, f32) {
+    let len = h.min(w) / 14.0;
+    let o = (px + len + 4.0, h - px - len - 4.0);
+    let reach = 1.25 * len;
+    (
+        (o.0 - reach - px * 0.3).max(0.0),
+        (o.1 - reach - px * 0.6).max(0.0),
+        (o.0 + reach + px * 0.7).min(w),
+        (o.1 + reach + px * 0.6).min(h),
+    )
 }
 
 /// The world axes as the camera sees them, at the bottom left: x red, y green, z blue.
@@ -662,6 +828,76 @@ mod tests {
             count(&both, 0.0) > count(&top, 0.0) + bar_w,
             "no cap at the bottom"
         );
+    }
+
+    /// The legend of a frame with two surfaces painted by level, as the demo's.
+    fn two_surfaces_by_level() -> Legend {
+        Legend {
+            entries: vec![
+                ("blobs = 10, coloured by level".into(), None),
+                ("blobs = 6, coloured by level (opacity 0.3)".into(), None),
+            ],
+            levels: vec![1, 2],
+            camera: Some(Camera::new([3.0, 2.0, 1.5], [0.5; 3], [0.0, 0.0, 1.0], 40.0).unwrap()),
+            ..Legend::default()
+        }
+    }
+
+    #[test]
+    fn a_picture_too_small_for_its_legend_is_left_as_rendered() {
+        let legend = two_surfaces_by_level();
+        let (w, h) = (128u32, 96u32);
+        let mut rgb = vec![128u8; (3 * w * h) as usize];
+        assert!(!legend.fits(w, h));
+        assert!(!legend.draw(&mut rgb, w, h), "drawn where it does not fit");
+        assert!(rgb.iter().all(|&c| c == 128), "pixels changed");
+        // The smallest size of its shape that holds it is one, and the step below is not.
+        let (fw, fh) = legend.smallest_fitting_size((w, h)).unwrap();
+        assert!(legend.fits(fw, fh) && fw > w && fh > h, "{fw}x{fh}");
+        let below = |n: u32| (f64::from(n) * (f64::from(fw) / f64::from(w) - 0.25)).round() as u32;
+        assert!(
+            !legend.fits(below(w), below(h)),
+            "{fw}x{fh} is not the smallest"
+        );
+        let mut rgb = vec![128u8; (3 * fw * fh) as usize];
+        assert!(legend.draw(&mut rgb, fw, fh));
+        assert!(rgb.iter().any(|&c| c != 128));
+    }
+
+    #[test]
+    fn a_crowded_legend_shrinks_its_text_before_it_is_left_out() {
+        let legend = two_surfaces_by_level();
+        let (w, h) = (200u32, 150u32);
+        let text = |px| Text::new(px).unwrap();
+        let nominal = (h as f32 / 40.0).clamp(10.0, 28.0);
+        assert!(
+            !legend.has_room(&text(nominal), w as f32, h as f32, false),
+            "the case needs no shrinking"
+        );
+        let (drawn, triad) = legend.layout(w, h).expect("no room at any size");
+        assert!(drawn.px < nominal && drawn.px >= MIN_TEXT_PX);
+        assert!(triad, "the triad left out where smaller text holds it");
+        // At 1024x768 nothing shrinks.
+        assert_eq!(legend.layout(1024, 768).unwrap().0.px, 768.0 / 40.0);
+    }
+
+    #[test]
+    fn a_short_colour_bar_labels_every_other_tick_a_line_apart() {
+        let bar = ColorBar {
+            title: "T".into(),
+            colormap: Colormap::default(),
+            range: (0.0, 1.0),
+            log: false,
+            beyond: (false, false),
+        };
+        let text = Text::new(10.0).unwrap();
+        let all = bar_ticks(&bar, &text, (0.0, 200.0), 400.0).unwrap().labels;
+        assert_eq!(all.len(), 6, "{all:?}");
+        let short = bar_ticks(&bar, &text, (0.0, 40.0), 400.0).unwrap().labels;
+        let names: Vec<&str> = short.iter().map(|l| l.1.as_str()).collect();
+        assert_eq!(names, ["0", "0.4", "0.8"]);
+        assert!(short.windows(2).all(|p| (p[0].0 - p[1].0).abs() >= 11.0));
+        assert!(bar_ticks(&bar, &text, (0.0, 8.0), 400.0).is_none());
     }
 
     #[test]

@@ -77,6 +77,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         outputs: Outputs {
             exr: args.output.clone(),
             preview: Some(preview.clone()),
+            legend: true,
             exr_compression: ExrCompression::default(),
             print_stats: false,
             stats_json: None,

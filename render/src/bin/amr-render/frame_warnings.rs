@@ -1,8 +1,12 @@
 //! Warnings about what a frame shows: a slice that misses the domain, an isovalue outside its
-//! field's range, a camera inside a closed surface, and a frame with no surface, with why.
+//! field's range, a camera inside a closed surface, a frame with no surface, with why; and a
+//! note on a picture too small for its legend.
+
+use std::path::Path;
 
 use amr_render::camera::{BoxPlacement, Camera};
 use amr_render::field_stats::{format_isovalue, format_value, format_vector};
+use amr_render::output::legend::Legend;
 use amr_render::shade::IsoSpec;
 use amr_render::{enclosing_surface, Scene, View};
 
@@ -158,4 +162,23 @@ pub(crate) fn warn_empty(scene: &Scene, camera: &Camera, (w, h): (u32, u32)) {
         isos.join(", "),
         active
     );
+}
+
+/// Notes when a `size` picture, written to `png`, has no room for `legend`, which is then left
+/// out, with the smallest size of its shape that holds it; returns whether it noted.
+pub(crate) fn note_no_room_for_legend(png: &Path, legend: &Legend, size: (u32, u32)) -> bool {
+    if legend.fits(size.0, size.1) {
+        return false;
+    }
+    let larger = match legend.smallest_fitting_size(size) {
+        Some((w, h)) => format!("; it fits from --size {w}x{h}"),
+        None => String::new(),
+    };
+    eprintln!(
+        "note: {}: a {}x{} picture has no room for its legend, which is left out{larger}",
+        png.display(),
+        size.0,
+        size.1
+    );
+    true
 }

@@ -20,8 +20,8 @@ pub struct FrameJob {
     pub rendered: Rendered,
     /// Its EXR header's text attributes.
     pub header: Vec<(String, String)>,
-    /// What its pictures show over it.
-    pub legend: Legend,
+    /// What its pictures show over it (`None`: nothing).
+    pub legend: Option<Legend>,
 }
 
 /// The thread that writes frames, in the order given.
@@ -47,7 +47,8 @@ impl FrameWriter {
             .name("frame writer".into())
             .spawn(move || {
                 for job in queue {
-                    outputs::write_frame(&job.files, &job.rendered, &job.header, &job.legend)?;
+                    let legend = job.legend.as_ref();
+                    outputs::write_frame(&job.files, &job.rendered, &job.header, legend)?;
                     // The run may have ended; then the planes are simply dropped.
                     let _ = done.send(job.rendered.frame);
                 }

@@ -17,7 +17,9 @@ use amr_render::{render, render_reusing, ColorBy, ColorScale, Scene, View};
 use anyhow::bail;
 use serde::Serialize;
 
-use crate::frame_warnings::{warn_empty, warn_enclosed, warn_isos_outside, warn_slices_outside};
+use crate::frame_warnings::{
+    note_no_room_for_legend, warn_empty, warn_enclosed, warn_isos_outside, warn_slices_outside,
+};
 use crate::frame_writer::{FrameJob, FrameWriter};
 use crate::heap;
 use crate::movie;
@@ -94,6 +96,7 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
     let mut records = Vec::new();
     let mut writer = FrameWriter::start()?;
     let mut warned_enclosed = false;
+    let mut noted_legend = false;
     let start = Instant::now();
     for k in 0..n {
         let index = if anim.series { k as usize } else { 0 };
@@ -194,7 +197,18 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             ));
         }
         let header = frame_header(scene, &rendered, &extra);
-        let legend = Legend::of_frame(scene, &view, &rendered);
+        let legend = match request.outputs.legend {
+            true => Some(Legend::of_frame(scene, &view, &rendered)),
+            false => None,
+        };
+        if let (Some(legend), Some(png), true) = (
+            &legend,
+            files[k as usize].picture(),
+            request.outputs.summary && !noted_legend,
+        ) {
+            // Once a run: the frames of a run share their size.
+            noted_legend = note_no_room_for_legend(png, legend, view.size);
+        }
         let stats = rendered.stats.clone();
         writer.write(FrameJob {
             files: files[k as usize].clone(),

@@ -91,6 +91,14 @@ pub struct FrameFiles {
 }
 
 impl FrameFiles {
+    /// The PNG picture written of the frame, if any: the frame itself or its preview.
+    pub fn picture(&self) -> Option<&Path> {
+        match is_png(&self.exr) {
+            true => Some(&self.exr),
+            false => self.preview.as_deref(),
+        }
+    }
+
     /// The files of frame `k` of `n`: the names given for one frame; `NAME_0000.ext`,
     /// `NAME_0001.ext`, ... for several. A preview is made beside the EXR when `want_png` asks
     /// for one and none is named.
@@ -183,7 +191,7 @@ pub fn write_frame(
     files: &FrameFiles,
     rendered: &Rendered,
     header: &[(String, String)],
-    legend: &Legend,
+    legend: Option<&Legend>,
 ) -> anyhow::Result<()> {
     if is_png(&files.exr) {
         write_picture(&files.exr, rendered, legend)?;
@@ -248,11 +256,13 @@ pub fn is_png(path: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("png"))
 }
 
-/// Writes the tone-mapped picture of `rendered` with `legend` drawn on it as a PNG.
-fn write_picture(path: &Path, rendered: &Rendered, legend: &Legend) -> anyhow::Result<()> {
+/// Writes the tone-mapped picture of `rendered` with `legend`, if any, drawn on it as a PNG.
+fn write_picture(path: &Path, rendered: &Rendered, legend: Option<&Legend>) -> anyhow::Result<()> {
     let frame = &rendered.frame;
     let mut rgb = preview_rgb8(frame);
-    legend.draw(&mut rgb, frame.width, frame.height);
+    if let Some(legend) = legend {
+        legend.draw(&mut rgb, frame.width, frame.height);
+    }
     write_png(path, frame.width, frame.height, &rgb)?;
     Ok(())
 }

@@ -166,6 +166,10 @@ pub struct RenderArgs {
     /// Also write a tone-mapped PNG preview with its legend.
     #[arg(long, value_name = "OUT.png")]
     pub preview: Option<PathBuf>,
+    /// PNG pictures without the legend (isovalues, colour bars, axis triad), as for a figure
+    /// composed elsewhere; the legend is also left out of a picture too small to hold it.
+    #[arg(long)]
+    pub no_legend: bool,
     /// Lossless compression of EXR frames: piz (default; smaller and faster than zip), zip, rle
     /// (fastest, largest files) or none.
     #[arg(long, value_name = "KIND")]
@@ -237,6 +241,8 @@ pub struct Outputs {
     pub exr: PathBuf,
     /// A PNG preview.
     pub preview: Option<PathBuf>,
+    /// Whether PNG pictures get their legend.
+    pub legend: bool,
     /// How EXR frames are compressed.
     pub exr_compression: ExrCompression,
     /// Print statistics to stderr.
@@ -497,6 +503,7 @@ impl RenderArgs {
             outputs: Outputs {
                 exr: self.output.clone(),
                 preview: self.preview.clone(),
+                legend: !self.no_legend,
                 exr_compression: self.exr_compression.unwrap_or_default(),
                 print_stats: self.stats,
                 stats_json: self.stats_json.clone(),

@@ -17,6 +17,7 @@ use serde::Serialize;
 
 use super::stats::{cpu_seconds, table, RankRecord, RankStats};
 use super::{partitioned, replicated, MpiMode};
+use crate::frame_warnings::note_no_room_for_legend;
 use crate::outputs::{self, FrameFiles, RunStats};
 use crate::progress;
 use crate::render::request_isos;
@@ -261,7 +262,13 @@ fn write_rank0(
         MpiMode::Partitioned => "leaves",
     };
     let files = FrameFiles::numbered(&request.outputs, 0, 1, false);
-    let legend = amr_render::output::legend::Legend::of_frame(scene, &request.view, &rendered);
-    outputs::write_frame(&files, &rendered, &header, &legend)?;
+    let legend = request
+        .outputs
+        .legend
+        .then(|| amr_render::output::legend::Legend::of_frame(scene, &request.view, &rendered));
+    if let (Some(legend), Some(png), true) = (&legend, files.picture(), request.outputs.summary) {
+        note_no_room_for_legend(png, legend, request.view.size);
+    }
+    outputs::write_frame(&files, &rendered, &header, legend.as_ref())?;
     outputs::report(&request.outputs, &stats, &table(ranks, work))
 }

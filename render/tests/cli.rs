@@ -593,6 +593,76 @@ fn a_scene_file_renders_what_its_command_line_did() {
     assert!(stderr(&o).contains("no `files`"), "{}", stderr(&o));
 }
 
+/// A scene file's relative paths are its directory's: written so by `--write-scene` and read so,
+/// whatever directory the command runs in; paths typed on the command line stay the working
+/// directory's, and absolute ones stay absolute.
+#[test]
+fn a_scene_file_reads_its_relative_paths_from_its_own_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir_all(d.join("run")).unwrap();
+    std::fs::create_dir_all(d.join("figs")).unwrap();
+    synth(&d.join("run"), "blobs.amrk", Case::Blobs, 2);
+    let run_in = |cwd: &Path, args: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_amr-render"))
+            .args(args)
+            .current_dir(cwd)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{args:?} in {}: {}",
+            cwd.display(),
+            stderr(&o)
+        );
+    };
+    let picture = ["--iso", "10", "--size", "32x24", "--no-shadows", "-q"];
+    let mut args = vec![
+        "run/blobs.amrk",
+        "-o",
+        "figs/f.png",
+        "--stats-json",
+        "figs/f.json",
+    ];
+    args.extend(picture);
+    args.extend(["--write-scene", "figs/f.toml"]);
+    run_in(d, &args);
+    let text = std::fs::read_to_string(d.join("figs/f.toml")).unwrap();
+    for line in [
+        r#"files = ["../run/blobs.amrk"]"#,
+        r#"output = "f.png""#,
+        r#"stats-json = "f.json""#,
+    ] {
+        assert!(text.contains(line), "{line} not in {text}");
+    }
+    let first = std::fs::read(d.join("figs/f.png")).unwrap();
+    std::fs::remove_file(d.join("figs/f.png")).unwrap();
+    run_in(&d.join("figs"), &["f.toml"]);
+    assert_eq!(std::fs::read(d.join("figs/f.png")).unwrap(), first);
+    std::fs::remove_file(d.join("figs/f.png")).unwrap();
+    run_in(&d.join("run"), &["../figs/f.toml"]);
+    assert_eq!(std::fs::read(d.join("figs/f.png")).unwrap(), first);
+    // An option after the scene file is the command line's: from the working directory.
+    run_in(&d.join("run"), &["../figs/f.toml", "-o", "here.png"]);
+    assert_eq!(std::fs::read(d.join("run/here.png")).unwrap(), first);
+    // Written from a scene into another directory, the paths follow; absolute ones stay.
+    let abs_out = d.join("abs.png");
+    let abs_out = abs_out.to_str().unwrap();
+    run_in(
+        &d.join("run"),
+        &[
+            "../figs/f.toml",
+            "-o",
+            abs_out,
+            "--write-scene",
+            "again.toml",
+        ],
+    );
+    let text = std::fs::read_to_string(d.join("run/again.toml")).unwrap();
+    assert!(text.contains(r#"files = ["blobs.amrk"]"#), "{text}");
+    assert!(text.contains(&format!("output = {abs_out:?}")), "{text}");
+}
+
 #[test]
 fn animation_counts_must_agree() {
     let dir = tempfile::tempdir().unwrap();

@@ -68,8 +68,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 /// The command line, a scene file in first position expanded, parsed; `--write-scene`'s file
 /// composed, to be written once the command has succeeded.
 fn parse() -> anyhow::Result<(Cli, Option<scene_file::PendingScene>)> {
-    let argv = scene_file::expand(std::env::args_os().collect())?;
     let cmd = Cli::command();
+    let argv = scene_file::expand(std::env::args_os().collect(), &cmd)?;
     let matches = cmd
         .clone()
         .try_get_matches_from(argv)

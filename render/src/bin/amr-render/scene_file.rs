@@ -3,24 +3,27 @@
 //! (`size = "1024x768"`, `iso = ["10:orange", "5:#3070ff:0.4"]`, `orbit = 36`,
 //! `no-shadows = true`) and `files` for the input files; the values are read by the same parsers
 //! as the command line, so a scene file accepts exactly what the command line accepts. Options
-//! given after the scene file on the command line take precedence. Paths are taken as written,
-//! relative to the directory the command runs in.
+//! given after the scene file on the command line take precedence. A relative path in a scene
+//! file (an input, an output) is relative to the scene file's directory, so that a scene renders
+//! the same from wherever it is run; `--write-scene` writes them so.
 
+use std::any::TypeId;
 use std::ffi::OsString;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use clap::parser::ValueSource;
-use clap::{ArgMatches, Command};
+use clap::{Arg, ArgMatches, Command};
 use toml::{Table, Value};
 
 /// Key of the input files.
 const FILES: &str = "files";
 
-/// `argv` with a scene file in first position replaced by the arguments it holds (the
-/// arguments after it are kept, after those, so that they take precedence).
-pub fn expand(argv: Vec<OsString>) -> anyhow::Result<Vec<OsString>> {
+/// `argv` with a scene file in first position replaced by the arguments it holds, its relative
+/// paths (the values of `cmd`'s path arguments) taken from the scene file's directory; the
+/// arguments after it are kept, after those, so that they take precedence.
+pub fn expand(argv: Vec<OsString>, cmd: &Command) -> anyhow::Result<Vec<OsString>> {
     let Some(first) = argv.get(1) else {
         return Ok(argv);
     };
@@ -33,14 +36,25 @@ pub fn expand(argv: Vec<OsString>) -> anyhow::Result<Vec<OsString>> {
     let table: Table = text
         .parse()
         .with_context(|| format!("{}: not a TOML scene file", path.display()))?;
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
+    let from_scene = |key: &str, value: String| match (dir, is_path_key(cmd, key)) {
+        (Some(dir), true) if value != "-" && Path::new(&value).is_relative() => {
+            dir.join(value).into_os_string()
+        }
+        _ => OsString::from(value),
+    };
     let mut out = vec![argv[0].clone()];
-    out.extend(arguments(&table).with_context(|| format!("{}", path.display()))?);
+    out.extend(arguments(&table, &from_scene).with_context(|| format!("{}", path.display()))?);
     out.extend(argv[2..].iter().cloned());
     Ok(out)
 }
 
-/// The command-line arguments a scene file's table stands for.
-fn arguments(table: &Table) -> anyhow::Result<Vec<OsString>> {
+/// The command-line arguments a scene file's table stands for, each value's text passed through
+/// `text` with its key.
+fn arguments(
+    table: &Table,
+    text: &dyn Fn(&str, String) -> OsString,
+) -> anyhow::Result<Vec<OsString>> {
     let mut files = Vec::new();
     let mut options = Vec::new();
     for (key, value) in table {
@@ -48,10 +62,10 @@ fn arguments(table: &Table) -> anyhow::Result<Vec<OsString>> {
             match value {
                 Value::Array(items) => {
                     for item in items {
-                        files.push(OsString::from(scalar(key, item)?));
+                        files.push(text(key, scalar(key, item)?));
                     }
                 }
-                other => files.push(OsString::from(scalar(key, other)?)),
+                other => files.push(text(key, scalar(key, other)?)),
             }
             continue;
         }
@@ -70,12 +84,12 @@ fn arguments(table: &Table) -> anyhow::Result<Vec<OsString>> {
             Value::Array(items) => {
                 for item in items {
                     options.push(OsString::from(&flag));
-                    options.push(OsString::from(scalar(key, item)?));
+                    options.push(text(key, scalar(key, item)?));
                 }
             }
             other => {
                 options.push(OsString::from(&flag));
-                options.push(OsString::from(scalar(key, other)?));
+                options.push(text(key, scalar(key, other)?));
             }
         }
     }
@@ -84,6 +98,62 @@ fn arguments(table: &Table) -> anyhow::Result<Vec<OsString>> {
     }
     files.extend(options);
     Ok(files)
+}
+
+/// Whether the scene file's `key` holds paths: `files`, or the long name of a path argument.
+fn is_path_key(cmd: &Command, key: &str) -> bool {
+    key == FILES
+        || cmd
+            .get_arguments()
+            .any(|a| a.get_long() == Some(key) && takes_paths(a))
+}
+
+/// Whether `arg`'s values are paths.
+fn takes_paths(arg: &Arg) -> bool {
+    arg.get_value_parser().type_id() == TypeId::of::<PathBuf>()
+}
+
+/// `value`, a path as given on the command line, as seen from `dir`, the directory of the scene
+/// file written: unchanged when absolute or `-` (standard output), else relative to `dir`. Both
+/// are resolved through the file system where they exist (symbolic links and `..` as the system
+/// follows them), so the relative path names the same file; else `value` is written absolute.
+fn from_dir(value: &str, dir: &Path) -> anyhow::Result<String> {
+    let path = Path::new(value);
+    if value == "-" || path.is_absolute() {
+        return Ok(value.to_owned());
+    }
+    let resolved = |p: &Path| std::fs::canonicalize(p).ok();
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    // An output need not exist yet: its directory does.
+    let target = match (path.parent(), path.file_name()) {
+        (Some(parent), Some(name)) => {
+            let parent = if parent.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                parent
+            };
+            resolved(parent).map(|p| p.join(name))
+        }
+        _ => resolved(path),
+    };
+    let absolute = std::path::absolute(path)
+        .with_context(|| format!("{value}: cannot make the path absolute"))?;
+    let relative = match (target, resolved(dir)) {
+        (Some(target), Some(base)) => pathdiff::diff_paths(&target, &base).unwrap_or(absolute),
+        _ => absolute,
+    };
+    match relative.to_str() {
+        Some("") => Ok(".".to_owned()),
+        Some(s) => Ok(s.to_owned()),
+        None => bail!(
+            "{} is not valid UTF-8, which a TOML scene file cannot hold",
+            relative.display()
+        ),
+    }
 }
 
 /// The text of a string or number.
@@ -135,22 +205,25 @@ pub fn prepare(path: &Path, cmd: &Command, matches: &ArgMatches) -> anyhow::Resu
         .map(Path::new)
         .collect();
     amr_format::output::check_output(path, &inputs)?;
+    let dir = path.parent().unwrap_or(Path::new(""));
     let mut table = Table::new();
     for arg in cmd.get_arguments() {
         let id = arg.get_id().as_str();
         if id == "write_scene" || matches.value_source(id) != Some(ValueSource::CommandLine) {
             continue;
         }
+        let paths_from = takes_paths(arg).then_some(dir);
         let Some(long) = arg.get_long() else {
             if id == FILES {
-                table.insert(FILES.into(), Value::Array(raw_values(matches, id)?));
+                let files = raw_values(matches, id, paths_from)?;
+                table.insert(FILES.into(), Value::Array(files));
             }
             continue;
         };
         let value = if !arg.get_action().takes_values() {
             Value::Boolean(true)
         } else {
-            let mut values = raw_values(matches, id)?;
+            let mut values = raw_values(matches, id, paths_from)?;
             match arg.get_num_args().is_some_and(|n| n.max_values() > 1)
                 || matches!(arg.get_action(), clap::ArgAction::Append)
             {
@@ -168,9 +241,14 @@ pub fn prepare(path: &Path, cmd: &Command, matches: &ArgMatches) -> anyhow::Resu
     })
 }
 
-/// The values of `id` as given, numbers as numbers; an error for a value that is not UTF-8 (a
-/// path TOML cannot hold: written with replacement characters, it would name another file).
-fn raw_values(matches: &ArgMatches, id: &str) -> anyhow::Result<Vec<Value>> {
+/// The values of `id` as given, numbers as numbers, paths (with `paths_from`, the scene file's
+/// directory) as seen from there; an error for a value that is not UTF-8 (a path TOML cannot
+/// hold: written with replacement characters, it would name another file).
+fn raw_values(
+    matches: &ArgMatches,
+    id: &str,
+    paths_from: Option<&Path>,
+) -> anyhow::Result<Vec<Value>> {
     matches
         .get_raw(id)
         .into_iter()
@@ -182,6 +260,9 @@ fn raw_values(matches: &ArgMatches, id: &str) -> anyhow::Result<Vec<Value>> {
                     raw.to_string_lossy()
                 );
             };
+            if let Some(dir) = paths_from {
+                return Ok(Value::String(from_dir(s, dir)?));
+            }
             Ok(match s.parse::<i64>() {
                 Ok(i) => Value::Integer(i),
                 Err(_) => match s.parse::<f64>() {

@@ -1,9 +1,8 @@
 //! The preview's legend, drawn into its 8-bit sRGB pixels: the colour bar with tick labels and
 //! the painting field's name (or the level palette), the isovalues with their colours, and an
-//! axis triad. Text is DejaVu Sans, embedded from the `dejavu` crate, rasterized by `ab_glyph`.
+//! axis triad, laid out to fit the picture (drawn with `canvas`).
 
-use ab_glyph::{point, Font, FontRef, PxScale, ScaleFont};
-
+use super::canvas::{Canvas, Text};
 use crate::camera::Camera;
 use crate::coloring::ColorBy;
 use crate::colormap::{level_srgb8, Colormap};
@@ -54,124 +53,11 @@ pub struct Legend {
     pub camera: Option<Camera>,
 }
 
-/// Colour and opacity of the panels behind the legend's text.
-const PANEL: [u8; 3] = [24, 24, 24];
-const PANEL_ALPHA: f32 = 0.55;
-
 /// The smallest text a legend is drawn with, in pixels: DejaVu Sans still reads at 8.
 pub const MIN_TEXT_PX: f32 = 8.0;
 
 /// The largest share of a picture a legend's parts may cover.
 pub const MAX_COVER: f32 = 1.0 / 3.0;
-
-/// An RGB8 image being drawn on.
-struct Canvas<'a> {
-    rgb: &'a mut [u8],
-    w: u32,
-    h: u32,
-}
-
-impl Canvas<'_> {
-    fn blend(&mut self, x: i64, y: i64, c: [u8; 3], a: f32) {
-        if x < 0 || y < 0 || x >= i64::from(self.w) || y >= i64::from(self.h) || a <= 0.0 {
-            return;
-        }
-        let i = 3 * (y as usize * self.w as usize + x as usize);
-        for k in 0..3 {
-            let old = f32::from(self.rgb[i + k]);
-            self.rgb[i + k] = (old + (f32::from(c[k]) - old) * a.min(1.0)).round() as u8;
-        }
-    }
-
-    fn rect(&mut self, x0: i64, y0: i64, w: i64, h: i64, c: [u8; 3], a: f32) {
-        for y in y0..y0 + h {
-            for x in x0..x0 + w {
-                self.blend(x, y, c, a);
-            }
-        }
-    }
-
-    /// A triangle `width` wide at row `base`, narrowing row by row in direction `step` (-1: up)
-    /// to a point: black, `color` inside.
-    fn cap(&mut self, (x0, base): (i64, i64), width: i64, step: i64, color: [u8; 3]) {
-        let rows = (width + 1) / 2 + 1;
-        for r in 0..rows {
-            let (inset, y) = (r, base + step * r);
-            self.rect(x0 + inset, y, width - 2 * inset, 1, [0, 0, 0], 1.0);
-            self.rect(x0 + inset + 1, y, width - 2 * inset - 2, 1, color, 1.0);
-        }
-    }
-
-    /// Darkens the box `(x0, y0)`-`(x1, y1)` with a margin of `pad`, so that the light text
-    /// drawn on it reads over box lines and bright surfaces alike.
-    fn panel(&mut self, (x0, y0): (f32, f32), (x1, y1): (f32, f32), pad: f32) {
-        let (x0, y0) = ((x0 - pad) as i64, (y0 - pad) as i64);
-        let (x1, y1) = ((x1 + pad).ceil() as i64, (y1 + pad).ceil() as i64);
-        self.rect(x0, y0, x1 - x0, y1 - y0, PANEL, PANEL_ALPHA);
-    }
-
-    fn line(&mut self, a: (f64, f64), b: (f64, f64), c: [u8; 3], width: i64) {
-        let n = ((b.0 - a.0).abs().max((b.1 - a.1).abs()).ceil() as usize).max(1);
-        for k in 0..=n {
-            let u = k as f64 / n as f64;
-            let (x, y) = (a.0 + u * (b.0 - a.0), a.1 + u * (b.1 - a.1));
-            self.rect(
-                x as i64 - width / 2,
-                y as i64 - width / 2,
-                width,
-                width,
-                c,
-                1.0,
-            );
-        }
-    }
-}
-
-/// Draws text with DejaVu Sans.
-struct Text {
-    font: FontRef<'static>,
-    px: f32,
-}
-
-impl Text {
-    fn new(px: f32) -> Option<Text> {
-        let font = FontRef::try_from_slice(dejavu::sans::regular()).ok()?;
-        Some(Text { font, px })
-    }
-
-    fn width(&self, s: &str) -> f32 {
-        let f = self.font.as_scaled(PxScale::from(self.px));
-        s.chars().map(|c| f.h_advance(f.glyph_id(c))).sum()
-    }
-
-    /// Draws `s` with its top left at `(x, y)`, light with a dark shadow so that it reads on
-    /// any background.
-    fn draw(&self, canvas: &mut Canvas<'_>, s: &str, x: f32, y: f32) {
-        self.draw_in(canvas, s, x + 1.0, y + 1.0, [0, 0, 0]);
-        self.draw_in(canvas, s, x, y, [240, 240, 240]);
-    }
-
-    fn draw_in(&self, canvas: &mut Canvas<'_>, s: &str, x: f32, y: f32, c: [u8; 3]) {
-        let f = self.font.as_scaled(PxScale::from(self.px));
-        let mut pen = x;
-        for ch in s.chars() {
-            let id = f.glyph_id(ch);
-            let glyph = id.with_scale_and_position(self.px, point(pen, y + f.ascent()));
-            pen += f.h_advance(id);
-            if let Some(o) = self.font.outline_glyph(glyph) {
-                let b = o.px_bounds();
-                o.draw(|gx, gy, cov| {
-                    canvas.blend(
-                        b.min.x as i64 + i64::from(gx),
-                        b.min.y as i64 + i64::from(gy),
-                        c,
-                        cov,
-                    )
-                });
-            }
-        }
-    }
-}
 
 impl Legend {
     /// The legend of `rendered`, a frame of `scene` seen through `view`.

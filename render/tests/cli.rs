@@ -678,6 +678,37 @@ fn animation_counts_must_agree() {
     );
 }
 
+/// A surface at its field's largest value is a set of points no ray meets: the empty frame's
+/// warning says so, and what to take instead, rather than that the camera does not see it.
+#[test]
+fn an_empty_frame_at_the_fields_largest_value_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let max = {
+        let bytes = std::fs::read(&file).unwrap();
+        amr_format::AmrkFile::open(bytes).unwrap().fields()[0].max
+    };
+    let out = dir.path().join("peak.png");
+    let iso = max.to_string();
+    let o = amr_render(&[
+        file.to_str().unwrap(),
+        "--iso",
+        &iso,
+        "--size",
+        "64x48",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let said = stderr(&o);
+    assert!(
+        said.contains("the frame shows none of the surface's")
+            && said.contains("is blobs's largest value")
+            && said.contains("take a value further below it"),
+        "{said}"
+    );
+}
+
 /// A picture too small for its legend is left as rendered, with a note naming the size that
 /// holds it; `--no-legend` leaves the legend out of any picture, without a note.
 #[test]

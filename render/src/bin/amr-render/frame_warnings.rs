@@ -112,7 +112,12 @@ pub(crate) fn warn_empty(scene: &Scene, camera: &Camera, (w, h): (u32, u32)) {
             BoxPlacement::AroundCamera => {
                 format!("they lie beside or around it, out of its view: {look_there}")
             }
-            BoxPlacement::InView { .. } => "it does not see them".to_string(),
+            BoxPlacement::InView { .. } => match extreme_isovalue(scene) {
+                Some(why) => why,
+                None => "the surface inside them passes between its rays: move the camera \
+                         closer (--camera-pos) or enlarge the frame (--size)"
+                    .to_string(),
+            },
         };
         eprintln!(
             "warning: {}: the frame shows none of the surface's {active} active voxels, which lie \
@@ -162,6 +167,35 @@ pub(crate) fn warn_empty(scene: &Scene, camera: &Camera, (w, h): (u32, u32)) {
         isos.join(", "),
         active
     );
+}
+
+/// Why a surface in view shows nothing when its isovalue is at or within a thousandth of its
+/// field's range from the field's largest or smallest value: the surface is then a speck around
+/// where the field peaks (or a set of points at the extreme itself), which the rays pass by.
+fn extreme_isovalue(scene: &Scene) -> Option<String> {
+    scene.isosurfaces().iter().find_map(|s| {
+        let f = &scene.file().fields()[scene.surface_field(s)];
+        let (min, max) = (f64::from(f.min), f64::from(f.max));
+        let near = 1e-3 * (max - min);
+        let value = f64::from(s.value);
+        let (which, extreme, exact, instead) = match value {
+            v if v >= max - near => ("largest", max, f.max, "below"),
+            v if v <= min + near => ("smallest", min, f.min, "above"),
+            _ => return None,
+        };
+        let at = match value == extreme {
+            true => "is".to_string(),
+            false => format!("lies within {} of", format_value((value - extreme).abs())),
+        };
+        Some(format!(
+            "the isovalue {} {at} {}'s {which} value, {}: the surface is a speck around where \
+             the field reaches it, which the rays pass by; take a value further {instead} it, or \
+             move the camera close to it (--camera-pos)",
+            surface_value(scene, s),
+            f.name,
+            format_isovalue(exact)
+        ))
+    })
 }
 
 /// Notes when a `size` picture, written to `png`, has no room for `legend`, which is then left

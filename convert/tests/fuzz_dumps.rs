@@ -1,6 +1,7 @@
 //! A seeded mutation fuzzer of the readers, through the `amr-convert` program: the real dumps of
 //! the shared data (the AMReX plotfiles `plt1_Y` and `example_plt_3d`, the Enzo dataset
-//! `DD0010`) and a Chombo plotfile written by the tests' HDF5 writer, copied and damaged: numbers in their text headers and `FAB` lines replaced by huge,
+//! `DD0010`), a Chombo plotfile and an AMReX HDF5 plotfile written by the tests' HDF5 writers,
+//! copied and damaged: numbers in their text headers and `FAB` lines replaced by huge,
 //! negative or malformed ones, lines dropped, doubled or swapped, files cut short, bytes of
 //! their data randomized. Every run must exit 0 with a file that verifies, or 1 with an `Error:`
 //! message that names the dump or a file of it and leaves no output: never a panic, a signal,
@@ -391,6 +392,20 @@ fn fuzz_damaged_dumps_exit_cleanly() {
         folder: chombo.path().to_path_buf(),
         input: "plot.3d.hdf5",
         fields: &["density", "chi"],
+    });
+    // AMReX's HDF5 plotfile: Chombo's layout with AMReX's attributes, written as its writer does.
+    let amrex_h5 = tempfile::tempdir().unwrap();
+    let amrex_h5_file = amrex_h5.path().join("plt00040.h5");
+    support::amrex_hdf5::write(
+        &amrex_h5_file,
+        &support::amrex_hdf5::AmrexHdf5::three_levels(),
+    )
+    .unwrap();
+    dumps.push(Dump {
+        name: "amrex_hdf5",
+        folder: amrex_h5.path().to_path_buf(),
+        input: "plt00040.h5",
+        fields: &["density", "Y(OH)"],
     });
     let cases = env_u64("AMR_FUZZ_CASES", 240);
     let seed0 = env_u64("AMR_FUZZ_SEED", 0);

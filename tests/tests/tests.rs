@@ -7,6 +7,7 @@
 //! - [`amrex_ratio_one`]: a ratio of 1 on an axis is refused with the reason.
 //! - [`chombo_convert`] and [`chombo_errors`]: Chombo HDF5 files, good and bad.
 //! - [`chombo_checkpoint`]: Chombo checkpoints in both layouts.
+//! - [`amrex_hdf5`]: AMReX's HDF5 plotfiles, written as AMReX's HDF5 writer writes them.
 //! - [`enzo_convert`]: the real Enzo dataset against yt, written Enzo datasets, bad ones.
 //! - [`stream_order`]: every reader streams its boxes in the order it declares, which the
 //!   converter's joining of small boxes relies on.
@@ -52,6 +53,7 @@ mod support;
 
 mod amrex_bench;
 mod amrex_float32;
+mod amrex_hdf5;
 mod amrex_ratio_one;
 mod amrex_real;
 mod amrex_written;

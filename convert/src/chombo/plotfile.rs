@@ -5,6 +5,9 @@
 //! outputGhost)`: `NAME:datatype=0`, `NAME:offsets=0` and the group `NAME_attributes`.
 //! Plotfiles and most checkpoints (GRChombo's, Chombo's example `AMRLevel`s) write one, `data`,
 //! holding every component named at the root; other checkpoints write one per variable.
+//!
+//! AMReX's HDF5 plotfiles (`WriteMultiLevelPlotfileHDF5`, `plotfile_type = "VanillaHDF5"`) use
+//! the same layout with a few differences, each read as AMReX writes it ([`Writer::AmrexHdf5`]).
 
 use std::path::{Path, PathBuf};
 
@@ -64,11 +67,28 @@ impl LevelVar {
     }
 }
 
+/// Which code wrote the file: Chombo's layout as AMReX's HDF5 writer follows it differs in a
+/// few attributes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Writer {
+    /// Chombo's `CH_HDF5` (`WriteAMRHierarchyHDF5`, checkpoints): cell index 0 at position 0,
+    /// the cell size in `dx` (or `vec_dx`), ghost layers in `NAME_attributes/outputGhost`.
+    Chombo,
+    /// AMReX's `WriteMultiLevelPlotfileHDF5` (`Src/Extern/HDF5/AMReX_PlotFileUtilHDF5.cpp`):
+    /// the domain's lower corner at `prob_lo`, the cell size per axis in `Vec_dx` (`dx` holds
+    /// only x's), `ref_ratio` only x's ratio (the others come from the level domains), no
+    /// `data_attributes` group (valid cells only, no ghosts), `domain_type` and
+    /// `coordinate_system` (cell-centred Cartesian data only), the step in `steps`.
+    AmrexHdf5,
+}
+
 /// One level of a file, validated.
 #[derive(Debug)]
 pub struct Level {
     /// Cell size on each axis.
     pub dx: [f64; 3],
+    /// Physical position of the lower corner of cell index (0, 0, 0).
+    pub origin: [f64; 3],
     /// Refinement ratio to the next finer level (`[1, 1, 1]` on the finest).
     pub ref_ratio: [u32; 3],
     /// The problem domain in this level's index space (half-open).
@@ -103,6 +123,10 @@ pub struct Plotfile {
     pub levels: Vec<Level>,
     /// The simulation time (level 0's `time` attribute, which Chombo's writers set), if any.
     pub time: Option<f64>,
+    /// The simulation step (level 0's `steps`, which AMReX's writer sets), if any.
+    pub step: Option<i64>,
+    /// Which code wrote the file.
+    pub writer: Writer,
     _file: File,
 }
 
@@ -120,6 +144,24 @@ impl Plotfile {
         let file = File::open(path)
             .map_err(|e| ChomboError::hdf5(path, "cannot open as an HDF5 file", e))?;
         let root = Props::new(path, (*file).clone(), ROOT)?;
+        let writer = match root.has(raw::PLOTFILE_TYPE)
+            && root.string(raw::PLOTFILE_TYPE)? == raw::AMREX_PLOTFILE_TYPE
+        {
+            true => Writer::AmrexHdf5,
+            false => Writer::Chombo,
+        };
+        if writer == Writer::AmrexHdf5 && root.has(raw::COORDINATE_SYSTEM) {
+            let coord = root.int(raw::COORDINATE_SYSTEM)?;
+            if coord != 0 {
+                return Err(ChomboError::unsupported(
+                    path,
+                    format!(
+                        "coordinate_system = {coord} (0 is Cartesian, 1 cylindrical, 2 \
+                         spherical): only Cartesian data can be converted"
+                    ),
+                ));
+            }
+        }
         let global = root.child(raw::GLOBAL_GROUP)?;
         let dim = global.int(raw::SPACE_DIM)?;
         if dim != 3 {
@@ -132,7 +174,7 @@ impl Plotfile {
             vars,
             fields,
             sources,
-        } = read_layout(path, &root)?;
+        } = read_layout(path, &root, writer)?;
         let nl = root.int(raw::NUM_LEVELS)?;
         if !(1..=MAX_LEVELS as i64).contains(&nl) {
             return Err(root.invalid(format!("num_levels = {nl}, expected 1 to {MAX_LEVELS}")));
@@ -144,16 +186,25 @@ impl Plotfile {
             .filter(|g| g.has("time"))
             .and_then(|g| g.float("time").ok())
             .filter(|t| t.is_finite());
+        // A label only, as the time.
+        let step = root
+            .child(&raw::level(0))
+            .ok()
+            .filter(|g| writer == Writer::AmrexHdf5 && g.has(raw::STEPS))
+            .and_then(|g| g.int(raw::STEPS).ok());
         let mut levels: Vec<Level> = Vec::with_capacity(nl as usize);
         for l in 0..nl as usize {
             let g = root.child(&raw::level(l))?;
-            let level = read_level(&g, l + 1 == nl as usize, &vars, file_len)?;
-            if let Some(prev) = levels.last() {
+            let level = read_level(&g, l + 1 == nl as usize, &vars, file_len, writer)?;
+            if let Some(prev) = levels.last_mut() {
+                if writer == Writer::AmrexHdf5 {
+                    prev.ref_ratio = ratio_of_domains(&g, l, prev, &level)?;
+                }
                 check_refinement(&g, l, prev, &level)?;
             }
             levels.push(level);
         }
-        let vars = vars.into_iter().map(|(name, _)| name).collect();
+        let vars = vars.into_iter().map(|v| v.name).collect();
         Ok(Self {
             path: path.to_path_buf(),
             fields,
@@ -161,19 +212,21 @@ impl Plotfile {
             vars,
             levels,
             time,
+            step,
+            writer,
             _file: file,
         })
     }
 
     /// The levels as the `.amrk` writer wants them. Chombo puts the lower corner of cell index
-    /// 0 at physical position 0, so every level's origin is zero and the domain's lower corner
-    /// lands at `dx * prob_domain.lo`.
+    /// 0 at physical position 0, so its levels' origins are zero and the domain's lower corner
+    /// lands at `dx * prob_domain.lo`; AMReX puts the domain's lower corner at `prob_lo`.
     pub fn level_specs(&self) -> Vec<LevelSpec> {
         self.levels
             .iter()
             .map(|l| LevelSpec {
                 cell_size: l.dx,
-                origin: [0.0; 3],
+                origin: l.origin,
                 ratio_to_next: l.ref_ratio,
                 domain: l.domain,
             })
@@ -193,7 +246,7 @@ impl AmrSource for Plotfile {
     }
 
     fn simulation(&self) -> (Option<f64>, Option<i64>) {
-        (self.time, None)
+        (self.time, self.step)
     }
 
     fn level_specs(&self) -> Vec<LevelSpec> {
@@ -220,8 +273,10 @@ impl AmrSource for Plotfile {
 /// are the root's `component_N`, all in `data`. Otherwise every `NAME:datatype=0` of `level_0`
 /// is a variable of `NAME_attributes/comps` components, named `NAME` when it has one, `xNAME`,
 /// `yNAME`, `zNAME` when the root's `component_N` list names them so, else `NAME_0`, `NAME_1`,
-/// ...; fields follow the root list's order where there is one.
-fn read_layout(path: &Path, root: &Props) -> Result<Layout> {
+/// ...; fields follow the root list's order where there is one. An AMReX HDF5 plotfile with
+/// `data:datatype=1` is of the writer's one-dataset-per-component variant
+/// ([`VarSpec::amrex_component`]).
+fn read_layout(path: &Path, root: &Props, writer: Writer) -> Result<Layout> {
     let l0 = raw::level(0);
     let level0 = if root.has_member(&l0) {
         Some(root.child(&l0)?)
@@ -250,6 +305,21 @@ fn read_layout(path: &Path, root: &Props) -> Result<Layout> {
         });
     }
     let listed = component_list(root)?;
+    let per_component = format!("{}:datatype=1", raw::DATA_NAME);
+    if let (Writer::AmrexHdf5, Some(g)) = (writer, &level0) {
+        if g.has_member(&per_component) {
+            let Some(fields) = listed else {
+                return Err(root.invalid(format!("missing attribute '{}'", raw::NUM_COMPONENTS)));
+            };
+            return Ok(Layout {
+                vars: (0..fields.len()).map(VarSpec::amrex_component).collect(),
+                sources: (0..fields.len())
+                    .map(|var| FieldSource { var, comp: 0 })
+                    .collect(),
+                fields,
+            });
+        }
+    }
     let g = match level0 {
         Some(g) if !datasets.iter().any(|d| d == raw::DATA_NAME) => g,
         _ => {
@@ -257,7 +327,7 @@ fn read_layout(path: &Path, root: &Props) -> Result<Layout> {
                 return Err(root.invalid(format!("missing attribute '{}'", raw::NUM_COMPONENTS)));
             };
             return Ok(Layout {
-                vars: vec![(raw::DATA_NAME.to_string(), fields.len())],
+                vars: vec![VarSpec::chombo(raw::DATA_NAME, fields.len())],
                 sources: (0..fields.len())
                     .map(|comp| FieldSource { var: 0, comp })
                     .collect(),
@@ -293,7 +363,7 @@ fn read_layout(path: &Path, root: &Props) -> Result<Layout> {
             };
             candidates.push((field, FieldSource { var: v, comp }));
         }
-        vars.push((name.clone(), comps));
+        vars.push(VarSpec::chombo(name, comps));
     }
     let mut order: Vec<usize> = Vec::with_capacity(candidates.len());
     if let Some(list) = &listed {
@@ -321,12 +391,50 @@ fn read_layout(path: &Path, root: &Props) -> Result<Layout> {
 
 /// How a file's fields are stored: what [`read_layout`] finds.
 struct Layout {
-    /// Each `LevelData`'s name and component count.
-    vars: Vec<(String, usize)>,
+    /// Each `LevelData`'s objects and component count.
+    vars: Vec<VarSpec>,
     /// Field names, in order.
     fields: Vec<String>,
     /// Where each field is.
     sources: Vec<FieldSource>,
+}
+
+/// One `LevelData` as every level stores it: the HDF5 objects holding it and its components.
+#[derive(Clone, Debug)]
+struct VarSpec {
+    /// Its name, as [`Plotfile::vars`] reports it.
+    name: String,
+    /// Components per box.
+    comps: usize,
+    /// The dataset of its values.
+    data: String,
+    /// The dataset of where each box's values start.
+    offsets: String,
+    /// The group of its attributes (ghost layers, components).
+    attributes: String,
+}
+
+impl VarSpec {
+    /// Chombo's `LevelData` `name`: `name:datatype=0`, `name:offsets=0`, `name_attributes`.
+    fn chombo(name: &str, comps: usize) -> Self {
+        VarSpec {
+            name: name.to_string(),
+            comps,
+            data: format!("{name}{}", raw::DATATYPE_SUFFIX),
+            offsets: format!("{name}{}", raw::OFFSETS_SUFFIX),
+            attributes: format!("{name}{}", raw::ATTRIBUTES_SUFFIX),
+        }
+    }
+
+    /// Component `j` of an AMReX HDF5 plotfile written by
+    /// `WriteMultiLevelPlotfileHDF5MultiDset`: its values alone in `data:datatype=j`, the
+    /// boxes' offsets in `data:offsets=0`, counted in cells (one component), shared by all.
+    fn amrex_component(j: usize) -> Self {
+        let mut spec = VarSpec::chombo(raw::DATA_NAME, 1);
+        spec.data = format!("{}:datatype={j}", raw::DATA_NAME);
+        spec.name = spec.data.clone();
+        spec
+    }
 }
 
 /// The root's `component_N` names when it has `num_components`, checked: non-empty, distinct.
@@ -356,9 +464,18 @@ fn component_list(root: &Props) -> Result<Option<Vec<String>>> {
     Ok(Some(fields))
 }
 
-/// Reads and checks one `level_N` group of a file of `file_len` bytes.
-fn read_level(g: &Props, finest: bool, vars: &[(String, usize)], file_len: u64) -> Result<Level> {
-    let dx = if g.has(raw::DX) {
+/// Reads and checks one `level_N` group of a file of `file_len` bytes written by `writer`.
+fn read_level(
+    g: &Props,
+    finest: bool,
+    vars: &[VarSpec],
+    file_len: u64,
+    writer: Writer,
+) -> Result<Level> {
+    let amrex = writer == Writer::AmrexHdf5;
+    let dx = if amrex && g.has(raw::AMREX_VEC_DX) {
+        g.floats::<3>(raw::AMREX_VEC_DX)?
+    } else if g.has(raw::DX) {
         [g.float(raw::DX)?; 3]
     } else if g.has(raw::VEC_DX) {
         let v: RawRealVect = g.compound(raw::VEC_DX, &raw::REALVECT_MEMBERS)?;
@@ -393,13 +510,31 @@ fn read_level(g: &Props, finest: bool, vars: &[(String, usize)], file_len: u64) 
     if domain.is_empty() {
         return Err(g.invalid(format!("empty prob_domain {}", show(&domain))));
     }
+    if amrex && g.has(raw::DOMAIN_TYPE) && g.ints::<3>(raw::DOMAIN_TYPE)? != [0; 3] {
+        return Err(g.unsupported(format!(
+            "domain_type = {:?}: node- or face-centred data; only cell-centred data can be \
+             converted",
+            g.ints::<3>(raw::DOMAIN_TYPE)?
+        )));
+    }
+    let origin = match amrex && g.has(raw::PROB_LO) {
+        true => {
+            let lo = g.floats::<3>(raw::PROB_LO)?;
+            if lo.iter().any(|x| !x.is_finite()) {
+                return Err(g.invalid(format!("prob_lo = {lo:?} is not finite")));
+            }
+            [0, 1, 2].map(|a| lo[a] - domain.lo[a] as f64 * dx[a])
+        }
+        false => [0.0; 3],
+    };
     let boxes = read_boxes(g, &domain, file_len)?;
     let vars = vars
         .iter()
-        .map(|(name, ncomp)| read_var(g, name, *ncomp, &boxes))
+        .map(|spec| read_var(g, spec, &boxes, writer))
         .collect::<Result<Vec<_>>>()?;
     Ok(Level {
         dx,
+        origin,
         ref_ratio,
         domain,
         boxes,
@@ -407,12 +542,14 @@ fn read_level(g: &Props, finest: bool, vars: &[(String, usize)], file_len: u64) 
     })
 }
 
-/// Reads the `LevelData` `name` of level group `g` (`name:datatype=0`, `name:offsets=0`,
-/// `name_attributes`) holding `ncomp` components of every box of `boxes`.
-fn read_var(g: &Props, name: &str, ncomp: usize, boxes: &[IBox]) -> Result<LevelVar> {
-    let data_name = format!("{name}{}", raw::DATATYPE_SUFFIX);
-    let ghost = {
-        let da = g.child(&format!("{name}{}", raw::ATTRIBUTES_SUFFIX))?;
+/// Reads the `LevelData` `spec` of level group `g` holding its components of every box of
+/// `boxes`. AMReX's writer stores valid cells only and no attributes group.
+fn read_var(g: &Props, spec: &VarSpec, boxes: &[IBox], writer: Writer) -> Result<LevelVar> {
+    let (data_name, ncomp) = (&spec.data, spec.comps);
+    let ghost = if writer == Writer::AmrexHdf5 && !g.has_member(&spec.attributes) {
+        [0; 3]
+    } else {
+        let da = g.child(&spec.attributes)?;
         let v: RawIntVect = da.compound(raw::OUTPUT_GHOST, &raw::INTVECT_MEMBERS)?;
         let gh = [v.intvecti, v.intvectj, v.intvectk].map(i64::from);
         if gh.iter().any(|&x| !(0..=1024).contains(&x)) {
@@ -436,10 +573,10 @@ fn read_var(g: &Props, name: &str, ncomp: usize, boxes: &[IBox]) -> Result<Level
         precision: Precision::F64,
         data: None,
     };
-    if boxes.is_empty() && !g.has_member(&data_name) {
+    if boxes.is_empty() && !g.has_member(data_name) {
         return Ok(var);
     }
-    let data = g.dataset(&data_name)?;
+    let data = g.dataset(data_name)?;
     var.precision = match data.dtype().and_then(|t| t.to_descriptor()) {
         Ok(TypeDescriptor::Float(FloatSize::U4)) => Precision::F32,
         Ok(TypeDescriptor::Float(FloatSize::U8)) => Precision::F64,
@@ -457,7 +594,7 @@ fn read_var(g: &Props, name: &str, ncomp: usize, boxes: &[IBox]) -> Result<Level
         )));
     }
     let len = shape[0] as u64;
-    var.offsets = read_offsets(g, name, &var, boxes, len)?;
+    var.offsets = read_offsets(g, spec, &var, boxes, len)?;
     // A dataset's declared length costs nothing on disk; its stored bytes do. Unfiltered data
     // must be stored in full, which bounds everything sized from the boxes by the file's size.
     let need = var.offsets[boxes.len()].saturating_mul(var.precision.bytes());
@@ -518,18 +655,17 @@ fn read_boxes(g: &Props, domain: &IBox, file_len: u64) -> Result<Vec<IBox>> {
         .collect()
 }
 
-/// Reads `name:offsets=0` and checks it against the boxes and the data's length `len`.
+/// Reads `spec`'s offsets and checks them against the boxes and the data's length `len`.
 fn read_offsets(
     g: &Props,
-    name: &str,
+    spec: &VarSpec,
     var: &LevelVar,
     boxes: &[IBox],
     len: u64,
 ) -> Result<Vec<u64>> {
-    let offsets_name = format!("{name}{}", raw::OFFSETS_SUFFIX);
-    let data_name = format!("{name}{}", raw::DATATYPE_SUFFIX);
+    let (offsets_name, data_name) = (&spec.offsets, &spec.data);
     let ncomp = var.ncomp;
-    let ds = g.dataset(&offsets_name)?;
+    let ds = g.dataset(offsets_name)?;
     let what = || format!("reading {}/{offsets_name}", g.name());
     let desc = ds
         .dtype()
@@ -618,6 +754,37 @@ fn check_refinement(g: &Props, l: usize, coarse: &Level, fine: &Level) -> Result
         }
     }
     Ok(())
+}
+
+/// The refinement ratio of `coarse` to `fine` (level `l`) per axis, from their domains, in an
+/// AMReX HDF5 plotfile, whose `ref_ratio` holds only the x ratio (checked against it): each
+/// axis's must divide exactly and be at least 2, as `.amrk` requires.
+fn ratio_of_domains(g: &Props, l: usize, coarse: &Level, fine: &Level) -> Result<[u32; 3]> {
+    let (c, f) = (coarse.domain.extent(), fine.domain.extent());
+    let mut ratio = [0u32; 3];
+    for a in 0..3 {
+        let r = f[a] / c[a];
+        if f[a] % c[a] != 0 || !(2..=1024).contains(&r) {
+            return Err(g.invalid(format!(
+                "prob_domain {} is not level_{} prob_domain {} refined by a whole ratio of 2 to \
+                 1024 on axis {a} (a ratio of 1, as quasi-2D runs use, cannot be stored: \
+                 docs/format.md, \"Why every ratio is at least 2\")",
+                show(&fine.domain),
+                l - 1,
+                show(&coarse.domain)
+            )));
+        }
+        ratio[a] = r as u32;
+    }
+    if ratio[0] != coarse.ref_ratio[0] {
+        return Err(g.invalid(format!(
+            "level_{} ref_ratio = {}, but the domains refine x by {}",
+            l - 1,
+            coarse.ref_ratio[0],
+            ratio[0]
+        )));
+    }
+    Ok(ratio)
 }
 
 /// A Chombo box (inclusive corners) as a half-open [`IBox`].

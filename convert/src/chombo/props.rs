@@ -153,6 +153,38 @@ impl<'a> Props<'a> {
         self.one::<f64>(attr, &a)
     }
 
+    /// A floating-point attribute of exactly `N` values (AMReX's `Vec_dx`, `prob_lo`).
+    pub fn floats<const N: usize>(&self, attr: &str) -> Result<[f64; N]> {
+        let (a, d) = self.attr(attr)?;
+        if !matches!(d, TypeDescriptor::Float(_)) {
+            return Err(self.invalid(format!(
+                "attribute '{attr}' has type {d}, expected real numbers"
+            )));
+        }
+        let v = a
+            .read_raw::<f64>()
+            .map_err(|e| self.hdf5(format!("reading attribute {}:{attr}", self.name), e))?;
+        let n = v.len();
+        v.try_into()
+            .map_err(|_| self.invalid(format!("attribute '{attr}' holds {n} values, expected {N}")))
+    }
+
+    /// An integer attribute of exactly `N` values (AMReX's `domain_type`).
+    pub fn ints<const N: usize>(&self, attr: &str) -> Result<[i64; N]> {
+        let (a, d) = self.attr(attr)?;
+        if !matches!(d, TypeDescriptor::Integer(_) | TypeDescriptor::Unsigned(_)) {
+            return Err(self.invalid(format!(
+                "attribute '{attr}' has type {d}, expected integers"
+            )));
+        }
+        let v = a
+            .read_raw::<i64>()
+            .map_err(|e| self.hdf5(format!("reading attribute {}:{attr}", self.name), e))?;
+        let n = v.len();
+        v.try_into()
+            .map_err(|_| self.invalid(format!("attribute '{attr}' holds {n} values, expected {N}")))
+    }
+
     /// A string attribute (fixed or variable length, ASCII or UTF-8), trailing NULs removed.
     /// Bytes that are not UTF-8 are an error (the HDF5 types' `as_str` does not check them).
     pub fn string(&self, attr: &str) -> Result<String> {

@@ -90,6 +90,21 @@ pub const OUTPUT_GHOST: &str = "outputGhost";
 /// Suffix of every LevelData dataset (`NAME:datatype=0`).
 pub const DATATYPE_SUFFIX: &str = ":datatype=0";
 
+/// Root attribute AMReX's HDF5 plotfile writer sets to [`AMREX_PLOTFILE_TYPE`].
+pub const PLOTFILE_TYPE: &str = "plotfile_type";
+/// The [`PLOTFILE_TYPE`] of AMReX's `WriteMultiLevelPlotfileHDF5`.
+pub const AMREX_PLOTFILE_TYPE: &str = "VanillaHDF5";
+/// Root attribute of AMReX HDF5 plotfiles: 0 for Cartesian coordinates.
+pub const COORDINATE_SYSTEM: &str = "coordinate_system";
+/// Level attribute of AMReX HDF5 plotfiles: the cell size per axis, three reals.
+pub const AMREX_VEC_DX: &str = "Vec_dx";
+/// Level attribute of AMReX HDF5 plotfiles: the physical lower corner of the domain.
+pub const PROB_LO: &str = "prob_lo";
+/// Level attribute of AMReX HDF5 plotfiles: 1 on an axis where the domain is node-centred.
+pub const DOMAIN_TYPE: &str = "domain_type";
+/// Level attribute of AMReX HDF5 plotfiles: the level's step.
+pub const STEPS: &str = "steps";
+
 /// The name of component `i`'s root attribute.
 pub fn component(i: usize) -> String {
     format!("component_{i}")

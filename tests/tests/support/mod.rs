@@ -2,6 +2,7 @@
 //! code's own writer (AMReX, Chombo, Enzo), analytic grids and the real-data folder.
 
 pub mod amrex;
+pub mod amrex_hdf5;
 pub mod block_grid;
 pub mod chombo;
 pub mod enzo;

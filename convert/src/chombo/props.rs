@@ -122,6 +122,7 @@ impl<'a> Props<'a> {
 
     /// Reads the single value of `attr` as `T` (a scalar, or an array of one element).
     fn one<T: H5Type>(&self, attr: &str, a: &Attribute) -> Result<T> {
+        self.check_count(attr, a, 1)?;
         let v = a
             .read_raw::<T>()
             .map_err(|e| self.hdf5(format!("reading attribute {}:{attr}", self.name), e))?;
@@ -153,6 +154,15 @@ impl<'a> Props<'a> {
         self.one::<f64>(attr, &a)
     }
 
+    /// An error unless attribute `attr` (`a`) holds `n` values, checked before it is read: a
+    /// damaged dataspace may declare billions.
+    fn check_count(&self, attr: &str, a: &Attribute, n: usize) -> Result<()> {
+        match a.size() {
+            m if m == n => Ok(()),
+            m => Err(self.invalid(format!("attribute '{attr}' holds {m} values, expected {n}"))),
+        }
+    }
+
     /// A floating-point attribute of exactly `N` values (AMReX's `Vec_dx`, `prob_lo`).
     pub fn floats<const N: usize>(&self, attr: &str) -> Result<[f64; N]> {
         let (a, d) = self.attr(attr)?;
@@ -161,6 +171,7 @@ impl<'a> Props<'a> {
                 "attribute '{attr}' has type {d}, expected real numbers"
             )));
         }
+        self.check_count(attr, &a, N)?;
         let v = a
             .read_raw::<f64>()
             .map_err(|e| self.hdf5(format!("reading attribute {}:{attr}", self.name), e))?;
@@ -177,6 +188,7 @@ impl<'a> Props<'a> {
                 "attribute '{attr}' has type {d}, expected integers"
             )));
         }
+        self.check_count(attr, &a, N)?;
         let v = a
             .read_raw::<i64>()
             .map_err(|e| self.hdf5(format!("reading attribute {}:{attr}", self.name), e))?;

@@ -59,7 +59,12 @@ pub struct ChildFailed(pub i32);
 /// command line's other options) and waits; a child killed by a signal is an error naming
 /// `input`, a child that failed is [`ChildFailed`].
 pub fn convert_in_child(input: &Path, output: &Path, options: &[String]) -> anyhow::Result<()> {
-    let exe = std::env::current_exe().context("cannot find this program to run its child")?;
+    let exe = std::env::current_exe().with_context(|| {
+        format!(
+            "{}: cannot find this program to run its child",
+            input.display()
+        )
+    })?;
     let status = Command::new(exe)
         .arg(input)
         .arg("-o")
@@ -67,7 +72,13 @@ pub fn convert_in_child(input: &Path, output: &Path, options: &[String]) -> anyh
         .args(options)
         .env(CHILD_ENV, "1")
         .status()
-        .context("cannot start the converting child process")?;
+        .with_context(|| {
+            format!(
+                "{}: cannot start the converting child process (was amr-convert replaced or \
+                 removed while it ran?)",
+                input.display()
+            )
+        })?;
     match status.code() {
         Some(0) => return Ok(()),
         Some(code) => return Err(ChildFailed(code).into()),

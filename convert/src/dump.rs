@@ -59,6 +59,16 @@ pub enum DumpError {
     /// The Chombo reader or the writer failed (the error names the file).
     #[error("converting Chombo file: {}", chain(.0))]
     Chombo(Box<ChomboError>),
+    /// A reader failed on the dump's metadata ([`crate::describe::describe`]).
+    #[error("reading {format} {}: {detail}", path.display())]
+    Reading {
+        /// What the dump was taken for.
+        format: &'static str,
+        /// The dump as given.
+        path: PathBuf,
+        /// The reader's error and its causes.
+        detail: String,
+    },
     /// The Enzo reader or the writer failed.
     #[error("converting Enzo dataset {}: {}", params.display(), chain(error))]
     Enzo {
@@ -70,7 +80,7 @@ pub enum DumpError {
 }
 
 /// `error` and its causes, joined by ": ".
-fn chain(error: &dyn Error) -> String {
+pub(crate) fn chain(error: &dyn Error) -> String {
     let mut text = error.to_string();
     let mut cause = error.source();
     while let Some(c) = cause {

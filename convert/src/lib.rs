@@ -4,6 +4,7 @@
 pub mod amrex;
 pub mod bricking;
 pub mod chombo;
+pub mod describe;
 pub mod dump;
 pub mod enzo;
 pub mod finite;

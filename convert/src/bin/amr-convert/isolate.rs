@@ -6,6 +6,7 @@
 //! and failure pass through. When it dies of a
 //! signal, the parent removes the temporaries it left and reports the input as probably corrupt.
 
+use std::ffi::OsString;
 use std::os::unix::process::ExitStatusExt;
 use std::path::Path;
 use std::process::Command;
@@ -59,6 +60,14 @@ pub struct ChildFailed(pub i32);
 /// command line's other options) and waits; a child killed by a signal is an error naming
 /// `input`, a child that failed is [`ChildFailed`].
 pub fn convert_in_child(input: &Path, output: &Path, options: &[String]) -> anyhow::Result<()> {
+    let mut args: Vec<OsString> = vec![input.into(), "-o".into(), output.into()];
+    args.extend(options.iter().map(OsString::from));
+    in_child(input, &args, Some(output))
+}
+
+/// Runs this program again as a child with `args`, which read `input` (and write `output`, if
+/// any), and waits: as [`convert_in_child`].
+pub fn in_child(input: &Path, args: &[OsString], output: Option<&Path>) -> anyhow::Result<()> {
     let exe = std::env::current_exe().with_context(|| {
         format!(
             "{}: cannot find this program to run its child",
@@ -66,10 +75,7 @@ pub fn convert_in_child(input: &Path, output: &Path, options: &[String]) -> anyh
         )
     })?;
     let status = Command::new(exe)
-        .arg(input)
-        .arg("-o")
-        .arg(output)
-        .args(options)
+        .args(args)
         .env(CHILD_ENV, "1")
         .status()
         .with_context(|| {
@@ -84,7 +90,9 @@ pub fn convert_in_child(input: &Path, output: &Path, options: &[String]) -> anyh
         Some(code) => return Err(ChildFailed(code).into()),
         None => {}
     }
-    amr_format::output::remove_stale_temporaries(output);
+    if let Some(output) = output {
+        amr_format::output::remove_stale_temporaries(output);
+    }
     let signal = status.signal().unwrap_or(0);
     if CRASH_SIGNALS.contains(&signal) {
         bail!(
@@ -93,7 +101,7 @@ pub fn convert_in_child(input: &Path, output: &Path, options: &[String]) -> anyh
         )
     }
     bail!(
-        "converting {}: the converting process was killed by signal {signal}",
+        "{}: the child process reading it was killed by signal {signal}",
         input.display()
     )
 }

@@ -5,10 +5,12 @@ mod progress_bar;
 mod series;
 mod synth;
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use amr_convert::bricking::ConvertOptions;
+use amr_convert::describe::describe;
 use amr_convert::dump::{convert_dump, detect, InputFormat};
 use amr_format::Compression;
 use clap::{Parser, Subcommand};
@@ -16,7 +18,7 @@ use clap::{Parser, Subcommand};
 use progress_bar::Bar;
 use synth::{run_synth, SynthArgs};
 
-/// Streams AMR simulation dumps (AMReX plotfiles, Chombo HDF5 plotfiles and checkpoints, Enzo datasets) into one memory-mappable .amrk file.
+/// Streams AMR simulation dumps (AMReX plotfiles, as directories or HDF5, Chombo HDF5 plotfiles and checkpoints, Enzo datasets) into one memory-mappable .amrk file.
 #[derive(Parser, Debug)]
 #[command(
     version,
@@ -26,8 +28,9 @@ use synth::{run_synth, SynthArgs};
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
-    /// The dump to convert: an AMReX plotfile directory, a Chombo HDF5 plotfile or checkpoint
-    /// (.h5, .hdf5), or an Enzo dataset (its parameter file, its .hierarchy, or its directory).
+    /// The dump to convert: an AMReX plotfile directory or HDF5 plotfile, a Chombo HDF5 plotfile
+    /// or checkpoint (.h5, .hdf5), or an Enzo dataset (its parameter file, its .hierarchy, or
+    /// its directory).
     /// Several dumps (a time series) go to one directory, one NAME.amrk each.
     #[arg(required = true, num_args = 1.., value_name = "INPUT")]
     inputs: Vec<PathBuf>,
@@ -55,6 +58,48 @@ struct Cli {
 enum Command {
     /// Writes an analytic AMR dataset (refined near its isosurface) straight into an .amrk file.
     Synth(SynthArgs),
+    /// Prints what a dump holds from its metadata alone (format, fields, levels, boxes, cells,
+    /// time and step, the .amrk size), reading no cell data: before a long conversion.
+    Info(InfoArgs),
+}
+
+/// `amr-convert info`.
+#[derive(clap::Args, Debug)]
+struct InfoArgs {
+    /// The dump: as `amr-convert` takes it.
+    #[arg(value_name = "INPUT")]
+    input: PathBuf,
+    /// Print the same as one JSON object, for scripts.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Prints what `args.input` holds; HDF5 is read in a child, as for a conversion.
+fn run_info(args: &InfoArgs) -> anyhow::Result<()> {
+    let input = &args.input;
+    let hdf5 = matches!(
+        detect(input),
+        Ok(InputFormat::ChomboHdf5 | InputFormat::Enzo { .. })
+    );
+    if hdf5 && !isolate::is_child() {
+        let mut child_args: Vec<std::ffi::OsString> = vec!["info".into(), input.into()];
+        if args.json {
+            child_args.push("--json".into());
+        }
+        return isolate::in_child(input, &child_args, None);
+    }
+    isolate::crash_if_asked();
+    let description = describe(input)?;
+    let text = match args.json {
+        true => serde_json::to_string_pretty(&description)?,
+        false => description.to_string(),
+    };
+    let mut out = std::io::stdout().lock();
+    match writeln!(out, "{text}").and_then(|()| out.flush()) {
+        // A closed pipe (`| head`) ends the run quietly.
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        done => Ok(done?),
+    }
 }
 
 /// Converts one dump as `cli` asks.
@@ -106,6 +151,7 @@ fn main() -> ExitCode {
     };
     let result = match &cli.command {
         Some(Command::Synth(args)) => run_synth(args),
+        Some(Command::Info(args)) => run_info(args),
         None => {
             let Some(output) = &cli.output else {
                 unreachable!("clap requires --output without a subcommand")

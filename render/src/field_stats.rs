@@ -5,6 +5,7 @@ use amr_format::compress::Encoding;
 use amr_format::AmrkFile;
 
 use crate::error::{RenderError, Result};
+use crate::mapping::MappedFile;
 
 /// Most cell values a distribution is computed from.
 pub const MAX_SAMPLES: usize = 1 << 20;
@@ -15,6 +16,34 @@ pub const TABLE: [f64; 7] = [0.0, 0.01, 0.25, 0.5, 0.75, 0.99, 1.0];
 /// Cells read together at each place a large field is sampled: a run of consecutive values,
 /// so that a subsample reads a few pages in a few hundred places, not every page of the file.
 pub const SAMPLE_RUN: u64 = 512;
+
+/// The value at percentile `percent` (0 to 100) of field `field`'s cell values over every cell
+/// of every level of `file` (nearest rank; from an even subsample of [`MAX_SAMPLES`] cells in
+/// larger files, read ahead), rounded to the five significant digits [`format_value`] prints,
+/// so that the isovalue shown can be typed again; unrounded where rounding would leave the
+/// field's range.
+pub fn percentile_value(file: &MappedFile, field: usize, percent: f64) -> Result<f32> {
+    if !(0.0..=100.0).contains(&percent) {
+        return Err(RenderError::Invalid(format!(
+            "percentile {percent} is outside 0 to 100"
+        )));
+    }
+    let read_ahead = |r: &[(u64, u64)]| crate::mapping::read_ahead(file, r.iter().copied());
+    let p = FieldPercentiles::of_reading_ahead(file, field, read_ahead)?;
+    let f = &file.fields()[field];
+    let exact = p.at(percent / 100.0);
+    if exact.is_nan() {
+        return Err(RenderError::Invalid(format!(
+            "field '{}' has no finite value to take a percentile of",
+            f.name
+        )));
+    }
+    let rounded = round_to_shown(exact);
+    Ok(match (f.min..=f.max).contains(&rounded) {
+        true => rounded,
+        false => exact as f32,
+    })
+}
 
 /// The sorted finite cell values of a field: every cell, or evenly spaced runs of cells.
 #[derive(Clone, Debug, PartialEq)]

@@ -275,6 +275,54 @@ fn extract_takes_isovalues_of_several_fields() {
     assert!(o.stdout.is_empty(), "extracted before refusing");
 }
 
+/// `--iso pQ` is the field's Q-th percentile over every cell (nearest rank), counted here from
+/// every cell value of the file, rounded to the five significant digits the summary prints; the
+/// same in a render, an extraction, and for a surface of another field.
+#[test]
+fn an_isovalue_typed_as_a_percentile_is_the_fields_value_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = sphere_and_ramp(dir.path());
+    let f = path.to_str().unwrap();
+    let file = amr_format::AmrkFile::open(std::fs::read(&path).unwrap()).unwrap();
+    let percentile = |field: usize, q: f64| {
+        let mut all: Vec<f32> = (0..file.num_bricks())
+            .flat_map(|b| file.brick_values(field, b).unwrap().into_owned())
+            .collect();
+        all.sort_by(f32::total_cmp);
+        let exact = all[((all.len() - 1) as f64 * q / 100.0).round() as usize];
+        let shown: f32 = format!("{:.4e}", exact).parse().unwrap();
+        amr_render::field_stats::format_isovalue(shown)
+    };
+    let (p90, ramp_p25) = (percentile(0, 90.0), percentile(1, 25.0));
+    let out = dir.path().join("p.png");
+    let o = amr_render(&[
+        f,
+        "--iso",
+        "p90",
+        "--iso",
+        "ramp=p25:red",
+        "--size",
+        "32x24",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let want = format!("iso {p90}, ramp={ramp_p25}, ");
+    assert!(stderr(&o).contains(&want), "{want} not in {}", stderr(&o));
+    let o = amr_render(&["extract", f, "--iso", "P90", "--iso", "ramp=p25"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    for line in [
+        format!("iso {p90}: "),
+        format!("field 'ramp' iso {ramp_p25}: "),
+    ] {
+        assert!(text.contains(&line), "{line} not in {text}");
+    }
+    let o = amr_render(&["extract", f, "--iso", "p100.5"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("outside p0 to p100"), "{}", stderr(&o));
+}
+
 /// Output cut short by the reader (`amr-render extract F ... | head -1`) ends the run quietly
 /// with exit 0, as for any command-line tool, never with a panic.
 #[test]

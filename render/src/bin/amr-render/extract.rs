@@ -13,6 +13,7 @@ use amr_render::ClipBox;
 use anyhow::{bail, Context};
 use serde::Serialize;
 
+use crate::iso_value::IsoValue;
 use crate::outputs::{is_stdout, write_json};
 use crate::render_args::MAX_THREADS;
 use crate::surface_arg::split_field;
@@ -25,8 +26,9 @@ pub struct ExtractArgs {
     /// The field to extract from (default: the file's first field).
     #[arg(long)]
     pub field: Option<String>,
-    /// An isovalue, `V` of `--field` or `FIELD=V` of another field; repeat for several (the
-    /// file is opened once, each isovalue re-runs only the extraction).
+    /// An isovalue, `V` of `--field` or `FIELD=V` of another field, `V` a number or pQ (the
+    /// field's Q-th percentile over every cell); repeat for several (the file is opened once,
+    /// each isovalue re-runs only the extraction).
     #[arg(
         long = "iso",
         required = true,
@@ -54,13 +56,14 @@ pub struct ExtractArgs {
     pub threads: Option<usize>,
 }
 
-/// An isovalue of `amr-render extract`: `V`, or `FIELD=V` for another field than `--field`.
+/// An isovalue of `amr-render extract`: `V`, or `FIELD=V` for another field than `--field`;
+/// `V` a number or a percentile (`p99`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ExtractIso {
     /// The field's name, as typed before `=`.
     pub field: Option<String>,
-    /// The isovalue.
-    pub value: f32,
+    /// The isovalue as typed.
+    pub value: IsoValue,
 }
 
 impl std::str::FromStr for ExtractIso {
@@ -68,14 +71,10 @@ impl std::str::FromStr for ExtractIso {
 
     fn from_str(s: &str) -> Result<Self, String> {
         let (field, rest) = split_field(s)?;
-        let value = rest
-            .trim()
-            .parse::<f32>()
-            .map_err(|_| format!("'{rest}' is not a number"))?;
-        if !value.is_finite() {
-            return Err(format!("isovalue {rest} is not a finite number"));
-        }
-        Ok(ExtractIso { field, value })
+        Ok(ExtractIso {
+            field,
+            value: rest.parse()?,
+        })
     }
 }
 
@@ -152,7 +151,7 @@ fn extract_all(args: &ExtractArgs) -> anyhow::Result<()> {
                 slot.insert(made)
             }
         };
-        let iso = iso.value;
+        let iso = iso.value.resolve(&file, &args.file, field)?;
         for _ in 0..args.runs {
             let result = extractor
                 .extract_in(iso, &region)

@@ -11,6 +11,7 @@ mod frame_writer;
 mod frames;
 mod heap;
 mod info;
+mod iso_value;
 mod movie;
 #[cfg(feature = "mpi")]
 mod mpi;

@@ -30,8 +30,10 @@ pub struct RenderArgs {
     #[arg(long)]
     pub field: Option<String>,
     /// An isosurface: value, optional colour (name or #rrggbb) and opacity; repeat for several
-    /// (default: the middle of the field's range). Negative values as typed: --iso -60:red. A
-    /// surface of another field than --field: its name and `=` first, --iso temp=1500:red.
+    /// (default: the median of the field's cell values). The value is a number, or pQ: the
+    /// field's Q-th percentile over every cell (--iso p99:red), found in each file. Negative
+    /// values as typed: --iso -60:red. A surface of another field than --field: its name and
+    /// `=` first, --iso temp=1500:red.
     #[arg(
         long = "iso",
         value_name = "[FIELD=]V[:COLOR[:OPACITY]]",

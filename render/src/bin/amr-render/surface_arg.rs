@@ -1,5 +1,6 @@
-//! `--iso [FIELD=]V[:COLOR[:OPACITY]]`: an isosurface as typed, its field named (not yet
-//! resolved: each file of a time series resolves the name to its own field index).
+//! `--iso [FIELD=]V[:COLOR[:OPACITY]]`: an isosurface as typed, its field named and its value
+//! a number or a percentile (not yet resolved: each file of a time series resolves the name to
+//! its own field index, and a percentile to its own value).
 
 use std::fmt;
 use std::str::FromStr;
@@ -8,23 +9,32 @@ use amr_render::scene::field_named;
 use amr_render::shade::IsoSpec;
 use amr_render::Scene;
 
-/// An isosurface of the command line: the field it is of (`None`: the scene's field) and its
+use crate::iso_value::IsoValue;
+
+/// An isosurface of the command line: the field it is of (`None`: the scene's field), its
 /// value, colour and opacity.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SurfaceArg {
     /// The field's name, as typed before `=`.
     pub field: Option<String>,
-    /// Value, colour and opacity (its `field` unset).
+    /// The value as typed.
+    pub value: IsoValue,
+    /// Colour and opacity (its `value` that of a number typed, its `field` unset).
     pub spec: IsoSpec,
 }
 
 impl SurfaceArg {
     /// An isosurface of the scene's field.
     pub fn of_scene_field(spec: IsoSpec) -> Self {
-        SurfaceArg { field: None, spec }
+        SurfaceArg {
+            field: None,
+            value: IsoValue::Number(spec.value),
+            spec,
+        }
     }
 
-    /// The isosurface for `scene`: its field's name resolved in the scene's file.
+    /// The isosurface for `scene`: its field's name resolved in the scene's file, a percentile
+    /// to that field's value there.
     pub fn resolve(&self, scene: &Scene) -> anyhow::Result<IsoSpec> {
         let field = match &self.field {
             None => None,
@@ -32,7 +42,15 @@ impl SurfaceArg {
                 Some(field_named(scene.file(), name).map_err(|e| e.in_file(scene.path()))?)
             }
         };
-        Ok(IsoSpec { field, ..self.spec })
+        let field_index = field.unwrap_or(scene.field());
+        let value = self
+            .value
+            .resolve(scene.file(), scene.path(), field_index)?;
+        Ok(IsoSpec {
+            field,
+            value,
+            ..self.spec
+        })
     }
 }
 
@@ -52,12 +70,22 @@ impl FromStr for SurfaceArg {
     type Err = String;
 
     /// `V[:COLOR[:OPACITY]]`, or `FIELD=V[:COLOR[:OPACITY]]` for a surface of another field
-    /// than `--field`.
+    /// than `--field`; `V` a number or a percentile (`p99`).
     fn from_str(s: &str) -> Result<Self, String> {
         let (field, rest) = split_field(s)?;
+        let (typed, style) = match rest.split_once(':') {
+            Some((v, style)) => (v, format!(":{style}")),
+            None => (rest, String::new()),
+        };
+        let value: IsoValue = typed.parse()?;
+        let number = match value {
+            IsoValue::Number(v) => v,
+            IsoValue::Percentile(_) => 0.0,
+        };
         Ok(SurfaceArg {
             field,
-            spec: rest.parse()?,
+            value,
+            spec: format!("{number}{style}").parse()?,
         })
     }
 }
@@ -68,7 +96,10 @@ impl fmt::Display for SurfaceArg {
         if let Some(name) = &self.field {
             write!(f, "{name}=")?;
         }
-        write!(f, "{}", self.spec)
+        // The spec's colour and opacity after its value.
+        let spec = self.spec.to_string();
+        let style = spec.find(':').map_or("", |i| &spec[i..]);
+        write!(f, "{}{style}", self.value)
     }
 }
 
@@ -88,5 +119,10 @@ mod tests {
         assert_eq!((plain.field, plain.spec.value), (None, -60.0));
         assert!("=5".parse::<SurfaceArg>().is_err());
         assert!("temp=hot".parse::<SurfaceArg>().is_err());
+        let p: SurfaceArg = "Y(OH)=p99.5:#3070ff:0.5".parse().unwrap();
+        assert_eq!(p.value, IsoValue::Percentile(99.5));
+        assert_eq!(p.spec.opacity, 0.5);
+        assert_eq!(p.to_string(), "Y(OH)=p99.5:#3070ff:0.5");
+        assert_eq!("p90".parse::<SurfaceArg>().unwrap().to_string(), "p90");
     }
 }

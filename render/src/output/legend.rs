@@ -239,9 +239,8 @@ impl Legend {
     /// The smallest picture of `w x h`'s shape, enlarged by steps of a quarter up to 16 times,
     /// in which the legend fits; `None` when none of those does.
     pub fn smallest_fitting_size(&self, (w, h): (u32, u32)) -> Option<(u32, u32)> {
-        (0..=50)
+        (0..=60)
             .map(|k| 1.0 + 0.25 * f64::from(k))
-            .filter(|s| *s <= 16.0)
             .map(|s| {
                 let scale = |n: u32| (f64::from(n) * s).round() as u32;
                 (scale(w), scale(h))

@@ -24,7 +24,7 @@ pub fn not_amrk(path: &Path) -> String {
         (Some("part of an Enzo dataset"), parameters)
     } else if first_bytes::<8>(path) == Some(HDF5_SIGNATURE) {
         (
-            Some("an HDF5 file (a Chombo plotfile?)"),
+            Some("an HDF5 file (a Chombo or AMReX HDF5 plotfile?)"),
             path.to_path_buf(),
         )
     } else if path.file_name().is_some_and(|n| n == "Header")
@@ -41,7 +41,8 @@ pub fn not_amrk(path: &Path) -> String {
     };
     match kind {
         Some(kind) => format!(
-            "not an .amrk file: this looks like {kind}; convert it first with `amr-convert {} -o OUT.amrk`",
+            "not an .amrk file: this looks like {kind}; convert it first with `amr-convert {} -o OUT.amrk` (`amr-convert info {}` lists what it holds)",
+            convert.display(),
             convert.display()
         ),
         None => format!("not an .amrk file ({what})"),

@@ -165,32 +165,33 @@ impl<'a> Props<'a> {
 
     /// A floating-point attribute of exactly `N` values (AMReX's `Vec_dx`, `prob_lo`).
     pub fn floats<const N: usize>(&self, attr: &str) -> Result<[f64; N]> {
-        let (a, d) = self.attr(attr)?;
-        if !matches!(d, TypeDescriptor::Float(_)) {
-            return Err(self.invalid(format!(
-                "attribute '{attr}' has type {d}, expected real numbers"
-            )));
-        }
-        self.check_count(attr, &a, N)?;
-        let v = a
-            .read_raw::<f64>()
-            .map_err(|e| self.hdf5(format!("reading attribute {}:{attr}", self.name), e))?;
-        let n = v.len();
-        v.try_into()
-            .map_err(|_| self.invalid(format!("attribute '{attr}' holds {n} values, expected {N}")))
+        let real = |d: &TypeDescriptor| matches!(d, TypeDescriptor::Float(_));
+        self.array(attr, real, "real numbers")
     }
 
     /// An integer attribute of exactly `N` values (AMReX's `domain_type`).
     pub fn ints<const N: usize>(&self, attr: &str) -> Result<[i64; N]> {
+        let int = |d: &TypeDescriptor| {
+            matches!(d, TypeDescriptor::Integer(_) | TypeDescriptor::Unsigned(_))
+        };
+        self.array(attr, int, "integers")
+    }
+
+    /// Attribute `attr` as `N` values of `T`, its stored type accepted by `stored` (else an error
+    /// expecting `what`).
+    fn array<T: H5Type, const N: usize>(
+        &self,
+        attr: &str,
+        stored: impl Fn(&TypeDescriptor) -> bool,
+        what: &str,
+    ) -> Result<[T; N]> {
         let (a, d) = self.attr(attr)?;
-        if !matches!(d, TypeDescriptor::Integer(_) | TypeDescriptor::Unsigned(_)) {
-            return Err(self.invalid(format!(
-                "attribute '{attr}' has type {d}, expected integers"
-            )));
+        if !stored(&d) {
+            return Err(self.invalid(format!("attribute '{attr}' has type {d}, expected {what}")));
         }
         self.check_count(attr, &a, N)?;
         let v = a
-            .read_raw::<i64>()
+            .read_raw::<T>()
             .map_err(|e| self.hdf5(format!("reading attribute {}:{attr}", self.name), e))?;
         let n = v.len();
         v.try_into()

@@ -23,18 +23,8 @@ use hdf5_metno::types::{FixedAscii, TypeDescriptor};
 use hdf5_metno::{File, Group, H5Type, Location};
 
 use super::chombo::value;
-
-/// AMReX's box compound (`babox_id`): six ints, no padding.
-#[derive(H5Type, Clone, Copy, Debug)]
-#[repr(C)]
-struct BaBox {
-    lo_i: i32,
-    lo_j: i32,
-    lo_k: i32,
-    hi_i: i32,
-    hi_j: i32,
-    hi_k: i32,
-}
+// AMReX's box compound (`babox_id`) is Chombo's: six ints, no padding.
+use super::chombo::writer::{raw_box, RawBox};
 
 /// AMReX's centring compound (`center_id`).
 #[derive(H5Type, Clone, Copy, Debug)]
@@ -146,17 +136,6 @@ fn string(loc: &Location, name: &str, v: &str) -> hdf5_metno::Result<()> {
     a.write_scalar(&FixedAscii::<256>::from_ascii(v).map_err(|e| e.to_string())?)
 }
 
-fn ba_box(b: [i32; 6]) -> BaBox {
-    BaBox {
-        lo_i: b[0],
-        lo_j: b[1],
-        lo_k: b[2],
-        hi_i: b[3],
-        hi_j: b[4],
-        hi_k: b[5],
-    }
-}
-
 /// Writes `d` to `path` with every value `value(level, comp, cell)`.
 pub fn write(path: &Path, d: &AmrexHdf5) -> hdf5_metno::Result<()> {
     let file = File::create(path)?;
@@ -188,9 +167,9 @@ pub fn write(path: &Path, d: &AmrexHdf5) -> hdf5_metno::Result<()> {
             .collect();
         doubles(&grp, "prob_lo", &lev.prob_lo)?;
         doubles(&grp, "prob_hi", &hi)?;
-        grp.new_attr::<BaBox>()
+        grp.new_attr::<RawBox>()
             .create("prob_domain")?
-            .write_scalar(&ba_box(lev.domain))?;
+            .write_scalar(&raw_box(lev.domain))?;
         ints(&grp, "domain_type", &d.domain_type)?;
         ints(&grp, "steps", &[d.step])?;
         ints(&grp, "ngrid", &[lev.boxes.len() as i32])?;
@@ -198,7 +177,7 @@ pub fn write(path: &Path, d: &AmrexHdf5) -> hdf5_metno::Result<()> {
         ints(&grp, "ngrow", &[0])?;
 
         let sorted = d.stored_boxes(l);
-        let boxes: Vec<BaBox> = sorted.iter().map(|&b| ba_box(b)).collect();
+        let boxes: Vec<RawBox> = sorted.iter().map(|&b| raw_box(b)).collect();
         grp.new_dataset_builder()
             .with_data(&boxes)
             .create("boxes")?;

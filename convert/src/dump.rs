@@ -57,7 +57,7 @@ pub enum DumpError {
         error: Box<AmrexError>,
     },
     /// The Chombo reader or the writer failed (the error names the file).
-    #[error("converting Chombo file: {}", chain(.0))]
+    #[error("converting HDF5 file (Chombo layout): {}", chain(.0))]
     Chombo(Box<ChomboError>),
     /// A reader failed on the dump's metadata ([`crate::describe::describe`]).
     #[error("reading {format} {}: {detail}", path.display())]

@@ -258,7 +258,7 @@ fn run_convert_reports_the_chombo_error_with_context() {
     assert_has(
         &format!("{err:#}"),
         &[
-            "converting Chombo file",
+            "converting HDF5 file (Chombo layout)",
             "chk.3d.hdf5",
             "level_1: missing dataset 'mom:offsets=0'",
         ],

@@ -30,7 +30,7 @@ pub enum ChomboError {
     },
     /// The file is HDF5 but not a consistent Chombo plotfile: a missing attribute or dataset,
     /// offsets beyond the data, a box outside the domain, ...
-    #[error("{}: not a valid Chombo file: {msg}", path.display())]
+    #[error("{}: not a valid Chombo-layout HDF5 file: {msg}", path.display())]
     Invalid {
         /// The HDF5 file.
         path: PathBuf,

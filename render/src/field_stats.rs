@@ -31,17 +31,11 @@ pub fn percentile_value(file: &MappedFile, field: usize, percent: f64) -> Result
     let read_ahead = |r: &[(u64, u64)]| crate::mapping::read_ahead(file, r.iter().copied());
     let p = FieldPercentiles::of_reading_ahead(file, field, read_ahead)?;
     let f = &file.fields()[field];
-    let exact = p.at(percent / 100.0);
-    if exact.is_nan() {
-        return Err(RenderError::Invalid(format!(
+    p.value_shown(percent, (f.min, f.max)).ok_or_else(|| {
+        RenderError::Invalid(format!(
             "field '{}' has no finite value to take a percentile of",
             f.name
-        )));
-    }
-    let rounded = round_to_shown(exact);
-    Ok(match (f.min..=f.max).contains(&rounded) {
-        true => rounded,
-        false => exact as f32,
+        ))
     })
 }
 
@@ -125,6 +119,21 @@ impl FieldPercentiles {
         }
         let i = ((self.sorted.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
         f64::from(self.sorted[i])
+    }
+
+    /// The value at percentile `percent` (0 to 100), rounded to the five significant digits
+    /// [`format_value`] prints, unrounded where rounding would leave `range` (the field's
+    /// smallest and largest values); `None` without values.
+    pub fn value_shown(&self, percent: f64, range: (f32, f32)) -> Option<f32> {
+        let exact = self.at(percent / 100.0);
+        if exact.is_nan() {
+            return None;
+        }
+        let rounded = round_to_shown(exact);
+        Some(match (range.0..=range.1).contains(&rounded) {
+            true => rounded,
+            false => exact as f32,
+        })
     }
 
     /// The median of the values off the plateaus at the ends of the range: the values within

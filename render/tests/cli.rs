@@ -321,6 +321,40 @@ fn an_isovalue_typed_as_a_percentile_is_the_fields_value_there() {
     let o = amr_render(&["extract", f, "--iso", "p100.5"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("outside p0 to p100"), "{}", stderr(&o));
+    // A sweep between percentiles steps in percentile; from a number to one, in value.
+    let sweep = dir.path().join("s.exr");
+    let frames = |spec: &str| {
+        let o = amr_render(&[
+            f,
+            "--iso-sweep",
+            spec,
+            "--size",
+            "16x12",
+            "-q",
+            "-o",
+            sweep.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{spec}: {}", stderr(&o));
+        (0..3)
+            .map(|k| attribute(&dir.path().join(format!("s_{k:04}.exr")), "isovalues"))
+            .collect::<Vec<String>>()
+    };
+    let got = frames("p10:p90:3");
+    for (k, q) in [10.0, 50.0, 90.0].into_iter().enumerate() {
+        let want = percentile(0, q);
+        assert!(
+            got[k].starts_with(&format!("{want}:")),
+            "frame {k}: {} for {want}",
+            got[k]
+        );
+    }
+    let got = frames("0:p90:3");
+    let half: f32 = p90.parse::<f32>().unwrap() / 2.0;
+    assert!(
+        got[1].starts_with(&format!("{half}:")),
+        "{} for {half}",
+        got[1]
+    );
 }
 
 /// Output cut short by the reader (`amr-render extract F ... | head -1`) ends the run quietly

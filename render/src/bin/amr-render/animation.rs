@@ -2,14 +2,18 @@
 //! or keyframes) and one isovalue (a sweep). Whatever is given animates in lockstep, so the
 //! counts must agree.
 
+use std::path::Path;
 use std::str::FromStr;
 
 use amr_render::camera::Camera;
 use amr_render::camera_path::{interpolate, orbit, CameraKey};
+use amr_render::field_stats::FieldPercentiles;
+use amr_render::mapping::{read_ahead, MappedFile};
 use amr_render::shade::IsoSpec;
 use amr_render::CameraPlacement;
 use anyhow::bail;
 
+use crate::iso_value::IsoValue;
 use crate::surface_arg::split_field;
 
 /// Most frames one run renders.
@@ -18,62 +22,101 @@ pub const MAX_FRAMES: u32 = 100_000;
 /// An isosurface whose value goes from `from` to `to` over `frames` frames.
 #[derive(Clone, Debug, PartialEq)]
 pub struct IsoSweep {
-    /// The first frame's isosurface (its value is `from`).
+    /// The swept surface's colour and opacity (its value that of the first frame when typed as
+    /// a number).
     pub first: IsoSpec,
-    /// The last frame's isovalue.
-    pub to: f32,
+    /// The first frame's isovalue, as typed.
+    pub from: IsoValue,
+    /// The last frame's isovalue, as typed.
+    pub to: IsoValue,
     /// Frames.
     pub frames: u32,
     /// The field swept, when not `--field`'s: its name, resolved in each file.
     pub field: Option<String>,
 }
 
+/// A sweep's surface in one file: its field's index there (`None`: the scene's field) and the
+/// isovalue of every frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweptSurface {
+    /// The field's index in the file.
+    pub field: Option<usize>,
+    /// The isovalue of each frame.
+    pub values: Vec<f32>,
+}
+
 impl IsoSweep {
-    /// The isosurface of frame `k`: values evenly spaced from `from` to `to`, both included.
-    pub fn at(&self, k: u32) -> IsoSpec {
-        let t = if self.frames > 1 {
-            f64::from(k) / f64::from(self.frames - 1)
-        } else {
-            0.0
-        };
-        let (a, b) = (f64::from(self.first.value), f64::from(self.to));
-        IsoSpec {
-            value: (a + (b - a) * t) as f32,
-            ..self.first
+    /// The fraction of the way frame `k` lies, 0 at the first frame and 1 at the last.
+    fn step(&self, k: u32) -> f64 {
+        match self.frames > 1 {
+            true => f64::from(k) / f64::from(self.frames - 1),
+            false => 0.0,
         }
+    }
+
+    /// The isovalue of every frame in field `field` of `file` (opened from `path`): evenly
+    /// spaced from `from` to `to`, both included; between two percentiles, evenly spaced
+    /// percentiles (each frame a like share of the cells further in: the steps a field spanning
+    /// decades needs), each rounded as a single `--iso pQ` is; between a number and a
+    /// percentile, values evenly spaced from the number to that percentile's value.
+    pub fn values(&self, file: &MappedFile, path: &Path, field: usize) -> anyhow::Result<Vec<f32>> {
+        let frames = 0..self.frames;
+        if let (IsoValue::Percentile(a), IsoValue::Percentile(b)) = (self.from, self.to) {
+            let read_ahead = |r: &[(u64, u64)]| read_ahead(file, r.iter().copied());
+            let p = FieldPercentiles::of_reading_ahead(file, field, read_ahead)
+                .map_err(|e| e.in_file(path))?;
+            let f = &file.fields()[field];
+            return frames
+                .map(|k| {
+                    let q = a + (b - a) * self.step(k);
+                    p.value_shown(q, (f.min, f.max)).ok_or_else(|| {
+                        anyhow::anyhow!(
+                            "{}: field '{}' has no finite value to take a percentile of",
+                            path.display(),
+                            f.name
+                        )
+                    })
+                })
+                .collect();
+        }
+        let a = f64::from(self.from.resolve(file, path, field)?);
+        let b = f64::from(self.to.resolve(file, path, field)?);
+        Ok(frames
+            .map(|k| (a + (b - a) * self.step(k)) as f32)
+            .collect())
     }
 }
 
 impl FromStr for IsoSweep {
     type Err = String;
 
-    /// `[FIELD=]A:B:N[:COLOR[:OPACITY]]`.
+    /// `[FIELD=]A:B:N[:COLOR[:OPACITY]]`, `A` and `B` numbers or percentiles (`p50:p99.9:20`).
     fn from_str(text: &str) -> Result<Self, String> {
         let (field, s) = split_field(text)?;
         let parts: Vec<&str> = s.splitn(4, ':').collect();
         if parts.len() < 3 {
             return Err(format!("sweep '{s}' is not A:B:N[:COLOR[:OPACITY]]"));
         }
-        let to: f32 = parts[1]
-            .trim()
-            .parse()
-            .map_err(|_| format!("'{}' in '{s}' is not a number", parts[1]))?;
+        let from: IsoValue = parts[0].parse()?;
+        let to: IsoValue = parts[1].parse()?;
         let frames: u32 = parts[2]
             .trim()
             .parse()
             .map_err(|_| format!("'{}' in '{s}' is not a frame count", parts[2]))?;
-        if !to.is_finite() {
-            return Err(format!("'{}' in '{s}' is not finite", parts[1]));
-        }
         if !(1..=MAX_FRAMES).contains(&frames) {
             return Err(format!("sweep of {frames} frames: give 1 to {MAX_FRAMES}"));
         }
+        let number = match from {
+            IsoValue::Number(v) => v,
+            IsoValue::Percentile(_) => 0.0,
+        };
         let first = match parts.get(3) {
-            Some(rest) => format!("{}:{rest}", parts[0]),
-            None => parts[0].to_string(),
+            Some(rest) => format!("{number}:{rest}"),
+            None => number.to_string(),
         };
         Ok(IsoSweep {
             first: first.parse()?,
+            from,
             to,
             frames,
             field,
@@ -171,14 +214,19 @@ impl Animation {
         Ok(vec![fixed; self.frames as usize])
     }
 
-    /// The isosurfaces of frame `k`: `isos` and the sweep's surface of that frame, of field
-    /// `sweep_field` (the index its name has in the frame's file; `None`: the scene's field).
-    pub fn isos(&self, isos: &[IsoSpec], k: u32, sweep_field: Option<usize>) -> Vec<IsoSpec> {
+    /// The isosurfaces of frame `k`: `isos` and the sweep's surface of that frame, `swept` in
+    /// the frame's file.
+    pub fn isos(&self, isos: &[IsoSpec], k: u32, swept: Option<&SweptSurface>) -> Vec<IsoSpec> {
         let mut all = isos.to_vec();
-        if let Some(s) = &self.sweep {
+        if let (Some(s), Some(swept)) = (&self.sweep, swept) {
             all.push(IsoSpec {
-                field: sweep_field,
-                ..s.at(k)
+                field: swept.field,
+                value: swept
+                    .values
+                    .get(k as usize)
+                    .copied()
+                    .unwrap_or(s.first.value),
+                ..s.first
             });
         }
         all
@@ -193,23 +241,36 @@ mod tests {
     fn a_sweep_of_another_field_names_it_and_gives_its_index_to_its_surfaces() {
         let s: IsoSweep = "Y(OH)=1e-4:5e-4:3:red".parse().unwrap();
         assert_eq!(s.field.as_deref(), Some("Y(OH)"));
-        assert_eq!((s.first.value, s.to, s.frames), (1e-4, 5e-4, 3));
+        assert_eq!(
+            (s.from, s.to, s.frames),
+            (IsoValue::Number(1e-4), IsoValue::Number(5e-4), 3)
+        );
         let anim = Animation::new(1, None, Some(s), vec![]).unwrap();
-        let isos = anim.isos(&[IsoSpec::new(2.0)], 2, Some(7));
+        let swept = SweptSurface {
+            field: Some(7),
+            values: vec![1e-4, 3e-4, 5e-4],
+        };
+        let isos = anim.isos(&[IsoSpec::new(2.0)], 2, Some(&swept));
         assert_eq!(isos.len(), 2);
         assert_eq!(
             (isos[0].field, isos[1].field, isos[1].value),
             (None, Some(7), 5e-4)
         );
         assert!("=1:2:3".parse::<IsoSweep>().is_err());
+        let p: IsoSweep = "p50:P99.9:20:gold:0.5".parse().unwrap();
+        assert_eq!(
+            (p.from, p.to, p.first.opacity),
+            (IsoValue::Percentile(50.0), IsoValue::Percentile(99.9), 0.5)
+        );
+        assert!("p50:p101:20".parse::<IsoSweep>().is_err());
     }
 
     #[test]
     fn a_sweep_includes_both_ends() {
         let s: IsoSweep = "-1:1:5:red:0.5".parse().unwrap();
-        let v: Vec<f32> = (0..5).map(|k| s.at(k).value).collect();
+        let v: Vec<f64> = (0..5).map(|k| -1.0 + 2.0 * s.step(k)).collect();
         assert_eq!(v, [-1.0, -0.5, 0.0, 0.5, 1.0]);
-        assert_eq!(s.at(2).opacity, 0.5);
+        assert_eq!(s.first.opacity, 0.5);
         assert!("1:2".parse::<IsoSweep>().is_err());
         assert!("1:2:0".parse::<IsoSweep>().is_err());
     }

@@ -17,6 +17,7 @@ use amr_render::{render, render_reusing, ColorBy, ColorScale, Scene, View};
 use anyhow::bail;
 use serde::Serialize;
 
+use crate::animation::SweptSurface;
 use crate::frame_warnings::{
     note_no_room_for_legend, warn_empty, warn_enclosed, warn_isos_outside, warn_slices_outside,
 };
@@ -25,7 +26,7 @@ use crate::heap;
 use crate::movie;
 use crate::outputs::{self, FrameFiles, ProcessMemory, RunStats};
 use crate::progress;
-use crate::render::{request_isos, sweep_field};
+use crate::render::{request_isos, swept_surface};
 use crate::render_args::{painting_fields, RenderRequest};
 use amr_render::system_memory::peak_rss_bytes;
 
@@ -89,9 +90,10 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             }
         }
     }
-    // The open file's index, its scene and its isosurfaces (a default isovalue reads the field's
-    // cells, so it is found once per file, not once per frame).
-    let mut scene: Option<(usize, Scene, Vec<IsoSpec>, Option<usize>)> = None;
+    // The open file's index, its scene, its isosurfaces and its swept surface (a default
+    // isovalue or a percentile reads the field's cells, so it is found once per file, not once
+    // per frame).
+    let mut scene: Option<(usize, Scene, Vec<IsoSpec>, Option<SweptSurface>)> = None;
     let mut cameras = Vec::new();
     let mut records = Vec::new();
     let mut writer = FrameWriter::start()?;
@@ -113,13 +115,13 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
             if !alone {
                 warn_isos_outside(&opened, &isos);
             }
-            let swept = sweep_field(request, &opened)?;
+            let swept = swept_surface(request, &opened)?;
             scene = Some((index, opened, isos, swept));
         }
         let Some((_, scene, base_isos, swept)) = scene.as_mut() else {
             unreachable!("a scene was opened above");
         };
-        let isos = anim.isos(base_isos, k, *swept);
+        let isos = anim.isos(base_isos, k, swept.as_ref());
         // In view: the first extraction of a file is limited to its frame's view; a later frame
         // extracts the new isovalues in the previous view, then everything again if the camera
         // moved (the statistics then report that last extraction).

@@ -5,6 +5,7 @@ use amr_render::shade::IsoSpec;
 use amr_render::Scene;
 use anyhow::bail;
 
+use crate::animation::SweptSurface;
 use crate::frames;
 use crate::render_args::{RenderArgs, RenderRequest};
 
@@ -47,18 +48,22 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     }
 }
 
-/// The index, in `scene`'s file, of the field an `--iso-sweep FIELD=...` names (`None` for
-/// `--field`'s).
-pub fn sweep_field(request: &RenderRequest, scene: &Scene) -> anyhow::Result<Option<usize>> {
-    let name = request
-        .animation
-        .sweep
-        .as_ref()
-        .and_then(|s| s.field.as_ref());
-    Ok(match name {
+/// The `--iso-sweep` surface in `scene`'s file, if any: the index of the field it names
+/// (`None` for `--field`'s) and the isovalue of every frame, percentiles taken in this file.
+pub fn swept_surface(
+    request: &RenderRequest,
+    scene: &Scene,
+) -> anyhow::Result<Option<SweptSurface>> {
+    let Some(sweep) = &request.animation.sweep else {
+        return Ok(None);
+    };
+    let field = match &sweep.field {
         Some(n) => Some(field_named(scene.file(), n).map_err(|e| e.in_file(scene.path()))?),
         None => None,
-    })
+    };
+    let index = field.unwrap_or(scene.field());
+    let values = sweep.values(scene.file(), scene.path(), index)?;
+    Ok(Some(SweptSurface { field, values }))
 }
 
 /// The request's isosurfaces for `scene` (the median of the field's values when none given),

@@ -84,6 +84,23 @@ fn the_one_dataset_per_component_variant_converts_alike() {
     check_cells(&one, &|l, _, p| value(l, 2, p) as f32);
 }
 
+/// `compression = "ZLIB@N"`: chunked, shuffled and deflated data reads the same, in both variants.
+#[test]
+fn zlib_compressed_data_converts_alike() {
+    for multi_dset in [false, true] {
+        let mut d = AmrexHdf5::three_levels();
+        d.zlib = Some(6);
+        d.multi_dset = multi_dset;
+        let dir = tempfile::tempdir().unwrap();
+        let out = written_and_converted(dir.path(), &d, 16);
+        let written = hdf5_metno::File::open(dir.path().join("plt00040.h5")).unwrap();
+        let data = written.dataset("level_2/data:datatype=0").unwrap();
+        assert!(!data.filters().is_empty(), "the fixture's data is not filtered");
+        drop((data, written));
+        check_cells(&out, &|l, f, p| value(l, f, p) as f32);
+    }
+}
+
 /// The stored order of boxes follows their ranks, not the box array: the test's fixture must
 /// exercise it, or a reader that assumed the box array's order would pass.
 #[test]

@@ -68,6 +68,9 @@ pub struct AmrexHdf5 {
     pub step: i32,
     /// One dataset per component (`WriteMultiLevelPlotfileHDF5MultiDset`).
     pub multi_dset: bool,
+    /// `compression = "ZLIB@N"`: the data chunked by 1024 values, shuffled and deflated at
+    /// level N (`H5Pset_chunk`, `H5Pset_shuffle`, `H5Pset_deflate`).
+    pub zlib: Option<u8>,
 }
 
 impl AmrexHdf5 {
@@ -107,6 +110,7 @@ impl AmrexHdf5 {
             time: 0.00125,
             step: 40,
             multi_dset: false,
+            zlib: None,
         }
     }
 
@@ -210,9 +214,21 @@ pub fn write(path: &Path, d: &AmrexHdf5) -> hdf5_metno::Result<()> {
             .with_data(&centers)
             .create("boxcenter")?;
         for (j, data) in datasets.iter().enumerate() {
-            grp.new_dataset_builder()
-                .with_data(data)
-                .create(format!("data:datatype={j}").as_str())?;
+            let name = format!("data:datatype={j}");
+            match d.zlib {
+                // The writer's chunk of 1024, cut to the data's length when that is shorter.
+                Some(level) => grp
+                    .new_dataset_builder()
+                    .chunk(1024.min(data.len()))
+                    .shuffle()
+                    .deflate(level)
+                    .with_data(data)
+                    .create(name.as_str())?,
+                None => grp
+                    .new_dataset_builder()
+                    .with_data(data)
+                    .create(name.as_str())?,
+            };
         }
     }
     file.close()?;

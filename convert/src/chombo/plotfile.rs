@@ -510,12 +510,14 @@ fn read_level(
     if domain.is_empty() {
         return Err(g.invalid(format!("empty prob_domain {}", show(&domain))));
     }
-    if amrex && g.has(raw::DOMAIN_TYPE) && g.ints::<3>(raw::DOMAIN_TYPE)? != [0; 3] {
-        return Err(g.unsupported(format!(
-            "domain_type = {:?}: node- or face-centred data; only cell-centred data can be \
-             converted",
-            g.ints::<3>(raw::DOMAIN_TYPE)?
-        )));
+    if amrex && g.has(raw::DOMAIN_TYPE) {
+        let centring = g.ints::<3>(raw::DOMAIN_TYPE)?;
+        if centring != [0; 3] {
+            return Err(g.unsupported(format!(
+                "domain_type = {centring:?}: node- or face-centred data; only cell-centred data \
+                 can be converted"
+            )));
+        }
     }
     let origin = match amrex && g.has(raw::PROB_LO) {
         true => {

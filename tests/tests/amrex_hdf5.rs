@@ -95,7 +95,10 @@ fn zlib_compressed_data_converts_alike() {
         let out = written_and_converted(dir.path(), &d, 16);
         let written = hdf5_metno::File::open(dir.path().join("plt00040.h5")).unwrap();
         let data = written.dataset("level_2/data:datatype=0").unwrap();
-        assert!(!data.filters().is_empty(), "the fixture's data is not filtered");
+        assert!(
+            !data.filters().is_empty(),
+            "the fixture's data is not filtered"
+        );
         drop((data, written));
         check_cells(&out, &|l, f, p| value(l, f, p) as f32);
     }

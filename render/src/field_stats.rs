@@ -18,25 +18,36 @@ pub const TABLE: [f64; 7] = [0.0, 0.01, 0.25, 0.5, 0.75, 0.99, 1.0];
 pub const SAMPLE_RUN: u64 = 512;
 
 /// The value at percentile `percent` (0 to 100) of field `field`'s cell values over every cell
-/// of every level of `file` (nearest rank; from an even subsample of [`MAX_SAMPLES`] cells in
-/// larger files, read ahead), rounded to the five significant digits [`format_value`] prints,
-/// so that the isovalue shown can be typed again; unrounded where rounding would leave the
-/// field's range.
+/// of every level of `file`: [`percentile_values`] of one percentile.
 pub fn percentile_value(file: &MappedFile, field: usize, percent: f64) -> Result<f32> {
-    if !(0.0..=100.0).contains(&percent) {
+    Ok(percentile_values(file, field, &[percent])?[0])
+}
+
+/// The values at `percents` (each 0 to 100) of field `field`'s cell values over every cell of
+/// every level of `file` (nearest rank; from an even subsample of [`MAX_SAMPLES`] cells in
+/// larger files, read ahead, once for them all), each rounded to the five significant digits
+/// [`format_value`] prints, so that the isovalue shown can be typed again; unrounded where
+/// rounding would leave the field's range.
+pub fn percentile_values(file: &MappedFile, field: usize, percents: &[f64]) -> Result<Vec<f32>> {
+    if let Some(bad) = percents.iter().find(|q| !(0.0..=100.0).contains(*q)) {
         return Err(RenderError::Invalid(format!(
-            "percentile {percent} is outside 0 to 100"
+            "percentile {bad} is outside 0 to 100"
         )));
     }
     let read_ahead = |r: &[(u64, u64)]| crate::mapping::read_ahead(file, r.iter().copied());
     let p = FieldPercentiles::of_reading_ahead(file, field, read_ahead)?;
     let f = &file.fields()[field];
-    p.value_shown(percent, (f.min, f.max)).ok_or_else(|| {
-        RenderError::Invalid(format!(
-            "field '{}' has no finite value to take a percentile of",
-            f.name
-        ))
-    })
+    percents
+        .iter()
+        .map(|&q| {
+            p.value_shown(q, (f.min, f.max)).ok_or_else(|| {
+                RenderError::Invalid(format!(
+                    "field '{}' has no finite value to take a percentile of",
+                    f.name
+                ))
+            })
+        })
+        .collect()
 }
 
 /// The sorted finite cell values of a field: every cell, or evenly spaced runs of cells.

@@ -325,12 +325,6 @@ impl Scene {
         &self.stats
     }
 
-    /// The value at percentile `percent` (0 to 100) of field `field`'s cell values:
-    /// [`crate::field_stats::percentile_value`] of the scene's file.
-    pub fn percentile_value(&self, field: usize, percent: f64) -> Result<f32> {
-        crate::field_stats::percentile_value(self.file(), field, percent)
-    }
-
     /// The isovalue used when none is given: the median of the field's cell values; when the
     /// median sits on a floor or ceiling many cells share (a density floor, zero dark matter in
     /// voids), the median of the values off those plateaus; the middle of the range when

@@ -126,10 +126,9 @@ impl<'a> Props<'a> {
         let v = a
             .read_raw::<T>()
             .map_err(|e| self.hdf5(format!("reading attribute {}:{attr}", self.name), e))?;
-        let n = v.len();
-        v.into_iter().next().filter(|_| n == 1).ok_or_else(|| {
-            self.invalid(format!("attribute '{attr}' holds {n} values, expected one"))
-        })
+        v.into_iter()
+            .next()
+            .ok_or_else(|| self.invalid(format!("attribute '{attr}' holds no value")))
     }
 
     /// An integer attribute.

@@ -11,6 +11,7 @@ use std::os::unix::process::ExitStatusExt;
 use std::path::Path;
 use std::process::Command;
 
+use amr_convert::dump::{detect, InputFormat};
 use anyhow::{bail, Context};
 
 /// Set in the child's environment: the child converts in-process.
@@ -29,6 +30,16 @@ const CRASH_SIGNALS: [i32; 5] = [
     libc::SIGILL,
     libc::SIGFPE,
 ];
+
+/// True when `input` is read through HDF5 (a Chombo or AMReX HDF5 file, an Enzo dataset) and
+/// this process is not already the child that reads it.
+pub fn needs_child(input: &Path) -> bool {
+    let hdf5 = matches!(
+        detect(input),
+        Ok(InputFormat::ChomboHdf5 | InputFormat::Enzo { .. })
+    );
+    hdf5 && !is_child()
+}
 
 /// True in a child started by [`convert_in_child`].
 pub fn is_child() -> bool {

@@ -11,7 +11,7 @@ use std::process::ExitCode;
 
 use amr_convert::bricking::ConvertOptions;
 use amr_convert::describe::describe;
-use amr_convert::dump::{convert_dump, detect, InputFormat};
+use amr_convert::dump::convert_dump;
 use amr_format::Compression;
 use clap::{Parser, Subcommand};
 
@@ -77,11 +77,7 @@ struct InfoArgs {
 /// Prints what `args.input` holds; HDF5 is read in a child, as for a conversion.
 fn run_info(args: &InfoArgs) -> anyhow::Result<()> {
     let input = &args.input;
-    let hdf5 = matches!(
-        detect(input),
-        Ok(InputFormat::ChomboHdf5 | InputFormat::Enzo { .. })
-    );
-    if hdf5 && !isolate::is_child() {
+    if isolate::needs_child(input) {
         let mut child_args: Vec<std::ffi::OsString> = vec!["info".into(), input.into()];
         if args.json {
             child_args.push("--json".into());
@@ -104,11 +100,7 @@ fn run_info(args: &InfoArgs) -> anyhow::Result<()> {
 
 /// Converts one dump as `cli` asks.
 fn convert_one(cli: &Cli, input: &Path, output: &Path) -> anyhow::Result<()> {
-    let hdf5 = matches!(
-        detect(input),
-        Ok(InputFormat::ChomboHdf5 | InputFormat::Enzo { .. })
-    );
-    if hdf5 && !isolate::is_child() {
+    if isolate::needs_child(input) {
         // HDF5 is read in a child, whose crash on a corrupt file becomes an error.
         let mut options: Vec<String> = vec!["--brick".into(), cli.brick.to_string()];
         for f in &cli.fields {

@@ -7,8 +7,8 @@ use std::str::FromStr;
 
 use amr_render::camera::Camera;
 use amr_render::camera_path::{interpolate, orbit, CameraKey};
-use amr_render::field_stats::FieldPercentiles;
-use amr_render::mapping::{read_ahead, MappedFile};
+use amr_render::field_stats::percentile_values;
+use amr_render::mapping::MappedFile;
 use amr_render::shade::IsoSpec;
 use amr_render::CameraPlacement;
 use anyhow::bail;
@@ -62,22 +62,8 @@ impl IsoSweep {
     pub fn values(&self, file: &MappedFile, path: &Path, field: usize) -> anyhow::Result<Vec<f32>> {
         let frames = 0..self.frames;
         if let (IsoValue::Percentile(a), IsoValue::Percentile(b)) = (self.from, self.to) {
-            let read_ahead = |r: &[(u64, u64)]| read_ahead(file, r.iter().copied());
-            let p = FieldPercentiles::of_reading_ahead(file, field, read_ahead)
-                .map_err(|e| e.in_file(path))?;
-            let f = &file.fields()[field];
-            return frames
-                .map(|k| {
-                    let q = a + (b - a) * self.step(k);
-                    p.value_shown(q, (f.min, f.max)).ok_or_else(|| {
-                        anyhow::anyhow!(
-                            "{}: field '{}' has no finite value to take a percentile of",
-                            path.display(),
-                            f.name
-                        )
-                    })
-                })
-                .collect();
+            let percents: Vec<f64> = frames.map(|k| a + (b - a) * self.step(k)).collect();
+            return percentile_values(file, field, &percents).map_err(|e| e.in_file(path).into());
         }
         let a = f64::from(self.from.resolve(file, path, field)?);
         let b = f64::from(self.to.resolve(file, path, field)?);
@@ -106,10 +92,7 @@ impl FromStr for IsoSweep {
         if !(1..=MAX_FRAMES).contains(&frames) {
             return Err(format!("sweep of {frames} frames: give 1 to {MAX_FRAMES}"));
         }
-        let number = match from {
-            IsoValue::Number(v) => v,
-            IsoValue::Percentile(_) => 0.0,
-        };
+        let number = from.typed_number();
         let first = match parts.get(3) {
             Some(rest) => format!("{number}:{rest}"),
             None => number.to_string(),

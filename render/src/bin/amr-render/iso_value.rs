@@ -20,6 +20,15 @@ pub enum IsoValue {
 }
 
 impl IsoValue {
+    /// The number typed, or 0 for a percentile: what an [`amr_render::shade::IsoSpec`] parsed
+    /// beside it holds until the percentile is resolved.
+    pub fn typed_number(&self) -> f32 {
+        match *self {
+            IsoValue::Number(v) => v,
+            IsoValue::Percentile(_) => 0.0,
+        }
+    }
+
     /// The isovalue of field `field` of `file` (opened from `path`).
     pub fn resolve(&self, file: &MappedFile, path: &Path, field: usize) -> anyhow::Result<f32> {
         match *self {

@@ -78,14 +78,10 @@ impl FromStr for SurfaceArg {
             None => (rest, String::new()),
         };
         let value: IsoValue = typed.parse()?;
-        let number = match value {
-            IsoValue::Number(v) => v,
-            IsoValue::Percentile(_) => 0.0,
-        };
         Ok(SurfaceArg {
             field,
             value,
-            spec: format!("{number}{style}").parse()?,
+            spec: format!("{}{style}", value.typed_number()).parse()?,
         })
     }
 }

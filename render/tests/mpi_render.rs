@@ -62,8 +62,6 @@ fn render_args(file: &Path, out: &Path, extra: &[&str]) -> Vec<String> {
         "5:#3070ff:0.4",
         "--size",
         "96x72",
-        // mpirun frames the domain: the single-process reference must too.
-        "--frame-domain",
         "-o",
         out.to_str().unwrap(),
     ]
@@ -255,6 +253,60 @@ fn partitioned_frames_have_the_single_process_first_hits() {
     }
 }
 
+/// Under mpirun, as in one process, the default camera frames the isosurfaces, and
+/// `--frame-domain` the domain: a small surface is not left a speck in a wide view (it framed
+/// the domain until 2026-12-07). Both modes, each rank holding the whole scene or a part of it.
+#[test]
+fn the_default_camera_under_mpirun_frames_the_surfaces_as_one_process_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dataset(dir.path());
+    let camera = |out: &Path| {
+        let attrs = amr_render::output::exr_file::read_text_attributes(out).unwrap();
+        attrs.into_iter().find(|(k, _)| k == "camera").unwrap().1
+    };
+    // One blob's core: a surface in a small part of the domain.
+    let args = |out: &Path, extra: &[&str]| -> Vec<String> {
+        let mut a: Vec<String> = [file.to_str().unwrap(), "--iso", "40", "--size", "96x72"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        a.extend(extra.iter().map(|s| s.to_string()));
+        a.extend(["-o".to_string(), out.to_str().unwrap().to_string()]);
+        a
+    };
+    let run_single = |out: &Path, extra: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_amr-render"))
+            .args(args(out, extra))
+            .output()
+            .unwrap();
+        check(o, "single-process render");
+        camera(out)
+    };
+    let framed = run_single(
+        &dir.path().join("framed.exr"),
+        &["--no-shadows", "--ao", "0"],
+    );
+    let domain = run_single(
+        &dir.path().join("domain.exr"),
+        &["--no-shadows", "--ao", "0", "--frame-domain"],
+    );
+    assert_ne!(framed, domain, "the surface fills the domain: no test");
+    for (mode, want) in [
+        ("replicated", &framed),
+        ("partitioned", &framed),
+        ("replicated", &domain),
+    ] {
+        let mut extra = vec!["--mpi-mode", mode, "--no-shadows", "--ao", "0"];
+        if want == &domain {
+            extra.push("--frame-domain");
+        }
+        let out = dir.path().join(format!("{mode}-{}.exr", extra.len()));
+        let o = mpirun_render(2).args(args(&out, &extra)).output().unwrap();
+        check(o, &format!("mpirun -n 2 {extra:?}"));
+        assert_eq!(&camera(&out), want, "{extra:?}");
+    }
+}
+
 #[test]
 fn mpi_options_without_mpirun_are_an_error() {
     let dir = tempfile::tempdir().unwrap();
@@ -329,7 +381,6 @@ fn partitioned_frames_of_two_fields_have_the_single_process_first_hits() {
             "ramp=1:#3070ff",
             "--size",
             "96x72",
-            "--frame-domain",
             "--no-shadows",
             "--ao",
             "0",

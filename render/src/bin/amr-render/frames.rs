@@ -361,7 +361,7 @@ fn series_ranges(request: &RenderRequest) -> anyhow::Result<Vec<(String, (f64, f
 
 /// `view`, with a camera that frames the scene's isosurfaces when it has none and the frame has
 /// no slices (which span the domain).
-fn framed_view(view: &View, scene: &Scene) -> anyhow::Result<View> {
+pub(crate) fn framed_view(view: &View, scene: &Scene) -> anyhow::Result<View> {
     let mut view = view.clone();
     if view.camera.is_none() && scene.slices().is_empty() {
         if let Some(bounds) = scene.surface_bounds()? {

@@ -83,8 +83,7 @@ pub struct RenderArgs {
     /// converted with --keep-boxes).
     #[arg(long, value_name = "WHAT", default_value = "domain")]
     pub outline: Outline,
-    /// Frame the whole domain instead of the isosurfaces when no camera is given (mpirun
-    /// always frames the domain).
+    /// Frame the whole domain instead of the isosurfaces when no camera is given.
     #[arg(long)]
     pub frame_domain: bool,
     /// Print nothing but errors and warnings.

@@ -27,13 +27,16 @@ use amr_render::{render, Scene, View};
 use anyhow::anyhow;
 
 /// Builds this rank's part of `scene` for `isos`, renders it and composites the frame on rank 0
-/// (`None` elsewhere). `view` must be without shadows and ambient occlusion. Fills in `stats`
+/// (`None` elsewhere). `view` must be without shadows and ambient occlusion. When it has no
+/// camera and `frame_surfaces` is set, it is given the camera that frames every rank's surfaces
+/// together, the camera a single process frames its surfaces with. Fills in `stats`
 /// (`cpu_scene` with the processor time at the start of rendering, render time and rays).
 pub fn render_part(
     world: &SimpleCommunicator,
     scene: &mut Scene,
     isos: &[IsoSpec],
-    view: &View,
+    view: &mut View,
+    frame_surfaces: bool,
     stats: &mut RankStats,
     progress: &(dyn Fn(u64) + Sync),
 ) -> anyhow::Result<Option<FrameBuffer>> {
@@ -44,6 +47,9 @@ pub fn render_part(
     let t = Instant::now();
     let mut local = Vec::with_capacity(isos.len());
     let mut counts = vec![0u64; scene.file().num_leaves()];
+    let mut bounds = DoubledBounds::EMPTY;
+    let path = scene.path().to_path_buf();
+    let frame_surfaces = frame_surfaces && view.camera.is_none();
     // Each surface from its own field's extractor: the fields share the kd-tree's leaves.
     for (spec, ext) in isos.iter().zip(scene.surface_extractors(isos)?) {
         let ext =
@@ -55,6 +61,16 @@ pub fn render_part(
         for &r in &refs {
             counts[split_ref(r).0 as usize] += 1;
         }
+        if frame_surfaces {
+            let mut bad = None;
+            ext.voxel_boxes(&refs, |b| match b {
+                Ok(b) => bounds.grow(b),
+                Err(e) => bad = bad.take().or(Some(e)),
+            });
+            if let Some(e) = bad {
+                return Err(e.in_file(&path).into());
+            }
+        }
         local.push(refs);
     }
     let mut total = vec![0u64; counts.len()];
@@ -62,6 +78,12 @@ pub fn render_part(
     bytes += 8 * counts.len() as u64;
     drop(counts);
     let frame = scene.grid_frame();
+    if frame_surfaces {
+        if let Some((lo, hi)) = bounds.of_every_rank(world) {
+            let world_box = (frame.to_world(lo), frame.to_world(hi));
+            view.camera = Some(view.framing(world_box)?);
+        }
+    }
     let camera = view.camera(&frame)?;
     let eye = [0, 1, 2].map(|a| 0.5 * (camera.pos[a] - frame.origin[a]) / frame.unit[a]);
     let order = visibility_order(&scene.file().tree(), eye);
@@ -131,4 +153,34 @@ fn redistribute(world: &SimpleCommunicator, refs: Vec<u64>, owner: &[u32]) -> (V
     drop(send);
     recv.sort_unstable();
     (recv, sent)
+}
+
+/// The union of voxel boxes in doubled coordinates, as the BVH build records a surface's.
+struct DoubledBounds {
+    lo: [i64; 3],
+    hi: [i64; 3],
+}
+
+impl DoubledBounds {
+    const EMPTY: DoubledBounds = DoubledBounds {
+        lo: [i64::MAX; 3],
+        hi: [i64::MIN; 3],
+    };
+
+    fn grow(&mut self, (lo, hi): ([i64; 3], [i64; 3])) {
+        for a in 0..3 {
+            self.lo[a] = self.lo[a].min(lo[a]);
+            self.hi[a] = self.hi[a].max(hi[a]);
+        }
+    }
+
+    /// The union of every rank's bounds (a collective call), `None` when no rank has a voxel.
+    fn of_every_rank(&self, world: &SimpleCommunicator) -> Option<([f64; 3], [f64; 3])> {
+        let (mut lo, mut hi) = ([0i64; 3], [0i64; 3]);
+        world.all_reduce_into(&self.lo[..], &mut lo[..], SystemOperation::min());
+        world.all_reduce_into(&self.hi[..], &mut hi[..], SystemOperation::max());
+        (0..3)
+            .all(|a| lo[a] <= hi[a])
+            .then(|| (lo.map(|x| x as f64), hi.map(|x| x as f64)))
+    }
 }

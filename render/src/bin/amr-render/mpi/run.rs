@@ -18,6 +18,7 @@ use serde::Serialize;
 use super::stats::{cpu_seconds, table, RankRecord, RankStats};
 use super::{partitioned, replicated, MpiMode};
 use crate::frame_warnings::note_no_room_for_legend;
+use crate::frames::framed_view;
 use crate::outputs::{self, FrameFiles, RunStats};
 use crate::progress;
 use crate::render::request_isos;
@@ -141,7 +142,6 @@ fn run_rank(
     if rank == 0 && (!request.color_by.is_empty() || !request.slices.is_empty()) {
         eprintln!("note: --color-by and slices are not drawn under mpirun yet");
     }
-    let camera = view.camera(&scene.grid_frame())?;
     let mut stats = RankStats::default();
     let tiles = replicated::Tiles::new(view.size.0, view.size.1);
     let bar_len = match mode {
@@ -156,11 +156,24 @@ fn run_rank(
     let frame = match mode {
         MpiMode::Partitioned => {
             let isos = request_isos(request, &scene)?;
-            partitioned::render_part(world, &mut scene, &isos, &view, &mut stats, progress)?
+            let frame_surfaces = !request.frame_domain;
+            partitioned::render_part(
+                world,
+                &mut scene,
+                &isos,
+                &mut view,
+                frame_surfaces,
+                &mut stats,
+                progress,
+            )?
         }
         MpiMode::Replicated => {
             scene.set_isosurfaces(&request_isos(request, &scene)?)?;
             stats.extract = scene.stats().extract.as_secs_f64();
+            if !request.frame_domain {
+                // Every rank holds the same scene, so every rank frames it alike.
+                view = framed_view(&view, &scene)?;
+            }
             stats.cpu_scene = cpu_seconds();
             let job = replicated::Job {
                 scene: &scene,
@@ -171,6 +184,7 @@ fn run_rank(
         }
     };
     bar.finish_and_clear();
+    let camera = view.camera(&scene.grid_frame())?;
     let frame_time = start.elapsed();
     // The modes left the processor time at the start of rendering.
     stats.cpu_scene -= cpu0;

@@ -16,6 +16,9 @@ pub enum CameraError {
     /// The camera looks at its own position.
     #[error("--look-at equals --camera-pos ({0:?}): the view direction is undefined")]
     NoDirection([f64; 3]),
+    /// The direction an automatic camera looks from is zero or not finite.
+    #[error("--view-from {0:?} is not a direction: give an axis (+x, -z, ...) or a vector that is not zero")]
+    NoViewDirection([f64; 3]),
     /// The up vector is zero or parallel to the view direction.
     #[error("--up {0:?} is zero or parallel to the view direction; give a vector across it")]
     BadUp([f64; 3]),
@@ -56,6 +59,20 @@ pub enum BoxPlacement {
     },
     /// Partly behind the camera and partly in front of it.
     AroundCamera,
+}
+
+/// Where the automatic camera looks from, in place of its default view from above the front
+/// right: for views along an axis (`--view-from +z`) or any other direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ViewFrom {
+    /// Direction from the framed box's centre to the camera (any length but zero).
+    pub dir: [f64; 3],
+    /// Up vector (`None`: z, or y when `dir` is along z).
+    pub up: Option<[f64; 3]>,
+    /// Fit the box's eight corners to the picture (`true`), or the sphere around the box
+    /// (`false`), which stays in the picture however the camera turns about the centre, as an
+    /// orbit turns it.
+    pub tight: bool,
 }
 
 /// A validated pinhole camera with an orthonormal basis.
@@ -127,6 +144,62 @@ impl Camera {
             return Err(CameraError::Unframeable { lo, hi });
         }
         Camera::new(pos, centre, [0.0, 0.0, 1.0], fov_deg)
+    }
+
+    /// A camera that shows the whole box `[lo, hi]` looking at its centre from `from`, with the
+    /// given field of view and aspect ratio (width / height).
+    pub fn framing_from(
+        lo: [f64; 3],
+        hi: [f64; 3],
+        from: &ViewFrom,
+        fov_deg: f64,
+        aspect: f64,
+    ) -> Result<Camera, CameraError> {
+        let unframeable = CameraError::Unframeable { lo, hi };
+        let dir = Some(from.dir)
+            .filter(|d| d.iter().all(|x| x.is_finite()))
+            .and_then(normalize)
+            .ok_or(CameraError::NoViewDirection(from.dir))?;
+        let up = match from.up {
+            Some(up) => up,
+            None if dir[2].abs() > 0.999 => [0.0, 1.0, 0.0],
+            None => [0.0, 0.0, 1.0],
+        };
+        // The basis of a camera on the far side of the centre: only the directions matter here.
+        let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
+        if centre.iter().any(|x| !x.is_finite()) {
+            return Err(unframeable);
+        }
+        let probe = Camera::new([0, 1, 2].map(|a| centre[a] + dir[a]), centre, up, fov_deg)?;
+        if !from.tight {
+            let sphere = Camera::framing(lo, hi, fov_deg, aspect)?;
+            let dist = length(sub(sphere.pos, sphere.look_at));
+            let pos = [0, 1, 2].map(|a| centre[a] + dir[a] * dist);
+            return Camera::new(pos, centre, up, fov_deg);
+        }
+        // Each corner at depth `dist + z` (z along the view) must lie within the half-widths
+        // `tan * depth`, with a margin of 2 % of the picture on each side.
+        let tan_y = 0.96 * (0.5 * fov_deg).to_radians().tan();
+        let tan_x = tan_y * aspect;
+        let mut dist = 0.0f64;
+        for n in 0..8 {
+            let corner = std::array::from_fn(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+            let q = sub(corner, centre);
+            let (x, y, z) = (
+                dot(q, probe.right),
+                dot(q, probe.true_up),
+                dot(q, probe.forward),
+            );
+            dist = dist.max(x.abs() / tan_x - z).max(y.abs() / tan_y - z);
+        }
+        // A box without extent (a single point) is seen from a unit's distance.
+        let size = length(sub(hi, lo));
+        let dist = dist.max(if size > 0.0 { 1e-3 * size } else { 1.0 });
+        let pos = [0, 1, 2].map(|a| centre[a] + dir[a] * dist);
+        if pos.iter().any(|x| !x.is_finite()) {
+            return Err(unframeable);
+        }
+        Camera::new(pos, centre, up, fov_deg)
     }
 
     /// Unit direction of the view.
@@ -346,6 +419,111 @@ mod tests {
             matches!(huge, Err(CameraError::Unframeable { .. })),
             "{huge:?}"
         );
+    }
+
+    /// The pixel coordinates of a box's eight corners seen by `c` in a `w x h` picture.
+    fn corners_in_picture(c: &Camera, lo: [f64; 3], hi: [f64; 3], w: u32, h: u32) -> Vec<[f64; 2]> {
+        (0..8)
+            .map(|n| std::array::from_fn(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] }))
+            .map(|p| c.image_point(p, w, h).expect("a corner behind the camera"))
+            .collect()
+    }
+
+    #[test]
+    fn a_camera_from_a_direction_fits_the_box_to_the_picture() {
+        let boxes = [
+            ([0.0; 3], [1.0; 3]),
+            ([-3.0, 2.0, 1e6], [5.0, 2.5, 1e6 + 0.01]),
+            ([0.0; 3], [1.0, 1.0, 0.05]),
+        ];
+        let dirs = [
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, -1.0],
+            [1.0, 0.0, 0.0],
+            [0.0, -2.0, 0.0],
+            [1.0, 1.0, 1.0],
+            [-0.3, 0.8, -0.1],
+        ];
+        for (lo, hi) in boxes {
+            for dir in dirs {
+                for (w, h) in [(1024, 768), (300, 900), (64, 64)] {
+                    let from = ViewFrom {
+                        dir,
+                        up: None,
+                        tight: true,
+                    };
+                    let c = Camera::framing_from(lo, hi, &from, 40.0, f64::from(w) / f64::from(h))
+                        .unwrap();
+                    let back = normalize(sub(c.pos, c.look_at)).unwrap();
+                    let want = normalize(dir).unwrap();
+                    assert!(length(sub(back, want)) < 1e-9, "{dir:?}: {back:?}");
+                    // Inside, with the 2 % margin, and touching it on some side.
+                    let points = corners_in_picture(&c, lo, hi, w, h);
+                    let (w, h) = (f64::from(w), f64::from(h));
+                    let inside = |[x, y]: [f64; 2]| {
+                        x >= 0.019 * w && x <= 0.981 * w && y >= 0.019 * h && y <= 0.981 * h
+                    };
+                    assert!(
+                        points.iter().all(|&p| inside(p)),
+                        "{lo:?} {dir:?}: {points:?}"
+                    );
+                    let touches = points.iter().any(|&[x, y]| {
+                        let m = (x / w).min(1.0 - x / w).min(y / h).min(1.0 - y / h);
+                        m < 0.021
+                    });
+                    assert!(touches, "{lo:?} {dir:?} {w}x{h}: not fitted: {points:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_camera_from_an_axis_has_a_natural_up_and_a_loose_fit_keeps_the_default_distance() {
+        let (lo, hi) = ([0.0; 3], [2.0, 1.0, 1.0]);
+        let from = |dir, up, tight| ViewFrom { dir, up, tight };
+        // Down on the x-y plane: x to the right, y up, as a map.
+        let top =
+            Camera::framing_from(lo, hi, &from([0.0, 0.0, 1.0], None, true), 40.0, 1.5).unwrap();
+        let (right, up) = top.basis();
+        assert!(length(sub(right, [1.0, 0.0, 0.0])) < 1e-12, "{right:?}");
+        assert!(length(sub(up, [0.0, 1.0, 0.0])) < 1e-12, "{up:?}");
+        // From the front (-y): z up, x to the right.
+        let front =
+            Camera::framing_from(lo, hi, &from([0.0, -1.0, 0.0], None, true), 40.0, 1.5).unwrap();
+        let (right, up) = front.basis();
+        assert!(length(sub(right, [1.0, 0.0, 0.0])) < 1e-12, "{right:?}");
+        assert!(length(sub(up, [0.0, 0.0, 1.0])) < 1e-12, "{up:?}");
+        let given = Camera::framing_from(
+            lo,
+            hi,
+            &from([0.0, 0.0, 1.0], Some([1.0, 0.0, 0.0]), true),
+            40.0,
+            1.5,
+        )
+        .unwrap();
+        assert!(length(sub(given.basis().1, [1.0, 0.0, 0.0])) < 1e-12);
+        let loose =
+            Camera::framing_from(lo, hi, &from([0.0, 0.0, 1.0], None, false), 40.0, 1.5).unwrap();
+        let default = Camera::framing(lo, hi, 40.0, 1.5).unwrap();
+        let dist = |c: &Camera| length(sub(c.pos, c.look_at));
+        assert!((dist(&loose) - dist(&default)).abs() < 1e-12);
+        assert!(dist(&top) < dist(&loose));
+        for bad in [[0.0; 3], [f64::NAN, 0.0, 1.0]] {
+            assert!(matches!(
+                Camera::framing_from(lo, hi, &from(bad, None, true), 40.0, 1.5),
+                Err(CameraError::NoViewDirection(_))
+            ));
+        }
+        assert!(matches!(
+            Camera::framing_from(
+                lo,
+                hi,
+                &from([0.0, 0.0, 1.0], Some([0.0, 0.0, 2.0]), true),
+                40.0,
+                1.5
+            ),
+            Err(CameraError::BadUp(_))
+        ));
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! How a scene is looked at: the camera, the image size and sampling, the lighting and the
 //! normals. A [`View`] holds no data of the scene: changing it costs one frame, no extraction.
 
-use crate::camera::{Camera, CameraError};
+use crate::camera::{Camera, CameraError, ViewFrom};
 use crate::coloring::ColorScale;
 use crate::error::{RenderError, Result};
 use crate::frustum::Frustum;
@@ -34,6 +34,9 @@ pub struct CameraPlacement {
 pub struct View {
     /// The camera; `None` frames the domain automatically.
     pub camera: Option<CameraPlacement>,
+    /// Where the automatic camera looks from (`None`: from above the front right, framing
+    /// the sphere around the box); unused when `camera` is set.
+    pub view_from: Option<ViewFrom>,
     /// Vertical field of view, degrees.
     pub fov_deg: f64,
     /// Width and height in pixels.
@@ -65,6 +68,7 @@ impl Default for View {
     fn default() -> View {
         View {
             camera: None,
+            view_from: None,
             fov_deg: 40.0,
             size: (1024, 768),
             spp: 1,
@@ -117,6 +121,10 @@ impl View {
                 .validate()
                 .map_err(|e| RenderError::Invalid(format!("{field}: {e}")))?;
         }
+        if let Some(from) = &self.view_from {
+            // The unit box: the direction and up vector are checked whatever box is framed.
+            Camera::framing_from([0.0; 3], [1.0; 3], from, self.fov_deg, 1.0)?;
+        }
         if let Some(CameraPlacement {
             pos,
             look_at: Some(look),
@@ -131,11 +139,20 @@ impl View {
     /// The camera for a domain with grid frame `frame`.
     pub fn camera(&self, frame: &GridFrame) -> Result<Camera> {
         let (lo, hi) = frame.world_bounds();
-        let (w, h) = self.size;
         let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
         Ok(match self.camera {
             Some(c) => placed_camera(c.pos, c.look_at.unwrap_or(centre), c.up, self.fov_deg)?,
-            None => Camera::framing(lo, hi, self.fov_deg, f64::from(w) / f64::from(h))?,
+            None => self.auto_camera(lo, hi)?,
+        })
+    }
+
+    /// The automatic camera that frames the world box `[lo, hi]`.
+    fn auto_camera(&self, lo: [f64; 3], hi: [f64; 3]) -> Result<Camera> {
+        let (w, h) = self.size;
+        let aspect = f64::from(w) / f64::from(h);
+        Ok(match &self.view_from {
+            Some(from) => Camera::framing_from(lo, hi, from, self.fov_deg, aspect)?,
+            None => Camera::framing(lo, hi, self.fov_deg, aspect)?,
         })
     }
 
@@ -147,8 +164,7 @@ impl View {
     /// A camera placement that frames the world box `[lo, hi]` as the automatic camera frames
     /// the domain: for a view of the surfaces rather than of the whole domain.
     pub fn framing(&self, (lo, hi): ([f64; 3], [f64; 3])) -> Result<CameraPlacement> {
-        let (w, h) = self.size;
-        let c = Camera::framing(lo, hi, self.fov_deg, f64::from(w) / f64::from(h))?;
+        let c = self.auto_camera(lo, hi)?;
         Ok(CameraPlacement {
             pos: c.pos,
             look_at: Some(c.look_at),

@@ -1016,6 +1016,24 @@ fn an_option_the_command_makes_void_is_refused() {
             vec!["--frame-domain", "--camera-pos", "2,2,2"],
             "--frame-domain frames",
         ),
+        (
+            vec!["--view-from", "+z", "--camera-pos", "2,2,2"],
+            "give one of them",
+        ),
+        (
+            [&key[..], &["--view-from", "x"]].concat(),
+            "leave out --view-from",
+        ),
+        (
+            vec!["--up", "0,1,0"],
+            "--up needs --camera-pos or --view-from",
+        ),
+        (vec!["--view-from", "0,0,0"], "the zero vector"),
+        (vec!["--view-from", "up"], "neither an axis"),
+        (
+            vec!["--view-from", "-z", "--up", "0,0,3"],
+            "parallel to the view direction",
+        ),
     ] {
         let r = amr_render(
             &[
@@ -1040,6 +1058,7 @@ fn an_option_the_command_makes_void_is_refused() {
         vec!["--slice", "x=0.5", "--slice-field", "blobs"],
         vec!["--exr-compression", "zip"],
         [&key[..], &["--keyframe", "1:2,2,3:0.5,0.5,0.5"]].concat(),
+        vec!["--view-from", "-Y", "--up", "1,0,1", "--frame-domain"],
     ] {
         let r = amr_render(
             &[
@@ -1050,6 +1069,71 @@ fn an_option_the_command_makes_void_is_refused() {
         );
         assert!(r.status.success(), "{args:?}: {}", stderr(&r));
     }
+}
+
+/// `--view-from` turns the automatic camera: it looks at the centre of what it frames from the
+/// direction given (an axis or a vector), with up z (y looking along z) or `--up`, and fits
+/// the surfaces (or the domain) to the picture; an orbit keeps the default framing's distance.
+#[test]
+fn a_view_from_an_axis_looks_along_it_at_the_framed_surfaces() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let (f, d) = (file.to_str().unwrap(), dir.path());
+    let camera_of = |out: &Path| -> [[f64; 3]; 3] {
+        let camera = attribute(out, "camera");
+        ["pos", "look_at", "up"].map(|p| {
+            let v: Vec<f64> = camera_part(&camera, p)
+                .split(',')
+                .map(|x| x.parse().unwrap())
+                .collect();
+            [v[0], v[1], v[2]]
+        })
+    };
+    let render_from = |name: &str, extra: &[&str]| {
+        let out = d.join(name);
+        let mut args = vec![f, "--iso", "10", "--size", "64x48", "--ao", "0"];
+        args.extend(extra);
+        args.extend(["-o", out.to_str().unwrap()]);
+        let o = amr_render(&args);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        out
+    };
+    let framed = camera_of(&render_from("framed.exr", &[]));
+    let [pos, look, up] = camera_of(&render_from("top.exr", &["--view-from", "+z"]));
+    // The same point looked at as the default framing (the surfaces' centre), from straight above.
+    assert_eq!(look, framed[1]);
+    assert!(
+        pos[2] > look[2] && pos[0] == look[0] && pos[1] == look[1],
+        "{pos:?}"
+    );
+    assert_eq!(up, [0.0, 1.0, 0.0]);
+    // Fitted (the fit itself is checked in `camera::tests`): nearer than the default framing.
+    let dist = |p: [f64; 3], l: [f64; 3]| (0..3).map(|a| (p[a] - l[a]).powi(2)).sum::<f64>().sqrt();
+    assert!(dist(pos, look) < dist(framed[0], framed[1]));
+    let [pos, _, up] = camera_of(&render_from("side.exr", &["--view-from", "-1,-1,0"]));
+    assert!(
+        pos[0] < look[0] && pos[1] < look[1] && pos[2] == look[2],
+        "{pos:?}"
+    );
+    assert_eq!(up, [0.0, 0.0, 1.0]);
+    let [_, _, up] = camera_of(&render_from(
+        "given.exr",
+        &["--view-from", "z", "--up", "1,0,0"],
+    ));
+    assert_eq!(up, [1.0, 0.0, 0.0]);
+    // With --frame-domain it frames the domain, the unit cube, whose centre it looks at.
+    let [pos, look, _] = camera_of(&render_from(
+        "dom.exr",
+        &["--view-from", "+x", "--frame-domain"],
+    ));
+    assert_eq!(look, [0.5; 3]);
+    assert!(pos[0] > 1.0 && pos[1] == 0.5 && pos[2] == 0.5, "{pos:?}");
+    // An orbit starts from the direction at the default framing's distance (its frames turn
+    // the surfaces about the centre, so a tight fit could cut them).
+    render_from("orbit.exr", &["--view-from", "+z", "--orbit", "2"]);
+    let [pos, look, _] = camera_of(&d.join("orbit_0000.exr"));
+    assert!((dist(pos, look) - dist(framed[0], framed[1])).abs() < 1e-9);
+    assert!(pos[0] == look[0] && pos[1] == look[1] && pos[2] > look[2]);
 }
 
 /// The colour scale's options with nothing painted by a field would change nothing: the user

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use amr_render::camera::ViewFrom;
 use amr_render::camera_path::CameraKey;
 use amr_render::output::exr_file::ExrCompression;
 use amr_render::{
@@ -127,9 +128,14 @@ pub struct RenderArgs {
     /// Point the camera looks at (default: the domain's centre).
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub look_at: Option<[f64; 3]>,
-    /// Camera up vector.
+    /// Camera up vector (default: z, or y for a view along z).
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub up: Option<[f64; 3]>,
+    /// Where the automatic camera looks from: an axis (+z looks down on the x-y plane, -x, y,
+    /// ...) or a direction X,Y,Z from the centre of what it frames, which then fills the
+    /// picture (an orbit keeps the distance at which every frame holds it)
+    #[arg(long, value_name = "AXIS|X,Y,Z", value_parser = parse_view_from, allow_hyphen_values = true)]
+    pub view_from: Option<[f64; 3]>,
     /// Cut the isosurfaces to this box (world coordinates, like --camera-pos) for a cut-away:
     /// only voxels that meet it are extracted, and the surfaces behind the cut show through
     /// the opening. Slices are not cut.
@@ -400,16 +406,21 @@ impl RenderArgs {
         if self.frame_domain && !self.keyframe.is_empty() {
             bail!("--keyframe places the camera of every frame: leave out --frame-domain");
         }
+        if self.view_from.is_some() && self.camera_pos.is_some() {
+            bail!("--camera-pos places the camera and --view-from the automatic one: give one of them");
+        }
         let placed = [
             (self.camera_pos.is_some(), "--camera-pos"),
             (self.look_at.is_some(), "--look-at"),
             (self.up.is_some(), "--up"),
+            (self.view_from.is_some(), "--view-from"),
         ];
         if let Some((_, option)) = placed.iter().find(|(given, _)| *given) {
             if !self.keyframe.is_empty() {
                 bail!("--keyframe places the camera of every frame: leave out {option}");
             }
-            if self.frame_domain {
+            // --view-from (and its --up) turns the automatic camera, which may frame the domain.
+            if self.frame_domain && self.view_from.is_none() {
                 bail!("--frame-domain frames the automatic camera: leave it out with {option}");
             }
         }
@@ -425,7 +436,9 @@ impl RenderArgs {
                 up: self.up,
             }),
             (None, Some(_)) => bail!("--look-at needs --camera-pos"),
-            (None, None) if self.up.is_some() => bail!("--up needs --camera-pos"),
+            (None, None) if self.up.is_some() && self.view_from.is_none() => {
+                bail!("--up needs --camera-pos or --view-from")
+            }
             (None, None) => None,
         };
         match self.threads {
@@ -447,6 +460,11 @@ impl RenderArgs {
         };
         let view = View {
             camera,
+            view_from: self.view_from.map(|dir| ViewFrom {
+                dir,
+                up: self.up,
+                tight: self.orbit.is_none(),
+            }),
             fov_deg: self.fov,
             size: self.size,
             spp: self.spp,
@@ -616,6 +634,29 @@ fn parse_keyframe(s: &str) -> Result<CameraKey, String> {
             None => [0.0, 0.0, 1.0],
         },
     })
+}
+
+/// Parses `--view-from`: an axis, `+x`, `x` (the same), `-x`, ..., or a vector `X,Y,Z` that is
+/// not zero.
+fn parse_view_from(s: &str) -> Result<[f64; 3], String> {
+    let axis = s.trim().to_ascii_lowercase();
+    let (sign, name) = match axis.strip_prefix('-') {
+        Some(name) => (-1.0, name),
+        None => (1.0, axis.strip_prefix('+').unwrap_or(&axis)),
+    };
+    if let Some(a) = ["x", "y", "z"].iter().position(|&n| n == name) {
+        let mut dir = [0.0; 3];
+        dir[a] = sign;
+        return Ok(dir);
+    }
+    let dir = parse_vec3(s)
+        .map_err(|_| format!("'{s}' is neither an axis (+x, -y, z, ...) nor X,Y,Z"))?;
+    if dir.iter().all(|&x| x == 0.0) {
+        return Err(format!(
+            "'{s}' is the zero vector: it looks from no direction"
+        ));
+    }
+    Ok(dir)
 }
 
 /// Parses a vector `X,Y,Z` of finite numbers.

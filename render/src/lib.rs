@@ -57,8 +57,8 @@ pub use frustum::Frustum;
 pub use outline::Outline;
 pub use reconstruct::Reconstruction;
 pub use render::{
-    enclosing_surface, render, render_region, render_reusing, PaintedRange, Rect, RegionPixels,
-    Rendered,
+    enclosing_surface, frame_painting, render, render_region, render_reusing, FramePainting,
+    PaintedRange, Rect, RegionPixels, Rendered,
 };
 pub use scene::{Scene, SceneOptions, SceneStats, TraceMethod};
 pub use shade::IsoSpec;

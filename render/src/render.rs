@@ -36,7 +36,7 @@ pub struct Rendered {
     pub color_ranges: Vec<PaintedRange>,
     /// The AMR levels painted into pixels by surfaces or slices painted by level, ascending
     /// (empty when none paints by level); `None` when not recorded (frames composited from
-    /// several processes).
+    /// the parts of several processes, which paint nothing).
     pub painted_levels: Option<Vec<u32>>,
 }
 
@@ -45,8 +45,22 @@ pub struct Rendered {
 struct Painting {
     /// [`Rendered::color_ranges`].
     color_ranges: Vec<PaintedRange>,
+    /// The range each painting field paints with, in the painters' order (`(0, 1)` for a
+    /// field not seen).
+    per_field: Vec<(f64, f64)>,
     /// [`Rendered::painted_levels`].
     levels: Vec<u32>,
+}
+
+/// The colour ranges a frame of a scene paints with, found by the pre-pass over its primary
+/// rays (every fourth pixel each way) before any pixel is traced: found once per frame
+/// ([`frame_painting`]) and handed to each of its regions ([`render_region`]), so that every
+/// region paints as the whole frame does.
+#[derive(Clone, Debug, Default)]
+pub struct FramePainting {
+    /// The ranges, as [`Rendered::color_ranges`] reports them (empty when nothing paints).
+    pub color_ranges: Vec<PaintedRange>,
+    per_field: Vec<(f64, f64)>,
 }
 
 /// The colour range one field painted a frame with.
@@ -83,6 +97,9 @@ pub struct RegionPixels {
     pub pixels: Vec<PixelSample>,
     /// Ray queries, those of the margin the filter of the ambient occlusion reads included.
     pub rays: u64,
+    /// The AMR levels painted by level into its pixels, ascending, as
+    /// [`Rendered::painted_levels`] lists them for a frame.
+    pub painted_levels: Vec<u32>,
 }
 
 /// Renders `scene` as `view` asks; `progress(rows)` is called as rows finish.
@@ -116,9 +133,10 @@ fn render_with(
     {
         check_frame_fits(view.size, system_memory::available())?;
     }
-    let (mut rendered, painting) = with_scene_tracer(scene, view, |tracer, camera, light| {
-        trace_frame(tracer, *camera, light, view, progress, planes)
-    })?;
+    let (mut rendered, painting) =
+        with_scene_tracer(scene, view, None, |tracer, camera, light| {
+            trace_frame(tracer, *camera, light, view, progress, planes)
+        })?;
     check_source(scene)?;
     rendered.color_ranges = painting.color_ranges;
     rendered.painted_levels = Some(painting.levels);
@@ -150,8 +168,25 @@ fn check_frame_fits((w, h): (u32, u32), available: Option<Available>) -> Result<
     }
 }
 
-/// Renders the rectangle `rect` of the frame [`render`] would give.
-pub fn render_region(scene: &Scene, view: &View, rect: Rect) -> Result<RegionPixels> {
+/// The colour ranges of the frame of `scene` that `view` sees, for [`render_region`]: the
+/// pre-pass of a painted frame alone (nothing is traced when nothing paints).
+pub fn frame_painting(scene: &Scene, view: &View) -> Result<FramePainting> {
+    let ((), painting) = with_scene_tracer(scene, view, None, |_, _, _| ())?;
+    check_source(scene)?;
+    Ok(FramePainting {
+        color_ranges: painting.color_ranges,
+        per_field: painting.per_field,
+    })
+}
+
+/// Renders the rectangle `rect` of the frame [`render`] would give, painted with `painting`,
+/// that frame's [`frame_painting`].
+pub fn render_region(
+    scene: &Scene,
+    view: &View,
+    painting: &FramePainting,
+    rect: Rect,
+) -> Result<RegionPixels> {
     let (w, h) = view.size;
     if rect.x0.checked_add(rect.width).is_none_or(|x| x > w)
         || rect.y0.checked_add(rect.height).is_none_or(|y| y > h)
@@ -160,18 +195,22 @@ pub fn render_region(scene: &Scene, view: &View, rect: Rect) -> Result<RegionPix
             "region {rect:?} is outside the {w}x{h} frame"
         )));
     }
-    let (region, _) = with_scene_tracer(scene, view, |tracer, camera, light| {
-        let (pixels, rays) = render_rect(
-            tracer,
-            camera,
-            light,
-            view.settings(),
-            (rect.x0, rect.y0, rect.width, rect.height),
-        );
-        RegionPixels { pixels, rays }
-    })?;
+    let ((pixels, rays), painted) =
+        with_scene_tracer(scene, view, Some(painting), |tracer, camera, light| {
+            render_rect(
+                tracer,
+                camera,
+                light,
+                view.settings(),
+                (rect.x0, rect.y0, rect.width, rect.height),
+            )
+        })?;
     check_source(scene)?;
-    Ok(region)
+    Ok(RegionPixels {
+        pixels,
+        rays,
+        painted_levels: painted.levels,
+    })
 }
 
 /// Renders the surfaces `surfaces` of `src` (one per entry of `isos`) with the hybrid method:
@@ -269,10 +308,12 @@ fn with_surface_tracer<R>(
 }
 
 /// [`with_surface_tracer`] with the surfaces painted and the slices added when the scene has
-/// any; also returns what painting gave the frame beside its pixels.
+/// any, with the colour ranges of `known` or else of the frame's pre-pass; also returns what
+/// painting gave the frame beside its pixels.
 fn with_scene_tracer<R>(
     scene: &Scene,
     view: &View,
+    known: Option<&FramePainting>,
     run: impl FnOnce(&(dyn Tracer + Sync), &Camera, &Lighting) -> R,
 ) -> Result<(R, Painting)> {
     let isos = scene.isosurfaces();
@@ -346,27 +387,41 @@ fn with_scene_tracer<R>(
             light.colors.push([1.0; 3]);
             light.opacity.push(s.opacity);
         }
-        let seen = painted.visible_ranges(camera, view.size, &light.opacity);
-        painted.ranges = seen
-            .iter()
-            .map(|r| r.map_or((0.0, 1.0), |r| r.range))
-            .collect();
-        let ranges = fields
-            .iter()
-            .zip(&seen)
-            .zip(&scales)
-            .filter_map(|((field, r), scale)| {
-                r.map(|r| PaintedRange {
-                    field: field.to_string(),
-                    scale: *scale,
-                    range: r.range,
-                    beyond: r.beyond,
-                })
-            })
-            .collect();
+        let ranges = match known {
+            Some(k) if k.per_field.len() == fields.len() => {
+                painted.ranges = k.per_field.clone();
+                k.color_ranges.clone()
+            }
+            Some(_) => {
+                return Err(RenderError::Invalid(
+                    "a region painted with the colour ranges of another frame".into(),
+                ))
+            }
+            None => {
+                let seen = painted.visible_ranges(camera, view.size, &light.opacity);
+                painted.ranges = seen
+                    .iter()
+                    .map(|r| r.map_or((0.0, 1.0), |r| r.range))
+                    .collect();
+                fields
+                    .iter()
+                    .zip(&seen)
+                    .zip(&scales)
+                    .filter_map(|((field, r), scale)| {
+                        r.map(|r| PaintedRange {
+                            field: field.to_string(),
+                            scale: *scale,
+                            range: r.range,
+                            beyond: r.beyond,
+                        })
+                    })
+                    .collect()
+            }
+        };
         let out = run(&painted, camera, &light);
         let painting = Painting {
             color_ranges: ranges,
+            per_field: painted.ranges.clone(),
             levels: painted.levels_painted(),
         };
         Ok((out, painting))

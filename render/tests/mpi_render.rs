@@ -253,6 +253,79 @@ fn partitioned_frames_have_the_single_process_first_hits() {
     }
 }
 
+/// Surfaces painted by a field and by level, and a translucent slice, under mpirun's
+/// replicated mode: the frame, its painted values and its picture with the legend's colour bar
+/// equal the single process's, bit for bit (they were left out under mpirun until
+/// 2026-12-07). The partitioned mode says it leaves them out.
+#[test]
+fn painted_surfaces_and_slices_under_mpirun_equal_the_single_process_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dataset(dir.path());
+    let paint = [
+        "--color-by",
+        "blobs",
+        "--color-by",
+        "level",
+        "--slice",
+        "z=0.45:0.6",
+        "--colormap",
+        "magma",
+    ];
+    // Large enough for the legend and its colour bar.
+    let args = |out: &Path, extra: &[&str]| -> Vec<String> {
+        let png = out.with_extension("png");
+        let mut a = render_args(&file, out, &paint);
+        a.extend(extra.iter().map(|s| s.to_string()));
+        a.extend(["--preview".into(), png.to_str().unwrap().into()]);
+        a.iter()
+            .map(|s| {
+                if s == "96x72" {
+                    "240x180".into()
+                } else {
+                    s.clone()
+                }
+            })
+            .collect()
+    };
+    let reference = dir.path().join("single.exr");
+    let o = Command::new(env!("CARGO_BIN_EXE_amr-render"))
+        .args(args(&reference, &[]))
+        .output()
+        .unwrap();
+    check(o, "single-process render");
+    let painted = channel(&reference, "color_value");
+    assert!(
+        painted
+            .iter()
+            .filter(|&&v| f32::from_bits(v).is_finite())
+            .count()
+            > 1000,
+        "too few painted pixels for a test"
+    );
+    let out = dir.path().join("replicated.exr");
+    let o = mpirun_render(2).args(args(&out, &[])).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    check(o, "mpirun -n 2, painted");
+    assert!(!err.contains("note"), "{err}");
+    for c in CHANNELS.iter().chain(&["color_value"]) {
+        assert!(
+            channel(&out, c) == channel(&reference, c),
+            "channel {c} differs from the single-process frame"
+        );
+    }
+    let png = |p: &Path| std::fs::read(p.with_extension("png")).unwrap();
+    assert!(
+        png(&out) == png(&reference),
+        "the picture (with its legend) differs"
+    );
+    let part = dir.path().join("part.exr");
+    let extra = ["--mpi-mode", "partitioned", "--no-shadows", "--ao", "0"];
+    let o = mpirun_render(2).args(args(&part, &extra)).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    check(o, "mpirun -n 2 partitioned, painted");
+    assert!(err.contains("draws no --color-by and no slices"), "{err}");
+}
+
 /// Under mpirun, as in one process, the default camera frames the isosurfaces, and
 /// `--frame-domain` the domain: a small surface is not left a speck in a wide view (it framed
 /// the domain until 2026-12-07). Both modes, each rank holding the whole scene or a part of it.

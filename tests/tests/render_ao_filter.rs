@@ -5,7 +5,8 @@
 
 use amr_render::shade::IsoSpec;
 use amr_render::{
-    render, render_region, CameraPlacement, Rect, Rendered, Scene, SceneOptions, View,
+    frame_painting, render, render_region, CameraPlacement, Rect, Rendered, Scene, SceneOptions,
+    View,
 };
 use amr_synth::Case;
 
@@ -134,7 +135,8 @@ fn tiles_of_a_filtered_frame_equal_the_whole_frame() {
                 width: x[1] - x[0],
                 height: y[1] - y[0],
             };
-            let tile = render_region(&scene, &view, rect).unwrap();
+            let tile = render_region(&scene, &view, &frame_painting(&scene, &view).unwrap(), rect)
+                .unwrap();
             for ty in 0..rect.height {
                 for tx in 0..rect.width {
                     let p = &tile.pixels[(ty * rect.width + tx) as usize];
@@ -176,7 +178,8 @@ fn a_frame_rendered_in_bands_equals_its_rows_rendered_alone() {
             width: w,
             height: 12,
         };
-        let rows = render_region(&scene, &view, rect).unwrap();
+        let rows =
+            render_region(&scene, &view, &frame_painting(&scene, &view).unwrap(), rect).unwrap();
         for (k, p) in rows.pixels.iter().enumerate() {
             let i = (rect.y0 * w) as usize + k;
             let want = [p.rgb[0], p.rgb[1], p.rgb[2], p.alpha, p.z, p.n[0], p.level];

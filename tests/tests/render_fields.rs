@@ -225,3 +225,89 @@ fn a_surface_painted_by_its_own_field_shows_its_isovalue() {
         "{on_plane} / {elsewhere}"
     );
 }
+
+/// A painted frame with a slice rendered in rectangles (as `mpirun`'s replicated mode renders
+/// tiles) equals the whole frame, every channel bit for bit, when the rectangles are handed the
+/// frame's colour ranges found once (`frame_painting`); ranges of another frame are refused.
+#[test]
+fn regions_of_a_painted_frame_with_the_frames_ranges_equal_the_whole_frame() {
+    use amr_render::slice::Slice;
+    use amr_render::{frame_painting, render_region, ColorBy, FramePainting, Rect};
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path());
+    let (mut scene, _) = sphere_and_plane(&path);
+    let by = Some(ColorBy::Field("ramp".into()));
+    scene.set_color_by(&[by, Some(ColorBy::Level)]).unwrap();
+    let slice = Slice::parse_axis("z=0.4:0.7").unwrap();
+    scene
+        .set_slices(&[slice], Some(ColorBy::Field("sphere".into())))
+        .unwrap();
+    let v = view();
+    let whole = render(&scene, &v, &|_| ()).unwrap();
+    let painting = frame_painting(&scene, &v).unwrap();
+    assert_eq!(painting.color_ranges, whole.color_ranges);
+    assert_eq!(
+        painting.color_ranges.len(),
+        2,
+        "{:?}",
+        painting.color_ranges
+    );
+    let f = &whole.frame;
+    let (w, h) = v.size;
+    let mut painted = 0;
+    let mut levels = std::collections::BTreeSet::new();
+    for (x0, x1) in [(0, 33), (33, 160)] {
+        for (y0, y1) in [(0, 1), (1, 64), (64, 120)] {
+            let rect = Rect {
+                x0,
+                y0,
+                width: x1 - x0,
+                height: y1 - y0,
+            };
+            let region = render_region(&scene, &v, &painting, rect).unwrap();
+            levels.extend(region.painted_levels.iter().copied());
+            for (k, p) in region.pixels.iter().enumerate() {
+                let (x, y) = (x0 + k as u32 % rect.width, y0 + k as u32 / rect.width);
+                let i = (y * w + x) as usize;
+                let want = [
+                    f.rgb[0][i],
+                    f.rgb[1][i],
+                    f.rgb[2][i],
+                    f.alpha[i],
+                    f.z[i],
+                    f.n[0][i],
+                    f.level[i],
+                    f.color_value[i],
+                ];
+                let got = [
+                    p.rgb[0],
+                    p.rgb[1],
+                    p.rgb[2],
+                    p.alpha,
+                    p.z,
+                    p.n[0],
+                    p.level,
+                    p.color_value,
+                ];
+                assert_eq!(
+                    want.map(f32::to_bits),
+                    got.map(f32::to_bits),
+                    "pixel {x},{y} of {w}x{h}"
+                );
+                painted += usize::from(p.color_value.is_finite());
+            }
+        }
+    }
+    assert!(painted > 1000, "{painted} painted pixels");
+    let levels: Vec<u32> = levels.into_iter().collect();
+    assert_eq!(Some(levels), whole.painted_levels);
+    let unpainted = FramePainting::default();
+    let rect = Rect {
+        x0: 0,
+        y0: 0,
+        width: 4,
+        height: 4,
+    };
+    let refused = render_region(&scene, &v, &unpainted, rect);
+    assert!(refused.is_err(), "{refused:?}");
+}

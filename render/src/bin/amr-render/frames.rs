@@ -278,7 +278,7 @@ fn open_scene(request: &RenderRequest, index: usize) -> anyhow::Result<Scene> {
 }
 
 /// What paints each of `n` isosurfaces: one `--color-by` paints all, several pair in order.
-fn painting(request: &RenderRequest, n: usize) -> Vec<Option<ColorBy>> {
+pub(crate) fn painting(request: &RenderRequest, n: usize) -> Vec<Option<ColorBy>> {
     match request.color_by.as_slice() {
         [one] => vec![one.clone(); n],
         many => many.to_vec(),

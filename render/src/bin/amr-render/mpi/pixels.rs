@@ -3,8 +3,8 @@
 
 use amr_render::output::frame::{FrameBuffer, PixelSample};
 
-/// `f32` values per pixel record: R, G, B, A, Z, N (3), P (3), level.
-pub const RECORD: usize = 12;
+/// `f32` values per pixel record: R, G, B, A, Z, N (3), P (3), level, painted value.
+pub const RECORD: usize = 13;
 
 /// Appends `s` to `out` as one record.
 pub fn push(out: &mut Vec<f32>, s: &PixelSample) {
@@ -14,6 +14,7 @@ pub fn push(out: &mut Vec<f32>, s: &PixelSample) {
     out.extend_from_slice(&s.n);
     out.extend_from_slice(&s.p);
     out.push(s.level);
+    out.push(s.color_value);
 }
 
 /// The sample a record holds (`r` has [`RECORD`] values).
@@ -25,7 +26,7 @@ pub fn read(r: &[f32]) -> PixelSample {
         n: [r[5], r[6], r[7]],
         p: [r[8], r[9], r[10]],
         level: r[11],
-        color_value: f32::NAN,
+        color_value: r[12],
     }
 }
 
@@ -67,7 +68,7 @@ mod tests {
             n: [0.0, 1.0, -0.0],
             p: [1.0, 2.0, 3.0],
             level: 2.0,
-            color_value: f32::NAN,
+            color_value: 0.25,
         };
         for s in [s, PixelSample::MISS] {
             let mut v = Vec::new();

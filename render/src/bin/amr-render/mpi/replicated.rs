@@ -9,6 +9,7 @@
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
 
+use ::mpi::collective::SystemOperation;
 use ::mpi::datatype::PartitionMut;
 use ::mpi::topology::SimpleCommunicator;
 use ::mpi::traits::*;
@@ -17,7 +18,7 @@ use anyhow::bail;
 use super::pixels::{self, offsets, RECORD};
 use super::stats::{cpu_seconds, RankStats};
 use amr_render::output::frame::{FrameBuffer, PixelSample};
-use amr_render::{render_region, Rect, Scene, View};
+use amr_render::{render_region, FramePainting, Rect, Scene, View};
 
 /// Tile edge, pixels.
 pub const TILE: u32 = 32;
@@ -58,12 +59,22 @@ impl Tiles {
     }
 }
 
-/// What this rank rendered: tile ids, their pixel records in the same order, ray queries.
+/// What this rank rendered: tile ids, their pixel records in the same order, ray queries, and
+/// the levels painted by level (bit `l` for level `l`).
 #[derive(Default)]
 struct Rendered {
     ids: Vec<u32>,
     records: Vec<f32>,
     rays: u64,
+    painted_levels: u32,
+}
+
+/// The frame gathered on rank 0.
+pub struct Gathered {
+    /// Its pixels.
+    pub frame: FrameBuffer,
+    /// The levels painted by level into some pixel by any rank, ascending.
+    pub painted_levels: Vec<u32>,
 }
 
 impl Rendered {
@@ -72,6 +83,7 @@ impl Rendered {
         let region = render_region(
             job.scene,
             job.view,
+            job.painting,
             Rect {
                 x0,
                 y0,
@@ -84,6 +96,9 @@ impl Rendered {
             pixels::push(&mut self.records, s);
         }
         self.rays += region.rays;
+        for l in region.painted_levels {
+            self.painted_levels |= 1u32.checked_shl(l).unwrap_or(0);
+        }
         Ok(())
     }
 }
@@ -94,6 +109,8 @@ pub struct Job<'a> {
     pub scene: &'a Scene,
     /// The view.
     pub view: &'a View,
+    /// The frame's colour ranges, found once.
+    pub painting: &'a FramePainting,
     /// Its tiles.
     pub tiles: Tiles,
 }
@@ -107,7 +124,7 @@ pub fn render(
     p_origin: [f64; 3],
     stats: &mut RankStats,
     progress: &(dyn Fn(u64) + Sync),
-) -> anyhow::Result<Option<FrameBuffer>> {
+) -> anyhow::Result<Option<Gathered>> {
     let (w, h) = (job.view.size.0 as usize, job.view.size.1 as usize);
     if w * h * RECORD > i32::MAX as usize {
         bail!("a {w}x{h} frame is too large for one MPI message (at most 2^31 values)");
@@ -165,10 +182,24 @@ pub fn render(
     world.barrier();
     stats.wait = t1.elapsed().as_secs_f64();
     let t1 = Instant::now();
+    let mut levels = 0u32;
+    let root = world.process_at_rank(0);
+    match world.rank() {
+        0 => root.reduce_into_root(
+            &mine.painted_levels,
+            &mut levels,
+            SystemOperation::bitwise_or(),
+        ),
+        _ => root.reduce_into(&mine.painted_levels, SystemOperation::bitwise_or()),
+    }
+    bytes += 4;
     let frame = gather(world, &job.tiles, &mine, w, h, p_origin, &mut bytes);
     stats.composite = t1.elapsed().as_secs_f64();
     stats.bytes_sent = bytes as f64;
-    Ok(frame)
+    Ok(frame.map(|frame| Gathered {
+        frame,
+        painted_levels: (0..u32::BITS).filter(|l| levels >> l & 1 == 1).collect(),
+    }))
 }
 
 /// Rank 0's server: answers tile requests from `workers` ranks until each has been told that

@@ -9,16 +9,17 @@ use ::mpi::topology::SimpleCommunicator;
 use ::mpi::traits::*;
 use ::mpi::Threading;
 use amr_render::outline;
-use amr_render::output::frame::FrameBuffer;
 use amr_render::output::header::frame_header;
-use amr_render::{FrameStats, Rendered, Scene, TraceMethod};
+use amr_render::shade::IsoSpec;
+use amr_render::{frame_painting, FramePainting, FrameStats, Rendered, Scene, TraceMethod};
 use anyhow::{anyhow, bail};
 use serde::Serialize;
 
+use super::pixels::RECORD;
 use super::stats::{cpu_seconds, table, RankRecord, RankStats};
 use super::{partitioned, replicated, MpiMode};
-use crate::frame_warnings::note_no_room_for_legend;
-use crate::frames::framed_view;
+use crate::frame_warnings::{note_no_room_for_legend, warn_slices_outside};
+use crate::frames::{framed_view, painting};
 use crate::outputs::{self, FrameFiles, RunStats};
 use crate::progress;
 use crate::render::request_isos;
@@ -52,9 +53,12 @@ pub fn run(request: &RenderRequest, mode: Option<&str>) -> anyhow::Result<()> {
         );
     }
     let (w, h) = request.view.size;
-    // Pixel messages count 12 `f32` per pixel in a C `int`.
-    if u64::from(w) * u64::from(h) * 12 > i32::MAX as u64 {
-        bail!("--size {w}x{h} is too large for MPI messages (at most 178 M pixels)");
+    // Pixel messages count `RECORD` `f32` per pixel in a C `int`.
+    if u64::from(w) * u64::from(h) * RECORD as u64 > i32::MAX as u64 {
+        bail!(
+            "--size {w}x{h} is too large for MPI messages (at most {} M pixels)",
+            i32::MAX as usize / RECORD / 1_000_000
+        );
     }
     if mode == MpiMode::Partitioned && request.scene.method != TraceMethod::Hybrid {
         bail!("--mpi-mode partitioned needs --method hybrid (it partitions the active octants)");
@@ -110,13 +114,23 @@ fn run_rank(
 ) -> Result<(), Failure> {
     let start = Instant::now();
     let rank = world.rank();
-    let setup = (|| -> anyhow::Result<Scene> {
+    let painted = !request.color_by.is_empty() || !request.slices.is_empty();
+    let setup = (|| -> anyhow::Result<(Scene, Vec<IsoSpec>)> {
         if rank == 0 {
             let files = FrameFiles::numbered(&request.outputs, 0, 1, false);
             outputs::check_frame(&files, &request.outputs, &[&request.files[0]])?;
             outputs::check_distinct(std::slice::from_ref(&files), &request.outputs)?;
         }
-        Ok(Scene::open(&request.files[0], &request.scene)?)
+        let mut scene = Scene::open(&request.files[0], &request.scene)?;
+        let isos = request_isos(request, &scene)?;
+        if mode == MpiMode::Replicated && painted {
+            scene.set_slices(&request.slices, request.slice_field.clone())?;
+            scene.set_color_by(&painting(request, isos.len()))?;
+            if rank == 0 {
+                warn_slices_outside(&scene);
+            }
+        }
+        Ok((scene, isos))
     })();
     if !all_ok(world, setup.is_ok()) {
         return Err(Failure::Agreed(match setup {
@@ -127,7 +141,7 @@ fn run_rank(
             ),
         }));
     }
-    let mut scene = setup?;
+    let (mut scene, isos) = setup?;
     let mut view = request.view.clone();
     if mode == MpiMode::Partitioned && (view.shadows || view.ao_rays > 0) {
         if rank == 0 {
@@ -139,8 +153,11 @@ fn run_rank(
         view.shadows = false;
         view.ao_rays = 0;
     }
-    if rank == 0 && (!request.color_by.is_empty() || !request.slices.is_empty()) {
-        eprintln!("note: --color-by and slices are not drawn under mpirun yet");
+    if rank == 0 && mode == MpiMode::Partitioned && painted {
+        eprintln!(
+            "note: --mpi-mode partitioned draws no --color-by and no slices (each rank holds \
+             only part of the surfaces); the replicated mode draws them"
+        );
     }
     let mut stats = RankStats::default();
     let tiles = replicated::Tiles::new(view.size.0, view.size.1);
@@ -153,9 +170,9 @@ fn run_rank(
     let progress: &(dyn Fn(u64) + Sync) = if rank == 0 { &progress } else { &quiet };
     let origin = scene.grid_frame().origin;
     let cpu0 = cpu_seconds();
+    let mut painting = FramePainting::default();
     let frame = match mode {
         MpiMode::Partitioned => {
-            let isos = request_isos(request, &scene)?;
             let frame_surfaces = !request.frame_domain;
             partitioned::render_part(
                 world,
@@ -166,21 +183,27 @@ fn run_rank(
                 &mut stats,
                 progress,
             )?
+            // Nothing is painted by level in this mode.
+            .map(|frame| (frame, None))
         }
         MpiMode::Replicated => {
-            scene.set_isosurfaces(&request_isos(request, &scene)?)?;
+            scene.set_isosurfaces(&isos)?;
             stats.extract = scene.stats().extract.as_secs_f64();
             if !request.frame_domain {
                 // Every rank holds the same scene, so every rank frames it alike.
                 view = framed_view(&view, &scene)?;
             }
             stats.cpu_scene = cpu_seconds();
+            // Every rank finds the same colour ranges, from the same pre-pass over the frame.
+            painting = frame_painting(&scene, &view)?;
             let job = replicated::Job {
                 scene: &scene,
                 view: &view,
+                painting: &painting,
                 tiles,
             };
             replicated::render(world, &job, origin, &mut stats, progress)?
+                .map(|g| (g.frame, Some(g.painted_levels)))
         }
     };
     bar.finish_and_clear();
@@ -198,7 +221,7 @@ fn run_rank(
     let Some(ranks) = stats.gather(world) else {
         return Ok(());
     };
-    let mut frame = frame.ok_or_else(|| anyhow!("rank 0 holds no frame"))?;
+    let (mut frame, painted_levels) = frame.ok_or_else(|| anyhow!("rank 0 holds no frame"))?;
     let segments = outline::segments(
         view.outline,
         scene.file(),
@@ -211,7 +234,14 @@ fn run_rank(
         &segments,
         outline::line_width(view.size.0, view.size.1),
     );
-    write_rank0(request, &scene, mode, frame, camera, &ranks, frame_time)?;
+    let rendered = Rendered {
+        frame,
+        camera,
+        stats: FrameStats::default(),
+        color_ranges: painting.color_ranges,
+        painted_levels,
+    };
+    write_rank0(request, &scene, mode, rendered, &ranks, frame_time)?;
     Ok(())
 }
 
@@ -220,29 +250,21 @@ fn write_rank0(
     request: &RenderRequest,
     scene: &Scene,
     mode: MpiMode,
-    frame: FrameBuffer,
-    camera: amr_render::camera::Camera,
+    mut rendered: Rendered,
     ranks: &[RankStats],
     frame_time: std::time::Duration,
 ) -> anyhow::Result<()> {
     let max = |f: fn(&RankStats) -> f64| ranks.iter().map(f).fold(0.0, f64::max);
     let sum = |f: fn(&RankStats) -> f64| ranks.iter().map(f).sum::<f64>();
     let secs = std::time::Duration::from_secs_f64;
+    let frame = &rendered.frame;
     let frame_stats = FrameStats::new(
         secs(max(|r| r.render)),
         sum(|r| r.rays) as u64,
         (frame.width, frame.height),
         frame.covered() as u64,
     );
-    // Painting by data is not gathered across ranks: no colour range, no colour bar, and the
-    // legend lists every level for surfaces painted by level.
-    let rendered = Rendered {
-        frame,
-        camera,
-        stats: frame_stats.clone(),
-        color_ranges: Vec::new(),
-        painted_levels: None,
-    };
+    rendered.stats = frame_stats.clone();
     let totals = MpiTotals {
         mpi_mode: mode.name(),
         mpi_ranks: ranks.len(),

@@ -178,8 +178,9 @@ impl Camera {
             return Camera::new(pos, centre, up, fov_deg);
         }
         // Each corner at depth `dist + z` (z along the view) must lie within the half-widths
-        // `tan * depth`, with a margin of 2 % of the picture on each side.
-        let tan_y = 0.96 * (0.5 * fov_deg).to_radians().tan();
+        // `tan * depth`, with a margin of 6 % of the picture on each side: room for the
+        // coordinate labels along the box's edges.
+        let tan_y = 0.88 * (0.5 * fov_deg).to_radians().tan();
         let tan_x = tan_y * aspect;
         let mut dist = 0.0f64;
         for n in 0..8 {
@@ -457,11 +458,11 @@ mod tests {
                     let back = normalize(sub(c.pos, c.look_at)).unwrap();
                     let want = normalize(dir).unwrap();
                     assert!(length(sub(back, want)) < 1e-9, "{dir:?}: {back:?}");
-                    // Inside, with the 2 % margin, and touching it on some side.
+                    // Inside, with the 6 % margin, and touching it on some side.
                     let points = corners_in_picture(&c, lo, hi, w, h);
                     let (w, h) = (f64::from(w), f64::from(h));
                     let inside = |[x, y]: [f64; 2]| {
-                        x >= 0.019 * w && x <= 0.981 * w && y >= 0.019 * h && y <= 0.981 * h
+                        x >= 0.059 * w && x <= 0.941 * w && y >= 0.059 * h && y <= 0.941 * h
                     };
                     assert!(
                         points.iter().all(|&p| inside(p)),
@@ -469,7 +470,7 @@ mod tests {
                     );
                     let touches = points.iter().any(|&[x, y]| {
                         let m = (x / w).min(1.0 - x / w).min(y / h).min(1.0 - y / h);
-                        m < 0.021
+                        m < 0.061
                     });
                     assert!(touches, "{lo:?} {dir:?} {w}x{h}: not fitted: {points:?}");
                 }

@@ -1,7 +1,9 @@
 //! The preview's legend, drawn into its 8-bit sRGB pixels: the colour bar with tick labels and
-//! the painting field's name (or the level palette), the isovalues with their colours, and an
-//! axis triad, laid out to fit the picture (drawn with `canvas`).
+//! the painting field's name (or the level palette), the isovalues with their colours, an
+//! axis triad, and coordinates along the domain's box, laid out to fit the picture (drawn with
+//! `canvas`).
 
+use super::axes::{axis_labels, draw_axis_labels, PixelBox};
 use super::canvas::{Canvas, Text};
 use crate::camera::Camera;
 use crate::coloring::ColorBy;
@@ -51,6 +53,9 @@ pub struct Legend {
     pub levels: Vec<u32>,
     /// The camera, for the axis triad.
     pub camera: Option<Camera>,
+    /// The world box whose edges carry coordinate labels (the domain, when its outline is
+    /// drawn); they go where the other parts leave room.
+    pub axes: Option<([f64; 3], [f64; 3])>,
 }
 
 /// The smallest text a legend is drawn with, in pixels: DejaVu Sans still reads at 8.
@@ -159,6 +164,7 @@ impl Legend {
             color_bars,
             levels,
             camera: Some(rendered.camera),
+            axes: (view.outline != Outline::None).then(|| scene.grid_frame().world_bounds()),
         }
     }
 
@@ -226,6 +232,11 @@ impl Legend {
         if let (Some(camera), true) = (&self.camera, triad) {
             draw_triad(&mut canvas, &text, camera, m);
         }
+        if let (Some(camera), Some(bounds)) = (&self.camera, self.axes) {
+            let taken = self.parts(&text, w as f32, h as f32, triad);
+            let labels = axis_labels(camera, bounds, (w, h), &text, &taken);
+            draw_axis_labels(&mut canvas, &text, &labels);
+        }
         true
     }
 
@@ -265,10 +276,11 @@ impl Legend {
         None
     }
 
-    /// Whether the parts, drawn with `text`, fit a `w x h` picture (see [`Legend::fits`]).
-    fn has_room(&self, text: &Text, w: f32, h: f32, triad: bool) -> bool {
+    /// The boxes the parts take in a `w x h` picture when drawn with `text`, panels' margins
+    /// included (the triad's when `triad`).
+    fn parts(&self, text: &Text, w: f32, h: f32, triad: bool) -> Vec<PixelBox> {
         let px = text.px;
-        let mut parts: Vec<(f32, f32, f32, f32)> = Vec::new();
+        let mut parts: Vec<PixelBox> = Vec::new();
         if !self.entries.is_empty() {
             parts.push(self.entries_box(text));
         }
@@ -276,10 +288,6 @@ impl Legend {
             let left = self.bars_left(text, w);
             for k in 0..self.color_bars.len() {
                 let (top, bottom) = self.bar_span(text, h, k);
-                let bar = &self.color_bars[k];
-                if bottom <= top || bar_ticks(bar, text, (top, bottom), w).is_none() {
-                    return false;
-                }
                 parts.push((left, top - px * 1.6, w - px, bottom + px * 0.6));
             }
         } else if !self.levels.is_empty() {
@@ -293,6 +301,19 @@ impl Legend {
         if let (Some(_), true) = (&self.camera, triad) {
             parts.push(triad_box(w, h, px));
         }
+        parts
+    }
+
+    /// Whether the parts, drawn with `text`, fit a `w x h` picture (see [`Legend::fits`]).
+    fn has_room(&self, text: &Text, w: f32, h: f32, triad: bool) -> bool {
+        for k in 0..self.color_bars.len() {
+            let (top, bottom) = self.bar_span(text, h, k);
+            let bar = &self.color_bars[k];
+            if bottom <= top || bar_ticks(bar, text, (top, bottom), w).is_none() {
+                return false;
+            }
+        }
+        let parts = self.parts(text, w, h, triad);
         let inside = |b: &(f32, f32, f32, f32)| b.0 >= 0.0 && b.1 >= 0.0 && b.2 <= w && b.3 <= h;
         let apart = |a: &(f32, f32, f32, f32), b: &(f32, f32, f32, f32)| {
             a.2 <= b.0 || b.2 <= a.0 || a.3 <= b.1 || b.3 <= a.1

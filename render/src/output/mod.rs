@@ -1,5 +1,6 @@
 //! Writing frames: OpenEXR with every channel and the render's metadata, and a PNG preview.
 
+mod axes;
 mod canvas;
 pub mod exr_file;
 pub mod frame;

@@ -368,6 +368,28 @@ mod tests {
         assert!(labels.iter().all(|a| a.ticks.len() >= MIN_LABELS));
         let inside = Camera::new([0.5, 0.5, 0.9], [0.5, 0.5, 0.0], [0.0, 1.0, 0.0], 60.0).unwrap();
         assert!(axis_labels(&inside, UNIT, (w, h), &text, &[]).is_empty());
+        // Extreme boxes: nothing sensible to write, and no hang or panic on the way.
+        let far = Camera::new([3e307; 3], [0.0; 3], [0.0, 0.0, 1.0], 40.0).unwrap();
+        for (lo, hi) in [([-1e300; 3], [1e300; 3]), ([1e6; 3], [1e6 + 1e-9; 3])] {
+            let labels = axis_labels(&far, (lo, hi), (w, h), &text, &[]);
+            assert!(boxes(&labels)
+                .iter()
+                .all(|b| b.0.is_finite() && b.3.is_finite()));
+        }
+        // A box far from the origin reads its own coordinates, each label distinct.
+        let (lo, hi) = ([1e6; 3], [1e6 + 0.75; 3]);
+        let camera = Camera::framing(lo, hi, 40.0, 640.0 / 480.0).unwrap();
+        let labels = axis_labels(&camera, (lo, hi), (w, h), &text, &[]);
+        assert_eq!(labels.len(), 3);
+        for axis in &labels {
+            let v: Vec<f64> = axis
+                .ticks
+                .iter()
+                .map(|t| t.label.parse().unwrap())
+                .collect();
+            assert!(v.windows(2).all(|p| p[0] < p[1]), "{v:?}");
+            assert!(v.iter().all(|x| (1e6..=1e6 + 0.75).contains(x)), "{v:?}");
+        }
         let flat = ([0.0; 3], [1.0, 1.0, 0.0]);
         assert!(axis_labels(&camera, flat, (w, h), &text, &[]).is_empty());
     }

@@ -370,7 +370,13 @@ mod tests {
         assert!(axis_labels(&inside, UNIT, (w, h), &text, &[]).is_empty());
         // Extreme boxes: nothing sensible to write, and no hang or panic on the way.
         let far = Camera::new([3e307; 3], [0.0; 3], [0.0, 0.0, 1.0], 40.0).unwrap();
-        for (lo, hi) in [([-1e300; 3], [1e300; 3]), ([1e6; 3], [1e6 + 1e-9; 3])] {
+        let boxes_far = [
+            ([-1e300; 3], [1e300; 3]),
+            ([1e6; 3], [1e6 + 1e-9; 3]),
+            ([0.0; 3], [1e-310; 3]),
+            ([-f64::MAX; 3], [f64::MAX; 3]),
+        ];
+        for (lo, hi) in boxes_far {
             let labels = axis_labels(&far, (lo, hi), (w, h), &text, &[]);
             assert!(boxes(&labels)
                 .iter()

@@ -268,32 +268,8 @@ fn regions_of_a_painted_frame_with_the_frames_ranges_equal_the_whole_frame() {
             levels.extend(region.painted_levels.iter().copied());
             for (k, p) in region.pixels.iter().enumerate() {
                 let (x, y) = (x0 + k as u32 % rect.width, y0 + k as u32 / rect.width);
-                let i = (y * w + x) as usize;
-                let want = [
-                    f.rgb[0][i],
-                    f.rgb[1][i],
-                    f.rgb[2][i],
-                    f.alpha[i],
-                    f.z[i],
-                    f.n[0][i],
-                    f.level[i],
-                    f.color_value[i],
-                ];
-                let got = [
-                    p.rgb[0],
-                    p.rgb[1],
-                    p.rgb[2],
-                    p.alpha,
-                    p.z,
-                    p.n[0],
-                    p.level,
-                    p.color_value,
-                ];
-                assert_eq!(
-                    want.map(f32::to_bits),
-                    got.map(f32::to_bits),
-                    "pixel {x},{y} of {w}x{h}"
-                );
+                let want = sample_bits(&f.sample((y * w + x) as usize));
+                assert_eq!(want, sample_bits(p), "pixel {x},{y} of {w}x{h}");
                 painted += usize::from(p.color_value.is_finite());
             }
         }
@@ -310,4 +286,13 @@ fn regions_of_a_painted_frame_with_the_frames_ranges_equal_the_whole_frame() {
     };
     let refused = render_region(&scene, &v, &unpainted, rect);
     assert!(refused.is_err(), "{refused:?}");
+}
+
+/// Every channel of a pixel, as bits.
+fn sample_bits(p: &amr_render::output::PixelSample) -> Vec<u32> {
+    let mut v = p.rgb.to_vec();
+    v.extend([p.alpha, p.z, p.level, p.color_value]);
+    v.extend(p.n);
+    v.extend(p.p);
+    v.iter().map(|x| x.to_bits()).collect()
 }

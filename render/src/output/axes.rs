@@ -278,6 +278,17 @@ mod tests {
             .collect()
     }
 
+    /// The values `axis`' labels read as, checked ascending along the edge.
+    fn ascending_values(axis: &AxisLabels) -> Vec<f64> {
+        let v: Vec<f64> = axis
+            .ticks
+            .iter()
+            .map(|t| t.label.parse().unwrap())
+            .collect();
+        assert!(v.windows(2).all(|p| p[0] < p[1]), "{v:?}");
+        v
+    }
+
     #[test]
     fn the_default_view_labels_three_edges_outside_the_box_with_labels_apart() {
         let (w, h) = (640, 480);
@@ -310,13 +321,7 @@ mod tests {
                 let from_centre = |p: (f64, f64)| (p.0 - centre[0]).hypot(p.1 - centre[1]);
                 assert!(from_centre(mid) > from_centre(*at), "{s} at {at:?}: {b:?}");
             }
-            // Ascending along the edge.
-            let values: Vec<f64> = axis
-                .ticks
-                .iter()
-                .map(|t| t.label.parse().unwrap())
-                .collect();
-            assert!(values.windows(2).all(|v| v[0] < v[1]), "{values:?}");
+            ascending_values(axis);
         }
     }
 
@@ -388,12 +393,7 @@ mod tests {
         let labels = axis_labels(&camera, (lo, hi), (w, h), &text, &[]);
         assert_eq!(labels.len(), 3);
         for axis in &labels {
-            let v: Vec<f64> = axis
-                .ticks
-                .iter()
-                .map(|t| t.label.parse().unwrap())
-                .collect();
-            assert!(v.windows(2).all(|p| p[0] < p[1]), "{v:?}");
+            let v = ascending_values(axis);
             assert!(v.iter().all(|x| (1e6..=1e6 + 0.75).contains(x)), "{v:?}");
         }
         let flat = ([0.0; 3], [1.0, 1.0, 0.0]);

@@ -65,7 +65,7 @@ pub fn direct_send(
     let (counts, displs) = band_layout(n, w, h)?;
     let mut send = Vec::with_capacity(w * h * RECORD);
     for i in 0..w * h {
-        pixels::push(&mut send, &pixels::at(fb, i));
+        pixels::push(&mut send, &fb.sample(i));
     }
     let (lo, hi) = band(me, n, h);
     let mine = (hi - lo) * w;

@@ -1,7 +1,7 @@
 //! Pixel samples as flat `f32` records, the unit of every image message (bit for bit: NaN
 //! positions and infinite depths survive).
 
-use amr_render::output::frame::{FrameBuffer, PixelSample};
+use amr_render::output::frame::PixelSample;
 
 /// `f32` values per pixel record: R, G, B, A, Z, N (3), P (3), level, painted value.
 pub const RECORD: usize = 13;
@@ -27,19 +27,6 @@ pub fn read(r: &[f32]) -> PixelSample {
         p: [r[8], r[9], r[10]],
         level: r[11],
         color_value: r[12],
-    }
-}
-
-/// Pixel `i` (row-major) of `fb`.
-pub fn at(fb: &FrameBuffer, i: usize) -> PixelSample {
-    PixelSample {
-        rgb: [fb.rgb[0][i], fb.rgb[1][i], fb.rgb[2][i]],
-        alpha: fb.alpha[i],
-        z: fb.z[i],
-        n: [fb.n[0][i], fb.n[1][i], fb.n[2][i]],
-        p: [fb.p[0][i], fb.p[1][i], fb.p[2][i]],
-        level: fb.level[i],
-        color_value: fb.color_value[i],
     }
 }
 

@@ -52,6 +52,12 @@ struct Cli {
     /// into one brick, which extracts faster; --outline boxes then draws the joined bricks).
     #[arg(long)]
     keep_boxes: bool,
+    /// Convert only the dumps whose .amrk is missing, older than a file of the dump, not a
+    /// valid .amrk, or without the --field fields (as make would): for a series a running
+    /// simulation adds to. Other options are not compared: after changing --brick,
+    /// --compress or --keep-boxes, leave this out.
+    #[arg(long)]
+    update: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -149,10 +155,13 @@ fn main() -> ExitCode {
                 unreachable!("clap requires --output without a subcommand")
             };
             series::outputs(&cli.inputs, output).and_then(|jobs| {
-                let done = jobs
-                    .pairs
-                    .iter()
-                    .try_for_each(|(input, output)| convert_one(&cli, input, output));
+                let done = jobs.pairs.iter().try_for_each(|(input, output)| {
+                    if cli.update && series::up_to_date(input, output, &cli.fields) {
+                        eprintln!("{}: up to date, kept", output.display());
+                        return Ok(());
+                    }
+                    convert_one(&cli, input, output)
+                });
                 if let (Err(_), Some(dir)) = (&done, &jobs.created) {
                     // Removes the directory this run made only if nothing was written into it.
                     let _ = std::fs::remove_dir(dir);

@@ -62,6 +62,62 @@ pub fn outputs(inputs: &[PathBuf], output: &Path) -> anyhow::Result<Outputs> {
     Ok(Outputs { pairs, created })
 }
 
+/// Whether `output` is the conversion of dump `input` with the fields `fields` (or any, when
+/// empty) and newer than every file of the dump: a valid `.amrk` file whose modification time
+/// is at or after theirs. Anything that cannot be read counts as out of date.
+pub fn up_to_date(input: &Path, output: &Path, fields: &[String]) -> bool {
+    let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    let (Some(written), Some(newest)) = (modified(output), newest_file_time(input)) else {
+        return false;
+    };
+    if written < newest {
+        return false;
+    }
+    let Ok(file) = amr_render::mapping::open_mapped(output) else {
+        return false;
+    };
+    let mut asked: Vec<&str> = Vec::new();
+    for f in fields {
+        if !asked.contains(&f.as_str()) {
+            asked.push(f);
+        }
+    }
+    asked.is_empty() || file.fields().iter().map(|f| f.name.as_str()).eq(asked)
+}
+
+/// The latest modification time of the files of dump `input`: every file under a directory;
+/// for a file, every file beside it whose name starts with its name (its own, or an Enzo
+/// dataset's `NAME.hierarchy`, `NAME.cpu0000`, ... beside its parameter file `NAME`).
+fn newest_file_time(input: &Path) -> Option<std::time::SystemTime> {
+    fn newest_under(dir: &Path) -> Option<std::time::SystemTime> {
+        let mut newest = std::fs::metadata(dir).ok()?.modified().ok()?;
+        for entry in std::fs::read_dir(dir).ok()? {
+            let path = entry.ok()?.path();
+            let t = match path.is_dir() {
+                true => newest_under(&path)?,
+                false => std::fs::metadata(&path).ok()?.modified().ok()?,
+            };
+            newest = newest.max(t);
+        }
+        Some(newest)
+    }
+    if input.is_dir() {
+        return newest_under(input);
+    }
+    let enzo = amr_convert::enzo::locate(input);
+    let main = enzo.as_ref().map_or(input, |(params, _)| params.as_path());
+    let name = main.file_name()?.to_string_lossy().into_owned();
+    let dir = main.parent().filter(|d| !d.as_os_str().is_empty());
+    let mut newest = std::fs::metadata(main).ok()?.modified().ok()?;
+    for entry in std::fs::read_dir(dir.unwrap_or(Path::new("."))).ok()? {
+        let entry = entry.ok()?;
+        if entry.file_name().to_string_lossy().starts_with(&name) {
+            newest = newest.max(entry.metadata().ok()?.modified().ok()?);
+        }
+    }
+    Some(newest)
+}
+
 /// The name of a dump: its file or directory name without HDF5 extensions.
 fn step_name(input: &Path) -> anyhow::Result<String> {
     // Any file of an Enzo dataset (`NAME.cpu0000`) is named after its parameter file.

@@ -1,5 +1,5 @@
-//! Colouring surfaces and slices by data: what paints them ([`ColorBy`]: a field of the file or
-//! the AMR level) and how values become colours ([`ColorScale`]: a colormap over a range, linear
+//! Colouring surfaces and slices by data: what paints them ([`ColorBy`]: a field of the file, the
+//! length of a vector of fields, or the AMR level) and how values become colours ([`ColorScale`]: a colormap over a range, linear
 //! or logarithmic, the range by default robust over the values a frame shows).
 
 use std::fmt;
@@ -12,28 +12,74 @@ use crate::colormap::Colormap;
 pub enum ColorBy {
     /// A field of the file, sampled with the scene's reconstruction at each hit.
     Field(String),
+    /// The length of the vector whose components are fields of the file, each sampled at each
+    /// hit (a velocity's magnitude from its three components): made by [`ColorBy::magnitude`].
+    Magnitude {
+        /// How it is written and named, `|x-velocity,y-velocity,z-velocity|`.
+        name: String,
+        /// The components' fields, two or more.
+        fields: Vec<String>,
+    },
     /// The AMR level of the data at each hit, with a categorical palette.
     Level,
+}
+
+impl ColorBy {
+    /// The length of the vector of the fields `fields` (two or more, none empty); named
+    /// `|a,b,c|`, as the command line writes it.
+    pub fn magnitude(fields: &[&str]) -> Result<ColorBy, String> {
+        let example = "|x-velocity,y-velocity,z-velocity|";
+        if fields.len() < 2 {
+            return Err(format!(
+                "a magnitude names two or more fields between bars, {example}"
+            ));
+        }
+        if fields.iter().any(|f| f.is_empty()) {
+            return Err(format!(
+                "an empty field name in a magnitude; write {example}"
+            ));
+        }
+        Ok(ColorBy::Magnitude {
+            name: format!("|{}|", fields.join(",")),
+            fields: fields.iter().map(|f| f.to_string()).collect(),
+        })
+    }
+
+    /// The name of what paints, one colour range per name: the field's, or the magnitude's
+    /// `|a,b,c|`; `None` for the level.
+    pub fn painted_name(&self) -> Option<&str> {
+        match self {
+            ColorBy::Field(name) | ColorBy::Magnitude { name, .. } => Some(name),
+            ColorBy::Level => None,
+        }
+    }
+
+    /// The fields of the file it reads.
+    pub fn fields(&self) -> Vec<&str> {
+        match self {
+            ColorBy::Field(name) => vec![name],
+            ColorBy::Magnitude { fields, .. } => fields.iter().map(String::as_str).collect(),
+            ColorBy::Level => Vec::new(),
+        }
+    }
 }
 
 impl fmt::Display for ColorBy {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            ColorBy::Field(name) => f.write_str(name),
+            ColorBy::Field(name) | ColorBy::Magnitude { name, .. } => f.write_str(name),
             ColorBy::Level => f.write_str("level"),
         }
     }
 }
 
-/// The fields that `painters` name, each once, in the order they first appear: one colour
-/// range each.
+/// What `painters` paint with besides the level (fields and magnitudes, by
+/// [`ColorBy::painted_name`]), each once, in the order they first appear: one colour range each.
 pub fn painting_fields<'a>(painters: impl IntoIterator<Item = &'a ColorBy>) -> Vec<&'a str> {
     let mut fields: Vec<&str> = Vec::new();
-    for by in painters {
-        if let ColorBy::Field(name) = by {
-            if !fields.contains(&name.as_str()) {
-                fields.push(name);
-            }
+    for name in painters.into_iter().filter_map(ColorBy::painted_name) {
+        if !fields.contains(&name) {
+            fields.push(name);
         }
     }
     fields
@@ -42,11 +88,15 @@ pub fn painting_fields<'a>(painters: impl IntoIterator<Item = &'a ColorBy>) -> V
 impl FromStr for ColorBy {
     type Err = String;
 
-    /// `level`, or a field name.
+    /// `level`, a field name, or the magnitude of fields between bars, `|vx,vy,vz|`.
     fn from_str(s: &str) -> Result<Self, String> {
         match s.trim() {
             "" => Err("an empty field name".into()),
             "level" => Ok(ColorBy::Level),
+            bars if bars.len() >= 2 && bars.starts_with('|') && bars.ends_with('|') => {
+                let inner = &bars[1..bars.len() - 1];
+                ColorBy::magnitude(&inner.split(',').map(str::trim).collect::<Vec<_>>())
+            }
             name => Ok(ColorBy::Field(name.to_string())),
         }
     }
@@ -154,6 +204,28 @@ pub fn robust_range(values: &mut [f32], positive: bool) -> Option<(f64, f64)> {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_magnitude_is_written_between_bars() {
+        let m: ColorBy = " |x-velocity, y-velocity ,z-velocity| ".parse().unwrap();
+        assert_eq!(m.to_string(), "|x-velocity,y-velocity,z-velocity|");
+        assert_eq!(m.fields(), ["x-velocity", "y-velocity", "z-velocity"]);
+        assert_eq!(m.to_string().parse::<ColorBy>().unwrap(), m);
+        for bad in ["|vx|", "||", "|vx,,vy|", "|,vy|"] {
+            let e = bad.parse::<ColorBy>().unwrap_err();
+            assert!(
+                e.contains("|x-velocity,y-velocity,z-velocity|"),
+                "{bad}: {e}"
+            );
+        }
+        assert_eq!(
+            "Y(H)".parse::<ColorBy>().unwrap(),
+            ColorBy::Field("Y(H)".into())
+        );
+        assert_eq!("|".parse::<ColorBy>().unwrap(), ColorBy::Field("|".into()));
+        assert_eq!(painting_fields([&m, &ColorBy::Level, &m]), [m.to_string()]);
+    }
+
     use super::*;
 
     #[test]

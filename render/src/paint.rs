@@ -29,6 +29,19 @@ pub enum Painter<'a> {
     /// A field, sampled with its source's reconstruction, and the index of its range in
     /// [`PaintedTracer::ranges`] (one per field that paints).
     Field(&'a (dyn VoxelSource + 'a), usize),
+    /// The length of the vector of several fields, each sampled with its source's
+    /// reconstruction, and the index of its range.
+    Magnitude(&'a [&'a (dyn VoxelSource + 'a)], usize),
+}
+
+impl Painter<'_> {
+    /// The index of its range in [`PaintedTracer::ranges`]; `None` for the level.
+    fn range_index(&self) -> Option<usize> {
+        match self {
+            Painter::Level => None,
+            Painter::Field(_, k) | Painter::Magnitude(_, k) => Some(*k),
+        }
+    }
 }
 
 /// The colour range of one field's painted values, from the values a frame shows
@@ -90,6 +103,13 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
         match painter {
             Painter::Level => Some(level as f32),
             Painter::Field(src, _) => src.sample(pos).map(|s| s.0),
+            Painter::Magnitude(srcs, _) => {
+                let mut squares = 0.0f64;
+                for src in srcs {
+                    squares += f64::from(src.sample(pos)?.0).powi(2);
+                }
+                Some(squares.sqrt() as f32)
+            }
         }
     }
 
@@ -97,7 +117,9 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
     fn color(&self, painter: Painter<'_>, value: f32) -> [f32; 3] {
         match painter {
             Painter::Level => level_linear(value.max(0.0) as u32),
-            Painter::Field(_, k) => self.scales[k].linear(f64::from(value), self.ranges[k]),
+            Painter::Field(_, k) | Painter::Magnitude(_, k) => {
+                self.scales[k].linear(f64::from(value), self.ranges[k])
+            }
         }
     }
 
@@ -193,7 +215,7 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
             .collect();
         layers.sort_by(|a, b| a.0.total_cmp(&b.0));
         for (_, i, hit) in layers {
-            if let Some(painter @ Painter::Field(_, k)) = self.painter(i) {
+            if let Some((painter, Some(k))) = self.painter(i).map(|p| (p, p.range_index())) {
                 // The value alone: the colours wait for the ranges this pass finds.
                 if let Some(v) = self.value(painter, hit.pos, hit.level) {
                     out.push((k, v));

@@ -349,15 +349,30 @@ fn with_scene_tracer<R>(
             .iter()
             .map(|f| own(f).unwrap_or(view.color_scale))
             .collect();
-        let painter = |by: &ColorBy| match (
-            by,
-            scene.color_field(by).and_then(|f| scene.color_source(f)),
-        ) {
-            (ColorBy::Field(name), Some(src)) => {
-                let k = fields.iter().position(|f| f == name).unwrap_or(0);
-                Painter::Field(src as &dyn VoxelSource, k)
+        // The sources each painter reads, held here for the painters to borrow.
+        let sources: Vec<(&ColorBy, Vec<&dyn VoxelSource>)> = scene
+            .painters()
+            .filter_map(|by| {
+                let read = scene.color_sources(by)?;
+                Some((
+                    by,
+                    read.into_iter().map(|s| s as &dyn VoxelSource).collect(),
+                ))
+            })
+            .collect();
+        let painter = |by: &ColorBy| {
+            let k = by
+                .painted_name()
+                .and_then(|n| fields.iter().position(|f| *f == n));
+            let read = sources
+                .iter()
+                .find(|(b, _)| *b == by)
+                .map(|(_, s)| s.as_slice());
+            match (by, read) {
+                (ColorBy::Field(_), Some([src])) => Painter::Field(*src, k.unwrap_or(0)),
+                (ColorBy::Magnitude { .. }, Some(srcs)) => Painter::Magnitude(srcs, k.unwrap_or(0)),
+                _ => Painter::Level,
             }
-            _ => Painter::Level,
         };
         let frame = tracer.frame();
         let mut painted = PaintedTracer {

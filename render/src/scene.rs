@@ -487,26 +487,32 @@ impl Scene {
         self.color_by
             .iter()
             .flatten()
-            .find(|b| matches!(b, ColorBy::Field(_)))
+            .find(|b| b.painted_name().is_some())
             .cloned()
             .unwrap_or_else(|| ColorBy::Field(self.field_name().to_string()))
     }
 
-    /// The index of the field that `by` names, with its source opened (`None` for the level).
-    pub fn color_field(&self, by: &ColorBy) -> Option<usize> {
-        match by {
-            ColorBy::Level => None,
-            ColorBy::Field(name) => self.file().field_index(name),
-        }
+    /// The sources of the fields `by` reads, opened by [`Self::set_color_by`] or
+    /// [`Self::set_slices`] (none for the level; `None` when one is not open).
+    pub fn color_sources(&self, by: &ColorBy) -> Option<Vec<&MappedSource<'_>>> {
+        by.fields()
+            .iter()
+            .map(|name| {
+                self.file()
+                    .field_index(name)
+                    .and_then(|f| self.color_source(f))
+            })
+            .collect()
     }
 
-    /// Opens the source of the field `by` names unless it is open.
+    /// Opens the sources of the fields `by` reads unless they are open.
     fn open_color_source(&mut self, by: &ColorBy) -> Result<()> {
-        let ColorBy::Field(name) = by else {
-            return Ok(());
-        };
-        let field = resolve_field(self.file(), Some(name)).map_err(|e| e.in_file(&self.path))?;
-        self.open_source(field)
+        for name in by.fields() {
+            let field =
+                resolve_field(self.file(), Some(name)).map_err(|e| e.in_file(&self.path))?;
+            self.open_source(field)?;
+        }
+        Ok(())
     }
 
     /// Opens the source of field `field` beside the scene's unless it is open.

@@ -1998,7 +1998,7 @@ fn auto_series_gives_each_painting_field_its_range_over_the_series() {
         (f64::from(lo), f64::from(hi))
     };
     let out = dir.path().join("s.exr");
-    let run = |extra: &[&str]| {
+    let run_by = |by: &str, extra: &[&str]| {
         let mut args = vec![
             a.to_str().unwrap(),
             b.to_str().unwrap(),
@@ -2007,7 +2007,7 @@ fn auto_series_gives_each_painting_field_its_range_over_the_series() {
             "--iso",
             "0",
             "--color-by",
-            "ramp",
+            by,
             "--slice",
             "z=0.5",
             "--slice-field",
@@ -2023,6 +2023,7 @@ fn auto_series_gives_each_painting_field_its_range_over_the_series() {
         args.extend_from_slice(extra);
         amr_render(&args)
     };
+    let run = |extra: &[&str]| run_by("ramp", extra);
     let o = run(&[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let first = attribute(&dir.path().join("s_0000.exr"), "color_ranges");
@@ -2055,4 +2056,19 @@ fn auto_series_gives_each_painting_field_its_range_over_the_series() {
     assert!(o.status.success(), "{}", stderr(&o));
     let ranges = attribute(&dir.path().join("s_0000.exr"), "color_ranges");
     assert!(ranges.starts_with("ramp 0 1 "), "{ranges}");
+    // A magnitude's range over the series: from 0 (both fields cross it) to the length of the
+    // components' largest magnitudes.
+    let o = run_by("|ramp,sphere|", &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let ranges = attribute(&dir.path().join("s_0000.exr"), "color_ranges");
+    let (r, s) = (range("ramp"), range("sphere"));
+    let far = |r: (f64, f64)| r.0.abs().max(r.1.abs());
+    assert!(r.0 <= 0.0 && s.0 < 0.0 && s.1 > 0.0, "{r:?} {s:?}");
+    let hi: f64 = ranges.split(' ').nth(2).unwrap().parse().unwrap();
+    let want = far(r).hypot(far(s));
+    assert!(ranges.starts_with("|ramp,sphere| 0 "), "{ranges}");
+    assert!((hi - want).abs() <= 1e-6 * want, "{ranges}: want {want}");
+    let o = run_by("|ramp,nope|", &[]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("'nope'"), "{}", stderr(&o));
 }

@@ -189,6 +189,54 @@ fn a_slice_shows_the_field_at_each_of_its_points() {
     );
 }
 
+/// A slice painted by the length of a vector of two fields (`|ramp,sphere|`) shows, at each of
+/// its points, the length of the two values that slices painted by each field show there: the
+/// components are sampled where the hit is and joined, and the colour range is the magnitude's
+/// own.
+#[test]
+fn a_slice_painted_by_a_magnitude_shows_the_length_of_its_fields_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path());
+    let mut scene = scene(&path);
+    scene.set_isosurfaces(&[]).unwrap();
+    let slice = Slice::parse_axis("z=0.4").unwrap();
+    let v = View {
+        camera: Some(CameraPlacement {
+            pos: [0.3, 0.2, 3.0],
+            look_at: Some([0.5, 0.5, 0.4]),
+            up: Some([0.0, 1.0, 0.0]),
+        }),
+        color_scale: ColorScale::default(),
+        ..view()
+    };
+    let painted_by = |by: ColorBy, scene: &mut Scene| {
+        scene.set_slices(&[slice], Some(by)).unwrap();
+        render(scene, &v, &|_| {}).unwrap()
+    };
+    let sphere = painted_by(ColorBy::Field("sphere".into()), &mut scene);
+    let magnitude: ColorBy = "| ramp, sphere |".parse().unwrap();
+    assert_eq!(magnitude, ColorBy::magnitude(&["ramp", "sphere"]).unwrap());
+    let both = painted_by(magnitude, &mut scene);
+    assert_eq!(both.color_ranges.len(), 1);
+    assert_eq!(both.color_ranges[0].field, "|ramp,sphere|");
+    let mut checked = 0;
+    for i in 0..both.frame.len() {
+        let (m, s) = (both.frame.color_value[i], sphere.frame.color_value[i]);
+        assert_eq!(m.is_nan(), s.is_nan(), "pixel {i}");
+        let p = hit(&both, i);
+        if m.is_nan() || p.iter().any(|&x| !(COARSE..=1.0 - COARSE).contains(&x)) {
+            continue;
+        }
+        let want = (ramp(p).powi(2) + f64::from(s).powi(2)).sqrt();
+        assert!(
+            (f64::from(m) - want).abs() < 2e-3,
+            "pixel {i} at {p:?}: {m}, want {want}"
+        );
+        checked += 1;
+    }
+    assert!(checked > both.frame.len() / 8, "{checked} pixels checked");
+}
+
 /// A surface painted by one field and a slice by another: each field takes the robust range of
 /// its own values in view, and the slice's unlit pixels are its field's colours on its range.
 /// One given range for both is refused.

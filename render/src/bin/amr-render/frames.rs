@@ -295,10 +295,7 @@ fn check_series(request: &RenderRequest) -> anyhow::Result<()> {
         .field
         .iter()
         .map(String::as_str)
-        .chain(painting.filter_map(|c| match c {
-            Some(ColorBy::Field(name)) => Some(name.as_str()),
-            _ => None,
-        }))
+        .chain(painting.flatten().flat_map(ColorBy::fields))
         .chain(request.isos.iter().filter_map(|s| s.field.as_deref()))
         .chain(
             request
@@ -340,15 +337,30 @@ fn series_ranges(request: &RenderRequest) -> anyhow::Result<Vec<(String, (f64, f
     for path in &request.files {
         let file = open_mapped(path)?;
         for (name, (lo, hi)) in names.iter().zip(&mut ranges) {
-            let Some(i) = file.field_index(name) else {
-                bail!(
-                    "{}: no field '{name}' to take the series' colour range from",
-                    path.display()
-                );
+            // A magnitude's components, or the field itself.
+            let read = match name.parse::<ColorBy>() {
+                Ok(by @ ColorBy::Magnitude { .. }) => {
+                    by.fields().iter().map(|f| f.to_string()).collect()
+                }
+                _ => vec![name.clone()],
             };
-            let f = &file.fields()[i];
-            *lo = lo.min(f64::from(f.min));
-            *hi = hi.max(f64::from(f.max));
+            let mut component_ranges = Vec::new();
+            for field in &read {
+                let Some(i) = file.field_index(field) else {
+                    bail!(
+                        "{}: no field '{field}' to take the series' colour range from",
+                        path.display()
+                    );
+                };
+                let f = &file.fields()[i];
+                component_ranges.push((f64::from(f.min), f64::from(f.max)));
+            }
+            let (file_lo, file_hi) = match component_ranges.as_slice() {
+                [one] => *one,
+                many => magnitude_bounds(many),
+            };
+            *lo = lo.min(file_lo);
+            *hi = hi.max(file_hi);
         }
     }
     for (name, (lo, hi)) in names.iter().zip(&ranges) {
@@ -357,6 +369,19 @@ fn series_ranges(request: &RenderRequest) -> anyhow::Result<Vec<(String, (f64, f
         }
     }
     Ok(names.into_iter().zip(ranges).collect())
+}
+
+/// Bounds of the length of a vector whose components lie in `ranges`: from the length of the
+/// components nearest zero to that of those farthest from it.
+fn magnitude_bounds(ranges: &[(f64, f64)]) -> (f64, f64) {
+    let (mut near, mut far) = (0.0f64, 0.0f64);
+    for &(lo, hi) in ranges {
+        if lo > 0.0 || hi < 0.0 {
+            near += lo.abs().min(hi.abs()).powi(2);
+        }
+        far += lo.abs().max(hi.abs()).powi(2);
+    }
+    (near.sqrt(), far.sqrt())
 }
 
 /// `view`, with a camera that frames the scene's isosurfaces when it has none and the frame has

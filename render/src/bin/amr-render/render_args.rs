@@ -46,8 +46,10 @@ pub struct RenderArgs {
     /// frames, OUT_0000.exr, OUT_0001.exr, ...
     #[arg(short = 'o', long = "output", value_name = "OUT.exr|OUT.png")]
     pub output: PathBuf,
-    /// Paint isosurfaces by a field of the file (sampled at each hit) or by `level`; repeat to
-    /// pair with the --iso values in order (`none` leaves one unpainted); one value paints all.
+    /// Paint isosurfaces by a field of the file (sampled at each hit), by the length of a vector
+    /// of fields written between bars ('|x-velocity,y-velocity,z-velocity|') or by `level`;
+    /// repeat to pair with the --iso values in order (`none` leaves one unpainted); one value
+    /// paints all.
     #[arg(long = "color-by", value_name = "FIELD|level|none", value_parser = parse_color_by)]
     pub color_by: Vec<Option<ColorBy>>,
     /// Colormap of painted surfaces and slices [default: viridis].
@@ -76,7 +78,8 @@ pub struct RenderArgs {
     /// A slice through point P with normal N; repeatable.
     #[arg(long, value_name = "PX,PY,PZ,NX,NY,NZ[:OPACITY]", value_parser = Slice::parse_plane, allow_hyphen_values = true)]
     pub slice_plane: Vec<Slice>,
-    /// The field that paints slices (default: the first --color-by field, else the rendered one).
+    /// The field that paints slices, or a magnitude '|A,B,C|' (default: the first --color-by
+    /// field, else the rendered one).
     #[arg(long, value_name = "FIELD|level")]
     pub slice_field: Option<ColorBy>,
     /// Lines drawn for context: none, domain (its bounding box) or boxes (every level's boxes as

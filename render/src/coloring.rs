@@ -64,6 +64,31 @@ impl ColorBy {
     }
 }
 
+/// The magnitudes the fields `names` hold as x, y and z components: three names alike but for one
+/// letter, `x`, `y` and `z` (or `X`, `Y`, `Z`) at the same place (`x-velocity`, `y-velocity`,
+/// `z-velocity`; `velx`, `vely`, `velz`), in the order of their x components.
+pub fn vector_fields(names: &[&str]) -> Vec<ColorBy> {
+    let mut out: Vec<ColorBy> = Vec::new();
+    for name in names {
+        for (i, c) in name.char_indices() {
+            let axes = match c {
+                'x' => ['x', 'y', 'z'],
+                'X' => ['X', 'Y', 'Z'],
+                _ => continue,
+            };
+            let with = |a: char| format!("{}{a}{}", &name[..i], &name[i + 1..]);
+            let [x, y, z] = axes.map(with);
+            if names.contains(&y.as_str()) && names.contains(&z.as_str()) {
+                let m = ColorBy::magnitude(&[&x, &y, &z]).expect("three names, none empty");
+                if !out.contains(&m) {
+                    out.push(m);
+                }
+            }
+        }
+    }
+    out
+}
+
 impl fmt::Display for ColorBy {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -224,6 +249,34 @@ mod tests {
         );
         assert_eq!("|".parse::<ColorBy>().unwrap(), ColorBy::Field("|".into()));
         assert_eq!(painting_fields([&m, &ColorBy::Level, &m]), [m.to_string()]);
+    }
+
+    #[test]
+    fn vectors_are_found_by_their_components_names() {
+        let names = [
+            "Density",
+            "x-velocity",
+            "y-velocity",
+            "z-velocity",
+            "magx",
+            "magy",
+            "magZ",
+            "velX",
+            "velY",
+            "velZ",
+            "xmom",
+            "ymom",
+        ];
+        let found: Vec<String> = vector_fields(&names)
+            .iter()
+            .map(|m| m.to_string())
+            .collect();
+        assert_eq!(
+            found,
+            ["|x-velocity,y-velocity,z-velocity|", "|velX,velY,velZ|"]
+        );
+        assert!(vector_fields(&["x", "y"]).is_empty());
+        assert_eq!(vector_fields(&["x", "y", "z"])[0].to_string(), "|x,y,z|");
     }
 
     use super::*;

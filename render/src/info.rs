@@ -6,6 +6,7 @@ use std::fmt::Write;
 use amr_format::{IBox, LevelInfo};
 use serde::Serialize;
 
+use crate::coloring::vector_fields;
 use crate::mapping::{read_ahead, MappedFile};
 
 use crate::field_stats::{
@@ -41,6 +42,9 @@ pub struct FileSummary {
     pub cells: u64,
     /// The fields, in file order.
     pub fields: Vec<FieldSummary>,
+    /// The vectors the fields hold as x, y and z components, as `--color-by` paints by their
+    /// length: `|x-velocity,y-velocity,z-velocity|` ([`crate::coloring::vector_fields`]).
+    pub vectors: Vec<String>,
     /// True when the percentiles are taken over runs of cells spread over every level, not
     /// over every cell (their p0 and p100 are then the field's min and max).
     pub percentiles_subsampled: bool,
@@ -150,7 +154,7 @@ pub fn summarize(file: &MappedFile) -> FileSummary {
             FieldPercentiles::of_reading_ahead(file, i, |r| read_ahead(file, r.iter().copied()))
         })
         .collect();
-    let fields = file
+    let fields: Vec<FieldSummary> = file
         .fields()
         .iter()
         .zip(&all)
@@ -188,6 +192,10 @@ pub fn summarize(file: &MappedFile) -> FileSummary {
             .map(|lev| [world(lev, lev.domain.lo), world(lev, lev.domain.hi)]),
         bricks: file.num_bricks() as u64,
         cells: cells.iter().sum(),
+        vectors: vector_fields(&fields.iter().map(|f| f.name.as_str()).collect::<Vec<_>>())
+            .iter()
+            .map(ToString::to_string)
+            .collect(),
         fields,
         percentiles_subsampled: all.iter().flatten().any(|p| p.subsampled),
         kd_nodes: file.tree().num_nodes() as u64,
@@ -276,6 +284,14 @@ impl FileSummary {
                 format_value(f.min),
                 format_value(f.max),
                 if f.compressed { " (zstd)" } else { "" }
+            );
+        }
+        if !self.vectors.is_empty() {
+            let _ = writeln!(
+                out,
+                "vectors: {} (paint by a length with --color-by '{}')",
+                self.vectors.join(" "),
+                self.vectors[0]
             );
         }
         let over = match self.percentiles_subsampled {

@@ -53,6 +53,12 @@ fn dd0010_matches_yt() {
             assert_eq!(got, *want, "sum of {name}");
         }
     }
+    // The velocity's components are offered as a vector to paint by its length.
+    let mapped = amr_render::mapping::open_mapped(&tmp.path().join("b4.amrk")).unwrap();
+    assert_eq!(
+        amr_render::info::summarize(&mapped).vectors,
+        ["|x-velocity,y-velocity,z-velocity|"]
+    );
 }
 
 /// Any file of the dataset names it: its data file and its boundary files convert to the same

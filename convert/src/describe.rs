@@ -142,6 +142,16 @@ impl fmt::Display for DumpDescription {
         for name in &self.fields {
             writeln!(f, "  {name}")?;
         }
+        let names: Vec<&str> = self.fields.iter().map(String::as_str).collect();
+        let vectors = amr_render::coloring::vector_fields(&names);
+        if let Some(first) = vectors.first() {
+            let all: Vec<String> = vectors.iter().map(ToString::to_string).collect();
+            writeln!(
+                f,
+                "vectors: {} (convert their components to paint by a length: --color-by '{first}')",
+                all.join(" ")
+            )?;
+        }
         writeln!(f, "levels: {}", self.levels.len())?;
         for (l, level) in self.levels.iter().enumerate() {
             let [lo, hi] = level.domain;

@@ -61,6 +61,7 @@ fn a_real_amrex_plotfile_and_enzo_dataset_are_described_from_their_metadata() {
             "  level 2: boxes 64 cells 32768 domain [0, 0, 0]..[32, 32, 32] cell size [0.0005, 0.0005, 0.0005]\n",
             "cells: 37376\n",
             "146.000 KiB a field, 5.418 MiB for all 38",
+            "vectors: |x_velocity,y_velocity,z_velocity| |gradpx,gradpy,gradpz| (",
         ] {
             assert!(t.contains(line), "{line:?} not in\n{t}");
         }
@@ -75,6 +76,7 @@ fn a_real_amrex_plotfile_and_enzo_dataset_are_described_from_their_metadata() {
             "levels: 8\n",
             "cells: 30360\n",
             "  Temperature\n",
+            "vectors: |x-velocity,y-velocity,z-velocity| (",
         ] {
             assert!(t.contains(line), "{line:?} not in\n{t}");
         }

@@ -92,7 +92,7 @@ pub(crate) fn axis_labels(
 /// The edge of the box parallel to `axis` that carries its labels: among the edges on the box's
 /// outline (one of the two faces that meet there faces the camera, the other away), the lowest
 /// on the picture for an edge running across it, the leftmost for one running up it; `None`
-/// when no such edge is long enough on the picture to hold labels.
+/// when every such edge shows as a point (a view along `axis`) or lies partly behind the camera.
 fn labelled_edge(
     camera: &Camera,
     (lo, hi): ([f64; 3], [f64; 3]),

@@ -58,6 +58,9 @@ pub struct Legend {
     pub axes: Option<([f64; 3], [f64; 3])>,
 }
 
+/// Lines of text are this many text sizes apart.
+const LINE: f32 = 1.3;
+
 /// The smallest text a legend is drawn with, in pixels: DejaVu Sans still reads at 8.
 pub const MIN_TEXT_PX: f32 = 8.0;
 
@@ -216,7 +219,7 @@ impl Legend {
         if !self.color_bars.is_empty() {
             let left = self.bars_left(&text, w as f32);
             for (k, bar) in self.color_bars.iter().enumerate() {
-                let span = self.bar_span(&text, h as f32, k);
+                let span = self.bar_span(&text, (w as f32, h as f32), k);
                 self.draw_bar(&mut canvas, &text, bar, left, span);
             }
         } else if !self.levels.is_empty() {
@@ -287,8 +290,9 @@ impl Legend {
         if !self.color_bars.is_empty() {
             let left = self.bars_left(text, w);
             for k in 0..self.color_bars.len() {
-                let (top, bottom) = self.bar_span(text, h, k);
-                parts.push((left, top - px * 1.6, w - px, bottom + px * 0.6));
+                let (top, bottom) = self.bar_span(text, (w, h), k);
+                let title = title_height(text, &self.color_bars[k], w);
+                parts.push((left, top - title, w - px, bottom + px * 0.6));
             }
         } else if !self.levels.is_empty() {
             parts.push(self.levels_box(text, w));
@@ -307,7 +311,7 @@ impl Legend {
     /// Whether the parts, drawn with `text`, fit a `w x h` picture (see [`Legend::fits`]).
     fn has_room(&self, text: &Text, w: f32, h: f32, triad: bool) -> bool {
         for k in 0..self.color_bars.len() {
-            let (top, bottom) = self.bar_span(text, h, k);
+            let (top, bottom) = self.bar_span(text, (w, h), k);
             let bar = &self.color_bars[k];
             if bottom <= top || bar_ticks(bar, text, (top, bottom), w).is_none() {
                 return false;
@@ -357,14 +361,21 @@ impl Legend {
             .fold(f32::INFINITY, f32::min)
     }
 
-    /// The heights between which colour bar `k` is drawn: the bars share the right side's span
-    /// from a fifth of the height to four fifths, a title's height apart.
-    fn bar_span(&self, text: &Text, h: f32, k: usize) -> (f32, f32) {
+    /// The heights between which colour bar `k` is drawn in a `w x h` picture: the bars share
+    /// the right side's span from a fifth of the height to four fifths, each below its title
+    /// (one line or more).
+    fn bar_span(&self, text: &Text, (w, h): (f32, f32), k: usize) -> (f32, f32) {
         let n = self.color_bars.len() as f32;
         let (top, bottom) = (h * 0.2, h * 0.8);
-        let gap = text.px * 4.0;
-        let each = (bottom - top - gap * (n - 1.0)) / n;
-        let y0 = top + k as f32 * (each + gap);
+        let line = text.px * LINE;
+        // Above each bar after the first: the bar's title and the space the first one has.
+        let gap = |j: usize| {
+            let lines = title_lines(text, &self.color_bars[j], w).len() as f32;
+            text.px * 4.0 + (lines - 1.0) * line
+        };
+        let gaps: f32 = (1..self.color_bars.len()).map(gap).sum();
+        let each = (bottom - top - gaps) / n;
+        let y0 = top + k as f32 * each + (1..=k).map(gap).sum::<f32>();
         (y0, y0 + each)
     }
 
@@ -384,15 +395,12 @@ impl Legend {
             return;
         };
         let bar_w = bar_width(w);
-        let title = bar_title(bar);
         let right = w - px;
-        let title_x = x0;
-        canvas.panel(
-            (title_x, top - px * 1.6),
-            (right, bottom + px * 0.6),
-            px * 0.4,
-        );
-        text.draw(canvas, &title, title_x, top - px * 1.6);
+        let title_top = top - title_height(text, bar, w);
+        canvas.panel((x0, title_top), (right, bottom + px * 0.6), px * 0.4);
+        for (k, line) in title_lines(text, bar, w).iter().enumerate() {
+            text.draw(canvas, line, x0, title_top + k as f32 * px * LINE);
+        }
         let cap = bar_w.round() as i64;
         canvas.rect(
             x0 as i64 - 1,
@@ -498,17 +506,51 @@ fn bar_title(bar: &ColorBar) -> String {
     }
 }
 
-/// The left edge of `bar`'s colours and title in a frame `w` wide: room on their right for the
-/// widest label, and for the title.
-fn bar_left(text: &Text, bar: &ColorBar, w: f32) -> f32 {
-    let px = text.px;
+/// The width of `bar`'s colours and tick labels in a frame `w` wide.
+fn bar_block_width(text: &Text, bar: &ColorBar, w: f32) -> f32 {
     let label_w = bar_labels(bar)
         .iter()
         .map(|l| text.width(&l.1))
         .fold(0.0, f32::max);
-    let bar_w = bar_width(w);
-    let right = w - px;
-    (right - label_w - px * 0.5 - bar_w).min(right - text.width(&bar_title(bar)))
+    label_w + text.px * 0.5 + bar_width(w)
+}
+
+/// The left edge of `bar`'s colours and title in a frame `w` wide: room on their right for the
+/// widest label, and for the widest line of the title.
+fn bar_left(text: &Text, bar: &ColorBar, w: f32) -> f32 {
+    let right = w - text.px;
+    let title_w = title_lines(text, bar, w)
+        .iter()
+        .map(|l| text.width(l))
+        .fold(0.0, f32::max);
+    (right - bar_block_width(text, bar, w)).min(right - title_w)
+}
+
+/// `bar`'s title in lines no wider than its colours and labels where it can be broken (after a
+/// comma or a space): a magnitude's `|x-velocity,y-velocity,z-velocity|` would otherwise widen
+/// the bar's panel across the picture.
+fn title_lines(text: &Text, bar: &ColorBar, w: f32) -> Vec<String> {
+    let title = bar_title(bar);
+    let room = bar_block_width(text, bar, w);
+    let mut lines: Vec<String> = Vec::new();
+    let mut line = String::new();
+    for piece in title.split_inclusive([',', ' ']) {
+        let longer = format!("{line}{piece}");
+        if !line.is_empty() && text.width(longer.trim_end()) > room {
+            lines.push(line.trim_end().to_string());
+            line = piece.to_string();
+        } else {
+            line = longer;
+        }
+    }
+    lines.push(line.trim_end().to_string());
+    lines
+}
+
+/// The height `bar`'s title takes above its colours' span.
+fn title_height(text: &Text, bar: &ColorBar, w: f32) -> f32 {
+    let lines = title_lines(text, bar, w).len() as f32;
+    text.px * (1.6 + (lines - 1.0) * LINE)
 }
 
 /// A line for surfaces made otherwise than by default (the octant reconstruction, traced
@@ -695,6 +737,46 @@ mod tests {
         );
         let hi = 1.000_014_066_696_167;
         assert_eq!(values_beyond(&[hi as f32], None, (1.0, hi)), (false, false));
+    }
+
+    #[test]
+    fn a_long_colour_bar_title_breaks_after_its_commas() {
+        let text = Text::new(12.0).unwrap();
+        let bar = |title: &str| ColorBar {
+            title: title.into(),
+            colormap: Colormap::default(),
+            range: (0.9, 1.1),
+            log: false,
+            beyond: (false, false),
+        };
+        let long = bar("|x-velocity,y-velocity,z-velocity|");
+        let lines = title_lines(&text, &long, 640.0);
+        assert_eq!(lines.len(), 3, "{lines:?}");
+        assert_eq!(lines.concat(), long.title);
+        let room = bar_block_width(&text, &long, 640.0);
+        // A line wider than the bar's colours and labels cannot be broken.
+        let unbreakable = |l: &str| !l[..l.len() - 1].contains([',', ' ']);
+        assert!(
+            lines
+                .iter()
+                .all(|l| text.width(l) <= room || unbreakable(l)),
+            "{lines:?}"
+        );
+        assert_eq!(title_lines(&text, &bar("T"), 640.0), ["T"]);
+        // Two bars under wrapped titles still fit, their parts apart.
+        let legend = Legend {
+            color_bars: vec![long.clone(), bar("Dark_Matter_Density, in code units")],
+            ..Legend::default()
+        };
+        assert!(legend.fits(640, 480));
+        let spans: Vec<(f32, f32)> = (0..2)
+            .map(|k| legend.bar_span(&text, (640.0, 480.0), k))
+            .collect();
+        let second_title = title_height(&text, &legend.color_bars[1], 640.0);
+        assert!(
+            spans[0].1 + text.px * 0.6 < spans[1].0 - second_title,
+            "{spans:?}"
+        );
     }
 
     #[test]

@@ -5,7 +5,7 @@
 use std::str::FromStr;
 
 use amr_render::colormap::Colormap;
-use amr_render::ColorScale;
+use amr_render::{ColorBy, ColorScale};
 
 use crate::render_args::parse_range;
 use crate::surface_arg::split_field;
@@ -67,6 +67,11 @@ impl FromStr for FieldScaleArg {
             log: log.unwrap_or(false),
         };
         scale.validate().map_err(|e| format!("'{s}': {e}"))?;
+        // A magnitude as its painter names it, however it is spaced: `| vx, vy |` is `|vx,vy|`.
+        let field = match field.parse::<ColorBy>() {
+            Ok(m @ ColorBy::Magnitude { .. }) => m.to_string(),
+            _ => field,
+        };
         Ok(FieldScaleArg {
             field,
             colormap,
@@ -84,6 +89,8 @@ mod tests {
     fn every_part_is_optional_and_read_in_any_order() {
         let a: FieldScaleArg = "Y(OH)=magma:log:1e-8:1e-3".parse().unwrap();
         assert_eq!(a.field, "Y(OH)");
+        let m: FieldScaleArg = "| vx, vy |=magma".parse().unwrap();
+        assert_eq!(m.field, "|vx,vy|");
         assert_eq!(a.colormap, Some(Colormap::Magma));
         assert_eq!((a.log, a.range), (Some(true), Some((1e-8, 1e-3))));
         let b: FieldScaleArg = "temp=:300:1600".parse().unwrap();

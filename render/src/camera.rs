@@ -165,7 +165,7 @@ impl Camera {
             None if dir[2].abs() > 0.999 => [0.0, 1.0, 0.0],
             None => [0.0, 0.0, 1.0],
         };
-        // The basis of a camera on the far side of the centre: only the directions matter here.
+        // A camera a unit from the centre along `dir`: its basis is the framing camera's.
         let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
         if centre.iter().any(|x| !x.is_finite()) {
             return Err(unframeable);
@@ -183,8 +183,7 @@ impl Camera {
         let tan_y = 0.88 * (0.5 * fov_deg).to_radians().tan();
         let tan_x = tan_y * aspect;
         let mut dist = 0.0f64;
-        for n in 0..8 {
-            let corner = std::array::from_fn(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] });
+        for corner in box_corners(lo, hi) {
             let q = sub(corner, centre);
             let (x, y, z) = (
                 dot(q, probe.right),
@@ -237,9 +236,10 @@ impl Camera {
     /// ([`Camera::image_point`]): what a frame that shows nothing of a surface inside the box
     /// tells about why.
     pub fn place_box(&self, lo: [f64; 3], hi: [f64; 3], w: u32, h: u32) -> BoxPlacement {
-        let corners =
-            (0..8).map(|n| std::array::from_fn(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] }));
-        let points: Vec<Option<[f64; 2]>> = corners.map(|c| self.image_point(c, w, h)).collect();
+        let points: Vec<Option<[f64; 2]>> = box_corners(lo, hi)
+            .into_iter()
+            .map(|c| self.image_point(c, w, h))
+            .collect();
         if points.iter().all(Option::is_none) {
             return BoxPlacement::Behind;
         }
@@ -324,6 +324,11 @@ impl PixelDirs<'_> {
         let d = [0, 1, 2].map(|a| c.forward[a] + sx * c.right[a] + sy * c.true_up[a]);
         normalize(d).unwrap_or(c.forward)
     }
+}
+
+/// The eight corners of the box `[lo, hi]`, corner `n` taking `hi` on the axes of `n`'s set bits.
+pub(crate) fn box_corners(lo: [f64; 3], hi: [f64; 3]) -> [[f64; 3]; 8] {
+    std::array::from_fn(|n| std::array::from_fn(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] }))
 }
 
 pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -424,8 +429,8 @@ mod tests {
 
     /// The pixel coordinates of a box's eight corners seen by `c` in a `w x h` picture.
     fn corners_in_picture(c: &Camera, lo: [f64; 3], hi: [f64; 3], w: u32, h: u32) -> Vec<[f64; 2]> {
-        (0..8)
-            .map(|n| std::array::from_fn(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] }))
+        box_corners(lo, hi)
+            .into_iter()
             .map(|p| c.image_point(p, w, h).expect("a corner behind the camera"))
             .collect()
     }

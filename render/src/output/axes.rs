@@ -4,7 +4,7 @@
 
 use super::canvas::{Canvas, Text};
 use super::legend::ticks;
-use crate::camera::Camera;
+use crate::camera::{box_corners, Camera};
 use crate::field_stats::distinct_labels;
 
 /// A rectangle of the picture, `(x0, y0, x1, y1)` in pixels.
@@ -62,8 +62,8 @@ pub(crate) fn axis_labels(
     taken: &[PixelBox],
 ) -> Vec<AxisLabels> {
     let inside = (0..3).all(|a| lo[a] <= camera.pos[a] && camera.pos[a] <= hi[a]);
-    let corners: Option<Vec<(f64, f64)>> = (0..8)
-        .map(|n| std::array::from_fn(|a| if n >> a & 1 == 1 { hi[a] } else { lo[a] }))
+    let corners: Option<Vec<(f64, f64)>> = box_corners(lo, hi)
+        .into_iter()
         .map(|p| camera.image_point(p, w, h).map(|[x, y]| (x, y)))
         .collect();
     let Some(corners) = corners.filter(|_| !inside && (0..3).all(|a| lo[a] < hi[a])) else {

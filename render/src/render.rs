@@ -45,8 +45,8 @@ pub struct Rendered {
 struct Painting {
     /// [`Rendered::color_ranges`].
     color_ranges: Vec<PaintedRange>,
-    /// The range each painting field paints with, in the painters' order (`(0, 1)` for a
-    /// field not seen).
+    /// The range each painting field paints with, in the order of
+    /// [`painting_fields`] (`(0, 1)` for a field not seen).
     per_field: Vec<(f64, f64)>,
     /// [`Rendered::painted_levels`].
     levels: Vec<u32>,

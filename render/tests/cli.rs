@@ -1071,6 +1071,60 @@ fn an_option_the_command_makes_void_is_refused() {
     }
 }
 
+/// `--iso none` draws slices alone: no isosurface, not even the default median one, and is
+/// refused beside other isovalues or with nothing else to draw.
+#[test]
+fn iso_none_draws_the_slices_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = blobs(dir.path());
+    let (f, d) = (file.to_str().unwrap(), dir.path());
+    let out = d.join("slice.exr");
+    let o = amr_render(&[
+        f,
+        "--iso",
+        "none",
+        "--slice",
+        "z=0.5",
+        "--size",
+        "48x36",
+        // Lines cover pixels too, with no value painted.
+        "--outline",
+        "none",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("no isosurface, 1 slice"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(attribute(&out, "isovalues"), "");
+    let (_, _, alpha) = read_channel(&out, "A").unwrap();
+    let (_, _, painted) = read_channel(&out, "color_value").unwrap();
+    assert!(alpha.iter().filter(|&&a| a > 0.0).count() > 100);
+    // Every covered pixel is the slice's: painted with a value.
+    let unpainted = alpha
+        .iter()
+        .zip(&painted)
+        .filter(|(&a, v)| a > 0.0 && !v.is_finite())
+        .count();
+    assert_eq!(unpainted, 0);
+    for (args, says) in [
+        (vec!["--iso", "none"], "add a --slice"),
+        (
+            vec!["--iso", "none", "--iso", "10", "--slice", "z=0.5"],
+            "leave out the other --iso values",
+        ),
+    ] {
+        let mut all = vec![f, "-o", out.to_str().unwrap()];
+        all.extend(args.iter().copied());
+        let o = amr_render(&all);
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        assert!(stderr(&o).contains(says), "{args:?}: {}", stderr(&o));
+    }
+}
+
 /// `--view-from` turns the automatic camera: it looks at the centre of what it frames from the
 /// direction given (an axis or a vector), with up z (y looking along z) or `--up`, and fits
 /// the surfaces (or the domain) to the picture; an orbit keeps the default framing's distance.

@@ -68,6 +68,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
                 field: None,
             }),
         ],
+        no_isosurface: false,
         view: View {
             fov_deg: 35.0,
             size: (800, 600),

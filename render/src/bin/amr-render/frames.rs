@@ -415,12 +415,15 @@ fn summary(file: &Path, scene: &Scene, files: &FrameFiles, took: Duration) -> St
         // Nothing is extracted: "0 active voxels" would read as an empty surface.
         TraceMethod::Sample => "sampled along rays".to_string(),
     };
-    let mut out = format!(
-        "{}: field {}, iso {}, {surfaces}",
-        file.display(),
-        scene.field_name(),
-        isos.join(", "),
-    );
+    let mut out = match isos.is_empty() {
+        true => format!("{}: no isosurface", file.display()),
+        false => format!(
+            "{}: field {}, iso {}, {surfaces}",
+            file.display(),
+            scene.field_name(),
+            isos.join(", "),
+        ),
+    };
     if !scene.slices().is_empty() {
         let n = scene.slices().len();
         out += &format!(", {n} slice{}", if n == 1 { "" } else { "s" });

@@ -66,10 +66,11 @@ pub fn swept_surface(
     Ok(Some(SweptSurface { field, values }))
 }
 
-/// The request's isosurfaces for `scene` (the median of the field's values when none given),
-/// their fields' names resolved in its file.
+/// The request's isosurfaces for `scene` (the median of the field's values when none given,
+/// none for `--iso none`), their fields' names resolved in its file.
 pub fn request_isos(request: &RenderRequest, scene: &Scene) -> anyhow::Result<Vec<IsoSpec>> {
-    match request.isos.is_empty() && request.animation.sweep.is_none() {
+    let default = request.isos.is_empty() && request.animation.sweep.is_none();
+    match default && !request.no_isosurface {
         true => Ok(vec![IsoSpec::new(scene.default_isovalue())]),
         false => request.isos.iter().map(|s| s.resolve(scene)).collect(),
     }

@@ -34,13 +34,14 @@ pub struct RenderArgs {
     /// (default: the median of the field's cell values). The value is a number, or pQ: the
     /// field's Q-th percentile over every cell (--iso p99:red), found in each file. Negative
     /// values as typed: --iso -60:red. A surface of another field than --field: its name and
-    /// `=` first, --iso temp=1500:red.
+    /// `=` first, --iso temp=1500:red. `--iso none` draws no isosurface: slices alone.
     #[arg(
         long = "iso",
         value_name = "[FIELD=]V[:COLOR[:OPACITY]]",
-        allow_hyphen_values = true
+        allow_hyphen_values = true,
+        value_parser = parse_iso
     )]
-    pub iso: Vec<SurfaceArg>,
+    pub iso: Vec<Option<SurfaceArg>>,
     /// Output file: OpenEXR with every channel (.exr, or no extension), or a PNG picture with
     /// its legend when the name ends in .png (other extensions are refused); with several
     /// frames, OUT_0000.exr, OUT_0001.exr, ...
@@ -218,8 +219,10 @@ pub struct RenderRequest {
     pub files: Vec<PathBuf>,
     /// The scene's field, reconstruction and method.
     pub scene: SceneOptions,
-    /// Isosurfaces (empty: the middle of the field's range).
+    /// Isosurfaces (empty: the median of the field's values, unless `no_isosurface`).
     pub isos: Vec<SurfaceArg>,
+    /// `--iso none`: no isosurface, not even the default one.
+    pub no_isosurface: bool,
     /// Camera, size, sampling and lighting.
     pub view: View,
     /// Output files and reports.
@@ -484,11 +487,22 @@ impl RenderArgs {
                 .collect(),
             outline: self.outline,
         };
-        if self.color_by.len() > 1 && self.color_by.len() > self.iso.len() {
+        let no_isosurface = self.iso.iter().any(Option::is_none);
+        if no_isosurface && self.iso.len() > 1 {
+            bail!("--iso none draws no isosurface: leave out the other --iso values, or it");
+        }
+        if no_isosurface && !self.has_slices() && self.iso_sweep.is_none() {
+            bail!(
+                "--iso none draws no isosurface, and nothing else is asked for: add a --slice \
+                 (x=0.5) or a --slice-plane"
+            );
+        }
+        let isos: Vec<SurfaceArg> = self.iso.iter().flatten().cloned().collect();
+        if self.color_by.len() > 1 && self.color_by.len() > isos.len() {
             bail!(
                 "{} --color-by values for {} --iso values: give one (for all) or one per isosurface",
                 self.color_by.len(),
-                self.iso.len()
+                isos.len()
             );
         }
         view.validate()?;
@@ -520,7 +534,8 @@ impl RenderArgs {
                 method: self.method,
                 release_pages: true,
             },
-            isos: self.iso.clone(),
+            isos,
+            no_isosurface,
             view,
             outputs: Outputs {
                 exr: self.output.clone(),
@@ -564,6 +579,14 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
 }
 
 /// Parses what paints a surface: a field name, `level`, or `none`.
+/// Parses `--iso`: a surface, or `none` for none.
+fn parse_iso(s: &str) -> Result<Option<SurfaceArg>, String> {
+    match s.trim() {
+        "none" => Ok(None),
+        other => other.parse().map(Some),
+    }
+}
+
 fn parse_color_by(s: &str) -> Result<Option<ColorBy>, String> {
     match s.trim() {
         "none" => Ok(None),

@@ -60,6 +60,12 @@ pub fn run(request: &RenderRequest, mode: Option<&str>) -> anyhow::Result<()> {
             i32::MAX as usize / RECORD / 1_000_000
         );
     }
+    if mode == MpiMode::Partitioned && request.no_isosurface {
+        bail!(
+            "--mpi-mode partitioned draws no slices, and --iso none leaves it nothing to draw: \
+             use the replicated mode (the default)"
+        );
+    }
     if mode == MpiMode::Partitioned && request.scene.method != TraceMethod::Hybrid {
         bail!("--mpi-mode partitioned needs --method hybrid (it partitions the active octants)");
     }

@@ -27,7 +27,7 @@ use crate::movie;
 use crate::outputs::{self, FrameFiles, ProcessMemory, RunStats};
 use crate::progress;
 use crate::render::{request_isos, swept_surface};
-use crate::render_args::{painting_fields, RenderRequest};
+use crate::render_args::RenderRequest;
 use amr_render::system_memory::peak_rss_bytes;
 
 /// The statistics of one frame of an animation.
@@ -319,33 +319,37 @@ fn check_series(request: &RenderRequest) -> anyhow::Result<()> {
 /// `--slice-field`, in that order, or the scene's field (`--field`) when only slices paint with
 /// it.
 fn series_ranges(request: &RenderRequest) -> anyhow::Result<Vec<(String, (f64, f64))>> {
-    let mut names: Vec<String> = painting_fields(&request.color_by, &request.slice_field)
-        .into_iter()
-        .map(String::from)
-        .collect();
+    // Each painter once, by name, with the fields it reads (a magnitude's components).
+    let mut painters: Vec<(String, Vec<String>)> = Vec::new();
+    let by = request
+        .color_by
+        .iter()
+        .chain([&request.slice_field])
+        .flatten();
+    for by in by {
+        if let Some(name) = by.painted_name() {
+            if painters.iter().all(|(n, _)| n != name) {
+                let read = by.fields().into_iter().map(String::from).collect();
+                painters.push((name.to_string(), read));
+            }
+        }
+    }
     if let (true, false, Some(field)) = (
-        names.is_empty(),
+        painters.is_empty(),
         request.slices.is_empty(),
         &request.scene.field,
     ) {
-        names.push(field.clone());
+        painters.push((field.clone(), vec![field.clone()]));
     }
-    if names.is_empty() {
+    if painters.is_empty() {
         bail!("--color-range auto-series needs a field to paint with (--color-by FIELD or --slice-field FIELD)");
     }
-    let mut ranges: Vec<(f64, f64)> = vec![(f64::INFINITY, f64::NEG_INFINITY); names.len()];
+    let mut ranges: Vec<(f64, f64)> = vec![(f64::INFINITY, f64::NEG_INFINITY); painters.len()];
     for path in &request.files {
         let file = open_mapped(path)?;
-        for (name, (lo, hi)) in names.iter().zip(&mut ranges) {
-            // A magnitude's components, or the field itself.
-            let read = match name.parse::<ColorBy>() {
-                Ok(by @ ColorBy::Magnitude { .. }) => {
-                    by.fields().iter().map(|f| f.to_string()).collect()
-                }
-                _ => vec![name.clone()],
-            };
+        for ((_, read), (lo, hi)) in painters.iter().zip(&mut ranges) {
             let mut component_ranges = Vec::new();
-            for field in &read {
+            for field in read {
                 let Some(i) = file.field_index(field) else {
                     bail!(
                         "{}: no field '{field}' to take the series' colour range from",
@@ -363,12 +367,12 @@ fn series_ranges(request: &RenderRequest) -> anyhow::Result<Vec<(String, (f64, f
             *hi = hi.max(file_hi);
         }
     }
-    for (name, (lo, hi)) in names.iter().zip(&ranges) {
+    for ((name, _), (lo, hi)) in painters.iter().zip(&ranges) {
         if !(lo < hi) {
             bail!("field '{name}' is {lo} in every file of the series: no colour range to spread");
         }
     }
-    Ok(names.into_iter().zip(ranges).collect())
+    Ok(painters.into_iter().map(|(n, _)| n).zip(ranges).collect())
 }
 
 /// Bounds of the length of a vector whose components lie in `ranges`: from the length of the

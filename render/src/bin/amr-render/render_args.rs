@@ -277,7 +277,8 @@ impl RenderArgs {
     /// The fields named to paint surfaces (`--color-by`) or slices (`--slice-field`), in the
     /// order they first do.
     fn painting_fields(&self) -> Vec<&str> {
-        painting_fields(&self.color_by, &self.slice_field)
+        let painters = self.color_by.iter().chain([&self.slice_field]).flatten();
+        amr_render::coloring::painting_fields(painters)
     }
 
     /// An error when `--color-range` would be the range of several painting fields (those
@@ -601,15 +602,6 @@ pub enum ColorRange {
     Fixed(f64, f64),
     /// The painting field's range over every file of the series.
     AutoSeries,
-}
-
-/// The fields named by `--color-by` and `--slice-field` (`color_by`, `slice_field`), each once,
-/// in the order they first appear.
-pub fn painting_fields<'a>(
-    color_by: &'a [Option<ColorBy>],
-    slice_field: &'a Option<ColorBy>,
-) -> Vec<&'a str> {
-    amr_render::coloring::painting_fields(color_by.iter().chain([slice_field]).flatten())
 }
 
 /// Parses `LO:HI` or `auto-series`.

@@ -25,6 +25,27 @@ pub struct ConvertOptions {
     /// and [`MAX_JOINED_EXTENT`] cells per axis (see [`amr_format::box_join`]); off keeps every
     /// box in its own bricks.
     pub join: bool,
+    /// Fields computed from the converted ones, written after them
+    /// ([`crate::derive::DerivedField`]).
+    pub derived: Vec<crate::derive::DerivedField>,
+    /// Store the tight leaf ranges (what every file for rendering should have); off only for
+    /// an intermediate file read once.
+    pub tight_ranges: bool,
+}
+
+impl Default for ConvertOptions {
+    /// All fields, bricks of 32 cells per axis, raw, small boxes joined, no derived field,
+    /// tight ranges stored: what `amr-convert` does without options.
+    fn default() -> Self {
+        ConvertOptions {
+            fields: Vec::new(),
+            brick: 32,
+            compression: Compression::None,
+            join: true,
+            derived: Vec::new(),
+            tight_ranges: true,
+        }
+    }
 }
 
 /// What a conversion did.
@@ -316,18 +337,14 @@ impl BrickSink {
         levels: Vec<LevelSpec>,
         fields: Vec<String>,
         layout: BrickLayout,
-        compression: Compression,
+        options: amr_format::WriterOptions,
     ) -> Result<Self, FormatError> {
         let spec = HierarchySpec {
             levels,
             fields,
             bricks: layout.bricks().to_vec(),
         };
-        let writer = AmrkWriter::create(
-            output,
-            spec,
-            amr_render::extract::writer_options(compression),
-        )?;
+        let writer = AmrkWriter::create(output, spec, options)?;
         Ok(Self {
             layout,
             writer,
@@ -407,7 +424,7 @@ mod tests {
             vec![level],
             vec!["f".into()],
             layout,
-            Compression::None,
+            amr_format::WriterOptions::default(),
         )
         .unwrap()
     }

@@ -106,6 +106,10 @@ pub fn describe(input: &Path) -> Result<DumpDescription, DumpError> {
                 enzo::Dataset::open(&params, &hierarchy).map_err(|e| failed(format, &e))?;
             Ok(DumpDescription::of(input, format, &dataset))
         }
+        InputFormat::Amrk => Err(DumpError::Unrecognised {
+            path: input.to_path_buf(),
+            reason: "an .amrk file, not a dump: `amr-render info FILE` describes it".into(),
+        }),
     }
 }
 

@@ -12,9 +12,10 @@ use amr_format::FormatError;
 use amr_render::dump_hint::{first_bytes, HDF5_SIGNATURE};
 
 use crate::amrex::{self, AmrexError};
-use crate::bricking::ConvertOptions;
+use crate::bricking::{ConvertOptions, ConvertStats};
 use crate::chombo::ChomboError;
 use crate::enzo::EnzoError;
+use crate::rewrite::{rewrite, RewriteError};
 
 /// Why a dump was not converted. Each message names the file and the problem, with the
 /// reader's own explanation (and its causes) written out in full.
@@ -69,6 +70,17 @@ pub enum DumpError {
         /// The reader's error and its causes.
         detail: String,
     },
+    /// An option that does not apply to an `.amrk` input.
+    #[error("{}: an .amrk input keeps its bricks, so {option} does not apply", path.display())]
+    NotForAmrk {
+        /// The input.
+        path: PathBuf,
+        /// The option.
+        option: &'static str,
+    },
+    /// Rewriting an `.amrk` file, or deriving fields, failed.
+    #[error("{}", chain(.0))]
+    Rewrite(Box<RewriteError>),
     /// The Enzo reader or the writer failed.
     #[error("converting Enzo dataset {}: {}", params.display(), chain(error))]
     Enzo {
@@ -116,12 +128,16 @@ impl std::fmt::Display for ConvertSummary {
         } else {
             0.0
         };
+        // A rewritten .amrk file has bricks, not the boxes they were made of.
+        let boxes = match self.boxes {
+            0 => String::new(),
+            n => format!(" of {n} boxes"),
+        };
         write!(
             f,
-            "read {:.1} MiB, wrote {} cells of {} boxes in {} bricks, {:.1} MiB, in {:.2} s ({:.0} MiB/s)",
+            "read {:.1} MiB, wrote {} cells{boxes} in {} bricks, {:.1} MiB, in {:.2} s ({:.0} MiB/s)",
             mib(self.bytes_read),
             self.cells,
-            self.boxes,
             self.bricks,
             mib(self.output_bytes),
             self.seconds,
@@ -137,6 +153,8 @@ pub enum InputFormat {
     Amrex,
     /// A Chombo HDF5 file (plotfile or checkpoint).
     ChomboHdf5,
+    /// An `.amrk` file, rewritten (fields kept or derived, compression changed).
+    Amrk,
     /// An Enzo dataset: its parameter file and hierarchy file.
     Enzo {
         /// The parameter file.
@@ -197,10 +215,10 @@ pub fn detect(input: &Path) -> Result<InputFormat, DumpError> {
         // Chombo's own names end in .hdf5 or .h5, but a renamed file is still one.
         return Ok(InputFormat::ChomboHdf5);
     }
+    if head == Some(amr_format::raw::MAGIC) {
+        return Ok(InputFormat::Amrk);
+    }
     let reason = match input.parent() {
-        _ if head == Some(amr_format::raw::MAGIC) => {
-            "already an .amrk file: render it with `amr-render FILE`".to_string()
-        }
         Some(dir) if input.file_name().is_some_and(|n| n == "Header") && detect(dir).is_ok() => {
             format!(
                 "the Header of an AMReX plotfile: give the plotfile's directory, {}",
@@ -240,7 +258,78 @@ pub fn convert_dump(
     }
     amr_format::output::check_output(output, &inputs).map_err(DumpError::Output)?;
     let start = Instant::now();
-    let stats = match format {
+    let rewritten = |from: &Path, fields: &[String], progress: &dyn Progress| {
+        rewrite(
+            from,
+            output,
+            fields,
+            &opts.derived,
+            opts.compression,
+            progress,
+        )
+        .map_err(|e| DumpError::Rewrite(Box::new(e)))
+    };
+    let stats = if format == InputFormat::Amrk {
+        rewritten(input, &opts.fields, progress)?
+    } else if opts.derived.is_empty() {
+        convert_format(input, format, output, opts, progress)?
+    } else {
+        // The dump is converted to an intermediate file beside the output (with the fields the
+        // formulas read), then rewritten with the derived fields: a dump's reader hands out
+        // one field of a box at a time, and holding a box's other fields until the last
+        // arrives would cost a box's worth of memory per field.
+        let intermediate = amr_format::output::temporary_for(output, ".tmp")
+            .map_err(DumpError::Output)?
+            .into_temp_path();
+        let mut read = opts.fields.clone();
+        if !read.is_empty() {
+            for d in &opts.derived {
+                read.extend(
+                    d.inputs()
+                        .iter()
+                        .filter(|f| !read.contains(f))
+                        .cloned()
+                        .collect::<Vec<_>>(),
+                );
+            }
+        }
+        let first = ConvertOptions {
+            fields: read,
+            compression: amr_format::Compression::None,
+            derived: Vec::new(),
+            tight_ranges: false,
+            ..opts.clone()
+        };
+        let phase = Phase::new(progress);
+        let read = convert_format(input, format, &intermediate, &first, &phase)?;
+        let derived = rewritten(&intermediate, &opts.fields, &phase.then())?;
+        progress.finish();
+        ConvertStats {
+            bytes_read: read.bytes_read,
+            boxes: read.boxes,
+            ..derived
+        }
+    };
+    let output_bytes = std::fs::metadata(output).map(|m| m.len()).unwrap_or(0);
+    Ok(ConvertSummary {
+        bytes_read: stats.bytes_read,
+        cells: stats.cells,
+        bricks: stats.bricks,
+        boxes: stats.boxes,
+        output_bytes,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Converts the dump `input` of format `format` (not [`InputFormat::Amrk`]) to `output`.
+fn convert_format(
+    input: &Path,
+    format: InputFormat,
+    output: &Path,
+    opts: &ConvertOptions,
+    progress: &dyn Progress,
+) -> Result<ConvertStats, DumpError> {
+    Ok(match format {
         InputFormat::Amrex => amrex::Plotfile::open(input)
             .and_then(|pf| crate::hierarchy_to_amrk::convert(&pf, output, opts, progress))
             .map_err(|error| DumpError::Amrex {
@@ -257,16 +346,46 @@ pub fn convert_dump(
                 }
             })?
         }
-    };
-    let output_bytes = std::fs::metadata(output).map(|m| m.len()).unwrap_or(0);
-    Ok(ConvertSummary {
-        bytes_read: stats.bytes_read,
-        cells: stats.cells,
-        bricks: stats.bricks,
-        boxes: stats.boxes,
-        output_bytes,
-        seconds: start.elapsed().as_secs_f64(),
+        InputFormat::Amrk => unreachable!("an .amrk input is rewritten, not converted"),
     })
+}
+
+/// One of the two passes of a conversion with derived fields, reported on one bar: the first
+/// pass's finish is not passed on, and the second pass's total is added to what was done.
+struct Phase<'a> {
+    outer: &'a dyn Progress,
+    done: std::sync::atomic::AtomicU64,
+    base: u64,
+}
+
+impl<'a> Phase<'a> {
+    fn new(outer: &'a dyn Progress) -> Self {
+        Phase {
+            outer,
+            done: 0.into(),
+            base: 0,
+        }
+    }
+
+    /// The next pass, counting on from where this one ended.
+    fn then(&self) -> Phase<'a> {
+        Phase {
+            outer: self.outer,
+            done: 0.into(),
+            base: self.base + self.done.load(std::sync::atomic::Ordering::Relaxed),
+        }
+    }
+}
+
+impl Progress for Phase<'_> {
+    fn set_total(&self, n: u64) {
+        self.outer.set_total(self.base + n);
+    }
+    fn advance(&self, n: u64) {
+        self.done.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+        self.outer.advance(n);
+    }
+    fn finish(&self) {}
 }
 
 /// The first line of `path`, at most 256 bytes of it.
@@ -306,8 +425,7 @@ mod tests {
             [amr_format::raw::MAGIC.as_slice(), &[0; 64]].concat(),
         )
         .unwrap();
-        let e = detect(&amrk).unwrap_err().to_string();
-        assert!(e.contains("already an .amrk file"), "{e}");
+        assert!(matches!(detect(&amrk), Ok(InputFormat::Amrk)));
         let renamed = dir.path().join("plt0010.chombo");
         std::fs::write(&renamed, [HDF5_SIGNATURE.as_slice(), &[0; 64]].concat()).unwrap();
         assert!(matches!(detect(&renamed), Ok(InputFormat::ChomboHdf5)));

@@ -108,7 +108,7 @@ pub trait AmrSource {
 }
 
 /// The error for a failure of the `.amrk` writer on `output`.
-fn output_error<E: From<ConvertError>>(output: &Path, source: FormatError) -> E {
+pub(crate) fn output_error<E: From<ConvertError>>(output: &Path, source: FormatError) -> E {
     match source {
         // Its message names the output already.
         FormatError::Output { .. } => E::from(ConvertError::RefusedOutput(source)),
@@ -193,7 +193,14 @@ pub fn convert<S: AmrSource + ?Sized>(
     let order = opts.join.then(|| src.stream_order());
     let layout = BrickLayout::new(&boxes, opts.brick, order.as_deref(), comps.len());
     let fields = comps.iter().map(|&c| src.fields()[c].clone()).collect();
-    let mut sink = BrickSink::create(output, src.level_specs(), fields, layout, opts.compression)
+    let writer_options = match opts.tight_ranges {
+        true => amr_render::extract::writer_options(opts.compression),
+        false => amr_format::WriterOptions {
+            compression: opts.compression,
+            tight: None,
+        },
+    };
+    let mut sink = BrickSink::create(output, src.level_specs(), fields, layout, writer_options)
         .map_err(|e| output_error(output, e))?;
     let (time, step) = src.simulation();
     // A time the dump gives as NaN or infinite is not recorded rather than refused.

@@ -124,6 +124,7 @@ fn refusal(d: &AmrexHdf5) -> String {
         brick: 16,
         compression: Compression::None,
         join: true,
+        ..ConvertOptions::default()
     };
     let e = chombo::convert(&input, &output, &opts, &NoProgress).unwrap_err();
     assert!(!output.exists(), "an output was left");

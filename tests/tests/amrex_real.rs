@@ -48,6 +48,7 @@ fn example_plt_3d_small_boxes_join_into_fewer_bricks() {
             brick: 32,
             compression: Compression::None,
             join,
+            ..ConvertOptions::default()
         };
         let s = convert_dump(&input, &target, &opts, &amr_format::progress::NoProgress).unwrap();
         check_conversion(&input, &target, &["temp"]);

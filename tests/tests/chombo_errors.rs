@@ -23,6 +23,7 @@ fn fails_at(dir: &Path, input: &Path, fields: &[&str]) -> String {
         brick: 8,
         compression: Compression::None,
         join: true,
+        ..ConvertOptions::default()
     };
     let err =
         chombo::convert(input, &output, &opts, &NoProgress).expect_err("conversion should fail");
@@ -203,6 +204,7 @@ fn a_nan_in_a_ghost_cell_is_ignored() {
         brick: 8,
         compression: Compression::None,
         join: true,
+        ..ConvertOptions::default()
     };
     chombo::convert(&input, &dir.path().join("out.amrk"), &opts, &NoProgress).unwrap();
 }
@@ -238,6 +240,7 @@ fn a_missing_file() {
         brick: 8,
         compression: Compression::None,
         join: true,
+        ..ConvertOptions::default()
     };
     let err =
         chombo::convert(&input, &dir.path().join("out.amrk"), &opts, &NoProgress).unwrap_err();

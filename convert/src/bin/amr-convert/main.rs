@@ -10,9 +10,11 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use amr_convert::bricking::ConvertOptions;
+use amr_convert::derive::{check_distinct, DerivedField};
 use amr_convert::describe::describe;
-use amr_convert::dump::convert_dump;
+use amr_convert::dump::{convert_dump, detect, InputFormat};
 use amr_format::Compression;
+use anyhow::bail;
 use clap::{Parser, Subcommand};
 
 use progress_bar::Bar;
@@ -30,7 +32,8 @@ struct Cli {
     command: Option<Command>,
     /// The dump to convert: an AMReX plotfile directory or HDF5 plotfile, a Chombo HDF5 plotfile
     /// or checkpoint (.h5, .hdf5), or an Enzo dataset (its parameter file, its .hierarchy, or
-    /// its directory).
+    /// its directory). An .amrk file is written anew with the --field, --derive and --compress
+    /// asked for, its bricks as they are.
     /// Several dumps (a time series) go to one directory, one NAME.amrk each.
     #[arg(required = true, num_args = 1.., value_name = "INPUT")]
     inputs: Vec<PathBuf>,
@@ -41,9 +44,16 @@ struct Cli {
     /// A field to convert (repeat for several; all fields by default).
     #[arg(long = "field", value_name = "NAME")]
     fields: Vec<String>,
-    /// Largest brick size in cells per axis; larger input boxes are split.
-    #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..=1024))]
-    brick: u32,
+    /// A field computed cell by cell from the others and stored with them, NAME=FORMULA (repeat
+    /// for several): a vector's length, speed='|x-velocity,y-velocity,z-velocity|', or an
+    /// expression of fields, numbers, + - * / ^ and sqrt, abs, ln, log10, exp, min, max, ...,
+    /// temperature='pressure/density'; a field name with characters other than letters, digits
+    /// and _ goes in braces, {x-velocity}. Then --iso and --color-by take it like any field.
+    #[arg(long = "derive", value_name = "NAME=FORMULA")]
+    derived: Vec<DerivedField>,
+    /// Largest brick size in cells per axis; larger input boxes are split [default: 32].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    brick: Option<u32>,
     /// Compress each brick with zstd (byte-shuffled; stored raw where that does not pay).
     #[arg(long)]
     compress: bool,
@@ -108,9 +118,15 @@ fn run_info(args: &InfoArgs) -> anyhow::Result<()> {
 fn convert_one(cli: &Cli, input: &Path, output: &Path) -> anyhow::Result<()> {
     if isolate::needs_child(input) {
         // HDF5 is read in a child, whose crash on a corrupt file becomes an error.
-        let mut options: Vec<String> = vec!["--brick".into(), cli.brick.to_string()];
+        let mut options: Vec<String> = Vec::new();
+        if let Some(brick) = cli.brick {
+            options.extend(["--brick".into(), brick.to_string()]);
+        }
         for f in &cli.fields {
             options.extend(["--field".into(), f.clone()]);
+        }
+        for d in &cli.derived {
+            options.extend(["--derive".into(), d.to_string()]);
         }
         if cli.compress {
             options.push("--compress".into());
@@ -126,11 +142,26 @@ fn convert_one(cli: &Cli, input: &Path, output: &Path) -> anyhow::Result<()> {
     } else {
         Compression::None
     };
+    if detect(input).is_ok_and(|f| f == InputFormat::Amrk) {
+        for (given, option) in [
+            (cli.brick.is_some(), "--brick"),
+            (cli.keep_boxes, "--keep-boxes"),
+        ] {
+            if given {
+                bail!(
+                    "{}: an .amrk input keeps its bricks, so {option} does not apply",
+                    input.display()
+                );
+            }
+        }
+    }
     let opts = ConvertOptions {
         fields: cli.fields.clone(),
-        brick: cli.brick,
+        brick: cli.brick.unwrap_or(ConvertOptions::default().brick),
         compression,
         join: !cli.keep_boxes,
+        derived: cli.derived.clone(),
+        ..ConvertOptions::default()
     };
     let summary = convert_dump(input, output, &opts, &Bar::bytes("converting"))?;
     eprintln!("{}: {summary}", output.display());
@@ -154,20 +185,26 @@ fn main() -> ExitCode {
             let Some(output) = &cli.output else {
                 unreachable!("clap requires --output without a subcommand")
             };
-            series::outputs(&cli.inputs, output).and_then(|jobs| {
-                let done = jobs.pairs.iter().try_for_each(|(input, output)| {
-                    if cli.update && series::up_to_date(input, output, &cli.fields) {
-                        eprintln!("{}: up to date, kept", output.display());
-                        return Ok(());
-                    }
-                    convert_one(&cli, input, output)
-                });
-                if let (Err(_), Some(dir)) = (&done, &jobs.created) {
-                    // Removes the directory this run made only if nothing was written into it.
-                    let _ = std::fs::remove_dir(dir);
-                }
-                done
-            })
+            check_distinct(&cli.derived)
+                .map_err(anyhow::Error::from)
+                .and_then(|()| {
+                    series::outputs(&cli.inputs, output).and_then(|jobs| {
+                        let done = jobs.pairs.iter().try_for_each(|(input, output)| {
+                            if cli.update
+                                && series::up_to_date(input, output, &cli.fields, &cli.derived)
+                            {
+                                eprintln!("{}: up to date, kept", output.display());
+                                return Ok(());
+                            }
+                            convert_one(&cli, input, output)
+                        });
+                        if let (Err(_), Some(dir)) = (&done, &jobs.created) {
+                            // Removes the directory this run made only if nothing was written into it.
+                            let _ = std::fs::remove_dir(dir);
+                        }
+                        done
+                    })
+                })
         }
     };
     match result {

@@ -3,6 +3,7 @@
 //! plotfile directory, `chk0010` for `chk0010.3d.hdf5`, `DD0010` for an Enzo directory or
 //! `moving7_0010` for its parameter file).
 
+use amr_convert::derive::DerivedField;
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
@@ -63,9 +64,16 @@ pub fn outputs(inputs: &[PathBuf], output: &Path) -> anyhow::Result<Outputs> {
 }
 
 /// Whether `output` is the conversion of dump `input` with the fields `fields` (or any, when
-/// empty) and newer than every file of the dump: a valid `.amrk` file whose modification time
-/// is at or after theirs. Anything that cannot be read counts as out of date.
-pub fn up_to_date(input: &Path, output: &Path, fields: &[String]) -> bool {
+/// empty) followed by the fields `derived`, and newer than every file of the dump: a valid
+/// `.amrk` file whose modification time is at or after theirs. Anything that cannot be read
+/// counts as out of date. (A formula is not stored, so a derived field's new formula under its
+/// old name is not noticed.)
+pub fn up_to_date(
+    input: &Path,
+    output: &Path,
+    fields: &[String],
+    derived: &[DerivedField],
+) -> bool {
     let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
     let (Some(written), Some(newest)) = (modified(output), newest_file_time(input)) else {
         return false;
@@ -82,7 +90,13 @@ pub fn up_to_date(input: &Path, output: &Path, fields: &[String]) -> bool {
             asked.push(f);
         }
     }
-    asked.is_empty() || file.fields().iter().map(|f| f.name.as_str()).eq(asked)
+    let has = |name: &str| file.fields().iter().any(|f| f.name == name);
+    let derived: Vec<&str> = derived.iter().map(DerivedField::name).collect();
+    if asked.is_empty() {
+        return derived.iter().all(|d| has(d));
+    }
+    asked.extend(derived);
+    file.fields().iter().map(|f| f.name.as_str()).eq(asked)
 }
 
 /// The latest modification time of the files of dump `input`: every file under a directory;

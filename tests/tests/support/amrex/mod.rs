@@ -61,6 +61,7 @@ pub fn run_convert(
         brick,
         compression,
         join: true,
+        ..ConvertOptions::default()
     };
     convert_dump(input, output, &opts, &NoProgress)
 }

@@ -23,6 +23,7 @@ pub fn convert(
         brick,
         compression,
         join: true,
+        ..ConvertOptions::default()
     };
     match chombo::convert(input, output, &opts, &NoProgress) {
         Ok(s) => s,

@@ -1,0 +1,312 @@
+//! Derived fields: a new field computed cell by cell from a formula over stored fields
+//! (`speed=|x-velocity,y-velocity,z-velocity|`, `temperature=pressure/density`), written into
+//! the `.amrk` file like any other field so that it can be contoured, painted and bounded.
+
+use std::fmt;
+use std::str::FromStr;
+
+use amr_render::coloring::ColorBy;
+use exmex::prelude::*;
+use exmex::{literal_matcher_from_pattern, FloatOpsFactory, MatchLiteral};
+
+// Numbers as scientists write them, `1e-30` and `6.67E-8` included (exmex's own matcher takes
+// no exponent).
+literal_matcher_from_pattern!(
+    ScientificNumber,
+    r"^(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][+-]?[0-9]+)?"
+);
+
+/// A parsed formula over `f64`.
+type Formula = FlatEx<f64, FloatOpsFactory<f64>, ScientificNumber>;
+
+/// How a derived field is written on the command line, for messages.
+pub const EXAMPLES: &str =
+    "speed='|x-velocity,y-velocity,z-velocity|' or temperature='pressure/density'";
+
+/// A field to compute from others: its name and its formula, parsed.
+#[derive(Clone, Debug)]
+pub struct DerivedField {
+    name: String,
+    formula: String,
+    expr: Formula,
+}
+
+/// Why a derived field cannot be made.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum DeriveError {
+    /// The argument is not `NAME=FORMULA`.
+    #[error("--derive '{given}': expected NAME=FORMULA, as {EXAMPLES}")]
+    Syntax {
+        /// The argument as given.
+        given: String,
+    },
+    /// The formula does not parse.
+    #[error("--derive {name}: cannot read the formula '{formula}': {reason}")]
+    Formula {
+        /// The derived field's name.
+        name: String,
+        /// The formula as given.
+        formula: String,
+        /// The parser's explanation.
+        reason: String,
+    },
+    /// The formula reads no field.
+    #[error("--derive {name}: the formula '{formula}' reads no field")]
+    Constant {
+        /// The derived field's name.
+        name: String,
+        /// The formula as given.
+        formula: String,
+    },
+    /// The formula reads a field the input does not have.
+    #[error("--derive {name}: the input has no field named '{field}'{hint}; it has: {available}")]
+    UnknownField {
+        /// The derived field's name.
+        name: String,
+        /// The missing field.
+        field: String,
+        /// A field differing only in letter case, or a reminder that names with other
+        /// characters than letters, digits and `_` go in braces.
+        hint: String,
+        /// The input's fields, comma-separated.
+        available: String,
+    },
+    /// The derived field's name is taken.
+    #[error("--derive {name}: {why}; give the derived field another name")]
+    NameTaken {
+        /// The derived field's name.
+        name: String,
+        /// What has the name already.
+        why: String,
+    },
+}
+
+impl FromStr for DerivedField {
+    type Err = DeriveError;
+
+    /// Parses `NAME=FORMULA`. The formula is a magnitude `|a,b,c|` (the length of the vector
+    /// of those fields, as `--color-by` writes it) or an expression of fields, numbers, `+ - *
+    /// / ^`, and functions such as `sqrt`, `abs`, `ln`, `log10`, `exp`, `min` and `max`; a field
+    /// named with characters other than letters, digits and `_` is written in braces,
+    /// `{x-velocity}`.
+    fn from_str(given: &str) -> Result<Self, DeriveError> {
+        let syntax = || DeriveError::Syntax {
+            given: given.to_string(),
+        };
+        let (name, formula) = given.split_once('=').ok_or_else(syntax)?;
+        let (name, formula) = (name.trim(), formula.trim());
+        if name.is_empty() || formula.is_empty() {
+            return Err(syntax());
+        }
+        let bad = |reason: String| DeriveError::Formula {
+            name: name.to_string(),
+            formula: formula.to_string(),
+            reason,
+        };
+        let text = match formula.starts_with('|') {
+            true => magnitude_expression(formula).map_err(bad)?,
+            false => formula.to_string(),
+        };
+        let expr = Formula::parse(&text).map_err(|e| bad(e.to_string()))?;
+        if expr.var_names().is_empty() {
+            return Err(DeriveError::Constant {
+                name: name.to_string(),
+                formula: formula.to_string(),
+            });
+        }
+        Ok(DerivedField {
+            name: name.to_string(),
+            formula: formula.to_string(),
+            expr,
+        })
+    }
+}
+
+/// The expression of the magnitude `|a,b,c|`: `sqrt({a}^2+{b}^2+{c}^2)`.
+fn magnitude_expression(formula: &str) -> Result<String, String> {
+    let Ok(ColorBy::Magnitude { fields, .. }) = formula.parse::<ColorBy>() else {
+        return Err(format!(
+            "a magnitude names two or more fields between bars, as '|x-velocity,y-velocity|'"
+        ));
+    };
+    if let Some(f) = fields.iter().find(|f| f.contains(['{', '}'])) {
+        return Err(format!("the field name '{f}' holds a brace"));
+    }
+    let squares: Vec<String> = fields.iter().map(|f| format!("{{{f}}}^2")).collect();
+    Ok(format!("sqrt({})", squares.join("+")))
+}
+
+impl DerivedField {
+    /// The derived field's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The formula as given.
+    pub fn formula(&self) -> &str {
+        &self.formula
+    }
+
+    /// The fields the formula reads, in the order [`evaluate`](Self::evaluate) takes their
+    /// values.
+    pub fn inputs(&self) -> &[String] {
+        self.expr.var_names()
+    }
+
+    /// The position in `fields` of each field the formula reads, or which one is missing; also
+    /// refuses a name `fields` (the output's other fields) already hold.
+    pub fn bind(&self, fields: &[String]) -> Result<Vec<usize>, DeriveError> {
+        self.inputs()
+            .iter()
+            .map(|input| {
+                fields
+                    .iter()
+                    .position(|f| f == input)
+                    .ok_or_else(|| self.unknown(input, fields))
+            })
+            .collect()
+    }
+
+    /// Refuses the derived field's name when `taken` (the output's other fields) holds it.
+    pub fn check_name(&self, taken: &[String]) -> Result<(), DeriveError> {
+        match taken.iter().any(|f| *f == self.name) {
+            true => Err(DeriveError::NameTaken {
+                name: self.name.clone(),
+                why: "the output has a field of that name already".into(),
+            }),
+            false => Ok(()),
+        }
+    }
+
+    fn unknown(&self, input: &str, fields: &[String]) -> DeriveError {
+        let mut hint = amr_render::error::same_but_case(input, fields);
+        if hint.is_empty() && fields.iter().any(|f| f.contains(input) && f != input) {
+            hint = " (a field named with characters other than letters, digits and _ is \
+                    written in braces: {x-velocity})"
+                .into();
+        }
+        DeriveError::UnknownField {
+            name: self.name.clone(),
+            field: input.to_string(),
+            hint,
+            available: fields.join(", "),
+        }
+    }
+
+    /// The formula's value for the input values `values` (in [`inputs`](Self::inputs) order),
+    /// computed in double precision.
+    pub fn evaluate(&self, values: &[f64]) -> f64 {
+        // The values are as many as the formula's variables, so evaluation cannot fail; a
+        // failure would be a bug of this module, reported as NaN and refused by the caller.
+        self.expr.eval(values).unwrap_or(f64::NAN)
+    }
+}
+
+impl fmt::Display for DerivedField {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}={}", self.name, self.formula)
+    }
+}
+
+/// Names every derived field once: refuses two of one name.
+pub fn check_distinct(derived: &[DerivedField]) -> Result<(), DeriveError> {
+    for (i, d) in derived.iter().enumerate() {
+        if derived[..i].iter().any(|e| e.name == d.name) {
+            return Err(DeriveError::NameTaken {
+                name: d.name.clone(),
+                why: "two derived fields have that name".into(),
+            });
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(list: &[&str]) -> Vec<String> {
+        list.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn a_magnitude_is_the_length_of_its_fields_vector() {
+        let d: DerivedField = "speed = |x-velocity,y-velocity,z-velocity|"
+            .parse()
+            .unwrap();
+        assert_eq!(d.name(), "speed");
+        assert_eq!(d.inputs(), ["x-velocity", "y-velocity", "z-velocity"]);
+        let fields = names(&["Density", "z-velocity", "x-velocity", "y-velocity"]);
+        assert_eq!(d.bind(&fields).unwrap(), [2, 3, 1]);
+        assert_eq!(d.evaluate(&[3.0, 4.0, 12.0]), 13.0);
+        assert_eq!(d.to_string(), "speed=|x-velocity,y-velocity,z-velocity|");
+    }
+
+    #[test]
+    fn an_expression_reads_its_fields_in_the_order_inputs_lists_them() {
+        let d: DerivedField = "T=pressure/density*{mean-mass}".parse().unwrap();
+        let order = d.inputs().to_vec();
+        let value = |name: &str| match name {
+            "pressure" => 6.0,
+            "density" => 2.0,
+            "mean-mass" => 0.5,
+            _ => unreachable!(),
+        };
+        let values: Vec<f64> = order.iter().map(|n| value(n)).collect();
+        assert_eq!(d.evaluate(&values), 1.5);
+        let d: DerivedField = "k=0.5*rho*2.5e-1*1E+2/.5e2".parse().unwrap();
+        assert_eq!(d.inputs(), ["rho"]);
+        assert_eq!(d.evaluate(&[4.0]), 0.5 * 4.0 * 0.25 * 100.0 / 50.0);
+        let d: DerivedField = "lr=log10(rho)+sqrt(abs(min(a,b)))".parse().unwrap();
+        let values: Vec<f64> = d
+            .inputs()
+            .iter()
+            .map(|n| match n.as_str() {
+                "rho" => 100.0,
+                "a" => -4.0,
+                "b" => 9.0,
+                _ => unreachable!(),
+            })
+            .collect();
+        assert_eq!(d.evaluate(&values), 4.0);
+    }
+
+    #[test]
+    fn malformed_arguments_say_what_is_wrong() {
+        for (given, says) in [
+            ("speed", "expected NAME=FORMULA"),
+            ("=a+b", "expected NAME=FORMULA"),
+            ("s=", "expected NAME=FORMULA"),
+            ("s=a+*", "cannot read the formula 'a+*'"),
+            ("s=(a+b", "cannot read the formula"),
+            ("s=|a|", "two or more fields between bars"),
+            ("s=|a,|", "cannot read the formula"),
+            ("s=2*PI", "reads no field"),
+        ] {
+            let e = given.parse::<DerivedField>().unwrap_err().to_string();
+            assert!(e.contains(says), "{given}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_missing_field_or_a_taken_name_is_named() {
+        let fields = names(&["x-velocity", "Density"]);
+        let d: DerivedField = "v=x-velocity^2".parse().unwrap();
+        let e = d.bind(&fields).unwrap_err().to_string();
+        assert!(e.contains("no field named 'velocity'"), "{e}");
+        assert!(e.contains("written in braces: {x-velocity}"), "{e}");
+        let d: DerivedField = "v=density*2".parse().unwrap();
+        let e = d.bind(&fields).unwrap_err().to_string();
+        assert!(e.contains("did you mean 'Density'"), "{e}");
+        let d: DerivedField = "Density={x-velocity}".parse().unwrap();
+        assert!(d.bind(&fields).is_ok());
+        let e = d.check_name(&fields).unwrap_err().to_string();
+        assert!(e.contains("already"), "{e}");
+        let twice: Vec<DerivedField> = ["a={x-velocity}", "a=Density"]
+            .iter()
+            .map(|s| s.parse().unwrap())
+            .collect();
+        let e = check_distinct(&twice).unwrap_err().to_string();
+        assert!(e.contains("two derived fields"), "{e}");
+    }
+}

@@ -1,0 +1,290 @@
+//! An `.amrk` file written anew from another: some of its fields kept, derived fields computed
+//! cell by cell ([`DerivedField`]), its bricks compressed or not; the levels, bricks and tree
+//! as they were. Memory holds a few megabytes of cells at a time, whatever the file's size.
+
+use std::path::Path;
+
+use amr_format::progress::Progress;
+use amr_format::{AmrkWriter, BrickSpec, Compression, FormatError, HierarchySpec, LevelSpec};
+use amr_render::mapping::{open_mapped, MappedFile, PageRelease};
+use rayon::prelude::*;
+
+use crate::bricking::ConvertStats;
+use crate::derive::{DeriveError, DerivedField};
+use crate::finite::ToFiniteF32;
+use crate::hierarchy_to_amrk::ConvertError;
+
+/// Cells of the bricks computed together before they are written, at most (one brick may
+/// exceed it): enough for both cores, a few megabytes per field.
+const CHUNK_CELLS: u64 = 1 << 20;
+
+/// Why an `.amrk` file was not rewritten.
+#[derive(Debug, thiserror::Error)]
+pub enum RewriteError {
+    /// The input does not open as an `.amrk` file (the error names it).
+    #[error("{0}")]
+    Open(FormatError),
+    /// A brick of the input does not decode (the error names the file and the brick).
+    #[error("{0}")]
+    Read(FormatError),
+    /// A derived field cannot be made from the input.
+    #[error("{}: {error}", path.display())]
+    Derive {
+        /// The input file.
+        path: std::path::PathBuf,
+        /// What is wrong with the derived field (part of this error's message, so not its
+        /// `source()`: printing the chain would repeat it).
+        error: DeriveError,
+    },
+    /// A derived field's formula gives no finite `f32` at some cell.
+    #[error(
+        "{}: the derived field {name} = {formula} is {what} at level {level}, cell {cell:?}, \
+         where {inputs}; an .amrk file holds finite values only: change the formula (as \
+         max(density, 1e-30) inside a log)",
+        path.display()
+    )]
+    NotFinite {
+        /// The input file.
+        path: std::path::PathBuf,
+        /// The derived field's name.
+        name: String,
+        /// Its formula.
+        formula: String,
+        /// "NaN", "infinite" or "outside the f32 range (VALUE)".
+        what: String,
+        /// The cell's level.
+        level: u32,
+        /// The cell, in its level's index space.
+        cell: [i64; 3],
+        /// The input values there, `name = value, ...`.
+        inputs: String,
+    },
+    /// A field is unknown, or the output is refused or failed.
+    #[error(transparent)]
+    Convert(#[from] ConvertError),
+}
+
+/// Writes `output` from the `.amrk` file `input`: its fields `fields` (all when empty, in the
+/// order given), then the fields `derived`, with `compression`. The output appears only when
+/// complete.
+pub fn rewrite(
+    input: &Path,
+    output: &Path,
+    fields: &[String],
+    derived: &[DerivedField],
+    compression: Compression,
+    progress: &dyn Progress,
+) -> Result<ConvertStats, RewriteError> {
+    let file = open_mapped(input).map_err(RewriteError::Open)?;
+    let names: Vec<String> = file.fields().iter().map(|f| f.name.clone()).collect();
+    let kept = kept_fields(input, &names, fields)?;
+    let derive_error = |error| RewriteError::Derive {
+        path: input.to_path_buf(),
+        error,
+    };
+    let mut out_fields: Vec<String> = kept.iter().map(|&f| names[f].clone()).collect();
+    let mut bound = Vec::with_capacity(derived.len());
+    for d in derived {
+        d.check_name(&out_fields).map_err(derive_error)?;
+        bound.push(d.bind(&names).map_err(derive_error)?);
+        out_fields.push(d.name().to_string());
+    }
+    let plan = Plan {
+        file: &file,
+        path: input,
+        kept: &kept,
+        derived,
+        bound: &bound,
+    };
+    let spec = HierarchySpec {
+        levels: file
+            .levels()
+            .iter()
+            .map(|l| LevelSpec {
+                cell_size: l.cell_size,
+                origin: l.origin,
+                ratio_to_next: l.ratio_to_next,
+                domain: l.domain,
+            })
+            .collect(),
+        fields: out_fields,
+        bricks: file
+            .bricks()
+            .map(|b| BrickSpec {
+                level: b.level,
+                cells: b.cells,
+            })
+            .collect(),
+    };
+    let refused = |e| crate::hierarchy_to_amrk::output_error::<ConvertError>(output, e);
+    let mut writer = AmrkWriter::create(
+        output,
+        spec,
+        amr_render::extract::writer_options(compression),
+    )
+    .map_err(refused)?;
+    writer
+        .set_simulation(file.simulation_time(), file.simulation_step())
+        .map_err(refused)?;
+    let read = plan.read_fields();
+    let bytes_of = |b: usize| -> u64 { read.iter().map(|&f| file.brick_data(f, b).len).sum() };
+    progress.set_total((0..file.num_bricks()).map(bytes_of).sum());
+    let release = PageRelease::new(&file);
+    let mut stats = ConvertStats::default();
+    for chunk in chunks(&file) {
+        let computed: Vec<Result<Vec<Vec<f32>>, RewriteError>> = chunk
+            .clone()
+            .into_par_iter()
+            .map(|b| plan.brick(b))
+            .collect();
+        for (b, values) in chunk.zip(computed) {
+            for (f, values) in values?.iter().enumerate() {
+                writer.write_brick(b, f, values).map_err(refused)?;
+            }
+            let bytes = bytes_of(b);
+            stats.bytes_read += bytes;
+            stats.cells += file.brick(b).cells.num_cells().unwrap_or(0);
+            progress.advance(bytes);
+        }
+        release.release();
+    }
+    writer.finish().map_err(refused)?;
+    progress.finish();
+    stats.bricks = file.num_bricks() as u64;
+    Ok(stats)
+}
+
+/// The positions in `names` of the fields `asked` (all when empty), each once.
+fn kept_fields(
+    input: &Path,
+    names: &[String],
+    asked: &[String],
+) -> Result<Vec<usize>, ConvertError> {
+    if asked.is_empty() {
+        return Ok((0..names.len()).collect());
+    }
+    let mut kept: Vec<usize> = Vec::with_capacity(asked.len());
+    for name in asked {
+        let f = names
+            .iter()
+            .position(|n| n == name)
+            .ok_or_else(|| ConvertError::UnknownField {
+                path: input.to_path_buf(),
+                name: name.clone(),
+                available: names.join(", "),
+                hint: amr_render::error::same_but_case(name, names),
+            })?;
+        if !kept.contains(&f) {
+            kept.push(f);
+        }
+    }
+    Ok(kept)
+}
+
+/// Consecutive runs of bricks of about [`CHUNK_CELLS`] cells.
+fn chunks(file: &MappedFile) -> Vec<std::ops::Range<usize>> {
+    let mut runs = Vec::new();
+    let (mut start, mut cells) = (0, 0u64);
+    for b in 0..file.num_bricks() {
+        cells += file.brick(b).cells.num_cells().unwrap_or(0);
+        if cells >= CHUNK_CELLS {
+            runs.push(start..b + 1);
+            (start, cells) = (b + 1, 0);
+        }
+    }
+    if start < file.num_bricks() {
+        runs.push(start..file.num_bricks());
+    }
+    runs
+}
+
+/// What is read from the input and how each output field is made.
+struct Plan<'a> {
+    file: &'a MappedFile,
+    path: &'a Path,
+    /// Input fields copied, in output order.
+    kept: &'a [usize],
+    derived: &'a [DerivedField],
+    /// Per derived field: the input field of each of its formula's variables.
+    bound: &'a [Vec<usize>],
+}
+
+impl Plan<'_> {
+    /// The input fields read, each once.
+    fn read_fields(&self) -> Vec<usize> {
+        let mut read: Vec<usize> = Vec::new();
+        for &f in self.kept.iter().chain(self.bound.iter().flatten()) {
+            if !read.contains(&f) {
+                read.push(f);
+            }
+        }
+        read
+    }
+
+    /// Brick `b`'s values of every output field, in output order.
+    fn brick(&self, b: usize) -> Result<Vec<Vec<f32>>, RewriteError> {
+        let read = self.read_fields();
+        let mut decoded: Vec<Vec<f32>> = Vec::with_capacity(read.len());
+        for &f in &read {
+            let mut values = Vec::new();
+            self.file
+                .brick_values_into(f, b, &mut values)
+                .map_err(RewriteError::Read)?;
+            decoded.push(values);
+        }
+        let of = |f: usize| &decoded[read.iter().position(|&r| r == f).unwrap_or(0)];
+        let mut out: Vec<Vec<f32>> = self.kept.iter().map(|&f| of(f).clone()).collect();
+        for (d, inputs) in self.derived.iter().zip(self.bound) {
+            let columns: Vec<&Vec<f32>> = inputs.iter().map(|&f| of(f)).collect();
+            let mut values = Vec::with_capacity(columns.first().map_or(0, |c| c.len()));
+            let mut at = vec![0.0f64; columns.len()];
+            for cell in 0..columns.first().map_or(0, |c| c.len()) {
+                for (a, c) in at.iter_mut().zip(&columns) {
+                    *a = f64::from(c[cell]);
+                }
+                let value = d.evaluate(&at);
+                match value.to_finite_f32() {
+                    Ok(v) => values.push(v),
+                    Err((what, value)) => return Err(self.not_finite(d, b, cell, what, value, &at)),
+                }
+            }
+            out.push(values);
+        }
+        Ok(out)
+    }
+
+    fn not_finite(
+        &self,
+        d: &DerivedField,
+        b: usize,
+        cell: usize,
+        what: &'static str,
+        value: f64,
+        at: &[f64],
+    ) -> RewriteError {
+        let brick = self.file.brick(b);
+        let [nx, ny, _] = brick.cells.extent();
+        let (nx, ny) = (nx.max(1) as usize, ny.max(1) as usize);
+        let offset = [cell % nx, (cell / nx) % ny, cell / (nx * ny)];
+        let inputs = d
+            .inputs()
+            .iter()
+            .zip(at)
+            // The inputs are stored as f32: their shortest f32 digits.
+            .map(|(n, v)| format!("{n} = {}", *v as f32))
+            .collect::<Vec<_>>()
+            .join(", ");
+        RewriteError::NotFinite {
+            path: self.path.to_path_buf(),
+            name: d.name().to_string(),
+            formula: d.formula().to_string(),
+            what: match value.is_finite() {
+                true => format!("{what} ({value:e})"),
+                false => what.to_string(),
+            },
+            level: brick.level,
+            cell: [0, 1, 2].map(|a| brick.cells.lo[a] + offset[a] as i64),
+            inputs,
+        }
+    }
+}

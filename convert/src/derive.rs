@@ -28,7 +28,18 @@ pub const EXAMPLES: &str =
 pub struct DerivedField {
     name: String,
     formula: String,
-    expr: Formula,
+    computation: Computation,
+}
+
+/// How a derived field's values are computed.
+#[derive(Clone, Debug)]
+enum Computation {
+    /// The length of the vector of these fields' values, computed directly: the common case,
+    /// at the cost of copying a field (an expression's `^2` calls `pow`, and its interpreter
+    /// costs about 70 ns a cell: `docs/benchmarks-convert.md`).
+    Magnitude(Vec<String>),
+    /// Any other formula, interpreted.
+    Expression(Formula),
 }
 
 /// Why a derived field cannot be made.
@@ -103,37 +114,36 @@ impl FromStr for DerivedField {
             formula: formula.to_string(),
             reason,
         };
-        let text = match formula.starts_with('|') {
-            true => magnitude_expression(formula).map_err(bad)?,
-            false => formula.to_string(),
+        let computation = match formula.starts_with('|') {
+            true => Computation::Magnitude(magnitude_fields(formula).map_err(bad)?),
+            false => {
+                let expr = Formula::parse(formula).map_err(|e| bad(e.to_string()))?;
+                if expr.var_names().is_empty() {
+                    return Err(DeriveError::Constant {
+                        name: name.to_string(),
+                        formula: formula.to_string(),
+                    });
+                }
+                Computation::Expression(expr)
+            }
         };
-        let expr = Formula::parse(&text).map_err(|e| bad(e.to_string()))?;
-        if expr.var_names().is_empty() {
-            return Err(DeriveError::Constant {
-                name: name.to_string(),
-                formula: formula.to_string(),
-            });
-        }
         Ok(DerivedField {
             name: name.to_string(),
             formula: formula.to_string(),
-            expr,
+            computation,
         })
     }
 }
 
-/// The expression of the magnitude `|a,b,c|`: `sqrt({a}^2+{b}^2+{c}^2)`.
-fn magnitude_expression(formula: &str) -> Result<String, String> {
-    let Ok(ColorBy::Magnitude { fields, .. }) = formula.parse::<ColorBy>() else {
-        return Err(format!(
+/// The fields of the magnitude `|a,b,c|`.
+fn magnitude_fields(formula: &str) -> Result<Vec<String>, String> {
+    match formula.parse::<ColorBy>() {
+        Ok(ColorBy::Magnitude { fields, .. }) => Ok(fields),
+        _ => Err(
             "a magnitude names two or more fields between bars, as '|x-velocity,y-velocity|'"
-        ));
-    };
-    if let Some(f) = fields.iter().find(|f| f.contains(['{', '}'])) {
-        return Err(format!("the field name '{f}' holds a brace"));
+                .into(),
+        ),
     }
-    let squares: Vec<String> = fields.iter().map(|f| format!("{{{f}}}^2")).collect();
-    Ok(format!("sqrt({})", squares.join("+")))
 }
 
 impl DerivedField {
@@ -150,7 +160,10 @@ impl DerivedField {
     /// The fields the formula reads, in the order [`evaluate`](Self::evaluate) takes their
     /// values.
     pub fn inputs(&self) -> &[String] {
-        self.expr.var_names()
+        match &self.computation {
+            Computation::Magnitude(fields) => fields,
+            Computation::Expression(expr) => expr.var_names(),
+        }
     }
 
     /// The position in `fields` of each field the formula reads, or which one is missing; also
@@ -196,9 +209,12 @@ impl DerivedField {
     /// The formula's value for the input values `values` (in [`inputs`](Self::inputs) order),
     /// computed in double precision.
     pub fn evaluate(&self, values: &[f64]) -> f64 {
-        // The values are as many as the formula's variables, so evaluation cannot fail; a
-        // failure would be a bug of this module, reported as NaN and refused by the caller.
-        self.expr.eval(values).unwrap_or(f64::NAN)
+        match &self.computation {
+            Computation::Magnitude(_) => values.iter().map(|v| v * v).sum::<f64>().sqrt(),
+            // The values are as many as the formula's variables, so evaluation cannot fail; a
+            // failure would be a bug of this module, reported as NaN and refused by the caller.
+            Computation::Expression(expr) => expr.eval(values).unwrap_or(f64::NAN),
+        }
     }
 }
 
@@ -280,7 +296,8 @@ mod tests {
             ("s=a+*", "cannot read the formula 'a+*'"),
             ("s=(a+b", "cannot read the formula"),
             ("s=|a|", "two or more fields between bars"),
-            ("s=|a,|", "cannot read the formula"),
+            ("s=|a,|", "two or more fields between bars"),
+            ("s=|a,b", "cannot read the formula"),
             ("s=2*PI", "reads no field"),
         ] {
             let e = given.parse::<DerivedField>().unwrap_err().to_string();

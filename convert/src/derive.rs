@@ -5,6 +5,7 @@
 use std::fmt;
 use std::str::FromStr;
 
+use crate::differential::Operator;
 use amr_render::coloring::ColorBy;
 use exmex::prelude::*;
 use exmex::{literal_matcher_from_pattern, FloatOpsFactory, MatchLiteral};
@@ -38,6 +39,9 @@ enum Computation {
     /// at the cost of copying a field (an expression's `^2` calls `pow`, and its interpreter
     /// costs about 70 ns a cell: `docs/benchmarks-convert.md`).
     Magnitude(Vec<String>),
+    /// An operator on the fields' gradients at each cell, `grad(f)`, `curl(u,v,w)` or
+    /// `qcriterion(u,v,w)` ([`crate::differential`]).
+    Differential(Operator, Vec<String>),
     /// Any other formula, interpreted.
     Expression(Formula),
 }
@@ -116,6 +120,26 @@ impl FromStr for DerivedField {
         };
         let computation = match formula.starts_with('|') {
             true => Computation::Magnitude(magnitude_fields(formula).map_err(bad)?),
+            false if differential(formula).is_some() => {
+                let (op, fields) = differential(formula).unwrap_or((Operator::Gradient, vec![]));
+                if fields.len() != op.arity() || fields.iter().any(|f| f.is_empty()) {
+                    return Err(bad(match op.arity() {
+                        1 => format!("{op} takes one field, as {op}(density)"),
+                        _ => format!(
+                            "{op} takes a vector's three fields, x first, as \
+                             {op}(x-velocity,y-velocity,z-velocity)"
+                        ),
+                    }));
+                }
+                Computation::Differential(op, fields)
+            }
+            false if OPERATORS.iter().any(|o| formula.contains(&format!("{o}("))) => {
+                return Err(bad(format!(
+                    "{} stand alone as a whole formula: derive the operator under a name of its \
+                     own",
+                    OPERATORS.join(", ")
+                )));
+            }
             false => {
                 let expr = Formula::parse(formula).map_err(|e| bad(e.to_string()))?;
                 if expr.var_names().is_empty() {
@@ -133,6 +157,28 @@ impl FromStr for DerivedField {
             computation,
         })
     }
+}
+
+/// The operators on gradients, as formulas write them.
+const OPERATORS: [&str; 3] = ["grad", "curl", "qcriterion"];
+
+/// The operator and its fields when `formula` is one call `op(a,b,c)` of a differential
+/// operator (a field name may be in braces).
+fn differential(formula: &str) -> Option<(Operator, Vec<String>)> {
+    let (name, rest) = formula.split_once('(')?;
+    let op = Operator::named(name.trim())?;
+    let inner = rest.trim_end().strip_suffix(')')?;
+    let fields = inner
+        .split(',')
+        .map(|f| {
+            let f = f.trim();
+            f.strip_prefix('{')
+                .and_then(|f| f.strip_suffix('}'))
+                .unwrap_or(f)
+                .to_string()
+        })
+        .collect();
+    Some((op, fields))
 }
 
 /// The fields of the magnitude `|a,b,c|`.
@@ -161,7 +207,7 @@ impl DerivedField {
     /// values.
     pub fn inputs(&self) -> &[String] {
         match &self.computation {
-            Computation::Magnitude(fields) => fields,
+            Computation::Magnitude(fields) | Computation::Differential(_, fields) => fields,
             Computation::Expression(expr) => expr.var_names(),
         }
     }
@@ -206,10 +252,20 @@ impl DerivedField {
         }
     }
 
-    /// The formula's value for the input values `values` (in [`inputs`](Self::inputs) order),
-    /// computed in double precision.
+    /// The operator on the inputs' gradients, for a field computed from neighbouring cells
+    /// ([`evaluate`](Self::evaluate) does not apply to it).
+    pub fn operator(&self) -> Option<Operator> {
+        match &self.computation {
+            Computation::Differential(op, _) => Some(*op),
+            _ => None,
+        }
+    }
+
+    /// The formula's value for the input values `values` (in [`inputs`](Self::inputs) order)
+    /// at a cell, computed in double precision; NaN for an [`operator`](Self::operator).
     pub fn evaluate(&self, values: &[f64]) -> f64 {
         match &self.computation {
+            Computation::Differential(..) => f64::NAN,
             Computation::Magnitude(_) => values.iter().map(|v| v * v).sum::<f64>().sqrt(),
             // The values are as many as the formula's variables, so evaluation cannot fail; a
             // failure would be a bug of this module, reported as NaN and refused by the caller.
@@ -288,6 +344,27 @@ mod tests {
     }
 
     #[test]
+    fn differential_operators_name_their_fields() {
+        let d: DerivedField = "w = curl(x-velocity, {y-velocity},z-velocity)"
+            .parse()
+            .unwrap();
+        assert_eq!(d.operator(), Some(Operator::Curl));
+        assert_eq!(d.inputs(), ["x-velocity", "y-velocity", "z-velocity"]);
+        let d: DerivedField = "g=grad({Y(CH4)})".parse().unwrap();
+        assert_eq!(
+            (d.operator(), d.inputs()),
+            (Some(Operator::Gradient), &["Y(CH4)".to_string()][..])
+        );
+        let d: DerivedField = "q=qcriterion(u,v,w)".parse().unwrap();
+        assert_eq!(d.operator(), Some(Operator::QCriterion));
+        let d: DerivedField = "g=grad2*u".parse().unwrap();
+        assert_eq!(
+            (d.operator(), d.inputs()),
+            (None, &["grad2".to_string(), "u".into()][..])
+        );
+    }
+
+    #[test]
     fn malformed_arguments_say_what_is_wrong() {
         for (given, says) in [
             ("speed", "expected NAME=FORMULA"),
@@ -299,6 +376,10 @@ mod tests {
             ("s=|a,|", "two or more fields between bars"),
             ("s=|a,b", "cannot read the formula"),
             ("s=2*PI", "reads no field"),
+            ("s=curl(u,v)", "curl takes a vector's three fields"),
+            ("s=grad(a,b)", "grad takes one field"),
+            ("s=grad()", "grad takes one field"),
+            ("s=2*grad(a)", "stand alone as a whole formula"),
         ] {
             let e = given.parse::<DerivedField>().unwrap_err().to_string();
             assert!(e.contains(says), "{given}: {e}");

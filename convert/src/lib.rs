@@ -7,6 +7,7 @@ pub mod bricking;
 pub mod chombo;
 pub mod derive;
 pub mod describe;
+pub mod differential;
 pub mod dump;
 pub mod enzo;
 pub mod finite;

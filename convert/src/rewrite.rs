@@ -11,6 +11,7 @@ use rayon::prelude::*;
 
 use crate::bricking::ConvertStats;
 use crate::derive::{DeriveError, DerivedField};
+use crate::differential::Gradients;
 use crate::finite::ToFiniteF32;
 use crate::hierarchy_to_amrk::ConvertError;
 
@@ -59,6 +60,17 @@ pub enum RewriteError {
         /// The input values there, `name = value, ...`.
         inputs: String,
     },
+    /// A neighbour of a cell could not be read for a derived field's gradients.
+    #[error("{}: reading the neighbours of a cell: {error}", path.display())]
+    Neighbours {
+        /// The input file.
+        path: std::path::PathBuf,
+        /// The renderer's error (part of the message, not its `source()`).
+        error: amr_render::RenderError,
+    },
+    /// The renderer's sampler could not be made for a derived field's gradients.
+    #[error("{0}")]
+    Sample(amr_render::RenderError),
     /// A field is unknown, or the output is refused or failed.
     #[error(transparent)]
     Convert(#[from] ConvertError),
@@ -89,12 +101,22 @@ pub fn rewrite(
         bound.push(d.bind(&names).map_err(derive_error)?);
         out_fields.push(d.name().to_string());
     }
+    let gradients = derived
+        .iter()
+        .zip(&bound)
+        .map(|(d, inputs)| {
+            d.operator()
+                .map(|_| Gradients::new(&file, inputs).map_err(|e| RewriteError::Sample(e)))
+                .transpose()
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let plan = Plan {
         file: &file,
         path: input,
         kept: &kept,
         derived,
         bound: &bound,
+        gradients: &gradients,
     };
     let spec = HierarchySpec {
         levels: file
@@ -207,6 +229,8 @@ struct Plan<'a> {
     derived: &'a [DerivedField],
     /// Per derived field: the input field of each of its formula's variables.
     bound: &'a [Vec<usize>],
+    /// Per derived field: its inputs' gradients, for an operator on them.
+    gradients: &'a [Option<Gradients<'a>>],
 }
 
 impl Plan<'_> {
@@ -234,15 +258,29 @@ impl Plan<'_> {
         }
         let of = |f: usize| &decoded[read.iter().position(|&r| r == f).unwrap_or(0)];
         let mut out: Vec<Vec<f32>> = self.kept.iter().map(|&f| of(f).clone()).collect();
-        for (d, inputs) in self.derived.iter().zip(self.bound) {
-            let columns: Vec<&Vec<f32>> = inputs.iter().map(|&f| of(f)).collect();
-            let mut values = Vec::with_capacity(columns.first().map_or(0, |c| c.len()));
+        for ((d, inputs), gradients) in self.derived.iter().zip(self.bound).zip(self.gradients) {
+            let columns: Vec<&[f32]> = inputs.iter().map(|&f| of(f).as_slice()).collect();
+            let cells = columns.first().map_or(0, |c| c.len());
             let mut at = vec![0.0f64; columns.len()];
-            for cell in 0..columns.first().map_or(0, |c| c.len()) {
+            let differential =
+                match (d.operator(), gradients) {
+                    (Some(op), Some(g)) => Some(g.brick(b, op, &columns).map_err(|error| {
+                        RewriteError::Neighbours {
+                            path: self.path.to_path_buf(),
+                            error,
+                        }
+                    })?),
+                    _ => None,
+                };
+            let mut values = Vec::with_capacity(cells);
+            for cell in 0..cells {
                 for (a, c) in at.iter_mut().zip(&columns) {
                     *a = f64::from(c[cell]);
                 }
-                let value = d.evaluate(&at);
+                let value = match &differential {
+                    Some(computed) => computed[cell],
+                    None => d.evaluate(&at),
+                };
                 match value.to_finite_f32() {
                     Ok(v) => values.push(v),
                     Err((what, value)) => return Err(self.not_finite(d, b, cell, what, value, &at)),

@@ -293,3 +293,123 @@ fn an_update_converts_again_when_a_derived_field_is_missing() {
     assert!(update(&["--field", "Density", "--derive", "s=2*Density"]));
     assert!(!update(&["--field", "Density"]));
 }
+
+/// `grad`, `curl` and `qcriterion` of linear fields on three levels of mixed ratios with
+/// anisotropic cells: exact at every cell, next to level boundaries and on the domain's faces
+/// too (where a neighbour is finer, coarser or missing), as a least-squares gradient through
+/// the neighbours' own centres is.
+#[test]
+fn differential_operators_are_exact_for_linear_fields_across_levels() {
+    use support::amrex::writer::{write_plotfile, Bx, PlotSpec};
+    let b = |lo: [i64; 3], hi: [i64; 3]| -> Bx { (lo, hi) };
+    let spec = PlotSpec {
+        fields: vec!["u".into(), "v".into(), "w".into(), "Y(CH4) [mass]".into()],
+        prob_lo: [-2.0, -1.0, 0.0],
+        prob_hi: [1.2, 0.6, 0.8],
+        domain: ([0; 3], [15; 3]),
+        ratios: vec![[2, 2, 2], [4, 4, 4]],
+        boxes: vec![
+            vec![b([0, 0, 0], [7, 15, 15]), b([8, 0, 0], [15, 15, 15])],
+            vec![b([8, 8, 8], [23, 23, 23]), b([24, 8, 8], [31, 15, 15])],
+            vec![b([48, 48, 48], [79, 79, 79])],
+        ],
+        ..PlotSpec::single(16)
+    };
+    let centre = |l: usize, i: [i64; 3]| {
+        let (lo, _) = spec.level_domain(l);
+        let dx = spec.cell_size(l);
+        [0, 1, 2].map(|a| spec.prob_lo[a] + ((i[a] - lo[a]) as f64 + 0.5) * dx[a])
+    };
+    let value = |l: usize, c: usize, i: [i64; 3]| {
+        let [x, y, z] = centre(l, i);
+        match c {
+            0 => -2.0 * y + z,
+            1 => 2.0 * x,
+            2 => 3.0 * x - y,
+            _ => 0.5 * x - 3.0 * y + 2.0 * z,
+        }
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let plt = dir.path().join("plt00000");
+    write_plotfile(&plt, &spec, &value, f64::NAN);
+    let out = dir.path().join("ops.amrk");
+    convert(&[
+        s(&plt),
+        "-o",
+        s(&out),
+        "--brick",
+        "8",
+        "--derive",
+        "vort=curl(u,v,w)",
+        "--derive",
+        "q=qcriterion(u,v,w)",
+        "--derive",
+        "g=grad({Y(CH4) [mass]})",
+    ]);
+    let file = open(&out);
+    assert_eq!(file.levels().len(), 3);
+    for (name, exact) in [("vort", 21f64.sqrt()), ("q", 1.0), ("g", 13.25f64.sqrt())] {
+        let all = values(&file, name).concat();
+        assert_eq!(
+            all.len() as u64,
+            file.bricks()
+                .map(|b| b.cells.num_cells().unwrap())
+                .sum::<u64>()
+        );
+        let worst = all
+            .iter()
+            .map(|&v| (f64::from(v) - exact).abs() / exact)
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-4, "{name}: relative error {worst:e}");
+    }
+}
+
+/// PeleLM writes its own vorticity, `mag_vort`, beside the velocity in `example_plt_3d`: the
+/// derived `curl` equals it on every cell of the finest level (which covers this domain) off the
+/// domain's faces, where PeleLM differences into its boundary's ghost cells and this
+/// converter takes one side.
+#[test]
+fn a_derived_vorticity_equals_pelelms_own_on_the_finest_cells() {
+    let test = "a_derived_vorticity_equals_pelelms_own_on_the_finest_cells";
+    let Some(amrex) = support::amrex::shared_amrex(test) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("vort.amrk");
+    convert(&[
+        s(&amrex.join("example_plt_3d")),
+        "-o",
+        s(&out),
+        "--field",
+        "mag_vort",
+        "--derive",
+        "vort=curl(x_velocity,y_velocity,z_velocity)",
+    ]);
+    let file = open(&out);
+    let finest = file.levels().len() as u32 - 1;
+    let domain = file.levels()[finest as usize].domain;
+    let (theirs, ours) = (values(&file, "mag_vort"), values(&file, "vort"));
+    let largest = file.fields()[0].max;
+    let mut compared = 0;
+    for b in 0..file.num_bricks() {
+        let cells = file.brick(b).cells;
+        if file.brick(b).level != finest {
+            continue;
+        }
+        let [nx, ny, _] = cells.extent();
+        for (i, (t, o)) in theirs[b].iter().zip(&ours[b]).enumerate() {
+            let i = i as i64;
+            let offset = [i % nx, (i / nx) % ny, i / (nx * ny)];
+            let at = [0, 1, 2].map(|a| cells.lo[a] + offset[a]);
+            if (0..3).any(|a| at[a] == domain.lo[a] || at[a] + 1 == domain.hi[a]) {
+                continue;
+            }
+            assert!(
+                (t - o).abs() <= 1e-4 * t + 1e-6 * largest,
+                "cell {at:?}: PeleLM {t}, derived {o}"
+            );
+            compared += 1;
+        }
+    }
+    assert!(compared > 20_000, "{compared}");
+}

@@ -15,7 +15,7 @@ use amr_render::reconstruct::sampler::Sampler;
 use amr_render::RenderError;
 
 /// Decoded bricks of compressed files each differential field keeps, in bytes.
-const CACHE_BYTES: usize = 64 << 20;
+const CACHE_BYTES: usize = 16 << 20;
 
 /// What is computed from the fields' gradients.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -49,6 +49,7 @@ impl Operator {
     }
 
     /// Its value from the gradients `g[k]` of its fields.
+    #[inline]
     pub fn apply(self, g: &[[f64; 3]]) -> f64 {
         match self {
             Operator::Gradient => length(g[0]),
@@ -118,24 +119,53 @@ impl<'f> Gradients<'f> {
         let level = &self.file.levels()[info.level as usize];
         let [nx, ny, nz] = cells.extent();
         let mut out = Vec::with_capacity(own.first().map_or(0, |v| v.len()));
-        let mut gradients = vec![[0.0f64; 3]; own.len()];
-        let mut neighbour_values = vec![0.0f64; own.len()];
+        // At most three fields (an operator's arity).
+        let fields = own.len().min(3);
+        let mut gradients = [[0.0f64; 3]; 3];
+        let gradients = &mut gradients[..fields];
+        let mut neighbour_values = [0.0f64; 3];
+        let neighbour_values = &mut neighbour_values[..fields];
+        let mut rhs = [[0.0f64; 3]; 3];
+        let rhs = &mut rhs[..fields];
+        // In a brick no finer brick overlaps, a cell's neighbours inside the brick are leaf
+        // cells at its own level: the least-squares fit is the central difference.
+        let whole = self.whole(brick, info.level);
+        let h = level.cell_size;
+        let stride = [1, nx as usize, (nx * ny) as usize];
         for z in 0..nz {
             for y in 0..ny {
                 for x in 0..nx {
                     let i = (x + nx * (y + ny * z)) as usize;
+                    let inside = x > 0 && y > 0 && z > 0 && x + 1 < nx && y + 1 < ny && z + 1 < nz;
+                    if whole && inside {
+                        for (g, values) in gradients.iter_mut().zip(own) {
+                            *g = [0, 1, 2].map(|a| {
+                                let (up, down) = (values[i + stride[a]], values[i - stride[a]]);
+                                (f64::from(up) - f64::from(down)) / (2.0 * h[a])
+                            });
+                        }
+                        out.push(op.apply(gradients));
+                        continue;
+                    }
                     let cell = [cells.lo[0] + x, cells.lo[1] + y, cells.lo[2] + z];
                     let centre = self.centre(info.level, cell);
                     let mut normal = [[0.0f64; 3]; 3];
-                    let mut rhs = vec![[0.0f64; 3]; own.len()];
+                    rhs.fill([0.0; 3]);
                     for axis in 0..3 {
                         for side in [-1, 1] {
                             let mut at = cell;
                             at[axis] += side;
-                            let Some(position) =
-                                self.neighbour(level.finest_scale, at, &mut neighbour_values)?
-                            else {
-                                continue;
+                            let position = if whole && cells.contains_cell(at) {
+                                let j = (i as i64 + side * stride[axis] as i64) as usize;
+                                for (v, values) in neighbour_values.iter_mut().zip(own) {
+                                    *v = f64::from(values[j]);
+                                }
+                                self.centre(info.level, at)
+                            } else {
+                                match self.neighbour(level.finest_scale, at, neighbour_values)? {
+                                    Some(position) => position,
+                                    None => continue,
+                                }
                             };
                             let d = [0, 1, 2].map(|a| position[a] - centre[a]);
                             for r in 0..3 {
@@ -151,14 +181,28 @@ impl<'f> Gradients<'f> {
                             }
                         }
                     }
-                    for (g, b) in gradients.iter_mut().zip(&rhs) {
+                    for (g, b) in gradients.iter_mut().zip(rhs.iter()) {
                         *g = solve(normal, *b);
                     }
-                    out.push(op.apply(&gradients));
+                    out.push(op.apply(gradients));
                 }
             }
         }
         Ok(out)
+    }
+
+    /// Whether no brick finer than `level` touches brick `brick` (each kd-tree leaf at or
+    /// next to it has a brick of `level` or coarser as its finest).
+    fn whole(&self, brick: usize, level: u32) -> bool {
+        let grid = self.samplers[0].grid();
+        let region = grid.level_finest_box(level, &self.file.brick(brick).cells);
+        let mut finer = false;
+        self.samplers[0].for_each_leaf_touching(&region, |leaf| {
+            finer |= self.samplers[0]
+                .leaf_top(leaf)
+                .is_some_and(|(_, top)| top > level);
+        });
+        !finer
     }
 
     /// The centre of cell `cell` of level `level`, in physical units.

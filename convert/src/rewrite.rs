@@ -273,17 +273,25 @@ impl Plan<'_> {
                     _ => None,
                 };
             let mut values = Vec::with_capacity(cells);
-            for cell in 0..cells {
+            let fill = |at: &mut [f64], cell: usize| {
                 for (a, c) in at.iter_mut().zip(&columns) {
                     *a = f64::from(c[cell]);
                 }
+            };
+            for cell in 0..cells {
                 let value = match &differential {
                     Some(computed) => computed[cell],
-                    None => d.evaluate(&at),
+                    None => {
+                        fill(&mut at, cell);
+                        d.evaluate(&at)
+                    }
                 };
                 match value.to_finite_f32() {
                     Ok(v) => values.push(v),
-                    Err((what, value)) => return Err(self.not_finite(d, b, cell, what, value, &at)),
+                    Err((what, value)) => {
+                        fill(&mut at, cell);
+                        return Err(self.not_finite(d, b, cell, what, value, &at));
+                    }
                 }
             }
             out.push(values);

@@ -1775,8 +1775,8 @@ fn an_isovalue_outside_the_range_beside_others_is_named() {
 }
 
 /// `--iso FIELD=V` draws a surface of another field beside `--field`'s: the summary names it as
-/// typed, a scene file keeps it, and a name the file does not hold is refused with the file's
-/// fields.
+/// typed (and names no other field when every surface is of another), a scene file keeps it,
+/// and a name the file does not hold is refused with the file's fields.
 #[test]
 fn an_isosurface_of_another_field_is_drawn_and_named() {
     let dir = tempfile::tempdir().unwrap();
@@ -1807,6 +1807,22 @@ fn an_isosurface_of_another_field_is_drawn_and_named() {
     assert!(text.contains("\"ramp=1:red\""), "{text}");
     let again = amr_render(&[scene.to_str().unwrap(), "-q"]);
     assert!(again.status.success(), "{}", stderr(&again));
+    // With no surface of the scene's field, the summary does not name that field.
+    let o = amr_render(&[
+        file,
+        "--iso",
+        "ramp=1",
+        "--size",
+        "32x24",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("two.amrk: iso ramp=1, "),
+        "{}",
+        stderr(&o)
+    );
 
     let o = amr_render(&[file, "--iso", "nope=1", "-o", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));

@@ -419,14 +419,20 @@ fn summary(file: &Path, scene: &Scene, files: &FrameFiles, took: Duration) -> St
         // Nothing is extracted: "0 active voxels" would read as an empty surface.
         TraceMethod::Sample => "sampled along rays".to_string(),
     };
-    let mut out = match isos.is_empty() {
-        true => format!("{}: no isosurface", file.display()),
-        false => format!(
+    // The scene's field is named when some surface is of it (the others name their own).
+    let of_scene_field = scene
+        .isosurfaces()
+        .iter()
+        .any(|s| scene.surface_field(s) == scene.field());
+    let mut out = match (isos.is_empty(), of_scene_field) {
+        (true, _) => format!("{}: no isosurface", file.display()),
+        (false, true) => format!(
             "{}: field {}, iso {}, {surfaces}",
             file.display(),
             scene.field_name(),
             isos.join(", "),
         ),
+        (false, false) => format!("{}: iso {}, {surfaces}", file.display(), isos.join(", ")),
     };
     if !scene.slices().is_empty() {
         let n = scene.slices().len();

@@ -86,6 +86,18 @@ pub enum DeriveError {
         /// The input's fields, comma-separated.
         available: String,
     },
+    /// An operator on gradients reads a field derived in the same run.
+    #[error(
+        "--derive {name}: '{field}' is derived in this run, and an operator on gradients reads \
+         stored fields only (their neighbours): write the file with '{field}' first, then \
+         derive {name} from it"
+    )]
+    NotStored {
+        /// The derived field's name.
+        name: String,
+        /// The field derived before it.
+        field: String,
+    },
     /// The derived field's name is taken.
     #[error("--derive {name}: {why}; give the derived field another name")]
     NameTaken {
@@ -226,12 +238,13 @@ impl DerivedField {
             .collect()
     }
 
-    /// Refuses the derived field's name when `taken` (the output's other fields) holds it.
+    /// Refuses the derived field's name when `taken` (the input's fields, or the output's
+    /// other fields) holds it.
     pub fn check_name(&self, taken: &[String]) -> Result<(), DeriveError> {
         match taken.iter().any(|f| *f == self.name) {
             true => Err(DeriveError::NameTaken {
                 name: self.name.clone(),
-                why: "the output has a field of that name already".into(),
+                why: "a field of that name exists already".into(),
             }),
             false => Ok(()),
         }
@@ -399,7 +412,7 @@ mod tests {
         let d: DerivedField = "Density={x-velocity}".parse().unwrap();
         assert!(d.bind(&fields).is_ok());
         let e = d.check_name(&fields).unwrap_err().to_string();
-        assert!(e.contains("already"), "{e}");
+        assert!(e.contains("exists already"), "{e}");
         let twice: Vec<DerivedField> = ["a={x-velocity}", "a=Density"]
             .iter()
             .map(|s| s.parse().unwrap())

@@ -14,6 +14,7 @@ use amr_render::dump_hint::{first_bytes, HDF5_SIGNATURE};
 use crate::amrex::{self, AmrexError};
 use crate::bricking::{ConvertOptions, ConvertStats};
 use crate::chombo::ChomboError;
+use crate::derive::DerivedField;
 use crate::enzo::EnzoError;
 use crate::rewrite::{rewrite, RewriteError};
 
@@ -261,6 +262,7 @@ pub fn convert_dump(
     let rewritten = |from: &Path, fields: &[String], progress: &dyn Progress| {
         rewrite(
             from,
+            input,
             output,
             fields,
             &opts.derived,
@@ -278,16 +280,25 @@ pub fn convert_dump(
         // formulas read), then rewritten with the derived fields: a dump's reader hands out
         // one field of a box at a time, and holding a box's other fields until the last
         // arrives would cost a box's worth of memory per field.
+        // The formulas are checked against the dump's fields before the long first pass.
+        let fields = crate::describe::describe(input)?.fields;
+        let out = match opts.fields.is_empty() {
+            true => fields.clone(),
+            false => opts.fields.clone(),
+        };
+        crate::rewrite::bind_all(input, &fields, out, &opts.derived)
+            .map_err(|e| DumpError::Rewrite(Box::new(e)))?;
         let intermediate = amr_format::output::temporary_for(output, ".tmp")
             .map_err(DumpError::Output)?
             .into_temp_path();
         let mut read = opts.fields.clone();
         if !read.is_empty() {
+            let derived: Vec<&str> = opts.derived.iter().map(DerivedField::name).collect();
             for d in &opts.derived {
                 read.extend(
                     d.inputs()
                         .iter()
-                        .filter(|f| !read.contains(f))
+                        .filter(|f| !read.contains(f) && !derived.contains(&f.as_str()))
                         .cloned()
                         .collect::<Vec<_>>(),
                 );

@@ -76,11 +76,12 @@ pub enum RewriteError {
     Convert(#[from] ConvertError),
 }
 
-/// Writes `output` from the `.amrk` file `input`: its fields `fields` (all when empty, in the
-/// order given), then the fields `derived`, with `compression`. The output appears only when
-/// complete.
+/// Writes `output` from the `.amrk` file `input` (named `label` in messages: the dump it was
+/// converted from, for an intermediate file): its fields `fields` (all when empty, in the order
+/// given), then the fields `derived`, with `compression`. The output appears only when complete.
 pub fn rewrite(
     input: &Path,
+    label: &Path,
     output: &Path,
     fields: &[String],
     derived: &[DerivedField],
@@ -89,18 +90,9 @@ pub fn rewrite(
 ) -> Result<ConvertStats, RewriteError> {
     let file = open_mapped(input).map_err(RewriteError::Open)?;
     let names: Vec<String> = file.fields().iter().map(|f| f.name.clone()).collect();
-    let kept = kept_fields(input, &names, fields)?;
-    let derive_error = |error| RewriteError::Derive {
-        path: input.to_path_buf(),
-        error,
-    };
-    let mut out_fields: Vec<String> = kept.iter().map(|&f| names[f].clone()).collect();
-    let mut bound = Vec::with_capacity(derived.len());
-    for d in derived {
-        d.check_name(&out_fields).map_err(derive_error)?;
-        bound.push(d.bind(&names).map_err(derive_error)?);
-        out_fields.push(d.name().to_string());
-    }
+    let kept = kept_fields(label, &names, fields)?;
+    let out_fields: Vec<String> = kept.iter().map(|&f| names[f].clone()).collect();
+    let (bound, out_fields) = bind_all(label, &names, out_fields, derived)?;
     let gradients = derived
         .iter()
         .zip(&bound)
@@ -112,7 +104,7 @@ pub fn rewrite(
         .collect::<Result<Vec<_>, _>>()?;
     let plan = Plan {
         file: &file,
-        path: input,
+        path: label,
         kept: &kept,
         derived,
         bound: &bound,
@@ -176,6 +168,41 @@ pub fn rewrite(
     Ok(stats)
 }
 
+/// Binds each derived field's formula to the fields it reads: positions in `names` (the input's
+/// fields) or, numbered after them, in the fields derived before it. Refuses a name `names` or
+/// the output's fields `out` already hold, and an operator on gradients that reads a derived
+/// field. Returns the bindings and the output's fields with the derived ones after `out`.
+pub fn bind_all(
+    path: &Path,
+    names: &[String],
+    mut out: Vec<String>,
+    derived: &[DerivedField],
+) -> Result<(Vec<Vec<usize>>, Vec<String>), RewriteError> {
+    let error = |error| RewriteError::Derive {
+        path: path.to_path_buf(),
+        error,
+    };
+    let mut readable = names.to_vec();
+    let mut bound = Vec::with_capacity(derived.len());
+    for d in derived {
+        d.check_name(&out).map_err(error)?;
+        d.check_name(names).map_err(error)?;
+        let inputs = d.bind(&readable).map_err(error)?;
+        if d.operator().is_some() {
+            if let Some(&k) = inputs.iter().find(|&&k| k >= names.len()) {
+                return Err(error(DeriveError::NotStored {
+                    name: d.name().to_string(),
+                    field: readable[k].clone(),
+                }));
+            }
+        }
+        bound.push(inputs);
+        out.push(d.name().to_string());
+        readable.push(d.name().to_string());
+    }
+    Ok((bound, out))
+}
+
 /// The positions in `names` of the fields `asked` (all when empty), each once.
 fn kept_fields(
     input: &Path,
@@ -227,7 +254,8 @@ struct Plan<'a> {
     /// Input fields copied, in output order.
     kept: &'a [usize],
     derived: &'a [DerivedField],
-    /// Per derived field: the input field of each of its formula's variables.
+    /// Per derived field: the field of each of its formula's variables, an input field or,
+    /// numbered after them, a field derived before it.
     bound: &'a [Vec<usize>],
     /// Per derived field: its inputs' gradients, for an operator on them.
     gradients: &'a [Option<Gradients<'a>>],
@@ -236,9 +264,10 @@ struct Plan<'a> {
 impl Plan<'_> {
     /// The input fields read, each once.
     fn read_fields(&self) -> Vec<usize> {
+        let stored = self.file.fields().len();
         let mut read: Vec<usize> = Vec::new();
         for &f in self.kept.iter().chain(self.bound.iter().flatten()) {
-            if !read.contains(&f) {
+            if f < stored && !read.contains(&f) {
                 read.push(f);
             }
         }
@@ -258,8 +287,15 @@ impl Plan<'_> {
         }
         let of = |f: usize| &decoded[read.iter().position(|&r| r == f).unwrap_or(0)];
         let mut out: Vec<Vec<f32>> = self.kept.iter().map(|&f| of(f).clone()).collect();
+        let stored = self.file.fields().len();
         for ((d, inputs), gradients) in self.derived.iter().zip(self.bound).zip(self.gradients) {
-            let columns: Vec<&[f32]> = inputs.iter().map(|&f| of(f).as_slice()).collect();
+            let columns: Vec<&[f32]> = inputs
+                .iter()
+                .map(|&f| match f < stored {
+                    true => of(f).as_slice(),
+                    false => out[self.kept.len() + f - stored].as_slice(),
+                })
+                .collect();
             let cells = columns.first().map_or(0, |c| c.len());
             let mut at = vec![0.0f64; columns.len()];
             let differential =

@@ -99,10 +99,12 @@ fn a_derived_speed_is_the_length_of_the_stored_velocity_at_every_cell() {
         "speed=|x-velocity,y-velocity,z-velocity|",
         "--derive",
         "ratio = Density / ({Dark_Matter_Density} + 1e-3) * 2.5E-1",
+        "--derive",
+        "lspeed=log10(speed)",
     ]);
     let (plain, derived) = (open(&plain), open(&derived));
     let mut expected = names(&plain);
-    expected.extend(["speed".into(), "ratio".into()]);
+    expected.extend(["speed".into(), "ratio".into(), "lspeed".into()]);
     assert_eq!(names(&derived), expected);
     assert_eq!(plain.num_bricks(), derived.num_bricks());
     for b in 0..plain.num_bricks() {
@@ -121,9 +123,10 @@ fn a_derived_speed_is_the_length_of_the_stored_velocity_at_every_cell() {
         component("z-velocity"),
     );
     let (rho, dm) = (component("Density"), component("Dark_Matter_Density"));
-    let (speed, ratio) = (
+    let (speed, ratio, lspeed) = (
         values(&derived, "speed").concat(),
         values(&derived, "ratio").concat(),
+        values(&derived, "lspeed").concat(),
     );
     assert_eq!(speed.len(), 30_360);
     for i in 0..speed.len() {
@@ -131,6 +134,8 @@ fn a_derived_speed_is_the_length_of_the_stored_velocity_at_every_cell() {
         assert_eq!(speed[i], (x * x + y * y + z * z).sqrt() as f32, "cell {i}");
         let r = f64::from(rho[i]) / (f64::from(dm[i]) + 1e-3) * 0.25;
         assert_eq!(ratio[i], r as f32, "cell {i}");
+        // A formula reads a field derived before it, as stored.
+        assert_eq!(lspeed[i], f64::from(speed[i]).log10() as f32, "cell {i}");
     }
     // The derived field is contoured like any other.
     let (active, _) = surface(&dir.path().join("d.amrk"), "speed", 1.0);
@@ -224,6 +229,10 @@ fn an_amrk_input_is_rewritten_with_its_bricks_as_they_are() {
             "{e}"
         );
     }
+    // A field derived in one run is derived from in the next, by a gradient too.
+    let third = dir.path().join("third.amrk");
+    convert(&[s(&second), "-o", s(&third), "--derive", "g=grad(speed)"]);
+    assert_eq!(names(&open(&third)), ["Density", "speed", "g"]);
     let e = refused(&[s(&first), "-o", s(&first), "--field", "Density"]);
     assert!(e.contains("refusing to replace it"), "{e}");
 }
@@ -243,7 +252,7 @@ fn bad_formulas_are_refused_naming_the_field_and_the_cell() {
         ("s=density", "(did you mean 'Density'?)"),
         (
             "Density={x-velocity}",
-            "the output has a field of that name already",
+            "a field of that name exists already",
         ),
         (
             "l=ln({x-velocity}-0.7)",
@@ -255,6 +264,12 @@ fn bad_formulas_are_refused_naming_the_field_and_the_cell() {
     ] {
         let e = refused(&[s(&dd), "-o", s(&out), "--derive", derive]);
         assert!(e.contains(says), "{derive}: {e}");
+        // The dump is named (unless the argument itself is malformed), never the intermediate
+        // file the dump is first converted into.
+        assert!(
+            (e.contains("DD0010") || e.contains("invalid value")) && !e.contains(".tmp"),
+            "{derive}: {e}"
+        );
         assert!(!out.exists(), "{derive}: an output was left");
     }
     let e = refused(&[
@@ -267,6 +282,19 @@ fn bad_formulas_are_refused_naming_the_field_and_the_cell() {
         "a=Temperature",
     ]);
     assert!(e.contains("two derived fields have that name"), "{e}");
+    let e = refused(&[
+        s(&dd),
+        "-o",
+        s(&out),
+        "--derive",
+        "a=2*Density",
+        "--derive",
+        "g=grad(a)",
+    ]);
+    assert!(
+        e.contains("'a' is derived in this run, and an operator on gradients reads stored"),
+        "{e}"
+    );
     // Neither the intermediate file nor any other temporary is left beside the output.
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     assert!(left.is_empty(), "{left:?}");

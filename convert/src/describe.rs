@@ -150,9 +150,12 @@ impl fmt::Display for DumpDescription {
         let vectors = amr_render::coloring::vector_fields(&names);
         if let Some(first) = vectors.first() {
             let all: Vec<String> = vectors.iter().map(ToString::to_string).collect();
+            let components = first.fields().join(",");
             writeln!(
                 f,
-                "vectors: {} (convert their components to paint by a length: --color-by '{first}')",
+                "vectors: {} (store a length or a vorticity with --derive 'speed={first}' \
+                 --derive 'vorticity=curl({components})', or convert the components and paint \
+                 by a length: --color-by '{first}')",
                 all.join(" ")
             )?;
         }

@@ -76,7 +76,9 @@ fn a_real_amrex_plotfile_and_enzo_dataset_are_described_from_their_metadata() {
             "levels: 8\n",
             "cells: 30360\n",
             "  Temperature\n",
-            "vectors: |x-velocity,y-velocity,z-velocity| (",
+            "vectors: |x-velocity,y-velocity,z-velocity| (store a length or a vorticity with \
+             --derive 'speed=|x-velocity,y-velocity,z-velocity|' --derive \
+             'vorticity=curl(x-velocity,y-velocity,z-velocity)', or convert",
         ] {
             assert!(t.contains(line), "{line:?} not in\n{t}");
         }

@@ -130,10 +130,9 @@ impl FromStr for DerivedField {
             formula: formula.to_string(),
             reason,
         };
-        let computation = match formula.starts_with('|') {
-            true => Computation::Magnitude(magnitude_fields(formula).map_err(bad)?),
-            false if differential(formula).is_some() => {
-                let (op, fields) = differential(formula).unwrap_or((Operator::Gradient, vec![]));
+        let computation = match (formula.starts_with('|'), differential(formula)) {
+            (true, _) => Computation::Magnitude(magnitude_fields(formula).map_err(bad)?),
+            (false, Some((op, fields))) => {
                 if fields.len() != op.arity() || fields.iter().any(|f| f.is_empty()) {
                     return Err(bad(match op.arity() {
                         1 => format!("{op} takes one field, as {op}(density)"),
@@ -145,14 +144,14 @@ impl FromStr for DerivedField {
                 }
                 Computation::Differential(op, fields)
             }
-            false if OPERATORS.iter().any(|o| formula.contains(&format!("{o}("))) => {
+            (false, None) if calls_an_operator(formula) => {
                 return Err(bad(format!(
                     "{} stand alone as a whole formula: derive the operator under a name of its \
                      own",
                     OPERATORS.join(", ")
                 )));
             }
-            false => {
+            (false, None) => {
                 let expr = Formula::parse(formula).map_err(|e| bad(e.to_string()))?;
                 if expr.var_names().is_empty() {
                     return Err(DeriveError::Constant {
@@ -174,12 +173,20 @@ impl FromStr for DerivedField {
 /// The operators on gradients, as formulas write them.
 const OPERATORS: [&str; 3] = ["grad", "curl", "qcriterion"];
 
+/// Whether `text` calls an operator on gradients.
+fn calls_an_operator(text: &str) -> bool {
+    OPERATORS.iter().any(|o| text.contains(&format!("{o}(")))
+}
+
 /// The operator and its fields when `formula` is one call `op(a,b,c)` of a differential
 /// operator (a field name may be in braces).
 fn differential(formula: &str) -> Option<(Operator, Vec<String>)> {
     let (name, rest) = formula.split_once('(')?;
     let op = Operator::named(name.trim())?;
     let inner = rest.trim_end().strip_suffix(')')?;
+    if calls_an_operator(inner) {
+        return None;
+    }
     let fields = inner
         .split(',')
         .map(|f| {
@@ -393,6 +400,7 @@ mod tests {
             ("s=grad(a,b)", "grad takes one field"),
             ("s=grad()", "grad takes one field"),
             ("s=2*grad(a)", "stand alone as a whole formula"),
+            ("s=grad(a)+grad(b)", "stand alone as a whole formula"),
         ] {
             let e = given.parse::<DerivedField>().unwrap_err().to_string();
             assert!(e.contains(says), "{given}: {e}");

@@ -127,9 +127,11 @@ impl<'f> Gradients<'f> {
         let neighbour_values = &mut neighbour_values[..fields];
         let mut rhs = [[0.0f64; 3]; 3];
         let rhs = &mut rhs[..fields];
-        // In a brick no finer brick overlaps, a cell's neighbours inside the brick are leaf
-        // cells at its own level: the least-squares fit is the central difference.
-        let whole = self.whole(brick, info.level);
+        // A cell of the brick that no finer brick covers is a leaf cell: where a cell's
+        // neighbours inside the brick are such cells, they are read from the brick, and where
+        // all six are, the least-squares fit is the central difference.
+        let covered = self.covered(brick, info.level);
+        let leaf = |j: usize| covered.as_ref().is_none_or(|c| !c[j]);
         let h = level.cell_size;
         let stride = [1, nx as usize, (nx * ny) as usize];
         for z in 0..nz {
@@ -137,7 +139,7 @@ impl<'f> Gradients<'f> {
                 for x in 0..nx {
                     let i = (x + nx * (y + ny * z)) as usize;
                     let inside = x > 0 && y > 0 && z > 0 && x + 1 < nx && y + 1 < ny && z + 1 < nz;
-                    if whole && inside {
+                    if inside && (0..3).all(|a| leaf(i + stride[a]) && leaf(i - stride[a])) {
                         for (g, values) in gradients.iter_mut().zip(own) {
                             *g = [0, 1, 2].map(|a| {
                                 let (up, down) = (values[i + stride[a]], values[i - stride[a]]);
@@ -155,8 +157,8 @@ impl<'f> Gradients<'f> {
                         for side in [-1, 1] {
                             let mut at = cell;
                             at[axis] += side;
-                            let position = if whole && cells.contains_cell(at) {
-                                let j = (i as i64 + side * stride[axis] as i64) as usize;
+                            let j = (i as i64 + side * stride[axis] as i64) as usize;
+                            let position = if cells.contains_cell(at) && leaf(j) {
                                 for (v, values) in neighbour_values.iter_mut().zip(own) {
                                     *v = f64::from(values[j]);
                                 }
@@ -191,18 +193,39 @@ impl<'f> Gradients<'f> {
         Ok(out)
     }
 
-    /// Whether no brick finer than `level` touches brick `brick` (each kd-tree leaf at or
-    /// next to it has a brick of `level` or coarser as its finest).
-    fn whole(&self, brick: usize, level: u32) -> bool {
-        let grid = self.samplers[0].grid();
-        let region = grid.level_finest_box(level, &self.file.brick(brick).cells);
-        let mut finer = false;
-        self.samplers[0].for_each_leaf_touching(&region, |leaf| {
-            finer |= self.samplers[0]
-                .leaf_top(leaf)
-                .is_some_and(|(_, top)| top > level);
+    /// Per cell of brick `brick` (of level `level`), x fastest: whether a finer brick covers
+    /// any of it (some kd-tree leaf over it has a finer brick as its finest); `None` when none
+    /// does, the common case.
+    fn covered(&self, brick: usize, level: u32) -> Option<Vec<bool>> {
+        let sampler = &self.samplers[0];
+        let cells = self.file.brick(brick).cells;
+        let region = sampler.grid().level_finest_box(level, &cells);
+        let scale = sampler.grid().scale(level);
+        let [nx, ny, nz] = cells.extent();
+        let mut covered: Option<Vec<bool>> = None;
+        sampler.for_each_leaf_touching(&region, |leaf| {
+            if sampler.leaf_top(leaf).is_none_or(|(_, top)| top <= level) {
+                return;
+            }
+            // The leaf's box in the brick's cells (relative), every cell it overlaps.
+            let b = sampler.leaf_box(leaf);
+            let lo = [0, 1, 2].map(|a| (b.lo[a] - region.lo[a]).div_euclid(scale[a]).max(0));
+            let hi = [0, 1, 2].map(|a| {
+                let n = [nx, ny, nz][a];
+                (b.hi[a] - region.lo[a] + scale[a] - 1)
+                    .div_euclid(scale[a])
+                    .min(n)
+            });
+            let mask = covered.get_or_insert_with(|| vec![false; (nx * ny * nz) as usize]);
+            for z in lo[2]..hi[2] {
+                for y in lo[1]..hi[1] {
+                    for x in lo[0]..hi[0] {
+                        mask[(x + nx * (y + ny * z)) as usize] = true;
+                    }
+                }
+            }
         });
-        !finer
+        covered
     }
 
     /// The centre of cell `cell` of level `level`, in physical units.
@@ -224,12 +247,19 @@ impl<'f> Gradients<'f> {
         let Some(leaf) = self.samplers[0].locate(finest)? else {
             return Ok(None);
         };
+        let b = self.samplers[0].brick_cells(leaf.brick);
+        let [nx, ny, _] = b.extent();
+        let o = [0, 1, 2].map(|a| leaf.cell[a] - b.lo[a]);
+        let index = usize::try_from(o[0] + nx * (o[1] + ny * o[2])).ok();
         for (v, sampler) in values.iter_mut().zip(&self.samplers) {
             let slab = sampler.values(leaf.brick)?;
-            let b = sampler.brick_cells(leaf.brick);
-            let [nx, ny, _] = b.extent();
-            let o = [0, 1, 2].map(|a| leaf.cell[a] - b.lo[a]);
-            *v = f64::from(slab[(o[0] + nx * (o[1] + ny * o[2])) as usize]);
+            let value = index.and_then(|i| slab.get(i)).ok_or_else(|| {
+                RenderError::Invalid(format!(
+                    "cell {:?} of level {} is not in its brick {}",
+                    leaf.cell, leaf.level, leaf.brick
+                ))
+            })?;
+            *v = f64::from(*value);
         }
         Ok(Some(self.centre(leaf.level, leaf.cell)))
     }

@@ -98,7 +98,7 @@ pub fn rewrite(
         .zip(&bound)
         .map(|(d, inputs)| {
             d.operator()
-                .map(|_| Gradients::new(&file, inputs).map_err(|e| RewriteError::Sample(e)))
+                .map(|_| Gradients::new(&file, inputs).map_err(RewriteError::Sample))
                 .transpose()
         })
         .collect::<Result<Vec<_>, _>>()?;

@@ -1,7 +1,7 @@
 //! Where each dump of a time series goes: several inputs (or an output ending in `/`) convert
 //! into one directory, one `NAME.amrk` per dump, named after the dump (`plt00100` for an AMReX
-//! plotfile directory, `chk0010` for `chk0010.3d.hdf5`, `DD0010` for an Enzo directory or
-//! `moving7_0010` for its parameter file).
+//! plotfile directory, `chk0010` for `chk0010.3d.hdf5`, `DD0010` for an Enzo directory,
+//! `moving7_0010` for its parameter file, `plt00100` for `plt00100.amrk`).
 
 use amr_convert::derive::DerivedField;
 use std::path::{Path, PathBuf};
@@ -144,7 +144,7 @@ fn step_name(input: &Path) -> anyhow::Result<String> {
         bail!("{}: no file name to name its .amrk after", input.display());
     };
     let mut stem = name.as_str();
-    for ext in [".hdf5", ".h5", ".hierarchy", ".3d", ".2d"] {
+    for ext in [".amrk", ".hdf5", ".h5", ".hierarchy", ".3d", ".2d"] {
         stem = stem.strip_suffix(ext).unwrap_or(stem);
     }
     Ok(stem.to_string())
@@ -161,6 +161,7 @@ mod tests {
         let inputs = [
             PathBuf::from("run/plt00100"),
             PathBuf::from("run/chk0010.3d.hdf5"),
+            PathBuf::from("run/old.amrk"),
         ];
         // The inputs must exist: a missing one is refused before the directory is made.
         assert!(outputs(&inputs, &out).is_err());
@@ -171,9 +172,12 @@ mod tests {
         assert!(outputs(&inputs, &out).is_err());
         assert!(!out.exists());
         std::fs::write(&inputs[1], b"").unwrap();
+        std::fs::write(&inputs[2], b"").unwrap();
         let made = outputs(&inputs, &out).unwrap();
         assert_eq!(made.pairs[0].1, out.join("plt00100.amrk"));
         assert_eq!(made.pairs[1].1, out.join("chk0010.amrk"));
+        // An .amrk file written anew keeps its name.
+        assert_eq!(made.pairs[2].1, out.join("old.amrk"));
         assert_eq!(made.created.as_deref(), Some(out.as_path()));
         assert!(out.is_dir());
         assert_eq!(outputs(&inputs, &out).unwrap().created, None);

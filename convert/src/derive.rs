@@ -42,8 +42,8 @@ enum Computation {
     /// An operator on the fields' gradients at each cell, `grad(f)`, `curl(u,v,w)` or
     /// `qcriterion(u,v,w)` ([`crate::differential`]).
     Differential(Operator, Vec<String>),
-    /// Any other formula, interpreted.
-    Expression(Formula),
+    /// Any other formula, interpreted (boxed: the parsed form is large).
+    Expression(Box<Formula>),
 }
 
 /// Why a derived field cannot be made.
@@ -159,7 +159,7 @@ impl FromStr for DerivedField {
                         formula: formula.to_string(),
                     });
                 }
-                Computation::Expression(expr)
+                Computation::Expression(Box::new(expr))
             }
         };
         Ok(DerivedField {
@@ -248,7 +248,7 @@ impl DerivedField {
     /// Refuses the derived field's name when `taken` (the input's fields, or the output's
     /// other fields) holds it.
     pub fn check_name(&self, taken: &[String]) -> Result<(), DeriveError> {
-        match taken.iter().any(|f| *f == self.name) {
+        match taken.contains(&self.name) {
             true => Err(DeriveError::NameTaken {
                 name: self.name.clone(),
                 why: "a field of that name exists already".into(),

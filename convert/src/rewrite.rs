@@ -37,29 +37,10 @@ pub enum RewriteError {
         /// `source()`: printing the chain would repeat it).
         error: DeriveError,
     },
-    /// A derived field's formula gives no finite `f32` at some cell.
-    #[error(
-        "{}: the derived field {name} = {formula} is {what} at level {level}, cell {cell:?}, \
-         where {inputs}; an .amrk file holds finite values only: change the formula (as \
-         max(density, 1e-30) inside a log)",
-        path.display()
-    )]
-    NotFinite {
-        /// The input file.
-        path: std::path::PathBuf,
-        /// The derived field's name.
-        name: String,
-        /// Its formula.
-        formula: String,
-        /// "NaN", "infinite" or "outside the f32 range (VALUE)".
-        what: String,
-        /// The cell's level.
-        level: u32,
-        /// The cell, in its level's index space.
-        cell: [i64; 3],
-        /// The input values there, `name = value, ...`.
-        inputs: String,
-    },
+    /// A derived field's formula gives no finite `f32` at some cell (boxed: errors are rare,
+    /// and this one is large).
+    #[error("{0}")]
+    NotFinite(Box<NotFinite>),
     /// A neighbour of a cell could not be read for a derived field's gradients.
     #[error("{}: reading the neighbours of a cell: {error}", path.display())]
     Neighbours {
@@ -74,6 +55,31 @@ pub enum RewriteError {
     /// A field is unknown, or the output is refused or failed.
     #[error(transparent)]
     Convert(#[from] ConvertError),
+}
+
+/// A derived field's value at a cell that is no finite `f32`, and where.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "{}: the derived field {name} = {formula} is {what} at level {level}, cell {cell:?}, where \
+     {inputs}; an .amrk file holds finite values only: change the formula (as max(density, \
+     1e-30) inside a log)",
+    path.display()
+)]
+pub struct NotFinite {
+    /// The input file.
+    pub path: std::path::PathBuf,
+    /// The derived field's name.
+    pub name: String,
+    /// Its formula.
+    pub formula: String,
+    /// "NaN", "infinite" or "outside the f32 range (VALUE)".
+    pub what: String,
+    /// The cell's level.
+    pub level: u32,
+    /// The cell, in its level's index space.
+    pub cell: [i64; 3],
+    /// The input values there, `name = value, ...`.
+    pub inputs: String,
 }
 
 /// Writes `output` from the `.amrk` file `input` (named `label` in messages: the dump it was
@@ -356,7 +362,7 @@ impl Plan<'_> {
             .map(|(n, v)| format!("{n} = {}", *v as f32))
             .collect::<Vec<_>>()
             .join(", ");
-        RewriteError::NotFinite {
+        RewriteError::NotFinite(Box::new(NotFinite {
             path: self.path.to_path_buf(),
             name: d.name().to_string(),
             formula: d.formula().to_string(),
@@ -367,6 +373,6 @@ impl Plan<'_> {
             level: brick.level,
             cell: [0, 1, 2].map(|a| brick.cells.lo[a] + offset[a] as i64),
             inputs,
-        }
+        }))
     }
 }

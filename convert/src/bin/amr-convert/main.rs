@@ -46,11 +46,12 @@ struct Cli {
     fields: Vec<String>,
     /// A field computed cell by cell from the others and stored with them, NAME=FORMULA (repeat
     /// for several; a formula may read the fields derived before it): a vector's length,
-    /// speed='|x-velocity,y-velocity,z-velocity|'; an expression of fields, numbers,
-    /// + - * / ^ and sqrt, abs, ln, log10, exp, min, max, ..., temperature='pressure/density';
-    /// or an operator on gradients, grad(density), curl(u,v,w) (the vorticity's length) or
-    /// qcriterion(u,v,w). A field name with characters other than letters, digits and _ goes
-    /// in braces, {x-velocity}. Then --iso and --color-by take it like any field.
+    /// speed='|x-velocity,y-velocity,z-velocity|'; an expression of fields, numbers, the
+    /// operators + - * / ^ and sqrt, abs, ln, log10, exp, min, max, ...,
+    /// temperature='pressure/density'; or an operator on gradients, grad(density), curl(u,v,w)
+    /// (the vorticity's length) or qcriterion(u,v,w). A field name with characters other than
+    /// letters, digits and _ goes in braces, {x-velocity}. Then --iso and --color-by take it
+    /// like any field.
     #[arg(long = "derive", value_name = "NAME=FORMULA")]
     derived: Vec<DerivedField>,
     /// Largest brick size in cells per axis; larger input boxes are split [default: 32].

@@ -74,6 +74,14 @@ fn values(file: &AmrkFile<Vec<u8>>, name: &str) -> Vec<Vec<f32>> {
         .collect()
 }
 
+/// The cell at position `k` (x fastest) of a brick of cells `cells`.
+fn cell_of(cells: &amr_format::IBox, k: usize) -> [i64; 3] {
+    let [nx, ny, _] = cells.extent();
+    let k = k as i64;
+    let offset = [k % nx, (k / nx) % ny, k / (nx * ny)];
+    [0, 1, 2].map(|a| cells.lo[a] + offset[a])
+}
+
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
@@ -394,11 +402,8 @@ fn differential_operators_are_exact_for_linear_fields_across_levels() {
         let mut leaf_cells = 0;
         for (b, brick) in values(&file, name).iter().enumerate() {
             let info = file.brick(b);
-            let [nx, ny, _] = info.cells.extent();
             for (k, &v) in brick.iter().enumerate() {
-                let k = k as i64;
-                let offset = [k % nx, (k / nx) % ny, k / (nx * ny)];
-                let cell = [0, 1, 2].map(|a| info.cells.lo[a] + offset[a]);
+                let cell = cell_of(&info.cells, k);
                 if covered(info.level as usize, cell) {
                     continue;
                 }
@@ -447,11 +452,8 @@ fn a_derived_vorticity_equals_pelelms_own_on_the_finest_cells() {
         if file.brick(b).level != finest {
             continue;
         }
-        let [nx, ny, _] = cells.extent();
         for (i, (t, o)) in theirs[b].iter().zip(&ours[b]).enumerate() {
-            let i = i as i64;
-            let offset = [i % nx, (i / nx) % ny, i / (nx * ny)];
-            let at = [0, 1, 2].map(|a| cells.lo[a] + offset[a]);
+            let at = cell_of(&cells, i);
             if (0..3).any(|a| at[a] == domain.lo[a] || at[a] + 1 == domain.hi[a]) {
                 continue;
             }

@@ -36,8 +36,8 @@ pub struct DerivedField {
 #[derive(Clone, Debug)]
 enum Computation {
     /// The length of the vector of these fields' values, computed directly: the common case,
-    /// at the cost of copying a field (an expression's `^2` calls `pow`, and its interpreter
-    /// costs about 70 ns a cell: `docs/benchmarks-convert.md`).
+    /// at the cost of copying a field (as an expression, its `^2` calls `pow` and the
+    /// interpreter costs tens of nanoseconds a cell: `docs/benchmarks-convert.md`).
     Magnitude(Vec<String>),
     /// An operator on the fields' gradients at each cell, `grad(f)`, `curl(u,v,w)` or
     /// `qcriterion(u,v,w)` ([`crate::differential`]).
@@ -231,8 +231,7 @@ impl DerivedField {
         }
     }
 
-    /// The position in `fields` of each field the formula reads, or which one is missing; also
-    /// refuses a name `fields` (the output's other fields) already hold.
+    /// The position in `fields` of each field the formula reads, or which one is missing.
     pub fn bind(&self, fields: &[String]) -> Result<Vec<usize>, DeriveError> {
         self.inputs()
             .iter()

@@ -39,8 +39,8 @@ enum Computation {
     /// at the cost of copying a field (as an expression, its `^2` calls `pow` and the
     /// interpreter costs tens of nanoseconds a cell: `docs/benchmarks-convert.md`).
     Magnitude(Vec<String>),
-    /// An operator on the fields' gradients at each cell, `grad(f)`, `curl(u,v,w)` or
-    /// `qcriterion(u,v,w)` ([`crate::differential`]).
+    /// An operator on the fields' gradients at each cell, `grad(f)`, `curl(u,v,w)`,
+    /// `div(u,v,w)` or `qcriterion(u,v,w)` ([`crate::differential`]).
     Differential(Operator, Vec<String>),
     /// Any other formula, interpreted (boxed: the parsed form is large).
     Expression(Box<Formula>),
@@ -171,7 +171,7 @@ impl FromStr for DerivedField {
 }
 
 /// The operators on gradients, as formulas write them.
-const OPERATORS: [&str; 3] = ["grad", "curl", "qcriterion"];
+const OPERATORS: [&str; 4] = ["grad", "curl", "div", "qcriterion"];
 
 /// Whether `text` calls an operator on gradients.
 fn calls_an_operator(text: &str) -> bool {

@@ -1,5 +1,6 @@
 //! Derived fields from the differences between a cell and its neighbours: a gradient's length,
-//! a vorticity's length and the Q-criterion, from the gradients of stored fields at every cell.
+//! a vorticity's length, a divergence and the Q-criterion, from the gradients of stored fields
+//! at every cell.
 //!
 //! A cell's gradient is the least-squares fit of a linear function through its value and the
 //! values of the leaf cells (the finest cells the file holds) at the centres of its six face
@@ -24,6 +25,8 @@ pub enum Operator {
     Gradient,
     /// `curl(u,v,w)`: the length of the curl (the vorticity's magnitude) of a vector field.
     Curl,
+    /// `div(u,v,w)`: the divergence of a vector field (a flow's dilatation).
+    Divergence,
     /// `qcriterion(u,v,w)`: `(|Ω|² - |S|²) / 2` of the velocity gradient's antisymmetric (`Ω`)
     /// and symmetric (`S`) parts: positive where rotation dominates strain (vortex cores).
     QCriterion,
@@ -35,6 +38,7 @@ impl Operator {
         match name {
             "grad" => Some(Operator::Gradient),
             "curl" => Some(Operator::Curl),
+            "div" => Some(Operator::Divergence),
             "qcriterion" => Some(Operator::QCriterion),
             _ => None,
         }
@@ -44,7 +48,7 @@ impl Operator {
     pub fn arity(self) -> usize {
         match self {
             Operator::Gradient => 1,
-            Operator::Curl | Operator::QCriterion => 3,
+            Operator::Curl | Operator::Divergence | Operator::QCriterion => 3,
         }
     }
 
@@ -54,6 +58,7 @@ impl Operator {
         match self {
             Operator::Gradient => length(g[0]),
             Operator::Curl => length([g[2][1] - g[1][2], g[0][2] - g[2][0], g[1][0] - g[0][1]]),
+            Operator::Divergence => g[0][0] + g[1][1] + g[2][2],
             Operator::QCriterion => {
                 let (mut rotation, mut strain) = (0.0, 0.0);
                 for i in 0..3 {
@@ -74,6 +79,7 @@ impl fmt::Display for Operator {
         f.write_str(match self {
             Operator::Gradient => "grad",
             Operator::Curl => "curl",
+            Operator::Divergence => "div",
             Operator::QCriterion => "qcriterion",
         })
     }
@@ -305,6 +311,9 @@ mod tests {
         assert_eq!(Operator::Curl.apply(&g), 21f64.sqrt());
         assert_eq!(Operator::QCriterion.apply(&g), 1.0);
         assert_eq!(Operator::Gradient.apply(&g[2..]), 10f64.sqrt());
+        assert_eq!(Operator::Divergence.apply(&g), 0.0);
+        let expanding = [[1.0, 5.0, 0.0], [0.0, 2.0, -1.0], [0.0, 0.0, 0.5]];
+        assert_eq!(Operator::Divergence.apply(&expanding), 3.5);
         // Pure strain has a negative Q, pure rotation a positive one.
         let strain = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 0.0]];
         assert!(Operator::QCriterion.apply(&strain) < 0.0);

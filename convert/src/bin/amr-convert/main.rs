@@ -49,7 +49,7 @@ struct Cli {
     /// speed='|x-velocity,y-velocity,z-velocity|'; an expression of fields, numbers, the
     /// operators + - * / ^ and sqrt, abs, ln, log10, exp, min, max, ...,
     /// temperature='pressure/density'; or an operator on gradients, grad(density), curl(u,v,w)
-    /// (the vorticity's length) or qcriterion(u,v,w). A field name with characters other than
+    /// (the vorticity's length), div(u,v,w) or qcriterion(u,v,w). A field name with characters other than
     /// letters, digits and _ goes in braces, {x-velocity}. Then --iso and --color-by take it
     /// like any field.
     #[arg(long = "derive", value_name = "NAME=FORMULA")]

@@ -259,27 +259,14 @@ pub fn convert_dump(
     }
     amr_format::output::check_output(output, &inputs).map_err(DumpError::Output)?;
     let start = Instant::now();
-    let rewritten = |from: &Path, fields: &[String], progress: &dyn Progress| {
-        rewrite(
-            from,
-            input,
-            output,
-            fields,
-            &opts.derived,
-            opts.compression,
-            progress,
-        )
-        .map_err(|e| DumpError::Rewrite(Box::new(e)))
-    };
-    let stats = if format == InputFormat::Amrk {
-        rewritten(input, &opts.fields, progress)?
-    } else if opts.derived.is_empty() {
+    let stats = if format == InputFormat::Amrk || opts.derived.is_empty() {
         convert_format(input, format, output, opts, progress)?
     } else {
         // The dump is converted to an intermediate file beside the output (with the fields the
         // formulas read), then rewritten with the derived fields: a dump's reader hands out
         // one field of a box at a time, and holding a box's other fields until the last
         // arrives would cost a box's worth of memory per field.
+        //
         // The formulas are checked against the dump's fields before the long first pass.
         let fields = crate::describe::describe(input)?.fields;
         let out = match opts.fields.is_empty() {
@@ -313,7 +300,16 @@ pub fn convert_dump(
         };
         let phase = Phase::new(progress);
         let read = convert_format(input, format, &intermediate, &first, &phase)?;
-        let derived = rewritten(&intermediate, &opts.fields, &phase.then())?;
+        let derived = rewrite(
+            &intermediate,
+            input,
+            output,
+            &opts.fields,
+            &opts.derived,
+            opts.compression,
+            &phase.then(),
+        )
+        .map_err(|e| DumpError::Rewrite(Box::new(e)))?;
         progress.finish();
         ConvertStats {
             bytes_read: read.bytes_read,
@@ -332,7 +328,8 @@ pub fn convert_dump(
     })
 }
 
-/// Converts the dump `input` of format `format` (not [`InputFormat::Amrk`]) to `output`.
+/// Converts the dump `input` of format `format` to `output` (an `.amrk` input is written
+/// anew, its fields derived in the same pass).
 fn convert_format(
     input: &Path,
     format: InputFormat,
@@ -357,7 +354,16 @@ fn convert_format(
                 }
             })?
         }
-        InputFormat::Amrk => unreachable!("an .amrk input is rewritten, not converted"),
+        InputFormat::Amrk => rewrite(
+            input,
+            input,
+            output,
+            &opts.fields,
+            &opts.derived,
+            opts.compression,
+            progress,
+        )
+        .map_err(|e| DumpError::Rewrite(Box::new(e)))?,
     })
 }
 

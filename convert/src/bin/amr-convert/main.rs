@@ -12,9 +12,8 @@ use std::process::ExitCode;
 use amr_convert::bricking::ConvertOptions;
 use amr_convert::derive::{check_distinct, DerivedField};
 use amr_convert::describe::describe;
-use amr_convert::dump::{convert_dump, detect, InputFormat};
+use amr_convert::dump::{convert_dump, detect, DumpError, InputFormat};
 use amr_format::Compression;
-use anyhow::bail;
 use clap::{Parser, Subcommand};
 
 use progress_bar::Bar;
@@ -151,10 +150,8 @@ fn convert_one(cli: &Cli, input: &Path, output: &Path) -> anyhow::Result<()> {
             (cli.keep_boxes, "--keep-boxes"),
         ] {
             if given {
-                bail!(
-                    "{}: an .amrk input keeps its bricks, so {option} does not apply",
-                    input.display()
-                );
+                let path = input.to_path_buf();
+                return Err(DumpError::NotForAmrk { path, option }.into());
             }
         }
     }

@@ -144,7 +144,16 @@ pub fn select_fields<S: AmrSource + ?Sized>(
     src: &S,
     names: &[String],
 ) -> Result<Vec<usize>, S::Error> {
-    let fields = src.fields();
+    Ok(field_positions(src.path(), src.fields(), names)?)
+}
+
+/// The positions in `fields` (those of the input `path`) of the fields named in `names`, in
+/// that order, repeats counted once; all fields when `names` is empty.
+pub fn field_positions(
+    path: &Path,
+    fields: &[String],
+    names: &[String],
+) -> Result<Vec<usize>, ConvertError> {
     if names.is_empty() {
         return Ok((0..fields.len()).collect());
     }
@@ -155,7 +164,7 @@ pub fn select_fields<S: AmrSource + ?Sized>(
                 .iter()
                 .position(|f| f == name)
                 .ok_or_else(|| ConvertError::UnknownField {
-                    path: src.path().to_path_buf(),
+                    path: path.to_path_buf(),
                     name: name.clone(),
                     available: fields.join(", "),
                     hint: amr_render::error::same_but_case(name, fields),

@@ -13,7 +13,7 @@ use crate::bricking::ConvertStats;
 use crate::derive::{DeriveError, DerivedField};
 use crate::differential::Gradients;
 use crate::finite::ToFiniteF32;
-use crate::hierarchy_to_amrk::ConvertError;
+use crate::hierarchy_to_amrk::{field_positions, ConvertError};
 
 /// Cells of the bricks computed together before they are written, at most (one brick may
 /// exceed it): enough for both cores, a few megabytes per field.
@@ -96,7 +96,7 @@ pub fn rewrite(
 ) -> Result<ConvertStats, RewriteError> {
     let file = open_mapped(input).map_err(RewriteError::Open)?;
     let names: Vec<String> = file.fields().iter().map(|f| f.name.clone()).collect();
-    let kept = kept_fields(label, &names, fields)?;
+    let kept = field_positions(label, &names, fields)?;
     let out_fields: Vec<String> = kept.iter().map(|&f| names[f].clone()).collect();
     let (bound, out_fields) = bind_all(label, &names, out_fields, derived)?;
     let gradients = derived
@@ -108,10 +108,12 @@ pub fn rewrite(
                 .transpose()
         })
         .collect::<Result<Vec<_>, _>>()?;
+    let read = read_fields(names.len(), &kept, &bound);
     let plan = Plan {
         file: &file,
         path: label,
         kept: &kept,
+        read: &read,
         derived,
         bound: &bound,
         gradients: &gradients,
@@ -146,7 +148,6 @@ pub fn rewrite(
     writer
         .set_simulation(file.simulation_time(), file.simulation_step())
         .map_err(refused)?;
-    let read = plan.read_fields();
     let bytes_of = |b: usize| -> u64 { read.iter().map(|&f| file.brick_data(f, b).len).sum() };
     progress.set_total((0..file.num_bricks()).map(bytes_of).sum());
     let release = PageRelease::new(&file);
@@ -209,31 +210,16 @@ pub fn bind_all(
     Ok((bound, out))
 }
 
-/// The positions in `names` of the fields `asked` (all when empty), each once.
-fn kept_fields(
-    input: &Path,
-    names: &[String],
-    asked: &[String],
-) -> Result<Vec<usize>, ConvertError> {
-    if asked.is_empty() {
-        return Ok((0..names.len()).collect());
-    }
-    let mut kept: Vec<usize> = Vec::with_capacity(asked.len());
-    for name in asked {
-        let f = names
-            .iter()
-            .position(|n| n == name)
-            .ok_or_else(|| ConvertError::UnknownField {
-                path: input.to_path_buf(),
-                name: name.clone(),
-                available: names.join(", "),
-                hint: amr_render::error::same_but_case(name, names),
-            })?;
-        if !kept.contains(&f) {
-            kept.push(f);
+/// The input fields read, each once: those `kept` and those the derived fields' bindings
+/// `bound` name (a binding at or past `stored` is a field derived before, not read).
+fn read_fields(stored: usize, kept: &[usize], bound: &[Vec<usize>]) -> Vec<usize> {
+    let mut read: Vec<usize> = Vec::new();
+    for &f in kept.iter().chain(bound.iter().flatten()) {
+        if f < stored && !read.contains(&f) {
+            read.push(f);
         }
     }
-    Ok(kept)
+    read
 }
 
 /// Consecutive runs of bricks of about [`CHUNK_CELLS`] cells.
@@ -259,6 +245,8 @@ struct Plan<'a> {
     path: &'a Path,
     /// Input fields copied, in output order.
     kept: &'a [usize],
+    /// Input fields read ([`read_fields`]).
+    read: &'a [usize],
     derived: &'a [DerivedField],
     /// Per derived field: the field of each of its formula's variables, an input field or,
     /// numbered after them, a field derived before it.
@@ -268,23 +256,11 @@ struct Plan<'a> {
 }
 
 impl Plan<'_> {
-    /// The input fields read, each once.
-    fn read_fields(&self) -> Vec<usize> {
-        let stored = self.file.fields().len();
-        let mut read: Vec<usize> = Vec::new();
-        for &f in self.kept.iter().chain(self.bound.iter().flatten()) {
-            if f < stored && !read.contains(&f) {
-                read.push(f);
-            }
-        }
-        read
-    }
-
     /// Brick `b`'s values of every output field, in output order.
     fn brick(&self, b: usize) -> Result<Vec<Vec<f32>>, RewriteError> {
-        let read = self.read_fields();
+        let read = self.read;
         let mut decoded: Vec<Vec<f32>> = Vec::with_capacity(read.len());
-        for &f in &read {
+        for &f in read {
             let mut values = Vec::new();
             self.file
                 .brick_values_into(f, b, &mut values)

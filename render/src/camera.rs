@@ -1,4 +1,5 @@
-//! A pinhole camera: validation of user input, automatic framing, and primary rays.
+//! The camera, perspective (a pinhole) or orthographic: validation of user input, automatic
+//! framing, and primary rays.
 
 use thiserror::Error;
 
@@ -36,6 +37,24 @@ pub enum CameraError {
     /// The image has no pixels.
     #[error("image size {0}x{1} has no pixels")]
     EmptyImage(u32, u32),
+    /// An orthographic picture's height is not a positive finite number of world units.
+    #[error("--view-height {0} is not a positive, finite length in world units")]
+    BadViewHeight(f64),
+}
+
+/// How a camera maps the world onto its picture.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Projection {
+    /// Rays from the camera's position through the picture's pixels: nearer things look
+    /// larger, as the eye sees them.
+    Perspective,
+    /// Parallel rays along the view, each starting on the plane through the camera's position
+    /// square to the view: a length looks as long at every depth, as in a slice plot. The
+    /// picture spans `height` world units from top to bottom.
+    Orthographic {
+        /// The picture's height, world units.
+        height: f64,
+    },
 }
 
 /// Where a world box falls in a camera's image ([`Camera::place_box`]).
@@ -75,25 +94,29 @@ pub struct ViewFrom {
     pub tight: bool,
 }
 
-/// A validated pinhole camera with an orthonormal basis.
+/// A validated camera with an orthonormal basis.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
-    /// Eye position, world coordinates.
+    /// Eye position, world coordinates: where every ray of a perspective camera starts, the
+    /// centre of the plane an orthographic camera's rays start from.
     pub pos: [f64; 3],
     /// The point looked at.
     pub look_at: [f64; 3],
     /// The up vector as given.
     pub up: [f64; 3],
-    /// Vertical field of view, degrees.
+    /// Vertical field of view, degrees (of a perspective camera; an orthographic camera keeps
+    /// it for framing).
     pub fov_deg: f64,
+    /// Perspective or orthographic.
+    pub projection: Projection,
     forward: [f64; 3],
     right: [f64; 3],
     true_up: [f64; 3],
 }
 
 impl Camera {
-    /// Checks and builds a camera: positions finite, `look_at != pos`, `up` not parallel to the
-    /// view direction, `fov_deg` in `(0, 180)`.
+    /// Checks and builds a perspective camera: positions finite, `look_at != pos`, `up` not
+    /// parallel to the view direction, `fov_deg` in `(0, 180)`.
     pub fn new(
         pos: [f64; 3],
         look_at: [f64; 3],
@@ -119,10 +142,71 @@ impl Camera {
             look_at,
             up,
             fov_deg,
+            projection: Projection::Perspective,
             forward,
             right,
             true_up,
         })
+    }
+
+    /// This camera made orthographic, its picture `height` world units tall; `None` makes it as
+    /// tall as this camera's perspective picture is at the point looked at (`2 d tan(fov / 2)`
+    /// at distance `d`), so that a switch of projection keeps the scale there and moving the
+    /// camera nearer zooms in, as it does a perspective camera.
+    pub fn orthographic(mut self, height: Option<f64>) -> Result<Camera, CameraError> {
+        let height = height.unwrap_or_else(|| {
+            2.0 * length(sub(self.look_at, self.pos)) * (0.5 * self.fov_deg).to_radians().tan()
+        });
+        if !(height > 0.0 && height.is_finite()) {
+            return Err(CameraError::BadViewHeight(height));
+        }
+        self.projection = Projection::Orthographic { height };
+        Ok(self)
+    }
+
+    /// True for an orthographic camera.
+    pub fn is_orthographic(&self) -> bool {
+        matches!(self.projection, Projection::Orthographic { .. })
+    }
+
+    /// An orthographic camera that shows box `[lo, hi]` as this perspective camera, looking at
+    /// the box's centre, frames it: with the same margins (`tight`: the box's eight corners
+    /// fitted to the picture, as [`Camera::framing_from`] fits them; else the sphere around
+    /// the box, as [`Camera::framing`] fits it), from as far along the same direction as makes
+    /// its picture that tall ([`Camera::orthographic`] with no height) and every corner lie in
+    /// front of it. A box much deeper than it is wide seen end-on needs the camera farther
+    /// back than that: its picture is then looser. With `height`, the picture is that tall.
+    pub fn orthographic_framing(
+        &self,
+        (lo, hi): ([f64; 3], [f64; 3]),
+        aspect: f64,
+        tight: bool,
+        height: Option<f64>,
+    ) -> Result<Camera, CameraError> {
+        let centre = self.look_at;
+        let corners = box_corners(lo, hi).map(|c| sub(c, centre));
+        let fitted = if tight {
+            corners.iter().fold(0.0f64, |h, &q| {
+                let (x, y) = (dot(q, self.right), dot(q, self.true_up));
+                h.max(2.0 * x.abs() / (0.88 * aspect))
+                    .max(2.0 * y.abs() / 0.88)
+            })
+        } else {
+            2.04 * 0.5 * length(sub(hi, lo)) / aspect.min(1.0)
+        };
+        let tan = (0.5 * self.fov_deg).to_radians().tan();
+        let size = length(sub(hi, lo));
+        let behind = corners
+            .iter()
+            .fold(0.0f64, |d, &q| d.max(-dot(q, self.forward)));
+        let dist = (0.5 * fitted / tan)
+            .max(1.02 * behind + 1e-3 * size)
+            .max(if size > 0.0 { 1e-3 * size } else { 1.0 });
+        let pos = [0, 1, 2].map(|a| centre[a] - self.forward[a] * dist);
+        if pos.iter().any(|x| !x.is_finite()) {
+            return Err(CameraError::Unframeable { lo, hi });
+        }
+        Camera::new(pos, centre, self.up, self.fov_deg)?.orthographic(height)
     }
 
     /// A camera that shows the whole box `[lo, hi]` with the given field of view, looking at its
@@ -212,14 +296,15 @@ impl Camera {
         (self.right, self.true_up)
     }
 
-    /// Unit direction through image point `(x, y)` in pixels (`y` down) of a `w x h` image.
-    pub fn ray_dir(&self, x: f64, y: f64, w: u32, h: u32) -> [f64; 3] {
-        self.pixel_dirs(w, h).dir(x, y)
+    /// The ray through image point `(x, y)` in pixels (`y` down) of a `w x h` image: where it
+    /// starts and its unit direction.
+    pub fn ray(&self, x: f64, y: f64, w: u32, h: u32) -> ([f64; 3], [f64; 3]) {
+        self.pixel_dirs(w, h).ray(x, y)
     }
 
     /// Where world point `p` appears in a `w x h` image, in pixels (`y` down; the image spans
     /// `0..w` and `0..h`, and points outside it give coordinates outside those): the inverse of
-    /// [`Camera::ray_dir`]. `None` for a point in the camera's plane or behind it.
+    /// [`Camera::ray`]. `None` for a point in the camera's plane or behind it.
     pub fn image_point(&self, p: [f64; 3], w: u32, h: u32) -> Option<[f64; 2]> {
         let d = sub(p, self.pos);
         let depth = dot(d, self.forward);
@@ -227,9 +312,30 @@ impl Camera {
             return None;
         }
         let dirs = self.pixel_dirs(w, h);
-        let sx = dot(d, self.right) / depth / (dirs.tan * dirs.w / dirs.h);
-        let sy = dot(d, self.true_up) / depth / dirs.tan;
+        let depth = if dirs.parallel { 1.0 } else { depth };
+        let sx = dot(d, self.right) / depth / (dirs.half * dirs.w / dirs.h);
+        let sy = dot(d, self.true_up) / depth / dirs.half;
         Some([0.5 * (sx + 1.0) * dirs.w, 0.5 * (1.0 - sy) * dirs.h])
+    }
+
+    /// True when the camera sees the outer side of the face of box `[lo, hi]` square to `axis`
+    /// on its `high` end (from outside the box, beyond that face's plane; an orthographic
+    /// camera, from its direction of view).
+    pub fn sees_face(&self, axis: usize, high: bool, (lo, hi): ([f64; 3], [f64; 3])) -> bool {
+        match (self.projection, high) {
+            (Projection::Perspective, true) => self.pos[axis] > hi[axis],
+            (Projection::Perspective, false) => self.pos[axis] < lo[axis],
+            (Projection::Orthographic { .. }, true) => self.forward[axis] < 0.0,
+            (Projection::Orthographic { .. }, false) => self.forward[axis] > 0.0,
+        }
+    }
+
+    /// The size of one pixel of an `h` pixels tall image at `distance` from the camera along
+    /// a ray, world units (for an orthographic camera, the same at every distance).
+    pub fn pixel_size(&self, distance: f64, h: u32) -> f64 {
+        let dirs = self.pixel_dirs(1, h);
+        let span = if dirs.parallel { 1.0 } else { distance };
+        2.0 * dirs.half * span / dirs.h
     }
 
     /// Where world box `[lo, hi]` falls in a `w x h` image, from its eight corners
@@ -271,58 +377,81 @@ impl Camera {
         }
     }
 
-    /// [`Camera::ray_dir`] for many points of one `w x h` image, the field of view's tangent
-    /// computed once.
+    /// [`Camera::ray`] for many points of one `w x h` image, the picture's extent computed once.
     pub fn pixel_dirs(&self, w: u32, h: u32) -> PixelDirs<'_> {
+        let (half, parallel) = match self.projection {
+            Projection::Perspective => ((0.5 * self.fov_deg).to_radians().tan(), false),
+            Projection::Orthographic { height } => (0.5 * height, true),
+        };
         PixelDirs {
             camera: self,
-            tan: (0.5 * self.fov_deg).to_radians().tan(),
+            half,
+            parallel,
             w: f64::from(w),
             h: f64::from(h),
         }
     }
 }
 
-/// The directions through the points of one image ([`Camera::pixel_dirs`]).
+/// The rays through the points of one image ([`Camera::pixel_dirs`]).
 pub struct PixelDirs<'a> {
     camera: &'a Camera,
-    tan: f64,
+    /// Half the picture's height: at a unit's distance (perspective) or in world units
+    /// (orthographic).
+    half: f64,
+    /// Orthographic: the rays are parallel and start across the camera's plane.
+    parallel: bool,
     w: f64,
     h: f64,
 }
 
 impl PixelDirs<'_> {
-    /// The camera's position, where every ray starts.
-    pub fn origin(&self) -> [f64; 3] {
-        self.camera.pos
+    /// True when every ray starts at the camera's position (a perspective camera).
+    pub fn from_one_point(&self) -> bool {
+        !self.parallel
     }
 
-    /// Unit direction through image point `(x, y)` in pixels (`y` down).
-    pub fn dir(&self, x: f64, y: f64) -> [f64; 3] {
-        self.through(self.across(x), self.down(y))
+    /// The ray through image point `(x, y)` in pixels (`y` down): its start and unit direction.
+    pub fn ray(&self, x: f64, y: f64) -> ([f64; 3], [f64; 3]) {
+        let (sx, sy) = (self.across(x), self.down(y));
+        (self.start(sx, sy), self.through(sx, sy))
     }
 
     /// The offset along the image's right vector of the points at `x` pixels from the left
-    /// edge, for [`PixelDirs::through`]: one per column, shared by its points.
+    /// edge, for [`PixelDirs::through`] and [`PixelDirs::start`]: one per column, shared by its
+    /// points.
     #[inline]
     pub fn across(&self, x: f64) -> f64 {
-        (2.0 * x / self.w - 1.0) * self.tan * self.w / self.h
+        (2.0 * x / self.w - 1.0) * self.half * self.w / self.h
     }
 
     /// The offset along the image's up vector of the points at `y` pixels from the top edge,
-    /// for [`PixelDirs::through`]: one per row, shared by its points.
+    /// for [`PixelDirs::through`] and [`PixelDirs::start`]: one per row, shared by its points.
     #[inline]
     pub fn down(&self, y: f64) -> f64 {
-        (1.0 - 2.0 * y / self.h) * self.tan
+        (1.0 - 2.0 * y / self.h) * self.half
     }
 
-    /// Unit direction through the image point with offsets `sx` ([`PixelDirs::across`]) and
-    /// `sy` ([`PixelDirs::down`]).
+    /// Unit direction of the ray through the image point with offsets `sx`
+    /// ([`PixelDirs::across`]) and `sy` ([`PixelDirs::down`]).
     #[inline]
     pub fn through(&self, sx: f64, sy: f64) -> [f64; 3] {
         let c = self.camera;
+        if self.parallel {
+            return c.forward;
+        }
         let d = [0, 1, 2].map(|a| c.forward[a] + sx * c.right[a] + sy * c.true_up[a]);
         normalize(d).unwrap_or(c.forward)
+    }
+
+    /// Where the ray through the image point with offsets `sx` and `sy` starts.
+    #[inline]
+    pub fn start(&self, sx: f64, sy: f64) -> [f64; 3] {
+        let c = self.camera;
+        if !self.parallel {
+            return c.pos;
+        }
+        [0, 1, 2].map(|a| c.pos[a] + sx * c.right[a] + sy * c.true_up[a])
     }
 }
 
@@ -535,43 +664,118 @@ mod tests {
     #[test]
     fn centre_pixel_looks_forward() {
         let c = Camera::new([0.0; 3], [0.0, 5.0, 0.0], [0.0, 0.0, 1.0], 60.0).unwrap();
-        let d = c.ray_dir(50.0, 50.0, 100, 100);
+        let d = c.ray(50.0, 50.0, 100, 100).1;
         assert!((d[1] - 1.0).abs() < 1e-12);
-        let top = c.ray_dir(50.0, 0.0, 100, 100);
+        let top = c.ray(50.0, 0.0, 100, 100).1;
         assert!(top[2] > 0.0);
-        let right = c.ray_dir(100.0, 50.0, 100, 100);
+        let right = c.ray(100.0, 50.0, 100, 100).1;
         assert!(right[0] > 0.0);
     }
 
     #[test]
-    fn image_points_invert_ray_directions() {
+    fn orthographic_rays_are_parallel_and_start_across_the_cameras_plane() {
+        let c = Camera::new([0.0; 3], [0.0, 5.0, 0.0], [0.0, 0.0, 1.0], 60.0).unwrap();
+        // As tall as the perspective picture at the point looked at: 2 * 5 * tan(30 degrees).
+        let o = c.orthographic(None).unwrap();
+        let Projection::Orthographic { height } = o.projection else {
+            panic!("not orthographic");
+        };
+        assert!((height - 10.0 * 30f64.to_radians().tan()).abs() < 1e-12);
+        let o = c.orthographic(Some(2.0)).unwrap();
+        let (w, h) = (200, 100);
+        for (x, y) in [(0.0, 0.0), (100.0, 50.0), (200.0, 100.0), (37.5, 80.0)] {
+            let (start, dir) = o.ray(x, y, w, h);
+            assert_eq!(dir, o.forward());
+            assert_eq!(start[1], 0.0, "on the camera's plane");
+            // Two world units tall, four wide: x across, z up.
+            assert!((start[0] - (x / 50.0 - 2.0)).abs() < 1e-12, "{start:?}");
+            assert!((start[2] - (1.0 - y / 50.0)).abs() < 1e-12, "{start:?}");
+        }
+        assert_eq!(o.pixel_size(1.0, h), 0.02);
+        assert_eq!(o.pixel_size(1e3, h), 0.02);
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert!(matches!(
+                c.orthographic(Some(bad)),
+                Err(CameraError::BadViewHeight(_))
+            ));
+        }
+    }
+
+    #[test]
+    fn an_orthographic_framing_holds_the_box_in_front_of_the_camera() {
+        let boxes = [
+            ([0.0; 3], [1.0; 3]),
+            ([0.0; 3], [1.0, 1.0, 20.0]),
+            ([-3.0, 2.0, 1e6], [5.0, 2.5, 1e6 + 0.01]),
+        ];
+        let (w, h) = (300, 200);
+        for (lo, hi) in boxes {
+            for dir in [[0.0, 0.0, 1.0], [1.0, -1.6, 0.9], [0.2, 0.1, -1.0]] {
+                for tight in [true, false] {
+                    let from = ViewFrom {
+                        dir,
+                        up: None,
+                        tight,
+                    };
+                    let p = Camera::framing_from(lo, hi, &from, 40.0, 1.5).unwrap();
+                    let o = p.orthographic_framing((lo, hi), 1.5, tight, None).unwrap();
+                    assert!(o.is_orthographic());
+                    assert_eq!(o.forward(), p.forward());
+                    for q in corners_in_picture(&o, lo, hi, w, h) {
+                        assert!(
+                            (0.0..=300.0).contains(&q[0]) && (0.0..=200.0).contains(&q[1]),
+                            "{lo:?} {hi:?} {dir:?} {tight}: {q:?}"
+                        );
+                    }
+                    // The height follows from the distance, so that the placement alone
+                    // gives the same camera again.
+                    let again = Camera::new(o.pos, o.look_at, o.up, o.fov_deg)
+                        .unwrap()
+                        .orthographic(None)
+                        .unwrap();
+                    let (Projection::Orthographic { height: a }, Projection::Orthographic { height: b }) =
+                        (o.projection, again.projection)
+                    else {
+                        panic!()
+                    };
+                    assert!((a - b).abs() <= 1e-9 * a, "{a} {b}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn image_points_invert_rays() {
         let c = Camera::new([0.3, -2.0, 0.7], [0.5, 0.4, 0.2], [0.1, 0.0, 1.0], 35.0).unwrap();
         let (w, h) = (160, 90);
-        for (x, y) in [(0.0, 0.0), (80.0, 45.0), (159.5, 3.25), (-40.0, 200.0)] {
-            let d = c.ray_dir(x, y, w, h);
-            for t in [0.01, 1.0, 1e3] {
-                let p = [0, 1, 2].map(|a| c.pos[a] + t * d[a]);
-                let [px, py] = c.image_point(p, w, h).unwrap();
-                assert!(
-                    (px - x).abs() < 1e-6 && (py - y).abs() < 1e-6,
-                    "{x},{y} at {t}: {px},{py}"
-                );
+        for cam in [c, c.orthographic(None).unwrap(), c.orthographic(Some(0.01)).unwrap()] {
+            for (x, y) in [(0.0, 0.0), (80.0, 45.0), (159.5, 3.25), (-40.0, 200.0)] {
+                let (o, d) = cam.ray(x, y, w, h);
+                for t in [0.01, 1.0, 1e3] {
+                    let p = [0, 1, 2].map(|a| o[a] + t * d[a]);
+                    let [px, py] = cam.image_point(p, w, h).unwrap();
+                    assert!(
+                        (px - x).abs() < 1e-6 && (py - y).abs() < 1e-6,
+                        "{:?} {x},{y} at {t}: {px},{py}",
+                        cam.projection
+                    );
+                }
             }
         }
         let far = |d: [f64; 3], r: f64| {
             let p: [f64; 3] = std::array::from_fn(|a| c.pos[a] + 10.0 * d[a]);
             ([0, 1, 2].map(|a| p[a] - r), [0, 1, 2].map(|a| p[a] + r))
         };
-        let (lo, hi) = far(c.ray_dir(80.0, 45.0, w, h), 1e-4);
+        let (lo, hi) = far(c.ray(80.0, 45.0, w, h).1, 1e-4);
         let BoxPlacement::InView { pixels } = c.place_box(lo, hi, w, h) else {
             panic!("a small box at the centre is in view");
         };
         assert!(pixels > 0.0 && pixels < 1.0, "{pixels}");
-        let (lo, hi) = far(c.ray_dir(80.0, 45.0, w, h), 1.0);
+        let (lo, hi) = far(c.ray(80.0, 45.0, w, h).1, 1.0);
         assert!(
             matches!(c.place_box(lo, hi, w, h), BoxPlacement::InView { pixels } if pixels > 10.0)
         );
-        let (lo, hi) = far(c.ray_dir(-300.0, 45.0, w, h), 0.1);
+        let (lo, hi) = far(c.ray(-300.0, 45.0, w, h).1, 0.1);
         assert_eq!(
             c.place_box(lo, hi, w, h),
             BoxPlacement::Outside {
@@ -579,7 +783,7 @@ mod tests {
                 below: 0
             }
         );
-        let (lo, hi) = far(c.ray_dir(400.0, 500.0, w, h), 0.1);
+        let (lo, hi) = far(c.ray(400.0, 500.0, w, h).1, 0.1);
         assert_eq!(
             c.place_box(lo, hi, w, h),
             BoxPlacement::Outside { right: 1, below: 1 }

@@ -5,7 +5,7 @@ use std::str::FromStr;
 
 use amr_format::AmrkFile;
 
-use crate::camera::{dot, sub, Camera};
+use crate::camera::{dot, sub, Camera, Projection};
 use crate::coloring::ColorBy;
 use crate::colormap::{level_palette, oklab_distance, srgb8_to_linear};
 use crate::output::frame::FrameBuffer;
@@ -180,17 +180,25 @@ pub fn draw(frame: &mut FrameBuffer, camera: &Camera, segments: &[Segment], widt
     let (w, h) = (frame.width, frame.height);
     let f = camera.forward();
     let (right, up) = camera.basis();
-    let tan = (0.5 * camera.fov_deg).to_radians().tan();
+    // Half the picture's height at a unit's distance (perspective) or in world units.
+    let (tan, parallel) = match camera.projection {
+        Projection::Perspective => ((0.5 * camera.fov_deg).to_radians().tan(), false),
+        Projection::Orthographic { height } => (0.5 * height, true),
+    };
     let aspect = f64::from(w) / f64::from(h);
+    // Where a point falls on the picture, and its distance along the ray that meets it there.
     let project = |p: [f64; 3]| -> Option<(f64, f64, f64)> {
         let v = sub(p, camera.pos);
         let depth = dot(v, f);
         if depth <= 1e-12 {
             return None;
         }
-        let sx = dot(v, right) / depth / (tan * aspect);
-        let sy = dot(v, up) / depth / tan;
-        let dist = dot(v, v).sqrt();
+        let (scale, dist) = match parallel {
+            true => (1.0, depth),
+            false => (depth, dot(v, v).sqrt()),
+        };
+        let sx = dot(v, right) / scale / (tan * aspect);
+        let sy = dot(v, up) / scale / tan;
         Some((
             (sx + 1.0) * 0.5 * f64::from(w),
             (1.0 - sy) * 0.5 * f64::from(h),

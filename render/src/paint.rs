@@ -175,8 +175,8 @@ impl<'a, T: Tracer + Sync + ?Sized> PaintedTracer<'a, T> {
             .flat_map_iter(|&y| {
                 let mut out = Vec::new();
                 for x in (0..w).step_by(RANGE_STRIDE as usize) {
-                    let dir = camera.ray_dir(f64::from(x) + 0.5, f64::from(y) + 0.5, w, h);
-                    let ray = GridRay::from_world(&frame, camera.pos, dir);
+                    let (start, dir) = camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5, w, h);
+                    let ray = GridRay::from_world(&frame, start, dir);
                     self.visible_values(&ray, opacity, &mut out);
                 }
                 out

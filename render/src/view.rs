@@ -39,6 +39,12 @@ pub struct View {
     pub view_from: Option<ViewFrom>,
     /// Vertical field of view, degrees.
     pub fov_deg: f64,
+    /// Orthographic projection (parallel rays) instead of perspective.
+    pub orthographic: bool,
+    /// The orthographic picture's height, world units; `None`: as tall as the perspective
+    /// picture is at the point looked at ([`Camera::orthographic`]), and for the automatic
+    /// camera, what frames the domain or the surfaces ([`Camera::orthographic_framing`]).
+    pub view_height: Option<f64>,
     /// Width and height in pixels.
     pub size: (u32, u32),
     /// Samples per pixel.
@@ -70,6 +76,8 @@ impl Default for View {
             camera: None,
             view_from: None,
             fov_deg: 40.0,
+            orthographic: false,
+            view_height: None,
             size: (1024, 768),
             spp: 1,
             shadows: true,
@@ -95,6 +103,16 @@ impl View {
         }
         if !(self.fov_deg > 0.0 && self.fov_deg < 180.0) {
             return Err(CameraError::BadFov(self.fov_deg).into());
+        }
+        if let Some(height) = self.view_height {
+            if !self.orthographic {
+                return Err(RenderError::Invalid(format!(
+                    "a view height ({height}) is for an orthographic view: add --ortho"
+                )));
+            }
+            if !(height > 0.0 && height.is_finite()) {
+                return Err(CameraError::BadViewHeight(height).into());
+            }
         }
         if !(1..=MAX_SPP).contains(&self.spp) {
             return Err(RenderError::Invalid(format!(
@@ -131,7 +149,7 @@ impl View {
             up,
         }) = self.camera
         {
-            placed_camera(pos, look, up, self.fov_deg)?;
+            self.projected(placed_camera(pos, look, up, self.fov_deg)?)?;
         }
         Ok(())
     }
@@ -140,20 +158,38 @@ impl View {
     pub fn camera(&self, frame: &GridFrame) -> Result<Camera> {
         let (lo, hi) = frame.world_bounds();
         let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
-        Ok(match self.camera {
-            Some(c) => placed_camera(c.pos, c.look_at.unwrap_or(centre), c.up, self.fov_deg)?,
-            None => self.auto_camera(lo, hi)?,
-        })
+        match self.camera {
+            Some(c) => {
+                let placed = placed_camera(c.pos, c.look_at.unwrap_or(centre), c.up, self.fov_deg)?;
+                self.projected(placed)
+            }
+            None => self.auto_camera(lo, hi),
+        }
+    }
+
+    /// `camera` (perspective) with this view's projection.
+    fn projected(&self, camera: Camera) -> Result<Camera> {
+        match self.orthographic {
+            true => Ok(camera.orthographic(self.view_height)?),
+            false => Ok(camera),
+        }
     }
 
     /// The automatic camera that frames the world box `[lo, hi]`.
     fn auto_camera(&self, lo: [f64; 3], hi: [f64; 3]) -> Result<Camera> {
         let (w, h) = self.size;
         let aspect = f64::from(w) / f64::from(h);
-        Ok(match &self.view_from {
-            Some(from) => Camera::framing_from(lo, hi, from, self.fov_deg, aspect)?,
-            None => Camera::framing(lo, hi, self.fov_deg, aspect)?,
-        })
+        let (camera, tight) = match &self.view_from {
+            Some(from) => (
+                Camera::framing_from(lo, hi, from, self.fov_deg, aspect)?,
+                from.tight,
+            ),
+            None => (Camera::framing(lo, hi, self.fov_deg, aspect)?, false),
+        };
+        match self.orthographic {
+            true => Ok(camera.orthographic_framing((lo, hi), aspect, tight, self.view_height)?),
+            false => Ok(camera),
+        }
     }
 
     /// The frustum of this view's primary rays in a domain with grid frame `frame`.

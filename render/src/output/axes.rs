@@ -101,10 +101,7 @@ fn labelled_edge(
     centre: (f64, f64),
 ) -> Option<Edge> {
     let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
-    let faces_camera = |k: usize, high: bool| match high {
-        true => camera.pos[k] > hi[k],
-        false => camera.pos[k] < lo[k],
-    };
+    let faces_camera = |k: usize, high: bool| camera.sees_face(k, high, (lo, hi));
     let mut best: Option<(f64, Edge)> = None;
     for (high_b, high_c) in [(false, false), (false, true), (true, false), (true, true)] {
         if faces_camera(b, high_b) == faces_camera(c, high_c) {

@@ -1,6 +1,7 @@
 //! The text attributes an EXR frame carries: the camera, the isosurfaces, the method, the
 //! timings and the origin of its `P` channels, so that a frame says how it was made.
 
+use crate::camera::Projection;
 use crate::render::Rendered;
 use crate::scene::Scene;
 use crate::shade::IsoSpec;
@@ -30,10 +31,16 @@ pub fn frame_header(
     let mut m: Vec<(String, String)> = vec![
         (
             "camera".into(),
-            format!(
-                "pos={:?} look_at={:?} up={:?} fov_deg={}",
-                c.pos, c.look_at, c.up, c.fov_deg
-            ),
+            match c.projection {
+                Projection::Perspective => format!(
+                    "pos={:?} look_at={:?} up={:?} fov_deg={}",
+                    c.pos, c.look_at, c.up, c.fov_deg
+                ),
+                Projection::Orthographic { height } => format!(
+                    "pos={:?} look_at={:?} up={:?} orthographic view_height={height}",
+                    c.pos, c.look_at, c.up
+                ),
+            },
         ),
         ("field".into(), scene.field_name().to_string()),
         ("isovalues".into(), isos.join(" ")),

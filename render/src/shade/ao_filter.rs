@@ -39,6 +39,22 @@ const MIN_FACING: f32 = 0.2;
 /// the hit per pixel of offset (at least one).
 const PLANE_TOLERANCE: f32 = 1.0;
 
+/// How large one pixel is at a hit: what the plane tolerance scales with.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PixelSpan {
+    /// A perspective camera's: the angle one pixel spans (radians), its size at a hit growing
+    /// with the hit's distance from the camera, which a ray faces a hit along.
+    Angle(f32),
+    /// An orthographic camera's: one pixel's size in world units at every depth, and the
+    /// view's unit direction, which every ray faces a hit along.
+    Parallel {
+        /// A pixel's size, world units.
+        size: f32,
+        /// The view's unit direction.
+        forward: [f32; 3],
+    },
+}
+
 /// One shaded hit's ambient occlusion and what the filter compares between hits.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AoLayer {
@@ -170,18 +186,18 @@ impl<'a> AoRows<'a> {
     }
 
     /// Replaces the occlusion of every hit of row `y` (of the band) by the filtered one in the
-    /// colour of `pixels` (that row). `pixel_angle` is the angle one pixel spans (radians).
-    /// Each row reads the others only, so rows can be filtered in any order and in parallel.
-    pub fn apply_row(&self, y: u32, rgb: [&mut [f32]; 3], pixel_angle: f32) {
+    /// colour of `pixels` (that row), a pixel spanning `span`. Each row reads the others only,
+    /// so rows can be filtered in any order and in parallel.
+    pub fn apply_row(&self, y: u32, rgb: [&mut [f32]; 3], span: PixelSpan) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
-            return unsafe { self.apply_row_avx2(y, rgb, pixel_angle) };
+            return unsafe { self.apply_row_avx2(y, rgb, span) };
         }
         self.apply_row_with(y, rgb, |x0, h, out| {
             for (x, out) in (x0..(x0 + GROUP).min(self.width as usize)).zip(out) {
                 if let Some(layer) = self.rows[y as usize].pixel(x as u32).get(h) {
-                    *out = self.filtered(layer, x as u32, y, pixel_angle);
+                    *out = self.filtered(layer, x as u32, y, span);
                 }
             }
         });
@@ -190,9 +206,9 @@ impl<'a> AoRows<'a> {
     /// [`AoRows::apply_row`] with the hits of [`GROUP`] pixels filtered at once.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn apply_row_avx2(&self, y: u32, rgb: [&mut [f32]; 3], pixel_angle: f32) {
+    fn apply_row_avx2(&self, y: u32, rgb: [&mut [f32]; 3], span: PixelSpan) {
         self.apply_row_with(y, rgb, |x0, h, out| {
-            x8::filter_group(self, y, x0, h, pixel_angle, out)
+            x8::filter_group(self, y, x0, h, span, out)
         });
     }
 
@@ -235,8 +251,8 @@ impl<'a> AoRows<'a> {
     /// The filtered occlusion of `layer`, a hit of pixel `(x, y)`: the mean over the window
     /// around it of the occlusions of the hits of its surface that face its way and lie on its
     /// tangent plane, added up row after row, pixel after pixel, hit after hit.
-    fn filtered(&self, layer: &AoLayer, x: u32, y: u32, pixel_angle: f32) -> f32 {
-        let footprint = footprint(layer.p, layer.n, pixel_angle);
+    fn filtered(&self, layer: &AoLayer, x: u32, y: u32, span: PixelSpan) -> f32 {
+        let footprint = footprint(layer.p, layer.n, span);
         let (mut sum, mut count) = (0.0f32, 0u32);
         let last_row = self.rows.len() as u32 - 1;
         for qy in y.saturating_sub(BEFORE)..=(y + AFTER).min(last_row) {
@@ -273,10 +289,18 @@ const GROUP: usize = 8;
 
 /// The plane tolerance per pixel of offset of a hit at `p` (from the camera) with normal `n`.
 #[inline(always)]
-fn footprint(p: [f32; 3], n: [f32; 3], pixel_angle: f32) -> f32 {
-    let distance = norm(p);
-    let facing = (dot(n, p).abs() / distance).max(MIN_FACING);
-    PLANE_TOLERANCE * distance * pixel_angle / (facing * facing)
+fn footprint(p: [f32; 3], n: [f32; 3], span: PixelSpan) -> f32 {
+    match span {
+        PixelSpan::Angle(angle) => {
+            let distance = norm(p);
+            let facing = (dot(n, p).abs() / distance).max(MIN_FACING);
+            PLANE_TOLERANCE * distance * angle / (facing * facing)
+        }
+        PixelSpan::Parallel { size, forward } => {
+            let facing = dot(n, forward).abs().max(MIN_FACING);
+            PLANE_TOLERANCE * size / (facing * facing)
+        }
+    }
 }
 
 /// The window's columns in a row `dy` rows away, from the left: each one's offset and the
@@ -432,7 +456,7 @@ mod tests {
         }
         let rows = [row];
         let [mut r, mut g, mut b] = [(); 3].map(|_| vec![0.0f32; 5]);
-        AoRows::new(5, &rows).apply_row(0, [&mut r, &mut g, &mut b], 0.01);
+        AoRows::new(5, &rows).apply_row(0, [&mut r, &mut g, &mut b], PixelSpan::Angle(0.01));
         assert_eq!(r, [0.5 - 1.0, 0.5, 0.0, 0.0, 0.0]);
     }
 }

@@ -121,8 +121,9 @@ pub fn search_order(light: &Lighting, n: usize, first: usize) -> impl Iterator<I
         .chain((0..n).filter(move |&i| !opaque(i)))
 }
 
-/// Shades the world ray `origin + t dir` (`dir` unit length) from its `layers`
-/// ([`crate::shade::layers`]); `frame` is the tracer's. The key light's shadow ray and the
+/// Shades the world ray along `dir` (unit length) from its `layers`
+/// ([`crate::shade::layers`]) seen by a camera at `eye`, which the positions recorded for the
+/// ambient-occlusion filter are taken from; `frame` is the tracer's. The key light's shadow ray and the
 /// ambient-occlusion rays are traced here at the layers whose transmittance or occlusion is not
 /// given ([`Layer::shadow`], [`Layer::ao`]). With `ao_layers`, records the first
 /// [`FILTERED_HITS`] hits shaded with ambient occlusion there.
@@ -131,7 +132,7 @@ pub fn shade_hits<T: Tracer + ?Sized>(
     tracer: &T,
     frame: &GridFrame,
     light: &Lighting,
-    (origin, dir): ([f64; 3], [f64; 3]),
+    (eye, dir): ([f64; 3], [f64; 3]),
     layers: &[Layer],
     rng: &mut Rng,
     mut ao_layers: Option<&mut Vec<AoLayer>>,
@@ -140,21 +141,12 @@ pub fn shade_hits<T: Tracer + ?Sized>(
     for (layer, l) in layers.iter().enumerate() {
         let hit = (l.surface, &l.hit, (l.shadow, l.ao));
         let ao = ao_layers.as_deref_mut();
-        c.add(
-            tracer,
-            frame,
-            light,
-            (origin, dir),
-            hit,
-            rng,
-            ao,
-            layer == 0,
-        );
+        c.add(tracer, frame, light, (eye, dir), hit, rng, ao, layer == 0);
     }
     c.finish()
 }
 
-/// Shades the world ray `origin + t dir` (`dir` unit length) whose one layer is `hit`, a hit
+/// Shades the world ray along `dir` (unit length), seen by a camera at `eye`, whose one layer is `hit`, a hit
 /// of the opaque surface `i`, its shadow and AO rays (if any) traced here: what [`shade_hits`]
 /// gives for that layer, without building it.
 #[inline(always)]
@@ -162,13 +154,13 @@ pub fn shade_hit_alone<T: Tracer + ?Sized>(
     tracer: &T,
     frame: &GridFrame,
     light: &Lighting,
-    (origin, dir): ([f64; 3], [f64; 3]),
+    (eye, dir): ([f64; 3], [f64; 3]),
     (i, hit): (usize, &SurfaceHit),
     rng: &mut Rng,
 ) -> PixelSample {
     let mut c = Composite::EMPTY;
     let hit = (i, hit, (None, None));
-    c.add(tracer, frame, light, (origin, dir), hit, rng, None, true);
+    c.add(tracer, frame, light, (eye, dir), hit, rng, None, true);
     c.finish()
 }
 
@@ -194,8 +186,9 @@ impl Composite {
     };
 
     /// Adds the layer behind the others: `hit` of surface `i` with the shadow and AO `given`
-    /// ([`Layer::shadow`], [`Layer::ao`]); the `first` layer also sets the pixel's depth,
-    /// normal, position and level.
+    /// ([`Layer::shadow`], [`Layer::ao`]), seen along `dir` by a camera at `eye` (what the
+    /// position recorded for the AO filter is taken from); the `first` layer also sets the
+    /// pixel's depth, normal, position and level.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn add<T: Tracer + ?Sized>(
@@ -203,7 +196,7 @@ impl Composite {
         tracer: &T,
         frame: &GridFrame,
         light: &Lighting,
-        (origin, dir): ([f64; 3], [f64; 3]),
+        (eye, dir): ([f64; 3], [f64; 3]),
         (i, hit, given): (usize, &SurfaceHit, (Option<f64>, Option<f64>)),
         rng: &mut Rng,
         ao_layers: Option<&mut Vec<AoLayer>>,
@@ -224,7 +217,7 @@ impl Composite {
                         let p = frame.to_world(hit.pos);
                         layers.push(AoLayer {
                             surface: i as u32,
-                            p: [0, 1, 2].map(|a| (p[a] - origin[a]) as f32),
+                            p: [0, 1, 2].map(|a| (p[a] - eye[a]) as f32),
                             n: shaded.facing.map(|x| x as f32),
                             ao: ao.value as f32,
                             weight: ao.weight.map(|w| transmittance * alpha * w),

@@ -10,9 +10,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use rayon::prelude::*;
 
 use crate::bvh::packet::Mask;
-use crate::camera::Camera;
+use crate::camera::{Camera, Projection};
 use crate::output::frame::{FrameBuffer, PixelSample, RowPlanes};
-use crate::shade::ao_filter::{self, AoRow, AoRows};
+use crate::shade::ao_filter::{self, AoRow, AoRows, PixelSpan};
 use crate::shade::ao_packets::TileAo;
 use crate::shade::integrate::{shade_hit_alone, shade_hits, KeyShadow, Lighting, SearchHint};
 use crate::shade::layers::TileLayers;
@@ -430,9 +430,11 @@ fn render_strip<T: Tracer + ?Sized>(
     let mut hint = SearchHint::default();
     let dirs = camera.pixel_dirs(settings.width, settings.height);
     let frame = tracer.frame();
-    let origin = dirs.origin();
-    // Every ray starts at the camera: its grid origin is the same for all.
-    let grid_origin = frame.to_grid(origin);
+    // The point the AO filter's positions are taken from. A perspective camera's rays all
+    // start there: their grid origin is the same.
+    let eye = camera.pos;
+    let grid_eye = frame.to_grid(eye);
+    let pinhole = dirs.from_one_point();
     let spp = settings.spp.max(1);
     // The generators place the samples in their pixels and the shading's ambient-occlusion
     // rays; a frame that does neither leaves them out.
@@ -472,17 +474,17 @@ fn render_strip<T: Tracer + ?Sized>(
             rays.clear();
             for (y, &sy) in ys.clone().zip(&down) {
                 for (x, &sx) in (x0..x1).zip(&across) {
-                    let dir = if spp > 1 {
+                    let (start, dir) = if spp > 1 {
                         let mut rng = Rng::for_pixel(x, y, s);
                         let (jx, jy) = rng.subpixel(spp);
                         rngs.push(rng);
-                        dirs.dir(f64::from(x) + jx, f64::from(y) + jy)
+                        dirs.ray(f64::from(x) + jx, f64::from(y) + jy)
                     } else {
-                        dirs.through(sx, sy)
+                        (dirs.start(sx, sy), dirs.through(sx, sy))
                     };
                     dirs_k.push(dir);
                     rays.push(GridRay {
-                        o: grid_origin,
+                        o: if pinhole { grid_eye } else { frame.to_grid(start) },
                         d: frame.to_grid_dir(dir),
                     });
                 }
@@ -504,7 +506,7 @@ fn render_strip<T: Tracer + ?Sized>(
                     &counting,
                     &frame,
                     light,
-                    origin,
+                    eye,
                     (&dirs_k, &tile),
                     (col, tw),
                     out,
@@ -538,7 +540,7 @@ fn render_strip<T: Tracer + ?Sized>(
                             &mut unused_rng
                         };
                         let (dir, of) = (dirs_k[k], layers.of(k));
-                        shade_hits(&counting, &frame, light, (origin, dir), of, rng, ao_layers)
+                        shade_hits(&counting, &frame, light, (eye, dir), of, rng, ao_layers)
                     } else {
                         PixelSample::MISS
                     };
@@ -582,14 +584,14 @@ fn hits_alone<T: Tracer + ?Sized>(tracer: &T, light: &Lighting, spp: u32) -> boo
 }
 
 /// Writes the pixels of a tile `tw` rays wide from column `col` of `out` (one per row of the
-/// tile) when [`hits_alone`]: each ray `k`'s hit in `tile`, seen along `dirs[k]` from `origin`,
+/// tile) when [`hits_alone`]: each ray `k`'s hit in `tile`, seen along `dirs[k]` by a camera at `eye`,
 /// shaded as [`shade_hit_alone`] (a miss where it has none).
 #[inline(always)]
 fn shade_alone<T: Tracer + ?Sized>(
     tracer: &T,
     frame: &GridFrame,
     light: &Lighting,
-    origin: [f64; 3],
+    eye: [f64; 3],
     (dirs, tile): (&[[f64; 3]], &TileHits),
     (col, tw): (usize, usize),
     out: &mut [RowPlanes<'_>],
@@ -600,7 +602,7 @@ fn shade_alone<T: Tracer + ?Sized>(
         for (k, px) in (r * tw..(r + 1) * tw).zip(&mut run) {
             let sample = match tile.hit(k, 0) {
                 Some(hit) => {
-                    let (ray, hit) = ((origin, dirs[k]), (0, hit));
+                    let (ray, hit) = ((eye, dirs[k]), (0, hit));
                     shade_hit_alone(tracer, frame, light, ray, hit, &mut unused_rng)
                 }
                 None => PixelSample::MISS,
@@ -636,8 +638,15 @@ fn filter_rows(
     }
     // The filter reads the rows' hits as one slice; they are handed back at the end.
     let ao: Vec<AoRow> = rows.iter_mut().map(|r| std::mem::take(&mut r.ao)).collect();
-    let pixel_angle =
-        (2.0 * (0.5 * camera.fov_deg).to_radians().tan() / f64::from(settings.height)) as f32;
+    let span = match camera.projection {
+        Projection::Perspective => PixelSpan::Angle(
+            (2.0 * (0.5 * camera.fov_deg).to_radians().tan() / f64::from(settings.height)) as f32,
+        ),
+        Projection::Orthographic { .. } => PixelSpan::Parallel {
+            size: camera.pixel_size(1.0, settings.height) as f32,
+            forward: camera.forward().map(|v| v as f32),
+        },
+    };
     // Band after band of rows, each band's rows in parallel: the filter's slots are held for
     // one band (and its margins) at a time, not for all the rows.
     for (y0, out) in filtered
@@ -648,7 +657,7 @@ fn filter_rows(
         let band = y0 as u32..(y0 + out.len()) as u32;
         let filter = AoRows::band(w, &ao, band);
         out.par_iter_mut().enumerate().for_each(|(i, row)| {
-            filter.apply_row((y0 + i) as u32, row.rgb_mut(), pixel_angle);
+            filter.apply_row((y0 + i) as u32, row.rgb_mut(), span);
         });
     }
     for (row, ao) in rows.iter_mut().zip(ao) {

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use amr_render::camera::{BoxPlacement, Camera};
+use amr_render::camera::{BoxPlacement, Camera, Projection};
 use amr_render::field_stats::{format_isovalue, format_value, format_vector};
 use amr_render::output::legend::Legend;
 use amr_render::shade::IsoSpec;
@@ -95,19 +95,32 @@ pub(crate) fn warn_empty(scene: &Scene, camera: &Camera, (w, h): (u32, u32)) {
                 .map(|&(s, before, after)| if s < 0 { before } else { after })
                 .collect::<Vec<_>>()
                 .join(" and ");
-                format!(
-                    "they lie outside the frame, {side}: {look_there} or widen the field of \
-                     view (--fov)"
-                )
+                let widen = match camera.projection {
+                    Projection::Perspective => "widen the field of view (--fov)".to_string(),
+                    Projection::Orthographic { height } => format!(
+                        "make the view taller than its {} (--view-height)",
+                        format_value(height)
+                    ),
+                };
+                format!("they lie outside the frame, {side}: {look_there} or {widen}")
             }
             BoxPlacement::InView { pixels } if pixels < 2.0 => format!(
-                "they span {} of its {w}x{h} frame with a {}-degree field of view: \
-                 move the camera closer (--camera-pos) or narrow the field of view (--fov)",
+                "they span {} of its {w}x{h} frame {}",
                 match pixels < 1.0 {
                     true => "less than a pixel".to_string(),
                     false => format!("{pixels:.1} pixels"),
                 },
-                camera.fov_deg
+                match camera.projection {
+                    Projection::Perspective => format!(
+                        "with a {}-degree field of view: move the camera closer \
+                         (--camera-pos) or narrow the field of view (--fov)",
+                        camera.fov_deg
+                    ),
+                    Projection::Orthographic { height } => format!(
+                        "{} tall: make the view shorter (--view-height)",
+                        format_value(height)
+                    ),
+                }
             ),
             BoxPlacement::AroundCamera => {
                 format!("they lie beside or around it, out of its view: {look_there}")

@@ -159,6 +159,14 @@ pub struct RenderArgs {
         allow_hyphen_values = true
     )]
     pub fov: f64,
+    /// Orthographic projection: parallel rays, so that a length looks as long at every depth,
+    /// as in a slice plot. The picture is as tall as the perspective one at the point looked
+    /// at, or what frames the domain or the surfaces for the automatic camera, or --view-height
+    #[arg(long)]
+    pub ortho: bool,
+    /// The orthographic picture's height, world units (with --ortho)
+    #[arg(long, value_name = "H", requires = "ortho", allow_hyphen_values = true)]
+    pub view_height: Option<f64>,
     /// Reconstruction method: octant, current or nearest.
     #[arg(long, default_value_t = Reconstruction::Octant)]
     pub reconstruction: Reconstruction,
@@ -473,6 +481,8 @@ impl RenderArgs {
                 tight: self.orbit.is_none(),
             }),
             fov_deg: self.fov,
+            orthographic: self.ortho,
+            view_height: self.view_height,
             size: self.size,
             spp: self.spp,
             shadows: !self.no_shadows,

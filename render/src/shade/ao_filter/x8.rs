@@ -8,7 +8,8 @@
 use std::arch::x86_64::*;
 
 use super::{
-    window_columns, AoRows, AFTER, BEFORE, GROUP, MIN_FACING, MIN_NORMAL_COSINE, PLANE_TOLERANCE,
+    window_columns, AoRows, PixelSpan, AFTER, BEFORE, GROUP, MIN_FACING, MIN_NORMAL_COSINE,
+    PLANE_TOLERANCE,
 };
 
 /// Writes to `out` the filtered occlusion of hit `h` of each of the [`GROUP`] pixels from
@@ -20,7 +21,7 @@ pub(super) fn filter_group(
     y: u32,
     x0: usize,
     h: usize,
-    pixel_angle: f32,
+    span: PixelSpan,
     out: &mut [f32; GROUP],
 ) {
     // Every row's columns hold `BEFORE + width + AFTER + GROUP` entries ([`Slots::empty`]): from
@@ -35,18 +36,34 @@ pub(super) fn filter_group(
     let cp = [0, 1, 2].map(|a| load(&c.p[a], at));
     let cn = [0, 1, 2].map(|a| load(&c.n[a], at));
     let sign = _mm256_set1_ps(-0.0);
-    let distance = _mm256_sqrt_ps(dot(cp, cp));
-    let facing = _mm256_max_ps(
-        _mm256_div_ps(_mm256_andnot_ps(sign, dot(cn, cp)), distance),
-        _mm256_set1_ps(MIN_FACING),
-    );
-    let footprint = _mm256_div_ps(
-        _mm256_mul_ps(
-            _mm256_mul_ps(_mm256_set1_ps(PLANE_TOLERANCE), distance),
-            _mm256_set1_ps(pixel_angle),
-        ),
-        _mm256_mul_ps(facing, facing),
-    );
+    // The scalar filter's footprint, lane by lane.
+    let footprint = match span {
+        PixelSpan::Angle(angle) => {
+            let distance = _mm256_sqrt_ps(dot(cp, cp));
+            let facing = _mm256_max_ps(
+                _mm256_div_ps(_mm256_andnot_ps(sign, dot(cn, cp)), distance),
+                _mm256_set1_ps(MIN_FACING),
+            );
+            _mm256_div_ps(
+                _mm256_mul_ps(
+                    _mm256_mul_ps(_mm256_set1_ps(PLANE_TOLERANCE), distance),
+                    _mm256_set1_ps(angle),
+                ),
+                _mm256_mul_ps(facing, facing),
+            )
+        }
+        PixelSpan::Parallel { size, forward } => {
+            let f = forward.map(|v| _mm256_set1_ps(v));
+            let facing = _mm256_max_ps(
+                _mm256_andnot_ps(sign, dot(cn, f)),
+                _mm256_set1_ps(MIN_FACING),
+            );
+            _mm256_div_ps(
+                _mm256_set1_ps(PLANE_TOLERANCE * size),
+                _mm256_mul_ps(facing, facing),
+            )
+        }
+    };
     let min_cosine = _mm256_set1_ps(MIN_NORMAL_COSINE);
     let (mut sum, mut count) = (_mm256_setzero_ps(), _mm256_setzero_si256());
     let last_row = rows.rows.len() as u32 - 1;
@@ -137,25 +154,31 @@ mod tests {
             })
             .collect();
         let filter = AoRows::new(width, &rows);
-        let (mut kept, mut hits) = (0, 0);
-        for y in 0..height {
-            for x0 in (0..width as usize).step_by(GROUP) {
-                for h in 0..FILTERED_HITS {
-                    let mut out = [0.0; GROUP];
-                    // SAFETY: the CPU has AVX2, checked above.
-                    unsafe { filter_group(&filter, y, x0, h, 0.01, &mut out) };
-                    for (x, &lane) in (x0..(x0 + GROUP).min(width as usize)).zip(&out) {
-                        let Some(layer) = rows[y as usize].pixel(x as u32).get(h) else {
-                            continue;
-                        };
-                        let scalar = filter.filtered(layer, x as u32, y, 0.01);
-                        assert_eq!(lane.to_bits(), scalar.to_bits(), "{x} {y} {h}");
-                        hits += 1;
-                        kept += usize::from(scalar != layer.ao);
+        let parallel = PixelSpan::Parallel {
+            size: 0.0002,
+            forward: [0.1, -0.1, 0.99],
+        };
+        for span in [PixelSpan::Angle(0.01), parallel] {
+            let (mut kept, mut hits) = (0, 0);
+            for y in 0..height {
+                for x0 in (0..width as usize).step_by(GROUP) {
+                    for h in 0..FILTERED_HITS {
+                        let mut out = [0.0; GROUP];
+                        // SAFETY: the CPU has AVX2, checked above.
+                        unsafe { filter_group(&filter, y, x0, h, span, &mut out) };
+                        for (x, &lane) in (x0..(x0 + GROUP).min(width as usize)).zip(&out) {
+                            let Some(layer) = rows[y as usize].pixel(x as u32).get(h) else {
+                                continue;
+                            };
+                            let scalar = filter.filtered(layer, x as u32, y, span);
+                            assert_eq!(lane.to_bits(), scalar.to_bits(), "{span:?} {x} {y} {h}");
+                            hits += 1;
+                            kept += usize::from(scalar != layer.ao);
+                        }
                     }
                 }
             }
+            assert!(kept > 0 && kept < hits, "{span:?}: {kept} of {hits}");
         }
-        assert!(kept > 0 && kept < hits, "{kept} of {hits}");
     }
 }

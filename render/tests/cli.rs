@@ -2142,3 +2142,51 @@ fn auto_series_gives_each_painting_field_its_range_over_the_series() {
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("'nope'"), "{}", stderr(&o));
 }
+
+/// `--ortho` draws an orthographic frame, named in the EXR header and saved in a scene file that
+/// draws it again; a view height asks for `--ortho` and a positive length.
+#[test]
+fn an_orthographic_view_is_drawn_saved_and_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = sphere(dir.path());
+    let (d, f) = (dir.path(), file.to_str().unwrap());
+    let (first, scene) = (d.join("first.exr"), d.join("ortho.toml"));
+    let o = amr_render(&[
+        f,
+        "--ortho",
+        "--view-height",
+        "0.8",
+        "--size",
+        "40x30",
+        "-o",
+        first.to_str().unwrap(),
+        "--write-scene",
+        scene.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let camera = attribute(&first, "camera");
+    assert!(camera.contains("orthographic view_height=0.8"), "{camera}");
+    let text = std::fs::read_to_string(&scene).unwrap();
+    assert!(
+        text.contains("ortho = true") && text.contains("view-height = 0.8"),
+        "{text}"
+    );
+    let again = d.join("again.exr");
+    let o = amr_render(&[scene.to_str().unwrap(), "-o", again.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for c in ["R", "G", "B", "A", "Z"] {
+        assert_eq!(bits(&first, c), bits(&again, c), "channel {c}");
+    }
+    let out = d.join("x.png");
+    let out = out.to_str().unwrap();
+    for (args, says) in [
+        (&["--view-height", "0.5"][..], "--ortho"),
+        (&["--ortho", "--view-height", "0"][..], "--view-height 0 "),
+        (&["--ortho", "--view-height", "-2"][..], "--view-height -2 "),
+    ] {
+        let o = amr_render(&[&[f, "-o", out][..], args].concat());
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        assert!(stderr(&o).contains(says), "{args:?}: {}", stderr(&o));
+    }
+    assert!(!Path::new(out).exists());
+}

@@ -53,26 +53,36 @@ fn rms(a: &Rendered, b: &Rendered) -> f64 {
     (sum / n.max(1) as f64).sqrt()
 }
 
+/// Perspective and orthographic views alike (the filter's pixel footprint is each one's).
 #[test]
 fn one_filtered_ray_is_closer_to_the_reference_than_four_unfiltered() {
     let dir = tempfile::tempdir().unwrap();
     let scene = scene(dir.path());
-    let reference = render(&scene, &view(64, false), &|_| ()).unwrap();
-    let four = render(&scene, &view(4, false), &|_| ()).unwrap();
-    let one_filtered = render(&scene, &view(1, true), &|_| ()).unwrap();
-    let one = render(&scene, &view(1, false), &|_| ()).unwrap();
-    let (e4, e1f, e1) = (
-        rms(&four, &reference),
-        rms(&one_filtered, &reference),
-        rms(&one, &reference),
-    );
-    assert!(e1f < e4 && e4 < e1, "RMS: 1 filtered {e1f}, 4 {e4}, 1 {e1}");
-    assert!(
-        one_filtered.stats.rays < four.stats.rays,
-        "{} rays against {}",
-        one_filtered.stats.rays,
-        four.stats.rays
-    );
+    for orthographic in [false, true] {
+        let view = |ao_rays, ao_filter| View {
+            orthographic,
+            ..view(ao_rays, ao_filter)
+        };
+        let reference = render(&scene, &view(64, false), &|_| ()).unwrap();
+        let four = render(&scene, &view(4, false), &|_| ()).unwrap();
+        let one_filtered = render(&scene, &view(1, true), &|_| ()).unwrap();
+        let one = render(&scene, &view(1, false), &|_| ()).unwrap();
+        let (e4, e1f, e1) = (
+            rms(&four, &reference),
+            rms(&one_filtered, &reference),
+            rms(&one, &reference),
+        );
+        assert!(
+            e1f < e4 && e4 < e1,
+            "orthographic {orthographic}: RMS: 1 filtered {e1f}, 4 {e4}, 1 {e1}"
+        );
+        assert!(
+            one_filtered.stats.rays < four.stats.rays,
+            "{} rays against {}",
+            one_filtered.stats.rays,
+            four.stats.rays
+        );
+    }
 }
 
 /// Near silhouettes, where the surface turns away from the camera, neighbouring pixels' hits

@@ -43,16 +43,9 @@ fn single_ray_pixel(
     for s in 0..spp {
         let mut rng = Rng::for_pixel(x, y, s);
         let (jx, jy) = rng.subpixel(spp);
-        let dir = dirs.dir(f64::from(x) + jx, f64::from(y) + jy);
+        let ray = dirs.ray(f64::from(x) + jx, f64::from(y) + jy);
         let mut hint = SearchHint::default();
-        let p: PixelSample = shade_ray(
-            tracer,
-            light,
-            (dirs.origin(), dir),
-            &mut rng,
-            &mut hint,
-            None,
-        );
+        let p: PixelSample = shade_ray(tracer, light, ray, &mut rng, &mut hint, None);
         for c in 0..3 {
             sum[c] += p.rgb[c];
         }

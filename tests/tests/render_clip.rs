@@ -1,7 +1,7 @@
 //! Cut-aways and view-limited extraction (issue 17, goal 4): a clip box opens a sphere so that
 //! rays see its inner side behind the cut, shadow and occlusion rays see only the cut surface, and a scene
-//! extracted inside a view's frustum renders that view bit for bit as the whole extraction does
-//! when no shadow or ambient-occlusion ray leaves the view.
+//! extracted inside a view's frustum (perspective or orthographic) renders that view bit for bit
+//! as the whole extraction does when no shadow or ambient-occlusion ray leaves the view.
 
 use amr_render::output::frame::FrameBuffer;
 use amr_render::reconstruct::Reconstruction;
@@ -186,6 +186,16 @@ fn view_limited_extraction_renders_the_view_as_the_whole_one() {
             View {
                 spp: 3,
                 ..looking_from([1.6, 1.5, 0.2], [0.6, 0.5, 0.5], 25.0)
+            },
+            View {
+                orthographic: true,
+                view_height: Some(0.3),
+                ..looking_from([0.2, -0.4, 0.9], [0.35, 0.45, 0.5], 40.0)
+            },
+            View {
+                orthographic: true,
+                spp: 2,
+                ..looking_from([0.7, 1.2, 0.3], [0.55, 0.5, 0.45], 30.0)
             },
         ];
         for (k, view) in views.iter().enumerate() {

@@ -80,6 +80,7 @@ mod render_clip;
 mod render_fields;
 mod render_golden;
 mod render_normals;
+mod render_ortho;
 mod render_packets;
 mod render_shading;
 mod render_watertight;

@@ -484,7 +484,11 @@ fn render_strip<T: Tracer + ?Sized>(
                     };
                     dirs_k.push(dir);
                     rays.push(GridRay {
-                        o: if pinhole { grid_eye } else { frame.to_grid(start) },
+                        o: if pinhole {
+                            grid_eye
+                        } else {
+                            frame.to_grid(start)
+                        },
                         d: frame.to_grid_dir(dir),
                     });
                 }

@@ -7,10 +7,30 @@
 //! order is a union of few subtrees, so the parts are spatially compact.
 
 use amr_format::kdtree::TreeView;
+use amr_render::camera::Camera;
+use amr_render::trace::GridFrame;
 
-/// The leaves of `tree` front to back as seen from `eye` (finest-level cell coordinates).
-pub fn visibility_order(tree: &TreeView<'_>, eye: [f64; 3]) -> Vec<u32> {
-    tree.front_to_back(eye)
+/// The leaves of `tree` front to back along the primary rays of `camera` in a domain with grid
+/// frame `frame`.
+pub fn visibility_order(tree: &TreeView<'_>, camera: &Camera, frame: &GridFrame) -> Vec<u32> {
+    tree.front_to_back(order_point(camera, frame))
+}
+
+/// The point (finest-level cell coordinates) the leaves are ordered from: the eye of a
+/// perspective camera. An orthographic camera's rays are parallel: the point lies beyond the
+/// domain, far back along the view on each axis it runs along, so that every split plane
+/// across the rays is seen from the side they come from (its position would put a plane
+/// between it and the far side of the picture on the wrong side).
+fn order_point(camera: &Camera, frame: &GridFrame) -> [f64; 3] {
+    [0, 1, 2].map(|a| {
+        let eye = 0.5 * (camera.pos[a] - frame.origin[a]) / frame.unit[a];
+        let f = camera.forward()[a];
+        match camera.is_orthographic() {
+            true if f > 0.0 => -1e300,
+            true if f < 0.0 => 1e300,
+            _ => eye,
+        }
+    })
 }
 
 /// The part (`0..parts`) of each leaf, indexed by leaf: `order` cut into `parts` contiguous runs
@@ -60,25 +80,41 @@ mod tests {
         }
     }
 
+    /// The frame of a row of `n` cells along x: grid units of half a cell, as the order's
+    /// point is computed.
+    fn frame(n: f64) -> GridFrame {
+        GridFrame {
+            origin: [0.0; 3],
+            unit: [0.5; 3],
+            extent: [2.0 * n, 2.0, 2.0],
+        }
+    }
+
+    fn camera(pos: [f64; 3], look_at: [f64; 3]) -> Camera {
+        Camera::new(pos, look_at, [0.0, 0.0, 1.0], 40.0).unwrap()
+    }
+
     #[test]
     fn visibility_order_runs_from_the_eye() {
         let tree = row(8);
         let view = view(&tree, 8);
         let centre = |l: u32| view.leaf_box(l).lo[0];
-        let from_left: Vec<i64> = visibility_order(&view, [-1.0, 0.5, 0.5])
-            .into_iter()
-            .map(centre)
-            .collect();
+        let order = |c: Camera| -> Vec<i64> {
+            visibility_order(&view, &c, &frame(8.0))
+                .into_iter()
+                .map(centre)
+                .collect()
+        };
+        let from_left = order(camera([-1.0, 0.5, 0.5], [4.0, 0.5, 0.5]));
         assert_eq!(from_left, (0..8).collect::<Vec<_>>());
-        let from_right: Vec<i64> = visibility_order(&view, [9.0, 0.5, 0.5])
-            .into_iter()
-            .map(centre)
-            .collect();
+        let from_right = order(camera([9.0, 0.5, 0.5], [4.0, 0.5, 0.5]));
         assert_eq!(from_right, (0..8).rev().collect::<Vec<_>>());
-        let inside: Vec<i64> = visibility_order(&view, [2.5, 0.5, 0.5])
-            .into_iter()
-            .map(centre)
-            .collect();
+        // An orthographic camera above cell 2 looking down and to the right: its rays cross
+        // the cells from left to right, whichever cell the camera is above.
+        let oblique = camera([2.5, 0.5, 3.0], [5.5, 0.5, 0.5]);
+        let parallel = order(oblique.orthographic(Some(2.0)).unwrap());
+        assert_eq!(parallel, (0..8).collect::<Vec<_>>());
+        let inside = order(oblique);
         assert_eq!(inside[0], 2);
         // Along the row, every leaf comes after the leaves between it and the eye.
         for (k, &x) in inside.iter().enumerate() {

@@ -85,18 +85,7 @@ pub fn render_part(
         }
     }
     let camera = view.camera(&frame)?;
-    let eye = [0, 1, 2].map(|a| {
-        let at = 0.5 * (camera.pos[a] - frame.origin[a]) / frame.unit[a];
-        // Parallel rays: the order from a point beyond the domain, far back along the view,
-        // which every split plane across the view sees from the side the rays come from.
-        let f = camera.forward()[a];
-        match camera.is_orthographic() {
-            true if f > 0.0 => -1e300,
-            true if f < 0.0 => 1e300,
-            _ => at,
-        }
-    });
-    let order = visibility_order(&scene.file().tree(), eye);
+    let order = visibility_order(&scene.file().tree(), &camera, &frame);
     let owner = balanced_runs(&order, &total, n);
     drop((order, total));
     let extracted = t.elapsed();

@@ -70,11 +70,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..View::default()
     };
     let reference = render(&scene, &view(256, false), &|_| ())?;
-    write_preview(&out.join("ao_256.png"), &reference.frame)?;
+    write_preview(
+        &out.join("ao_256.png"),
+        &reference.frame,
+        &Default::default(),
+    )?;
     for (n, filtered) in counts {
         let frame = render(&scene, &view(n, filtered), &|_| ())?;
         let name = format!("ao_{n}{}", if filtered { "f" } else { "" });
-        write_preview(&out.join(format!("{name}.png")), &frame.frame)?;
+        write_preview(
+            &out.join(format!("{name}.png")),
+            &frame.frame,
+            &Default::default(),
+        )?;
         let (rms, max) = difference(&frame, &reference);
         println!(
             "{name:>5}: RMS {rms:.5}, largest {max:.4} (colour, linear), {} ray queries",

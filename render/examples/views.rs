@@ -72,7 +72,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let frame = render(&scene, &view, &|_rows| {})?;
         let name = out.join(format!("view{k}.exr"));
         write_exr(&name, &frame.frame, &frame_header(&scene, &frame, &[]))?;
-        write_preview(&name.with_extension("png"), &frame.frame)?;
+        write_preview(
+            &name.with_extension("png"),
+            &frame.frame,
+            &Default::default(),
+        )?;
         println!(
             "view {k}: {:.1} ms, {} rays, {} pixels covered -> {}",
             frame.stats.render.as_secs_f64() * 1e3,
@@ -101,7 +105,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let frame = render(&scene, &view, &|_rows| {})?;
     let name = out.join("iso14.exr");
     write_exr(&name, &frame.frame, &frame_header(&scene, &frame, &[]))?;
-    write_preview(&name.with_extension("png"), &frame.frame)?;
+    write_preview(
+        &name.with_extension("png"),
+        &frame.frame,
+        &Default::default(),
+    )?;
     println!(
         "iso 14: {:.1} ms -> {}",
         frame.stats.render.as_secs_f64() * 1e3,

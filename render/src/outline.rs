@@ -8,8 +8,9 @@ use amr_format::AmrkFile;
 use crate::camera::{dot, sub, Camera, Projection};
 use crate::coloring::ColorBy;
 use crate::colormap::{level_palette, oklab_distance, srgb8_to_linear};
+use crate::output::background::Background;
 use crate::output::frame::FrameBuffer;
-use crate::output::png_preview::{background_srgb8, display_srgb8};
+use crate::output::png_preview::display_srgb8;
 use crate::scene::Scene;
 
 /// Which boxes a frame outlines.
@@ -36,9 +37,6 @@ impl FromStr for Outline {
         }
     }
 }
-
-/// Linear grey of the domain's box.
-pub const DOMAIN_COLOR: [f32; 3] = [0.75, 0.75, 0.75];
 
 /// Level colours closer than this (OKLab distance) to a surface's colour or the background are
 /// not used for boxes: a reader would take the lines for the surface, or not see them.
@@ -85,16 +83,17 @@ impl LevelColors {
         LevelColors { palette }
     }
 
-    /// The colours of a frame of `scene`: the categorical palette when something is painted by
-    /// level (lines and surfaces then agree), else the palette clear of the background and of
+    /// The colours of a frame of `scene` over `background`: the categorical palette when
+    /// something is painted by level (lines and surfaces then agree), else the palette clear of
+    /// the background and of
     /// every unpainted surface's colour. A painting colormap is not avoided: it spans so many
     /// hues that too few colours would be left to tell the levels apart, and a thin line is not
     /// taken for a painted surface.
-    pub fn of_scene(scene: &Scene) -> LevelColors {
+    pub fn of_scene(scene: &Scene, background: &Background) -> LevelColors {
         if scene.painters().any(|b| *b == ColorBy::Level) {
             return LevelColors::categorical();
         }
-        let mut avoid = vec![background_srgb8()];
+        let mut avoid = vec![background.srgb8()];
         for (i, s) in scene.isosurfaces().iter().enumerate() {
             if scene.color_by().get(i).is_none_or(Option::is_none) {
                 avoid.push(s.color_or_palette(i).map(display_srgb8));
@@ -140,12 +139,13 @@ pub fn box_edges(lo: [f64; 3], hi: [f64; 3], color: [f32; 3]) -> impl Iterator<I
 }
 
 /// The segments `outline` asks for in `file` whose domain is `[lo, hi]` (world): brick edges in
-/// `colors`, finest level last, so that they draw over the coarser ones they share.
+/// `colors`, finest level last, so that they draw over the coarser ones they share, and the
+/// domain's edges in `domain` (linear).
 pub fn segments<D: AsRef<[u8]>>(
     outline: Outline,
     file: &AmrkFile<D>,
     (lo, hi): ([f64; 3], [f64; 3]),
-    colors: &LevelColors,
+    (colors, domain): (&LevelColors, [f32; 3]),
 ) -> Vec<Segment> {
     let mut out = Vec::new();
     if outline == Outline::None {
@@ -168,7 +168,7 @@ pub fn segments<D: AsRef<[u8]>>(
             ));
         }
     }
-    out.extend(box_edges(lo, hi, DOMAIN_COLOR));
+    out.extend(box_edges(lo, hi, domain));
     out
 }
 

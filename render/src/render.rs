@@ -8,6 +8,7 @@ use crate::clip::ClipBox;
 use crate::coloring::{painting_fields, ColorBy, ColorScale};
 use crate::error::{RenderError, Result};
 use crate::outline;
+use crate::output::background::Background;
 use crate::output::frame::{FrameBuffer, PixelSample, FRAME_PLANES};
 use crate::paint::{GridSlice, PaintedTracer, Painter};
 use crate::reconstruct::Reconstruction;
@@ -38,6 +39,8 @@ pub struct Rendered {
     /// (empty when none paints by level); `None` when not recorded (frames composited from
     /// the parts of several processes, which paint nothing).
     pub painted_levels: Option<Vec<u32>>,
+    /// The background its picture is composited over ([`View::background`]).
+    pub background: Background,
 }
 
 /// What painting by data gave a frame, beside its pixels.
@@ -140,11 +143,12 @@ fn render_with(
     check_source(scene)?;
     rendered.color_ranges = painting.color_ranges;
     rendered.painted_levels = Some(painting.levels);
+    let colors = outline::LevelColors::of_scene(scene, &view.background);
     let segments = outline::segments(
         view.outline,
         scene.file(),
         scene.grid_frame().world_bounds(),
-        &outline::LevelColors::of_scene(scene),
+        (&colors, view.background.outline()),
     );
     let width = outline::line_width(view.size.0, view.size.1);
     outline::draw(&mut rendered.frame, &rendered.camera, &segments, width);
@@ -512,6 +516,7 @@ fn trace_frame<T: Tracer + Sync + ?Sized>(
         stats,
         color_ranges: Vec::new(),
         painted_levels: None,
+        background: view.background,
     }
 }
 

@@ -6,6 +6,7 @@ use crate::coloring::ColorScale;
 use crate::error::{RenderError, Result};
 use crate::frustum::Frustum;
 use crate::outline::Outline;
+use crate::output::background::Background;
 use crate::sample_mode::SampleStep;
 use crate::shade::{IsoSpec, Lighting, RenderSettings};
 use crate::trace::{GridFrame, VoxelSource};
@@ -68,6 +69,9 @@ pub struct View {
     pub field_scales: Vec<(String, ColorScale)>,
     /// The boxes drawn as lines (scene frames only).
     pub outline: Outline,
+    /// What a picture of the frame shows where no surface is, and what its lines and labels
+    /// stand out from.
+    pub background: Background,
 }
 
 impl Default for View {
@@ -88,6 +92,7 @@ impl Default for View {
             color_scale: ColorScale::default(),
             field_scales: Vec::new(),
             outline: Outline::None,
+            background: Background::default(),
         }
     }
 }

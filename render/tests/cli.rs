@@ -2190,3 +2190,52 @@ fn an_orthographic_view_is_drawn_saved_and_checked() {
     }
     assert!(!Path::new(out).exists());
 }
+
+/// `--background white` gives a PNG that is white where nothing is drawn, saved in a scene file
+/// that draws it again; a colour that is not one is refused naming it.
+#[test]
+fn a_background_colour_is_drawn_saved_and_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = sphere(dir.path());
+    let (d, f) = (dir.path(), file.to_str().unwrap());
+    let (first, scene) = (d.join("first.png"), d.join("white.toml"));
+    let o = amr_render(&[
+        f,
+        "--background",
+        "white",
+        "--size",
+        "80x60",
+        "-o",
+        first.to_str().unwrap(),
+        "--write-scene",
+        scene.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let decoder = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(&first).unwrap(),
+    ));
+    let mut reader = decoder.read_info().unwrap();
+    let mut rgb = vec![0; reader.output_buffer_size()];
+    reader.next_frame(&mut rgb).unwrap();
+    // The top right corner: no surface, line or legend there.
+    let corner = 3 * (80 - 1);
+    assert_eq!(&rgb[corner..corner + 3], &[255, 255, 255]);
+    let text = std::fs::read_to_string(&scene).unwrap();
+    assert!(text.contains("background = \"white\""), "{text}");
+    let again = d.join("again.png");
+    let o = amr_render(&[scene.to_str().unwrap(), "-o", again.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(&first).unwrap(),
+        std::fs::read(&again).unwrap()
+    );
+    let out = d.join("x.png");
+    let o = amr_render(&[f, "--background", "nocolour", "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("unknown colour 'nocolour'"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.exists());
+}

@@ -9,9 +9,10 @@ use std::path::{Path, PathBuf};
 use amr_format::WriterOptions;
 use amr_render::camera::Camera;
 use amr_render::colormap::{level_srgb8, oklab_distance};
-use amr_render::outline::{LevelColors, DOMAIN_COLOR};
+use amr_render::outline::LevelColors;
 use amr_render::output::legend::{Legend, Swatch};
-use amr_render::output::png_preview::{background_srgb8, display_srgb8, preview_rgb8};
+use amr_render::output::png_preview::{display_srgb8, preview_rgb8};
+use amr_render::output::Background;
 use amr_render::shade::IsoSpec;
 use amr_render::{
     render, CameraPlacement, ColorBy, ColorScale, Colormap, Outline, Rendered, Scene, SceneOptions,
@@ -571,7 +572,7 @@ fn the_domain_outline_is_drawn_where_its_edges_project_and_nowhere_else() {
     .unwrap();
     let size = view().size;
     let edges: Vec<((f64, f64), (f64, f64))> =
-        amr_render::outline::box_edges([0.0; 3], [1.0; 3], DOMAIN_COLOR)
+        amr_render::outline::box_edges([0.0; 3], [1.0; 3], Background::default().outline())
             .map(|s| {
                 (
                     project(&lined.camera, s.a, size),
@@ -596,7 +597,7 @@ fn the_domain_outline_is_drawn_where_its_edges_project_and_nowhere_else() {
                 );
             }
             if near < 0.3 && plain.frame.alpha[i] == 0.0 {
-                let want = DOMAIN_COLOR;
+                let want = Background::default().outline();
                 assert_eq!(
                     [0, 1, 2].map(|c| lined.frame.rgb[c][i]),
                     want,
@@ -679,11 +680,65 @@ fn a_painted_frame_with_its_legend_matches_the_golden_preview() {
     };
     let r = render(&scene, &v, &|_| {}).unwrap();
     let (w, h) = (r.frame.width, r.frame.height);
-    let mut rgb = preview_rgb8(&r.frame);
+    let mut rgb = preview_rgb8(&r.frame, &r.background);
     Legend::of_frame(&scene, &v, &r).draw(&mut rgb, w, h);
     let golden =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/render_golden/painted_legend.ppm");
     assert_matches_golden(&golden, w, h, &rgb, "sphere painted by ramp, with legend");
+}
+
+/// On a white background (`--background white`, for a figure on a page) the picture shows white
+/// where no surface or line is, and its outline, coordinate labels and legend text turn dark;
+/// on the default grey they stay light.
+#[test]
+fn a_white_background_shows_white_and_turns_lines_and_labels_dark() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_fields(dir.path());
+    let scene = painted_by_ramp(&path);
+    let picture = |background: Background| {
+        let v = View {
+            size: (320, 240),
+            outline: Outline::Domain,
+            background,
+            ..view()
+        };
+        let r = render(&scene, &v, &|_| {}).unwrap();
+        let mut rgb = preview_rgb8(&r.frame, &r.background);
+        Legend::of_frame(&scene, &v, &r).draw(&mut rgb, 320, 240);
+        (r.frame.alpha, rgb)
+    };
+    let white: Background = "white".parse().unwrap();
+    let grey = Background::default();
+    for (background, bare, ink_dark) in [(white, [255u8; 3], true), (grey, grey.srgb8(), false)] {
+        let (alpha, rgb) = picture(background);
+        let pixel = |i: usize| [rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]];
+        let empty: Vec<usize> = (0..alpha.len()).filter(|&i| alpha[i] == 0.0).collect();
+        let bare_count = empty.iter().filter(|&&i| pixel(i) == bare).count();
+        assert!(
+            bare_count * 10 > empty.len() * 7,
+            "{bare:?}: {bare_count} of {} empty pixels show the background",
+            empty.len()
+        );
+        // Lines and text where no surface is: dark on white, light on grey.
+        let inked = empty
+            .iter()
+            .filter(|&&i| match ink_dark {
+                true => pixel(i).iter().all(|&c| c < 80),
+                false => pixel(i).iter().all(|&c| c > 200),
+            })
+            .count();
+        assert!(inked > 200, "{bare:?}: {inked} pixels of lines and text");
+        // The legend's first line at the top left: its panel follows the background.
+        let panel: Vec<f64> = (12..22)
+            .flat_map(|y| (12..80).map(move |x| y * 320 + x))
+            .map(|i| pixel(i).iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0)
+            .collect();
+        let mean = panel.iter().sum::<f64>() / panel.len() as f64;
+        match ink_dark {
+            true => assert!(mean > 200.0, "a light panel: mean {mean}"),
+            false => assert!(mean < 120.0, "a dark panel: mean {mean}"),
+        }
+    }
 }
 
 #[test]
@@ -700,8 +755,8 @@ fn level_boxes_are_not_drawn_in_a_surface_colour_unless_surfaces_are_painted_by_
         outline: Outline::Boxes,
         ..view()
     };
-    let colors = LevelColors::of_scene(&scene);
-    let mut avoid = vec![background_srgb8()];
+    let colors = LevelColors::of_scene(&scene, &v.background);
+    let mut avoid = vec![v.background.srgb8()];
     for (i, s) in scene.isosurfaces().iter().enumerate() {
         avoid.push(s.color_or_palette(i).map(display_srgb8));
     }
@@ -727,7 +782,7 @@ fn level_boxes_are_not_drawn_in_a_surface_colour_unless_surfaces_are_painted_by_
     }
     // Painted by level, boxes and surfaces share the level palette.
     scene.set_color_by(&[Some(ColorBy::Level), None]).unwrap();
-    let colors = LevelColors::of_scene(&scene);
+    let colors = LevelColors::of_scene(&scene, &v.background);
     for l in 0..4 {
         assert_eq!(colors.srgb8(l), level_srgb8(l));
     }

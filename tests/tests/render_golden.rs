@@ -50,7 +50,7 @@ fn nested_spheres_match_the_golden_image() {
     let grid = sphere_grid(seed, 3, 2, 1.3, [0.0; 3], 1.0);
     let report = render_grid(&grid, &isos(), &view());
     let (w, h) = (report.frame.width, report.frame.height);
-    let actual = preview_rgb8(&report.frame);
+    let actual = preview_rgb8(&report.frame, &report.background);
 
     let dir = tempfile::tempdir().unwrap();
     let exr = dir.path().join("frame.exr");

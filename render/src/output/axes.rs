@@ -2,6 +2,7 @@
 //! camera sees it, tick marks with their world coordinates and the axis' name, so that a picture
 //! tells where and how large what it shows is (VisIt's bounding-box axes; ParaView's cube axes).
 
+use super::background::Ink;
 use super::canvas::{Canvas, Text};
 use super::legend::ticks;
 use crate::camera::{box_corners, Camera};
@@ -237,16 +238,23 @@ fn lay_out(
     Some(AxisLabels { axis, ticks, name })
 }
 
-/// Draws `labels`: light tick marks with a dark edge, and the labels in `text`.
-pub(crate) fn draw_axis_labels(canvas: &mut Canvas<'_>, text: &Text, labels: &[AxisLabels]) {
+/// Draws `labels`, their tick marks and text in `ink`.
+pub(crate) fn draw_axis_labels(
+    canvas: &mut Canvas<'_>,
+    text: &Text,
+    labels: &[AxisLabels],
+    ink: Ink,
+) {
     let width = ((text.px / 10.0) as i64).max(1);
+    // The tick marks a little softer than the text, as they were on the grey background.
+    let tick = ink.fill.map(|c| if c > 128 { c - 10 } else { c });
     for axis in labels {
         for t in &axis.ticks {
-            canvas.line(t.at, t.end, [230, 230, 230], width);
-            text.draw(canvas, &t.label, t.label_box.0, t.label_box.1);
+            canvas.line(t.at, t.end, tick, width);
+            text.draw(canvas, &t.label, t.label_box.0, t.label_box.1, ink);
         }
         if let Some((s, b)) = &axis.name {
-            text.draw(canvas, s, b.0, b.1);
+            text.draw(canvas, s, b.0, b.1, ink);
         }
     }
 }

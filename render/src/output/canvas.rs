@@ -4,8 +4,9 @@
 
 use ab_glyph::{point, Font, FontRef, PxScale, ScaleFont};
 
+use super::background::Ink;
+
 /// Colour and opacity of the panels behind light text.
-const PANEL: [u8; 3] = [24, 24, 24];
 const PANEL_ALPHA: f32 = 0.55;
 
 /// An RGB8 image being drawn on.
@@ -51,12 +52,13 @@ impl Canvas<'_> {
         }
     }
 
-    /// Darkens the box `(x0, y0)`-`(x1, y1)` with a margin of `pad`, so that the light text
-    /// drawn on it reads over box lines and bright surfaces alike.
-    pub(crate) fn panel(&mut self, (x0, y0): (f32, f32), (x1, y1): (f32, f32), pad: f32) {
+    /// Shades the box `(x0, y0)`-`(x1, y1)` with a margin of `pad` in `ink`'s panel colour
+    /// (dark under light text, light under dark text), so that the text drawn on it reads over
+    /// box lines and surfaces alike.
+    pub(crate) fn panel(&mut self, (x0, y0): (f32, f32), (x1, y1): (f32, f32), pad: f32, ink: Ink) {
         let (x0, y0) = ((x0 - pad) as i64, (y0 - pad) as i64);
         let (x1, y1) = ((x1 + pad).ceil() as i64, (y1 + pad).ceil() as i64);
-        self.rect(x0, y0, x1 - x0, y1 - y0, PANEL, PANEL_ALPHA);
+        self.rect(x0, y0, x1 - x0, y1 - y0, ink.panel, PANEL_ALPHA);
     }
 
     /// A line from `a` to `b` in colour `c`, `width` pixels thick.
@@ -97,11 +99,11 @@ impl Text {
         s.chars().map(|c| f.h_advance(f.glyph_id(c))).sum()
     }
 
-    /// Draws `s` with its top left at `(x, y)`, light with a dark shadow so that it reads on
-    /// any background.
-    pub(crate) fn draw(&self, canvas: &mut Canvas<'_>, s: &str, x: f32, y: f32) {
-        self.draw_in(canvas, s, x + 1.0, y + 1.0, [0, 0, 0]);
-        self.draw_in(canvas, s, x, y, [240, 240, 240]);
+    /// Draws `s` with its top left at `(x, y)` in `ink`, its edge as a shadow under it, so
+    /// that it reads on the picture's background, its panels and the surfaces alike.
+    pub(crate) fn draw(&self, canvas: &mut Canvas<'_>, s: &str, x: f32, y: f32, ink: Ink) {
+        self.draw_in(canvas, s, x + 1.0, y + 1.0, ink.edge);
+        self.draw_in(canvas, s, x, y, ink.fill);
     }
 
     fn draw_in(&self, canvas: &mut Canvas<'_>, s: &str, x: f32, y: f32, c: [u8; 3]) {

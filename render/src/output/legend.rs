@@ -4,6 +4,7 @@
 //! `canvas`).
 
 use super::axes::{axis_labels, draw_axis_labels, PixelBox};
+use super::background::Ink;
 use super::canvas::{Canvas, Text};
 use crate::camera::Camera;
 use crate::coloring::ColorBy;
@@ -56,6 +57,9 @@ pub struct Legend {
     /// The world box whose edges carry coordinate labels (the domain, when its outline is
     /// drawn); they go where the other parts leave room.
     pub axes: Option<([f64; 3], [f64; 3])>,
+    /// The ink of what is drawn on the picture itself rather than on a panel (coordinate
+    /// labels, the triad's names): the background's ([`Background::ink`]).
+    pub ink: Ink,
 }
 
 /// Lines of text are this many text sizes apart.
@@ -123,7 +127,7 @@ impl Legend {
             ));
         }
         if view.outline == Outline::Boxes {
-            let colors = LevelColors::of_scene(scene);
+            let colors = LevelColors::of_scene(scene, &view.background);
             for l in 0..scene.file().levels().len() as u32 {
                 let swatch = Swatch::Stroke(colors.srgb8(l));
                 entries.push((format!("level {l} boxes"), Some(swatch)));
@@ -168,6 +172,7 @@ impl Legend {
             levels,
             camera: Some(rendered.camera),
             axes: (view.outline != Outline::None).then(|| scene.grid_frame().world_bounds()),
+            ink: view.background.ink(),
         }
     }
 
@@ -185,7 +190,7 @@ impl Legend {
         let swatch_w = px * 1.2;
         if !self.entries.is_empty() {
             let (x0, y0, x1, y1) = self.entries_box(&text);
-            canvas.panel((x0, y0), (x1, y1), px * 0.4);
+            canvas.panel((x0, y0), (x1, y1), px * 0.4, self.ink);
         }
         for (k, (s, swatch)) in self.entries.iter().enumerate() {
             let y = m + k as f32 * line;
@@ -214,7 +219,7 @@ impl Legend {
             if swatch.is_some() {
                 x += swatch_w;
             }
-            text.draw(&mut canvas, s, x, y);
+            text.draw(&mut canvas, s, x, y, self.ink);
         }
         if !self.color_bars.is_empty() {
             let left = self.bars_left(&text, w as f32);
@@ -224,21 +229,27 @@ impl Legend {
             }
         } else if !self.levels.is_empty() {
             let (x, y0, x1, y1) = self.levels_box(&text, w as f32);
-            canvas.panel((x, y0), (x1, y1), px * 0.4);
+            canvas.panel((x, y0), (x1, y1), px * 0.4, self.ink);
             for (k, &l) in self.levels.iter().enumerate() {
                 let y = m + k as f32 * line;
                 let side = (0.8 * px) as i64;
                 canvas.rect(x as i64, y as i64 + 2, side, side, level_srgb8(l), 1.0);
-                text.draw(&mut canvas, &format!("level {l}"), x + swatch_w, y);
+                text.draw(
+                    &mut canvas,
+                    &format!("level {l}"),
+                    x + swatch_w,
+                    y,
+                    self.ink,
+                );
             }
         }
         if let (Some(camera), true) = (&self.camera, triad) {
-            draw_triad(&mut canvas, &text, camera, m);
+            draw_triad(&mut canvas, &text, camera, m, self.ink);
         }
         if let (Some(camera), Some(bounds)) = (&self.camera, self.axes) {
             let taken = self.parts(&text, w as f32, h as f32, triad);
             let labels = axis_labels(camera, bounds, (w, h), &text, &taken);
-            draw_axis_labels(&mut canvas, &text, &labels);
+            draw_axis_labels(&mut canvas, &text, &labels, self.ink);
         }
         true
     }
@@ -397,9 +408,14 @@ impl Legend {
         let bar_w = bar_width(w);
         let right = w - px;
         let title_top = top - title_height(text, bar, w);
-        canvas.panel((x0, title_top), (right, bottom + px * 0.6), px * 0.4);
+        canvas.panel(
+            (x0, title_top),
+            (right, bottom + px * 0.6),
+            px * 0.4,
+            self.ink,
+        );
         for (k, line) in title_lines(text, bar, w).iter().enumerate() {
-            text.draw(canvas, line, x0, title_top + k as f32 * px * LINE);
+            text.draw(canvas, line, x0, title_top + k as f32 * px * LINE, self.ink);
         }
         let cap = bar_w.round() as i64;
         canvas.rect(
@@ -428,10 +444,10 @@ impl Legend {
                 y as i64,
                 (px * 0.3) as i64,
                 1,
-                [240, 240, 240],
+                self.ink.fill,
                 1.0,
             );
-            text.draw(canvas, &s, x0 + bar_w + px * 0.5, y - px * 0.6);
+            text.draw(canvas, &s, x0 + bar_w + px * 0.5, y - px * 0.6, self.ink);
         }
     }
 }
@@ -658,8 +674,9 @@ fn triad_box(w: f32, h: f32, px: f32) -> (f32, f32, f32, f32) {
     )
 }
 
-/// The world axes as the camera sees them, at the bottom left: x red, y green, z blue.
-fn draw_triad(canvas: &mut Canvas<'_>, text: &Text, camera: &Camera, m: f32) {
+/// The world axes as the camera sees them, at the bottom left: x red, y green, z blue, their
+/// names in `ink`.
+fn draw_triad(canvas: &mut Canvas<'_>, text: &Text, camera: &Camera, m: f32, ink: Ink) {
     let (right, up) = camera.basis();
     let len = f64::from(canvas.h).min(f64::from(canvas.w)) / 14.0;
     let o = (
@@ -673,7 +690,7 @@ fn draw_triad(canvas: &mut Canvas<'_>, text: &Text, camera: &Camera, m: f32) {
         canvas.line(o, tip, colors[a], width);
         let lx = o.0 + 1.25 * len * right[a] - f64::from(text.px) * 0.3;
         let ly = o.1 - 1.25 * len * up[a] - f64::from(text.px) * 0.6;
-        text.draw(canvas, name, lx as f32, ly as f32);
+        text.draw(canvas, name, lx as f32, ly as f32, ink);
     }
 }
 

@@ -1,31 +1,25 @@
-//! A tone-mapped 8-bit sRGB PNG of a frame, composited over a neutral background.
+//! A tone-mapped 8-bit sRGB PNG of a frame, composited over its background.
 
 use std::io::BufWriter;
 use std::path::Path;
 
 use crate::error::{RenderError, Result};
 
+use crate::output::background::Background;
 use crate::output::frame::FrameBuffer;
 use amr_format::output::temporary_for;
 
-/// Background grey (linear) behind uncovered pixels.
-const BACKGROUND: f32 = 0.18;
-
-/// The preview's RGB8 bytes, row-major from the top-left.
-pub fn preview_rgb8(frame: &FrameBuffer) -> Vec<u8> {
+/// The preview's RGB8 bytes, row-major from the top-left, over `background`.
+pub fn preview_rgb8(frame: &FrameBuffer, background: &Background) -> Vec<u8> {
+    let behind = background.radiance();
     let mut out = Vec::with_capacity(frame.len() * 3);
     for i in 0..frame.len() {
         let a = frame.alpha[i];
         for c in 0..3 {
-            out.push(display_srgb8(frame.rgb[c][i] + BACKGROUND * (1.0 - a)));
+            out.push(display_srgb8(frame.rgb[c][i] + behind[c] * (1.0 - a)));
         }
     }
     out
-}
-
-/// The preview's colour of an uncovered pixel.
-pub fn background_srgb8() -> [u8; 3] {
-    [display_srgb8(BACKGROUND); 3]
 }
 
 /// The 8-bit sRGB value the preview shows for linear radiance `v` (tone-mapped).
@@ -61,7 +55,12 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgb8: &[u8]) -> Result<()
     Ok(())
 }
 
-/// Writes the preview of `frame` to `path`.
-pub fn write_preview(path: &Path, frame: &FrameBuffer) -> Result<()> {
-    write_png(path, frame.width, frame.height, &preview_rgb8(frame))
+/// Writes the preview of `frame` over `background` to `path`.
+pub fn write_preview(path: &Path, frame: &FrameBuffer, background: &Background) -> Result<()> {
+    write_png(
+        path,
+        frame.width,
+        frame.height,
+        &preview_rgb8(frame, background),
+    )
 }

@@ -85,17 +85,24 @@ pub fn parse_color(s: &str) -> Result<[f32; 3], String> {
     if let Some((_, c)) = NAMED.iter().find(|(n, _)| *n == lower) {
         return Ok(*c);
     }
+    let [r, g, b, _] = parse_css(s)?.to_linear_rgba();
+    Ok([r, g, b])
+}
+
+/// Parses a CSS colour exactly as CSS defines it (`black` is black, not the muted shading
+/// colour [`parse_color`] gives), `#rrggbb`, `rgb(...)`, or bare hex `rrggbb`: 8-bit sRGB.
+pub fn parse_css_srgb8(s: &str) -> Result<[u8; 3], String> {
+    let [r, g, b, _] = parse_css(s)?.to_rgba8();
+    Ok([r, g, b])
+}
+
+fn parse_css(s: &str) -> Result<csscolorparser::Color, String> {
+    let lower = s.trim().to_ascii_lowercase();
     let bare_hex = lower.len() == 6 && lower.chars().all(|c| c.is_ascii_hexdigit());
     let css = if bare_hex { format!("#{lower}") } else { lower };
-    match csscolorparser::parse(&css) {
-        Ok(c) => {
-            let [r, g, b, _] = c.to_linear_rgba();
-            Ok([r, g, b])
-        }
-        Err(e) => Err(format!(
-            "unknown colour '{s}' ({e}): use a CSS colour name, #rrggbb or rgb(r,g,b)"
-        )),
-    }
+    csscolorparser::parse(&css).map_err(|e| {
+        format!("unknown colour '{s}' ({e}): use a CSS colour name, #rrggbb or rgb(r,g,b)")
+    })
 }
 
 /// The 8-bit sRGB of linear RGB `c`.

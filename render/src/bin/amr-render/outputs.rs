@@ -259,7 +259,7 @@ pub fn is_png(path: &Path) -> bool {
 /// Writes the tone-mapped picture of `rendered` with `legend`, if any, drawn on it as a PNG.
 fn write_picture(path: &Path, rendered: &Rendered, legend: Option<&Legend>) -> anyhow::Result<()> {
     let frame = &rendered.frame;
-    let mut rgb = preview_rgb8(frame);
+    let mut rgb = preview_rgb8(frame, &rendered.background);
     if let Some(legend) = legend {
         legend.draw(&mut rgb, frame.width, frame.height);
     }

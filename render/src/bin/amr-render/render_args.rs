@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use amr_render::camera::ViewFrom;
 use amr_render::camera_path::CameraKey;
 use amr_render::output::exr_file::ExrCompression;
+use amr_render::output::Background;
 use amr_render::{
     CameraPlacement, ClipBox, ColorBy, ColorScale, Colormap, Outline, Reconstruction, SceneOptions,
     Slice, TraceMethod, View,
@@ -167,6 +168,11 @@ pub struct RenderArgs {
     /// The orthographic picture's height, world units (with --ortho)
     #[arg(long, value_name = "H", requires = "ortho", allow_hyphen_values = true)]
     pub view_height: Option<f64>,
+    /// The colour PNG pictures show where no surface is (a CSS name, #rrggbb, rgb(r,g,b)):
+    /// `--background white` for a figure on a page; lines and labels turn dark on a light one
+    /// [default: the neutral grey]
+    #[arg(long, value_name = "COLOR", value_parser = parse_background)]
+    pub background: Option<Background>,
     /// Reconstruction method: octant, current or nearest.
     #[arg(long, default_value_t = Reconstruction::Octant)]
     pub reconstruction: Reconstruction,
@@ -497,6 +503,7 @@ impl RenderArgs {
                 .map(|s| (s.field.clone(), s.scale(&color_scale)))
                 .collect(),
             outline: self.outline,
+            background: self.background.unwrap_or_default(),
         };
         let no_isosurface = self.iso.iter().any(Option::is_none);
         if no_isosurface && self.iso.len() > 1 {
@@ -666,6 +673,10 @@ fn parse_keyframe(s: &str) -> Result<CameraKey, String> {
 
 /// Parses `--view-from`: an axis, `+x`, `x` (the same), `-x`, ..., or a vector `X,Y,Z` that is
 /// not zero.
+fn parse_background(s: &str) -> Result<Background, String> {
+    s.parse()
+}
+
 fn parse_view_from(s: &str) -> Result<[f64; 3], String> {
     let axis = s.trim().to_ascii_lowercase();
     let (sign, name) = match axis.strip_prefix('-') {

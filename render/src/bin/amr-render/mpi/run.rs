@@ -228,11 +228,12 @@ fn run_rank(
         return Ok(());
     };
     let (mut frame, painted_levels) = frame.ok_or_else(|| anyhow!("rank 0 holds no frame"))?;
+    let colors = outline::LevelColors::of_scene(&scene, &view.background);
     let segments = outline::segments(
         view.outline,
         scene.file(),
         scene.grid_frame().world_bounds(),
-        &outline::LevelColors::of_scene(&scene),
+        (&colors, view.background.outline()),
     );
     outline::draw(
         &mut frame,
@@ -246,6 +247,7 @@ fn run_rank(
         stats: FrameStats::default(),
         color_ranges: painting.color_ranges,
         painted_levels,
+        background: view.background,
     };
     write_rank0(request, &scene, mode, rendered, &ranks, frame_time)?;
     Ok(())

@@ -44,8 +44,8 @@ fn trace_frame<T: Tracer + Sync>(t: &T, frame: &GridFrame, cam: &Camera, n: u32)
         .into_par_iter()
         .map(|i| {
             let (x, y) = (i % n, i / n);
-            let d = cam.ray_dir(f64::from(x) + 0.5, f64::from(y) + 0.5, n, n);
-            let ray = GridRay::from_world(frame, cam.pos, d);
+            let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5, n, n);
+            let ray = GridRay::from_world(frame, o, d);
             t.next_hit(0, &ray, 0.0, f64::INFINITY)
                 .map(|h: SurfaceHit| {
                     let g = [0, 1, 2].map(|a| h.grad[a] / frame.unit[a]);
@@ -77,14 +77,14 @@ fn analytic(cam: &Camera, n: u32) -> Vec<Option<f64>> {
     let l = normalize(LIGHT);
     (0..n * n)
         .map(|i| {
-            let d = cam.ray_dir(f64::from(i % n) + 0.5, f64::from(i / n) + 0.5, n, n);
-            let oc = [0, 1, 2].map(|a| cam.pos[a] - SPHERE_CENTRE[a]);
+            let (o, d) = cam.ray(f64::from(i % n) + 0.5, f64::from(i / n) + 0.5, n, n);
+            let oc = [0, 1, 2].map(|a| o[a] - SPHERE_CENTRE[a]);
             let b = dot(oc, d);
             let c = dot(oc, oc) - SPHERE_RADIUS * SPHERE_RADIUS;
             let disc = b * b - c;
             (disc >= 0.0).then(|| {
                 let t = -b - disc.sqrt();
-                let p = [0, 1, 2].map(|a| cam.pos[a] + t * d[a] - SPHERE_CENTRE[a]);
+                let p = [0, 1, 2].map(|a| o[a] + t * d[a] - SPHERE_CENTRE[a]);
                 dot(normalize(p), l).max(0.0)
             })
         })

@@ -2143,6 +2143,34 @@ fn auto_series_gives_each_painting_field_its_range_over_the_series() {
     assert!(stderr(&o).contains("'nope'"), "{}", stderr(&o));
 }
 
+/// Renders `file` with `args` into `dir/first.EXT` with `--write-scene dir/scene.toml`, then
+/// that scene file alone into `dir/again.EXT`: both outputs and the scene file's text.
+fn drawn_again_from_its_scene_file(
+    dir: &Path,
+    file: &str,
+    args: &[&str],
+    ext: &str,
+) -> (PathBuf, PathBuf, String) {
+    let (first, again) = (
+        dir.join(format!("first.{ext}")),
+        dir.join(format!("again.{ext}")),
+    );
+    let scene = dir.join("scene.toml");
+    let o = amr_render(
+        &[
+            &[file][..],
+            args,
+            &["-o", first.to_str().unwrap()],
+            &["--write-scene", scene.to_str().unwrap()],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = amr_render(&[scene.to_str().unwrap(), "-o", again.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    (first, again, std::fs::read_to_string(&scene).unwrap())
+}
+
 /// `--ortho` draws an orthographic frame, named in the EXR header and saved in a scene file that
 /// draws it again; a view height asks for `--ortho` and a positive length.
 #[test]
@@ -2150,30 +2178,14 @@ fn an_orthographic_view_is_drawn_saved_and_checked() {
     let dir = tempfile::tempdir().unwrap();
     let file = sphere(dir.path());
     let (d, f) = (dir.path(), file.to_str().unwrap());
-    let (first, scene) = (d.join("first.exr"), d.join("ortho.toml"));
-    let o = amr_render(&[
-        f,
-        "--ortho",
-        "--view-height",
-        "0.8",
-        "--size",
-        "40x30",
-        "-o",
-        first.to_str().unwrap(),
-        "--write-scene",
-        scene.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let args = ["--ortho", "--view-height", "0.8", "--size", "40x30"];
+    let (first, again, text) = drawn_again_from_its_scene_file(d, f, &args, "exr");
     let camera = attribute(&first, "camera");
     assert!(camera.contains("orthographic view_height=0.8"), "{camera}");
-    let text = std::fs::read_to_string(&scene).unwrap();
     assert!(
         text.contains("ortho = true") && text.contains("view-height = 0.8"),
         "{text}"
     );
-    let again = d.join("again.exr");
-    let o = amr_render(&[scene.to_str().unwrap(), "-o", again.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", stderr(&o));
     for c in ["R", "G", "B", "A", "Z"] {
         assert_eq!(bits(&first, c), bits(&again, c), "channel {c}");
     }
@@ -2198,19 +2210,8 @@ fn a_background_colour_is_drawn_saved_and_checked() {
     let dir = tempfile::tempdir().unwrap();
     let file = sphere(dir.path());
     let (d, f) = (dir.path(), file.to_str().unwrap());
-    let (first, scene) = (d.join("first.png"), d.join("white.toml"));
-    let o = amr_render(&[
-        f,
-        "--background",
-        "white",
-        "--size",
-        "80x60",
-        "-o",
-        first.to_str().unwrap(),
-        "--write-scene",
-        scene.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let args = ["--background", "white", "--size", "80x60"];
+    let (first, again, text) = drawn_again_from_its_scene_file(d, f, &args, "png");
     let decoder = png::Decoder::new(std::io::BufReader::new(
         std::fs::File::open(&first).unwrap(),
     ));
@@ -2220,11 +2221,7 @@ fn a_background_colour_is_drawn_saved_and_checked() {
     // The top right corner: no surface, line or legend there.
     let corner = 3 * (80 - 1);
     assert_eq!(&rgb[corner..corner + 3], &[255, 255, 255]);
-    let text = std::fs::read_to_string(&scene).unwrap();
     assert!(text.contains("background = \"white\""), "{text}");
-    let again = d.join("again.png");
-    let o = amr_render(&[scene.to_str().unwrap(), "-o", again.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(
         std::fs::read(&first).unwrap(),
         std::fs::read(&again).unwrap()

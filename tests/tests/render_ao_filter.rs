@@ -8,22 +8,9 @@ use amr_render::{
     frame_painting, render, render_region, CameraPlacement, Rect, Rendered, Scene, SceneOptions,
     View,
 };
-use amr_synth::Case;
 
 use crate::support::amrex::{convert, shared_data};
-use crate::support::synth_file::two_level;
-
-/// The demo's two blobs on two levels, an opaque and a transparent surface.
-fn scene(dir: &std::path::Path) -> Scene {
-    let path = two_level(dir, Case::Blobs);
-    let mut scene = Scene::open(&path, &SceneOptions::default()).unwrap();
-    let isos: Vec<IsoSpec> = ["10:#d99e59", "6:#598cd9:0.3"]
-        .iter()
-        .map(|s| s.parse().unwrap())
-        .collect();
-    scene.set_isosurfaces(&isos).unwrap();
-    scene
-}
+use crate::support::render::blobs_scene;
 
 fn view(ao_rays: u32, ao_filter: bool) -> View {
     View {
@@ -57,7 +44,7 @@ fn rms(a: &Rendered, b: &Rendered) -> f64 {
 #[test]
 fn one_filtered_ray_is_closer_to_the_reference_than_four_unfiltered() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = scene(dir.path());
+    let scene = blobs_scene(dir.path());
     for orthographic in [false, true] {
         let view = |ao_rays, ao_filter| View {
             orthographic,
@@ -130,7 +117,7 @@ fn at_grazing_angles_the_filter_still_averages_the_pattern() {
 #[test]
 fn tiles_of_a_filtered_frame_equal_the_whole_frame() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = scene(dir.path());
+    let scene = blobs_scene(dir.path());
     let view = view(1, true);
     let whole = render(&scene, &view, &|_| ()).unwrap().frame;
     let (w, h) = view.size;
@@ -173,7 +160,7 @@ fn a_frame_rendered_in_bands_equals_its_rows_rendered_alone() {
     // rendered, filtered and written band by band; the rows on either side of each band's end
     // must be those a region of them gives (its filter sees every row around it).
     let dir = tempfile::tempdir().unwrap();
-    let scene = scene(dir.path());
+    let scene = blobs_scene(dir.path());
     let view = View {
         size: (4096, 1024),
         ..view(1, true)

@@ -8,7 +8,7 @@ use amr_render::{render, CameraPlacement, RenderError, Rendered, Scene, SceneOpt
 use amr_synth::fields::{SPHERE_CENTRE, SPHERE_RADIUS};
 use amr_synth::Case;
 
-use crate::support::render::{frame_bits, on_threads};
+use crate::support::render::{blobs_scene, frame_bits, on_threads};
 use crate::support::synth_file::two_level;
 
 /// An orthographic view from `pos` looking at the sphere's centre, `height` world units tall.
@@ -92,13 +92,7 @@ fn a_sphere_looks_as_wide_from_every_distance() {
 #[test]
 fn an_orthographic_frame_does_not_depend_on_the_thread_count() {
     let dir = tempfile::tempdir().unwrap();
-    let path = two_level(dir.path(), Case::Blobs);
-    let mut scene = Scene::open(&path, &SceneOptions::default()).unwrap();
-    let isos: Vec<IsoSpec> = ["10:#d99e59", "6:#598cd9:0.3"]
-        .iter()
-        .map(|s| s.parse().unwrap())
-        .collect();
-    scene.set_isosurfaces(&isos).unwrap();
+    let scene = blobs_scene(dir.path());
     for spp in [1, 2] {
         let view = View {
             shadows: true,

@@ -6,7 +6,8 @@ use amr_render::bvh::BvhBuilder;
 use amr_render::render::{render_sampled, render_surfaces};
 use amr_render::shade::IsoSpec;
 use amr_render::trace::Surface;
-use amr_render::{Rendered, View};
+use amr_render::{Rendered, Scene, SceneOptions, View};
+use amr_synth::Case;
 
 /// Centre of the sphere fixtures, a corner shared by 8 blocks of a 4^3 grid.
 pub const CENTRE: [f64; 3] = [2.0, 2.0, 2.0];
@@ -105,4 +106,16 @@ pub fn on_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
 pub fn frame_bits(f: &amr_render::output::frame::FrameBuffer) -> Vec<u32> {
     let channels = f.rgb.iter().chain(&f.n).chain([&f.alpha, &f.z]);
     channels.flatten().map(|x| x.to_bits()).collect()
+}
+
+/// The demo's two blobs on two levels in `dir`, an opaque and a transparent surface.
+pub fn blobs_scene(dir: &std::path::Path) -> Scene {
+    let path = super::synth_file::two_level(dir, Case::Blobs);
+    let mut scene = Scene::open(&path, &SceneOptions::default()).unwrap();
+    let isos: Vec<IsoSpec> = ["10:#d99e59", "6:#598cd9:0.3"]
+        .iter()
+        .map(|s| s.parse().unwrap())
+        .collect();
+    scene.set_isosurfaces(&isos).unwrap();
+    scene
 }

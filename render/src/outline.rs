@@ -85,10 +85,9 @@ impl LevelColors {
 
     /// The colours of a frame of `scene` over `background`: the categorical palette when
     /// something is painted by level (lines and surfaces then agree), else the palette clear of
-    /// the background and of
-    /// every unpainted surface's colour. A painting colormap is not avoided: it spans so many
-    /// hues that too few colours would be left to tell the levels apart, and a thin line is not
-    /// taken for a painted surface.
+    /// the background and of every unpainted surface's colour. A painting colormap is not
+    /// avoided: it spans so many hues that too few colours would be left to tell the levels
+    /// apart, and a thin line is not taken for a painted surface.
     pub fn of_scene(scene: &Scene, background: &Background) -> LevelColors {
         if scene.painters().any(|b| *b == ColorBy::Level) {
             return LevelColors::categorical();

@@ -161,8 +161,8 @@ pub struct RenderArgs {
     )]
     pub fov: f64,
     /// Orthographic projection: parallel rays, so that a length looks as long at every depth,
-    /// as in a slice plot. The picture is as tall as the perspective one at the point looked
-    /// at, or what frames the domain or the surfaces for the automatic camera, or --view-height
+    /// as in a slice plot. The picture is --view-height tall, else as tall as the perspective
+    /// picture at the point looked at (the automatic camera: what it frames)
     #[arg(long)]
     pub ortho: bool,
     /// The orthographic picture's height, world units (with --ortho)

@@ -19,8 +19,8 @@ pub fn visibility_order(tree: &TreeView<'_>, camera: &Camera, frame: &GridFrame)
 /// The point (finest-level cell coordinates) the leaves are ordered from: the eye of a
 /// perspective camera. An orthographic camera's rays are parallel: the point lies beyond the
 /// domain, far back along the view on each axis it runs along, so that every split plane
-/// across the rays is seen from the side they come from (its position would put a plane
-/// between it and the far side of the picture on the wrong side).
+/// across the rays is seen from the side they come from (from the camera's position, a plane
+/// the camera stands over would be seen from the wrong side).
 fn order_point(camera: &Camera, frame: &GridFrame) -> [f64; 3] {
     [0, 1, 2].map(|a| {
         let eye = 0.5 * (camera.pos[a] - frame.origin[a]) / frame.unit[a];

@@ -1,10 +1,13 @@
 //! The orthographic camera: parallel rays from the camera's plane, so that a sphere looks as
-//! wide from every distance and its silhouette is the disc of its radius; the frame does not
-//! depend on the thread count, and a view height belongs to an orthographic view only.
+//! wide from every distance and its silhouette is the disc of its radius; the sample method
+//! finds the same hits; the frame does not depend on the thread count, and a view height
+//! belongs to an orthographic view only.
 
 use amr_render::camera::{CameraError, Projection};
 use amr_render::shade::IsoSpec;
-use amr_render::{render, CameraPlacement, RenderError, Rendered, Scene, SceneOptions, View};
+use amr_render::{
+    render, CameraPlacement, RenderError, Rendered, Scene, SceneOptions, TraceMethod, View,
+};
 use amr_synth::fields::{SPHERE_CENTRE, SPHERE_RADIUS};
 use amr_synth::Case;
 
@@ -85,6 +88,37 @@ fn a_sphere_looks_as_wide_from_every_distance() {
         covered(&r).iter().filter(|&&c| c).count()
     };
     assert!(perspective(near) > 2 * perspective(far));
+}
+
+/// The sample method marches each orthographic ray from its own start on the camera's plane:
+/// its frame of the sphere covers the hybrid method's pixels at the hybrid method's depths.
+#[test]
+fn the_sample_method_marches_parallel_rays_to_the_same_hits() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = two_level(dir.path(), Case::Sphere);
+    let [cx, cy, cz] = SPHERE_CENTRE;
+    let view = ortho([cx + 0.4, cy - 1.5, cz + 0.3], Some(0.9), (80, 60));
+    let frame = |method| {
+        let options = SceneOptions {
+            method,
+            ..SceneOptions::default()
+        };
+        let mut scene = Scene::open(&path, &options).unwrap();
+        scene.set_isosurfaces(&[IsoSpec::new(0.0)]).unwrap();
+        render(&scene, &view, &|_| ()).unwrap()
+    };
+    let (hybrid, sampled) = (frame(TraceMethod::Hybrid), frame(TraceMethod::Sample));
+    let (a, b) = (covered(&hybrid), covered(&sampled));
+    let n = a.iter().filter(|&&c| c).count();
+    let differ = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+    assert!(
+        n > 1000 && differ * 100 <= n,
+        "{differ} of {n} pixels differ"
+    );
+    for i in (0..a.len()).filter(|&i| a[i] && b[i]) {
+        let (p, q) = (hybrid.frame.z[i], sampled.frame.z[i]);
+        assert!((p - q).abs() < 1e-4, "pixel {i}: depth {p} against {q}");
+    }
 }
 
 /// With shadows, filtered ambient occlusion and several samples per pixel, an orthographic

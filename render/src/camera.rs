@@ -164,18 +164,27 @@ impl Camera {
         Ok(self)
     }
 
+    /// An orthographic camera's picture height, world units; `None` for a perspective camera.
+    pub fn projection_height(&self) -> Option<f64> {
+        match self.projection {
+            Projection::Orthographic { height } => Some(height),
+            Projection::Perspective => None,
+        }
+    }
+
     /// True for an orthographic camera.
     pub fn is_orthographic(&self) -> bool {
         matches!(self.projection, Projection::Orthographic { .. })
     }
 
     /// An orthographic camera that shows box `[lo, hi]` as this perspective camera, looking at
-    /// the box's centre, frames it: with the same margins (`tight`: the box's eight corners
-    /// fitted to the picture, as [`Camera::framing_from`] fits them; else the sphere around
-    /// the box, as [`Camera::framing`] fits it), from as far along the same direction as makes
-    /// its picture that tall ([`Camera::orthographic`] with no height) and every corner lie in
-    /// front of it. A box much deeper than it is wide seen end-on needs the camera farther
-    /// back than that: its picture is then looser. With `height`, the picture is that tall.
+    /// the box's centre, frames it: its picture as tall as holds the box with the same margins
+    /// (`tight`: the box's eight corners fitted to the picture, as [`Camera::framing_from`]
+    /// fits them; else the sphere around the box, as [`Camera::framing`] fits it), or `height`
+    /// tall when given. It stands along the same direction, as far as makes the perspective
+    /// picture at the box's centre that tall (so that a placement of it, made orthographic
+    /// without a height, is the same camera), and farther when the box needs it to lie wholly
+    /// in front of the camera's plane.
     pub fn orthographic_framing(
         &self,
         (lo, hi): ([f64; 3], [f64; 3]),
@@ -206,6 +215,8 @@ impl Camera {
         if pos.iter().any(|x| !x.is_finite()) {
             return Err(CameraError::Unframeable { lo, hi });
         }
+        // A box without extent (a point) keeps the height its distance gives.
+        let height = height.or((fitted > 0.0).then_some(fitted));
         Camera::new(pos, centre, self.up, self.fov_deg)?.orthographic(height)
     }
 
@@ -702,7 +713,7 @@ mod tests {
     }
 
     #[test]
-    fn an_orthographic_framing_holds_the_box_in_front_of_the_camera() {
+    fn an_orthographic_framing_fits_the_box_in_front_of_the_camera() {
         let boxes = [
             ([0.0; 3], [1.0; 3]),
             ([0.0; 3], [1.0, 1.0, 20.0]),
@@ -727,20 +738,31 @@ mod tests {
                             "{lo:?} {hi:?} {dir:?} {tight}: {q:?}"
                         );
                     }
-                    // The height follows from the distance, so that the placement alone
-                    // gives the same camera again.
-                    let again = Camera::new(o.pos, o.look_at, o.up, o.fov_deg)
-                        .unwrap()
-                        .orthographic(None)
+                    // The fit is exact: the corners reach the margin of 6 % on one axis.
+                    if tight {
+                        let reach = corners_in_picture(&o, lo, hi, w, h)
+                            .iter()
+                            .map(|q| (q[0] / 150.0 - 1.0).abs().max((q[1] / 100.0 - 1.0).abs()))
+                            .fold(0.0f64, f64::max);
+                        assert!(
+                            (reach - 0.88).abs() < 1e-9,
+                            "{lo:?} {hi:?} {dir:?}: {reach}"
+                        );
+                    }
+                    // A wide field of view frames as tightly: the camera's distance, which
+                    // keeps the box in front of it, does not set the height.
+                    let wide = Camera::framing_from(lo, hi, &from, 170.0, 1.5).unwrap();
+                    let wide = wide
+                        .orthographic_framing((lo, hi), 1.5, tight, None)
                         .unwrap();
-                    let (
-                        Projection::Orthographic { height: a },
-                        Projection::Orthographic { height: b },
-                    ) = (o.projection, again.projection)
-                    else {
-                        panic!()
+                    let height = |c: &Camera| match c.projection {
+                        Projection::Orthographic { height } => height,
+                        Projection::Perspective => panic!("not orthographic"),
                     };
-                    assert!((a - b).abs() <= 1e-9 * a, "{a} {b}");
+                    assert!((height(&wide) - height(&o)).abs() <= 1e-9 * height(&o));
+                    for q in corners_in_picture(&wide, lo, hi, w, h) {
+                        assert!((0.0..=300.0).contains(&q[0]) && (0.0..=200.0).contains(&q[1]));
+                    }
                 }
             }
         }

@@ -44,7 +44,8 @@ pub struct View {
     pub orthographic: bool,
     /// The orthographic picture's height, world units; `None`: as tall as the perspective
     /// picture is at the point looked at ([`Camera::orthographic`]), and for the automatic
-    /// camera, what frames the domain or the surfaces ([`Camera::orthographic_framing`]).
+    /// camera, what fits what it frames ([`Camera::orthographic_framing`];
+    /// [`View::keep_height_of`] keeps it for the frames placed from it).
     pub view_height: Option<f64>,
     /// Width and height in pixels.
     pub size: (u32, u32),
@@ -202,15 +203,27 @@ impl View {
         Ok(Frustum::of_camera(&self.camera(frame)?, self.size, frame))
     }
 
-    /// A camera placement that frames the world box `[lo, hi]` as the automatic camera frames
-    /// the domain: for a view of the surfaces rather than of the whole domain.
-    pub fn framing(&self, (lo, hi): ([f64; 3], [f64; 3])) -> Result<CameraPlacement> {
+    /// This view with its camera placed as the automatic camera frames the world box
+    /// `[lo, hi]` (for a view of the surfaces rather than of the whole domain).
+    pub fn framing(&self, (lo, hi): ([f64; 3], [f64; 3])) -> Result<View> {
         let c = self.auto_camera(lo, hi)?;
-        Ok(CameraPlacement {
+        let mut view = self.clone();
+        view.camera = Some(CameraPlacement {
             pos: c.pos,
             look_at: Some(c.look_at),
             up: Some(c.up),
-        })
+        });
+        view.keep_height_of(&c);
+        Ok(view)
+    }
+
+    /// An orthographic view without a height of its own takes `camera`'s (the automatic
+    /// camera's, which fits what it frames whatever the field of view), so that the frames of
+    /// an orbit or a series, placed from it, show the scale it framed. Nothing otherwise.
+    pub fn keep_height_of(&mut self, camera: &Camera) {
+        if self.orthographic && self.view_height.is_none() {
+            self.view_height = camera.projection_height();
+        }
     }
 
     /// The lighting of `isos` seen by `camera` in a domain with grid frame `frame`.

@@ -171,6 +171,29 @@ fn a_view_height_belongs_to_an_orthographic_view() {
             "{corner:?}"
         );
     }
+    // A wide field of view frames as tightly, and a view framing a box keeps the automatic
+    // camera's height for the frames placed from it.
+    let wide = View {
+        fov_deg: 170.0,
+        ..auto.clone()
+    };
+    let (lo, hi) = frame.world_bounds();
+    let framed = wide.framing((lo, hi)).unwrap();
+    for view in [&wide, &framed] {
+        let c = view.camera(&frame).unwrap();
+        let ys: Vec<f64> = [lo, hi]
+            .iter()
+            .map(|&p| c.image_point(p, 1024, 768).unwrap()[1])
+            .collect();
+        assert!(
+            (ys[0] - ys[1]).abs() > 0.5 * 768.0,
+            "{ys:?}: framed loosely"
+        );
+    }
+    assert_eq!(
+        framed.view_height,
+        wide.camera(&frame).unwrap().projection_height()
+    );
     let fixed = View {
         view_height: Some(0.25),
         ..auto.clone()

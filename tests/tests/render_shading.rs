@@ -23,15 +23,13 @@ fn clump(test: &str, dir: &std::path::Path) -> Option<Scene> {
 
 /// A frame of the clump, framed as `amr-render` frames surfaces.
 fn frame(scene: &Scene, shadows: bool) -> Rendered {
-    let mut view = View {
+    let view = View {
         size: (320, 240),
         shadows,
         ..View::default()
-    };
-    view.camera = Some(
-        view.framing(scene.surface_bounds().unwrap().unwrap())
-            .unwrap(),
-    );
+    }
+    .framing(scene.surface_bounds().unwrap().unwrap())
+    .unwrap();
     render(scene, &view, &|_| ()).unwrap()
 }
 

@@ -128,7 +128,9 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
         let in_view = match request.extract_in_view {
             true => {
                 if cameras.is_empty() {
-                    cameras = anim.cameras(&request.view.camera(&scene.grid_frame())?)?;
+                    let start = request.view.camera(&scene.grid_frame())?;
+                    base_view.keep_height_of(&start);
+                    cameras = anim.cameras(&start)?;
                 }
                 Some(View {
                     camera: Some(cameras[k as usize]),
@@ -149,7 +151,9 @@ pub fn render_all(request: &RenderRequest) -> anyhow::Result<()> {
                 true => request.view.clone(),
                 false => framed_view(&request.view, scene)?,
             };
-            cameras = anim.cameras(&view.camera(&scene.grid_frame())?)?;
+            let start = view.camera(&scene.grid_frame())?;
+            base_view.keep_height_of(&start);
+            cameras = anim.cameras(&start)?;
         }
         let view = View {
             camera: Some(cameras[k as usize]),
@@ -391,13 +395,12 @@ fn magnitude_bounds(ranges: &[(f64, f64)]) -> (f64, f64) {
 /// `view`, with a camera that frames the scene's isosurfaces when it has none and the frame has
 /// no slices (which span the domain).
 pub(crate) fn framed_view(view: &View, scene: &Scene) -> anyhow::Result<View> {
-    let mut view = view.clone();
     if view.camera.is_none() && scene.slices().is_empty() {
         if let Some(bounds) = scene.surface_bounds()? {
-            view.camera = Some(view.framing(bounds)?);
+            return Ok(view.framing(bounds)?);
         }
     }
-    Ok(view)
+    Ok(view.clone())
 }
 
 /// The one line that says what a single-frame render did.

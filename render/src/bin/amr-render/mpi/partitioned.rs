@@ -81,7 +81,7 @@ pub fn render_part(
     if frame_surfaces {
         if let Some((lo, hi)) = bounds.of_every_rank(world) {
             let world_box = (frame.to_world(lo), frame.to_world(hi));
-            view.camera = Some(view.framing(world_box)?);
+            *view = view.framing(world_box)?;
         }
     }
     let camera = view.camera(&frame)?;

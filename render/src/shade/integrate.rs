@@ -121,12 +121,12 @@ pub fn search_order(light: &Lighting, n: usize, first: usize) -> impl Iterator<I
         .chain((0..n).filter(move |&i| !opaque(i)))
 }
 
-/// Shades the world ray along `dir` (unit length) from its `layers`
-/// ([`crate::shade::layers`]) seen by a camera at `eye`, which the positions recorded for the
-/// ambient-occlusion filter are taken from; `frame` is the tracer's. The key light's shadow ray and the
-/// ambient-occlusion rays are traced here at the layers whose transmittance or occlusion is not
-/// given ([`Layer::shadow`], [`Layer::ao`]). With `ao_layers`, records the first
-/// [`FILTERED_HITS`] hits shaded with ambient occlusion there.
+/// Shades the world ray along `dir` (unit length) from its `layers` ([`crate::shade::layers`])
+/// seen by a camera at `eye`, which the positions recorded for the ambient-occlusion filter are
+/// taken from; `frame` is the tracer's. The key light's shadow ray and the ambient-occlusion
+/// rays are traced here at the layers whose transmittance or occlusion is not given
+/// ([`Layer::shadow`], [`Layer::ao`]). With `ao_layers`, records the first [`FILTERED_HITS`]
+/// hits shaded with ambient occlusion there.
 #[inline(always)]
 pub fn shade_hits<T: Tracer + ?Sized>(
     tracer: &T,
@@ -146,9 +146,9 @@ pub fn shade_hits<T: Tracer + ?Sized>(
     c.finish()
 }
 
-/// Shades the world ray along `dir` (unit length), seen by a camera at `eye`, whose one layer is `hit`, a hit
-/// of the opaque surface `i`, its shadow and AO rays (if any) traced here: what [`shade_hits`]
-/// gives for that layer, without building it.
+/// Shades the world ray along `dir` (unit length), seen by a camera at `eye`, whose one layer
+/// is `hit`, a hit of the opaque surface `i`, its shadow and AO rays (if any) traced here: what
+/// [`shade_hits`] gives for that layer, without building it.
 #[inline(always)]
 pub fn shade_hit_alone<T: Tracer + ?Sized>(
     tracer: &T,

@@ -588,8 +588,8 @@ fn hits_alone<T: Tracer + ?Sized>(tracer: &T, light: &Lighting, spp: u32) -> boo
 }
 
 /// Writes the pixels of a tile `tw` rays wide from column `col` of `out` (one per row of the
-/// tile) when [`hits_alone`]: each ray `k`'s hit in `tile`, seen along `dirs[k]` by a camera at `eye`,
-/// shaded as [`shade_hit_alone`] (a miss where it has none).
+/// tile) when [`hits_alone`]: each ray `k`'s hit in `tile`, seen along `dirs[k]` by a camera at
+/// `eye`, shaded as [`shade_hit_alone`] (a miss where it has none).
 #[inline(always)]
 fn shade_alone<T: Tracer + ?Sized>(
     tracer: &T,

@@ -28,14 +28,7 @@ impl Frustum {
         let forward = frame.to_grid_dir(camera.forward());
         let eye = frame.to_grid(camera.pos);
         let ahead = [0, 1, 2].map(|a| eye[a] + forward[a]);
-        let near = HalfSpace {
-            point: eye,
-            normal: forward,
-        };
-        let sides = std::array::from_fn(|k| {
-            if k == 4 {
-                return near;
-            }
+        let [left, top, right, bottom] = [0, 1, 2, 3].map(|k| {
             let ((s0, d0), (s1, d1)) = (corners[k], corners[(k + 1) % 4]);
             let n = cross(d0, [0, 1, 2].map(|a| s1[a] + d1[a] - s0[a]));
             let normal = if dot(n, [0, 1, 2].map(|a| ahead[a] - s0[a])) < 0.0 {
@@ -45,6 +38,11 @@ impl Frustum {
             };
             HalfSpace { point: s0, normal }
         });
+        let near = HalfSpace {
+            point: eye,
+            normal: forward,
+        };
+        let sides = [left, top, right, bottom, near];
         Frustum { sides }
     }
 }

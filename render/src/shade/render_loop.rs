@@ -642,12 +642,12 @@ fn filter_rows(
     }
     // The filter reads the rows' hits as one slice; they are handed back at the end.
     let ao: Vec<AoRow> = rows.iter_mut().map(|r| std::mem::take(&mut r.ao)).collect();
+    // A pixel's size at a unit's distance: the angle it spans, or its size at every depth.
+    let size = camera.pixel_size(1.0, settings.height) as f32;
     let span = match camera.projection {
-        Projection::Perspective => PixelSpan::Angle(
-            (2.0 * (0.5 * camera.fov_deg).to_radians().tan() / f64::from(settings.height)) as f32,
-        ),
+        Projection::Perspective => PixelSpan::Angle(size),
         Projection::Orthographic { .. } => PixelSpan::Parallel {
-            size: camera.pixel_size(1.0, settings.height) as f32,
+            size,
             forward: camera.forward().map(|v| v as f32),
         },
     };

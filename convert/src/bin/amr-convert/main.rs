@@ -48,9 +48,9 @@ struct Cli {
     /// speed='|x-velocity,y-velocity,z-velocity|'; an expression of fields, numbers, the
     /// operators + - * / ^ and sqrt, abs, ln, log10, exp, min, max, ...,
     /// temperature='pressure/density'; or an operator on gradients, grad(density), curl(u,v,w)
-    /// (the vorticity's length), div(u,v,w) or qcriterion(u,v,w). A field name with characters other than
-    /// letters, digits and _ goes in braces, {x-velocity}. Then --iso and --color-by take it
-    /// like any field.
+    /// (the vorticity's length), div(u,v,w) or qcriterion(u,v,w). A field name with characters
+    /// other than letters, digits and _ goes in braces, {x-velocity}. Then --iso and --color-by
+    /// take it like any field.
     #[arg(long = "derive", value_name = "NAME=FORMULA")]
     derived: Vec<DerivedField>,
     /// Largest brick size in cells per axis; larger input boxes are split [default: 32].

@@ -171,7 +171,7 @@ pub struct RenderArgs {
     /// The colour PNG pictures show where no surface is (a CSS name, #rrggbb, rgb(r,g,b)):
     /// `--background white` for a figure on a page; lines and labels turn dark on a light one
     /// [default: the neutral grey]
-    #[arg(long, value_name = "COLOR", value_parser = parse_background)]
+    #[arg(long, value_name = "COLOR")]
     pub background: Option<Background>,
     /// Reconstruction method: octant, current or nearest.
     #[arg(long, default_value_t = Reconstruction::Octant)]
@@ -673,10 +673,6 @@ fn parse_keyframe(s: &str) -> Result<CameraKey, String> {
 
 /// Parses `--view-from`: an axis, `+x`, `x` (the same), `-x`, ..., or a vector `X,Y,Z` that is
 /// not zero.
-fn parse_background(s: &str) -> Result<Background, String> {
-    s.parse()
-}
-
 fn parse_view_from(s: &str) -> Result<[f64; 3], String> {
     let axis = s.trim().to_ascii_lowercase();
     let (sign, name) = match axis.strip_prefix('-') {
